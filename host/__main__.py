@@ -1,0 +1,52 @@
+"""``python -m host COMMAND ...``: the thin command line.
+
+Each command lives in the module of its stage; this file only maps command names to
+``module:function`` pairs. The function is called with the subparser to fill in and
+returns the callable that runs the command (``run(args) -> int``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Callable
+
+from host.errors import UserError
+
+#: command -> (module, function adding the arguments and returning the runner, one-line help)
+COMMANDS: dict[str, tuple[str, str, str]] = {
+    "decode": ("host.frames", "cli_decode", "decode a capture file to JSONL/CSV samples"),
+}
+
+
+def build_parser() -> tuple[argparse.ArgumentParser, dict[str, Callable[[argparse.Namespace], int]]]:
+    parser = argparse.ArgumentParser(
+        prog="python -m host", description="IMU calibration bench host (APM 2.6 / MPU-6000)."
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    runners: dict[str, Callable[[argparse.Namespace], int]] = {}
+    for name, (module, func, help_text) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        runners[name] = getattr(importlib.import_module(module), func)(p)
+    return parser, runners
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser, runners = build_parser()
+    args = parser.parse_args(argv)
+    if not args.command:
+        parser.print_help()
+        return 2
+    try:
+        return runners[args.command](args)
+    except (UserError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
