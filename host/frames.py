@@ -1,0 +1,663 @@
+"""Frames: encode and decode the wire format of ``protocol/spec.json``.
+
+Three layers, as in pyubx2:
+
+1. **Definitions as data**: :data:`MESSAGES` is built from the generated table
+   ``host/protocol_gen.py`` (never edited by hand).
+2. **An immutable frame object**: :class:`Frame` (type, seq, payload; fields decoded on demand).
+3. **A reader that only syncs, checks and yields**: :class:`StreamDecoder` takes bytes in chunks
+   of any size and returns the frames completed by them; :class:`FrameReader` wraps anything
+   with ``read(n)`` and yields ``(raw_bytes, frame)``.
+
+A bulk path, :func:`decode_bulk`, decodes a whole capture with numpy and gives exactly the frames
+and counters the streaming path gives for the same bytes followed by :meth:`StreamDecoder.flush`.
+
+Resynchronisation rule (both paths): candidates are the positions of the sync bytes, examined
+in order. A candidate whose length byte is impossible for its type, or whose CRC fails, is
+rejected and the search restarts at the *next byte* after its first sync byte; a valid frame is
+consumed whole, so sync bytes inside it are never examined.
+"""
+
+from __future__ import annotations
+
+import argparse
+import binascii
+import csv
+import json
+import struct
+import sys
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Protocol
+
+import numpy as np
+
+from host import protocol_gen as gen
+from host import sensor
+from host.errors import UserError
+
+SYNC = gen.SYNC
+HEADER_LEN = 6
+CRC_LEN = 2
+OVERHEAD = HEADER_LEN + CRC_LEN
+MAX_PAYLOAD = gen.MAX_PAYLOAD
+IMU_SAMPLE = 0x01
+IMU_FIELDS = ("ax", "ay", "az", "temp", "gx", "gy", "gz")
+
+
+@dataclass(frozen=True)
+class FieldDef:
+    """One payload field: name, type code from the spec, offset in the payload, unit."""
+
+    name: str
+    code: str
+    offset: int
+    unit: str
+
+
+@dataclass(frozen=True)
+class MessageDef:
+    """One message type of the spec, with a compiled codec for its payload."""
+
+    type: int
+    name: str
+    direction: str
+    length: int
+    fields: tuple[FieldDef, ...]
+
+    @property
+    def dtype(self) -> np.dtype:
+        """numpy dtype of the payload (mixed byte orders exactly as on the wire)."""
+        return np.dtype([(f.name, gen.FIELD_TYPES[f.code][1]) for f in self.fields])
+
+    def unpack(self, payload: bytes) -> dict[str, int]:
+        """Payload bytes -> {field: int}."""
+        return {f.name: _unpack_field(f.code, payload, f.offset) for f in self.fields}
+
+    def pack(self, values: Mapping[str, int]) -> bytes:
+        """{field: int} -> payload bytes; every field must be given."""
+        missing = [f.name for f in self.fields if f.name not in values]
+        extra = sorted(set(values) - {f.name for f in self.fields})
+        if missing or extra:
+            raise ValueError(f"{self.name}: missing fields {missing}, unknown fields {extra}")
+        return b"".join(_STRUCTS[f.code].pack(int(values[f.name])) for f in self.fields)
+
+
+_STRUCTS = {
+    "u8": struct.Struct("<B"),
+    "i8": struct.Struct("<b"),
+    "u16le": struct.Struct("<H"),
+    "i16le": struct.Struct("<h"),
+    "u16be": struct.Struct(">H"),
+    "i16be": struct.Struct(">h"),
+    "u32le": struct.Struct("<I"),
+    "i32le": struct.Struct("<i"),
+    "i32be": struct.Struct(">i"),
+}
+
+
+def _unpack_field(code: str, payload: bytes, offset: int) -> int:
+    return int(_STRUCTS[code].unpack_from(payload, offset)[0])
+
+
+def _build_messages() -> dict[int, MessageDef]:
+    out: dict[int, MessageDef] = {}
+    for mtype, (name, direction, length, fields) in gen.MESSAGES.items():
+        defs, off = [], 0
+        for fname, code, unit in fields:
+            defs.append(FieldDef(fname, code, off, unit))
+            off += gen.FIELD_TYPES[code][0]
+        out[mtype] = MessageDef(mtype, name, direction, length, tuple(defs))
+    return out
+
+
+#: type -> definition, from the generated table
+MESSAGES: Mapping[int, MessageDef] = MappingProxyType(_build_messages())
+#: name -> definition
+BY_NAME: Mapping[str, MessageDef] = MappingProxyType({m.name: m for m in MESSAGES.values()})
+#: type -> expected payload length (a lookup table over all 256 types; -1 = unknown type)
+_EXPECTED_LEN = np.full(256, -1, dtype=np.int16)
+for _m in MESSAGES.values():
+    _EXPECTED_LEN[_m.type] = _m.length
+
+
+def crc16(data: bytes | bytearray | memoryview) -> int:
+    """CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF) as the envelope uses it."""
+    return binascii.crc_hqx(data, gen.CRC_INIT)
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    """One checked frame: type, sequence number and payload bytes."""
+
+    type: int
+    seq: int
+    payload: bytes
+
+    @property
+    def name(self) -> str:
+        """Message name from the spec, or ``UNKNOWN_0xNN``."""
+        m = MESSAGES.get(self.type)
+        return m.name if m else f"UNKNOWN_0x{self.type:02X}"
+
+    @property
+    def known(self) -> bool:
+        return self.type in MESSAGES
+
+    @property
+    def fields(self) -> dict[str, int]:
+        """Decoded payload fields (empty for unknown types)."""
+        m = MESSAGES.get(self.type)
+        return m.unpack(self.payload) if m else {}
+
+    def to_bytes(self) -> bytes:
+        """The frame as it travels on the wire."""
+        return _envelope(self.type, self.seq, self.payload)
+
+
+def _envelope(mtype: int, seq: int, payload: bytes) -> bytes:
+    body = struct.pack("<BBH", mtype, len(payload), seq & 0xFFFF) + payload
+    return SYNC + body + struct.pack("<H", crc16(body))
+
+
+def encode_frame(msg: str | int, seq: int, **fields: int) -> bytes:
+    """Encode one frame of message ``msg`` (name or type) with sequence number ``seq``."""
+    m = BY_NAME[msg] if isinstance(msg, str) else MESSAGES[msg]
+    return _envelope(m.type, seq, m.pack(fields))
+
+
+def encode_imu_samples(
+    seq0: int, t_us: np.ndarray, counts: np.ndarray, flags: np.ndarray | int = 0
+) -> bytes:
+    """Encode N IMU_SAMPLE frames at once (vectorised; for simulators and tests).
+
+    ``t_us`` (N,) device microseconds (taken mod 2^32), ``counts`` (N, 7) int16 in the order
+    ax, ay, az, temp, gx, gy, gz, ``flags`` (N,) or a scalar. Sequence numbers run from ``seq0``.
+    """
+    t = np.asarray(t_us).astype(np.int64) & 0xFFFFFFFF
+    n = t.shape[0]
+    c = np.asarray(counts, dtype=np.int16).reshape(n, 7)
+    rec = np.zeros(n, dtype=_WIRE_IMU)
+    rec["sync"] = tuple(SYNC)
+    rec["type"] = IMU_SAMPLE
+    rec["len"] = MESSAGES[IMU_SAMPLE].length
+    rec["seq"] = (seq0 + np.arange(n)) & 0xFFFF
+    rec["t_us"] = t
+    for i, name in enumerate(IMU_FIELDS):
+        rec[name] = c[:, i]
+    rec["flags"] = flags
+    raw = rec.view(np.uint8).reshape(n, _IMU_FRAME_LEN)
+    rec["crc"] = _crc_rows(raw[:, 2 : 2 + 4 + MESSAGES[IMU_SAMPLE].length])
+    return rec.tobytes()
+
+
+# --------------------------------------------------------------------------- stats
+
+
+@dataclass
+class DecoderStats:
+    """Counters of what the decoder saw; names match ``decode --stats``."""
+
+    frames: int = 0
+    crc_errors: int = 0
+    bytes_discarded: int = 0
+    unknown_types: int = 0
+    lost_frames: int = 0
+    resets: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        return dict(self.__dict__)
+
+
+class _SeqTracker:
+    """Sequence gaps and device resets over the frames the device emits, in order.
+
+    A reset is a sequence number or an IMU sample time going backwards (modulo its wrap);
+    the gap across a reset is not counted as lost frames.
+    """
+
+    def __init__(self, stats: DecoderStats) -> None:
+        self.stats = stats
+        self.last_seq: int | None = None
+        self.last_t: int | None = None
+
+    def update(self, mtype: int, seq: int, payload: bytes) -> bool:
+        """Account for one frame; return True if it starts a new device segment."""
+        reset = False
+        gap = 0
+        if self.last_seq is not None:
+            d = (seq - self.last_seq) & 0xFFFF
+            if d >= 0x8000 or d == 0:
+                reset = True
+                self.last_t = None
+            else:
+                gap = d - 1
+        if mtype == IMU_SAMPLE:
+            t = int.from_bytes(payload[0:4], "little")
+            if self.last_t is not None and ((t - self.last_t) & 0xFFFFFFFF) >= 0x80000000:
+                reset = True
+            self.last_t = t
+        if reset:
+            self.stats.resets += 1
+        else:
+            self.stats.lost_frames += gap
+        self.last_seq = seq
+        return reset
+
+
+# --------------------------------------------------------------------------- streaming
+
+
+class StreamDecoder:
+    """Incremental decoder: feed bytes in chunks of any size, get the frames they complete.
+
+    Never raises on any input. Output and counters do not depend on the chunking.
+    """
+
+    def __init__(self) -> None:
+        self._buf = bytearray()
+        self.stats = DecoderStats()
+        self._seq = _SeqTracker(self.stats)
+
+    @property
+    def pending(self) -> int:
+        """Bytes held back waiting for the rest of a possible frame."""
+        return len(self._buf)
+
+    def feed(self, chunk: bytes | bytearray | memoryview) -> list[Frame]:
+        """Add bytes; return the frames they complete, in order."""
+        return [f for _, f in self.feed_raw(chunk)]
+
+    def feed_raw(self, chunk: bytes | bytearray | memoryview) -> list[tuple[bytes, Frame]]:
+        """Like :meth:`feed`, with each frame's raw bytes."""
+        self._buf += chunk
+        return self._scan(final=False)
+
+    def flush(self) -> list[tuple[bytes, Frame]]:
+        """End of input: what is held back can never complete; resync through it."""
+        out = self._scan(final=True)
+        self.stats.bytes_discarded += len(self._buf)
+        self._buf.clear()
+        return out
+
+    def _scan(self, final: bool) -> list[tuple[bytes, Frame]]:
+        buf = self._buf
+        n = len(buf)
+        out: list[tuple[bytes, Frame]] = []
+        pos = 0  # everything before pos is consumed (frames or discarded bytes)
+        search = 0
+        stats = self.stats
+        while True:
+            p = buf.find(SYNC, search)
+            if p < 0:
+                # keep a trailing first sync byte: it may start a frame
+                keep_from = n - 1 if n > pos and buf[n - 1] == SYNC[0] and not final else n
+                stats.bytes_discarded += keep_from - pos
+                pos = keep_from
+                break
+            if p + HEADER_LEN > n:
+                if final:
+                    search = p + 1
+                    continue
+                stats.bytes_discarded += p - pos
+                pos = p
+                break
+            mtype = buf[p + 2]
+            length = buf[p + 3]
+            expected = _EXPECTED_LEN[mtype]
+            if length > MAX_PAYLOAD or (expected >= 0 and length != expected):
+                search = p + 1
+                continue
+            end = p + HEADER_LEN + length + CRC_LEN
+            if end > n:
+                if final:
+                    search = p + 1
+                    continue
+                stats.bytes_discarded += p - pos
+                pos = p
+                break
+            if binascii.crc_hqx(buf[p + 2 : end - 2], 0xFFFF) != buf[end - 2] | (buf[end - 1] << 8):
+                stats.crc_errors += 1
+                search = p + 1
+                continue
+            stats.bytes_discarded += p - pos
+            raw = bytes(buf[p:end])
+            seq = raw[4] | (raw[5] << 8)
+            payload = raw[HEADER_LEN:-CRC_LEN]
+            stats.frames += 1
+            if expected < 0:
+                stats.unknown_types += 1
+            self._seq.update(mtype, seq, payload)
+            out.append((raw, Frame(mtype, seq, payload)))
+            pos = search = end
+        del buf[:pos]
+        return out
+
+
+class Readable(Protocol):
+    def read(self, n: int = ..., /) -> bytes: ...
+
+
+class FrameReader:
+    """Yield ``(raw_bytes, frame)`` from anything with ``read(n)`` (a port, a file, a socket).
+
+    Stops at end of input (``read`` returning ``b""``); for a live port with a timeout, an
+    empty read just means no data yet, so pass ``stop_on_empty=False`` and break yourself.
+    """
+
+    def __init__(self, stream: Readable, chunk: int = 4096, stop_on_empty: bool = True) -> None:
+        self.stream = stream
+        self.chunk = chunk
+        self.stop_on_empty = stop_on_empty
+        self.decoder = StreamDecoder()
+
+    @property
+    def stats(self) -> DecoderStats:
+        return self.decoder.stats
+
+    def __iter__(self) -> Iterator[tuple[bytes, Frame]]:
+        while True:
+            data = self.stream.read(self.chunk)
+            if not data:
+                if self.stop_on_empty:
+                    yield from self.decoder.flush()
+                    return
+                continue
+            yield from self.decoder.feed_raw(data)
+
+
+# --------------------------------------------------------------------------- bulk (numpy)
+
+_IMU_LEN = MESSAGES[IMU_SAMPLE].length
+_IMU_FRAME_LEN = _IMU_LEN + OVERHEAD
+_WIRE_IMU_FIELDS = (
+    [("sync", "u1", (2,)), ("type", "u1"), ("len", "u1"), ("seq", "<u2")]
+    + [(f.name, gen.FIELD_TYPES[f.code][1]) for f in MESSAGES[IMU_SAMPLE].fields]
+    + [("crc", "<u2")]
+)
+_WIRE_IMU = np.dtype(_WIRE_IMU_FIELDS)
+assert _WIRE_IMU.itemsize == _IMU_FRAME_LEN
+#: the same with one pad byte, so that rows have an even width (16-bit word views)
+_WIRE_IMU_PADDED = np.dtype([*_WIRE_IMU_FIELDS, ("pad", "u1")])
+
+#: the decoded samples array: wire values, native byte order, plus the frame's index in the stream
+SAMPLE_DTYPE = np.dtype(
+    [("seq", "u2"), ("t_us", "u4")]
+    + [(n, "i2") for n in IMU_FIELDS]
+    + [("flags", "u1"), ("offset", "i8"), ("segment", "i4")]
+)
+
+
+def _crc_byte_table() -> np.ndarray:
+    t = np.zeros(256, dtype=np.uint16)
+    for b in range(256):
+        c = b << 8
+        for _ in range(8):
+            c = ((c << 1) ^ gen.CRC_POLY) if c & 0x8000 else (c << 1)
+        t[b] = c & 0xFFFF
+    return t
+
+
+_CRC_TABLE = _crc_byte_table()
+
+
+def _crc_rows(rows: np.ndarray) -> np.ndarray:
+    """CRC-16/CCITT-FALSE of each row of a (M, K) uint8 array (vectorised over rows)."""
+    crc = np.full(rows.shape[0], gen.CRC_INIT, dtype=np.uint16)
+    for k in range(rows.shape[1]):
+        crc = (crc << 8) ^ _CRC_TABLE[(crc >> 8) ^ rows[:, k]]
+    return crc
+
+
+class _PairCRC:
+    """CRC of fixed-length messages from 16-bit words: one table lookup per two bytes.
+
+    The CRC is affine over GF(2): crc(m) = crc(0…0) ⊕ ⊕_k T_k[word_k], where T_k is the CRC
+    (init 0) of word k followed by zeros. K bytes -> K/2 lookups of 65536-entry tables.
+    """
+
+    def __init__(self, nbytes: int) -> None:
+        self.nbytes = nbytes
+        self.npairs = nbytes // 2
+        single = np.zeros((nbytes, 256), dtype=np.uint16)
+        for i in range(nbytes):
+            c = _CRC_TABLE[np.arange(256)]  # register after byte i, starting from 0
+            for _ in range(nbytes - 1 - i):  # followed by zero bytes
+                c = (c << 8) ^ _CRC_TABLE[c >> 8]
+            single[i] = c
+        self.pairs = [
+            (single[2 * k][:, None] ^ single[2 * k + 1][None, :]).reshape(-1)
+            for k in range(self.npairs)
+        ]
+        self.last = single[nbytes - 1] if nbytes % 2 else None
+        self.zero = int(_crc_rows(np.zeros((1, nbytes), dtype=np.uint8))[0])
+
+    def rows(self, rows: np.ndarray, start: int) -> np.ndarray:
+        """CRCs of ``rows[:, start : start + nbytes]``; rows (M, W) uint8 C-contiguous, W even,
+        ``start`` even."""
+        words = rows.view(">u2")
+        crc = np.full(rows.shape[0], self.zero, dtype=np.uint16)
+        for k in range(self.npairs):
+            crc ^= self.pairs[k][words[:, start // 2 + k]]
+        if self.last is not None:
+            crc ^= self.last[rows[:, start + self.nbytes - 1]]
+        return crc
+
+
+_IMU_CRC = _PairCRC(4 + _IMU_LEN)
+
+
+def _windows(buf: np.ndarray, width: int) -> np.ndarray:
+    """Read-only (n - width + 1, width) view: row i is buf[i : i + width] (no copy)."""
+    return np.lib.stride_tricks.sliding_window_view(buf, width)
+
+
+@dataclass
+class BulkResult:
+    """What :func:`decode_bulk` found: IMU samples as an array, other frames as objects."""
+
+    samples: np.ndarray  # SAMPLE_DTYPE
+    others: list[tuple[int, Frame]]  # (byte offset, frame) for non-IMU frames
+    stats: DecoderStats = field(default_factory=DecoderStats)
+
+
+def decode_bulk(data: bytes | bytearray | memoryview) -> BulkResult:
+    """Decode a whole capture at once; same frames and counters as streaming + flush."""
+    buf = np.frombuffer(data, dtype=np.uint8)
+    n = buf.size
+    stats = DecoderStats()
+    if n < 2:
+        stats.bytes_discarded = n
+        return BulkResult(np.zeros(0, SAMPLE_DTYPE), [], stats)
+    cand = np.flatnonzero((buf[:-1] == SYNC[0]) & (buf[1:] == SYNC[1]))
+    cand = cand[cand + HEADER_LEN <= n]
+    mtype = buf[cand + 2]
+    length = buf[cand + 3].astype(np.int64)
+    expected = _EXPECTED_LEN[mtype]
+    ok_len = (length <= MAX_PAYLOAD) & ((expected < 0) | (length == expected))
+    end = cand + HEADER_LEN + length + CRC_LEN
+    ok = ok_len & (end <= n)
+    cand, mtype, length, end = cand[ok], mtype[ok], length[ok], end[ok]
+    crc_ok = np.zeros(cand.size, dtype=bool)
+    stored = buf[np.minimum(end - 2, n - 1)].astype(np.uint16) | (
+        buf[np.minimum(end - 1, n - 1)].astype(np.uint16) << 8
+    )
+    # IMU samples, the bulk of any capture: copy each candidate's bytes (plus one pad byte, so
+    # rows have an even width) and check all CRCs from 16-bit words
+    is_imu = (mtype == IMU_SAMPLE) & (length == _IMU_LEN)
+    imu_cand = np.flatnonzero(is_imu)
+    imu_rows = np.zeros((0, _IMU_FRAME_LEN + 1), dtype=np.uint8)
+    if imu_cand.size:
+        padded = np.zeros(n + 1, dtype=np.uint8)
+        padded[:n] = buf
+        imu_rows = _windows(padded, _IMU_FRAME_LEN + 1)[cand[imu_cand]]
+    crc_ok[imu_cand] = _IMU_CRC.rows(imu_rows, 2) == stored[imu_cand]
+    other_cand = np.flatnonzero(~is_imu)
+    for ln in np.unique(length[other_cand]):
+        idx = other_cand[length[other_cand] == ln]
+        rows = _windows(buf, 4 + int(ln))[cand[idx] + 2]
+        crc_ok[idx] = _crc_rows(rows) == stored[idx]
+
+    # choose the frames the sequential scan would consume: a valid frame is taken unless it
+    # starts inside one already taken (rare overlaps are resolved greedily, in order)
+    vs, ve = cand[crc_ok], end[crc_ok]
+    take = np.ones(vs.size, dtype=bool)
+    if vs.size > 1:
+        prev_max_end = np.maximum.accumulate(ve)[:-1]
+        conflict = np.flatnonzero(vs[1:] < prev_max_end) + 1
+        if conflict.size:
+            last_end = 0
+            for i in range(vs.size):  # rare: only when a valid frame sits inside another
+                if vs[i] < last_end:
+                    take[i] = False
+                else:
+                    last_end = int(ve[i])
+    taken = np.flatnonzero(crc_ok)
+    if not take.all():
+        vs, ve, taken = vs[take], ve[take], taken[take]
+    vtype = mtype[taken]
+    # CRC failures are counted only for candidates the scan examines (not inside a taken frame)
+    bad = cand[~crc_ok]
+    if bad.size and not vs.size:
+        stats.crc_errors = int(bad.size)
+    elif bad.size:
+        k = np.searchsorted(vs, bad, side="right") - 1
+        inside = (k >= 0) & (bad < np.where(k >= 0, ve[np.maximum(k, 0)], 0))
+        stats.crc_errors = int(np.count_nonzero(~inside))
+    stats.frames = int(vs.size)
+    stats.unknown_types = int(np.count_nonzero(_EXPECTED_LEN[vtype] < 0))
+    stats.bytes_discarded = int(n - np.sum(ve - vs))
+
+    seq = (buf[vs + 4].astype(np.int64) | (buf[vs + 5].astype(np.int64) << 8)).astype(np.int64)
+    imu_idx = np.flatnonzero(vtype == IMU_SAMPLE)
+    taken_mask = np.zeros(cand.size, dtype=bool)
+    taken_mask[taken] = True
+    imu_taken = taken_mask[imu_cand]
+    wire = (imu_rows if imu_taken.all() else imu_rows[imu_taken]).view(_WIRE_IMU_PADDED)[:, 0]
+    reset, gaps = _segments(seq, imu_idx, wire["t_us"].astype(np.int64))
+    stats.resets = int(np.count_nonzero(reset))
+    stats.lost_frames = int(np.sum(gaps[~reset]))
+    segment = np.cumsum(reset)
+    samples = np.zeros(imu_idx.size, dtype=SAMPLE_DTYPE)
+    for name in ("seq", "t_us", *IMU_FIELDS, "flags"):
+        samples[name] = wire[name]
+    samples["offset"] = vs[imu_idx]
+    samples["segment"] = segment[imu_idx]
+    others = [
+        (int(vs[i]), Frame(int(vtype[i]), int(seq[i]), bytes(buf[vs[i] + HEADER_LEN : ve[i] - 2])))
+        for i in np.flatnonzero(vtype != IMU_SAMPLE)
+    ]
+    return BulkResult(samples, others, stats)
+
+
+def _segments(
+    seq: np.ndarray, imu_idx: np.ndarray, t_us: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame: does it start a new device segment (reset), and how many frames were lost."""
+    m = seq.size
+    reset = np.zeros(m, dtype=bool)
+    gaps = np.zeros(m, dtype=np.int64)
+    if m == 0:
+        return reset, gaps
+    d = (seq[1:] - seq[:-1]) & 0xFFFF
+    seq_back = np.zeros(m, dtype=bool)
+    seq_back[1:] = (d >= 0x8000) | (d == 0)
+    gaps[1:] = np.where(seq_back[1:], 0, d - 1)
+    reset |= seq_back
+    if imu_idx.size > 1:
+        # an IMU sample's time going back, compared with the previous IMU sample of the same
+        # sequence segment (a seq reset forgets the previous time, as the streaming path does)
+        segs = np.cumsum(seq_back)
+        same = segs[imu_idx[1:]] == segs[imu_idx[:-1]]
+        t_back = ((t_us[1:] - t_us[:-1]) & 0xFFFFFFFF) >= 0x80000000
+        reset[imu_idx[1:][same & t_back]] = True
+    return reset, gaps
+
+
+# --------------------------------------------------------------------------- physical units
+
+
+def samples_to_physical(samples: np.ndarray, afs_sel: int = 0, fs_sel: int = 0) -> dict:
+    """Raw sample counts -> physical units: ax..az m/s², gx..gz °/s, temp °C (arrays)."""
+    out: dict[str, np.ndarray] = {}
+    for a in ("ax", "ay", "az"):
+        out[a] = sensor.accel_mps2(samples[a], afs_sel)
+    for g in ("gx", "gy", "gz"):
+        out[g] = sensor.gyro_dps(samples[g], fs_sel)
+    out["temp"] = sensor.temp_c(samples["temp"])
+    return out
+
+
+# --------------------------------------------------------------------------- CLI: decode
+
+
+def _config_from(others: list[tuple[int, Frame]]) -> tuple[int, int]:
+    """Full-scale selections from the first HELLO frame, or the defaults (±2 g, ±250 °/s)."""
+    for _, f in others:
+        if f.name == "HELLO":
+            fields = f.fields
+            return fields["accel_fs_sel"], fields["gyro_fs_sel"]
+    return 0, 0
+
+
+def decode_file(path: Path) -> tuple[BulkResult, np.ndarray | None]:
+    """Decode a raw capture or an IMUCAP01 capture; second value: each sample's arrival ns."""
+    from host import capture
+
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such file; give the path of a capture") from None
+    arrivals = None
+    if raw.startswith(capture.MAGIC):
+        cap = capture.parse(raw, source=str(path))
+        result = decode_bulk(cap.data)
+        arrivals = cap.arrival_ns_at(result.samples["offset"] + _IMU_FRAME_LEN - 1)
+    else:
+        result = decode_bulk(raw)
+    return result, arrivals
+
+
+def cli_decode(p: argparse.ArgumentParser) -> Any:
+    p.add_argument(
+        "file", type=Path, help="raw byte capture or IMUCAP01 capture with arrival times"
+    )
+    fmt = p.add_mutually_exclusive_group()
+    fmt.add_argument("--jsonl", action="store_true", help="one JSON object per sample (default)")
+    fmt.add_argument("--csv", action="store_true", help="CSV with a header row")
+    p.add_argument("--stats", action="store_true", help="print only the decoder counters (JSON)")
+    return run_decode
+
+
+_OUT_COLUMNS = ["seq", "t_us", "flags"] + [f"{n}_raw" for n in IMU_FIELDS]
+_PHYS = ["ax", "ay", "az", "gx", "gy", "gz", "temp"]
+_DIGITS = {"ax": 5, "ay": 5, "az": 5, "gx": 4, "gy": 4, "gz": 4, "temp": 3}
+
+
+def run_decode(args: argparse.Namespace) -> int:
+    result, arrivals = decode_file(args.file)
+    if args.stats:
+        print(json.dumps(result.stats.as_dict()))
+        return 0
+    s = result.samples
+    phys = samples_to_physical(s, *_config_from(result.others))
+    cols = _OUT_COLUMNS + _PHYS + (["t_host_ns"] if arrivals is not None else [])
+    raw_cols = [s["seq"], s["t_us"], s["flags"]] + [s[n] for n in IMU_FIELDS]
+    phys_cols = [np.round(phys[k], _DIGITS[k]) for k in _PHYS]
+    table = [c.tolist() for c in raw_cols + phys_cols]
+    if arrivals is not None:
+        table.append(arrivals.tolist())
+    out = sys.stdout
+    try:
+        if args.csv:
+            w = csv.writer(out, lineterminator="\n")
+            w.writerow(cols)
+            w.writerows(zip(*table, strict=True))
+        else:
+            for row in zip(*table, strict=True):
+                out.write(json.dumps(dict(zip(cols, row, strict=True))) + "\n")
+    except BrokenPipeError:  # e.g. piped into head
+        sys.stderr.close()
+    return 0
