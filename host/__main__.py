@@ -16,7 +16,9 @@ from host.errors import UserError
 
 #: command -> (module, function adding the arguments and returning the runner, one-line help)
 COMMANDS: dict[str, tuple[str, str, str]] = {
+    "calibrate": ("host.calibrate_cli", "cli_calibrate", "compute calibration, write the report"),
     "decode": ("host.frames", "cli_decode", "decode a capture file to JSONL/CSV samples"),
+    "capture": ("host.link", "cli_capture", "record a port's bytes with host times to a file"),
 }
 
 

@@ -1,0 +1,178 @@
+"""Link: open a port by name or URL, read it with host timestamps, decode, send commands.
+
+Ports are anything pyserial opens — ``/dev/ttyACM0``, ``COM3`` — plus this project's URL schemes,
+one module per scheme in ``host/transports/`` (``sim://`` the virtual board, ``emu://`` the
+emulated board running the real firmware, ``replay://`` a capture played back).
+
+Every read is stamped with the host's monotonic clock right after ``read()`` returns and can be
+appended to an IMUCAP01 capture (``host/capture.py``), so that a session can be decoded again
+and its device-to-host time mapping recomputed offline.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import serial
+
+from host import frames
+from host.capture import CaptureWriter
+from host.errors import UserError
+
+TRANSPORTS_PACKAGE = "host.transports"
+DEFAULT_BAUD = 115200
+
+
+def register_transports() -> None:
+    """Make pyserial find ``host/transports/protocol_<scheme>.py`` for ``<scheme>://`` URLs."""
+    if TRANSPORTS_PACKAGE not in serial.protocol_handler_packages:
+        serial.protocol_handler_packages.append(TRANSPORTS_PACKAGE)
+
+
+class LinkLost(UserError):
+    """The port vanished (cable pulled, board reset into nothing, emulator killed)."""
+
+
+class LinkTimeout(UserError):
+    """The board stopped sending."""
+
+
+def open_port(url: str, baud: int = DEFAULT_BAUD, timeout_s: float = 0.05) -> serial.SerialBase:
+    """Open a serial device or URL; raise UserError with what to do if it cannot be opened."""
+    register_transports()
+    try:
+        return serial.serial_for_url(url, baudrate=baud, timeout=timeout_s)
+    except ValueError as exc:  # unknown URL scheme or bad parameters
+        raise UserError(
+            f"cannot open {url!r}: {exc}; use a serial device (e.g. /dev/ttyACM0), sim:// "
+            "(virtual board) or emu:// (emulated board)"
+        ) from None
+    except (serial.SerialException, OSError) as exc:
+        raise UserError(
+            f"cannot open {url!r}: {exc}; check the USB cable and the port name "
+            "(python -m serial.tools.list_ports lists them), or use sim:// to try without a board"
+        ) from None
+
+
+class Link:
+    """A port being read: timestamped chunks in, decoded frames out, commands back.
+
+    ``frames()`` yields ``(arrival_ns, frame)`` where arrival_ns is the host monotonic time of
+    the read that completed the frame. A vanished port raises :class:`LinkLost`; no data for
+    ``stall_s`` seconds raises :class:`LinkTimeout`.
+    """
+
+    def __init__(
+        self,
+        port: serial.SerialBase,
+        capture: str | Path | None = None,
+        stall_s: float = 2.0,
+    ) -> None:
+        self.port = port
+        self.decoder = frames.StreamDecoder()
+        self.capture = CaptureWriter(capture) if capture else None
+        self.stall_s = stall_s
+        self._tx_seq = 0
+        self._last_rx = time.monotonic()
+
+    @classmethod
+    def open(cls, url: str, baud: int = DEFAULT_BAUD, **kw: Any) -> Link:
+        return cls(open_port(url, baud), **kw)
+
+    @property
+    def stats(self) -> frames.DecoderStats:
+        return self.decoder.stats
+
+    def read_chunk(self) -> tuple[int, bytes]:
+        """One read: (host monotonic ns right after it returned, the bytes; maybe empty)."""
+        try:
+            data = self.port.read(self.port.in_waiting or 1)
+        except (serial.SerialException, OSError) as exc:
+            raise LinkLost(
+                f"the board disconnected ({exc}); reconnect it — accepted records are kept"
+            ) from None
+        t_ns = time.monotonic_ns()
+        if data:
+            self._last_rx = time.monotonic()
+            if self.capture:
+                self.capture.write(t_ns, data)
+        elif time.monotonic() - self._last_rx > self.stall_s:
+            raise LinkTimeout(
+                f"no data from the board for {self.stall_s:.1f} s; check the cable and that "
+                "the firmware is running (python -m host flash)"
+            )
+        return t_ns, data
+
+    def frames(self) -> Iterator[tuple[int, frames.Frame]]:
+        """Decoded frames as they arrive, forever (until the port fails or stalls)."""
+        while True:
+            t_ns, data = self.read_chunk()
+            if data:
+                for f in self.decoder.feed(data):
+                    yield t_ns, f
+
+    def send(self, msg: str, **fields: int) -> int:
+        """Send a host command; return the seq it was sent with (ACKs name it)."""
+        seq = self._tx_seq
+        self._tx_seq = (self._tx_seq + 1) & 0xFFFF
+        try:
+            self.port.write(frames.encode_frame(msg, seq, **fields))
+        except (serial.SerialException, OSError) as exc:
+            raise LinkLost(f"cannot write to the board ({exc}); reconnect it") from None
+        return seq
+
+    def wait_for(self, name: str, timeout_s: float = 3.0) -> tuple[int, frames.Frame]:
+        """Read until a frame named ``name`` arrives; LinkTimeout after ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        for t_ns, f in self.frames():
+            if f.name == name:
+                return t_ns, f
+            if time.monotonic() > deadline:
+                break
+        raise LinkTimeout(f"no {name} frame from the board within {timeout_s:.1f} s")
+
+    def close(self) -> None:
+        if self.capture:
+            self.capture.close()
+        try:
+            self.port.close()
+        except (serial.SerialException, OSError):
+            pass
+
+    def __enter__(self) -> Link:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+# --------------------------------------------------------------------------- CLI: capture
+
+
+def cli_capture(p: Any) -> Any:
+    p.add_argument("file", type=Path, help="IMUCAP01 capture file to write")
+    p.add_argument("--port", required=True, help="serial device or URL (sim://, emu://, ...)")
+    p.add_argument("--baud", type=int, default=DEFAULT_BAUD)
+    p.add_argument("--seconds", type=float, default=10.0, help="how long to record (host time)")
+    return run_capture
+
+
+def run_capture(args: Any) -> int:
+    import json
+    import sys
+
+    with Link.open(args.port, args.baud, capture=args.file) as link:
+        end = time.monotonic() + args.seconds
+        n_samples = 0
+        try:
+            while time.monotonic() < end:
+                _, data = link.read_chunk()
+                n_samples += sum(1 for f in link.decoder.feed(data) if f.type == 1)
+        except KeyboardInterrupt:
+            print("stopped; the capture so far is kept", file=sys.stderr)
+    stats = link.stats.as_dict() | {"samples": n_samples, "file": str(args.file)}
+    print(json.dumps(stats))
+    return 0
