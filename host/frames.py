@@ -613,11 +613,24 @@ def decode_file(path: Path) -> tuple[BulkResult, np.ndarray | None]:
     arrivals = None
     if raw.startswith(capture.MAGIC):
         cap = capture.parse(raw, source=str(path))
+        if cap.truncated_bytes:
+            print(
+                f"warning: {path}: the last {cap.truncated_bytes} bytes are a cut-off read "
+                "(the recording was interrupted); decoded everything before them",
+                file=sys.stderr,
+            )
         result = decode_bulk(cap.data)
         arrivals = cap.arrival_ns_at(result.samples["offset"] + _IMU_FRAME_LEN - 1)
     else:
         result = decode_bulk(raw)
     return result, arrivals
+
+
+def _baud_from(others: list[tuple[int, Frame]], default: int = 115200) -> int:
+    for _, f in others:
+        if f.name == "HELLO" and f.fields["baud"]:
+            return f.fields["baud"]
+    return default
 
 
 def cli_decode(p: argparse.ArgumentParser) -> Any:
@@ -631,33 +644,63 @@ def cli_decode(p: argparse.ArgumentParser) -> Any:
     return run_decode
 
 
+def _clock_summary(seg: Any) -> dict[str, Any]:
+    """One segment's device-to-host clock map, for --stats."""
+    out: dict[str, Any] = {"samples": seg.stop - seg.start, "lost_frames": seg.lost_frames}
+    out["missed_samples"] = seg.missed_samples
+    if seg.clock is not None:
+        m = seg.clock.overall
+        out |= {
+            "skew_ppm": round(m.skew_ppm, 3),
+            "offset_ns": round(m.host0_ns + m.offset_ns - m.b * m.device0_us),
+            "latency_median_us": round(m.latency_median_us, 1),
+            "floor_spread_us": round(m.floor_spread_us, 1),
+            "windows": len(seg.clock.maps),
+        }
+    return out
+
+
 _OUT_COLUMNS = ["seq", "t_us", "flags"] + [f"{n}_raw" for n in IMU_FIELDS]
 _PHYS = ["ax", "ay", "az", "gx", "gy", "gz", "temp"]
 _DIGITS = {"ax": 5, "ay": 5, "az": 5, "gx": 4, "gy": 4, "gz": 4, "temp": 3}
 
 
 def run_decode(args: argparse.Namespace) -> int:
+    from host import clock
+
     result, arrivals = decode_file(args.file)
-    if args.stats:
-        print(json.dumps(result.stats.as_dict()))
-        return 0
     s = result.samples
+    timeline = None
+    if arrivals is not None:
+        timeline = clock.build_timeline(
+            s,
+            arrivals,
+            baud=_baud_from(result.others),
+            other_offsets=np.asarray([off for off, _ in result.others], dtype=np.int64),
+        )
+    if args.stats:
+        out: dict[str, Any] = result.stats.as_dict()
+        if timeline is not None:
+            out["clock"] = [_clock_summary(seg) for seg in timeline.segments]
+        print(json.dumps(out))
+        return 0
     phys = samples_to_physical(s, *_config_from(result.others))
-    cols = _OUT_COLUMNS + _PHYS + (["t_host_ns"] if arrivals is not None else [])
+    cols = _OUT_COLUMNS + _PHYS + (["t_host_ns"] if timeline is not None else [])
     raw_cols = [s["seq"], s["t_us"], s["flags"]] + [s[n] for n in IMU_FIELDS]
     phys_cols = [np.round(phys[k], _DIGITS[k]) for k in _PHYS]
     table = [c.tolist() for c in raw_cols + phys_cols]
-    if arrivals is not None:
-        table.append(arrivals.tolist())
-    out = sys.stdout
+    if timeline is not None:
+        mapped = np.where(np.isnan(timeline.host_ns), arrivals, np.rint(timeline.host_ns))
+        table.append(np.asarray(mapped, dtype=np.int64).tolist())
+    stdout = sys.stdout
     try:
         if args.csv:
-            w = csv.writer(out, lineterminator="\n")
+            w = csv.writer(stdout, lineterminator="\n")
             w.writerow(cols)
             w.writerows(zip(*table, strict=True))
         else:
             for row in zip(*table, strict=True):
-                out.write(json.dumps(dict(zip(cols, row, strict=True))) + "\n")
+                stdout.write(json.dumps(dict(zip(cols, row, strict=True))) + "\n")
     except BrokenPipeError:  # e.g. piped into head
         sys.stderr.close()
     return 0

@@ -18,9 +18,9 @@ from typing import Any
 
 import serial
 
-from host import frames
 from host.capture import CaptureWriter
 from host.errors import UserError
+from host.frames import DecoderStats, Frame, StreamDecoder, encode_frame
 
 TRANSPORTS_PACKAGE = "host.transports"
 DEFAULT_BAUD = 115200
@@ -72,7 +72,7 @@ class Link:
         stall_s: float = 2.0,
     ) -> None:
         self.port = port
-        self.decoder = frames.StreamDecoder()
+        self.decoder = StreamDecoder()
         self.capture = CaptureWriter(capture) if capture else None
         self.stall_s = stall_s
         self._tx_seq = 0
@@ -83,13 +83,13 @@ class Link:
         return cls(open_port(url, baud), **kw)
 
     @property
-    def stats(self) -> frames.DecoderStats:
+    def stats(self) -> DecoderStats:
         return self.decoder.stats
 
     def read_chunk(self) -> tuple[int, bytes]:
         """One read: (host monotonic ns right after it returned, the bytes; maybe empty)."""
         try:
-            data = self.port.read(self.port.in_waiting or 1)
+            data = self.port.read(getattr(self.port, "in_waiting", 0) or 1)
         except (serial.SerialException, OSError) as exc:
             raise LinkLost(
                 f"the board disconnected ({exc}); reconnect it — accepted records are kept"
@@ -106,7 +106,7 @@ class Link:
             )
         return t_ns, data
 
-    def frames(self) -> Iterator[tuple[int, frames.Frame]]:
+    def frames(self) -> Iterator[tuple[int, Frame]]:
         """Decoded frames as they arrive, forever (until the port fails or stalls)."""
         while True:
             t_ns, data = self.read_chunk()
@@ -119,12 +119,12 @@ class Link:
         seq = self._tx_seq
         self._tx_seq = (self._tx_seq + 1) & 0xFFFF
         try:
-            self.port.write(frames.encode_frame(msg, seq, **fields))
+            self.port.write(encode_frame(msg, seq, **fields))
         except (serial.SerialException, OSError) as exc:
             raise LinkLost(f"cannot write to the board ({exc}); reconnect it") from None
         return seq
 
-    def wait_for(self, name: str, timeout_s: float = 3.0) -> tuple[int, frames.Frame]:
+    def wait_for(self, name: str, timeout_s: float = 3.0) -> tuple[int, Frame]:
         """Read until a frame named ``name`` arrives; LinkTimeout after ``timeout_s``."""
         deadline = time.monotonic() + timeout_s
         for t_ns, f in self.frames():

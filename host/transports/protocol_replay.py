@@ -26,7 +26,7 @@ class Serial(serial.SerialBase):
     """A read-only serial port backed by a capture file."""
 
     def open(self) -> None:
-        if self._port is None:
+        if not self.portstr:
             raise serial.SerialException("replay:// needs a capture path")
         self._parse(self.portstr)
         self._cap = capture.read(self._path)
@@ -61,7 +61,7 @@ class Serial(serial.SerialBase):
     def read(self, size: int = 1) -> bytes:
         if not self.is_open:
             raise serial.PortNotOpenError()
-        deadline = time.monotonic() + (self._timeout or 0.0)
+        deadline = time.monotonic() + (self.timeout or 0.0)
         while True:
             end = min(self._available_end(), self._pos + size)
             if end > self._pos:
@@ -71,7 +71,7 @@ class Serial(serial.SerialBase):
             if self._pos >= len(self._cap.data) and self._loop:
                 self._pos, self._t0 = 0, time.monotonic()
                 continue
-            if self._timeout is not None and time.monotonic() >= deadline:
+            if self.timeout is not None and time.monotonic() >= deadline:
                 return b""
             time.sleep(0.001)
 

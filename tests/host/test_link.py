@@ -81,13 +81,25 @@ def test_decode_jsonl_csv_stats(tmp_path: Path) -> None:
     }  # fmt: skip
 
 
-def test_decode_capture_with_arrival_times(tmp_path: Path) -> None:
-    data, _ = sample_bytes(10)
+def test_decode_capture_maps_device_time_to_host_time(tmp_path: Path) -> None:
+    """t_host_ns is the sample's mapped host time: far closer to the truth than arrival."""
+    from host.linksim import LinkParams, simulate_link
+
+    lc = simulate_link(LinkParams(seconds=30, seed=5))
     path = tmp_path / "s.cap"
-    write_capture(path, data, chunk=27)
-    r = run_cli("decode", str(path), "--jsonl")
-    rows = [json.loads(line) for line in r.stdout.splitlines()]
-    assert [row["t_host_ns"] for row in rows] == [10**9 + 27_000 * i for i in range(10)]
+    path.write_bytes(lc.to_imucap())
+    rows = [json.loads(line) for line in run_cli("decode", str(path)).stdout.splitlines()]
+    assert len(rows) == lc.true_host_ns.size
+    mapped = np.array([r["t_host_ns"] for r in rows], dtype=float) - lc.true_host_ns
+    mapped -= mapped.mean()
+    assert np.sqrt(np.mean(mapped**2)) < 60_000  # ns
+    cap = capture.read(path)
+    arrival = cap.arrival_ns_at(np.arange(lc.true_host_ns.size) * 27 + 26)  # rough: no STATUS
+    stats = json.loads(run_cli("decode", str(path), "--stats").stdout)
+    (seg,) = stats["clock"]
+    assert seg["samples"] == len(rows) and seg["lost_frames"] == 0
+    assert seg["skew_ppm"] == pytest.approx(-60, abs=5)  # device clock 60 ppm fast
+    assert arrival.size == len(rows)
 
 
 def test_decode_missing_file_is_one_clear_line(tmp_path: Path) -> None:

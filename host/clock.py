@@ -1,0 +1,342 @@
+"""Time: map the device's microsecond clock to the host's monotonic clock.
+
+Every IMU sample carries ``t_us``, the device time latched in the data-ready interrupt. Every
+read from the port carries the host monotonic time taken right after ``read()`` returned. The
+arrival of a frame is late by a variable, non-negative latency (UART serialisation, the USB
+bridge's ≈4 ms flush timer, 1 ms USB frames, OS jitter, rare spikes of tens of ms), so a least
+squares line through (device time, arrival) is biased and noisy. Instead we estimate
+
+    host_ns = a + b · device_us                                           (1)
+
+as the line *under* all points that is closest to them on average (a minimum-delay estimator:
+the supporting line of the lower convex hull at the points' mean device time; it minimises
+Σ(yᵢ − a − b·xᵢ) subject to yᵢ ≥ a + b·xᵢ). Points are arrivals minus the frame's known
+serialisation time at the link's baud rate.
+
+- Offline (a whole capture): lines fitted in overlapping windows and blended linearly between
+  window centres, so a clock whose skew drifts slowly with temperature is still followed.
+- Live (:class:`LiveClock`): the same estimator over a sliding window of recent points.
+
+Counters wrap (t_us at 2³², seq at 2¹⁶); :func:`unwrap` resolves wraps, using host time when a
+gap is too long for the counter alone. A device reset (time or seq going back) starts a new
+segment with its own map (:func:`build_timeline`).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+UART_BITS_PER_BYTE = 10  # 8N1
+
+
+def serialisation_ns(n_bytes: int | np.ndarray, baud: int) -> np.ndarray:
+    """Time (ns) the UART needs to send ``n_bytes`` at ``baud`` (8N1)."""
+    return np.asarray(n_bytes, dtype=np.float64) * UART_BITS_PER_BYTE * 1e9 / baud
+
+
+def unwrap(
+    values: np.ndarray,
+    bits: int,
+    host_ns: np.ndarray | None = None,
+    ticks_per_ns: float | None = None,
+) -> np.ndarray:
+    """Unwrap a ``bits``-wide counter into int64, assuming it only moves forward.
+
+    Consecutive differences are taken modulo 2^bits. Where host times are given with the
+    counter's nominal rate (``ticks_per_ns``), a gap longer than the counter's period is
+    resolved from the host time elapsed: the number of whole wraps that best explains it.
+    """
+    v = np.asarray(values, dtype=np.int64)
+    if v.size == 0:
+        return v
+    mod = 1 << bits
+    d = np.diff(v) % mod
+    if host_ns is not None and ticks_per_ns is not None:
+        dh = np.diff(np.asarray(host_ns, dtype=np.float64)) * ticks_per_ns
+        wraps = np.maximum(np.rint((dh - d) / mod), 0).astype(np.int64)
+        d = d + wraps * mod
+    return v[0] + np.concatenate(([0], np.cumsum(d)))
+
+
+def lower_hull(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Indices of the lower convex hull of points sorted by x (Andrew's monotone chain)."""
+    hull: list[int] = []
+    for i in range(x.size):
+        while len(hull) >= 2:
+            o, a = hull[-2], hull[-1]
+            # drop a if it lies on or above the segment o -> i
+            if (x[a] - x[o]) * (y[i] - y[o]) - (y[a] - y[o]) * (x[i] - x[o]) <= 0:
+                hull.pop()
+            else:
+                break
+        hull.append(i)
+    return np.asarray(hull, dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class ClockMap:
+    """host_ns = host0_ns + offset_ns + b · (device_us − device0_us)   — eq. (1), centred.
+
+    ``b`` is host ns per device µs (1000 for a perfect clock); the reference values keep the
+    arithmetic exact in float64 over days.
+    """
+
+    device0_us: float
+    host0_ns: float
+    offset_ns: float
+    b: float
+    points: int = 0
+    latency_median_us: float = float("nan")  # how late arrivals are above the floor, typical
+    floor_spread_us: float = float("nan")  # 5th percentile of the gaps: how sharp the floor is
+
+    @property
+    def skew_ppm(self) -> float:
+        """Device clock rate error: positive when the device clock runs slow."""
+        return (self.b / 1000.0 - 1.0) * 1e6
+
+    def to_host_ns(self, device_us: np.ndarray | float) -> np.ndarray:
+        """Map device µs (unwrapped) to host monotonic ns."""
+        dx = np.asarray(device_us, dtype=np.float64) - self.device0_us
+        return self.host0_ns + self.offset_ns + self.b * dx
+
+    def describe(self) -> str:
+        return (
+            f"skew {self.skew_ppm:+.1f} ppm, {self.points} points, "
+            f"typical latency {self.latency_median_us / 1000:.2f} ms, "
+            f"floor spread {self.floor_spread_us:.0f} µs"
+        )
+
+
+def fit_min_delay(device_us: np.ndarray, floor_ns: np.ndarray) -> ClockMap:
+    """Minimum-delay line under the points (device µs, host ns) — see the module docstring.
+
+    Needs at least two points with distinct device times.
+    """
+    x0 = float(device_us[0])
+    y0 = float(floor_ns[0])
+    x = np.asarray(device_us, dtype=np.float64) - x0
+    y = np.asarray(floor_ns, dtype=np.float64) - y0
+    order = np.argsort(x, kind="stable")
+    xs, ys = x[order], y[order]
+    h = lower_hull(xs, ys)
+    if h.size < 2:
+        raise ValueError("need two points with different device times")
+    xm = float(x.mean())
+    k = int(np.searchsorted(xs[h], xm, side="right")) - 1
+    k = min(max(k, 0), h.size - 2)
+    i, j = h[k], h[k + 1]
+    b = (ys[j] - ys[i]) / (xs[j] - xs[i])
+    a = ys[i] - b * xs[i]
+    a, b = _refine_on_bin_floors(xs, ys, a, b)
+    gaps_us = (y - (a + b * x)) / 1000.0
+    return ClockMap(
+        x0,
+        y0,
+        a,
+        b,
+        int(x.size),
+        float(np.median(gaps_us)),
+        float(np.percentile(gaps_us, 5)),
+    )
+
+
+def _refine_on_bin_floors(
+    x: np.ndarray, y: np.ndarray, a: float, b: float, bin_us: float = 1e6
+) -> tuple[float, float]:
+    """Refine the hull line: the floor (lowest point) of each ``bin_us`` bin of the detrended
+    points, then a robust least-squares line through the floors.
+
+    The hull edge at the mean is exact for the points it touches but can be short, so its
+    slope is noisy; the floors of many bins pin the slope down. The line is then lowered to
+    pass under all floors but the lowest 2 %, so its offset stays a minimum-delay offset.
+    """
+    if x[-1] - x[0] < 4 * bin_us:
+        return a, b
+    r = y - (a + b * x)
+    bins = ((x - x[0]) // bin_us).astype(np.int64)
+    order = np.lexsort((r, bins))
+    first = np.flatnonzero(np.diff(bins[order], prepend=-1))
+    counts = np.diff(np.append(first, order.size))
+    pick = order[first[counts >= 5]]
+    if pick.size < 4:
+        return a, b
+    fx, fr = x[pick], r[pick]
+    keep = np.ones(fx.size, dtype=bool)
+    for _ in range(3):
+        c1, c0 = np.polyfit(fx[keep], fr[keep], 1)
+        res = fr - (c0 + c1 * fx)
+        mad = float(np.median(np.abs(res[keep] - np.median(res[keep])))) or 1.0
+        new_keep = np.abs(res) <= 4 * 1.4826 * mad
+        if np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+    c0 += float(np.percentile(fr[keep] - (c0 + c1 * fx[keep]), 2))
+    return a + c0, b + c1
+
+
+@dataclass(frozen=True)
+class PiecewiseClockMap:
+    """Window maps blended linearly between their centres (offline fit of a whole capture)."""
+
+    centres_us: np.ndarray
+    maps: tuple[ClockMap, ...]
+
+    def to_host_ns(self, device_us: np.ndarray | float) -> np.ndarray:
+        x = np.asarray(device_us, dtype=np.float64)
+        if len(self.maps) == 1:
+            return self.maps[0].to_host_ns(x)
+        preds = np.stack([m.to_host_ns(x) for m in self.maps])  # (K, N)
+        c = self.centres_us
+        k = np.clip(np.searchsorted(c, x, side="right") - 1, 0, len(c) - 2)
+        w = np.clip((x - c[k]) / (c[k + 1] - c[k]), 0.0, 1.0)
+        cols = np.arange(x.size) if x.ndim else 0
+        return (1 - w) * preds[k, cols] + w * preds[k + 1, cols]
+
+    @property
+    def overall(self) -> ClockMap:
+        """The map of the middle window (for reporting skew and quality)."""
+        return self.maps[len(self.maps) // 2]
+
+
+def fit_offline(
+    device_us: np.ndarray, floor_ns: np.ndarray, window_s: float = 60.0
+) -> PiecewiseClockMap:
+    """Best map over a whole capture: minimum-delay lines in half-overlapping windows."""
+    x = np.asarray(device_us, dtype=np.float64)
+    span = float(x[-1] - x[0]) if x.size else 0.0
+    w = window_s * 1e6
+    if span <= w:
+        m = fit_min_delay(x, floor_ns)
+        return PiecewiseClockMap(np.asarray([float(x.mean())]), (m,))
+    n_win = int(np.ceil(span / (w / 2))) - 1
+    starts = x[0] + np.linspace(0.0, span - w, max(n_win, 1))
+    centres, maps = [], []
+    for s in starts:
+        sel = (x >= s) & (x <= s + w)
+        if np.count_nonzero(sel) < 2:
+            continue
+        maps.append(fit_min_delay(x[sel], np.asarray(floor_ns)[sel]))
+        centres.append(s + w / 2)
+    return PiecewiseClockMap(np.asarray(centres), tuple(maps))
+
+
+@dataclass
+class LiveClock:
+    """Streaming minimum-delay estimate over the last ``window_s`` seconds of points.
+
+    ``add()`` each sample's (device µs, floor ns); ``map`` is refreshed every ``refit_every``
+    points (it is ``None`` until two seconds of data have arrived).
+    """
+
+    window_s: float = 30.0
+    refit_every: int = 25
+    min_span_s: float = 2.0
+    map: ClockMap | None = None
+    _x: deque = field(default_factory=deque)
+    _y: deque = field(default_factory=deque)
+    _since_fit: int = 0
+
+    def add(self, device_us: float, floor_ns: float) -> None:
+        self._x.append(float(device_us))
+        self._y.append(float(floor_ns))
+        while self._x and self._x[-1] - self._x[0] > self.window_s * 1e6:
+            self._x.popleft()
+            self._y.popleft()
+        self._since_fit += 1
+        span_ok = self._x[-1] - self._x[0] >= self.min_span_s * 1e6
+        if span_ok and (self.map is None or self._since_fit >= self.refit_every):
+            self.map = fit_min_delay(np.fromiter(self._x, float), np.fromiter(self._y, float))
+            self._since_fit = 0
+
+    def to_host_ns(self, device_us: np.ndarray | float) -> np.ndarray | None:
+        return None if self.map is None else self.map.to_host_ns(device_us)
+
+
+# --------------------------------------------------------------------------- timeline
+
+
+@dataclass(frozen=True)
+class Segment:
+    """Samples between two device resets, with their own clock map."""
+
+    start: int  # index of the first sample (in the samples array)
+    stop: int  # one past the last
+    clock: PiecewiseClockMap | None  # None without arrival times
+    lost_frames: int  # seq gaps: frames lost on the link
+    missed_samples: int  # samples the firmware could not send (t_us steps, MISSED flag)
+
+
+@dataclass(frozen=True)
+class Timeline:
+    """Per-sample device time (unwrapped, µs), mapped host time (ns) and the segments."""
+
+    device_us: np.ndarray  # float64, unwrapped within each segment
+    host_ns: np.ndarray  # float64 mapped host time of each sample (nan without arrivals)
+    segments: tuple[Segment, ...]
+
+    @property
+    def lost_frames(self) -> int:
+        return sum(s.lost_frames for s in self.segments)
+
+    @property
+    def missed_samples(self) -> int:
+        return sum(s.missed_samples for s in self.segments)
+
+
+def missed_samples(device_us: np.ndarray, seq: np.ndarray, period_us: float) -> int:
+    """Samples the device skipped: t_us steps of ≥ 1.5 periods between consecutive seq."""
+    if device_us.size < 2:
+        return 0
+    consecutive = np.mod(np.diff(np.asarray(seq, dtype=np.int64)), 65536) == 1
+    steps = np.diff(device_us) / period_us
+    return int(np.sum(np.where(consecutive & (steps >= 1.5), np.rint(steps) - 1, 0)))
+
+
+def build_timeline(
+    samples: np.ndarray,
+    arrival_ns: np.ndarray | None,
+    baud: int = 115200,
+    frame_bytes: int = 27,
+    period_us: float | None = None,
+    window_s: float = 60.0,
+    other_offsets: np.ndarray | None = None,
+) -> Timeline:
+    """Unwrap, split at resets and map every sample of a decoded capture.
+
+    ``samples`` is :data:`host.frames.SAMPLE_DTYPE` (with ``segment`` from the decoder),
+    ``arrival_ns`` the host time of the read that completed each sample's frame,
+    ``other_offsets`` the byte offsets of the other frames (their seq numbers are not losses).
+    """
+    others = np.sort(np.asarray(other_offsets if other_offsets is not None else [], np.int64))
+    n = samples.size
+    dev = np.zeros(n, dtype=np.float64)
+    host = np.full(n, np.nan)
+    segs: list[Segment] = []
+    if n == 0:
+        return Timeline(dev, host, ())
+    bounds = np.flatnonzero(np.diff(samples["segment"])) + 1
+    for start, stop in zip(
+        np.concatenate(([0], bounds)), np.concatenate((bounds, [n])), strict=True
+    ):
+        s = samples[start:stop]
+        arr = None if arrival_ns is None else np.asarray(arrival_ns[start:stop], np.float64)
+        d = unwrap(s["t_us"], 32, arr, 1e-3).astype(np.float64)
+        q = unwrap(s["seq"], 16)
+        dev[start:stop] = d
+        per = period_us or (float(np.median(np.diff(d))) if d.size > 1 else 20000.0)
+        clock = None
+        if arr is not None and d.size >= 2 and d[-1] > d[0]:
+            floor = arr - serialisation_ns(frame_bytes, baud)
+            clock = fit_offline(d, floor, window_s)
+            host[start:stop] = clock.to_host_ns(d)
+        lost = 0
+        if q.size > 1:
+            lo, hi = int(s["offset"][0]), int(s["offset"][-1])
+            between = int(np.searchsorted(others, hi) - np.searchsorted(others, lo))
+            lost = int(q[-1] - q[0]) - (q.size - 1) - between
+        missed = max(missed_samples(d, s["seq"], per), int(np.count_nonzero(s["flags"] & 1)))
+        segs.append(Segment(int(start), int(stop), clock, lost, missed))
+    return Timeline(dev, host, tuple(segs))

@@ -1,0 +1,124 @@
+"""Device-to-host time mapping, against a simulated link with known true sample times."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from host import capture, clock, frames
+from host.linksim import LinkCapture, LinkParams, simulate_link
+
+
+def decode(lc: LinkCapture) -> tuple[frames.BulkResult, np.ndarray, clock.Timeline]:
+    cap = capture.parse(lc.to_imucap())
+    r = frames.decode_bulk(cap.data)
+    arrivals = cap.arrival_ns_at(r.samples["offset"] + 26)
+    others = np.asarray([off for off, _ in r.others], dtype=np.int64)
+    return r, arrivals, clock.build_timeline(r.samples, arrivals, other_offsets=others)
+
+
+def rms_after_offset(err: np.ndarray) -> float:
+    e = err[~np.isnan(err)]
+    return float(np.sqrt(np.mean((e - e.mean()) ** 2)))
+
+
+def test_offline_mapping_beats_arrival_stamping_by_far() -> None:
+    lc = simulate_link(LinkParams(seconds=180, skew_ppm=-95, seed=11))
+    r, arrivals, tl = decode(lc)
+    mapped = rms_after_offset(tl.host_ns - lc.true_host_ns)
+    naive = rms_after_offset(arrivals - lc.true_host_ns)
+    assert mapped < 50_000, mapped  # ns: the acceptance figure (10-min run: benchmark)
+    assert naive > 1_000_000  # arrival stamping is off by milliseconds
+    (seg,) = tl.segments
+    assert seg.clock is not None
+    assert seg.clock.overall.skew_ppm == pytest.approx(95, abs=4)
+
+
+def test_device_time_wrap_and_seq_wrap() -> None:
+    lc = simulate_link(LinkParams(seconds=40, device_t0_us=2**32 - 10_000_000, seq0=65_000, seed=2))
+    r, _, tl = decode(lc)
+    assert r.stats.resets == 0 and r.stats.lost_frames == 0
+    assert np.all(r.samples["t_us"][-10:] < 40_000_000)  # it did wrap on the wire
+    assert np.all(np.diff(tl.device_us) > 0)  # and is monotonic once unwrapped
+    assert tl.device_us[-1] - tl.device_us[0] == pytest.approx(lc.device_us[-1] - lc.device_us[0])
+    assert rms_after_offset(tl.host_ns - lc.true_host_ns) < 60_000
+    assert tl.lost_frames == 0
+
+
+def test_unwrap_uses_host_time_for_gaps_longer_than_the_counter() -> None:
+    period = 2**32  # µs: one wrap is 71.6 min
+    dev = np.array([100, 200, 300 + 2 * period + 50], dtype=np.int64)  # two wraps in the gap
+    host = np.array([0, 100_000, (300 + 2 * period + 50 - 100) * 1000], dtype=np.float64)
+    assert unwrap_wire(dev, host).tolist() == dev.tolist()
+    # without host time the gap is read as less than one wrap
+    assert clock.unwrap(dev % 2**32, 32)[-1] == 300 + 50
+
+
+def unwrap_wire(dev: np.ndarray, host: np.ndarray) -> np.ndarray:
+    return clock.unwrap(dev % 2**32, 32, host, 1e-3)
+
+
+def test_reset_mid_stream_starts_a_new_segment_with_its_own_map() -> None:
+    a = simulate_link(LinkParams(seconds=20, seed=3, device_t0_us=50_000_000))
+    b = simulate_link(LinkParams(seconds=20, seed=4, host_t0_ns=a.chunks[-1][0] + 2 * 10**9))
+    joined = LinkCapture(a.chunks + b.chunks, np.concatenate((a.true_host_ns, b.true_host_ns)),
+                         np.concatenate((a.device_us, b.device_us)), a.params)  # fmt: skip
+    r, _, tl = decode(joined)
+    assert r.stats.resets == 1 and len(tl.segments) == 2
+    s1, s2 = tl.segments
+    assert s1.stop == s2.start == a.true_host_ns.size
+    assert np.all(np.diff(tl.host_ns[: s1.stop]) > 0) and np.all(
+        np.diff(tl.host_ns[s2.start :]) > 0
+    )
+    assert tl.host_ns[s2.start] > tl.host_ns[s1.stop - 1]  # never mis-ordered across the reset
+    err = tl.host_ns - joined.true_host_ns
+    for s in (s1, s2):  # 20 s segments: a shorter span pins the skew down less well
+        assert rms_after_offset(err[s.start : s.stop]) < 100_000
+
+
+def test_lost_frames_and_missed_samples_are_counted_apart() -> None:
+    lc = simulate_link(LinkParams(seconds=20, seed=6, status_every_s=100))
+    data = bytearray(capture.parse(lc.to_imucap()).data)
+    del data[27 * 100 : 27 * 103]  # three frames lost on the link
+    r = frames.decode_bulk(bytes(data))
+    tl = clock.build_timeline(r.samples, None)
+    assert tl.lost_frames == 3 and tl.missed_samples == 0
+    # the firmware skipped one sample: consecutive seq, t_us jumps by two periods
+    s = r.samples.copy()
+    s["t_us"][500:] += 20_000
+    s["flags"][500] |= 1
+    tl = clock.build_timeline(s, None)
+    assert tl.missed_samples == 1 and tl.lost_frames == 3
+
+
+def test_live_estimate_is_usable_early_and_accurate_after_ten_seconds() -> None:
+    lc = simulate_link(LinkParams(seconds=40, seed=8))
+    dec = frames.StreamDecoder()
+    live = clock.LiveClock()
+    serial_ns = float(clock.serialisation_ns(27, lc.params.baud))
+    mapped = np.full(lc.true_host_ns.size, np.nan)
+    k = 0
+    first_estimate_at = None
+    for t_ns, chunk in lc.chunks:
+        for f in dec.feed(chunk):
+            if f.type != 1:
+                continue
+            live.add(lc.device_us[k], t_ns - serial_ns)
+            m = live.to_host_ns(lc.device_us[k])
+            if m is not None:
+                mapped[k] = float(m)
+                first_estimate_at = first_estimate_at or k
+            k += 1
+    t_s = (lc.true_host_ns - lc.true_host_ns[0]) / 1e9
+    assert first_estimate_at is not None and t_s[first_estimate_at] < 3.0
+    after = t_s > 10
+    assert rms_after_offset((mapped - lc.true_host_ns)[after]) < 200_000
+
+
+def test_min_delay_fit_is_exact_on_noise_free_points_and_ignores_late_ones() -> None:
+    x = np.arange(0, 10_000_000, 20_000, dtype=float)  # µs
+    y = 7e9 + 999.95 * x  # ns: a clock 50 ppm fast
+    late = y + np.where(np.arange(x.size) % 3 == 0, 0.0, 3e6)  # most points 3 ms late
+    m = clock.fit_min_delay(x, late)
+    assert m.skew_ppm == pytest.approx(-50, abs=1e-6)
+    assert np.max(np.abs(m.to_host_ns(x) - y)) < 1.0
