@@ -1,0 +1,83 @@
+"""``python -m host calibrate``: compute the calibration from records and write the report.
+
+``--from-dir DIR`` recomputes from the record files in DIR. The live dialogue (``--port``,
+method.md §5) plugs in here later: it records into a directory, builds a
+:class:`host.records.Session`, then calls :func:`run_computation` like the from-dir mode.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from host.calibration import (
+    DEFAULT_HEIGHT_M,
+    DEFAULT_LATITUDE_DEG,
+    CalibrationResult,
+    calibrate_from_records,
+)
+from host.errors import UserError
+from host.records import Session, read_session
+from host.report import format_report, write_results
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The calibrate options (the live-mode options are added beside these)."""
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--from-dir", metavar="DIR", help="recompute from the record files in DIR")
+    src.add_argument("--port", help="live calibration on a serial port (not yet available)")
+    p.add_argument("--serial", help="serial number (default: from the file names in DIR)")
+    p.add_argument("--out", metavar="DIR", help="where to write the result files (default: DIR)")
+    p.add_argument(
+        "--turns", type=int, help="turns per turn record (default: the records' header or inferred)"
+    )
+    p.add_argument(
+        "--latitude", type=float, default=DEFAULT_LATITUDE_DEG,
+        help=f"site latitude, degrees (default {DEFAULT_LATITUDE_DEG})",
+    )  # fmt: skip
+    p.add_argument(
+        "--height", type=float, default=DEFAULT_HEIGHT_M,
+        help=f"site height above sea level, m (default {DEFAULT_HEIGHT_M:g})",
+    )  # fmt: skip
+    p.add_argument(
+        "--json", action="store_true", help="print the JSON result instead of the report"
+    )
+
+
+def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -> CalibrationResult:
+    """Compute from ``session``, write both result files into ``out_dir``, print the report
+    (or the JSON with ``--json``) on stdout."""
+    if args.turns is not None and args.turns < 1:
+        raise UserError("--turns must be at least 1")
+    result = calibrate_from_records(
+        session, turns=args.turns, latitude_deg=args.latitude, height_m=args.height
+    )
+    if not out_dir.is_dir():
+        raise UserError(f"{out_dir}: no such directory")
+    txt, js = write_results(result, out_dir)
+    if args.json:
+        sys.stdout.write(result.to_json())
+    else:
+        sys.stdout.write(format_report(result))
+        print(f"written: {txt} and {js}", file=sys.stderr)
+    return result
+
+
+def run(args: argparse.Namespace) -> int:
+    """Runner of ``python -m host calibrate``."""
+    if args.port:
+        raise UserError("live calibration (--port) is not available yet; use --from-dir DIR")
+    if not args.from_dir:
+        raise UserError("give --from-dir DIR (the directory with SERIAL_x_up.txt ...)")
+    session = read_session(args.from_dir, args.serial)
+    out_dir = Path(args.out) if args.out else Path(args.from_dir)
+    result = run_computation(session, args, out_dir)
+    return 0 if result.all_passed else 1
+
+
+def cli_calibrate(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+    """Fill in the ``calibrate`` subparser; returns the runner."""
+    add_arguments(p)
+    return run

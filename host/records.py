@@ -1,0 +1,456 @@
+"""Measurement records: one text table per static attitude or turn (method.md §6).
+
+A record file is plain UTF-8 text::
+
+    # imu-bench record v1            <- optional header: '#' lines, 'key: value' go to meta
+    # serial: S123
+    # record: x_up
+    0.0<TAB>Ax<TAB>Ay<TAB>Az<TAB>Gx<TAB>Gy<TAB>Gz<TAB>temp      <- data rows, 8 numeric columns
+    ...
+    ________________________________                 <- a line of underscores
+    mean<TAB>Ax<TAB>...<TAB>temp                     <- 7 means (label optional)
+    std<TAB>Ax<TAB>...<TAB>temp                      <- 7 standard deviations (label optional)
+
+Columns: time since the start beep in ms (1 decimal, device clock); Ax Ay Az in m/s²
+(4 decimals); Gx Gy Gz in °/s (3 decimals); temperature in °C (1 decimal). Files without any
+header and without the 'mean'/'std' labels (as the source program wrote them) are accepted.
+File names are ``SERIAL_name.txt`` (method.md §6).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from host.errors import UserError
+
+RECORD_FORMAT_VERSION = 1
+STATIC_NAMES = ("x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn")
+#: ccw = positive rotation about the up axis, seen from above; cw = negative
+TURN_NAMES = ("x_ccw", "x_cw", "y_ccw", "y_cw", "z_ccw", "z_cw")
+
+#: names of the report/result files that live beside the records and are not records
+NON_RECORD_NAMES = ("result",)
+
+_AXES = "xyz"
+_NAME_RE = re.compile(r"^(?P<axis>[xyz])_(?P<dir>up|dn|ccw|cw)(?:_(?P<rep>[0-9A-Za-z]+))?$")
+_HEADER_RE = re.compile(r"^imu-bench record v(?P<v>\d+)\s*$")
+_META_RE = re.compile(r"^(?P<key>[^:]+?)\s*:\s?(?P<value>.*)$")
+_UNDERSCORES_RE = re.compile(r"^_{3,}\s*$")
+_NEG_ZERO_RE = re.compile(r"(^|\t)-(0(?:\.0*)?)(?=\t|$)")
+_KEY_OK_RE = re.compile(r"^[A-Za-z0-9_.\- ]+$")
+
+#: printed decimals of the 8 columns (time, Ax, Ay, Az, Gx, Gy, Gz, temp)
+DECIMALS = (1, 4, 4, 4, 3, 3, 3, 1)
+#: decimals of the mean and std rows (7 columns, no time)
+SUMMARY_DECIMALS = 4
+#: how far a stored mean may be from the mean of the rows (rounding of rows and of the mean)
+_MEAN_TOL = (2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 0.06)
+
+
+class RecordError(UserError):
+    """A record file that cannot be read (message names the file and line)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Record:
+    """One measurement: a static attitude or a turn (method.md §6).
+
+    Attributes: ``name`` (e.g. "x_up", "z_cw", "tilt_45_1"), ``t_ms`` (N,) ms since the start
+    beep on the device clock, ``accel`` (N,3) m/s² (nominal conversion of counts, chip axes),
+    ``gyro`` (N,3) °/s, ``temp`` (N,) °C, ``meta`` the ``# key: value`` header lines.
+
+    Extra plans are described by meta: ``up: [ux, uy, uz]`` the up direction in chip axes
+    (unit vector) for any static/turn record; ``kind: static|turn|rate``; ``turns: n``;
+    ``rate_dps`` and ``rate_axis`` (e.g. "+x" or "[0, 0, 1]") for rate-table records.
+    """
+
+    name: str
+    t_ms: np.ndarray
+    accel: np.ndarray
+    gyro: np.ndarray
+    temp: np.ndarray
+    meta: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.t_ms, dtype=np.float64).reshape(-1)
+        n = t.shape[0]
+        a = np.asarray(self.accel, dtype=np.float64).reshape(n, 3)
+        g = np.asarray(self.gyro, dtype=np.float64).reshape(n, 3)
+        tc = np.asarray(self.temp, dtype=np.float64).reshape(n)
+        object.__setattr__(self, "t_ms", t)
+        object.__setattr__(self, "accel", a)
+        object.__setattr__(self, "gyro", g)
+        object.__setattr__(self, "temp", tc)
+        object.__setattr__(self, "meta", {str(k): str(v) for k, v in dict(self.meta).items()})
+
+    # ---- classification -------------------------------------------------------------------
+    @property
+    def kind(self) -> str:
+        """ "static" (gravity reference), "turn" (integral method), "rate" (rate table) or
+        "unknown"."""
+        k = self.meta.get("kind", "").strip().lower()
+        if k in ("static", "turn", "rate"):
+            return k
+        m = _NAME_RE.match(self.name)
+        if m:
+            return "static" if m.group("dir") in ("up", "dn") else "turn"
+        if "rate_dps" in self.meta:
+            return "rate"
+        if "up" in self.meta:
+            return "static"
+        return "unknown"
+
+    @property
+    def up(self) -> np.ndarray:
+        """Unit vector of the up direction in chip axes (from meta ``up`` or the name)."""
+        if "up" in self.meta:
+            return parse_vector(self.meta["up"], f"record {self.name}: meta 'up'")
+        m = _NAME_RE.match(self.name)
+        if not m:
+            raise RecordError(f"record {self.name}: no up direction (name or meta 'up: [x,y,z]')")
+        v = np.zeros(3)
+        v[_AXES.index(m.group("axis"))] = -1.0 if m.group("dir") == "dn" else 1.0
+        return v
+
+    @property
+    def axis(self) -> str:
+        """'x'|'y'|'z': the axis that points up (static, turn) or the rate axis (rate)."""
+        v = self._axis_vector()
+        return _AXES[int(np.argmax(np.abs(v)))]
+
+    @property
+    def sign(self) -> int:
+        """+1 for up / ccw (positive rate), -1 for dn / cw."""
+        m = _NAME_RE.match(self.name)
+        if self.kind == "turn":
+            if m and "up" not in self.meta:
+                return 1 if m.group("dir") == "ccw" else -1
+            d = self.meta.get("direction", "").strip().lower()
+            if d in ("ccw", "cw"):
+                return 1 if d == "ccw" else -1
+            if m:
+                return 1 if m.group("dir") == "ccw" else -1
+            raise RecordError(f"record {self.name}: turn direction unknown (meta 'direction')")
+        if self.kind == "rate":
+            return 1 if self.rate_dps >= 0 else -1
+        v = self._axis_vector()
+        return 1 if v[int(np.argmax(np.abs(v)))] > 0 else -1
+
+    @property
+    def rate_dps(self) -> float:
+        """Reference rate of a rate-table record, °/s (meta ``rate_dps``)."""
+        try:
+            return float(self.meta["rate_dps"])
+        except (KeyError, ValueError) as exc:
+            raise RecordError(f"record {self.name}: meta 'rate_dps' missing or bad") from exc
+
+    @property
+    def rate_axis(self) -> np.ndarray:
+        """Unit vector of the rate-table axis in chip axes (meta ``rate_axis``)."""
+        if "rate_axis" not in self.meta:
+            raise RecordError(f"record {self.name}: meta 'rate_axis' missing")
+        return parse_vector(self.meta["rate_axis"], f"record {self.name}: meta 'rate_axis'")
+
+    def _axis_vector(self) -> np.ndarray:
+        if self.kind == "rate":
+            return self.rate_axis
+        return self.up
+
+    @property
+    def duration_s(self) -> float:
+        """Time between the first and the last sample, s."""
+        return float(self.t_ms[-1] - self.t_ms[0]) / 1000.0 if len(self.t_ms) else 0.0
+
+    def __len__(self) -> int:
+        return int(self.t_ms.shape[0])
+
+
+def parse_vector(text: str, what: str) -> np.ndarray:
+    """'[0, 0.7071, 0.7071]' or '+x'/'-z' -> unit vector (normalised)."""
+    s = text.strip().lower()
+    if re.fullmatch(r"[+-]?[xyz]", s):
+        v = np.zeros(3)
+        v[_AXES.index(s[-1])] = -1.0 if s.startswith("-") else 1.0
+        return v
+    try:
+        parts = [float(p) for p in s.strip("[]() ").replace(",", " ").split()]
+    except ValueError:
+        parts = []
+    v = np.array(parts, dtype=np.float64)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) < 1e-9:
+        raise RecordError(f"{what}: expected a vector like [0, 0, 1] or +z, got {text!r}")
+    return v / float(np.linalg.norm(v))
+
+
+@dataclass(frozen=True, eq=False)
+class Session:
+    """The records of one unit: ``serial`` and ``records`` name -> Record."""
+
+    serial: str
+    records: dict[str, Record]
+    directory: Path | None = None
+
+    def path_of(self, name: str) -> str:
+        """File name used in messages, e.g. 'S1_x_up.txt'."""
+        return f"{self.serial}_{name}.txt"
+
+
+# ---- file names ---------------------------------------------------------------------------
+def record_path(out_dir: str | os.PathLike[str], serial: str, name: str) -> Path:
+    """``out_dir/SERIAL_name.txt``."""
+    return Path(out_dir) / f"{serial}_{name}.txt"
+
+
+def split_file_name(path: str | os.PathLike[str]) -> tuple[str, str] | None:
+    """'S1_x_up.txt' -> ('S1', 'x_up'); None if the name has no '_' or is not .txt.
+
+    Standard names (and ``x_up_2`` style repeats) are matched at the end, so a serial may hold
+    underscores; otherwise the serial is the part before the first underscore.
+    """
+    p = Path(path)
+    if p.suffix.lower() != ".txt":
+        return None
+    stem = p.stem
+    for i in range(len(stem) - 1, 0, -1):
+        if stem[i] == "_" and _NAME_RE.match(stem[i + 1 :]):
+            return stem[:i], stem[i + 1 :]
+    if "_" not in stem:
+        return None
+    serial, name = stem.split("_", 1)
+    if not serial or not name:
+        return None
+    return serial, name
+
+
+# ---- writing ------------------------------------------------------------------------------
+def _fmt(v: float, dec: int) -> str:
+    s = f"{v:.{dec}f}"
+    if s.startswith("-") and float(s) == 0.0:
+        s = s[1:]
+    return s
+
+
+def format_record(record: Record) -> str:
+    """The file text of a record (method.md §6), header first."""
+    for k, v in record.meta.items():
+        if not _KEY_OK_RE.match(k) or "\n" in v or "\r" in v:
+            raise ValueError(f"meta key/value not writable: {k!r}: {v!r}")
+    arrays = (record.t_ms, record.accel, record.gyro, record.temp)
+    for a in arrays:
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"record {record.name}: non-finite sample values")
+    lines = [f"# imu-bench record v{RECORD_FORMAT_VERSION}"]
+    meta = dict(record.meta)
+    meta["record"] = record.name
+    for k, v in meta.items():
+        lines.append(f"# {k}: {v}".rstrip())
+    data = np.column_stack([record.t_ms, record.accel, record.gyro, record.temp])
+    fmts = [f"{{:.{d}f}}" for d in DECIMALS]
+    rows = ["\t".join(f.format(v) for f, v in zip(fmts, row, strict=True)) for row in data.tolist()]
+    rows = [_NEG_ZERO_RE.sub(r"\1\2", r) for r in rows]
+    lines.extend(rows)
+    lines.append("_" * 72)
+    if rows:
+        printed = np.array([r.split("\t") for r in rows], dtype=np.float64)
+        mean = printed[:, 1:].mean(axis=0)
+        std = printed[:, 1:].std(axis=0, ddof=1) if len(rows) > 1 else np.zeros(7)
+    else:
+        mean = std = np.zeros(7)
+    lines.append("mean\t" + "\t".join(_fmt(float(v), SUMMARY_DECIMALS) for v in mean))
+    lines.append("std\t" + "\t".join(_fmt(float(v), SUMMARY_DECIMALS) for v in std))
+    return "\n".join(lines) + "\n"
+
+
+def write_record(path: str | os.PathLike[str], record: Record) -> None:
+    """Write ``record`` to ``path`` atomically (temp file in the same directory + os.replace)."""
+    p = Path(path)
+    text = format_record(record)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, p)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+# ---- reading ------------------------------------------------------------------------------
+def _numbers(fields: list[str]) -> list[float] | None:
+    try:
+        vals = [float(f) for f in fields]
+    except ValueError:
+        return None
+    return vals
+
+
+def parse_record_text(text: str, source: str, name: str | None = None) -> Record:
+    """Parse the text of a record file; ``source`` names it in messages (e.g. the path).
+
+    Raises RecordError naming ``source:line`` for anything that is not a complete record.
+    """
+    meta: dict[str, str] = {}
+    rows: list[list[float]] = []
+    summary: list[list[float]] = []
+    state = "data"  # -> "summary" after the underscore line
+    last_line = 0
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line:
+            continue
+        last_line = lineno
+        where = f"{source}:{lineno}"
+        if line.startswith("#"):
+            body = line[1:].strip()
+            hm = _HEADER_RE.match(body)
+            if hm:
+                v = int(hm.group("v"))
+                if v > RECORD_FORMAT_VERSION:
+                    raise RecordError(
+                        f"{where}: record format v{v} is newer than this program reads "
+                        f"(v{RECORD_FORMAT_VERSION}); update the host software"
+                    )
+                continue
+            mm = _META_RE.match(body)
+            if mm and state == "data" and not rows:
+                meta[mm.group("key").strip()] = mm.group("value").strip()
+            continue
+        if _UNDERSCORES_RE.match(line):
+            if state != "data":
+                raise RecordError(f"{where}: a second line of underscores; the file is damaged")
+            state = "summary"
+            continue
+        fields = line.split()
+        if state == "data":
+            vals = _numbers(fields)
+            if vals is None:
+                raise RecordError(
+                    f"{where}: not a row of numbers ({line[:40]!r}); the file is damaged — "
+                    "re-measure this record"
+                )
+            if len(vals) != 8:
+                raise RecordError(
+                    f"{where}: {len(vals)} columns, expected 8 (time, Ax, Ay, Az, Gx, Gy, Gz, "
+                    "temp); the file is truncated or damaged — re-measure this record"
+                )
+            if not all(math.isfinite(v) for v in vals):
+                raise RecordError(f"{where}: non-finite value; re-measure this record")
+            if rows and vals[0] < rows[-1][0]:
+                raise RecordError(f"{where}: time goes backwards; the file is damaged")
+            rows.append(vals)
+        else:
+            label_ok = fields[0].lower() in ("mean", "std")
+            body_fields = fields[1:] if label_ok else fields
+            vals = _numbers(body_fields)
+            if vals is None or len(vals) not in (7, 8) or len(summary) >= 2:
+                raise RecordError(
+                    f"{where}: expected the mean and std rows after the underscores; "
+                    "the file is damaged"
+                )
+            if label_ok and fields[0].lower() != ("mean", "std")[len(summary)]:
+                raise RecordError(f"{where}: expected the {('mean', 'std')[len(summary)]} row")
+            summary.append(vals[-7:])
+    end = f"{source}:{last_line + 1}"
+    if state == "data":
+        raise RecordError(
+            f"{end}: no line of underscores after the data: the file is truncated "
+            "(recording interrupted?) — re-measure this record"
+        )
+    if len(summary) < 2:
+        raise RecordError(
+            f"{end}: mean/std rows missing after the underscores: the file is "
+            "truncated — re-measure this record"
+        )
+    if not rows:
+        raise RecordError(f"{source}: no data rows; re-measure this record")
+    data = np.array(rows, dtype=np.float64)
+    mean = data[:, 1:].mean(axis=0)
+    bad = np.abs(mean - np.array(summary[0])) > np.array(_MEAN_TOL)
+    if np.any(bad):
+        col = ("Ax", "Ay", "Az", "Gx", "Gy", "Gz", "temp")[int(np.argmax(bad))]
+        raise RecordError(
+            f"{source}: the stored mean of {col} does not match the rows (rows missing or "
+            "edited?); re-measure this record"
+        )
+    rec_name = name or meta.get("record") or ""
+    if not rec_name:
+        raise RecordError(f"{source}: record name unknown (no '# record:' line, file name)")
+    if "record" in meta and name and meta["record"] != name:
+        raise RecordError(
+            f"{source}: the header says record {meta['record']!r} but the file name says "
+            f"{name!r}; rename the file"
+        )
+    return Record(
+        name=rec_name,
+        t_ms=data[:, 0],
+        accel=data[:, 1:4],
+        gyro=data[:, 4:7],
+        temp=data[:, 7],
+        meta=meta,
+    )
+
+
+def read_record(path: str | os.PathLike[str]) -> Record:
+    """Read a record file; the name comes from the file name ``SERIAL_name.txt`` (or the
+    ``# record:`` header). Raises RecordError naming the file and line."""
+    p = Path(path)
+    try:
+        raw = p.read_bytes()
+    except OSError as exc:
+        raise RecordError(f"{p}: cannot read ({exc.strerror or exc})") from exc
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise RecordError(f"{p}: not a UTF-8 text file (byte {exc.start})") from exc
+    parts = split_file_name(p)
+    return parse_record_text(text, str(p), name=parts[1] if parts else None)
+
+
+def read_session(directory: str | os.PathLike[str], serial: str | None = None) -> Session:
+    """Read every ``SERIAL_name.txt`` record of one unit in ``directory``.
+
+    ``serial`` None: inferred from the file names; several serials or none -> RecordError.
+    ``SERIAL_result.txt`` is skipped.
+    """
+    d = Path(directory)
+    if not d.is_dir():
+        raise RecordError(f"{d}: no such directory")
+    found: dict[str, list[tuple[str, Path]]] = {}
+    for p in sorted(d.iterdir()):
+        if not p.is_file() or p.name.startswith("."):
+            continue
+        parts = split_file_name(p)
+        if parts is None or parts[1] in NON_RECORD_NAMES:
+            continue
+        found.setdefault(parts[0], []).append((parts[1], p))
+    if serial is None:
+        if not found:
+            raise RecordError(f"{d}: no record files SERIAL_name.txt (e.g. S1_x_up.txt) here")
+        if len(found) > 1:
+            raise RecordError(
+                f"{d}: records of several units ({', '.join(sorted(found))}); "
+                "choose one with --serial"
+            )
+        serial = next(iter(found))
+    if serial not in found:
+        raise RecordError(f"{d}: no records of serial {serial!r} ({serial}_x_up.txt ...)")
+    records: dict[str, Record] = {}
+    for name, p in found[serial]:
+        rec = read_record(p)
+        ms = rec.meta.get("serial")
+        if ms is not None and ms != serial:
+            raise RecordError(f"{p}: header says serial {ms!r}, file name says {serial!r}")
+        records[name] = rec
+    return Session(serial=serial, records=records, directory=d)

@@ -1,0 +1,193 @@
+"""The test report ("protocol", method.md §7) and the result files.
+
+``SERIAL_result.txt``: plain UTF-8, at most 80 columns (fits A4), header with serial and date,
+every value on its line with tolerance and a +/− mark, stage-1 bias consistency, residuals per
+record, g/latitude/height, three signature lines. ``SERIAL_result.json``: see
+:meth:`host.calibration.CalibrationResult.to_dict`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from pathlib import Path
+
+from host.calibration import (
+    ACCEL_BIAS_NAMES,
+    CONSTANT_NAMES,
+    GROUPS,
+    GYRO_BIAS_NAMES,
+    NOISE_NAMES,
+    UNITS,
+    CalibrationResult,
+)
+
+WIDTH = 80
+PLUS, MINUS = "+", "−"
+
+
+def _v(x: float, dec: int = 5) -> str:
+    return f"{x:+.{dec}f}" if math.isfinite(x) else "n/m"
+
+
+def _mark(ok: bool | None) -> str:
+    return " " if ok is None else (PLUS if ok else MINUS)
+
+
+def format_report(result: CalibrationResult) -> str:
+    """The text of ``SERIAL_result.txt`` (lines ≤ 80 characters, ends with a newline)."""
+    r = result
+    passed = r.passed()
+    consts = r.constants()
+    rule = "-" * WIDTH
+    out: list[str] = []
+    out.append(f"TEST REPORT, IMU MPU-6000, serial No. {r.serial}")
+    out.append(f"Date and time: {r.created.replace('T', ' ')}")
+    out.append(
+        f"Local gravity g = {r.g:.5f} m/s² (Helmert formula, latitude {r.latitude_deg:.3f}°, "
+        f"height {r.height_m:.0f} m)"
+    )
+    kinds: dict[str, int] = {}
+    for res in r.residuals:
+        kinds[res.kind] = kinds.get(res.kind, 0) + 1
+    plan = ", ".join(f"{n} {k}" for k, n in sorted(kinds.items()))
+    turns = "-" if r.turns is None else str(r.turns)
+    out.append(f"Records: {len(r.residuals)} ({plan}); turns per turn record: {turns}")
+    out.append(f"Method: {r.method}")
+    if r.earth_rate:
+        out.append("Earth rate: vertical component included in the reference rates")
+    cf = [abs(consts[n] - v) for n, v in r.closed_form.items() if n not in NOISE_NAMES]
+    cf = [d for d in cf if math.isfinite(d)]
+    if cf:
+        out.append(f"Closed form (§3, §4) differs from the fit by at most {max(cf):.2e}")
+    out.append(rule)
+    out.append(f"  {'value':<7}{'measured':>12}  {'unit':<8}{'tolerance':>11}  mark   std error")
+    out.append(rule)
+    last_title = ""
+    for title, names, unit, tol in GROUPS:
+        tol_s = "none" if tol is None else (f"≤{tol:g}" if names[0] in NOISE_NAMES else f"±{tol:g}")
+        if title != last_title:
+            out.append(f"{title}" + (f", {unit}" if unit and unit != "rad" else ""))
+        last_title = title
+        for n in names:
+            se = r.std_errors.get(n, math.nan)
+            se_s = f"±{se:.5f}" if math.isfinite(se) else ""
+            note = "" if math.isfinite(consts[n]) else "  not measured"
+            out.append(
+                f"  {n:<7}{_v(consts[n]):>12}  {UNITS[n]:<8}{tol_s:>11}   {_mark(passed[n])}  "
+                f"{se_s:>11}{note}"
+            )
+    out.append(rule)
+    bad = [n for n in CONSTANT_NAMES if passed[n] is False]
+    if bad:
+        out.append(f"RESULT: {len(bad)} value(s) outside tolerance or not measured:")
+        line = "  "
+        for n in bad:
+            if len(line) + len(n) + 1 > WIDTH:
+                out.append(line.rstrip())
+                line = "  "
+            line += n + " "
+        out.append(line.rstrip())
+    else:
+        out.append("RESULT: all values within tolerance")
+    out.append(rule)
+
+    if r.bias_estimates:
+        out.append("Stage 1 bias consistency (§3): estimates from the X, Y, Z pairs")
+        out.append(
+            f"  {'bias':<6}{'X pair':>11}{'Y pair':>11}{'Z pair':>11}{'mean':>11}{'spread':>11}"
+        )
+        for n in GYRO_BIAS_NAMES + ACCEL_BIAS_NAMES:
+            if n not in r.bias_estimates:
+                continue
+            e = r.bias_estimates[n]
+            spread = max(e) - min(e)
+            mean = sum(e) / 3.0
+            out.append(
+                f"  {n:<6}{_v(e[0]):>11}{_v(e[1]):>11}{_v(e[2]):>11}{_v(mean):>11}"
+                f"{spread:>11.5f} {UNITS[n]}"
+            )
+        out.append("  A spread much larger than the noise means the linear model misses")
+        out.append("  something (method.md §3).")
+        out.append(rule)
+
+    out.append("Noise (std): largest over the static orientations, per channel (§3)")
+    out.append("  gyro  °/s : " + "  ".join(f"{n} {consts[n]:.4f}" for n in NOISE_NAMES[:3]))
+    out.append("  accel m/s²: " + "  ".join(f"{n} {consts[n]:.4f}" for n in NOISE_NAMES[3:]))
+    out.append(rule)
+    out.append("Residuals per record (measured − model): mean / std of samples;")
+    out.append("turns: integral residual, degrees")
+    out.append(
+        f"  {'record':<9}{'N':>6}{'T,s':>6}  {'accel x y z, m/s²':<24}"
+        f"{'gyro x y z, °/s (turns °)':<27}"
+    )
+    for res in r.residuals:
+        head = f"  {res.record[:9]:<9}{res.n:>6}{res.duration_s:>6.1f}  "
+        if res.kind == "turn" and res.angle_deg is not None:
+            acc = f"{'-':<24}"
+            gyr = " ".join(f"{x:+8.3f}" for x in res.angle_deg)
+            out.append(head + acc + gyr + " °")
+            continue
+        acc = " ".join(f"{x:+.4f}" if math.isfinite(x) else "    -  " for x in res.accel_mean)
+        gyr = " ".join(f"{x:+8.4f}" for x in res.gyro_mean)
+        out.append(head + f"{acc:<24}" + gyr)
+        if res.kind == "static":
+            accs = " ".join(f"{x:7.4f}" for x in res.accel_std)
+            gyrs = " ".join(f"{x:8.4f}" for x in res.gyro_std)
+            out.append(f"  {'  std':<21}  {accs:<24}{gyrs}")
+    if r.notes:
+        out.append(rule)
+        out.append("Notes:")
+        for note in r.notes:
+            out.extend(_wrap(note, "  -", "    "))
+    out.append(rule)
+    out.append("")
+    for role in ("Customer's representative", "Quality control", "Workshop"):
+        out.append(f"{role:<27}_______________________  /________________/")
+        out.append("")
+    return "\n".join(line.rstrip() for line in out) + "\n"
+
+
+def _wrap(text: str, first: str, indent: str) -> list[str]:
+    lines: list[str] = []
+    line = first
+    for word in text.split():
+        if line.strip() and len(line) + 1 + len(word) > WIDTH:
+            lines.append(line)
+            line = indent + word
+        else:
+            line = f"{line} {word}" if line.strip() else line + word
+    if line:
+        lines.append(line)
+    return lines
+
+
+def result_paths(directory: str | os.PathLike[str], serial: str) -> tuple[Path, Path]:
+    """(``DIR/SERIAL_result.txt``, ``DIR/SERIAL_result.json``)."""
+    d = Path(directory)
+    return d / f"{serial}_result.txt", d / f"{serial}_result.json"
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def write_results(
+    result: CalibrationResult, directory: str | os.PathLike[str]
+) -> tuple[Path, Path]:
+    """Write the report and the JSON result into ``directory`` (atomically); returns the paths."""
+    txt, js = result_paths(directory, result.serial)
+    _write_atomic(txt, format_report(result))
+    _write_atomic(js, result.to_json())
+    return txt, js

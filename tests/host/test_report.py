@@ -1,0 +1,160 @@
+"""The test report (§7), the result files and ``python -m host calibrate --from-dir``."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from host.__main__ import main
+from host.calibration import CONSTANT_NAMES, CalibrationResult, calibrate_from_records
+from host.records import Session, record_path, write_record
+from host.report import format_report, write_results
+
+try:
+    from calib_truth import TRUTH, make_records
+except ImportError:  # tests/ imported as a package
+    from tests.host.calib_truth import TRUTH, make_records
+
+REAL = Path("/work/shared/data/imucal-example")
+
+
+@pytest.fixture(scope="module")
+def result() -> CalibrationResult:
+    truth = dict(TRUTH, A0z=-0.95)  # one value outside its tolerance (±0.8)
+    return calibrate_from_records(
+        Session("SIM7", make_records(seed=13, truth=truth)), created="2024-05-06T10:11:12+03:00"
+    )
+
+
+def _write_session(d: Path, serial: str = "SIM7", seed: int = 13) -> None:
+    for name, rec in make_records(seed=seed).items():
+        write_record(record_path(d, serial, name), rec)
+
+
+def test_report_layout(result: CalibrationResult) -> None:
+    text = format_report(result)
+    lines = text.splitlines()
+    assert lines[0] == "TEST REPORT, IMU MPU-6000, serial No. SIM7"
+    assert lines[1] == "Date and time: 2024-05-06 10:11:12+03:00"
+    assert max(len(ln) for ln in lines) <= 80
+    assert text.encode("utf-8").decode("utf-8") == text and "\t" not in text
+    assert "latitude 55.750°, height 150 m" in text and f"g = {result.g:.5f} m/s²" in text
+    table = lines[: lines.index("RESULT: 1 value(s) outside tolerance or not measured:")]
+    for name in CONSTANT_NAMES:
+        rows = [ln for ln in table if ln.split()[:1] == [name]]
+        assert len(rows) == 1, name
+    row = {ln.split()[0]: ln for ln in table if ln.split()[:1] and ln.split()[0] in CONSTANT_NAMES}
+    assert row["A0z"].split()[1] == f"{result.A0z:+.5f}" and result.A0z < -0.8
+    assert "±0.8" in row["A0z"] and " − " in row["A0z"]
+    assert "±0.5" in row["A0x"] and " + " in row["A0x"]
+    assert "±0.03" in row["Gxx"] and " + " in row["Gxx"]
+    assert "≤0.05" in row["Gstdx"] and "none" in row["Astdx"]
+    assert (
+        "RESULT: 1 value(s) outside tolerance" in text
+        and lines[lines.index("RESULT: 1 value(s) outside tolerance or not measured:") + 1].strip()
+        == "A0z"
+    )
+    assert "Stage 1 bias consistency" in text
+    for role in ("Customer's representative", "Quality control", "Workshop"):
+        assert sum(ln.startswith(role) and "____" in ln for ln in lines) == 1
+    for rec in ("x_up", "z_dn", "x_ccw", "z_cw"):
+        assert any(ln.split()[:1] == [rec] for ln in lines), rec
+
+
+def test_report_not_measured() -> None:
+    res = calibrate_from_records(
+        Session("S", make_records(("x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn")))
+    )
+    text = format_report(res)
+    gxx = next(ln for ln in text.splitlines() if ln.split()[:1] == ["Gxx"])
+    assert "n/m" in gxx and "not measured" in gxx and " − " in gxx
+    assert max(len(ln) for ln in text.splitlines()) <= 80
+
+
+def test_write_results(tmp_path: Path, result: CalibrationResult) -> None:
+    txt, js = write_results(result, tmp_path)
+    assert txt.name == "SIM7_result.txt" and js.name == "SIM7_result.json"
+    assert txt.read_text(encoding="utf-8") == format_report(result)
+    assert CalibrationResult.from_json(js.read_text(encoding="utf-8")).A0z == result.A0z
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["SIM7_result.json", "SIM7_result.txt"]
+
+
+def test_cli_from_dir(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    _write_session(tmp_path)
+    rc = main(["calibrate", "--from-dir", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert rc == 0
+    assert out.startswith("TEST REPORT, IMU MPU-6000, serial No. SIM7")
+    assert (tmp_path / "SIM7_result.txt").read_text(encoding="utf-8").splitlines()[0] == (
+        out.splitlines()[0]
+    )
+    d = json.loads((tmp_path / "SIM7_result.json").read_text(encoding="utf-8"))
+    assert abs(d["constants"]["Gyy"] - TRUTH["Gyy"]) < 1e-3
+    # recomputing with the result files present works (they are not records)
+    rc = main(
+        [
+            "calibrate",
+            "--from-dir",
+            str(tmp_path),
+            "--json",
+            "--latitude",
+            "0",
+            "--height",
+            "0",
+            "--turns",
+            "2",
+        ]
+    )
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 0 and d["latitude_deg"] == 0.0 and d["g"] == pytest.approx(9.7803)
+    assert set(CONSTANT_NAMES) <= set(d["constants"]) and d["turns"] == 2
+
+
+def test_cli_real_data(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for p in REAL.glob("REAL_*.txt"):
+        shutil.copy(p, tmp_path / p.name)
+    rc = main(["calibrate", "--from-dir", str(tmp_path), "--json"])
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 1  # A0x, A0y outside ±0.5 m/s² (a different sensor): a failed unit
+    assert d["pass"]["A0x"] is False and d["serial"] == "REAL" and d["turns"] == 1
+
+
+@pytest.mark.parametrize(
+    ("setup", "args", "message"),
+    [
+        ("truncate", [], r"^error: .*SIM7_x_dn.txt:\d+: no line of underscores"),
+        ("none", [], r"^error: give --from-dir DIR"),
+        ("missing", [], r"^error: .*nope: no such directory"),
+        ("ok", ["--turns", "1"], r"^error: SIM7_x_ccw.txt: the cube turned \+7\d\d°"),
+        ("ok", ["--serial", "XX"], r"^error: .*no records of serial 'XX'"),
+        ("ok", ["--latitude", "100"], r"^error: latitude 100.0 is not within"),
+        ("wrongface", [], r"^error: SIM7_y_up.txt: gravity is on -Y, expected \+Y: the cube"),
+    ],
+)
+def test_cli_errors_one_line(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    setup: str,
+    args: list[str],
+    message: str,
+) -> None:
+    _write_session(tmp_path)
+    if setup == "truncate":
+        p = tmp_path / "SIM7_x_dn.txt"
+        p.write_text(p.read_text(encoding="utf-8")[:3000], encoding="utf-8")
+    if setup == "wrongface":
+        text = (tmp_path / "SIM7_y_dn.txt").read_text(encoding="utf-8")
+        text = "".join(ln for ln in text.splitlines(True) if not ln.startswith("#"))
+        (tmp_path / "SIM7_y_up.txt").write_text(text, encoding="utf-8")  # no header
+    argv = ["calibrate"]
+    if setup != "none":
+        argv += ["--from-dir", str(tmp_path / "nope" if setup == "missing" else tmp_path)]
+    rc = main(argv + args)
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert re.search(message, err), err
