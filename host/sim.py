@@ -1,0 +1,547 @@
+"""The bench simulator: a virtual MPU-6000 on the cube fixture, deterministic from a seed.
+
+Layers (all numpy):
+
+- :mod:`host.sim_truth` — :class:`SensorTruth` (every error term, report names) and the model.
+- :mod:`host.sim_physics` — attitude of the cube, hand turns, gravity/Earth rate, room, clocks.
+- this module — :class:`Simulator` (a running sensor: samples -> counts, as the board sends
+  them), :class:`Plan` and :func:`simulate_session` (record objects exactly as the calibration
+  program writes them, fast path for tests), :func:`write_session`, frame streams
+  (:func:`imu_frames`) and the truth time series for the emulated board (:func:`truth_series`).
+
+Output chain per sample: true specific force / rate (body frame) -> error model -> quantise to
+the LSB via :mod:`host.sensor` (±2 g, ±250 °/s) with saturation at full scale -> int16 counts;
+records hold the counts converted back exactly as the host converts them.
+
+Timing: the sensor samples at ``rate_hz·(1 + Environment.sample_clock_error)`` true Hz; the
+device time stamp is the MCU µs timer (``Environment.device_us``). Times ``t_s`` are true
+seconds since the board's reset (device clock zero); the chip's warm-up and drift run on
+``t_s + Simulator.power_on_s`` (a reset does not cool the chip).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from host import sensor
+from host.records import STATIC_NAMES, Record, record_path, write_record
+from host.sim_physics import (
+    Bench,
+    ConstantRateMotion,
+    Environment,
+    Motion,
+    TurnMotion,
+    TurnProfile,
+    Wobble,
+    body_inputs,
+    pose_from_up,
+    static_motion,
+    up_vector,
+)
+from host.sim_truth import SensorTruth, gauss_markov, sensor_output
+
+__all__ = [
+    "Bench",
+    "Environment",
+    "Plan",
+    "RecordSpec",
+    "SampleBlock",
+    "SensorTruth",
+    "Simulator",
+    "TruthSeries",
+    "imu_frames",
+    "simulate_scenario",
+    "simulate_session",
+    "tilted_45",
+    "truth_series",
+    "turn_motion",
+    "write_session",
+]
+
+#: fixed recording window per number of turns (method.md §4), s
+TURN_WINDOW_S = {1: 7.0, 2: 12.0, 3: 15.0}
+#: flag bit of IMU_SAMPLE (spec enum sample_flags)
+CONFIG_CHANGED = 4
+SeedLike = int | np.random.SeedSequence
+
+
+def turn_window_s(turns: int) -> float:
+    """Recording window of an ``turns``-turn record, s (7/12/15 s; 4·n + 3 beyond)."""
+    return TURN_WINDOW_S.get(turns, 4.0 * turns + 3.0)
+
+
+# --------------------------------------------------------------------------- samples
+@dataclass(frozen=True)
+class SampleBlock:
+    """Consecutive samples as the board sends them, with their true time.
+
+    ``t_s`` (N,) true s since power-on; ``t_us`` (N,) int64 device timer (not wrapped);
+    ``counts`` (N, 7) int16 ax, ay, az, temp, gx, gy, gz; ``flags`` (N,) uint8.
+    """
+
+    t_s: np.ndarray
+    t_us: np.ndarray
+    counts: np.ndarray
+    flags: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.t_s.shape[0])
+
+    @property
+    def accel(self) -> np.ndarray:
+        """(N, 3) m/s², converted from counts as the host does."""
+        return sensor.accel_mps2(self.counts[:, 0:3])
+
+    @property
+    def gyro(self) -> np.ndarray:
+        """(N, 3) °/s, converted from counts as the host does."""
+        return sensor.gyro_dps(self.counts[:, 4:7])
+
+    @property
+    def temp(self) -> np.ndarray:
+        """(N,) °C from the TEMP_OUT counts."""
+        return sensor.temp_c(self.counts[:, 3])
+
+    @staticmethod
+    def concat(blocks: Sequence[SampleBlock]) -> SampleBlock:
+        """Join blocks in order."""
+        if not blocks:
+            return SampleBlock(
+                np.zeros(0),
+                np.zeros(0, np.int64),
+                np.zeros((0, 7), np.int16),
+                np.zeros(0, np.uint8),
+            )
+        return SampleBlock(
+            np.concatenate([b.t_s for b in blocks]),
+            np.concatenate([b.t_us for b in blocks]),
+            np.concatenate([b.counts for b in blocks]),
+            np.concatenate([b.flags for b in blocks]),
+        )
+
+
+def quantise(accel: np.ndarray, gyro: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
+    """Physical outputs -> (N, 7) int16 counts (rounded to the LSB, saturated at full scale),
+    ±2 g and ±250 °/s as the firmware configures the chip."""
+    n = accel.shape[0]
+    out = np.empty((n, 7), dtype=np.int16)
+    out[:, 0:3] = sensor.accel_counts(accel, 0)
+    out[:, 3] = sensor.temp_counts(temp_c)
+    out[:, 4:7] = sensor.gyro_counts(gyro, 0)
+    return out
+
+
+class Simulator:
+    """A powered sensor on the bench, producing samples in time order.
+
+    The cube's motion is a schedule of :class:`~host.sim_physics.Motion` objects, each in
+    force from its start time (:meth:`set_motion`). :meth:`run_until` returns every sample
+    before a time, :meth:`skip_until` advances without output (the bias random process is
+    propagated exactly over the gap). Same seed and same calls -> same output.
+    """
+
+    def __init__(
+        self,
+        truth: SensorTruth,
+        bench: Bench | None = None,
+        environment: Environment | None = None,
+        seed: SeedLike = 0,
+        rate_hz: float = 50.0,
+        power_on_s: float = 0.0,
+    ) -> None:
+        self.truth = truth
+        #: how long the sensor had been powered when this simulator's clock read 0, s
+        #: (a board reset restarts the device clock but not the chip's warm-up)
+        self.power_on_s = power_on_s
+        self.bench = bench or Bench()
+        self.environment = environment or Environment()
+        ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        noise_ss, walk_ss, phase_ss = ss.spawn(3)
+        self._noise_rng = np.random.default_rng(noise_ss)
+        self._walk_rng = np.random.default_rng(walk_ss)
+        self.rate_hz = rate_hz
+        #: true time of the next sample, s since the reset
+        self.t_next = float(np.random.default_rng(phase_ss).uniform(0.0, self.period_s))
+        self._segments: list[tuple[float, Motion]] = [(-np.inf, static_motion("z_up"))]
+        self._walk = np.zeros(6)
+        self._walk_t = 0.0
+        self._config_changed = False
+        #: samples produced (including skipped ones)
+        self.samples = 0
+
+    # ---- configuration -----------------------------------------------------------------
+    @property
+    def period_s(self) -> float:
+        """True sample period, s (nominal rate with the sample clock error)."""
+        return 1.0 / (self.rate_hz * (1.0 + self.environment.sample_clock_error))
+
+    def set_rate(self, rate_hz: float) -> None:
+        """Change the output rate from the next sample on (which carries CONFIG_CHANGED)."""
+        self.rate_hz = rate_hz
+        self._config_changed = True
+
+    def set_motion(self, motion: Motion, t_from_s: float | None = None) -> None:
+        """Make ``motion`` the cube's motion from ``t_from_s`` (default: the next sample)."""
+        t = self.t_next if t_from_s is None else float(t_from_s)
+        self._segments = [(s, m) for s, m in self._segments if s < t] + [(t, motion)]
+
+    def motion_at(self, t_s: float) -> Motion:
+        """The motion in force at time ``t_s``."""
+        cur = self._segments[0][1]
+        for s, m in self._segments:
+            if s <= t_s:
+                cur = m
+        return cur
+
+    # ---- running -----------------------------------------------------------------------
+    def skip_until(self, t_end_s: float) -> int:
+        """Advance past every sample before ``t_end_s`` without producing them; -> count."""
+        if t_end_s <= self.t_next:
+            return 0
+        n = int(np.ceil((t_end_s - self.t_next) / self.period_s))
+        self.t_next += n * self.period_s
+        self.samples += n
+        return n
+
+    def run_until(self, t_end_s: float) -> SampleBlock:
+        """Every sample with true time before ``t_end_s``."""
+        n = 0 if t_end_s <= self.t_next else int(np.ceil((t_end_s - self.t_next) / self.period_s))
+        return self.run_samples(n)
+
+    def run_samples(self, n: int) -> SampleBlock:
+        """The next ``n`` samples."""
+        dt = self.period_s
+        t = self.t_next + dt * np.arange(n)
+        self.t_next += n * dt
+        self.samples += n
+        block = self._generate(t, dt)
+        return block
+
+    def _generate(self, t: np.ndarray, dt: float) -> SampleBlock:
+        n = t.shape[0]
+        truth = self.truth
+        f = np.zeros((n, 3))
+        w = np.zeros((n, 3))
+        starts = np.array([s for s, _ in self._segments])
+        idx = np.searchsorted(starts, t, side="right") - 1
+        for i in np.unique(idx):
+            sel = idx == i
+            f[sel], w[sel] = body_inputs(
+                self._segments[i][1], t[sel], self.bench, np.asarray(truth.lever_arm_m)
+            )
+        t_power = t + self.power_on_s
+        temp = self.environment.temperature(t_power)
+        sigma = np.concatenate([truth.accel_noise, truth.gyro_noise])
+        disturbance = self._noise_rng.standard_normal((n, 6)) * sigma
+        walk_sigma = np.concatenate([truth.accel_bias_instability, truth.gyro_bias_instability])
+        if n:
+            tau = truth.bias_corr_time_s
+            gap = t[0] - dt - self._walk_t
+            if gap > 0 and np.any(walk_sigma):
+                phi = float(np.exp(-gap / tau))
+                self._walk = phi * self._walk + walk_sigma * np.sqrt(
+                    1 - phi * phi
+                ) * self._walk_rng.standard_normal(6)
+            walk = gauss_markov(self._walk_rng, self._walk, n, dt, tau, walk_sigma)
+            self._walk = walk[-1]
+            self._walk_t = float(t[-1])
+            disturbance += walk
+        accel, gyro = sensor_output(
+            truth, f, w, temp, t_power, self.bench.g, disturbance[:, :3], disturbance[:, 3:]
+        )
+        flags = np.zeros(n, dtype=np.uint8)
+        if n and self._config_changed:
+            flags[0] |= CONFIG_CHANGED
+            self._config_changed = False
+        return SampleBlock(t, self.environment.device_us(t), quantise(accel, gyro, temp), flags)
+
+
+# --------------------------------------------------------------------------- motions
+def turn_motion(
+    rng: np.random.Generator,
+    up_body: np.ndarray | str,
+    t_beep_s: float,
+    window_s: float,
+    turns: float,
+    direction: int,
+    wobble_deg: float = 1.0,
+    fraction: float = 1.0,
+    peak_dps: float | None = None,
+) -> TurnMotion:
+    """A hand turn about the vertical inside the window ``[t_beep_s, t_beep_s + window_s]``.
+
+    The operator starts ~1 s after the beep (0.8–1.3 s) and stops 0.8–1.5 s before the end;
+    the angle is ``direction · fraction · turns · 360°`` (``fraction`` < 1: an incomplete
+    turn). ``peak_dps``: compress the same profile in time until its peak reaches this rate
+    (a too-fast turn).
+    """
+    up = up_vector(up_body) if isinstance(up_body, str) else np.asarray(up_body, dtype=float)
+    pre = float(rng.uniform(0.8, 1.3))
+    post = float(rng.uniform(0.8, 1.5))
+    start = t_beep_s + pre
+    duration = max(window_s - pre - post, 0.5)
+    angle = direction * fraction * turns * 360.0
+    profile = TurnProfile.random(rng, start, duration, angle)
+    if peak_dps is not None:
+        profile = profile.scaled_in_time(profile.peak_rate() / peak_dps)
+    wobble = Wobble.random(rng, profile.start, profile.end, wobble_deg) if wobble_deg > 0 else None
+    attitude = tuple(tuple(float(x) for x in row) for row in pose_from_up(up))
+    return TurnMotion(attitude, profile=profile, wobble=wobble)
+
+
+def rate_table_motion(up_body: np.ndarray | str, rate_dps: float, t0_s: float) -> Motion:
+    """The cube on a rate table turning at ``rate_dps`` about its ``up_body`` axis."""
+    up = up_vector(up_body) if isinstance(up_body, str) else np.asarray(up_body, dtype=float)
+    attitude = tuple(tuple(float(x) for x in row) for row in pose_from_up(up))
+    return ConstantRateMotion(attitude, rate_dps=rate_dps, start_s=t0_s)
+
+
+# --------------------------------------------------------------------------- sessions
+def tilted_45() -> tuple[tuple[str, tuple[float, float, float]], ...]:
+    """The 12 attitudes with an edge of the cube up (two axes at 45° to the vertical):
+    names ``tilt_45_1`` … ``tilt_45_12`` and body up vectors."""
+    out = []
+    h = float(np.sqrt(0.5))
+    k = 0
+    for a, b in ((0, 1), (0, 2), (1, 2)):
+        for sa in (1, -1):
+            for sb in (1, -1):
+                v = [0.0, 0.0, 0.0]
+                v[a], v[b] = sa * h, sb * h
+                k += 1
+                out.append((f"tilt_45_{k}", (v[0], v[1], v[2])))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class RecordSpec:
+    """One record of a plan: what the cube does between the two beeps."""
+
+    name: str
+    kind: str  # "static" | "turn" | "rate"
+    duration_s: float
+    up: tuple[float, float, float]
+    turns: int = 0
+    direction: int = 0  # +1 ccw, -1 cw
+    rate_dps: float = 0.0
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What a simulated session measures.
+
+    Static records of ``static_s`` s for ``statics``; for each of ``turn_axes`` a ccw and a cw
+    record of ``turns`` turns in the fixed window (7/12/15 s); optional ``tilted`` static
+    attitudes (name, body up vector; see :func:`tilted_45`) and ``rate_table`` records
+    (axis, rate °/s) of ``rate_table_s`` s. The first record starts after ``warmup_s`` s of
+    power; ``gap_s`` s of handling between records. ``environment`` None: drawn from the seed.
+    """
+
+    static_s: float = 30.0
+    turns: int = 2
+    statics: tuple[str, ...] = STATIC_NAMES
+    turn_axes: tuple[str, ...] = ("x", "y", "z")
+    tilted: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+    rate_table: tuple[tuple[str, float], ...] = ()
+    rate_table_s: float = 10.0
+    warmup_s: float = 600.0
+    gap_s: float = 20.0
+    window_s: float | None = None
+    bench: Bench = field(default_factory=Bench)
+    environment: Environment | None = None
+    rate_hz: float = 50.0
+
+    def specs(self) -> list[RecordSpec]:
+        """The records in measuring order."""
+        out = []
+        for name in self.statics:
+            out.append(RecordSpec(name, "static", self.static_s, _t3(up_vector(name))))
+        for name, up in self.tilted:
+            out.append(RecordSpec(name, "static", self.static_s, _t3(np.asarray(up))))
+        window = self.window_s or turn_window_s(self.turns)
+        for axis in self.turn_axes:
+            for d, sfx in ((1, "ccw"), (-1, "cw")):
+                up = _t3(up_vector(f"{axis}_up"))
+                out.append(RecordSpec(f"{axis}_{sfx}", "turn", window, up, self.turns, d))
+        for axis, rate in self.rate_table:
+            name = f"rate_{axis}_{'p' if rate >= 0 else 'm'}{abs(rate):g}"
+            up = _t3(up_vector(f"{axis}_up"))
+            out.append(RecordSpec(name, "rate", self.rate_table_s, up, rate_dps=rate))
+        return out
+
+
+def _t3(v: np.ndarray) -> tuple[float, float, float]:
+    v = np.asarray(v, dtype=float)
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def format_up(up: np.ndarray | Sequence[float]) -> str:
+    """Up vector for record meta: '+x' for an axis, else '[0.7071, 0, 0.7071]'."""
+    v = np.asarray(up, dtype=float)
+    k = int(np.argmax(np.abs(v)))
+    if abs(abs(v[k]) - 1.0) < 1e-12:
+        return ("+" if v[k] > 0 else "-") + "xyz"[k]
+    return "[" + ", ".join(f"{x:.6g}" for x in v) + "]"
+
+
+def simulate_session(
+    truth: SensorTruth, plan: Plan | None = None, seed: int = 0
+) -> dict[str, Record]:
+    """Simulate every record of ``plan`` (default: 6 × 30 s statics + 6 turns of 2) as the
+    calibration program would record them: ``t_ms`` ms since the start beep (device clock),
+    accel m/s², gyro °/s, temp °C from the counts; meta ``kind``/``up``/``turns``/… ."""
+    plan = plan or Plan()
+    env_ss, motion_ss, sensor_ss = np.random.SeedSequence(seed).spawn(3)
+    env = plan.environment or Environment.random(np.random.default_rng(env_ss))
+    sim = Simulator(truth, plan.bench, env, sensor_ss, plan.rate_hz)
+    motion_rng = np.random.default_rng(motion_ss)
+    records: dict[str, Record] = {}
+    t = plan.warmup_s
+    for spec in plan.specs():
+        up = np.asarray(spec.up)
+        meta = {
+            "kind": spec.kind,
+            "up": format_up(up),
+            "source": "sim",
+            "sim_seed": str(seed),
+            "power_on_s": f"{t:.3f}",
+        }
+        if spec.kind == "turn":
+            motion: Motion = turn_motion(
+                motion_rng,
+                up,
+                t,
+                spec.duration_s,
+                spec.turns,
+                spec.direction,
+                plan.bench.wobble_deg,
+            )
+            meta.update(
+                turns=str(spec.turns),
+                direction="ccw" if spec.direction > 0 else "cw",
+                window_s=f"{spec.duration_s:g}",
+            )
+        elif spec.kind == "rate":
+            motion = rate_table_motion(up, spec.rate_dps, t)
+            meta.update(rate_dps=f"{spec.rate_dps:g}", rate_axis=format_up(up))
+        else:
+            motion = static_motion(up)
+        sim.skip_until(t)
+        sim.set_motion(motion, t)
+        block = sim.run_until(t + spec.duration_s)
+        beep_us = int(env.device_us(np.array([t]))[0])
+        records[spec.name] = Record(
+            name=spec.name,
+            t_ms=(block.t_us - beep_us) / 1000.0,
+            accel=block.accel,
+            gyro=block.gyro,
+            temp=block.temp,
+            meta=meta,
+        )
+        t += spec.duration_s + plan.gap_s
+    return records
+
+
+def write_session(
+    out_dir: str | os.PathLike[str], serial: str, records: dict[str, Record]
+) -> list[Path]:
+    """Write each record to ``out_dir/SERIAL_name.txt`` exactly as the calibration program
+    does (:func:`host.records.write_record`); -> the paths written."""
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, rec in records.items():
+        p = record_path(out_dir, serial, name)
+        meta = {"serial": serial, **rec.meta}
+        write_record(p, Record(rec.name, rec.t_ms, rec.accel, rec.gyro, rec.temp, meta))
+        paths.append(p)
+    return paths
+
+
+# --------------------------------------------------------------------------- scenarios
+#: a time-varying scenario: (start time s since power-on, motion in force from then), in order
+Scenario = Sequence[tuple[float, Motion]]
+
+
+def _scheduled(sim: Simulator, scenario: Scenario) -> None:
+    for t0, motion in scenario:
+        sim.set_motion(motion, t0)
+
+
+def simulate_scenario(
+    truth: SensorTruth,
+    scenario: Scenario,
+    duration_s: float,
+    seed: SeedLike = 0,
+    bench: Bench | None = None,
+    environment: Environment | None = None,
+    rate_hz: float = 50.0,
+) -> SampleBlock:
+    """Every sample of ``[0, duration_s)`` s since power-on for a motion schedule."""
+    sim = Simulator(truth, bench, environment, seed, rate_hz)
+    _scheduled(sim, scenario)
+    return sim.run_until(duration_s)
+
+
+def imu_frames(
+    sim: Simulator, t_end_s: float, seq0: int = 0, chunk_s: float = 1.0
+) -> Iterator[bytes]:
+    """IMU_SAMPLE frames (wire bytes, ``chunk_s`` s of samples per chunk) for every sample of
+    ``sim`` before true time ``t_end_s``; sequence numbers run on from ``seq0`` (mod 2^16),
+    device ``t_us`` wraps at 2^32 as on the wire."""
+    from host.frames import encode_imu_samples
+
+    seq = seq0
+    while sim.t_next < t_end_s:
+        block = sim.run_until(min(t_end_s, sim.t_next + chunk_s))
+        if len(block):
+            yield encode_imu_samples(seq, block.t_us, block.counts, block.flags)
+            seq = (seq + len(block)) & 0xFFFF
+
+
+@dataclass(frozen=True)
+class TruthSeries:
+    """The physical stimulus on a time grid: ``t_s`` (N,) s since power-on,
+    ``specific_force`` (N, 3) m/s² and ``rate_dps`` (N, 3) °/s in body axes, ``temp_c`` (N,)."""
+
+    t_s: np.ndarray
+    specific_force: np.ndarray
+    rate_dps: np.ndarray
+    temp_c: np.ndarray
+
+
+def truth_series(
+    scenario: Scenario,
+    t_s: np.ndarray,
+    bench: Bench | None = None,
+    environment: Environment | None = None,
+    truth: SensorTruth | None = None,
+    apply_errors: bool = False,
+) -> TruthSeries:
+    """The stimulus a sensor sees at times ``t_s`` for a motion schedule (for the emulated
+    board: it feeds these to its virtual MPU-6000).
+
+    With ``truth`` its lever arm enters the specific force; ``apply_errors`` also passes the
+    inputs through the deterministic part of the error model (no noise, no quantisation), so
+    the series is what an imperfect sensor would output.
+    """
+    bench = bench or Bench()
+    environment = environment or Environment()
+    t = np.asarray(t_s, dtype=np.float64)
+    f = np.zeros((t.shape[0], 3))
+    w = np.zeros((t.shape[0], 3))
+    starts = np.array([s for s, _ in scenario]) if scenario else np.zeros(0)
+    idx = np.searchsorted(starts, t, side="right") - 1
+    lever = np.asarray(truth.lever_arm_m) if truth is not None else None
+    for i in np.unique(idx):
+        sel = idx == i
+        motion = scenario[i][1] if i >= 0 else static_motion("z_up")
+        f[sel], w[sel] = body_inputs(motion, t[sel], bench, lever)
+    temp = environment.temperature(t)
+    if apply_errors and truth is not None:
+        f, w = sensor_output(truth, f, w, temp, t, bench.g)
+    return TruthSeries(t, f, w, temp)

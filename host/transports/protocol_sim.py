@@ -1,0 +1,532 @@
+"""``sim://`` — a virtual APM 2.6 board (MPU-6000 on the calibration cube) as a pyserial port.
+
+URL grammar (all options optional, ``&``-separated; ``fault`` may repeat)::
+
+    sim://[?seed=N][&speed=realtime|N|max][&operator=auto|manual][&truth=random|ideal]
+          [&fault=wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]|pull_cable[@SECONDS]]...
+          [&clock_ppm=PPM][&sample_clock=REL][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
+          [&effects=NAME,NAME...]
+
+- ``seed`` (default 0): draws the truth, the room/clock and the noise; same seed, same board.
+- ``speed``: ``realtime`` (default) — simulated time follows the wall clock; ``N`` — it runs N×
+  faster; ``max`` — time advances only as bytes are read: ``read(n)`` returns n bytes at once.
+- ``truth``: ``random`` (default, :meth:`SensorTruth.random`) or ``ideal`` (no errors at all);
+  ``effects`` keeps only those effects of the truth (e.g. ``effects=linear,noise``).
+- ``clock_ppm``: MCU µs timer error; ``sample_clock``: sensor sample-clock error, relative
+  (0.004 = 50.2 Hz). Default: drawn from the seed. ``latitude``, ``tilt`` (base tilt about the
+  east axis) and ``earth_rate`` set up the bench.
+- ``fault``: the operator or the cable misbehaves on purpose. ``wrong_face@K``: the K-th
+  ``place`` hint (default 1st) puts the next axis up (x→y→z→x, same side);
+  ``incomplete_turn@K``: the K-th ``turn`` stops at 0.8 of the turns asked;
+  ``too_fast@K``: the K-th ``turn`` peaks at 320 °/s (gyro saturates at ±250 °/s);
+  ``pull_cable@S``: S simulated seconds after opening (default 5) ``read``/``write`` raise
+  ``serial.SerialException("device disconnected")``; closing and re-opening works (once per
+  port object: the re-opened board is powered up afresh and stays connected).
+
+On the wire it behaves like the firmware: on ``open`` the board resets (the host's DTR), sends
+HELLO (with this host's ``SPEC_FINGERPRINT``), then IMU_SAMPLE frames at 50 Hz (device time in
+µs, 4 µs timer) and STATUS once a second, one ``seq`` counter over all frames. Commands:
+PING → PONG + ACK, START_STREAM / STOP_STREAM → ACK, SET_RATE → ACK (samples after it carry
+CONFIG_CHANGED; DLPF_CFG > 6 or a rate above 500 Hz → ACK BAD_ARGUMENT), GET_CONFIG → HELLO +
+ACK, GET_STATUS → STATUS + ACK, anything else → ACK UNSUPPORTED. Bad-CRC command frames are
+counted in STATUS.crc_errors.
+
+Operator API (the calibration program tells the bench what it asks the human)::
+
+    hint = getattr(port, "operator_hint", None)   # a real board has none: a human does it
+    if hint:
+        hint("place", name="x_up")                # or up=[0, 0.7071, 0.7071]
+        hint("turn", axis="x", direction="ccw", turns=2, window_s=12)
+
+Call ``place`` before the start beep: the cube is there from the next sample on. Call ``turn``
+at the start beep: the operator puts the cube ``axis`` up (if it is not), starts turning about
+0.8–1.3 s later and stops 0.8–1.5 s before ``window_s`` ends (default 7/12/15 s for 1/2/3
+turns). Other actions are recorded and ignored. With ``operator=manual`` hints are only
+recorded (``port.hints``); drive the cube yourself with ``port.set_motion(...)``.
+``operator_hint`` returns what the operator did (dict: ``up``, ``fault``, ``start_s``...).
+
+For tests: ``port.truth`` (:class:`host.sim.SensorTruth`), ``port.sim`` (the running
+:class:`host.sim.Simulator`), ``port.sim_time`` (simulated s since the last reset).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import urllib.parse as urlparse
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from serial.serialutil import PortNotOpenError, SerialBase, SerialException
+
+from host import protocol_gen as gen
+from host.frames import StreamDecoder, encode_frame, encode_imu_samples
+from host.sim import Simulator, turn_motion, turn_window_s
+from host.sim_physics import Bench, Environment, Motion, static_motion, up_vector
+from host.sim_truth import SensorTruth
+
+FW_VERSION = (0, 1, 0)
+BAUD = 115200
+DEFAULT_DLPF = 3
+DEFAULT_SMPLRT_DIV = 19  # 1 kHz / (1 + 19) = 50 Hz
+TIMER_RESOLUTION_NS = 4000
+MAX_RATE_HZ = 500.0
+TOO_FAST_PEAK_DPS = 320.0
+INCOMPLETE_FRACTION = 0.8
+if TYPE_CHECKING:
+    from typing_extensions import Buffer
+
+_ACK = gen.ENUMS["ack_status"]
+_FAULTS = ("wrong_face", "incomplete_turn", "too_fast", "pull_cable")
+_NEXT_AXIS = {"x": "y", "y": "z", "z": "x"}
+
+
+def _usage(msg: str) -> SerialException:
+    return SerialException(f"sim:// URL: {msg} (see host/transports/protocol_sim.py)")
+
+
+class Serial(SerialBase):
+    """The virtual board as a pyserial port (``serial.serial_for_url("sim://...")``)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self._lock = threading.RLock()
+        self._out = bytearray()
+        self._decoder = StreamDecoder()
+        self.hints: list[tuple[float, str, dict[str, Any]]] = []
+        self.truth: SensorTruth | None = None
+        self.sim: Simulator | None = None
+        self._opened_once = False
+        self._pulled_done = False
+        self._pulled = False
+        self._place_count = 0
+        self._turn_count = 0
+        self._pose: Motion = static_motion("z_up")
+        self._power_s = 0.0
+        self._t_gen = 0.0
+        super().__init__(*args, **kwargs)
+
+    # ---- URL ---------------------------------------------------------------------------
+    def from_url(self, url: str) -> None:
+        """Parse the options of a ``sim://`` URL (see the module docstring)."""
+        parts = urlparse.urlsplit(url)
+        if parts.scheme.lower() != "sim":
+            raise _usage(f"expected sim://..., got {url!r}")
+        opts = urlparse.parse_qs(parts.query, keep_blank_values=True)
+        known = {
+            "seed",
+            "speed",
+            "operator",
+            "fault",
+            "truth",
+            "clock_ppm",
+            "sample_clock",
+            "latitude",
+            "tilt",
+            "earth_rate",
+            "effects",
+        }
+        unknown = sorted(set(opts) - known)
+        if unknown:
+            raise _usage(f"unknown option(s) {', '.join(unknown)}")
+
+        def one(key: str, default: str) -> str:
+            return opts.get(key, [default])[-1]
+
+        try:
+            self.seed = int(one("seed", "0"))
+            speed = one("speed", "realtime").lower()
+            self.speed: float | None = (
+                1.0 if speed == "realtime" else None if speed == "max" else float(speed)
+            )
+            if self.speed is not None and not self.speed > 0:
+                raise ValueError("speed must be > 0")
+            self.operator = one("operator", "auto").lower()
+            if self.operator not in ("auto", "manual"):
+                raise ValueError(f"operator must be auto or manual, not {self.operator!r}")
+            self.faults: dict[str, float] = {}
+            for f in opts.get("fault", []):
+                name, _, arg = f.partition("@")
+                if name not in _FAULTS:
+                    raise ValueError(f"unknown fault {name!r}; known: {', '.join(_FAULTS)}")
+                self.faults[name] = float(arg) if arg else (5.0 if name == "pull_cable" else 1.0)
+            truth_kind = one("truth", "random").lower()
+            if truth_kind not in ("random", "ideal"):
+                raise ValueError(f"truth must be random or ideal, not {truth_kind!r}")
+            ss = np.random.SeedSequence(self.seed)
+            truth_ss, env_ss, self._noise_ss, self._op_ss = ss.spawn(4)
+            truth = (
+                SensorTruth.random(np.random.default_rng(truth_ss))
+                if truth_kind == "random"
+                else SensorTruth.ideal()
+            )
+            if "effects" in opts:
+                truth = truth.only(*[e for e in one("effects", "").split(",") if e])
+            env = Environment.random(np.random.default_rng(env_ss))
+            if "clock_ppm" in opts:
+                env = _replace(env, timer_ppm=float(one("clock_ppm", "0")))
+            if "sample_clock" in opts:
+                env = _replace(env, sample_clock_error=float(one("sample_clock", "0")))
+            self.environment = env
+            self.bench = Bench(
+                latitude_deg=float(one("latitude", "55.75")),
+                tilt_deg=float(one("tilt", "0")),
+                earth_rate=one("earth_rate", "1") not in ("0", "false", "no"),
+            )
+        except ValueError as exc:
+            raise _usage(str(exc)) from exc
+        self.truth = truth
+        self._op_rng = np.random.default_rng(self._op_ss)
+
+    # ---- open / close ------------------------------------------------------------------
+    def open(self) -> None:
+        """Open = the board resets (HELLO, then streaming)."""
+        if self.is_open:
+            raise SerialException("Port is already open.")
+        if self.port is None:
+            raise SerialException("Port must be configured before it can be used.")
+        with self._lock:
+            if not self._opened_once:
+                self.from_url(self.port)
+            self._reconfigure_port()
+            self.is_open = True
+            self._reset_board(power_cycle=not self._opened_once or self._pulled)
+            self._opened_once = True
+
+    def close(self) -> None:
+        with self._lock:
+            if self.is_open and self.sim is not None and not self._pulled:
+                self._power_s = self.sim.power_on_s + self._t_gen
+            self.is_open = False
+
+    def _reconfigure_port(self) -> None:
+        baud = self.baudrate
+        if not isinstance(baud, int) or not 0 < baud < 2**32:
+            raise ValueError(f"invalid baudrate: {baud!r}")
+
+    def _reset_board(self, power_cycle: bool) -> None:
+        if power_cycle:
+            self._power_s = 0.0
+        self._resets = getattr(self, "_resets", -1) + 1
+        assert self.truth is not None
+        seed = np.random.SeedSequence(
+            entropy=self._noise_ss.entropy, spawn_key=(*self._noise_ss.spawn_key, self._resets)
+        )
+        if self.sim is not None:  # the cube stays where it is
+            r, _ = self.sim.motion_at(self._t_gen).kinematics(np.array([self._t_gen]))
+            self._pose = Motion(tuple(tuple(float(x) for x in row) for row in r[0]))
+        self.sim = Simulator(self.truth, self.bench, self.environment, seed, 50.0, self._power_s)
+        self.sim.set_motion(self._pose, 0.0)
+        self._out.clear()
+        self._decoder = StreamDecoder()
+        self._seq = 0
+        self._t_gen = 0.0
+        self._next_status_s = 1.0
+        self._streaming = True
+        self._dlpf = DEFAULT_DLPF
+        self._div = DEFAULT_SMPLRT_DIV
+        self._reset_cause = 1 if power_cycle else 2
+        self._pulled = False
+        self._pull_at = (
+            self.faults["pull_cable"]
+            if "pull_cable" in self.faults and not self._pulled_done
+            else None
+        )
+        self._wall0 = time.monotonic()
+        self._emit("HELLO", **self._hello_fields())
+
+    # ---- device side -------------------------------------------------------------------
+    @property
+    def sim_time(self) -> float:
+        """Simulated seconds since the last reset up to which output has been produced."""
+        return self._t_gen
+
+    def _emit(self, msg: str, **fields: int) -> None:
+        self._out += encode_frame(msg, self._seq, **fields)
+        self._seq = (self._seq + 1) & 0xFFFF
+
+    def _hello_fields(self) -> dict[str, int]:
+        return dict(
+            fw_major=FW_VERSION[0],
+            fw_minor=FW_VERSION[1],
+            fw_patch=FW_VERSION[2],
+            protocol_version=gen.PROTOCOL_VERSION,
+            spec_fingerprint=gen.SPEC_FINGERPRINT,
+            who_am_i=0x68,
+            accel_fs_sel=0,
+            gyro_fs_sel=0,
+            dlpf_cfg=self._dlpf,
+            smplrt_div=self._div,
+            mode=0,
+            timer_resolution_ns=TIMER_RESOLUTION_NS,
+            baud=BAUD,
+            reset_cause=self._reset_cause,
+            streaming=int(self._streaming),
+        )
+
+    def _status_fields(self) -> dict[str, int]:
+        assert self.sim is not None
+        uptime_us = int(self.environment.device_us(np.array([self._t_gen]))[0])
+        return dict(
+            uptime_ms=(uptime_us // 1000) & 0xFFFFFFFF,
+            samples=self.sim.samples & 0xFFFFFFFF,
+            missed=0,
+            dropped=0,
+            crc_errors=min(self._decoder.stats.crc_errors, 0xFFFF),
+            spi_faults=0,
+            fifo_overflows=0,
+            tx_queue_max=7,
+        )
+
+    def _now_target(self) -> float:
+        """Simulated time the wall clock has reached (realtime / N× speed)."""
+        assert self.speed is not None
+        return (time.monotonic() - self._wall0) * self.speed
+
+    def _advance(self, t_target: float) -> None:
+        """Produce every frame up to simulated time ``t_target`` (or until the cable goes)."""
+        assert self.sim is not None
+        if self._pulled:
+            return
+        if self._pull_at is not None and t_target >= self._pull_at:
+            t_target = self._pull_at
+        while self._t_gen < t_target:
+            t_stop = min(t_target, self._next_status_s)
+            block = self.sim.run_until(t_stop)
+            if self._streaming and len(block):
+                self._out += encode_imu_samples(self._seq, block.t_us, block.counts, block.flags)
+                self._seq = (self._seq + len(block)) & 0xFFFF
+            self._t_gen = t_stop
+            if t_stop >= self._next_status_s:
+                self._emit("STATUS", **self._status_fields())
+                self._next_status_s += 1.0
+        if self._pull_at is not None and self._t_gen >= self._pull_at:
+            self._pulled = True
+            self._pulled_done = True
+            self._out.clear()
+
+    def _pump(self, want: int = 0) -> None:
+        """Bring the output up to date: to the wall clock, or (max speed) until ``want``
+        bytes are waiting (at most the simulated time those bytes take, or 2 s)."""
+        if self.speed is not None:
+            self._advance(self._now_target())
+            return
+        assert self.sim is not None
+        # enough time for the bytes asked (27 per sample), at least 2 s (STATUS-only output)
+        limit = self._t_gen + max(2.0, 1.5 * want / 27.0 * self.sim.period_s + 1.0)
+        while len(self._out) < want and self._t_gen < limit and not self._pulled:
+            # just enough samples for the missing bytes (27 bytes per IMU_SAMPLE frame)
+            frames = (want - len(self._out)) / 27.0
+            step = min(0.1, max(1.0, frames) * self.sim.period_s)
+            self._advance(min(limit, max(self._t_gen + step, self.sim.t_next + 1e-9)))
+
+    def _check_connected(self) -> None:
+        if not self.is_open:
+            raise PortNotOpenError()
+        if self._pulled:
+            raise SerialException("device disconnected")
+
+    # ---- pyserial API ------------------------------------------------------------------
+    @property
+    def in_waiting(self) -> int:
+        """Bytes ready to read."""
+        with self._lock:
+            self._check_connected()
+            self._pump(1)
+            self._check_connected()
+            return len(self._out)
+
+    def read(self, size: int = 1) -> bytes:
+        """Read up to ``size`` bytes; blocks until ``size`` or the timeout like a real port."""
+        deadline = None if self.timeout is None else time.monotonic() + self.timeout
+        while True:
+            with self._lock:
+                self._check_connected()
+                self._pump(size)
+                self._check_connected()
+                if len(self._out) >= size or self.speed is None:
+                    n = min(size, len(self._out))
+                    data = bytes(self._out[:n])
+                    del self._out[:n]
+                    return data
+                missing = size - len(self._out)
+            now = time.monotonic()
+            if deadline is not None and now >= deadline:
+                with self._lock:
+                    data = bytes(self._out[:size])
+                    del self._out[: len(data)]
+                    return data
+            # about the time the missing bytes take at 50 Hz × 27 bytes, sped up
+            wait = min(0.05, max(0.001, missing / (1350.0 * self.speed)))
+            if deadline is not None:
+                wait = min(wait, max(0.0, deadline - now))
+            time.sleep(wait)
+
+    def write(self, data: Buffer, /) -> int:
+        """Commands to the board; answered at the current simulated time."""
+        with self._lock:
+            self._check_connected()
+            if self.speed is not None:
+                self._advance(self._now_target())
+                self._check_connected()
+            for frame in self._decoder.feed(bytes(data)):
+                self._handle(frame.type, frame.seq, frame.fields)
+            return len(memoryview(data))
+
+    def _handle(self, mtype: int, cmd_seq: int, fields: dict[str, int]) -> None:
+        assert self.sim is not None
+        name = gen.MESSAGES[mtype][0] if mtype in gen.MESSAGES else ""
+        status = _ACK["OK"]
+        if name == "PING":
+            t_us = int(self.environment.device_us(np.array([self._t_gen]))[0])
+            self._emit("PONG", nonce=fields["nonce"], t_us=t_us & 0xFFFFFFFF)
+        elif name == "START_STREAM":
+            self._streaming = True
+        elif name == "STOP_STREAM":
+            self._streaming = False
+        elif name == "SET_RATE":
+            div, dlpf = fields["smplrt_div"], fields["dlpf_cfg"]
+            internal = 8000.0 if dlpf in (0, 7) else 1000.0
+            rate = internal / (1 + div)
+            if dlpf > 6 or rate > MAX_RATE_HZ:
+                status = _ACK["BAD_ARGUMENT"]
+            else:
+                self._div, self._dlpf = div, dlpf
+                self.sim.set_rate(rate)
+        elif name == "GET_CONFIG":
+            self._emit("HELLO", **self._hello_fields())
+        elif name == "GET_STATUS":
+            self._emit("STATUS", **self._status_fields())
+        else:
+            status = _ACK["UNSUPPORTED"]
+        self._emit("ACK", cmd_type=mtype, cmd_seq=cmd_seq, status=status)
+
+    def reset_input_buffer(self) -> None:
+        with self._lock:
+            self._check_connected()
+            if self.speed is not None:
+                self._advance(self._now_target())
+            self._out.clear()
+
+    def reset_output_buffer(self) -> None:
+        self._check_connected()
+
+    @property
+    def out_waiting(self) -> int:
+        return 0
+
+    def cancel_read(self) -> None:
+        pass
+
+    def cancel_write(self) -> None:
+        pass
+
+    def _update_dtr_state(self) -> None:
+        pass
+
+    def _update_rts_state(self) -> None:
+        pass
+
+    def _update_break_state(self) -> None:
+        pass
+
+    @property
+    def cts(self) -> bool:
+        return True
+
+    @property
+    def dsr(self) -> bool:
+        return True
+
+    @property
+    def ri(self) -> bool:
+        return False
+
+    @property
+    def cd(self) -> bool:
+        return True
+
+    # ---- the operator ------------------------------------------------------------------
+    def set_motion(self, motion: Motion, t_from_s: float | None = None) -> None:
+        """Move the cube yourself (manual operator): ``motion`` from ``t_from_s`` simulated s
+        since the reset (default: now)."""
+        with self._lock:
+            assert self.sim is not None
+            if self.speed is not None:
+                self._advance(self._now_target())
+            t = self._t_gen if t_from_s is None else max(t_from_s, self._t_gen)
+            self.sim.set_motion(motion, t)
+
+    def operator_hint(self, action: str, **kw: Any) -> dict[str, Any]:
+        """What the calibration program asks the operator (see the module docstring)."""
+        with self._lock:
+            if self.is_open and self.speed is not None and not self._pulled:
+                self._advance(self._now_target())
+            now = self._t_gen
+            self.hints.append((now, action, dict(kw)))
+            if self.operator != "auto" or self.sim is None:
+                return {"action": action, "done": False}
+            if action == "place":
+                return self._place(now, kw)
+            if action == "turn":
+                return self._turn(now, kw)
+            return {"action": action, "done": False}
+
+    def _place(self, now: float, kw: dict[str, Any]) -> dict[str, Any]:
+        assert self.sim is not None
+        self._place_count += 1
+        fault = None
+        if "up" in kw:
+            up = np.asarray(kw["up"], dtype=float)
+        else:
+            name = str(kw.get("name", "z_up"))
+            if self.faults.get("wrong_face") == self._place_count:
+                axis, _, side = name.partition("_")
+                name = f"{_NEXT_AXIS[axis]}_{side}"
+                fault = "wrong_face"
+            up = up_vector(name)
+        motion = static_motion(up)
+        self.sim.set_motion(motion, now)
+        return {"action": "place", "done": True, "up": up.tolist(), "fault": fault, "start_s": now}
+
+    def _turn(self, now: float, kw: dict[str, Any]) -> dict[str, Any]:
+        assert self.sim is not None
+        self._turn_count += 1
+        axis = str(kw.get("axis", "z"))
+        direction = str(kw.get("direction", "ccw")).lower()
+        turns = int(kw.get("turns", 1))
+        window = float(kw.get("window_s", turn_window_s(turns)))
+        fault = None
+        fraction, peak = 1.0, None
+        if self.faults.get("incomplete_turn") == self._turn_count:
+            fraction, fault = INCOMPLETE_FRACTION, "incomplete_turn"
+        if self.faults.get("too_fast") == self._turn_count:
+            peak, fault = TOO_FAST_PEAK_DPS, "too_fast"
+        sign = 1 if direction == "ccw" else -1
+        motion = turn_motion(
+            self._op_rng,
+            f"{axis}_up",
+            now,
+            window,
+            turns,
+            sign,
+            self.bench.wobble_deg,
+            fraction,
+            peak,
+        )
+        # after the turn the cube rests where it stopped (a whole turn: back at the ruler)
+        self.sim.set_motion(motion, now)
+        return {
+            "action": "turn",
+            "done": True,
+            "up": up_vector(f"{axis}_up").tolist(),
+            "fault": fault,
+            "start_s": motion.profile.start,
+            "end_s": motion.profile.end,
+            "angle_deg": motion.profile.angle_deg,
+        }
+
+
+def _replace(env: Environment, **kw: Any) -> Environment:
+    import dataclasses
+
+    return dataclasses.replace(env, **kw)
