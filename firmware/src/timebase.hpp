@@ -1,0 +1,44 @@
+// Device time: Timer1 free-running at F_CPU/8 = 2 MHz (0.5 us per tick), extended to a 32-bit
+// microsecond counter by the overflow interrupt (one every 65536 ticks = 32.768 ms).
+//
+// Timer1 compare A also interrupts every 10 ms (kTickUs): that ISR does nothing but wake the main
+// loop from idle sleep, so timed work (bring-up delays, STATUS) runs within 10 ms of its time.
+//
+// Resolution: the hardware timer ticks every 500 ns (reported as HELLO.timer_resolution_ns);
+// t_us values are that count / 2, i.e. whole microseconds, wrapping every 2^32 us (71.6 min).
+#pragma once
+
+#include <stdint.h>
+
+#ifdef __AVR__
+#include <avr/io.h>
+#endif
+
+namespace timebase {
+
+static constexpr uint16_t kResolutionNs = 500;  // Timer1 prescaler 8 at 16 MHz
+static constexpr uint16_t kTickUs = 10000;       // main-loop wake-up period
+
+void init();
+
+// Microseconds since init(); safe with interrupts on or off.
+uint32_t micros();
+
+#ifdef __AVR__
+namespace detail {
+extern volatile uint32_t g_overflows;  // Timer1 overflows since init
+}
+
+// For ISRs (interrupts already off): device time now. Accounts for an overflow that happened
+// but whose interrupt is still pending (TOV1 set with a small count).
+static inline uint32_t micros_from_isr() {
+    uint16_t ticks = TCNT1;
+    uint32_t ovf = detail::g_overflows;
+    if ((TIFR1 & _BV(TOV1)) && ticks < 0x8000u) {
+        ++ovf;
+    }
+    return (ovf << 15) + (ticks >> 1);
+}
+#endif
+
+}  // namespace timebase
