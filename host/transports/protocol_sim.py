@@ -25,7 +25,7 @@ URL grammar (all options optional, ``&``-separated; ``fault`` may repeat)::
 
 On the wire it behaves like the firmware: on ``open`` the board resets (the host's DTR), sends
 HELLO (with this host's ``SPEC_FINGERPRINT``), then IMU_SAMPLE frames at 50 Hz (device time in
-µs, 4 µs timer) and STATUS once a second, one ``seq`` counter over all frames. Commands:
+µs, 0.5 µs timer) and STATUS once a second, one ``seq`` counter over all frames. Commands:
 PING → PONG + ACK, START_STREAM / STOP_STREAM → ACK, SET_RATE → ACK (samples after it carry
 CONFIG_CHANGED; DLPF_CFG > 6 or a rate above 500 Hz → ACK BAD_ARGUMENT), GET_CONFIG → HELLO +
 ACK, GET_STATUS → STATUS + ACK, anything else → ACK UNSUPPORTED. Bad-CRC command frames are
@@ -67,9 +67,10 @@ from host.sim_truth import SensorTruth
 
 FW_VERSION = (0, 1, 0)
 BAUD = 115200
-DEFAULT_DLPF = 3
+DEFAULT_DLPF = 4  # as the firmware: ≈20 Hz bandwidth at 1 kHz internal rate
 DEFAULT_SMPLRT_DIV = 19  # 1 kHz / (1 + 19) = 50 Hz
-TIMER_RESOLUTION_NS = 4000
+ERROR_BAD_COMMAND = gen.ENUMS["error_code"]["BAD_COMMAND"]
+TIMER_RESOLUTION_NS = 500  # as the firmware: Timer1 at fosc/8
 MAX_RATE_HZ = 500.0
 TOO_FAST_PEAK_DPS = 320.0
 INCOMPLETE_FRACTION = 0.8
@@ -223,6 +224,7 @@ class Serial(SerialBase):
         self._next_status_s = 1.0
         self._streaming = True
         self._dlpf = DEFAULT_DLPF
+        self._bad_commands = 0
         self._div = DEFAULT_SMPLRT_DIV
         self._reset_cause = 1 if power_cycle else 2
         self._pulled = False
@@ -399,6 +401,9 @@ class Serial(SerialBase):
         else:
             status = _ACK["UNSUPPORTED"]
         self._emit("ACK", cmd_type=mtype, cmd_seq=cmd_seq, status=status)
+        if status == _ACK["UNSUPPORTED"]:  # as the firmware: an ERROR frame follows the ACK
+            self._bad_commands += 1
+            self._emit("ERROR", code=ERROR_BAD_COMMAND, detail=mtype, count=self._bad_commands)
 
     def reset_input_buffer(self) -> None:
         with self._lock:

@@ -160,8 +160,12 @@ def test_commands_are_answered() -> None:
             )
         },
     )
-    acks = [f.fields for f in b.frames(300) if f.name == "ACK"]
+    answers = [f for f in b.frames(300) if f.name in ("ACK", "ERROR")]
+    acks = [f.fields for f in answers if f.name == "ACK"]
     assert [(a["cmd_seq"], a["status"]) for a in acks] == [(13, 1), (14, 1), (15, 2)]
+    # as the firmware: an unsupported command also gets ERROR BAD_COMMAND naming its type
+    assert answers[-1].name == "ERROR"
+    assert answers[-1].fields == {"code": 5, "detail": 0x02, "count": 1}
     bad = bytearray(encode_frame("PING", 16, nonce=1))
     bad[-1] ^= 0xFF
     b.port.write(bytes(bad))
