@@ -25,7 +25,8 @@ from host.records import (
     write_record,
 )
 
-REAL = Path("/work/shared/data/imucal-example")
+# shared/ sits beside the checkout (as in CI)
+REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
 DATA = Path(__file__).resolve().parents[1] / "data"
 
 

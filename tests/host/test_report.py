@@ -19,7 +19,8 @@ try:
 except ImportError:  # tests/ imported as a package
     from tests.host.calib_truth import TRUTH, make_records
 
-REAL = Path("/work/shared/data/imucal-example")
+# shared/ sits beside the checkout (as in CI)
+REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
 
 
 @pytest.fixture(scope="module")
