@@ -1,8 +1,9 @@
 """``python -m host calibrate``: compute the calibration from records and write the report.
 
-``--from-dir DIR`` recomputes from the record files in DIR. The live dialogue (``--port``,
-method.md §5) plugs in here later: it records into a directory, builds a
-:class:`host.records.Session`, then calls :func:`run_computation` like the from-dir mode.
+``--from-dir DIR`` recomputes from the record files in DIR. Otherwise the live dialogue of
+method.md §5 runs (:func:`host.session.run_live_session`) on ``--port`` — or, with no port
+given, on the first board found, else the virtual board ``sim://``; it records into a
+directory and then computes like the from-dir mode.
 """
 
 from __future__ import annotations
@@ -27,7 +28,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     """The calibrate options (the live-mode options are added beside these)."""
     src = p.add_mutually_exclusive_group()
     src.add_argument("--from-dir", metavar="DIR", help="recompute from the record files in DIR")
-    src.add_argument("--port", help="live calibration on a serial port (not yet available)")
+    src.add_argument(
+        "--port",
+        help="live calibration on a serial port or URL (default: the first APM found, "
+        "else the virtual board sim://)",
+    )
     p.add_argument("--serial", help="serial number (default: from the file names in DIR)")
     p.add_argument("--out", metavar="DIR", help="where to write the result files (default: DIR)")
     p.add_argument(
@@ -67,10 +72,10 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
 
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host calibrate``."""
-    if args.port:
-        raise UserError("live calibration (--port) is not available yet; use --from-dir DIR")
     if not args.from_dir:
-        raise UserError("give --from-dir DIR (the directory with SERIAL_x_up.txt ...)")
+        from host.session import run_live_session
+
+        return run_live_session(args)
     session = read_session(args.from_dir, args.serial)
     out_dir = Path(args.out) if args.out else Path(args.from_dir)
     result = run_computation(session, args, out_dir)
@@ -79,5 +84,8 @@ def run(args: argparse.Namespace) -> int:
 
 def cli_calibrate(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
     """Fill in the ``calibrate`` subparser; returns the runner."""
+    from host.session import add_live_arguments
+
     add_arguments(p)
+    add_live_arguments(p)
     return run

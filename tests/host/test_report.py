@@ -128,7 +128,7 @@ def test_cli_real_data(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
     ("setup", "args", "message"),
     [
         ("truncate", [], r"^error: .*SIM7_x_dn.txt:\d+: no line of underscores"),
-        ("none", [], r"^error: give --from-dir DIR"),
+        ("none", ["--yes"], r"^error: --yes needs --serial"),  # the live dialogue, no port
         ("missing", [], r"^error: .*nope: no such directory"),
         ("ok", ["--turns", "1"], r"^error: SIM7_x_ccw.txt: the cube turned \+7\d\d°"),
         ("ok", ["--serial", "XX"], r"^error: .*no records of serial 'XX'"),

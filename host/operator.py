@@ -1,0 +1,424 @@
+"""Terminal I/O of the live calibration dialogue: keys, prompts, beep, progress line.
+
+Two layers:
+
+* a :class:`Console` — the raw device: ``write`` text, read one ``key`` with a timeout, ``beep``,
+  a transient ``progress`` line. :class:`TerminalConsole` is the real terminal (keys in cbreak
+  mode from the controlling tty, text on stderr); :class:`ScriptedConsole` plays a list of keys
+  and records the screen, for unit tests.
+* an :class:`Operator` — the questions the dialogue asks (a line of text, Y/N, any key, a
+  countdown), built on a console. While it waits for the human it calls ``idle()`` about every
+  ``poll_s`` seconds, so the program keeps reading the board. With ``yes=True`` it never reads a
+  key: every question gets its default (works with stdin closed).
+
+Keys are strings: one character, ``ESC`` for a lone Esc, ``"\\r"`` for Enter; escape sequences
+(arrow keys…) come as one string starting with ESC + "[" and count as "any key". Ctrl+C is the
+terminal's SIGINT (cbreak keeps ISIG), i.e. ``KeyboardInterrupt``; a 0x03 byte read in raw mode
+raises it too.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import sys
+import time
+from collections.abc import Callable, Iterable
+from typing import Protocol, TextIO, TypeVar
+
+from host.errors import UserError
+
+ESC = "\x1b"
+CTRL_C = "\x03"
+ENTER = "\r"
+BACKSPACES = ("\x7f", "\x08")
+BEEP_MARK = "*** BEEP ***"
+
+T = TypeVar("T")
+
+
+class Console(Protocol):
+    """What the dialogue needs from a terminal."""
+
+    #: False: no keys can be read (``--yes`` mode, no terminal)
+    interactive: bool
+
+    def write(self, text: str) -> None:
+        """Write text as is (no newline added)."""
+
+    def say(self, text: str = "") -> None:
+        """Write one line (ends a progress line first)."""
+
+    def beep(self) -> None:
+        """Terminal bell plus a visible marker (silent terminals)."""
+
+    def progress(self, text: str) -> None:
+        """Show a transient status line (overwritten by the next one)."""
+
+    def end_progress(self) -> None:
+        """Finish the progress line, if one is shown."""
+
+    def key(self, timeout_s: float) -> str | None:
+        """One key, waiting at most ``timeout_s`` seconds (0: just look); None if none."""
+
+
+# --------------------------------------------------------------------------- real terminal
+
+
+class TerminalConsole:
+    """The real terminal: text on ``out`` (default stderr), keys from the controlling tty.
+
+    ``interactive=False`` never touches the keyboard (for ``--yes``). Use as a context manager:
+    the terminal mode is restored on exit, also after Ctrl+C.
+    """
+
+    def __init__(self, interactive: bool, out: TextIO | None = None) -> None:
+        self.interactive = interactive
+        self.out = out if out is not None else sys.stderr
+        self._is_tty = bool(getattr(self.out, "isatty", lambda: False)())
+        self._fd: int | None = None
+        self._own_fd = False
+        self._saved: list | None = None  # type: ignore[type-arg]
+        self._buf = b""
+        self._progress_on = False
+        self._last_progress = 0.0
+
+    # ---- terminal mode -------------------------------------------------------------------
+    def open(self) -> TerminalConsole:
+        """Put the keyboard into cbreak mode (no line editing, no echo; Ctrl+C still works)."""
+        if not self.interactive or self._fd is not None:
+            return self
+        import termios
+        import tty
+
+        fd: int | None = None
+        try:
+            if sys.stdin is not None and sys.stdin.isatty():
+                fd = sys.stdin.fileno()
+            else:
+                fd = os.open("/dev/tty", os.O_RDONLY | getattr(os, "O_NOCTTY", 0))
+                self._own_fd = True
+        except (OSError, ValueError):
+            fd = None
+        if fd is None:
+            raise UserError(
+                "the calibration dialogue needs a terminal for the keys; run it in a terminal, "
+                "or use --yes for a non-interactive run"
+            )
+        self._fd = fd
+        self._saved = termios.tcgetattr(fd)
+        tty.setcbreak(fd, termios.TCSANOW)
+        return self
+
+    def close(self) -> None:
+        """Restore the terminal mode."""
+        self.end_progress()
+        if self._fd is None:
+            return
+        import termios
+
+        try:
+            if self._saved is not None:
+                termios.tcsetattr(self._fd, termios.TCSADRAIN, self._saved)
+        except OSError:
+            pass
+        if self._own_fd:
+            try:
+                os.close(self._fd)
+            except OSError:
+                pass
+        self._fd = None
+
+    def __enter__(self) -> TerminalConsole:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ---- output --------------------------------------------------------------------------
+    def write(self, text: str) -> None:
+        self.out.write(text)
+        self.out.flush()
+
+    def say(self, text: str = "") -> None:
+        self.end_progress()
+        self.write(text + "\n")
+
+    def beep(self) -> None:
+        self.say(f"\a{BEEP_MARK}")
+
+    def progress(self, text: str) -> None:
+        """On a terminal: redraw one line in place. Otherwise (a log): a line every 5 s."""
+        if self._is_tty:
+            self.write("\r" + text + "\x1b[K")
+            self._progress_on = True
+            return
+        now = time.monotonic()
+        if now - self._last_progress >= 5.0:
+            self._last_progress = now
+            self.write(text + "\n")
+
+    def end_progress(self) -> None:
+        if self._progress_on:
+            self._progress_on = False
+            self.write("\n")
+        self._last_progress = 0.0
+
+    # ---- keys ----------------------------------------------------------------------------
+    def key(self, timeout_s: float) -> str | None:
+        if not self.interactive:
+            return None
+        if self._fd is None:
+            self.open()
+        assert self._fd is not None
+        if not self._buf:
+            r, _, _ = select.select([self._fd], [], [], max(0.0, timeout_s))
+            if not r:
+                return None
+            self._read_more()
+            if self._buf == ESC.encode():  # a lone Esc, or the start of a sequence?
+                r, _, _ = select.select([self._fd], [], [], 0.03)
+                if r:
+                    self._read_more()
+        return self._take_key()
+
+    def _read_more(self) -> None:
+        assert self._fd is not None
+        data = os.read(self._fd, 64)
+        if not data:  # the terminal went away
+            raise KeyboardInterrupt
+        self._buf += data
+
+    def _take_key(self) -> str | None:
+        buf = self._buf
+        if not buf:
+            return None
+        if buf[0] == 0x03:  # Ctrl+C read as a byte (raw mode)
+            self._buf = buf[1:]
+            raise KeyboardInterrupt
+        if buf[0] == 0x1B:
+            if len(buf) > 1 and buf[1:2] in (b"[", b"O"):
+                end = 2
+                while end < len(buf) and not 0x40 <= buf[end] <= 0x7E:
+                    end += 1
+                end = min(end + 1, len(buf))
+                self._buf = buf[end:]
+                return buf[:end].decode("ascii", "replace")
+            self._buf = buf[1:]
+            return ESC
+        lead = buf[0]
+        n = 1 if lead < 0xC0 else 2 if lead < 0xE0 else 3 if lead < 0xF0 else 4
+        self._buf = buf[n:]
+        return buf[:n].decode("utf-8", "replace")
+
+
+# --------------------------------------------------------------------------- scripted
+
+
+class ScriptExhausted(AssertionError):
+    """The dialogue asked for a key the script does not have (a test bug or a dialogue bug)."""
+
+
+class ScriptedConsole:
+    """A console for tests: plays ``keys`` (strings are split into single keys, so
+    ``"S1\\r"`` types S, 1, Enter), records everything written in ``text``.
+
+    Looking for a key without waiting (``key(0)``, what a measurement does to see Esc) only
+    takes the next key if it is ESC or Ctrl+C; waiting for a key takes the next key, whatever
+    it is. Ctrl+C (``"\x03"``) raises KeyboardInterrupt like the terminal's SIGINT.
+    """
+
+    interactive = True
+
+    def __init__(self, keys: Iterable[str] = ()) -> None:
+        self.keys: list[str] = [c for k in keys for c in k]
+        self.text = ""
+        self.beeps = 0
+
+    def write(self, text: str) -> None:
+        self.text += text
+
+    def say(self, text: str = "") -> None:
+        self.text += text + "\n"
+
+    def beep(self) -> None:
+        self.beeps += 1
+        self.say(BEEP_MARK)
+
+    def progress(self, text: str) -> None:
+        pass
+
+    def end_progress(self) -> None:
+        pass
+
+    def key(self, timeout_s: float) -> str | None:
+        if timeout_s <= 0 and not (self.keys and self.keys[0] in (ESC, CTRL_C)):
+            return None
+        if not self.keys:
+            tail = self.text[-400:]
+            raise ScriptExhausted(f"the dialogue wants a key the script lacks; screen:\n{tail}")
+        k = self.keys.pop(0)
+        if k == CTRL_C:
+            raise KeyboardInterrupt
+        return k
+
+
+# --------------------------------------------------------------------------- questions
+
+
+class Operator:
+    """The questions of the dialogue, on a :class:`Console`.
+
+    ``yes``: answer every question with its default without reading a key (a question
+    without a default raises UserError naming the option to give). ``idle()`` is called about
+    every ``poll_s`` seconds while waiting for the human (it keeps the board link read).
+    """
+
+    def __init__(
+        self,
+        console: Console,
+        yes: bool = False,
+        idle: Callable[[], None] | None = None,
+        poll_s: float = 0.02,
+    ) -> None:
+        self.console = console
+        self.yes = yes
+        self.idle: Callable[[], None] = idle or (lambda: None)
+        self.poll_s = poll_s
+
+    # ---- output ----------------------------------------------------------------------------
+    def say(self, text: str = "") -> None:
+        self.console.say(text)
+
+    def beep(self) -> None:
+        self.console.beep()
+
+    def progress(self, text: str) -> None:
+        self.console.progress(text)
+
+    def end_progress(self) -> None:
+        self.console.end_progress()
+
+    # ---- keys ------------------------------------------------------------------------------
+    def _wait_key(self) -> str:
+        while True:
+            self.idle()
+            k = self.console.key(self.poll_s)
+            if k is not None:
+                return k
+
+    def escape_pressed(self) -> bool:
+        """True if Esc was pressed (looked at without waiting; other keys are dropped)."""
+        if self.yes or not self.console.interactive:
+            return False
+        while True:
+            k = self.console.key(0.0)
+            if k is None:
+                return False
+            if k == ESC:
+                return True
+
+    def any_key(self, prompt: str) -> str:
+        """Show ``prompt`` and wait for any key (returned; "" in --yes mode)."""
+        if self.yes:
+            self.say(f"{prompt} [--yes]")
+            return ""
+        self.console.write(prompt + " ")
+        k = self._wait_key()
+        self.console.write("\n")
+        return k
+
+    def yes_no(self, prompt: str, default: bool) -> bool:
+        """``prompt`` ends with the choices, e.g. "Save <Y> or repeat <N>?"; Y/N keys, Enter
+        takes the default (shown in brackets)."""
+        shown = f"{prompt} [{'Y' if default else 'N'}]"
+        if self.yes:
+            self.say(f"{shown} {'Y' if default else 'N'} (--yes)")
+            return default
+        self.console.write(shown + " ")
+        while True:
+            k = self._wait_key()
+            if k in ("\r", "\n"):
+                answer = default
+            elif k.lower() in ("y", "n"):
+                answer = k.lower() == "y"
+            else:
+                continue
+            self.console.write(("Y" if answer else "N") + "\n")
+            return answer
+
+    def read_line(self, prompt: str) -> str:
+        """A line of text typed by the operator (echoed; Backspace edits; Enter ends)."""
+        self.console.write(prompt)
+        chars: list[str] = []
+        while True:
+            k = self._wait_key()
+            if k in ("\r", "\n"):
+                self.console.write("\n")
+                return "".join(chars).strip()
+            if k in BACKSPACES:
+                if chars:
+                    chars.pop()
+                    self.console.write("\b \b")
+                continue
+            if len(k) != 1 or not k.isprintable():
+                continue
+            chars.append(k)
+            self.console.write(k)
+
+    def ask(
+        self,
+        prompt: str,
+        parse: Callable[[str], T],
+        default: str | None = None,
+        option: str | None = None,
+    ) -> T:
+        """Ask until ``parse(text)`` accepts the answer (ValueError: its message is shown and
+        the question repeated). Empty answer -> ``default`` if given. In --yes mode the default
+        is used; none -> UserError asking for ``option``."""
+        shown = f"{prompt} [{default}]: " if default is not None else f"{prompt}: "
+        if self.yes:
+            if default is None:
+                raise UserError(f"--yes needs {option or 'an answer'} ({prompt.lower()})")
+            self.say(f"{shown}{default} (--yes)")
+            return parse(default)
+        while True:
+            text = self.read_line(shown)
+            if not text and default is not None:
+                text = default
+            try:
+                return parse(text)
+            except ValueError as exc:
+                self.say(f"  {exc}")
+
+    def countdown(self, seconds: float, label: str, any_key: bool = True) -> str | None:
+        """Wait ``seconds`` with a live countdown. ``any_key``: any key ends it early (the
+        key is returned); otherwise only Esc does (looked for without waiting, so other keys
+        stay for the next question). Returns None when the time is up."""
+        end = time.monotonic() + seconds
+        last_shown = -1
+        while True:
+            left = end - time.monotonic()
+            if left <= 0:
+                self.end_progress()
+                return None
+            whole = int(left + 0.999)
+            if whole != last_shown:
+                last_shown = whole
+                m, s = divmod(whole, 60)
+                self.progress(f"{label} {m}:{s:02d}")
+            self.idle()
+            wait = min(self.poll_s, max(0.0, left))
+            if self.yes or not self.console.interactive:
+                time.sleep(wait)
+                continue
+            if not any_key:
+                if self.escape_pressed():
+                    self.end_progress()
+                    return ESC
+                time.sleep(wait)
+                continue
+            k = self.console.key(wait)
+            if k is not None:
+                self.end_progress()
+                return k

@@ -1,0 +1,1304 @@
+"""The live calibration program (method.md §5): the operator dialogue on a connected board.
+
+``python -m host calibrate --port PORT ...`` calls :func:`run_live_session`. The data path is
+port → :class:`host.link.Link` (timestamped reads, every byte into an IMUCAP01 capture
+``SERIAL_session.cap`` beside the records) → frames → IMU_SAMPLE counts → m/s², °/s, °C
+(:mod:`host.sensor`, full scales from HELLO) → a :class:`host.records.Record` per measurement,
+written atomically as ``SERIAL_name.txt`` when the operator accepts it → at the end
+:func:`host.calibration.calibrate_from_records` and the report files (:mod:`host.report`).
+
+Time column: device time since the start beep, ms: ``t_us`` unwrapped (32-bit wrap) minus the
+``t_us`` of the first sample after the beep (the device clock, not an assumed 50 Hz). The
+record's ``#`` header holds the device→host mapping of that instant (``device_t_us_start``,
+``host_ns_start_beep``, ``host_ns_first_sample``: host ``time.monotonic_ns``).
+
+Losses: sequence gaps between the frames of a measurement (frames lost on the link) plus
+samples the firmware flagged MISSED are counted, reported ("3 samples lost in x_up") and
+written into the record header; above :data:`LOSS_LIMIT` the program proposes to repeat.
+
+Interruptions (decided here, the method says Ctrl+C "discards everything"):
+
+* **Esc** aborts the measurement in progress only: nothing of it is kept, the same measurement
+  is proposed again.
+* **Ctrl+C** aborts the session: the measurement in progress is discarded (records are only
+  written when accepted, atomically, so no half record or temp file is left). Records already
+  *accepted* stay on disk, and the program prints the command that continues with
+  ``--resume``. (Deleting accepted measurements would throw away operator work that cannot be
+  re-done without repeating the warm-up; the method's "discards everything" is read as "nothing
+  of the session in progress is used".) The capture file is kept too (complete up to the last
+  read; it is not a record).
+* **The board vanishes** (cable pulled: LinkLost) or **goes silent** for 2 s (LinkTimeout):
+  the message appears at once, the measurement in progress is discarded, accepted records are
+  kept; the port is re-opened every second (Esc/Ctrl+C give up; ``--yes`` gives up after
+  :data:`YES_RECONNECT_S`) and the same measurement is proposed again.
+
+``--resume``: records already in the output directory (and readable, same serial) are not
+measured again. Without it, every measurement of the chosen stages is taken and replaces the
+file of the same name when accepted; the results are computed from all of this serial's
+records in the directory (so stage 2 alone reuses earlier statics, as the method allows).
+
+Operator hints: a port with ``operator_hint`` (the ``sim://`` virtual board) is told what the
+human is asked (``place`` before the placement prompt, ``turn`` at the start beep of a turn).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import struct
+import sys
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import serial
+
+from host import protocol_gen as gen
+from host import sensor
+from host.calibration import (
+    DEFAULT_HEIGHT_M,
+    DEFAULT_LATITUDE_DEG,
+    build_observations,
+    check_orientation,
+    local_gravity,
+    record_stats,
+    stage1,
+    trapezoid_integral,
+)
+from host.capture import MAGIC, CaptureWriter
+from host.errors import UserError
+from host.frames import IMU_SAMPLE, Frame
+from host.link import DEFAULT_BAUD, Link, LinkLost, LinkTimeout, open_port
+from host.operator import Console, Operator, TerminalConsole
+from host.records import (
+    STATIC_NAMES,
+    TURN_NAMES,
+    Record,
+    RecordError,
+    Session,
+    read_record,
+    read_session,
+    record_path,
+    write_record,
+)
+
+#: the spec this host speaks (HELLO.spec_fingerprint must match)
+HOST_SPEC_FINGERPRINT = gen.SPEC_FINGERPRINT
+WARMUP_DEFAULT_S = 600.0
+DEFAULT_TURNS = 2
+#: more turns than this twist the USB cable (method.md §4)
+MAX_RECOMMENDED_TURNS = 3
+MAX_TURNS = 10
+#: fixed recording windows of a turn record, s (method.md §4)
+TURN_WINDOWS_S = {1: 7.0, 2: 12.0, 3: 15.0}
+#: above this fraction of lost samples the program proposes to repeat a measurement
+LOSS_LIMIT = 0.01
+#: --yes: a measurement whose default answer is "repeat" is tried at most this many times
+YES_MAX_ATTEMPTS = 3
+#: --yes: give up waiting for a vanished board after this many seconds
+YES_RECONNECT_S = 60.0
+#: pause between "get ready to turn" and the start beep, s
+DEFAULT_READY_S = 2.0
+STALL_S = 2.0
+SERIAL_RE = re.compile(r"^[A-Za-z0-9_-]{1,12}$")
+MISSED = gen.ENUMS["sample_flags"]["MISSED"]
+#: the 7 counts of an IMU_SAMPLE payload (after t_us): ax, ay, az, temp, gx, gy, gz
+_COUNTS_BE = struct.Struct(">7h")
+#: USB vendor ids of boards that look like an APM 2.6 (Arduino Mega 2560 / 16U2, FTDI)
+APM_VIDS = (0x2341, 0x2A03, 0x0403)
+_APM_WORDS = ("arduino mega", "atmega16u2", "apm", "ardupilot", "mega 2560")
+
+AXIS_WORDS = {"x": "X", "y": "Y", "z": "Z"}
+CHANNELS = ("Ax", "Ay", "Az", "Gx", "Gy", "Gz", "temp")
+
+
+# --------------------------------------------------------------------------- small helpers
+
+
+def turn_window_s(turns: int) -> float:
+    """Fixed recording window of an n-turn record, s: 7/12/15 for 1/2/3, 15 + 4·(n−3) beyond."""
+    if turns in TURN_WINDOWS_S:
+        return TURN_WINDOWS_S[turns]
+    return 15.0 + 4.0 * (turns - 3)
+
+
+def parse_serial(text: str) -> str:
+    """A serial number: 1–12 characters of A-Z a-z 0-9 _ - (it prefixes every file name)."""
+    s = text.strip()
+    if not SERIAL_RE.match(s):
+        raise ValueError(
+            "the serial number is mandatory: 1 to 12 characters, letters, digits, _ or -"
+        )
+    return s
+
+
+def parse_seconds(text: str) -> float:
+    """Accumulation time per orientation, s (mandatory, 1 … 3600)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise ValueError("give the accumulation time in seconds, e.g. 30") from None
+    if not math.isfinite(v) or not 1.0 <= v <= 3600.0:
+        raise ValueError("the accumulation time must be between 1 and 3600 s")
+    return v
+
+
+def parse_turns(text: str) -> int:
+    """Number of whole turns per turn record (1 … 10; more than 3 twists the cable)."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise ValueError("give a whole number of turns, 1 to 3") from None
+    if not 1 <= n <= MAX_TURNS:
+        raise ValueError(f"the number of turns must be 1 to {MAX_TURNS} (3 or fewer recommended)")
+    return n
+
+
+def default_port(comports: Callable[[], Iterable[Any]] | None = None) -> tuple[str, str | None]:
+    """The first USB serial port that looks like an APM (Arduino Mega 2560 / ATmega16U2 / FTDI),
+    else ``sim://``. Returns (port, note to print or None)."""
+    if comports is None:
+        from serial.tools import list_ports
+
+        comports = list_ports.comports
+    try:
+        ports = list(comports())
+    except Exception:  # noqa: BLE001 - enumeration problems must not stop the program
+        ports = []
+    for p in ports:
+        vid = getattr(p, "vid", None)
+        words = " ".join(
+            str(getattr(p, a, "") or "") for a in ("description", "product", "manufacturer")
+        ).lower()
+        if vid in APM_VIDS or any(w in words for w in _APM_WORDS):
+            return str(p.device), f"using the board on {p.device}"
+    return "sim://", "no board found: using the virtual board sim://"
+
+
+def unwrap_us(t_us: Sequence[int] | np.ndarray) -> np.ndarray:
+    """32-bit device microseconds -> monotonic int64 µs from the first value (wraps undone)."""
+    t = np.asarray(t_us, dtype=np.int64) & 0xFFFFFFFF
+    if t.size == 0:
+        return t
+    d = np.diff(t) & 0xFFFFFFFF
+    return np.concatenate([[0], np.cumsum(d)])
+
+
+# --------------------------------------------------------------------------- options
+
+
+def add_live_arguments(p: argparse.ArgumentParser) -> None:
+    """The live-mode options of ``calibrate`` that ``calibrate_cli.add_arguments`` lacks
+    (it has --port, --serial, --out, --turns, --latitude, --height, --json)."""
+    p.add_argument(
+        "--static-seconds", type=float, metavar="S",
+        help="accumulation time per static orientation, s (asked if not given)",
+    )  # fmt: skip
+    p.add_argument(
+        "--warmup", type=float, default=WARMUP_DEFAULT_S, metavar="SECONDS",
+        help=f"warm-up wait before measuring, s (default {WARMUP_DEFAULT_S:g}; 0 skips)",
+    )  # fmt: skip
+    p.add_argument(
+        "--yes", action="store_true",
+        help="non-interactive: every question gets its default (both stages, save every "
+        "measurement); needs --serial and --static-seconds",
+    )  # fmt: skip
+    p.add_argument(
+        "--resume", action="store_true",
+        help="keep the records already in the output directory, measure only the missing ones",
+    )  # fmt: skip
+    p.add_argument(
+        "--capture", metavar="FILE",
+        help="IMUCAP01 capture of the session (default OUT/SERIAL_session.cap)",
+    )  # fmt: skip
+    p.add_argument(
+        "--ready-seconds", type=float, default=DEFAULT_READY_S, metavar="S",
+        help="pause between 'get ready' and the start beep of a turn, s "
+        f"(default {DEFAULT_READY_S:g})",
+    )  # fmt: skip
+
+
+@dataclass
+class SessionOptions:
+    """Everything the live session needs; units in the names (s, deg, m)."""
+
+    port: str | None = None
+    serial: str | None = None
+    out: Path | None = None
+    static_seconds: float | None = None
+    turns: int | None = None
+    warmup_s: float = WARMUP_DEFAULT_S
+    latitude_deg: float = DEFAULT_LATITUDE_DEG
+    height_m: float = DEFAULT_HEIGHT_M
+    yes: bool = False
+    json: bool = False
+    resume: bool = False
+    capture: Path | None = None
+    ready_s: float = DEFAULT_READY_S
+    loss_limit: float = LOSS_LIMIT
+    stall_s: float = STALL_S
+    hello_timeout_s: float = 5.0
+    reconnect_timeout_s: float | None = None  # None: until Esc/Ctrl+C (--yes: YES_RECONNECT_S)
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace | SessionOptions) -> SessionOptions:
+        """From the ``calibrate`` arguments (missing attributes take the defaults)."""
+        if isinstance(args, SessionOptions):
+            return args
+
+        def get(name: str, default: Any = None) -> Any:
+            v = getattr(args, name, None)
+            return default if v is None else v
+
+        out = get("out")
+        cap = get("capture")
+        return cls(
+            port=get("port"),
+            serial=get("serial"),
+            out=Path(out) if out else None,
+            static_seconds=get("static_seconds"),
+            turns=get("turns"),
+            warmup_s=float(get("warmup", WARMUP_DEFAULT_S)),
+            latitude_deg=float(get("latitude", DEFAULT_LATITUDE_DEG)),
+            height_m=float(get("height", DEFAULT_HEIGHT_M)),
+            yes=bool(get("yes", False)),
+            json=bool(get("json", False)),
+            resume=bool(get("resume", False)),
+            capture=Path(cap) if cap else None,
+            ready_s=float(get("ready_seconds", DEFAULT_READY_S)),
+        )
+
+    def check(self) -> None:
+        """Option values that cannot work -> UserError."""
+        if self.serial is not None:
+            try:
+                self.serial = parse_serial(self.serial)
+            except ValueError as exc:
+                raise UserError(f"--serial: {exc}") from None
+        if self.static_seconds is not None:
+            try:
+                self.static_seconds = parse_seconds(str(self.static_seconds))
+            except ValueError as exc:
+                raise UserError(f"--static-seconds: {exc}") from None
+        if self.turns is not None and not 1 <= self.turns <= MAX_TURNS:
+            raise UserError(f"--turns must be 1 to {MAX_TURNS} (3 or fewer recommended)")
+        if not math.isfinite(self.warmup_s) or self.warmup_s < 0:
+            raise UserError("--warmup must be 0 (skip) or a number of seconds")
+        if not math.isfinite(self.ready_s) or self.ready_s < 0:
+            raise UserError("--ready-seconds must be 0 or more")
+        if self.yes and self.serial is None:
+            raise UserError("--yes needs --serial (the serial number is mandatory)")
+        local_gravity(self.latitude_deg, self.height_m)  # validates both
+
+
+# --------------------------------------------------------------------------- the board
+
+
+@dataclass(frozen=True)
+class BoardInfo:
+    """What HELLO says about the board."""
+
+    firmware: str
+    protocol_version: int
+    spec_fingerprint: int
+    who_am_i: int
+    accel_fs_sel: int
+    gyro_fs_sel: int
+    dlpf_cfg: int
+    smplrt_div: int
+    streaming: bool
+    reset_cause: int
+
+    @classmethod
+    def from_hello(cls, f: dict[str, int]) -> BoardInfo:
+        return cls(
+            firmware=f"{f['fw_major']}.{f['fw_minor']}.{f['fw_patch']}",
+            protocol_version=f["protocol_version"],
+            spec_fingerprint=f["spec_fingerprint"],
+            who_am_i=f["who_am_i"],
+            accel_fs_sel=f["accel_fs_sel"],
+            gyro_fs_sel=f["gyro_fs_sel"],
+            dlpf_cfg=f["dlpf_cfg"],
+            smplrt_div=f["smplrt_div"],
+            streaming=bool(f["streaming"]),
+            reset_cause=f["reset_cause"],
+        )
+
+    @property
+    def rate_hz(self) -> float:
+        """Nominal output rate, Hz: internal rate (8 kHz with DLPF 0/7, else 1 kHz) / (1+div)."""
+        internal = 8000.0 if self.dlpf_cfg in (0, 7) else 1000.0
+        return internal / (1 + self.smplrt_div)
+
+    @property
+    def accel_range_g(self) -> int:
+        return sensor.ACCEL_RANGE_G.get(self.accel_fs_sel, 0)
+
+    @property
+    def gyro_range_dps(self) -> int:
+        return sensor.GYRO_RANGE_DPS.get(self.gyro_fs_sel, 0)
+
+    @property
+    def gyro_alarm_counts(self) -> int:
+        """|count| at or above which a gyro sample is out of the working range: range − 1 LSB."""
+        return int(math.ceil(self.gyro_range_dps * sensor.GYRO_LSB_PER_DPS[self.gyro_fs_sel])) - 1
+
+    def describe(self) -> str:
+        who = "MPU-6000" if self.who_am_i == sensor.WHO_AM_I_MPU6000 else "not an MPU-6000!"
+        return (
+            f"firmware {self.firmware}, protocol {self.protocol_version} "
+            f"(spec {self.spec_fingerprint:#010x}), WHO_AM_I {self.who_am_i:#04x} ({who}), "
+            f"accel ±{self.accel_range_g} g, gyro ±{self.gyro_range_dps} °/s, "
+            f"DLPF_CFG {self.dlpf_cfg}, SMPLRT_DIV {self.smplrt_div} ({self.rate_hz:g} Hz)"
+        )
+
+    def meta(self) -> dict[str, str]:
+        return {
+            "firmware": self.firmware,
+            "protocol_version": str(self.protocol_version),
+            "spec_fingerprint": f"{self.spec_fingerprint:#010x}",
+            "who_am_i": f"{self.who_am_i:#04x}",
+            "accel_range_g": str(self.accel_range_g),
+            "gyro_range_dps": str(self.gyro_range_dps),
+            "dlpf_cfg": str(self.dlpf_cfg),
+            "smplrt_div": str(self.smplrt_div),
+            "sample_rate_hz": f"{self.rate_hz:g}",
+        }
+
+
+class BoardReset(Exception):
+    """The board restarted during a measurement (sequence or device time went back)."""
+
+
+class MeasurementAborted(Exception):
+    """The operator pressed Esc during a measurement."""
+
+
+class DeferredCapture(CaptureWriter):
+    """An IMUCAP01 writer that keeps the reads in memory until :meth:`start` names the file
+    (the port is opened before the serial number, which names the file, is known)."""
+
+    def __init__(self) -> None:  # no file yet: CaptureWriter.__init__ is not called
+        self.path = Path()
+        self._f = None
+        self._held: list[tuple[int, bytes]] = []
+        self._held_bytes = 0
+
+    def write(self, t_ns: int, data: bytes) -> None:
+        if self._f is not None:
+            super().write(t_ns, data)
+        elif data and self._held_bytes < 16 << 20:
+            self._held.append((t_ns, bytes(data)))
+            self._held_bytes += len(data)
+
+    def start(self, path: Path) -> None:
+        """Create ``path`` and write what was held so far."""
+        self.path = path
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self._f = open(path, "wb")  # noqa: SIM115 - closed in close()
+        self._f.write(MAGIC)
+        held, self._held = self._held, []
+        for t_ns, data in held:
+            super().write(t_ns, data)
+
+    @property
+    def started(self) -> bool:
+        return self._f is not None
+
+
+@dataclass
+class Acquisition:
+    """The samples of one measurement, raw, with its bookkeeping."""
+
+    t_us: np.ndarray  # (N,) int64 µs since the first sample (device clock, unwrapped)
+    counts: np.ndarray  # (N, 7) int counts: ax, ay, az, temp, gx, gy, gz
+    start_t_us: int  # device t_us (raw, 32-bit) of the first sample
+    beep_ns: int  # host monotonic ns of the start beep
+    first_ns: int  # host monotonic ns of the read that brought the first sample
+    start_time: str  # wall clock of the start beep, ISO
+    lost_frames: int  # sequence gaps during the measurement
+    missed: int  # samples flagged MISSED by the firmware
+    crc_errors: int  # CRC failures the decoder saw during the measurement
+
+    @property
+    def lost(self) -> int:
+        return self.lost_frames + self.missed
+
+    @property
+    def loss_fraction(self) -> float:
+        n = len(self.t_us) + self.lost
+        return self.lost / n if n else 0.0
+
+
+class Board:
+    """The connected board: opens the port, checks HELLO, reads frames, survives reconnects.
+
+    ``port_factory(url)`` opens the port (default :func:`host.link.open_port`); re-connecting
+    re-opens the *same* port object (``close()`` + ``open()``), which is what a USB serial
+    device needs after it re-appears and what ``sim://`` supports after ``pull_cable``.
+    """
+
+    def __init__(
+        self,
+        url: str,
+        port_factory: Callable[[str], serial.SerialBase] | None = None,
+        stall_s: float = STALL_S,
+        warn: Callable[[str], None] | None = None,
+        hello_timeout_s: float = 5.0,
+    ) -> None:
+        self.url = url
+        self.hello_timeout_s = hello_timeout_s
+        self.port_factory = port_factory or (lambda u: open_port(u, DEFAULT_BAUD))
+        self.stall_s = stall_s
+        self.capture = DeferredCapture()
+        self.warn: Callable[[str], None] = warn or (lambda s: None)
+        self.link: Link | None = None
+        self.info: BoardInfo | None = None
+        self._errors_seen: set[tuple[int, int]] = set()
+
+    # ---- connection ----------------------------------------------------------------------
+    def connect(self) -> BoardInfo:
+        """Open the port and wait for HELLO (UserError if it cannot be opened)."""
+        port = self.port_factory(self.url)
+        self._attach(port)
+        return self.await_hello()
+
+    def reopen(self) -> BoardInfo:
+        """Close and re-open the same port, then wait for HELLO. Raises SerialException /
+        OSError while the device is absent, LinkTimeout if it says nothing."""
+        assert self.link is not None
+        port: Any = self.link.port
+        try:
+            port.close()
+        except (serial.SerialException, OSError):
+            pass
+        port.open()
+        self._attach(port)
+        return self.await_hello()
+
+    def _attach(self, port: serial.SerialBase) -> None:
+        link = Link(port, capture=None, stall_s=self.stall_s)
+        link.capture = self.capture  # one capture over the whole session, across reconnects
+        self.link = link
+
+    def close(self) -> None:
+        if self.link is not None:
+            self.link.close()  # closes the capture too
+        else:
+            self.capture.close()
+
+    @property
+    def port(self) -> Any:
+        assert self.link is not None
+        return self.link.port
+
+    def hint(self, action: str, **kw: Any) -> dict[str, Any] | None:
+        """Tell a virtual bench what the operator is asked (no-op on a real board)."""
+        fn = getattr(self.port, "operator_hint", None) if self.link is not None else None
+        if fn is None:
+            return None
+        result = fn(action, **kw)
+        return result if isinstance(result, dict) else None
+
+    @property
+    def has_operator(self) -> bool:
+        """True when the port moves the cube itself (virtual bench)."""
+        return self.link is not None and hasattr(self.port, "operator_hint")
+
+    def await_hello(self, timeout_s: float | None = None) -> BoardInfo:
+        """Read until HELLO (asking with GET_CONFIG if it does not come); check the spec.
+        ``timeout_s`` default: ``hello_timeout_s`` (a real board's bootloader takes ~1-2 s)."""
+        assert self.link is not None
+        timeout_s = self.hello_timeout_s if timeout_s is None else timeout_s
+        start = time.monotonic()
+        asked = False
+        last_err: Exception | None = None
+        while time.monotonic() - start < timeout_s:
+            try:
+                batch = self.read_frames()
+            except LinkTimeout as exc:  # silent for a while: a bootloader, or no firmware
+                last_err = exc
+                batch = []
+            for _, f in batch:
+                if f.name == "HELLO":
+                    return self._accept_hello(f)
+            if not asked and time.monotonic() - start > 1.0:
+                self.link.send("GET_CONFIG")
+                asked = True
+        raise LinkTimeout(
+            f"no HELLO from the board on {self.url} within {timeout_s:g} s"
+            + (" (it sends nothing)" if last_err else "")
+            + ": is the firmware flashed? (python -m host flash)"
+        )
+
+    def _accept_hello(self, f: Frame) -> BoardInfo:
+        assert self.link is not None
+        info = BoardInfo.from_hello(f.fields)
+        if info.spec_fingerprint != HOST_SPEC_FINGERPRINT:
+            raise UserError(
+                f"firmware speaks protocol {info.protocol_version} (spec "
+                f"{info.spec_fingerprint:#010x}), host {gen.PROTOCOL_VERSION} (spec "
+                f"{HOST_SPEC_FINGERPRINT:#010x}): flash the matching firmware "
+                "(python -m host flash)"
+            )
+        if info.who_am_i in (0x00, 0xFF):
+            raise UserError(
+                f"the board reads WHO_AM_I {info.who_am_i:#04x}: no sensor answers on SPI; "
+                "check the IMU (an MPU-6000 reads 0x68)"
+            )
+        if info.gyro_fs_sel not in sensor.GYRO_LSB_PER_DPS or (
+            info.accel_fs_sel not in sensor.ACCEL_LSB_PER_G
+        ):
+            raise UserError(f"the board reports impossible full-scale settings: {info}")
+        if not info.streaming:
+            self.link.send("START_STREAM")
+        self.info = info
+        return info
+
+    # ---- reading -------------------------------------------------------------------------
+    def read_frames(self) -> list[tuple[int, Frame]]:
+        """One read of the port: (host ns of the read, frame) for each frame it completed."""
+        assert self.link is not None
+        t_ns, data = self.link.read_chunk()
+        if not data:
+            return []
+        return [(t_ns, f) for f in self.link.decoder.feed(data)]
+
+    def pump(self) -> None:
+        """Read and drop samples (between measurements); report ERROR frames and resets."""
+        for _, f in self.read_frames():
+            if f.type != IMU_SAMPLE:
+                self._other(f)
+
+    def _other(self, f: Frame) -> None:
+        if f.name == "ERROR":
+            fl = f.fields
+            key = (fl["code"], fl["detail"])
+            if key not in self._errors_seen:
+                self._errors_seen.add(key)
+                names = {v: k for k, v in gen.ENUMS["error_code"].items()}
+                self.warn(
+                    f"the board reports ERROR {names.get(fl['code'], fl['code'])} "
+                    f"(detail {fl['detail']:#04x}, {fl['count']} times)"
+                )
+        elif f.name == "HELLO":
+            info = self._accept_hello(f)
+            self.warn(f"the board restarted (reset cause {info.reset_cause:#04x})")
+
+    def acquire(
+        self,
+        duration_s: float,
+        tick: Callable[[float, np.ndarray, int], None] | None = None,
+        check_escape: Callable[[], bool] | None = None,
+        tick_every_s: float = 0.1,
+    ) -> Acquisition:
+        """Record ``duration_s`` seconds of device time from now (the start beep).
+
+        What the port holds from before is read and dropped first. ``tick(elapsed_s,
+        sums_of_counts(7), n)`` is called about every ``tick_every_s`` (host time);
+        ``check_escape()`` True -> MeasurementAborted. Raises LinkLost / LinkTimeout /
+        BoardReset; nothing is kept then.
+        """
+        assert self.link is not None and self.info is not None
+        beep_ns = time.monotonic_ns()
+        start_time = datetime.now().astimezone().isoformat(timespec="milliseconds")
+        _, old = self.link.read_chunk()  # what the port holds from before the beep: dropped
+        for f in self.link.decoder.feed(old):
+            if f.type != IMU_SAMPLE:
+                self._other(f)
+        crc0 = self.link.decoder.stats.crc_errors
+        duration_us = int(round(duration_s * 1e6))
+        t_raw: list[int] = []
+        el: list[int] = []
+        rows: list[tuple[int, ...]] = []
+        sums = np.zeros(7, dtype=np.int64)
+        first_ns = 0
+        last_seq: int | None = None
+        last_t = 0
+        elapsed = 0
+        lost = missed = 0
+        next_tick = time.monotonic()
+        done = False
+        while not done:
+            batch = self.read_frames()
+            for arrival_ns, f in batch:
+                if last_seq is not None:
+                    d = (f.seq - last_seq) & 0xFFFF
+                    if d == 0 or d >= 0x8000:
+                        raise BoardReset("the board restarted during the measurement")
+                    lost += d - 1
+                last_seq = f.seq
+                if f.type != IMU_SAMPLE:
+                    if f.name == "HELLO":
+                        raise BoardReset("the board restarted during the measurement")
+                    self._other(f)
+                    continue
+                p = f.payload
+                t_us = int.from_bytes(p[0:4], "little")
+                if not t_raw:
+                    first_ns = arrival_ns
+                else:
+                    dt = (t_us - last_t) & 0xFFFFFFFF
+                    if dt >= 0x80000000:
+                        raise BoardReset("the board's clock went back during the measurement")
+                    elapsed += dt
+                if elapsed >= duration_us:
+                    done = True
+                    break
+                last_t = t_us
+                counts = _COUNTS_BE.unpack_from(p, 4)
+                if p[18] & MISSED:
+                    missed += 1
+                t_raw.append(t_us)
+                el.append(elapsed)
+                rows.append(counts)
+                sums += counts
+            now = time.monotonic()
+            if now >= next_tick:
+                next_tick = now + tick_every_s
+                if check_escape is not None and check_escape():
+                    raise MeasurementAborted()
+                if tick is not None:
+                    tick(elapsed / 1e6, sums, len(rows))
+        if tick is not None:
+            tick(duration_s, sums, len(rows))
+        return Acquisition(
+            t_us=np.asarray(el, dtype=np.int64),
+            counts=np.asarray(rows, dtype=np.int64).reshape(-1, 7),
+            start_t_us=t_raw[0] if t_raw else 0,
+            beep_ns=beep_ns,
+            first_ns=first_ns,
+            start_time=start_time,
+            lost_frames=lost,
+            missed=missed,
+            crc_errors=self.link.decoder.stats.crc_errors - crc0,
+        )
+
+    # ---- units ---------------------------------------------------------------------------
+    def physical(self, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(N,7) counts -> accel (N,3) m/s², gyro (N,3) °/s, temp (N,) °C."""
+        assert self.info is not None
+        c = np.asarray(counts).reshape(-1, 7)
+        a = sensor.accel_mps2(c[:, 0:3], self.info.accel_fs_sel)
+        g = sensor.gyro_dps(c[:, 4:7], self.info.gyro_fs_sel)
+        t = sensor.temp_c(c[:, 3])
+        return a, g, t
+
+
+# --------------------------------------------------------------------------- the dialogue
+
+
+@dataclass
+class SessionResult:
+    """What a finished live session produced."""
+
+    out_dir: Path
+    records: list[str] = field(default_factory=list)  # accepted in this session
+    result: Any = None  # host.calibration.CalibrationResult
+    files: tuple[Path, ...] = ()
+
+
+class LiveSession:
+    """The §5 dialogue. ``op`` asks, ``board`` measures; files go to ``opts.out``."""
+
+    def __init__(
+        self,
+        opts: SessionOptions,
+        console: Console,
+        port_factory: Callable[[str], serial.SerialBase] | None = None,
+    ) -> None:
+        self.opts = opts
+        self.op = Operator(console, yes=opts.yes, idle=self._idle)
+        self.board = Board(
+            opts.port or "sim://", port_factory, opts.stall_s, self._warn, opts.hello_timeout_s
+        )
+        self.g = local_gravity(opts.latitude_deg, opts.height_m)
+        self.serial = ""
+        self.out_dir = Path()
+        self.done: dict[str, Record] = {}
+        self.accepted: list[str] = []
+        self.turns: int | None = opts.turns
+        self.static_seconds: float | None = opts.static_seconds
+        self._in_idle = False
+
+    # ---- plumbing ------------------------------------------------------------------------
+    def _warn(self, text: str) -> None:
+        self.op.say(f"!!! {text}")
+
+    def _idle(self) -> None:
+        """While waiting for the operator: keep reading the board; recover if it vanished."""
+        if self._in_idle or self.board.link is None:
+            return
+        self._in_idle = True
+        try:
+            self.board.pump()
+        except (LinkLost, LinkTimeout) as exc:
+            self._recover(exc, measuring=False)
+        finally:
+            self._in_idle = False
+
+    def _recover(self, exc: Exception, measuring: bool) -> None:
+        """The board vanished or went silent: say so, re-open every second until it is back."""
+        op = self.op
+        op.end_progress()
+        op.beep()
+        op.say(f"!!! {exc}")
+        if measuring:
+            op.say("The measurement in progress is discarded; accepted records are kept.")
+        limit = self.opts.reconnect_timeout_s
+        if limit is None and self.opts.yes:
+            limit = YES_RECONNECT_S
+        op.say(
+            "Waiting for the board to come back (trying every second"
+            + ("; Esc gives up, Ctrl+C aborts)" if not self.opts.yes else ")")
+        )
+        start = time.monotonic()
+        attempt = 0
+        self._in_idle = True  # no pumping of the dead link meanwhile
+        try:
+            while True:
+                attempt += 1
+                try:
+                    info = self.board.reopen()
+                    break
+                except UserError:
+                    raise  # wrong firmware after the reconnect: nothing to wait for
+                except (serial.SerialException, OSError, LinkLost, LinkTimeout):
+                    pass
+                if limit is not None and time.monotonic() - start > limit:
+                    raise UserError(
+                        f"the board did not come back within {limit:.0f} s; {self._resume_hint()}"
+                    )
+                if op.countdown(1.0, f"  waiting for the board (attempt {attempt})", False):
+                    raise UserError(f"gave up waiting for the board; {self._resume_hint()}")
+        finally:
+            self._in_idle = False
+        op.say(f"The board is back: {info.describe()}")
+
+    def _resume_hint(self) -> str:
+        cmd = f"python -m host calibrate --port '{self.board.url}'"
+        if not self.serial:
+            return f"nothing was saved; start again with: {cmd}"
+        n = len(self._existing_names())
+        cmd += f" --serial {self.serial} --out {self.out_dir} --resume"
+        return f"{n} accepted records are kept in {self.out_dir}; continue with: {cmd}"
+
+    def _existing_names(self) -> list[str]:
+        return [
+            n for n in STATIC_NAMES + TURN_NAMES
+            if record_path(self.out_dir, self.serial, n).exists()
+        ]  # fmt: skip
+
+    # ---- the program ---------------------------------------------------------------------
+    def run(self) -> SessionResult:
+        op, opts = self.op, self.opts
+        op.say("IMU CALIBRATION BENCH — MPU-6000 (APM 2.6): live calibration, method.md §5")
+        op.say("Ctrl+C aborts and discards the session; Esc aborts only the current measurement")
+        op.say("Level the base. Connect the unit by USB (the board's green LED lights).")
+        op.say(f"Opening {self.board.url} ...")
+        info = self._connect()
+        op.say(f"Board: {info.describe()}")
+        if info.who_am_i != sensor.WHO_AM_I_MPU6000:
+            self._warn(f"WHO_AM_I {info.who_am_i:#04x} is not an MPU-6000's 0x68")
+        if opts.yes and not self.board.has_operator:
+            self._warn("--yes on a real board: nobody is asked to place or turn the cube")
+
+        self.serial = opts.serial or op.ask("Serial number (1-12 characters)", parse_serial)
+        self.out_dir = opts.out if opts.out is not None else Path(self.serial)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self._start_capture()
+        self._take_stock()
+        self._warm_up()
+
+        need_static = [n for n in STATIC_NAMES if n not in self.done]
+        need_turn = [n for n in TURN_NAMES if n not in self.done]
+        do_static = bool(need_static)
+        if need_static:
+            do_static = op.yes_no(
+                "Measure the 6 static orientations <Y> or go to the integral gyro calibration <N>?",
+                True,
+            )
+        elif opts.resume:
+            op.say("The six static orientations are already measured (--resume).")
+        if do_static:
+            self._stage1(need_static)
+        do_turns = bool(need_turn)
+        if all(n in self.done for n in STATIC_NAMES):
+            self._show_stage1()
+            if need_turn and do_static:
+                do_turns = op.yes_no("Integral gyro calibration <Y> or results <N>?", True)
+        if not need_turn and opts.resume:
+            op.say("The six turns are already measured (--resume).")
+        if do_turns and need_turn:
+            self._stage2(need_turn)
+        return self._results()
+
+    def _connect(self) -> BoardInfo:
+        try:
+            return self.board.connect()
+        except LinkTimeout as exc:
+            raise UserError(str(exc)) from None
+
+    def _start_capture(self) -> None:
+        path = self.opts.capture
+        if path is None:
+            path = self.out_dir / f"{self.serial}_session.cap"
+            k = 2
+            while path.exists():
+                path = self.out_dir / f"{self.serial}_session_{k}.cap"
+                k += 1
+        self.board.capture.start(path)
+        self.op.say(f"Recording the link to {path}")
+
+    def _take_stock(self) -> None:
+        """Records of this serial already in the output directory."""
+        existing = self._existing_names()
+        if not existing:
+            return
+        if not self.opts.resume:
+            self._warn(
+                f"{self.out_dir} already holds {len(existing)} records of {self.serial}: those "
+                "measured again are replaced; the others are used for the results "
+                "(--resume measures only the missing ones)"
+            )
+        for name in existing:
+            p = record_path(self.out_dir, self.serial, name)
+            try:
+                rec = read_record(p)
+                if rec.meta.get("serial", self.serial) != self.serial:
+                    raise RecordError(f"{p}: header says serial {rec.meta['serial']!r}")
+            except RecordError as exc:
+                self._warn(f"{exc}: it will be measured again")
+                continue
+            if self.opts.resume:
+                self.done[name] = rec
+        if self.opts.resume:
+            self.op.say(f"Resuming: kept {', '.join(self.done) or 'nothing'}")
+            kept_turns = sorted(
+                r.meta["turns"]
+                for n, r in self.done.items()
+                if n in TURN_NAMES and "turns" in r.meta
+            )
+            if kept_turns:
+                n_kept = int(kept_turns[0])
+                if self.turns is not None and self.turns != n_kept:
+                    raise UserError(
+                        f"--turns {self.turns} but the kept turn records have {n_kept} turns; "
+                        f"use --turns {n_kept} or delete the turn records"
+                    )
+                self.turns = n_kept
+
+    def _warm_up(self) -> None:
+        s = self.opts.warmup_s
+        if s <= 0:
+            return
+        span = f"{s / 60:.0f} minutes" if s >= 120 else f"{s:.0f} seconds"
+        self.op.say(
+            f"Keep the unit powered about {span} (warm-up)."
+            + ("" if self.opts.yes else " Press any key to skip the wait.")
+        )
+        k = self.op.countdown(s, "  warm-up:", any_key=True)
+        self.op.say("Warm-up skipped." if k is not None else "Warm-up done.")
+
+    # ---- stage 1 -------------------------------------------------------------------------
+    def _stage1(self, names: list[str]) -> None:
+        if self.static_seconds is None:
+            self.static_seconds = self.op.ask(
+                "Accumulation time per orientation, seconds (typically 10 to a few hundred)",
+                parse_seconds,
+                option="--static-seconds",
+            )
+        if self.static_seconds < 10:
+            self._warn(f"{self.static_seconds:g} s per orientation is short: noise averages less")
+        for name in names:
+            self._measure_static(name)
+
+    def _measure_static(self, name: str) -> None:
+        op = self.op
+        axis, side = name.split("_")
+        assert self.static_seconds is not None
+        attempts = 0
+        while True:
+            attempts += 1
+            self.board.hint("place", name=name)
+            where = "up" if side == "up" else "down"
+            op.any_key(f"Put the cube on the base with {AXIS_WORDS[axis]} {where}. Press any key.")
+            acq = self._acquire(name, self.static_seconds, "Measuring")
+            if acq is None:
+                continue
+            rec = self._record(name, acq, {"kind": "static"})
+            self._show_table(rec)
+            problems = self._loss_problems(name, acq)
+            try:
+                check_orientation(rec, record_stats(rec), self.g, f"{self.serial}_{name}.txt")
+            except UserError as exc:
+                problems.append(str(exc))
+            if self._decide(name, problems, attempts):
+                self._save(rec)
+                return
+
+    def _show_stage1(self) -> None:
+        stats = {n: record_stats(self.done[n]) for n in STATIC_NAMES}
+        s1 = stage1(stats, self.g)
+        c = s1.constants()
+        op = self.op
+        op.say(f"Stage 1 constants (method.md §3, g = {self.g:.5f} m/s²):")
+
+        def line(label: str, names: Sequence[str], dec: int) -> None:
+            op.say(f"  {label:<28}" + "  ".join(f"{n} {c[n]:+.{dec}f}" for n in names))
+
+        line("accel scale errors", ("Axx", "Ayy", "Azz"), 5)
+        line("accel misalignments, rad", ("Axz", "Axy", "Ayz"), 5)
+        line("", ("Ayx", "Azy", "Azx"), 5)
+        line("accel biases, m/s²", ("A0x", "A0y", "A0z"), 4)
+        line("gyro biases, °/s", ("G0x", "G0y", "G0z"), 4)
+        line("gyro g-sensitivity, (°/s)/g", ("GAxx", "GAxy", "GAxz"), 4)
+        line("", ("GAyx", "GAyy", "GAyz"), 4)
+        line("", ("GAzx", "GAzy", "GAzz"), 4)
+        line("accel noise (std), m/s²", ("Astdx", "Astdy", "Astdz"), 4)
+        line("gyro noise (std), °/s", ("Gstdx", "Gstdy", "Gstdz"), 4)
+        spread = np.ptp(s1.accel_bias_estimates, axis=1)
+        op.say(
+            "  accel bias estimates (x, y, z pairs) disagree by "
+            + ", ".join(f"{v:.4f}" for v in spread)
+            + " m/s²"
+        )
+
+    # ---- stage 2 -------------------------------------------------------------------------
+    def _stage2(self, names: list[str]) -> None:
+        op = self.op
+        if self.turns is None:
+            self.turns = op.ask(
+                "Number of turns per rotation (1-3; more twists the USB cable)",
+                parse_turns,
+                default=str(DEFAULT_TURNS),
+            )
+        n = self.turns
+        window = turn_window_s(n)
+        if n > MAX_RECOMMENDED_TURNS:
+            self._warn(
+                f"{n} turns: more than {MAX_RECOMMENDED_TURNS} twist the USB cable; the recording "
+                f"window is 15 + 4·({n}−3) = {window:g} s"
+            )
+        op.say(
+            f"Each turn is recorded for {window:g} s between two beeps, the same for both "
+            "directions. Turn by hand about the vertical and bring the cube back to the ruler."
+        )
+        for name in names:
+            self._measure_turn(name, n, window)
+
+    def _measure_turn(self, name: str, n: int, window: float) -> None:
+        op = self.op
+        axis, direction = name.split("_")
+        words = "counter-clockwise" if direction == "ccw" else "clockwise"
+        attempts = 0
+        while True:
+            attempts += 1
+            op.any_key(f"Put the cube {AXIS_WORDS[axis]} up, against the ruler. Press any key.")
+            op.say(
+                f"Get ready to turn {n} turn{'s' if n > 1 else ''} {words} (seen from above) "
+                f"within {window:g} s, between the beeps."
+            )
+            if self.opts.ready_s > 0 and op.countdown(self.opts.ready_s, "  start in", False):
+                op.say("Aborted (Esc): nothing recorded.")
+                continue
+            self.board.hint("turn", axis=axis, direction=direction, turns=n, window_s=window)
+            acq = self._acquire(name, window, "Turn now!")
+            if acq is None:
+                continue
+            rec = self._record(
+                name, acq, {"kind": "turn", "turns": str(n), "direction": direction,
+                            "window_s": f"{window:g}"},
+            )  # fmt: skip
+            problems = self._loss_problems(name, acq)
+            problems += self._show_turn(rec, acq, n)
+            if self._decide(name, problems, attempts):
+                self._save(rec)
+                return
+
+    def _show_turn(self, rec: Record, acq: Acquisition, n: int) -> list[str]:
+        """Show the six integrals and the range check; return the problems found."""
+        assert self.board.info is not None
+        op = self.op
+        problems: list[str] = []
+        ia = trapezoid_integral(rec.t_ms, rec.accel)
+        ig = trapezoid_integral(rec.t_ms, rec.gyro)
+        op.say(f"Integrals over {rec.duration_s:.2f} s (trapezoid rule):")
+        op.say(
+            "  " + "  ".join(f"∫{c} {v:+10.4f} m/s" for c, v in zip(CHANNELS[:3], ia, strict=True))
+        )
+        op.say(
+            "  " + "  ".join(f"∫{c} {v:+10.3f} °" for c, v in zip(CHANNELS[3:6], ig, strict=True))
+        )
+        gyro_counts = np.abs(acq.counts[:, 4:7]) if len(acq.counts) else np.zeros((0, 3))
+        limit = self.board.info.gyro_alarm_counts
+        over = int(np.count_nonzero(np.any(gyro_counts >= limit, axis=1)))
+        peak = float(np.abs(rec.gyro).max()) if len(rec) else 0.0
+        if over:
+            op.beep()
+            op.beep()
+            msg = (
+                f"RANGE ALARM: {over} gyro samples at or beyond ±{self.board.info.gyro_range_dps} "
+                f"°/s (peak {peak:.1f} °/s): the turn was too fast, turn more slowly"
+            )
+            op.say(f"!!! {msg}")
+            problems.append(msg)
+        else:
+            op.say(
+                f"  peak rate {peak:.1f} °/s (working range ±{self.board.info.gyro_range_dps} °/s)"
+            )
+        fname = f"{self.serial}_{rec.name}.txt"
+        try:
+            check_orientation(rec, record_stats(rec), self.g, fname)
+        except UserError as exc:
+            problems.append(str(exc))
+        statics = {k: v for k, v in self.done.items() if k in STATIC_NAMES}
+        if statics and not over:  # the engine's angle check, with the statics' bias
+            sess = Session(self.serial, {**statics, rec.name: rec}, self.out_dir)
+            try:
+                build_observations(sess, self.g, turns=n, latitude_deg=self.opts.latitude_deg)
+            except UserError as exc:
+                if str(exc).startswith(fname):
+                    problems.append(str(exc))
+        return problems
+
+    # ---- one measurement -----------------------------------------------------------------
+    def _acquire(self, name: str, seconds: float, title: str) -> Acquisition | None:
+        """Beep, record ``seconds`` of device time with a progress line, beep. None when the
+        measurement was aborted (Esc) or the board vanished/restarted (recovered)."""
+        op = self.op
+        board = self.board
+        assert board.info is not None
+        info = board.info
+        op.beep()
+        op.say(f"{title} {name}: {seconds:g} s" + ("" if self.opts.yes else " (Esc aborts)"))
+        a_scale = sensor.G0 / sensor.ACCEL_LSB_PER_G[info.accel_fs_sel]
+        g_scale = 1.0 / sensor.GYRO_LSB_PER_DPS[info.gyro_fs_sel]
+        up_axis = "xyz".index(name[0])
+        # for a turn: the angle turned so far about the up axis, from the mean rate between
+        # two ticks (rough: the bias is not removed), shown to help the operator
+        last = {"t": 0.0, "k": 0, "sum": 0.0, "angle": 0.0}
+
+        def tick(elapsed: float, sums: np.ndarray, k: int) -> None:
+            frac = min(1.0, elapsed / seconds) if seconds > 0 else 1.0
+            bar = "#" * int(frac * 20) + "-" * (20 - int(frac * 20))
+            head = f"{name} [{bar}] {elapsed:6.1f}/{seconds:g} s"
+            if k == 0:
+                op.progress(head)
+                return
+            m = sums / k
+            if name.endswith(("_ccw", "_cw")):
+                s_up = float(sums[4 + up_axis])
+                if k > last["k"]:
+                    rate = (s_up - last["sum"]) / (k - last["k"]) * g_scale
+                    last["angle"] += rate * (elapsed - last["t"])
+                last.update(t=elapsed, k=k, sum=s_up)
+                op.progress(f"{head}  turned {last['angle']:+5.0f}° about {name[0].upper()}")
+            else:
+                op.progress(
+                    f"{head}  A "
+                    + " ".join(f"{v * a_scale:+.3f}" for v in m[0:3])
+                    + "  G "
+                    + " ".join(f"{v * g_scale:+.3f}" for v in m[4:7])
+                )
+
+        try:
+            acq = board.acquire(seconds, tick=tick, check_escape=op.escape_pressed)
+        except MeasurementAborted:
+            op.end_progress()
+            op.beep()
+            op.say(f"Measurement of {name} aborted (Esc): nothing kept. Again:")
+            return None
+        except (LinkLost, LinkTimeout) as exc:
+            self._recover(exc, measuring=True)
+            op.say(f"Measuring {name} again.")
+            return None
+        except BoardReset as exc:
+            op.end_progress()
+            self._warn(f"{exc}: the measurement of {name} is discarded; measuring it again")
+            return None
+        op.end_progress()
+        op.beep()
+        if len(acq.t_us) < 2:
+            self._warn(f"no samples received for {name}; measuring it again")
+            return None
+        return acq
+
+    def _record(self, name: str, acq: Acquisition, extra: dict[str, str]) -> Record:
+        assert self.board.info is not None
+        accel, gyro, temp = self.board.physical(acq.counts)
+        meta: dict[str, str] = {"serial": self.serial, **extra}
+        meta.update(self.board.info.meta())
+        meta.update(
+            {
+                "start_time": acq.start_time,
+                "samples": str(len(acq.t_us)),
+                "lost_frames": str(acq.lost_frames),
+                "missed_samples": str(acq.missed),
+                "lost_percent": f"{100 * acq.loss_fraction:.3f}",
+                "crc_errors": str(acq.crc_errors),
+                "device_t_us_start": str(acq.start_t_us),
+                "host_ns_start_beep": str(acq.beep_ns),
+                "host_ns_first_sample": str(acq.first_ns),
+                "time_mapping": "device_t_us_start (first sample) at host_ns_start_beep "
+                "(time.monotonic_ns of the start beep)",
+                "port": self.board.url,
+                "capture": self.board.capture.path.name,
+                "program": "python -m host calibrate (live)",
+            }
+        )
+        return Record(name, acq.t_us / 1000.0, accel, gyro, temp, meta)
+
+    def _show_table(self, rec: Record) -> None:
+        st = record_stats(rec)
+        mean = np.concatenate([st.accel_mean, st.gyro_mean, [rec.temp.mean()]])
+        std = np.concatenate([st.accel_std, st.gyro_std, [rec.temp.std(ddof=1)]])
+        op = self.op
+        op.say(f"{rec.name}: {len(rec)} samples over {rec.duration_s:.2f} s")
+        op.say("      " + "".join(f"{c:>10}" for c in CHANNELS))
+        dec = (4, 4, 4, 3, 3, 3, 1)
+        op.say("mean  " + "".join(f"{v:>10.{d}f}" for v, d in zip(mean, dec, strict=True)))
+        op.say("std   " + "".join(f"{v:>10.{d + 1}f}" for v, d in zip(std, dec, strict=True)))
+
+    def _loss_problems(self, name: str, acq: Acquisition) -> list[str]:
+        if acq.lost == 0:
+            return []
+        self.op.say(
+            f"{acq.lost} samples lost in {name} ({acq.lost_frames} frames lost on the link, "
+            f"{acq.missed} missed by the firmware; {100 * acq.loss_fraction:.2f} %)"
+        )
+        if acq.loss_fraction > self.opts.loss_limit:
+            return [
+                f"{100 * acq.loss_fraction:.1f} % of the samples of {name} were lost "
+                f"(limit {100 * self.opts.loss_limit:g} %)"
+            ]
+        return []
+
+    def _decide(self, name: str, problems: list[str], attempts: int) -> bool:
+        """Save (True) or repeat (False). With problems the default is to repeat."""
+        op = self.op
+        if not problems:
+            return op.yes_no("Save <Y> or repeat <N>?", True)
+        for p in problems:
+            op.say(f"!!! {p}")
+        if self.opts.yes and attempts >= YES_MAX_ATTEMPTS:
+            raise UserError(
+                f"{name}: still wrong after {attempts} attempts ({problems[0]}); "
+                + self._resume_hint()
+            )
+        return not op.yes_no("Repeat <Y> or save anyway <N>?", True)
+
+    def _save(self, rec: Record) -> None:
+        path = record_path(self.out_dir, self.serial, rec.name)
+        write_record(path, rec)
+        self.done[rec.name] = rec
+        self.accepted.append(rec.name)
+        self.op.say(f"Saved {path}")
+
+    # ---- results -------------------------------------------------------------------------
+    def _results(self) -> SessionResult:
+        from host.calibration import calibrate_from_records
+        from host.report import format_report, write_results
+
+        op = self.op
+        missing = [
+            n for n in STATIC_NAMES if not record_path(self.out_dir, self.serial, n).exists()
+        ]
+        if missing:
+            raise UserError(
+                f"the results need the six static records; missing {', '.join(missing)}; "
+                + self._resume_hint()
+            )
+        session = read_session(self.out_dir, self.serial)
+        result = calibrate_from_records(
+            session, latitude_deg=self.opts.latitude_deg, height_m=self.opts.height_m
+        )
+        txt, js = write_results(result, self.out_dir)
+        op.say(f"Results: {txt} and {js}")
+        if self.opts.json:
+            sys.stdout.write(result.to_json())
+        else:
+            sys.stdout.write(format_report(result))
+        sys.stdout.flush()
+        return SessionResult(self.out_dir, list(self.accepted), result, (txt, js))
+
+
+# --------------------------------------------------------------------------- entry points
+
+
+def run_live_session(
+    args: argparse.Namespace | SessionOptions,
+    console: Console | None = None,
+    port_factory: Callable[[str], serial.SerialBase] | None = None,
+) -> int:
+    """Run the live calibration dialogue; the runner of ``python -m host calibrate --port``.
+
+    ``args``: the parsed ``calibrate`` arguments (see :func:`add_live_arguments`) or a
+    :class:`SessionOptions`. ``console``: the terminal (default: the real one; tests pass a
+    :class:`host.operator.ScriptedConsole`). ``port_factory(url)``: opens the port (default
+    :func:`host.link.open_port`). Returns the exit status: 0 every value within tolerance,
+    1 some outside, 130 aborted with Ctrl+C. UserError for what the user can fix.
+    """
+    opts = SessionOptions.from_args(args)
+    opts.check()
+    note = None
+    if not opts.port:
+        opts.port, note = default_port()
+    own = console is None
+    term = TerminalConsole(interactive=not opts.yes) if own else None
+    con: Console = term if term is not None else console  # type: ignore[assignment]
+    if term is not None:
+        term.open()
+    session: LiveSession | None = None
+    try:
+        if note:
+            con.say(note)
+        session = LiveSession(opts, con, port_factory)
+        outcome = session.run()
+        return 0 if outcome.result is not None and outcome.result.all_passed else 1
+    except KeyboardInterrupt:
+        con.end_progress()
+        con.say("")
+        con.say("Aborted (Ctrl+C): the measurement in progress is discarded.")
+        if session is not None and session.serial:
+            con.say(session._resume_hint())
+        return 130
+    finally:
+        if session is not None:
+            session.board.close()
+        if term is not None:
+            term.close()
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``calibrate`` options: calibrate_cli's plus :func:`add_live_arguments`."""
+    from host.calibrate_cli import add_arguments
+
+    p = argparse.ArgumentParser(
+        prog="python -m host.session", description="live calibration dialogue (method.md §5)"
+    )
+    add_arguments(p)
+    add_live_arguments(p)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m host.session ...`` — the same as ``python -m host calibrate --port ...``."""
+    args = build_parser().parse_args(argv)
+    if getattr(args, "from_dir", None):
+        print("error: --from-dir is for 'python -m host calibrate'", file=sys.stderr)
+        return 2
+    try:
+        return run_live_session(args)
+    except (UserError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,478 @@
+"""The live calibration dialogue (host/session.py) in-process, against the virtual board.
+
+The operator is a :class:`host.operator.ScriptedConsole` (keys in order; Esc/Ctrl+C are seen
+during a measurement) or ``--yes``. The board is ``sim://`` at ``speed=max`` (simulated time
+advances as fast as the host reads). Truth comparisons use ``effects=linear,noise`` and
+``earth_rate=0``: the other effects (temperature, drift, nonlinearity, lever arm, Earth rate)
+are deliberately outside the linear model of method.md §2 and would bias the comparison.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import time
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+
+from host import session as live
+from host.errors import UserError
+from host.link import open_port
+from host.operator import CTRL_C, ESC, ScriptedConsole
+from host.records import STATIC_NAMES, TURN_NAMES, read_record
+
+LINEAR = "speed=max&effects=linear,noise&earth_rate=0"
+
+
+class Ports:
+    """port_factory that remembers the ports it opened (for truth and hints)."""
+
+    def __init__(self, wrap: Any = None) -> None:
+        self.opened: list[Any] = []
+        self.wrap = wrap
+
+    def __call__(self, url: str) -> Any:
+        p = open_port(url)
+        self.opened.append(p)
+        return self.wrap(p) if self.wrap else p
+
+    @property
+    def sim(self) -> Any:
+        return self.opened[0]
+
+
+def opts(tmp_path: Path, url: str, **kw: Any) -> live.SessionOptions:
+    base: dict[str, Any] = dict(
+        port=url, serial="S1", out=tmp_path / "S1", static_seconds=10.0, turns=2,
+        warmup_s=0.0, yes=True, ready_s=0.0,
+    )  # fmt: skip
+    base.update(kw)
+    return live.SessionOptions(**base)
+
+
+def run(o: live.SessionOptions, console: ScriptedConsole, ports: Ports) -> tuple[int, str]:
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        rc = live.run_live_session(o, console, ports)
+    return rc, out.getvalue()
+
+
+def no_temp_files(d: Path) -> bool:
+    return not [p for p in d.iterdir() if p.name.endswith(".tmp") or p.name.startswith(".")]
+
+
+# --------------------------------------------------------------------------- --yes session
+
+
+@pytest.fixture(scope="module")
+def yes_session(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    tmp = tmp_path_factory.mktemp("yes")
+    ports = Ports()
+    con = ScriptedConsole()  # no keys at all: --yes must not ask for one
+    rc, stdout = run(opts(tmp, f"sim://?seed=3&{LINEAR}", json=True), con, ports)
+    return dict(rc=rc, stdout=stdout, con=con, ports=ports, out=tmp / "S1")
+
+
+def test_yes_session_writes_every_file(yes_session: dict[str, Any]) -> None:
+    out: Path = yes_session["out"]
+    names = sorted(p.name for p in out.iterdir())
+    expected = sorted(
+        [f"S1_{n}.txt" for n in STATIC_NAMES + TURN_NAMES]
+        + ["S1_result.txt", "S1_result.json", "S1_session.cap"]
+    )
+    assert names == expected
+    assert yes_session["rc"] == 0
+    assert no_temp_files(out)
+    # --json: the result object on stdout, nothing else
+    d = json.loads(yes_session["stdout"])
+    assert d["serial"] == "S1" and d["turns"] == 2 and len(d["records"]) == 12
+
+
+def test_yes_session_records_are_readable_with_metadata(yes_session: dict[str, Any]) -> None:
+    out: Path = yes_session["out"]
+    for name in STATIC_NAMES + TURN_NAMES:
+        rec = read_record(out / f"S1_{name}.txt")
+        m = rec.meta
+        assert rec.name == name and m["serial"] == "S1"
+        assert m["spec_fingerprint"] == f"{live.HOST_SPEC_FINGERPRINT:#010x}"
+        assert m["firmware"] == "0.1.0" and m["gyro_range_dps"] == "250"
+        assert m["smplrt_div"] == "19" and m["accel_range_g"] == "2"
+        assert m["lost_frames"] == "0" and m["missed_samples"] == "0"
+        assert int(m["host_ns_start_beep"]) <= int(m["host_ns_first_sample"])
+        assert 0 <= int(m["device_t_us_start"]) < 2**32
+        assert rec.t_ms[0] == 0.0
+        dt = np.diff(rec.t_ms)
+        # device clock: the sim's sample clock is not exactly 50 Hz, and it shows
+        assert np.all(dt > 15) and np.all(dt < 25)
+        if name in TURN_NAMES:
+            assert m["kind"] == "turn" and m["turns"] == "2" and m["window_s"] == "12"
+            assert 11.9 < rec.duration_s < 12.0  # the fixed window, device time
+        else:
+            assert m["kind"] == "static"
+            assert 9.9 < rec.duration_s < 10.0
+
+
+def test_yes_session_recovers_truth(yes_session: dict[str, Any]) -> None:
+    truth = yes_session["ports"].sim.truth.constants()
+    got = json.loads(yes_session["stdout"])["constants"]
+    tol = {"A0": 3e-3, "G0": 0.01, "GA": 0.005}
+    for name, want in truth.items():
+        t = tol.get(name[:2], 1e-3)  # scale errors and misalignments: 1e-3
+        assert abs(got[name] - want) < t, (name, got[name], want)
+
+
+def test_yes_session_capture_decodes_to_the_same_samples(yes_session: dict[str, Any]) -> None:
+    from host.frames import decode_file
+
+    result, arrivals = decode_file(yes_session["out"] / "S1_session.cap")
+    assert arrivals is not None and result.stats.crc_errors == 0
+    rec = read_record(yes_session["out"] / "S1_x_up.txt")
+    t0 = int(rec.meta["device_t_us_start"])
+    k = int(np.flatnonzero(result.samples["t_us"] == t0)[0])
+    ax = result.samples["ax"][k : k + len(rec)] * (9.80665 / 16384.0)
+    assert np.allclose(ax, rec.accel[:, 0], atol=6e-5)
+
+
+def test_yes_session_hints_follow_the_dialogue(yes_session: dict[str, Any]) -> None:
+    hints = [(a, kw) for _, a, kw in yes_session["ports"].sim.hints]
+    assert [kw["name"] for a, kw in hints if a == "place"] == list(STATIC_NAMES)
+    turns = [kw for a, kw in hints if a == "turn"]
+    assert [(t["axis"], t["direction"]) for t in turns] == [
+        (n.split("_")[0], n.split("_")[1]) for n in TURN_NAMES
+    ]
+    assert all(t["turns"] == 2 and t["window_s"] == 12.0 for t in turns)
+
+
+# --------------------------------------------------------------------------- scripted dialogue
+
+
+def test_scripted_dialogue_validates_and_repeats(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    keys = ["bad serial!\r", "S7\r", "y", "abc\r", "0.5\r", "3\r"]
+    keys += [" ", "n", " ", "y"]  # x_up: repeat once, then save
+    keys += [" ", "y"] * 5  # the other five statics
+    keys += ["n"]  # no turns: results
+    con = ScriptedConsole(keys)
+    ports = Ports()
+    o = opts(tmp_path, f"sim://?seed=5&{LINEAR}", serial=None, out=None, static_seconds=None,
+             turns=None, yes=False)  # fmt: skip
+    rc, stdout = run(o, con, ports)
+    assert con.keys == []
+    text = con.text
+    assert "the serial number is mandatory" in text
+    assert "give the accumulation time in seconds" in text
+    assert "between 1 and 3600" in text
+    assert text.count("Measuring x_up") == 2 and text.count("Measuring x_dn") == 1
+    assert "Stage 1 constants" in text
+    # the default output directory is ./SERIAL/
+    out = tmp_path / "S7"
+    assert sorted(p.name for p in out.glob("S7_*.txt")) == sorted(
+        [f"S7_{n}.txt" for n in STATIC_NAMES] + ["S7_result.txt"]
+    )
+    assert "TEST REPORT" in stdout and "serial No. S7" in stdout
+    # gyro scale was not measured (no turns): the unit fails, exit status 1
+    assert rc == 1
+    # the saved x_up is the second measurement: its mean is the one shown last
+    shown = text.split("x_up:")[-1].split("mean")[1].split()[0]
+    assert float(shown) == pytest.approx(read_record(out / "S7_x_up.txt").accel[:, 0].mean(),
+                                         abs=1e-4)  # fmt: skip
+    places = [kw["name"] for _, a, kw in ports.sim.hints if a == "place"]
+    assert places == ["x_up", "x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn"]
+    assert con.beeps >= 14  # start and end of each of the 7 measurements
+
+
+def test_esc_aborts_one_measurement_and_ctrl_c_keeps_accepted(tmp_path: Path) -> None:
+    keys = ["y", " ", "y"]  # x_up measured and saved
+    keys += [" ", ESC]  # x_dn aborted with Esc during the measurement
+    keys += [" ", CTRL_C]  # x_dn again, Ctrl+C during the measurement
+    con = ScriptedConsole(keys)
+    o = opts(tmp_path, f"sim://?seed=6&{LINEAR}", yes=False, static_seconds=3.0)
+    rc, _ = run(o, con, Ports())
+    assert rc == 130
+    assert con.text.count("Measuring x_dn") == 2
+    assert "Measurement of x_dn aborted (Esc): nothing kept" in con.text
+    assert "Aborted (Ctrl+C)" in con.text and "--resume" in con.text
+    out = tmp_path / "S1"
+    assert sorted(p.name for p in out.glob("*.txt")) == ["S1_x_up.txt"]
+    assert read_record(out / "S1_x_up.txt").name == "x_up"
+    assert no_temp_files(out)
+
+
+def test_resume_measures_only_the_missing_records(tmp_path: Path) -> None:
+    url = f"sim://?seed=8&{LINEAR}"
+    con = ScriptedConsole(["y", " ", "y", " ", "y", " ", CTRL_C])
+    assert run(opts(tmp_path, url, yes=False, static_seconds=3.0), con, Ports())[0] == 130
+    out = tmp_path / "S1"
+    before = {p.name: p.read_bytes() for p in out.glob("S1_*.txt")}
+    assert sorted(before) == ["S1_x_dn.txt", "S1_x_up.txt"]
+    con2 = ScriptedConsole()
+    ports = Ports()
+    rc, _ = run(opts(tmp_path, url, static_seconds=3.0, turns=1, resume=True), con2, ports)
+    assert rc in (0, 1)
+    assert "Resuming: kept x_up, x_dn" in con2.text
+    assert "Measuring x_up" not in con2.text and "Measuring y_up" in con2.text
+    places = [kw["name"] for _, a, kw in ports.sim.hints if a == "place"]
+    assert places == ["y_up", "y_dn", "z_up", "z_dn"]
+    for name, data in before.items():
+        assert (out / name).read_bytes() == data
+    assert len(list(out.glob("S1_*_*.txt"))) == 12 and (out / "S1_result.json").exists()
+    # the first session's capture is kept; the resumed one gets its own file
+    assert (out / "S1_session.cap").exists() and (out / "S1_session_2.cap").exists()
+
+
+def test_resume_refuses_other_turns(tmp_path: Path) -> None:
+    url = f"sim://?seed=9&{LINEAR}"
+    o = opts(tmp_path, url, static_seconds=2.0, turns=1)
+    assert run(o, ScriptedConsole(), Ports())[0] in (0, 1)
+    with pytest.raises(UserError, match="--turns 2 but the kept turn records have 1"):
+        run(opts(tmp_path, url, static_seconds=2.0, turns=2, resume=True), ScriptedConsole(),
+            Ports())  # fmt: skip
+
+
+# --------------------------------------------------------------------------- link trouble
+
+
+def test_board_vanishing_mid_measurement(tmp_path: Path) -> None:
+    ports = Ports()
+    con = ScriptedConsole()
+    url = f"sim://?seed=4&{LINEAR}&fault=pull_cable@25"
+    rc, _ = run(opts(tmp_path, url, turns=1), con, ports)
+    assert rc in (0, 1)
+    text = con.text
+    assert "the board disconnected" in text
+    assert "The measurement in progress is discarded; accepted records are kept." in text
+    assert "The board is back" in text
+    before = text.split("the board disconnected")[0]
+    saved_before = [n for n in STATIC_NAMES if f"S1_{n}.txt" in before]
+    assert saved_before, "the cable should come out after some record was accepted"
+    cut = STATIC_NAMES[len(saved_before)]  # the measurement the cable interrupted
+    places = [kw["name"] for _, a, kw in ports.sim.hints if a == "place"]
+    assert places.count(cut) == 2  # measured again after the reconnect
+    assert all(places.count(n) == 1 for n in saved_before)  # accepted ones kept, not redone
+    out = tmp_path / "S1"
+    assert len(list(out.glob("S1_*_*.txt"))) == 12
+    assert read_record(out / f"S1_{cut}.txt").duration_s > 9.9
+
+
+class DroppingPort:
+    """Wraps a sim port and drops every 30th read (whole frames at speed=max)."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+        self.reads = 0
+
+    def read(self, n: int = 1) -> bytes:
+        data = self.inner.read(n)
+        self.reads += 1
+        return b"" if self.reads % 30 == 0 else data
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+
+def test_lost_samples_are_counted_and_offered_for_repeat(tmp_path: Path) -> None:
+    con = ScriptedConsole(["y", " ", "n", CTRL_C])  # save anyway, then stop
+    o = opts(tmp_path, f"sim://?seed=10&{LINEAR}", yes=False, static_seconds=5.0)
+    rc, _ = run(o, con, Ports(wrap=DroppingPort))
+    assert rc == 130
+    assert "samples lost in x_up" in con.text
+    assert "Repeat <Y> or save anyway <N>?" in con.text
+    rec = read_record(tmp_path / "S1" / "S1_x_up.txt")
+    lost = int(rec.meta["lost_frames"])
+    assert lost > 0 and float(rec.meta["lost_percent"]) > 1.0
+    # the device clock shows the holes the lost frames left
+    assert int(np.sum(np.diff(rec.t_ms) > 30)) > 0
+
+
+def test_yes_gives_up_after_repeated_losses(tmp_path: Path) -> None:
+    o = opts(tmp_path, f"sim://?seed=10&{LINEAR}", static_seconds=2.0)
+    with pytest.raises(UserError, match="still wrong after 3 attempts"):
+        run(o, ScriptedConsole(), Ports(wrap=DroppingPort))
+    assert not list((tmp_path / "S1").glob("*.txt"))
+
+
+def test_wrong_firmware_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(live, "HOST_SPEC_FINGERPRINT", 0x12345678)
+    with pytest.raises(
+        UserError, match=r"firmware speaks protocol 1 .*host 1 .*python -m host flash"
+    ):
+        run(opts(tmp_path, f"sim://?seed=1&{LINEAR}"), ScriptedConsole(), Ports())
+
+
+def test_silent_port_at_connect(tmp_path: Path) -> None:
+    class Silent:
+        timeout = 0.05
+        in_waiting = 0
+
+        def read(self, n: int = 1) -> bytes:
+            time.sleep(0.05)
+            return b""
+
+        def write(self, data: bytes) -> int:
+            return len(data)
+
+        def close(self) -> None:
+            pass
+
+    t0 = time.monotonic()
+    o = opts(tmp_path, "/dev/ttyFAKE", hello_timeout_s=1.5)
+    with pytest.raises(UserError, match="no HELLO from the board on /dev/ttyFAKE within 1.5 s"):
+        live.run_live_session(o, ScriptedConsole(), lambda url: Silent())  # type: ignore[arg-type,return-value]
+    assert time.monotonic() - t0 < 3.0
+
+
+class GoesSilent:
+    """Wraps a sim port; after ``after`` reads it sends nothing (firmware hung) until the
+    port is opened again (the DTR reset of a re-open restarts the board)."""
+
+    def __init__(self, inner: Any, after: int = 400) -> None:
+        self.inner = inner
+        self.after = after
+        self.reads = 0
+        self.silent_since: float | None = None
+
+    @property
+    def in_waiting(self) -> int:
+        return 0 if self.silent_since is not None else int(self.inner.in_waiting)
+
+    def read(self, n: int = 1) -> bytes:
+        self.reads += 1
+        if self.silent_since is None and self.reads == self.after:
+            self.silent_since = time.monotonic()
+        if self.silent_since is not None:
+            time.sleep(0.05)
+            return b""
+        return bytes(self.inner.read(n))
+
+    def open(self) -> None:
+        self.inner.open()
+        self.silent_since = None
+        self.reads = -(10**9)  # once is enough
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+
+def test_silent_board_mid_session_is_reported_and_recovered(tmp_path: Path) -> None:
+    seen: list[float] = []
+    wrapped: list[GoesSilent] = []
+
+    class Spy(ScriptedConsole):
+        def say(self, text: str = "") -> None:
+            if "no data from the board" in text and wrapped[0].silent_since is not None:
+                seen.append(time.monotonic() - wrapped[0].silent_since)
+            super().say(text)
+
+    def wrap(p: Any) -> GoesSilent:
+        wrapped.append(GoesSilent(p))
+        return wrapped[0]
+
+    con = Spy()
+    rc, _ = run(opts(tmp_path, f"sim://?seed=12&{LINEAR}", static_seconds=3.0, turns=1), con,
+                Ports(wrap=wrap))  # fmt: skip
+    assert rc in (0, 1)
+    assert len(seen) == 1 and 1.9 < seen[0] < 3.0  # the message within ~2 s of the silence
+    assert "The board is back" in con.text
+    assert len(list((tmp_path / "S1").glob("S1_*_*.txt"))) == 12
+
+
+# --------------------------------------------------------------------------- pieces
+
+
+def test_yes_needs_serial_and_static_seconds(tmp_path: Path) -> None:
+    with pytest.raises(UserError, match="--yes needs --serial"):
+        live.run_live_session(opts(tmp_path, "sim://", serial=None), ScriptedConsole())
+    with pytest.raises(UserError, match="--yes needs --static-seconds"):
+        run(opts(tmp_path, f"sim://?{LINEAR}", static_seconds=None), ScriptedConsole(), Ports())
+
+
+def test_options_from_args() -> None:
+    ns = SimpleNamespace(port="sim://", serial="A-1", out="d", static_seconds=5.0, turns=3,
+                         warmup=0.0, latitude=50.0, height=10.0, yes=True, json=False,
+                         resume=True, capture=None, ready_seconds=1.5)  # fmt: skip
+    o = live.SessionOptions.from_args(ns)  # type: ignore[arg-type]
+    assert (o.out, o.turns, o.warmup_s, o.resume, o.ready_s) == (Path("d"), 3, 0.0, True, 1.5)
+    o.check()
+    for bad in ("", "x" * 13, "a b", "é"):
+        with pytest.raises(ValueError):
+            live.parse_serial(bad)
+
+
+def test_turn_windows() -> None:
+    assert [live.turn_window_s(n) for n in (1, 2, 3, 4, 5)] == [7.0, 12.0, 15.0, 19.0, 23.0]
+    with pytest.raises(ValueError):
+        live.parse_turns("0")
+    assert live.parse_turns("4") == 4
+
+
+def test_unwrap_us() -> None:
+    t = np.array([2**32 - 40_000, 2**32 - 20_000, 0, 20_000], dtype=np.int64)
+    assert live.unwrap_us(t).tolist() == [0, 20_000, 40_000, 60_000]
+
+
+def test_default_port() -> None:
+    def ports(*items: SimpleNamespace) -> Any:
+        return lambda: list(items)
+
+    other = SimpleNamespace(device="/dev/ttyS0", vid=None, description="n/a")
+    apm = SimpleNamespace(device="/dev/ttyACM0", vid=0x2341, description="Arduino Mega 2560")
+    assert live.default_port(ports(other, apm))[0] == "/dev/ttyACM0"
+    port, note = live.default_port(ports(other))
+    assert port == "sim://" and note == "no board found: using the virtual board sim://"
+
+
+def test_gyro_alarm_threshold() -> None:
+    fields = dict(fw_major=0, fw_minor=1, fw_patch=0, protocol_version=1, spec_fingerprint=0,
+                  who_am_i=0x68, accel_fs_sel=0, gyro_fs_sel=0, dlpf_cfg=3, smplrt_div=19,
+                  mode=0, timer_resolution_ns=4000, baud=115200, reset_cause=1,
+                  streaming=1)  # fmt: skip
+    info = live.BoardInfo.from_hello(fields)
+    # 250 °/s − 1 LSB at 131 LSB/(°/s): 32749 counts = 249.992 °/s
+    assert info.gyro_alarm_counts == 32749 and info.rate_hz == 50.0
+
+
+# --------------------------------------------------------------------------- emulated board
+
+
+def _emu_available() -> bool:
+    import importlib.util
+    import shutil
+
+    try:
+        spec = importlib.util.find_spec("host.transports.protocol_emu")
+    except ImportError:
+        spec = None
+    return spec is not None and shutil.which("simavr") is not None
+
+
+@pytest.mark.emulator
+@pytest.mark.skipif(
+    not _emu_available(), reason="emu:// (host/transports/protocol_emu.py) or simavr missing"
+)
+def test_emulated_board(tmp_path: Path) -> None:
+    """The real firmware in simavr: HELLO passes the spec check and a measurement has the
+    firmware's rate and no losses; with a virtual operator, a whole --yes session."""
+    board = live.Board("emu://", hello_timeout_s=30.0)
+    try:
+        info = board.connect()
+        assert info.spec_fingerprint == live.HOST_SPEC_FINGERPRINT
+        acq = board.acquire(2.0)
+        assert acq.lost == 0
+        assert abs(len(acq.t_us) - 2.0 * info.rate_hz) <= 0.02 * 2.0 * info.rate_hz + 2
+        assert np.all(np.diff(acq.t_us) > 0)
+        has_operator = board.has_operator
+    finally:
+        board.close()
+    if not has_operator:
+        return  # nobody to place the cube: the dialogue itself is covered with sim://
+    rc, stdout = run(opts(tmp_path, "emu://", static_seconds=2.0, turns=1, json=True,
+                          hello_timeout_s=30.0), ScriptedConsole(), Ports())  # fmt: skip
+    assert rc in (0, 1)
+    assert len(json.loads(stdout)["records"]) == 12

@@ -1,0 +1,317 @@
+"""The live calibration program end to end in a pseudo-terminal: a real process
+(``python -m host calibrate ...``, or ``python -m host.session`` until the lead wires the
+live options into ``calibrate``), its screen read from the pty master, keys written to it.
+Ctrl+C is the byte 0x03 through the terminal (the tty turns it into SIGINT).
+
+The board is ``sim://`` at ``speed=max`` (or a few times real time where a measurement must
+last long enough to be interrupted).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import select
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from host.records import STATIC_NAMES, TURN_NAMES, read_record
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="needs a POSIX pty")
+
+ROOT = Path(__file__).resolve().parents[2]
+LINEAR = "effects=linear,noise&earth_rate=0"
+
+
+def _command() -> list[str]:
+    """``-m host calibrate`` once it has the live options, else ``-m host.session``."""
+    from host.__main__ import build_parser
+
+    try:
+        parser, _ = build_parser()
+        sub = parser._subparsers._group_actions[0].choices["calibrate"]  # type: ignore[union-attr]
+        wired = any("--yes" in a.option_strings for a in sub._actions)
+    except Exception:  # noqa: BLE001 - any doubt: use the module's own entry point
+        wired = False
+    if wired:
+        return [sys.executable, "-m", "host", "calibrate"]
+    return [sys.executable, "-m", "host.session"]
+
+
+CMD = _command()
+
+
+class Screen:
+    """A child process on a pty: read what it shows, type keys."""
+
+    def __init__(self, args: list[str], cwd: Path) -> None:
+        import pty
+
+        env = dict(os.environ, PYTHONPATH=str(ROOT), TERM="xterm", COLUMNS="120")
+        self.pid, self.fd = pty.fork()
+        if self.pid == 0:  # child: the pty is its controlling terminal
+            try:
+                os.chdir(cwd)
+                os.execvpe(CMD[0], CMD + args, env)
+            finally:
+                os._exit(127)
+        self.text = ""
+        self.pos = 0
+        self.status: int | None = None
+
+    def _read(self, timeout: float) -> bool:
+        r, _, _ = select.select([self.fd], [], [], timeout)
+        if not r:
+            return True
+        try:
+            data = os.read(self.fd, 65536)
+        except OSError:  # EIO: the child closed the terminal
+            data = b""
+        if not data:
+            return False
+        self.text += data.decode("utf-8", "replace")
+        return True
+
+    def expect(self, pattern: str, timeout: float = 20.0) -> re.Match[str]:
+        """Wait until ``pattern`` (regex) appears after the last match; move past it."""
+        rx = re.compile(pattern)
+        end = time.monotonic() + timeout
+        while True:
+            m = rx.search(self.text, self.pos)
+            if m:
+                self.pos = m.end()
+                return m
+            left = end - time.monotonic()
+            if left <= 0 or not self._read(min(left, 0.5)):
+                m = rx.search(self.text, self.pos)
+                if m:
+                    self.pos = m.end()
+                    return m
+                raise AssertionError(
+                    f"{pattern!r} not on the screen; last output:\n{self.text[-1500:]}"
+                )
+
+    def send(self, keys: str) -> None:
+        os.write(self.fd, keys.encode())
+
+    def wait(self, timeout: float = 30.0) -> int:
+        """Read to the end; the exit status."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if not self._read(0.2):
+                break
+        pid, st = os.waitpid(self.pid, 0 if time.monotonic() < end else os.WNOHANG)
+        if pid == 0:
+            os.kill(self.pid, signal.SIGKILL)
+            os.waitpid(self.pid, 0)
+            raise AssertionError(f"the program did not end; screen:\n{self.text[-1500:]}")
+        os.close(self.fd)
+        self.status = os.waitstatus_to_exitcode(st)
+        return self.status
+
+    def close(self) -> None:
+        if self.status is None:
+            try:
+                os.kill(self.pid, signal.SIGKILL)
+                os.waitpid(self.pid, 0)
+            except OSError:
+                pass
+            try:
+                os.close(self.fd)
+            except OSError:
+                pass
+
+
+@pytest.fixture
+def screens() -> list[Screen]:
+    started: list[Screen] = []
+    yield started
+    for s in started:
+        s.close()
+
+
+def start(screens: list[Screen], cwd: Path, *args: str) -> Screen:
+    s = Screen(list(args), cwd)
+    screens.append(s)
+    return s
+
+
+def leftovers(d: Path) -> list[str]:
+    """Temp files or hidden files (what an interrupted atomic write would leave)."""
+    return [p.name for p in d.iterdir() if p.name.endswith(".tmp") or p.name.startswith(".")]
+
+
+def static_table_mean(text: str) -> float:
+    """Ax of the last 'mean' row shown."""
+    return float(text.rsplit("mean ", 1)[1].split()[0])
+
+
+# --------------------------------------------------------------------------- tests
+
+
+def test_interactive_session_with_a_repeat(tmp_path: Path, screens: list[Screen]) -> None:
+    """The whole dialogue typed by hand: serial, stages, seconds, one 'repeat', the turns."""
+    s = start(screens, tmp_path, "--port", f"sim://?seed=21&speed=max&{LINEAR}",
+              "--warmup", "0", "--ready-seconds", "0")  # fmt: skip
+    s.expect(r"Ctrl\+C aborts and discards the session; Esc aborts only the current measurement")
+    s.expect(r"Level the base\. Connect the unit by USB")
+    s.expect(r"WHO_AM_I 0x68 \(MPU-6000\)")
+    s.expect(r"Serial number \(1-12 characters\): ")
+    s.send("P1\r")
+    s.expect(r"Measure the 6 static orientations <Y> or go to the integral gyro calibration <N>\?")
+    s.send("y")
+    s.expect(r"Accumulation time per orientation, seconds.*: ")
+    s.send("2\r")
+    shown: dict[str, float] = {}
+    for name in STATIC_NAMES:
+        axis, side = name.split("_")
+        where = "up" if side == "up" else "down"
+        s.expect(rf"Put the cube on the base with {axis.upper()} {where}\. Press any key\.")
+        s.send(" ")
+        s.expect(r"\*\*\* BEEP \*\*\*")
+        s.expect(rf"Measuring {name}")
+        s.expect(r"\*\*\* BEEP \*\*\*")
+        s.expect(r"std .*\n")
+        s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
+        if name == "x_up" and "x_up" not in shown:
+            shown["x_up_first"] = static_table_mean(s.text[: s.pos])
+            s.send("n")
+            s.expect(r"Put the cube on the base with X up\. Press any key\.")
+            s.send(" ")
+            s.expect(r"Measuring x_up")
+            s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
+        shown[name] = static_table_mean(s.text[: s.pos])
+        s.send("y")
+        s.expect(rf"Saved .*P1_{name}\.txt")
+    s.expect(r"Stage 1 constants")
+    s.expect(r"Integral gyro calibration <Y> or results <N>\?")
+    s.send("y")
+    s.expect(r"Number of turns per rotation.*\[2\]: ")
+    s.send("1\r")
+    for name in TURN_NAMES:
+        axis, direction = name.split("_")
+        s.expect(rf"Put the cube {axis.upper()} up, against the ruler\. Press any key\.")
+        s.send(" ")
+        words = "counter-clockwise" if direction == "ccw" else "clockwise"
+        s.expect(rf"Get ready to turn 1 turn {words}")
+        s.expect(rf"Turn now! {name}: 7 s")
+        s.expect(r"∫Gx")
+        s.expect(r"Save <Y> or repeat <N>\?")
+        s.send("y")
+        s.expect(rf"Saved .*P1_{name}\.txt")
+    s.expect(r"TEST REPORT, IMU MPU-6000, serial No\. P1")
+    assert s.wait() in (0, 1)
+    out = tmp_path / "P1"  # the default output directory
+    assert (out / "P1_result.txt").exists() and (out / "P1_result.json").exists()
+    assert s.text.count("Measuring x_up") == 2
+    saved = read_record(out / "P1_x_up.txt")
+    assert saved.accel[:, 0].mean() == pytest.approx(shown["x_up"], abs=1e-4)
+    assert read_record(out / "P1_z_cw.txt").meta["turns"] == "1"
+    assert "\a" in s.text  # the terminal bell rings with each beep
+    assert leftovers(out) == []
+
+
+def test_esc_aborts_only_the_measurement(tmp_path: Path, screens: list[Screen]) -> None:
+    s = start(screens, tmp_path, "--port", f"sim://?seed=22&speed=max&{LINEAR}", "--serial",
+              "E1", "--static-seconds", "200", "--warmup", "0")  # fmt: skip
+    s.expect(r"Measure the 6 static orientations <Y>")
+    s.send("y")
+    s.expect(r"with X up\. Press any key\.")
+    s.send(" ")
+    s.expect(r"Measuring x_up: 200 s \(Esc aborts\)")
+    t0 = time.monotonic()
+    s.send("\x1b")
+    s.expect(r"Measurement of x_up aborted \(Esc\): nothing kept")
+    assert time.monotonic() - t0 < 2.0  # 200 s at max speed would take far longer
+    s.expect(r"Put the cube on the base with X up\. Press any key\.")  # the same one again
+    s.send("\x03")
+    s.expect(r"Aborted \(Ctrl\+C\)")
+    assert s.wait() == 130
+    out = tmp_path / "E1"
+    assert sorted(p.name for p in out.iterdir()) == ["E1_session.cap"]
+
+
+def test_range_alarm_offers_to_repeat(tmp_path: Path, screens: list[Screen]) -> None:
+    url = f"sim://?seed=23&speed=max&{LINEAR}&fault=too_fast@1"
+    s = start(screens, tmp_path, "--port", url, "--serial", "R1", "--warmup", "0",
+              "--ready-seconds", "0")  # fmt: skip
+    s.expect(r"Measure the 6 static orientations <Y> or go to the integral gyro calibration <N>")
+    s.send("n")  # straight to the turns
+    s.expect(r"Number of turns.*: ")
+    s.send("\r")  # the default, 2
+    s.expect(r"Put the cube X up, against the ruler\. Press any key\.")
+    s.send(" ")
+    s.expect(r"Turn now! x_ccw: 12 s")
+    s.expect(r"RANGE ALARM: \d+ gyro samples at or beyond ±250 °/s \(peak 250\.\d °/s\)")
+    s.expect(r"Repeat <Y> or save anyway <N>\? \[Y\]")
+    s.send("y")
+    s.expect(r"Put the cube X up, against the ruler\. Press any key\.")
+    s.send(" ")
+    s.expect(r"Turn now! x_ccw: 12 s")
+    s.expect(r"peak rate \d+\.\d °/s")
+    s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
+    s.send("y")
+    s.expect(r"Saved .*R1_x_ccw\.txt")
+    s.expect(r"Put the cube X up, against the ruler\. Press any key\.")
+    s.send("\x03")
+    assert s.wait() == 130
+    assert "\a" in s.text.split("RANGE ALARM")[0][-40:]
+    rec = read_record(tmp_path / "R1" / "R1_x_ccw.txt")
+    assert float(np.abs(rec.gyro).max()) < 249.99
+    assert 700 < rec.gyro[:, 0].sum() * 0.02 < 760  # about two turns, the second attempt
+
+
+def test_ctrl_c_during_a_measurement_then_resume(tmp_path: Path, screens: list[Screen]) -> None:
+    """Ctrl+C in the middle of y_up: x_up and x_dn stay, nothing half-written; --resume then
+    measures only what is missing."""
+    url = f"sim://?seed=24&speed=4&{LINEAR}"  # a 3 s static lasts 0.75 s: time to hit it
+    s = start(screens, tmp_path, "--port", url, "--serial", "C1", "--static-seconds", "3",
+              "--warmup", "0")  # fmt: skip
+    s.expect(r"Measure the 6 static orientations <Y>")
+    s.send("y")
+    for name in ("x_up", "x_dn"):
+        s.expect(r"Press any key\.")
+        s.send(" ")
+        s.expect(r"Save <Y> or repeat <N>\?")
+        s.send("y")
+        s.expect(rf"Saved .*C1_{name}\.txt")
+    s.expect(r"with Y up\. Press any key\.")
+    s.send(" ")
+    s.expect(r"Measuring y_up")
+    s.expect(r"y_up \[#*-+\]")  # the progress line is running
+    s.send("\x03")
+    s.expect(r"Aborted \(Ctrl\+C\): the measurement in progress is discarded")
+    s.expect(r"continue with: .*--serial C1 --out C1 --resume")
+    assert s.wait() == 130
+    assert "Save <Y> or repeat <N>?" not in s.text.split("Measuring y_up")[1]
+    out = tmp_path / "C1"
+    assert sorted(p.name for p in out.glob("*.txt")) == ["C1_x_dn.txt", "C1_x_up.txt"]
+    assert leftovers(out) == []
+    kept = {n: (out / f"C1_{n}.txt").read_bytes() for n in ("x_up", "x_dn")}
+    for n in kept:
+        read_record(out / f"C1_{n}.txt")
+
+    # resume, non-interactive: no terminal at all (stdin closed, no controlling tty)
+    proc = subprocess.run(
+        CMD + ["--port", f"sim://?seed=24&speed=max&{LINEAR}", "--serial", "C1", "--out", "C1",
+               "--static-seconds", "3", "--turns", "1", "--warmup", "0", "--ready-seconds", "0",
+               "--resume", "--yes", "--json"],
+        cwd=tmp_path, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60,
+        env=dict(os.environ, PYTHONPATH=str(ROOT)), start_new_session=True,
+    )  # fmt: skip
+    assert proc.returncode in (0, 1), proc.stderr[-2000:]
+    assert "Resuming: kept x_up, x_dn" in proc.stderr
+    measured = re.findall(r"(?:Measuring|Turn now!) (\w+):", proc.stderr)
+    assert measured == ["y_up", "y_dn", "z_up", "z_dn", *TURN_NAMES]
+    for n, data in kept.items():
+        assert (out / f"C1_{n}.txt").read_bytes() == data
+    import json
+
+    assert sorted(json.loads(proc.stdout)["records"]) == sorted(STATIC_NAMES + TURN_NAMES)
+    assert leftovers(out) == []
