@@ -19,6 +19,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "calibrate": ("host.calibrate_cli", "cli_calibrate", "compute calibration, write the report"),
     "decode": ("host.frames", "cli_decode", "decode a capture file to JSONL/CSV samples"),
     "capture": ("host.link", "cli_capture", "record a port's bytes with host times to a file"),
+    "model": ("host.model_cli", "cli_model", "model workbench: diagnose, add a term, ladder"),
+    "demo": ("host.model_cli", "cli_demo", "demo: find an effect hidden in a simulated session"),
 }
 
 

@@ -1,0 +1,1100 @@
+"""The model workbench's engine: a sensor model is a list of named physical terms.
+
+Each :class:`Term` carries its physics (docstring), the sensor it acts on ("accel"/"gyro"), its
+parameters with units and a function building its columns of the design matrix from the
+records' reference signals (:class:`RecordSignals`: reference specific force, reference rate,
+chip temperature, time since power-on). ``base`` = bias + scale + misalignment + g_sensitivity
+is the linear model of method.md §2; the other catalogue terms are the effects §8 says a
+residual analysis should look for (temperature, drift, nonlinearity …).
+
+The fit (:func:`fit_model`) is ONE weighted linear least-squares problem over every record:
+
+* static (and rate-table) records are cut into blocks of ``NoiseModel.block_s`` seconds; each
+  block mean of each channel is a row, so temperature and time terms see within-record variation
+  as well as the differences between records;
+* each turn record gives one row per gyro channel, the trapezoid integral (method.md §4), in °;
+* accelerometer rows come from the static records only (during a hand turn the wobble and the
+  centripetal force dominate).
+
+Noise model (:class:`NoiseModel`, method.md §8 "residual mean near 0"): the rows of one
+record and channel share one covariance ``v·I + f²·11ᵀ``: ``v`` = variance of a block mean from
+the record's own samples (pooled within-block variance × integrated autocorrelation time, at least
+the quantisation step²/12), ``f`` = the bias-instability floor: the slow Gauss-Markov wander of
+a MEMS bias moves each record's mean by an amount the record itself cannot show. The rows are
+whitened exactly (record mean + orthonormal within-record contrasts); χ² is then honest under the
+null and needs no inflation. Turn integrals: white noise integrated + (floor·T)² + the hand's
+angle error (``turn_angle_sigma_deg``, as :mod:`host.calibration`).
+
+Terms nonlinear in their parameters (``Term.value``) are linearised around the current
+estimate (numerical Jacobian) and the fit iterated (Gauss-Newton).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import inspect
+import math
+import sys
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from host.calibration import (
+    DEFAULT_HEIGHT_M,
+    DEFAULT_LATITUDE_DEG,
+    TURN_ANGLE_SIGMA_DEG,
+    build_observations,
+    local_gravity,
+    record_stats,
+    trapezoid_integral,
+)
+from host.errors import UserError
+from host.records import Session
+
+SENSORS = ("accel", "gyro")
+AXES = "xyz"
+#: unit of each sensor's output and of its reference input
+UNIT = {"accel": "m/s²", "gyro": "°/s"}
+#: chip temperature the temperature terms are referred to, °C (the simulator's ``temp_ref_c``)
+TEMP_REF_C = 25.0
+
+
+# ---- reference signals ----------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class RecordSignals:
+    """Per-sample signals of one record, the inputs the terms build their columns from.
+
+    ``t_s`` (N,) s since power-on (meta ``power_on_s`` + sample time; when a record does not
+    say, time from the record's middle), ``temp_c`` (N,) chip °C, ``force`` (N,3) reference
+    specific force m/s² (g along the up direction), ``rate`` (N,3) reference rate °/s (zero for
+    statics; for a turn the measured profile about the up axis scaled to the known ±360·n°),
+    ``accel``/``gyro`` (N,3) the measured outputs. ``g`` m/s². ``temp_mean_c``: mean chip
+    temperature of the whole session, °C.
+    """
+
+    name: str
+    kind: str
+    t_s: np.ndarray
+    temp_c: np.ndarray
+    force: np.ndarray
+    rate: np.ndarray
+    accel: np.ndarray
+    gyro: np.ndarray
+    g: float
+    up: np.ndarray
+    temp_mean_c: float = TEMP_REF_C
+
+    def reference(self, sensor: str) -> np.ndarray:
+        """(N,3) the true input of ``sensor``: specific force m/s² or rate °/s."""
+        return self.force if sensor == "accel" else self.rate
+
+    def measured(self, sensor: str) -> np.ndarray:
+        """(N,3) the measured output of ``sensor``."""
+        return self.accel if sensor == "accel" else self.gyro
+
+    @property
+    def hours(self) -> np.ndarray:
+        """(N,) hours since power-on."""
+        return self.t_s / 3600.0
+
+    @property
+    def d_temp(self) -> np.ndarray:
+        """(N,) chip temperature − :data:`TEMP_REF_C`, °C."""
+        return self.temp_c - TEMP_REF_C
+
+
+# ---- terms ----------------------------------------------------------------------------------
+ColumnFn = Callable[[RecordSignals, str, int], np.ndarray]
+ValueFn = Callable[[RecordSignals, str, int, np.ndarray], np.ndarray]
+CheckFn = Callable[[Sequence[RecordSignals]], "str | None"]
+LabelFn = Callable[[str, int], tuple[str, ...]]
+
+
+@dataclass(frozen=True, eq=False)
+class Term:
+    """One physical effect of the sensor model.
+
+    ``columns(signals, sensor, axis)`` -> (N, k) per-sample regressors of output channel
+    ``axis`` of ``sensor`` (in that channel's unit per unit parameter); the fit aggregates them
+    like the measurements (block means, turn integrals). ``units``: one template per parameter,
+    ``{u}`` = the channel's unit. ``needs``: what data would make the term identifiable;
+    ``check``: returns why the records cannot determine it (or None). A term nonlinear in its
+    parameters gives ``value(signals, sensor, axis, theta)`` -> (N,) instead, and ``initial``.
+    """
+
+    name: str
+    doc: str
+    sensors: tuple[str, ...]
+    params: tuple[str, ...]
+    units: tuple[str, ...]
+    columns: ColumnFn | None = None
+    needs: str = ""
+    check: CheckFn | None = None
+    labels: LabelFn | None = None
+    value: ValueFn | None = None
+    initial: tuple[float, ...] = ()
+
+    @property
+    def physics(self) -> str:
+        """The one-line physical explanation (first line of the docstring)."""
+        return self.doc.strip().splitlines()[0] if self.doc.strip() else ""
+
+    @property
+    def nonlinear(self) -> bool:
+        return self.value is not None
+
+    def param_labels(self, sensor: str, axis: int) -> tuple[str, ...]:
+        """Names of the parameters on channel ``axis`` of ``sensor`` (§2 names for base terms)."""
+        if self.labels is not None:
+            return self.labels(sensor, axis)
+        stem = f"{self.name}.{sensor}.{AXES[axis]}"
+        return tuple(stem if len(self.params) == 1 else f"{stem}.{p}" for p in self.params)
+
+    def param_units(self, sensor: str) -> tuple[str, ...]:
+        """Units of the parameters for ``sensor``."""
+        return tuple(u.replace("{u}", UNIT[sensor]) for u in self.units)
+
+
+def term(
+    *,
+    sensors: Sequence[str] = SENSORS,
+    params: Mapping[str, str] | None = None,
+    needs: str = "",
+    check: CheckFn | None = None,
+    labels: LabelFn | None = None,
+    name: str | None = None,
+) -> Callable[[ColumnFn], Term]:
+    """Decorator turning a column function into a :class:`Term` (see the README's example).
+
+    ``params``: parameter name -> unit template (``{u}`` = the channel's unit); default one
+    parameter in the channel's unit. The function's docstring is the term's physics.
+    """
+    pmap = dict(params) if params is not None else {"c": "{u}"}
+
+    def wrap(fn: ColumnFn) -> Term:
+        doc = inspect.getdoc(fn) or ""
+        if not doc:
+            raise UserError(f"term {fn.__name__}: give it a docstring with the physics")
+        bad = [s for s in sensors if s not in SENSORS]
+        if bad or not pmap:
+            raise UserError(f"term {fn.__name__}: sensors must be accel/gyro, params non-empty")
+        return Term(
+            name=name or fn.__name__, doc=doc, sensors=tuple(sensors), params=tuple(pmap),
+            units=tuple(pmap.values()), columns=fn, needs=needs, check=check, labels=labels,
+        )  # fmt: skip
+
+    return wrap
+
+
+def nonlinear_term(
+    *,
+    initial: Sequence[float],
+    sensors: Sequence[str] = SENSORS,
+    params: Mapping[str, str] | None = None,
+    needs: str = "",
+    check: CheckFn | None = None,
+    name: str | None = None,
+) -> Callable[[ValueFn], Term]:
+    """Decorator for a term nonlinear in its parameters: the function gives the term's
+    per-sample contribution ``value(signals, sensor, axis, theta)`` (N,); the fit linearises it
+    around the current estimate (starting at ``initial``) and iterates."""
+    pmap = dict(params) if params is not None else {"c": "{u}"}
+
+    def wrap(fn: ValueFn) -> Term:
+        doc = inspect.getdoc(fn) or ""
+        if not doc:
+            raise UserError(f"term {fn.__name__}: give it a docstring with the physics")
+        if len(initial) != len(pmap):
+            raise UserError(f"term {fn.__name__}: one initial value per parameter")
+        return Term(
+            name=name or fn.__name__, doc=doc, sensors=tuple(sensors), params=tuple(pmap),
+            units=tuple(pmap.values()), value=fn, needs=needs, check=check,
+            initial=tuple(float(x) for x in initial),
+        )  # fmt: skip
+
+    return wrap
+
+
+# ---- the catalogue --------------------------------------------------------------------------
+#: position of each §2 name in M (row = channel, column = input axis) and its sign
+_LAYOUT: dict[str, tuple[int, int, int]] = {
+    "xx": (0, 0, 1), "xz": (0, 1, 1), "xy": (0, 2, -1),
+    "yz": (1, 0, -1), "yy": (1, 1, 1), "yx": (1, 2, 1),
+    "zy": (2, 0, 1), "zx": (2, 1, -1), "zz": (2, 2, 1),
+}  # fmt: skip
+_PREFIX = {"accel": "A", "gyro": "G"}
+
+
+def _off_diagonal(axis: int) -> list[tuple[str, int, int]]:
+    """(§2 suffix, input axis, sign) of the two misalignments of channel ``axis``."""
+    return [(s, k, sg) for s, (i, k, sg) in _LAYOUT.items() if i == axis and k != axis]
+
+
+def _temperature_check(signals: Sequence[RecordSignals]) -> str | None:
+    temps = np.concatenate([s.temp_c for s in signals]) if signals else np.zeros(1)
+    lo, hi = float(np.min(temps)), float(np.max(temps))
+    if hi - lo < 0.5:
+        return f"chip temperature spans only {hi - lo:.1f} °C ({lo:.1f} … {hi:.1f} °C)" + (
+            " — a constant: it was probably not measured" if hi == lo else ""
+        )
+    return None
+
+
+_TEMP_NEEDS = (
+    "records at chip temperatures a few °C apart (measure during warm-up, or repeat the "
+    "attitudes in a warmer/colder room), with the temperature not rising steadily with time"
+)
+
+
+@term(params={"bias": "{u}"}, needs="static records", labels=lambda s, i: (
+    f"{_PREFIX[s]}0{AXES[i]}",))  # fmt: skip
+def bias(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Constant offset of the output (method.md §2 A0., G0.): the zero-input reading."""
+    return np.ones((len(sig.t_s), 1))
+
+
+@term(params={"scale": "1"}, needs="inputs of both signs on this axis (±1 g faces; CW and CCW "
+      "turns about the axis)", labels=lambda s, i: (f"{_PREFIX[s]}{AXES[i] * 2}",))  # fmt: skip
+def scale(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Relative scale-factor error (method.md §2 Axx, Gxx): output = (1 + s)·input."""
+    return sig.reference(sensor)[:, axis : axis + 1]
+
+
+def _mis_labels(sensor: str, axis: int) -> tuple[str, ...]:
+    return tuple(f"{_PREFIX[sensor]}{s}" for s, _, _ in _off_diagonal(axis))
+
+
+@term(params={"m1": "rad", "m2": "rad"}, labels=_mis_labels,
+      needs="inputs along the other two axes (gravity along them; turns about them)")  # fmt: skip
+def misalignment(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Small-angle axis misalignment (method.md §2 Axz, Axy …): the channel also senses the
+    input along the other two axes, with the signs of §2."""
+    ref = sig.reference(sensor)
+    return np.column_stack([sg * ref[:, k] for _, k, sg in _off_diagonal(axis)])
+
+
+@term(sensors=("gyro",), params={"gx": "(°/s)/g", "gy": "(°/s)/g", "gz": "(°/s)/g"},
+      labels=lambda s, i: tuple(f"GA{AXES[i]}{b}" for b in AXES),
+      needs="static records with gravity along each axis")  # fmt: skip
+def g_sensitivity(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Gyro bias proportional to the specific force (method.md §2 GA..): the proof mass of a
+    vibrating MEMS gyro is displaced by acceleration, (°/s) per g along x, y, z."""
+    return sig.force / sig.g
+
+
+@term(params={"per_C": "{u}/°C"}, needs=_TEMP_NEEDS, check=_temperature_check)
+def temperature_bias(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Bias linear in chip temperature: thermal stress in the MEMS die and the readout's
+    temperature coefficient shift the zero, b·(T − 25 °C) (method.md §8)."""
+    return sig.d_temp[:, None]
+
+
+@term(params={"per_C2": "{u}/°C²"}, needs=_TEMP_NEEDS, check=_temperature_check)
+def temperature_bias_quadratic(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Bias quadratic in chip temperature, b2·(T − T̄)² about the session's mean temperature:
+    the curvature of bias(T) (method.md §8's 20-temperature procedure fits bias(T))."""
+    return ((sig.temp_c - sig.temp_mean_c) ** 2)[:, None]
+
+
+@term(params={"per_C": "1/°C"}, needs=_TEMP_NEEDS + " and large inputs (±1 g, turns)",
+      check=_temperature_check)  # fmt: skip
+def temperature_scale(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Scale factor linear in chip temperature: the spring constant and the drive amplitude
+    change with temperature, output += s_T·(T − 25 °C)·input."""
+    return (sig.d_temp * sig.reference(sensor)[:, axis])[:, None]
+
+
+@term(
+    params={"per_h": "{u}/h"},
+    needs="records spread over time since power-on (meta "
+    "power_on_s) or long records, with the temperature not rising steadily with time",
+)
+def time_drift(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Bias linear in time since power-on, d·t: slow settling of the electronics and
+    charging/outgassing of the package, at constant temperature (warm-up drift)."""
+    return sig.hours[:, None]
+
+
+@term(
+    params={"asym": "1"},
+    needs="inputs of several magnitudes on this axis (for the "
+    "accelerometer the 45° attitudes tilt_45_*, for the gyro turns at several rates)",
+)
+def scale_asymmetry(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Different scale for positive and negative input (scale(+) − scale(−) = asym): an
+    asymmetric proof-mass suspension or readout, output += ½·asym·|input|."""
+    return 0.5 * np.abs(sig.reference(sensor)[:, axis : axis + 1])
+
+
+@term(
+    params={"k2": "1/({u})"},
+    needs="inputs of several magnitudes on this axis (for the "
+    "accelerometer the 45° attitudes tilt_45_*, for the gyro turns at several rates)",
+)
+def scale_nonlinearity(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Output quadratic in the input, k2·input²: the nonlinear spring/capacitance of the MEMS
+    transducer (the datasheet's nonlinearity, % of full scale)."""
+    return sig.reference(sensor)[:, axis : axis + 1] ** 2
+
+
+#: the built-in terms, in catalogue order
+CATALOGUE: dict[str, Term] = {
+    t.name: t
+    for t in (
+        bias, scale, misalignment, g_sensitivity, temperature_bias, temperature_bias_quadratic,
+        temperature_scale, time_drift, scale_asymmetry, scale_nonlinearity,
+    )
+}  # fmt: skip
+#: the linear model of method.md §2
+BASE = ("bias", "scale", "misalignment", "g_sensitivity")
+
+
+def load_term_file(
+    path: str | Path, catalogue: Mapping[str, Term] | None = None
+) -> dict[str, Term]:
+    """Import a Python file of user terms (module-level :class:`Term` objects, e.g. made with
+    :func:`term`) and return the catalogue extended by them. UserError on any failure."""
+    p = Path(path)
+    if not p.is_file():
+        raise UserError(f"{p}: no such term file")
+    mod_name = f"_imu_bench_terms_{abs(hash(str(p.resolve())))}"
+    spec = importlib.util.spec_from_file_location(mod_name, p)
+    if spec is None or spec.loader is None:
+        raise UserError(f"{p}: cannot load it as Python")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[mod_name] = module
+    try:
+        spec.loader.exec_module(module)
+    except UserError as exc:
+        raise UserError(f"{p}: {exc}") from exc
+    except Exception as exc:  # noqa: BLE001 - any error in user code is one line for the user
+        raise UserError(f"{p}: error in the term file: {type(exc).__name__}: {exc}") from exc
+    out = dict(catalogue if catalogue is not None else CATALOGUE)
+    found = [v for v in vars(module).values() if isinstance(v, Term)]
+    if not found:
+        raise UserError(f"{p}: defines no term (decorate a column function with @term(...))")
+    for t in found:
+        out[t.name] = t
+    return out
+
+
+# ---- model specification --------------------------------------------------------------------
+@dataclass(frozen=True)
+class ModelTerm:
+    """A term applied to some channels: ``term`` on ``sensor`` axes ``axes`` (indices)."""
+
+    term: Term
+    sensor: str
+    axes: tuple[int, ...]
+
+    @property
+    def label(self) -> str:
+        """'temperature_bias:gyro:x' style."""
+        return f"{self.term.name}:{self.sensor}:{''.join(AXES[a] for a in self.axes)}"
+
+    @property
+    def n_params(self) -> int:
+        return len(self.term.params) * len(self.axes)
+
+
+def parse_model(spec: str, catalogue: Mapping[str, Term] | None = None) -> list[ModelTerm]:
+    """``"base,temperature_bias:gyro:x"`` -> model terms. Items ``term[:sensor[:axes]]``;
+    ``base`` = bias, scale, misalignment, g_sensitivity. UserError on a bad spec."""
+    cat = catalogue if catalogue is not None else CATALOGUE
+    items = [s.strip() for s in spec.split(",") if s.strip()]
+    if not items:
+        raise UserError("empty model spec; e.g. --model base or --model bias,scale")
+    out: list[ModelTerm] = []
+    for item in items:
+        parts = item.split(":")
+        if len(parts) > 3:
+            raise UserError(f"model item {item!r}: expected term[:sensor[:axes]]")
+        name = parts[0]
+        is_base = name == "base"
+        if not is_base and name not in cat:
+            raise UserError(f"unknown term {name!r}; known: base, {', '.join(cat)}")
+        for t in [cat[n] for n in BASE] if is_base else [cat[name]]:
+            sensors = t.sensors
+            if len(parts) > 1 and parts[1]:
+                if parts[1] not in SENSORS:
+                    raise UserError(f"model item {item!r}: sensor must be accel or gyro")
+                if parts[1] not in t.sensors:
+                    if is_base:
+                        continue  # base:accel -> g_sensitivity has no accel part
+                    raise UserError(f"term {name} does not act on the {parts[1]}")
+                sensors = (parts[1],)
+            axes_txt = parts[2] if len(parts) > 2 and parts[2] else AXES
+            if any(c not in AXES for c in axes_txt):
+                raise UserError(f"model item {item!r}: axes must be letters of xyz")
+            axes = tuple(sorted({AXES.index(c) for c in axes_txt}))
+            out.extend(ModelTerm(t, s, axes) for s in sensors)
+    return merge_model(out)
+
+
+def merge_model(terms: Iterable[ModelTerm]) -> list[ModelTerm]:
+    """Join the axes of repeated (term, sensor) pairs, keeping first-seen order."""
+    order: list[tuple[str, str]] = []
+    axes: dict[tuple[str, str], set[int]] = {}
+    objs: dict[tuple[str, str], Term] = {}
+    for mt in terms:
+        key = (mt.term.name, mt.sensor)
+        if key not in axes:
+            order.append(key)
+            axes[key] = set()
+            objs[key] = mt.term
+        axes[key].update(mt.axes)
+    return [ModelTerm(objs[k], k[1], tuple(sorted(axes[k]))) for k in order]
+
+
+def model_spec(model: Sequence[ModelTerm]) -> str:
+    """The spec string of a model (inverse of :func:`parse_model`)."""
+    return ",".join(mt.label for mt in model)
+
+
+# ---- noise model ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class NoiseModel:
+    """How uncertain each row is (see the module docstring).
+
+    ``block_s``: length of the blocks static records are cut into, s (at most ``max_blocks``);
+    ``floor``: bias-instability floor per sensor (m/s², °/s): the std of a record's mean bias
+    wander between records that its own samples cannot show (MPU-6000 class, records about a
+    minute apart: 5e-4 m/s² and 3e-3 °/s — the simulator's Gauss-Markov bias of 2-8e-4 m/s²
+    and 2-6e-3 °/s with τ = 300 s gives these);
+    ``turn_angle_sigma_deg``: the hand's angle error per turn (method.md §4).
+    """
+
+    block_s: float = 5.0
+    max_blocks: int = 6
+    floor: Mapping[str, float] = field(default_factory=lambda: {"accel": 5.0e-4, "gyro": 3.0e-3})
+    turn_angle_sigma_deg: float = TURN_ANGLE_SIGMA_DEG
+    max_lag: int = 30
+
+
+def _resolution(x: np.ndarray) -> float:
+    """Smallest step between distinct values of ``x`` (its quantisation), 0 if constant."""
+    u = np.unique(x)
+    if len(u) < 2:
+        return 0.0
+    d = np.diff(u)
+    return float(np.min(d[d > 1e-12])) if np.any(d > 1e-12) else 0.0
+
+
+def integrated_autocorrelation(dev: np.ndarray, max_lag: int) -> float:
+    """1 + 2·Σρ_k of the deviations ``dev`` (N,), summed until ρ_k first drops to ≤ 0;
+    the variance of a mean of m samples is σ²·τ/m (clipped to 1 … 50)."""
+    n = len(dev)
+    var = float(dev @ dev) / max(n, 1)
+    if n < 4 or var <= 0:
+        return 1.0
+    tau = 1.0
+    for k in range(1, min(max_lag, n // 4) + 1):
+        rho = float(dev[k:] @ dev[:-k]) / (n * var)
+        if rho <= 0:
+            break
+        tau += 2.0 * rho
+    return float(min(max(tau, 1.0), 50.0))
+
+
+# ---- dataset: rows, their noise and the whitening ------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Group:
+    """The rows of one record and channel: ``rows`` indices; ``sigma`` = std of their mean
+    (static: block-mean average; turn: the integral); ``contrast_sigma`` = std of a block's
+    deviation from the record's mean (NaN for one row)."""
+
+    record: int
+    sensor: str
+    axis: int
+    rows: np.ndarray
+    sigma: float
+    contrast_var: float
+
+
+@dataclass(frozen=True, eq=False)
+class Dataset:
+    """Everything the fits need from a session: signals, rows and the whitening.
+
+    Rows (n): ``y`` measured block mean (unit of the channel) or turn integral (°), ``nominal``
+    the ideal sensor's value (the aggregated reference input on the channel), ``span`` (n,2)
+    within-record time span s. ``whiten`` (n,n): W with W·Cov·Wᵀ = I.
+    """
+
+    signals: tuple[RecordSignals, ...]
+    row_record: np.ndarray
+    row_sensor: np.ndarray  # 0 accel, 1 gyro
+    row_axis: np.ndarray
+    row_integral: np.ndarray
+    span: np.ndarray
+    y: np.ndarray
+    nominal: np.ndarray
+    whiten: np.ndarray
+    groups: tuple[Group, ...]
+    aggregators: tuple[np.ndarray, ...]  # per record (B, N): block-mean or trapezoid weights
+    rows_of: dict[tuple[int, str, int], np.ndarray]
+    g: float
+    notes: tuple[str, ...] = ()
+    #: False: the records carry no power-on time (time = within-record, centred)
+    time_known: bool = True
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.y.shape[0])
+
+    def record_name(self, i: int) -> str:
+        return self.signals[i].name
+
+
+def _block_edges(n: int, duration_s: float, noise: NoiseModel) -> list[tuple[int, int]]:
+    b = int(max(1, min(noise.max_blocks, round(duration_s / noise.block_s))))
+    b = max(1, min(b, n // 8 if n >= 8 else 1))
+    edges = np.linspace(0, n, b + 1).round().astype(int)
+    return [(int(edges[i]), int(edges[i + 1])) for i in range(b)]
+
+
+def _turn_reference(
+    rec_gyro: np.ndarray, t_ms: np.ndarray, up: np.ndarray, bias_dps: np.ndarray, want_deg: float
+) -> np.ndarray:
+    """(N,3) reference rate of a turn: the measured rate about the up axis (static bias
+    removed), scaled so that its trapezoid integral is exactly ``want_deg``."""
+    raw = (rec_gyro - bias_dps) @ up
+    total = float(trapezoid_integral(t_ms, raw))
+    if abs(total) < 1e-6:
+        return np.zeros((len(t_ms), 3))
+    return (raw * (want_deg / total))[:, None] * up[None, :]
+
+
+def build_dataset(
+    session: Session,
+    *,
+    noise: NoiseModel | None = None,
+    latitude_deg: float = DEFAULT_LATITUDE_DEG,
+    height_m: float = DEFAULT_HEIGHT_M,
+    turns: int | None = None,
+) -> Dataset:
+    """Check the records (:func:`host.calibration.build_observations`) and build the rows.
+
+    UserError when there is nothing to fit (no static records, bad records).
+    """
+    nm = noise or NoiseModel()
+    if not session.records:
+        raise UserError("no records to fit")
+    g = local_gravity(latitude_deg, height_m)
+    stats = {n: record_stats(r) for n, r in session.records.items()}
+    obs, notes = build_observations(session, g, turns=turns, stats=stats)
+    obs_of = {o.record: o for o in obs}
+    names = [n for n in session.records if n in obs_of]
+    has_power = all("power_on_s" in session.records[n].meta for n in names)
+    if not has_power:
+        notes.append(
+            "records carry no power-on time (meta power_on_s): time terms see only the time "
+            "within each record (centred on its middle)"
+        )
+    # preliminary static gyro bias + g-sensitivity (per channel), for the turn reference rate
+    statics = [n for n in names if obs_of[n].kind in ("static", "rate")]
+    xs = np.array([np.concatenate([obs_of[n].force, [1.0]]) for n in statics])
+    ys = np.array([stats[n].gyro_mean - obs_of[n].rate for n in statics])
+    pre, *_ = np.linalg.lstsq(xs, ys, rcond=None)
+
+    temp_mean = float(np.mean([float(np.mean(session.records[n].temp)) for n in names]))
+    signals: list[RecordSignals] = []
+    aggs: list[np.ndarray] = []
+    rows: dict[str, list[float]] = {k: [] for k in ("rec", "sen", "ax", "int", "t0", "t1")}
+    y_list: list[float] = []
+    nom_list: list[float] = []
+    groups_raw: list[tuple[int, str, int, list[int], np.ndarray, float]] = []
+    # white-noise levels from the statics (for the turns): sensor -> axis -> (var, tau) lists
+    static_noise: dict[tuple[str, int], list[tuple[float, float]]] = {}
+
+    for ri, name in enumerate(names):
+        rec = session.records[name]
+        o = obs_of[name]
+        n = len(rec)
+        t_rel = (rec.t_ms - rec.t_ms[0]) / 1000.0
+        # without power-on times only the variation within a record is known: centre it
+        t0 = float(rec.meta.get("power_on_s", "0") or 0.0) if has_power else -float(t_rel.mean())
+        force = np.tile(g * o.up, (n, 1)) if o.kind != "rate" else np.tile(g * rec.up, (n, 1))
+        if o.kind == "turn":
+            bias_up = pre[:3].T @ o.up + pre[3]
+            want = float(o.rate @ o.up)
+            rate = _turn_reference(rec.gyro, rec.t_ms, o.up, bias_up, want)
+        elif o.kind == "rate":
+            rate = np.tile(o.rate, (n, 1))
+        else:
+            rate = np.zeros((n, 3))
+        sig = RecordSignals(
+            name=name, kind=o.kind, t_s=t0 + t_rel, temp_c=rec.temp.copy(), force=force,
+            rate=rate, accel=rec.accel, gyro=rec.gyro, g=g, up=o.up, temp_mean_c=temp_mean,
+        )  # fmt: skip
+        signals.append(sig)
+        if o.kind == "turn":
+            w = np.zeros(n)
+            dt = np.diff(rec.t_ms) / 1000.0
+            w[1:] += dt / 2
+            w[:-1] += dt / 2
+            agg = w[None, :]
+            spans = [(0.0, float(t_rel[-1]))]
+            sensors: tuple[str, ...] = ("gyro",)
+        else:
+            edges = _block_edges(n, float(t_rel[-1]) if n else 0.0, nm)
+            agg = np.zeros((len(edges), n))
+            for b, (a, e) in enumerate(edges):
+                agg[b, a:e] = 1.0 / (e - a)
+            spans = [(float(t_rel[a]), float(t_rel[e - 1])) for a, e in edges]
+            sensors = SENSORS
+        aggs.append(agg)
+        for s in sensors:
+            meas = sig.measured(s)
+            ref = sig.reference(s)
+            for ax in range(3):
+                idx = list(range(len(y_list), len(y_list) + agg.shape[0]))
+                yv = agg @ meas[:, ax]
+                nv = agg @ ref[:, ax]
+                y_list.extend(yv.tolist())
+                nom_list.extend(nv.tolist())
+                for b in range(agg.shape[0]):
+                    rows["rec"].append(ri)
+                    rows["sen"].append(SENSORS.index(s))
+                    rows["ax"].append(ax)
+                    rows["int"].append(o.kind == "turn")
+                    rows["t0"].append(spans[b][0])
+                    rows["t1"].append(spans[b][1])
+                if o.kind == "turn":
+                    groups_raw.append((ri, s, ax, idx, agg, 0.0))
+                    continue
+                # white noise of a block mean from the record's own samples
+                dev = np.concatenate([meas[a:e, ax] - meas[a:e, ax].mean() for a, e in edges])
+                dof = max(len(dev) - len(edges), 1)
+                var = max(float(dev @ dev) / dof, _resolution(meas[:, ax]) ** 2 / 12.0)
+                tau = integrated_autocorrelation(dev, nm.max_lag)
+                static_noise.setdefault((s, ax), []).append((var, tau))
+                groups_raw.append((ri, s, ax, idx, agg, var * tau))
+
+    n_rows = len(y_list)
+    whiten = np.zeros((n_rows, n_rows))
+    groups: list[Group] = []
+    # within-record wander: pooled excess scatter of block means over their prediction
+    excess: dict[tuple[str, int], list[float]] = {}
+    y_arr = np.array(y_list)
+    for _ri, s, ax, idx, agg, var_tau in groups_raw:
+        if len(idx) >= 2:
+            m = agg.sum(axis=1)  # ones
+            counts = np.count_nonzero(agg, axis=1)
+            v_b = var_tau / counts * m
+            yb = y_arr[idx]
+            chi = float(np.sum((yb - yb.mean()) ** 2 / v_b))
+            excess.setdefault((s, ax), []).extend([chi, len(idx) - 1])
+    inflate = {k: max(1.0, sum(v[0::2]) / max(sum(v[1::2]), 1.0)) for k, v in excess.items()}
+    for ri, s, ax, idx, agg, var_tau in groups_raw:
+        floor = float(nm.floor.get(s, 0.0))
+        if agg.shape[0] == 1 and signals[ri].kind == "turn":
+            w = agg[0]
+            levels = static_noise.get((s, ax), [(0.0, 1.0)])
+            v_white = float(np.mean([v * t for v, t in levels]))
+            T = float(w.sum())
+            var = v_white * float(w @ w) + (floor * T) ** 2 + nm.turn_angle_sigma_deg**2
+            whiten[idx[0], idx[0]] = 1.0 / math.sqrt(var)
+            groups.append(Group(ri, s, ax, np.array(idx), math.sqrt(var), math.nan))
+            continue
+        counts = np.count_nonzero(agg, axis=1).astype(float)
+        v_blocks = var_tau / counts  # variance of each block mean
+        b = len(idx)
+        v_mean = float(np.sum(v_blocks)) / b**2 + floor**2
+        whiten[idx[0], idx] = (1.0 / b) / math.sqrt(v_mean)
+        v_c = float(np.mean(v_blocks)) * inflate.get((s, ax), 1.0)
+        if b >= 2:
+            # orthonormal Helmert contrasts of the b blocks
+            for k in range(1, b):
+                h = np.zeros(b)
+                h[:k] = 1.0
+                h[k] = -float(k)
+                h /= np.linalg.norm(h)
+                whiten[idx[k], idx] = h / math.sqrt(v_c)
+        groups.append(Group(ri, s, ax, np.array(idx), math.sqrt(v_mean), v_c))
+    rows_of: dict[tuple[int, str, int], np.ndarray] = {}
+    for gr in groups:
+        rows_of[(gr.record, gr.sensor, gr.axis)] = gr.rows
+    return Dataset(
+        signals=tuple(signals),
+        row_record=np.array(rows["rec"], dtype=int),
+        row_sensor=np.array(rows["sen"], dtype=int),
+        row_axis=np.array(rows["ax"], dtype=int),
+        row_integral=np.array(rows["int"], dtype=bool),
+        span=np.column_stack([rows["t0"], rows["t1"]]),
+        y=y_arr,
+        nominal=np.array(nom_list),
+        whiten=whiten,
+        groups=tuple(groups),
+        aggregators=tuple(aggs),
+        rows_of=rows_of,
+        g=g,
+        notes=tuple(notes),
+        time_known=has_power,
+    )
+
+
+# ---- design matrix --------------------------------------------------------------------------
+def aggregate(agg: np.ndarray, per_sample: np.ndarray) -> np.ndarray:
+    """Rows of one record from per-sample values: ``agg`` (B,N) @ ``per_sample`` (N,…), with
+    round-off (below 1e-9 of the largest per-sample value) set to exactly 0."""
+    out = agg @ per_sample
+    scale = float(np.max(np.abs(per_sample))) if per_sample.size else 0.0
+    out[np.abs(out) < 1e-9 * scale] = 0.0
+    return np.asarray(out)
+
+
+def _regressors(t: Term, sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    assert t.columns is not None
+    x = np.asarray(t.columns(sig, sensor, axis), dtype=np.float64)
+    if x.ndim == 1:
+        x = x[:, None]
+    if x.shape != (len(sig.t_s), len(t.params)):
+        raise UserError(
+            f"term {t.name}: columns() returned shape {x.shape}, expected "
+            f"({len(sig.t_s)}, {len(t.params)})"
+        )
+    return x
+
+
+def term_columns(
+    ds: Dataset, mt: ModelTerm, theta: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Design columns (n_rows, n_params) of a model term and its offset (n_rows,).
+
+    Linear terms: offset 0. Nonlinear terms: the Jacobian at ``theta`` (parameters in the
+    order axis-major) and offset value(θ) − J·θ, so that value ≈ offset + J·θ'.
+    """
+    k = len(mt.term.params)
+    cols = np.zeros((ds.n_rows, k * len(mt.axes)))
+    offset = np.zeros(ds.n_rows)
+    th = (
+        np.tile(np.array(mt.term.initial), len(mt.axes))
+        if theta is None and mt.term.nonlinear
+        else theta
+    )
+    for j, ax in enumerate(mt.axes):
+        for ri, sig in enumerate(ds.signals):
+            rows = ds.rows_of.get((ri, mt.sensor, ax))
+            if rows is None:
+                continue
+            agg = ds.aggregators[ri]
+            if not mt.term.nonlinear:
+                cols[rows, j * k : (j + 1) * k] = aggregate(
+                    agg, _regressors(mt.term, sig, mt.sensor, ax)
+                )
+                continue
+            assert mt.term.value is not None and th is not None
+            p = np.asarray(th[j * k : (j + 1) * k], dtype=np.float64)
+            v0 = np.asarray(mt.term.value(sig, mt.sensor, ax, p), dtype=np.float64)
+            jac = np.zeros((len(sig.t_s), k))
+            for q in range(k):
+                h = 1e-6 * max(1.0, abs(p[q]))
+                dp = np.zeros(k)
+                dp[q] = h
+                vp = mt.term.value(sig, mt.sensor, ax, p + dp)
+                vm = mt.term.value(sig, mt.sensor, ax, p - dp)
+                jac[:, q] = (np.asarray(vp) - np.asarray(vm)) / (2 * h)
+            cols[rows, j * k : (j + 1) * k] = agg @ jac
+            offset[rows] = agg @ (v0 - jac @ p)
+    return cols, offset
+
+
+# ---- statistics (pure numpy) ----------------------------------------------------------------
+def chi2_sf(x: float, dof: float) -> float:
+    """P(χ²_dof > x): the regularised upper incomplete gamma Q(dof/2, x/2)."""
+    if dof <= 0 or not math.isfinite(x):
+        return float("nan") if not math.isfinite(x) else 1.0
+    if x <= 0:
+        return 1.0
+    a, z = 0.5 * dof, 0.5 * x
+    gln = math.lgamma(a)
+    if z < a + 1.0:  # series for P
+        term_, total, ap = 1.0 / a, 1.0 / a, a
+        for _ in range(1000):
+            ap += 1.0
+            term_ *= z / ap
+            total += term_
+            if abs(term_) < abs(total) * 1e-15:
+                break
+        return float(max(0.0, 1.0 - total * math.exp(-z + a * math.log(z) - gln)))
+    # continued fraction for Q (Lentz)
+    tiny = 1e-300
+    b = z + 1.0 - a
+    c = 1.0 / tiny
+    d = 1.0 / b
+    h = d
+    for i in range(1, 1000):
+        an = -i * (i - a)
+        b += 2.0
+        d = an * d + b
+        d = tiny if abs(d) < tiny else d
+        c = b + an / c
+        c = tiny if abs(c) < tiny else c
+        d = 1.0 / d
+        delta = d * c
+        h *= delta
+        if abs(delta - 1.0) < 1e-15:
+            break
+    return float(min(1.0, math.exp(-z + a * math.log(z) - gln) * h))
+
+
+def chi2_isf(p: float, dof: float) -> float:
+    """x with P(χ²_dof > x) = p (bisection on :func:`chi2_sf`)."""
+    lo, hi = 0.0, max(10.0, dof * 10.0)
+    while chi2_sf(hi, dof) > p:
+        hi *= 2.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if chi2_sf(mid, dof) > p:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+# ---- the fit --------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Parameter:
+    """One fitted parameter: §2-style ``name``, owning model-term label, value, 1-σ std error
+    (NaN value: the records do not determine it), unit."""
+
+    name: str
+    term: str
+    value: float
+    stderr: float
+    unit: str
+
+
+@dataclass(frozen=True, eq=False)
+class GroupResidual:
+    """Measured vs model for one record and channel (mean over the record, or turn integral).
+
+    ``measured``/``model``/``residual`` in the channel's unit (°/s, m/s²) or ° for turn
+    integrals; ``sigma`` the standard error of the measurement; ``z`` = residual/sigma."""
+
+    record: str
+    kind: str
+    sensor: str
+    axis: str
+    measured: float
+    model: float
+    residual: float
+    sigma: float
+    z: float
+    unit: str
+
+    @property
+    def channel(self) -> str:
+        return f"{self.sensor} {self.axis}"
+
+
+@dataclass(frozen=True, eq=False)
+class SpanResidual:
+    """A block of a static record that departs from its own record's mean residual."""
+
+    record: str
+    sensor: str
+    axis: str
+    t0_s: float
+    t1_s: float
+    residual: float
+    z: float
+    unit: str
+
+
+@dataclass(frozen=True, eq=False)
+class Fit:
+    """Result of :func:`fit_model` (see :class:`Dataset` for the rows)."""
+
+    model: tuple[ModelTerm, ...]
+    parameters: tuple[Parameter, ...]
+    predicted: np.ndarray  # (n_rows,)
+    residual: np.ndarray  # (n_rows,)
+    white_residual: np.ndarray  # W·residual
+    basis: np.ndarray  # orthonormal basis of the whitened determined columns
+    chi2: float
+    dof: int
+    n_params: int
+    groups: tuple[GroupResidual, ...]
+    spans: tuple[SpanResidual, ...]
+    undetermined: tuple[str, ...]
+
+    @property
+    def rms_z(self) -> float:
+        """RMS of the record/channel z values (the compare table)."""
+        z = np.array([g.z for g in self.groups])
+        return float(np.sqrt(np.mean(z**2))) if len(z) else float("nan")
+
+    @property
+    def chi2_p(self) -> float:
+        """P(χ² this large | the model and the noise model are right)."""
+        return chi2_sf(self.chi2, self.dof)
+
+    @property
+    def bic(self) -> float:
+        """χ² + p·ln(n) (known noise variance)."""
+        return self.chi2 + self.n_params * math.log(max(len(self.residual), 2))
+
+    def parameter(self, name: str) -> Parameter:
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+
+def design(ds: Dataset, model: Sequence[ModelTerm], thetas: Sequence[np.ndarray | None] = ()) -> (
+    tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]
+):  # fmt: skip
+    """(X (n_rows, P), offset (n_rows,), per model term (start, stop) columns)."""
+    blocks: list[np.ndarray] = []
+    offset = np.zeros(ds.n_rows)
+    spans: list[tuple[int, int]] = []
+    col = 0
+    for i, mt in enumerate(model):
+        th = thetas[i] if i < len(thetas) else None
+        c, off = term_columns(ds, mt, th)
+        blocks.append(c)
+        offset += off
+        spans.append((col, col + c.shape[1]))
+        col += c.shape[1]
+    x = np.column_stack(blocks) if blocks else np.zeros((ds.n_rows, 0))
+    return x, offset, spans
+
+
+def select_columns(xw: np.ndarray, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+    """Greedy Gram-Schmidt: (mask of columns independent of the earlier ones, orthonormal
+    basis (n, r) of their span)."""
+    n, p = xw.shape
+    q = np.zeros((n, 0))
+    keep = np.zeros(p, dtype=bool)
+    for j in range(p):
+        v = xw[:, j]
+        norm = float(np.linalg.norm(v))
+        if norm == 0.0:
+            continue
+        r = v - q @ (q.T @ v)
+        r = r - q @ (q.T @ r)
+        rn = float(np.linalg.norm(r))
+        if rn > tol * norm and rn > 1e-300:
+            keep[j] = True
+            q = np.column_stack([q, r / rn])
+    return keep, q
+
+
+def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fit:
+    """Weighted least squares of ``model`` over all rows of ``ds`` (one problem, all channels).
+
+    Parameters the records cannot determine are reported NaN (and listed in ``undetermined``).
+    Nonlinear terms: Gauss-Newton iterations until the parameters settle.
+    """
+    model = tuple(model)
+    thetas: list[np.ndarray | None] = [
+        np.tile(np.array(mt.term.initial), len(mt.axes)) if mt.term.nonlinear else None
+        for mt in model
+    ]
+    w = ds.whiten
+    iters = max_iter if any(mt.term.nonlinear for mt in model) else 1
+    for _ in range(iters):
+        x, offset, spans = design(ds, model, thetas)
+        xw = w @ x
+        yw = w @ (ds.y - ds.nominal - offset)
+        keep, basis = select_columns(xw)
+        theta = np.full(x.shape[1], np.nan)
+        cov_diag = np.full(x.shape[1], np.nan)
+        if keep.any():
+            sol, *_ = np.linalg.lstsq(xw[:, keep], yw, rcond=None)
+            theta[keep] = sol
+            cov = np.linalg.pinv(xw[:, keep].T @ xw[:, keep])
+            cov_diag[keep] = np.diag(cov)
+        moved = 0.0
+        for i, mt in enumerate(model):
+            if mt.term.nonlinear:
+                a, b = spans[i]
+                old = thetas[i]
+                assert old is not None
+                new = np.where(np.isfinite(theta[a:b]), theta[a:b], old)
+                moved = max(moved, float(np.max(np.abs(new - old) / (1e-12 + np.abs(new)))))
+                thetas[i] = new
+        if moved < 1e-8:
+            break
+    th0 = np.nan_to_num(theta)
+    predicted = ds.nominal + offset + x @ th0
+    resid = ds.y - predicted
+    wres = w @ resid
+    chi2 = float(wres @ wres)
+    n_par = int(keep.sum())
+    params: list[Parameter] = []
+    undetermined: list[str] = []
+    for i, mt in enumerate(model):
+        a, _ = spans[i]
+        units = mt.term.param_units(mt.sensor)
+        k = len(mt.term.params)
+        for j, ax in enumerate(mt.axes):
+            for q, name in enumerate(mt.term.param_labels(mt.sensor, ax)):
+                c = a + j * k + q
+                params.append(
+                    Parameter(name, mt.label, float(theta[c]), math.sqrt(cov_diag[c])
+                              if np.isfinite(cov_diag[c]) else math.nan, units[q])
+                )  # fmt: skip
+                if not keep[c]:
+                    undetermined.append(name)
+    groups, spans_out = _residual_tables(ds, predicted, resid)
+    return Fit(
+        model=model, parameters=tuple(params), predicted=predicted, residual=resid,
+        white_residual=wres, basis=basis, chi2=chi2, dof=ds.n_rows - n_par, n_params=n_par,
+        groups=groups, spans=spans_out, undetermined=tuple(undetermined),
+    )  # fmt: skip
+
+
+def _residual_tables(
+    ds: Dataset, predicted: np.ndarray, resid: np.ndarray
+) -> tuple[tuple[GroupResidual, ...], tuple[SpanResidual, ...]]:
+    out: list[GroupResidual] = []
+    spans: list[SpanResidual] = []
+    for gr in ds.groups:
+        sig = ds.signals[gr.record]
+        turn = sig.kind == "turn"
+        unit = "°" if turn else UNIT[gr.sensor]
+        r = float(np.mean(resid[gr.rows]))
+        out.append(
+            GroupResidual(
+                record=sig.name, kind=sig.kind, sensor=gr.sensor, axis=AXES[gr.axis],
+                measured=float(np.mean(ds.y[gr.rows])), model=float(np.mean(predicted[gr.rows])),
+                residual=r, sigma=gr.sigma, z=r / gr.sigma, unit=unit,
+            )
+        )  # fmt: skip
+        b = len(gr.rows)
+        if b >= 2 and math.isfinite(gr.contrast_var):
+            sd = math.sqrt(gr.contrast_var * (1.0 - 1.0 / b))
+            for row in gr.rows:
+                d = float(resid[row]) - r
+                spans.append(
+                    SpanResidual(sig.name, gr.sensor, AXES[gr.axis], float(ds.span[row, 0]),
+                                 float(ds.span[row, 1]), d, d / sd, unit)
+                )  # fmt: skip
+    return tuple(out), tuple(spans)
+
+
+def load_dataset(
+    directory: str | Path,
+    *,
+    noise: NoiseModel | None = None,
+    latitude_deg: float = DEFAULT_LATITUDE_DEG,
+    height_m: float = DEFAULT_HEIGHT_M,
+    serial: str | None = None,
+) -> Dataset:
+    """Read the session in ``directory`` (:func:`host.records.read_session`) and build it."""
+    from host.records import read_session
+
+    session = read_session(directory, serial)
+    return build_dataset(session, noise=noise, latitude_deg=latitude_deg, height_m=height_m)
+
+
+def session_from_records(records: Mapping[str, object], serial: str = "SIM") -> Session:
+    """A :class:`Session` of in-memory records (e.g. :func:`host.sim.simulate_session`)."""
+    from host.records import Record
+
+    recs = {k: v for k, v in records.items() if isinstance(v, Record)}
+    return Session(serial=serial, records=recs)

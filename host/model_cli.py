@@ -1,0 +1,480 @@
+"""``python -m host model diagnose|add|ladder`` and ``python -m host demo hidden-effect``.
+
+The model workbench on the command line (:mod:`host.model`, :mod:`host.diagnose`), and a demo
+that hides ONE physical effect in a simulated session (:mod:`host.sim`) and shows the
+workbench finding it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from host.diagnose import (
+    Addition,
+    Diagnosis,
+    add_term,
+    diagnose,
+    format_addition,
+    format_diagnosis,
+    format_ladder,
+    ladder,
+)
+from host.errors import UserError
+from host.model import (
+    AXES,
+    CATALOGUE,
+    Dataset,
+    Fit,
+    NoiseModel,
+    Term,
+    build_dataset,
+    load_dataset,
+    load_term_file,
+    model_spec,
+    parse_model,
+    session_from_records,
+    term_columns,
+)
+
+# ---- hidden-effect scenarios ----------------------------------------------------------------
+#: effect name -> one-line description
+EFFECTS: dict[str, str] = {
+    "temperature": "gyro bias linear in chip temperature; the room's air conditioning cycles "
+    "(±2.5 °C, 4 min), so the temperature goes up AND down during the session",
+    "asymmetry": "accelerometer scale asymmetry (scale(+g) ≠ scale(−g)); six ±1 g attitudes "
+    "(add --tilted for the 12 45° attitudes that separate it from nonlinearity)",
+    "drift": "gyro bias drifting linearly with time since power-on, at constant temperature",
+    "warmup": "gyro bias linear in temperature while the chip warms steadily (~0.5 °C/min): "
+    "temperature and time cannot be told apart (confounded)",
+    "none": "control: nothing hidden (the §2 linear model, white noise, bias instability)",
+}
+#: the demo runs these by default (``--effect all``)
+DEFAULT_EFFECTS = ("temperature", "asymmetry", "drift", "none")
+
+
+@dataclass(frozen=True, eq=False)
+class HiddenCase:
+    """A simulated session with one hidden effect: ``term`` (``name:sensor:axis``, "" for the
+    control) with true coefficient ``truth`` (in the term's unit), the records and the plan."""
+
+    effect: str
+    term: str
+    truth: float
+    unit: str
+    records: Mapping[str, Any]
+    description: str
+
+
+def hidden_effect_case(
+    effect: str, seed: int = 0, *, tilted: bool = False, static_s: float = 10.0
+) -> HiddenCase:
+    """Simulate the session of demo ``effect`` (:data:`EFFECTS`) with ``seed``.
+
+    The unit's §2 constants, noise and Gauss-Markov bias instability are drawn from the seed
+    (:meth:`host.sim_truth.SensorTruth.random`); every other effect is off except the hidden
+    one, on an axis chosen by the seed.
+    """
+    from host.sim import Plan, simulate_session, tilted_45
+    from host.sim_physics import Environment
+    from host.sim_truth import SensorTruth
+
+    if effect not in EFFECTS:
+        raise UserError(f"unknown effect {effect!r}; known: {', '.join(EFFECTS)}")
+    rng = np.random.default_rng([seed, 7919])
+    base = SensorTruth.random(rng).only("linear", "noise", "bias_instability")
+    axis = int(rng.integers(3))
+    sign = 1.0 if rng.random() < 0.5 else -1.0
+    vec = [0.0, 0.0, 0.0]
+    env: Environment | None = None
+    warmup_s = 600.0
+    term, unit, truth = "", "", 0.0
+    if effect == "temperature":
+        truth = sign * float(rng.uniform(0.015, 0.03))
+        vec[axis] = truth
+        fields: dict[str, Any] = {"gyro_temp_bias": tuple(vec)}
+        env = Environment(room_c=float(rng.uniform(20, 24)), rise_c=10.0, tau_s=250.0,
+                          room_amp_c=2.5, room_period_s=240.0,
+                          room_phase=float(rng.uniform(0, 2 * np.pi)))  # fmt: skip
+        term, unit = f"temperature_bias:gyro:{AXES[axis]}", "°/s/°C"
+    elif effect == "asymmetry":
+        truth = sign * float(rng.uniform(0.004, 0.008))
+        vec[axis] = truth
+        fields = {"accel_scale_asym": tuple(vec)}
+        term, unit = f"scale_asymmetry:accel:{AXES[axis]}", ""
+    elif effect == "drift":
+        truth = sign * float(rng.uniform(0.8, 1.5))
+        vec[axis] = truth
+        fields = {"gyro_drift": tuple(vec)}
+        env = Environment(room_c=float(rng.uniform(20, 26)), rise_c=0.0, room_amp_c=0.0)
+        term, unit = f"time_drift:gyro:{AXES[axis]}", "°/s/h"
+        static_s = max(static_s, 30.0)  # the drift needs the statics spread over minutes
+    elif effect == "warmup":
+        truth = sign * float(rng.uniform(0.015, 0.03))
+        vec[axis] = truth
+        fields = {"gyro_temp_bias": tuple(vec)}
+        env = Environment(room_c=float(rng.uniform(20, 24)), rise_c=40.0, tau_s=4000.0,
+                          room_amp_c=0.0)  # fmt: skip
+        warmup_s = 0.0
+        static_s = max(static_s, 30.0)
+        term, unit = f"temperature_bias:gyro:{AXES[axis]}", "°/s/°C"
+    else:
+        fields = {}
+    truth_obj = dataclasses.replace(base, **fields)
+    plan = Plan(static_s=static_s, gap_s=20.0, environment=env, warmup_s=warmup_s,
+                tilted=tilted_45() if tilted else ())  # fmt: skip
+    records = simulate_session(truth_obj, plan, seed)
+    return HiddenCase(effect, term, truth, unit, records, EFFECTS[effect])
+
+
+def case_dataset(case: HiddenCase, noise: NoiseModel | None = None) -> Dataset:
+    """The :class:`~host.model.Dataset` of a hidden-effect case (no files written)."""
+    return build_dataset(session_from_records(case.records), noise=noise)
+
+
+# ---- plots ----------------------------------------------------------------------------------
+def _pyplot() -> Any:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError as exc:
+        raise UserError(
+            "--plot needs matplotlib (pip install 'imu-bench[plot]' or pip install matplotlib)"
+        ) from exc
+    return plt
+
+
+def write_plots(
+    out_dir: str | Path, ds: Dataset, before: Fit, after: Fit | None, suspect: str | None
+) -> list[Path]:
+    """PNG files: measured − ideal vs model − ideal per record/channel, before and after;
+    record residuals (z) against the suspect term's signal, before and after."""
+    plt = _pyplot()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths: list[Path] = []
+    fits = [("before", before)] + ([("after", after)] if after is not None else [])
+    for tag, fit in fits:
+        fig, axs = plt.subplots(2, 3, figsize=(13, 7), squeeze=False)
+        for si, sensor in enumerate(("accel", "gyro")):
+            for a in range(3):
+                ax = axs[si][a]
+                gs = [g for g in fit.groups if g.sensor == sensor and g.axis == AXES[a]]
+                zs = [g.z for g in gs]
+                ax.bar(range(len(gs)), zs, color=["C3" if abs(z) > 3 else "C0" for z in zs])
+                ax.axhline(3, color="k", lw=0.5, ls="--")
+                ax.axhline(-3, color="k", lw=0.5, ls="--")
+                ax.set_xticks(range(len(gs)))
+                ax.set_xticklabels([g.record for g in gs], rotation=60, fontsize=7)
+                ax.set_title(f"{sensor} {AXES[a]}: residual / σ")
+        fig.suptitle(f"{tag}: {model_spec(fit.model)[:90]}  RMS z = {fit.rms_z:.2f}", fontsize=9)
+        fig.tight_layout()
+        p = out / f"compare_{tag}.png"
+        fig.savefig(p, dpi=90)
+        plt.close(fig)
+        paths.append(p)
+    if suspect:
+        mt = parse_model(suspect)[0]
+        cols, _ = term_columns(ds, mt)
+        x = cols[:, 0]
+        fig, axs = plt.subplots(1, len(fits), figsize=(6 * len(fits), 4), squeeze=False)
+        for k, (tag, fit) in enumerate(fits):
+            ax = axs[0][k]
+            for gr in ds.groups:
+                if gr.sensor != mt.sensor or gr.axis != mt.axes[0]:
+                    continue
+                xv = float(np.mean(x[gr.rows]))
+                if ds.signals[gr.record].kind == "turn":
+                    xv /= max(float(ds.aggregators[gr.record].sum()), 1e-9)
+                g = next(g for g in fit.groups if g.record == ds.signals[gr.record].name
+                         and g.sensor == mt.sensor and g.axis == AXES[mt.axes[0]])  # fmt: skip
+                ax.plot(xv, g.z, "o", color="C3" if abs(g.z) > 3 else "C0")
+                ax.annotate(g.record, (xv, g.z), fontsize=6)
+            ax.axhline(0, color="k", lw=0.5)
+            ax.set_xlabel(f"{mt.term.name} signal ({mt.sensor} {AXES[mt.axes[0]]})")
+            ax.set_ylabel("record residual / σ")
+            ax.set_title(f"{tag}: RMS z = {fit.rms_z:.2f}")
+        fig.tight_layout()
+        p = out / "suspect.png"
+        fig.savefig(p, dpi=90)
+        plt.close(fig)
+        paths.append(p)
+    return paths
+
+
+# ---- command line ---------------------------------------------------------------------------
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("dir", help="directory with the records SERIAL_name.txt")
+    p.add_argument(
+        "--model",
+        default="base",
+        help="comma list of term[:sensor[:axes]] "
+        "(default base = bias,scale,misalignment,g_sensitivity, method.md §2)",
+    )
+    p.add_argument(
+        "--term-file",
+        action="append",
+        default=[],
+        metavar="F",
+        help="Python file defining extra terms (repeatable)",
+    )
+    p.add_argument("--serial", default=None, help="serial whose records to use")
+    p.add_argument(
+        "--floor",
+        default=None,
+        metavar="accel=A,gyro=G",
+        help="bias-instability floor of a record mean (m/s², °/s); default accel=5e-4,gyro=3e-3",
+    )
+    p.add_argument("--latitude", type=float, default=None, help="site latitude, degrees")
+    p.add_argument("--height", type=float, default=None, help="site height, m")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def _catalogue(args: argparse.Namespace) -> dict[str, Term]:
+    cat = dict(CATALOGUE)
+    for f in args.term_file:
+        cat = load_term_file(f, cat)
+    return cat
+
+
+def _noise(text: str | None) -> NoiseModel:
+    nm = NoiseModel()
+    if not text:
+        return nm
+    floor = dict(nm.floor)
+    for item in text.split(","):
+        key, _, val = item.partition("=")
+        key = key.strip()
+        try:
+            v = float(val)
+        except ValueError:
+            v = math.nan
+        if key not in floor or not math.isfinite(v) or v < 0:
+            raise UserError(f"--floor: expected accel=VALUE,gyro=VALUE (≥ 0), got {item!r}")
+        floor[key] = v
+    return dataclasses.replace(nm, floor=floor)
+
+
+def _dataset(args: argparse.Namespace) -> Dataset:
+    from host.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
+
+    return load_dataset(
+        args.dir,
+        noise=_noise(args.floor),
+        latitude_deg=DEFAULT_LATITUDE_DEG if args.latitude is None else args.latitude,
+        height_m=DEFAULT_HEIGHT_M if args.height is None else args.height,
+        serial=args.serial,
+    )
+
+
+def _print_json(obj: Any) -> None:
+    print(json.dumps(obj, indent=2, ensure_ascii=False))
+
+
+def run_diagnose(args: argparse.Namespace) -> int:
+    cat = _catalogue(args)
+    model = parse_model(args.model, cat)
+    ds = _dataset(args)
+    d = diagnose(ds, model, cat)
+    plots: list[Path] = []
+    if args.plot:
+        after = None
+        suspect = None
+        if d.significant:
+            suspect = d.significant[0].label
+            after = add_term(ds, model, suspect, cat).after
+        plots = write_plots(args.plot, ds, d.fit, after, suspect)
+    if args.json:
+        obj = d.to_dict()
+        if plots:
+            obj["plots"] = [str(p) for p in plots]
+        _print_json(obj)
+    else:
+        print(format_diagnosis(d, compare=not args.brief))
+        for p in plots:
+            print(f"plot: {p}")
+    return 0
+
+
+def addition_dict(a: Addition) -> dict[str, Any]:
+    """JSON of a before → after."""
+
+    def fit_d(f: Fit) -> dict[str, Any]:
+        return {"model": [mt.label for mt in f.model], "rms_z": f.rms_z, "chi2": f.chi2,
+                "chi2_p": f.chi2_p, "dof": f.dof, "bic": f.bic}  # fmt: skip
+
+    return {
+        "added": [mt.label for mt in a.added],
+        "before": fit_d(a.before),
+        "after": fit_d(a.after),
+        "new_parameters": [
+            {"name": p.name, "value": p.value, "stderr": p.stderr, "unit": p.unit}
+            for p in a.new_parameters
+        ],  # fmt: skip
+    }
+
+
+def run_add(args: argparse.Namespace) -> int:
+    cat = _catalogue(args)
+    model = parse_model(args.model, cat)
+    ds = _dataset(args)
+    a = add_term(ds, model, args.term, cat)
+    if args.plot:
+        write_plots(args.plot, ds, a.before, a.after, a.added[0].label)
+    if args.json:
+        _print_json(addition_dict(a))
+    else:
+        print(format_addition(a))
+    return 0
+
+
+def run_ladder(args: argparse.Namespace) -> int:
+    cat = _catalogue(args)
+    ds = _dataset(args)
+    steps = ladder(ds, args.start, cat)
+    if args.json:
+        _print_json([dataclasses.asdict(s) for s in steps])
+    else:
+        print(format_ladder(steps))
+    return 0
+
+
+def cli_model(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+    """``model diagnose|add|ladder``."""
+    sub = p.add_subparsers(dest="model_command", metavar="diagnose|add|ladder")
+    d = sub.add_parser("diagnose", help="compare model and records, say what is missing")
+    _common(d)
+    d.add_argument("--plot", metavar="DIR_OUT", default=None, help="write PNG plots here")
+    d.add_argument("--brief", action="store_true", help="leave out the compare table")
+    a = sub.add_parser("add", help="refit with a term added: before → after")
+    _common(a)
+    a.add_argument("term", help="term[:sensor[:axes]] to add, e.g. temperature_bias:gyro:x")
+    a.add_argument("--plot", metavar="DIR_OUT", default=None, help="write PNG plots here")
+    lad = sub.add_parser("ladder", help="greedy path of models from 'bias' upward")
+    _common(lad)
+    lad.add_argument("--start", default="bias", help="starting model (default bias)")
+    runners = {"diagnose": run_diagnose, "add": run_add, "ladder": run_ladder}
+
+    def run(args: argparse.Namespace) -> int:
+        if not args.model_command:
+            p.print_help()
+            return 2
+        return runners[args.model_command](args)
+
+    return run
+
+
+# ---- demo -----------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class DemoOutcome:
+    """What the workbench made of one hidden-effect case."""
+
+    case: HiddenCase
+    diagnosis: Diagnosis
+    addition: Addition | None
+
+    @property
+    def found(self) -> str:
+        return self.diagnosis.significant[0].label if self.diagnosis.significant else ""
+
+    @property
+    def group(self) -> tuple[str, ...]:
+        if not self.diagnosis.significant:
+            return ()
+        c = self.diagnosis.significant[0]
+        return (c.label, *c.confounded_with)
+
+    @property
+    def coefficient(self) -> float:
+        if self.addition is None or not self.case.term:
+            return math.nan
+        name = parse_model(self.case.term)[0]
+        labels = name.term.param_labels(name.sensor, name.axes[0])
+        for p in self.addition.after.parameters:
+            if p.name == labels[0]:
+                return p.value
+        return math.nan
+
+
+def run_case(case: HiddenCase, noise: NoiseModel | None = None) -> DemoOutcome:
+    """Diagnose the base model on the case's records and add the hidden term (or, for the
+    control, the top candidate if any)."""
+    ds = case_dataset(case, noise)
+    model = parse_model("base")
+    d = diagnose(ds, model)
+    add = case.term or (d.significant[0].label if d.significant else "")
+    a = add_term(ds, model, add) if add else None
+    return DemoOutcome(case, d, a)
+
+
+def run_demo(args: argparse.Namespace) -> int:
+    effects = DEFAULT_EFFECTS if args.effect == "all" else (args.effect,)
+    for eff in effects:
+        if eff not in EFFECTS:
+            raise UserError(f"unknown effect {eff!r}; known: all, {', '.join(EFFECTS)}")
+    for eff in effects:
+        case = hidden_effect_case(eff, args.seed, tilted=args.tilted, static_s=args.static_s)
+        print(f"######## hidden effect: {eff} — {case.description}")
+        if case.term:
+            print(f"hidden from the fit: {case.term} = {case.truth:.4g} {case.unit}")
+        if args.out:
+            from host.sim import write_session
+
+            out = Path(args.out) / eff
+            write_session(out, "DEMO", dict(case.records))
+            print(f"records written to {out} (try: python -m host model diagnose {out})")
+        o = run_case(case)
+        print(format_diagnosis(o.diagnosis, compare=False, max_candidates=6))
+        if o.addition is not None:
+            print("-- " + ("adding the hidden term" if case.term else "adding the top candidate"))
+            print(format_addition(o.addition))
+        if case.term:
+            ok = case.term in o.group
+            est = o.coefficient
+            err = abs(est - case.truth) / abs(case.truth) if case.truth else math.nan
+            print(
+                f"== result: named first: {o.found or 'nothing'}"
+                + (f" (confounded group {', '.join(o.group)})" if len(o.group) > 1 else "")
+                + f" → {'FOUND' if ok else 'MISSED'}; coefficient {est:.4g} vs truth "
+                f"{case.truth:.4g} {case.unit} ({100 * err:.1f} % off)"
+            )
+        else:
+            print(f"== result: verdict {o.diagnosis.verdict} (expected adequate)")
+        print()
+    return 0
+
+
+def cli_demo(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+    """``demo hidden-effect``."""
+    sub = p.add_subparsers(dest="demo_command", metavar="hidden-effect")
+    h = sub.add_parser("hidden-effect", help="simulate a session with one effect hidden from "
+                       "the fit and let the workbench find it")  # fmt: skip
+    h.add_argument("--effect", default="all", help=f"all (default) or one of {', '.join(EFFECTS)}")
+    h.add_argument("--seed", type=int, default=1, help="simulation seed (default 1)")
+    h.add_argument("--out", default=None, help="also write the records to OUT/EFFECT/")
+    h.add_argument("--tilted", action="store_true", help="add the 12 45° attitudes")
+    h.add_argument("--static-s", type=float, default=10.0, help="static record length, s")
+
+    def run(args: argparse.Namespace) -> int:
+        if args.demo_command != "hidden-effect":
+            p.print_help()
+            return 2
+        return run_demo(args)
+
+    return run
+
+
+__all__ = [
+    "DEFAULT_EFFECTS", "EFFECTS", "DemoOutcome", "HiddenCase", "case_dataset", "cli_demo",
+    "cli_model", "hidden_effect_case", "run_case", "write_plots",
+]  # fmt: skip

@@ -1,0 +1,110 @@
+"""``python -m host model diagnose|add|ladder`` and ``demo hidden-effect`` (host/model_cli.py)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from host.__main__ import main
+from host.model_cli import hidden_effect_case
+from host.sim import write_session
+
+
+@pytest.fixture(scope="module")
+def temp_dir(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    d = tmp_path_factory.mktemp("hidden")
+    case = hidden_effect_case("temperature", 2)
+    write_session(d, "U7", dict(case.records))
+    return d, case.term
+
+
+def test_diagnose_text_and_json(
+    temp_dir: tuple[Path, str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    d, term = temp_dir
+    assert main(["model", "diagnose", str(d)]) == 0
+    out = capsys.readouterr().out
+    assert "== 1. compare" in out and "== verdict: missing_effect" in out
+    assert f"{term}: SIGNIFICANT" in out and " σ" in out
+    assert main(["model", "diagnose", str(d), "--json"]) == 0
+    obj = json.loads(capsys.readouterr().out)
+    assert obj["verdict"] == "missing_effect"
+    assert obj["candidates"][0]["label"] == term
+    assert obj["fit"]["rms_z"] > 2
+
+
+def test_add_shows_the_error_falling(
+    temp_dir: tuple[Path, str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    d, term = temp_dir
+    assert main(["model", "add", str(d), term, "--model", "base"]) == 0
+    out = capsys.readouterr().out
+    assert "RMS z" in out and "→" in out and "× smaller" in out and "new coefficients" in out
+    assert main(["model", "add", str(d), term, "--json"]) == 0
+    obj = json.loads(capsys.readouterr().out)
+    assert obj["after"]["rms_z"] < obj["before"]["rms_z"] / 3
+
+
+def test_ladder(temp_dir: tuple[Path, str], capsys: pytest.CaptureFixture[str]) -> None:
+    d, term = temp_dir
+    assert main(["model", "ladder", str(d)]) == 0
+    out = capsys.readouterr().out
+    assert "start: bias" in out and "temperature_bias:gyro" in out and "final model" in out
+
+
+def test_term_file_and_plot(temp_dir: tuple[Path, str], tmp_path: Path,
+                            capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    pytest.importorskip("matplotlib")
+    d, _ = temp_dir
+    f = tmp_path / "my_terms.py"
+    f.write_text(
+        "from host.model import term\n\n"
+        "@term(sensors=('gyro',), params={'c3': '{u}/°C³'}, needs='several temperatures')\n"
+        "def temperature_cubic(sig, sensor, axis):\n"
+        "    '''Gyro bias cubic in chip temperature.'''\n"
+        "    return (sig.temp_c - sig.temp_mean_c)[:, None] ** 3\n"
+    )
+    out_dir = tmp_path / "plots"
+    argv = ["model", "diagnose", str(d), "--term-file", str(f), "--plot", str(out_dir), "--brief"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "temperature_cubic:gyro" in out
+    pngs = sorted(p.name for p in out_dir.glob("*.png"))
+    assert pngs == ["compare_after.png", "compare_before.png", "suspect.png"]
+    assert main(["model", "add", str(d), "temperature_cubic:gyro:x", "--term-file", str(f)]) == 0
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["model", "diagnose", "{empty}"],
+        ["model", "diagnose", "{dir}", "--model", "base,warp_drive"],
+        ["model", "diagnose", "{dir}", "--model", "bias:gyro:q"],
+        ["model", "diagnose", "{dir}", "--floor", "gyro=abc"],
+        ["model", "add", "{dir}", "bias"],
+        ["model", "add", "{dir}", "nope:gyro"],
+        ["model", "diagnose", "{dir}", "--term-file", "{empty}/none.py"],
+        ["demo", "hidden-effect", "--effect", "gravity_waves"],
+    ],
+)
+def test_bad_input_is_one_line(argv: list[str], temp_dir: tuple[Path, str], tmp_path: Path,
+                               capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    d, _ = temp_dir
+    argv = [a.format(dir=d, empty=tmp_path) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_demo_hidden_effect(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["demo", "hidden-effect", "--effect", "asymmetry", "--seed", "3",
+                 "--out", str(tmp_path)]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    assert "FOUND" in out and "CONFOUNDED" in out
+    assert len(list((tmp_path / "asymmetry").glob("DEMO_*.txt"))) == 12
+    assert main(["model", "diagnose", str(tmp_path / "asymmetry"), "--brief"]) == 0
+    assert "scale_asymmetry:accel" in capsys.readouterr().out
+    assert main(["demo", "hidden-effect", "--effect", "none", "--seed", "3"]) == 0
+    assert "verdict adequate" in capsys.readouterr().out
