@@ -28,8 +28,8 @@ HELLO (with this host's ``SPEC_FINGERPRINT``), then IMU_SAMPLE frames at 50 Hz (
 µs, 0.5 µs timer) and STATUS once a second, one ``seq`` counter over all frames. Commands:
 PING → PONG + ACK, START_STREAM / STOP_STREAM → ACK, SET_RATE → ACK (samples after it carry
 CONFIG_CHANGED; DLPF_CFG > 6 or a rate above 500 Hz → ACK BAD_ARGUMENT), GET_CONFIG → HELLO +
-ACK, GET_STATUS → STATUS + ACK, anything else → ACK UNSUPPORTED + ERROR BAD_COMMAND. Bad-CRC command frames are
-counted in STATUS.crc_errors.
+ACK, GET_STATUS → STATUS + ACK, anything else → ACK UNSUPPORTED + ERROR BAD_COMMAND. Bad-CRC
+command frames are counted in STATUS.crc_errors.
 
 Operator API (the calibration program tells the bench what it asks the human)::
 
