@@ -1,0 +1,340 @@
+// MPU-6000 register-level model. See mpu6000.h and README.md.
+#include "mpu6000.h"
+
+#include <math.h>
+#include <string.h>
+
+#define G0 9.80665
+static const double ACCEL_LSB_PER_G[4] = {16384.0, 8192.0, 4096.0, 2048.0};
+static const double GYRO_LSB_PER_DPS[4] = {131.0, 65.5, 32.8, 16.4};  // datasheet p.12
+
+static void retire_latched(mpu6000_t *m) {
+    if (m->latched_idx && m->retire)
+        m->retire(m->retire_ctx, m->latched_idx, m->latched_t, m->latched_counts,
+                  m->latched_fully_read);
+    m->latched_idx = 0;
+}
+
+void mpu_finish(mpu6000_t *m) { retire_latched(m); }
+
+static void reset_registers(mpu6000_t *m) {
+    retire_latched(m);
+    memset(m->reg, 0, sizeof m->reg);
+    m->reg[MPU_PWR_MGMT_1] = MPU_PWR1_SLEEP;  // 0x40: asleep after power-on / DEVICE_RESET
+    m->reg[MPU_WHO_AM_I] = 0x68;
+    m->reg[MPU_PRODUCT_ID] = 0x58;  // MPU6000 rev D8 (ArduPilot's list); undocumented register
+    // factory self-test codes (plausible values; the firmware only reads them for self-test)
+    m->reg[0x0D] = 0x4C;
+    m->reg[0x0E] = 0x4D;
+    m->reg[0x0F] = 0x6A;
+    m->reg[0x10] = 0x56;
+    m->fifo_rd = m->fifo_count = 0;
+    m->latch_pending = 0;
+    m->latched_fully_read = 1;
+    memset(m->counts, 0, sizeof m->counts);
+    m->q[0] = 1.0;
+    m->q[1] = m->q[2] = m->q[3] = 0.0;
+}
+
+void mpu_power_on(mpu6000_t *m, unsigned dmp_packet_size) {
+    memset(m, 0, sizeof *m);
+    m->dmp_packet_size = dmp_packet_size ? dmp_packet_size : 42;
+    reset_registers(m);
+}
+
+void mpu_device_reset(mpu6000_t *m) {
+    // DMP memory is RAM inside the chip: DEVICE_RESET does not clear it in the model either.
+    reset_registers(m);
+    m->events |= MPU_EV_CLOCK | MPU_EV_PIN_CFG | MPU_EV_RESET;
+}
+
+int mpu_awake(const mpu6000_t *m) { return !(m->reg[MPU_PWR_MGMT_1] & MPU_PWR1_SLEEP); }
+
+unsigned mpu_period_ticks_8k(const mpu6000_t *m) {
+    unsigned dlpf = m->reg[MPU_CONFIG] & 7;
+    unsigned base = (dlpf == 0 || dlpf == 7) ? 1 : 8;  // gyro output rate 8 kHz or 1 kHz
+    return base * (1u + m->reg[MPU_SMPLRT_DIV]);
+}
+
+int mpu_is_sensor_reg(uint8_t reg) {
+    return reg == MPU_INT_STATUS || (reg >= MPU_ACCEL_XOUT_H && reg <= MPU_GYRO_ZOUT_L) ||
+           reg == MPU_FIFO_COUNTH || reg == MPU_FIFO_COUNTL || reg == MPU_FIFO_R_W;
+}
+
+static int16_t sat16(double c) {
+    c = rint(c);  // round half to even, like numpy.rint in host/sensor.py
+    if (c > 32767.0) return 32767;
+    if (c < -32768.0) return -32768;
+    return (int16_t)c;
+}
+
+void mpu_convert(const mpu6000_t *m, const mpu_truth_t *t, int16_t out[7]) {
+    unsigned afs = (m->reg[MPU_ACCEL_CONFIG] >> 3) & 3;
+    unsigned fs = (m->reg[MPU_GYRO_CONFIG] >> 3) & 3;
+    for (int i = 0; i < 3; i++) {
+        out[i] = sat16(t->f[i] * (ACCEL_LSB_PER_G[afs] / G0));
+        out[4 + i] = sat16(t->w[i] * GYRO_LSB_PER_DPS[fs]);
+    }
+    out[3] = sat16((t->temp - 36.53) * 340.0);
+}
+
+static void fifo_push(mpu6000_t *m, uint8_t b) {
+    if (m->fifo_count >= MPU_FIFO_SIZE) {
+        // full: the oldest byte is lost (RM p.27, FIFO_OFLOW_INT)
+        m->fifo_rd = (m->fifo_rd + 1) % MPU_FIFO_SIZE;
+        m->fifo_count--;
+        m->reg[MPU_INT_STATUS] |= MPU_INT_FIFO_OFLOW;
+        m->fifo_overflows++;
+    }
+    m->fifo[(m->fifo_rd + m->fifo_count) % MPU_FIFO_SIZE] = b;
+    m->fifo_count++;
+}
+
+static uint8_t fifo_pop(mpu6000_t *m) {
+    if (!m->fifo_count) return 0;  // reading an empty FIFO gives undefined data: 0 here
+    uint8_t b = m->fifo[m->fifo_rd];
+    m->fifo_rd = (m->fifo_rd + 1) % MPU_FIFO_SIZE;
+    m->fifo_count--;
+    return b;
+}
+
+static void put16(uint8_t *p, int16_t v) {
+    p[0] = (uint8_t)((uint16_t)v >> 8);
+    p[1] = (uint8_t)v;
+}
+
+static void put32(uint8_t *p, int32_t v) {
+    uint32_t u = (uint32_t)v;
+    p[0] = (uint8_t)(u >> 24);
+    p[1] = (uint8_t)(u >> 16);
+    p[2] = (uint8_t)(u >> 8);
+    p[3] = (uint8_t)u;
+}
+
+static void latch(mpu6000_t *m) {
+    retire_latched(m);
+    memcpy(m->latched_counts, m->counts, sizeof m->counts);
+    m->latched_t = m->counts_t;
+    for (int i = 0; i < 7; i++) put16(&m->reg[MPU_ACCEL_XOUT_H + 2 * i], m->counts[i]);
+    m->latched_idx = m->produced;
+    m->latched_fully_read = 0;
+    m->latch_pending = 0;
+}
+
+static void dmp_integrate(mpu6000_t *m, const mpu_truth_t *t, double dt) {
+    // q <- q * exp(0.5 * w * dt), body rates in rad/s
+    double wx = t->w[0] * M_PI / 180.0, wy = t->w[1] * M_PI / 180.0, wz = t->w[2] * M_PI / 180.0;
+    double n = sqrt(wx * wx + wy * wy + wz * wz);
+    double a = 0.5 * n * dt;
+    double s = n > 1e-12 ? sin(a) / n : 0.5 * dt;
+    double dq[4] = {cos(a), wx * s, wy * s, wz * s};
+    double *q = m->q;
+    double r[4] = {
+        q[0] * dq[0] - q[1] * dq[1] - q[2] * dq[2] - q[3] * dq[3],
+        q[0] * dq[1] + q[1] * dq[0] + q[2] * dq[3] - q[3] * dq[2],
+        q[0] * dq[2] - q[1] * dq[3] + q[2] * dq[0] + q[3] * dq[1],
+        q[0] * dq[3] + q[1] * dq[2] - q[2] * dq[1] + q[3] * dq[0],
+    };
+    double nn = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3]);
+    for (int i = 0; i < 4; i++) q[i] = r[i] / nn;
+}
+
+void mpu_sample(mpu6000_t *m, const mpu_truth_t *t, double dt_s) {
+    mpu_convert(m, t, m->counts);
+    m->counts_t = m->now_s;
+    m->produced++;
+    if (m->cs_low)
+        m->latch_pending = 1;  // the serial interface is busy: update when it goes idle
+    else
+        latch(m);
+    m->reg[MPU_INT_STATUS] |= MPU_INT_DATA_RDY;
+
+    uint8_t uc = m->reg[MPU_USER_CTRL];
+    if (uc & MPU_UC_FIFO_EN) {
+        uint8_t en = m->reg[MPU_FIFO_EN];
+        uint8_t b[2];
+        if (en & 0x08)  // ACCEL_FIFO_EN
+            for (int i = 0; i < 3; i++) {
+                put16(b, m->counts[i]);
+                fifo_push(m, b[0]);
+                fifo_push(m, b[1]);
+            }
+        if (en & 0x80) {  // TEMP_FIFO_EN
+            put16(b, m->counts[3]);
+            fifo_push(m, b[0]);
+            fifo_push(m, b[1]);
+        }
+        for (int i = 0; i < 3; i++)
+            if (en & (0x40 >> i)) {  // XG, YG, ZG_FIFO_EN
+                put16(b, m->counts[4 + i]);
+                fifo_push(m, b[0]);
+                fifo_push(m, b[1]);
+            }
+    }
+    if (uc & MPU_UC_DMP_EN) {
+        dmp_integrate(m, t, dt_s);
+        if (uc & MPU_UC_FIFO_EN) {
+            // DMP stub packet (MotionApps-2 layout): quaternion q30 (16 bytes), gyro (3 x 32-bit,
+            // counts in the high half), accel (3 x 32-bit, counts in the high half), zero padding.
+            uint8_t pkt[64] = {0};
+            for (int i = 0; i < 4; i++) put32(pkt + 4 * i, (int32_t)lrint(m->q[i] * 1073741824.0));
+            for (int i = 0; i < 3; i++) put16(pkt + 16 + 4 * i, m->counts[4 + i]);
+            for (int i = 0; i < 3; i++) put16(pkt + 28 + 4 * i, m->counts[i]);
+            unsigned n = m->dmp_packet_size > 64 ? 64 : m->dmp_packet_size;
+            for (unsigned i = 0; i < n; i++) fifo_push(m, pkt[i]);
+            m->reg[MPU_INT_STATUS] |= MPU_INT_DMP;
+        }
+    }
+}
+
+void mpu_cs(mpu6000_t *m, int low) {
+    if (low && !m->cs_low) {
+        m->cs_low = 1;
+        m->first = 1;
+        m->read_mask = 0;
+    } else if (!low && m->cs_low) {
+        m->cs_low = 0;
+        if (m->read_mask == 0x3FFF && m->latched_idx && !m->latched_fully_read) {
+            m->latched_fully_read = 1;
+            m->samples_read++;
+        }
+        if (m->latch_pending) latch(m);
+    }
+}
+
+static unsigned dmp_addr(const mpu6000_t *m) {
+    return ((m->reg[MPU_BANK_SEL] & 0x1F) % MPU_DMP_BANKS) * 256u + m->reg[MPU_MEM_START_ADDR];
+}
+
+static void dmp_addr_inc(mpu6000_t *m) {
+    if (++m->reg[MPU_MEM_START_ADDR] == 0)
+        m->reg[MPU_BANK_SEL] = (uint8_t)((m->reg[MPU_BANK_SEL] & ~0x1F) |
+                                         ((m->reg[MPU_BANK_SEL] + 1) & 0x1F));
+}
+
+static uint8_t reg_read(mpu6000_t *m, uint8_t r) {
+    uint8_t v;
+    switch (r) {
+        case MPU_FIFO_COUNTH:
+            return (uint8_t)(m->fifo_count >> 8);
+        case MPU_FIFO_COUNTL:
+            return (uint8_t)m->fifo_count;
+        case MPU_FIFO_R_W:
+            return fifo_pop(m);
+        case MPU_MEM_R_W:
+            v = m->dmp_mem[dmp_addr(m)];
+            dmp_addr_inc(m);
+            return v;
+        case MPU_INT_STATUS:
+            v = m->reg[r];
+            m->reg[r] = 0;  // all INT_STATUS bits clear on read
+            m->events |= MPU_EV_INT_CLEAR;
+            return v;
+        default:
+            if (r >= MPU_ACCEL_XOUT_H && r <= MPU_GYRO_ZOUT_L)
+                m->read_mask |= (uint16_t)(1u << (r - MPU_ACCEL_XOUT_H));
+            return m->reg[r & 0x7F];
+    }
+}
+
+static void reg_write(mpu6000_t *m, uint8_t r, uint8_t v) {
+    switch (r) {
+        case MPU_WHO_AM_I:
+        case MPU_INT_STATUS:
+        case MPU_FIFO_COUNTH:
+        case MPU_FIFO_COUNTL:
+        case MPU_PRODUCT_ID:
+            return;  // read-only
+        case MPU_FIFO_R_W:
+            fifo_push(m, v);
+            return;
+        case MPU_MEM_R_W:
+            m->dmp_mem[dmp_addr(m)] = v;
+            dmp_addr_inc(m);
+            return;
+        case MPU_PWR_MGMT_1:
+            if (v & MPU_PWR1_DEVICE_RESET) {
+                mpu_device_reset(m);
+                return;
+            }
+            if ((m->reg[r] ^ v) & MPU_PWR1_SLEEP) m->events |= MPU_EV_CLOCK;
+            m->reg[r] = v;
+            return;
+        case MPU_USER_CTRL:
+            if (v & MPU_UC_FIFO_RESET) m->fifo_rd = m->fifo_count = 0;
+            if (v & MPU_UC_SIG_COND_RESET)
+                memset(&m->reg[MPU_ACCEL_XOUT_H], 0, MPU_GYRO_ZOUT_L - MPU_ACCEL_XOUT_H + 1);
+            if (v & MPU_UC_DMP_RESET) {
+                m->q[0] = 1.0;
+                m->q[1] = m->q[2] = m->q[3] = 0.0;
+            }
+            m->reg[r] = v & ~(MPU_UC_DMP_RESET | MPU_UC_FIFO_RESET | 0x02 | MPU_UC_SIG_COND_RESET);
+            return;
+        case MPU_SIGNAL_PATH_RESET:
+            if (v & 0x7) memset(&m->reg[MPU_ACCEL_XOUT_H], 0, MPU_GYRO_ZOUT_L - MPU_ACCEL_XOUT_H + 1);
+            return;  // self-clearing
+        case MPU_INT_PIN_CFG:
+            m->reg[r] = v;
+            m->events |= MPU_EV_PIN_CFG;
+            return;
+        default:
+            if (r >= MPU_ACCEL_XOUT_H && r <= MPU_GYRO_ZOUT_L) return;  // read-only
+            m->reg[r & 0x7F] = v;
+            return;
+    }
+}
+
+uint8_t mpu_spi_byte(mpu6000_t *m, uint8_t mosi, mpu_access_t *acc, int *has_access) {
+    *has_access = 0;
+    if (!m->cs_low) return 0;
+    if (m->first) {
+        m->first = 0;
+        m->rd = (mosi & 0x80) != 0;
+        m->addr = mosi & 0x7F;
+        return 0;
+    }
+    uint8_t r = m->addr;
+    uint8_t out = 0;
+    if (m->rd) {
+        out = reg_read(m, r);
+        acc->value = out;
+        // INT_RD_CLEAR: any read clears the latched interrupt
+        if (m->reg[MPU_INT_PIN_CFG] & MPU_PIN_INT_RD_CLEAR) m->events |= MPU_EV_INT_CLEAR;
+    } else {
+        reg_write(m, r, mosi);
+        acc->value = mosi;
+    }
+    acc->reg = r;
+    acc->is_read = (uint8_t)m->rd;
+    *has_access = 1;
+    // burst: the address auto-increments, except on the FIFO and DMP memory ports
+    if (r != MPU_FIFO_R_W && r != MPU_MEM_R_W) m->addr = (uint8_t)((r + 1) & 0x7F);
+    return out;
+}
+
+const char *mpu_reg_name(uint8_t reg) {
+    switch (reg) {
+        case MPU_SMPLRT_DIV: return "SMPLRT_DIV";
+        case MPU_CONFIG: return "CONFIG";
+        case MPU_GYRO_CONFIG: return "GYRO_CONFIG";
+        case MPU_ACCEL_CONFIG: return "ACCEL_CONFIG";
+        case MPU_FIFO_EN: return "FIFO_EN";
+        case MPU_INT_PIN_CFG: return "INT_PIN_CFG";
+        case MPU_INT_ENABLE: return "INT_ENABLE";
+        case MPU_INT_STATUS: return "INT_STATUS";
+        case MPU_SIGNAL_PATH_RESET: return "SIGNAL_PATH_RESET";
+        case MPU_USER_CTRL: return "USER_CTRL";
+        case MPU_PWR_MGMT_1: return "PWR_MGMT_1";
+        case MPU_PWR_MGMT_2: return "PWR_MGMT_2";
+        case MPU_BANK_SEL: return "BANK_SEL";
+        case MPU_MEM_START_ADDR: return "MEM_START_ADDR";
+        case MPU_MEM_R_W: return "MEM_R_W";
+        case MPU_DMP_CFG_1: return "DMP_CFG_1";
+        case MPU_DMP_CFG_2: return "DMP_CFG_2";
+        case MPU_FIFO_COUNTH: return "FIFO_COUNTH";
+        case MPU_FIFO_COUNTL: return "FIFO_COUNTL";
+        case MPU_FIFO_R_W: return "FIFO_R_W";
+        case MPU_WHO_AM_I: return "WHO_AM_I";
+        default: return "";
+    }
+}

@@ -1,0 +1,137 @@
+// MPU-6000 register-level model for the APM 2.6 emulator (no simavr dependency).
+//
+// The glue (apm_emu.c) drives it: chip select edges, SPI bytes, sample-clock ticks. The model
+// answers bytes, keeps the register file / FIFO / DMP memory, and reports what the glue must do
+// (start the sample clock, clear the INT pin, ...) through `events`.
+#pragma once
+
+#include <stdint.h>
+
+// Register addresses (MPU-6000 register map RM-MPU-6000A-00 rev 4.2).
+enum {
+    MPU_SELF_TEST_X = 0x0D,
+    MPU_PRODUCT_ID = 0x0C,
+    MPU_SMPLRT_DIV = 0x19,
+    MPU_CONFIG = 0x1A,
+    MPU_GYRO_CONFIG = 0x1B,
+    MPU_ACCEL_CONFIG = 0x1C,
+    MPU_FIFO_EN = 0x23,
+    MPU_INT_PIN_CFG = 0x37,
+    MPU_INT_ENABLE = 0x38,
+    MPU_INT_STATUS = 0x3A,
+    MPU_ACCEL_XOUT_H = 0x3B,
+    MPU_TEMP_OUT_H = 0x41,
+    MPU_GYRO_XOUT_H = 0x43,
+    MPU_GYRO_ZOUT_L = 0x48,
+    MPU_SIGNAL_PATH_RESET = 0x68,
+    MPU_USER_CTRL = 0x6A,
+    MPU_PWR_MGMT_1 = 0x6B,
+    MPU_PWR_MGMT_2 = 0x6C,
+    MPU_BANK_SEL = 0x6D,
+    MPU_MEM_START_ADDR = 0x6E,
+    MPU_MEM_R_W = 0x6F,
+    MPU_DMP_CFG_1 = 0x70,
+    MPU_DMP_CFG_2 = 0x71,
+    MPU_FIFO_COUNTH = 0x72,
+    MPU_FIFO_COUNTL = 0x73,
+    MPU_FIFO_R_W = 0x74,
+    MPU_WHO_AM_I = 0x75,
+};
+
+// Bits
+#define MPU_PWR1_DEVICE_RESET 0x80
+#define MPU_PWR1_SLEEP 0x40
+#define MPU_INT_DATA_RDY 0x01
+#define MPU_INT_DMP 0x02
+#define MPU_INT_FIFO_OFLOW 0x10
+#define MPU_PIN_INT_LEVEL 0x80  // 1: active low
+#define MPU_PIN_LATCH_INT_EN 0x20
+#define MPU_PIN_INT_RD_CLEAR 0x10
+#define MPU_UC_DMP_EN 0x80
+#define MPU_UC_FIFO_EN 0x40
+#define MPU_UC_I2C_IF_DIS 0x10
+#define MPU_UC_DMP_RESET 0x08
+#define MPU_UC_FIFO_RESET 0x04
+#define MPU_UC_SIG_COND_RESET 0x01
+
+#define MPU_FIFO_SIZE 1024
+#define MPU_DMP_BANKS 16
+#define MPU_DMP_MEM_SIZE (MPU_DMP_BANKS * 256)
+
+// events the glue must act upon (bit mask, cleared by the glue)
+#define MPU_EV_CLOCK 0x01      // SLEEP/reset changed: (re)start or stop the sample clock
+#define MPU_EV_INT_CLEAR 0x02  // a read cleared the latched INT pin
+#define MPU_EV_PIN_CFG 0x04    // INT_PIN_CFG changed: re-drive the INT pin
+#define MPU_EV_RESET 0x08      // DEVICE_RESET happened
+
+typedef struct mpu_truth {
+    double f[3];  // specific force, m/s^2, chip axes
+    double w[3];  // angular rate, deg/s, chip axes
+    double temp;  // die temperature, degC
+} mpu_truth_t;
+
+typedef struct mpu_access {
+    uint8_t reg;
+    uint8_t value;
+    uint8_t is_read;
+} mpu_access_t;
+
+typedef struct mpu6000 {
+    uint8_t reg[128];
+    uint8_t dmp_mem[MPU_DMP_MEM_SIZE];
+    uint8_t fifo[MPU_FIFO_SIZE];
+    unsigned fifo_rd, fifo_count;
+
+    // SPI transaction state
+    int cs_low;
+    int first;     // next byte is the address byte
+    int rd;        // current transaction reads
+    uint8_t addr;  // current register address
+    uint16_t read_mask;  // which of 0x3B..0x48 were read in this transaction
+
+    // samples
+    int16_t counts[7];        // last produced (ax ay az temp gx gy gz)
+    int latch_pending;        // produced while CS was low: latched at CS rising edge
+    uint64_t produced;        // samples produced (sample clock ticks while awake)
+    uint64_t latched_idx;     // index (1-based) of the sample in the output registers; 0 none
+    int latched_fully_read;   // the latched sample has been read completely at least once
+    uint64_t samples_read;    // distinct samples read completely (all 14 bytes in one burst)
+    uint64_t fifo_overflows;
+
+    // sample bookkeeping for the sample log: a sample "retires" when it leaves the output
+    // registers (replaced by the next one, DEVICE_RESET, or mpu_finish); read = it was burst-read
+    double now_s;                 // set by the glue before mpu_sample
+    double counts_t, latched_t;   // production time of counts[] / of the latched sample
+    int16_t latched_counts[7];
+    void (*retire)(void *ctx, uint64_t idx, double t, const int16_t c[7], int read);
+    void *retire_ctx;
+
+    // DMP stub
+    double q[4];  // attitude quaternion integrated from the gyro truth (w x y z)
+    unsigned dmp_packet_size;
+
+    unsigned events;
+} mpu6000_t;
+
+void mpu_power_on(mpu6000_t *m, unsigned dmp_packet_size);
+void mpu_device_reset(mpu6000_t *m);
+
+// Chip select: low != 0 starts a transaction, 0 ends it.
+void mpu_cs(mpu6000_t *m, int low);
+// One SPI byte (only while CS is low). Returns the MISO byte; *acc is filled and 1 returned in
+// *has_access when a register was read or written.
+uint8_t mpu_spi_byte(mpu6000_t *m, uint8_t mosi, mpu_access_t *acc, int *has_access);
+
+int mpu_awake(const mpu6000_t *m);
+// Sample period in units of the 8 kHz base clock (125 us): 8 (1 kHz) or 1 (8 kHz) x (1 + div).
+unsigned mpu_period_ticks_8k(const mpu6000_t *m);
+// One sample-clock tick: convert truth with the configured full scale, latch (or defer), FIFO.
+// dt_s is the sample period (for the DMP quaternion integration).
+void mpu_sample(mpu6000_t *m, const mpu_truth_t *t, double dt_s);
+// Whether a register is a "sensor data" register (fast SPI allowed).
+int mpu_is_sensor_reg(uint8_t reg);
+// Convert truth to counts with the current configuration.
+void mpu_convert(const mpu6000_t *m, const mpu_truth_t *t, int16_t out[7]);
+const char *mpu_reg_name(uint8_t reg);
+// Retire the sample still in the output registers (call once at exit).
+void mpu_finish(mpu6000_t *m);

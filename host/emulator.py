@@ -1,0 +1,445 @@
+"""The emulated APM 2.6 board from Python: build it, run it, feed it physics, read its logs.
+
+``firmware/emulator/apm_emu`` (C, on libsimavr) runs the real firmware ELF on an emulated
+ATmega2560 with an MPU-6000 model on SPI and UART0 on a pseudo-terminal (see
+``firmware/emulator/README.md``). This module builds it on demand into
+``firmware/build/emulator/`` (rebuilt when its sources are newer), starts it
+(:class:`EmulatedBoard`), and writes the stimulus stream it reads (:func:`write_stimulus`).
+
+    with EmulatedBoard(seconds=60, reglog=True, samplelog=True) as board:
+        ser = serial.Serial(board.port, 115200)   # opening the pty = DTR reset, the AVR starts
+        ...
+    board.summary["speed"], board.reglog(), board.samplelog()
+
+``emu://`` URLs (``host/transports/protocol_emu.py``) wrap the same class as a pyserial port.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import shutil
+import signal
+import subprocess
+import tempfile
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+from host.errors import UserError
+
+ROOT = Path(__file__).resolve().parents[1]
+EMULATOR_SRC = ROOT / "firmware" / "emulator"
+FIRMWARE_DIR = ROOT / "firmware"
+DEFAULT_EMU_BUILD = ROOT / "firmware" / "build" / "emulator"
+DEFAULT_FW_BUILD = ROOT / "firmware" / "build"
+MISSING = "emu:// needs simavr: apt-get install simavr libsimavr-dev gcc-avr avr-libc"
+SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
+
+STIM_MAGIC = b"IMUSTIM1"
+STIM_FIELDS = 8
+FAULTS = ("absent", "stuck-miso", "no-drdy")
+
+
+def toolchain_problem(need_avr: bool = True) -> str | None:
+    """None when the emulator can be built and run here, else the one-line reason."""
+    if not SIMAVR_HEADER.exists() or shutil.which("cc") is None or shutil.which("make") is None:
+        return MISSING
+    libs = ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib", "/usr/local/lib")
+    if not any(Path(d, "libsimavr.so").exists() or Path(d, "libsimavr.a").exists() for d in libs):
+        return MISSING
+    if need_avr and shutil.which("avr-gcc") is None:
+        return MISSING
+    return None
+
+
+def require_toolchain(need_avr: bool = True) -> None:
+    problem = toolchain_problem(need_avr)
+    if problem:
+        raise UserError(problem)
+
+
+@contextlib.contextmanager
+def _locked(build_dir: Path) -> Iterator[None]:
+    """Serialise builds of one directory between processes (parallel tests, two boards)."""
+    build_dir.mkdir(parents=True, exist_ok=True)
+    with open(build_dir / ".build.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def _make(args: Sequence[str], what: str) -> None:
+    r = subprocess.run(["make", "--no-print-directory", *args], capture_output=True, text=True)
+    if r.returncode != 0:
+        tail = "\n".join((r.stdout + r.stderr).strip().splitlines()[-15:])
+        raise UserError(f"building {what} failed:\n{tail}")
+
+
+def build_emulator(build_dir: str | Path | None = None) -> Path:
+    """Build ``apm_emu`` (make decides whether the sources are newer) and return its path."""
+    require_toolchain(need_avr=False)
+    out = Path(build_dir) if build_dir else DEFAULT_EMU_BUILD
+    with _locked(out):
+        _make(["-C", str(EMULATOR_SRC), f"BUILD={out.resolve()}"], "the emulator")
+    return out / "apm_emu"
+
+
+def build_testapp(build_dir: str | Path | None = None) -> tuple[Path, Path]:
+    """Build the harness self-test firmware: (good, bad) ELF paths (see testapp/testapp.c)."""
+    require_toolchain(need_avr=True)
+    out = Path(build_dir) if build_dir else DEFAULT_EMU_BUILD
+    with _locked(out):
+        _make(["-C", str(EMULATOR_SRC), "testapp", f"BUILD={out.resolve()}"], "the test app")
+    return out / "testapp.elf", out / "testapp_bad.elf"
+
+
+def build_firmware(build_dir: str | Path | None = None, make_args: Sequence[str] = ()) -> Path:
+    """Build the real firmware (``make -C firmware BUILD=dir``) and return ``dir/imu_bench.elf``.
+
+    ``make_args`` are extra make variables, e.g. ``["BAUD=500000"]``.
+    """
+    require_toolchain(need_avr=True)
+    out = Path(build_dir) if build_dir else DEFAULT_FW_BUILD
+    with _locked(out):
+        _make(["-C", str(FIRMWARE_DIR), f"BUILD={out.resolve()}", *make_args], "the firmware")
+    elf = out / "imu_bench.elf"
+    if not elf.exists():
+        raise UserError(f"building the firmware did not produce {elf}")
+    return elf
+
+
+# ---------------------------------------------------------------------------------- stimulus
+def write_stimulus(
+    path_or_file: str | Path | IO[bytes],
+    t_s: np.ndarray,
+    f_mps2: np.ndarray,
+    w_dps: np.ndarray,
+    temp_c: np.ndarray | float,
+    header: bool = True,
+) -> None:
+    """Write a stimulus stream: a 16-byte header (``IMUSTIM1``, u32le 8, u32le 0), then one
+    record of 8 little-endian float64 per time ``t_s, fx, fy, fz, wx, wy, wz, temp_c``.
+
+    ``t_s`` (N,) seconds since the emulator started (increasing), ``f_mps2`` (N, 3) specific force
+    in m/s² and ``w_dps`` (N, 3) angular rate in °/s, both in the MPU-6000 chip axes, ``temp_c``
+    (N,) or a scalar. The emulator holds each record until the next one's time. To stream more
+    records into an open pipe later, call again with ``header=False``.
+    """
+    t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+    n = t.shape[0]
+    f = np.asarray(f_mps2, dtype=np.float64).reshape(n, 3)
+    w = np.asarray(w_dps, dtype=np.float64).reshape(n, 3)
+    temp = np.broadcast_to(np.asarray(temp_c, dtype=np.float64), (n,))
+    if n > 1 and np.any(np.diff(t) < 0):
+        raise ValueError("stimulus times must not decrease")
+    rec = np.empty((n, STIM_FIELDS), dtype="<f8")
+    rec[:, 0] = t
+    rec[:, 1:4] = f
+    rec[:, 4:7] = w
+    rec[:, 7] = temp
+    data = rec.tobytes()
+    if header:
+        data = STIM_MAGIC + np.array([STIM_FIELDS, 0], dtype="<u4").tobytes() + data
+    if isinstance(path_or_file, str | Path):
+        Path(path_or_file).write_bytes(data)
+    else:
+        path_or_file.write(data)
+        path_or_file.flush()
+
+
+def read_stimulus(path: str | Path) -> np.ndarray:
+    """Read a stimulus file back: (N, 8) float64 array ``t, fx, fy, fz, wx, wy, wz, temp``."""
+    raw = Path(path).read_bytes()
+    if raw[:8] != STIM_MAGIC:
+        raise UserError(f"{path}: not a stimulus stream (no IMUSTIM1 header)")
+    return np.frombuffer(raw[16:], dtype="<f8").reshape(-1, STIM_FIELDS)
+
+
+# ---------------------------------------------------------------------------------- logs
+@dataclass(frozen=True)
+class RegAccess:
+    """One MPU-6000 register access seen on the emulated SPI bus."""
+
+    t_us: float  # simulated time since the emulator started
+    op: str  # "R" or "W"
+    reg: int
+    value: int
+    spi_hz: float
+    violation: bool  # a non-sensor register at more than 1 MHz
+
+
+def read_reglog(path: str | Path) -> list[RegAccess]:
+    out = []
+    with open(path) as f:
+        next(f, None)
+        for line in f:
+            t, op, reg, val, hz, viol = line.rstrip("\n").split(",")
+            out.append(RegAccess(float(t), op, int(reg, 16), int(val, 16), float(hz), viol == "1"))
+    return out
+
+
+SAMPLELOG_DTYPE = np.dtype(
+    [("idx", "<u8"), ("t_us", "<f8"), ("ax", "<i2"), ("ay", "<i2"), ("az", "<i2"),
+     ("temp", "<i2"), ("gx", "<i2"), ("gy", "<i2"), ("gz", "<i2"), ("read", "u1")]
+)  # fmt: skip
+COUNT_FIELDS = ("ax", "ay", "az", "temp", "gx", "gy", "gz")
+
+
+def read_samplelog(path: str | Path) -> np.ndarray:
+    """Every sample the MPU model produced: structured array (``SAMPLELOG_DTYPE``); ``read`` is 1
+    when the firmware burst-read all 14 bytes of it while it was in the output registers."""
+    rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    out = np.zeros(rows.shape[0], dtype=SAMPLELOG_DTYPE)
+    for i, name in enumerate(SAMPLELOG_DTYPE.names or ()):
+        out[name] = rows[:, i]
+    return out
+
+
+# ---------------------------------------------------------------------------------- board
+class EmulatedBoard:
+    """Run ``apm_emu`` with a firmware ELF; ``.port`` is the pseudo-terminal to open.
+
+    The emulated CPU is held until the pty is first opened (like plugging in the USB cable;
+    ``wait_open=False`` starts at once), and every later re-open resets the AVR (DTR).
+
+    Options mirror the emulator's (README.md): ``elf`` (default: build the real firmware),
+    ``stimulus`` (a stimulus file path, or ``"pipe"`` to write records into ``.stimulus_pipe``
+    while it runs, or None = at rest, Z up, 25 °C), ``seconds`` (simulated; None = until the
+    stimulus ends or :meth:`stop`), ``realtime``, ``reglog`` / ``samplelog`` (True = a file in
+    ``workdir``, or a path), ``fault`` (absent | stuck-miso | no-drdy) from ``fault_at`` s,
+    ``noise_accel`` (m/s²) / ``noise_gyro`` (°/s) with ``seed``, ``clock_ppm``, ``extra_args``.
+    """
+
+    def __init__(
+        self,
+        elf: str | Path | None = None,
+        *,
+        stimulus: str | Path | None = None,
+        seconds: float | None = None,
+        realtime: bool = False,
+        reglog: bool | str | Path = False,
+        samplelog: bool | str | Path = False,
+        fault: str | None = None,
+        fault_at: float = 0.0,
+        noise_accel: float = 0.0,
+        noise_gyro: float = 0.0,
+        seed: int | None = None,
+        clock_ppm: float = 0.0,
+        wait_open: bool = True,
+        dtr_reset: bool = True,
+        workdir: str | Path | None = None,
+        emulator: str | Path | None = None,
+        extra_args: Sequence[str] = (),
+        start_timeout_s: float = 30.0,
+    ) -> None:
+        if fault is not None and fault not in FAULTS:
+            raise UserError(f"emulator fault must be one of {', '.join(FAULTS)}, not {fault!r}")
+        self.elf = Path(elf) if elf else None
+        self.stimulus = stimulus
+        self.seconds = seconds
+        self.realtime = realtime
+        self.fault = fault
+        self.fault_at = fault_at
+        self.noise_accel = noise_accel
+        self.noise_gyro = noise_gyro
+        self.seed = seed
+        self.clock_ppm = clock_ppm
+        self.wait_open = wait_open
+        self.dtr_reset = dtr_reset
+        self.emulator = Path(emulator) if emulator else None
+        self.extra_args = list(extra_args)
+        self.start_timeout_s = start_timeout_s
+        self._own_workdir = workdir is None
+        self.workdir = Path(workdir) if workdir else Path(tempfile.mkdtemp(prefix="apm_emu_"))
+        self.reglog_path = self._log_path(reglog, "reglog.csv")
+        self.samplelog_path = self._log_path(samplelog, "samplelog.csv")
+        self.summary_path = self.workdir / "summary.json"
+        self.port: str | None = None
+        self.summary: dict[str, Any] | None = None
+        self.stimulus_pipe: IO[bytes] | None = None
+        self.stderr_text = ""
+        self._proc: subprocess.Popen[bytes] | None = None
+        self._lines: list[str] = []
+        self._reader: threading.Thread | None = None
+        self._stderr_file: IO[bytes] | None = None
+
+    def _log_path(self, opt: bool | str | Path, name: str) -> Path | None:
+        if opt is True:
+            return self.workdir / name
+        if opt:
+            return Path(opt)
+        return None
+
+    # -- lifecycle
+    def command(self) -> list[str]:
+        assert self.emulator is not None and self.elf is not None
+        cmd = [str(self.emulator), "--elf", str(self.elf), "--summary-file", str(self.summary_path)]
+        if self.stimulus == "pipe":
+            cmd += ["--stimulus", "-"]
+        elif self.stimulus is not None:
+            cmd += ["--stimulus", str(self.stimulus)]
+        if self.seconds is not None:
+            cmd += ["--seconds", repr(float(self.seconds))]
+        if self.realtime:
+            cmd.append("--realtime")
+        if self.reglog_path:
+            cmd += ["--reglog", str(self.reglog_path)]
+        if self.samplelog_path:
+            cmd += ["--samplelog", str(self.samplelog_path)]
+        if self.fault:
+            cmd += ["--fault", self.fault, "--fault-at", repr(float(self.fault_at))]
+        if self.noise_accel:
+            cmd += ["--noise-accel", repr(float(self.noise_accel))]
+        if self.noise_gyro:
+            cmd += ["--noise-gyro", repr(float(self.noise_gyro))]
+        if self.seed is not None:
+            cmd += ["--seed", str(int(self.seed))]
+        if self.clock_ppm:
+            cmd += ["--clock-ppm", repr(float(self.clock_ppm))]
+        if not self.wait_open:
+            cmd.append("--no-wait")
+        if not self.dtr_reset:
+            cmd.append("--no-dtr-reset")
+        return cmd + self.extra_args
+
+    def start(self) -> EmulatedBoard:
+        if self._proc is not None:
+            return self
+        if self.emulator is None:
+            self.emulator = build_emulator()
+        if self.elf is None:
+            self.elf = build_firmware()
+        if not self.elf.exists():
+            raise UserError(f"firmware ELF {self.elf} does not exist")
+        if isinstance(self.stimulus, str | Path) and self.stimulus != "pipe":
+            if not Path(self.stimulus).exists():
+                raise UserError(f"stimulus file {self.stimulus} does not exist")
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self._stderr_file = open(self.workdir / "stderr.txt", "w+b")
+        self._proc = subprocess.Popen(
+            self.command(),
+            stdin=subprocess.PIPE if self.stimulus == "pipe" else subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=self._stderr_file,
+        )
+        self.stimulus_pipe = self._proc.stdin
+        assert self._proc.stdout is not None
+        first = self._readline_with_timeout(self._proc.stdout, self.start_timeout_s)
+        if not first.startswith("PTY "):
+            self._proc.kill()
+            self._proc.wait()
+            raise UserError(f"the emulator did not start: {self._stderr_tail() or first!r}")
+        self.port = first.split(None, 1)[1].strip()
+        self._reader = threading.Thread(target=self._drain, daemon=True)
+        self._reader.start()
+        return self
+
+    @staticmethod
+    def _readline_with_timeout(stream: IO[bytes], timeout_s: float) -> str:
+        result: list[bytes] = []
+        t = threading.Thread(target=lambda: result.append(stream.readline()), daemon=True)
+        t.start()
+        t.join(timeout_s)
+        return result[0].decode(errors="replace") if result else ""
+
+    def _drain(self) -> None:
+        assert self._proc is not None and self._proc.stdout is not None
+        for raw in self._proc.stdout:
+            self._lines.append(raw.decode(errors="replace").rstrip("\n"))
+
+    def _stderr_tail(self) -> str:
+        if self._stderr_file is None:
+            return ""
+        self._stderr_file.flush()
+        self._stderr_file.seek(0)
+        text = self._stderr_file.read().decode(errors="replace")
+        self.stderr_text = text
+        lines = [ln for ln in text.splitlines() if ln.strip() and not ln.startswith("Loaded ")]
+        return lines[-1] if lines else ""
+
+    @property
+    def running(self) -> bool:
+        return self._proc is not None and self._proc.poll() is None
+
+    def wait(self, timeout_s: float | None = None) -> dict[str, Any]:
+        """Wait for the emulator to end by itself (``seconds`` reached, stimulus ended)."""
+        assert self._proc is not None
+        self._proc.wait(timeout_s)
+        return self._finish()
+
+    def stop(self, timeout_s: float = 10.0) -> dict[str, Any]:
+        """Stop the emulator (SIGTERM: it writes its logs and summary) and return the summary."""
+        if self._proc is None:
+            return self.summary or {}
+        if self._proc.poll() is None:
+            with contextlib.suppress(BrokenPipeError, OSError):
+                if self.stimulus_pipe:
+                    self.stimulus_pipe.close()
+            self._proc.send_signal(signal.SIGTERM)
+            try:
+                self._proc.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                self._proc.kill()
+                self._proc.wait()
+        return self._finish()
+
+    def _finish(self) -> dict[str, Any]:
+        assert self._proc is not None
+        if self._reader:
+            self._reader.join(5)
+        summary = None
+        for line in self._lines:
+            if line.startswith("SUMMARY "):
+                summary = json.loads(line[8:])
+        if summary is None and self.summary_path.exists():
+            with contextlib.suppress(ValueError):
+                summary = json.loads(self.summary_path.read_text())
+        self._stderr_tail()
+        if self._stderr_file:
+            self._stderr_file.close()
+            self._stderr_file = None
+        if summary is None:
+            summary = {"error": f"no summary (exit status {self._proc.returncode})"}
+        self.summary = summary
+        return summary
+
+    def __enter__(self) -> EmulatedBoard:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    # -- results
+    def reglog(self) -> list[RegAccess]:
+        if not self.reglog_path:
+            raise UserError("start the EmulatedBoard with reglog=True to get a register log")
+        return read_reglog(self.reglog_path)
+
+    def samplelog(self) -> np.ndarray:
+        if not self.samplelog_path:
+            raise UserError("start the EmulatedBoard with samplelog=True to get a sample log")
+        return read_samplelog(self.samplelog_path)
+
+    def cleanup(self) -> None:
+        """Remove the work directory (when this object made it)."""
+        if self._own_workdir:
+            shutil.rmtree(self.workdir, ignore_errors=True)
+
+
+def wait_for(cond: Any, timeout_s: float, poll_s: float = 0.01) -> bool:
+    """Poll ``cond()`` until true or ``timeout_s`` passes (test helper)."""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(poll_s)
+    return bool(cond())
