@@ -7,7 +7,7 @@
 namespace timebase {
 
 namespace detail {
-volatile uint32_t g_overflows = 0;
+volatile uint32_t g_overflow_us = 0;
 }
 
 void init() {
@@ -28,7 +28,9 @@ uint32_t micros() {
 }  // namespace timebase
 
 // A few cycles of work every 32.768 ms.
-ISR(TIMER1_OVF_vect) { timebase::detail::g_overflows = timebase::detail::g_overflows + 1; }
+ISR(TIMER1_OVF_vect) {
+    timebase::detail::g_overflow_us = timebase::detail::g_overflow_us + timebase::detail::kOverflowUs;
+}
 
 // Wake-up tick: the next compare 10 ms later (Timer1 keeps running free: t_us is unaffected).
 ISR(TIMER1_COMPA_vect) { OCR1A += 2u * timebase::kTickUs; }

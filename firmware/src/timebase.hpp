@@ -26,18 +26,22 @@ uint32_t micros();
 
 #ifdef __AVR__
 namespace detail {
-extern volatile uint32_t g_overflows;  // Timer1 overflows since init
-}
+// Microseconds at the last Timer1 overflow: the overflow ISR adds 32768 (65536 ticks of
+// 0.5 us). Kept in microseconds rather than as an overflow count so that reading the time is
+// one 32-bit add, not a 15-place shift of a 32-bit value (a loop on the AVR).
+extern volatile uint32_t g_overflow_us;
+static constexpr uint32_t kOverflowUs = 32768u;
+}  // namespace detail
 
 // For ISRs (interrupts already off): device time now. Accounts for an overflow that happened
 // but whose interrupt is still pending (TOV1 set with a small count).
 static inline uint32_t micros_from_isr() {
     uint16_t ticks = TCNT1;
-    uint32_t ovf = detail::g_overflows;
+    uint32_t base = detail::g_overflow_us;
     if ((TIFR1 & _BV(TOV1)) && ticks < 0x8000u) {
-        ++ovf;
+        base += detail::kOverflowUs;
     }
-    return (ovf << 15) + (ticks >> 1);
+    return base + (ticks >> 1);
 }
 #endif
 
