@@ -8,9 +8,13 @@ written atomically as ``SERIAL_name.txt`` when the operator accepts it → at th
 :func:`host.calibration.calibrate_from_records` and the report files (:mod:`host.report`).
 
 Time column: device time since the start beep, ms: ``t_us`` unwrapped (32-bit wrap) minus the
-``t_us`` of the first sample after the beep (the device clock, not an assumed 50 Hz). The
-record's ``#`` header holds the device→host mapping of that instant (``device_t_us_start``,
-``host_ns_start_beep``, ``host_ns_first_sample``: host ``time.monotonic_ns``).
+``t_us`` of the first sample after the beep (the device clock, not an assumed 50 Hz). Every
+sample read also feeds a live minimum-delay clock estimate (:class:`host.clock.LiveClock`,
+restarted when the board resets); the record's ``#`` header holds the device→host mapping:
+``device_t_us_start``, ``host_ns_start_beep``, ``host_ns_first_sample`` (host
+``time.monotonic_ns``), and from the live estimate ``clock_host_ns_at_start`` (the first
+sample's mapped host time), ``clock_skew_ppm``, ``clock_points``, ``clock_latency_median_us``,
+``clock_floor_spread_us``. The session's capture file allows the best offline fit later.
 
 Losses: sequence gaps between the frames of a measurement (frames lost on the link) plus
 samples the firmware flagged MISSED are counted, reported ("3 samples lost in x_up") and
@@ -71,8 +75,9 @@ from host.calibration import (
     trapezoid_integral,
 )
 from host.capture import MAGIC, CaptureWriter
+from host.clock import LiveClock, serialisation_ns
 from host.errors import UserError
-from host.frames import IMU_SAMPLE, Frame
+from host.frames import IMU_SAMPLE, MESSAGES, OVERHEAD, Frame
 from host.link import DEFAULT_BAUD, Link, LinkLost, LinkTimeout, open_port
 from host.operator import Console, Operator, TerminalConsole
 from host.records import (
@@ -107,6 +112,8 @@ DEFAULT_READY_S = 2.0
 STALL_S = 2.0
 SERIAL_RE = re.compile(r"^[A-Za-z0-9_-]{1,12}$")
 MISSED = gen.ENUMS["sample_flags"]["MISSED"]
+#: bytes of one IMU_SAMPLE frame on the wire (for its serialisation time)
+IMU_FRAME_BYTES = MESSAGES[IMU_SAMPLE].length + OVERHEAD
 #: the 7 counts of an IMU_SAMPLE payload (after t_us): ax, ay, az, temp, gx, gy, gz
 _COUNTS_BE = struct.Struct(">7h")
 #: USB vendor ids of boards that look like an APM 2.6 (Arduino Mega 2560 / 16U2, FTDI)
@@ -313,6 +320,7 @@ class BoardInfo:
     smplrt_div: int
     streaming: bool
     reset_cause: int
+    baud: int = DEFAULT_BAUD
 
     @classmethod
     def from_hello(cls, f: dict[str, int]) -> BoardInfo:
@@ -327,6 +335,7 @@ class BoardInfo:
             smplrt_div=f["smplrt_div"],
             streaming=bool(f["streaming"]),
             reset_cause=f["reset_cause"],
+            baud=f["baud"] or DEFAULT_BAUD,
         )
 
     @property
@@ -460,6 +469,9 @@ class Board:
         self.link: Link | None = None
         self.info: BoardInfo | None = None
         self._errors_seen: set[tuple[int, int]] = set()
+        self.clock = LiveClock()
+        self._clock_last_t: int | None = None  # raw t_us of the last sample fed to the clock
+        self._clock_dev_us = 0  # its unwrapped value
 
     # ---- connection ----------------------------------------------------------------------
     def connect(self) -> BoardInfo:
@@ -482,6 +494,7 @@ class Board:
         return self.await_hello()
 
     def _attach(self, port: serial.SerialBase) -> None:
+        self.restart_clock()
         link = Link(port, capture=None, stall_s=self.stall_s)
         link.capture = self.capture  # one capture over the whole session, across reconnects
         self.link = link
@@ -560,14 +573,58 @@ class Board:
         self.info = info
         return info
 
+    # ---- time ----------------------------------------------------------------------------
+    def restart_clock(self) -> None:
+        """Forget the device→host clock estimate (the board restarted: a new device clock)."""
+        self.clock = LiveClock()
+        self._clock_last_t = None
+
+    def _feed_clock(self, arrival_ns: int, t_us: int) -> None:
+        """One sample for the live clock map: unwrapped device µs vs arrival minus the time
+        the UART needed to send the frame (host.clock, eq. 1)."""
+        if self._clock_last_t is not None:
+            d = (t_us - self._clock_last_t) & 0xFFFFFFFF
+            if d >= 0x80000000:  # went back: the board restarted
+                self.restart_clock()
+            else:
+                self._clock_dev_us += d
+        if self._clock_last_t is None:
+            self._clock_dev_us = t_us
+        self._clock_last_t = t_us
+        baud = self.info.baud if self.info is not None else DEFAULT_BAUD
+        floor = arrival_ns - float(serialisation_ns(IMU_FRAME_BYTES, baud))
+        self.clock.add(self._clock_dev_us, floor)
+
+    def clock_meta(self, t_us_start: int) -> dict[str, str]:
+        """The live clock map as record metadata (empty until it has an estimate)."""
+        m = self.clock.map
+        if m is None or self._clock_last_t is None:
+            return {}
+        back = (self._clock_last_t - t_us_start) & 0xFFFFFFFF
+        host_at_start = float(m.to_host_ns(self._clock_dev_us - back))
+        return {
+            "clock_host_ns_at_start": str(int(round(host_at_start))),
+            "clock_skew_ppm": f"{m.skew_ppm:.2f}",
+            "clock_points": str(m.points),
+            "clock_latency_median_us": f"{m.latency_median_us:.0f}",
+            "clock_floor_spread_us": f"{m.floor_spread_us:.0f}",
+        }
+
     # ---- reading -------------------------------------------------------------------------
     def read_frames(self) -> list[tuple[int, Frame]]:
-        """One read of the port: (host ns of the read, frame) for each frame it completed."""
+        """One read of the port: (host ns of the read, frame) for each frame it completed.
+        Every IMU sample also feeds the live clock estimate."""
         assert self.link is not None
         t_ns, data = self.link.read_chunk()
         if not data:
             return []
-        return [(t_ns, f) for f in self.link.decoder.feed(data)]
+        out = [(t_ns, f) for f in self.link.decoder.feed(data)]
+        for arrival_ns, f in out:
+            if f.type == IMU_SAMPLE:
+                self._feed_clock(arrival_ns, int.from_bytes(f.payload[0:4], "little"))
+            elif f.name == "HELLO":
+                self.restart_clock()
+        return out
 
     def pump(self) -> None:
         """Read and drop samples (between measurements); report ERROR frames and resets."""
@@ -1146,7 +1203,8 @@ class LiveSession:
                 "host_ns_start_beep": str(acq.beep_ns),
                 "host_ns_first_sample": str(acq.first_ns),
                 "time_mapping": "device_t_us_start (first sample) at host_ns_start_beep "
-                "(time.monotonic_ns of the start beep)",
+                "(time.monotonic_ns of the start beep); clock_*: live minimum-delay map",
+                **self.board.clock_meta(acq.start_t_us),
                 "port": self.board.url,
                 "capture": self.board.capture.path.name,
                 "program": "python -m host calibrate (live)",

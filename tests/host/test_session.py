@@ -476,3 +476,30 @@ def test_emulated_board(tmp_path: Path) -> None:
                           hello_timeout_s=30.0), ScriptedConsole(), Ports())  # fmt: skip
     assert rc in (0, 1)
     assert len(json.loads(stdout)["records"]) == 12
+
+
+def test_board_live_clock_maps_the_record_start_to_host_time() -> None:
+    """The session's live clock (fed every sample as it is read, across a t_us wrap) gives the
+    record metadata the device clock's skew and the first sample's host time."""
+    from host.frames import StreamDecoder
+    from host.linksim import LinkParams, simulate_link
+
+    lc = simulate_link(LinkParams(seconds=30, skew_ppm=80, device_t0_us=2**32 - 5_000_000, seed=9))
+    board = live.Board("unused://")
+    dec = StreamDecoder()
+    k = 0
+    start = None
+    for t_ns, chunk in lc.chunks:
+        for f in dec.feed(chunk):
+            if f.type == 1:
+                board._feed_clock(t_ns, f.fields["t_us"])
+                if k == 1000:  # a record starting at the 1000th sample, after the wrap
+                    start = (f.fields["t_us"], lc.true_host_ns[k])
+                k += 1
+    assert start is not None and start[0] < 2**31  # the wrap happened before it
+    meta = board.clock_meta(start[0])
+    assert float(meta["clock_skew_ppm"]) == pytest.approx(-80, abs=5)
+    # mapped host time of the record's first sample: its true data-ready time plus the
+    # firmware's fixed processing delay (≈0.2 ms), far from the ≈2–6 ms of arrival stamping
+    assert 0 < int(meta["clock_host_ns_at_start"]) - start[1] < 600_000
+    assert int(meta["clock_points"]) > 1000
