@@ -268,10 +268,10 @@ def format_record(record: Record) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_record(path: str | os.PathLike[str], record: Record) -> None:
-    """Write ``record`` to ``path`` atomically (temp file in the same directory + os.replace)."""
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
+    """Write UTF-8 ``text`` to ``path`` atomically: a temp file in the same directory, fsync,
+    then os.replace — a crash or an abort never leaves a half-written file."""
     p = Path(path)
-    text = format_record(record)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
@@ -285,6 +285,11 @@ def write_record(path: str | os.PathLike[str], record: Record) -> None:
         except OSError:
             pass
         raise
+
+
+def write_record(path: str | os.PathLike[str], record: Record) -> None:
+    """Write ``record`` to ``path`` atomically (:func:`write_text_atomic`)."""
+    write_text_atomic(path, format_record(record))
 
 
 # ---- reading ------------------------------------------------------------------------------

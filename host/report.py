@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from pathlib import Path
 
 from host.calibration import (
@@ -22,6 +21,7 @@ from host.calibration import (
     UNITS,
     CalibrationResult,
 )
+from host.records import write_text_atomic
 
 WIDTH = 80
 PLUS, MINUS = "+", "−"
@@ -169,25 +169,11 @@ def result_paths(directory: str | os.PathLike[str], serial: str) -> tuple[Path, 
     return d / f"{serial}_result.txt", d / f"{serial}_result.json"
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-
-
 def write_results(
     result: CalibrationResult, directory: str | os.PathLike[str]
 ) -> tuple[Path, Path]:
     """Write the report and the JSON result into ``directory`` (atomically); returns the paths."""
     txt, js = result_paths(directory, result.serial)
-    _write_atomic(txt, format_report(result))
-    _write_atomic(js, result.to_json())
+    write_text_atomic(txt, format_report(result))
+    write_text_atomic(js, result.to_json())
     return txt, js

@@ -187,15 +187,6 @@ def default_port(comports: Callable[[], Iterable[Any]] | None = None) -> tuple[s
     return "sim://", "no board found: using the virtual board sim://"
 
 
-def unwrap_us(t_us: Sequence[int] | np.ndarray) -> np.ndarray:
-    """32-bit device microseconds -> monotonic int64 µs from the first value (wraps undone)."""
-    t = np.asarray(t_us, dtype=np.int64) & 0xFFFFFFFF
-    if t.size == 0:
-        return t
-    d = np.diff(t) & 0xFFFFFFFF
-    return np.concatenate([[0], np.cumsum(d)])
-
-
 # --------------------------------------------------------------------------- options
 
 

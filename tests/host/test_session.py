@@ -412,11 +412,6 @@ def test_turn_windows() -> None:
     assert live.parse_turns("4") == 4
 
 
-def test_unwrap_us() -> None:
-    t = np.array([2**32 - 40_000, 2**32 - 20_000, 0, 20_000], dtype=np.int64)
-    assert live.unwrap_us(t).tolist() == [0, 20_000, 40_000, 60_000]
-
-
 def test_default_port() -> None:
     def ports(*items: SimpleNamespace) -> Any:
         return lambda: list(items)
