@@ -11,7 +11,9 @@ ATmega2560 with an MPU-6000 model on SPI and UART0 on a pseudo-terminal (see
         ...
     board.summary["speed"], board.reglog(), board.samplelog()
 
-``emu://`` URLs (``host/transports/protocol_emu.py``) wrap the same class as a pyserial port.
+``emu://`` URLs (``host/transports/protocol_emu.py``) wrap the same class as a pyserial port;
+:class:`SimStimulus` feeds a running board's stimulus pipe from the physics simulator
+(:class:`host.sim.Simulator`), a bounded horizon ahead of the emulated time.
 """
 
 from __future__ import annotations
@@ -19,10 +21,12 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import json
+import os
 import shutil
 import signal
 import subprocess
 import tempfile
+import termios
 import threading
 import time
 from collections.abc import Iterator, Sequence
@@ -217,6 +221,12 @@ class EmulatedBoard:
     stimulus ends or :meth:`stop`), ``realtime``, ``reglog`` / ``samplelog`` (True = a file in
     ``workdir``, or a path), ``fault`` (absent | stuck-miso | no-drdy) from ``fault_at`` s,
     ``noise_accel`` (m/s²) / ``noise_gyro`` (°/s) with ``seed``, ``clock_ppm``, ``extra_args``.
+
+    Boot like the real board (``boot=True``): the stk500v2 bootloader in the boot section runs
+    first after every reset (≈ 0.8 s, in real time), then the application; ``elf`` (an ``.elf``
+    or ``.hex``) is then optional. ``flash`` = a persistent flash image file (implies ``boot``):
+    loaded at start if it exists, written back after avrdude programs it and at exit; an ``elf``
+    given as well is programmed over it at start. See ``host/flash.py``.
     """
 
     def __init__(
@@ -240,6 +250,8 @@ class EmulatedBoard:
         emulator: str | Path | None = None,
         extra_args: Sequence[str] = (),
         start_timeout_s: float = 30.0,
+        boot: bool = False,
+        flash: str | Path | None = None,
     ) -> None:
         if fault is not None and fault not in FAULTS:
             raise UserError(f"emulator fault must be one of {', '.join(FAULTS)}, not {fault!r}")
@@ -258,6 +270,8 @@ class EmulatedBoard:
         self.emulator = Path(emulator) if emulator else None
         self.extra_args = list(extra_args)
         self.start_timeout_s = start_timeout_s
+        self.flash = Path(flash) if flash else None
+        self.boot = boot or self.flash is not None
         self._own_workdir = workdir is None
         self.workdir = Path(workdir) if workdir else Path(tempfile.mkdtemp(prefix="apm_emu_"))
         self.reglog_path = self._log_path(reglog, "reglog.csv")
@@ -281,8 +295,14 @@ class EmulatedBoard:
 
     # -- lifecycle
     def command(self) -> list[str]:
-        assert self.emulator is not None and self.elf is not None
-        cmd = [str(self.emulator), "--elf", str(self.elf), "--summary-file", str(self.summary_path)]
+        assert self.emulator is not None and (self.elf is not None or self.boot)
+        cmd = [str(self.emulator), "--summary-file", str(self.summary_path)]
+        if self.elf is not None:
+            cmd += ["--hex" if self.elf.suffix.lower() == ".hex" else "--elf", str(self.elf)]
+        if self.boot:
+            cmd.append("--boot")
+        if self.flash is not None:
+            cmd += ["--flash-file", str(self.flash)]
         if self.stimulus == "pipe":
             cmd += ["--stimulus", "-"]
         elif self.stimulus is not None:
@@ -316,9 +336,9 @@ class EmulatedBoard:
             return self
         if self.emulator is None:
             self.emulator = build_emulator()
-        if self.elf is None:
+        if self.elf is None and not self.boot:
             self.elf = build_firmware()
-        if not self.elf.exists():
+        if self.elf is not None and not self.elf.exists():
             raise UserError(f"firmware ELF {self.elf} does not exist")
         if isinstance(self.stimulus, str | Path) and self.stimulus != "pipe":
             if not Path(self.stimulus).exists():
@@ -367,6 +387,11 @@ class EmulatedBoard:
         return lines[-1] if lines else ""
 
     @property
+    def pid(self) -> int | None:
+        """Process id of the running emulator (None before :meth:`start`)."""
+        return self._proc.pid if self._proc is not None else None
+
+    @property
     def running(self) -> bool:
         return self._proc is not None and self._proc.poll() is None
 
@@ -385,6 +410,8 @@ class EmulatedBoard:
                 if self.stimulus_pipe:
                     self.stimulus_pipe.close()
             self._proc.send_signal(signal.SIGTERM)
+            with contextlib.suppress(OSError):  # a paused (SIGSTOP) emulator: let it end
+                self._proc.send_signal(signal.SIGCONT)
             try:
                 self._proc.wait(timeout_s)
             except subprocess.TimeoutExpired:
@@ -443,3 +470,168 @@ def wait_for(cond: Any, timeout_s: float, poll_s: float = 0.01) -> bool:
             return True
         time.sleep(poll_s)
     return bool(cond())
+
+
+# ---------------------------------------------------------------------------------- simulator
+#: stimulus records per second from the simulator: the MPU-6000's internal sample rate (the
+#: emulated chip's output samples, 50 Hz by default, each pick the last record before them)
+STIM_RECORD_HZ = 1000.0
+#: simulated seconds of records generated and written at once
+STIM_CHUNK_S = 0.016
+#: bytes the stimulus pipe holds (Linux minimum, one page): 64 records = 64 ms at 1 kHz
+STIM_PIPE_BYTES = 4096
+RECORD_BYTES = 8 * STIM_FIELDS
+_STIM_HEADER = STIM_MAGIC + np.array([STIM_FIELDS, 0], dtype="<u4").tobytes()
+
+
+class SimStimulus:
+    """Feed an emulated board's stimulus pipe from a running :class:`host.sim.Simulator`.
+
+    The simulator (built at :data:`STIM_RECORD_HZ`, its clocks exact: the emulator has its own)
+    is run ahead of the emulated time by a bounded horizon: records are generated
+    :data:`STIM_CHUNK_S` at a time and written into a pipe of :data:`STIM_PIPE_BYTES` that the
+    emulator reads unbuffered, so the writer blocks when the emulator is ≈ 64–80 ms of emulated
+    time behind (never more), and the emulator blocks (emulated time stops) when the records
+    run dry. ``speed`` None runs as fast as the emulator consumes; N lets the horizon advance
+    at most N× the wall clock (from :meth:`start`), so emulated time follows N× real time.
+
+    Change the cube's motion with ``sim.set_motion(m, horizon_s)`` while holding :attr:`lock`:
+    the records from :attr:`horizon_s` on are not generated yet, so the motion starts "now" from
+    the host's point of view, at most one horizon after the emulated time. :meth:`emulated_s`
+    (a lower bound of the emulator's time, from the pipe's fill level) and
+    :meth:`wait_emulated` tell when the emulator has got past a time.
+    """
+
+    def __init__(
+        self,
+        board: EmulatedBoard,
+        sim: Any,  # host.sim.Simulator (not imported at module level: numpy-only users)
+        speed: float | None = None,
+        chunk_s: float | None = None,
+    ) -> None:
+        if board.stimulus_pipe is None:
+            raise ValueError("SimStimulus needs an EmulatedBoard started with stimulus='pipe'")
+        self.sim = sim
+        self.speed = speed
+        if chunk_s is None:  # paced: small chunks, so emulated time follows the wall clock closely
+            chunk_s = (
+                STIM_CHUNK_S if speed is None else min(STIM_CHUNK_S, max(0.002 * speed, 0.002))
+            )
+        self.chunk_s = chunk_s
+        self.lock = threading.RLock()
+        #: the exception that ended the writer (BrokenPipeError when the emulator ended), or None
+        self.error: BaseException | None = None
+        self._pipe: IO[bytes] | None = board.stimulus_pipe
+        board.stimulus_pipe = None  # ours now: closed after the writer thread ended
+        self._fd = self._pipe.fileno()
+        self._written = 0  # records written into the pipe
+        self._t_first: float | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._wall0 = time.monotonic()
+        with contextlib.suppress(OSError, AttributeError):
+            fcntl.fcntl(self._fd, fcntl.F_SETPIPE_SZ, STIM_PIPE_BYTES)
+
+    def start(self) -> SimStimulus:
+        """Write the header and start the writer thread (the emulator reads the header and the
+        first records right after it printed its pty, before the pty is opened)."""
+        self._write_all(_STIM_HEADER)
+        self._wall0 = time.monotonic()
+        self._thread = threading.Thread(target=self._run, name="sim-stimulus", daemon=True)
+        self._thread.start()
+        return self
+
+    def restart_clock(self) -> None:
+        """Pace from now (``speed`` N): call when the emulated CPU starts (the pty's first open)."""
+        with self.lock:
+            self._wall0 = time.monotonic() - self.horizon_s / self.speed if self.speed else 0.0
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    @property
+    def horizon_s(self) -> float:
+        """Simulated time up to which records are generated, s since the emulator started."""
+        return float(self.sim.t_next)
+
+    def emulated_s(self) -> float:
+        """A lower bound of the emulated time, s since the emulator started (it has read every
+        record written but those still in the pipe, and reads one record ahead)."""
+        written = self._written
+        if self._t_first is None or written < 2:
+            return 0.0
+        queued = 0
+        if self._pipe is not None:
+            buf = bytearray(4)
+            with contextlib.suppress(OSError):
+                fcntl.ioctl(self._fd, termios.FIONREAD, buf)
+                queued = int.from_bytes(buf, "little")
+        consumed = written - -(-queued // RECORD_BYTES)
+        return self._t_first + max(consumed - 2, 0) * float(self.sim.period_s)
+
+    def wait_emulated(
+        self, t_s: float, timeout_s: float = 5.0, idle: Any = None, poll_s: float = 0.0005
+    ) -> bool:
+        """Wait until the emulated time has passed ``t_s`` (s); False on timeout or when the
+        writer ended. ``idle()`` is called while waiting (e.g. to keep the pty read: a full pty
+        stops the emulator)."""
+        end = time.monotonic() + timeout_s
+        while self.emulated_s() < t_s:
+            if not self.running or time.monotonic() > end:
+                return False
+            if idle is not None:
+                idle()
+            time.sleep(poll_s)
+        return True
+
+    def stop(self, join_s: float = 5.0) -> None:
+        """End the writer (call after the emulator was stopped: a blocked write then fails) and
+        close the pipe."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(join_s)
+        if self._pipe is not None and not self.running:
+            with contextlib.suppress(OSError):
+                self._pipe.close()
+            self._pipe = None
+
+    def request_stop(self) -> None:
+        """Ask the writer to end at its next chunk (without waiting)."""
+        self._stop.set()
+
+    # -- the writer thread
+    def _write_all(self, data: bytes) -> None:
+        view = memoryview(data)
+        while view:
+            n = os.write(self._fd, view)
+            view = view[n:]
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                with self.lock:
+                    t_end = self.horizon_s + self.chunk_s
+                    delay = 0.0
+                    if self.speed is not None:
+                        allowed = (time.monotonic() - self._wall0) * self.speed
+                        delay = (t_end - allowed) / self.speed
+                    if delay <= 0:
+                        series = self.sim.outputs_until(t_end)
+                if delay > 0:
+                    self._stop.wait(min(delay, 0.05))
+                    continue
+                n = series.t_s.shape[0]
+                if n == 0:
+                    continue
+                rec = np.empty((n, STIM_FIELDS), dtype="<f8")
+                rec[:, 0] = series.t_s
+                rec[:, 1:4] = series.specific_force
+                rec[:, 4:7] = series.rate_dps
+                rec[:, 7] = series.temp_c
+                if self._t_first is None:
+                    self._t_first = float(series.t_s[0])
+                self._write_all(rec.tobytes())
+                self._written += n
+        except OSError as exc:  # EPIPE: the emulator ended; EBADF: closed under us
+            self.error = exc

@@ -25,6 +25,7 @@ import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -47,6 +48,7 @@ from host.sim_truth import SensorTruth, gauss_markov, sensor_output
 
 __all__ = [
     "Bench",
+    "CubeOperator",
     "Environment",
     "Plan",
     "RecordSpec",
@@ -222,7 +224,32 @@ class Simulator:
         block = self._generate(t, dt)
         return block
 
+    def outputs_until(self, t_end_s: float) -> TruthSeries:
+        """Every sample before true time ``t_end_s`` as the sensor's physical output, before
+        quantisation: ``specific_force`` m/s², ``rate_dps`` °/s (body axes, errors and noise
+        applied), ``temp_c`` °C. The same random stream as :meth:`run_until` (for a stimulus
+        that the emulated MPU-6000 quantises itself)."""
+        n = 0 if t_end_s <= self.t_next else int(np.ceil((t_end_s - self.t_next) / self.period_s))
+        dt = self.period_s
+        t = self.t_next + dt * np.arange(n)
+        self.t_next += n * dt
+        self.samples += n
+        accel, gyro, temp = self._outputs(t, dt)
+        self._config_changed = False
+        return TruthSeries(t, accel, gyro, temp)
+
     def _generate(self, t: np.ndarray, dt: float) -> SampleBlock:
+        n = t.shape[0]
+        accel, gyro, temp = self._outputs(t, dt)
+        flags = np.zeros(n, dtype=np.uint8)
+        if n and self._config_changed:
+            flags[0] |= CONFIG_CHANGED
+            self._config_changed = False
+        return SampleBlock(t, self.environment.device_us(t), quantise(accel, gyro, temp), flags)
+
+    def _outputs(self, t: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Physical sensor output at the sample times ``t`` (period ``dt``): accel (N, 3)
+        m/s², gyro (N, 3) °/s, temperature (N,) °C."""
         n = t.shape[0]
         truth = self.truth
         f = np.zeros((n, 3))
@@ -254,11 +281,7 @@ class Simulator:
         accel, gyro = sensor_output(
             truth, f, w, temp, t_power, self.bench.g, disturbance[:, :3], disturbance[:, 3:]
         )
-        flags = np.zeros(n, dtype=np.uint8)
-        if n and self._config_changed:
-            flags[0] |= CONFIG_CHANGED
-            self._config_changed = False
-        return SampleBlock(t, self.environment.device_us(t), quantise(accel, gyro, temp), flags)
+        return accel, gyro, temp
 
 
 # --------------------------------------------------------------------------- motions
@@ -299,6 +322,103 @@ def rate_table_motion(up_body: np.ndarray | str, rate_dps: float, t0_s: float) -
     up = up_vector(up_body) if isinstance(up_body, str) else np.asarray(up_body, dtype=float)
     attitude = tuple(tuple(float(x) for x in row) for row in pose_from_up(up))
     return ConstantRateMotion(attitude, rate_dps=rate_dps, start_s=t0_s)
+
+
+# --------------------------------------------------------------------------- the operator
+#: operator faults a virtual bench can play on purpose (``fault=NAME@K``: the K-th hint)
+OPERATOR_FAULTS = ("wrong_face", "incomplete_turn", "too_fast")
+#: peak rate of a ``too_fast`` turn, °/s (the gyro saturates at ±250 °/s)
+TOO_FAST_PEAK_DPS = 320.0
+#: fraction of the turns asked that an ``incomplete_turn`` makes
+INCOMPLETE_FRACTION = 0.8
+_NEXT_AXIS = {"x": "y", "y": "z", "z": "x"}
+
+
+class CubeOperator:
+    """The virtual operator of a simulated bench: follows the calibration program's hints by
+    scheduling the cube's motion on a :class:`Simulator` (used by ``sim://`` and ``emu://``).
+
+    ``place`` (``name="x_up"`` or ``up=[...]``): the cube rests with that face up from ``now``.
+    ``turn`` (``axis``, ``direction`` ccw|cw, ``turns``, ``window_s``): from ``now`` (the start
+    beep) the cube is ``axis`` up and turned by hand, starting 0.8–1.3 s later and stopping
+    0.8–1.5 s before the window ends (:func:`turn_motion`). Other actions are ignored.
+    ``faults`` maps :data:`OPERATOR_FAULTS` names to K: the K-th ``place`` puts the next axis
+    up (``wrong_face``), the K-th ``turn`` stops at 0.8 of the turns (``incomplete_turn``) or
+    peaks at 320 °/s (``too_fast``). ``rng`` draws the hand motions.
+    """
+
+    def __init__(
+        self,
+        rng: np.random.Generator,
+        bench: Bench | None = None,
+        faults: dict[str, float] | None = None,
+    ) -> None:
+        self.rng = rng
+        self.bench = bench or Bench()
+        self.faults = {k: v for k, v in (faults or {}).items() if k in OPERATOR_FAULTS}
+        self.places = 0
+        self.turns = 0
+
+    def hint(self, sim: Simulator, now: float, action: str, **kw: Any) -> dict[str, Any]:
+        """Act on one hint at simulated time ``now`` (s); -> what the operator did (dict:
+        ``action``, ``done``, ``up``, ``fault``, ``start_s``...)."""
+        if action == "place":
+            return self.place(sim, now, **kw)
+        if action == "turn":
+            return self.turn(sim, now, **kw)
+        return {"action": action, "done": False}
+
+    def place(self, sim: Simulator, now: float, **kw: Any) -> dict[str, Any]:
+        """Put the cube at rest with a face (``name``) or a body vector (``up``) up."""
+        self.places += 1
+        fault = None
+        if "up" in kw:
+            up = np.asarray(kw["up"], dtype=float)
+        else:
+            name = str(kw.get("name", "z_up"))
+            if self.faults.get("wrong_face") == self.places:
+                axis, _, side = name.partition("_")
+                name = f"{_NEXT_AXIS[axis]}_{side}"
+                fault = "wrong_face"
+            up = up_vector(name)
+        sim.set_motion(static_motion(up), now)
+        return {"action": "place", "done": True, "up": up.tolist(), "fault": fault, "start_s": now}
+
+    def turn(self, sim: Simulator, now: float, **kw: Any) -> dict[str, Any]:
+        """Turn the cube by hand about ``axis`` (up) within ``window_s`` from ``now``."""
+        self.turns += 1
+        axis = str(kw.get("axis", "z"))
+        direction = str(kw.get("direction", "ccw")).lower()
+        turns = int(kw.get("turns", 1))
+        window = float(kw.get("window_s", turn_window_s(turns)))
+        fault = None
+        fraction, peak = 1.0, None
+        if self.faults.get("incomplete_turn") == self.turns:
+            fraction, fault = INCOMPLETE_FRACTION, "incomplete_turn"
+        if self.faults.get("too_fast") == self.turns:
+            peak, fault = TOO_FAST_PEAK_DPS, "too_fast"
+        sign = 1 if direction == "ccw" else -1
+        motion = turn_motion(
+            self.rng, f"{axis}_up", now, window, turns, sign, self.bench.wobble_deg, fraction, peak
+        )
+        # after the turn the cube rests where it stopped (a whole turn: back at the ruler)
+        sim.set_motion(motion, now)
+        return {
+            "action": "turn",
+            "done": True,
+            "up": up_vector(f"{axis}_up").tolist(),
+            "fault": fault,
+            "start_s": motion.profile.start,
+            "end_s": motion.profile.end,
+            "angle_deg": motion.profile.angle_deg,
+        }
+
+
+def resting_pose(sim: Simulator, t_s: float) -> Motion:
+    """The cube's attitude at ``t_s`` as a motion at rest (it stays where it is when the board
+    restarts)."""
+    r, _ = sim.motion_at(t_s).kinematics(np.array([t_s]))
+    return Motion(tuple(tuple(float(x) for x in row) for row in r[0]))
 
 
 # --------------------------------------------------------------------------- sessions

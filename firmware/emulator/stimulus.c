@@ -2,6 +2,7 @@
 #include "stimulus.h"
 
 #include <string.h>
+#include <sys/stat.h>
 
 static const mpu_truth_t REST = {{0.0, 0.0, 9.80665}, {0.0, 0.0, 0.0}, 25.0};
 
@@ -27,6 +28,12 @@ int stim_open(stim_t *s, const char *path) {
         snprintf(s->error, sizeof s->error, "cannot open stimulus %s", path);
         return -1;
     }
+    // On a pipe, read unbuffered: every byte the emulator has not used stays in the pipe, so
+    // the writer (host/emulator.py SimStimulus) can tell from the pipe's fill level exactly how
+    // far the emulated time has got, and a pipe that runs dry stops the emulation (read
+    // blocks) instead of ending it. A stdio buffer would hide up to 4 KiB of records.
+    struct stat st;
+    if (fstat(fileno(s->fp), &st) == 0 && S_ISFIFO(st.st_mode)) setvbuf(s->fp, NULL, _IONBF, 0);
     unsigned char hdr[16];
     if (fread(hdr, 1, 16, s->fp) != 16 || memcmp(hdr, STIM_MAGIC, 8) != 0) {
         snprintf(s->error, sizeof s->error, "%s: not a stimulus stream (no %s header)", path,

@@ -4,26 +4,64 @@ URL grammar (all options optional, ``&``-separated)::
 
     emu://[?elf=PATH][&seconds=N][&realtime=0|1][&stimulus=PATH][&fault=absent|stuck-miso|no-drdy]
           [&fault_at=S][&noise_accel=SIGMA][&noise_gyro=SIGMA][&seed=S][&clock_ppm=PPM]
-          [&reglog=PATH][&samplelog=PATH][&workdir=DIR]
+          [&reglog=PATH][&samplelog=PATH][&workdir=DIR][&boot=0|1][&flash=PATH]
+          [&speed=max|N|realtime][&truth=random|ideal][&effects=NAME,NAME...]
+          [&operator=auto|manual][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
 
-- ``elf``: firmware to run (default: ``make -C firmware`` into ``firmware/build/`` first).
+- ``elf``: firmware to run, an ``.elf`` or ``.hex`` (default: ``make -C firmware`` into
+  ``firmware/build/`` first; with ``boot``/``flash``: whatever the flash holds).
 - ``seconds``: simulated seconds before the board stops answering (default: until the stimulus
   ends, or until the port is closed without one).
 - ``realtime``: 1 paces simulated time to the wall clock; default 0 runs as fast as the host
   reads (tens of times real time), so device time runs ahead of host time.
-- ``stimulus``: a stimulus file (``host.emulator.write_stimulus``); default: at rest, Z up,
-  25 °C.
+- ``stimulus``: where the MPU-6000 model's physical truth comes from. ``sim`` (the default):
+  the project's physics simulator (below), so plain ``emu://`` is a whole virtual bench whose
+  operator follows the calibration program (``python -m host calibrate --port emu://`` works
+  as it does with ``sim://``); ``rest``: at rest, Z up, 25 °C, exactly (no noise, no sensor
+  errors; the emulator's own ``noise_*`` options add white noise); a path: a stimulus file
+  (``host.emulator.write_stimulus``).
+- ``seed`` (default 0): with ``stimulus=sim`` draws the truth, the room and the noise as in
+  ``sim://`` (same seed, same sensor); it also seeds the emulator's ``noise_*``.
+- ``speed`` (``stimulus=sim``): ``max`` (default) — the simulator keeps ahead of the emulator,
+  which runs as fast as it can and the host reads; ``N`` — the simulator's horizon advances at
+  N× the wall clock, so emulated time does too (paced in 2 ms steps: a device clock right to
+  ≈ 50 ppm); ``realtime`` (or 1) — the emulator paces itself to the wall clock (as
+  ``realtime=1``: a device clock right to a few ppm), the simulator keeping ahead of it.
+- ``truth``, ``effects``, ``latitude``, ``tilt``, ``earth_rate``, ``operator``: as in
+  ``sim://`` (``host/transports/protocol_sim.py``); ``operator=manual``: hints are only
+  recorded (``port.hints``), move the cube with ``port.set_motion(motion)``.
 - ``fault``: sensor fault from ``fault_at`` simulated seconds on (default 0): ``absent`` (no
   answer on SPI, no data-ready), ``stuck-miso`` (every byte read is 0xFF), ``no-drdy`` (the INT
   line never rises).
 - ``noise_accel`` (m/s²), ``noise_gyro`` (°/s), ``seed``: white noise added before quantisation.
 - ``clock_ppm``: MPU-6000 sample clock error against the AVR crystal.
 - ``reglog``, ``samplelog``: write the register-access / produced-sample CSV logs there.
+- ``boot``: 1 boots like the real board: Debian's stk500v2 bootloader (arduino-core-avr) at
+  0x3E000 runs after every reset, including the DTR reset of each open, waits ≈ 0.8 s (real time)
+  for avrdude, then starts the application. Default 0 (the application starts at once).
+- ``flash``: the chip's flash persisted in this file (raw 256 KiB image; implies ``boot=1``):
+  loaded at start if it exists (else an empty chip, or ``elf`` programmed into it), written back
+  when avrdude has programmed it and at exit — flash once (``python -m host flash --port
+  'emu://?flash=PATH'``), then open ``emu://?flash=PATH`` as often as you like.
 
 Opening the port starts the emulator and opens its pseudo-terminal (the open is the DTR reset:
 the AVR starts from reset); closing stops it. After ``close()``, ``port.emulator_summary`` holds
 the emulator's summary (speed, SPI violations, bus conflicts, samples, CPU cycles per sample);
 while open, ``port.board`` is the :class:`host.emulator.EmulatedBoard`.
+
+Simulator stimulus (``stimulus=sim``): a :class:`host.sim.Simulator` at 1 kHz (the chip's
+internal rate; the emulated chip's samples each take the last record before them) feeds the
+emulator's stimulus pipe through :class:`host.emulator.SimStimulus`, at most ≈ 80 ms of emulated
+time ahead; the emulator waits when the records run dry, so emulated time is gated by what the
+host has fed. ``port.operator_hint("place", name=...)`` / ``("turn", axis=, direction=,
+turns=, window_s=)`` act as in ``sim://`` (:class:`host.sim.CubeOperator`): the motion starts at
+the fed horizon, and the call returns once the emulator has got 30 ms past it — every sample
+sent before the change is then in the port's input, so a measurement that drops what the port
+holds at its start beep sees only the new pose. ``port.truth`` is the
+:class:`host.sim.SensorTruth`, ``port.sim`` the running simulator, ``port.sim_time`` the
+emulated time (s, a lower bound). The clocks are the emulator's: the AVR crystal is exact, the
+MPU sample clock is off by ``clock_ppm``. Re-opening the port (after ``close()``, or when the
+emulator died) starts a new emulator with the same sensor, the cube where it was.
 
 Needs simavr, libsimavr-dev, gcc-avr and avr-libc; without them ``open()`` raises
 :class:`host.errors.UserError` saying so.
@@ -31,16 +69,30 @@ Needs simavr, libsimavr-dev, gcc-avr and avr-libc; without them ``open()`` raise
 
 from __future__ import annotations
 
+import dataclasses
 import urllib.parse as urlparse
-from typing import Any
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
+import numpy as np
 from serial.serialposix import Serial as PosixSerial
 from serial.serialutil import SerialException
 
-from host.emulator import FAULTS, EmulatedBoard
+from host.emulator import FAULTS, STIM_RECORD_HZ, EmulatedBoard, SimStimulus
+
+if TYPE_CHECKING:
+    from host.sim import CubeOperator, Simulator
+    from host.sim_physics import Bench, Environment, Motion
+    from host.sim_truth import SensorTruth
 
 _FLOAT = ("seconds", "fault_at", "noise_accel", "noise_gyro", "clock_ppm")
-_PATH = ("elf", "stimulus", "reglog", "samplelog", "workdir")
+_PATH = ("elf", "stimulus", "reglog", "samplelog", "workdir", "flash")
+#: options of the simulator stimulus (parse_sim_options), not of the EmulatedBoard
+_SIM_KEYS = ("speed", "truth", "effects", "operator", "latitude", "tilt", "earth_rate")
+#: after an operator hint, wait until the emulator is this far past the change, s (every
+#: sample taken before it has then been sent to the port)
+HINT_SYNC_S = 0.03
 
 
 def parse_url(url: str) -> dict[str, Any]:
@@ -58,7 +110,9 @@ def parse_url(url: str) -> dict[str, Any]:
                 kw[key] = float(value)
             elif key in _PATH:
                 kw[key] = value
-            elif key == "realtime":
+            elif key in _SIM_KEYS:
+                continue  # parse_sim_options
+            elif key in ("realtime", "boot"):
                 kw[key] = value.lower() in ("1", "true", "yes", "")
             elif key == "seed":
                 kw[key] = int(value, 0)
@@ -73,11 +127,131 @@ def parse_url(url: str) -> dict[str, Any]:
     return kw
 
 
+@dataclass(frozen=True)
+class SimOptions:
+    """The simulator stimulus of an ``emu://`` URL (``stimulus=sim``, the default)."""
+
+    seed: int = 0
+    speed: float | None = None  # None: max; else emulated s per wall s
+    truth: str = "random"  # random | ideal
+    effects: tuple[str, ...] | None = None
+    operator: str = "auto"  # auto | manual
+    latitude_deg: float = 55.75
+    tilt_deg: float = 0.0
+    earth_rate: bool = True
+
+
+def parse_sim_options(url: str) -> SimOptions | None:
+    """The simulator options of an ``emu://`` URL, or None when the stimulus is ``rest`` or a
+    file (ValueError if bad)."""
+    parts = urlparse.urlsplit(url)
+    opts = urlparse.parse_qs(parts.query, keep_blank_values=True)
+
+    def one(key: str, default: str) -> str:
+        return opts.get(key, [default])[-1]
+
+    if one("stimulus", "sim") != "sim":
+        return None
+    key = ""
+    try:
+        key = "speed"
+        speed_text = one("speed", "max").lower()
+        speed: float | None = None
+        if speed_text != "max":
+            speed = 1.0 if speed_text == "realtime" else float(speed_text)
+        if speed is not None and not speed > 0:
+            raise ValueError("speed must be max, realtime or a number > 0")
+        key = "truth"
+        truth = one("truth", "random").lower()
+        if truth not in ("random", "ideal"):
+            raise ValueError("truth must be random or ideal")
+        key = "operator"
+        operator = one("operator", "auto").lower()
+        if operator not in ("auto", "manual"):
+            raise ValueError("operator must be auto or manual")
+        key = "effects"
+        effects = (
+            tuple(e for e in one("effects", "").split(",") if e) if "effects" in opts else None
+        )
+        key = "seed"
+        seed = int(one("seed", "0"), 0)
+        key = "latitude"
+        latitude = float(one("latitude", "55.75"))
+        key = "tilt"
+        tilt = float(one("tilt", "0"))
+    except ValueError as exc:
+        raise ValueError(f"emu:// option {key}={one(key, '')!r}: {exc}") from None
+    earth = one("earth_rate", "1").lower() not in ("0", "false", "no")
+    return SimOptions(seed, speed, truth, effects, operator, latitude, tilt, earth)
+
+
+def truth_for_url(url: str) -> SensorTruth | None:
+    """The sensor truth the simulator of an ``emu://`` URL has (what ``port.truth`` is once the
+    port is open; None when the stimulus is ``rest`` or a file) — without starting anything."""
+    o = parse_sim_options(url)
+    return _Bench(o).truth if o is not None else None
+
+
+class _Bench:
+    """What stays the same across emulator restarts: the sensor, the room, the bench, the
+    operator, and where the cube is."""
+
+    def __init__(self, o: SimOptions) -> None:
+        from host.sim import CubeOperator
+        from host.sim_physics import Bench, Environment, static_motion
+        from host.sim_truth import SensorTruth
+
+        truth_ss, env_ss, self.noise_ss, op_ss = np.random.SeedSequence(o.seed).spawn(4)
+        truth = (
+            SensorTruth.random(np.random.default_rng(truth_ss))
+            if o.truth == "random"
+            else SensorTruth.ideal()
+        )
+        if o.effects is not None:
+            truth = truth.only(*o.effects)
+        self.truth: SensorTruth = truth
+        # the clocks are the emulator's (exact AVR crystal, MPU off by clock_ppm)
+        env = Environment.random(np.random.default_rng(env_ss))
+        self.environment: Environment = dataclasses.replace(
+            env, timer_ppm=0.0, sample_clock_error=0.0
+        )
+        self.bench: Bench = Bench(
+            latitude_deg=o.latitude_deg, tilt_deg=o.tilt_deg, earth_rate=o.earth_rate
+        )
+        self.operator: CubeOperator = CubeOperator(np.random.default_rng(op_ss), self.bench)
+        self.pose: Motion = static_motion("z_up")
+        self.power_s = 0.0
+        self.starts = 0
+
+    def simulator(self) -> Simulator:
+        """A fresh simulator for a (re)started emulator: new noise, same sensor and pose."""
+        from host.sim import Simulator
+
+        ss = self.noise_ss
+        seed = np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, self.starts))
+        self.starts += 1
+        sim = Simulator(
+            self.truth, self.bench, self.environment, seed, STIM_RECORD_HZ, self.power_s
+        )
+        sim.set_motion(self.pose, 0.0)
+        return sim
+
+
 class Serial(PosixSerial):
-    """pyserial port whose ``open()`` starts an emulated board and opens its pty."""
+    """pyserial port whose ``open()`` starts an emulated board and opens its pty (and, with
+    the simulator stimulus, the simulator that feeds it)."""
 
     board: EmulatedBoard | None = None
     emulator_summary: dict[str, Any] | None = None
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self.stimulus: SimStimulus | None = None
+        self.hints: list[tuple[float, str, dict[str, Any]]] = []
+        self.truth: SensorTruth | None = None
+        self._bench: _Bench | None = None
+        self._sim_opts: SimOptions | None = None
+        self._held = bytearray()
+        super().__init__(*args, **kwargs)
 
     def open(self) -> None:
         if self.port is None:
@@ -85,26 +259,145 @@ class Serial(PosixSerial):
         if self.is_open:
             raise SerialException("Port is already open.")
         kwargs = parse_url(self.port)
+        sim_opts = parse_sim_options(self.port)
+        feed_speed = None
+        if sim_opts is not None:
+            kwargs["stimulus"] = "pipe"
+            if sim_opts.speed == 1.0:  # the emulator's own pacing: exact to a few ppm
+                kwargs["realtime"] = True
+            else:
+                feed_speed = sim_opts.speed
+            if self._bench is None or sim_opts != self._sim_opts:
+                self._bench, self._sim_opts = _Bench(sim_opts), sim_opts
+                self.truth = self._bench.truth
+        elif kwargs.get("stimulus") == "rest":
+            del kwargs["stimulus"]
         board = EmulatedBoard(**kwargs)
         board.start()  # UserError (missing simavr, build failure) propagates as is
+        stim = None
+        if sim_opts is not None:
+            assert self._bench is not None
+            stim = SimStimulus(board, self._bench.simulator(), feed_speed).start()
         url = self.portstr
         self.portstr = board.port
         try:
             super().open()
         except BaseException:
+            if stim is not None:
+                stim.request_stop()
             board.stop()
+            if stim is not None:
+                stim.stop()
             raise
         finally:
             self.portstr = url
+        self._held.clear()
+        if stim is not None:
+            stim.restart_clock()  # the emulated CPU starts now
         self.board = board
+        self.stimulus = stim
         self.emulator_summary = None
 
     def close(self) -> None:
+        stim, self.stimulus = self.stimulus, None
+        if stim is not None:
+            stim.request_stop()
+            with stim.lock:
+                if self._bench is not None:  # the cube stays where it is
+                    from host.sim import resting_pose
+
+                    self._bench.pose = resting_pose(stim.sim, stim.horizon_s)
+                    alive = self.board is not None and self.board.running
+                    # a vanished emulator is a power cycle; a close keeps the chip warm
+                    self._bench.power_s = stim.sim.power_on_s + stim.horizon_s if alive else 0.0
         super().close()
+        self._held.clear()
         board, self.board = self.board, None
         if board is not None:
             self.emulator_summary = board.stop()
+        if stim is not None:
+            stim.stop()
 
     def from_url(self, url: str) -> str:
         parse_url(url)
+        parse_sim_options(url)
         return url
+
+    # ---- the simulator bench -------------------------------------------------------------
+    @property
+    def sim(self) -> Simulator | None:
+        """The simulator feeding the running emulator (None without one)."""
+        return self.stimulus.sim if self.stimulus is not None else None
+
+    @property
+    def sim_time(self) -> float:
+        """Emulated seconds since the emulator started (a lower bound; 0 without a simulator)."""
+        return self.stimulus.emulated_s() if self.stimulus is not None else 0.0
+
+    @property
+    def operator_hint(self) -> Callable[..., dict[str, Any]]:
+        """What the calibration program asks the operator (``place`` / ``turn``, as in
+        ``sim://``): the cube moves at the fed horizon; the call returns once the emulator is
+        :data:`HINT_SYNC_S` past it, with what the operator did (dict). Only with the
+        simulator stimulus: with ``stimulus=rest`` or a file nobody moves the cube, and the
+        attribute is absent (``hasattr(port, "operator_hint")`` is False, as on a real board)."""
+        if parse_sim_options(self.port or "emu://") is None:
+            raise AttributeError("operator_hint: emu:// without the simulator has no operator")
+        return self._operator_hint
+
+    def _operator_hint(self, action: str, **kw: Any) -> dict[str, Any]:
+        stim = self.stimulus
+        if stim is None or self._bench is None:
+            self.hints.append((0.0, action, dict(kw)))
+            return {"action": action, "done": False}
+        with stim.lock:
+            now = stim.horizon_s
+            self.hints.append((now, action, dict(kw)))
+            if self._sim_opts is None or self._sim_opts.operator != "auto":
+                return {"action": action, "done": False}
+            result = self._bench.operator.hint(stim.sim, now, action, **kw)
+        if result.get("done"):
+            stim.wait_emulated(now + HINT_SYNC_S, idle=self._hold_input)
+        return result
+
+    def set_motion(self, motion: Motion, t_from_s: float | None = None) -> None:
+        """Move the cube yourself (``operator=manual``): ``motion`` from ``t_from_s`` emulated
+        s (default and at the earliest: the fed horizon, "now")."""
+        stim = self.stimulus
+        if stim is None:
+            raise SerialException("set_motion needs the simulator stimulus (stimulus=sim)")
+        with stim.lock:
+            t = stim.horizon_s if t_from_s is None else max(t_from_s, stim.horizon_s)
+            stim.sim.set_motion(motion, t)
+        stim.wait_emulated(t + HINT_SYNC_S, idle=self._hold_input)
+
+    # ---- input held while waiting for the emulator ---------------------------------------
+    def _hold_input(self) -> None:
+        """Read what the pty holds into a buffer that read() serves first (the emulator stops
+        when the pty is full, and it must get past a hint)."""
+        try:
+            n = super().in_waiting
+            if n:
+                self._held += super().read(n)
+        except (OSError, SerialException):
+            pass  # the next read reports it
+
+    @property
+    def in_waiting(self) -> int:
+        return len(self._held) + super().in_waiting
+
+    def read(self, size: int = 1) -> bytes:
+        if not self._held:
+            return super().read(size)
+        n = min(size, len(self._held))
+        data = bytes(self._held[:n])
+        del self._held[:n]
+        if n < size:
+            more = super().in_waiting
+            if more:
+                data += super().read(min(more, size - n))
+        return data
+
+    def reset_input_buffer(self) -> None:
+        self._held.clear()
+        super().reset_input_buffer()

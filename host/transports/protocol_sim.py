@@ -61,8 +61,14 @@ from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
 from host import protocol_gen as gen
 from host.frames import StreamDecoder, encode_frame, encode_imu_samples
-from host.sim import Simulator, turn_motion, turn_window_s
-from host.sim_physics import Bench, Environment, Motion, static_motion, up_vector
+from host.sim import (
+    INCOMPLETE_FRACTION,
+    TOO_FAST_PEAK_DPS,
+    CubeOperator,
+    Simulator,
+    resting_pose,
+)
+from host.sim_physics import Bench, Environment, Motion, static_motion
 from host.sim_truth import SensorTruth
 
 FW_VERSION = (0, 1, 0)
@@ -72,14 +78,12 @@ DEFAULT_SMPLRT_DIV = 19  # 1 kHz / (1 + 19) = 50 Hz
 ERROR_BAD_COMMAND = gen.ENUMS["error_code"]["BAD_COMMAND"]
 TIMER_RESOLUTION_NS = 500  # as the firmware: Timer1 at fosc/8
 MAX_RATE_HZ = 500.0
-TOO_FAST_PEAK_DPS = 320.0
-INCOMPLETE_FRACTION = 0.8
+__all__ = ["INCOMPLETE_FRACTION", "TOO_FAST_PEAK_DPS", "Serial"]
 if TYPE_CHECKING:
     from typing_extensions import Buffer
 
 _ACK = gen.ENUMS["ack_status"]
 _FAULTS = ("wrong_face", "incomplete_turn", "too_fast", "pull_cable")
-_NEXT_AXIS = {"x": "y", "y": "z", "z": "x"}
 
 
 def _usage(msg: str) -> SerialException:
@@ -99,8 +103,6 @@ class Serial(SerialBase):
         self._opened_once = False
         self._pulled_done = False
         self._pulled = False
-        self._place_count = 0
-        self._turn_count = 0
         self._pose: Motion = static_motion("z_up")
         self._power_s = 0.0
         self._t_gen = 0.0
@@ -176,7 +178,7 @@ class Serial(SerialBase):
         except ValueError as exc:
             raise _usage(str(exc)) from exc
         self.truth = truth
-        self._op_rng = np.random.default_rng(self._op_ss)
+        self._operator = CubeOperator(np.random.default_rng(self._op_ss), self.bench, self.faults)
 
     # ---- open / close ------------------------------------------------------------------
     def open(self) -> None:
@@ -213,8 +215,7 @@ class Serial(SerialBase):
             entropy=self._noise_ss.entropy, spawn_key=(*self._noise_ss.spawn_key, self._resets)
         )
         if self.sim is not None:  # the cube stays where it is
-            r, _ = self.sim.motion_at(self._t_gen).kinematics(np.array([self._t_gen]))
-            self._pose = Motion(tuple(tuple(float(x) for x in row) for row in r[0]))
+            self._pose = resting_pose(self.sim, self._t_gen)
         self.sim = Simulator(self.truth, self.bench, self.environment, seed, 50.0, self._power_s)
         self.sim.set_motion(self._pose, 0.0)
         self._out.clear()
@@ -470,65 +471,7 @@ class Serial(SerialBase):
             self.hints.append((now, action, dict(kw)))
             if self.operator != "auto" or self.sim is None:
                 return {"action": action, "done": False}
-            if action == "place":
-                return self._place(now, kw)
-            if action == "turn":
-                return self._turn(now, kw)
-            return {"action": action, "done": False}
-
-    def _place(self, now: float, kw: dict[str, Any]) -> dict[str, Any]:
-        assert self.sim is not None
-        self._place_count += 1
-        fault = None
-        if "up" in kw:
-            up = np.asarray(kw["up"], dtype=float)
-        else:
-            name = str(kw.get("name", "z_up"))
-            if self.faults.get("wrong_face") == self._place_count:
-                axis, _, side = name.partition("_")
-                name = f"{_NEXT_AXIS[axis]}_{side}"
-                fault = "wrong_face"
-            up = up_vector(name)
-        motion = static_motion(up)
-        self.sim.set_motion(motion, now)
-        return {"action": "place", "done": True, "up": up.tolist(), "fault": fault, "start_s": now}
-
-    def _turn(self, now: float, kw: dict[str, Any]) -> dict[str, Any]:
-        assert self.sim is not None
-        self._turn_count += 1
-        axis = str(kw.get("axis", "z"))
-        direction = str(kw.get("direction", "ccw")).lower()
-        turns = int(kw.get("turns", 1))
-        window = float(kw.get("window_s", turn_window_s(turns)))
-        fault = None
-        fraction, peak = 1.0, None
-        if self.faults.get("incomplete_turn") == self._turn_count:
-            fraction, fault = INCOMPLETE_FRACTION, "incomplete_turn"
-        if self.faults.get("too_fast") == self._turn_count:
-            peak, fault = TOO_FAST_PEAK_DPS, "too_fast"
-        sign = 1 if direction == "ccw" else -1
-        motion = turn_motion(
-            self._op_rng,
-            f"{axis}_up",
-            now,
-            window,
-            turns,
-            sign,
-            self.bench.wobble_deg,
-            fraction,
-            peak,
-        )
-        # after the turn the cube rests where it stopped (a whole turn: back at the ruler)
-        self.sim.set_motion(motion, now)
-        return {
-            "action": "turn",
-            "done": True,
-            "up": up_vector(f"{axis}_up").tolist(),
-            "fault": fault,
-            "start_s": motion.profile.start,
-            "end_s": motion.profile.end,
-            "angle_deg": motion.profile.angle_deg,
-        }
+            return self._operator.hint(self.sim, now, action, **kw)
 
 
 def _replace(env: Environment, **kw: Any) -> Environment:
