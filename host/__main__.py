@@ -21,6 +21,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "capture": ("host.link", "cli_capture", "record a port's bytes with host times to a file"),
     "model": ("host.model_cli", "cli_model", "model workbench: diagnose, add a term, ladder"),
     "demo": ("host.model_cli", "cli_demo", "demo: find an effect hidden in a simulated session"),
+    "flash": (
+        "host.flash",
+        "cli_flash",
+        "build, flash and verify the firmware (avrdude), then check its hello",
+    ),
 }
 
 

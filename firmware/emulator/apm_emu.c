@@ -27,6 +27,7 @@
 #include <avr_uart.h>
 #include <sim_avr.h>
 #include <sim_elf.h>
+#include <sim_hex.h>
 #include <sim_irq.h>
 #include <sim_regbit.h>
 #include <sim_time.h>
@@ -47,13 +48,16 @@ static const char *FAULT_NAMES[] = {"none", "absent", "stuck-miso", "no-drdy"};
 #define RXQ_SIZE 8192
 #define TXBUF_SIZE 4096
 #define POLL_PERIOD_US 1000
+#define DEFAULT_BOOTLOADER \
+    "/usr/share/arduino/hardware/arduino/avr/bootloaders/stk500v2/stk500boot_v2_mega2560.hex"
 
 static struct {
     // options
     const char *profile_path;
-    const char *elf, *stimulus, *reglog_path, *samplelog_path, *pty_file, *summary_file;
+    const char *elf, *hex, *bootloader, *flash_file;  // --boot: bootloader = DEFAULT_BOOTLOADER
+    const char *stimulus, *reglog_path, *samplelog_path, *pty_file, *summary_file;
     double seconds;  // 0: until the stimulus ends (or until stopped, without one)
-    int realtime, wait_open, dtr_reset, spi_fixed_timing, quiet;
+    int realtime, wait_open, dtr_reset, spi_fixed_timing, quiet, boot;
     int fault;
     double fault_at;
     double noise_accel, noise_gyro, clock_ppm;
@@ -106,6 +110,14 @@ static struct {
     int steady_started;
     int first_violation_reg;
     double first_violation_t;
+
+    // boot section / persistent flash
+    uint32_t boot_start;       // byte address of the bootloader (reset vector with --boot)
+    int in_boot;               // the CPU was in the boot section at the last poll tick
+    double boot_wall0, boot_sim0;  // pacing reference: the bootloader runs in real time
+    uint64_t boot_entries;     // times the CPU entered the boot section (resets into it)
+    uint8_t *flash_saved;      // flash contents as last written to --flash-file
+    uint64_t flash_saves;
 } E;
 
 static double wall_now(void) {
@@ -346,6 +358,67 @@ static void baro_cs_cb(avr_irq_t *irq, uint32_t value, void *param) {
     if (!(value & 1) && E.mpu.cs_low) E.txn_conflict = 1;
 }
 
+// ---------------------------------------------------------------- flash: bootloader, persistence
+static uint32_t flash_size(void) { return (uint32_t)E.avr->flashend + 1; }
+
+// Program an Intel hex file into flash (its own addresses); returns the lowest address written.
+static uint32_t load_ihex(const char *path, const char *what) {
+    ihex_chunk_p chunks = NULL;
+    int n = read_ihex_chunks(path, &chunks);
+    if (n <= 0) {
+        fprintf(stderr, "apm_emu: cannot read %s %s (Intel hex)\n", what, path);
+        exit(2);
+    }
+    uint32_t lowest = UINT32_MAX;
+    for (int i = 0; i < n; i++) {
+        if ((uint64_t)chunks[i].baseaddr + chunks[i].size > flash_size()) {
+            fprintf(stderr, "apm_emu: %s %s does not fit in flash (0x%X + %u bytes)\n", what, path,
+                    chunks[i].baseaddr, chunks[i].size);
+            exit(2);
+        }
+        memcpy(E.avr->flash + chunks[i].baseaddr, chunks[i].data, chunks[i].size);
+        if (chunks[i].size && chunks[i].baseaddr < lowest) lowest = chunks[i].baseaddr;
+    }
+    free_ihex_chunks(chunks);
+    return lowest;
+}
+
+// Load the persistent flash image (raw, flash-sized); 0 if the file does not exist yet.
+static int flash_file_load(void) {
+    FILE *f = fopen(E.flash_file, "rb");
+    if (!f) {
+        if (errno == ENOENT) return 0;
+        die("cannot read --flash-file");
+    }
+    size_t n = fread(E.avr->flash, 1, flash_size(), f);
+    int extra = fgetc(f) != EOF;
+    fclose(f);
+    if (n != flash_size() || extra) {
+        fprintf(stderr, "apm_emu: --flash-file %s is not a %u-byte flash image\n", E.flash_file,
+                flash_size());
+        exit(2);
+    }
+    return 1;
+}
+
+// Write the flash back to --flash-file when it changed since the last write (atomic rename).
+static void flash_file_save(int force) {
+    if (!E.flash_file || !E.avr) return;
+    if (!force && !memcmp(E.flash_saved, E.avr->flash, flash_size())) return;
+    char tmp[4200];
+    snprintf(tmp, sizeof tmp, "%s.tmp%d", E.flash_file, (int)getpid());
+    FILE *f = fopen(tmp, "wb");
+    if (!f || fwrite(E.avr->flash, 1, flash_size(), f) != flash_size() || fclose(f) != 0 ||
+        rename(tmp, E.flash_file) != 0) {
+        fprintf(stderr, "apm_emu: cannot write --flash-file %s: %s\n", E.flash_file,
+                strerror(errno));
+        unlink(tmp);
+        return;
+    }
+    memcpy(E.flash_saved, E.avr->flash, flash_size());
+    E.flash_saves++;
+}
+
 // ---------------------------------------------------------------- UART0 <-> pty
 static void tx_flush(void) {
     unsigned off = 0;
@@ -437,6 +510,7 @@ static void host_open_events(int hup) {
         } else if (E.connected && hup) {
             E.connected = 0;
             E.rxq_len = 0;
+            flash_file_save(0);
         }
         return;
     }
@@ -456,6 +530,7 @@ static void host_open_events(int hup) {
                 if (E.opens > 0 && --E.opens == 0) {
                     E.connected = 0;
                     E.rxq_len = 0;
+                    flash_file_save(0);  // e.g. avrdude has programmed it: persist at once
                 }
             }
             p += sizeof(struct inotify_event) + ev->len;
@@ -465,8 +540,14 @@ static void host_open_events(int hup) {
 
 static void host_poll(int timeout_ms) {
     struct pollfd pfd = {.fd = E.master, .events = POLLIN};
+    double t0 = timeout_ms > 0 ? wall_now() : 0.0;
     int r = poll(&pfd, 1, timeout_ms);
     if (r < 0) return;
+    if (timeout_ms > 0 && !(pfd.revents & POLLIN) && (pfd.revents & POLLHUP)) {
+        // no one has the port open (the master reports POLLHUP at once): still pace
+        double left = timeout_ms * 1e-3 - (wall_now() - t0);
+        if (left > 0) usleep((useconds_t)(left * 1e6));
+    }
     host_open_events((pfd.revents & POLLHUP) != 0);
     if (E.connected && (pfd.revents & POLLIN)) {
         uint8_t buf[1024];
@@ -486,6 +567,20 @@ static avr_cycle_count_t poll_tick(avr_t *avr, avr_cycle_count_t when, void *par
     if (E.realtime) {
         double ahead = sim_s() - (wall_now() - E.wall_start);
         if (ahead > 0.001) timeout = (int)(ahead * 1000.0);
+    }
+    if (E.boot && avr->pc >= E.boot_start) {
+        // the bootloader's ~0.8 s wait for avrdude is a busy loop: run it in real time, as on
+        // the board, so that a host that opens the port (DTR reset) has the window it expects
+        if (!E.in_boot) {
+            E.in_boot = 1;
+            E.boot_entries++;
+            E.boot_wall0 = wall_now();
+            E.boot_sim0 = sim_s();
+        }
+        double ahead = (sim_s() - E.boot_sim0) - (wall_now() - E.boot_wall0);
+        if (ahead > 0.001 && (int)(ahead * 1000.0) > timeout) timeout = (int)(ahead * 1000.0);
+    } else {
+        E.in_boot = 0;
     }
     host_poll(timeout);
     if (E.seconds > 0 && sim_s() >= E.seconds && !E.done) {
@@ -574,7 +669,16 @@ static void on_signal(int sig) {
 
 static void usage(FILE *f) {
     fprintf(f,
-            "usage: apm_emu --elf FW.elf [options]\n"
+            "usage: apm_emu --elf FW.elf|--hex FW.hex [options]\n"
+            "       apm_emu --boot [--flash-file FLASH.bin] [--elf|--hex APP] [options]\n"
+            "  --hex FILE            application from an Intel hex file instead of --elf\n"
+            "  --boot                stk500v2 bootloader in the boot section, reset vector 0x3E000\n"
+            "  --bootloader FILE     ... from this hex (implies --boot; default Debian's\n"
+            "                        arduino-core-avr stk500boot_v2_mega2560.hex)\n"
+            "  --flash-file FILE     persistent flash image (raw, 256 KiB): loaded at start if it\n"
+            "                        exists, written back when the host closes the port after a\n"
+            "                        change (avrdude) and at exit. With --elf/--hex the application\n"
+            "                        is programmed over it at start\n"
             "  --stimulus FILE|-     truth stream (README.md); default: at rest, Z up, 25 degC\n"
             "  --seconds N           stop after N simulated seconds (default: stimulus end)\n"
             "  --realtime            pace simulated time to the wall clock (default: fast)\n"
@@ -623,6 +727,7 @@ static void write_summary(FILE *f, double wall) {
             "\"drdy_to_read_cycles_mean\": %.1f, \"drdy_to_read_cycles_max\": %llu, "
             "\"uart_tx_bytes\": %llu, \"uart_tx_dropped\": %llu, \"uart_rx_bytes\": %llu, "
             "\"uart_rx_dropped\": %llu, \"spi_timing\": \"%s\", \"stimulus_records\": %lu, "
+            "\"boot\": %d, \"boot_entries\": %llu, \"flash_saves\": %llu, "
             "\"regs\": {\"PWR_MGMT_1\": %d, \"SMPLRT_DIV\": %d, \"CONFIG\": %d, "
             "\"GYRO_CONFIG\": %d, \"ACCEL_CONFIG\": %d, \"INT_PIN_CFG\": %d, \"INT_ENABLE\": %d, "
             "\"USER_CTRL\": %d, \"FIFO_EN\": %d, \"PWR_MGMT_2\": %d}}\n",
@@ -640,7 +745,8 @@ static void write_summary(FILE *f, double wall) {
             (unsigned long long)E.latency_max, (unsigned long long)E.tx_bytes,
             (unsigned long long)E.tx_dropped, (unsigned long long)E.rx_bytes,
             (unsigned long long)E.rx_dropped, E.spi_fixed_timing ? "fixed-100us" : "8x-divider",
-            E.stim.records, r[MPU_PWR_MGMT_1], r[MPU_SMPLRT_DIV], r[MPU_CONFIG],
+            E.stim.records, E.boot, (unsigned long long)E.boot_entries,
+            (unsigned long long)E.flash_saves, r[MPU_PWR_MGMT_1], r[MPU_SMPLRT_DIV], r[MPU_CONFIG],
             r[MPU_GYRO_CONFIG], r[MPU_ACCEL_CONFIG], r[MPU_INT_PIN_CFG], r[MPU_INT_ENABLE],
             r[MPU_USER_CTRL], r[MPU_FIFO_EN], r[MPU_PWR_MGMT_2]);
 }
@@ -654,7 +760,7 @@ int main(int argc, char **argv) {
     enum {
         O_ELF = 256, O_STIM, O_SECONDS, O_REALTIME, O_REGLOG, O_SAMPLELOG, O_FAULT, O_FAULT_AT,
         O_PTYFILE, O_SUMMARY, O_NOWAIT, O_NODTR, O_NACC, O_NGYR, O_SEED, O_PPM, O_DMP, O_SPIFIX,
-        O_QUIET, O_HELP, O_PROFILE
+        O_QUIET, O_HELP, O_PROFILE, O_HEX, O_BOOT, O_BOOTLOADER, O_FLASHFILE
     };
     static const struct option opts[] = {
         {"elf", 1, 0, O_ELF}, {"stimulus", 1, 0, O_STIM}, {"seconds", 1, 0, O_SECONDS},
@@ -665,6 +771,8 @@ int main(int argc, char **argv) {
         {"noise-accel", 1, 0, O_NACC}, {"noise-gyro", 1, 0, O_NGYR}, {"seed", 1, 0, O_SEED},
         {"clock-ppm", 1, 0, O_PPM}, {"dmp-packet", 1, 0, O_DMP},
         {"spi-fixed-timing", 0, 0, O_SPIFIX}, {"quiet", 0, 0, O_QUIET}, {"help", 0, 0, O_HELP}, {"profile", 1, 0, O_PROFILE},
+        {"hex", 1, 0, O_HEX}, {"boot", 0, 0, O_BOOT}, {"bootloader", 1, 0, O_BOOTLOADER},
+        {"flash-file", 1, 0, O_FLASHFILE},
         {0, 0, 0, 0}};
     int c;
     while ((c = getopt_long(argc, argv, "", opts, NULL)) != -1) {
@@ -696,13 +804,19 @@ int main(int argc, char **argv) {
             case O_QUIET: E.quiet = 1; break;
             case O_HELP: usage(stdout); return 0;
             case O_PROFILE: E.profile_path = optarg; break;
+            case O_HEX: E.hex = optarg; break;
+            case O_BOOT: E.boot = 1; break;
+            case O_BOOTLOADER: E.boot = 1; E.bootloader = optarg; break;
+            case O_FLASHFILE: E.flash_file = optarg; break;
             default: usage(stderr); return 2;
         }
     }
-    if (!E.elf) {
+    if (E.elf && E.hex) die("--elf and --hex: give one application");
+    if (!E.elf && !E.hex && !E.boot && !E.flash_file) {
         usage(stderr);
         return 2;
     }
+    if (E.boot && !E.bootloader) E.bootloader = DEFAULT_BOOTLOADER;
     E.rng = E.seed;
 
     if (E.reglog_path) {
@@ -723,13 +837,32 @@ int main(int argc, char **argv) {
     dup2(2, 1);
     elf_firmware_t fw;
     memset(&fw, 0, sizeof fw);
-    if (elf_read_firmware(E.elf, &fw) != 0) die("cannot read the firmware ELF");
+    if (E.elf && elf_read_firmware(E.elf, &fw) != 0) die("cannot read the firmware ELF");
     if (!fw.mmcu[0]) strcpy(fw.mmcu, "atmega2560");
     if (!fw.frequency) fw.frequency = 16000000;
     avr_t *avr = avr_make_mcu_by_name(fw.mmcu);
     if (!avr) die("unknown MCU in the ELF");
     avr_init(avr);
-    avr_load_firmware(avr, &fw);
+    E.avr = avr;
+    // Flash, as on the chip: the persistent image (if any), then an application programmed over
+    // it (--elf/--hex, after erasing it, like an ISP programmer), then the bootloader.
+    int flash_loaded = 0;
+    if (E.flash_file) {
+        flash_loaded = flash_file_load();
+        if (!(E.flash_saved = malloc(flash_size()))) die("out of memory");
+        memcpy(E.flash_saved, avr->flash, flash_size());
+    }
+    if (E.elf || E.hex) memset(avr->flash, 0xFF, flash_size());
+    if (E.elf) avr_load_firmware(avr, &fw);
+    if (E.hex) load_ihex(E.hex, "application");
+    if (E.boot) {
+        E.boot_start = load_ihex(E.bootloader, "bootloader");
+        avr->reset_pc = avr->pc = E.boot_start;  // BOOTRST fuse programmed (simavr has none)
+        avr->codeend = avr->flashend;
+    } else if (!E.elf) {
+        avr->codeend = avr->flashend;
+    }
+    flash_file_save(!flash_loaded);  // a new file, or what was programmed over it
     fflush(stdout);
     fputc('\n', stderr);
     dup2(saved_stdout, 1);
@@ -737,7 +870,6 @@ int main(int argc, char **argv) {
     avr->frequency = fw.frequency;
     avr->log = 0;
     avr->sleep = sleep_cb;  // never sleep in real time: pacing (if any) is done in poll_tick
-    E.avr = avr;
     E.freq = avr->frequency;
 
     for (avr_io_t *io = avr->io_port; io; io = io->next) {
@@ -860,6 +992,7 @@ int main(int argc, char **argv) {
         }
         free(prof);
     }
+    flash_file_save(0);
     mpu_finish(&E.mpu);
     if (E.reglog) fclose(E.reglog);
     if (E.samplelog) fclose(E.samplelog);
