@@ -3,6 +3,9 @@
 
     python tests/captures/make_corpus.py [--source CLEAN.bin]
 
+The clean source is ``emu_clean.bin``: bytes the real firmware sent through the emulated board
+(re-recorded and checked by tests/emulator/test_emu_link.py); ``clean.bin`` is a copy of it.
+
 Each BAD_*.bin is the clean stream damaged in one known way; ``corpus.json`` records what a
 correct decoder must report for it, derived from the damage itself (which frames were hit,
 how many bytes were added), never from running the decoder. tests/host/test_corpus.py
@@ -50,7 +53,7 @@ def build(clean: bytes) -> dict[str, tuple[bytes, dict[str, int], str]]:
     out: dict[str, tuple[bytes, dict[str, int], str]] = {}
     out["clean.bin"] = (clean, expect(n), "the source stream, undamaged")
 
-    hit = [10, 11, 200, n - 2]  # two adjacent frames, one in the middle, one at the end
+    hit = [10, 11, n // 2, n - 2]  # two adjacent frames, one in the middle, one at the end
     b = [bytearray(f) for f in fr]
     for k in hit:
         b[k][8] ^= 0x10  # a payload bit: CRC fails, nothing else changes
@@ -70,7 +73,7 @@ def build(clean: bytes) -> dict[str, tuple[bytes, dict[str, int], str]]:
 
     junk = bytes([0x00, 0x13, 0x37, 0xA5, 0x00, 0xFF, 0x42] * 4)  # holds no A5 5A pair
     b = list(fr)
-    b.insert(100, junk)
+    b.insert(n // 5, junk)
     out["BAD_inserted_garbage.bin"] = (
         b"".join(b),
         expect(n, discarded=len(junk)),
@@ -87,7 +90,7 @@ def build(clean: bytes) -> dict[str, tuple[bytes, dict[str, int], str]]:
     # a false sync whose claimed frame swallows the next real frame: resync must not skip it
     trap = b"\xa5\x5a\x01\x13\x07\x00"
     b = list(fr)
-    b.insert(300, trap)
+    b.insert(n * 3 // 5, trap)
     out["BAD_false_sync.bin"] = (
         b"".join(b),
         expect(n, crc=1, discarded=len(trap)),
@@ -95,9 +98,9 @@ def build(clean: bytes) -> dict[str, tuple[bytes, dict[str, int], str]]:
     )
 
     # a newer firmware's frame type: it takes the next seq, and every later frame shifts by one
-    seq400 = int.from_bytes(fr[400][4:6], "little")
-    unknown = with_seq(b"\xa5\x5a\x70\x03\x00\x00xyz\x00\x00", seq400)
-    b = fr[:400] + [unknown] + [with_seq(f, int.from_bytes(f[4:6], "little") + 1) for f in fr[400:]]
+    k = n * 4 // 5
+    unknown = with_seq(b"\xa5\x5a\x70\x03\x00\x00xyz\x00\x00", int.from_bytes(fr[k][4:6], "little"))
+    b = fr[:k] + [unknown] + [with_seq(f, int.from_bytes(f[4:6], "little") + 1) for f in fr[k:]]
     out["BAD_unknown_type.bin"] = (
         b"".join(b),
         expect(n + 1, unknown=1),
@@ -105,8 +108,8 @@ def build(clean: bytes) -> dict[str, tuple[bytes, dict[str, int], str]]:
     )
 
     # the board reset: the stream restarts from its beginning after 500 frames
-    reset = b"".join(fr[:500]) + clean
-    out["BAD_reset_mid.bin"] = (reset, expect(500 + n, resets=1), "a device reset mid-stream")
+    reset = b"".join(fr[: n // 2]) + clean
+    out["BAD_reset_mid.bin"] = (reset, expect(n // 2 + n, resets=1), "a device reset mid-stream")
 
     cut = b"".join(fr[:-1]) + fr[-1][:-5]
     out["BAD_truncated_tail.bin"] = (
@@ -119,7 +122,7 @@ def build(clean: bytes) -> dict[str, tuple[bytes, dict[str, int], str]]:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--source", type=Path, default=HERE / "clean.bin")
+    ap.add_argument("--source", type=Path, default=HERE / "emu_clean.bin")
     args = ap.parse_args()
     clean = args.source.read_bytes()
     table = {}
