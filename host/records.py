@@ -35,6 +35,17 @@ STATIC_NAMES = ("x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn")
 #: ccw = positive rotation about the up axis, seen from above; cw = negative
 TURN_NAMES = ("x_ccw", "x_cw", "y_ccw", "y_cw", "z_ccw", "z_cw")
 
+#: the fixed recording window of a turn record, s, for 1/2/3 turns (method.md §4): the same for
+#: CW and CCW so that bias·T cancels between the pair
+TURN_WINDOWS_S = {1: 7.0, 2: 12.0, 3: 15.0}
+
+
+def turn_window_s(turns: int) -> float:
+    """Recording window of an n-turn record, s: 7/12/15 for 1/2/3 (method.md §4), and 4 s more
+    per turn beyond (15 + 4·(n − 3))."""
+    return TURN_WINDOWS_S.get(turns, 15.0 + 4.0 * (turns - 3))
+
+
 #: names of the report/result files that live beside the records and are not records
 NON_RECORD_NAMES = ("result",)
 

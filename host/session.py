@@ -89,6 +89,7 @@ from host.records import (
     read_record,
     read_session,
     record_path,
+    turn_window_s,
     write_record,
 )
 
@@ -99,8 +100,6 @@ DEFAULT_TURNS = 2
 #: more turns than this twist the USB cable (method.md §4)
 MAX_RECOMMENDED_TURNS = 3
 MAX_TURNS = 10
-#: fixed recording windows of a turn record, s (method.md §4)
-TURN_WINDOWS_S = {1: 7.0, 2: 12.0, 3: 15.0}
 #: above this fraction of lost samples the program proposes to repeat a measurement
 LOSS_LIMIT = 0.01
 #: --yes: a measurement whose default answer is "repeat" is tried at most this many times
@@ -125,13 +124,6 @@ CHANNELS = ("Ax", "Ay", "Az", "Gx", "Gy", "Gz", "temp")
 
 
 # --------------------------------------------------------------------------- small helpers
-
-
-def turn_window_s(turns: int) -> float:
-    """Fixed recording window of an n-turn record, s: 7/12/15 for 1/2/3, 15 + 4·(n−3) beyond."""
-    if turns in TURN_WINDOWS_S:
-        return TURN_WINDOWS_S[turns]
-    return 15.0 + 4.0 * (turns - 3)
 
 
 def parse_serial(text: str) -> str:

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from host import sensor
-from host.records import STATIC_NAMES, Record, record_path, write_record
+from host.records import STATIC_NAMES, Record, record_path, turn_window_s, write_record
 from host.sim_physics import (
     Bench,
     ConstantRateMotion,
@@ -65,16 +65,9 @@ __all__ = [
     "write_session",
 ]
 
-#: fixed recording window per number of turns (method.md §4), s
-TURN_WINDOW_S = {1: 7.0, 2: 12.0, 3: 15.0}
 #: flag bit of IMU_SAMPLE (spec enum sample_flags)
 CONFIG_CHANGED = 4
 SeedLike = int | np.random.SeedSequence
-
-
-def turn_window_s(turns: int) -> float:
-    """Recording window of an ``turns``-turn record, s (7/12/15 s; 4·n + 3 beyond)."""
-    return TURN_WINDOW_S.get(turns, 4.0 * turns + 3.0)
 
 
 # --------------------------------------------------------------------------- samples
