@@ -29,7 +29,7 @@ import tempfile
 import termios
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -37,12 +37,11 @@ from typing import IO, Any
 import numpy as np
 
 from host.errors import UserError
+from host.flash import build_firmware_hex, build_lock
 
 ROOT = Path(__file__).resolve().parents[1]
 EMULATOR_SRC = ROOT / "firmware" / "emulator"
-FIRMWARE_DIR = ROOT / "firmware"
 DEFAULT_EMU_BUILD = ROOT / "firmware" / "build" / "emulator"
-DEFAULT_FW_BUILD = ROOT / "firmware" / "build"
 MISSING = "emu:// needs simavr: apt-get install simavr libsimavr-dev gcc-avr avr-libc"
 SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 
@@ -69,18 +68,6 @@ def require_toolchain(need_avr: bool = True) -> None:
         raise UserError(problem)
 
 
-@contextlib.contextmanager
-def _locked(build_dir: Path) -> Iterator[None]:
-    """Serialise builds of one directory between processes (parallel tests, two boards)."""
-    build_dir.mkdir(parents=True, exist_ok=True)
-    with open(build_dir / ".build.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
-
-
 def _make(args: Sequence[str], what: str) -> None:
     r = subprocess.run(["make", "--no-print-directory", *args], capture_output=True, text=True)
     if r.returncode != 0:
@@ -92,7 +79,7 @@ def build_emulator(build_dir: str | Path | None = None) -> Path:
     """Build ``apm_emu`` (make decides whether the sources are newer) and return its path."""
     require_toolchain(need_avr=False)
     out = Path(build_dir) if build_dir else DEFAULT_EMU_BUILD
-    with _locked(out):
+    with build_lock(out):
         _make(["-C", str(EMULATOR_SRC), f"BUILD={out.resolve()}"], "the emulator")
     return out / "apm_emu"
 
@@ -101,7 +88,7 @@ def build_testapp(build_dir: str | Path | None = None) -> tuple[Path, Path]:
     """Build the harness self-test firmware: (good, bad) ELF paths (see testapp/testapp.c)."""
     require_toolchain(need_avr=True)
     out = Path(build_dir) if build_dir else DEFAULT_EMU_BUILD
-    with _locked(out):
+    with build_lock(out):
         _make(["-C", str(EMULATOR_SRC), "testapp", f"BUILD={out.resolve()}"], "the test app")
     return out / "testapp.elf", out / "testapp_bad.elf"
 
@@ -112,10 +99,7 @@ def build_firmware(build_dir: str | Path | None = None, make_args: Sequence[str]
     ``make_args`` are extra make variables, e.g. ``["BAUD=500000"]``.
     """
     require_toolchain(need_avr=True)
-    out = Path(build_dir) if build_dir else DEFAULT_FW_BUILD
-    with _locked(out):
-        _make(["-C", str(FIRMWARE_DIR), f"BUILD={out.resolve()}", *make_args], "the firmware")
-    elf = out / "imu_bench.elf"
+    elf = build_firmware_hex(build_dir, make_args).with_suffix(".elf")
     if not elf.exists():
         raise UserError(f"building the firmware did not produce {elf}")
     return elf

@@ -203,8 +203,8 @@ def find_identity(image: HexImage | bytes) -> FirmwareIdentity | None:
 
 
 @contextlib.contextmanager
-def _build_lock(build_dir: Path) -> Iterator[None]:
-    """The lock ``host.emulator`` takes on a build directory (parallel builds)."""
+def build_lock(build_dir: Path) -> Iterator[None]:
+    """Serialise builds of one directory between processes (parallel tests, two boards)."""
     build_dir.mkdir(parents=True, exist_ok=True)
     with open(build_dir / ".build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
@@ -216,7 +216,8 @@ def _build_lock(build_dir: Path) -> Iterator[None]:
 
 def build_firmware_hex(build_dir: str | Path | None = None, make_args: Sequence[str] = ()) -> Path:
     """``make -C firmware BUILD=dir [VAR=value ...]`` (make rebuilds only what changed); return
-    the path of ``imu_bench.hex``."""
+    the path of ``imu_bench.hex`` (``imu_bench.elf`` is beside it). The one firmware build of
+    the host: ``host.emulator.build_firmware`` uses it too."""
     for tool in ("make", "avr-g++", "avr-objcopy"):
         if shutil.which(tool) is None:
             raise UserError(
@@ -224,7 +225,7 @@ def build_firmware_hex(build_dir: str | Path | None = None, make_args: Sequence[
                 "binutils-avr make (or give a ready --hex FILE)"
             )
     out = Path(build_dir) if build_dir else DEFAULT_BUILD
-    with _build_lock(out):
+    with build_lock(out):
         r = subprocess.run(
             ["make", "--no-print-directory", "-C", str(FIRMWARE_DIR), f"BUILD={out.resolve()}",
              *make_args],
