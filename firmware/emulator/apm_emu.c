@@ -81,6 +81,7 @@ static struct {
     int ino;       // inotify on the pty slave: IN_OPEN / IN_CLOSE tell host opens exactly
     int opens;     // how many host file descriptors have the slave open
     int started;   // the AVR has been started (opens after this are DTR resets)
+    double hold_until;  // wall time before which the AVR stays in reset (start-up delay)
     uint8_t rxq[RXQ_SIZE];
     unsigned rxq_head, rxq_len;
     int rx_pump_running, uart_xoff;
@@ -502,11 +503,29 @@ static void rx_pump_start(void) {
 // Host opens and closes of the pty slave. inotify reports every open/close in order, so a close
 // immediately followed by a re-open is never missed; without inotify, fall back to POLLHUP on the
 // master (present while no one has the slave open).
+// Start-up time of the ATmega2560 after a reset with the Arduino Mega fuses (CKSEL full-swing
+// crystal, SUT 11: 16K CK + 65 ms; datasheet table 10-5). Held in wall time, because that is
+// what the host lives in: a host's open() configures the tty and flushes its input before the
+// board has said anything, as with the real board.
+#define STARTUP_HOLD_S 0.065
+
+static void host_opened(void) {
+    E.connected = 1;
+    E.hold_until = wall_now() + STARTUP_HOLD_S;
+    if (E.started && E.dtr_reset) E.reset_requested = 1;
+}
+
+// Keep the AVR in reset until the start-up time after the last open has passed.
+static void startup_hold(void) {
+    double left;
+    while (!E.stop_signal && (left = E.hold_until - wall_now()) > 0)
+        usleep(left > 0.005 ? 5000 : (useconds_t)(left * 1e6) + 1);
+}
+
 static void host_open_events(int hup) {
     if (E.ino < 0) {
         if (!E.connected && !hup) {
-            E.connected = 1;
-            if (E.started && E.dtr_reset) E.reset_requested = 1;
+            host_opened();
         } else if (E.connected && hup) {
             E.connected = 0;
             E.rxq_len = 0;
@@ -521,10 +540,7 @@ static void host_open_events(int hup) {
             struct inotify_event *ev = (struct inotify_event *)p;
             if (ev->mask & IN_OPEN) {
                 // DTR: opening the USB port (first opener) resets the ATmega2560
-                if (E.opens++ == 0) {
-                    E.connected = 1;
-                    if (E.started && E.dtr_reset) E.reset_requested = 1;
-                }
+                if (E.opens++ == 0) host_opened();
             }
             if (ev->mask & (IN_CLOSE_WRITE | IN_CLOSE_NOWRITE)) {
                 if (E.opens > 0 && --E.opens == 0) {
@@ -642,6 +658,7 @@ static void do_reset(void) {
     tx_flush();
     avr_reset(E.avr);
     after_reset(0);
+    startup_hold();
 }
 
 // Before closing the master (which discards what the host has not read yet), give the host up
@@ -950,6 +967,7 @@ int main(int argc, char **argv) {
         poll(&pfd, 1, 0);
         host_open_events((pfd.revents & POLLHUP) != 0);
     }
+    if (E.wait_open) startup_hold();
     E.started = 1;
 
     E.start_cycle = avr->cycle;

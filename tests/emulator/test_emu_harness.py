@@ -158,3 +158,38 @@ def test_emu_url_opens_and_closes(emu_bin, testapp_elfs):
     assert data.startswith(b"\xa5\x5a\x02")  # HELLO first
     assert ser.emulator_summary is not None
     assert ser.emulator_summary["sim_seconds"] >= 0.5
+
+
+@pytest.mark.emulator
+def test_board_starts_after_the_startup_time_so_an_open_never_loses_hello(emu_bin, testapp_elfs):
+    """Opening the port resets the AVR, which then waits its 65 ms start-up time (fuses SUT=11)
+    before running: a host's open() (tty setup, input flush) cannot throw away the first frames.
+    """
+    import os
+    import time
+
+    from host.emulator import EmulatedBoard
+
+    good, _ = testapp_elfs
+    board = EmulatedBoard(good, emulator=emu_bin, seconds=1.0)
+    with board:
+        assert board.port
+        fd = os.open(board.port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        try:
+            opened = time.monotonic()
+            early = b""
+            while time.monotonic() - opened < 0.04:  # inside the start-up time: silence
+                try:
+                    early += os.read(fd, 4096)
+                except BlockingIOError:
+                    time.sleep(0.002)
+            data = b""
+            while time.monotonic() - opened < 1.0 and len(data) < 64:
+                try:
+                    data += os.read(fd, 4096)
+                except BlockingIOError:
+                    time.sleep(0.002)
+        finally:
+            os.close(fd)
+    assert early == b""
+    assert data.startswith(b"\xa5\x5a\x02")  # the HELLO, first
