@@ -7,6 +7,7 @@ URL grammar (all options optional, ``&``-separated)::
           [&reglog=PATH][&samplelog=PATH][&workdir=DIR][&boot=0|1][&flash=PATH]
           [&speed=max|N|realtime][&truth=random|ideal][&effects=NAME,NAME...]
           [&operator=auto|manual][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
+          [&operator_fault=wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
 
 - ``elf``: firmware to run, an ``.elf`` or ``.hex`` (default: ``make -C firmware`` into
   ``firmware/build/`` first; with ``boot``/``flash``: whatever the flash holds).
@@ -30,6 +31,10 @@ URL grammar (all options optional, ``&``-separated)::
 - ``truth``, ``effects``, ``latitude``, ``tilt``, ``earth_rate``, ``operator``: as in
   ``sim://`` (``host/transports/protocol_sim.py``); ``operator=manual``: hints are only
   recorded (``port.hints``), move the cube with ``port.set_motion(motion)``.
+- ``operator_fault`` (may repeat): the virtual operator misbehaves on purpose, as ``sim://``'s
+  operator faults: the K-th ``place`` puts the wrong face up, the K-th ``turn`` stops at 0.8 of
+  the turns or peaks at 320 °/s (beyond the ±250 °/s range). (``fault`` here is a *sensor*
+  fault.)
 - ``fault``: sensor fault from ``fault_at`` simulated seconds on (default 0): ``absent`` (no
   answer on SPI, no data-ready), ``stuck-miso`` (every byte read is 0xFF), ``no-drdy`` (the INT
   line never rises).
@@ -89,7 +94,9 @@ if TYPE_CHECKING:
 _FLOAT = ("seconds", "fault_at", "noise_accel", "noise_gyro", "clock_ppm")
 _PATH = ("elf", "stimulus", "reglog", "samplelog", "workdir", "flash")
 #: options of the simulator stimulus (parse_sim_options), not of the EmulatedBoard
-_SIM_KEYS = ("speed", "truth", "effects", "operator", "latitude", "tilt", "earth_rate")
+_SIM_KEYS = (
+    "speed", "truth", "effects", "operator", "latitude", "tilt", "earth_rate", "operator_fault",
+)  # fmt: skip
 #: after an operator hint, wait until the emulator is this far past the change, s (every
 #: sample taken before it has then been sent to the port)
 HINT_SYNC_S = 0.03
@@ -139,6 +146,7 @@ class SimOptions:
     latitude_deg: float = 55.75
     tilt_deg: float = 0.0
     earth_rate: bool = True
+    operator_faults: tuple[tuple[str, float], ...] = ()  # (name, K) for host.sim.CubeOperator
 
 
 def parse_sim_options(url: str) -> SimOptions | None:
@@ -182,7 +190,20 @@ def parse_sim_options(url: str) -> SimOptions | None:
     except ValueError as exc:
         raise ValueError(f"emu:// option {key}={one(key, '')!r}: {exc}") from None
     earth = one("earth_rate", "1").lower() not in ("0", "false", "no")
-    return SimOptions(seed, speed, truth, effects, operator, latitude, tilt, earth)
+    from host.sim import OPERATOR_FAULTS
+
+    faults: list[tuple[str, float]] = []
+    for text in opts.get("operator_fault", []):
+        name, _, k = text.partition("@")
+        if name not in OPERATOR_FAULTS:
+            raise ValueError(
+                f"emu:// option operator_fault={text!r}: known: {', '.join(OPERATOR_FAULTS)}"
+            )
+        try:
+            faults.append((name, float(k) if k else 1.0))
+        except ValueError:
+            raise ValueError(f"emu:// option operator_fault={text!r}: K must be a number") from None
+    return SimOptions(seed, speed, truth, effects, operator, latitude, tilt, earth, tuple(faults))
 
 
 def truth_for_url(url: str) -> SensorTruth | None:
@@ -218,7 +239,9 @@ class _Bench:
         self.bench: Bench = Bench(
             latitude_deg=o.latitude_deg, tilt_deg=o.tilt_deg, earth_rate=o.earth_rate
         )
-        self.operator: CubeOperator = CubeOperator(np.random.default_rng(op_ss), self.bench)
+        self.operator: CubeOperator = CubeOperator(
+            np.random.default_rng(op_ss), self.bench, dict(o.operator_faults)
+        )
         self.pose: Motion = static_motion("z_up")
         self.power_s = 0.0
         self.starts = 0

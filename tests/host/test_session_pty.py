@@ -4,7 +4,8 @@ live options into ``calibrate``), its screen read from the pty master, keys writ
 Ctrl+C is the byte 0x03 through the terminal (the tty turns it into SIGINT).
 
 The board is ``sim://`` at ``speed=max`` (or a few times real time where a measurement must
-last long enough to be interrupted).
+last long enough to be interrupted); the range alarm and the Ctrl+C/resume tests also run on
+``emu://`` — the real firmware in the emulator, the same virtual operator driving its sensor.
 """
 
 from __future__ import annotations
@@ -27,6 +28,34 @@ pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="needs a POSIX p
 
 ROOT = Path(__file__).resolve().parents[2]
 LINEAR = "effects=linear,noise&earth_rate=0"
+
+
+def _emu_missing() -> str | None:
+    from host.emulator import toolchain_problem
+
+    return toolchain_problem(need_avr=True)
+
+
+#: the two boards a test can run on: the virtual board, and the real firmware in the emulator
+BOARDS = [
+    pytest.param("sim", id="sim"),
+    pytest.param(
+        "emu",
+        id="emu",
+        marks=[
+            pytest.mark.emulator,
+            pytest.mark.skipif(_emu_missing() is not None, reason=str(_emu_missing())),
+        ],
+    ),
+]
+
+
+def board_url(board: str, seed: int, speed: str, operator_fault: str = "") -> str:
+    """A virtual-bench URL on ``board``; ``operator_fault`` e.g. ``too_fast@1``."""
+    url = f"{board}://?seed={seed}&speed={speed}&{LINEAR}"
+    if operator_fault:  # emu://'s own ``fault`` names sensor faults
+        url += f"&{'fault' if board == 'sim' else 'operator_fault'}={operator_fault}"
+    return url
 
 
 def _command() -> list[str]:
@@ -237,8 +266,9 @@ def test_esc_aborts_only_the_measurement(tmp_path: Path, screens: list[Screen]) 
     assert sorted(p.name for p in out.iterdir()) == ["E1_session.cap"]
 
 
-def test_range_alarm_offers_to_repeat(tmp_path: Path, screens: list[Screen]) -> None:
-    url = f"sim://?seed=23&speed=max&{LINEAR}&fault=too_fast@1"
+@pytest.mark.parametrize("board", BOARDS)
+def test_range_alarm_offers_to_repeat(tmp_path: Path, screens: list[Screen], board: str) -> None:
+    url = board_url(board, 23, "max", "too_fast@1")
     s = start(screens, tmp_path, "--port", url, "--serial", "R1", "--warmup", "0",
               "--ready-seconds", "0")  # fmt: skip
     s.expect(r"Measure the 6 static orientations <Y> or go to the integral gyro calibration <N>")
@@ -267,10 +297,13 @@ def test_range_alarm_offers_to_repeat(tmp_path: Path, screens: list[Screen]) -> 
     assert 700 < rec.gyro[:, 0].sum() * 0.02 < 760  # about two turns, the second attempt
 
 
-def test_ctrl_c_during_a_measurement_then_resume(tmp_path: Path, screens: list[Screen]) -> None:
+@pytest.mark.parametrize("board", BOARDS)
+def test_ctrl_c_during_a_measurement_then_resume(
+    tmp_path: Path, screens: list[Screen], board: str
+) -> None:
     """Ctrl+C in the middle of y_up: x_up and x_dn stay, nothing half-written; --resume then
     measures only what is missing."""
-    url = f"sim://?seed=24&speed=4&{LINEAR}"  # a 3 s static lasts 0.75 s: time to hit it
+    url = board_url(board, 24, "4")  # a 3 s static lasts 0.75 s: time to hit it
     s = start(screens, tmp_path, "--port", url, "--serial", "C1", "--static-seconds", "3",
               "--warmup", "0")  # fmt: skip
     s.expect(r"Measure the 6 static orientations <Y>")
@@ -299,7 +332,7 @@ def test_ctrl_c_during_a_measurement_then_resume(tmp_path: Path, screens: list[S
 
     # resume, non-interactive: no terminal at all (stdin closed, no controlling tty)
     proc = subprocess.run(
-        CMD + ["--port", f"sim://?seed=24&speed=max&{LINEAR}", "--serial", "C1", "--out", "C1",
+        CMD + ["--port", board_url(board, 24, "max"), "--serial", "C1", "--out", "C1",
                "--static-seconds", "3", "--turns", "1", "--warmup", "0", "--ready-seconds", "0",
                "--resume", "--yes", "--json"],
         cwd=tmp_path, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60,
