@@ -199,7 +199,9 @@ def write_plots(
                 g = next(g for g in fit.groups if g.record == ds.signals[gr.record].name
                          and g.sensor == mt.sensor and g.axis == AXES[mt.axes[0]])  # fmt: skip
                 ax.plot(xv, g.z, "o", color="C3" if abs(g.z) > 3 else "C0")
-                ax.annotate(g.record, (xv, g.z), fontsize=6)
+                ax.annotate(
+                    g.record, (xv, g.z), xytext=(4, 2), textcoords="offset points", fontsize=6
+                )
             ax.axhline(0, color="k", lw=0.5)
             ax.set_xlabel(f"{mt.term.name} signal ({mt.sensor} {AXES[mt.axes[0]]})")
             ax.set_ylabel("record residual / σ")
