@@ -4,7 +4,8 @@ MPU-6000 fed by the physics simulator whose operator follows the program's promp
 
 Truth comparisons use ``effects=linear,noise&earth_rate=0`` as tests/host/test_session.py does
 for ``sim://``: the other effects are outside the linear model of method.md §2. The dialogue
-helpers are those of tests/host/test_session.py and tests/host/test_session_pty.py.
+helpers are those of tests/host/test_session.py; the pty-driven dialogue (repeat, Esc, range
+alarm, Ctrl+C and resume) runs on both boards in tests/host/test_session_pty.py.
 
 Durations: statics of 10 s (the program warns they are short; the tolerances still hold),
 1 turn (7 s windows), ``--ready-seconds 0``; at ``speed=max`` the emulator runs ≈ 30–40× real
@@ -28,11 +29,7 @@ import pytest
 from host.operator import ScriptedConsole
 from host.records import STATIC_NAMES, TURN_NAMES, read_record
 from host.transports.protocol_emu import truth_for_url
-from tests.host import test_session_pty as pty_helpers
 from tests.host.test_session import Ports, opts, run
-from tests.host.test_session_pty import Screen, leftovers, start, static_table_mean
-
-screens = pty_helpers.screens  # the fixture: the pty processes started, killed at the end
 
 pytestmark = [
     pytest.mark.emulator,
@@ -116,77 +113,6 @@ def test_full_calibration_recovers_the_simulator_truth(tmp_path: Path, fw_elf: P
         window = 7.0 if name in TURN_NAMES else 10.0
         assert window - 0.05 < rec.duration_s < window, name
     assert "Board: firmware 0.1.0" in proc.stderr
-
-
-# --------------------------------------------------------------------------- the pty dialogue
-
-
-def test_interactive_dialogue_with_a_repeat_and_an_esc(
-    tmp_path: Path, screens: list[Screen], fw_elf: Path
-) -> None:
-    """Typed by hand on a pseudo-terminal: serial, stages, seconds; x_up repeated; x_dn
-    aborted with Esc and measured again; the turns; the report."""
-    url = f"emu://?elf={fw_elf}&seed=21&{LINEAR}"
-    s = start(screens, tmp_path, "--port", url, "--warmup", "0", "--ready-seconds", "0")
-    s.expect(r"Opening emu://")
-    s.expect(r"WHO_AM_I 0x68 \(MPU-6000\)", timeout=60)
-    s.expect(r"Serial number \(1-12 characters\): ")
-    s.send("P1\r")
-    s.expect(r"Measure the 6 static orientations <Y> or go to the integral gyro calibration <N>\?")
-    s.send("y")
-    s.expect(r"Accumulation time per orientation, seconds.*: ")
-    s.send("30\r")  # 30 s of emulated time: ≈ 1 s of wall time, long enough to press Esc
-    shown: dict[str, float] = {}
-    for name in STATIC_NAMES:
-        axis, side = name.split("_")
-        where = "up" if side == "up" else "down"
-        s.expect(rf"Put the cube on the base with {axis.upper()} {where}\. Press any key\.")
-        s.send(" ")
-        s.expect(rf"Measuring {name}: 30 s \(Esc aborts\)")
-        if name == "x_dn":
-            t0 = time.monotonic()
-            s.send("\x1b")
-            s.expect(r"Measurement of x_dn aborted \(Esc\): nothing kept")
-            assert time.monotonic() - t0 < 2.0
-            s.expect(r"Put the cube on the base with X down\. Press any key\.")  # the same again
-            s.send(" ")
-            s.expect(r"Measuring x_dn")
-        s.expect(r"std .*\n")
-        s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
-        if name == "x_up":
-            s.send("n")  # repeat
-            s.expect(r"Put the cube on the base with X up\. Press any key\.")
-            s.send(" ")
-            s.expect(r"Measuring x_up")
-            s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
-        shown[name] = static_table_mean(s.text[: s.pos])
-        s.send("y")
-        s.expect(rf"Saved .*P1_{name}\.txt")
-    s.expect(r"Stage 1 constants")
-    s.expect(r"Integral gyro calibration <Y> or results <N>\?")
-    s.send("y")
-    s.expect(r"Number of turns per rotation.*\[2\]: ")
-    s.send("1\r")
-    for name in TURN_NAMES:
-        axis, direction = name.split("_")
-        s.expect(rf"Put the cube {axis.upper()} up, against the ruler\. Press any key\.")
-        s.send(" ")
-        s.expect(rf"Turn now! {name}: 7 s")
-        s.expect(r"∫Gx")
-        s.expect(r"Save <Y> or repeat <N>\?")
-        s.send("y")
-        s.expect(rf"Saved .*P1_{name}\.txt")
-    s.expect(r"TEST REPORT, IMU MPU-6000, serial No\. P1")
-    assert s.wait(60) in (0, 1)
-    out = tmp_path / "P1"
-    assert (out / "P1_result.txt").exists() and (out / "P1_result.json").exists()
-    assert s.text.count("Measuring x_up") == 2 and s.text.count("Measuring x_dn") == 2
-    for name in ("x_up", "x_dn"):  # what was shown is what was saved: ±g on X
-        saved = read_record(out / f"P1_{name}.txt")
-        assert saved.accel[:, 0].mean() == pytest.approx(shown[name], abs=1e-4)
-        assert abs(abs(shown[name]) - 9.81) < 0.3
-        assert saved.meta["lost_frames"] == "0"
-    assert leftovers(out) == []
 
 
 # --------------------------------------------------------------------------- port trouble

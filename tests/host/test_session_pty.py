@@ -184,13 +184,16 @@ def static_table_mean(text: str) -> float:
 # --------------------------------------------------------------------------- tests
 
 
-def test_interactive_session_with_a_repeat(tmp_path: Path, screens: list[Screen]) -> None:
+@pytest.mark.parametrize("board", BOARDS)
+def test_interactive_session_with_a_repeat(
+    tmp_path: Path, screens: list[Screen], board: str
+) -> None:
     """The whole dialogue typed by hand: serial, stages, seconds, one 'repeat', the turns."""
-    s = start(screens, tmp_path, "--port", f"sim://?seed=21&speed=max&{LINEAR}",
+    s = start(screens, tmp_path, "--port", board_url(board, 21, "max"),
               "--warmup", "0", "--ready-seconds", "0")  # fmt: skip
     s.expect(r"Ctrl\+C aborts and discards the session; Esc aborts only the current measurement")
     s.expect(r"Level the base\. Connect the unit by USB")
-    s.expect(r"WHO_AM_I 0x68 \(MPU-6000\)")
+    s.expect(r"WHO_AM_I 0x68 \(MPU-6000\)", timeout=60)  # emu://: may build the firmware first
     s.expect(r"Serial number \(1-12 characters\): ")
     s.send("P1\r")
     s.expect(r"Measure the 6 static orientations <Y> or go to the integral gyro calibration <N>\?")
@@ -241,13 +244,16 @@ def test_interactive_session_with_a_repeat(tmp_path: Path, screens: list[Screen]
     assert s.text.count("Measuring x_up") == 2
     saved = read_record(out / "P1_x_up.txt")
     assert saved.accel[:, 0].mean() == pytest.approx(shown["x_up"], abs=1e-4)
+    assert abs(shown["x_up"] - 9.81) < 0.3  # what was shown and saved: +g on X
+    assert all(read_record(r).meta["lost_frames"] == "0" for r in out.glob("P1_*_*.txt"))
     assert read_record(out / "P1_z_cw.txt").meta["turns"] == "1"
     assert "\a" in s.text  # the terminal bell rings with each beep
     assert leftovers(out) == []
 
 
-def test_esc_aborts_only_the_measurement(tmp_path: Path, screens: list[Screen]) -> None:
-    s = start(screens, tmp_path, "--port", f"sim://?seed=22&speed=max&{LINEAR}", "--serial",
+@pytest.mark.parametrize("board", BOARDS)
+def test_esc_aborts_only_the_measurement(tmp_path: Path, screens: list[Screen], board: str) -> None:
+    s = start(screens, tmp_path, "--port", board_url(board, 22, "max"), "--serial",
               "E1", "--static-seconds", "200", "--warmup", "0")  # fmt: skip
     s.expect(r"Measure the 6 static orientations <Y>")
     s.send("y")
