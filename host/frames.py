@@ -297,21 +297,17 @@ class StreamDecoder:
                 stats.bytes_discarded += keep_from - pos
                 pos = keep_from
                 break
-            if p + HEADER_LEN > n:
-                if final:
+            if p + HEADER_LEN <= n:
+                mtype = buf[p + 2]
+                length = buf[p + 3]
+                expected = _EXPECTED_LEN[mtype]
+                if length > MAX_PAYLOAD or (expected >= 0 and length != expected):
                     search = p + 1
                     continue
-                stats.bytes_discarded += p - pos
-                pos = p
-                break
-            mtype = buf[p + 2]
-            length = buf[p + 3]
-            expected = _EXPECTED_LEN[mtype]
-            if length > MAX_PAYLOAD or (expected >= 0 and length != expected):
-                search = p + 1
-                continue
-            end = p + HEADER_LEN + length + CRC_LEN
-            if end > n:
+                end = p + HEADER_LEN + length + CRC_LEN
+            else:
+                end = n + 1  # not even the header yet
+            if end > n:  # the candidate is not complete: wait for more, or at the end resync
                 if final:
                     search = p + 1
                     continue
