@@ -9,9 +9,3 @@ def test_every_test_runs_under_a_time_limit(request: pytest.FixtureRequest) -> N
     assert request.config.pluginmanager.hasplugin("timeout"), "pytest-timeout is not installed"
     limit = float(request.config.getini("timeout"))
     assert 0 < limit <= 300, f"default per-test limit is {limit} s"
-
-
-@pytest.mark.timeout(60)
-def test_a_test_may_state_its_own_limit(request: pytest.FixtureRequest) -> None:
-    marker = request.node.get_closest_marker("timeout")
-    assert marker is not None and marker.args == (60,)
