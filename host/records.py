@@ -46,6 +46,11 @@ def turn_window_s(turns: int) -> float:
     return TURN_WINDOWS_S.get(turns, 15.0 + 4.0 * (turns - 3))
 
 
+#: session time of a record's first sample, in its header (live and simulated records alike):
+#: ``power_on_s`` s since the sensor was powered (device clock, unwrapped; the workbench's time
+#: terms read it) and ``session_s`` s since the calibration session began
+TIME_KEYS = ("power_on_s", "session_s")
+
 #: names of the report/result files that live beside the records and are not records
 NON_RECORD_NAMES = ("result",)
 

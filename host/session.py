@@ -578,6 +578,15 @@ class Board:
         floor = arrival_ns - float(serialisation_ns(IMU_FRAME_BYTES, baud))
         self.clock.add(self._clock_dev_us, floor)
 
+    def power_on_s(self, t_us_start: int) -> float | None:
+        """Device time of the sample with raw ``t_us_start`` since the board's last reset
+        (its power-on: the board restarts when the port opens), s, from the unwrapped clock
+        fed by every sample; None before any sample."""
+        if self._clock_last_t is None:
+            return None
+        back = (self._clock_last_t - t_us_start) & 0xFFFFFFFF
+        return (self._clock_dev_us - back) / 1e6
+
     def clock_meta(self, t_us_start: int) -> dict[str, str]:
         """The live clock map as record metadata (empty until it has an estimate)."""
         m = self.clock.map
@@ -765,6 +774,7 @@ class LiveSession:
         self.turns: int | None = opts.turns
         self.static_seconds: float | None = opts.static_seconds
         self._in_idle = False
+        self._session_start_ns = time.monotonic_ns()
 
     # ---- plumbing ------------------------------------------------------------------------
     def _warn(self, text: str) -> None:
@@ -1183,6 +1193,7 @@ class LiveSession:
                 "lost_percent": f"{100 * acq.loss_fraction:.3f}",
                 "crc_errors": str(acq.crc_errors),
                 "device_t_us_start": str(acq.start_t_us),
+                **self._session_time(acq),
                 "host_ns_start_beep": str(acq.beep_ns),
                 "host_ns_first_sample": str(acq.first_ns),
                 "time_mapping": "device_t_us_start (first sample) at host_ns_start_beep "
@@ -1194,6 +1205,16 @@ class LiveSession:
             }
         )
         return Record(name, acq.t_us / 1000.0, accel, gyro, temp, meta)
+
+    def _session_time(self, acq: Acquisition) -> dict[str, str]:
+        """Record start time: ``power_on_s`` (device clock since the board's last reset,
+        unwrapped; the workbench's time since power-on) and ``session_s`` (host monotonic
+        clock since the program started), both s, as :data:`host.records.TIME_KEYS` says."""
+        out = {"session_s": f"{(acq.beep_ns - self._session_start_ns) / 1e9:.3f}"}
+        p = self.board.power_on_s(acq.start_t_us)
+        if p is not None:
+            out["power_on_s"] = f"{p:.3f}"
+        return out
 
     def _show_table(self, rec: Record) -> None:
         st = record_stats(rec)

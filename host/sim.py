@@ -523,6 +523,7 @@ def simulate_session(
             "source": "sim",
             "sim_seed": str(seed),
             "power_on_s": f"{t:.3f}",
+            "session_s": f"{t - plan.warmup_s:.3f}",
         }
         if spec.kind == "turn":
             motion: Motion = turn_motion(

@@ -148,6 +148,35 @@ def test_yes_session_hints_follow_the_dialogue(yes_session: dict[str, Any]) -> N
     assert all(t["turns"] == 2 and t["window_s"] == 12.0 for t in turns)
 
 
+def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> None:
+    """Every live record says when it started (records.TIME_KEYS), from the device clock: the
+    start matches the simulated board's time of the operator hint that began it, and the
+    workbench reads it (time terms see the whole session, not only each record's own span)."""
+    from host.model import load_dataset
+
+    out: Path = yes_session["out"]
+    hint_t = [t for t, a, _ in yes_session["ports"].sim.hints if a in ("place", "turn")]
+    names = list(STATIC_NAMES) + list(TURN_NAMES)
+    starts = [float(read_record(out / f"S1_{n}.txt").meta["power_on_s"]) for n in names]
+    session = [float(read_record(out / f"S1_{n}.txt").meta["session_s"]) for n in names]
+    assert len(hint_t) == len(names)
+    for n, t0, hint in zip(names, starts, hint_t, strict=True):
+        assert hint - 0.05 <= t0 <= hint + 0.5, (n, t0, hint)  # the first sample after the beep
+    assert np.all(np.diff(session) > 0) and session[0] >= 0.0
+    ds = load_dataset(out)
+    assert ds.time_known
+    t_end = max(float(s.t_s[-1]) for s in ds.signals)
+    assert abs(t_end - (starts[-1] + 12.0)) < 0.5
+    # time_drift on the records alone (no simulator metadata in them): identifiable
+    from host.diagnose import evaluate_candidates
+    from host.model import fit_model, parse_model
+
+    assert not any(k.startswith("sim") for k in read_record(out / "S1_x_up.txt").meta)
+    cands, _ = evaluate_candidates(ds, fit_model(ds, parse_model("base")))
+    drift = [c for c in cands if c.term == "time_drift"]
+    assert len(drift) == 6 and all(c.identifiable for c in drift), [c.reason for c in drift]
+
+
 # --------------------------------------------------------------------------- scripted dialogue
 
 
@@ -471,6 +500,12 @@ def test_emulated_board(tmp_path: Path) -> None:
                           hello_timeout_s=30.0), ScriptedConsole(), Ports())  # fmt: skip
     assert rc in (0, 1)
     assert len(json.loads(stdout)["records"]) == 12
+    # session time from the firmware's own clock, in measurement order
+    starts = [
+        float(read_record(tmp_path / "S1" / f"S1_{n}.txt").meta["power_on_s"])
+        for n in STATIC_NAMES + TURN_NAMES
+    ]
+    assert np.all(np.diff(starts) > 1.9), starts
 
 
 def test_board_live_clock_maps_the_record_start_to_host_time() -> None:
