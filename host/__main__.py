@@ -17,6 +17,11 @@ from host.errors import UserError
 #: command -> (module, function adding the arguments and returning the runner, one-line help)
 COMMANDS: dict[str, tuple[str, str, str]] = {
     "calibrate": ("host.calibrate_cli", "cli_calibrate", "compute calibration, write the report"),
+    "import": (
+        "host.import_cli",
+        "cli_import",
+        "turn a foreign file (columns, imucal session, .cap) into record files",
+    ),
     "decode": ("host.frames", "cli_decode", "decode a capture file to JSONL/CSV samples"),
     "capture": ("host.link", "cli_capture", "record a port's bytes with host times to a file"),
     "model": ("host.model_cli", "cli_model", "model workbench: diagnose, add a term, ladder"),

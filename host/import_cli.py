@@ -1,0 +1,192 @@
+"""``python -m host import FILE …``: foreign data in, the project's record files out.
+
+Reads a column file (``--columns``), an imucal session (its CSV with ``--sections LIST.json``)
+or a capture (``.cap``), cuts the stream into records (automatically, from a labels file, from
+imucal's sections, or the whole file as one ``--record``), prints the table of what was found,
+warns about irregular timing, and writes ``DIR/SERIAL_x_up.txt`` … plus the labels file
+``DIR/SERIAL_segments.tsv`` to correct the cut. Records already in DIR are never overwritten
+without ``--force``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from host import importing, segmentation
+from host.errors import UserError
+from host.records import Record, record_path, write_record, write_text_atomic
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The import options (spellings fixed by issue 15)."""
+    p.add_argument("file", type=Path, help="column file (CSV/TSV/spaces), imucal CSV or .cap")
+    p.add_argument(
+        "--columns",
+        help="what each column is, in order: t,ax,ay,az,gx,gy,gz,temp (skip = ignore a column; "
+        "t and temp optional)",
+    )
+    p.add_argument(
+        "--units",
+        help="t=s|ms|us, accel=m/s2|g|counts:LSB_PER_G, gyro=deg/s|rad/s|counts:LSB_PER_DPS "
+        "(default t=s,accel=m/s2,gyro=deg/s)",
+    )
+    p.add_argument(
+        "--axes", help="our x,y,z from the file's axes with signs, e.g. x,-y,z (default x,y,z)"
+    )
+    p.add_argument("--rate", type=float, help="sample rate, Hz, when the file has no time column")
+    p.add_argument("--sections", type=Path, help="imucal's section list JSON for its session CSV")
+    p.add_argument(
+        "--labels", type=Path, help="labels file (SERIAL_segments.tsv, edited) to cut the stream"
+    )
+    p.add_argument("--record", help="import the whole file as this one record (e.g. x_up)")
+    p.add_argument("--serial", required=True, help="serial number: prefixes every file name")
+    p.add_argument("--out", required=True, type=Path, help="directory for the record files")
+    p.add_argument("--force", action="store_true", help="overwrite records already in --out")
+
+
+def _read_stream(args: argparse.Namespace) -> tuple[importing.Stream, list[segmentation.Segment]]:
+    """The stream, and the segments when the file itself says where they are (imucal)."""
+    path: Path = args.file
+    if path.suffix.lower() == ".cap":
+        if args.columns:
+            raise UserError(f"{path}: a capture has its own columns; drop --columns")
+        return importing.read_capture_stream(path), []
+    text = importing.read_text(path)
+    if args.sections is not None:
+        if not importing.looks_like_imucal(text):
+            raise UserError(
+                f"{path}: --sections is for imucal's session CSV, whose header names "
+                f"{', '.join(importing.IMUCAL_COLUMNS)}"
+            )
+        sections_text = importing.read_text(args.sections)
+        stream, spans = importing.parse_imucal_session(
+            text, sections_text, str(path), str(args.sections), args.rate
+        )
+        return stream, [_section_segment(stream, lab, a, b) for lab, a, b in spans]
+    if not args.columns:
+        if importing.looks_like_imucal(text):
+            raise UserError(
+                f"{path}: an imucal session; give its section list with --sections LIST.json "
+                "and its rate with --rate HZ"
+            )
+        raise UserError(
+            f"{path}: say what each column is with --columns, e.g. "
+            "--columns t,ax,ay,az,gx,gy,gz,temp (skip for a column to ignore)"
+        )
+    columns = importing.parse_columns(args.columns)
+    units = importing.parse_units(args.units)
+    axes = importing.parse_axes(args.axes)
+    return importing.parse_column_text(text, str(path), columns, units, axes, args.rate), []
+
+
+def _section_segment(stream: importing.Stream, label: str, a: int, b: int) -> segmentation.Segment:
+    """A segment for one imucal section; a rotation's direction and turns from its integral."""
+    t = stream.t_s
+    acc = stream.accel[a:b].mean(axis=0)
+    if label.endswith("_turn"):
+        axis = label[0]
+        k = "xyz".index(axis)
+        up = np.zeros(3)
+        up[k] = 1.0 if acc[k] >= 0 else -1.0
+        angle = float(segmentation.trapezoid(t[a:b], stream.gyro[a:b]) @ up)
+        n = max(1, round(abs(angle) / 360.0))
+        d = 1 if angle > 0 else -1
+        name = f"{axis}_{'ccw' if d > 0 else 'cw'}"
+        q = f"{n} turn{'s' if n > 1 else ''}, {angle:+.1f}° about {'+' if up[k] > 0 else '-'}{axis}"
+        return segmentation.Segment(
+            a, b, float(t[a]), float(t[b - 1]), "imucal section", name, q,
+            (float(up[0]), float(up[1]), float(up[2])), n, d,
+        )  # fmt: skip
+    lab, up, angle = segmentation.attitude(acc)
+    if lab != label:
+        raise UserError(
+            f"section {label}: gravity is on {lab} ({angle:.0f}° off), not on {label}; "
+            "check the section list or --axes"
+        )
+    return segmentation.Segment(
+        a, b, float(t[a]), float(t[b - 1]), "imucal section", label,
+        f"gravity {angle:.1f}° off the axis", (float(up[0]), float(up[1]), float(up[2])),
+    )  # fmt: skip
+
+
+def _whole_file(stream: importing.Stream, name: str) -> list[segmentation.Segment]:
+    if not segmentation.valid_label(name):
+        raise UserError(f"--record {name}: not a record name (x_up … z_dn, x_ccw … z_cw)")
+    t = stream.t_s
+    rows = f"0\t{t[0]:.6f}\t{t[-1]:.6f}\t{name}\n"
+    return segmentation.parse_labels(rows, f"--record {name}", stream)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Runner of ``python -m host import``."""
+    from host.session import parse_serial
+
+    try:
+        serial = parse_serial(args.serial)
+    except ValueError as exc:
+        raise UserError(f"--serial: {exc}") from None
+    stream, segments = _read_stream(args)
+    thresholds = None
+    if args.record:
+        segments = _whole_file(stream, args.record)
+    elif args.labels is not None:
+        segments = segmentation.read_labels(args.labels, stream)
+    elif not segments:
+        segments, thresholds = segmentation.segment_stream(stream)
+    records = segmentation.build_records(stream, segments, thresholds, serial)
+    if not records:
+        raise UserError(f"{args.file}: nothing labelled to write (every label is '-')")
+
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [record_path(out, serial, n) for n in records]
+    existing = [p for p in paths if p.exists()]
+    if existing and not args.force:
+        raise UserError(
+            f"{existing[0]} already exists (and {len(existing) - 1} more); choose another --out "
+            "or add --force to overwrite"
+        )
+    src = stream.meta.get("source", str(args.file))
+    print(f"{src}: {len(stream)} samples, {stream.t_s[-1] - stream.t_s[0]:.1f} s")
+    if thresholds is not None:
+        print(f"stillness: {thresholds.text()}")
+    sys.stdout.write(segmentation.format_table(segments))
+    _warn_timing(records)
+    labels_path = out / f"{serial}_segments.tsv"
+    if thresholds is not None or args.labels is None:
+        write_text_atomic(labels_path, segmentation.format_labels(segments, src))
+    for name, rec in records.items():
+        write_record(record_path(out, serial, name), rec)
+    print(segmentation.plan_summary(records))
+    first = record_path(out, serial, next(iter(records))).name
+    print(f"written: {len(records)} records to {out}/ ({first} …)")
+    if thresholds is not None or args.labels is None:
+        print(f"to correct the cut: edit {labels_path} and run again with --labels {labels_path}")
+    print(f"next: python -m host calibrate --from-dir {out}")
+    return 0
+
+
+def _warn_timing(records: dict[str, Record]) -> None:
+    for name, rec in records.items():
+        tq = segmentation.timing_quality(rec.t_ms / 1000.0)
+        if not tq.warning:
+            continue
+        msg = f"warning: {name}: irregular sample times ({tq.describe()})"
+        if rec.meta.get("kind") == "turn":
+            err = segmentation.uniform_rate_error_deg(rec.t_ms / 1000.0, rec.gyro)
+            msg += (
+                f"; the turn integral uses the true times (assuming a uniform rate would move "
+                f"it by {err:.2f}°)"
+            )
+        print(msg, file=sys.stderr)
+
+
+def cli_import(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+    """Fill in the ``import`` subparser; returns the runner."""
+    add_arguments(p)
+    return run

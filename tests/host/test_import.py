@@ -1,0 +1,370 @@
+"""``python -m host import``: column files, timing quality, automatic segmentation (issue 15)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from host.__main__ import main
+from host.calibration import calibrate_from_records
+from host.capture import CaptureWriter
+from host.frames import encode_imu_samples
+from host.importing import (
+    STANDARD_G,
+    ForeignFileError,
+    Stream,
+    parse_axes,
+    parse_column_text,
+    parse_columns,
+    parse_units,
+)
+from host.records import STATIC_NAMES, TURN_NAMES, Record, Session, read_record, read_session
+from host.segmentation import (
+    find_still,
+    segment_stream,
+    timing_quality,
+    trapezoid,
+    uniform_rate_error_deg,
+)
+from host.sim import Bench, Environment, SensorTruth, Simulator, turn_motion
+from host.sim_physics import static_motion
+
+COLS = parse_columns("t,ax,ay,az,gx,gy,gz,temp")
+
+
+# ---- column files -------------------------------------------------------------------------
+@settings(max_examples=60, suppress_health_check=[HealthCheck.too_slow], deadline=None)
+@given(
+    n=st.integers(2, 40),
+    delim=st.sampled_from([",", "\t", ";", " ", "  "]),
+    header=st.booleans(),
+    order=st.permutations(["t", "ax", "ay", "az", "gx", "gy", "gz", "temp", "skip"]),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_column_file_round_trip(
+    n: int, delim: str, header: bool, order: list[str], seed: int
+) -> None:
+    """Any column order, separator and header: each value lands on its quantity and axis."""
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.001, 0.05, n))
+    vals = {
+        "t": t,
+        "ax": rng.normal(1, 5, n),
+        "ay": rng.normal(2, 5, n),
+        "az": rng.normal(3, 5, n),
+        "gx": rng.normal(-10, 50, n),
+        "gy": rng.normal(20, 50, n),
+        "gz": rng.normal(-30, 50, n),
+        "temp": rng.normal(30, 3, n),
+        "skip": rng.normal(0, 1, n),
+    }
+    lines = [delim.join(order)] if header else []
+    for i in range(n):
+        lines.append(delim.join(repr(float(vals[c][i])) for c in order))
+    s = parse_column_text("\n".join(lines) + "\n", "f.csv", tuple(order))
+    assert np.allclose(s.t_s, t)
+    assert np.allclose(s.accel, np.column_stack([vals["ax"], vals["ay"], vals["az"]]))
+    assert np.allclose(s.gyro, np.column_stack([vals["gx"], vals["gy"], vals["gz"]]))
+    assert np.allclose(s.temp, vals["temp"])
+    assert ("header" in s.meta) == header
+
+
+def test_units_and_axes_convert_and_map_every_axis_differently() -> None:
+    text = "t_ms ax ay az gx gy gz\n0 0.1 0.2 1.0 0.01 0.02 0.03\n10 0.1 0.2 1.0 0.01 0.02 0.03\n"
+    cols = parse_columns("t,ax,ay,az,gx,gy,gz")
+    s = parse_column_text(
+        text, "f.txt", cols, parse_units("t=ms,accel=g,gyro=rad/s"), parse_axes("y,-z,x")
+    )
+    assert s.t_s[1] == pytest.approx(0.010)
+    # ours = (file y, −file z, file x)
+    assert s.accel[0] == pytest.approx(np.array([0.2, -1.0, 0.1]) * STANDARD_G)
+    assert s.gyro[0] == pytest.approx(np.degrees([0.02, -0.03, 0.01]))
+    assert s.meta["axes"] == "y,-z,x"
+    assert "not recorded" in s.meta["temperature"]
+
+
+def test_counts_units_and_nominal_rate() -> None:
+    cols = parse_columns("ax,ay,az,gx,gy,gz")
+    s = parse_column_text(
+        "16384,0,-8192,131,262,-65.5\n0,16384,0,0,0,0\n",
+        "c.csv",
+        cols,
+        parse_units("accel=counts:16384,gyro=counts:131"),
+        rate_hz=50.0,
+    )
+    assert s.accel[0] == pytest.approx([STANDARD_G, 0.0, -STANDARD_G / 2])
+    assert s.gyro[0] == pytest.approx([1.0, 2.0, -0.5])
+    assert s.t_s.tolist() == [0.0, 0.02]
+
+
+@pytest.mark.parametrize(
+    ("text", "columns", "expect"),
+    [
+        ("1,2,3,4,5,6,7,8\n" * 11 + "1,2,3,4,5,6,x7,8\n", COLS, "f.csv:12: column 7 (gz)"),
+        ("1,2,3,4,5,6,7,8\n1,2,3,4,5,6,7\n", COLS, "f.csv:2: 7 columns"),
+        ("2,2,3,4,5,6,7,8\n1,2,3,4,5,6,7,8\n", COLS, "time goes backwards"),
+        ("1,2,3,4,5,6,nan,8\n", COLS, "not a finite number"),
+        ("a,b\n", COLS, "the header has 2 columns"),
+        ("# only a comment\n", COLS, "no rows of numbers"),
+    ],
+)
+def test_bad_column_files_name_line_and_column_never_remeasure(
+    text: str, columns: tuple[str, ...], expect: str
+) -> None:
+    with pytest.raises(ForeignFileError) as exc:
+        parse_column_text(text, "f.csv", columns)
+    msg = str(exc.value)
+    assert expect in msg
+    assert "re-measure" not in msg and "\n" not in msg
+
+
+@pytest.mark.parametrize(
+    ("func", "arg", "expect"),
+    [
+        (parse_columns, "t,ax,ay,az,gx,gy", "no column for gz"),
+        (parse_columns, "t,ax,ay,az,gx,gy,gz,ax", "ax named twice"),
+        (parse_columns, "t,ax,ay,az,gx,gy,gz,pressure", "unknown column name"),
+        (parse_units, "t=min", "t=s, t=ms or t=us"),
+        (parse_units, "accel=counts:0", "counts per g"),
+        (parse_units, "speed=1", "unknown quantity"),
+        (parse_axes, "x,x,z", "exactly once"),
+        (parse_axes, "x,y", "three axes"),
+    ],
+)
+def test_bad_options_explain_themselves(func: object, arg: str, expect: str) -> None:
+    with pytest.raises(ForeignFileError, match=expect):
+        func(arg)  # type: ignore[operator]
+
+
+def test_cli_refuses_a_file_without_columns_with_one_line(tmp_path: Path, capsys) -> None:
+    f = tmp_path / "log.csv"
+    f.write_text("1,2,3,4,5,6,7\n")
+    assert main(["import", str(f), "--serial", "S1", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "--columns" in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+# ---- timing quality -----------------------------------------------------------------------
+def _bursty_times(rng: np.random.Generator, duration_s: float) -> np.ndarray:
+    """Host time stamps of a USB logger: 2.1 ms spacing with stalls of 50-252 ms."""
+    t = [0.0]
+    while t[-1] < duration_s:
+        if rng.random() < 0.012:
+            t.append(t[-1] + rng.uniform(0.05, 0.252))
+        else:
+            t.append(t[-1] + rng.normal(0.0021, 0.0002))
+    return np.array(t)
+
+
+def test_timing_quality_numbers_and_limits() -> None:
+    uniform = timing_quality(np.arange(500) * 0.02)
+    assert uniform.median_ms == pytest.approx(20.0)
+    assert uniform.gap_share == 0.0 and not uniform.warning
+    t = np.arange(100) * 0.002
+    t[50:] += 0.3  # one 302 ms gap in 0.498 s
+    q = timing_quality(t)
+    assert q.worst_gap_ms == pytest.approx(302.0)
+    assert q.gap_share == pytest.approx(0.302 / t[-1], rel=1e-6)
+    assert q.warning
+
+
+def _turn_rate(t: np.ndarray, t0: float, dur: float, angle: float) -> np.ndarray:
+    ph = np.clip((t - t0) / dur, 0.0, 1.0)
+    return np.where((ph > 0) & (ph < 1), angle / dur * (1 - np.cos(2 * np.pi * ph)), 0.0)
+
+
+def test_bursty_column_file_warns_and_integrates_over_true_times(tmp_path: Path, capsys) -> None:
+    """Still 4 s, a 720° turn about +z in 5 s, still 4 s, sampled at bursty host times."""
+    rng = np.random.default_rng(11)
+    t = _bursty_times(rng, 13.0)
+    rate = _turn_rate(t, 4.0, 5.0, 720.0)
+    bias = np.array([0.7, -1.3, 0.4])
+    gyro = bias + np.column_stack([0 * t, 0 * t, rate]) + rng.normal(0, 0.03, (t.size, 3))
+    accel = np.array([0.05, -0.08, 9.81]) + rng.normal(0, 0.01, (t.size, 3))
+    rows = [f"{1e3 * a:.3f},{b[0]:.5f},{b[1]:.5f},{b[2]:.5f},{c[0]:.4f},{c[1]:.4f},{c[2]:.4f}"
+            for a, b, c in zip(t, accel, gyro, strict=True)]  # fmt: skip
+    f = tmp_path / "log.csv"
+    f.write_text("time_ms,ax,ay,az,gx,gy,gz\n" + "\n".join(rows) + "\n")
+    out = tmp_path / "rec"
+    argv = ["import", str(f), "--columns", "t,ax,ay,az,gx,gy,gz", "--units", "t=ms"]
+    assert main([*argv, "--serial", "B1", "--out", str(out)]) == 0
+    cap = capsys.readouterr()
+    assert "warning: z_ccw: irregular sample times" in cap.err
+    assert "re-measure" not in cap.out + cap.err
+    rec = read_record(out / "B1_z_ccw.txt")
+    assert rec.meta["timing_warning"] == "yes"
+    assert float(rec.meta["timing_worst_gap_ms"]) > 50.0
+    ts = rec.t_ms / 1000.0
+    true_angle = trapezoid(ts, rec.gyro - bias)[2]
+    assert true_angle == pytest.approx(720.0, abs=2.0)
+    # the same samples taken as evenly spaced would be visibly wrong (what the warning says)
+    assert uniform_rate_error_deg(ts, rec.gyro) > 3.0
+
+
+# ---- segmentation of a continuous simulated session ---------------------------------------
+STATIC_S = 30.0
+REST_S = 5.0
+TURN_WINDOW_S = 12.0
+
+
+def _continuous_session(seed: int) -> tuple[object, list[tuple[str, float, float]]]:
+    """One continuous stream of a whole session (no beeps), and where the dialogue's records
+    would have been: (name, start, end) in true seconds."""
+    truth = SensorTruth.random(np.random.default_rng(seed))
+    sim = Simulator(truth, Bench(), Environment(), seed=seed + 1)
+    rng = np.random.default_rng(seed + 2)
+    windows = []
+    t = 0.0
+    for name in STATIC_NAMES:
+        sim.set_motion(static_motion(name), t)
+        windows.append((name, t + 0.5, t + STATIC_S - 0.5))
+        t += STATIC_S
+    for ax in "xyz":
+        sim.set_motion(static_motion(f"{ax}_up"), t)
+        t += REST_S
+        for d, sfx in ((1, "ccw"), (-1, "cw")):
+            sim.set_motion(turn_motion(rng, f"{ax}_up", t, TURN_WINDOW_S, 2, d, 1.0), t)
+            windows.append((f"{ax}_{sfx}", t, t + TURN_WINDOW_S))
+            t += TURN_WINDOW_S + REST_S
+    return sim.run_until(t), windows
+
+
+def _write_cap(path: Path, block: object) -> None:
+    b = block  # SampleBlock
+    with CaptureWriter(path) as w:
+        for i in range(0, len(b), 25):  # type: ignore[arg-type]
+            sl = slice(i, i + 25)
+            data = encode_imu_samples(i & 0xFFFF, b.t_us[sl], b.counts[sl], b.flags[sl])  # type: ignore[attr-defined]
+            w.write(int(b.t_s[sl][-1] * 1e9) + 3_000_000, data)  # type: ignore[attr-defined]
+
+
+def _dialogue_records(block: object, windows: list[tuple[str, float, float]]) -> dict:
+    b = block
+    out = {}
+    for name, t0, t1 in windows:
+        sel = (b.t_s >= t0) & (b.t_s < t1)  # type: ignore[attr-defined]
+        meta = {"turns": "2"} if name in TURN_NAMES else {}
+        t_us = b.t_us[sel]  # type: ignore[attr-defined]
+        out[name] = Record(
+            name,
+            (t_us - t_us[0]) / 1000.0,
+            b.accel[sel],
+            b.gyro[sel],
+            b.temp[sel],
+            meta,  # type: ignore[attr-defined]
+        )
+    return out
+
+
+#: agreement of the segmented and the dialogue's records (same samples, other cut points)
+AGREE = {"A": 3e-4, "A0": 3e-3, "G": 2e-3, "G0": 0.02, "GA": 0.01}
+
+
+def _group(name: str) -> str:
+    if name.startswith("GA"):
+        return "GA"
+    if name[:2] in ("A0", "G0"):
+        return name[:2]
+    return name[0]
+
+
+@pytest.mark.timeout(60)  # a 5-minute session simulated, decoded, segmented, fitted twice
+def test_continuous_capture_is_cut_into_the_12_records_with_the_dialogue_constants(
+    tmp_path: Path, capsys
+) -> None:
+    block, windows = _continuous_session(3)
+    cap = tmp_path / "session.cap"
+    _write_cap(cap, block)
+    out = tmp_path / "rec"
+    assert main(["import", str(cap), "--serial", "C1", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "6 of 6 static records, 6 of 6 turn records" in printed
+    assert "std <" in printed  # the stated thresholds
+    session = read_session(out)
+    assert set(session.records) == set(STATIC_NAMES + TURN_NAMES)
+    for name in TURN_NAMES:
+        rec = session.records[name]
+        assert rec.meta["turns"] == "2"
+        assert rec.meta["direction"] == name.split("_")[1]
+        assert "segmentation" in rec.meta and rec.meta["source"] == "session.cap"
+    seg = calibrate_from_records(session)
+    ref = calibrate_from_records(Session("C1", _dialogue_records(block, windows)))
+    for k, v in seg.constants().items():
+        if "std" in k:
+            continue
+        assert abs(v - ref.constants()[k]) < AGREE[_group(k)], k
+    assert (out / "C1_segments.tsv").exists()
+
+
+def test_labels_file_corrects_the_cut(tmp_path: Path, capsys) -> None:
+    """Relabel a rest period as a second x_up and leave z_cw out: the records follow."""
+    block, _ = _continuous_session(5)
+    cap = tmp_path / "s.cap"
+    _write_cap(cap, block)
+    out = tmp_path / "a"
+    assert main(["import", str(cap), "--serial", "L1", "--out", str(out)]) == 0
+    labels = out / "L1_segments.tsv"
+    rows = labels.read_text().splitlines()
+    edited = []
+    done_rest = False
+    for r in rows:
+        f = r.split("\t")
+        if not r.startswith("#") and f[3] == "-" and "+x" in f[4] and not done_rest:
+            f[3], done_rest = "x_up_2", True
+        elif not r.startswith("#") and f[3] == "z_cw":
+            f[3] = "-"
+        edited.append("\t".join(f))
+    labels.write_text("\n".join(edited) + "\n")
+    out2 = tmp_path / "b"
+    assert main(["import", str(cap), "--serial", "L1", "--out", str(out2), "--labels",
+                 str(labels)]) == 0  # fmt: skip
+    names = {p.name for p in out2.glob("L1_*.txt")}
+    assert "L1_x_up_2.txt" in names and "L1_z_cw.txt" not in names
+    assert read_record(out2 / "L1_x_up_2.txt").meta["up"] == "+x"
+    capsys.readouterr()
+
+
+def test_existing_records_are_not_overwritten(tmp_path: Path, capsys) -> None:
+    block, _ = _continuous_session(5)
+    cap = tmp_path / "s.cap"
+    _write_cap(cap, block)
+    out = tmp_path / "o"
+    assert main(["import", str(cap), "--serial", "E1", "--out", str(out)]) == 0
+    before = (out / "E1_x_up.txt").read_bytes()
+    assert main(["import", str(cap), "--serial", "E1", "--out", str(out), "--record", "x_up"]) == 2
+    assert "already exists" in capsys.readouterr().err
+    assert (out / "E1_x_up.txt").read_bytes() == before
+
+
+def test_stillness_thresholds_follow_the_data_noise() -> None:
+    """Ten times the noise -> ten times the thresholds; a still stream stays still."""
+    rng = np.random.default_rng(2)
+    n = 3000
+    t = np.arange(n) * 0.01
+    for scale in (1.0, 10.0):
+        acc = np.array([0.1, -0.2, 9.8]) + rng.normal(0, 0.01 * scale, (n, 3))
+        gyr = np.array([1.0, -2.0, 0.5]) + rng.normal(0, 0.03 * scale, (n, 3))
+        still, thr = find_still(t, acc, gyr)
+        assert still.mean() > 0.97
+        assert thr.gyro_std == pytest.approx(4 * 0.03 * scale * np.ones(3), rel=0.25)
+        assert thr.bias_dps == pytest.approx([1.0, -2.0, 0.5], abs=0.02 * scale)
+
+
+def test_accel_in_g_without_units_is_named(tmp_path: Path) -> None:
+    rng = np.random.default_rng(4)
+    n = 1000
+    s = Stream(
+        np.arange(n) * 0.01,
+        np.array([0.0, 0.0, 1.0]) + rng.normal(0, 0.001, (n, 3)),
+        rng.normal(0, 0.03, (n, 3)),
+        np.full(n, 25.0),
+        {"source": "g.csv"},
+    )
+    with pytest.raises(Exception, match="looks like g: add --units accel=g"):
+        segment_stream(s)
+    assert math.isfinite(STANDARD_G)
