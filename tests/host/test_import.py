@@ -368,3 +368,56 @@ def test_accel_in_g_without_units_is_named(tmp_path: Path) -> None:
     with pytest.raises(Exception, match="looks like g: add --units accel=g"):
         segment_stream(s)
     assert math.isfinite(STANDARD_G)
+
+
+# ---- imucal's session ---------------------------------------------------------------------
+REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
+IMUCAL_ORDER = {"x_p": "x_up", "x_a": "x_dn", "y_p": "y_up", "y_a": "y_dn", "z_p": "z_up",
+                "z_a": "z_dn", "x_rot": "x_cw", "y_rot": "y_cw", "z_rot": "z_cw"}  # fmt: skip
+
+
+def _write_imucal_session(real: Session, d: Path) -> tuple[Path, Path]:
+    """imucal's session CSV (n_samples, gyr_*, acc_*) and section list, from the records."""
+    rows = ["n_samples,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z"]
+    sections = {}
+    n = 0
+    for sec, name in IMUCAL_ORDER.items():
+        rec = real.records[name]
+        sections[sec] = {"start": n, "end": n + len(rec)}
+        for g, a in zip(rec.gyro, rec.accel, strict=True):
+            rows.append(
+                f"{n},{g[0]:.17g},{g[1]:.17g},{g[2]:.17g},{a[0]:.17g},{a[1]:.17g},{a[2]:.17g}"
+            )
+            n += 1
+    csv, js = d / "example_ferraris_session.csv", d / "example_ferraris_session_list.json"
+    csv.write_text("\n".join(rows) + "\n")
+    import json
+
+    js.write_text(json.dumps(sections))
+    return csv, js
+
+
+def test_imucal_session_calibrates_to_the_shared_records_constants(tmp_path: Path, capsys) -> None:
+    real = read_session(REAL)
+    csv, js = _write_imucal_session(real, tmp_path)
+    out = tmp_path / "rec"
+    argv = ["import", str(csv), "--sections", str(js), "--rate", "102.4"]
+    assert main([*argv, "--serial", "IMU1", "--out", str(out)]) == 0
+    capsys.readouterr()
+    imported = read_session(out)
+    assert set(imported.records) == set(real.records)
+    assert imported.records["y_cw"].meta["direction"] == "cw"
+    a = calibrate_from_records(imported).constants()
+    b = calibrate_from_records(real).constants()
+    for k, v in b.items():
+        if math.isnan(v):
+            assert math.isnan(a[k]), k
+        else:
+            assert a[k] == pytest.approx(v, rel=1e-6, abs=1e-9), k
+
+
+def test_imucal_session_needs_its_rate(tmp_path: Path, capsys) -> None:
+    csv, js = _write_imucal_session(read_session(REAL), tmp_path)
+    argv = ["import", str(csv), "--sections", str(js), "--serial", "I", "--out", str(tmp_path)]
+    assert main(argv) == 2
+    assert "--rate HZ" in capsys.readouterr().err
