@@ -22,6 +22,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "cli_import",
         "turn a foreign file (columns, imucal session, .cap) into record files",
     ),
+    "export": (
+        "host.export_cli",
+        "cli_export",
+        "write a result as ArduPilot/PX4 parameters, imucal JSON or a C header",
+    ),
     "decode": ("host.frames", "cli_decode", "decode a capture file to JSONL/CSV samples"),
     "capture": ("host.link", "cli_capture", "record a port's bytes with host times to a file"),
     "model": ("host.model_cli", "cli_model", "model workbench: diagnose, add a term, ladder"),

@@ -1,0 +1,64 @@
+"""``python -m host export RESULT --to FORMAT``: the calibration in another tool's convention.
+
+RESULT is ``SERIAL_result.json`` (or the directory holding one). The text goes to stdout, or
+to ``--out FILE`` (written atomically). ``--axes`` maps our chip axes to the target's, with the
+same spelling as ``import --axes``. Formats and their conventions: :mod:`host.exporting`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from host import exporting
+from host.calibration import CalibrationResult
+from host.errors import UserError
+from host.importing import parse_axes
+from host.records import write_text_atomic
+
+
+def _result_path(path: Path) -> Path:
+    if path.is_dir():
+        found = sorted(path.glob("*_result.json"))
+        if len(found) != 1:
+            what = "no" if not found else f"{len(found)}"
+            raise UserError(f"{path}: {what} SERIAL_result.json here; give the file itself")
+        return found[0]
+    if not path.exists():
+        raise UserError(
+            f"{path}: no such file (python -m host calibrate writes SERIAL_result.json)"
+        )
+    return path
+
+
+def run(args: argparse.Namespace) -> int:
+    """Runner of ``python -m host export``."""
+    path = _result_path(args.result)
+    try:
+        text = path.read_bytes()
+    except OSError as exc:
+        raise UserError(f"{path}: cannot read ({exc.strerror or exc})") from exc
+    result = CalibrationResult.from_json(text)
+    axes = parse_axes(args.axes) if args.axes else None
+    out = exporting.export(result, args.to, axes, args.axes or "x,y,z")
+    if args.out:
+        write_text_atomic(args.out, out)
+        print(f"written: {args.out}", file=sys.stderr)
+    else:
+        sys.stdout.write(out)
+    return 0
+
+
+def cli_export(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+    """Fill in the ``export`` subparser; returns the runner."""
+    p.add_argument("result", type=Path, help="SERIAL_result.json (or its directory)")
+    p.add_argument(
+        "--to",
+        required=True,
+        help=f"format: {', '.join(exporting.FORMATS)} ({', '.join(exporting.PENDING)} pending)",
+    )
+    p.add_argument("--out", type=Path, help="write to this file instead of stdout")
+    p.add_argument("--axes", help="target axes from ours with signs, e.g. x,-y,-z (default x,y,z)")
+    return run

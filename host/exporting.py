@@ -1,0 +1,303 @@
+"""Results out: the calibration in the parameters and files of the tools our users fly and code.
+
+Our model (method.md §2, matrix form of :mod:`host.calibration`), inverted by ``apply()``::
+
+    a = Ka⁻¹ · (A − A0)                      Ka = I + Ma, A0 m/s², a m/s²
+    ω = Kg⁻¹ · (G − G0 − GA · a / g)         Kg = I + Mg, G0 °/s, GA (°/s)/g, ω °/s
+
+Every target has its own formula, units and frame; each exporter below is a small pure function
+from :class:`LinearModel` to text, which states in its own comments the convention, the units
+and — by name and size — what of our model the target cannot represent. The round-trip tests
+apply the exported numbers with the target's formula and compare with ``apply()``.
+
+- ``ardupilot``: ``INS_ACCOFFS_*`` (m/s²), ``INS_ACCSCAL_*``, ``INS_GYROFFS_*`` (rad/s);
+  ArduPilot corrects ``a = (A − INS_ACCOFFS) ⊙ INS_ACCSCAL`` and ``ω = G − INS_GYROFFS`` in its
+  sensor frame. No misalignment, no gyro scale, no g-sensitivity.
+- ``px4``: ``CAL_ACC0_xOFF`` (m/s²), ``CAL_ACC0_xSCALE``, ``CAL_GYRO0_xOFF`` (rad/s) and
+  ``CAL_GYRO0_xSCALE`` (read by PX4 versions whose gyro calibration has a scale); PX4 corrects
+  ``R · ((data − thermal offset − offset) ⊙ scale)``, R its board rotation. No misalignment,
+  no g-sensitivity.
+- ``imucal``: imucal's Ferraris calibration JSON: ``a = R_a⁻¹ K_a⁻¹ (u − b_a)``,
+  ``ω = R_g⁻¹ K_g⁻¹ (u_g − K_ga · a − b_g)`` with K diagonal, R with unit rows, K_ga in
+  (°/s)/(m/s²): the whole linear model.
+- ``c-header``: ``static const float`` matrices and biases for firmware that corrects samples
+  itself, with the formula in a comment: the whole linear model.
+
+Temperature and noise terms are not in the result yet (format v1): the thermal parameters
+(ArduPilot ``INS_TCAL*``, PX4 ``TC_A0_*``/``TC_G0_*``) and Kalibr's noise YAML are written
+once the result carries them.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from host.calibration import CalibrationResult
+from host.errors import UserError
+
+DEG = math.pi / 180.0
+
+
+@dataclass(frozen=True)
+class LinearModel:
+    """The result's linear model (method.md §2) in one frame: ``ka`` = I + Ma, ``a0`` m/s²,
+    ``kg`` = I + Mg, ``ga`` (°/s)/g, ``g0`` °/s, ``g`` local gravity m/s²; ``serial``;
+    ``gyro_scale_measured`` False when no turn records gave Mg (then ``kg`` is I, as in
+    ``apply()``); ``frame`` the axes (``x,y,z`` = our chip axes)."""
+
+    serial: str
+    ka: np.ndarray
+    a0: np.ndarray
+    kg: np.ndarray
+    ga: np.ndarray
+    g0: np.ndarray
+    g: float
+    gyro_scale_measured: bool
+    frame: str = "x,y,z"
+
+
+def linear_model(result: CalibrationResult) -> LinearModel:
+    """The matrices of a result, as ``apply()`` uses them (unmeasured gyro terms nominal)."""
+    mg = result.gyro_m()
+    measured = bool(np.all(np.isfinite(mg)))
+    return LinearModel(
+        serial=result.serial,
+        ka=np.eye(3) + result.accel_m(),
+        a0=result.accel_bias(),
+        kg=np.eye(3) + np.nan_to_num(mg, nan=0.0),
+        ga=result.gyro_gsens(),
+        g0=result.gyro_bias(),
+        g=float(result.g),
+        gyro_scale_measured=measured,
+    )
+
+
+def in_frame(model: LinearModel, axes: np.ndarray, text: str) -> LinearModel:
+    """The same model in the target's axes: ``axes`` the signed permutation P with
+    target = P · ours (as ``--axes`` of import). Ka' = P Ka Pᵀ, A0' = P A0, likewise the gyro."""
+    p = np.asarray(axes, dtype=np.float64)
+    return LinearModel(
+        serial=model.serial,
+        ka=p @ model.ka @ p.T,
+        a0=p @ model.a0,
+        kg=p @ model.kg @ p.T,
+        ga=p @ model.ga @ p.T,
+        g0=p @ model.g0,
+        g=model.g,
+        gyro_scale_measured=model.gyro_scale_measured,
+        frame=text,
+    )
+
+
+# ---- what a diagonal target loses -----------------------------------------------------------
+def _off_diagonal(m: np.ndarray) -> np.ndarray:
+    return np.asarray(m - np.diag(np.diag(m)))
+
+
+def _lost_lines(model: LinearModel, *, gyro_scale: bool, gyro_bias: bool = True) -> list[str]:
+    """Named, sized statements of what a target with per-axis offset and scale cannot hold."""
+    out = []
+    mis_a = _off_diagonal(model.ka)
+    out.append(
+        f"accelerometer misalignment (off-diagonal of I+Ma, largest {np.abs(mis_a).max():.2e} "
+        f"rad: up to {np.abs(mis_a).max() * model.g:.3f} m/s² at 1 g)"
+    )
+    mis_g = _off_diagonal(model.kg)
+    if not gyro_scale:
+        scale = np.abs(np.diag(model.kg) - 1).max()
+        out.append(f"gyro scale error (largest {scale:.2e}, {100 * scale:.2f} % of the rate)")
+    out.append(f"gyro misalignment (off-diagonal of I+Mg, largest {np.abs(mis_g).max():.2e} rad)")
+    out.append(
+        f"gyro g-sensitivity GA (largest {np.abs(model.ga).max():.3g} (°/s)/g: up to "
+        f"{np.abs(model.ga).max():.3g} °/s of bias that changes with attitude)"
+    )
+    if not model.gyro_scale_measured:
+        out.append("(gyro scale and misalignment were not measured: exported as nominal)")
+    return out
+
+
+def _header(comment: str, title: str, model: LinearModel, convention: list[str]) -> list[str]:
+    lines = [f"{comment} {title} for serial {model.serial} (imu-bench calibration)"]
+    lines += [f"{comment} {c}" for c in convention]
+    lines.append(f"{comment} frame: our chip axes mapped as {model.frame} (target = P · ours)")
+    return lines
+
+
+def _lost_block(comment: str, lost: list[str]) -> list[str]:
+    return [f"{comment} NOT REPRESENTED by this format:"] + [f"{comment}   - {x}" for x in lost]
+
+
+# ---- ArduPilot ------------------------------------------------------------------------------
+def ardupilot_params(model: LinearModel) -> dict[str, float]:
+    """INS_ACCOFFS_* = A0 (m/s²), INS_ACCSCAL_* = 1/(1+Ma_ii), INS_GYROFFS_* = G0 (rad/s)."""
+    out: dict[str, float] = {}
+    for i, ax in enumerate("XYZ"):
+        out[f"INS_ACCOFFS_{ax}"] = float(model.a0[i])
+    for i, ax in enumerate("XYZ"):
+        out[f"INS_ACCSCAL_{ax}"] = float(1.0 / model.ka[i, i])
+    for i, ax in enumerate("XYZ"):
+        out[f"INS_GYROFFS_{ax}"] = float(model.g0[i] * DEG)
+    return out
+
+
+def export_ardupilot(model: LinearModel) -> str:
+    """An ArduPilot parameter file (``NAME VALUE``, ``#`` comments; MAVProxy ``param load``,
+    Mission Planner "Load from file")."""
+    conv = [
+        "ArduPilot corrects in its sensor frame: a = (A - INS_ACCOFFS) * INS_ACCSCAL (per axis,",
+        "m/s²); w = G - INS_GYROFFS (rad/s). INS_GYROFFS is re-measured at every boot unless",
+        "INS_GYR_CAL = 0. Temperature calibration (INS_TCAL1_*) is not written: the result has",
+        "no temperature terms.",
+    ]
+    lines = _header("#", "ArduPilot parameters", model, conv)
+    lines += _lost_block("#", _lost_lines(model, gyro_scale=False))
+    lines += [f"{k} {v:.9g}" for k, v in ardupilot_params(model).items()]
+    return "\n".join(lines) + "\n"
+
+
+# ---- PX4 ------------------------------------------------------------------------------------
+def px4_params(model: LinearModel) -> dict[str, float]:
+    """CAL_ACC0_xOFF = A0 (m/s²), CAL_ACC0_xSCALE = 1/(1+Ma_ii), CAL_GYRO0_xOFF = G0 (rad/s),
+    CAL_GYRO0_xSCALE = 1/(1+Mg_ii)."""
+    out: dict[str, float] = {}
+    for i, ax in enumerate("XYZ"):
+        out[f"CAL_ACC0_{ax}OFF"] = float(model.a0[i])
+        out[f"CAL_ACC0_{ax}SCALE"] = float(1.0 / model.ka[i, i])
+    for i, ax in enumerate("XYZ"):
+        out[f"CAL_GYRO0_{ax}OFF"] = float(model.g0[i] * DEG)
+        out[f"CAL_GYRO0_{ax}SCALE"] = float(1.0 / model.kg[i, i])
+    return out
+
+
+def export_px4(model: LinearModel) -> str:
+    """A QGroundControl parameter file (``vehicle component NAME VALUE type``, tab separated;
+    type 9 = float)."""
+    conv = [
+        "PX4 corrects in the sensor frame, then rotates to the body: R * ((data - thermal",
+        "offset - CAL_*OFF) .* CAL_*SCALE); accel m/s², gyro rad/s. Set CAL_ACC0_ID and",
+        "CAL_GYRO0_ID to your sensors' device ids (PX4 ignores a calibration for another id).",
+        "CAL_GYRO0_xSCALE is read only by PX4 versions whose gyro calibration has a scale.",
+        "Thermal compensation (TC_A0_*, TC_G0_*) is not written: the result has no temperature",
+        "terms.",
+    ]
+    lines = _header("#", "PX4 parameters", model, conv)
+    lines += _lost_block("#", _lost_lines(model, gyro_scale=True))
+    lines.append("# Vehicle-Id\tComponent-Id\tName\tValue\tType")
+    lines += [f"1\t1\t{k}\t{v:.9g}\t9" for k, v in px4_params(model).items()]
+    return "\n".join(lines) + "\n"
+
+
+# ---- imucal ---------------------------------------------------------------------------------
+def _k_r(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """m = K · R with K diagonal (row norms) and R with unit rows."""
+    norms = np.linalg.norm(m, axis=1)
+    return np.diag(norms), m / norms[:, None]
+
+
+def imucal_info(model: LinearModel) -> dict[str, object]:
+    """imucal's FerrarisCalibrationInfo fields: K_a R_a = I+Ma, b_a = A0 (m/s²),
+    K_g R_g = I+Mg, K_ga = GA / g ((°/s)/(m/s²)), b_g = G0 (°/s)."""
+    k_a, r_a = _k_r(model.ka)
+    k_g, r_g = _k_r(model.kg)
+    return {
+        "acc_unit": "m/s^2",
+        "gyr_unit": "deg/s",
+        "from_acc_unit": "m/s^2",
+        "from_gyr_unit": "deg/s",
+        "comment": f"imu-bench calibration of serial {model.serial}, frame {model.frame}; "
+        "a = R_a^-1 K_a^-1 (u - b_a), w = R_g^-1 K_g^-1 (u_g - K_ga a - b_g)",
+        "K_a": k_a.tolist(),
+        "R_a": r_a.tolist(),
+        "b_a": model.a0.tolist(),
+        "K_g": k_g.tolist(),
+        "R_g": r_g.tolist(),
+        "K_ga": (model.ga / model.g).tolist(),
+        "b_g": model.g0.tolist(),
+        "cal_type": "Ferraris",
+        "_format_version": "2.0.0",
+    }
+
+
+def export_imucal(model: LinearModel) -> str:
+    """imucal's calibration JSON (``FerrarisCalibrationInfo.from_json`` reads it). JSON has no
+    comments: the convention is in ``comment``; nothing of the linear model is lost."""
+    return json.dumps(imucal_info(model), indent=4) + "\n"
+
+
+# ---- C header -------------------------------------------------------------------------------
+def c_arrays(model: LinearModel) -> dict[str, np.ndarray]:
+    """The header's arrays: ACCEL_M_INV = (I+Ma)⁻¹, ACCEL_BIAS (m/s²), GYRO_M_INV = (I+Mg)⁻¹,
+    GYRO_BIAS (°/s), GYRO_G_SENS = GA / g ((°/s)/(m/s²))."""
+    return {
+        "ACCEL_M_INV": np.linalg.inv(model.ka),
+        "ACCEL_BIAS": model.a0,
+        "GYRO_M_INV": np.linalg.inv(model.kg),
+        "GYRO_BIAS": model.g0,
+        "GYRO_G_SENS": model.ga / model.g,
+    }
+
+
+def _c_values(a: np.ndarray) -> str:
+    if a.ndim == 1:
+        return "{" + ", ".join(f"{v:.9g}f" for v in a) + "}"
+    return "{\n" + ",\n".join("    " + _c_values(row) for row in a) + "\n}"
+
+
+def export_c_header(model: LinearModel) -> str:
+    """A C header with ``static const float`` arrays and the correction in a comment."""
+    guard = "IMU_CALIBRATION_" + "".join(c if c.isalnum() else "_" for c in model.serial.upper())
+    lines = [
+        f"/* IMU calibration of serial {model.serial}, generated by imu-bench (python -m host",
+        " * export). The whole linear model of method.md §2; apply per sample, in this order:",
+        " *",
+        " *   a[i] = sum_k ACCEL_M_INV[i][k] * (A[k] - ACCEL_BIAS[k])         A, a in m/s^2",
+        " *   c[i] = G[i] - GYRO_BIAS[i] - sum_k GYRO_G_SENS[i][k] * a[k]     G in deg/s",
+        " *   w[i] = sum_k GYRO_M_INV[i][k] * c[k]                             w in deg/s",
+        " *",
+        " * The accelerometer is corrected first: the gyro's g-sensitivity uses the corrected a.",
+        f" * Frame: our chip axes mapped as {model.frame}.",
+    ]
+    if not model.gyro_scale_measured:
+        lines.append(" * Gyro scale and misalignment were not measured: GYRO_M_INV is identity.")
+    lines += [" */", f"#ifndef {guard}_H", f"#define {guard}_H", ""]
+    for name, arr in c_arrays(model).items():
+        dims = "".join(f"[{d}]" for d in arr.shape)
+        lines.append(f"static const float {name}{dims} = {_c_values(np.asarray(arr))};")
+    lines += ["", f"#endif /* {guard}_H */"]
+    return "\n".join(lines) + "\n"
+
+
+# ---- registry -------------------------------------------------------------------------------
+FORMATS: dict[str, tuple[Callable[[LinearModel], str], str]] = {
+    "ardupilot": (export_ardupilot, ".parm"),
+    "px4": (export_px4, ".params"),
+    "imucal": (export_imucal, ".json"),
+    "c-header": (export_c_header, ".h"),
+}
+#: formats that need what the result does not carry yet
+PENDING = {
+    "kalibr": "Kalibr's YAML needs noise densities and random walks (Allan deviation), which the "
+    "result does not carry yet",
+}
+
+
+def export(result: CalibrationResult, fmt: str, axes: np.ndarray | None = None,
+           axes_text: str = "x,y,z") -> str:  # fmt: skip
+    """The text of ``result`` in format ``fmt`` (see :data:`FORMATS`), optionally in the
+    target's axes (signed permutation ``axes``: target = P · ours)."""
+    key = fmt.strip().lower()
+    if key == "c":
+        key = "c-header"
+    if key in PENDING:
+        raise UserError(f"--to {fmt}: {PENDING[key]}")
+    if key not in FORMATS:
+        raise UserError(f"--to {fmt}: unknown format; choose one of {', '.join(FORMATS)}")
+    model = linear_model(result)
+    if axes is not None:
+        model = in_frame(model, axes, axes_text)
+    return FORMATS[key][0](model)

@@ -1,0 +1,216 @@
+"""``python -m host export``: every format round-trips through the target's own formula.
+
+For each target, the exported numbers are read back from the exported text and applied with
+the formula the target uses; on synthetic raw samples that must reproduce ``apply()`` to 1e-6
+relative for the part of the model the target can represent (and visibly not for the rest).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from host.__main__ import main
+from host.calibration import (
+    CONSTANT_NAMES,
+    GYRO_GSENS_NAMES,
+    CalibrationResult,
+    apply,
+    local_gravity,
+)
+from host.exporting import FORMATS, export
+from host.importing import parse_axes
+
+try:
+    from calib_truth import TRUTH
+except ImportError:  # tests/ imported as a package
+    from tests.host.calib_truth import TRUTH
+
+DEG = math.pi / 180.0
+RTOL = 1e-6
+
+
+def _result(**override: float) -> CalibrationResult:
+    consts = {n: 0.0 for n in CONSTANT_NAMES}
+    consts.update(TRUTH)
+    consts.update({"Gstdx": 0.021, "Gstdy": 0.023, "Gstdz": 0.026})
+    consts.update({"Astdx": 0.008, "Astdy": 0.009, "Astdz": 0.011})
+    consts.update(override)
+    return CalibrationResult(
+        serial="EXP1", created="2026-11-23T12:00:00+00:00", g=local_gravity(),
+        latitude_deg=55.75, height_m=150.0, turns=2, **consts,
+    )  # fmt: skip
+
+
+#: only what a per-axis offset + scale target holds (misalignment, GA zero)
+DIAGONAL = {n: 0.0 for n in ("Axz", "Axy", "Ayz", "Ayx", "Azy", "Azx")} | {
+    n: 0.0 for n in ("Gxz", "Gxy", "Gyz", "Gyx", "Gzy", "Gzx")
+} | {n: 0.0 for n in GYRO_GSENS_NAMES}  # fmt: skip
+
+
+def _samples(n: int = 300) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(42)
+    accel = rng.normal([0.3, -0.5, 0.8], [6.0, 7.0, 8.0], (n, 3))
+    gyro = rng.normal([5.0, -7.0, 3.0], [90.0, 110.0, 130.0], (n, 3))
+    return accel, gyro
+
+
+def _params(text: str) -> dict[str, float]:
+    """NAME VALUE lines (ArduPilot) or QGC rows 'vehicle comp NAME VALUE type' (PX4)."""
+    out = {}
+    for line in text.splitlines():
+        if not line.strip() or line.startswith("#"):
+            continue
+        f = line.split()
+        if len(f) == 2:
+            out[f[0]] = float(f[1])
+        else:
+            assert len(f) == 5 and f[4] == "9", line
+            out[f[2]] = float(f[3])
+    return out
+
+
+def _close(got: np.ndarray, want: np.ndarray) -> None:
+    np.testing.assert_allclose(got, want, rtol=RTOL, atol=RTOL * float(np.abs(want).max()))
+
+
+# ---- ArduPilot ----------------------------------------------------------------------------
+def _ardupilot_apply(p: dict[str, float], a: np.ndarray, g: np.ndarray) -> tuple:
+    off = np.array([p[f"INS_ACCOFFS_{x}"] for x in "XYZ"])
+    scal = np.array([p[f"INS_ACCSCAL_{x}"] for x in "XYZ"])
+    goff = np.array([p[f"INS_GYROFFS_{x}"] for x in "XYZ"])  # rad/s
+    return (a - off) * scal, (g * DEG - goff) / DEG
+
+
+def test_ardupilot_round_trip_on_its_representable_part() -> None:
+    accel, gyro = _samples()
+    res = _result(**DIAGONAL, Gxx=0.0, Gyy=0.0, Gzz=0.0)
+    text = export(res, "ardupilot")
+    a_t, g_t = _ardupilot_apply(_params(text), accel, gyro)
+    a_ref, g_ref = apply(res, accel, gyro)
+    _close(a_t, a_ref)
+    _close(g_t, g_ref)
+
+
+def test_ardupilot_names_what_it_loses_and_really_loses_it() -> None:
+    accel, gyro = _samples()
+    res = _result()
+    text = export(res, "ardupilot")
+    for what in ("accelerometer misalignment", "gyro scale error", "gyro misalignment",
+                 "g-sensitivity"):  # fmt: skip
+        assert what in text
+    a_t, _ = _ardupilot_apply(_params(text), accel, gyro)
+    a_ref, _ = apply(res, accel, gyro)
+    assert np.abs(a_t - a_ref).max() > 1e-3  # the misalignment is really not in there
+
+
+# ---- PX4 ----------------------------------------------------------------------------------
+def _px4_apply(p: dict[str, float], a: np.ndarray, g: np.ndarray) -> tuple:
+    aoff = np.array([p[f"CAL_ACC0_{x}OFF"] for x in "XYZ"])
+    ascale = np.array([p[f"CAL_ACC0_{x}SCALE"] for x in "XYZ"])
+    goff = np.array([p[f"CAL_GYRO0_{x}OFF"] for x in "XYZ"])
+    gscale = np.array([p[f"CAL_GYRO0_{x}SCALE"] for x in "XYZ"])
+    return (a - aoff) * ascale, ((g * DEG - goff) * gscale) / DEG
+
+
+def test_px4_round_trip_on_its_representable_part() -> None:
+    accel, gyro = _samples()
+    res = _result(**DIAGONAL)  # PX4 keeps the gyro scale
+    text = export(res, "px4")
+    assert "gyro scale error" not in text and "accelerometer misalignment" in text
+    a_t, g_t = _px4_apply(_params(text), accel, gyro)
+    a_ref, g_ref = apply(res, accel, gyro)
+    _close(a_t, a_ref)
+    _close(g_t, g_ref)
+
+
+# ---- imucal -------------------------------------------------------------------------------
+def _imucal_apply(d: dict, a: np.ndarray, g: np.ndarray) -> tuple:
+    """imucal's Ferraris correction, written from its documented model."""
+    ka, ra, ba = (np.array(d[k]) for k in ("K_a", "R_a", "b_a"))
+    kg, rg, bg, kga = (np.array(d[k]) for k in ("K_g", "R_g", "b_g", "K_ga"))
+    acc = (np.linalg.inv(ra) @ np.linalg.inv(ka) @ (a - ba).T).T
+    gyr = (np.linalg.inv(rg) @ np.linalg.inv(kg) @ (g - (kga @ acc.T).T - bg).T).T
+    return acc, gyr
+
+
+def test_imucal_round_trip_of_the_whole_model() -> None:
+    accel, gyro = _samples()
+    res = _result()
+    d = json.loads(export(res, "imucal"))
+    assert d["cal_type"] == "Ferraris" and d["_format_version"] == "2.0.0"
+    assert np.allclose(np.linalg.norm(np.array(d["R_a"]), axis=1), 1.0)
+    assert np.count_nonzero(np.array(d["K_g"]) - np.diag(np.diag(np.array(d["K_g"])))) == 0
+    a_t, g_t = _imucal_apply(d, accel, gyro)
+    a_ref, g_ref = apply(res, accel, gyro)
+    _close(a_t, a_ref)
+    _close(g_t, g_ref)
+
+
+# ---- C header -----------------------------------------------------------------------------
+_ARRAY_RE = re.compile(r"static const float (\w+)((?:\[\d\])+) = (\{.*?\});", re.S)
+
+
+def _c_arrays(text: str) -> dict[str, np.ndarray]:
+    out = {}
+    for name, dims, body in _ARRAY_RE.findall(text):
+        vals = [float(v) for v in re.findall(r"([-+0-9.eE]+)f", body)]
+        shape = tuple(int(d) for d in re.findall(r"\[(\d)\]", dims))
+        out[name] = np.array(vals, dtype=np.float32).astype(np.float64).reshape(shape)
+    return out
+
+
+def test_c_header_round_trip_with_the_formula_in_its_comment() -> None:
+    accel, gyro = _samples()
+    res = _result()
+    text = export(res, "c-header")
+    c = _c_arrays(text)
+    assert set(c) == {"ACCEL_M_INV", "ACCEL_BIAS", "GYRO_M_INV", "GYRO_BIAS", "GYRO_G_SENS"}
+    a_t = (c["ACCEL_M_INV"] @ (accel - c["ACCEL_BIAS"]).T).T  # the comment's three lines
+    corr = gyro - c["GYRO_BIAS"] - (c["GYRO_G_SENS"] @ a_t.T).T
+    g_t = (c["GYRO_M_INV"] @ corr.T).T
+    a_ref, g_ref = apply(res, accel, gyro)
+    _close(a_t, a_ref)
+    _close(g_t, g_ref)
+    assert "#ifndef IMU_CALIBRATION_EXP1_H" in text
+
+
+# ---- frames, CLI --------------------------------------------------------------------------
+def test_target_axes_map_every_axis() -> None:
+    """--axes y,x,-z: the target's raw samples are P·ours; its corrected output is P·apply()."""
+    accel, gyro = _samples()
+    res = _result()
+    p = parse_axes("y,x,-z")
+    d = json.loads(export(res, "imucal", p, "y,x,-z"))
+    a_t, g_t = _imucal_apply(d, accel @ p.T, gyro @ p.T)
+    a_ref, g_ref = apply(res, accel, gyro)
+    _close(a_t, a_ref @ p.T)
+    _close(g_t, g_ref @ p.T)
+
+
+def test_unmeasured_gyro_scale_exports_as_nominal_and_says_so() -> None:
+    nan = {n: math.nan for n in ("Gxx", "Gyy", "Gzz", "Gxz", "Gxy", "Gyz", "Gyx", "Gzy", "Gzx")}
+    res = _result(**nan)
+    text = export(res, "px4")
+    assert "not measured" in text
+    assert _params(text)["CAL_GYRO0_YSCALE"] == 1.0
+
+
+def test_cli_writes_each_format_and_refuses_unknown_ones(tmp_path: Path, capsys) -> None:
+    res = _result()
+    rj = tmp_path / "EXP1_result.json"
+    rj.write_text(res.to_json())
+    for fmt, (_, ext) in FORMATS.items():
+        out = tmp_path / f"cal{ext}"
+        assert main(["export", str(tmp_path), "--to", fmt, "--out", str(out)]) == 0
+        assert out.read_text() == export(res, fmt)
+    assert main(["export", str(rj), "--to", "kalibr"]) == 2
+    assert "noise densities" in capsys.readouterr().err
+    assert main(["export", str(rj), "--to", "betaflight"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown format" in err and err.count("\n") == 1
+    assert main(["export", str(tmp_path / "nope.json"), "--to", "px4"]) == 2
