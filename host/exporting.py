@@ -128,8 +128,11 @@ def _header(comment: str, title: str, model: LinearModel, convention: list[str])
     return lines
 
 
-def _lost_block(comment: str, lost: list[str]) -> list[str]:
-    return [f"{comment} NOT REPRESENTED by this format:"] + [f"{comment}   - {x}" for x in lost]
+def _preamble(title: str, model: LinearModel, convention: list[str], gyro_scale: bool) -> list[str]:
+    """'#' comment lines: title, convention, frame, and what the per-axis format loses."""
+    lost = _lost_lines(model, gyro_scale=gyro_scale)
+    lines = _header("#", title, model, convention)
+    return lines + ["# NOT REPRESENTED by this format:"] + [f"#   - {x}" for x in lost]
 
 
 # ---- ArduPilot ------------------------------------------------------------------------------
@@ -154,8 +157,7 @@ def export_ardupilot(model: LinearModel) -> str:
         "INS_GYR_CAL = 0. Temperature calibration (INS_TCAL1_*) is not written: the result has",
         "no temperature terms.",
     ]
-    lines = _header("#", "ArduPilot parameters", model, conv)
-    lines += _lost_block("#", _lost_lines(model, gyro_scale=False))
+    lines = _preamble("ArduPilot parameters", model, conv, gyro_scale=False)
     lines += [f"{k} {v:.9g}" for k, v in ardupilot_params(model).items()]
     return "\n".join(lines) + "\n"
 
@@ -185,8 +187,7 @@ def export_px4(model: LinearModel) -> str:
         "Thermal compensation (TC_A0_*, TC_G0_*) is not written: the result has no temperature",
         "terms.",
     ]
-    lines = _header("#", "PX4 parameters", model, conv)
-    lines += _lost_block("#", _lost_lines(model, gyro_scale=True))
+    lines = _preamble("PX4 parameters", model, conv, gyro_scale=True)
     lines.append("# Vehicle-Id\tComponent-Id\tName\tValue\tType")
     lines += [f"1\t1\t{k}\t{v:.9g}\t9" for k, v in px4_params(model).items()]
     return "\n".join(lines) + "\n"
