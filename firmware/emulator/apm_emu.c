@@ -661,19 +661,33 @@ static void do_reset(void) {
     startup_hold();
 }
 
-// Before closing the master (which discards what the host has not read yet), give the host up
-// to 2 s to read what is still queued on the slave side, as long as it keeps reading.
+// Before closing the master (which hangs the slave up: what the host has not read yet is lost),
+// wait until the host has read every byte, as long as it has the port open and keeps reading.
+// Bytes written to the master are handed to the slave's line discipline by a kernel worker: on a
+// loaded machine they can sit in that flip buffer for a while, invisible to FIONREAD. poll() on a
+// slave fd runs the pending hand-over first (n_tty_poll -> tty_buffer_flush_work), so "FIONREAD
+// is 0 right after a poll" means the host really has everything. No wall-clock guess: the only
+// time limit is for a host that stops reading (DRAIN_STALL_S without progress).
+#define DRAIN_STALL_S 10.0
+
 static void drain_to_host(void) {
-    if (!E.connected) return;
+    if (!E.connected || E.stop_signal) return;  // SIGTERM: the host said it is done
     int fd = open(E.pty_name, O_RDONLY | O_NOCTTY | O_NONBLOCK);
     if (fd < 0) return;
-    double t0 = wall_now(), last_progress = t0;
+    host_open_events(0);  // our own open is one of E.opens from here on
+    double last_progress = wall_now();
     int prev = -1;
-    while (wall_now() - t0 < 2.0 && wall_now() - last_progress < 0.3) {
+    for (;;) {
+        host_open_events(0);
+        if (E.ino >= 0 && E.opens < 2) break;  // the host closed the port: nothing to deliver
+        if (E.stop_signal) break;
+        struct pollfd pfd = {.fd = fd, .events = POLLIN};
+        poll(&pfd, 1, 0);  // hands pending flip-buffer bytes to the line discipline
         int queued = 0;
         if (ioctl(fd, FIONREAD, &queued) < 0 || queued == 0) break;
         if (queued != prev) last_progress = wall_now();
         prev = queued;
+        if (wall_now() - last_progress > DRAIN_STALL_S) break;  // the host stopped reading
         usleep(1000);
     }
     close(fd);

@@ -71,25 +71,39 @@ def test_bad_fault_name():
 # ------------------------------------------------------------------ with the test firmware
 @pytest.mark.emulator
 def test_testapp_streams_counts_and_answers_ping(emu_bin, testapp_elfs, tmp_path):
+    """The PING is answered inside the run whatever the machine's load: the stimulus comes
+    through a pipe and its second half is written only after the PING, so emulated time cannot
+    run past the end of the stream before the PING is in the pty (a stimulus *file* let a fast
+    emulator finish its 4 s before a descheduled host had sent it)."""
     good, _ = testapp_elfs
     # a different value on every axis, changing at 4 Hz
     t = np.arange(0.0, 4.0, 0.25)
     k = np.arange(t.size)[:, None]
     f = np.array([1.0, -2.0, 9.0]) + 0.01 * k * np.array([1, 2, 3])
     w = np.array([5.0, -7.0, 11.0]) + 0.5 * k * np.array([1, -1, 2])
-    stim = tmp_path / "stim.bin"
-    write_stimulus(stim, t, f, w, 28.0 + 0.1 * k[:, 0])
+    temp = 28.0 + 0.1 * k[:, 0]
+    first = t <= 1.0  # emulated time stops at 1 s (>= 35 samples) until the rest is written
     pongs = []
 
-    def ping_once(ser, frames):
-        if len(of_type(frames, "IMU_SAMPLE")) == 20 and not pongs:
-            ser.write(encode_frame("PING", 1, nonce=0xC0FFEE42))
-            pongs.append("sent")
-
-    board = EmulatedBoard(good, emulator=emu_bin, stimulus=stim, samplelog=True, reglog=True,
+    board = EmulatedBoard(good, emulator=emu_bin, stimulus="pipe", samplelog=True, reglog=True,
                           workdir=tmp_path)  # fmt: skip
     with board:
-        frames = collect(board, max_wall_s=30, on_frames=ping_once)
+        pipe = board.stimulus_pipe
+        assert pipe is not None
+        write_stimulus(pipe, t[first], f[first], w[first], temp[first])
+        pipe.flush()
+
+        def ping_once(ser, frames):
+            if len(of_type(frames, "IMU_SAMPLE")) >= 20 and not pongs:
+                ser.write(encode_frame("PING", 1, nonce=0xC0FFEE42))
+                ser.flush()
+                pongs.append("sent")
+                rest = ~first
+                write_stimulus(pipe, t[rest], f[rest], w[rest], temp[rest], header=False)
+                pipe.close()  # the stream ends with its last record, at t = 3.75 s
+
+        frames = collect(board, max_wall_s=60, on_frames=ping_once)
+    assert pongs == ["sent"]
     s = board.summary
     assert s["stop_reason"] == "stimulus ended"
     assert s["spi_violations"] == 0 and s["bus_conflicts"] == 0
