@@ -400,6 +400,17 @@ def _axis_label(v: np.ndarray) -> str:
     return ("+" if v[k] > 0 else "-") + "XYZ"[k]
 
 
+def remedy(record: Record, bench: str = "re-measure") -> str:
+    """What to do about a bad record: on the bench, ``re-measure NAME``; for data imported
+    from elsewhere (meta ``importer``) there is nothing to re-measure — fix the cut instead."""
+    if "importer" in record.meta:
+        return (
+            f"check the {record.name} segment (SERIAL_segments.tsv, --labels) or the import "
+            "options (--columns, --units, --axes)"
+        )
+    return f"{bench} {record.name}"
+
+
 def check_orientation(record: Record, stats: RecordStats, g: float, file_name: str) -> None:
     """Gravity must be along the record's up direction (static, turn): else UserError naming
     the file, where gravity is and what to re-measure."""
@@ -411,18 +422,18 @@ def check_orientation(record: Record, stats: RecordStats, g: float, file_name: s
     if not 0.7 * g < norm < 1.3 * g:
         raise UserError(
             f"{file_name}: the mean specific force is {norm:.2f} m/s², expected about "
-            f"{g:.2f}: was the unit moving or not connected? re-measure {record.name}"
+            f"{g:.2f}: was the unit moving or not connected? {remedy(record)}"
         )
     angle = math.degrees(math.acos(max(-1.0, min(1.0, float(a @ up) / norm))))
     if angle > ORIENTATION_TOL_DEG:
         if np.count_nonzero(up) == 1:
             raise UserError(
                 f"{file_name}: gravity is on {_axis_label(a)}, expected {_axis_label(up)}: "
-                f"the cube was on the wrong face; re-measure {record.name}"
+                f"the cube was on the wrong face; {remedy(record)}"
             )
         raise UserError(
             f"{file_name}: gravity is {angle:.0f}° away from the expected up direction "
-            f"{np.round(up, 3).tolist()}; re-measure {record.name}"
+            f"{np.round(up, 3).tolist()}; {remedy(record)}"
         )
     if record.kind == "static":
         if np.any(stats.accel_std > STATIC_MAX_ACCEL_STD) or np.any(
@@ -431,7 +442,7 @@ def check_orientation(record: Record, stats: RecordStats, g: float, file_name: s
             raise UserError(
                 f"{file_name}: the cube moved during the static measurement (std "
                 f"{stats.accel_std.max():.3f} m/s², {stats.gyro_std.max():.3f} °/s); "
-                f"re-measure {record.name}"
+                f"{remedy(record)}"
             )
 
 
@@ -448,7 +459,7 @@ def check_range(record: Record, file_name: str) -> None:
     if peak >= rng - 0.01:
         raise UserError(
             f"{file_name}: the rate reached {peak:.1f} °/s, outside the working range "
-            f"±{rng:g} °/s; turn more slowly and re-measure {record.name}"
+            f"±{rng:g} °/s; {remedy(record, 'turn more slowly and re-measure')}"
         )
 
 
@@ -533,13 +544,13 @@ def build_observations(
                 direction = "counter-clockwise" if rec.sign > 0 else "clockwise"
                 raise UserError(
                     f"{fname}: the cube turned {along:+.0f}° about {_axis_label(up)}, the wrong "
-                    f"way (expected {direction}); re-measure {name}"
+                    f"way (expected {direction}); {remedy(rec)}"
                 )
             if abs(along - want) > tol:
                 raise UserError(
                     f"{fname}: the cube turned {along:+.0f}° about {_axis_label(up)}, expected "
                     f"{want:+.0f}° ({n} turn{'s' if n > 1 else ''}): the turn was not complete "
-                    f"or --turns is wrong; re-measure {name}"
+                    f"or --turns is wrong; {remedy(rec)}"
                 )
             sig = np.sqrt(gyro_noise**2 * s.dt_s * t + turn_angle_sigma_deg**2)
             obs.append(

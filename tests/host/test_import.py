@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from host.__main__ import main
 from host.calibration import calibrate_from_records
 from host.capture import CaptureWriter
+from host.errors import UserError
 from host.frames import encode_imu_samples
 from host.importing import (
     STANDARD_G,
@@ -421,3 +422,51 @@ def test_imucal_session_needs_its_rate(tmp_path: Path, capsys) -> None:
     argv = ["import", str(csv), "--sections", str(js), "--serial", "I", "--out", str(tmp_path)]
     assert main(argv) == 2
     assert "--rate HZ" in capsys.readouterr().err
+
+
+# ---- turns in steps, the calibration's integral, messages for imported data ---------------
+def test_a_turn_made_in_four_steps_with_pauses_is_one_turn() -> None:
+    """imucal's example turns were made as four 90° steps: still, 4 × (90°, pause), still."""
+    rng = np.random.default_rng(8)
+    t = np.arange(0, 20.0, 0.01)
+    rate = sum(_turn_rate(t, 3.0 + 3.5 * k, 1.0, -90.0) for k in range(4))  # 2.5 s pauses
+    gyro = np.array([0.4, 0.9, -0.6]) + rng.normal(0, 0.04, (t.size, 3))
+    gyro[:, 1] += rate  # about +y, clockwise seen from above
+    accel = np.array([0.1, 9.8, -0.2]) + rng.normal(0, 0.01, (t.size, 3))
+    segs, _ = segment_stream(Stream(t, accel, gyro, np.full(t.size, 25.0), {"source": "s"}))
+    turns = [s for s in segs if s.turns]
+    assert [(s.label, s.turns, s.direction) for s in turns] == [("y_cw", 1, -1)]
+    assert "in 4 steps" in turns[0].quality
+    assert turns[0].t0_s < 3.0 and turns[0].t1_s > 14.5
+
+
+def test_the_calibration_integrates_turns_over_the_true_sample_times() -> None:
+    from host.calibration import record_stats
+
+    rng = np.random.default_rng(12)
+    t = _bursty_times(rng, 9.0)
+    rate = _turn_rate(t, 2.0, 5.0, 360.0)
+    gyro = np.column_stack([rate, 0 * t, 0 * t])
+    rec = Record("x_ccw", t * 1000.0, np.tile([9.8, 0, 0], (t.size, 1)), gyro, 0 * t + 25)
+    stats = record_stats(rec)
+    assert stats.gyro_integral[0] == pytest.approx(360.0, abs=1.0)
+    assert abs(trapezoid(np.linspace(t[0], t[-1], t.size), gyro)[0] - 360.0) > 3.0
+
+
+def test_bad_imported_records_are_not_sent_back_to_the_bench(tmp_path: Path) -> None:
+    """A segment labelled with the wrong face: the message points at the cut, not the bench."""
+    rng = np.random.default_rng(1)
+    recs = {}
+    for name in STATIC_NAMES:
+        up = np.zeros(3)
+        up["xyz".index(name[0])] = 1.0 if name.endswith("up") else -1.0
+        if name == "y_up":
+            up = np.array([0.0, 0.0, 1.0])  # the user's stream had z up here
+        n = 200
+        recs[name] = Record(name, np.arange(n) * 20.0, 9.81 * up + rng.normal(0, 0.01, (n, 3)),
+                            rng.normal(0, 0.02, (n, 3)), np.full(n, 25.0),
+                            {"importer": "columns", "source": "log.csv"})  # fmt: skip
+    with pytest.raises(UserError) as exc:
+        calibrate_from_records(Session("U1", recs))
+    assert "re-measure" not in str(exc.value)
+    assert "y_up segment" in str(exc.value) and "--labels" in str(exc.value)
