@@ -24,6 +24,8 @@ from host.frames import DecoderStats, Frame, StreamDecoder, encode_frame
 
 TRANSPORTS_PACKAGE = "host.transports"
 DEFAULT_BAUD = 115200
+#: this project's URL schemes (host/transports): their errors name the bad option themselves
+OWN_SCHEMES = ("sim://", "emu://", "replay://")
 
 
 def register_transports() -> None:
@@ -46,11 +48,15 @@ def open_port(url: str, baud: int = DEFAULT_BAUD, timeout_s: float = 0.05) -> se
     try:
         return serial.serial_for_url(url, baudrate=baud, timeout=timeout_s)
     except ValueError as exc:  # unknown URL scheme or bad parameters
+        if url.startswith(OWN_SCHEMES):  # a bad option: the message names it
+            raise UserError(f"cannot open {url!r}: {exc}") from None
         raise UserError(
             f"cannot open {url!r}: {exc}; use a serial device (e.g. /dev/ttyACM0), sim:// "
             "(virtual board) or emu:// (emulated board)"
         ) from None
     except (serial.SerialException, OSError) as exc:
+        if url.startswith(OWN_SCHEMES) and "URL" in str(exc):  # a bad option: named in exc
+            raise UserError(f"cannot open {url!r}: {exc}") from None
         raise UserError(
             f"cannot open {url!r}: {exc}; check the USB cable and the port name "
             "(python -m serial.tools.list_ports lists them), or use sim:// to try without a board"

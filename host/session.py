@@ -108,7 +108,15 @@ YES_MAX_ATTEMPTS = 3
 YES_RECONNECT_S = 60.0
 #: pause between "get ready to turn" and the start beep, s
 DEFAULT_READY_S = 2.0
+#: no bytes at all from the port for this long is a silent board (LinkTimeout), s
 STALL_S = 2.0
+#: no IMU sample for this long during a measurement, whatever other frames arrive (STATUS,
+#: ERROR), is a stalled board: the measurement stops (:class:`SensorFault`), s
+SAMPLE_STALL_S = 5.0
+#: ERROR codes that mean the sensor stopped delivering (BAD_COMMAND answers a bad command)
+SENSOR_ERROR_CODES = frozenset(
+    code for name, code in gen.ENUMS["error_code"].items() if name != "BAD_COMMAND"
+)
 SERIAL_RE = re.compile(r"^[A-Za-z0-9_-]{1,12}$")
 MISSED = gen.ENUMS["sample_flags"]["MISSED"]
 #: bytes of one IMU_SAMPLE frame on the wire (for its serialisation time)
@@ -232,6 +240,7 @@ class SessionOptions:
     ready_s: float = DEFAULT_READY_S
     loss_limit: float = LOSS_LIMIT
     stall_s: float = STALL_S
+    sample_stall_s: float = SAMPLE_STALL_S
     hello_timeout_s: float = 5.0
     reconnect_timeout_s: float | None = None  # None: until Esc/Ctrl+C (--yes: YES_RECONNECT_S)
 
@@ -371,6 +380,22 @@ class MeasurementAborted(Exception):
     """The operator pressed Esc during a measurement."""
 
 
+class SensorFault(UserError):
+    """The board's sensor stopped during a measurement: the board sent a sensor ERROR frame
+    (the message carries its reason), or no IMU sample came for ``sample_stall_s`` while the
+    board kept talking (STATUS, ERROR). Reconnecting does not help; the sensor needs a look."""
+
+
+def error_text(f: Frame) -> str:
+    """An ERROR frame in words: "ERROR SENSOR_ABSENT (detail 0x00, 3 times)"."""
+    fl = f.fields
+    names = {v: k for k, v in gen.ENUMS["error_code"].items()}
+    return (
+        f"ERROR {names.get(fl['code'], fl['code'])} (detail {fl['detail']:#04x}, "
+        f"{fl['count']} times)"
+    )
+
+
 class DeferredCapture(CaptureWriter):
     """An IMUCAP01 writer that keeps the reads in memory until :meth:`start` names the file
     (the port is opened before the serial number, which names the file, is known)."""
@@ -442,9 +467,11 @@ class Board:
         stall_s: float = STALL_S,
         warn: Callable[[str], None] | None = None,
         hello_timeout_s: float = 5.0,
+        sample_stall_s: float = SAMPLE_STALL_S,
     ) -> None:
         self.url = url
         self.hello_timeout_s = hello_timeout_s
+        self.sample_stall_s = sample_stall_s
         self.port_factory = port_factory or (lambda u: open_port(u, DEFAULT_BAUD))
         self.stall_s = stall_s
         self.capture = DeferredCapture()
@@ -630,11 +657,7 @@ class Board:
             key = (fl["code"], fl["detail"])
             if key not in self._errors_seen:
                 self._errors_seen.add(key)
-                names = {v: k for k, v in gen.ENUMS["error_code"].items()}
-                self.warn(
-                    f"the board reports ERROR {names.get(fl['code'], fl['code'])} "
-                    f"(detail {fl['detail']:#04x}, {fl['count']} times)"
-                )
+                self.warn(f"the board reports {error_text(f)}")
         elif f.name == "HELLO":
             info = self._accept_hello(f)
             self.warn(f"the board restarted (reset cause {info.reset_cause:#04x})")
@@ -651,7 +674,9 @@ class Board:
         What the port holds from before is read and dropped first. ``tick(elapsed_s,
         sums_of_counts(7), n)`` is called about every ``tick_every_s`` (host time);
         ``check_escape()`` True -> MeasurementAborted. Raises LinkLost / LinkTimeout /
-        BoardReset; nothing is kept then.
+        BoardReset; nothing is kept then. A sensor ERROR frame, or no IMU sample for
+        ``sample_stall_s`` (host time) whatever else arrives, raises :class:`SensorFault`: the
+        measurement always ends.
         """
         assert self.link is not None and self.info is not None
         beep_ns = time.monotonic_ns()
@@ -671,10 +696,13 @@ class Board:
         last_t = 0
         elapsed = 0
         lost = missed = 0
-        next_tick = time.monotonic()
+        next_tick = last_sample = time.monotonic()
+        last_error: Frame | None = None
         done = False
         while not done:
             batch = self.read_frames()
+            if any(f.type == IMU_SAMPLE for _, f in batch):
+                last_sample = time.monotonic()
             for arrival_ns, f in batch:
                 if last_seq is not None:
                     d = (f.seq - last_seq) & 0xFFFF
@@ -685,6 +713,13 @@ class Board:
                 if f.type != IMU_SAMPLE:
                     if f.name == "HELLO":
                         raise BoardReset("the board restarted during the measurement")
+                    if f.name == "ERROR" and f.fields["code"] in SENSOR_ERROR_CODES:
+                        raise SensorFault(
+                            f"the board reports {error_text(f)}: its sensor stopped; check the "
+                            "IMU and its wiring, then power-cycle the board"
+                        )
+                    if f.name == "ERROR":
+                        last_error = f
                     self._other(f)
                     continue
                 p = f.payload
@@ -708,6 +743,13 @@ class Board:
                 rows.append(counts)
                 sums += counts
             now = time.monotonic()
+            if now - last_sample > self.sample_stall_s and not done:
+                raise SensorFault(
+                    f"no samples from the board for {self.sample_stall_s:g} s"
+                    + (f" (last: {error_text(last_error)})" if last_error else "")
+                    + " although it still answers: the sensor has stalled; check the IMU, "
+                    "then power-cycle the board"
+                )
             if now >= next_tick:
                 next_tick = now + tick_every_s
                 if check_escape is not None and check_escape():
@@ -764,7 +806,12 @@ class LiveSession:
         self.opts = opts
         self.op = Operator(console, yes=opts.yes, idle=self._idle)
         self.board = Board(
-            opts.port or "sim://", port_factory, opts.stall_s, self._warn, opts.hello_timeout_s
+            opts.port or "sim://",
+            port_factory,
+            opts.stall_s,
+            self._warn,
+            opts.hello_timeout_s,
+            opts.sample_stall_s,
         )
         self.g = local_gravity(opts.latitude_deg, opts.height_m)
         self.serial = ""
@@ -1171,6 +1218,14 @@ class LiveSession:
         except BoardReset as exc:
             op.end_progress()
             self._warn(f"{exc}: the measurement of {name} is discarded; measuring it again")
+            return None
+        except SensorFault as exc:
+            op.end_progress()
+            op.beep()
+            self._warn(f"{exc}")
+            self._warn(f"the measurement of {name} is discarded")
+            if self.opts.yes or not op.yes_no("Measure again <Y> or stop <N>?", True):
+                raise UserError(f"{name}: {exc}; {self._resume_hint()}") from None
             return None
         op.end_progress()
         op.beep()

@@ -85,6 +85,7 @@ from serial.serialposix import Serial as PosixSerial
 from serial.serialutil import SerialException
 
 from host.emulator import FAULTS, STIM_RECORD_HZ, EmulatedBoard, SimStimulus
+from host.transports.protocol_sim import SAMPLE_CLOCK_MAX, SPEED_RANGE, bounded
 
 if TYPE_CHECKING:
     from host.sim import CubeOperator, Simulator
@@ -102,6 +103,21 @@ _SIM_KEYS = (
 HINT_SYNC_S = 0.03
 
 
+def check_firmware_file(path: str) -> str:
+    """``elf=PATH``: an existing ELF or Intel HEX file (ValueError saying what it is not)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4)
+    except OSError as exc:
+        raise ValueError(f"cannot read the firmware file ({exc.strerror})") from None
+    if head != b"\x7fELF" and not head.startswith(b":"):
+        raise ValueError(
+            "not an ELF or Intel HEX file; give the firmware's .elf or .hex "
+            "(make -C firmware builds firmware/build/imu_bench.elf)"
+        )
+    return path
+
+
 def parse_url(url: str) -> dict[str, Any]:
     """``emu://?...`` -> keyword arguments for :class:`EmulatedBoard` (ValueError if bad)."""
     parts = urlparse.urlsplit(url)
@@ -113,8 +129,12 @@ def parse_url(url: str) -> dict[str, Any]:
     for key, values in urlparse.parse_qs(parts.query, keep_blank_values=True).items():
         value = values[-1]
         try:
-            if key in _FLOAT:
-                kw[key] = float(value)
+            if key == "clock_ppm":  # the MPU-6000's sample clock: its oscillator is within ±5 %
+                kw[key] = bounded(key, value, -SAMPLE_CLOCK_MAX * 1e6, SAMPLE_CLOCK_MAX * 1e6)
+            elif key in _FLOAT:
+                kw[key] = bounded(key, value, 0.0, 1e6)
+            elif key == "elf":
+                kw[key] = check_firmware_file(value)
             elif key in _PATH:
                 kw[key] = value
             elif key in _SIM_KEYS:
@@ -166,9 +186,7 @@ def parse_sim_options(url: str) -> SimOptions | None:
         speed_text = one("speed", "max").lower()
         speed: float | None = None
         if speed_text != "max":
-            speed = 1.0 if speed_text == "realtime" else float(speed_text)
-        if speed is not None and not speed > 0:
-            raise ValueError("speed must be max, realtime or a number > 0")
+            speed = 1.0 if speed_text == "realtime" else bounded("speed", speed_text, *SPEED_RANGE)
         key = "truth"
         truth = one("truth", "random").lower()
         if truth not in ("random", "ideal"):
@@ -184,9 +202,9 @@ def parse_sim_options(url: str) -> SimOptions | None:
         key = "seed"
         seed = int(one("seed", "0"), 0)
         key = "latitude"
-        latitude = float(one("latitude", "55.75"))
+        latitude = bounded(key, one("latitude", "55.75"), -90.0, 90.0)
         key = "tilt"
-        tilt = float(one("tilt", "0"))
+        tilt = bounded(key, one("tilt", "0"), -90.0, 90.0)
     except ValueError as exc:
         raise ValueError(f"emu:// option {key}={one(key, '')!r}: {exc}") from None
     earth = one("earth_rate", "1").lower() not in ("0", "false", "no")

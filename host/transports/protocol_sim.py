@@ -84,6 +84,24 @@ if TYPE_CHECKING:
 
 _ACK = gen.ENUMS["ack_status"]
 _FAULTS = ("wrong_face", "incomplete_turn", "too_fast", "pull_cable")
+#: ``speed=N`` bounds: slower starves the session of samples, faster only spins the CPU
+#: (``speed=max`` is the fast mode: time advances as bytes are read)
+SPEED_RANGE = (0.1, 1000.0)
+#: ``clock_ppm`` bound: a ceramic resonator is off by ±5000 ppm, a crystal by ±100
+CLOCK_PPM_MAX = 10_000.0
+#: ``sample_clock`` bound (relative): the MPU-6000's own oscillator is within ±5 %
+SAMPLE_CLOCK_MAX = 0.05
+
+
+def bounded(name: str, text: str, lo: float, hi: float) -> float:
+    """``text`` as a finite float in [lo, hi]; ValueError naming the option otherwise."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise ValueError(f"{name}={text!r} is not a number") from None
+    if not lo <= v <= hi:  # also false for nan
+        raise ValueError(f"{name}={text!r} is outside {lo:g} … {hi:g}")
+    return v
 
 
 def _usage(msg: str) -> SerialException:
@@ -139,10 +157,12 @@ class Serial(SerialBase):
             self.seed = int(one("seed", "0"))
             speed = one("speed", "realtime").lower()
             self.speed: float | None = (
-                1.0 if speed == "realtime" else None if speed == "max" else float(speed)
+                1.0
+                if speed == "realtime"
+                else None
+                if speed == "max"
+                else bounded("speed", speed, *SPEED_RANGE)
             )
-            if self.speed is not None and not self.speed > 0:
-                raise ValueError("speed must be > 0")
             self.operator = one("operator", "auto").lower()
             if self.operator not in ("auto", "manual"):
                 raise ValueError(f"operator must be auto or manual, not {self.operator!r}")
@@ -151,7 +171,11 @@ class Serial(SerialBase):
                 name, _, arg = f.partition("@")
                 if name not in _FAULTS:
                     raise ValueError(f"unknown fault {name!r}; known: {', '.join(_FAULTS)}")
-                self.faults[name] = float(arg) if arg else (5.0 if name == "pull_cable" else 1.0)
+                self.faults[name] = (
+                    bounded(f"fault={name}@", arg, 0.0, 1e6)
+                    if arg
+                    else (5.0 if name == "pull_cable" else 1.0)
+                )
             truth_kind = one("truth", "random").lower()
             if truth_kind not in ("random", "ideal"):
                 raise ValueError(f"truth must be random or ideal, not {truth_kind!r}")
@@ -166,13 +190,16 @@ class Serial(SerialBase):
                 truth = truth.only(*[e for e in one("effects", "").split(",") if e])
             env = Environment.random(np.random.default_rng(env_ss))
             if "clock_ppm" in opts:
-                env = _replace(env, timer_ppm=float(one("clock_ppm", "0")))
+                ppm = bounded("clock_ppm", one("clock_ppm", "0"), -CLOCK_PPM_MAX, CLOCK_PPM_MAX)
+                env = _replace(env, timer_ppm=ppm)
             if "sample_clock" in opts:
-                env = _replace(env, sample_clock_error=float(one("sample_clock", "0")))
+                rel = one("sample_clock", "0")
+                err = bounded("sample_clock", rel, -SAMPLE_CLOCK_MAX, SAMPLE_CLOCK_MAX)
+                env = _replace(env, sample_clock_error=err)
             self.environment = env
             self.bench = Bench(
-                latitude_deg=float(one("latitude", "55.75")),
-                tilt_deg=float(one("tilt", "0")),
+                latitude_deg=bounded("latitude", one("latitude", "55.75"), -90.0, 90.0),
+                tilt_deg=bounded("tilt", one("tilt", "0"), -90.0, 90.0),
                 earth_rate=one("earth_rate", "1") not in ("0", "false", "no"),
             )
         except ValueError as exc:

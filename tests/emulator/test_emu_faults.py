@@ -1,0 +1,62 @@
+"""An unattended ``--yes`` session on the real firmware whose sensor fails (issue 17) ends
+within a minute with exit 2, one line naming the board's reason and the ``--resume`` hint,
+and keeps the records accepted before the fault — from the start and after the first record,
+for every sensor fault the emulator injects (``emu://?fault=...``, host/emulator.py FAULTS).
+
+Before this, ``no-drdy`` (and ``absent``/``stuck-miso`` starting after the first record) waited
+forever at ``0.0/5 s``: the board keeps sending STATUS and ERROR frames, so the link's silence
+timeout never fired.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from host.emulator import FAULTS
+
+pytestmark = [pytest.mark.emulator, pytest.mark.slow]
+
+ROOT = Path(__file__).resolve().parents[2]
+#: emulated seconds at which a late fault starts: after two 3 s statics (and their pauses)
+LATE_S = 8.0
+
+
+# a whole CLI session on the emulated board, itself bounded at 60 s
+@pytest.mark.timeout(90)
+@pytest.mark.parametrize("fault_at", [0.0, LATE_S], ids=["from-start", "after-records"])
+@pytest.mark.parametrize("fault", FAULTS)
+def test_yes_session_on_a_failed_sensor_ends_with_exit_2(
+    emu_toolchain: None, tmp_path: Path, fault: str, fault_at: float
+) -> None:
+    url = f"emu://?fault={fault}&fault_at={fault_at:g}"
+    out = tmp_path / "F1"
+    t0 = time.monotonic()
+    proc = subprocess.run(
+        [sys.executable, "-m", "host", "calibrate", "--port", url, "--serial", "F1",
+         "--out", str(out), "--yes", "--warmup", "0", "--static-seconds", "3", "--turns", "1"],
+        cwd=ROOT, capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    took = time.monotonic() - t0
+    assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr
+    assert took < 60
+    # the dialogue talks on stderr; it ends with one error line
+    err = [line for line in proc.stderr.splitlines() if line.startswith("error: ")]
+    assert len(err) == 1 and proc.stderr.rstrip().endswith(err[0]), proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
+    if fault_at == 0.0 and fault != "no-drdy":
+        # absent / stuck-miso from reset: WHO_AM_I in HELLO already says so
+        assert "WHO_AM_I" in err[0] and "no sensor answers on SPI" in err[0]
+        return
+    assert "the board reports ERROR" in err[0] or "no samples from the board" in err[0]
+    assert f"--serial F1 --out {out} --resume" in err[0]
+    kept = sorted(p.name for p in out.glob("F1_*_*.txt"))
+    if fault_at > 0:
+        assert "F1_x_up.txt" in kept, kept  # accepted before the fault: kept
+        assert f"{len(kept)} accepted records are kept" in err[0]
+    else:
+        assert kept == []
