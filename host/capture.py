@@ -11,6 +11,7 @@ complete record and reports the cut; nothing already written is lost.
 from __future__ import annotations
 
 import os
+import stat
 import struct
 from dataclasses import dataclass
 from pathlib import Path
@@ -72,13 +73,45 @@ def parse(raw: bytes, source: str = "capture") -> Capture:
     )
 
 
+#: captures above this size are refused (decoding holds the capture and its samples in memory):
+#: 512 MiB is ≈ 90 hours of the board's 50 Hz stream
+MAX_CAPTURE_BYTES = 512 << 20
+
+
+def read_capture_bytes(path: str | os.PathLike[str], limit: int = MAX_CAPTURE_BYTES) -> bytes:
+    """The bytes of a capture *file*, refusing what cannot be one: a FIFO, a device (reading
+    ``/dev/zero`` never ends; opening a FIFO blocks until a writer comes), a directory, a file
+    above ``limit`` bytes. UserError naming the file and what to do."""
+    p = Path(path)
+    try:
+        st = p.stat()  # stat never blocks, opening a FIFO does
+    except FileNotFoundError:
+        raise UserError(f"{p}: no such file; give the path of a capture") from None
+    except OSError as exc:
+        raise UserError(f"{p}: cannot read ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise UserError(f"{p}: is a directory; give the path of a capture file")
+    if not stat.S_ISREG(st.st_mode):
+        raise UserError(
+            f"{p}: not a regular file (a device or a pipe); to record a port use "
+            "'python -m host capture --port PORT FILE', then decode FILE"
+        )
+    if st.st_size > limit:
+        raise UserError(
+            f"{p}: {st.st_size / 2**20:.0f} MiB is more than the {limit / 2**20:.0f} MiB decode "
+            "reads at once; record shorter captures (capture --seconds)"
+        )
+    try:
+        with open(p, "rb") as f:
+            return f.read(limit + 1)[:limit]
+    except OSError as exc:
+        raise UserError(f"{p}: cannot read ({exc.strerror or exc})") from None
+
+
 def read(path: str | os.PathLike[str]) -> Capture:
     """Read a capture file; a raw byte file becomes one chunk with time 0."""
     p = Path(path)
-    try:
-        raw = p.read_bytes()
-    except FileNotFoundError:
-        raise UserError(f"{p}: no such capture file") from None
+    raw = read_capture_bytes(p)
     if raw.startswith(MAGIC):
         return parse(raw, source=str(p))
     return Capture(raw, np.zeros(1, np.uint64), np.asarray([len(raw)], np.int64))

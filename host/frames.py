@@ -590,11 +590,21 @@ def samples_to_physical(samples: np.ndarray, afs_sel: int = 0, fs_sel: int = 0) 
 
 
 def _config_from(others: list[tuple[int, Frame]]) -> tuple[int, int]:
-    """Full-scale selections from the first HELLO frame, or the defaults (±2 g, ±250 °/s)."""
+    """Full-scale selections from the first HELLO frame whose codes an MPU-6000 has, or the
+    defaults (±2 g, ±250 °/s) without HELLO; UserError when every HELLO is impossible."""
+    bad: tuple[int, int] | None = None
     for _, f in others:
         if f.name == "HELLO":
-            fields = f.fields
-            return fields["accel_fs_sel"], fields["gyro_fs_sel"]
+            afs, fs = f.fields["accel_fs_sel"], f.fields["gyro_fs_sel"]
+            if afs in sensor.ACCEL_LSB_PER_G and fs in sensor.GYRO_LSB_PER_DPS:
+                return afs, fs
+            bad = bad or (afs, fs)
+    if bad is not None:
+        raise UserError(
+            f"the capture's HELLO reports full-scale codes AFS_SEL {bad[0]}, FS_SEL {bad[1]}; "
+            "an MPU-6000 has 0 to 3, so the samples cannot be scaled: the firmware is not "
+            "this project's (decode --stats still counts the frames)"
+        )
     return 0, 0
 
 
@@ -602,10 +612,7 @@ def decode_file(path: Path) -> tuple[BulkResult, np.ndarray | None]:
     """Decode a raw capture or an IMUCAP01 capture; second value: each sample's arrival ns."""
     from host import capture
 
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such file; give the path of a capture") from None
+    raw = capture.read_capture_bytes(path)
     arrivals = None
     if raw.startswith(capture.MAGIC):
         cap = capture.parse(raw, source=str(path))

@@ -70,3 +70,70 @@ def test_emu_elf_that_is_not_an_elf_says_so(tmp_path: Path) -> None:
     good = tmp_path / "fw.hex"
     good.write_text(":00000001FF\n")
     assert protocol_emu.parse_url(f"emu://?elf={good}")["elf"] == str(good)
+
+
+# --------------------------------------------------------------------------- decode
+
+
+def cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    from host.__main__ import main
+
+    rc = main(argv)
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+@pytest.mark.timeout(20)
+def test_decode_refuses_a_fifo_without_blocking(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import os
+
+    fifo = tmp_path / "pipe.cap"
+    os.mkfifo(fifo)  # nobody writes: opening it would block forever
+    t0 = time.monotonic()
+    rc, _, err = cli(["decode", str(fifo)], capsys)
+    assert rc == 2 and time.monotonic() - t0 < 5
+    assert f"{fifo}: not a regular file" in err and "capture --port" in err
+
+
+@pytest.mark.timeout(20)
+def test_decode_dev_zero_and_a_directory_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rc, _, err = cli(["decode", "/dev/zero"], capsys)  # was: unbounded read, MemoryError
+    assert rc == 2 and "/dev/zero: not a regular file" in err
+    rc, _, err = cli(["decode", str(tmp_path)], capsys)
+    assert rc == 2 and "is a directory" in err
+
+
+def test_capture_above_the_stated_size_is_refused(tmp_path: Path) -> None:
+    from host import capture
+
+    big = tmp_path / "big.cap"
+    with open(big, "wb") as f:
+        f.truncate(1000)  # sparse: no disk used
+    with pytest.raises(UserError, match=r"big\.cap: 0 MiB is more than the 0 MiB decode reads"):
+        capture.read_capture_bytes(big, limit=999)
+    assert len(capture.read_capture_bytes(big, limit=1000)) == 1000
+
+
+@pytest.mark.parametrize("afs, fs", [(7, 0), (0, 9), (255, 255)])
+def test_decode_hello_with_impossible_full_scale_codes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], afs: int, fs: int
+) -> None:
+    """Was ``KeyError: 7`` in host/sensor.py."""
+    from host.frames import encode_frame
+    from host.transports.protocol_sim import Serial as SimSerial
+
+    hello = SimSerial.__new__(SimSerial)
+    hello._div, hello._dlpf, hello._reset_cause, hello._streaming = 19, 4, 1, True
+    fields = SimSerial._hello_fields(hello) | {"accel_fs_sel": afs, "gyro_fs_sel": fs}
+    cap = tmp_path / "h.bin"
+    sample = dict(t_us=1000, ax=1, ay=2, az=3, temp=4, gx=5, gy=6, gz=7, flags=0)
+    cap.write_bytes(encode_frame("HELLO", 0, **fields) + encode_frame("IMU_SAMPLE", 1, **sample))
+    rc, out, err = cli(["decode", str(cap)], capsys)
+    assert rc == 2 and out == ""
+    assert f"full-scale codes AFS_SEL {afs}, FS_SEL {fs}" in err and "Traceback" not in err
+    rc, out, _ = cli(["decode", "--stats", str(cap)], capsys)
+    assert rc == 0 and '"frames": 2' in out
