@@ -18,7 +18,6 @@ from typing import Any
 import pytest
 
 from host import protocol_gen as gen
-from host import session as live
 from host.errors import UserError
 from host.frames import IMU_SAMPLE, StreamDecoder, _envelope, encode_frame
 from host.operator import CTRL_C, ScriptedConsole
