@@ -222,6 +222,9 @@ def fit_offline(
             continue
         maps.append(fit_min_delay(x[sel], np.asarray(floor_ns)[sel]))
         centres.append(s + w / 2)
+    if not maps:  # points too sparse for any window to hold two: one line through all
+        m = fit_min_delay(x, floor_ns)
+        return PiecewiseClockMap(np.asarray([float(x.mean())]), (m,))
     return PiecewiseClockMap(np.asarray(centres), tuple(maps))
 
 

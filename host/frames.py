@@ -123,6 +123,22 @@ for _m in MESSAGES.values():
     _EXPECTED_LEN[_m.type] = _m.length
 
 
+#: ERROR codes that mean the sensor stopped delivering (BAD_COMMAND answers a bad command)
+SENSOR_ERROR_CODES = frozenset(
+    code for name, code in gen.ENUMS["error_code"].items() if name != "BAD_COMMAND"
+)
+
+
+def error_text(f: Frame) -> str:
+    """An ERROR frame in words: "ERROR SENSOR_ABSENT (detail 0x00, 3 times)"."""
+    fl = f.fields
+    names = {v: k for k, v in gen.ENUMS["error_code"].items()}
+    return (
+        f"ERROR {names.get(fl['code'], fl['code'])} (detail {fl['detail']:#04x}, "
+        f"{fl['count']} times)"
+    )
+
+
 def crc16(data: bytes | bytearray | memoryview) -> int:
     """CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF) as the envelope uses it."""
     return binascii.crc_hqx(data, gen.CRC_INIT)
@@ -668,6 +684,11 @@ _PHYS = ["ax", "ay", "az", "gx", "gy", "gz", "temp"]
 _DIGITS = {"ax": 5, "ay": 5, "az": 5, "gx": 4, "gy": 4, "gz": 4, "temp": 3}
 
 
+#: a device clock further off the host's than this (ppm) means the arrival times are nonsense
+#: (a ceramic resonator is within ±5000 ppm, a crystal ±100)
+MAX_PLAUSIBLE_SKEW_PPM = 10_000.0
+
+
 def run_decode(args: argparse.Namespace) -> int:
     from host import clock
 
@@ -681,6 +702,17 @@ def run_decode(args: argparse.Namespace) -> int:
             baud=_baud_from(result.others),
             other_offsets=np.asarray([off for off, _ in result.others], dtype=np.int64),
         )
+    if timeline is not None:
+        for k, seg in enumerate(timeline.segments):
+            skew = seg.clock.overall.skew_ppm if seg.clock is not None else 0.0
+            if not abs(skew) <= MAX_PLAUSIBLE_SKEW_PPM:
+                print(
+                    f"warning: {args.file}: segment {k}: the device clock runs {skew:+.0f} ppm "
+                    "against the host's arrival times (a board's is within ±"
+                    f"{MAX_PLAUSIBLE_SKEW_PPM:g}): the arrival times do not belong to these "
+                    "samples (capture edited or joined?); t_host_ns is not trustworthy",
+                    file=sys.stderr,
+                )
     if args.stats:
         out: dict[str, Any] = result.stats.as_dict()
         if timeline is not None:

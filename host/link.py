@@ -11,6 +11,7 @@ and its device-to-host time mapping recomputed offline.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -20,7 +21,15 @@ import serial
 
 from host.capture import CaptureWriter
 from host.errors import UserError
-from host.frames import DecoderStats, Frame, StreamDecoder, encode_frame
+from host.frames import (
+    IMU_SAMPLE,
+    SENSOR_ERROR_CODES,
+    DecoderStats,
+    Frame,
+    StreamDecoder,
+    encode_frame,
+    error_text,
+)
 
 TRANSPORTS_PACKAGE = "host.transports"
 DEFAULT_BAUD = 115200
@@ -170,15 +179,32 @@ def run_capture(args: Any) -> int:
     import json
     import sys
 
+    if not math.isfinite(args.seconds) or args.seconds <= 0:
+        raise UserError(f"--seconds {args.seconds:g}: give a recording time above 0 s")
     with Link.open(args.port, args.baud, capture=args.file) as link:
         end = time.monotonic() + args.seconds
         n_samples = 0
+        sensor_error: Frame | None = None
         try:
             while time.monotonic() < end:
                 _, data = link.read_chunk()
-                n_samples += sum(1 for f in link.decoder.feed(data) if f.type == 1)
+                for f in link.decoder.feed(data):
+                    if f.type == IMU_SAMPLE:
+                        n_samples += 1
+                    elif f.name == "ERROR" and f.fields["code"] in SENSOR_ERROR_CODES:
+                        sensor_error = sensor_error or f
         except KeyboardInterrupt:
             print("stopped; the capture so far is kept", file=sys.stderr)
     stats = link.stats.as_dict() | {"samples": n_samples, "file": str(args.file)}
     print(json.dumps(stats))
+    if sensor_error is not None:
+        raise UserError(
+            f"the board's sensor failed: it reports {error_text(sensor_error)}; {n_samples} "
+            f"samples recorded in {args.file}; check the IMU, then power-cycle the board"
+        )
+    if n_samples == 0:
+        raise UserError(
+            f"no samples from the board in {args.seconds:g} s ({args.file} holds what came); "
+            "is it streaming? (python -m host flash checks its HELLO)"
+        )
     return 0

@@ -77,7 +77,7 @@ from host.calibration import (
 from host.capture import MAGIC, CaptureWriter
 from host.clock import LiveClock, serialisation_ns
 from host.errors import UserError
-from host.frames import IMU_SAMPLE, MESSAGES, OVERHEAD, Frame
+from host.frames import IMU_SAMPLE, MESSAGES, OVERHEAD, SENSOR_ERROR_CODES, Frame, error_text
 from host.link import DEFAULT_BAUD, Link, LinkLost, LinkTimeout, open_port
 from host.operator import Console, Operator, TerminalConsole
 from host.records import (
@@ -113,10 +113,6 @@ STALL_S = 2.0
 #: no IMU sample for this long during a measurement, whatever other frames arrive (STATUS,
 #: ERROR), is a stalled board: the measurement stops (:class:`SensorFault`), s
 SAMPLE_STALL_S = 5.0
-#: ERROR codes that mean the sensor stopped delivering (BAD_COMMAND answers a bad command)
-SENSOR_ERROR_CODES = frozenset(
-    code for name, code in gen.ENUMS["error_code"].items() if name != "BAD_COMMAND"
-)
 SERIAL_RE = re.compile(r"^[A-Za-z0-9_-]{1,12}$")
 MISSED = gen.ENUMS["sample_flags"]["MISSED"]
 #: bytes of one IMU_SAMPLE frame on the wire (for its serialisation time)
@@ -384,16 +380,6 @@ class SensorFault(UserError):
     """The board's sensor stopped during a measurement: the board sent a sensor ERROR frame
     (the message carries its reason), or no IMU sample came for ``sample_stall_s`` while the
     board kept talking (STATUS, ERROR). Reconnecting does not help; the sensor needs a look."""
-
-
-def error_text(f: Frame) -> str:
-    """An ERROR frame in words: "ERROR SENSOR_ABSENT (detail 0x00, 3 times)"."""
-    fl = f.fields
-    names = {v: k for k, v in gen.ENUMS["error_code"].items()}
-    return (
-        f"ERROR {names.get(fl['code'], fl['code'])} (detail {fl['detail']:#04x}, "
-        f"{fl['count']} times)"
-    )
 
 
 class DeferredCapture(CaptureWriter):

@@ -4,6 +4,7 @@ CPU; emu://?elf=<not an ELF> said the board disconnected)."""
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
@@ -137,3 +138,98 @@ def test_decode_hello_with_impossible_full_scale_codes(
     assert f"full-scale codes AFS_SEL {afs}, FS_SEL {fs}" in err and "Traceback" not in err
     rc, out, _ = cli(["decode", "--stats", str(cap)], capsys)
     assert rc == 0 and '"frames": 2' in out
+
+
+def _imu(seq: int, t_us: int) -> bytes:
+    from host.frames import encode_frame
+
+    return encode_frame(
+        "IMU_SAMPLE", seq, t_us=t_us, ax=10, ay=-20, az=16000, temp=300, gx=1, gy=-2, gz=3, flags=0
+    )
+
+
+@pytest.mark.timeout(20)
+def test_decode_two_samples_61_s_apart(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Was ``ValueError: need at least one array to stack`` in host/clock.py: no 60 s window
+    held two points."""
+    from host.capture import CaptureWriter
+
+    path = tmp_path / "gap.cap"
+    with CaptureWriter(path) as w:
+        w.write(1_000_000_000, _imu(0, 5_000_000))
+        w.write(62_000_000_000, _imu(1, 66_000_000))  # 61 s later on both clocks
+    rc, out, err = cli(["decode", str(path)], capsys)
+    assert rc == 0, err
+    rows = [json.loads(line) for line in out.splitlines()]
+    assert [r["t_us"] for r in rows] == [5_000_000, 66_000_000]
+    assert rows[1]["t_host_ns"] - rows[0]["t_host_ns"] == pytest.approx(61e9, rel=1e-3)
+    assert "warning" not in err
+
+
+@pytest.mark.timeout(20)
+def test_decode_warns_about_nonsense_arrival_times(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Every read stamped at the same host time: a skew of −1 000 000 ppm, said aloud."""
+    from host.capture import CaptureWriter
+
+    path = tmp_path / "same.cap"
+    with CaptureWriter(path) as w:
+        for k in range(200):
+            w.write(7, _imu(k, 1000 + 20_000 * k))
+    rc, out, err = cli(["decode", "--stats", str(path)], capsys)
+    assert rc == 0
+    assert json.loads(out)["clock"][0]["skew_ppm"] < -900_000
+    assert f"warning: {path}: segment 0: the device clock runs -1000000 ppm" in err
+    # a plausible clock (here 120 ppm fast against the host) gets no warning
+    with CaptureWriter(path) as w:
+        for k in range(200):
+            w.write(10**9 + int(20_000_000 * k * (1 - 120e-6)), _imu(k, 1000 + 20_000 * k))
+    rc, out, err = cli(["decode", "--stats", str(path)], capsys)
+    assert rc == 0 and "warning" not in err
+    assert json.loads(out)["clock"][0]["skew_ppm"] == pytest.approx(-120, abs=5)
+
+
+# --------------------------------------------------------------------------- capture
+
+
+@pytest.mark.timeout(30)
+def test_capture_on_a_board_whose_sensor_failed_exits_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Was: exit 0 with 0 samples after ≈210 ERROR frames."""
+    from host.frames import encode_frame
+
+    err_code = 6  # DATA_READY_TIMEOUT
+    board = tmp_path / "failed.bin"
+    board.write_bytes(
+        b"".join(encode_frame("ERROR", k, code=err_code, detail=1, count=k + 1) for k in range(5))
+    )
+    out = tmp_path / "out.cap"
+    rc, stdout, err = cli(
+        ["capture", "--port", f"replay://{board}?speed=max", "--seconds", "0.5", str(out)], capsys
+    )
+    assert rc == 2
+    assert json.loads(stdout)["samples"] == 0  # the counters are still printed
+    assert "the board's sensor failed: it reports ERROR DATA_READY_TIMEOUT" in err
+    assert out.stat().st_size > 8  # what came is kept
+    # a board that sends nothing usable at all: also not a success
+    board.write_bytes(b"\x00" * 100)
+    rc, _, err = cli(
+        ["capture", "--port", f"replay://{board}?speed=max", "--seconds", "0.3", str(out)], capsys
+    )
+    assert rc == 2 and "no samples from the board in 0.3 s" in err
+    rc, _, err = cli(["capture", "--port", "sim://", "--seconds", "nan", str(out)], capsys)
+    assert rc == 2 and "--seconds nan" in err
+
+
+@pytest.mark.timeout(30)
+def test_capture_of_a_working_board_exits_0(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "ok.cap"
+    rc, stdout, err = cli(
+        ["capture", "--port", "sim://?speed=max&seed=3", "--seconds", "0.2", str(out)], capsys
+    )
+    assert rc == 0, err
+    assert json.loads(stdout)["samples"] > 0
