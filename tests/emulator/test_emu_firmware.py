@@ -94,8 +94,8 @@ def test_bringup_and_60s_stream(emu_bin, fw_elf, tmp_path):
     offset = t_dev - read["t_us"][: len(samples)]
     assert np.ptp(offset) <= TIMESTAMP_TOL_US, np.ptp(offset)
     assert all(f.fields["flags"] == 0 for f in samples)
-
-    assert s["speed"] >= 5.0, f"emulator too slow: {s['speed']:.1f}x"
+    # (no speed assertion: emulator throughput is measured by benchmarks/emulator_bench.py; a
+    # wall-clock bound here failed whenever the machine was busy)
 
 
 def test_every_axis_lands_where_it_belongs(emu_bin, fw_elf, tmp_path):
