@@ -138,6 +138,9 @@ def run(args: argparse.Namespace) -> int:
         segments = segmentation.read_labels(args.labels, stream)
     elif not segments:
         segments, thresholds = segmentation.segment_stream(stream)
+        hint = segmentation.gyro_unit_hint(stream, segments)
+        if hint:
+            print(f"warning: {hint}", file=sys.stderr)
     records = segmentation.build_records(stream, segments, thresholds, serial)
     if not records:
         raise UserError(f"{args.file}: nothing labelled to write (every label is '-')")

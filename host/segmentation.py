@@ -49,6 +49,8 @@ MIN_STILL_S = 1.0  #: still runs shorter than this are not still periods, s
 AXIS_TOL_DEG = 25.0  #: gravity within this of an axis labels the attitude (else tilted)
 TURN_HEADING_TOL_DEG = 45.0  #: a pause within this of a whole turn ends the turn
 TURN_PAD_S = 0.5  #: a turn record reaches this far into the still runs around it, s
+MIN_SPACING_S = 20e-6  #: a median sample spacing outside these bounds means a wrong time unit
+MAX_SPACING_S = 2.0
 
 # timing quality
 GAP_MIN_MS = 50.0  #: a spacing above max(GAP_MIN_MS, GAP_FACTOR × median) is a gap
@@ -276,6 +278,7 @@ def segment_stream(stream: Stream) -> tuple[list[Segment], Thresholds]:
     """Find still periods, their attitudes and the turns between them (module docstring);
     -> segments in time order (still runs, turns, moves) with proposed labels, thresholds."""
     t, acc, gyr = stream.t_s, stream.accel, stream.gyro
+    check_time_unit(stream)
     still, thr = find_still(t, acc, gyr)
     runs = still_runs(t, still, thr.min_still_s)
     if not runs:
@@ -384,6 +387,51 @@ def _check_gravity(stream: Stream, norms: list[float]) -> None:
         f"{src}: at rest the accelerometer reads |a| = {m:.4g} m/s² after the unit conversion, "
         f"gravity is about 9.81{hint}"
     )
+
+
+def check_time_unit(stream: Stream) -> None:
+    """Sample spacing must be plausible for an IMU (``MIN_SPACING_S`` … ``MAX_SPACING_S``):
+    else the time column's unit is wrong — say which one it looks like."""
+    t = stream.t_s
+    if t.size < 2:
+        return
+    dt = float(np.median(np.diff(t)))
+    src = stream.meta.get("source", "the file")
+    if dt > MAX_SPACING_S:
+        raise SegmentationError(
+            f"{src}: the samples are {dt:.4g} s apart after the unit conversion "
+            f"({stream.meta.get('units', '')}): is the time column in ms or µs? "
+            "add --units t=ms or t=us"
+        )
+    if 0 < dt < MIN_SPACING_S:
+        raise SegmentationError(
+            f"{src}: the samples are {dt * 1e6:.3g} µs apart after the unit conversion "
+            f"({stream.meta.get('units', '')}): is the time column in s or ms? "
+            "add --units t=s or t=ms"
+        )
+
+
+def gyro_unit_hint(stream: Stream, segments: list[Segment]) -> str | None:
+    """When no turn was found but the rotation between two still periods of one attitude is
+    close to a whole number of 2π, the gyro is probably in rad/s: the hint, else None."""
+    if any(s.turns for s in segments):
+        return None
+    still = [s for s in segments if s.found.startswith("still")]
+    t, gyr = stream.t_s, stream.gyro
+    for a, b in zip(still, still[1:], strict=False):
+        if a.found != b.found:
+            continue
+        bias = gyr[a.start : a.stop].mean(axis=0)
+        lo, hi = a.stop - 1, b.start + 1
+        angle = abs(float(trapezoid(t[lo:hi], gyr[lo:hi] - bias) @ np.asarray(a.up)))
+        k = round(angle / (2 * math.pi))
+        if k >= 1 and abs(angle - 2 * math.pi * k) < 0.15 * 2 * math.pi:
+            return (
+                f"between {a.t1_s:.1f} s and {b.t0_s:.1f} s the gyro integral about "
+                f"{_axis_text(np.asarray(a.up))} is {angle:.2f}, close to {k}·2π, and no turn "
+                "was found: is the gyro in rad/s? add --units gyro=rad/s"
+            )
+    return None
 
 
 # ---- the table and the labels file ----------------------------------------------------------

@@ -470,3 +470,23 @@ def test_bad_imported_records_are_not_sent_back_to_the_bench(tmp_path: Path) -> 
         calibrate_from_records(Session("U1", recs))
     assert "re-measure" not in str(exc.value)
     assert "y_up segment" in str(exc.value) and "--labels" in str(exc.value)
+
+
+def test_wrong_time_and_gyro_units_are_named(tmp_path: Path, capsys) -> None:
+    rng = np.random.default_rng(9)
+    t = np.arange(0, 14.0, 0.01)
+    rate = _turn_rate(t, 4.0, 5.0, 360.0)
+    gyro = rng.normal(0, 0.03, (t.size, 3))
+    gyro[:, 0] += rate
+    accel = np.array([9.8, 0.1, -0.2]) + rng.normal(0, 0.01, (t.size, 3))
+    rows = [f"{a:.3f},{b[0]:.4f},{b[1]:.4f},{b[2]:.4f},{c[0]:.6f},{c[1]:.6f},{c[2]:.6f}"
+            for a, b, c in zip(t * 1000, accel, np.radians(gyro), strict=True)]  # fmt: skip
+    f = tmp_path / "rad.csv"
+    f.write_text("\n".join(rows) + "\n")
+    base = ["import", str(f), "--columns", "t,ax,ay,az,gx,gy,gz", "--serial", "R1"]
+    assert main([*base, "--out", str(tmp_path / "a")]) == 2  # t in ms read as s
+    assert "add --units t=ms" in capsys.readouterr().err
+    assert main([*base, "--units", "t=ms", "--out", str(tmp_path / "b")]) == 0
+    assert "is the gyro in rad/s? add --units gyro=rad/s" in capsys.readouterr().err
+    assert main([*base, "--units", "t=ms,gyro=rad/s", "--out", str(tmp_path / "c")]) == 0
+    assert (tmp_path / "c" / "R1_x_ccw.txt").exists()
