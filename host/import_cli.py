@@ -159,6 +159,7 @@ def run(args: argparse.Namespace) -> int:
     if thresholds is not None:
         print(f"stillness: {thresholds.text()}")
     sys.stdout.write(segmentation.format_table(segments))
+    sys.stdout.write(segmentation.format_timing(records))
     _warn_timing(records)
     labels_path = out / f"{serial}_segments.tsv"
     if thresholds is not None or args.labels is None:

@@ -601,6 +601,19 @@ def build_records(
     return out
 
 
+def format_timing(records: dict[str, Record]) -> str:
+    """Per-record timing table: samples, median spacing, worst gap, share of time in gaps."""
+    lines = [f"{'record':<9} {'samples':>7} {'median ms':>9} {'worst gap ms':>12} {'in gaps':>8}"]
+    for name, rec in records.items():
+        q = timing_quality(rec.t_ms / 1000.0)
+        flag = "  irregular" if q.warning else ""
+        lines.append(
+            f"{name:<9} {q.n:>7} {q.median_ms:>9.3g} {q.worst_gap_ms:>12.4g} "
+            f"{100 * q.gap_share:>7.1f}%{flag}"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def plan_summary(records: dict[str, Record]) -> str:
     """Which records of the standard plan (6 statics, 6 turns) were found and which not."""
     have_s = [n for n in STATIC_NAMES if n in records]

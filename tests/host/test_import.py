@@ -285,6 +285,7 @@ def test_continuous_capture_is_cut_into_the_12_records_with_the_dialogue_constan
     assert main(["import", str(cap), "--serial", "C1", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "6 of 6 static records, 6 of 6 turn records" in printed
+    assert "median ms" in printed and "x_ccw " in printed  # the timing table
     assert "std <" in printed  # the stated thresholds
     session = read_session(out)
     assert set(session.records) == set(STATIC_NAMES + TURN_NAMES)
