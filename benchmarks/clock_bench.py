@@ -21,7 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from host import capture, clock, frames  # noqa: E402
-from host.linksim import LinkParams, simulate_link  # noqa: E402
+from host.bench.linksim import LinkParams, simulate_link  # noqa: E402
 
 
 def rms_us(err: np.ndarray) -> float:

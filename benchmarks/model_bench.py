@@ -20,11 +20,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from host.diagnose import diagnose
-from host.model import CATALOGUE, build_dataset, fit_model, load_dataset, parse_model
-from host.model import session_from_records as as_session
-from host.model_cli import case_dataset, hidden_effect_case, run_case
-from host.sim import Plan, SensorTruth, simulate_session
+from host.bench.sim import Plan, SensorTruth, simulate_session
+from host.cli.model import case_dataset, hidden_effect_case, run_case
+from host.modelling.diagnose import diagnose
+from host.modelling.model import CATALOGUE, build_dataset, fit_model, load_dataset, parse_model
+from host.modelling.model import session_from_records as as_session
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "imucal-example"
 

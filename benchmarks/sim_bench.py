@@ -12,7 +12,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from host.sim import Plan, SensorTruth, simulate_session, write_session
+from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
 
 
 def main(repeats: int = 5) -> None:

@@ -16,23 +16,27 @@ from host.errors import UserError
 
 #: command -> (module, function adding the arguments and returning the runner, one-line help)
 COMMANDS: dict[str, tuple[str, str, str]] = {
-    "calibrate": ("host.calibrate_cli", "cli_calibrate", "compute calibration, write the report"),
+    "calibrate": ("host.cli.calibrate", "cli_calibrate", "compute calibration, write the report"),
     "import": (
-        "host.import_cli",
+        "host.cli.importing",
         "cli_import",
         "turn a foreign file (columns, imucal session, .cap) into record files",
     ),
     "export": (
-        "host.export_cli",
+        "host.cli.exporting",
         "cli_export",
         "write a result as ArduPilot/PX4 parameters, imucal JSON or a C header",
     ),
-    "decode": ("host.frames", "cli_decode", "decode a capture file to JSONL/CSV samples"),
-    "capture": ("host.link", "cli_capture", "record a port's bytes with host times to a file"),
-    "model": ("host.model_cli", "cli_model", "model workbench: diagnose, add a term, ladder"),
-    "demo": ("host.model_cli", "cli_demo", "demo: find an effect hidden in a simulated session"),
+    "decode": ("host.wire.frames", "cli_decode", "decode a capture file to JSONL/CSV samples"),
+    "capture": (
+        "host.board.link",
+        "cli_capture",
+        "record a port's bytes with host times to a file",
+    ),
+    "model": ("host.cli.model", "cli_model", "model workbench: diagnose, add a term, ladder"),
+    "demo": ("host.cli.model", "cli_demo", "demo: find an effect hidden in a simulated session"),
     "flash": (
-        "host.flash",
+        "host.board.flash",
         "cli_flash",
         "build, flash and verify the firmware (avrdude), then check its hello",
     ),

@@ -18,7 +18,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from host.frames import BY_NAME, encode_frame  # noqa: E402
+from host.wire.frames import BY_NAME, encode_frame  # noqa: E402
 
 OUT = ROOT / "protocol" / "vectors.json"
 

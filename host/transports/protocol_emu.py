@@ -84,13 +84,13 @@ import numpy as np
 from serial.serialposix import Serial as PosixSerial
 from serial.serialutil import SerialException
 
-from host.emulator import FAULTS, STIM_RECORD_HZ, EmulatedBoard, SimStimulus
+from host.bench.emulator import FAULTS, STIM_RECORD_HZ, EmulatedBoard, SimStimulus
 from host.transports.protocol_sim import SAMPLE_CLOCK_MAX, SPEED_RANGE, bounded
 
 if TYPE_CHECKING:
-    from host.sim import CubeOperator, Simulator
-    from host.sim_physics import Bench, Environment, Motion
-    from host.sim_truth import SensorTruth
+    from host.bench.physics import Bench, Environment, Motion
+    from host.bench.sim import CubeOperator, Simulator
+    from host.bench.truth import SensorTruth
 
 _FLOAT = ("seconds", "fault_at", "noise_accel", "noise_gyro", "clock_ppm")
 _PATH = ("elf", "stimulus", "reglog", "samplelog", "workdir", "flash")
@@ -208,7 +208,7 @@ def parse_sim_options(url: str) -> SimOptions | None:
     except ValueError as exc:
         raise ValueError(f"emu:// option {key}={one(key, '')!r}: {exc}") from None
     earth = one("earth_rate", "1").lower() not in ("0", "false", "no")
-    from host.sim import OPERATOR_FAULTS
+    from host.bench.sim import OPERATOR_FAULTS
 
     faults: list[tuple[str, float]] = []
     for text in opts.get("operator_fault", []):
@@ -236,9 +236,9 @@ class _Bench:
     operator, and where the cube is."""
 
     def __init__(self, o: SimOptions) -> None:
-        from host.sim import CubeOperator
-        from host.sim_physics import Bench, Environment, static_motion
-        from host.sim_truth import SensorTruth
+        from host.bench.physics import Bench, Environment, static_motion
+        from host.bench.sim import CubeOperator
+        from host.bench.truth import SensorTruth
 
         truth_ss, env_ss, self.noise_ss, op_ss = np.random.SeedSequence(o.seed).spawn(4)
         truth = (
@@ -266,7 +266,7 @@ class _Bench:
 
     def simulator(self) -> Simulator:
         """A fresh simulator for a (re)started emulator: new noise, same sensor and pose."""
-        from host.sim import Simulator
+        from host.bench.sim import Simulator
 
         ss = self.noise_ss
         seed = np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, self.starts))
@@ -345,7 +345,7 @@ class Serial(PosixSerial):
             stim.request_stop()
             with stim.lock:
                 if self._bench is not None:  # the cube stays where it is
-                    from host.sim import resting_pose
+                    from host.bench.sim import resting_pose
 
                     self._bench.pose = resting_pose(stim.sim, stim.horizon_s)
                     alive = self.board is not None and self.board.running

@@ -19,7 +19,7 @@ from typing import Any
 
 import serial
 
-from host import capture
+from host.wire import capture
 
 
 class Serial(serial.SerialBase):

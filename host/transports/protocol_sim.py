@@ -59,17 +59,17 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
-from host import protocol_gen as gen
-from host.frames import StreamDecoder, encode_frame, encode_imu_samples
-from host.sim import (
+from host.bench.physics import Bench, Environment, Motion, static_motion
+from host.bench.sim import (
     INCOMPLETE_FRACTION,
     TOO_FAST_PEAK_DPS,
     CubeOperator,
     Simulator,
     resting_pose,
 )
-from host.sim_physics import Bench, Environment, Motion, static_motion
-from host.sim_truth import SensorTruth
+from host.bench.truth import SensorTruth
+from host.wire import protocol_gen as gen
+from host.wire.frames import StreamDecoder, encode_frame, encode_imu_samples
 
 FW_VERSION = (0, 1, 0)
 BAUD = 115200

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from host import emulator
+from host.bench import emulator
 from host.errors import UserError
 
 

@@ -8,8 +8,8 @@ from collections.abc import Callable
 import numpy as np
 import serial
 
-from host.emulator import EmulatedBoard
-from host.frames import Frame, StreamDecoder
+from host.bench.emulator import EmulatedBoard
+from host.wire.frames import Frame, StreamDecoder
 
 BAUD = 115200
 

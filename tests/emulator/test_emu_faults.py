@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from host.emulator import FAULTS
+from host.bench.emulator import FAULTS
 
 pytestmark = [pytest.mark.emulator, pytest.mark.slow]
 

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from emu_helpers import collect, of_type, sample_counts, seq_gaps
 
-from host import sensor
-from host.emulator import EmulatedBoard, build_firmware, write_stimulus
-from host.frames import encode_frame
-from host.protocol_gen import ENUMS
+from host.bench.emulator import EmulatedBoard, build_firmware, write_stimulus
+from host.wire import sensor
+from host.wire.frames import encode_frame
+from host.wire.protocol_gen import ENUMS
 
 pytestmark = pytest.mark.emulator
 

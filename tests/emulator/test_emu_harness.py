@@ -8,11 +8,11 @@ import pytest
 import serial
 from emu_helpers import collect, of_type, sample_counts, seq_gaps
 
-from host import emulator
-from host.emulator import EmulatedBoard, read_stimulus, write_stimulus
+from host.bench import emulator
+from host.bench.emulator import EmulatedBoard, read_stimulus, write_stimulus
 from host.errors import UserError
-from host.frames import encode_frame
 from host.transports.protocol_emu import parse_url
+from host.wire.frames import encode_frame
 
 
 # ------------------------------------------------------------------ no simavr needed
@@ -182,7 +182,7 @@ def test_board_starts_after_the_startup_time_so_an_open_never_loses_hello(emu_bi
     import os
     import time
 
-    from host.emulator import EmulatedBoard
+    from host.bench.emulator import EmulatedBoard
 
     good, _ = testapp_elfs
     board = EmulatedBoard(good, emulator=emu_bin, seconds=1.0)

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 import serial
 
-from host import clock
-from host.emulator import write_stimulus
-from host.frames import IMU_FIELDS, decode_bulk, decode_file
-from host.link import Link, open_port
+from host.bench.emulator import write_stimulus
+from host.board.link import Link, open_port
+from host.timing import clock
+from host.wire.frames import IMU_FIELDS, decode_bulk, decode_file
 
 ROOT = Path(__file__).resolve().parents[2]
 FIXTURE = ROOT / "tests" / "captures" / "emu_clean.bin"

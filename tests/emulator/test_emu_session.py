@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from host.operator import ScriptedConsole
-from host.records import STATIC_NAMES, TURN_NAMES, read_record
+from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record
+from host.dialogue.console import ScriptedConsole
 from host.transports.protocol_emu import truth_for_url
 from tests.host.test_session import Ports, opts, run
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from emu_helpers import collect, of_type, seq_gaps
 
-from host.emulator import EmulatedBoard, build_firmware
-from host.frames import Frame, encode_frame
+from host.bench.emulator import EmulatedBoard, build_firmware
+from host.wire.frames import Frame, encode_frame
 
 pytestmark = pytest.mark.emulator
 

@@ -13,12 +13,12 @@ from pathlib import Path
 
 import pytest
 
-from host import flash as fl
-from host.emulator import EmulatedBoard, build_firmware
+from host.bench.emulator import EmulatedBoard, build_firmware
+from host.board import flash as fl
+from host.board.link import open_port
 from host.errors import UserError
-from host.frames import StreamDecoder
-from host.link import open_port
-from host.protocol_gen import SPEC_FINGERPRINT
+from host.wire.frames import StreamDecoder
+from host.wire.protocol_gen import SPEC_FINGERPRINT
 
 pytestmark = pytest.mark.emulator
 

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from host.calibration import (
+from host.calib.calibration import (
     local_gravity,
     matrix_to_names,
     names_to_gsens,
     names_to_matrix,
 )
-from host.records import DECIMALS, STATIC_NAMES, TURN_NAMES, Record
+from host.calib.records import DECIMALS, STATIC_NAMES, TURN_NAMES, Record
 
 #: the true constants (names of method.md §7); all different, realistic magnitudes
 TRUTH: dict[str, float] = {

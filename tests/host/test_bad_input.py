@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from host.board.link import open_port
 from host.errors import UserError
-from host.link import open_port
 from host.transports import protocol_emu
 
 
@@ -109,7 +109,7 @@ def test_decode_dev_zero_and_a_directory_are_refused(
 
 
 def test_capture_above_the_stated_size_is_refused(tmp_path: Path) -> None:
-    from host import capture
+    from host.wire import capture
 
     big = tmp_path / "big.cap"
     with open(big, "wb") as f:
@@ -124,8 +124,8 @@ def test_decode_hello_with_impossible_full_scale_codes(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], afs: int, fs: int
 ) -> None:
     """Was ``KeyError: 7`` in host/sensor.py."""
-    from host.frames import encode_frame
     from host.transports.protocol_sim import Serial as SimSerial
+    from host.wire.frames import encode_frame
 
     hello = SimSerial.__new__(SimSerial)
     hello._div, hello._dlpf, hello._reset_cause, hello._streaming = 19, 4, 1, True
@@ -141,7 +141,7 @@ def test_decode_hello_with_impossible_full_scale_codes(
 
 
 def _imu(seq: int, t_us: int) -> bytes:
-    from host.frames import encode_frame
+    from host.wire.frames import encode_frame
 
     return encode_frame(
         "IMU_SAMPLE", seq, t_us=t_us, ax=10, ay=-20, az=16000, temp=300, gx=1, gy=-2, gz=3, flags=0
@@ -152,7 +152,7 @@ def _imu(seq: int, t_us: int) -> bytes:
 def test_decode_two_samples_61_s_apart(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Was ``ValueError: need at least one array to stack`` in host/clock.py: no 60 s window
     held two points."""
-    from host.capture import CaptureWriter
+    from host.wire.capture import CaptureWriter
 
     path = tmp_path / "gap.cap"
     with CaptureWriter(path) as w:
@@ -171,7 +171,7 @@ def test_decode_warns_about_nonsense_arrival_times(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Every read stamped at the same host time: a skew of −1 000 000 ppm, said aloud."""
-    from host.capture import CaptureWriter
+    from host.wire.capture import CaptureWriter
 
     path = tmp_path / "same.cap"
     with CaptureWriter(path) as w:
@@ -198,7 +198,7 @@ def test_capture_on_a_board_whose_sensor_failed_exits_2(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Was: exit 0 with 0 samples after ≈210 ERROR frames."""
-    from host.frames import encode_frame
+    from host.wire.frames import encode_frame
 
     err_code = 6  # DATA_READY_TIMEOUT
     board = tmp_path / "failed.bin"

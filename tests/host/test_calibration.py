@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host.calibration import (
+from host.calib.calibration import (
     ACCEL_BIAS_NAMES,
     ACCEL_MIS_NAMES,
     ACCEL_SCALE_NAMES,
@@ -30,8 +30,8 @@ from host.calibration import (
     stage2,
     trapezoid_integral,
 )
+from host.calib.records import STATIC_NAMES, TURN_NAMES, Record, Session, read_session
 from host.errors import UserError
-from host.records import STATIC_NAMES, TURN_NAMES, Record, Session, read_session
 
 try:
     from calib_truth import TRUTH, make_record, make_records

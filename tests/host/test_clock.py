@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from host import capture, clock, frames
-from host.linksim import LinkCapture, LinkParams, simulate_link
+from host.bench.linksim import LinkCapture, LinkParams, simulate_link
 
 
 def decode(lc: LinkCapture) -> tuple[frames.BulkResult, np.ndarray, clock.Timeline]:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from host.frames import StreamDecoder, decode_bulk
+from host.wire.frames import StreamDecoder, decode_bulk
 
 CORPUS = Path(__file__).resolve().parents[1] / "captures"
 TABLE = json.loads((CORPUS / "corpus.json").read_text())

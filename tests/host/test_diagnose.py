@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from host.diagnose import (
+from host.cli.model import case_dataset, hidden_effect_case, run_case
+from host.modelling.diagnose import (
     VERDICTS,
     add_term,
     diagnose,
@@ -17,8 +18,7 @@ from host.diagnose import (
     holm,
     ladder,
 )
-from host.model import load_dataset, parse_model
-from host.model_cli import case_dataset, hidden_effect_case, run_case
+from host.modelling.model import load_dataset, parse_model
 
 REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
 

@@ -15,15 +15,15 @@ from pathlib import Path
 import numpy as np
 
 from host.__main__ import main
-from host.calibration import (
+from host.calib.calibration import (
     CONSTANT_NAMES,
     GYRO_GSENS_NAMES,
     CalibrationResult,
     apply,
     local_gravity,
 )
-from host.exporting import FORMATS, export
-from host.importing import parse_axes
+from host.calib.exporting import FORMATS, export
+from host.ingest.importing import parse_axes
 
 try:
     from calib_truth import TRUTH

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host.frames import (
+from host.wire.frames import (
     IMU_FIELDS,
     DecoderStats,
     FrameReader,

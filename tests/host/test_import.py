@@ -11,11 +11,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from host.__main__ import main
-from host.calibration import calibrate_from_records
-from host.capture import CaptureWriter
+from host.bench.physics import static_motion
+from host.bench.sim import Bench, Environment, SensorTruth, Simulator, turn_motion
+from host.calib.calibration import calibrate_from_records
+from host.calib.records import STATIC_NAMES, TURN_NAMES, Record, Session, read_record, read_session
 from host.errors import UserError
-from host.frames import encode_imu_samples
-from host.importing import (
+from host.ingest.importing import (
     STANDARD_G,
     ForeignFileError,
     Stream,
@@ -24,16 +25,15 @@ from host.importing import (
     parse_columns,
     parse_units,
 )
-from host.records import STATIC_NAMES, TURN_NAMES, Record, Session, read_record, read_session
-from host.segmentation import (
+from host.ingest.segmentation import (
     find_still,
     segment_stream,
     timing_quality,
     trapezoid,
     uniform_rate_error_deg,
 )
-from host.sim import Bench, Environment, SensorTruth, Simulator, turn_motion
-from host.sim_physics import static_motion
+from host.wire.capture import CaptureWriter
+from host.wire.frames import encode_imu_samples
 
 COLS = parse_columns("t,ax,ay,az,gx,gy,gz,temp")
 
@@ -442,7 +442,7 @@ def test_a_turn_made_in_four_steps_with_pauses_is_one_turn() -> None:
 
 
 def test_the_calibration_integrates_turns_over_the_true_sample_times() -> None:
-    from host.calibration import record_stats
+    from host.calib.calibration import record_stats
 
     rng = np.random.default_rng(12)
     t = _bursty_times(rng, 9.0)

@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host import capture
 from host.__main__ import main
-from host.frames import encode_frame, encode_imu_samples
-from host.link import Link, LinkTimeout, open_port
+from host.board.link import Link, LinkTimeout, open_port
+from host.wire import capture
+from host.wire.frames import encode_frame, encode_imu_samples
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -83,7 +83,7 @@ def test_decode_jsonl_csv_stats(tmp_path: Path) -> None:
 
 def test_decode_capture_maps_device_time_to_host_time(tmp_path: Path) -> None:
     """t_host_ns is the sample's mapped host time: far closer to the truth than arrival."""
-    from host.linksim import LinkParams, simulate_link
+    from host.bench.linksim import LinkParams, simulate_link
 
     lc = simulate_link(LinkParams(seconds=30, seed=5))
     path = tmp_path / "s.cap"

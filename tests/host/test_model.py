@@ -9,8 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from host.bench.physics import Environment
+from host.bench.sim import Plan, SensorTruth, simulate_session
 from host.errors import UserError
-from host.model import (
+from host.modelling.model import (
     BASE,
     CATALOGUE,
     NoiseModel,
@@ -24,8 +26,6 @@ from host.model import (
     parse_model,
     session_from_records,
 )
-from host.sim import Plan, SensorTruth, simulate_session
-from host.sim_physics import Environment
 
 
 def _session(seed: int = 3, **plan_kw: object) -> tuple[SensorTruth, object]:
@@ -148,7 +148,7 @@ def test_blocks_give_within_record_rows() -> None:
 
 TERM_FILE = textwrap.dedent(
     '''
-    from host.model import term
+    from host.modelling.model import term
 
     @term(sensors=("gyro",), params={"c3": "{u}/°C³"}, needs="records at several temperatures")
     def temperature_cubic(sig, sensor, axis):
@@ -190,7 +190,7 @@ def test_nonlinear_term_is_linearised_and_iterated(tmp_path: Path) -> None:
     f.write_text(
         textwrap.dedent(
             '''
-            from host.model import nonlinear_term
+            from host.modelling.model import nonlinear_term
 
             @nonlinear_term(sensors=("gyro",), params={"c": "(°/s/°C)^(1/3)"}, initial=[0.5])
             def cube_temp(sig, sensor, axis, theta):
@@ -214,7 +214,7 @@ def test_nonlinear_term_is_linearised_and_iterated(tmp_path: Path) -> None:
 
 
 def test_empty_session_is_a_user_error() -> None:
-    from host.records import Session
+    from host.calib.records import Session
 
     with pytest.raises(UserError):
         build_dataset(Session("X", {}))

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from host.__main__ import main
-from host.model_cli import hidden_effect_case
-from host.sim import write_session
+from host.bench.sim import write_session
+from host.cli.model import hidden_effect_case
 
 
 @pytest.fixture(scope="module")

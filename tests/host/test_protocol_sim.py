@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import serial
 
-from host import protocol_gen as gen
-from host import sensor
-from host.frames import Frame, StreamDecoder, encode_frame
-from host.sim_truth import SensorTruth
+from host.bench.truth import SensorTruth
 from host.transports.protocol_sim import Serial as SimSerial
+from host.wire import protocol_gen as gen
+from host.wire import sensor
+from host.wire.frames import Frame, StreamDecoder, encode_frame
 
 if "host.transports" not in serial.protocol_handler_packages:
     serial.protocol_handler_packages.append("host.transports")

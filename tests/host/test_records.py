@@ -9,8 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from host.errors import UserError
-from host.records import (
+from host.calib.records import (
     DECIMALS,
     STATIC_NAMES,
     TURN_NAMES,
@@ -24,6 +23,7 @@ from host.records import (
     split_file_name,
     write_record,
 )
+from host.errors import UserError
 
 # shared/ sits beside the checkout (as in CI)
 REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"

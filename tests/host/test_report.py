@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 from host.__main__ import main
-from host.calibration import CONSTANT_NAMES, CalibrationResult, calibrate_from_records
-from host.records import Session, record_path, write_record
-from host.report import format_report, write_results
+from host.calib.calibration import CONSTANT_NAMES, CalibrationResult, calibrate_from_records
+from host.calib.records import Session, record_path, write_record
+from host.calib.report import format_report, write_results
 
 try:
     from calib_truth import TRUTH, make_records

@@ -20,11 +20,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from host import session as live
+from host.board.link import open_port
+from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record
+from host.dialogue import live
+from host.dialogue.console import CTRL_C, ESC, ScriptedConsole
 from host.errors import UserError
-from host.link import open_port
-from host.operator import CTRL_C, ESC, ScriptedConsole
-from host.records import STATIC_NAMES, TURN_NAMES, read_record
 
 LINEAR = "speed=max&effects=linear,noise&earth_rate=0"
 
@@ -127,7 +127,7 @@ def test_yes_session_recovers_truth(yes_session: dict[str, Any]) -> None:
 
 
 def test_yes_session_capture_decodes_to_the_same_samples(yes_session: dict[str, Any]) -> None:
-    from host.frames import decode_file
+    from host.wire.frames import decode_file
 
     result, arrivals = decode_file(yes_session["out"] / "S1_session.cap")
     assert arrivals is not None and result.stats.crc_errors == 0
@@ -152,7 +152,7 @@ def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> 
     """Every live record says when it started (records.TIME_KEYS), from the device clock: the
     start matches the simulated board's time of the operator hint that began it, and the
     workbench reads it (time terms see the whole session, not only each record's own span)."""
-    from host.model import load_dataset
+    from host.modelling.model import load_dataset
 
     out: Path = yes_session["out"]
     hint_t = [t for t, a, _ in yes_session["ports"].sim.hints if a in ("place", "turn")]
@@ -168,8 +168,8 @@ def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> 
     t_end = max(float(s.t_s[-1]) for s in ds.signals)
     assert abs(t_end - (starts[-1] + 12.0)) < 0.5
     # time_drift on the records alone (no simulator metadata in them): identifiable
-    from host.diagnose import evaluate_candidates
-    from host.model import fit_model, parse_model
+    from host.modelling.diagnose import evaluate_candidates
+    from host.modelling.model import fit_model, parse_model
 
     assert not any(k.startswith("sim") for k in read_record(out / "S1_x_up.txt").meta)
     cands, _ = evaluate_candidates(ds, fit_model(ds, parse_model("base")))
@@ -511,8 +511,8 @@ def test_emulated_board(tmp_path: Path) -> None:
 def test_board_live_clock_maps_the_record_start_to_host_time() -> None:
     """The session's live clock (fed every sample as it is read, across a t_us wrap) gives the
     record metadata the device clock's skew and the first sample's host time."""
-    from host.frames import StreamDecoder
-    from host.linksim import LinkParams, simulate_link
+    from host.bench.linksim import LinkParams, simulate_link
+    from host.wire.frames import StreamDecoder
 
     lc = simulate_link(LinkParams(seconds=30, skew_ppm=80, device_t0_us=2**32 - 5_000_000, seed=9))
     board = live.Board("unused://")

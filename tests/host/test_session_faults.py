@@ -17,11 +17,11 @@ from typing import Any
 
 import pytest
 
-from host import protocol_gen as gen
+from host.calib.records import read_record
+from host.dialogue.console import CTRL_C, ScriptedConsole
 from host.errors import UserError
-from host.frames import IMU_SAMPLE, StreamDecoder, _envelope, encode_frame
-from host.operator import CTRL_C, ScriptedConsole
-from host.records import read_record
+from host.wire import protocol_gen as gen
+from host.wire.frames import IMU_SAMPLE, StreamDecoder, _envelope, encode_frame
 from tests.host.test_session import LINEAR, Ports, opts, run
 
 SPI_FAULT = gen.ENUMS["error_code"]["SPI_FAULT"]

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host.records import STATIC_NAMES, TURN_NAMES, read_record
+from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="needs a POSIX pty")
 
@@ -31,7 +31,7 @@ LINEAR = "effects=linear,noise&earth_rate=0"
 
 
 def _emu_missing() -> str | None:
-    from host.emulator import toolchain_problem
+    from host.bench.emulator import toolchain_problem
 
     return toolchain_problem(need_avr=True)
 
@@ -70,7 +70,7 @@ def _command() -> list[str]:
         wired = False
     if wired:
         return [sys.executable, "-m", "host", "calibrate"]
-    return [sys.executable, "-m", "host.session"]
+    return [sys.executable, "-m", "host.dialogue.live"]
 
 
 CMD = _command()

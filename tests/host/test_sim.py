@@ -9,10 +9,17 @@ import math
 import numpy as np
 import pytest
 
-from host import sensor
-from host.frames import StreamDecoder
-from host.records import Record, read_session
-from host.sim import (
+from host.bench.physics import (
+    EARTH_RATE_DPS,
+    Bench,
+    Environment,
+    TurnProfile,
+    normal_gravity,
+    pose,
+    static_motion,
+    vee,
+)
+from host.bench.sim import (
     Plan,
     SampleBlock,
     Simulator,
@@ -25,17 +32,10 @@ from host.sim import (
     turn_motion,
     write_session,
 )
-from host.sim_physics import (
-    EARTH_RATE_DPS,
-    Bench,
-    Environment,
-    TurnProfile,
-    normal_gravity,
-    pose,
-    static_motion,
-    vee,
-)
-from host.sim_truth import CONSTANT_NAMES, EFFECTS, SensorTruth, gauss_markov
+from host.bench.truth import CONSTANT_NAMES, EFFECTS, SensorTruth, gauss_markov
+from host.calib.records import Record, read_session
+from host.wire import sensor
+from host.wire.frames import StreamDecoder
 
 #: a quiet room: constant temperature, exact clocks (effects under test are switched on alone)
 QUIET = Environment(rise_c=0.0, room_amp_c=0.0, room_c=25.0)
@@ -499,7 +499,7 @@ def test_calibration_recovers_the_constants_of_a_simulated_session(tmp_path) -> 
     horizontal Earth rate is real and not modelled by the method: it moves GA.. by up to
     Ω·cos φ ≈ 0.0024 (°/s)/g at 55.75° N, inside the 0.005 tolerance.
     """
-    calibration = pytest.importorskip("host.calibration")
+    calibration = pytest.importorskip("host.calib.calibration")
     truth = SensorTruth.random(np.random.default_rng(12)).only("linear", "noise")
     bench = Bench(wobble_deg=0.3)
     recs = simulate_session(truth, Plan(bench=bench), seed=12)

@@ -11,8 +11,8 @@ from pathlib import Path
 import crcmod.predefined
 import pytest
 
-from host import protocol_gen
-from host.frames import BY_NAME, MESSAGES, StreamDecoder, crc16, decode_bulk, encode_frame
+from host.wire import protocol_gen
+from host.wire.frames import BY_NAME, MESSAGES, StreamDecoder, crc16, decode_bulk, encode_frame
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "protocol"))

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host.calibration import CalibrationResult
+from host.calib.calibration import CalibrationResult
 from host.errors import UserError
 
 DEG = math.pi / 180.0

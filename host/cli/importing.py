@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from host import importing, segmentation
+from host.calib.records import Record, record_path, write_record, write_text_atomic
 from host.errors import UserError
-from host.records import Record, record_path, write_record, write_text_atomic
+from host.ingest import importing, segmentation
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -124,7 +124,7 @@ def _whole_file(stream: importing.Stream, name: str) -> list[segmentation.Segmen
 
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host import``."""
-    from host.session import parse_serial
+    from host.dialogue.live import parse_serial
 
     try:
         serial = parse_serial(args.serial)

@@ -39,10 +39,10 @@ from typing import Any
 import serial
 
 from host.errors import UserError
-from host.frames import StreamDecoder
-from host.protocol_gen import SPEC_FINGERPRINT
+from host.wire.frames import StreamDecoder
+from host.wire.protocol_gen import SPEC_FINGERPRINT
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE_DIR = ROOT / "firmware"
 DEFAULT_BUILD = FIRMWARE_DIR / "build"
 HEX_NAME = "imu_bench.hex"
@@ -441,7 +441,7 @@ def _flash_emulated(
     hello_timeout_s: float,
     say: Callable[[str], None],
 ) -> FlashResult:
-    from host.emulator import EmulatedBoard
+    from host.bench.emulator import EmulatedBoard
     from host.transports.protocol_emu import parse_url
 
     try:

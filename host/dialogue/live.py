@@ -62,9 +62,8 @@ from typing import Any
 import numpy as np
 import serial
 
-from host import protocol_gen as gen
-from host import sensor
-from host.calibration import (
+from host.board.link import DEFAULT_BAUD, Link, LinkLost, LinkTimeout, open_port
+from host.calib.calibration import (
     DEFAULT_HEIGHT_M,
     DEFAULT_LATITUDE_DEG,
     build_observations,
@@ -74,13 +73,7 @@ from host.calibration import (
     stage1,
     trapezoid_integral,
 )
-from host.capture import MAGIC, CaptureWriter
-from host.clock import LiveClock, serialisation_ns
-from host.errors import UserError
-from host.frames import IMU_SAMPLE, MESSAGES, OVERHEAD, SENSOR_ERROR_CODES, Frame, error_text
-from host.link import DEFAULT_BAUD, Link, LinkLost, LinkTimeout, open_port
-from host.operator import Console, Operator, TerminalConsole
-from host.records import (
+from host.calib.records import (
     STATIC_NAMES,
     TURN_NAMES,
     Record,
@@ -92,6 +85,13 @@ from host.records import (
     turn_window_s,
     write_record,
 )
+from host.dialogue.console import Console, Operator, TerminalConsole
+from host.errors import UserError
+from host.timing.clock import LiveClock, serialisation_ns
+from host.wire import protocol_gen as gen
+from host.wire import sensor
+from host.wire.capture import MAGIC, CaptureWriter
+from host.wire.frames import IMU_SAMPLE, MESSAGES, OVERHEAD, SENSOR_ERROR_CODES, Frame, error_text
 
 #: the spec this host speaks (HELLO.spec_fingerprint must match)
 HOST_SPEC_FINGERPRINT = gen.SPEC_FINGERPRINT
@@ -1305,8 +1305,8 @@ class LiveSession:
 
     # ---- results -------------------------------------------------------------------------
     def _results(self) -> SessionResult:
-        from host.calibration import calibrate_from_records
-        from host.report import format_report, write_results
+        from host.calib.calibration import calibrate_from_records
+        from host.calib.report import format_report, write_results
 
         op = self.op
         missing = [
@@ -1380,7 +1380,7 @@ def run_live_session(
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``calibrate`` options: calibrate_cli's plus :func:`add_live_arguments`."""
-    from host.calibrate_cli import add_arguments
+    from host.cli.calibrate import add_arguments
 
     p = argparse.ArgumentParser(
         prog="python -m host.session", description="live calibration dialogue (method.md §5)"

@@ -13,15 +13,15 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from host.calibration import (
+from host.calib.calibration import (
     DEFAULT_HEIGHT_M,
     DEFAULT_LATITUDE_DEG,
     CalibrationResult,
     calibrate_from_records,
 )
+from host.calib.records import Session, read_session
+from host.calib.report import format_report, write_results
 from host.errors import UserError
-from host.records import Session, read_session
-from host.report import format_report, write_results
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -73,7 +73,7 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host calibrate``."""
     if not args.from_dir:
-        from host.session import run_live_session
+        from host.dialogue.live import run_live_session
 
         return run_live_session(args)
     session = read_session(args.from_dir, args.serial)
@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
 
 def cli_calibrate(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
     """Fill in the ``calibrate`` subparser; returns the runner."""
-    from host.session import add_live_arguments
+    from host.dialogue.live import add_live_arguments
 
     add_arguments(p)
     add_live_arguments(p)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host.frames import crc16, encode_frame, encode_imu_samples
+from host.wire.frames import crc16, encode_frame, encode_imu_samples
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ class LinkCapture:
     def to_imucap(self) -> bytes:
         import struct
 
-        from host.capture import MAGIC
+        from host.wire.capture import MAGIC
 
         return MAGIC + b"".join(struct.pack("<QI", t, len(b)) + b for t, b in self.chunks)
 

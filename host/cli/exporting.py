@@ -12,11 +12,11 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from host import exporting
-from host.calibration import CalibrationResult
+from host.calib import exporting
+from host.calib.calibration import CalibrationResult
+from host.calib.records import write_text_atomic
 from host.errors import UserError
-from host.importing import parse_axes
-from host.records import write_text_atomic
+from host.ingest.importing import parse_axes
 
 
 def _result_path(path: Path) -> Path:

@@ -19,9 +19,9 @@ from typing import Any
 
 import serial
 
-from host.capture import CaptureWriter
 from host.errors import UserError
-from host.frames import (
+from host.wire.capture import CaptureWriter
+from host.wire.frames import (
     IMU_SAMPLE,
     SENSOR_ERROR_CODES,
     DecoderStats,

@@ -34,8 +34,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from host.calib.records import STATIC_NAMES, TURN_NAMES, Record, Session
 from host.errors import UserError
-from host.records import STATIC_NAMES, TURN_NAMES, Record, Session
 
 # ---- constants ----------------------------------------------------------------------------
 #: default site: Moscow (the source documents' bench), latitude in degrees, height in metres

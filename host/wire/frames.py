@@ -34,9 +34,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from host import protocol_gen as gen
-from host import sensor
 from host.errors import UserError
+from host.wire import protocol_gen as gen
+from host.wire import sensor
 
 SYNC = gen.SYNC
 HEADER_LEN = 6
@@ -626,7 +626,7 @@ def _config_from(others: list[tuple[int, Frame]]) -> tuple[int, int]:
 
 def decode_file(path: Path) -> tuple[BulkResult, np.ndarray | None]:
     """Decode a raw capture or an IMUCAP01 capture; second value: each sample's arrival ns."""
-    from host import capture
+    from host.wire import capture
 
     raw = capture.read_capture_bytes(path)
     arrivals = None
@@ -690,7 +690,7 @@ MAX_PLAUSIBLE_SKEW_PPM = 10_000.0
 
 
 def run_decode(args: argparse.Namespace) -> int:
-    from host import clock
+    from host.timing import clock
 
     result, arrivals = decode_file(args.file)
     s = result.samples

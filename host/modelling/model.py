@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from host.calibration import (
+from host.calib.calibration import (
     DEFAULT_HEIGHT_M,
     DEFAULT_LATITUDE_DEG,
     TURN_ANGLE_SIGMA_DEG,
@@ -50,8 +50,8 @@ from host.calibration import (
     record_stats,
     trapezoid_integral,
 )
+from host.calib.records import Session
 from host.errors import UserError
-from host.records import Session
 
 SENSORS = ("accel", "gyro")
 AXES = "xyz"
@@ -1086,7 +1086,7 @@ def load_dataset(
     serial: str | None = None,
 ) -> Dataset:
     """Read the session in ``directory`` (:func:`host.records.read_session`) and build it."""
-    from host.records import read_session
+    from host.calib.records import read_session
 
     session = read_session(directory, serial)
     return build_dataset(session, noise=noise, latitude_deg=latitude_deg, height_m=height_m)
@@ -1094,7 +1094,7 @@ def load_dataset(
 
 def session_from_records(records: Mapping[str, object], serial: str = "SIM") -> Session:
     """A :class:`Session` of in-memory records (e.g. :func:`host.sim.simulate_session`)."""
-    from host.records import Record
+    from host.calib.records import Record
 
     recs = {k: v for k, v in records.items() if isinstance(v, Record)}
     return Session(serial=serial, records=recs)

@@ -36,10 +36,10 @@ from typing import IO, Any
 
 import numpy as np
 
+from host.board.flash import build_firmware_hex, build_lock
 from host.errors import UserError
-from host.flash import build_firmware_hex, build_lock
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 EMULATOR_SRC = ROOT / "firmware" / "emulator"
 DEFAULT_EMU_BUILD = ROOT / "firmware" / "build" / "emulator"
 MISSING = "emu:// needs simavr: apt-get install simavr libsimavr-dev gcc-avr avr-libc"

@@ -29,9 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from host import sensor
-from host.records import STATIC_NAMES, Record, record_path, turn_window_s, write_record
-from host.sim_physics import (
+from host.bench.physics import (
     Bench,
     ConstantRateMotion,
     Environment,
@@ -44,7 +42,9 @@ from host.sim_physics import (
     static_motion,
     up_vector,
 )
-from host.sim_truth import SensorTruth, gauss_markov, sensor_output
+from host.bench.truth import SensorTruth, gauss_markov, sensor_output
+from host.calib.records import STATIC_NAMES, Record, record_path, turn_window_s, write_record
+from host.wire import sensor
 
 __all__ = [
     "Bench",
@@ -607,7 +607,7 @@ def imu_frames(
     """IMU_SAMPLE frames (wire bytes, ``chunk_s`` s of samples per chunk) for every sample of
     ``sim`` before true time ``t_end_s``; sequence numbers run on from ``seq0`` (mod 2^16),
     device ``t_us`` wraps at 2^32 as on the wire."""
-    from host.frames import encode_imu_samples
+    from host.wire.frames import encode_imu_samples
 
     seq = seq0
     while sim.t_next < t_end_s:

@@ -429,8 +429,8 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
     Times are the device's µs time stamps (unwrapped); if the board was reset during the
     capture the pieces are joined on the host clock when the capture has arrival times, else
     only the longest piece is kept (with a note in ``meta``)."""
-    from host import clock
-    from host.frames import _baud_from, _config_from, decode_file, samples_to_physical
+    from host.timing import clock
+    from host.wire.frames import _baud_from, _config_from, decode_file, samples_to_physical
 
     p = Path(path)
     result, arrivals = decode_file(p)

@@ -33,9 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
+from host.calib.records import STATIC_NAMES, TURN_NAMES, Record
 from host.errors import UserError
-from host.importing import Stream
-from host.records import STATIC_NAMES, TURN_NAMES, Record
+from host.ingest.importing import Stream
 
 # ---- stated thresholds ----------------------------------------------------------------------
 STILL_WINDOW_S = 0.5  #: moving window of the stillness detector, s (at least 5 samples)

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from host.errors import UserError
-from host.model import (
+from host.modelling.model import (
     AXES,
     BASE,
     CATALOGUE,

@@ -18,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from host.diagnose import (
+from host.errors import UserError
+from host.modelling.diagnose import (
     Addition,
     Diagnosis,
     add_term,
@@ -28,8 +29,7 @@ from host.diagnose import (
     format_ladder,
     ladder,
 )
-from host.errors import UserError
-from host.model import (
+from host.modelling.model import (
     AXES,
     CATALOGUE,
     Dataset,
@@ -83,9 +83,9 @@ def hidden_effect_case(
     (:meth:`host.sim_truth.SensorTruth.random`); every other effect is off except the hidden
     one, on an axis chosen by the seed.
     """
-    from host.sim import Plan, simulate_session, tilted_45
-    from host.sim_physics import Environment
-    from host.sim_truth import SensorTruth
+    from host.bench.physics import Environment
+    from host.bench.sim import Plan, simulate_session, tilted_45
+    from host.bench.truth import SensorTruth
 
     if effect not in EFFECTS:
         raise UserError(f"unknown effect {effect!r}; known: {', '.join(EFFECTS)}")
@@ -268,7 +268,7 @@ def _noise(text: str | None) -> NoiseModel:
 
 
 def _dataset(args: argparse.Namespace) -> Dataset:
-    from host.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
+    from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
     return load_dataset(
         args.dir,
@@ -430,7 +430,7 @@ def run_demo(args: argparse.Namespace) -> int:
         if case.term:
             print(f"hidden from the fit: {case.term} = {case.truth:.4g} {case.unit}")
         if args.out:
-            from host.sim import write_session
+            from host.bench.sim import write_session
 
             out = Path(args.out) / eff
             write_session(out, "DEMO", dict(case.records))

@@ -12,7 +12,7 @@ import math
 import os
 from pathlib import Path
 
-from host.calibration import (
+from host.calib.calibration import (
     ACCEL_BIAS_NAMES,
     CONSTANT_NAMES,
     GROUPS,
@@ -21,7 +21,7 @@ from host.calibration import (
     UNITS,
     CalibrationResult,
 )
-from host.records import write_text_atomic
+from host.calib.records import write_text_atomic
 
 WIDTH = 80
 PLUS, MINUS = "+", "−"

@@ -1,0 +1,5 @@
+"""The model workbench: the error model as named physical terms.
+
+``model`` (terms, dataset and noise model, the least-squares fit), ``diagnose`` (where the model
+fails and which missing term explains it).
+"""
