@@ -20,8 +20,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from host import capture, clock, frames  # noqa: E402
 from host.bench.linksim import LinkParams, simulate_link  # noqa: E402
+from host.timing import clock  # noqa: E402
+from host.wire import capture, frames  # noqa: E402
 
 
 def rms_us(err: np.ndarray) -> float:

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from host import capture, clock, frames
 from host.bench.linksim import LinkCapture, LinkParams, simulate_link
+from host.timing import clock
+from host.wire import capture, frames
 
 
 def decode(lc: LinkCapture) -> tuple[frames.BulkResult, np.ndarray, clock.Timeline]:
