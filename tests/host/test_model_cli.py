@@ -60,7 +60,7 @@ def test_term_file_and_plot(temp_dir: tuple[Path, str], tmp_path: Path,
     d, _ = temp_dir
     f = tmp_path / "my_terms.py"
     f.write_text(
-        "from host.model import term\n\n"
+        "from host.modelling.model import term\n\n"
         "@term(sensors=('gyro',), params={'c3': '{u}/°C³'}, needs='several temperatures')\n"
         "def temperature_cubic(sig, sensor, axis):\n"
         "    '''Gyro bias cubic in chip temperature.'''\n"
