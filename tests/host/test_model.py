@@ -177,7 +177,9 @@ def test_user_term_file(tmp_path: Path) -> None:
     broken = tmp_path / "broken.py"
     broken.write_text("def (:\n")
     nodoc = tmp_path / "nodoc.py"
-    nodoc.write_text("from host.modelling.model import term\n@term()\ndef t(s, a, b):\n    return 0\n")
+    nodoc.write_text(
+        "from host.modelling.model import term\n@term()\ndef t(s, a, b):\n    return 0\n"
+    )
     for bad in (empty, broken, nodoc, tmp_path / "missing.py"):
         with pytest.raises(UserError):
             load_term_file(bad)
