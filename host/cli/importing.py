@@ -57,6 +57,11 @@ def _read_stream(args: argparse.Namespace) -> tuple[importing.Stream, list[segme
             raise UserError(f"{path}: a capture has its own columns; drop --columns")
         return importing.read_capture_stream(path), []
     text = importing.read_text(path)
+    beside = path.with_name(f"{path.stem}_list.json")  # imucal's own naming
+    if args.sections is None and not args.columns and beside.exists():
+        if importing.looks_like_imucal(text):
+            print(f"sections: {beside.name} (beside the session)")
+            args.sections = beside
     if args.sections is not None:
         if not importing.looks_like_imucal(text):
             raise UserError(

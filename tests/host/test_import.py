@@ -418,6 +418,14 @@ def test_imucal_session_calibrates_to_the_shared_records_constants(tmp_path: Pat
             assert a[k] == pytest.approx(v, rel=1e-6, abs=1e-9), k
 
 
+def test_imucal_section_list_beside_the_session_is_found(tmp_path: Path, capsys) -> None:
+    csv, _ = _write_imucal_session(read_session(REAL), tmp_path)
+    argv = ["import", str(csv), "--rate", "102.4", "--serial", "I2", "--out", str(tmp_path / "o")]
+    assert main(argv) == 0
+    assert "example_ferraris_session_list.json" in capsys.readouterr().out
+    assert len(read_session(tmp_path / "o").records) == 9
+
+
 def test_imucal_session_needs_its_rate(tmp_path: Path, capsys) -> None:
     csv, js = _write_imucal_session(read_session(REAL), tmp_path)
     argv = ["import", str(csv), "--sections", str(js), "--serial", "I", "--out", str(tmp_path)]
