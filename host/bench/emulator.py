@@ -36,7 +36,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from host.board.flash import build_firmware_hex, build_lock
+from host.board.firmware import build_firmware_hex, build_lock
 from host.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -1,5 +1,6 @@
-"""``python -m host flash``: build the firmware, check its hex, flash it with avrdude through the
-board's stk500v2 bootloader, then check that the board says HELLO with what was just flashed.
+"""Flashing (``python -m host flash``): build the firmware, check its hex, flash it with avrdude
+through the board's stk500v2 bootloader, then check that the board says HELLO with what was just
+flashed.
 
     python -m host flash                   # /dev/ttyACM0, firmware/build/imu_bench.hex
     python -m host flash --port /dev/ttyUSB0 --hex other.hex
@@ -22,30 +23,24 @@ flash file then holds the new firmware for every later ``emu://?flash=PATH``.
 
 from __future__ import annotations
 
-import argparse
-import contextlib
-import fcntl
 import os
 import re
 import shutil
 import struct
 import subprocess
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import serial
 
+from host.board.firmware import build_firmware_hex
 from host.errors import UserError
 from host.wire.frames import StreamDecoder
 from host.wire.protocol_gen import SPEC_FINGERPRINT
 
-ROOT = Path(__file__).resolve().parents[2]
-FIRMWARE_DIR = ROOT / "firmware"
-DEFAULT_BUILD = FIRMWARE_DIR / "build"
-HEX_NAME = "imu_bench.hex"
 DEFAULT_PORT = "/dev/ttyACM0"
 
 FLASH_BYTES = 256 * 1024  # ATmega2560
@@ -197,48 +192,6 @@ def find_identity(image: HexImage | bytes) -> FirmwareIdentity | None:
         return None
     _, *fields = IDENTITY.unpack_from(data, i)
     return FirmwareIdentity(*fields)
-
-
-# --------------------------------------------------------------------------- build
-
-
-@contextlib.contextmanager
-def build_lock(build_dir: Path) -> Iterator[None]:
-    """Serialise builds of one directory between processes (parallel tests, two boards)."""
-    build_dir.mkdir(parents=True, exist_ok=True)
-    with open(build_dir / ".build.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
-
-
-def build_firmware_hex(build_dir: str | Path | None = None, make_args: Sequence[str] = ()) -> Path:
-    """``make -C firmware BUILD=dir [VAR=value ...]`` (make rebuilds only what changed); return
-    the path of ``imu_bench.hex`` (``imu_bench.elf`` is beside it). The one firmware build of
-    the host: ``host.emulator.build_firmware`` uses it too."""
-    for tool in ("make", "avr-g++", "avr-objcopy"):
-        if shutil.which(tool) is None:
-            raise UserError(
-                f"building the firmware needs {tool}: apt-get install gcc-avr avr-libc "
-                "binutils-avr make (or give a ready --hex FILE)"
-            )
-    out = Path(build_dir) if build_dir else DEFAULT_BUILD
-    with build_lock(out):
-        r = subprocess.run(
-            ["make", "--no-print-directory", "-C", str(FIRMWARE_DIR), f"BUILD={out.resolve()}",
-             *make_args],
-            capture_output=True,
-            text=True,
-        )  # fmt: skip
-    if r.returncode != 0:
-        tail = (r.stdout + r.stderr).strip().splitlines()[-1:] or ["?"]
-        raise UserError(f"building the firmware failed (make -C firmware): {tail[0]}")
-    hex_path = out / HEX_NAME
-    if not hex_path.exists():
-        raise UserError(f"building the firmware did not produce {hex_path}")
-    return hex_path
 
 
 # --------------------------------------------------------------------------- avrdude
@@ -487,29 +440,3 @@ def _finish(
         f", {hello['baud']} baud, sensor 0x{hello['who_am_i']:02X} — flash OK in {took:.2f} s"
     )
     return FlashResult(path, image.nbytes, identity, took, hello_s, hello, summary)
-
-
-def cli_flash(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
-    p.add_argument(
-        "--port",
-        default=DEFAULT_PORT,
-        help=f"serial device (default {DEFAULT_PORT}) or emu://?flash=PATH (emulated board)",
-    )
-    p.add_argument(
-        "--hex", type=Path, help="Intel hex to flash (default: make -C firmware, its build/ hex)"
-    )
-    p.add_argument(
-        "--baud", type=int, default=BOOTLOADER_BAUD, help="bootloader baud (default 115200)"
-    )
-    p.add_argument(
-        "--hello-timeout",
-        type=float,
-        default=HELLO_TIMEOUT_S,
-        help="seconds to wait for HELLO after flashing",
-    )
-    return run_flash
-
-
-def run_flash(args: argparse.Namespace) -> int:
-    flash(args.port, args.hex, args.baud, hello_timeout_s=args.hello_timeout)
-    return 0

@@ -15,6 +15,7 @@ import pytest
 
 from host.bench.emulator import EmulatedBoard, build_firmware
 from host.board import flash as fl
+from host.board.firmware import build_firmware_hex
 from host.board.link import open_port
 from host.errors import UserError
 from host.wire.frames import StreamDecoder
@@ -44,7 +45,7 @@ def old_elf(flash_tools, tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def current_hex(flash_tools) -> Path:
-    return fl.build_firmware_hex()  # what `python -m host flash` builds and flashes
+    return build_firmware_hex()  # what `python -m host flash` builds and flashes
 
 
 @pytest.fixture(scope="module")
