@@ -35,6 +35,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     ),
     "model": ("host.cli.model", "cli_model", "model workbench: diagnose, add a term, ladder"),
     "demo": ("host.cli.model", "cli_demo", "demo: find an effect hidden in a simulated session"),
+    "noise": (
+        "host.cli.noise",
+        "cli_noise",
+        "Allan deviation of a static recording: noise figures, plot, recording planner",
+    ),
     "flash": (
         "host.cli.flash",
         "cli_flash",

@@ -1,0 +1,233 @@
+"""``python -m host noise FILE``: Allan deviation of a static recording, its noise figures,
+a recording planner, and the noise file the workbench takes its noise floor from.
+
+FILE is a capture (``.cap`` IMUCAP01 or raw bytes, as ``capture`` writes them) or a record file
+(``SERIAL_name.txt``, from the dialogue or from ``import``). The math is in
+:mod:`host.modelling.noise` and :mod:`host.modelling.allan`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from host.calib.records import write_text_atomic
+from host.errors import UserError
+from host.modelling import noise
+
+
+def load_static(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """Times (N,) s, channels (N, 6) ax..gz in m/s² and °/s, temperature (N,) °C of a record
+    file or a capture, and a one-line description of what was read."""
+    if not path.exists():
+        raise UserError(f"{path}: no such file; give a capture (.cap) or a record (.txt)")
+    if path.suffix.lower() == ".txt":
+        from host.calib.records import read_record
+
+        rec = read_record(path)
+        data = np.column_stack([rec.accel, rec.gyro])
+        return rec.t_ms / 1000.0, data, rec.temp, f"record {rec.name} ({len(rec)} samples)"
+    from host.timing import clock
+    from host.wire.frames import _config_from, decode_file, samples_to_physical
+
+    result, _ = decode_file(path)
+    s = result.samples
+    if s.size == 0:
+        raise UserError(f"{path}: no IMU samples in this capture; is it a capture of the board?")
+    seg = np.asarray(s["segment"])
+    ids, counts = np.unique(seg, return_counts=True)
+    keep = seg == ids[int(np.argmax(counts))]
+    s = s[keep]
+    note = f"capture ({s.size} samples"
+    if ids.size > 1:
+        note += f", the longest of {ids.size} segments between board resets"
+    afs, fs = _config_from(result.others)
+    phys = samples_to_physical(s, afs, fs)
+    t_s = clock.unwrap(np.asarray(s["t_us"], dtype=np.int64), 32).astype(np.float64) / 1e6
+    data = np.column_stack([phys[c] for c in noise.CHANNELS])
+    return t_s, data, phys["temp"], note + ")"
+
+
+def _fmt(v: float) -> str:
+    return f"{v:.3g}"
+
+
+def _figure_line(channel: str, q: str, f: noise.Figure) -> str:
+    if f.value is None:
+        up, unit = noise.display_units(channel, q, f.ci[1])
+        return f"< {_fmt(up)} {unit} (not resolved)"
+    v, unit = noise.display_units(channel, q, f.value)
+    lo, _ = noise.display_units(channel, q, f.ci[0])
+    hi, _ = noise.display_units(channel, q, f.ci[1])
+    text = f"{_fmt(v)} [{_fmt(lo)}, {_fmt(hi)}] {unit}"
+    second = noise.secondary_units(channel, q, f.value)
+    if second:
+        text += f" = {_fmt(second[0])} {second[1]}"
+    return text
+
+
+def format_text(an: noise.NoiseAnalysis, source: str) -> str:
+    """The human summary: per channel the three figures with their intervals."""
+    lines = [
+        f"{source}: {an.duration_s / 60:.1f} min at {an.rate_hz:.2f} Hz; "
+        f"{100 * an.ci:.0f} % confidence intervals; temperature span {an.span_c:.1f} degC",
+        f"{'':4}{'white noise':>42}{'bias instability':>36}{'rate random walk':>38}",
+    ]
+    for name, ch in an.channels.items():
+        cells = [_figure_line(name, q, ch.figures[q]) for q in noise.QUANTITIES]
+        widths = (42, 36, 38)
+        lines.append(f"{name:4}" + "".join(f"{c:>{w}}" for c, w in zip(cells, widths, strict=True)))
+    for name, ch in an.channels.items():
+        taus = [
+            f"{q.split('_')[0]} at tau={ch.figures[q].tau_s:.3g} s"
+            for q in noise.QUANTITIES
+            if ch.figures[q].tau_s is not None
+        ]
+        lines.append(f"  {name} read: " + ", ".join(taus))
+    for w in an.warnings:
+        lines.append(f"warning: {w}")
+    return "\n".join(lines) + "\n"
+
+
+def _duration_text(s: float | None) -> str:
+    if s is None:
+        return "not reachable (the term does not dominate at any tau in this model)"
+    if s >= 86400:
+        return f"{s / 86400:.1f} days"
+    if s >= 3600:
+        return f"{s / 3600:.1f} h"
+    if s >= 120:
+        return f"{s / 60:.0f} min"
+    return f"{s:.0f} s"
+
+
+def parse_precision(text: str) -> float:
+    """'10%' or '0.1' -> 0.1."""
+    t = text.strip()
+    try:
+        v = float(t[:-1]) / 100.0 if t.endswith("%") else float(t)
+    except ValueError:
+        v = math.nan
+    if not (0 < v < 1):
+        raise UserError(f"--plan: expected a relative precision like 10% or 0.1, got {text!r}")
+    return v
+
+
+def plot_noise(an: noise.NoiseAnalysis, path: Path, title: str) -> None:
+    """Log–log Allan deviation per channel: data with its confidence band, each fitted term's
+    line (labelled with the printed value) and their sum."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise UserError(
+            "--plot needs matplotlib (pip install 'imu-bench[plot]' or pip install matplotlib)"
+        ) from None
+    fig, axs = plt.subplots(2, 3, figsize=(15, 8), squeeze=False)
+    for ax, (name, ch) in zip(axs.ravel(), an.channels.items(), strict=False):
+        c = ch.curve
+        unit = noise.UNITS[noise.sensor_of(name)][1]
+        assert c.lo is not None and c.hi is not None
+        ax.fill_between(c.tau_s, np.sqrt(c.lo), np.sqrt(c.hi), color="C0", alpha=0.25,
+                        label=f"{100 * an.ci:.0f} % interval")  # fmt: skip
+        ax.loglog(c.tau_s, c.adev, "o", ms=3, color="C0", label="Allan deviation")
+        tau = np.logspace(math.log10(c.tau_s[0]), math.log10(c.tau_s[-1]), 200)
+        total = np.zeros_like(tau)
+        for k, q in enumerate(noise.QUANTITIES):
+            f = ch.figures[q]
+            if f.value is None:
+                continue
+            line = np.sqrt(noise.basis(tau)[:, k] * f.value**2)
+            total += line**2
+            v, u = noise.display_units(name, q, f.value)
+            ax.loglog(
+                tau, line, "--", color=f"C{k + 1}", label=f"{q.replace('_', ' ')} {v:.3g} {u}"
+            )
+            if f.tau_s is not None:
+                ax.plot([f.tau_s], [math.sqrt(noise.basis(np.array([f.tau_s]))[0, k]) * f.value],
+                        "s", color=f"C{k + 1}", ms=7)  # fmt: skip
+        ax.loglog(tau, np.sqrt(total), "-", color="k", lw=1, label="sum of the figures")
+        ax.set_title(name)
+        ax.set_xlabel("tau, s")
+        ax.set_ylabel(f"Allan deviation, {unit}")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, loc="best")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Runner of ``python -m host noise``."""
+    path = Path(args.file)
+    if not 0.5 <= args.ci < 1:
+        raise UserError(f"--ci: expected a confidence level between 0.5 and 1, got {args.ci}")
+    precision = parse_precision(args.plan) if args.plan else None
+    t_s, data, temp, source = load_static(path)
+    try:
+        an = noise.analyse(t_s, data, temp, remove_thermal=not args.keep_thermal, ci=args.ci)
+    except ValueError as exc:
+        raise UserError(f"{path}: {exc}; record longer") from None
+    doc = an.as_dict()
+    doc["source"] = str(path)
+    if precision is not None:
+        plan = noise.plan(an, precision)
+        doc["plan"] = {"precision": precision, "duration_s": plan}
+    if args.save:
+        write_text_atomic(args.save, json.dumps(doc, indent=2) + "\n")
+    if args.plot:
+        plot_noise(an, Path(args.plot), f"{path.name}: {source}")
+    if args.json:
+        sys.stdout.write(json.dumps(doc, indent=2) + "\n")
+    else:
+        sys.stdout.write(format_text(an, f"{path.name}: {source}"))
+        if precision is not None:
+            print(f"plan: to get each figure to +-{100 * precision:.0f} % "
+                  f"({100 * an.ci:.0f} % interval), record at least")  # fmt: skip
+            for q, per in doc["plan"]["duration_s"].items():
+                worst = max((v for v in per.values() if v is not None), default=None)
+                missing = [c for c, v in per.items() if v is None]
+                text = f"  {q.replace('_', ' '):20} {_duration_text(worst)}"
+                if missing and worst is not None:
+                    text += f" (not reachable for {', '.join(missing)})"
+                print(text)
+    for p in (args.save, args.plot):
+        if p:
+            print(f"written: {p}", file=sys.stderr)
+    return 0
+
+
+def cli_noise(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+    """Fill in the ``noise`` subparser; returns the runner."""
+    p.add_argument("file", help="a static recording: capture (.cap) or record file (.txt)")
+    p.add_argument("--json", action="store_true", help="print the figures as JSON")
+    p.add_argument("--plot", metavar="PNG", help="write the log-log Allan deviation plot")
+    p.add_argument(
+        "--plan",
+        metavar="PRECISION",
+        help="how long to record for each figure to this relative precision (e.g. 10%%)",
+    )
+    p.add_argument(
+        "--ci", type=float, default=noise.CI_LEVEL, help="confidence level (default 0.95)"
+    )
+    p.add_argument(
+        "--keep-thermal",
+        action="store_true",
+        help="do not remove a drift that follows the chip temperature (it is always reported)",
+    )
+    p.add_argument(
+        "--save",
+        metavar="FILE",
+        help="write the noise file (the --json document; e.g. SERIAL_noise.json for the "
+        "workbench's noise floor)",
+    )
+    return run

@@ -1,0 +1,292 @@
+"""The noise of a static recording, as the ``noise`` command reports it.
+
+:func:`analyse` takes times, the six channels and the chip temperature; it removes a drift that
+follows the temperature (:func:`thermal_drift`: a warm-up inside the recording would otherwise
+read as rate random walk), then reads each channel's figures with :mod:`host.modelling.allan`.
+:func:`plan` turns the fitted model into recording lengths; the noise file
+(:meth:`NoiseAnalysis.as_dict`, :func:`load_noise_file`) carries the figures to the workbench,
+whose noise floor of a record mean is :func:`record_mean_floor`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from host.errors import UserError
+from host.modelling.allan import (
+    CHANNELS,
+    CI_LEVEL,
+    QUANTITIES,
+    UNITS,
+    ChannelNoise,
+    Figure,
+    allan_curve,
+    basis,
+    fit_noise,
+    plan_duration,
+    relative_precision,
+    sensor_of,
+)
+from host.wire.sensor import G0
+
+__all__ = [
+    "CHANNELS",
+    "CI_LEVEL",
+    "QUANTITIES",
+    "UNITS",
+    "ChannelNoise",
+    "Figure",
+    "NoiseAnalysis",
+    "analyse",
+    "basis",
+    "load_noise_file",
+    "plan",
+    "plan_duration",
+    "record_mean_floor",
+    "relative_precision",
+    "thermal_drift",
+]
+
+
+# --------------------------------------------------------------------------- temperature
+@dataclass(frozen=True)
+class ThermalDrift:
+    """What the chip temperature explains in one channel: ``coefficient`` (unit/°C) of a
+    straight line against temperature, ``drift`` = coefficient × span (channel unit), and
+    whether it is ``significant`` (larger than the noise allows over the recording)."""
+
+    coefficient: float
+    drift: float
+    significant: bool
+
+
+def thermal_drift(
+    x: np.ndarray, temp_c: np.ndarray, rate_hz: float, min_span_c: float = 0.5
+) -> tuple[float, dict[int, ThermalDrift]]:
+    """Temperature span of the recording (°C, 1st–99th percentile) and, when it is at least
+    ``min_span_c``, per column of ``x`` (N, k) the straight-line fit against temperature.
+
+    A drift is significant when the change it explains across the span exceeds five times the
+    slow wander of what is left (the standard deviation of the residual's means over 16 equal
+    blocks): a chance correlation of slow noise with the temperature stays below that."""
+    t = np.asarray(temp_c, dtype=np.float64)
+    if t.size < 16 or not np.all(np.isfinite(t)):
+        return 0.0, {}
+    span = float(np.percentile(t, 99) - np.percentile(t, 1))
+    if span < min_span_c:
+        return span, {}
+    out: dict[int, ThermalDrift] = {}
+    d = t - t.mean()
+    for j in range(x.shape[1]):
+        col = x[:, j] - x[:, j].mean()
+        c = float(np.dot(d, col) / np.dot(d, d))
+        resid = col - c * d
+        blocks = resid[: resid.size // 16 * 16].reshape(16, -1).mean(axis=1)
+        limit = 5.0 * float(blocks.std(ddof=1))
+        out[j] = ThermalDrift(c, c * span, abs(c * span) > limit)
+    return span, out
+
+
+# --------------------------------------------------------------------------- the analysis
+@dataclass(frozen=True)
+class NoiseAnalysis:
+    """Everything :func:`analyse` found: per channel :class:`ChannelNoise`, the recording's
+    ``duration_s``, ``rate_hz``, temperature ``span_c`` and per channel the thermal drift
+    (removed before the Allan deviation when significant and ``thermal_removed``)."""
+
+    channels: dict[str, ChannelNoise]
+    duration_s: float
+    rate_hz: float
+    span_c: float
+    thermal: dict[str, ThermalDrift] = field(default_factory=dict)
+    thermal_removed: bool = True
+    ci: float = CI_LEVEL
+    warnings: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict[str, Any]:
+        """The ``--json`` document (also the noise file the workbench reads)."""
+        chans: dict[str, Any] = {}
+        for name, ch in self.channels.items():
+            chans[name] = {q: ch.figures[q].as_dict() for q in QUANTITIES}
+        thermal = {
+            name: {
+                "coefficient": d.coefficient,
+                "unit": UNITS[sensor_of(name)][1] + "/degC",
+                "drift": d.drift,
+                "significant": d.significant,
+                "removed": d.significant and self.thermal_removed,
+            }
+            for name, d in self.thermal.items()
+        }
+        return {
+            "format": "imu-bench noise",
+            "format_version": NOISE_FORMAT_VERSION,
+            "duration_s": self.duration_s,
+            "rate_hz": self.rate_hz,
+            "ci_level": self.ci,
+            "model": "sigma^2(tau) = N^2/tau + (2 ln2/pi) B^2 + K^2 tau/3",
+            "channels": chans,
+            "temperature": {"span_c": self.span_c, "channels": thermal},
+            "warnings": list(self.warnings),
+        }
+
+
+NOISE_FORMAT_VERSION = 1
+
+
+def analyse(
+    t_s: np.ndarray,
+    data: np.ndarray,
+    temp_c: np.ndarray | None = None,
+    channels: Sequence[str] = CHANNELS,
+    remove_thermal: bool = True,
+    ci: float = CI_LEVEL,
+) -> NoiseAnalysis:
+    """The noise of a static recording: sample times ``t_s`` (N,) s, ``data`` (N, k) in the
+    channels' units (m/s², °/s), ``temp_c`` (N,) °C or None.
+
+    The rate is the median sample spacing; gaps are reported as a warning (the Allan
+    deviation assumes even sampling). A significant temperature drift is removed first when
+    ``remove_thermal`` (see :func:`thermal_drift`)."""
+    t = np.asarray(t_s, dtype=np.float64)
+    x = np.asarray(data, dtype=np.float64).reshape(t.size, len(channels))
+    if t.size < 64:
+        raise ValueError(f"{t.size} samples: an Allan deviation needs at least 64")
+    dt = np.diff(t)
+    step = float(np.median(dt))
+    if not step > 0:
+        raise ValueError("the sample times do not increase")
+    rate = 1.0 / step
+    notes: list[str] = []
+    gaps = dt > 1.5 * step
+    if np.any(gaps):
+        lost = float(np.sum(dt[gaps] - step))
+        share = lost / float(t[-1] - t[0])
+        if share > 0.001:
+            notes.append(
+                f"{int(np.count_nonzero(gaps))} gaps in the sample times ({100 * share:.1f} % "
+                "of the recording): the Allan deviation treats the samples as evenly spaced"
+            )
+    span, drifts = (0.0, {}) if temp_c is None else thermal_drift(x, temp_c, rate)
+    thermal = {channels[j]: d for j, d in drifts.items()}
+    if temp_c is not None and drifts:
+        tc = np.asarray(temp_c, dtype=np.float64)
+        sig = [channels[j] for j, d in drifts.items() if d.significant]
+        if sig:
+            what = "removed before the Allan deviation" if remove_thermal else "NOT removed"
+            notes.append(
+                f"temperature drift: the chip moved {span:.1f} degC and {', '.join(sig)} "
+                f"follow it ({what}; it would read as rate random walk)"
+            )
+            if remove_thermal:
+                x = x.copy()
+                for j, d in drifts.items():
+                    if d.significant:
+                        x[:, j] -= d.coefficient * (tc - tc.mean())
+    out: dict[str, ChannelNoise] = {}
+    for j, name in enumerate(channels):
+        out[name] = fit_noise(name, allan_curve(x[:, j], rate), ci)
+    for name, ch in out.items():
+        for q in QUANTITIES:
+            w = ch.figures[q].warning
+            if w:
+                notes.append(f"{name}: {w}")
+    return NoiseAnalysis(
+        out, float(t[-1] - t[0]) + step, rate, span, thermal, remove_thermal, ci, tuple(notes)
+    )
+
+
+def plan(
+    analysis: NoiseAnalysis, precision: float, ci: float | None = None
+) -> dict[str, dict[str, float | None]]:
+    """Per quantity and channel: the recording length (s) that gives the figure to
+    ±``precision`` (relative) at the analysis's confidence level, from the fitted model."""
+    out: dict[str, dict[str, float | None]] = {q: {} for q in QUANTITIES}
+    for name, ch in analysis.channels.items():
+        for k, q in enumerate(QUANTITIES):
+            out[q][name] = plan_duration(ch.coef, k, precision, analysis.rate_hz, ci or analysis.ci)
+    return out
+
+
+# --------------------------------------------------------------------------- noise files
+def model_from_dict(doc: Mapping[str, Any], source: str = "noise file") -> dict[str, np.ndarray]:
+    """Per channel the model (N², B², K²) of a noise document (:meth:`NoiseAnalysis.as_dict`);
+    an unresolved figure counts at its upper bound (the conservative floor)."""
+    if doc.get("format") != "imu-bench noise":
+        raise ValueError(f"{source}: not an imu-bench noise file (key 'format')")
+    v = doc.get("format_version")
+    if not isinstance(v, int) or v > NOISE_FORMAT_VERSION:
+        raise ValueError(
+            f"{source}: noise format v{v} is not one this program reads "
+            f"(v{NOISE_FORMAT_VERSION}); update the host software"
+        )
+    out: dict[str, np.ndarray] = {}
+    for name, figs in dict(doc.get("channels", {})).items():
+        coef = np.zeros(3)
+        for k, q in enumerate(QUANTITIES):
+            f = figs[q]
+            val = f["value"] if f["value"] is not None else f["ci"][1]
+            coef[k] = float(val) ** 2
+        out[str(name)] = coef
+    return out
+
+
+def record_mean_floor(doc: Mapping[str, Any], duration_s: float) -> dict[str, float]:
+    """Per channel the standard deviation by which the means of two successive static records
+    of ``duration_s`` s differ per √2 — the Allan deviation of the noise model at
+    τ = ``duration_s`` (channel unit). This is the workbench's noise floor of a record mean."""
+    if not duration_s > 0:
+        raise ValueError("duration_s must be positive")
+    tau = np.array([float(duration_s)])
+    return {
+        name: float(np.sqrt(basis(tau) @ coef)[0]) for name, coef in model_from_dict(doc).items()
+    }
+
+
+# --------------------------------------------------------------------------- display units
+def display_units(channel: str, q: str, value: float) -> tuple[float, str]:
+    """A figure in the unit users quote: gyro white noise °/√h, bias instability °/h, rate
+    random walk °/h/√h; accelerometer µg/√Hz, µg, µg/√s·… (m/s/√h for velocity random walk
+    is in :func:`secondary_units`)."""
+    if sensor_of(channel) == "gyro":
+        factor, unit = {
+            "white_noise_density": (60.0, "deg/sqrt(h)"),
+            "bias_instability": (3600.0, "deg/h"),
+            "rate_random_walk": (3600.0 * 60.0, "deg/h/sqrt(h)"),
+        }[q]
+    else:
+        factor, unit = {
+            "white_noise_density": (1e6 / G0, "ug/sqrt(Hz)"),
+            "bias_instability": (1e6 / G0, "ug"),
+            "rate_random_walk": (1e6 / G0, "ug/sqrt(s)"),
+        }[q]
+    return value * factor, unit
+
+
+def secondary_units(channel: str, q: str, value: float) -> tuple[float, str] | None:
+    """A second display unit where users quote two: accelerometer white noise as velocity
+    random walk in m/s/√h."""
+    if sensor_of(channel) == "accel" and q == "white_noise_density":
+        return value * 60.0, "m/s/sqrt(h)"
+    return None
+
+
+def load_noise_file(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read a noise file written by ``noise --save`` (for the workbench's noise floor: pass the
+    result to :func:`record_mean_floor`); raises UserError naming the problem."""
+    p = Path(path)
+    try:
+        doc = json.loads(p.read_text(encoding="utf-8"))
+        model_from_dict(doc, str(p))
+    except FileNotFoundError:
+        raise UserError(f"{p}: no such noise file (write one with: noise FILE --save)") from None
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise UserError(f"{p}: not a readable noise file ({exc})") from None
+    return dict(doc)
