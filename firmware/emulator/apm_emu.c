@@ -41,6 +41,12 @@
 #define A_DDRG 0x33
 #define A_PORTG 0x34
 #define A_MCUSR 0x54
+#define A_SPCR 0x4C
+#define A_EIMSK 0x3D
+#define A_EICRB 0x6A
+#define SPCR_DORD 0x20
+#define SPCR_CPOL 0x08
+#define SPCR_CPHA 0x04
 
 enum { FAULT_NONE, FAULT_ABSENT, FAULT_STUCK_MISO, FAULT_NO_DRDY };
 static const char *FAULT_NAMES[] = {"none", "absent", "stuck-miso", "no-drdy"};
@@ -96,6 +102,7 @@ static struct {
     int int_asserted;
     double sample_next_exact;  // absolute cycle of the next sample-clock tick; <0: stopped
     int txn_conflict;
+    uint8_t spi_prev_mosi_lsb;  // last MOSI bit of the previous byte (wrong SPI mode model)
     uint64_t last_drdy_cycle, last_drdy_idx;
     uint64_t rng;
 
@@ -163,6 +170,17 @@ static avr_cycle_count_t int_pulse_end(avr_t *avr, avr_cycle_count_t when, void 
 }
 
 static void assert_int(void) {
+    // a pulsed INT needs INT6 on its leading edge (rising for active high, falling for active
+    // low; ISC61:60 = 11 / 10, EICRB): the trailing edge comes 50 us later, "any edge" twice
+    if ((E.avr->data[A_EIMSK] & (1 << 6)) &&
+        !(E.mpu.reg[MPU_INT_PIN_CFG] & MPU_PIN_LATCH_INT_EN)) {
+        unsigned isc = (E.avr->data[A_EICRB] >> 4) & 3;
+        unsigned want = (E.mpu.reg[MPU_INT_PIN_CFG] & MPU_PIN_INT_LEVEL) ? 2 : 3;
+        if (isc != want) {
+            E.mpu.now_s = sim_s();
+            mpu_violate(&E.mpu, MPU_RULE_DRDY_EDGE, -1);
+        }
+    }
     E.int_asserted = 1;
     drive_int();
     E.drdy_pulses++;
@@ -266,6 +284,12 @@ static void handle_mpu_events(void) {
     if (ev & (MPU_EV_PIN_CFG | MPU_EV_RESET)) drive_int();
 }
 
+static uint8_t bitrev8(uint8_t b) {
+    b = (uint8_t)((b & 0xF0) >> 4 | (b & 0x0F) << 4);
+    b = (uint8_t)((b & 0xCC) >> 2 | (b & 0x33) << 2);
+    return (uint8_t)((b & 0xAA) >> 1 | (b & 0x55) << 1);
+}
+
 // A byte the AVR shifted out on MOSI (SPI master): answer on MISO.
 static void spi_out_cb(avr_irq_t *irq, uint32_t value, void *param) {
     (void)irq, (void)param;
@@ -275,8 +299,27 @@ static void spi_out_cb(avr_irq_t *irq, uint32_t value, void *param) {
     int f = fault_now();
     mpu_access_t acc;
     int has = 0;
+    E.mpu.now_s = sim_s();
+    // The chip latches MOSI on the rising SCLK edge and shifts MISO on the falling one, MSB
+    // first (PS p.37). Mode 1/2 (CPOL != CPHA) makes both sides sample one bit off; DORD = 1
+    // reverses every byte. The model sees (and answers) what the silicon would.
+    uint8_t spcr = E.avr->data[A_SPCR];
+    uint8_t mosi = (uint8_t)value;
+    int bad_mode = !(spcr & SPCR_CPOL) != !(spcr & SPCR_CPHA);
+    int lsb_first = (spcr & SPCR_DORD) != 0;
+    if (bad_mode) {
+        mpu_violate(&E.mpu, MPU_RULE_SPI_MODE, -1);
+        mosi = (uint8_t)((mosi >> 1) | (E.spi_prev_mosi_lsb << 7));
+    }
+    E.spi_prev_mosi_lsb = (uint8_t)(value & 1);
+    if (lsb_first) {
+        mpu_violate(&E.mpu, MPU_RULE_SPI_BIT_ORDER, -1);
+        mosi = bitrev8(mosi);
+    }
     // (absent: the model still parses the bytes, for the register log, but nothing answers)
-    uint8_t miso = mpu_spi_byte(&E.mpu, (uint8_t)value, &acc, &has);
+    uint8_t miso = mpu_spi_byte(&E.mpu, mosi, &acc, &has);
+    if (bad_mode) miso = (uint8_t)(miso << 1);
+    if (lsb_first) miso = bitrev8(miso);
     if (f == FAULT_STUCK_MISO) miso = 0xFF;
     if (f == FAULT_ABSENT) miso = 0x00;
     if (has) {
@@ -284,6 +327,7 @@ static void spi_out_cb(avr_irq_t *irq, uint32_t value, void *param) {
         unsigned div = spi_divider();
         double hz = (double)E.freq / div;
         int viol = !mpu_is_sensor_reg(acc.reg) && hz > 1e6;
+        if (viol) mpu_violate(&E.mpu, MPU_RULE_SPI_CLOCK, acc.reg);
         if (viol) {
             if (!E.spi_violations) {
                 E.first_violation_reg = acc.reg;
@@ -327,13 +371,19 @@ static void cs_cb(avr_irq_t *irq, uint32_t value, void *param) {
     int low = !(value & 1) && (avr->data[A_DDRB] & 1);
     if (low == E.mpu.cs_low) return;
     if (low) {
+        E.spi_prev_mosi_lsb = 0;
         E.cs_transactions++;
         E.txn_conflict = !(avr->data[A_PORTG] & (1 << 1));
         mpu_cs(&E.mpu, 1);
         return;
     }
-    if (E.txn_conflict) E.bus_conflicts++;
+    if (E.txn_conflict) {
+        E.bus_conflicts++;
+        E.mpu.now_s = sim_s();
+        mpu_violate(&E.mpu, MPU_RULE_BARO_CS, -1);
+    }
     E.txn_conflict = 0;
+    E.mpu.now_s = sim_s();
     uint64_t read0 = E.mpu.samples_read;
     mpu_cs(&E.mpu, 0);
     if (E.mpu.samples_read != read0) {
@@ -731,6 +781,24 @@ static void usage(FILE *f) {
             "  --profile FILE        CSV of CPU cycles spent per flash address (awake only)\n");
 }
 
+// "rules": {"NAME": count, ...}, "rules_broken": ["NAME (ref): text; first at t s, reg 0xRR", ...]
+static void write_rules(FILE *f) {
+    fprintf(f, "\"rules\": {");
+    for (int i = 0; i < MPU_RULE_COUNT; i++)
+        fprintf(f, "%s\"%s\": %llu", i ? ", " : "", MPU_RULE_NAME[i],
+                (unsigned long long)E.mpu.rule_count[i]);
+    fprintf(f, "}, \"rules_broken\": [");
+    int n = 0;
+    for (int i = 0; i < MPU_RULE_COUNT; i++) {
+        if (!E.mpu.rule_count[i]) continue;
+        fprintf(f, "%s\"%s (%s): %s; first at %.6f s", n++ ? ", " : "", MPU_RULE_NAME[i],
+                MPU_RULE_REF[i], MPU_RULE_TEXT[i], E.mpu.rule_first_t[i]);
+        if (E.mpu.rule_first_reg[i] >= 0) fprintf(f, ", register 0x%02X", E.mpu.rule_first_reg[i]);
+        fprintf(f, "\"");
+    }
+    fprintf(f, "], ");
+}
+
 static void write_summary(FILE *f, double wall) {
     double sim = sim_s();
     uint64_t busy = (E.avr->cycle - E.start_cycle) - E.sleep_cycles;
@@ -744,8 +812,10 @@ static void write_summary(FILE *f, double wall) {
         steady_load = cyc ? (double)b / (double)cyc : 0.0;
     }
     const uint8_t *r = E.mpu.reg;
+    fputc('{', f);
+    write_rules(f);
     fprintf(f,
-            "{\"sim_seconds\": %.6f, \"wall_seconds\": %.3f, \"speed\": %.2f, "
+            "\"sim_seconds\": %.6f, \"wall_seconds\": %.3f, \"speed\": %.2f, "
             "\"stop_reason\": \"%s\", \"avr_state\": %d, \"pty\": \"%s\", "
             "\"fault\": \"%s\", \"spi_violations\": %llu, \"first_violation_reg\": %d, "
             "\"first_violation_t\": %.6f, \"bus_conflicts\": %llu, "

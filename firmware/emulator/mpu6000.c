@@ -8,6 +8,56 @@
 static const double ACCEL_LSB_PER_G[4] = {16384.0, 8192.0, 4096.0, 2048.0};
 static const double GYRO_LSB_PER_DPS[4] = {131.0, 65.5, 32.8, 16.4};  // datasheet p.12
 
+const char *const MPU_RULE_NAME[MPU_RULE_COUNT] = {
+    "SPI_CLOCK", "SPI_MODE", "SPI_BIT_ORDER", "BARO_CS", "DRDY_EDGE", "RESET_WAIT",
+    "SIGNAL_PATH_RESET", "SIGNAL_PATH_WAIT", "GYRO_STARTUP", "I2C_IF_DIS", "READ_ONLY",
+    "RESERVED",
+};
+const char *const MPU_RULE_REF[MPU_RULE_COUNT] = {
+    "PS p.15", "PS p.37", "PS p.37", "APM 2.6 schematic", "RM p.26", "RM p.41", "RM p.41",
+    "RM p.41", "PS p.12", "RM p.38", "RM p.6-8", "RM p.6-8",
+};
+const char *const MPU_RULE_TEXT[MPU_RULE_COUNT] = {
+    "configuration registers are specified up to 1 MHz SPI clock (20 MHz only for sensor and "
+    "interrupt registers)",
+    "the MPU-6000 latches data on the rising SCLK edge and shifts on the falling one: SPI mode 0 "
+    "or 3 (CPOL = CPHA); another mode shifts every byte by one bit",
+    "SPI data is MSB first: with DORD = 1 every byte is bit-reversed",
+    "the MS5611 shares the bus: its /CS (PG1) must be high while the MPU-6000 is selected",
+    "with LATCH_INT_EN = 0 data ready is a 50 us pulse: INT6 must sense its leading edge, else "
+    "every time stamp is 50 us late (or taken twice)",
+    "after DEVICE_RESET the part is in reset for 100 ms: registers are unreachable (reads 0x00, "
+    "writes lost)",
+    "in SPI mode DEVICE_RESET must be followed by SIGNAL_PATH_RESET (gyro, accel, temp) before "
+    "sensor data is valid",
+    "after SIGNAL_PATH_RESET wait 100 ms before touching the part",
+    "gyroscope start-up time is 30 ms after wake-up: earlier samples are not valid",
+    "in SPI mode set USER_CTRL.I2C_IF_DIS before reading data (the I2C slave otherwise sees the "
+    "SPI traffic)",
+    "the register is read-only: a write is lost",
+    "reserved register: writes have undefined effects",
+};
+
+void mpu_violate(mpu6000_t *m, int rule, int reg) {
+    if (rule < 0 || rule >= MPU_RULE_COUNT) return;
+    if (!m->rule_count[rule]++) {
+        m->rule_first_t[rule] = m->now_s;
+        m->rule_first_reg[rule] = reg;
+    }
+}
+
+// Registers documented in RM-MPU-6000A-00 (or known and used: offsets/self-test 0x00-0x18 incl.
+// PRODUCT_ID 0x0C, the DMP memory and configuration ports 0x6D-0x71). Anything else is reserved.
+static int reg_reserved(uint8_t r) {
+    return (r >= 0x1D && r <= 0x22) || r == 0x39 || r == 0x61 || r == 0x62 || r == 0x69 ||
+           r >= 0x76;
+}
+
+static int reg_read_only(uint8_t r) {
+    return r == MPU_WHO_AM_I || r == MPU_INT_STATUS || r == MPU_PRODUCT_ID ||
+           (r >= MPU_ACCEL_XOUT_H && r <= 0x60);  // sensor and external sensor data
+}
+
 static void retire_latched(mpu6000_t *m) {
     if (m->latched_idx && m->retire)
         m->retire(m->retire_ctx, m->latched_idx, m->latched_t, m->latched_counts,
@@ -45,6 +95,8 @@ void mpu_power_on(mpu6000_t *m, unsigned dmp_packet_size) {
 void mpu_device_reset(mpu6000_t *m) {
     // DMP memory is RAM inside the chip: DEVICE_RESET does not clear it in the model either.
     reset_registers(m);
+    m->reset_until = m->now_s + MPU_RESET_WAIT_S;
+    m->signal_path_needed = 1;
     m->events |= MPU_EV_CLOCK | MPU_EV_PIN_CFG | MPU_EV_RESET;
 }
 
@@ -118,6 +170,7 @@ static void latch(mpu6000_t *m) {
     for (int i = 0; i < 7; i++) put16(&m->reg[MPU_ACCEL_XOUT_H + 2 * i], m->counts[i]);
     m->latched_idx = m->produced;
     m->latched_fully_read = 0;
+    m->latched_early = m->latched_t < m->gyro_valid_from;
     m->latch_pending = 0;
 }
 
@@ -197,6 +250,7 @@ void mpu_cs(mpu6000_t *m, int low) {
         if (m->read_mask == 0x3FFF && m->latched_idx && !m->latched_fully_read) {
             m->latched_fully_read = 1;
             m->samples_read++;
+            if (m->latched_early) mpu_violate(m, MPU_RULE_GYRO_STARTUP, MPU_GYRO_XOUT_H);
         }
         if (m->latch_pending) latch(m);
     }
@@ -238,6 +292,8 @@ static uint8_t reg_read(mpu6000_t *m, uint8_t r) {
 }
 
 static void reg_write(mpu6000_t *m, uint8_t r, uint8_t v) {
+    if (reg_read_only(r)) mpu_violate(m, MPU_RULE_READ_ONLY, r);
+    if (reg_reserved(r)) mpu_violate(m, MPU_RULE_RESERVED, r);
     switch (r) {
         case MPU_WHO_AM_I:
         case MPU_INT_STATUS:
@@ -257,7 +313,10 @@ static void reg_write(mpu6000_t *m, uint8_t r, uint8_t v) {
                 mpu_device_reset(m);
                 return;
             }
-            if ((m->reg[r] ^ v) & MPU_PWR1_SLEEP) m->events |= MPU_EV_CLOCK;
+            if ((m->reg[r] ^ v) & MPU_PWR1_SLEEP) {
+                m->events |= MPU_EV_CLOCK;
+                if (!(v & MPU_PWR1_SLEEP)) m->gyro_valid_from = m->now_s + MPU_GYRO_STARTUP_S;
+            }
             m->reg[r] = v;
             return;
         case MPU_USER_CTRL:
@@ -271,6 +330,8 @@ static void reg_write(mpu6000_t *m, uint8_t r, uint8_t v) {
             m->reg[r] = v & ~(MPU_UC_DMP_RESET | MPU_UC_FIFO_RESET | 0x02 | MPU_UC_SIG_COND_RESET);
             return;
         case MPU_SIGNAL_PATH_RESET:
+            if ((v & 0x7) == 0x7) m->signal_path_needed = 0;
+            if (v & 0x7) m->signal_path_until = m->now_s + MPU_SIGNAL_PATH_WAIT_S;
             if (v & 0x7) memset(&m->reg[MPU_ACCEL_XOUT_H], 0, MPU_GYRO_ZOUT_L - MPU_ACCEL_XOUT_H + 1);
             return;  // self-clearing
         case MPU_INT_PIN_CFG:
@@ -295,6 +356,22 @@ uint8_t mpu_spi_byte(mpu6000_t *m, uint8_t mosi, mpu_access_t *acc, int *has_acc
     }
     uint8_t r = m->addr;
     uint8_t out = 0;
+    int data_reg = r >= MPU_ACCEL_XOUT_H && r <= MPU_GYRO_ZOUT_L;
+    if (m->now_s < m->reset_until) {
+        // in reset: nothing answers, nothing is stored
+        mpu_violate(m, MPU_RULE_RESET_WAIT, r);
+        acc->reg = r;
+        acc->is_read = (uint8_t)m->rd;
+        acc->value = m->rd ? 0 : mosi;
+        *has_access = 1;
+        if (r != MPU_FIFO_R_W && r != MPU_MEM_R_W) m->addr = (uint8_t)((r + 1) & 0x7F);
+        return 0;
+    }
+    if (m->now_s < m->signal_path_until) mpu_violate(m, MPU_RULE_SIGNAL_PATH_WAIT, r);
+    if (m->rd && data_reg) {
+        if (m->signal_path_needed) mpu_violate(m, MPU_RULE_SIGNAL_PATH_RESET, r);
+        if (!(m->reg[MPU_USER_CTRL] & MPU_UC_I2C_IF_DIS)) mpu_violate(m, MPU_RULE_I2C_IF_DIS, r);
+    }
     if (m->rd) {
         out = reg_read(m, r);
         acc->value = out;

@@ -64,6 +64,32 @@ enum {
 #define MPU_EV_PIN_CFG 0x04    // INT_PIN_CFG changed: re-drive the INT pin
 #define MPU_EV_RESET 0x08      // DEVICE_RESET happened
 
+// Hardware rules: what the datasheet states and a real part would punish. Each broken rule is
+// counted (with the time and register of its first occurrence) and named in the summary.
+// PS = product specification PS-MPU-6000A-00 rev 3.4, RM = register map RM-MPU-6000A-00 rev 4.2.
+enum mpu_rule {
+    MPU_RULE_SPI_CLOCK,          // glue: > 1 MHz on a non-sensor register
+    MPU_RULE_SPI_MODE,           // glue: CPOL != CPHA (the chip needs mode 0 or 3)
+    MPU_RULE_SPI_BIT_ORDER,      // glue: DORD = 1 (LSB first)
+    MPU_RULE_BARO_CS,            // glue: MS5611 /CS not high during an MPU transaction
+    MPU_RULE_DRDY_EDGE,          // glue: INT6 does not sense the data-ready pulse's leading edge
+    MPU_RULE_RESET_WAIT,         // access within 100 ms of DEVICE_RESET
+    MPU_RULE_SIGNAL_PATH_RESET,  // sensor data used after DEVICE_RESET without SIGNAL_PATH_RESET
+    MPU_RULE_SIGNAL_PATH_WAIT,   // access within 100 ms of SIGNAL_PATH_RESET
+    MPU_RULE_GYRO_STARTUP,       // a sample taken < 30 ms after wake-up was read
+    MPU_RULE_I2C_IF_DIS,         // sensor data read over SPI with the I2C interface enabled
+    MPU_RULE_READ_ONLY,          // write to a read-only register
+    MPU_RULE_RESERVED,           // write to a reserved (undocumented, unused) register
+    MPU_RULE_COUNT
+};
+extern const char *const MPU_RULE_NAME[MPU_RULE_COUNT];
+extern const char *const MPU_RULE_REF[MPU_RULE_COUNT];   // datasheet and page
+extern const char *const MPU_RULE_TEXT[MPU_RULE_COUNT];  // what a real part does
+
+#define MPU_RESET_WAIT_S 0.100        // RM p.41: DEVICE_RESET, wait 100 ms (SPI reset sequence)
+#define MPU_SIGNAL_PATH_WAIT_S 0.100  // RM p.41: SIGNAL_PATH_RESET, wait 100 ms
+#define MPU_GYRO_STARTUP_S 0.030      // PS p.12: gyroscope start-up time 30 ms
+
 typedef struct mpu_truth {
     double f[3];  // specific force, m/s^2, chip axes
     double w[3];  // angular rate, deg/s, chip axes
@@ -111,7 +137,20 @@ typedef struct mpu6000 {
     unsigned dmp_packet_size;
 
     unsigned events;
+
+    // hardware rules (time: now_s, set by the glue before every call)
+    uint64_t rule_count[MPU_RULE_COUNT];
+    double rule_first_t[MPU_RULE_COUNT];
+    int rule_first_reg[MPU_RULE_COUNT];
+    double reset_until;        // in reset (DEVICE_RESET) until this time: registers unreachable
+    double signal_path_until;  // signal path reset in progress until this time
+    int signal_path_needed;    // DEVICE_RESET seen, SIGNAL_PATH_RESET (all three paths) not yet
+    double gyro_valid_from;    // samples produced before this time carry no valid gyro data
+    int latched_early;         // the latched sample was produced within the gyro start-up time
 } mpu6000_t;
+
+// Count a broken rule (reg: the register involved, or -1).
+void mpu_violate(mpu6000_t *m, int rule, int reg);
 
 void mpu_power_on(mpu6000_t *m, unsigned dmp_packet_size);
 void mpu_device_reset(mpu6000_t *m);

@@ -185,7 +185,11 @@ COUNT_FIELDS = ("ax", "ay", "az", "temp", "gx", "gy", "gz")
 def read_samplelog(path: str | Path) -> np.ndarray:
     """Every sample the MPU model produced: structured array (``SAMPLELOG_DTYPE``); ``read`` is 1
     when the firmware burst-read all 14 bytes of it while it was in the output registers."""
-    rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    with open(path) as f:
+        lines = f.readlines()[1:]
+    if not lines:  # the chip produced nothing (asleep, absent, never configured)
+        return np.zeros(0, dtype=SAMPLELOG_DTYPE)
+    rows = np.loadtxt(lines, delimiter=",", ndmin=2)
     out = np.zeros(rows.shape[0], dtype=SAMPLELOG_DTYPE)
     for i, name in enumerate(SAMPLELOG_DTYPE.names or ()):
         out[name] = rows[:, i]

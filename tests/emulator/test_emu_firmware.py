@@ -50,6 +50,9 @@ def test_bringup_and_60s_stream(emu_bin, fw_elf, tmp_path):
         f"DRDY->read {s['drdy_to_read_cycles_mean']:.0f} cycles"
     )
 
+    # every hardware rule of the MPU-6000 model and the board holds (names, pages: the summary)
+    assert not s["rules_broken"], "\n".join(s["rules_broken"])
+    assert set(s["rules"]) >= {"SPI_MODE", "RESET_WAIT", "SIGNAL_PATH_RESET", "GYRO_STARTUP"}
     # the register traffic: the chip is woken and configured exactly, at a legal SPI clock
     assert s["spi_violations"] == 0, f"first at reg 0x{s['first_violation_reg']:02X}"
     assert s["bus_conflicts"] == 0
@@ -197,6 +200,7 @@ def test_dmp_mode_uploads_image_and_streams_quaternions(emu_bin, emu_toolchain, 
     with board:
         frames = collect(board, max_wall_s=60)
     assert board.summary["spi_violations"] == 0
+    assert not board.summary["rules_broken"], "\n".join(board.summary["rules_broken"])
     assert board.summary["regs"]["USER_CTRL"] & 0xC0 == 0xC0  # DMP_EN | FIFO_EN
     mem_writes = [a for a in board.reglog() if a.reg == 0x6F and a.op == "W"]
     assert len(mem_writes) == 3062

@@ -107,6 +107,7 @@ def test_testapp_streams_counts_and_answers_ping(emu_bin, testapp_elfs, tmp_path
     s = board.summary
     assert s["stop_reason"] == "stimulus ended"
     assert s["spi_violations"] == 0 and s["bus_conflicts"] == 0
+    assert not s["rules_broken"], "\n".join(s["rules_broken"])
     assert not seq_gaps(frames)
     got = sample_counts(frames)
     log = board.samplelog()
@@ -129,6 +130,10 @@ def test_rule_breaking_testapp_is_caught(emu_bin, testapp_elfs, tmp_path):
     assert s["spi_violations"] == 8
     assert s["first_violation_reg"] == 0x75
     assert s["bus_conflicts"] == s["cs_transactions"] > 0
+    # the same two, as named rules with their datasheet / schematic reference
+    assert {k for k, n in s["rules"].items() if n} == {"SPI_CLOCK", "BARO_CS"}
+    assert s["rules"]["SPI_CLOCK"] == 8 and s["rules"]["BARO_CS"] == s["bus_conflicts"]
+    assert s["rules_broken"][0].startswith("SPI_CLOCK (PS p.15): ")
     viol = [a for a in board.reglog() if a.violation]
     assert len(viol) == 8 and all(a.spi_hz == 8e6 for a in viol)
 

@@ -144,6 +144,7 @@ int main(void) {
         delay_ms(1000);
     }
     wr(0x6B, 0x01);  // wake, PLL with X gyro
+    delay_ms(30);    // gyroscope start-up time (PS p.12)
     wr(0x6A, 0x10);  // I2C_IF_DIS
     wr(0x19, 19);    // 50 Hz
     wr(0x1A, 4);     // DLPF 20 Hz
