@@ -23,12 +23,13 @@ import math
 import os
 import re
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from host.errors import UserError
+from host.errors import UserError, write_error
 
 RECORD_FORMAT_VERSION = 1
 STATIC_NAMES = ("x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn")
@@ -284,23 +285,47 @@ def format_record(record: Record) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
-    """Write UTF-8 ``text`` to ``path`` atomically: a temp file in the same directory, fsync,
-    then os.replace — a crash or an abort never leaves a half-written file."""
-    p = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+def write_texts_atomic(files: Mapping[str | os.PathLike[str], str]) -> None:
+    """Publish several UTF-8 files together or not at all: each is written to a temp file in
+    its directory and fsync'ed; only when all are written are they renamed over the targets
+    (``os.replace``, which needs no space). A full disk, a crash or an abort while writing
+    leaves every target as it was, and no temp file. UserError names the target that failed.
+    """
+    temps: list[tuple[str, Path]] = []
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+        for path, text in files.items():
+            p = Path(path)
+            try:
+                fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+            except OSError as exc:
+                raise write_error(p, exc) from None
+            temps.append((tmp, p))
+            try:
+                with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
+                    f.write(text)
+                    f.flush()
+                    os.fsync(f.fileno())
+            except OSError as exc:
+                raise write_error(p, exc) from None
+        while temps:
+            tmp, p = temps[0]
+            try:
+                os.replace(tmp, p)
+            except OSError as exc:
+                raise write_error(p, exc) from None
+            temps.pop(0)
+    finally:
+        for tmp, _ in temps:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+
+
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
+    """Write UTF-8 ``text`` to ``path`` atomically (:func:`write_texts_atomic` of one file):
+    a crash or an abort never leaves a half-written file."""
+    write_texts_atomic({path: text})
 
 
 def write_record(path: str | os.PathLike[str], record: Record) -> None:

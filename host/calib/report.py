@@ -21,7 +21,7 @@ from host.calib.calibration import (
     UNITS,
     CalibrationResult,
 )
-from host.calib.records import write_text_atomic
+from host.calib.records import write_texts_atomic
 
 WIDTH = 80
 PLUS, MINUS = "+", "−"
@@ -172,8 +172,9 @@ def result_paths(directory: str | os.PathLike[str], serial: str) -> tuple[Path, 
 def write_results(
     result: CalibrationResult, directory: str | os.PathLike[str]
 ) -> tuple[Path, Path]:
-    """Write the report and the JSON result into ``directory`` (atomically); returns the paths."""
+    """Publish the report and the JSON result in ``directory`` together or not at all
+    (:func:`host.records.write_texts_atomic`: the signed report and the file ``apply()``
+    reads never disagree); returns the paths. UserError names the file that failed."""
     txt, js = result_paths(directory, result.serial)
-    write_text_atomic(txt, format_report(result))
-    write_text_atomic(js, result.to_json())
+    write_texts_atomic({txt: format_report(result), js: result.to_json()})
     return txt, js

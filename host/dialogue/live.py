@@ -86,7 +86,7 @@ from host.calib.records import (
     write_record,
 )
 from host.dialogue.console import Console, Operator, TerminalConsole
-from host.errors import UserError
+from host.errors import UserError, write_error
 from host.timing.clock import LiveClock, serialisation_ns
 from host.wire import protocol_gen as gen
 from host.wire import sensor
@@ -1371,6 +1371,13 @@ def run_live_session(
         if session is not None and session.serial:
             con.say(session._resume_hint())
         return 130
+    except (UserError, OSError) as exc:
+        # a session ending on an error (disk full, sensor failed, board gone) always says how
+        # to continue with the records already accepted
+        if session is None or not session.serial or "--resume" in str(exc):
+            raise
+        text = str(exc) if isinstance(exc, UserError) else str(write_error(exc.filename, exc))
+        raise UserError(f"{text}; {session._resume_hint()}") from None
     finally:
         if session is not None:
             session.board.close()

@@ -19,7 +19,7 @@ from typing import BinaryIO
 
 import numpy as np
 
-from host.errors import UserError
+from host.errors import UserError, write_error
 
 MAGIC = b"IMUCAP01"
 _REC = struct.Struct("<QI")
@@ -131,8 +131,11 @@ class CaptureWriter:
         """Record one read: host monotonic ns taken right after it returned, and its bytes."""
         if self._f is None or not data:
             return
-        self._f.write(_REC.pack(t_ns, len(data)) + data)
-        self._f.flush()
+        try:
+            self._f.write(_REC.pack(t_ns, len(data)) + data)
+            self._f.flush()
+        except OSError as exc:
+            raise write_error(self.path, exc, "what was read before is in it") from None
 
     def close(self) -> None:
         if self._f is not None:

@@ -130,3 +130,32 @@ def test_interactive_sensor_fault_offers_again_or_stop(tmp_path: Path) -> None:
         run(o, con, dies(after_s=5.0))
     assert "Measure again <Y> or stop <N>?" in con.text
     assert (tmp_path / "S1" / "S1_x_up.txt").exists()
+
+
+@pytest.mark.timeout(60)
+def test_disk_full_in_a_live_session_names_the_record_and_prints_the_resume_hint(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Was: the error named a hidden temp file and the session ended without the hint."""
+    import errno
+    import os
+
+    real = os.fsync
+    calls = {"k": 0}
+
+    def fsync(fd: int) -> None:
+        calls["k"] += 1
+        if calls["k"] == 2:  # the second record finds the disk full
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        real(fd)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    o = opts(tmp_path, f"sim://?seed=25&{LINEAR}", static_seconds=2.0)
+    with pytest.raises(UserError) as err:
+        run(o, ScriptedConsole(), Ports())
+    msg = str(err.value)
+    out = tmp_path / "S1"
+    assert f"cannot write {out / 'S1_x_dn.txt'}: the disk is full" in msg
+    assert ".tmp" not in msg
+    assert f"1 accepted records are kept in {out}; continue with:" in msg and "--resume" in msg
+    assert sorted(p.name for p in out.glob("S1_*_*.txt")) == ["S1_x_up.txt"]
