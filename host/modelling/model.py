@@ -38,6 +38,7 @@ import sys
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -376,6 +377,11 @@ def load_term_file(
     if not found:
         raise UserError(f"{p}: defines no term (decorate a column function with @term(...))")
     for t in found:
+        if t.name in out or t.name == "base":  # a user term never replaces a built-in one
+            raise UserError(
+                f"{p}: term {t.name!r} has the name of a built-in term; give yours another "
+                f"name (@term(name=...)); taken: base, {', '.join(out)}"
+            )
         out[t.name] = t
     return out
 
@@ -745,9 +751,29 @@ def aggregate(agg: np.ndarray, per_sample: np.ndarray) -> np.ndarray:
     return np.asarray(out)
 
 
+def _call_term(t: Term, what: str, sig: RecordSignals, fn: Callable[[], Any]) -> np.ndarray:
+    """Call a term's function (user code, maybe): any exception or a non-finite value becomes
+    one UserError naming the term, the function and the record."""
+    try:
+        x = np.asarray(fn(), dtype=np.float64)
+    except UserError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - an error in a term is one line for the user
+        raise UserError(
+            f"term {t.name}: {what}() raised {type(exc).__name__}: {exc} (record {sig.name})"
+        ) from None
+    if not np.all(np.isfinite(x)):
+        raise UserError(
+            f"term {t.name}: {what}() returned {int(np.count_nonzero(~np.isfinite(x)))} "
+            f"non-finite values (NaN or inf) for record {sig.name}; it must give finite numbers"
+        )
+    return x
+
+
 def _regressors(t: Term, sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
-    assert t.columns is not None
-    x = np.asarray(t.columns(sig, sensor, axis), dtype=np.float64)
+    columns = t.columns
+    assert columns is not None
+    x = _call_term(t, "columns", sig, lambda: columns(sig, sensor, axis))
     if x.ndim == 1:
         x = x[:, None]
     if x.shape != (len(sig.t_s), len(t.params)):
@@ -785,17 +811,25 @@ def term_columns(
                     agg, _regressors(mt.term, sig, mt.sensor, ax)
                 )
                 continue
-            assert mt.term.value is not None and th is not None
+            value = mt.term.value
+            assert value is not None and th is not None
             p = np.asarray(th[j * k : (j + 1) * k], dtype=np.float64)
-            v0 = np.asarray(mt.term.value(sig, mt.sensor, ax, p), dtype=np.float64)
+
+            def at(
+                pp: np.ndarray,
+                sig: RecordSignals = sig,
+                ax: int = ax,
+                value: ValueFn = value,
+            ) -> np.ndarray:
+                return _call_term(mt.term, "value", sig, lambda: value(sig, mt.sensor, ax, pp))
+
+            v0 = at(p)
             jac = np.zeros((len(sig.t_s), k))
             for q in range(k):
                 h = 1e-6 * max(1.0, abs(p[q]))
                 dp = np.zeros(k)
                 dp[q] = h
-                vp = mt.term.value(sig, mt.sensor, ax, p + dp)
-                vm = mt.term.value(sig, mt.sensor, ax, p - dp)
-                jac[:, q] = (np.asarray(vp) - np.asarray(vm)) / (2 * h)
+                jac[:, q] = (at(p + dp) - at(p - dp)) / (2 * h)
             cols[rows, j * k : (j + 1) * k] = agg @ jac
             offset[rows] = agg @ (v0 - jac @ p)
     return cols, offset

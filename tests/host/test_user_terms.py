@@ -1,0 +1,100 @@
+"""A user term cannot shadow a built-in name, raise, or return non-finite values unnoticed
+(issue 17): a term file redefining ``bias`` silently replaced the built-in (RMS z 3.9 → 114.9),
+a term returning NaN was "added" with RMS z ``nan``, a term that raised gave a traceback."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from host.__main__ import main
+from host.sim import Plan, SensorTruth, simulate_session, write_session
+
+
+@pytest.fixture(scope="module")
+def records_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("terms")
+    truth = SensorTruth.random(np.random.default_rng(8))
+    write_session(d, "T8", simulate_session(truth, Plan(static_s=5.0, turns=1, warmup_s=0), 8))
+    return d
+
+
+TERM = (
+    "import numpy as np\nfrom host.model import term, nonlinear_term\n\n"
+    "@term(sensors=('gyro',){extra})\n"
+    "def {name}(sig, sensor, axis):\n"
+    "    '''A user term.'''\n"
+    "    {body}\n"
+)
+
+
+def term_file(tmp_path: Path, name: str, body: str, extra: str = "") -> Path:
+    f = tmp_path / f"{name}_terms.py"
+    f.write_text(TERM.format(name=name, body=body, extra=extra))
+    return f
+
+
+def run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    rc = main(argv)
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+@pytest.mark.parametrize("name", ["bias", "scale", "temperature_bias", "base"])
+def test_a_term_named_like_a_built_in_is_refused(
+    records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str
+) -> None:
+    extra = ", name='base'" if name == "base" else ""
+    f = term_file(tmp_path, "mine" if name == "base" else name, "return sig.temp_c", extra)
+    rc, out, err = run(["model", "diagnose", str(records_dir), "--term-file", str(f)], capsys)
+    assert rc == 2 and out == ""
+    assert f"term {name!r} has the name of a built-in term" in err
+
+
+@pytest.mark.parametrize(
+    "body, words",
+    [
+        ("return np.full(len(sig.t_s), np.nan)", r"columns\(\) returned \d+ non-finite values"),
+        ("return np.full(len(sig.t_s), np.inf)", r"columns\(\) returned \d+ non-finite values"),
+        ("return 1 / 0", r"columns\(\) raised ZeroDivisionError: division by zero \(record "),
+        ("raise RuntimeError('my bug')", r"columns\(\) raised RuntimeError: my bug"),
+    ],
+)
+def test_a_term_that_fails_is_one_line_naming_it(
+    records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], body: str, words: str
+) -> None:
+    import re
+
+    f = term_file(tmp_path, "wobble", body)
+    argv = ["model", "add", str(records_dir), "wobble:gyro", "--term-file", str(f)]
+    rc, out, err = run(argv, capsys)
+    assert rc == 2, out
+    assert "nan" not in out.lower()
+    assert re.search(r"error: term wobble: " + words, err), err
+
+
+def test_a_nonlinear_term_returning_nan_is_named(
+    records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    f = tmp_path / "nl.py"
+    f.write_text(
+        "import numpy as np\nfrom host.model import nonlinear_term\n\n"
+        "@nonlinear_term(initial=[1.0], sensors=('gyro',))\n"
+        "def sag(sig, sensor, axis, theta):\n"
+        "    '''A user term.'''\n"
+        "    return np.where(theta[0] == 1.0, np.nan, theta[0]) * sig.temp_c\n"  # NaN at the start
+    )
+    rc, _, err = run(["model", "add", str(records_dir), "sag:gyro", "--term-file", str(f)], capsys)
+    assert rc == 2 and "error: term sag: value() returned" in err and "non-finite" in err
+
+
+def test_a_sound_user_term_still_works(
+    records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    f = term_file(tmp_path, "warm", "return (sig.temp_c - sig.temp_mean_c)[:, None] ** 2")
+    argv = ["model", "add", str(records_dir), "warm:gyro", "--term-file", str(f), "--json"]
+    rc, out, err = run(argv, capsys)
+    assert rc == 0, err
+    assert '"rms_z"' in out
