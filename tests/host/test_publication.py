@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from host.__main__ import main
-from host.sim import Plan, SensorTruth, simulate_session, write_session
+from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
 
 
 @pytest.fixture(scope="module")

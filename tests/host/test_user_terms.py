@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from host.__main__ import main
-from host.sim import Plan, SensorTruth, simulate_session, write_session
+from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +22,7 @@ def records_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 TERM = (
-    "import numpy as np\nfrom host.model import term, nonlinear_term\n\n"
+    "import numpy as np\nfrom host.modelling.model import term, nonlinear_term\n\n"
     "@term(sensors=('gyro',){extra})\n"
     "def {name}(sig, sensor, axis):\n"
     "    '''A user term.'''\n"
@@ -80,7 +80,7 @@ def test_a_nonlinear_term_returning_nan_is_named(
 ) -> None:
     f = tmp_path / "nl.py"
     f.write_text(
-        "import numpy as np\nfrom host.model import nonlinear_term\n\n"
+        "import numpy as np\nfrom host.modelling.model import nonlinear_term\n\n"
         "@nonlinear_term(initial=[1.0], sensors=('gyro',))\n"
         "def sag(sig, sensor, axis, theta):\n"
         "    '''A user term.'''\n"
