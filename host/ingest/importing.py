@@ -230,51 +230,33 @@ def parse_column_text(
     n_col = len(columns)
     delim: str | None = None
     header: list[str] | None = None
-    rows: list[list[float]] = []
-    first_line = 0
+    lines: list[str] = []
+    linenos: list[int] = []
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if not line or line.startswith("#"):
             continue
-        if not first_line:
-            first_line = lineno
+        if not linenos and header is None:
             delim = _choose_delimiter(line, n_col)
-        fields = _split(line, delim)
-        if lineno == first_line and not all(_is_number(f) for f in fields):
-            header = fields
-            if len(fields) != n_col:
-                raise ForeignFileError(
-                    f"{source}:{lineno}: the header has {len(fields)} columns (separated by "
-                    f"{_delimiter_name(delim)}) but --columns names {n_col}"
-                )
-            continue
-        if len(fields) != n_col:
-            raise ForeignFileError(
-                f"{source}:{lineno}: {len(fields)} columns (separated by "
-                f"{_delimiter_name(delim)}), but --columns names {n_col} "
-                f"({','.join(columns)}); fix --columns or the line"
-            )
-        vals: list[float] = []
-        for k, f in enumerate(fields):
-            if columns[k] == "skip":
-                vals.append(0.0)
+            fields = _split(line, delim)
+            if not all(_is_number(f) for f in fields):
+                header = fields
+                if len(fields) != n_col:
+                    raise ForeignFileError(
+                        f"{source}:{lineno}: the header has {len(fields)} columns (separated by "
+                        f"{_delimiter_name(delim)}) but --columns names {n_col}"
+                    )
                 continue
-            try:
-                v = float(f)
-            except ValueError:
-                raise ForeignFileError(
-                    f"{source}:{lineno}: column {k + 1} ({columns[k]}) is not a number: {f[:30]!r}"
-                ) from None
-            if not math.isfinite(v):
-                raise ForeignFileError(
-                    f"{source}:{lineno}: column {k + 1} ({columns[k]}) is not a finite number: "
-                    f"{f[:30]!r}"
-                )
-            vals.append(v)
-        rows.append(vals)
-    if not rows:
+        lines.append(line)
+        linenos.append(lineno)
+    if not lines:
         raise ForeignFileError(f"{source}: no rows of numbers in this file")
-    data = np.array(rows, dtype=np.float64)
+    data = _fast_rows(lines, delim, n_col)
+    if data is None:  # something is wrong: find the first bad line and say what
+        data = np.array(
+            [_row(ln, no, delim, columns, source) for ln, no in zip(lines, linenos, strict=True)],
+            dtype=np.float64,
+        )
     col = {name: k for k, name in enumerate(columns) if name != "skip"}
     if "t" in col:
         t_s = data[:, col["t"]] * units.t
@@ -282,7 +264,7 @@ def parse_column_text(
         if back.size:
             i = int(back[0]) + 1
             raise ForeignFileError(
-                f"{source}: time goes backwards at data row {i + 1} "
+                f"{source}:{linenos[i]}: time goes backwards "
                 f"({data[i - 1, col['t']]:g} then {data[i, col['t']]:g}); sort the file by time "
                 "or name the right column t"
             )
@@ -290,7 +272,7 @@ def parse_column_text(
             raise ForeignFileError(f"{source}: the time column t does not advance")
     else:
         assert rate_hz is not None
-        t_s = np.arange(len(rows), dtype=np.float64) / rate_hz
+        t_s = np.arange(len(lines), dtype=np.float64) / rate_hz
     accel = data[:, [col["ax"], col["ay"], col["az"]]] * units.accel @ axes.T
     gyro = data[:, [col["gx"], col["gy"], col["gz"]]] * units.gyro @ axes.T
     meta = {
@@ -307,9 +289,54 @@ def parse_column_text(
     if "temp" in col:
         temp = data[:, col["temp"]]
     else:
-        temp = np.full(len(rows), NO_TEMPERATURE_C)
+        temp = np.full(len(lines), NO_TEMPERATURE_C)
         meta["temperature"] = f"not recorded (column filled with {NO_TEMPERATURE_C:g})"
     return Stream(t_s=t_s, accel=accel, gyro=gyro, temp=temp, meta=meta)
+
+
+def _fast_rows(lines: list[str], delim: str | None, n_col: int) -> np.ndarray | None:
+    """All rows at once (numpy's C parser); None when any line is not ``n_col`` finite
+    numbers — then :func:`_row` finds the first bad one and names it."""
+    try:
+        vals = np.loadtxt(lines, delimiter=delim, dtype=np.float64, ndmin=2, comments=None)
+    except ValueError:
+        return None
+    if vals.shape != (len(lines), n_col) or not np.all(np.isfinite(vals)):
+        return None
+    return np.asarray(vals)
+
+
+def _row(
+    line: str, lineno: int, delim: str | None, columns: tuple[str, ...], source: str
+) -> list[float]:
+    """One line's numbers (``skip`` columns read as 0), or ForeignFileError naming the line and
+    the column."""
+    fields = _split(line, delim)
+    n_col = len(columns)
+    if len(fields) != n_col:
+        raise ForeignFileError(
+            f"{source}:{lineno}: {len(fields)} columns (separated by "
+            f"{_delimiter_name(delim)}), but --columns names {n_col} "
+            f"({','.join(columns)}); fix --columns or the line"
+        )
+    vals: list[float] = []
+    for k, f in enumerate(fields):
+        if columns[k] == "skip":
+            vals.append(0.0)
+            continue
+        try:
+            v = float(f)
+        except ValueError:
+            raise ForeignFileError(
+                f"{source}:{lineno}: column {k + 1} ({columns[k]}) is not a number: {f[:30]!r}"
+            ) from None
+        if not math.isfinite(v):
+            raise ForeignFileError(
+                f"{source}:{lineno}: column {k + 1} ({columns[k]}) is not a finite number: "
+                f"{f[:30]!r}"
+            )
+        vals.append(v)
+    return vals
 
 
 def axes_text(axes: np.ndarray) -> str:
