@@ -239,7 +239,8 @@ def parse_column_text(
         if not linenos and header is None:
             delim = _choose_delimiter(line, n_col)
             fields = _split(line, delim)
-            if not all(_is_number(f) for f in fields):
+            numbers = [_is_number(f) for f, c in zip(fields, columns, strict=False) if c != "skip"]
+            if not all(numbers):
                 header = fields
                 if len(fields) != n_col:
                     raise ForeignFileError(

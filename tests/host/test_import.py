@@ -499,3 +499,12 @@ def test_wrong_time_and_gyro_units_are_named(tmp_path: Path, capsys) -> None:
     assert "is the gyro in rad/s? add --units gyro=rad/s" in capsys.readouterr().err
     assert main([*base, "--units", "t=ms,gyro=rad/s", "--out", str(tmp_path / "c")]) == 0
     assert (tmp_path / "c" / "R1_x_ccw.txt").exists()
+
+
+def test_text_in_a_skipped_column_is_not_a_header() -> None:
+    text = "date t ax ay az gx gy gz\n2026-11-23 0.00 1 2 3 4 5 6\n2026-11-23 0.02 1 2 3 4 5 7\n"
+    cols = parse_columns("skip,t,ax,ay,az,gx,gy,gz")
+    s = parse_column_text(text, "d.txt", cols)
+    assert s.t_s.tolist() == [0.0, 0.02] and s.gyro[1].tolist() == [4.0, 5.0, 7.0]
+    s = parse_column_text(text.split("\n", 1)[1], "d.txt", cols)
+    assert len(s) == 2 and "header" not in s.meta
