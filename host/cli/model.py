@@ -32,6 +32,7 @@ from host.modelling.diagnose import (
 from host.modelling.model import (
     AXES,
     CATALOGUE,
+    SENSORS,
     Dataset,
     Fit,
     NoiseModel,
@@ -235,7 +236,8 @@ def _common(p: argparse.ArgumentParser) -> None:
         "--floor",
         default=None,
         metavar="accel=A,gyro=G",
-        help="bias-instability floor of a record mean (m/s², °/s); default accel=5e-4,gyro=3e-3",
+        help="bias-instability floor of a record mean (m/s², °/s), e.g. accel=5e-4,gyro=3e-3; a "
+        "sensor not given is measured from the session (repeated attitudes)",
     )
     p.add_argument("--latitude", type=float, default=None, help="site latitude, degrees")
     p.add_argument("--height", type=float, default=None, help="site height, m")
@@ -253,7 +255,7 @@ def _noise(text: str | None) -> NoiseModel:
     nm = NoiseModel()
     if not text:
         return nm
-    floor = dict(nm.floor)
+    floor: dict[str, float] = {}
     for item in text.split(","):
         key, _, val = item.partition("=")
         key = key.strip()
@@ -261,7 +263,7 @@ def _noise(text: str | None) -> NoiseModel:
             v = float(val)
         except ValueError:
             v = math.nan
-        if key not in floor or not math.isfinite(v) or v < 0:
+        if key not in SENSORS or not math.isfinite(v) or v < 0:
             raise UserError(f"--floor: expected accel=VALUE,gyro=VALUE (≥ 0), got {item!r}")
         floor[key] = v
     return dataclasses.replace(nm, floor=floor)

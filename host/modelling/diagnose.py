@@ -49,6 +49,7 @@ from host.modelling.model import (
     merge_model,
     model_spec,
     parse_model,
+    residual_sigmas,
     term_columns,
 )
 
@@ -58,6 +59,17 @@ ALPHA = 0.01
 #: model's columns cannot be identified from the records
 IDENTIFIABLE_TOL = 1e-3
 VERDICTS = ("adequate", "missing_effect", "unexplained")
+#: a candidate with p up to this many times the Bonferroni threshold is "just below
+#: significance": it is still compared with the significant ones for confounding
+NEAR_FACTOR = 100.0
+#: the verdict advises adding terms only when together they remove at least this fraction of
+#: the misfit (χ² − dof) of the model
+MOST = 0.5
+#: a signal of the residual scan "explains the channel better" than its best candidate when its
+#: Δχ² exceeds the candidate's by this factor (equal: the candidate IS that signal)
+DOMINANT = 1.05
+#: |correlation| with session time from which a scanned signal is reported as confounded
+TIME_CONFOUNDED_R = 0.9
 
 
 @dataclass(frozen=True)
@@ -91,10 +103,15 @@ class Candidate:
     coefficients: Mapping[str, tuple[float, float, str]] = field(default_factory=dict)
     confounded_with: tuple[str, ...] = ()
     explained_by: str = ""
+    implausible: str = ""
 
     @property
     def label(self) -> str:
         return f"{self.term}:{self.sensor}:{self.axes}"
+
+    @property
+    def channel(self) -> tuple[str, str]:
+        return (self.sensor, self.axes)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -108,6 +125,7 @@ class Candidate:
                              for k, (v, s, u) in self.coefficients.items()},
             "confounded_with": list(self.confounded_with), "explained_by": self.explained_by,
             "reason": self.reason, "needs": self.needs, "physics": self.physics,
+            "implausible": self.implausible,
         }  # fmt: skip
 
 
@@ -123,18 +141,35 @@ class ScanHit:
     delta_chi2: float
     p_value: float
     significant: bool
+    #: correlation of the signal with time since power-on over these records (after the
+    #: model's columns); |·| near 1: the plan measured them in an order that makes the two
+    #: indistinguishable
+    time_r: float = math.nan
+
+    @property
+    def time_confounded(self) -> bool:
+        return math.isfinite(self.time_r) and abs(self.time_r) >= TIME_CONFOUNDED_R
 
     def describe(self) -> str:
-        return (
+        text = (
             f"{self.sensor}-{self.axis} residual correlates with {self.signal} "
             f"(r = {self.r:+.2f}, Δχ² = {self.delta_chi2:.1f})"
         )
+        if self.time_confounded and "time" not in self.signal:
+            text += (
+                f"; CONFOUNDED with session time in this plan (r = {self.time_r:+.2f} with time "
+                "since power-on: the records were measured in this order) — a drift or a bias "
+                "step looks the same; measuring the attitudes in another order (or the closing "
+                "re-measurement of the first one) separates them"
+            )
+        return text
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "sensor": self.sensor, "axis": self.axis, "signal": self.signal,
             "r": _num(self.r), "delta_chi2": _num(self.delta_chi2),
             "p_value": _num(self.p_value), "text": self.describe(),
+            "time_r": _num(self.time_r), "time_confounded": self.time_confounded,
         }  # fmt: skip
 
 
@@ -147,6 +182,14 @@ class Diagnosis:
     unexplained: tuple[ScanHit, ...]
     verdict: str
     notes: tuple[str, ...] = ()
+    #: labels of the candidates the verdict advises adding (empty: none)
+    recommended: tuple[str, ...] = ()
+    #: per channel, the signal that explains the model's residual better than any candidate
+    dominant: tuple[ScanHit, ...] = ()
+    #: the model spec of the recommended terms (``diagnose --json`` key ``recommended``)
+    recommended_spec: str | None = None
+    #: local gravity of the dataset, m/s²
+    g: float = 9.80665
 
     @property
     def worst(self) -> tuple[GroupResidual, ...]:
@@ -181,6 +224,8 @@ class Diagnosis:
             "candidates": [c.to_dict() for c in self.candidates],
             "unexplained": [h.to_dict() for h in self.unexplained],
             "verdict": self.verdict,
+            "recommended": self.recommended_spec,
+            "unexplained_signals": [h.to_dict() for h in self.dominant],
             "notes": list(self.notes),
         }  # fmt: skip
 
@@ -301,11 +346,17 @@ def evaluate_candidates(
     # significant candidates of the same channel against each other
     significant = [t for t in ident if sig[id(t)]]
     m = max(len(ident), 1)
+    # members just below significance (p within NEAR_FACTOR of the threshold) join the
+    # comparison: a group the data cannot resolve is reported whole
+    near = [t for t in ident if not sig[id(t)] and pv[id(t)] <= NEAR_FACTOR * alpha / m]
     confounded: dict[int, list[str]] = {id(t): [] for t in tried}
     explained_by: dict[int, str] = {}
-    for i, a in enumerate(significant):
-        for b in significant[i + 1 :]:
+    pool = significant + near
+    for i, a in enumerate(pool):
+        for b in pool[i + 1 :]:
             if (a.mt.sensor, a.mt.axes) != (b.mt.sensor, b.mt.axes):
+                continue
+            if not (sig[id(a)] or sig[id(b)]):
                 continue
             b_given_a = chi2_sf(_conditional_delta(a, b), b.mt.n_params) <= alpha / m
             a_given_b = chi2_sf(_conditional_delta(b, a), a.mt.n_params) <= alpha / m
@@ -334,7 +385,7 @@ def evaluate_candidates(
         c0 = coefs.get(name0, (math.nan, math.nan, units[best]))
         after_rms = math.nan
         if not t.reason:
-            after_rms = _rms_z_after(ds, t, winv)
+            after_rms = _rms_z_after(ds, fit, t, winv)
         out.append(
             (
                 Candidate(
@@ -348,6 +399,7 @@ def evaluate_candidates(
                     rms_z_after=after_rms, coefficient=c0[0], stderr=c0[1], unit=c0[2],
                     coefficients=coefs, confounded_with=tuple(confounded[id(t)]),
                     explained_by=explained_by.get(id(t), ""),
+                    implausible=_implausible(mt, coefs, fit) if sig.get(id(t)) else "",
                 ),
                 t,
             )
@@ -355,7 +407,8 @@ def evaluate_candidates(
 
     def key(item: tuple[Candidate, _Tried]) -> tuple[int, int, float]:
         c = item[0]
-        rank = 0 if c.significant and not c.explained_by else 1 if c.significant else 2
+        usable = c.significant and not c.explained_by and not c.implausible
+        rank = 0 if usable else 1 if c.significant else 2
         if not c.identifiable:
             rank = 3
         return (rank, 0, c.delta_bic if math.isfinite(c.delta_bic) else math.inf)
@@ -377,13 +430,40 @@ def evaluate_candidates(
     return [c for c, _ in ordered], [t for _, t in ordered]
 
 
-def _rms_z_after(ds: Dataset, t: _Tried, winv: np.ndarray) -> float:
+def _implausible(mt: ModelTerm, coefs: Mapping[str, tuple[float, float, str]], fit: Fit) -> str:
+    """Why the fitted coefficients are not a physical reading of the term ("" if they are):
+    beyond the term's documented plausible range, and — when the model lacks a base term on
+    that channel — probably standing in for it (an alias)."""
+    bound = mt.term.plausible.get(mt.sensor)
+    if bound is None:
+        return ""
+    worst = max(coefs.items(), key=lambda kv: abs(kv[1][0]), default=None)
+    if worst is None or abs(worst[1][0]) <= bound:
+        return ""
+    name, (v, _, unit) = worst
+    why = f"{name} = {v:.3g} {unit} is beyond the plausible ±{bound:g} ({mt.term.plausible_source})"
+    have = {(m.term.name, m.sensor, a) for m in fit.model for a in m.axes}
+    missing = [b for b in BASE if (b, mt.sensor, mt.axes[0]) not in have
+               and mt.sensor in CATALOGUE[b].sensors]  # fmt: skip
+    if missing:
+        why += "; probably an alias of the omitted base term(s) " + ", ".join(
+            f"{b}:{mt.sensor}:{AXES[mt.axes[0]]}" for b in missing
+        )
+    return why
+
+
+def _rms_z_after(ds: Dataset, fit: Fit, t: _Tried, winv: np.ndarray) -> float:
     """RMS of the record/channel z after adding the candidate: the refit's whitened residual
     is r − C⊥·β; ``winv`` = W⁻¹ brings it back to the rows."""
     resid_after = winv @ (t.r - t.cw_perp @ t.beta)
-    zs = []
-    for gr in ds.groups:
-        zs.append(float(np.mean(resid_after[gr.rows])) / gr.sigma)
+    q, _ = np.linalg.qr(t.cw_perp)
+    basis = np.column_stack([fit.basis, q]) if fit.basis.shape[1] else q
+    sd = residual_sigmas(ds, basis)
+    zs = [
+        float(np.mean(resid_after[gr.rows])) / sd[k]
+        for k, gr in enumerate(ds.groups)
+        if sd[k] > 1e-3 * gr.sigma
+    ]
     return float(np.sqrt(np.mean(np.square(zs)))) if zs else math.nan
 
 
@@ -432,32 +512,48 @@ def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
     """Residuals of ``fit`` against every signal on every channel, Holm-corrected; -> the
     significant hits, strongest first."""
     hits: list[tuple[str, int, str, float, float]] = []
+    time_r: list[float] = []
     q = fit.basis
     r = fit.white_residual
     rr = float(r @ r)
+
+    def column(fn: SignalFn, sensor: str, a: int) -> tuple[np.ndarray, np.ndarray] | None:
+        col = np.zeros(ds.n_rows)
+        any_rows = False
+        for ri, rs in enumerate(ds.signals):
+            rows = ds.rows_of.get((ri, sensor, a))
+            if rows is None:
+                continue
+            any_rows = True
+            col[rows] = aggregate(ds.aggregators[ri], np.asarray(fn(rs, sensor, a), float))
+        if not any_rows:
+            return None
+        cw = ds.whiten @ col
+        return cw, (cw - q @ (q.T @ cw) if q.shape[1] else cw)
+
+    def hours(s: RecordSignals, sen: str, a: int) -> np.ndarray:
+        return s.hours
+
     for sensor in SENSORS:
         for name, fn in _signals(sensor).items():
             if not ds.time_known and name.startswith("(time"):
                 continue
             for a in range(3):
-                col = np.zeros(ds.n_rows)
-                any_rows = False
-                for ri, rs in enumerate(ds.signals):
-                    rows = ds.rows_of.get((ri, sensor, a))
-                    if rows is None:
-                        continue
-                    any_rows = True
-                    col[rows] = aggregate(ds.aggregators[ri], np.asarray(fn(rs, sensor, a), float))
-                if not any_rows:
+                cols = column(fn, sensor, a)
+                if cols is None:
                     continue
-                cw = ds.whiten @ col
+                cw, cp = cols
                 n0 = float(np.linalg.norm(cw))
-                cp = cw - q @ (q.T @ cw) if q.shape[1] else cw
                 n1 = float(np.linalg.norm(cp))
                 if n0 == 0 or n1 < IDENTIFIABLE_TOL * n0 or rr == 0:
                     continue
                 proj = float(cp @ r) / n1
                 hits.append((sensor, a, name, proj / math.sqrt(rr), proj * proj))
+                tr = math.nan
+                tcols = column(hours, sensor, a) if ds.time_known else None
+                if tcols is not None and float(np.linalg.norm(tcols[1])) > 0:
+                    tr = float(cp @ tcols[1]) / (n1 * float(np.linalg.norm(tcols[1])))
+                time_r.append(tr)
     pvals = [chi2_sf(h[4], 1) for h in hits]
     is_sig = holm(pvals, alpha)
     # signals that move the records identically (|f|, f², … on ±1 g faces) are one finding
@@ -467,7 +563,7 @@ def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
             merged.setdefault((h[0], h[1], round(h[4], 6)), []).append(i)
     out = [
         ScanHit(hits[ix[0]][0], AXES[hits[ix[0]][1]], " / ".join(hits[i][2] for i in ix),
-                hits[ix[0]][3], hits[ix[0]][4], pvals[ix[0]], True)
+                hits[ix[0]][3], hits[ix[0]][4], pvals[ix[0]], True, time_r[ix[0]])
         for ix in merged.values()
     ]  # fmt: skip
     return sorted(out, key=lambda h: -h.delta_chi2)
@@ -483,31 +579,55 @@ def diagnose(
     """Fit ``model`` to ``ds`` and run the whole diagnosis (module docstring)."""
     fit = fit_model(ds, model)
     cands, _ = evaluate_candidates(ds, fit, catalogue, alpha)
-    # unexplained: the model plus the best significant candidate of each channel
-    extra: list[ModelTerm] = []
-    seen: set[tuple[str, str]] = set()
     cat = catalogue if catalogue is not None else CATALOGUE
+    # the best usable candidate of each channel (significant, plausible, not made redundant)
+    best: dict[tuple[str, str], Candidate] = {}
     for c in cands:
-        if c.significant and not c.explained_by and (c.sensor, c.axes) not in seen:
-            seen.add((c.sensor, c.axes))
-            extra.append(ModelTerm(cat[c.term], c.sensor, (AXES.index(c.axes),)))
+        if c.significant and not c.explained_by and not c.implausible:
+            best.setdefault(c.channel, c)
+    # structure in the model's residual that a plain signal explains better than any candidate
+    dominant: dict[tuple[str, str], ScanHit] = {}
+    for h in scan_signals(ds, fit, alpha):
+        ch = (h.sensor, h.axis)
+        cb = best.get(ch)
+        if ch not in dominant and (cb is None or h.delta_chi2 > DOMINANT * cb.delta_chi2):
+            dominant[ch] = h
+    usable = [c for ch, c in best.items() if ch not in dominant]
+    extra = [ModelTerm(cat[c.term], c.sensor, (AXES.index(c.axes),)) for c in usable]
     aug = fit_model(ds, merge_model(list(model) + extra)) if extra else fit
+    misfit = max(fit.chi2 - fit.dof, 0.0)
+    removed = fit.chi2 - aug.chi2
+    recommended = tuple(c.label for c in usable) if usable and removed >= MOST * misfit else ()
     hits = scan_signals(ds, aug, alpha)
     notes = list(ds.notes)
     if fit.undetermined:
         notes.append("not determined by these records: " + ", ".join(fit.undetermined))
-    if any(c.significant for c in cands):
+    if usable and not recommended:
+        notes.append(
+            f"the best candidates ({', '.join(c.label for c in usable)}) remove only "
+            f"{100 * removed / misfit:.0f} % of the misfit (χ² − dof = {misfit:.1f}): "
+            "none of them is what is missing"
+        )
+    for c in cands:
+        if c.implausible:
+            notes.append(f"{c.label} is significant but not physical: {c.implausible}")
+    if dominant:
+        verdict = "unexplained"
+    elif recommended:
         verdict = "missing_effect"
-    elif hits or aug.chi2_p < alpha:
+    elif hits or aug.chi2_p < alpha or any(c.significant for c in cands):
         verdict = "unexplained"
     else:
         verdict = "adequate"
     if verdict == "missing_effect" and aug.chi2_p < alpha and not hits:
         notes.append(
-            f"even with the best candidates the fit is poor (χ² p = {aug.chi2_p:.2g}): "
+            f"even with the recommended terms the fit is poor (χ² p = {aug.chi2_p:.2g}): "
             "more is missing, or the noise model is too optimistic"
         )
-    return Diagnosis(fit, tuple(cands), tuple(hits), verdict, tuple(notes))
+    return Diagnosis(
+        fit, tuple(cands), tuple(hits), verdict, tuple(notes), recommended,
+        tuple(dominant.values()), model_spec(merge_model(extra)) if recommended else None, ds.g,
+    )  # fmt: skip
 
 
 # ---- add / ladder ---------------------------------------------------------------------------
@@ -644,6 +764,8 @@ def format_candidate(c: Candidate) -> str:
         extra += f"; CONFOUNDED with {', '.join(c.confounded_with)}"
     if c.explained_by:
         extra += f"; explained by {c.explained_by}"
+    if c.implausible:
+        extra += f"; IMPLAUSIBLE: {c.implausible}"
     return (
         f"{c.label}: {mark}, Δχ² = {c.delta_chi2:.1f} (p = {c.p_value:.2g}), "
         f"ΔBIC = {c.delta_bic:+.1f}, RMS z after {c.rms_z_after:.2f}, "
@@ -690,14 +812,52 @@ def format_diagnosis(d: Diagnosis, compare: bool = True, max_candidates: int = 1
     for n in d.notes:
         lines.append(f"note: {n}")
     lines.append(f"== verdict: {d.verdict}")
-    if d.verdict == "missing_effect":
-        c = d.significant[0]
+    for h in d.dominant:
+        lines.append(
+            f"  {h.sensor} {h.axis}: no catalogue term explains it; the residual follows "
+            f"{h.signal} (Δχ² = {h.delta_chi2:.1f})"
+            + ("; confounded with session time in this plan" if h.time_confounded else "")
+        )
+    by_label = {c.label: c for c in d.candidates}
+    for label in d.recommended:
+        c = by_label[label]
+        lines.append(f"  {label}: {c.physics}")
+        lines.extend("    " + t for t in explain(c, d.g))
         group = [c.label, *c.confounded_with]
         if len(group) > 1:
-            lines.append(f"  the data cannot tell apart {' / '.join(group)}: {c.needs}")
-        lines.append(f"  try: python -m host model add DIR {c.label} --model "
+            lines.append(f"    the data cannot tell apart {' / '.join(group)}; to separate them:")
+            for other in group:
+                o = by_label.get(other)
+                if o is not None:
+                    lines.append(f"      {other}: {o.needs}")
+    if d.recommended_spec:
+        lines.append(f"  try: python -m host model add DIR {d.recommended_spec} --model "
                      f"{model_spec(d.fit.model)}")  # fmt: skip
+    elif d.verdict != "adequate":
+        lines.append("  recommended: nothing from the catalogue")
     return "\n".join(lines)
+
+
+def explain(c: Candidate, g: float) -> list[str]:
+    """The candidate's coefficients in physical words (for the geometry terms: what tilt puts
+    how much gravity on the channel, and which §3 bias estimate it moves)."""
+    out = []
+    if c.term == "face_error":
+        for name, (v, se, _) in c.coefficients.items():
+            pair = name.rsplit(".", 1)[-1]
+            out.append(
+                f"faces {pair} lean {1000 * v:+.2f} ± {1000 * se:.2f} mrad "
+                f"({math.degrees(v):+.3f}°) toward {c.axes}: they put {g * v:+.4f} m/s² of "
+                f"gravity on accelerometer {c.axes}, so its bias estimate from the {pair} pair "
+                "(method.md §3) is off by that much"
+            )
+    elif c.term == "plate_tilt":
+        for name, (v, se, _) in c.coefficients.items():
+            out.append(f"{name}: {1000 * v:+.2f} ± {1000 * se:.2f} mrad ({math.degrees(v):+.3f}°)")
+    else:
+        for name, (v, se, unit) in c.coefficients.items():
+            out.append(f"{name} = {_fmt(v, '')} ± {_fmt(se, unit)}")
+    return out
 
 
 def format_addition(a: Addition) -> str:

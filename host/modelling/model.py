@@ -36,7 +36,7 @@ import inspect
 import math
 import sys
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -136,6 +136,10 @@ class Term:
     labels: LabelFn | None = None
     value: ValueFn | None = None
     initial: tuple[float, ...] = ()
+    #: largest plausible |parameter| per sensor (in the parameter's unit) and where that
+    #: figure comes from; a fitted value beyond it is not a physical reading of the term
+    plausible: Mapping[str, float] = field(default_factory=dict)
+    plausible_source: str = ""
 
     @property
     def physics(self) -> str:
@@ -233,10 +237,15 @@ def _off_diagonal(axis: int) -> list[tuple[str, int, int]]:
     return [(s, k, sg) for s, (i, k, sg) in _LAYOUT.items() if i == axis and k != axis]
 
 
+#: a temperature coefficient needs the chip temperature to span at least this much, °C: over a
+#: narrower span drift, wander and noise pass for a coefficient many times the datasheet's
+MIN_TEMP_SPAN_C = 2.0
+
+
 def _temperature_check(signals: Sequence[RecordSignals]) -> str | None:
     temps = np.concatenate([s.temp_c for s in signals]) if signals else np.zeros(1)
     lo, hi = float(np.min(temps)), float(np.max(temps))
-    if hi - lo < 0.5:
+    if hi - lo < MIN_TEMP_SPAN_C:
         return f"chip temperature spans only {hi - lo:.1f} °C ({lo:.1f} … {hi:.1f} °C)" + (
             " — a constant: it was probably not measured" if hi == lo else ""
         )
@@ -340,12 +349,146 @@ def scale_nonlinearity(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray
     return sig.reference(sensor)[:, axis : axis + 1] ** 2
 
 
+# ---- placement and geometry: attitudes that are not exactly the nominal ones ---------------
+def _face(sig: RecordSignals) -> tuple[int, int] | None:
+    """(axis, ±1) of the fixture face a static record rests on (its up axis), None for a turn,
+    a rate-table record or an attitude that is not one of the six faces (e.g. tilt_45_*)."""
+    if sig.kind != "static":
+        return None
+    k = int(np.argmax(np.abs(sig.up)))
+    if abs(abs(float(sig.up[k])) - 1.0) > 1e-6:
+        return None
+    return k, 1 if sig.up[k] > 0 else -1
+
+
+def _other_axes(axis: int) -> tuple[int, int]:
+    a, b = (k for k in range(3) if k != axis)
+    return a, b
+
+
+_FACE_NEEDS = (
+    "attitudes that are not the six faces (the 45° attitudes tilt_45_*), or the same faces "
+    "measured again after turning the board 90° in the fixture (a fixture error moves with the "
+    "fixture, a sensor effect with the sensor)"
+)
+
+
+@term(sensors=("accel",), params={"pair_a": "rad", "pair_b": "rad"}, needs=_FACE_NEEDS,
+      labels=lambda s, i: tuple(f"face_error.accel.{AXES[i]}.±{AXES[k]}"
+                                for k in _other_axes(i)))  # fmt: skip
+def face_error(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Fixture faces not square to the sensor's axes put part of gravity on a horizontal axis.
+
+    Resting on face ±j, the cube stands tilted by θ toward axis i and accelerometer i reads
+    g·sin θ ≈ g·θ (rad) of gravity that nominally is all on j.
+
+    One angle per channel and face PAIR (the mean of the two opposite faces; their difference
+    acts exactly like the misalignment A_ij and is counted there). This is what makes the three
+    §3 bias estimates of a channel disagree: the pairs in which the channel is horizontal get
+    g·θ added. On the six faces alone it is indistinguishable from a sensor reading the square
+    of a cross-axis specific force (k·a_j², identical at ±1 g)."""
+    face = _face(sig)
+    cols = np.zeros((len(sig.t_s), 2))
+    if face is not None:
+        for c, k in enumerate(_other_axes(axis)):
+            if face[0] == k:
+                cols[:, c] = sig.g
+    return cols
+
+
+def _placement(up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(east, north) of the fixture frame in body axes for a cube resting with body ``up`` up,
+    the program's placement convention: the first body axis (x, y, z order) that is not along
+    up lies along the ruler (east), north = up × east (:func:`host.sim_physics.pose_from_up`)."""
+    from host.bench.physics import pose_from_up
+
+    r = pose_from_up(up)
+    return r[0], r[1]
+
+
+@term(sensors=("accel",), params={"tilt_east": "rad", "tilt_north": "rad"},
+      needs="static attitudes beyond the six faces (tilt_45_*), or the accelerometer at several "
+      "headings on the plate (the still moments of a turn)")  # fmt: skip
+def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """A base plate that is not level: gravity leans by the same two angles in every record.
+
+    Two small angles (east, north, rad) in the plate's frame, the same for every static record
+    made on it; on the fixture's faces it
+    reaches the horizontal accelerometers as g·(tilt_east·e + tilt_north·n), with e, n the
+    plate's axes in body coordinates (the program's placement: the first body axis not along
+    up lies along the ruler)."""
+    cols = np.zeros((len(sig.t_s), 2))
+    if sig.kind == "static":
+        e, n = _placement(sig.up)
+        cols[:, 0] = sig.g * e[axis]
+        cols[:, 1] = sig.g * n[axis]
+    return cols
+
+
+@term(sensors=("gyro",), params={"tilt_a": "rad", "tilt_b": "rad"},
+      needs="turns about the same axis on a re-seated cube (a different face down, or the board "
+      "turned in the fixture): a fixed tilt of the turn axis acts exactly like a misalignment",
+      labels=lambda s, i: tuple(f"turn_axis_tilt.gyro.{AXES[i]}.turn_{AXES[k]}"
+                                for k in _other_axes(i)))  # fmt: skip
+def turn_axis_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """The turn axis tilted from the nominal up axis: an off-axis gyro sees part of the turn.
+
+    The turn axis (the plate's normal, seen through the face the cube rests on) tilted from
+    the nominal up axis j by θ toward axis i: gyro i sees θ·ω of a turn about j, so its
+    integral over n turns is θ·360·n (rad → °/turn)."""
+    cols = np.zeros((len(sig.t_s), 2))
+    if sig.kind == "turn":
+        k = int(np.argmax(np.abs(sig.up)))
+        omega_up = sig.rate @ sig.up
+        for c, j in enumerate(_other_axes(axis)):
+            if j == k:
+                cols[:, c] = omega_up
+    return cols
+
+
+#: plausible magnitude of each catalogue term's parameters per sensor, from the InvenSense
+#: MPU-6000/6050 product specification rev. 3.4 (§6.1 gyro, §6.2 accelerometer) where it has a
+#: figure, else from the bench (a levelled plate, a machined fixture)
+_PLAUSIBLE: dict[str, tuple[dict[str, float], str]] = {
+    "bias": ({"accel": 0.8, "gyro": 20.0},
+             "datasheet: zero-g offset ±50 mg (X, Y), ±80 mg (Z); zero-rate output ±20 °/s"),
+    "scale": ({"accel": 0.03, "gyro": 0.03},
+              "datasheet: initial sensitivity tolerance ±3 %"),
+    "misalignment": ({"accel": 0.02, "gyro": 0.02},
+                     "datasheet: cross-axis sensitivity ±2 %"),
+    "g_sensitivity": ({"gyro": 0.2}, "datasheet: linear acceleration sensitivity 0.1 (°/s)/g, "
+                                     "×2"),
+    "temperature_bias": ({"accel": 0.01, "gyro": 0.35},
+                         "datasheet: zero-g offset change ±35 mg (X, Y) / ±60 mg (Z) and ZRO "
+                         "variation ±20 °/s over −40…+85 °C, ×2, per °C"),
+    "temperature_bias_quadratic": ({"accel": 3e-4, "gyro": 0.01},
+                                   "the datasheet's whole offset change over −40…+85 °C as "
+                                   "curvature about 25 °C, ×2"),
+    "temperature_scale": ({"accel": 1e-3, "gyro": 1e-3},
+                          "datasheet: accelerometer sensitivity change ±0.02 %/°C; gyro "
+                          "sensitivity variation ±2 % over −40…+85 °C; ×5"),
+    "time_drift": ({"accel": 0.5, "gyro": 5.0},
+                   "warm-up drift of MEMS consumer IMUs: a fraction of the offset tolerance "
+                   "per hour"),
+    "scale_asymmetry": ({"accel": 0.02, "gyro": 0.02},
+                        "datasheet: nonlinearity 0.5 % (accel) / 0.2 % (gyro) of full scale, ×4"),
+    "scale_nonlinearity": ({"accel": 5e-4, "gyro": 4e-5},
+                           "datasheet nonlinearity 0.5 % / 0.2 % of full scale as k2·FS² "
+                           "(FS 19.6 m/s², 250 °/s), ×2"),
+    "face_error": ({"accel": 0.0175},
+                   "a fixture face out of square by more than 1° is not a machined fixture"),
+    "plate_tilt": ({"accel": 0.0175}, "a plate more than 1° off level was not levelled"),
+    "turn_axis_tilt": ({"gyro": 0.035}, "the turn axis more than 2° off the up axis: the cube "
+                                        "was not resting on the plate"),
+}  # fmt: skip
+
 #: the built-in terms, in catalogue order
 CATALOGUE: dict[str, Term] = {
-    t.name: t
+    t.name: replace(t, plausible=_PLAUSIBLE[t.name][0], plausible_source=_PLAUSIBLE[t.name][1])
     for t in (
         bias, scale, misalignment, g_sensitivity, temperature_bias, temperature_bias_quadratic,
-        temperature_scale, time_drift, scale_asymmetry, scale_nonlinearity,
+        temperature_scale, time_drift, scale_asymmetry, scale_nonlinearity, face_error,
+        plate_tilt, turn_axis_tilt,
     )
 }  # fmt: skip
 #: the linear model of method.md §2
@@ -466,17 +609,84 @@ class NoiseModel:
 
     ``block_s``: length of the blocks static records are cut into, s (at most ``max_blocks``);
     ``floor``: bias-instability floor per sensor (m/s², °/s): the std of a record's mean bias
-    wander between records that its own samples cannot show (MPU-6000 class, records about a
-    minute apart: 5e-4 m/s² and 3e-3 °/s — the simulator's Gauss-Markov bias of 2-8e-4 m/s²
-    and 2-6e-3 °/s with τ = 300 s gives these);
+    wander between records that its own samples cannot show. Not given: measured from the
+    session itself by :func:`repeat_floor` (the same attitude measured again minutes later);
     ``turn_angle_sigma_deg``: the hand's angle error per turn (method.md §4).
     """
 
     block_s: float = 5.0
     max_blocks: int = 6
-    floor: Mapping[str, float] = field(default_factory=lambda: {"accel": 5.0e-4, "gyro": 3.0e-3})
+    #: per sensor; a sensor not given is measured from the records (:func:`repeat_floor`)
+    floor: Mapping[str, float] = field(default_factory=dict)
     turn_angle_sigma_deg: float = TURN_ANGLE_SIGMA_DEG
     max_lag: int = 30
+
+
+#: a still moment inside a turn record lasts at least this long, s, after :data:`STILL_TRIM_S`
+#: is cut at each end (the hand letting go / taking hold)
+STILL_MIN_S = 0.2
+STILL_TRIM_S = 0.15
+
+
+def still_runs(rate_up_dps: np.ndarray, t_s: np.ndarray, sigma_dps: float) -> list[tuple[int, int]]:
+    """[start, stop) index ranges where the cube rests inside a turn record: the rate about the
+    up axis ``rate_up_dps`` (N,) °/s (static bias removed) stays within 4·``sigma_dps`` (the
+    gyro's per-sample noise, °/s) of zero; :data:`STILL_TRIM_S` s cut at each end, at least
+    :data:`STILL_MIN_S` s left (times ``t_s`` (N,) s)."""
+    still = np.abs(rate_up_dps) < 4.0 * max(sigma_dps, 1e-6)
+    out: list[tuple[int, int]] = []
+    i, n = 0, len(still)
+    while i < n:
+        if not still[i]:
+            i += 1
+            continue
+        j = i
+        while j < n and still[j]:
+            j += 1
+        a = int(np.searchsorted(t_s, t_s[i] + STILL_TRIM_S))
+        b = int(np.searchsorted(t_s, t_s[j - 1] - STILL_TRIM_S, side="right"))
+        if b - a >= 4 and t_s[b - 1] - t_s[a] >= STILL_MIN_S:
+            out.append((a, b))
+        i = j
+    return out
+
+
+def repeat_floor(
+    differences: np.ndarray,
+    white_var: np.ndarray,
+    channel: np.ndarray | None = None,
+    explain: np.ndarray | None = None,
+) -> float | None:
+    """Bias-instability floor from repeated attitudes: ``differences`` (K,) between two means
+    of the same channel in the same attitude measured at different times (a still moment of a
+    turn against the static record of that face), ``white_var`` (K,) the variance their white
+    noise alone gives the difference. Each record mean wanders by f around the session's
+    bias, so E[d²] = w + 2·f²: f² = Σ(d² − w)/(2·dof) (≥ 0), in the channel's unit.
+
+    A bias that follows time or temperature is an effect for the model to find, not noise:
+    with ``channel`` (K,) ids and ``explain`` (K, m) the differences of those signals (elapsed
+    time, temperature change), each channel's d is first regressed on them (dof = K − the
+    columns used). None without any difference left (then nothing measures the floor)."""
+    d = np.asarray(differences, dtype=np.float64)
+    w = np.asarray(white_var, dtype=np.float64)
+    if d.size == 0:
+        return None
+    ch = np.zeros(d.size, dtype=int) if channel is None else np.asarray(channel)
+    x = np.zeros((d.size, 0)) if explain is None else np.asarray(explain, dtype=np.float64)
+    resid = d.copy()
+    used = 0
+    for c in np.unique(ch):
+        m = ch == c
+        xc = x[m]
+        keep = [j for j in range(xc.shape[1]) if np.ptp(xc[:, j]) > 0 or np.any(xc[:, j])]
+        if keep and m.sum() > len(keep) + 1:
+            beta, _, rank, _ = np.linalg.lstsq(xc[:, keep], d[m], rcond=None)
+            resid[m] = d[m] - xc[:, keep] @ beta
+            used += int(rank)
+    dof = d.size - used
+    if dof <= 0:
+        return None
+    return math.sqrt(max(0.0, float(np.sum(resid * resid - w)) / (2.0 * dof)))
 
 
 def _resolution(x: np.ndarray) -> float:
@@ -544,6 +754,8 @@ class Dataset:
     notes: tuple[str, ...] = ()
     #: False: the records carry no power-on time (time = within-record, centred)
     time_known: bool = True
+    #: the bias-instability floor of a record mean per sensor (m/s², °/s) this dataset uses
+    floor: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
@@ -570,6 +782,56 @@ def _turn_reference(
     if abs(total) < 1e-6:
         return np.zeros((len(t_ms), 3))
     return (raw * (want_deg / total))[:, None] * up[None, :]
+
+
+def _session_floor(
+    signals: Sequence[RecordSignals],
+    rec_noise: Mapping[tuple[int, str, int], tuple[float, float]],
+    nm: NoiseModel,
+) -> tuple[dict[str, float], str]:
+    """The floor per sensor (``nm.floor`` where given, else :func:`repeat_floor` over the still
+    moments of the turn records against the static record of the same face: every gyro
+    channel and the accelerometer on the up axis, whose readings do not depend on the heading)
+    and a note saying where it came from."""
+    diffs: dict[str, tuple[list[float], list[float]]] = {s: ([], []) for s in SENSORS}
+
+    for sig in signals:
+        if sig.kind != "turn":
+            continue
+        match = next(
+            (j for j, o in enumerate(signals) if o.kind == "static" and np.allclose(o.up, sig.up)),
+            None,
+        )
+        if match is None:
+            continue
+        ref = signals[match]
+        up_axis = int(np.argmax(np.abs(sig.up)))
+        sd = math.sqrt(rec_noise[(match, "gyro", up_axis)][0])
+        for a, b in still_runs(sig.rate @ sig.up, sig.t_s, sd):
+            m = b - a
+            for s, axes in (("gyro", (0, 1, 2)), ("accel", (up_axis,))):
+                for ax in axes:
+                    var, tau = rec_noise[(match, s, ax)]
+                    d = float(np.mean(sig.measured(s)[a:b, ax]) - np.mean(ref.measured(s)[:, ax]))
+                    diffs[s][0].append(d)
+                    diffs[s][1].append(var * min(tau, m) / m + var * tau / len(ref.t_s))
+
+    out: dict[str, float] = {}
+    said: list[str] = []
+    for s in SENSORS:
+        if s in nm.floor:
+            out[s] = float(nm.floor[s])
+            said.append(f"{s} {out[s]:.2g} {UNIT[s]} (given)")
+            continue
+        f = repeat_floor(np.array(diffs[s][0]), np.array(diffs[s][1]))
+        out[s] = f if f is not None else 0.0
+        said.append(
+            f"{s} {out[s]:.2g} {UNIT[s]} from {len(diffs[s][0])} still moments of turns against "
+            "the static record of the same face"
+            if f is not None
+            else f"{s} 0 (no attitude measured twice: only each record's own noise)"
+        )
+    return out, "noise floor of a record mean: " + "; ".join(said)
 
 
 def build_dataset(
@@ -613,6 +875,7 @@ def build_dataset(
     groups_raw: list[tuple[int, str, int, list[int], np.ndarray, float]] = []
     # white-noise levels from the statics (for the turns): sensor -> axis -> (var, tau) lists
     static_noise: dict[tuple[str, int], list[tuple[float, float]]] = {}
+    rec_noise: dict[tuple[int, str, int], tuple[float, float]] = {}
 
     for ri, name in enumerate(names):
         rec = session.records[name]
@@ -676,8 +939,11 @@ def build_dataset(
                 var = max(float(dev @ dev) / dof, _resolution(meas[:, ax]) ** 2 / 12.0)
                 tau = integrated_autocorrelation(dev, nm.max_lag)
                 static_noise.setdefault((s, ax), []).append((var, tau))
+                rec_noise[(ri, s, ax)] = (var, tau)
                 groups_raw.append((ri, s, ax, idx, agg, var * tau))
 
+    floors, floor_note = _session_floor(signals, rec_noise, nm)
+    notes.append(floor_note)
     n_rows = len(y_list)
     whiten = np.zeros((n_rows, n_rows))
     groups: list[Group] = []
@@ -694,7 +960,7 @@ def build_dataset(
             excess.setdefault((s, ax), []).extend([chi, len(idx) - 1])
     inflate = {k: max(1.0, sum(v[0::2]) / max(sum(v[1::2]), 1.0)) for k, v in excess.items()}
     for ri, s, ax, idx, agg, var_tau in groups_raw:
-        floor = float(nm.floor.get(s, 0.0))
+        floor = floors[s]
         if agg.shape[0] == 1 and signals[ri].kind == "turn":
             w = agg[0]
             levels = static_noise.get((s, ax), [(0.0, 1.0)])
@@ -738,6 +1004,7 @@ def build_dataset(
         g=g,
         notes=tuple(notes),
         time_known=has_power,
+        floor=floors,
     )
 
 
@@ -906,7 +1173,10 @@ class GroupResidual:
     """Measured vs model for one record and channel (mean over the record, or turn integral).
 
     ``measured``/``model``/``residual`` in the channel's unit (°/s, m/s²) or ° for turn
-    integrals; ``sigma`` the standard error of the measurement; ``z`` = residual/sigma."""
+    integrals; ``sigma`` the standard error of the measurement; ``z`` = residual / its own
+    standard deviation under the model (:func:`residual_sigmas`: the measurement's σ less what
+    the fit absorbed), so that z is N(0, 1) when the model is right; NaN when the model fits
+    this value exactly (a parameter of its own: nothing is left to test)."""
 
     record: str
     kind: str
@@ -957,8 +1227,9 @@ class Fit:
 
     @property
     def rms_z(self) -> float:
-        """RMS of the record/channel z values (the compare table)."""
-        z = np.array([g.z for g in self.groups])
+        """RMS of the record/channel z values (the compare table; values the model fits
+        exactly are left out): ≈ 1 when the model explains the data to the noise."""
+        z = np.array([g.z for g in self.groups if math.isfinite(g.z)])
         return float(np.sqrt(np.mean(z**2))) if len(z) else float("nan")
 
     @property
@@ -1074,7 +1345,7 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
                 )  # fmt: skip
                 if not keep[c]:
                     undetermined.append(name)
-    groups, spans_out = _residual_tables(ds, predicted, resid)
+    groups, spans_out = _residual_tables(ds, predicted, resid, basis)
     return Fit(
         model=model, parameters=tuple(params), predicted=predicted, residual=resid,
         white_residual=wres, basis=basis, chi2=chi2, dof=ds.n_rows - n_par, n_params=n_par,
@@ -1082,21 +1353,39 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
     )  # fmt: skip
 
 
+def residual_sigmas(ds: Dataset, basis: np.ndarray) -> np.ndarray:
+    """Standard deviation of each group's mean residual (ds.groups order) when the model is
+    right: the measurement's σ less what the fit absorbed. Cov(r) = W⁻¹(I − QQᵀ)W⁻ᵀ with Q the
+    orthonormal basis of the whitened design, so var(aᵀr) = ‖W⁻ᵀa‖² − ‖QᵀW⁻ᵀa‖²; 0 where the
+    model has a parameter for that value alone (it is fitted exactly)."""
+    a = np.zeros((ds.n_rows, len(ds.groups)))
+    for k, gr in enumerate(ds.groups):
+        a[gr.rows, k] = 1.0 / len(gr.rows)
+    v = np.linalg.solve(ds.whiten.T, a)
+    var = np.sum(v * v, axis=0)
+    if basis.shape[1]:
+        var = var - np.sum((basis.T @ v) ** 2, axis=0)
+    return np.sqrt(np.maximum(var, 0.0))
+
+
 def _residual_tables(
-    ds: Dataset, predicted: np.ndarray, resid: np.ndarray
+    ds: Dataset, predicted: np.ndarray, resid: np.ndarray, basis: np.ndarray
 ) -> tuple[tuple[GroupResidual, ...], tuple[SpanResidual, ...]]:
     out: list[GroupResidual] = []
     spans: list[SpanResidual] = []
-    for gr in ds.groups:
+    sd_res = residual_sigmas(ds, basis)
+    for k, gr in enumerate(ds.groups):
         sig = ds.signals[gr.record]
         turn = sig.kind == "turn"
         unit = "°" if turn else UNIT[gr.sensor]
         r = float(np.mean(resid[gr.rows]))
+        sd = float(sd_res[k])
         out.append(
             GroupResidual(
                 record=sig.name, kind=sig.kind, sensor=gr.sensor, axis=AXES[gr.axis],
                 measured=float(np.mean(ds.y[gr.rows])), model=float(np.mean(predicted[gr.rows])),
-                residual=r, sigma=gr.sigma, z=r / gr.sigma, unit=unit,
+                residual=r, sigma=gr.sigma, z=r / sd if sd > 1e-3 * gr.sigma else math.nan,
+                unit=unit,
             )
         )  # fmt: skip
         b = len(gr.rows)

@@ -143,7 +143,7 @@ def test_blocks_give_within_record_rows() -> None:
         assert mean @ cov @ mean == pytest.approx(g.sigma**2, rel=1e-9)
         h = np.array([1.0, -1.0]) / np.sqrt(2)
         assert h @ cov @ h == pytest.approx(g.contrast_var, rel=1e-9)
-        assert g.sigma > NoiseModel().floor[g.sensor]
+        assert g.sigma > ds.floor[g.sensor]
 
 
 TERM_FILE = textwrap.dedent(
