@@ -35,6 +35,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     ),
     "model": ("host.cli.model", "cli_model", "model workbench: diagnose, add a term, ladder"),
     "demo": ("host.cli.model", "cli_demo", "demo: find an effect hidden in a simulated session"),
+    "thermal": (
+        "host.cli.thermal",
+        "cli_thermal",
+        "bias against chip temperature from warm-up and thermal-ramp records",
+    ),
     "noise": (
         "host.cli.noise",
         "cli_noise",

@@ -410,6 +410,9 @@ class Environment:
 
     Chip temperature (°C) at time t since power-on (s):
     ``room_c + rise_c·(1 − exp(−t/tau_s)) + room_amp_c·sin(2π t/room_period_s + room_phase)``.
+    With a chamber (``chamber_minutes`` > 0) the air follows a ramp instead of ``room_c``: from
+    ``chamber_from_c`` until ``chamber_start_s``, then linearly to ``chamber_to_c`` over
+    ``chamber_minutes``, then holds (the chip's own warm-up ``rise_c`` rides on top).
     The sensor's sample clock runs at ``rate_hz·(1 + sample_clock_error)`` (MPU internal
     oscillator, up to ±1 %); the MCU's µs timer gains ``timer_ppm`` parts per million and ticks
     in ``timer_resolution_us`` steps.
@@ -424,12 +427,20 @@ class Environment:
     sample_clock_error: float = 0.0
     timer_ppm: float = 0.0
     timer_resolution_us: int = 4
+    chamber_from_c: float = 0.0
+    chamber_to_c: float = 0.0
+    chamber_start_s: float = 0.0
+    chamber_minutes: float = 0.0
 
     def temperature(self, t_s: np.ndarray) -> np.ndarray:
         """Chip temperature, °C, at ``t_s`` seconds since power-on."""
         t = np.asarray(t_s, dtype=np.float64)
+        air: np.ndarray | float = self.room_c
+        if self.chamber_minutes > 0:
+            frac = np.clip((t - self.chamber_start_s) / (60.0 * self.chamber_minutes), 0.0, 1.0)
+            air = self.chamber_from_c + (self.chamber_to_c - self.chamber_from_c) * frac
         return (
-            self.room_c
+            air
             + self.rise_c * (1.0 - np.exp(-np.maximum(t, 0.0) / self.tau_s))
             + self.room_amp_c * np.sin(2 * np.pi * t / self.room_period_s + self.room_phase)
         )

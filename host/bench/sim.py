@@ -659,3 +659,30 @@ def truth_series(
     if apply_errors and truth is not None:
         f, w = sensor_output(truth, f, w, temp, t, bench.g)
     return TruthSeries(t, f, w, temp)
+
+
+def simulate_thermal(
+    truth: SensorTruth,
+    environment: Environment,
+    segments: Sequence[tuple[str, str, float]],
+    seed: int = 0,
+    bench: Bench | None = None,
+    rate_hz: float = 50.0,
+) -> dict[str, Record]:
+    """A thermal plan: static records one after another from power-on, each
+    ``(name, face, duration_s)`` (e.g. ``("warmup", "z_up", 600)`` then a chamber ramp) — the
+    cube at rest on ``face`` while ``environment`` (its warm-up, a chamber ramp) moves the chip
+    temperature. Meta: ``kind: static``, ``up``, ``power_on_s``."""
+    bench = bench or Bench()
+    sim = Simulator(truth, bench, environment, seed, rate_hz)
+    out: dict[str, Record] = {}
+    t = 0.0
+    for name, face, duration in segments:
+        up = up_vector(face)
+        sim.set_motion(static_motion(face), t)
+        block = sim.run_until(t + duration)
+        meta = {"kind": "static", "up": format_up(up), "source": "sim", "power_on_s": f"{t:.3f}"}
+        t_ms = (block.t_s - block.t_s[0]) * 1000.0
+        out[name] = Record(name, t_ms, block.accel, block.gyro, block.temp, meta)
+        t += duration
+    return out

@@ -9,7 +9,7 @@ Per channel i (accelerometer shown; the gyro is the same in °/s, plus ``GA @ f/
     A_i = Σ_j M_ij f_j                                  linear model (M = I + scale/misalignment)
         + (s_T,i·ΔT + ½·asym_i·sign(f_i))·f_i           temperature scale, scale asymmetry
         + k_i·f_i²                                      scale nonlinearity
-        + A0_i + b1_i·ΔT + b2_i·ΔT² + d_i·t_h           bias, its temperature and time drift
+        + A0_i + b1_i·ΔT + b2_i·ΔT² + b3_i·ΔT³ + d_i·t_h  bias, its temperature and time drift
         + w_i(t) + n_i                                  bias instability, white noise
 
 with ΔT = T − ``temp_ref_c`` and t_h hours since power-on. The asymmetry keeps the mean scale:
@@ -56,6 +56,8 @@ EFFECTS: dict[str, tuple[str, ...]] = {
         "accel_temp_bias2",
         "gyro_temp_bias",
         "gyro_temp_bias2",
+        "accel_temp_bias3",
+        "gyro_temp_bias3",
     ),
     "temperature_scale": ("accel_temp_scale", "gyro_temp_scale"),
     "time_drift": ("accel_drift", "gyro_drift"),
@@ -116,6 +118,8 @@ class SensorTruth:
     accel_temp_bias2: Vec3 = _ZERO3  #: m/s² per °C²
     gyro_temp_bias: Vec3 = _ZERO3  #: °/s per °C
     gyro_temp_bias2: Vec3 = _ZERO3  #: °/s per °C²
+    accel_temp_bias3: Vec3 = _ZERO3  #: m/s² per °C³ (not drawn by :meth:`random`)
+    gyro_temp_bias3: Vec3 = _ZERO3  #: °/s per °C³ (not drawn by :meth:`random`)
     accel_temp_scale: Vec3 = _ZERO3  #: relative scale per °C
     gyro_temp_scale: Vec3 = _ZERO3  #: relative scale per °C
     accel_drift: Vec3 = _ZERO3  #: m/s² per hour since power-on
@@ -174,6 +178,8 @@ class SensorTruth:
             accel_temp_bias2=s3(5e-5),
             gyro_temp_bias=s3(0.03),
             gyro_temp_bias2=s3(3e-4),
+            accel_temp_bias3=_ZERO3,
+            gyro_temp_bias3=_ZERO3,
             accel_temp_scale=s3(2e-4),
             gyro_temp_scale=s3(2e-4),
             accel_drift=s3(0.002),
@@ -220,11 +226,13 @@ class SensorTruth:
             out[f"A0{a}"] += (
                 self.accel_temp_bias[i] * d
                 + self.accel_temp_bias2[i] * d * d
+                + self.accel_temp_bias3[i] * d**3
                 + self.accel_drift[i] * h
             )
             out[f"G0{a}"] += (
                 self.gyro_temp_bias[i] * d
                 + self.gyro_temp_bias2[i] * d * d
+                + self.gyro_temp_bias3[i] * d**3
                 + self.gyro_drift[i] * h
             )
             out[f"A{a}{a}"] += self.accel_temp_scale[i] * d
@@ -356,6 +364,9 @@ def sensor_output(
         truth.gyro_temp_bias2,
         truth.gyro_drift,
     )
+    cube = d_temp[:, None] ** 3
+    accel += np.asarray(truth.accel_temp_bias3) * cube
+    gyro += np.asarray(truth.gyro_temp_bias3) * cube
     if accel_disturbance is not None:
         accel += accel_disturbance
     if gyro_disturbance is not None:

@@ -5,7 +5,7 @@ URL grammar (all options optional, ``&``-separated; ``fault`` may repeat)::
     sim://[?seed=N][&speed=realtime|N|max][&operator=auto|manual][&truth=random|ideal]
           [&fault=wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]|pull_cable[@SECONDS]]...
           [&clock_ppm=PPM][&sample_clock=REL][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
-          [&effects=NAME,NAME...]
+          [&effects=NAME,NAME...][&chamber=FROM:TO:MINUTES[@START_S]]
 
 - ``seed`` (default 0): draws the truth, the room/clock and the noise; same seed, same board.
 - ``speed``: ``realtime`` (default) — simulated time follows the wall clock; ``N`` — it runs N×
@@ -15,6 +15,9 @@ URL grammar (all options optional, ``&``-separated; ``fault`` may repeat)::
 - ``clock_ppm``: MCU µs timer error; ``sample_clock``: sensor sample-clock error, relative
   (0.004 = 50.2 Hz). Default: drawn from the seed. ``latitude``, ``tilt`` (base tilt about the
   east axis) and ``earth_rate`` set up the bench.
+- ``chamber``: a thermal chamber ramps the air from FROM to TO °C over MINUTES, starting
+  START_S simulated seconds after power-on (default 0), then holds; the chip's warm-up rides
+  on top (e.g. ``chamber=-10:50:60`` for a thermal calibration).
 - ``fault``: the operator or the cable misbehaves on purpose. ``wrong_face@K``: the K-th
   ``place`` hint (default 1st) puts the next axis up (x→y→z→x, same side);
   ``incomplete_turn@K``: the K-th ``turn`` stops at 0.8 of the turns asked;
@@ -145,6 +148,7 @@ class Serial(SerialBase):
             "tilt",
             "earth_rate",
             "effects",
+            "chamber",
         }
         unknown = sorted(set(opts) - known)
         if unknown:
@@ -196,6 +200,8 @@ class Serial(SerialBase):
                 rel = one("sample_clock", "0")
                 err = bounded("sample_clock", rel, -SAMPLE_CLOCK_MAX, SAMPLE_CLOCK_MAX)
                 env = _replace(env, sample_clock_error=err)
+            if "chamber" in opts:
+                env = _replace(env, **parse_chamber(one("chamber", "")))
             self.environment = env
             self.bench = Bench(
                 latitude_deg=bounded("latitude", one("latitude", "55.75"), -90.0, 90.0),
@@ -499,6 +505,26 @@ class Serial(SerialBase):
             if self.operator != "auto" or self.sim is None:
                 return {"action": action, "done": False}
             return self._operator.hint(self.sim, now, action, **kw)
+
+
+def parse_chamber(text: str) -> dict[str, float]:
+    """'FROM:TO:MINUTES[@START_S]' -> the chamber fields of :class:`Environment`."""
+    ramp, _, start = text.partition("@")
+    parts = ramp.split(":")
+    if len(parts) != 3:
+        raise ValueError(
+            f"chamber: expected FROM:TO:MINUTES[@START_S] (e.g. -10:50:60), not {text!r}"
+        )
+    lo = bounded("chamber FROM", parts[0], -60.0, 130.0)
+    hi = bounded("chamber TO", parts[1], -60.0, 130.0)
+    minutes = bounded("chamber MINUTES", parts[2], 0.01, 10000.0)
+    t0 = bounded("chamber START_S", start, 0.0, 1e7) if start else 0.0
+    return {
+        "chamber_from_c": lo,
+        "chamber_to_c": hi,
+        "chamber_minutes": minutes,
+        "chamber_start_s": t0,
+    }
 
 
 def _replace(env: Environment, **kw: Any) -> Environment:

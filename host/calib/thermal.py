@@ -1,0 +1,443 @@
+"""Thermal calibration: each channel's bias against chip temperature, from static records.
+
+Records at several temperatures or along a ramp (the dialogue's warm-up, a chamber, a heat
+gun and patience), in any attitudes, are cut into windows of ``window_s`` seconds; each window
+gives a mean temperature and a mean reading per channel. Per channel the model is (method.md §8,
+"parameters drift with temperature … fits bias(T)")::
+
+    reading = offset[attitude] + Σ_{j=1..k} c_j·(T − T_ref)^j
+
+The offset of each attitude holds gravity's projection and the bias at ``T_ref``; the
+polynomial is the bias *change* with temperature, so a result applies on top of the ordinary
+calibration made at ``T_ref`` (the mean temperature of the six static records, when present).
+The order k is chosen, not fixed: by BIC and by held-out prediction (blocks of neighbouring
+temperatures left out in turn) — the lower of the two orders, so both criteria agree the extra
+terms help. The fit refuses, naming the span needed, when the span cannot determine the order
+asked (:data:`SPAN_PER_ORDER_C` per polynomial order), and when the attitudes cannot separate
+gravity from temperature (each attitude measured at one temperature only).
+
+:class:`ThermalCalibration` is the versioned result (coefficients, their covariance, the
+temperature range over which they hold); :func:`apply_thermal` removes the bias change and
+warns outside that range.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from host.calib.records import Record
+from host.errors import UserError
+
+CHANNELS = ("ax", "ay", "az", "gx", "gy", "gz")
+UNITS = ("m/s^2", "m/s^2", "m/s^2", "deg/s", "deg/s", "deg/s")
+#: temperature span each polynomial order needs, °C (a linear bias(T) needs 4 °C, a cubic 12)
+SPAN_PER_ORDER_C = 4.0
+#: highest order tried by default
+MAX_ORDER = 4
+#: confidence level of the band around bias(T)
+BAND_LEVEL = 0.95
+
+
+class ThermalRangeWarning(UserWarning):
+    """:func:`apply_thermal` was given temperatures outside the calibrated range."""
+
+
+# --------------------------------------------------------------------------- data
+@dataclass(frozen=True)
+class ThermalPoints:
+    """Window means: ``temp_c`` (M,) °C, ``values`` (M, 6) ax..gz (m/s², °/s), ``group`` (M,)
+    attitude index into ``attitudes`` (labels), ``order`` (M,) time order of the windows."""
+
+    temp_c: np.ndarray
+    values: np.ndarray
+    group: np.ndarray
+    attitudes: tuple[str, ...]
+    order: np.ndarray
+
+
+def attitude_key(rec: Record) -> str:
+    """The attitude a static record was made in: its up vector rounded (meta ``up`` or the
+    name), else the record's name."""
+    try:
+        up = rec.up
+    except UserError:
+        return rec.name
+    return "[" + ", ".join(f"{v:+.2f}" for v in up) + "]"
+
+
+def window_means(records: Iterable[Record], window_s: float = 20.0) -> ThermalPoints:
+    """Cut each static record into windows of ``window_s`` s (the last partial window is
+    dropped if shorter than half) and average temperature and channels in each."""
+    temps: list[float] = []
+    vals: list[np.ndarray] = []
+    groups: list[int] = []
+    times: list[float] = []
+    keys: list[str] = []
+    for rec in records:
+        if rec.kind == "turn" or len(rec) < 2:
+            continue
+        key = attitude_key(rec)
+        if key not in keys:
+            keys.append(key)
+        t = rec.t_ms / 1000.0
+        start = float(rec.meta.get("power_on_s", 0.0) or 0.0)
+        idx = np.floor((t - t[0]) / window_s).astype(np.int64)
+        data = np.column_stack([rec.accel, rec.gyro])
+        for w in np.unique(idx):
+            sel = idx == w
+            if np.count_nonzero(sel) < 2 or t[sel][-1] - t[sel][0] < 0.5 * window_s:
+                continue
+            temps.append(float(rec.temp[sel].mean()))
+            vals.append(data[sel].mean(axis=0))
+            groups.append(keys.index(key))
+            times.append(start + float(t[sel].mean()))
+    if not temps:
+        raise UserError(
+            "no static records to fit bias(T): give the warm-up, static or thermal records"
+        )
+    return ThermalPoints(
+        np.array(temps),
+        np.array(vals),
+        np.array(groups, dtype=np.int64),
+        tuple(keys),
+        np.argsort(np.argsort(np.array(times))),
+    )
+
+
+# --------------------------------------------------------------------------- the fit
+def design(
+    temp_c: np.ndarray, group: np.ndarray, n_groups: int, order: int, t_ref: float, scale: float
+) -> np.ndarray:
+    """(M, n_groups + order): one column per attitude offset, then ((T − T_ref)/scale)^j."""
+    x = np.zeros((temp_c.size, n_groups + order))
+    x[np.arange(temp_c.size), group] = 1.0
+    d = (temp_c - t_ref) / scale
+    for j in range(1, order + 1):
+        x[:, n_groups + j - 1] = d**j
+    return x
+
+
+def _lstsq(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+    beta, *_ = np.linalg.lstsq(x, y, rcond=None)
+    r = y - x @ beta
+    return beta, float(r @ r)
+
+
+def heldout_rmse(
+    temp_c: np.ndarray, y: np.ndarray, group: np.ndarray, n_groups: int, order: int,
+    t_ref: float, scale: float, folds: int = 5,
+) -> float:  # fmt: skip
+    """Root-mean-square error predicting blocks of neighbouring temperatures left out in turn:
+    the points in temperature order are cut into ``2·folds`` blocks, fold f leaves out blocks
+    f and f + folds (long blocks, so slowly correlated noise cannot be interpolated)."""
+    m = temp_c.size
+    rank = np.argsort(np.argsort(temp_c))
+    fold = (rank * 2 * folds // m) % folds
+    err: list[float] = []
+    x = design(temp_c, group, n_groups, order, t_ref, scale)
+    for f in range(folds):
+        test = fold == f
+        train = ~test
+        # an attitude with no training point cannot be predicted: skip its points
+        known = np.isin(group, np.unique(group[train]))
+        test &= known
+        if not np.any(test) or np.count_nonzero(train) <= x.shape[1]:
+            continue
+        beta, _ = _lstsq(x[train], y[train])
+        err.extend(((y[test] - x[test] @ beta) ** 2).tolist())
+    return math.sqrt(float(np.mean(err))) if err else math.inf
+
+
+def lag1(resid_in_time_order: np.ndarray) -> float:
+    """Lag-1 autocorrelation of residuals in time order, clipped to [0, 0.95]."""
+    r = resid_in_time_order
+    if r.size < 4 or float(r @ r) <= 0:
+        return 0.0
+    return float(np.clip((r[1:] @ r[:-1]) / (r @ r), 0.0, 0.95))
+
+
+@dataclass(frozen=True)
+class ChannelThermal:
+    """bias(T) − bias(T_ref) of one channel: ``coef`` c_1..c_k (unit/°C^j), ``cov`` their
+    covariance (inflated for correlated residuals), ``rms`` of the residual (unit), and the
+    selection table ``bic`` / ``heldout_rmse`` per order 0..max."""
+
+    channel: str
+    unit: str
+    order: int
+    coef: tuple[float, ...]
+    cov: tuple[tuple[float, ...], ...]
+    rms: float
+    bic: tuple[float, ...]
+    heldout_rmse: tuple[float, ...]
+
+    def delta(self, temp_c: np.ndarray, t_ref: float) -> np.ndarray:
+        """Bias change at ``temp_c`` (°C) from T_ref, channel unit."""
+        d = np.asarray(temp_c, dtype=np.float64) - t_ref
+        out = np.zeros_like(d)
+        for j, c in enumerate(self.coef, start=1):
+            out += c * d**j
+        return out
+
+    def band(self, temp_c: np.ndarray, t_ref: float) -> np.ndarray:
+        """Half-width of the simultaneous 95 % band of :meth:`delta` at ``temp_c`` (channel
+        unit): the whole true curve lies inside it with 95 % confidence (Scheffé: the
+        chi-squared quantile with one degree of freedom per coefficient)."""
+        from scipy.stats import chi2
+
+        d = np.asarray(temp_c, dtype=np.float64) - t_ref
+        if not self.coef:
+            return np.zeros_like(d)
+        g = np.column_stack([d**j for j in range(1, len(self.coef) + 1)])
+        cov = np.array(self.cov)
+        z = math.sqrt(float(chi2.ppf(BAND_LEVEL, len(self.coef))))
+        return z * np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", g, cov, g), 0.0))
+
+
+def span_needed(order: int) -> float:
+    """Temperature span (°C) a polynomial of ``order`` needs (:data:`SPAN_PER_ORDER_C`)."""
+    return SPAN_PER_ORDER_C * max(order, 1)
+
+
+def fit_channel(
+    pts: ThermalPoints, j: int, t_ref: float, max_order: int, fixed_order: int | None = None
+) -> ChannelThermal:
+    """Fit channel j's bias(T), choosing the order 0..``max_order`` by BIC and held-out
+    prediction (the lower of the two), or ``fixed_order``."""
+    t, y, grp = pts.temp_c, pts.values[:, j], pts.group
+    ng = len(pts.attitudes)
+    scale = max(float(np.ptp(t)) / 2.0, 1e-6)
+    m = t.size
+    in_time = np.argsort(pts.order)
+    cvs = [heldout_rmse(t, y, grp, ng, k, t_ref, scale) for k in range(max_order + 1)]
+    fits = [_lstsq(design(t, grp, ng, k, t_ref, scale), y) for k in range(max_order + 1)]
+    rss = [max(f[1], 1e-300) for f in fits]
+    p0 = ng
+
+    def bic_table(k: int) -> tuple[float, ...]:
+        # slowly correlated noise (bias instability) makes neighbouring windows agree: the
+        # effective number of independent windows is n_eff = m·(1 − ρ)/(1 + ρ), ρ the lag-1
+        # correlation of order k's residual in time order (a quasi-likelihood BIC)
+        x = design(t, grp, ng, k, t_ref, scale)
+        rho = lag1((y - x @ fits[k][0])[in_time])
+        n_eff = max(m * (1 - rho) / (1 + rho), 2.0)
+        return tuple(
+            n_eff * math.log(rss[i] / m) + (p0 + i) * math.log(n_eff) for i in range(max_order + 1)
+        )
+
+    # forward: from order k, move to the higher order with the lowest BIC (judged with order
+    # k's residual correlation) while that is lower than order k's own
+    order_bic = 0
+    bics = bic_table(0)
+    while True:
+        higher = range(order_bic + 1, max_order + 1)
+        best = min(higher, key=lambda i: bics[i], default=None)
+        if best is None or bics[best] >= bics[order_bic]:
+            break
+        order_bic = best
+        bics = bic_table(order_bic)
+    if fixed_order is not None:
+        order = fixed_order
+    else:
+        order = min(order_bic, int(np.argmin(cvs)))
+    x = design(t, grp, ng, order, t_ref, scale)
+    beta, rss_k = _lstsq(x, y)
+    dof = max(m - x.shape[1], 1)
+    s2 = rss_k / dof
+    # residuals in time order: lag-1 correlation ρ inflates the variance by (1 + ρ)/(1 − ρ)
+    rho = lag1((y - x @ beta)[in_time])
+    cov_all = s2 * (1 + rho) / (1 - rho) * np.linalg.pinv(x.T @ x)
+    sc = np.array([scale**-i for i in range(1, order + 1)])
+    coef = beta[ng:] * sc
+    cov = cov_all[ng:, ng:] * np.outer(sc, sc)
+    return ChannelThermal(
+        CHANNELS[j],
+        UNITS[j],
+        order,
+        tuple(float(c) for c in coef),
+        tuple(tuple(float(v) for v in row) for row in cov),
+        float(np.sqrt(rss_k / m)),
+        tuple(bics),
+        tuple(cvs),
+    )
+
+
+@dataclass(frozen=True)
+class ThermalCalibration:
+    """The thermal result: per channel :class:`ChannelThermal`, the reference temperature
+    ``t_ref_c`` and the range ``[t_min_c, t_max_c]`` (°C) over which the coefficients hold."""
+
+    FORMAT_VERSION: ClassVar[int] = 1
+
+    serial: str
+    t_ref_c: float
+    t_min_c: float
+    t_max_c: float
+    channels: dict[str, ChannelThermal]
+    attitudes: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "format": "imu-bench thermal",
+            "format_version": self.FORMAT_VERSION,
+            "serial": self.serial,
+            "model": "bias(T) - bias(T_ref) = sum_j c_j (T - T_ref)^j, T in degC",
+            "t_ref_c": self.t_ref_c,
+            "valid_range_c": [self.t_min_c, self.t_max_c],
+            "attitudes": list(self.attitudes),
+            "channels": {
+                name: {
+                    "order": ch.order,
+                    "coefficients": list(ch.coef),
+                    "units": [f"{ch.unit}/degC^{j}" for j in range(1, ch.order + 1)],
+                    "covariance": [list(r) for r in ch.cov],
+                    "rms": ch.rms,
+                    "selection": {"bic": list(ch.bic), "heldout_rmse": list(ch.heldout_rmse)},
+                }
+                for name, ch in self.channels.items()
+            },
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2) + "\n"
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any], source: str = "thermal result") -> ThermalCalibration:
+        if not isinstance(d, Mapping) or d.get("format") != "imu-bench thermal":
+            raise UserError(f"{source}: not an imu-bench thermal result")
+        v = d.get("format_version")
+        if v != cls.FORMAT_VERSION:
+            raise UserError(
+                f"{source}: thermal result format v{v}, this program reads "
+                f"v{cls.FORMAT_VERSION}; update the host software or refit"
+            )
+        try:
+            chans = {}
+            for j, name in enumerate(CHANNELS):
+                c = d["channels"][name]
+                chans[name] = ChannelThermal(
+                    name,
+                    UNITS[j],
+                    int(c["order"]),
+                    tuple(float(x) for x in c["coefficients"]),
+                    tuple(tuple(float(x) for x in r) for r in c["covariance"]),
+                    float(c["rms"]),
+                    tuple(float(x) for x in c["selection"]["bic"]),
+                    tuple(float(x) for x in c["selection"]["heldout_rmse"]),
+                )
+            lo, hi = (float(x) for x in d["valid_range_c"])
+            return cls(str(d["serial"]), float(d["t_ref_c"]), lo, hi, chans, tuple(d["attitudes"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise UserError(f"{source}: damaged thermal result ({exc})") from None
+
+
+def fit_thermal(
+    records: Sequence[Record],
+    serial: str = "",
+    order: int | None = None,
+    max_order: int = MAX_ORDER,
+    window_s: float = 20.0,
+    t_ref_c: float | None = None,
+) -> tuple[ThermalCalibration, ThermalPoints]:
+    """Fit bias(T) of every channel from static ``records`` (any attitudes). ``order`` fixes
+    the polynomial order; otherwise it is chosen per channel up to ``max_order`` (and no
+    higher than the span supports). Raises UserError when the span or the attitudes cannot
+    determine what is asked, naming the span needed."""
+    pts = window_means(records, window_s)
+    lo, hi = float(pts.temp_c.min()), float(pts.temp_c.max())
+    span = hi - lo
+    asked = order if order is not None else 1
+    if span < span_needed(asked):
+        what = "a linear bias(T)" if asked <= 1 else f"an order-{asked} bias(T)"
+        raise UserError(
+            f"temperature span {span:.1f} degC ({lo:.1f} to {hi:.1f} degC) cannot determine "
+            f"{what}: it needs at least {span_needed(asked):.0f} degC "
+            f"({SPAN_PER_ORDER_C:.0f} degC per polynomial order); record the warm-up from a "
+            "cold start, or a chamber ramp (sim://?chamber=FROM:TO:MINUTES)"
+        )
+    top = min(max_order, int(span // SPAN_PER_ORDER_C)) if order is None else order
+    # attitudes: each offset must be separable from bias(T) — the design must have full rank
+    x = design(pts.temp_c, pts.group, len(pts.attitudes), max(top, 1), lo, max(span, 1e-6))
+    if np.linalg.matrix_rank(x) < x.shape[1]:
+        raise UserError(
+            "the attitudes cannot separate gravity from temperature (each attitude was measured "
+            "at a single temperature): measure one attitude across the whole span"
+        )
+    if t_ref_c is None:
+        statics = [r for r in records if r.kind == "static" and r.name.endswith(("_up", "_dn"))]
+        t_ref_c = float(np.mean([r.temp.mean() for r in statics])) if statics else (lo + hi) / 2.0
+    chans = {CHANNELS[j]: fit_channel(pts, j, t_ref_c, top, order) for j in range(len(CHANNELS))}
+    cal = ThermalCalibration(serial, float(t_ref_c), lo, hi, chans, pts.attitudes)
+    return cal, pts
+
+
+def apply_thermal(
+    cal: ThermalCalibration, accel: np.ndarray, gyro: np.ndarray, temp_c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Remove the bias change with temperature: ``accel`` (N, 3) m/s², ``gyro`` (N, 3) °/s,
+    ``temp_c`` (N,) chip °C -> the readings as at T_ref (then apply the ordinary calibration).
+    Warns (:class:`ThermalRangeWarning`) for temperatures outside the calibrated range, where
+    the polynomial is extrapolated."""
+    t = np.asarray(temp_c, dtype=np.float64).reshape(-1)
+    a = np.array(accel, dtype=np.float64).reshape(t.size, 3)
+    g = np.array(gyro, dtype=np.float64).reshape(t.size, 3)
+    outside = (t < cal.t_min_c) | (t > cal.t_max_c)
+    if np.any(outside):
+        warnings.warn(
+            f"{int(np.count_nonzero(outside))} samples at {float(t.min()):.1f} to "
+            f"{float(t.max()):.1f} degC lie outside the thermal calibration's range "
+            f"{cal.t_min_c:.1f} to {cal.t_max_c:.1f} degC: the bias(T) polynomial is "
+            "extrapolated there",
+            ThermalRangeWarning,
+            stacklevel=2,
+        )
+    for j, name in enumerate(CHANNELS):
+        ch = cal.channels[name]
+        target = a if j < 3 else g
+        target[:, j % 3] -= ch.delta(t, cal.t_ref_c)
+    return a, g
+
+
+# --------------------------------------------------------------------------- plot
+def plot_thermal(cal: ThermalCalibration, pts: ThermalPoints, path: str) -> None:
+    """Each channel's bias against temperature: the window means (less their attitude's
+    offset), the fitted curve and its simultaneous 95 % band, T_ref and the valid range."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axs = plt.subplots(2, 3, figsize=(15, 8), squeeze=False)
+    temps = np.linspace(cal.t_min_c, cal.t_max_c, 200)
+    for j, (ax, name) in enumerate(zip(axs.ravel(), CHANNELS, strict=True)):
+        ch = cal.channels[name]
+        y = pts.values[:, j]
+        # each attitude's offset: the mean of its points less the curve there
+        resid0 = y - ch.delta(pts.temp_c, cal.t_ref_c)
+        offs = np.array([resid0[pts.group == g].mean() for g in range(len(pts.attitudes))])
+        shown = y - offs[pts.group]
+        ax.plot(pts.temp_c, shown, ".", ms=3, color="C0", label="window means")
+        curve = ch.delta(temps, cal.t_ref_c)
+        band = ch.band(temps, cal.t_ref_c)
+        ax.fill_between(temps, curve - band, curve + band, color="C1", alpha=0.3,
+                        label="95 % band")  # fmt: skip
+        ax.plot(temps, curve, "-", color="C1", label=f"order {ch.order} fit")
+        ax.axvline(cal.t_ref_c, color="k", lw=0.8, ls=":", label=f"T_ref {cal.t_ref_c:.1f} degC")
+        ax.set_title(f"{name}: bias change, order {ch.order}")
+        ax.set_xlabel("chip temperature, degC")
+        ax.set_ylabel(f"bias(T) - bias(T_ref), {ch.unit}")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(
+        f"{cal.serial}: thermal calibration, valid {cal.t_min_c:.1f} to {cal.t_max_c:.1f} degC"
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,81 @@
+"""``python -m host thermal DIR``: bias against chip temperature from the warm-up, static and
+thermal-ramp records of a unit (:mod:`host.calib.thermal`), written as ``SERIAL_thermal.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from host.calib import thermal
+from host.calib.records import read_session, write_text_atomic
+from host.errors import UserError
+
+
+def format_text(cal: thermal.ThermalCalibration) -> str:
+    """The human summary: per channel the order chosen and the coefficients."""
+    lines = [
+        f"thermal calibration of {cal.serial}: valid {cal.t_min_c:.1f} to {cal.t_max_c:.1f} "
+        f"degC, bias change relative to T_ref = {cal.t_ref_c:.2f} degC",
+        f"attitudes: {', '.join(cal.attitudes)}",
+    ]
+    for name, ch in cal.channels.items():
+        terms = (
+            "  ".join(f"c{j}={c:+.4g} {ch.unit}/degC^{j}" for j, c in enumerate(ch.coef, start=1))
+            or "no temperature dependence"
+        )
+        full = ch.delta(np.array([cal.t_min_c, cal.t_max_c]), cal.t_ref_c)
+        lines.append(
+            f"{name}: order {ch.order}  {terms}  (change over the range {full[0]:+.4g} .. "
+            f"{full[1]:+.4g} {ch.unit}; residual rms {ch.rms:.3g})"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def run(args: argparse.Namespace) -> int:
+    """Runner of ``python -m host thermal``."""
+    session = read_session(args.dir, args.serial)
+    if args.order is not None and not 0 <= args.order <= 6:
+        raise UserError("--order must be between 0 and 6")
+    if not 0 <= args.max_order <= 6:
+        raise UserError("--max-order must be between 0 and 6")
+    if not args.window > 0:
+        raise UserError("--window must be a positive number of seconds")
+    records = [r for r in session.records.values() if r.kind != "turn"]
+    cal, pts = thermal.fit_thermal(
+        records, session.serial, order=args.order, max_order=args.max_order, window_s=args.window
+    )
+    out_dir = Path(args.out) if args.out else Path(args.dir)
+    if not out_dir.is_dir():
+        raise UserError(f"{out_dir}: no such directory")
+    path = out_dir / f"{session.serial}_thermal.json"
+    write_text_atomic(path, cal.to_json())
+    if args.plot:
+        try:
+            thermal.plot_thermal(cal, pts, args.plot)
+        except ImportError:
+            raise UserError(
+                "--plot needs matplotlib (pip install 'imu-bench[plot]' or pip install matplotlib)"
+            ) from None
+    sys.stdout.write(cal.to_json() if args.json else format_text(cal))
+    print(f"written: {path}" + (f" and {args.plot}" if args.plot else ""), file=sys.stderr)
+    return 0
+
+
+def cli_thermal(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+    """Fill in the ``thermal`` subparser; returns the runner."""
+    p.add_argument("dir", help="directory of the unit's records (warm-up, static, thermal ramp)")
+    p.add_argument("--serial", help="serial number (default: from the file names)")
+    p.add_argument("--order", type=int, help="fix the polynomial order (default: chosen)")
+    p.add_argument(
+        "--max-order", type=int, default=thermal.MAX_ORDER, help="highest order tried (default 4)"
+    )
+    p.add_argument("--window", type=float, default=20.0, help="averaging window, s (default 20)")
+    p.add_argument("--out", metavar="DIR", help="where to write SERIAL_thermal.json (default DIR)")
+    p.add_argument("--plot", metavar="PNG", help="bias against temperature with curve and band")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    return run

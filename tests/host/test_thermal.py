@@ -1,0 +1,150 @@
+"""Thermal calibration (host.calib.thermal, the ``thermal`` command): a simulated warm-up plus a
+chamber ramp with a known bias(T) of a different order on every channel."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from host.__main__ import main
+from host.bench.physics import Environment
+from host.bench.sim import simulate_thermal
+from host.bench.truth import SensorTruth
+from host.calib import thermal
+from host.calib.records import write_record
+from host.transports.protocol_sim import parse_chamber
+
+#: per channel ax ay az gx gy gz: true order 1, 2, 3, 3, 0, 2
+TRUTH = dataclasses.replace(
+    SensorTruth.random(np.random.default_rng(1)).only("linear", "noise"),
+    accel_temp_bias=(0.004, -0.003, 0.002),
+    accel_temp_bias2=(0.0, 1e-4, -8e-5),
+    accel_temp_bias3=(0.0, 0.0, 2e-6),
+    gyro_temp_bias=(0.03, 0.0, -0.02),
+    gyro_temp_bias2=(-6e-4, 0.0, 4e-4),
+    gyro_temp_bias3=(3e-5, 0.0, 0.0),
+)
+ORDERS = {"ax": 1, "ay": 2, "az": 3, "gx": 3, "gy": 0, "gz": 2}
+#: warm-up from 22 °C, then a chamber ramp 22 -> 60 °C over 40 min (chip ends near 70 °C)
+CHAMBER = Environment(
+    room_c=22.0, rise_c=10.0, tau_s=300.0, room_amp_c=0.0,
+    **parse_chamber("22:60:40@600"),
+)  # fmt: skip
+PLAN = [("warmup", "z_up", 600.0), ("ramp", "z_up", 2400.0), ("hot_x", "x_up", 300.0)]
+
+
+def true_delta(j: int, temp_c: np.ndarray, t_ref: float) -> np.ndarray:
+    b = [
+        (TRUTH.accel_temp_bias + TRUTH.gyro_temp_bias)[j],
+        (TRUTH.accel_temp_bias2 + TRUTH.gyro_temp_bias2)[j],
+        (TRUTH.accel_temp_bias3 + TRUTH.gyro_temp_bias3)[j],
+    ]
+
+    def f(t: np.ndarray) -> np.ndarray:
+        d = np.asarray(t, dtype=np.float64) - TRUTH.temp_ref_c
+        return b[0] * d + b[1] * d**2 + b[2] * d**3
+
+    return f(temp_c) - f(np.array(t_ref))
+
+
+@pytest.fixture(scope="module")
+def ramp() -> dict:
+    return simulate_thermal(TRUTH, CHAMBER, PLAN, seed=4)
+
+
+def test_known_bias_curve_is_recovered_within_its_band_with_the_right_order(ramp) -> None:
+    cal, _ = thermal.fit_thermal(list(ramp.values()), "T1")
+    assert cal.t_min_c < 23.0 and cal.t_max_c > 69.0
+    temps = np.linspace(cal.t_min_c, cal.t_max_c, 60)
+    for j, name in enumerate(thermal.CHANNELS):
+        ch = cal.channels[name]
+        assert ch.order == ORDERS[name], (name, ch.order, ch.bic, ch.heldout_rmse)
+        err = np.abs(ch.delta(temps, cal.t_ref_c) - true_delta(j, temps, cal.t_ref_c))
+        band = ch.band(temps, cal.t_ref_c)
+        if ch.order:
+            assert np.all(err <= band), (name, float(np.max(err / band)))
+            # and the band is narrow against the effect it describes
+            span = np.ptp(true_delta(j, temps, cal.t_ref_c))
+            assert float(np.max(band)) < 0.02 * span, name
+
+
+def test_apply_removes_the_bias_change_and_warns_outside_the_range(ramp) -> None:
+    cal, _ = thermal.fit_thermal(list(ramp.values()), "T1")
+    rec = ramp["ramp"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        a, g = thermal.apply_thermal(cal, rec.accel, rec.gyro, rec.temp)
+    data_before = np.column_stack([rec.accel, rec.gyro])
+    data_after = np.column_stack([a, g])
+    for j, name in enumerate(thermal.CHANNELS):
+        if ORDERS[name] == 0:
+            continue
+        # one-minute means along the ramp: the raw ones move with temperature, corrected ones
+        # stay within a few noise levels
+        n = len(rec) // 3000 * 3000
+        before = data_before[:n, j].reshape(-1, 3000).mean(axis=1)
+        after = data_after[:n, j].reshape(-1, 3000).mean(axis=1)
+        noise = data_before[:, j].std() / np.sqrt(3000)
+        assert np.ptp(before) > 50 * noise, name
+        assert np.ptp(after) < 10 * noise + 2 * float(np.max(cal.channels[name].rms)), name
+    with pytest.warns(thermal.ThermalRangeWarning, match="outside the thermal calibration"):
+        thermal.apply_thermal(cal, rec.accel[:5], rec.gyro[:5], np.full(5, 80.0))
+
+
+def test_too_small_a_span_is_refused_with_the_span_needed() -> None:
+    quiet = dataclasses.replace(CHAMBER, rise_c=2.0, chamber_minutes=0.0)
+    recs = simulate_thermal(TRUTH, quiet, [("warmup", "z_up", 900.0)], seed=5)
+    with pytest.raises(thermal.UserError, match=r"span 1\.\d degC .* needs at least 4 degC"):
+        thermal.fit_thermal(list(recs.values()), "T2")
+    big = simulate_thermal(TRUTH, CHAMBER, [("warmup", "z_up", 600.0)], seed=6)
+    with pytest.raises(thermal.UserError, match=r"order-3 bias\(T\): it needs at least 12 degC"):
+        thermal.fit_thermal(list(big.values()), "T2", order=3)
+
+
+def test_attitudes_at_single_temperatures_are_refused() -> None:
+    hold = dataclasses.replace(CHAMBER, chamber_start_s=0.0, chamber_minutes=0.01, rise_c=0.0)
+    cold = simulate_thermal(
+        TRUTH, dataclasses.replace(hold, chamber_to_c=20.0), [("a", "z_up", 120.0)], seed=7
+    )
+    hot = simulate_thermal(
+        TRUTH,
+        dataclasses.replace(hold, chamber_from_c=40.0, chamber_to_c=40.0),
+        [("b", "x_up", 120.0)],
+        seed=8,
+    )
+    with pytest.raises(thermal.UserError, match="cannot separate gravity from temperature"):
+        thermal.fit_thermal([*cold.values(), *hot.values()], "T3")
+
+
+def test_command_writes_a_versioned_result_and_the_plot(ramp, tmp_path, capsys) -> None:
+    for name, rec in ramp.items():
+        write_record(tmp_path / f"T4_{name}.txt", rec)
+    png = tmp_path / "thermal.png"
+    pytest.importorskip("matplotlib")
+    assert main(["thermal", str(tmp_path), "--plot", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert "gx: order 3" in out and "valid 22." in out
+    doc = json.loads((tmp_path / "T4_thermal.json").read_text())
+    assert doc["format_version"] == 1 and doc["valid_range_c"][1] > 69.0
+    cal = thermal.ThermalCalibration.from_dict(doc)
+    assert cal.channels["az"].order == 3 and len(cal.channels["az"].coef) == 3
+    assert png.stat().st_size > 10_000
+    doc["format_version"] = 7
+    with pytest.raises(thermal.UserError, match="format v7"):
+        thermal.ThermalCalibration.from_dict(doc)
+
+
+def test_chamber_url_option_is_checked() -> None:
+    assert parse_chamber("-10:50:60@30") == {
+        "chamber_from_c": -10.0,
+        "chamber_to_c": 50.0,
+        "chamber_minutes": 60.0,
+        "chamber_start_s": 30.0,
+    }
+    for bad in ("10:50", "a:b:c", "10:50:0", "10:500:5"):
+        with pytest.raises(ValueError, match="chamber"):
+            parse_chamber(bad)
