@@ -21,10 +21,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from host.bench.sim import Plan, SensorTruth, simulate_session
-from host.cli.model import case_dataset, hidden_effect_case, run_case
 from host.modelling.diagnose import diagnose
 from host.modelling.model import CATALOGUE, build_dataset, fit_model, load_dataset, parse_model
 from host.modelling.model import session_from_records as as_session
+from host.modelling.scenarios import case_dataset, hidden_effect_case, run_case
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "imucal-example"
 

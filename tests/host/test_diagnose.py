@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host.cli.model import case_dataset, hidden_effect_case, run_case
 from host.modelling.diagnose import (
     VERDICTS,
     add_term,
@@ -26,6 +25,7 @@ from host.modelling.model import (
     parse_model,
     session_from_records,
 )
+from host.modelling.scenarios import case_dataset, hidden_effect_case, run_case
 
 REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
 

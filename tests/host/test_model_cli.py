@@ -9,7 +9,7 @@ import pytest
 
 from host.__main__ import main
 from host.bench.sim import write_session
-from host.cli.model import hidden_effect_case
+from host.modelling.scenarios import hidden_effect_case
 
 
 @pytest.fixture(scope="module")
