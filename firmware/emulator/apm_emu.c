@@ -50,6 +50,7 @@
 
 enum { FAULT_NONE, FAULT_ABSENT, FAULT_STUCK_MISO, FAULT_NO_DRDY };
 static const char *FAULT_NAMES[] = {"none", "absent", "stuck-miso", "no-drdy"};
+static const dmp_image_desc_t DMP_IMAGES[] = {DMP_IMAGE_DESC_MOTIONAPPS20, DMP_IMAGE_DESC_EMD6};
 
 #define RXQ_SIZE 8192
 #define TXBUF_SIZE 4096
@@ -69,6 +70,7 @@ static struct {
     double noise_accel, noise_gyro, clock_ppm;
     uint64_t seed;
     unsigned dmp_packet;
+    const dmp_image_desc_t *dmp_desc;  // --dmp-image: check the load sequence against it
 
     avr_t *avr;
     avr_spi_t *spi;
@@ -776,6 +778,9 @@ static void usage(FILE *f) {
             "  --seed S              noise seed\n"
             "  --clock-ppm PPM       MPU sample clock error vs the AVR crystal\n"
             "  --dmp-packet N        DMP stub FIFO packet size (default 42)\n"
+            "  --dmp-image NAME      motionapps20|emd6: check the DMP load sequence against that\n"
+            "                        image's description (firmware/src/dmp_descriptions.h), its packet size\n"
+            "                        for the stub packets\n"
             "  --spi-fixed-timing    keep simavr's 100 us per SPI byte\n"
             "  --quiet               no summary on stdout\n"
             "  --profile FILE        CSV of CPU cycles spent per flash address (awake only)\n");
@@ -796,7 +801,8 @@ static void write_rules(FILE *f) {
         if (E.mpu.rule_first_reg[i] >= 0) fprintf(f, ", register 0x%02X", E.mpu.rule_first_reg[i]);
         fprintf(f, "\"");
     }
-    fprintf(f, "], ");
+    fprintf(f, "], \"dmp_image\": \"%s\", \"dmp_running\": %d, \"dmp_problem\": \"%s\", ",
+            E.dmp_desc ? E.dmp_desc->name : "", E.mpu.dmp_running, E.mpu.dmp_problem);
 }
 
 static void write_summary(FILE *f, double wall) {
@@ -860,7 +866,7 @@ int main(int argc, char **argv) {
     E.sample_next_exact = -1;
     enum {
         O_ELF = 256, O_STIM, O_SECONDS, O_REALTIME, O_REGLOG, O_SAMPLELOG, O_FAULT, O_FAULT_AT,
-        O_PTYFILE, O_SUMMARY, O_NOWAIT, O_NODTR, O_NACC, O_NGYR, O_SEED, O_PPM, O_DMP, O_SPIFIX,
+        O_PTYFILE, O_SUMMARY, O_NOWAIT, O_NODTR, O_NACC, O_NGYR, O_SEED, O_PPM, O_DMP, O_DMPIMG, O_SPIFIX,
         O_QUIET, O_HELP, O_PROFILE, O_HEX, O_BOOT, O_BOOTLOADER, O_FLASHFILE
     };
     static const struct option opts[] = {
@@ -871,6 +877,7 @@ int main(int argc, char **argv) {
         {"no-wait", 0, 0, O_NOWAIT}, {"no-dtr-reset", 0, 0, O_NODTR},
         {"noise-accel", 1, 0, O_NACC}, {"noise-gyro", 1, 0, O_NGYR}, {"seed", 1, 0, O_SEED},
         {"clock-ppm", 1, 0, O_PPM}, {"dmp-packet", 1, 0, O_DMP},
+        {"dmp-image", 1, 0, O_DMPIMG},
         {"spi-fixed-timing", 0, 0, O_SPIFIX}, {"quiet", 0, 0, O_QUIET}, {"help", 0, 0, O_HELP}, {"profile", 1, 0, O_PROFILE},
         {"hex", 1, 0, O_HEX}, {"boot", 0, 0, O_BOOT}, {"bootloader", 1, 0, O_BOOTLOADER},
         {"flash-file", 1, 0, O_FLASHFILE},
@@ -901,6 +908,11 @@ int main(int argc, char **argv) {
             case O_SEED: E.seed = strtoull(optarg, NULL, 0); break;
             case O_PPM: E.clock_ppm = atof(optarg); break;
             case O_DMP: E.dmp_packet = (unsigned)atoi(optarg); break;
+            case O_DMPIMG:
+                for (unsigned i = 0; i < sizeof DMP_IMAGES / sizeof DMP_IMAGES[0]; i++)
+                    if (!strcmp(optarg, DMP_IMAGES[i].name)) E.dmp_desc = &DMP_IMAGES[i];
+                if (!E.dmp_desc) die("--dmp-image: motionapps20 or emd6");
+                break;
             case O_SPIFIX: E.spi_fixed_timing = 1; break;
             case O_QUIET: E.quiet = 1; break;
             case O_HELP: usage(stdout); return 0;
@@ -1001,7 +1013,9 @@ int main(int argc, char **argv) {
                             uart_xoff_cb, NULL);
     E.irq_uart_in = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
 
+    if (E.dmp_desc) E.dmp_packet = E.dmp_desc->packet_size;
     mpu_power_on(&E.mpu, E.dmp_packet);
+    E.mpu.dmp_desc = E.dmp_desc;
     E.mpu.retire = on_retire;
 
     // pseudo-terminal

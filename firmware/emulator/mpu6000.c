@@ -2,6 +2,7 @@
 #include "mpu6000.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #define G0 9.80665
@@ -11,11 +12,11 @@ static const double GYRO_LSB_PER_DPS[4] = {131.0, 65.5, 32.8, 16.4};  // datashe
 const char *const MPU_RULE_NAME[MPU_RULE_COUNT] = {
     "SPI_CLOCK", "SPI_MODE", "SPI_BIT_ORDER", "BARO_CS", "DRDY_EDGE", "RESET_WAIT",
     "SIGNAL_PATH_RESET", "SIGNAL_PATH_WAIT", "GYRO_STARTUP", "I2C_IF_DIS", "READ_ONLY",
-    "RESERVED",
+    "RESERVED", "DMP_LOAD",
 };
 const char *const MPU_RULE_REF[MPU_RULE_COUNT] = {
     "PS p.15", "PS p.37", "PS p.37", "APM 2.6 schematic", "RM p.26", "RM p.41", "RM p.41",
-    "RM p.41", "PS p.12", "RM p.38", "RM p.6-8", "RM p.6-8",
+    "RM p.41", "PS p.12", "RM p.38", "RM p.6-8", "RM p.6-8", "firmware/src/dmp_descriptions.h",
 };
 const char *const MPU_RULE_TEXT[MPU_RULE_COUNT] = {
     "configuration registers are specified up to 1 MHz SPI clock (20 MHz only for sensor and "
@@ -36,6 +37,9 @@ const char *const MPU_RULE_TEXT[MPU_RULE_COUNT] = {
     "SPI traffic)",
     "the register is read-only: a write is lost",
     "reserved register: writes have undefined effects",
+    "the DMP runs its image only when the whole image was written and read back, the FIFO-rate "
+    "update written, DMP_CFG_1/2 hold its start address and FS_SEL, SMPLRT_DIV and DLPF_CFG are "
+    "what the image assumes, before DMP_EN",
 };
 
 void mpu_violate(mpu6000_t *m, int rule, int reg) {
@@ -56,6 +60,58 @@ static int reg_reserved(uint8_t r) {
 static int reg_read_only(uint8_t r) {
     return r == MPU_WHO_AM_I || r == MPU_INT_STATUS || r == MPU_PRODUCT_ID ||
            (r >= MPU_ACCEL_XOUT_H && r <= 0x60);  // sensor and external sensor data
+}
+
+#define BIT_SET(map, i) ((map)[(i) >> 3] |= (uint8_t)(1u << ((i) & 7)))
+#define BIT_GET(map, i) (((map)[(i) >> 3] >> ((i) & 7)) & 1u)
+
+// DMP_EN set: does the chip hold what the described image needs to run? (m->dmp_problem)
+static int dmp_load_ok(mpu6000_t *m, int *reg) {
+    const dmp_image_desc_t *d = m->dmp_desc;
+    char *why = m->dmp_problem;
+    size_t n = sizeof m->dmp_problem;
+    for (unsigned a = 0; a < d->code_size; a++) {
+        if (!BIT_GET(m->dmp_written, a) || !BIT_GET(m->dmp_readback, a)) {
+            snprintf(why, n, "%s: DMP memory 0x%04X %s (image is %u bytes)", d->name, a,
+                     BIT_GET(m->dmp_written, a) ? "never read back" : "never written",
+                     d->code_size);
+            *reg = MPU_MEM_R_W;
+            return 0;
+        }
+    }
+    unsigned div = DMP_RATE_HZ / d->fifo_rate_hz - 1;
+    const uint8_t *rate = &m->dmp_mem[DMP_FIFO_RATE_ADDR];
+    if (!BIT_GET(m->dmp_written, DMP_FIFO_RATE_ADDR) || rate[0] != (div >> 8) ||
+        rate[1] != (div & 0xFF)) {
+        snprintf(why, n, "%s: FIFO-rate update at DMP 0x%04X is %02X %02X, %u Hz needs %02X %02X",
+                 d->name, DMP_FIFO_RATE_ADDR, rate[0], rate[1], d->fifo_rate_hz, div >> 8,
+                 div & 0xFF);
+        *reg = MPU_MEM_R_W;
+        return 0;
+    }
+    unsigned start = (unsigned)m->reg[MPU_DMP_CFG_1] << 8 | m->reg[MPU_DMP_CFG_2];
+    if (start != d->start_addr) {
+        snprintf(why, n, "%s: start address 0x%04X in DMP_CFG_1/2, the image starts at 0x%04X",
+                 d->name, start, d->start_addr);
+        *reg = MPU_DMP_CFG_1;
+        return 0;
+    }
+    struct { int reg; unsigned got, want; const char *what; } cfg[] = {
+        {MPU_GYRO_CONFIG, (m->reg[MPU_GYRO_CONFIG] >> 3) & 3, d->gyro_fs_sel, "FS_SEL"},
+        {MPU_ACCEL_CONFIG, (m->reg[MPU_ACCEL_CONFIG] >> 3) & 3, d->accel_fs_sel, "AFS_SEL"},
+        {MPU_SMPLRT_DIV, m->reg[MPU_SMPLRT_DIV], d->smplrt_div, "SMPLRT_DIV"},
+        {MPU_CONFIG, m->reg[MPU_CONFIG] & 7u, d->dlpf_cfg, "DLPF_CFG"},
+    };
+    for (unsigned i = 0; i < sizeof cfg / sizeof cfg[0]; i++) {
+        if (cfg[i].got != cfg[i].want) {
+            snprintf(why, n, "%s: %s is %u, the image needs %u", d->name, cfg[i].what,
+                     cfg[i].got, cfg[i].want);
+            *reg = cfg[i].reg;
+            return 0;
+        }
+    }
+    why[0] = 0;
+    return 1;
 }
 
 static void retire_latched(mpu6000_t *m) {
@@ -96,6 +152,7 @@ void mpu_device_reset(mpu6000_t *m) {
     // DMP memory is RAM inside the chip: DEVICE_RESET does not clear it in the model either.
     reset_registers(m);
     m->reset_until = m->now_s + MPU_RESET_WAIT_S;
+    m->dmp_running = 0;
     m->signal_path_needed = 1;
     m->events |= MPU_EV_CLOCK | MPU_EV_PIN_CFG | MPU_EV_RESET;
 }
@@ -224,7 +281,7 @@ void mpu_sample(mpu6000_t *m, const mpu_truth_t *t, double dt_s) {
                 fifo_push(m, b[1]);
             }
     }
-    if (uc & MPU_UC_DMP_EN) {
+    if ((uc & MPU_UC_DMP_EN) && (m->dmp_running || !m->dmp_desc)) {
         dmp_integrate(m, t, dt_s);
         if (uc & MPU_UC_FIFO_EN) {
             // DMP stub packet (MotionApps-2 layout): quaternion q30 (16 bytes), gyro (3 x 32-bit,
@@ -276,6 +333,7 @@ static uint8_t reg_read(mpu6000_t *m, uint8_t r) {
         case MPU_FIFO_R_W:
             return fifo_pop(m);
         case MPU_MEM_R_W:
+            BIT_SET(m->dmp_readback, dmp_addr(m));
             v = m->dmp_mem[dmp_addr(m)];
             dmp_addr_inc(m);
             return v;
@@ -305,6 +363,7 @@ static void reg_write(mpu6000_t *m, uint8_t r, uint8_t v) {
             fifo_push(m, v);
             return;
         case MPU_MEM_R_W:
+            BIT_SET(m->dmp_written, dmp_addr(m));
             m->dmp_mem[dmp_addr(m)] = v;
             dmp_addr_inc(m);
             return;
@@ -320,6 +379,12 @@ static void reg_write(mpu6000_t *m, uint8_t r, uint8_t v) {
             m->reg[r] = v;
             return;
         case MPU_USER_CTRL:
+            if ((v & MPU_UC_DMP_EN) && !(m->reg[r] & MPU_UC_DMP_EN) && m->dmp_desc) {
+                int bad_reg = -1;
+                m->dmp_running = dmp_load_ok(m, &bad_reg);
+                if (!m->dmp_running) mpu_violate(m, MPU_RULE_DMP_LOAD, bad_reg);
+            }
+            if (!(v & MPU_UC_DMP_EN)) m->dmp_running = 0;
             if (v & MPU_UC_FIFO_RESET) m->fifo_rd = m->fifo_count = 0;
             if (v & MPU_UC_SIG_COND_RESET)
                 memset(&m->reg[MPU_ACCEL_XOUT_H], 0, MPU_GYRO_ZOUT_L - MPU_ACCEL_XOUT_H + 1);

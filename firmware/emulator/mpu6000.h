@@ -7,6 +7,8 @@
 
 #include <stdint.h>
 
+#include "dmp_descriptions.h"  // firmware/src: the DMP image descriptions
+
 // Register addresses (MPU-6000 register map RM-MPU-6000A-00 rev 4.2).
 enum {
     MPU_SELF_TEST_X = 0x0D,
@@ -80,6 +82,7 @@ enum mpu_rule {
     MPU_RULE_I2C_IF_DIS,         // sensor data read over SPI with the I2C interface enabled
     MPU_RULE_READ_ONLY,          // write to a read-only register
     MPU_RULE_RESERVED,           // write to a reserved (undocumented, unused) register
+    MPU_RULE_DMP_LOAD,           // DMP enabled without the load sequence its image needs
     MPU_RULE_COUNT
 };
 extern const char *const MPU_RULE_NAME[MPU_RULE_COUNT];
@@ -135,6 +138,10 @@ typedef struct mpu6000 {
     // DMP stub
     double q[4];  // attitude quaternion integrated from the gyro truth (w x y z)
     unsigned dmp_packet_size;
+    const dmp_image_desc_t *dmp_desc;  // the image the firmware must load (NULL: unchecked stub)
+    uint8_t dmp_written[MPU_DMP_MEM_SIZE / 8], dmp_readback[MPU_DMP_MEM_SIZE / 8];  // bitmaps
+    int dmp_running;                   // the DMP runs (loaded as its description requires)
+    char dmp_problem[160];             // why the last DMP_EN did not start it ("" = it did)
 
     unsigned events;
 

@@ -187,28 +187,71 @@ def test_ping_and_dtr_reset(emu_bin, fw_elf, tmp_path):
     assert board.summary["avr_resets"] == 1
 
 
-def test_dmp_mode_uploads_image_and_streams_quaternions(emu_bin, emu_toolchain, tmp_path):
-    # a made-up 3062-byte image: the model stores and reads back DMP memory, it does not run it;
-    # its stub pushes quaternion packets integrated from the truth rate
-    rng = np.random.default_rng(1)
-    image = tmp_path / "dmp.bin"
-    image.write_bytes(rng.integers(0, 256, 3062, dtype=np.uint8).tobytes())
-    elf = build_firmware(tmp_path / "fw", [f"DMP_IMAGE={image}"])
+#: the described DMP images (firmware/src/dmp_descriptions.h): kind -> (image bytes, start, packet)
+DMP_KINDS = {"motionapps20": (1929, 0x0300, 42), "emd6": (3062, 0x0400, 28)}
+
+
+def dmp_build(tmp_path, kind: str, size: int):
+    """A made-up image of the described size (the real ones are user-supplied: licence)."""
+    rng = np.random.default_rng(size)
+    image = tmp_path / f"{kind}.bin"
+    image.write_bytes(rng.integers(0, 256, size, dtype=np.uint8).tobytes())
+    return build_firmware(tmp_path / f"fw-{kind}", [f"DMP_IMAGE={image}", f"DMP_KIND={kind}"])
+
+
+@pytest.mark.timeout(120)  # two builds' worth of work on a loaded machine
+@pytest.mark.parametrize("kind", sorted(DMP_KINDS))
+def test_dmp_mode_loads_the_described_image_and_streams_quaternions(
+    emu_bin, emu_toolchain, tmp_path, kind
+):
+    """The loader follows the image's description (start address, FIFO-rate update, ±2000 °/s,
+    200 Hz, packet size) and the emulator, told which image it is, confirms the load sequence
+    before it lets the DMP run; the model stores and reads back DMP memory but does not execute
+    the image: its stub pushes quaternion packets integrated from the truth rate."""
+    size, start, packet = DMP_KINDS[kind]
+    elf = dmp_build(tmp_path, kind, size)
     stim = tmp_path / "stim.bin"
     write_stimulus(stim, [0.0, 3.0], [[0, 0, 9.80665]] * 2, [[0, 0, 90.0]] * 2, 25.0)
-    board = EmulatedBoard(elf, emulator=emu_bin, stimulus=stim, reglog=True, workdir=tmp_path)
+    board = EmulatedBoard(elf, emulator=emu_bin, stimulus=stim, reglog=True, workdir=tmp_path,
+                          extra_args=["--dmp-image", kind])  # fmt: skip
     with board:
         frames = collect(board, max_wall_s=60)
-    assert board.summary["spi_violations"] == 0
-    assert not board.summary["rules_broken"], "\n".join(board.summary["rules_broken"])
-    assert board.summary["regs"]["USER_CTRL"] & 0xC0 == 0xC0  # DMP_EN | FIFO_EN
-    mem_writes = [a for a in board.reglog() if a.reg == 0x6F and a.op == "W"]
-    assert len(mem_writes) == 3062
-    assert not [e for e in of_type(frames, "ERROR")]
+    s = board.summary
+    assert s["spi_violations"] == 0
+    assert not s["rules_broken"], "\n".join(s["rules_broken"])
+    assert s["dmp_image"] == kind and s["dmp_running"] == 1, s["dmp_problem"]
+    assert s["regs"]["USER_CTRL"] & 0xC0 == 0xC0  # DMP_EN | FIFO_EN
+    # the image's settings, not the calibration mode's: ±2000 °/s, 200 Hz
+    assert (s["regs"]["GYRO_CONFIG"] >> 3) & 3 == 3 and s["regs"]["SMPLRT_DIV"] == 4
+    hello = of_type(frames, "HELLO")[0].fields
+    assert (hello["gyro_fs_sel"], hello["smplrt_div"], hello["mode"]) == (3, 4, 1)
+    writes = [a for a in board.reglog() if a.op == "W"]
+    assert len([a for a in writes if a.reg == 0x6F]) == size + 2  # image + FIFO-rate update
+    cfg = [a.value for a in writes if a.reg in (0x70, 0x71)]
+    assert cfg == [start >> 8, start & 0xFF]
+    assert not of_type(frames, "ERROR")
     quats = of_type(frames, "DMP_QUAT")
     assert len(quats) >= 50
     # 90 deg/s about Z: the quaternion turns about Z only
     q = np.array([[f.fields[k] for k in ("q0", "q1", "q2", "q3")] for f in quats]) / 2.0**30
     np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-6)
     assert np.all(q[:, 1:3] == 0)
-    assert len(of_type(frames, "IMU_SAMPLE")) == len(quats)
+
+
+@pytest.mark.timeout(120)  # one build and one short run on a loaded machine
+def test_emulator_refuses_to_run_a_dmp_image_loaded_for_another_kind(
+    emu_bin, emu_toolchain, tmp_path
+):
+    """A MotionApps 2.0 build on a part that must run the eMD image: the load sequence does
+    not fit (size, start address), so the DMP_LOAD rule names it and no quaternion comes."""
+    elf = dmp_build(tmp_path, "motionapps20", DMP_KINDS["motionapps20"][0])
+    board = EmulatedBoard(elf, emulator=emu_bin, seconds=2.0, workdir=tmp_path,
+                          extra_args=["--dmp-image", "emd6"])  # fmt: skip
+    with board:
+        frames = collect(board, max_wall_s=60)
+    s = board.summary
+    assert s["rules"]["DMP_LOAD"] >= 1 and s["dmp_running"] == 0
+    assert "emd6: DMP memory 0x0789 never written (image is 3062 bytes)" == s["dmp_problem"]
+    assert any(line.startswith("DMP_LOAD (firmware/src/dmp_descriptions.h): ") for line in
+               s["rules_broken"])  # fmt: skip
+    assert not of_type(frames, "DMP_QUAT")
