@@ -167,15 +167,27 @@ def run(args: argparse.Namespace) -> int:
     sys.stdout.write(segmentation.format_timing(records))
     _warn_timing(records)
     labels_path = out / f"{serial}_segments.tsv"
-    if thresholds is not None or args.labels is None:
+    editable = not args.record and args.labels is None  # found or from imucal's sections
+    if editable:
         write_text_atomic(labels_path, segmentation.format_labels(segments, src))
     for name, rec in records.items():
         write_record(record_path(out, serial, name), rec)
     print(segmentation.plan_summary(records))
     first = record_path(out, serial, next(iter(records))).name
     print(f"written: {len(records)} records to {out}/ ({first} …)")
-    if thresholds is not None or args.labels is None:
+    if editable:
         print(f"to correct the cut: edit {labels_path} and run again with --labels {labels_path}")
+    others = sorted(
+        p.name
+        for p in out.glob(f"{serial}_*.txt")
+        if p not in set(paths) and not p.name.endswith("_result.txt")
+    )
+    if others:
+        print(
+            f"note: {out}/ also holds {', '.join(others)}, not written by this import: "
+            "calibrate --from-dir uses them too",
+            file=sys.stderr,
+        )
     print(f"next: python -m host calibrate --from-dir {out}")
     return 0
 

@@ -328,7 +328,12 @@ def test_labels_file_corrects_the_cut(tmp_path: Path, capsys) -> None:
     names = {p.name for p in out2.glob("L1_*.txt")}
     assert "L1_x_up_2.txt" in names and "L1_z_cw.txt" not in names
     assert read_record(out2 / "L1_x_up_2.txt").meta["up"] == "+x"
+    assert not (out2 / "L1_segments.tsv").exists()  # the user's labels file stays the source
     capsys.readouterr()
+    # the same cut over the first directory: the old z_cw there is named, not used silently
+    argv = ["import", str(cap), "--serial", "L1", "--out", str(out), "--labels", str(labels)]
+    assert main([*argv, "--force"]) == 0
+    assert "also holds L1_z_cw.txt" in capsys.readouterr().err
 
 
 def test_existing_records_are_not_overwritten(tmp_path: Path, capsys) -> None:
