@@ -263,7 +263,7 @@ def _dialogue_records(block: object, windows: list[tuple[str, float, float]]) ->
 
 
 #: agreement of the segmented and the dialogue's records (same samples, other cut points)
-AGREE = {"A": 3e-4, "A0": 3e-3, "G": 2e-3, "G0": 0.02, "GA": 0.01}
+AGREE = {"A": 1e-4, "A0": 1e-3, "G": 5e-4, "G0": 5e-3, "GA": 5e-3}
 
 
 def _group(name: str) -> str:
