@@ -53,7 +53,10 @@ def turn_window_s(turns: int) -> float:
 TIME_KEYS = ("power_on_s", "session_s")
 
 #: names of the report/result files that live beside the records and are not records
-NON_RECORD_NAMES = ("result",)
+#: the live dialogue's warm-up record (one attitude, temperature rising): read by ``thermal``,
+#: not part of the calibration plan
+WARMUP_NAME = "warmup"
+NON_RECORD_NAMES = ("result", WARMUP_NAME)
 
 _AXES = "xyz"
 _NAME_RE = re.compile(r"^(?P<axis>[xyz])_(?P<dir>up|dn|ccw|cw)(?:_(?P<rep>[0-9A-Za-z]+))?$")

@@ -12,7 +12,13 @@ from pathlib import Path
 import numpy as np
 
 from host.calib import thermal
-from host.calib.records import read_session, write_text_atomic
+from host.calib.records import (
+    WARMUP_NAME,
+    read_record,
+    read_session,
+    record_path,
+    write_text_atomic,
+)
 from host.errors import UserError
 
 
@@ -46,6 +52,9 @@ def run(args: argparse.Namespace) -> int:
     if not args.window > 0:
         raise UserError("--window must be a positive number of seconds")
     records = [r for r in session.records.values() if r.kind != "turn"]
+    warm = record_path(args.dir, session.serial, WARMUP_NAME)
+    if warm.is_file():
+        records.insert(0, read_record(warm))
     cal, pts = thermal.fit_thermal(
         records, session.serial, order=args.order, max_order=args.max_order, window_s=args.window
     )

@@ -76,6 +76,7 @@ from host.calib.calibration import (
 from host.calib.records import (
     STATIC_NAMES,
     TURN_NAMES,
+    WARMUP_NAME,
     Record,
     RecordError,
     Session,
@@ -977,16 +978,43 @@ class LiveSession:
                 self.turns = n_kept
 
     def _warm_up(self) -> None:
+        """The warm-up (method.md §5 step 3), recorded as ``SERIAL_warmup.txt``: one attitude,
+        the chip temperature rising — the thermal calibration's first ramp
+        (``python -m host thermal``). Esc skips the rest of the wait (nothing recorded)."""
         s = self.opts.warmup_s
         if s <= 0:
             return
+        op = self.op
         span = f"{s / 60:.0f} minutes" if s >= 120 else f"{s:.0f} seconds"
-        self.op.say(
-            f"Keep the unit powered about {span} (warm-up)."
-            + ("" if self.opts.yes else " Press any key to skip the wait.")
+        op.say(
+            f"Keep the unit powered about {span} (warm-up; recorded for the thermal "
+            "calibration)." + ("" if self.opts.yes else " Esc skips the wait.")
         )
-        k = self.op.countdown(s, "  warm-up:", any_key=True)
-        self.op.say("Warm-up skipped." if k is not None else "Warm-up done.")
+
+        def tick(elapsed: float, _sums: np.ndarray, _k: int) -> None:
+            m, sec = divmod(int(max(s - elapsed, 0.0) + 0.999), 60)
+            op.progress(f"  warm-up: {m}:{sec:02d}")
+
+        try:
+            acq = self.board.acquire(s, tick=tick, check_escape=op.escape_pressed)
+        except MeasurementAborted:
+            op.end_progress()
+            op.say("Warm-up skipped (not recorded).")
+            return
+        except (LinkLost, LinkTimeout, BoardReset, SensorFault) as exc:
+            op.end_progress()
+            self._warn(f"the warm-up is not recorded: {exc}")
+            if isinstance(exc, (LinkLost, LinkTimeout)):
+                self._recover(exc, measuring=False)
+            return
+        op.end_progress()
+        if len(acq.t_us) >= 2:
+            rec = self._record(WARMUP_NAME, acq, {"kind": "warmup"})
+            path = record_path(self.out_dir, self.serial, WARMUP_NAME)
+            write_record(path, rec)  # not a calibration record: not in self.done
+            op.say(f"Warm-up done; recorded {path}")
+        else:
+            op.say("Warm-up done.")
 
     # ---- stage 1 -------------------------------------------------------------------------
     def _stage1(self, names: list[str]) -> None:

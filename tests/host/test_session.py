@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from host.board.link import open_port
-from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record
+from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record, read_session
 from host.dialogue import live
 from host.dialogue.console import CTRL_C, ESC, ScriptedConsole
 from host.errors import UserError
@@ -533,3 +533,19 @@ def test_board_live_clock_maps_the_record_start_to_host_time() -> None:
     # firmware's fixed processing delay (≈0.2 ms), far from the ≈2–6 ms of arrival stamping
     assert 0 < int(meta["clock_host_ns_at_start"]) - start[1] < 600_000
     assert int(meta["clock_points"]) > 1000
+
+
+def test_the_warm_up_is_recorded_as_a_record_of_its_own(tmp_path: Path) -> None:
+    ports = Ports()
+    rc, stdout = run(
+        opts(tmp_path, f"sim://?seed=5&{LINEAR}", warmup_s=3.0, static_seconds=3.0),
+        ScriptedConsole(),
+        ports,
+    )
+    assert rc in (0, 1), stdout
+    warm = read_record(tmp_path / "S1" / "S1_warmup.txt")
+    assert warm.meta["kind"] == "warmup" and warm.meta["serial"] == "S1"
+    assert 2.5 < warm.duration_s < 3.5 and len(warm) > 100
+    assert np.all(np.isfinite(warm.temp)) and "power_on_s" in warm.meta
+    # not a calibration record: the session read back holds only the plan's twelve
+    assert "warmup" not in read_session(tmp_path / "S1").records
