@@ -11,7 +11,7 @@ import argparse
 import dataclasses
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +31,7 @@ from host.modelling.model import (
     AXES,
     CATALOGUE,
     SENSORS,
+    UNIT,
     Dataset,
     Fit,
     NoiseModel,
@@ -66,30 +67,62 @@ def _pyplot() -> Any:
     return plt
 
 
+def measurement_order(ds: Dataset) -> list[str]:
+    """Record names in the order they were measured: by time since power-on when the records
+    carry it, else the method's plan order (six statics, then the turns), then the rest."""
+    from host.calib.records import STATIC_NAMES, TURN_NAMES
+
+    plan = {n: i for i, n in enumerate((*STATIC_NAMES, *TURN_NAMES))}
+    sigs = list(ds.signals)
+    if ds.time_known:
+        sigs.sort(key=lambda s: float(s.t_s[0]))
+    else:
+        sigs.sort(key=lambda s: (plan.get(s.name, len(plan)), s.name))
+    return [s.name for s in sigs]
+
+
+def z_limit(fits: Sequence[Fit]) -> float:
+    """One symmetric z scale for every panel of every fit (before and after look alike)."""
+    zs = [abs(g.z) for f in fits for g in f.groups if math.isfinite(g.z)]
+    return max(4.0, 1.1 * max(zs, default=0.0))
+
+
 def write_plots(
     out_dir: str | Path, ds: Dataset, before: Fit, after: Fit | None, suspect: str | None
 ) -> list[Path]:
-    """PNG files: measured − ideal vs model − ideal per record/channel, before and after;
-    record residuals (z) against the suspect term's signal, before and after."""
+    """PNG files: record residual / its σ (z) per channel, records in measurement order, the
+    same scale before and after; record residuals (z) against the suspect term's signal."""
+    import textwrap
+
     plt = _pyplot()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths: list[Path] = []
     fits = [("before", before)] + ([("after", after)] if after is not None else [])
+    order = {n: i for i, n in enumerate(measurement_order(ds))}
+    lim = z_limit([f for _, f in fits])
     for tag, fit in fits:
-        fig, axs = plt.subplots(2, 3, figsize=(13, 7), squeeze=False)
+        fig, axs = plt.subplots(2, 3, figsize=(14, 8), squeeze=False)
         for si, sensor in enumerate(("accel", "gyro")):
             for a in range(3):
                 ax = axs[si][a]
-                gs = [g for g in fit.groups if g.sensor == sensor and g.axis == AXES[a]]
-                zs = [g.z for g in gs]
+                gs = sorted(
+                    (g for g in fit.groups if g.sensor == sensor and g.axis == AXES[a]),
+                    key=lambda g: order.get(g.record, len(order)),
+                )
+                zs = [g.z if math.isfinite(g.z) else 0.0 for g in gs]
                 ax.bar(range(len(gs)), zs, color=["C3" if abs(z) > 3 else "C0" for z in zs])
                 ax.axhline(3, color="k", lw=0.5, ls="--")
                 ax.axhline(-3, color="k", lw=0.5, ls="--")
+                ax.set_ylim(-lim, lim)
                 ax.set_xticks(range(len(gs)))
-                ax.set_xticklabels([g.record for g in gs], rotation=60, fontsize=7)
-                ax.set_title(f"{sensor} {AXES[a]}: residual / σ")
-        fig.suptitle(f"{tag}: {model_spec(fit.model)[:90]}  RMS z = {fit.rms_z:.2f}", fontsize=9)
+                ax.set_xticklabels([g.record for g in gs], rotation=90, fontsize=7)
+                ax.set_xlabel("record, in measurement order", fontsize=8)
+                unit = "m/s²" if sensor == "accel" else "°/s (turns: °)"
+                ax.set_ylabel(f"z = residual / σ  (1; residual in {unit})", fontsize=8)
+                ax.set_title(f"{sensor} {AXES[a]}", fontsize=9)
+        title = f"{tag}: {model_spec(fit.model)}  —  RMS z = {fit.rms_z:.2f}"
+        fig.suptitle("\n".join(textwrap.wrap(title, 150)), fontsize=8)
         fig.tight_layout()
         p = out / f"compare_{tag}.png"
         fig.savefig(p, dpi=90)
@@ -99,9 +132,11 @@ def write_plots(
         mt = parse_model(suspect)[0]
         cols, _ = term_columns(ds, mt)
         x = cols[:, 0]
-        fig, axs = plt.subplots(1, len(fits), figsize=(6 * len(fits), 4), squeeze=False)
+        unit = mt.term.param_units(mt.sensor)[0]
+        fig, axs = plt.subplots(1, len(fits), figsize=(6 * len(fits), 4.5), squeeze=False)
         for k, (tag, fit) in enumerate(fits):
             ax = axs[0][k]
+            placed: list[tuple[float, float]] = []
             for gr in ds.groups:
                 if gr.sensor != mt.sensor or gr.axis != mt.axes[0]:
                     continue
@@ -110,14 +145,22 @@ def write_plots(
                     xv /= max(float(ds.aggregators[gr.record].sum()), 1e-9)
                 g = next(g for g in fit.groups if g.record == ds.signals[gr.record].name
                          and g.sensor == mt.sensor and g.axis == AXES[mt.axes[0]])  # fmt: skip
-                ax.plot(xv, g.z, "o", color="C3" if abs(g.z) > 3 else "C0")
-                ax.annotate(
-                    g.record, (xv, g.z), xytext=(4, 2), textcoords="offset points", fontsize=6
-                )
+                z = g.z if math.isfinite(g.z) else 0.0
+                ax.plot(xv, z, "o", color="C3" if abs(z) > 3 else "C0")
+                # labels of points that fall together are stacked instead of overprinted
+                near = sum(1 for px, pz in placed if abs(px - xv) < 1e-9 and abs(pz - z) < 0.5)
+                placed.append((xv, z))
+                ax.annotate(g.record, (xv, z), xytext=(5, 2 + 8 * near),
+                            textcoords="offset points", fontsize=6)  # fmt: skip
             ax.axhline(0, color="k", lw=0.5)
-            ax.set_xlabel(f"{mt.term.name} signal ({mt.sensor} {AXES[mt.axes[0]]})")
-            ax.set_ylabel("record residual / σ")
-            ax.set_title(f"{tag}: RMS z = {fit.rms_z:.2f}")
+            ax.set_ylim(-lim, lim)
+            ax.set_xlabel(
+                f"{mt.term.name} column ({UNIT[mt.sensor]} per {unit}), {mt.sensor} "
+                f"{AXES[mt.axes[0]]}",
+                fontsize=8,
+            )
+            ax.set_ylabel("z = record residual / σ (1)", fontsize=8)
+            ax.set_title(f"{tag}: RMS z = {fit.rms_z:.2f}", fontsize=9)
         fig.tight_layout()
         p = out / "suspect.png"
         fig.savefig(p, dpi=90)
@@ -205,8 +248,8 @@ def run_diagnose(args: argparse.Namespace) -> int:
     if args.plot:
         after = None
         suspect = None
-        if d.significant:
-            suspect = d.significant[0].label
+        if d.recommended_spec:
+            suspect = d.recommended_spec
             after = add_term(ds, model, suspect, cat).after
         plots = write_plots(args.plot, ds, d.fit, after, suspect)
     if args.json:

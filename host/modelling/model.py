@@ -790,9 +790,10 @@ def _session_floor(
     nm: NoiseModel,
 ) -> tuple[dict[str, float], str]:
     """The floor per sensor (``nm.floor`` where given, else :func:`repeat_floor` over the still
-    moments of the turn records against the static record of the same face: every gyro
-    channel and the accelerometer on the up axis, whose readings do not depend on the heading)
-    and a note saying where it came from."""
+    moments of the turn records against the static record of the same face — every gyro
+    channel and the accelerometer on the up axis, whose readings do not depend on the
+    heading — and over static records of the same attitude, e.g. a repeated ``x_up_2``, every
+    channel) and a note saying where it came from."""
     diffs: dict[str, tuple[list[float], list[float]]] = {s: ([], []) for s in SENSORS}
 
     for sig in signals:
@@ -816,6 +817,19 @@ def _session_floor(
                     diffs[s][0].append(d)
                     diffs[s][1].append(var * min(tau, m) / m + var * tau / len(ref.t_s))
 
+    # static records of the same attitude (the closing check): every channel
+    for j, sj in enumerate(signals):
+        for i in range(j):
+            si = signals[i]
+            if not (sj.kind == si.kind == "static" and np.allclose(sj.up, si.up)):
+                continue
+            for s in SENSORS:
+                for ax in range(3):
+                    vi, ti = rec_noise[(i, s, ax)]
+                    vj, tj = rec_noise[(j, s, ax)]
+                    d = float(np.mean(sj.measured(s)[:, ax]) - np.mean(si.measured(s)[:, ax]))
+                    diffs[s][0].append(d)
+                    diffs[s][1].append(vi * ti / len(si.t_s) + vj * tj / len(sj.t_s))
     out: dict[str, float] = {}
     said: list[str] = []
     for s in SENSORS:
@@ -826,8 +840,8 @@ def _session_floor(
         f = repeat_floor(np.array(diffs[s][0]), np.array(diffs[s][1]))
         out[s] = f if f is not None else 0.0
         said.append(
-            f"{s} {out[s]:.2g} {UNIT[s]} from {len(diffs[s][0])} still moments of turns against "
-            "the static record of the same face"
+            f"{s} {out[s]:.2g} {UNIT[s]} from {len(diffs[s][0])} repeated attitudes (still "
+            "moments of turns and static records against a static record of the same face)"
             if f is not None
             else f"{s} 0 (no attitude measured twice: only each record's own noise)"
         )

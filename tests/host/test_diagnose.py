@@ -244,3 +244,24 @@ def test_repeat_floor_measures_the_wander_of_repeated_attitudes() -> None:
     white = rng.normal(0, math.sqrt(w), k)
     assert (repeat_floor(white, np.full(k, w)) or 0.0) < 0.2 * f
     assert repeat_floor(np.array([]), np.array([])) is None
+
+
+def test_a_repeated_static_attitude_counts_for_the_floor() -> None:
+    """x_up measured twice: its three accelerometer and three gyro means are three more
+    repeated-attitude differences per sensor for the measured floor."""
+    import re
+
+    from host.bench.sim import Plan, simulate_session
+    from host.bench.truth import SensorTruth
+    from host.calib.records import STATIC_NAMES
+
+    truth = SensorTruth.random(np.random.default_rng(4)).only("linear", "noise")
+
+    def counts(statics: tuple[str, ...]) -> list[int]:
+        recs = simulate_session(truth, Plan(static_s=10.0, statics=statics), 4)
+        note = next(n for n in build_dataset(session_from_records(recs)).notes if "floor" in n)
+        return [int(n) for n in re.findall(r"from (\d+) repeated", note)]
+
+    once, twice = counts(STATIC_NAMES), counts((*STATIC_NAMES, "x_up_2"))
+    assert len(once) == len(twice) == 2
+    assert [b - a for a, b in zip(once, twice, strict=True)] == [3, 3]

@@ -109,3 +109,28 @@ def test_demo_hidden_effect(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert "scale_asymmetry:accel" in capsys.readouterr().out
     assert main(["demo", "hidden-effect", "--effect", "none", "--seed", "3"]) == 0
     assert "verdict adequate" in capsys.readouterr().out
+
+
+def test_plots_follow_measurement_order_with_one_scale(
+    temp_dir: tuple[Path, str], tmp_path: Path
+) -> None:
+    """Files come back alphabetically; the plots put the records in the order they were
+    measured (time since power-on), and before/after share one z scale."""
+    from host.calib.records import STATIC_NAMES
+    from host.cli.model import measurement_order, write_plots, z_limit
+    from host.modelling.diagnose import add_term
+    from host.modelling.model import load_dataset, parse_model
+
+    d, term = temp_dir
+    ds = load_dataset(d)
+    assert [s.name for s in ds.signals] != measurement_order(ds)  # alphabetical on disk
+    order = measurement_order(ds)
+    assert order[:6] == list(STATIC_NAMES)
+    assert order[6:] == ["x_ccw", "x_cw", "y_ccw", "y_cw", "z_ccw", "z_cw"]
+    a = add_term(ds, parse_model("base"), term)
+    lim = z_limit([a.before, a.after])
+    assert lim >= max(abs(g.z) for g in a.before.groups) and lim >= 4.0
+    pytest.importorskip("matplotlib")
+    paths = write_plots(tmp_path / "p", ds, a.before, a.after, term)
+    assert [p.name for p in paths] == ["compare_before.png", "compare_after.png", "suspect.png"]
+    assert all(p.stat().st_size > 10_000 for p in paths)
