@@ -45,6 +45,7 @@ from host.bench.physics import (
 from host.bench.truth import SensorTruth, gauss_markov, sensor_output
 from host.calib.records import STATIC_NAMES, Record, record_path, turn_window_s, write_record
 from host.wire import sensor
+from host.wire.protocol_gen import ENUMS
 
 __all__ = [
     "Bench",
@@ -66,7 +67,7 @@ __all__ = [
 ]
 
 #: flag bit of IMU_SAMPLE (spec enum sample_flags)
-CONFIG_CHANGED = 4
+CONFIG_CHANGED = ENUMS["sample_flags"]["CONFIG_CHANGED"]
 SeedLike = int | np.random.SeedSequence
 
 

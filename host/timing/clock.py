@@ -29,7 +29,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from host.wire.protocol_gen import ENUMS
+
 UART_BITS_PER_BYTE = 10  # 8N1
+#: the sample flag of a sample the firmware skipped (from the spec)
+MISSED = ENUMS["sample_flags"]["MISSED"]
 
 
 def serialisation_ns(n_bytes: int | np.ndarray, baud: int) -> np.ndarray:
@@ -342,6 +346,6 @@ def build_timeline(
             lo, hi = int(s["offset"][0]), int(s["offset"][-1])
             between = int(np.searchsorted(others, hi) - np.searchsorted(others, lo))
             lost = int(q[-1] - q[0]) - (q.size - 1) - between
-        missed = max(missed_samples(d, s["seq"], per), int(np.count_nonzero(s["flags"] & 1)))
+        missed = max(missed_samples(d, s["seq"], per), int(np.count_nonzero(s["flags"] & MISSED)))
         segs.append(Segment(int(start), int(stop), clock, lost, missed))
     return Timeline(dev, host, tuple(segs))

@@ -32,6 +32,7 @@ from typing import Protocol
 import numpy as np
 
 from host.errors import UserError
+from host.timing.segments import SegmentTracker, segments
 from host.wire import protocol_gen as gen
 from host.wire import sensor
 
@@ -118,6 +119,13 @@ BY_NAME: Mapping[str, MessageDef] = MappingProxyType({m.name: m for m in MESSAGE
 _EXPECTED_LEN = np.full(256, -1, dtype=np.int16)
 for _m in MESSAGES.values():
     _EXPECTED_LEN[_m.type] = _m.length
+
+_T_US = next(f for f in MESSAGES[IMU_SAMPLE].fields if f.name == "t_us")
+
+
+def sample_t_us(payload: bytes) -> int:
+    """The device time (µs, 32-bit, wraps) of an IMU_SAMPLE payload, by the spec's field."""
+    return _unpack_field(_T_US.code, payload, _T_US.offset)
 
 
 #: ERROR codes that mean the sensor stopped delivering (BAD_COMMAND answers a bad command)
@@ -224,42 +232,6 @@ class DecoderStats:
         return dict(self.__dict__)
 
 
-class _SeqTracker:
-    """Sequence gaps and device resets over the frames the device emits, in order.
-
-    A reset is a sequence number or an IMU sample time going backwards (modulo its wrap);
-    the gap across a reset is not counted as lost frames.
-    """
-
-    def __init__(self, stats: DecoderStats) -> None:
-        self.stats = stats
-        self.last_seq: int | None = None
-        self.last_t: int | None = None
-
-    def update(self, mtype: int, seq: int, payload: bytes) -> bool:
-        """Account for one frame; return True if it starts a new device segment."""
-        reset = False
-        gap = 0
-        if self.last_seq is not None:
-            d = (seq - self.last_seq) & 0xFFFF
-            if d >= 0x8000 or d == 0:
-                reset = True
-                self.last_t = None
-            else:
-                gap = d - 1
-        if mtype == IMU_SAMPLE:
-            t = int.from_bytes(payload[0:4], "little")
-            if self.last_t is not None and ((t - self.last_t) & 0xFFFFFFFF) >= 0x80000000:
-                reset = True
-            self.last_t = t
-        if reset:
-            self.stats.resets += 1
-        else:
-            self.stats.lost_frames += gap
-        self.last_seq = seq
-        return reset
-
-
 # --------------------------------------------------------------------------- streaming
 
 
@@ -272,7 +244,7 @@ class StreamDecoder:
     def __init__(self) -> None:
         self._buf = bytearray()
         self.stats = DecoderStats()
-        self._seq = _SeqTracker(self.stats)
+        self._segments = SegmentTracker()
 
     @property
     def pending(self) -> int:
@@ -338,7 +310,11 @@ class StreamDecoder:
             stats.frames += 1
             if expected < 0:
                 stats.unknown_types += 1
-            self._seq.update(mtype, seq, payload)
+            reset, lost = self._segments.update(
+                seq, sample_t_us(payload) if mtype == IMU_SAMPLE else None
+            )
+            stats.resets += reset
+            stats.lost_frames += lost
             out.append((raw, Frame(mtype, seq, payload)))
             pos = search = end
         del buf[:pos]
@@ -545,9 +521,9 @@ def decode_bulk(data: bytes | bytearray | memoryview) -> BulkResult:
     taken_mask[taken] = True
     imu_taken = taken_mask[imu_cand]
     wire = (imu_rows if imu_taken.all() else imu_rows[imu_taken]).view(_WIRE_IMU_PADDED)[:, 0]
-    reset, gaps = _segments(seq, imu_idx, wire["t_us"].astype(np.int64))
+    reset, gaps = segments(seq, imu_idx, wire["t_us"].astype(np.int64))
     stats.resets = int(np.count_nonzero(reset))
-    stats.lost_frames = int(np.sum(gaps[~reset]))
+    stats.lost_frames = int(np.sum(gaps))
     segment = np.cumsum(reset)
     samples = np.zeros(imu_idx.size, dtype=SAMPLE_DTYPE)
     for name in ("seq", "t_us", *IMU_FIELDS, "flags"):
@@ -559,30 +535,6 @@ def decode_bulk(data: bytes | bytearray | memoryview) -> BulkResult:
         for i in np.flatnonzero(vtype != IMU_SAMPLE)
     ]
     return BulkResult(samples, others, stats)
-
-
-def _segments(
-    seq: np.ndarray, imu_idx: np.ndarray, t_us: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Per frame: does it start a new device segment (reset), and how many frames were lost."""
-    m = seq.size
-    reset = np.zeros(m, dtype=bool)
-    gaps = np.zeros(m, dtype=np.int64)
-    if m == 0:
-        return reset, gaps
-    d = (seq[1:] - seq[:-1]) & 0xFFFF
-    seq_back = np.zeros(m, dtype=bool)
-    seq_back[1:] = (d >= 0x8000) | (d == 0)
-    gaps[1:] = np.where(seq_back[1:], 0, d - 1)
-    reset |= seq_back
-    if imu_idx.size > 1:
-        # an IMU sample's time going back, compared with the previous IMU sample of the same
-        # sequence segment (a seq reset forgets the previous time, as the streaming path does)
-        segs = np.cumsum(seq_back)
-        same = segs[imu_idx[1:]] == segs[imu_idx[:-1]]
-        t_back = ((t_us[1:] - t_us[:-1]) & 0xFFFFFFFF) >= 0x80000000
-        reset[imu_idx[1:][same & t_back]] = True
-    return reset, gaps
 
 
 # --------------------------------------------------------------------------- physical units

@@ -1,0 +1,113 @@
+"""The device counters' rules, in one place: wrap, reset and loss of ``seq`` and ``t_us``.
+
+Every frame carries ``seq``, a 16-bit counter the firmware increments once per frame it sends;
+every IMU sample carries ``t_us``, the 32-bit device microsecond clock. Both wrap (2¹⁶ frames,
+2³² µs ≈ 71.6 min). Read in arrival order:
+
+- a **reset** (the board restarted, a new *segment* begins) is ``seq`` not moving forward — a
+  step of 0 or of half the counter range or more, modulo 2¹⁶ — or an IMU sample's ``t_us``
+  going back (a step of 2³¹ µs or more modulo 2³²) against the previous IMU sample of the same
+  segment;
+- otherwise a ``seq`` step of ``d`` means ``d - 1`` **frames lost** in between; across a reset
+  nothing is counted lost.
+
+:class:`SegmentTracker` applies the rules frame by frame (the streaming decoder, a live board),
+:func:`segments` to whole arrays (the bulk decoder); a property test keeps the two equal.
+Unwrapping a counter into a monotonic one (with host time for gaps longer than a wrap) is
+:func:`host.timing.clock.unwrap`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+SEQ_BITS = 16
+T_US_BITS = 32
+SEQ_MOD = 1 << SEQ_BITS
+T_US_MOD = 1 << T_US_BITS
+
+
+def seq_step(prev: int | np.ndarray, seq: int | np.ndarray) -> int | np.ndarray:
+    """Frames from ``prev`` to ``seq`` modulo the 16-bit wrap (1 = the next frame)."""
+    return (seq - prev) & (SEQ_MOD - 1)
+
+
+def seq_went_back(step: int | np.ndarray) -> bool | np.ndarray:
+    """A ``seq`` step that is no step forward: the device restarted (or repeated a frame)."""
+    return (step == 0) | (step >= SEQ_MOD // 2)
+
+
+def t_us_step(prev: int | np.ndarray, t_us: int | np.ndarray) -> int | np.ndarray:
+    """Device µs from ``prev`` to ``t_us`` modulo the 32-bit wrap."""
+    return (t_us - prev) & (T_US_MOD - 1)
+
+
+def t_us_went_back(step: int | np.ndarray) -> bool | np.ndarray:
+    """A ``t_us`` step of half the clock's range or more: the device clock went back (restart)."""
+    return step >= T_US_MOD // 2
+
+
+class SegmentTracker:
+    """The rules frame by frame: feed every frame's ``seq`` in order, with ``t_us`` for IMU
+    samples; each :meth:`update` says whether the frame starts a new segment and how many frames
+    were lost just before it."""
+
+    def __init__(self) -> None:
+        self.last_seq: int | None = None
+        self.last_t_us: int | None = None  # of the last IMU sample in the current segment
+        self.resets = 0
+        self.lost_frames = 0
+
+    def update(self, seq: int, t_us: int | None = None) -> tuple[bool, int]:
+        """One frame (``t_us`` given for an IMU sample) -> (starts a new segment, frames lost)."""
+        reset = False
+        gap = 0
+        if self.last_seq is not None:
+            d = int(seq_step(self.last_seq, seq))
+            if seq_went_back(d):
+                reset = True
+                self.last_t_us = None
+            else:
+                gap = d - 1
+        if t_us is not None:
+            if self.last_t_us is not None and t_us_went_back(t_us_step(self.last_t_us, t_us)):
+                reset = True
+            self.last_t_us = t_us
+        self.last_seq = seq
+        if reset:
+            self.resets += 1
+            return True, 0
+        self.lost_frames += gap
+        return False, gap
+
+
+def segments(
+    seq: np.ndarray, imu_idx: np.ndarray, t_us: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The rules over whole arrays (twin of :class:`SegmentTracker`).
+
+    ``seq``: every frame's seq in order; ``imu_idx``: the indices of the IMU samples among them;
+    ``t_us``: those samples' device times. Returns per frame: starts a new segment (bool), and
+    the frames lost just before it (0 where it starts a segment).
+    """
+    seq = np.asarray(seq, dtype=np.int64)
+    t_us = np.asarray(t_us, dtype=np.int64)
+    m = seq.size
+    reset = np.zeros(m, dtype=bool)
+    gaps = np.zeros(m, dtype=np.int64)
+    if m == 0:
+        return reset, gaps
+    d = seq_step(seq[:-1], seq[1:])
+    seq_back = np.zeros(m, dtype=bool)
+    seq_back[1:] = seq_went_back(d)
+    gaps[1:] = np.where(seq_back[1:], 0, d - 1)
+    reset |= seq_back
+    if imu_idx.size > 1:
+        # an IMU sample's time going back, compared with the previous IMU sample of the same
+        # sequence segment (a seq reset forgets the previous time, as the tracker does)
+        segs = np.cumsum(seq_back)
+        same = segs[imu_idx[1:]] == segs[imu_idx[:-1]]
+        t_back = t_us_went_back(t_us_step(t_us[:-1], t_us[1:]))
+        reset[imu_idx[1:][same & t_back]] = True
+    gaps[reset] = 0
+    return reset, gaps
