@@ -23,9 +23,10 @@ apply the exported numbers with the target's formula and compare with ``apply()`
 - ``c-header``: ``static const float`` matrices and biases for firmware that corrects samples
   itself, with the formula in a comment: the whole linear model.
 
-Temperature and noise terms are not in the result yet (format v1): the thermal parameters
-(ArduPilot ``INS_TCAL*``, PX4 ``TC_A0_*``/``TC_G0_*``) and Kalibr's noise YAML are written
-once the result carries them.
+The thermal calibration (:mod:`host.calib.thermal`, bias(T) − bias(T_ref) per channel) goes to
+PX4's thermal compensation ``TC_A0_*``/``TC_G0_*`` (cubic, X0 = 0, clamped to the calibrated
+range). Not yet: ArduPilot's ``INS_TCAL*`` and Kalibr's noise YAML (no noise densities in the
+result).
 """
 
 from __future__ import annotations
@@ -33,11 +34,12 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from host.calib.calibration import CalibrationResult
+from host.calib.thermal import ThermalCalibration
 from host.errors import UserError
 
 DEG = math.pi / 180.0
@@ -59,6 +61,7 @@ class LinearModel:
     g: float
     gyro_scale_measured: bool
     frame: str = "x,y,z"
+    axes: np.ndarray = field(default_factory=lambda: np.eye(3))
 
 
 def linear_model(result: CalibrationResult) -> LinearModel:
@@ -91,6 +94,7 @@ def in_frame(model: LinearModel, axes: np.ndarray, text: str) -> LinearModel:
         g=model.g,
         gyro_scale_measured=model.gyro_scale_measured,
         frame=text,
+        axes=p,
     )
 
 
@@ -176,7 +180,36 @@ def px4_params(model: LinearModel) -> dict[str, float]:
     return out
 
 
-def export_px4(model: LinearModel) -> str:
+def px4_thermal_params(thermal: ThermalCalibration, axes: np.ndarray) -> dict[str, float]:
+    """PX4 thermal compensation from our bias(T) − bias(T_ref) = Σ c_j (T − T_ref)^j:
+    TC_A0_Xk_i / TC_G0_Xk_i = c_k of axis i (m/s², rad/s per °C^k; X0 = 0: the bias at T_ref
+    is in CAL_*OFF), TREF = T_ref, TMIN/TMAX the calibrated range (PX4 clamps to it)."""
+    out: dict[str, float] = {"TC_A_ENABLE": 1.0, "TC_G_ENABLE": 1.0}
+    for sensor, names, unit in (("A", ("ax", "ay", "az"), 1.0), ("G", ("gx", "gy", "gz"), DEG)):
+        coef = np.zeros((4, 3))  # [power, our axis]
+        for i, name in enumerate(names):
+            c = thermal.channels[name].coef[:3]
+            coef[1 : 1 + len(c), i] = np.asarray(c) * unit
+        coef = coef @ np.asarray(axes).T  # to the target's axes
+        for k in range(4):
+            for i in range(3):
+                out[f"TC_{sensor}0_X{k}_{i}"] = float(coef[k, i])
+        out[f"TC_{sensor}0_TREF"] = thermal.t_ref_c
+        out[f"TC_{sensor}0_TMIN"] = thermal.t_min_c
+        out[f"TC_{sensor}0_TMAX"] = thermal.t_max_c
+    return out
+
+
+def _thermal_lost(thermal: ThermalCalibration, max_order: int) -> list[str]:
+    return [
+        f"{name} bias(T) terms above order {max_order} (order {ch.order}: "
+        f"c{ch.order} = {ch.coef[-1]:.3g} {ch.unit}/degC^{ch.order})"
+        for name, ch in thermal.channels.items()
+        if ch.order > max_order
+    ]
+
+
+def export_px4(model: LinearModel, thermal: ThermalCalibration | None = None) -> str:
     """A QGroundControl parameter file (``vehicle component NAME VALUE type``, tab separated;
     type 9 = float)."""
     conv = [
@@ -184,12 +217,22 @@ def export_px4(model: LinearModel) -> str:
         "offset - CAL_*OFF) .* CAL_*SCALE); accel m/s², gyro rad/s. Set CAL_ACC0_ID and",
         "CAL_GYRO0_ID to your sensors' device ids (PX4 ignores a calibration for another id).",
         "CAL_GYRO0_xSCALE is read only by PX4 versions whose gyro calibration has a scale.",
-        "Thermal compensation (TC_A0_*, TC_G0_*) is not written: the result has no temperature",
-        "terms.",
     ]
+    if thermal is None:
+        conv.append("Thermal compensation (TC_A0_*, TC_G0_*): give --thermal SERIAL_thermal.json.")
+    else:
+        conv += [
+            "Thermal compensation: thermal offset = X0 + X1 dT + X2 dT^2 + X3 dT^3, dT = T - TREF",
+            "with T clamped to [TMIN, TMAX] (the calibrated range); set TC_A0_ID/TC_G0_ID too.",
+        ]
     lines = _preamble("PX4 parameters", model, conv, gyro_scale=True)
+    if thermal is not None:
+        lines += [f"#   - {x}" for x in _thermal_lost(thermal, 3)]
+    params = px4_params(model)
+    if thermal is not None:
+        params.update(px4_thermal_params(thermal, model.axes))
     lines.append("# Vehicle-Id\tComponent-Id\tName\tValue\tType")
-    lines += [f"1\t1\t{k}\t{v:.9g}\t9" for k, v in px4_params(model).items()]
+    lines += [f"1\t1\t{k}\t{v:.9g}\t{6 if k.endswith('ENABLE') else 9}" for k, v in params.items()]
     return "\n".join(lines) + "\n"
 
 
@@ -287,10 +330,16 @@ PENDING = {
 }
 
 
-def export(result: CalibrationResult, fmt: str, axes: np.ndarray | None = None,
-           axes_text: str = "x,y,z") -> str:  # fmt: skip
+def export(
+    result: CalibrationResult,
+    fmt: str,
+    axes: np.ndarray | None = None,
+    axes_text: str = "x,y,z",
+    thermal: ThermalCalibration | None = None,
+) -> str:
     """The text of ``result`` in format ``fmt`` (see :data:`FORMATS`), optionally in the
-    target's axes (signed permutation ``axes``: target = P · ours)."""
+    target's axes (signed permutation ``axes``: target = P · ours) and with the thermal
+    calibration ``thermal`` (bias(T); PX4 only)."""
     key = fmt.strip().lower()
     if key == "c":
         key = "c-header"
@@ -301,4 +350,11 @@ def export(result: CalibrationResult, fmt: str, axes: np.ndarray | None = None,
     model = linear_model(result)
     if axes is not None:
         model = in_frame(model, axes, axes_text)
+    if thermal is not None:
+        if key != "px4":
+            raise UserError(
+                f"--thermal: {key} has no place for bias(T) in this export; px4 writes it "
+                "(TC_A0_*, TC_G0_*)"
+            )
+        return export_px4(model, thermal)
     return FORMATS[key][0](model)

@@ -42,7 +42,18 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"{path}: cannot read ({exc.strerror or exc})") from exc
     result = CalibrationResult.from_json(text)
     axes = parse_axes(args.axes) if args.axes else None
-    out = exporting.export(result, args.to, axes, args.axes or "x,y,z")
+    thermal = None
+    if args.thermal is not None:
+        import json
+
+        from host.calib.thermal import ThermalCalibration
+
+        try:
+            d = json.loads(args.thermal.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            raise UserError(f"{args.thermal}: cannot read a thermal result ({exc})") from None
+        thermal = ThermalCalibration.from_dict(d, str(args.thermal))
+    out = exporting.export(result, args.to, axes, args.axes or "x,y,z", thermal)
     if args.out:
         write_text_atomic(args.out, out)
         print(f"written: {args.out}", file=sys.stderr)
@@ -61,4 +72,7 @@ def cli_export(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int
     )
     p.add_argument("--out", type=Path, help="write to this file instead of stdout")
     p.add_argument("--axes", help="target axes from ours with signs, e.g. x,-y,-z (default x,y,z)")
+    p.add_argument(
+        "--thermal", type=Path, help="SERIAL_thermal.json (python -m host thermal): bias(T), px4"
+    )
     return run

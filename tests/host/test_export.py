@@ -69,7 +69,7 @@ def _params(text: str) -> dict[str, float]:
         if len(f) == 2:
             out[f[0]] = float(f[1])
         else:
-            assert len(f) == 5 and f[4] == "9", line
+            assert len(f) == 5 and f[4] == ("6" if f[2].endswith("ENABLE") else "9"), line
             out[f[2]] = float(f[3])
     return out
 
@@ -233,3 +233,68 @@ def test_imucal_export_of_the_real_session_agrees_with_imucals_own_result() -> N
     for key, t in tol.items():
         diff = np.abs(np.array(ours[key]) - np.array(theirs[key])).max()
         assert diff < t, (key, diff)
+
+
+# ---- thermal (PX4 thermal compensation) ---------------------------------------------------
+def _thermal(orders: dict[str, tuple[float, ...]]):
+    from host.calib.thermal import CHANNELS, UNITS, ChannelThermal, ThermalCalibration
+
+    chans = {}
+    for j, name in enumerate(CHANNELS):
+        c = orders[name]
+        cov = tuple(tuple(0.0 for _ in c) for _ in c)
+        chans[name] = ChannelThermal(name, UNITS[j], len(c), c, cov, 0.001, (), ())
+    return ThermalCalibration("EXP1", 31.5, 22.0, 48.0, chans)
+
+
+THERMAL = {
+    "ax": (2.1e-3, -3e-5), "ay": (-1.3e-3, 2e-5, 1e-7), "az": (4.4e-3,),
+    "gx": (0.011, -2e-4), "gy": (-0.007,), "gz": (0.004, 1e-4, -3e-6),
+}  # fmt: skip
+
+
+def _px4_thermal_apply(p: dict[str, float], a: np.ndarray, g: np.ndarray, t: np.ndarray):
+    out = []
+    for sensor, raw, unit in (("A", a, 1.0), ("G", g * DEG, DEG)):
+        dt = np.clip(t, p[f"TC_{sensor}0_TMIN"], p[f"TC_{sensor}0_TMAX"]) - p[f"TC_{sensor}0_TREF"]
+        x = np.array([[p[f"TC_{sensor}0_X{k}_{i}"] for i in range(3)] for k in range(4)])
+        offset = x[0] + np.outer(dt, x[1]) + np.outer(dt**2, x[2]) + np.outer(dt**3, x[3])
+        off = "ACC0" if sensor == "A" else "GYRO0"
+        o = np.array([p[f"CAL_{off}_{ax}OFF"] for ax in "XYZ"])
+        sc = np.array([p[f"CAL_{off}_{ax}SCALE"] for ax in "XYZ"])
+        out.append((raw - offset - o) * sc / unit)
+    return out[0], out[1]
+
+
+def test_px4_thermal_compensation_round_trip() -> None:
+    from host.calib.thermal import apply_thermal
+
+    accel, gyro = _samples()
+    temp = np.random.default_rng(5).uniform(22.0, 48.0, len(accel))
+    res = _result(**DIAGONAL)
+    th = _thermal(THERMAL)
+    text = export(res, "px4", thermal=th)
+    assert (
+        "order" not in text.split("# Vehicle-Id")[0].split("NOT REPRESENTED")[1].split("g-sens")[1]
+    )
+    a_t, g_t = _px4_thermal_apply(_params(text), accel, gyro, temp)
+    a_ref, g_ref = apply(res, *apply_thermal(th, accel, gyro, temp))
+    _close(a_t, a_ref)
+    _close(g_t, g_ref)
+
+
+def test_px4_thermal_names_a_fourth_order_it_cannot_hold() -> None:
+    th = _thermal({**THERMAL, "gy": (-0.007, 1e-4, 2e-6, -4e-8)})
+    text = export(_result(), "px4", thermal=th)
+    assert "gy bias(T) terms above order 3 (order 4" in text
+
+
+def test_thermal_for_a_format_without_it_is_refused(tmp_path: Path, capsys) -> None:
+    rj = tmp_path / "EXP1_result.json"
+    rj.write_text(_result().to_json())
+    tj = tmp_path / "EXP1_thermal.json"
+    tj.write_text(_thermal(THERMAL).to_json())
+    assert main(["export", str(rj), "--to", "px4", "--thermal", str(tj)]) == 0
+    assert "TC_G0_X1_0" in capsys.readouterr().out
+    assert main(["export", str(rj), "--to", "imucal", "--thermal", str(tj)]) == 2
+    assert "no place for bias(T)" in capsys.readouterr().err
