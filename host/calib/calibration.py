@@ -471,6 +471,11 @@ def _turns_of(record: Record, default: int | None) -> int | None:
             raise UserError(
                 f"record {record.name}: bad meta turns {record.meta['turns']!r}"
             ) from exc
+        if default is not None and default != n:
+            raise UserError(
+                f"--turns {default}, but record {record.name} says 'turns: {n}' in its header; "
+                f"drop --turns (the header is used) or give --turns {n}"
+            )
         return n
     return default
 

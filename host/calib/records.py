@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import stat
 import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -32,6 +33,11 @@ import numpy as np
 from host.errors import UserError, write_error
 
 RECORD_FORMAT_VERSION = 1
+#: fewer data rows than this cannot be a record (no std); the file is refused
+MIN_RECORD_ROWS = 2
+#: record files above this size are refused: 64 MiB is ≈ 1 hour of 50 Hz rows (a record is
+#: seconds to minutes), and reading holds the whole file in memory
+MAX_RECORD_BYTES = 64 << 20
 STATIC_NAMES = ("x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn")
 #: ccw = positive rotation about the up axis, seen from above; cw = negative
 TURN_NAMES = ("x_ccw", "x_cw", "y_ccw", "y_cw", "z_ccw", "z_cw")
@@ -422,8 +428,11 @@ def parse_record_text(text: str, source: str, name: str | None = None) -> Record
             f"{end}: mean/std rows missing after the underscores: the file is "
             "truncated — re-measure this record"
         )
-    if not rows:
-        raise RecordError(f"{source}: no data rows; re-measure this record")
+    if len(rows) < MIN_RECORD_ROWS:
+        raise RecordError(
+            f"{source}: {len(rows)} data row{'s' if len(rows) != 1 else ''}; a record needs at "
+            f"least {MIN_RECORD_ROWS} samples (its mean and std) — re-measure this record"
+        )
     data = np.array(rows, dtype=np.float64)
     mean = data[:, 1:].mean(axis=0)
     bad = np.abs(mean - np.array(summary[0])) > np.array(_MEAN_TOL)
@@ -451,10 +460,34 @@ def parse_record_text(text: str, source: str, name: str | None = None) -> Record
     )
 
 
+def _not_a_record_file(p: Path) -> str | None:
+    """Why ``p`` (named like a record) cannot be read as one, or None. Never blocks (a FIFO
+    is only stat'ed)."""
+    try:
+        st = p.stat()
+    except FileNotFoundError:
+        return "a broken link (its target is missing)" if p.is_symlink() else "no such file"
+    except OSError as exc:
+        return f"cannot read ({exc.strerror or exc})"
+    if stat.S_ISDIR(st.st_mode):
+        return "a directory, named like a record"
+    if not stat.S_ISREG(st.st_mode):
+        return "not a regular file (a device or a pipe)"
+    if st.st_size > MAX_RECORD_BYTES:
+        return (
+            f"{st.st_size / 2**20:.0f} MiB, more than a record can be "
+            f"({MAX_RECORD_BYTES >> 20} MiB ≈ 1 hour at 50 Hz)"
+        )
+    return None
+
+
 def read_record(path: str | os.PathLike[str]) -> Record:
     """Read a record file; the name comes from the file name ``SERIAL_name.txt`` (or the
     ``# record:`` header). Raises RecordError naming the file and line."""
     p = Path(path)
+    why = _not_a_record_file(p)
+    if why is not None:
+        raise RecordError(f"{p}: {why}; move it away or re-measure this record")
     try:
         raw = p.read_bytes()
     except OSError as exc:
@@ -478,11 +511,14 @@ def read_session(directory: str | os.PathLike[str], serial: str | None = None) -
         raise RecordError(f"{d}: no such directory")
     found: dict[str, list[tuple[str, Path]]] = {}
     for p in sorted(d.iterdir()):
-        if not p.is_file() or p.name.startswith("."):
+        if p.name.startswith("."):
             continue
         parts = split_file_name(p)
         if parts is None or parts[1] in NON_RECORD_NAMES:
             continue
+        if not p.is_file():  # a directory or a broken link named like a record: say so
+            why = _not_a_record_file(p) or "not a regular file"
+            raise RecordError(f"{p}: {why}; move it away (or restore the record)")
         found.setdefault(parts[0], []).append((parts[1], p))
     if serial is None:
         if not found:

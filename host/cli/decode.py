@@ -96,8 +96,12 @@ def run_decode(args: argparse.Namespace) -> int:
     phys_cols = [np.round(phys[k], _DIGITS[k]) for k in _PHYS]
     table = [c.tolist() for c in raw_cols + phys_cols]
     if timeline is not None:
-        mapped = np.where(np.isnan(timeline.host_ns), arrivals, np.rint(timeline.host_ns))
-        table.append(np.asarray(mapped, dtype=np.int64).tolist())
+        h = timeline.host_ns
+        # unmapped or out of int64's range (nonsense arrival times, warned above): the arrival
+        ok = np.isfinite(h) & (np.abs(h) < 2.0**62)
+        mapped = np.where(ok, np.rint(np.where(ok, h, 0.0)), 0.0).astype(np.int64)
+        mapped[~ok] = np.asarray(arrivals, dtype=np.uint64)[~ok].astype(np.int64)
+        table.append(mapped.tolist())
     stdout = sys.stdout
     try:
         if args.csv:

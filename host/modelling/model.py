@@ -513,7 +513,7 @@ def load_term_file(
         spec.loader.exec_module(module)
     except UserError as exc:
         raise UserError(f"{p}: {exc}") from exc
-    except Exception as exc:  # noqa: BLE001 - any error in user code is one line for the user
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - user code: one line for the user
         raise UserError(f"{p}: error in the term file: {type(exc).__name__}: {exc}") from exc
     out = dict(catalogue if catalogue is not None else CATALOGUE)
     found = [v for v in vars(module).values() if isinstance(v, Term)]
@@ -1039,7 +1039,7 @@ def _call_term(t: Term, what: str, sig: RecordSignals, fn: Callable[[], Any]) ->
         x = np.asarray(fn(), dtype=np.float64)
     except UserError:
         raise
-    except Exception as exc:  # noqa: BLE001 - an error in a term is one line for the user
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - a term's error: one line
         raise UserError(
             f"term {t.name}: {what}() raised {type(exc).__name__}: {exc} (record {sig.name})"
         ) from None

@@ -117,7 +117,7 @@ class Serial(SerialBase):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self._lock = threading.RLock()
         self._out = bytearray()
-        self._decoder = StreamDecoder()
+        self._decoder = StreamDecoder("any")  # as the firmware: any type
         self.hints: list[tuple[float, str, dict[str, Any]]] = []
         self.truth: SensorTruth | None = None
         self.sim: Simulator | None = None
@@ -252,7 +252,7 @@ class Serial(SerialBase):
         self.sim = Simulator(self.truth, self.bench, self.environment, seed, 50.0, self._power_s)
         self.sim.set_motion(self._pose, 0.0)
         self._out.clear()
-        self._decoder = StreamDecoder()
+        self._decoder = StreamDecoder("any")  # as the firmware: any type
         self._seq = 0
         self._t_gen = 0.0
         self._next_status_s = 1.0

@@ -119,6 +119,18 @@ BY_NAME: Mapping[str, MessageDef] = MappingProxyType({m.name: m for m in MESSAGE
 _EXPECTED_LEN = np.full(256, -1, dtype=np.int16)
 for _m in MESSAGES.values():
     _EXPECTED_LEN[_m.type] = _m.length
+#: in the length tables per sender: a type that sender never sends (protocol/README.md:
+#: device → host 0x00–0x7F, host → device 0x80–0xFF); such a candidate is no frame, like an
+#: impossible length (a CRC-16 collision on line noise must not become a false host command)
+IMPOSSIBLE = -2
+#: who sent the stream being decoded -> type -> expected payload length (-1 unknown type)
+LENGTHS_FROM: Mapping[str, np.ndarray] = MappingProxyType(
+    {
+        "device": np.where(np.arange(256) >= 0x80, IMPOSSIBLE, _EXPECTED_LEN).astype(np.int16),
+        "host": np.where(np.arange(256) < 0x80, IMPOSSIBLE, _EXPECTED_LEN).astype(np.int16),
+        "any": _EXPECTED_LEN,
+    }
+)
 
 _T_US = next(f for f in MESSAGES[IMU_SAMPLE].fields if f.name == "t_us")
 
@@ -241,10 +253,13 @@ class StreamDecoder:
     Never raises on any input. Output and counters do not depend on the chunking.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, sender: str = "device") -> None:
+        """``sender``: ``device`` (the default: a board's stream; types 0x80–0xFF are never
+        frames), ``host`` (commands), ``any``."""
         self._buf = bytearray()
         self.stats = DecoderStats()
         self._segments = SegmentTracker()
+        self._lengths = LENGTHS_FROM[sender]
 
     @property
     def pending(self) -> int:
@@ -285,8 +300,12 @@ class StreamDecoder:
             if p + HEADER_LEN <= n:
                 mtype = buf[p + 2]
                 length = buf[p + 3]
-                expected = _EXPECTED_LEN[mtype]
-                if length > MAX_PAYLOAD or (expected >= 0 and length != expected):
+                expected = self._lengths[mtype]
+                if (
+                    length > MAX_PAYLOAD
+                    or expected == IMPOSSIBLE
+                    or (expected >= 0 and length != expected)
+                ):
                     search = p + 1
                     continue
                 end = p + HEADER_LEN + length + CRC_LEN
@@ -448,8 +467,10 @@ class BulkResult:
     stats: DecoderStats = field(default_factory=DecoderStats)
 
 
-def decode_bulk(data: bytes | bytearray | memoryview) -> BulkResult:
-    """Decode a whole capture at once; same frames and counters as streaming + flush."""
+def decode_bulk(data: bytes | bytearray | memoryview, sender: str = "device") -> BulkResult:
+    """Decode a whole capture at once; same frames and counters as streaming + flush
+    (``sender`` as :class:`StreamDecoder`'s)."""
+    lengths = LENGTHS_FROM[sender]
     buf = np.frombuffer(data, dtype=np.uint8)
     n = buf.size
     stats = DecoderStats()
@@ -460,8 +481,9 @@ def decode_bulk(data: bytes | bytearray | memoryview) -> BulkResult:
     cand = cand[cand + HEADER_LEN <= n]
     mtype = buf[cand + 2]
     length = buf[cand + 3].astype(np.int64)
-    expected = _EXPECTED_LEN[mtype]
-    ok_len = (length <= MAX_PAYLOAD) & ((expected < 0) | (length == expected))
+    expected = lengths[mtype]
+    ok_len = (length <= MAX_PAYLOAD) & (expected != IMPOSSIBLE)
+    ok_len &= (expected < 0) | (length == expected)
     end = cand + HEADER_LEN + length + CRC_LEN
     ok = ok_len & (end <= n)
     cand, mtype, length, end = cand[ok], mtype[ok], length[ok], end[ok]
