@@ -466,7 +466,11 @@ def _not_a_record_file(p: Path) -> str | None:
     try:
         st = p.stat()
     except FileNotFoundError:
-        return "a broken link (its target is missing)" if p.is_symlink() else "no such file"
+        return (
+            "a broken link (its target is missing)"
+            if p.is_symlink()
+            else "cannot read (no such file)"
+        )
     except OSError as exc:
         return f"cannot read ({exc.strerror or exc})"
     if stat.S_ISDIR(st.st_mode):
