@@ -34,7 +34,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from host.calib.records import STATIC_NAMES, TURN_NAMES, Record, Session
+from host.calib.records import MIN_RECORD_ROWS, STATIC_NAMES, TURN_NAMES, Record, Session
 from host.errors import UserError
 
 # ---- constants ----------------------------------------------------------------------------
@@ -480,6 +480,18 @@ def _turns_of(record: Record, default: int | None) -> int | None:
     return default
 
 
+def check_record_lengths(session: Session) -> None:
+    """UserError naming the first record with fewer than MIN_RECORD_ROWS samples (a one-row
+    record has no std; its mean would enter the fit as if it were measured)."""
+    for name, rec in session.records.items():
+        if len(rec) < MIN_RECORD_ROWS:
+            raise UserError(
+                f"{session.path_of(name)}: {len(rec)} data row{'s' if len(rec) != 1 else ''}; "
+                f"a record needs at least {MIN_RECORD_ROWS} samples (its mean and std) — "
+                "re-measure this record"
+            )
+
+
 def build_observations(
     session: Session,
     g: float,
@@ -495,6 +507,7 @@ def build_observations(
     integral). ``earth_rate``: add the vertical Earth-rate component Ω·sinφ along up (°/s) to the
     static reference (the horizontal part depends on the unknown heading and is ignored).
     """
+    check_record_lengths(session)
     st = (
         dict(stats)
         if stats is not None
@@ -847,6 +860,7 @@ def calibrate_from_records(
     from datetime import datetime
 
     g = local_gravity(latitude_deg, height_m)
+    check_record_lengths(session)
     stats = {n: record_stats(r) for n, r in session.records.items()}
     obs, notes = build_observations(
         session, g, turns=turns, earth_rate=earth_rate, latitude_deg=latitude_deg, stats=stats

@@ -33,7 +33,7 @@ import numpy as np
 from host.errors import UserError, write_error
 
 RECORD_FORMAT_VERSION = 1
-#: fewer data rows than this cannot be a record (no std); the file is refused
+#: fewer data rows than this cannot be calibrated with (no std): such a record is refused
 MIN_RECORD_ROWS = 2
 #: record files above this size are refused: 64 MiB is ≈ 1 hour of 50 Hz rows (a record is
 #: seconds to minutes), and reading holds the whole file in memory
@@ -428,11 +428,8 @@ def parse_record_text(text: str, source: str, name: str | None = None) -> Record
             f"{end}: mean/std rows missing after the underscores: the file is "
             "truncated — re-measure this record"
         )
-    if len(rows) < MIN_RECORD_ROWS:
-        raise RecordError(
-            f"{source}: {len(rows)} data row{'s' if len(rows) != 1 else ''}; a record needs at "
-            f"least {MIN_RECORD_ROWS} samples (its mean and std) — re-measure this record"
-        )
+    if not rows:
+        raise RecordError(f"{source}: no data rows; re-measure this record")
     data = np.array(rows, dtype=np.float64)
     mean = data[:, 1:].mean(axis=0)
     bad = np.abs(mean - np.array(summary[0])) > np.array(_MEAN_TOL)
