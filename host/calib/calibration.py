@@ -9,33 +9,35 @@ Model (method.md §2), in matrix form with chip axes x, y, z::
           [-Ayz,  Ayy,  Ayx],           [-Gyz,  Gyy,  Gyx],           [GAyx, GAyy, GAyz],
           [ Azy, -Azx,  Azz]]           [ Gzy, -Gzx,  Gzz]]           [GAzx, GAzy, GAzz]]
 
-Two estimators:
+One engine: every number the project reports comes from the workbench's weighted
+least-squares fit (:func:`host.modelling.model.fit_model`, its noise model) of the chosen
+model (default ``base`` = the linear model above) — :func:`calibrate_from_records`. It
+accepts other plans: turns without their opposite partner (the bias then comes from the
+statics), extra static attitudes (meta ``up``), several turns per axis, rate-table records
+(meta ``rate_dps``, ``rate_axis``). The closed form of the method — stage 1 (§3, six
+statics) and stage 2 (§4, CW/CCW turn pairs integrated by the trapezoid rule over the
+recorded sample times), :func:`stage1`, :func:`stage2` — is computed beside it and printed
+as a check.
 
-* the closed form of the method: stage 1 (§3, six statics) and stage 2 (§4, CW/CCW turn pairs
-  integrated by the trapezoid rule over the recorded sample times) — :func:`stage1`,
-  :func:`stage2`;
-* a weighted linear least-squares fit of the same model to every record
-  (:func:`build_observations` + :func:`fit_linear`) which accepts other plans: turns without
-  their opposite partner (the bias then comes from the statics), extra static attitudes
-  (meta ``up``), several turns per axis, rate-table records (meta ``rate_dps``, ``rate_axis``).
-  Each record contributes one :class:`Observation` (static/rate: channel means; turn: channel
-  integrals, with the bias and g-sensitivity terms multiplied by the duration T). For the
-  standard 12-record session the two agree well below the noise. The report uses the fit.
+This module also holds the method's constants and sign layout (§2, §7), local gravity (§3) and
+the record checks (:func:`build_observations`).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import json
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from host.calib.records import MIN_RECORD_ROWS, STATIC_NAMES, TURN_NAMES, Record, Session
 from host.errors import UserError
+
+if TYPE_CHECKING:
+    from host.calib.result import CalibrationResult
 
 # ---- constants ----------------------------------------------------------------------------
 #: default site: Moscow (the source documents' bench), latitude in degrees, height in metres
@@ -277,123 +279,6 @@ class Observation:
     turns: int | None = None
 
 
-@dataclass(frozen=True, eq=False)
-class LinearFit:
-    """Result of :func:`fit_linear`. NaN marks what the records do not determine."""
-
-    accel_m: np.ndarray  # Ma
-    accel_bias: np.ndarray
-    gyro_m: np.ndarray  # Mg (NaN columns: no turn about that axis)
-    gyro_gsens: np.ndarray
-    gyro_bias: np.ndarray
-    std_errors: dict[str, float]
-    accel_residuals: dict[str, np.ndarray]  # record -> mean residual, m/s²
-    gyro_residuals: dict[str, np.ndarray]  # record -> residual (°/s for means, ° for turns)
-    chi2_per_dof: dict[str, float]  # 'accel'/'gyro' -> reduced chi²
-
-
-def _solve_channel(
-    x: np.ndarray, y: np.ndarray, sigma: np.ndarray, free: np.ndarray, nominal: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
-    """Weighted LSQ of y = x·p with the non-free parameters held at ``nominal``.
-
-    Returns (p, std errors (NaN for fixed), residuals y − x·p, chi², dof). The std errors are
-    scaled by sqrt(reduced χ²) when that exceeds 1 (the noise model is too optimistic).
-    """
-    p = nominal.astype(np.float64).copy()
-    y_free = y - x[:, ~free] @ nominal[~free]
-    xf = x[:, free] / sigma[:, None]
-    yf = y_free / sigma
-    sol, *_ = np.linalg.lstsq(xf, yf, rcond=None)
-    p[free] = sol
-    resid = y - x @ p
-    chi2 = float(np.sum((resid / sigma) ** 2))
-    dof = int(len(y) - free.sum())
-    se = np.full(len(p), np.nan)
-    cov = np.linalg.pinv(xf.T @ xf)
-    scale = max(1.0, chi2 / dof) if dof > 0 else 1.0
-    se[free] = np.sqrt(np.diag(cov) * scale)
-    return p, se, resid, chi2, dof
-
-
-def fit_linear(observations: Iterable[Observation], g: float) -> LinearFit:
-    """Weighted least-squares fit of the §2 model to the observations, channel by channel.
-
-    Accelerometer channel i: 4 parameters ((I+Ma)[i,:], A0[i]) from the static means.
-    Gyro channel i: 7 parameters ((I+Mg)[i,:], GA[i,:], G0[i]); a column of (I+Mg) is fitted only
-    if some turn/rate record excites that axis (else NaN = not measured).
-    Raises UserError when the records cannot determine the rest.
-    """
-    obs = list(observations)
-    acc = [o for o in obs if o.accel is not None and o.accel_sigma is not None]
-    if not obs or not acc:
-        raise UserError("no static records: the calibration needs the static attitudes")
-    # accelerometer
-    xa = np.array([np.concatenate([g * o.up, [1.0]]) for o in acc])
-    if np.linalg.matrix_rank(xa) < 4:
-        raise UserError(
-            "the static records do not determine the accelerometer (need gravity along each "
-            "axis and a way to separate the bias: e.g. the six x_up … z_dn records)"
-        )
-    accel_rows, accel_bias, accel_res = np.zeros((3, 3)), np.zeros(3), np.zeros((len(acc), 3))
-    se: dict[str, float] = {}
-    chi2a, dofa = 0.0, 0
-    se_m = np.zeros((3, 3))
-    for i in range(3):
-        y = np.array([o.accel[i] for o in acc if o.accel is not None])
-        s = np.array([o.accel_sigma[i] for o in acc if o.accel_sigma is not None])
-        nominal = np.zeros(4)
-        nominal[i] = 1.0
-        p, e, r, c2, dof = _solve_channel(xa, y, s, np.ones(4, bool), nominal)
-        accel_rows[i], accel_bias[i], accel_res[:, i] = p[:3], p[3], r
-        se_m[i] = e[:3]
-        se[ACCEL_BIAS_NAMES[i]] = float(e[3])
-        chi2a, dofa = chi2a + c2, dofa + dof
-    se.update({k: abs(v) for k, v in matrix_to_names("A", se_m).items()})
-    # gyro
-    xg = np.array([np.concatenate([o.rate, o.force, [o.tau]]) for o in obs])
-    excited = np.array(
-        [any(abs(o.rate[k]) > 1.0 for o in obs if o.kind in ("turn", "rate")) for k in range(3)]
-    )
-    free = np.concatenate([excited, np.ones(4, bool)])
-    if np.linalg.matrix_rank(xg[:, free]) < int(free.sum()):
-        raise UserError(
-            "the records do not determine the gyro bias and g-sensitivity (need static records "
-            "with gravity along each axis, e.g. the six x_up … z_dn records)"
-        )
-    gyro_rows, ga, gb = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3)
-    gyro_res = np.zeros((len(obs), 3))
-    se_g, se_ga = np.zeros((3, 3)), np.zeros((3, 3))
-    chi2g, dofg = 0.0, 0
-    for i in range(3):
-        y = np.array([o.gyro[i] for o in obs])
-        s = np.array([o.gyro_sigma[i] for o in obs])
-        nominal = np.zeros(7)
-        nominal[i] = 1.0
-        p, e, r, c2, dof = _solve_channel(xg, y, s, free, nominal)
-        gyro_rows[i] = np.where(excited, p[:3], np.nan)
-        ga[i], gb[i], gyro_res[:, i] = p[3:6], p[6], r
-        se_g[i], se_ga[i] = e[:3], e[3:6]
-        se[GYRO_BIAS_NAMES[i]] = float(e[6])
-        chi2g, dofg = chi2g + c2, dofg + dof
-    se.update({k: abs(v) for k, v in matrix_to_names("G", se_g).items()})
-    se.update(gsens_to_names(se_ga))
-    return LinearFit(
-        accel_m=accel_rows - np.eye(3),
-        accel_bias=accel_bias,
-        gyro_m=gyro_rows - np.eye(3),
-        gyro_gsens=ga,
-        gyro_bias=gb,
-        std_errors=se,
-        accel_residuals={o.record: accel_res[j] for j, o in enumerate(acc)},
-        gyro_residuals={o.record: gyro_res[j] for j, o in enumerate(obs)},
-        chi2_per_dof={
-            "accel": chi2a / dofa if dofa else float("nan"),
-            "gyro": chi2g / dofg if dofg else float("nan"),
-        },
-    )
-
-
 # ---- checks and observations --------------------------------------------------------------
 def _axis_label(v: np.ndarray) -> str:
     k = int(np.argmax(np.abs(v)))
@@ -602,247 +487,97 @@ def build_observations(
     return obs, notes
 
 
-# ---- result -------------------------------------------------------------------------------
-@dataclass(frozen=True, eq=False)
-class RecordResidual:
-    """Residual of one record after the fit.
+# ---- the whole computation: the one engine ------------------------------------------------
+def _synthetic_record(
+    name: str, g: float, turns: int, temp_c: float, meta: Mapping[str, str]
+) -> Record:
+    """An ideal record of the standard plan (statics and turns of method.md §3, §4), used only
+    to ask whether adding it would determine a parameter (the values do not matter)."""
+    from host.calib.records import turn_window_s
 
-    static/rate: ``accel_mean``/``gyro_mean`` = mean residual (m/s², °/s), ``*_std`` = std of the
-    sample residuals. turn: ``gyro_mean`` = integral residual / T (°/s equivalent),
-    ``angle_deg`` = integral residual (°), stds NaN.
-    """
-
-    record: str
-    kind: str
-    n: int
-    duration_s: float
-    accel_mean: tuple[float, float, float]
-    accel_std: tuple[float, float, float]
-    gyro_mean: tuple[float, float, float]
-    gyro_std: tuple[float, float, float]
-    angle_deg: tuple[float, float, float] | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (NaN -> None)."""
-        return {f.name: _jsonable(getattr(self, f.name)) for f in dataclasses.fields(self)}
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> RecordResidual:
-        """Inverse of :meth:`to_dict`."""
-
-        def t3(v: Any) -> tuple[float, float, float]:
-            a, b, c = (_num(x) for x in v)
-            return (a, b, c)
-
-        return cls(
-            record=str(d["record"]), kind=str(d["kind"]), n=int(d["n"]),
-            duration_s=float(d["duration_s"]), accel_mean=t3(d["accel_mean"]),
-            accel_std=t3(d["accel_std"]), gyro_mean=t3(d["gyro_mean"]),
-            gyro_std=t3(d["gyro_std"]),
-            angle_deg=None if d.get("angle_deg") is None else t3(d["angle_deg"]),
-        )  # fmt: skip
+    rng = np.random.default_rng(abs(hash(name)) % 2**32)
+    up = np.zeros(3)
+    up["xyz".index(name[0])] = -1.0 if name.endswith("_dn") else 1.0
+    turn = name.endswith(("_ccw", "_cw"))
+    seconds = turn_window_s(turns) if turn else 10.0
+    t_ms = np.arange(0.0, seconds * 1000.0, 20.0)
+    n = len(t_ms)
+    gyro = rng.normal(0.0, 0.02, (n, 3))
+    if turn:
+        sign = 1.0 if name.endswith("_ccw") else -1.0
+        profile = 1.0 - np.cos(2 * np.pi * t_ms / t_ms[-1])
+        profile *= sign * 360.0 * turns / float(trapezoid_integral(t_ms, profile))
+        gyro += profile[:, None] * up[None, :]
+    accel = g * up + rng.normal(0.0, 0.01, (n, 3))
+    return Record(name, t_ms, accel, gyro, np.full(n, temp_c), dict(meta))
 
 
-def _num(v: Any) -> float:
-    return float("nan") if v is None else float(v)
+def what_would_determine(
+    session: Session,
+    model: Any,
+    names: Iterable[str],
+    *,
+    latitude_deg: float = DEFAULT_LATITUDE_DEG,
+    height_m: float = DEFAULT_HEIGHT_M,
+    turns: int | None = None,
+) -> dict[str, str]:
+    """For each parameter in ``names`` that the records of ``session`` do not determine under
+    ``model`` (model terms of :mod:`host.modelling.model`): which records of the standard plan
+    (method.md §3, §4) would determine it — 'add any one of: x_dn, y_dn' or 'add all of:
+    x_ccw, x_cw' — else the term's own ``needs`` text."""
+    from host.modelling.model import build_dataset, fit_model
 
+    wanted = list(names)
+    if not wanted:
+        return {}
+    g = local_gravity(latitude_deg, height_m)
+    have = set(session.records)
+    candidates = [n for n in STATIC_NAMES + TURN_NAMES if n not in have]
+    recs = list(session.records.values())
+    temp = float(np.mean([float(np.mean(r.temp)) for r in recs])) if recs else 25.0
+    ns = [int(r.meta["turns"]) for r in recs if r.meta.get("turns", "").isdigit()]
+    n_turns = turns or (ns[0] if ns else 1)
+    meta: dict[str, str] = {}
+    if recs and all("power_on_s" in r.meta for r in recs):
+        last = max(float(r.meta["power_on_s"]) + r.duration_s for r in recs)
+        meta["power_on_s"] = f"{last + 60.0:.3f}"
+    synth = {c: _synthetic_record(c, g, n_turns, temp, meta) for c in candidates}
 
-def _jsonable(v: Any) -> Any:
-    if isinstance(v, float | np.floating):
-        f = float(v)
-        return None if not math.isfinite(f) else f
-    if isinstance(v, tuple | list | np.ndarray):
-        return [_jsonable(x) for x in v]
-    if isinstance(v, dict):
-        return {str(k): _jsonable(x) for k, x in v.items()}
-    return v
-
-
-@dataclass(frozen=True, eq=False)
-class CalibrationResult:
-    """All constants of one unit under the report's names (method.md §7); NaN = not measured.
-
-    Units: scale errors and misalignments dimensionless (rad); A0. m/s²; G0. °/s; GA.. (°/s)/g;
-    Astd. m/s²; Gstd. °/s. ``g`` m/s² (local, :func:`local_gravity`), ``latitude_deg``,
-    ``height_m``. ``turns``: n of the turn records (None: none, or mixed).
-    """
-
-    FORMAT_VERSION: ClassVar[int] = 1
-
-    serial: str
-    created: str
-    g: float
-    latitude_deg: float
-    height_m: float
-    turns: int | None
-    Gxx: float
-    Gyy: float
-    Gzz: float
-    Gxz: float
-    Gxy: float
-    Gyz: float
-    Gyx: float
-    Gzy: float
-    Gzx: float
-    G0x: float
-    G0y: float
-    G0z: float
-    GAxx: float
-    GAxy: float
-    GAxz: float
-    GAyx: float
-    GAyy: float
-    GAyz: float
-    GAzx: float
-    GAzy: float
-    GAzz: float
-    Gstdx: float
-    Gstdy: float
-    Gstdz: float
-    Axx: float
-    Ayy: float
-    Azz: float
-    Axz: float
-    Axy: float
-    Ayz: float
-    Ayx: float
-    Azy: float
-    Azx: float
-    A0x: float
-    A0y: float
-    A0z: float
-    Astdx: float
-    Astdy: float
-    Astdz: float
-    earth_rate: bool = False
-    method: str = "weighted least squares over all records (method.md §2)"
-    records: tuple[str, ...] = ()
-    #: the three closed-form bias estimates (§3, from the x, y, z pairs) per A0./G0. name
-    bias_estimates: dict[str, tuple[float, float, float]] = field(default_factory=dict)
-    #: closed-form values (§3, §4) where the plan has them
-    closed_form: dict[str, float] = field(default_factory=dict)
-    #: 1-sigma standard errors of the fitted constants
-    std_errors: dict[str, float] = field(default_factory=dict)
-    residuals: tuple[RecordResidual, ...] = ()
-    notes: tuple[str, ...] = ()
-
-    # ---- views ---------------------------------------------------------------------------
-    def constants(self) -> dict[str, float]:
-        """name -> value in report order."""
-        return {n: float(getattr(self, n)) for n in CONSTANT_NAMES}
-
-    def passed(self) -> dict[str, bool | None]:
-        """name -> True within tolerance, False outside or not measured, None no tolerance."""
-        out: dict[str, bool | None] = {}
-        for n in CONSTANT_NAMES:
-            tol = TOLERANCES[n]
-            v = float(getattr(self, n))
-            if tol is None:
-                out[n] = None
-            elif not math.isfinite(v):
-                out[n] = False
-            else:
-                out[n] = v <= tol if n in NOISE_NAMES else abs(v) <= tol
-        return out
-
-    @property
-    def all_passed(self) -> bool:
-        """True when every toleranced value is within its tolerance."""
-        return all(p is not False for p in self.passed().values())
-
-    def accel_m(self) -> np.ndarray:
-        """Ma (3×3)."""
-        return names_to_matrix("A", self.constants())
-
-    def accel_bias(self) -> np.ndarray:
-        """A0 (3,), m/s²."""
-        return np.array([getattr(self, n) for n in ACCEL_BIAS_NAMES], dtype=np.float64)
-
-    def gyro_m(self) -> np.ndarray:
-        """Mg (3×3), NaN where not measured."""
-        return names_to_matrix("G", self.constants())
-
-    def gyro_gsens(self) -> np.ndarray:
-        """GA (3×3), (°/s)/g."""
-        return names_to_gsens(self.constants())
-
-    def gyro_bias(self) -> np.ndarray:
-        """G0 (3,), °/s."""
-        return np.array([getattr(self, n) for n in GYRO_BIAS_NAMES], dtype=np.float64)
-
-    # ---- JSON ----------------------------------------------------------------------------
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict: constants under their names + units, tolerances, pass flags."""
-        return {
-            "format": "imu-bench calibration result",
-            "format_version": self.FORMAT_VERSION,
-            "serial": self.serial,
-            "created": self.created,
-            "constants": _jsonable(self.constants()),
-            "units": dict(UNITS),
-            "tolerances": dict(TOLERANCES),
-            "pass": self.passed(),
-            "all_passed": self.all_passed,
-            "g": self.g,
-            "g_unit": "m/s²",
-            "latitude_deg": self.latitude_deg,
-            "height_m": self.height_m,
-            "turns": self.turns,
-            "earth_rate": self.earth_rate,
-            "method": self.method,
-            "records": list(self.records),
-            "bias_estimates": _jsonable(self.bias_estimates),
-            "closed_form": _jsonable(self.closed_form),
-            "std_errors": _jsonable(self.std_errors),
-            "residuals": [r.to_dict() for r in self.residuals],
-            "notes": list(self.notes),
-        }
-
-    def to_json(self) -> str:
-        """The JSON text of :meth:`to_dict` (UTF-8, indented)."""
-        return json.dumps(self.to_dict(), indent=2, ensure_ascii=False) + "\n"
-
-    @classmethod
-    def from_json(cls, text: str | bytes) -> CalibrationResult:
-        """Parse :meth:`to_json` output; UserError on bad JSON or another format version."""
+    def determined(extra: Iterable[str]) -> set[str]:
+        records = dict(session.records)
+        records.update({c: synth[c] for c in extra})
         try:
-            d = json.loads(text)
-        except (ValueError, UnicodeDecodeError) as exc:
-            raise UserError(f"calibration result: not valid JSON ({exc})") from exc
-        if not isinstance(d, dict) or "format_version" not in d:
-            raise UserError("calibration result: not an imu-bench result (no format_version)")
-        if d["format_version"] != cls.FORMAT_VERSION:
-            raise UserError(
-                f"calibration result format v{d['format_version']} but this program reads "
-                f"v{cls.FORMAT_VERSION}; recompute it with 'python -m host calibrate --from-dir'"
-            )
-        try:
-            consts: dict[str, Any] = {n: _num(d["constants"][n]) for n in CONSTANT_NAMES}
-            return cls(
-                serial=str(d["serial"]),
-                created=str(d["created"]),
-                g=float(d["g"]),
-                latitude_deg=float(d["latitude_deg"]),
-                height_m=float(d["height_m"]),
-                turns=None if d.get("turns") is None else int(d["turns"]),
-                earth_rate=bool(d.get("earth_rate", False)),
-                method=str(d.get("method", "")),
-                records=tuple(d.get("records", ())),
-                bias_estimates={
-                    k: (_num(v[0]), _num(v[1]), _num(v[2]))
-                    for k, v in d.get("bias_estimates", {}).items()
-                },
-                closed_form={k: _num(v) for k, v in d.get("closed_form", {}).items()},
-                std_errors={k: _num(v) for k, v in d.get("std_errors", {}).items()},
-                residuals=tuple(RecordResidual.from_dict(r) for r in d.get("residuals", [])),
-                notes=tuple(str(x) for x in d.get("notes", [])),
-                **consts,
-            )
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
-            raise UserError(f"calibration result: missing or bad field ({exc})") from exc
+            ds = build_dataset(
+                Session(session.serial, records), latitude_deg=latitude_deg, height_m=height_m,
+                turns=n_turns,
+            )  # fmt: skip
+        except UserError:
+            return set()
+        return set(wanted) - set(fit_model(ds, model).undetermined)
+
+    singles = {c: determined([c]) for c in candidates}
+    everything = determined(candidates) if candidates else set()
+    needs_of = {
+        p: mt.term.needs for mt in model for ax in mt.axes for p in mt.term.param_labels(
+            mt.sensor, ax)
+    }  # fmt: skip
+    out: dict[str, str] = {}
+    for name in wanted:
+        alone = [c for c in candidates if name in singles[c]]
+        if alone:
+            out[name] = f"add any one of: {', '.join(alone)}"
+        elif name in everything:
+            need = list(candidates)
+            for c in candidates:  # greedy: drop what is not needed
+                rest = [x for x in need if x != c]
+                if rest and name in determined(rest):
+                    need = rest
+            out[name] = f"add all of: {', '.join(need)}"
+        else:
+            out[name] = needs_of.get(name, "") or "records that excite it"
+    return out
 
 
-# ---- the whole computation ----------------------------------------------------------------
 def calibrate_from_records(
     session: Session,
     *,
@@ -851,37 +586,86 @@ def calibrate_from_records(
     height_m: float = DEFAULT_HEIGHT_M,
     earth_rate: bool = False,
     created: str | None = None,
+    model: str = "base",
+    term_files: Iterable[str] = (),
+    noise: Any = None,
 ) -> CalibrationResult:
-    """Check the records of ``session``, fit the §2 model, return every constant.
+    """Check the records of ``session``, fit ``model`` (default ``base``, method.md §2) with
+    the workbench's weighted least squares (:func:`host.modelling.model.fit_model`, its noise model
+    ``noise``, default :class:`host.modelling.model.NoiseModel`), return every parameter.
 
-    ``turns``: n for turn records without meta ``turns`` (None: inferred per record).
-    ``created``: date/time for the report header (default: now, local time, ISO).
+    The closed form of §3/§4 is computed beside it where the plan has it (``closed_form``).
+    Parameters the records do not determine are NaN with what would determine them; they make
+    ``all_passed`` False. ``turns``: n for turn records without meta ``turns`` (None: inferred
+    per record). ``term_files``: Python files with custom terms. ``created``: date/time for
+    the report header (default: now, local time, ISO).
     """
     from datetime import datetime
 
-    g = local_gravity(latitude_deg, height_m)
     check_record_lengths(session)
-    stats = {n: record_stats(r) for n, r in session.records.items()}
-    obs, notes = build_observations(
-        session, g, turns=turns, earth_rate=earth_rate, latitude_deg=latitude_deg, stats=stats
+    from host.calib.result import (
+        CalibrationResult,
+        FitQuality,
+        ParameterResult,
+        RecordResidual,
+        within,
     )
-    fit = fit_linear(obs, g)
-    statics = [n for n, r in session.records.items() if r.kind == "static"]
-    consts: dict[str, Any] = {}
-    consts.update(matrix_to_names("A", fit.accel_m))
-    consts.update(zip(ACCEL_BIAS_NAMES, map(float, fit.accel_bias), strict=True))
-    consts.update(matrix_to_names("G", fit.gyro_m))
-    consts.update(gsens_to_names(fit.gyro_gsens))
-    consts.update(zip(GYRO_BIAS_NAMES, map(float, fit.gyro_bias), strict=True))
+    from host.modelling.model import (
+        ALPHA_FIT,
+        CATALOGUE,
+        NoiseModel,
+        build_dataset,
+        fit_model,
+        load_term_file,
+        parse_model,
+        short_spec,
+    )
+
+    files = tuple(str(f) for f in term_files)
+    cat = dict(CATALOGUE)
+    for f in files:
+        cat = load_term_file(f, cat)
+    mts = parse_model(model, cat)
+    nm = noise if noise is not None else NoiseModel()
+    g = local_gravity(latitude_deg, height_m)
+    ds = build_dataset(
+        session, noise=nm, latitude_deg=latitude_deg, height_m=height_m, turns=turns,
+        earth_rate=earth_rate,
+    )  # fmt: skip
+    fit = fit_model(ds, mts)
+    stats = {n: record_stats(r) for n, r in session.records.items()}
+    statics = [s.name for s in ds.signals if s.kind == "static"]
+    noise_std: dict[str, float] = {}
     anoise = np.max([stats[n].accel_std for n in statics], axis=0)
     gnoise = np.max([stats[n].gyro_std for n in statics], axis=0)
-    consts.update(zip(ACCEL_NOISE_NAMES, map(float, anoise), strict=True))
-    consts.update(zip(GYRO_NOISE_NAMES, map(float, gnoise), strict=True))
+    noise_std.update(zip(GYRO_NOISE_NAMES, map(float, gnoise), strict=True))
+    noise_std.update(zip(ACCEL_NOISE_NAMES, map(float, anoise), strict=True))
 
-    # closed form where the plan has it
+    needs = what_would_determine(
+        session, mts, fit.undetermined, latitude_deg=latitude_deg, height_m=height_m,
+        turns=turns,
+    )  # fmt: skip
+    params = tuple(
+        ParameterResult(
+            p.term_name,
+            p.sensor,
+            p.axis,
+            p.key,
+            p.name,
+            p.value,
+            p.stderr,
+            p.unit,
+            TOLERANCES.get(p.name),
+            within(p.name, p.value),
+            needs.get(p.name, ""),
+        )  # fmt: skip
+        for p in fit.parameters
+    )
+
+    # closed form where the plan has it (the check printed beside the fit)
     closed: dict[str, float] = {}
     bias_est: dict[str, tuple[float, float, float]] = {}
-    if all(n in stats for n in STATIC_NAMES):
+    if all(n in stats and session.records[n].kind == "static" for n in STATIC_NAMES):
         s1 = stage1(stats, g)
         closed.update(s1.constants())
         for i in range(3):
@@ -889,60 +673,57 @@ def calibrate_from_records(
             bias_est[ACCEL_BIAS_NAMES[i]] = (a, b, c)
             a, b, c = (float(x) for x in s1.gyro_bias_estimates[i])
             bias_est[GYRO_BIAS_NAMES[i]] = (a, b, c)
-    turn_obs = {o.record: o for o in obs if o.kind == "turn"}
-    ns = {o.turns for o in turn_obs.values()}
+    ns = set(ds.turns_of.values())
     n_turns = next(iter(ns)) if len(ns) == 1 else None
-    if all(n in turn_obs for n in TURN_NAMES) and n_turns is not None:
+    if all(n in ds.turns_of for n in TURN_NAMES) and n_turns is not None:
         closed.update(matrix_to_names("G", stage2(stats, n_turns)))
-    if len(ns) > 1:
-        notes.append(
-            "turn records with different numbers of turns: "
-            f"{sorted(n for n in ns if n is not None)}"
-        )
 
-    # residuals per record
-    ma, ba = fit.accel_m + np.eye(3), fit.accel_bias
+    # residuals per record, from the fit's record/channel values
+    by = {(gr.record, gr.sensor, gr.axis): gr.residual for gr in fit.groups}
+    nan3 = (math.nan, math.nan, math.nan)
+
+    def t3(v: Iterable[float]) -> tuple[float, float, float]:
+        a, b, c = (float(x) for x in v)
+        return (a, b, c)
+
     residuals: list[RecordResidual] = []
-    for o in obs:
-        rec = session.records[o.record]
-        st = stats[o.record]
-        nan3 = (math.nan, math.nan, math.nan)
-        gr = fit.gyro_residuals[o.record]
-        if o.kind == "turn":
-            gm = tuple(float(x) for x in gr / o.tau)
-            residuals.append(
-                RecordResidual(
-                    o.record, o.kind, st.n, st.duration_s, nan3, nan3,
-                    (gm[0], gm[1], gm[2]), nan3, (float(gr[0]), float(gr[1]), float(gr[2])),
-                )
-            )  # fmt: skip
+    for sig in ds.signals:
+        st = stats[sig.name]
+        gr = t3(by.get((sig.name, "gyro", ax), math.nan) for ax in "xyz")
+        if sig.kind == "turn":
+            residuals.append(RecordResidual(
+                sig.name, sig.kind, st.n, st.duration_s, nan3, nan3,
+                t3(x / st.duration_s for x in gr), nan3, gr,
+            ))  # fmt: skip
             continue
-        if o.accel is not None:
-            pred_a = ma @ (g * o.up) + ba
-            am = rec.accel.mean(axis=0) - pred_a
-            asd = st.accel_std
-        else:
-            am = asd = np.full(3, math.nan)
-        residuals.append(
-            RecordResidual(
-                o.record, o.kind, st.n, st.duration_s,
-                (float(am[0]), float(am[1]), float(am[2])),
-                (float(asd[0]), float(asd[1]), float(asd[2])),
-                (float(gr[0]), float(gr[1]), float(gr[2])),
-                (float(st.gyro_std[0]), float(st.gyro_std[1]), float(st.gyro_std[2])),
-            )
-        )  # fmt: skip
-    if not turn_obs:
-        notes.append("no turn records: gyro scale and misalignment not measured")
-    else:
-        missing = [
-            a
-            for a, k in zip("XYZ", range(3), strict=True)
-            if not np.all(np.isfinite(fit.gyro_m[:, k]))
-        ]
-        if missing:
-            notes.append(f"no turn about {', '.join(missing)}: that gyro column not measured")
+        ar = t3(by.get((sig.name, "accel", ax), math.nan) for ax in "xyz")
+        residuals.append(RecordResidual(
+            sig.name, sig.kind, st.n, st.duration_s, ar, t3(st.accel_std), gr, t3(st.gyro_std),
+        ))  # fmt: skip
 
+    # the power-on-time note matters only to time terms, which base does not have
+    only_base = all(
+        mt.term.name in ("bias", "scale", "misalignment", "g_sensitivity") for mt in mts
+    )
+    notes = [n for n in ds.notes if not (only_base and "power_on_s" in n)]
+    if len(ns) > 1:
+        notes.append(f"turn records with different numbers of turns: {sorted(ns)}")
+    if fit.uncertainty_note():
+        notes.append(fit.uncertainty_note())
+    combos = tuple(c.describe() for ch in fit.channels for c in ch.combinations)
+    if fit.undetermined:
+        notes.append(
+            f"not determined by these records: {', '.join(fit.undetermined)} (nothing is fixed "
+            "at zero; see what would determine each)"
+        )
+    verdict = (
+        "inadequate"
+        if fit.scaled or fit.chi2_p < ALPHA_FIT
+        else ("untestable" if fit.untestable else "adequate")
+    )
+    quality = FitQuality(
+        fit.chi2, fit.dof, fit.rms_z, fit.chi2_p, verdict, fit.untestable, fit.uncertainty_note()
+    )
     return CalibrationResult(
         serial=session.serial,
         created=created or datetime.now().astimezone().isoformat(timespec="seconds"),
@@ -950,32 +731,30 @@ def calibrate_from_records(
         latitude_deg=latitude_deg,
         height_m=height_m,
         turns=n_turns,
+        model=short_spec(mts),
+        parameters=params,
+        noise_std=noise_std,
+        fit=quality,
+        noise_model={"block_s": nm.block_s, "max_blocks": nm.max_blocks,
+                     "floor": dict(nm.floor), "turn_angle_sigma_deg": nm.turn_angle_sigma_deg},
+        term_files=tuple(str(Path(f).resolve()) for f in files),
+        temp_mean_c=float(ds.signals[0].temp_mean_c) if ds.signals else 25.0,
+        time_known=ds.time_known,
         earth_rate=earth_rate,
-        records=tuple(session.records),
+        records=tuple(s.name for s in ds.signals),
         bias_estimates=bias_est,
         closed_form=closed,
-        std_errors=fit.std_errors,
+        combinations=combos,
         residuals=tuple(residuals),
         notes=tuple(notes),
-        **consts,
-    )
+    )  # fmt: skip
 
 
-# ---- applying a calibration ---------------------------------------------------------------
-def apply(
-    result: CalibrationResult, accel_mps2: np.ndarray, gyro_dps: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Invert the §2 model: raw outputs -> calibrated specific force (m/s²) and rate (°/s).
+def __getattr__(name: str) -> Any:
+    """``CalibrationResult``, ``RecordResidual`` and ``apply`` live in :mod:`host.calib.result`;
+    imports from here keep working."""
+    if name in ("CalibrationResult", "RecordResidual", "apply"):
+        from host.calib import result
 
-    a = (I+Ma)⁻¹·(A − A0);  ω = (I+Mg)⁻¹·(G − G0 − GA·a/g). Accepts (3,) or (N,3) arrays.
-    Gyro scale/misalignment not measured (NaN) are taken as nominal (0).
-    """
-    a_raw = np.asarray(accel_mps2, dtype=np.float64)
-    g_raw = np.asarray(gyro_dps, dtype=np.float64)
-    ia = np.eye(3) + result.accel_m()
-    mg = np.nan_to_num(result.gyro_m(), nan=0.0)
-    ig = np.eye(3) + mg
-    a_cal = np.linalg.solve(ia, (a_raw - result.accel_bias()).T).T
-    corr = g_raw - result.gyro_bias() - (a_cal / result.g) @ result.gyro_gsens().T
-    g_cal = np.linalg.solve(ig, corr.T).T
-    return a_cal, g_cal
+        return getattr(result, name)
+    raise AttributeError(f"module 'host.calib.calibration' has no attribute {name!r}")

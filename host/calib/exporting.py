@@ -1,6 +1,6 @@
 """Results out: the calibration in the parameters and files of the tools our users fly and code.
 
-Our model (method.md §2, matrix form of :mod:`host.calibration`), inverted by ``apply()``::
+Our model (method.md §2, matrix form of :mod:`host.calib.calibration`), inverted by ``apply()``::
 
     a = Ka⁻¹ · (A − A0)                      Ka = I + Ma, A0 m/s², a m/s²
     ω = Kg⁻¹ · (G − G0 − GA · a / g)         Kg = I + Mg, G0 °/s, GA (°/s)/g, ω °/s
@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host.calib.calibration import CalibrationResult
+from host.calib.result import CalibrationResult
 from host.calib.thermal import ThermalCalibration
 from host.errors import UserError
 

@@ -3,7 +3,9 @@
 ``SERIAL_result.txt``: plain UTF-8, at most 80 columns (fits A4), header with serial and date,
 every value on its line with tolerance and a +/− mark, stage-1 bias consistency, residuals per
 record, g/latitude/height, three signature lines. ``SERIAL_result.json``: see
-:meth:`host.calibration.CalibrationResult.to_dict`.
+:meth:`host.calib.result.CalibrationResult.to_dict`. Further terms of the model (beyond the §2
+linear model) get their own section after the §7 table, value ± σ and unit; undetermined
+values are marked "not determined" with what would determine them.
 """
 
 from __future__ import annotations
@@ -19,16 +21,16 @@ from host.calib.calibration import (
     GYRO_BIAS_NAMES,
     NOISE_NAMES,
     UNITS,
-    CalibrationResult,
 )
 from host.calib.records import write_texts_atomic
+from host.calib.result import CalibrationResult
 
 WIDTH = 80
 PLUS, MINUS = "+", "−"
 
 
 def _v(x: float, dec: int = 5) -> str:
-    return f"{x:+.{dec}f}" if math.isfinite(x) else "n/m"
+    return f"{x:+.{dec}f}" if math.isfinite(x) else "n/d"
 
 
 def _mark(ok: bool | None) -> str:
@@ -55,33 +57,52 @@ def format_report(result: CalibrationResult) -> str:
     turns = "-" if r.turns is None else str(r.turns)
     out.append(f"Records: {len(r.residuals)} ({plan}); turns per turn record: {turns}")
     out.append(f"Method: {r.method}")
+    out.append(f"Model: {r.model}")
+    if r.fit is not None:
+        out.extend(_wrap(r.fit.line(), "", "  "))
     if r.earth_rate:
         out.append("Earth rate: vertical component included in the reference rates")
     cf = [abs(consts[n] - v) for n, v in r.closed_form.items() if n not in NOISE_NAMES]
     cf = [d for d in cf if math.isfinite(d)]
     if cf:
-        out.append(f"Closed form (§3, §4) differs from the fit by at most {max(cf):.2e}")
+        what = "the fit" if not r.further else "the fit (whose further terms move the biases)"
+        out.extend(
+            _wrap(f"Closed form (§3, §4) differs from {what} by at most {max(cf):.2e}", "", "  ")
+        )
     out.append(rule)
     out.append(f"  {'value':<7}{'measured':>12}  {'unit':<8}{'tolerance':>11}  mark   std error")
     out.append(rule)
     last_title = ""
+    std_errors = r.std_errors
+    in_model = {p.name for p in r.parameters} | set(r.noise_std)
     for title, names, unit, tol in GROUPS:
         tol_s = "none" if tol is None else (f"≤{tol:g}" if names[0] in NOISE_NAMES else f"±{tol:g}")
         if title != last_title:
             out.append(f"{title}" + (f", {unit}" if unit and unit != "rad" else ""))
         last_title = title
         for n in names:
-            se = r.std_errors.get(n, math.nan)
+            se = std_errors.get(n, math.nan)
             se_s = f"±{se:.5f}" if math.isfinite(se) else ""
-            note = "" if math.isfinite(consts[n]) else "  not measured"
+            note = ""
+            if not math.isfinite(consts[n]):
+                note = "  not determined" if n in in_model else "  not in the model"
             out.append(
                 f"  {n:<7}{_v(consts[n]):>12}  {UNITS[n]:<8}{tol_s:>11}   {_mark(passed[n])}  "
                 f"{se_s:>11}{note}"
             )
     out.append(rule)
+    if r.further:
+        out.append("Further terms of the model (value ± std error)")
+        for p in r.further:
+            if p.determined:
+                out.append(f"  {p.name:<34}{_v(p.value, 6):>14} ± {p.stderr:.2g} {p.unit}")
+            else:
+                out.append(f"  {p.name:<34}{'not determined':>14}")
+        out.append(rule)
     bad = [n for n in CONSTANT_NAMES if passed[n] is False]
+    bad += [p.name for p in r.undetermined if p.name not in bad]
     if bad:
-        out.append(f"RESULT: {len(bad)} value(s) outside tolerance or not measured:")
+        out.append(f"RESULT: {len(bad)} value(s) outside tolerance or not determined:")
         line = "  "
         for n in bad:
             if len(line) + len(n) + 1 > WIDTH:
@@ -92,6 +113,18 @@ def format_report(result: CalibrationResult) -> str:
     else:
         out.append("RESULT: all values within tolerance")
     out.append(rule)
+    if r.undetermined:
+        out.append("Not determined by these records, and what would determine them:")
+        by_need: dict[str, list[str]] = {}
+        for p in r.undetermined:
+            by_need.setdefault(p.needs or "more records", []).append(p.name)
+        for need, names_ in by_need.items():
+            out.extend(_wrap(f"{', '.join(names_)}: {need}", "  -", "    "))
+        if r.combinations:
+            out.append("  What these records do determine of them:")
+            for c in r.combinations:
+                out.extend(_wrap(c, "   ", "      "))
+        out.append(rule)
 
     if r.bias_estimates:
         out.append("Stage 1 bias consistency (§3): estimates from the X, Y, Z pairs")

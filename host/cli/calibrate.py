@@ -1,7 +1,7 @@
 """``python -m host calibrate``: compute the calibration from records and write the report.
 
 ``--from-dir DIR`` recomputes from the record files in DIR. Otherwise the live dialogue of
-method.md §5 runs (:func:`host.session.run_live_session`) on ``--port`` — or, with no port
+method.md §5 runs (:func:`host.dialogue.live.run_live_session`) on ``--port`` — or, with no port
 given, on the first board found, else the virtual board ``sim://``; it records into a
 directory and then computes like the from-dir mode.
 """
@@ -16,11 +16,11 @@ from pathlib import Path
 from host.calib.calibration import (
     DEFAULT_HEIGHT_M,
     DEFAULT_LATITUDE_DEG,
-    CalibrationResult,
     calibrate_from_records,
 )
 from host.calib.records import Session, read_session
 from host.calib.report import format_report, write_results
+from host.calib.result import CalibrationResult
 from host.errors import UserError
 
 
@@ -49,6 +49,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--json", action="store_true", help="print the JSON result instead of the report"
     )
+    p.add_argument(
+        "--model",
+        default="base",
+        help="the model to fit and ship: comma list of term[:sensor[:axes]] (default base = "
+        "bias,scale,misalignment,g_sensitivity, method.md §2; see 'model diagnose')",
+    )
+    p.add_argument(
+        "--term-file",
+        action="append",
+        default=[],
+        metavar="F",
+        help="Python file defining extra terms for --model (repeatable)",
+    )
 
 
 def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -> CalibrationResult:
@@ -57,7 +70,12 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
     if args.turns is not None and args.turns < 1:
         raise UserError("--turns must be at least 1")
     result = calibrate_from_records(
-        session, turns=args.turns, latitude_deg=args.latitude, height_m=args.height
+        session,
+        turns=args.turns,
+        latitude_deg=args.latitude,
+        height_m=args.height,
+        model=args.model,
+        term_files=args.term_file,
     )
     if not out_dir.is_dir():
         raise UserError(f"{out_dir}: no such directory")

@@ -13,8 +13,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from host.calib import exporting
-from host.calib.calibration import CalibrationResult
 from host.calib.records import write_text_atomic
+from host.calib.result import CalibrationResult
 from host.errors import UserError
 from host.ingest.importing import parse_axes
 

@@ -11,6 +11,7 @@ import argparse
 import dataclasses
 import json
 import math
+import shlex
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -40,6 +41,7 @@ from host.modelling.model import (
     load_term_file,
     model_spec,
     parse_model,
+    short_spec,
     term_columns,
 )
 from host.modelling.scenarios import (
@@ -110,6 +112,17 @@ def write_plots(
                     (g for g in fit.groups if g.sensor == sensor and g.axis == AXES[a]),
                     key=lambda g: order.get(g.record, len(order)),
                 )
+                if f"{sensor} {AXES[a]}" in fit.untestable or not gs:
+                    msg = (
+                        "no degrees of freedom:\nthe model passes through\nevery record"
+                        if gs
+                        else "no records"
+                    )
+                    ax.text(0.5, 0.5, msg, ha="center", va="center", transform=ax.transAxes)
+                    ax.set_title(f"{sensor} {AXES[a]}: untestable")
+                    ax.set_xticks([])
+                    ax.set_yticks([])
+                    continue
                 zs = [g.z if math.isfinite(g.z) else 0.0 for g in gs]
                 ax.bar(range(len(gs)), zs, color=["C3" if abs(z) > 3 else "C0" for z in zs])
                 ax.axhline(3, color="k", lw=0.5, ls="--")
@@ -282,6 +295,19 @@ def addition_dict(a: Addition) -> dict[str, Any]:
     }
 
 
+def calibrate_command(args: argparse.Namespace, model: str) -> str:
+    """The exact ``calibrate`` command that fits and ships ``model`` on the records the
+    workbench just used (same directory, serial, site, floor and term files)."""
+    cmd = ["python3", "-m", "host", "calibrate", "--from-dir", args.dir, "--model", model]
+    for f in args.term_file:
+        cmd += ["--term-file", f]
+    for opt, val in (("--serial", args.serial), ("--latitude", args.latitude),
+                     ("--height", args.height), ("--floor", args.floor)):  # fmt: skip
+        if val is not None:
+            cmd += [opt, str(val)]
+    return shlex.join(cmd)
+
+
 def run_add(args: argparse.Namespace) -> int:
     cat = _catalogue(args)
     model = parse_model(args.model, cat)
@@ -289,10 +315,12 @@ def run_add(args: argparse.Namespace) -> int:
     a = add_term(ds, model, args.term, cat)
     if args.plot:
         write_plots(args.plot, ds, a.before, a.after, a.added[0].label)
+    ship = calibrate_command(args, short_spec(a.after.model))
     if args.json:
-        _print_json(addition_dict(a))
+        _print_json({**addition_dict(a), "calibrate_command": ship})
     else:
         print(format_addition(a))
+        print(f"ship this model: {ship}")
     return 0
 
 
@@ -300,10 +328,12 @@ def run_ladder(args: argparse.Namespace) -> int:
     cat = _catalogue(args)
     ds = _dataset(args)
     steps = ladder(ds, args.start, cat)
+    ship = calibrate_command(args, short_spec(parse_model(steps[-1].model, cat)))
     if args.json:
-        _print_json([dataclasses.asdict(s) for s in steps])
+        _print_json({"steps": [dataclasses.asdict(s) for s in steps], "calibrate_command": ship})
     else:
         print(format_ladder(steps))
+        print(f"ship this model: {ship}")
     return 0
 
 

@@ -240,6 +240,8 @@ class SessionOptions:
     sample_stall_s: float = SAMPLE_STALL_S
     hello_timeout_s: float = 5.0
     reconnect_timeout_s: float | None = None  # None: until Esc/Ctrl+C (--yes: YES_RECONNECT_S)
+    model: str = "base"  # the model to fit and ship (host.modelling.model spec)
+    term_files: tuple[str, ...] = ()  # Python files of custom terms for ``model``
 
     @classmethod
     def from_args(cls, args: argparse.Namespace | SessionOptions) -> SessionOptions:
@@ -267,10 +269,18 @@ class SessionOptions:
             resume=bool(get("resume", False)),
             capture=Path(cap) if cap else None,
             ready_s=float(get("ready_seconds", DEFAULT_READY_S)),
+            model=str(get("model", "base")),
+            term_files=tuple(get("term_file", ())),
         )
 
     def check(self) -> None:
         """Option values that cannot work -> UserError."""
+        from host.modelling.model import CATALOGUE, load_term_file, parse_model
+
+        cat = dict(CATALOGUE)
+        for f in self.term_files:
+            cat = load_term_file(f, cat)
+        parse_model(self.model, cat)  # a bad --model fails now, not after the session
         if self.serial is not None:
             try:
                 self.serial = parse_serial(self.serial)
@@ -777,7 +787,7 @@ class SessionResult:
 
     out_dir: Path
     records: list[str] = field(default_factory=list)  # accepted in this session
-    result: Any = None  # host.calibration.CalibrationResult
+    result: Any = None  # host.calib.result.CalibrationResult
     files: tuple[Path, ...] = ()
 
 
@@ -1347,7 +1357,11 @@ class LiveSession:
             )
         session = read_session(self.out_dir, self.serial)
         result = calibrate_from_records(
-            session, latitude_deg=self.opts.latitude_deg, height_m=self.opts.height_m
+            session,
+            latitude_deg=self.opts.latitude_deg,
+            height_m=self.opts.height_m,
+            model=self.opts.model,
+            term_files=self.opts.term_files,
         )
         txt, js = write_results(result, self.out_dir)
         op.say(f"Results: {txt} and {js}")

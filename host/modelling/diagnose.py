@@ -17,7 +17,9 @@ missing something". :func:`diagnose` turns that into a test:
 4. unexplained structure — the residuals of the model plus the best candidate per channel are
    scanned against every signal (temperature, time, each input, its square, its magnitude,
    rate², …), Holm-corrected;
-5. verdict — ``adequate`` / ``missing_effect`` / ``unexplained``.
+5. verdict — ``adequate`` / ``missing_effect`` / ``unexplained``, or ``untestable`` when
+   nothing is found but some channel's record values leave no degrees of freedom (the model
+   passes through them exactly: it is not tested at all, so it is never called adequate).
 """
 
 from __future__ import annotations
@@ -58,7 +60,7 @@ ALPHA = 0.01
 #: a candidate whose columns keep less than this fraction of their norm after removing the
 #: model's columns cannot be identified from the records
 IDENTIFIABLE_TOL = 1e-3
-VERDICTS = ("adequate", "missing_effect", "unexplained")
+VERDICTS = ("adequate", "missing_effect", "unexplained", "untestable")
 #: a candidate with p up to this many times the Bonferroni threshold is "just below
 #: significance": it is still compared with the significant ones for confounding
 NEAR_FACTOR = 100.0
@@ -602,6 +604,17 @@ def diagnose(
     notes = list(ds.notes)
     if fit.undetermined:
         notes.append("not determined by these records: " + ", ".join(fit.undetermined))
+        combos = [c.describe() for ch in fit.channels for c in ch.combinations]
+        if combos:
+            notes.append("identifiable from these records: only " + "; ".join(combos))
+    if fit.untestable:
+        notes.append(
+            f"no degrees of freedom on {', '.join(fit.untestable)}: the model passes through "
+            "these records exactly, so they cannot test it (add records: other attitudes, "
+            "turns both ways)"
+        )
+    if fit.uncertainty_note():
+        notes.append(fit.uncertainty_note())
     if usable and not recommended:
         notes.append(
             f"the best candidates ({', '.join(c.label for c in usable)}) remove only "
@@ -617,6 +630,8 @@ def diagnose(
         verdict = "missing_effect"
     elif hits or aug.chi2_p < alpha or any(c.significant for c in cands):
         verdict = "unexplained"
+    elif fit.untestable:
+        verdict = "untestable"
     else:
         verdict = "adequate"
     if verdict == "missing_effect" and aug.chi2_p < alpha and not hits:

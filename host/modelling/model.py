@@ -31,6 +31,7 @@ estimate (numerical Jacobian) and the fit iterated (Gauss-Newton).
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import inspect
 import math
@@ -602,6 +603,21 @@ def model_spec(model: Sequence[ModelTerm]) -> str:
     return ",".join(mt.label for mt in model)
 
 
+def short_spec(model: Sequence[ModelTerm]) -> str:
+    """The spec with ``base`` for the whole §2 linear model and ``term:sensor`` for all
+    three axes: 'base,temperature_bias:gyro:y' (same model as :func:`model_spec`)."""
+    full = {(mt.term.name, mt.sensor): mt.axes for mt in model}
+    base = [ModelTerm(CATALOGUE[n], s, (0, 1, 2)) for n in BASE for s in CATALOGUE[n].sensors]
+    has_base = all(full.get((b.term.name, b.sensor)) == (0, 1, 2) for b in base)
+    items = ["base"] if has_base else []
+    for mt in model:
+        if has_base and mt.term.name in BASE:
+            continue
+        axes = "" if mt.axes == (0, 1, 2) else ":" + "".join(AXES[a] for a in mt.axes)
+        items.append(f"{mt.term.name}:{mt.sensor}{axes}")
+    return ",".join(items)
+
+
 # ---- noise model ----------------------------------------------------------------------------
 @dataclass(frozen=True)
 class NoiseModel:
@@ -756,6 +772,8 @@ class Dataset:
     time_known: bool = True
     #: the bias-instability floor of a record mean per sensor (m/s², °/s) this dataset uses
     floor: Mapping[str, float] = field(default_factory=dict)
+    #: turns n of each turn record (record name -> n)
+    turns_of: Mapping[str, int] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
@@ -855,17 +873,22 @@ def build_dataset(
     latitude_deg: float = DEFAULT_LATITUDE_DEG,
     height_m: float = DEFAULT_HEIGHT_M,
     turns: int | None = None,
+    earth_rate: bool = False,
 ) -> Dataset:
     """Check the records (:func:`host.calibration.build_observations`) and build the rows.
 
-    UserError when there is nothing to fit (no static records, bad records).
+    ``earth_rate``: the reference rate includes the vertical Earth rate (as
+    :func:`~host.calibration.build_observations`). UserError when there is nothing to fit (no
+    static records, bad records).
     """
     nm = noise or NoiseModel()
     if not session.records:
         raise UserError("no records to fit")
     g = local_gravity(latitude_deg, height_m)
     stats = {n: record_stats(r) for n, r in session.records.items()}
-    obs, notes = build_observations(session, g, turns=turns, stats=stats)
+    obs, notes = build_observations(
+        session, g, turns=turns, stats=stats, earth_rate=earth_rate, latitude_deg=latitude_deg
+    )
     obs_of = {o.record: o for o in obs}
     names = [n for n in session.records if n in obs_of]
     has_power = all("power_on_s" in session.records[n].meta for n in names)
@@ -903,10 +926,8 @@ def build_dataset(
             bias_up = pre[:3].T @ o.up + pre[3]
             want = float(o.rate @ o.up)
             rate = _turn_reference(rec.gyro, rec.t_ms, o.up, bias_up, want)
-        elif o.kind == "rate":
+        else:  # rate table; statics: zero, or the vertical Earth rate
             rate = np.tile(o.rate, (n, 1))
-        else:
-            rate = np.zeros((n, 3))
         sig = RecordSignals(
             name=name, kind=o.kind, t_s=t0 + t_rel, temp_c=rec.temp.copy(), force=force,
             rate=rate, accel=rec.accel, gyro=rec.gyro, g=g, up=o.up, temp_mean_c=temp_mean,
@@ -1019,6 +1040,7 @@ def build_dataset(
         notes=tuple(notes),
         time_known=has_power,
         floor=floors,
+        turns_of={o.record: o.turns for o in obs if o.kind == "turn" and o.turns is not None},
     )
 
 
@@ -1173,13 +1195,82 @@ def chi2_isf(p: float, dof: float) -> float:
 @dataclass(frozen=True, eq=False)
 class Parameter:
     """One fitted parameter: §2-style ``name``, owning model-term label, value, 1-σ std error
-    (NaN value: the records do not determine it), unit."""
+    (NaN value: the records do not determine it), unit; ``sensor``, ``axis`` (x/y/z, the output
+    channel) and ``key`` (the term's own parameter name, e.g. ``per_C``)."""
 
     name: str
     term: str
     value: float
     stderr: float
     unit: str
+    sensor: str = ""
+    axis: str = ""
+    key: str = ""
+
+    @property
+    def term_name(self) -> str:
+        """The catalogue name of the owning term ('temperature_bias')."""
+        return self.term.split(":")[0]
+
+
+#: the χ² test of a channel rejects the model at this level: its standard errors are scaled
+ALPHA_FIT = 0.01
+
+
+def stderr_scale(chi2: float, dof: int) -> float:
+    """The project's one uncertainty policy: standard errors come from the noise model; when a
+    channel's fit is poor (χ² p < :data:`ALPHA_FIT` and χ² > dof) they are multiplied by
+    √(χ²/dof) (the Birge ratio) and the report says so. 1.0 otherwise (and with no dof)."""
+    if dof <= 0 or not math.isfinite(chi2) or chi2 <= dof:
+        return 1.0
+    return math.sqrt(chi2 / dof) if chi2_sf(chi2, dof) < ALPHA_FIT else 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class Combination:
+    """A combination of undetermined parameters that the records DO determine:
+    Σ coefficient·parameter = value ± stderr (unit of the first parameter)."""
+
+    terms: tuple[tuple[float, str], ...]  # (coefficient, parameter name)
+    value: float
+    stderr: float
+    unit: str
+
+    def describe(self) -> str:
+        """'A0x + 9.815·Axx = 0.6021 ± 0.0003 m/s²'."""
+        parts: list[str] = []
+        for i, (c, n) in enumerate(self.terms):
+            sign = "−" if c < 0 else "+"
+            mag = abs(c)
+            coef = "" if abs(mag - 1.0) < 1e-9 else f"{mag:.4g}·"
+            parts.append((("−" if c < 0 else "") if i == 0 else f" {sign} ") + coef + n)
+        return f"{''.join(parts)} = {self.value:.6g} ± {self.stderr:.2g} {self.unit}".strip()
+
+
+@dataclass(frozen=True, eq=False)
+class ChannelFit:
+    """Fit statistics of one output channel (the channels are independent problems).
+
+    ``dof`` = rows − determined parameters; ``dof_records`` = record/channel values −
+    parameters (the between-record test: 0 means the model is not tested at all, verdict
+    ``untestable``); ``se_scale``: :func:`stderr_scale`; ``combinations``: what the records
+    determine of the undetermined parameters."""
+
+    sensor: str
+    axis: str
+    chi2: float
+    dof: int
+    dof_records: int
+    se_scale: float
+    combinations: tuple[Combination, ...] = ()
+
+    @property
+    def channel(self) -> str:
+        return f"{self.sensor} {self.axis}"
+
+    @property
+    def testable(self) -> bool:
+        return self.dof_records > 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -1238,6 +1329,27 @@ class Fit:
     groups: tuple[GroupResidual, ...]
     spans: tuple[SpanResidual, ...]
     undetermined: tuple[str, ...]
+    channels: tuple[ChannelFit, ...] = ()
+
+    @property
+    def untestable(self) -> tuple[str, ...]:
+        """Channels whose record values leave no degrees of freedom ('accel x', …)."""
+        return tuple(c.channel for c in self.channels if not c.testable)
+
+    @property
+    def scaled(self) -> tuple[ChannelFit, ...]:
+        """Channels whose standard errors were scaled (:func:`stderr_scale`)."""
+        return tuple(c for c in self.channels if c.se_scale != 1.0)
+
+    def uncertainty_note(self) -> str:
+        """The one sentence saying how the standard errors were treated ('' if unscaled)."""
+        if not self.scaled:
+            return ""
+        parts = ", ".join(f"{c.channel} ×{c.se_scale:.2g}" for c in self.scaled)
+        return (
+            f"poor fit (χ² p < {ALPHA_FIT:g}): standard errors scaled by √(χ²/dof) on {parts}; "
+            "the model does not explain these channels"
+        )
 
     @property
     def rms_z(self) -> float:
@@ -1321,12 +1433,11 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
         yw = w @ (ds.y - ds.nominal - offset)
         keep, basis = select_columns(xw)
         theta = np.full(x.shape[1], np.nan)
-        cov_diag = np.full(x.shape[1], np.nan)
+        cov = np.zeros((x.shape[1], x.shape[1]))
         if keep.any():
             sol, *_ = np.linalg.lstsq(xw[:, keep], yw, rcond=None)
             theta[keep] = sol
-            cov = np.linalg.pinv(xw[:, keep].T @ xw[:, keep])
-            cov_diag[keep] = np.diag(cov)
+            cov[np.ix_(keep, keep)] = np.linalg.pinv(xw[:, keep].T @ xw[:, keep])
         moved = 0.0
         for i, mt in enumerate(model):
             if mt.term.nonlinear:
@@ -1344,26 +1455,32 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
     wres = w @ resid
     chi2 = float(wres @ wres)
     n_par = int(keep.sum())
+    # who owns each column: (name, unit, channel, term label, sensor, axis, key)
+    owners: list[tuple[str, str, tuple[str, int], str, str]] = []
+    for mt in model:
+        units = mt.term.param_units(mt.sensor)
+        for ax in mt.axes:
+            for q, name in enumerate(mt.term.param_labels(mt.sensor, ax)):
+                owners.append((name, units[q], (mt.sensor, ax), mt.label, mt.term.params[q]))
+    channels, estimable = _channel_fits(ds, x, xw, wres, th0, cov, owners)
+    scale_of = {(c.sensor, AXES.index(c.axis)): c.se_scale for c in channels}
     params: list[Parameter] = []
     undetermined: list[str] = []
-    for i, mt in enumerate(model):
-        a, _ = spans[i]
-        units = mt.term.param_units(mt.sensor)
-        k = len(mt.term.params)
-        for j, ax in enumerate(mt.axes):
-            for q, name in enumerate(mt.term.param_labels(mt.sensor, ax)):
-                c = a + j * k + q
-                params.append(
-                    Parameter(name, mt.label, float(theta[c]), math.sqrt(cov_diag[c])
-                              if np.isfinite(cov_diag[c]) else math.nan, units[q])
-                )  # fmt: skip
-                if not keep[c]:
-                    undetermined.append(name)
+    for c, (name, unit, ch, label, key) in enumerate(owners):
+        ok = bool(keep[c] and estimable[c])
+        se = math.sqrt(max(float(cov[c, c]), 0.0)) * scale_of.get(ch, 1.0) if ok else math.nan
+        params.append(
+            Parameter(name, label, float(theta[c]) if ok else math.nan, se, unit,
+                      ch[0], AXES[ch[1]], key)
+        )  # fmt: skip
+        if not ok:
+            undetermined.append(name)
     groups, spans_out = _residual_tables(ds, predicted, resid, basis)
     return Fit(
         model=model, parameters=tuple(params), predicted=predicted, residual=resid,
         white_residual=wres, basis=basis, chi2=chi2, dof=ds.n_rows - n_par, n_params=n_par,
         groups=groups, spans=spans_out, undetermined=tuple(undetermined),
+        channels=tuple(channels),
     )  # fmt: skip
 
 
@@ -1380,6 +1497,115 @@ def residual_sigmas(ds: Dataset, basis: np.ndarray) -> np.ndarray:
     if basis.shape[1]:
         var = var - np.sum((basis.T @ v) ** 2, axis=0)
     return np.sqrt(np.maximum(var, 0.0))
+
+
+def _rref(m: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """Reduced row echelon form of ``m`` (rows independent), leading coefficients 1."""
+    a = np.array(m, dtype=np.float64)
+    r = 0
+    for col in range(a.shape[1]):
+        if r >= a.shape[0]:
+            break
+        piv = r + int(np.argmax(np.abs(a[r:, col])))
+        if abs(a[piv, col]) < tol:
+            continue
+        a[[r, piv]] = a[[piv, r]]
+        a[r] /= a[r, col]
+        for i in range(a.shape[0]):
+            if i != r:
+                a[i] -= a[i, col] * a[r]
+        r += 1
+    return a[:r]
+
+
+def _channel_fits(
+    ds: Dataset,
+    x: np.ndarray,
+    xw: np.ndarray,
+    wres: np.ndarray,
+    theta: np.ndarray,
+    cov: np.ndarray,
+    owners: Sequence[tuple[str, str, tuple[str, int], str, str]],
+) -> tuple[list[ChannelFit], np.ndarray]:
+    """Per output channel: χ², dof, record-level dof, the standard-error scale, which columns
+    the records determine individually (a parameter is determined when its unit vector lies in
+    the row space of the channel's design) and the combinations they do determine."""
+    estimable = np.zeros(len(owners), dtype=bool)
+    out: list[ChannelFit] = []
+    for s_i, sensor in enumerate(SENSORS):
+        for ax in range(3):
+            rows = np.flatnonzero((ds.row_sensor == s_i) & (ds.row_axis == ax))
+            if not len(rows):
+                continue
+            cols = np.array([c for c, o in enumerate(owners) if o[2] == (sensor, ax)], dtype=int)
+            xc = xw[np.ix_(rows, cols)] if len(cols) else np.zeros((len(rows), 0))
+            norms = np.linalg.norm(xc, axis=0)
+            live = norms > 0
+            rank, null = 0, np.zeros((len(cols), 0))
+            if live.any():
+                xn = xc[:, live] / norms[live]
+                _, sv, vt = np.linalg.svd(xn, full_matrices=True)
+                rank = int(np.sum(sv > 1e-9 * sv[0])) if len(sv) else 0
+                null = np.zeros((len(cols), vt.shape[0] - rank))
+                null[live] = vt[rank:].T / norms[live, None]  # back to parameter units
+            for j, c in enumerate(cols):
+                estimable[c] = bool(live[j]) and (
+                    null.shape[1] == 0 or float(np.linalg.norm(null[j] * norms[j])) < 1e-6
+                )
+            # record-level design: one row per record/channel value (mean of its rows)
+            grs = [g for g in ds.groups if g.sensor == sensor and g.axis == ax]
+            rank_g = 0
+            if len(cols) and grs:
+                xg = np.array([x[np.ix_(g.rows, cols)].mean(axis=0) for g in grs])
+                gn = np.linalg.norm(xg, axis=0)
+                rank_g = int(np.linalg.matrix_rank(xg[:, gn > 0] / gn[gn > 0], tol=1e-9))
+            chi2 = float(wres[rows] @ wres[rows])
+            dof = len(rows) - rank
+            scale = stderr_scale(chi2, dof)
+            combos = (
+                _combinations(cols, estimable, null, norms, theta, cov * scale**2, owners)
+                if null.shape[1]
+                else ()
+            )
+            out.append(ChannelFit(sensor, AXES[ax], chi2, dof, len(grs) - rank_g, scale, combos))
+    return out, estimable
+
+
+def _combinations(
+    cols: np.ndarray,
+    estimable: np.ndarray,
+    null: np.ndarray,
+    norms: np.ndarray,
+    theta: np.ndarray,
+    cov: np.ndarray,
+    owners: Sequence[tuple[str, str, tuple[str, int], str, str]],
+) -> tuple[Combination, ...]:
+    """Combinations c·θ of the undetermined parameters of one channel that the records
+    determine: c supported on them with cᵀ·N = 0 (N the null space of the design)."""
+    und = [j for j, c in enumerate(cols) if not estimable[c] and norms[j] > 0]
+    if not und:
+        return ()
+    # in normalised coordinates (columns of unit norm) for a well-scaled null space
+    ns = null[und] * norms[und, None]
+    _, sv, vt = np.linalg.svd(ns.T, full_matrices=True)
+    r = int(np.sum(sv > 1e-9 * max(float(sv[0]), 1e-300))) if len(sv) else 0
+    basis = vt[r:]
+    if not len(basis):
+        return ()
+    out: list[Combination] = []
+    for row in _rref(basis * norms[und][None, :]):
+        coef = row / row[np.flatnonzero(np.abs(row) > 1e-12)[0]]
+        idx = [cols[und[k]] for k in range(len(und))]
+        terms = tuple((float(coef[k]), owners[idx[k]][0]) for k in range(len(und))
+                      if abs(coef[k]) > 1e-9)  # fmt: skip
+        full = np.zeros(len(theta))
+        for k in range(len(und)):
+            full[idx[k]] = coef[k]
+        value = float(full @ theta)
+        se = math.sqrt(max(float(full @ cov @ full), 0.0))
+        unit = owners[idx[next(k for k in range(len(und)) if abs(coef[k]) > 1e-9)]][1]
+        out.append(Combination(terms, value, se, unit))
+    return tuple(out)
 
 
 def _residual_tables(

@@ -19,8 +19,6 @@ from host.calib.calibration import (
     GYRO_MIS_NAMES,
     GYRO_SCALE_NAMES,
     NOISE_NAMES,
-    CalibrationResult,
-    apply,
     calibrate_from_records,
     local_gravity,
     matrix_to_names,
@@ -31,6 +29,7 @@ from host.calib.calibration import (
     trapezoid_integral,
 )
 from host.calib.records import STATIC_NAMES, TURN_NAMES, Record, Session, read_session
+from host.calib.result import CalibrationResult, apply
 from host.errors import UserError
 
 try:
@@ -199,9 +198,13 @@ def test_statics_only_gyro_scale_not_measured() -> None:
     for k in GYRO_SCALE_NAMES + GYRO_MIS_NAMES:
         assert math.isnan(getattr(res, k))
     assert res.passed()["Gxx"] is False and not res.all_passed
-    assert any("not measured" in n for n in res.notes)
+    assert any("not determined" in n and "Gxx" in n for n in res.notes)
+    # what would determine it: a turn about that axis, either way (the bias is from statics)
+    assert res.parameter("Gxx").needs == "add any one of: x_ccw, x_cw"
+    assert res.parameter("Gzx").needs == "add any one of: y_ccw, y_cw"
     back = CalibrationResult.from_json(res.to_json())
     assert math.isnan(back.Gxx) and json.loads(res.to_json())["constants"]["Gxx"] is None
+    assert back.parameter("Gxx").needs == res.parameter("Gxx").needs
 
 
 def test_turns_about_x_only() -> None:
@@ -235,8 +238,6 @@ def test_turn_that_did_not_happen() -> None:
 def test_no_statics_is_an_error() -> None:
     with pytest.raises(UserError, match="no static records"):
         calibrate_from_records(_session(make_records(TURN_NAMES)))
-    with pytest.raises(UserError, match="do not determine the accelerometer"):
-        calibrate_from_records(_session(make_records(("x_up", "y_up", "z_up"))))
 
 
 # ---- checks -------------------------------------------------------------------------------
@@ -309,22 +310,28 @@ def test_moving_static_is_named() -> None:
 def test_json_round_trip_and_version(standard: CalibrationResult) -> None:
     text = standard.to_json()
     d = json.loads(text)
-    assert d["format_version"] == CalibrationResult.FORMAT_VERSION == 1
+    assert d["format_version"] == CalibrationResult.FORMAT_VERSION == 2
     assert list(d["constants"]) == list(CONSTANT_NAMES)
-    assert d["units"]["G0x"] == "°/s" and d["tolerances"]["A0z"] == 0.8
-    assert d["tolerances"]["Astdx"] is None and d["pass"]["Astdx"] is None
+    par = {p["name"]: p for p in d["parameters"]}
+    assert par["G0x"]["unit"] == "°/s" and par["A0z"]["tolerance"] == 0.8
+    assert par["G0x"]["term"] == "bias" and par["G0x"]["sensor"] == "gyro"
+    assert par["Gzy"]["term"] == "misalignment" and par["Gzy"]["axis"] == "z"
+    assert par["GAyz"]["stderr"] == pytest.approx(standard.std_errors["GAyz"])
+    assert d["noise_std"]["Astdx"]["tolerance"] is None and d["pass"]["Astdx"] is None
     assert d["pass"]["Gxx"] is True and d["g"] == pytest.approx(G)
+    assert d["model"] == "base" and d["fit"]["verdict"] == "adequate" and d["fit"]["dof"] > 0
+    assert set(d["noise_model"]) >= {"floor", "block_s", "turn_angle_sigma_deg"}
     assert d["latitude_deg"] == 55.75 and d["height_m"] == 150.0 and d["turns"] == 2
     back = CalibrationResult.from_json(text)
     assert back.constants() == standard.constants()
     assert back.to_json() == text
-    d["format_version"] = 2
-    with pytest.raises(UserError, match="format v2 but this program reads v1"):
+    d["format_version"] = 3
+    with pytest.raises(UserError, match="format v3 but this program reads v1 and v2"):
         CalibrationResult.from_json(json.dumps(d))
     with pytest.raises(UserError, match="not valid JSON"):
         CalibrationResult.from_json("{")
-    del d["constants"]["Axx"]
-    d["format_version"] = 1
+    del d["parameters"][3]["value"]
+    d["format_version"] = 2
     with pytest.raises(UserError, match="missing or bad field"):
         CalibrationResult.from_json(json.dumps(d))
 

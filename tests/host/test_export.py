@@ -18,11 +18,11 @@ from host.__main__ import main
 from host.calib.calibration import (
     CONSTANT_NAMES,
     GYRO_GSENS_NAMES,
-    CalibrationResult,
-    apply,
+    NOISE_NAMES,
     local_gravity,
 )
 from host.calib.exporting import FORMATS, export
+from host.calib.result import CalibrationResult, apply, base_parameters
 from host.ingest.importing import parse_axes
 
 try:
@@ -42,7 +42,8 @@ def _result(**override: float) -> CalibrationResult:
     consts.update(override)
     return CalibrationResult(
         serial="EXP1", created="2026-11-23T12:00:00+00:00", g=local_gravity(),
-        latitude_deg=55.75, height_m=150.0, turns=2, **consts,
+        latitude_deg=55.75, height_m=150.0, turns=2, model="base",
+        parameters=base_parameters(consts), noise_std={n: consts[n] for n in NOISE_NAMES},
     )  # fmt: skip
 
 

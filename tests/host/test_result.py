@@ -1,0 +1,176 @@
+"""Result format v2 and apply(): the model a user improves in the workbench is the model they
+ship (issue 11's done-when checks)."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from host.__main__ import main
+from host.bench.sim import write_session
+from host.calib.calibration import calibrate_from_records
+from host.calib.records import read_session
+from host.calib.result import CalibrationResult, apply
+from host.cli.model import hidden_effect_case
+from host.errors import UserError
+from host.modelling.model import NoiseModel
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
+
+
+# ---- format v1 still loads and applies ------------------------------------------------------
+def test_v1_result_loads_and_applies_as_before() -> None:
+    res = CalibrationResult.load(DATA / "V1FIX_result.json")
+    old = json.loads((DATA / "V1FIX_result.json").read_text(encoding="utf-8"))
+    assert res.loaded_version == 1 and res.model == "base" and res.serial == "V1FIX"
+    for name, value in old["constants"].items():
+        assert getattr(res, name) == value, name
+    assert res.std_errors["Gzy"] == old["std_errors"]["Gzy"]
+    assert res.parameter("Gzy").term == "misalignment" and res.parameter("Gzy").axis == "z"
+    # the outputs the format-v1 apply() gave for these samples (tests/data/V1FIX_apply.json)
+    ref = json.loads((DATA / "V1FIX_apply.json").read_text(encoding="utf-8"))
+    a, w = apply(res, np.array(ref["accel_mps2"]), np.array(ref["gyro_dps"]))
+    assert a == pytest.approx(np.array(ref["accel_cal"]), abs=1e-10)
+    assert w == pytest.approx(np.array(ref["gyro_cal"]), abs=1e-10)
+    # and saving it again writes format v2 that reads back the same
+    back = CalibrationResult.from_json(res.to_json())
+    assert back.loaded_version == 2 and back.constants() == res.constants()
+
+
+# ---- hidden gyro temperature bias: workbench term -> calibrate -> apply ----------------------
+@pytest.fixture(scope="module")
+def temperature_session(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, float]:
+    case = hidden_effect_case("temperature", 4)
+    d = tmp_path_factory.mktemp("temp")
+    write_session(d, "TMP", dict(case.records))
+    return d, case.term, case.truth
+
+
+def _static_block_means(res: CalibrationResult, d: Path, axis: int) -> np.ndarray:
+    """Calibrated rate of ``axis`` on every static record, in 5 block means per record."""
+    out: list[float] = []
+    for rec in read_session(d).records.values():
+        if rec.kind != "static":
+            continue
+        _, w = apply(res, rec.accel, rec.gyro, temp_c=rec.temp)
+        n = len(rec) // 5 * 5
+        out.extend(w[:n, axis].reshape(5, -1).mean(axis=1))
+    return np.array(out)
+
+
+def test_hidden_temperature_bias_round_trip(
+    temperature_session: tuple[Path, str, float], capsys: pytest.CaptureFixture[str]
+) -> None:
+    d, term, truth = temperature_session
+    axis = "xyz".index(term[-1])
+    rc = main(["calibrate", "--from-dir", str(d), "--model", f"base,{term}", "--json"])
+    full = CalibrationResult.from_json(capsys.readouterr().out)
+    assert rc == 0 and full.model == f"base,{term}"
+    p = full.parameter(f"temperature_bias.gyro.{term[-1]}")
+    assert p.term == "temperature_bias" and p.unit == "°/s/°C"
+    assert abs(p.value - truth) < 4 * p.stderr and p.stderr < abs(truth) / 10
+    base = calibrate_from_records(read_session(d))
+    assert base.fit is not None and base.fit.verdict == "inadequate"
+    assert full.fit is not None and full.fit.verdict == "adequate"
+    before = _static_block_means(base, d, axis)
+    after = _static_block_means(full, d, axis)
+    # the noise of a 1/5-record block mean of that channel, from the records themselves,
+    # with the bias-instability floor of the noise model
+    recs = [r for r in read_session(d).records.values() if r.kind == "static"]
+    white = np.median([np.std(np.diff(r.gyro[:, axis])) / math.sqrt(2 * len(r) / 5) for r in recs])
+    noise = math.hypot(white, NoiseModel().floor["gyro"])
+    rms_before = float(np.sqrt(np.mean(before**2)))
+    rms_after = float(np.sqrt(np.mean(after**2)))
+    assert rms_before > 5 * noise  # the temperature bias was visible
+    assert rms_after < 1.5 * noise  # and applying the whole model removes it
+    # the other gyro axes are not made worse
+    for other in {0, 1, 2} - {axis}:
+        assert np.sqrt(np.mean(_static_block_means(full, d, other) ** 2)) < 1.5 * noise
+
+
+def test_apply_names_the_missing_input(temperature_session: tuple[Path, str, float]) -> None:
+    d, term, _ = temperature_session
+    res = calibrate_from_records(read_session(d), model=f"base,{term}")
+    rec = next(iter(read_session(d).records.values()))
+    with pytest.raises(UserError, match=rf"term temperature_bias:gyro:{term[-1]} .* temp_c="):
+        apply(res, rec.accel, rec.gyro)
+    a, w = apply(res, rec.accel[0], rec.gyro[0], temp_c=30.0)  # one sample, scalar temperature
+    assert a.shape == (3,) and w.shape == (3,)
+    with pytest.raises(UserError, match=r"temp_c has shape \(3,\)"):
+        apply(res, rec.accel[:5], rec.gyro[:5], temp_c=np.ones(3))
+
+
+# ---- one engine: the same numbers from calibrate and the workbench --------------------------
+def test_imucal_same_constants_and_errors_from_calibrate_and_diagnose(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for p in REAL.glob("REAL_*.txt"):
+        shutil.copy(p, tmp_path / p.name)
+    main(["calibrate", "--from-dir", str(tmp_path), "--json"])
+    cal = json.loads(capsys.readouterr().out)
+    assert main(["model", "diagnose", str(tmp_path), "--json"]) == 0
+    diag = json.loads(capsys.readouterr().out)
+    mine = {p["name"]: p for p in cal["parameters"]}
+    theirs = {p["name"]: p for p in diag["parameters"]}
+    assert set(mine) == set(theirs) and len(mine) == 33
+    for name, p in theirs.items():
+        assert mine[name]["value"] == pytest.approx(p["value"], rel=1e-12), name
+        assert mine[name]["stderr"] == pytest.approx(p["stderr"], rel=1e-12), name
+    # the accelerometer misfit (bias estimates 0.02-0.04 m/s² apart) scales its errors:
+    # the same policy in both, said in both
+    assert mine["A0x"]["stderr"] > 0.005 and cal["fit"]["verdict"] == "inadequate"
+    assert "standard errors scaled" in cal["fit"]["stderr_note"]
+    assert any("standard errors scaled" in n for n in diag["notes"])
+
+
+# ---- never a silent zero -------------------------------------------------------------------
+def test_three_attitudes_one_way_turns(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for n in ("x_up", "y_up", "z_up", "x_cw", "y_cw", "z_cw"):
+        shutil.copy(REAL / f"REAL_{n}.txt", tmp_path)
+    rc = main(["calibrate", "--from-dir", str(tmp_path), "--json"])
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 1
+    par = {p["name"]: p for p in d["parameters"]}
+    for name in ("A0x", "A0y", "A0z", "Axx", "Ayy", "Azz", "Axy", "G0x", "GAyz"):
+        assert par[name]["value"] is None and par[name]["stderr"] is None, name
+        assert par[name]["needs"] == "add any one of: x_dn, y_dn, z_dn", name
+        assert par[name]["passed"] is False
+    # what the records do determine: gyro scales from the one-way turns (bias from statics)
+    full = calibrate_from_records(read_session(REAL))
+    for name in ("Gxx", "Gyy", "Gzz", "Gxz", "Gzy"):
+        assert par[name]["value"] == pytest.approx(full.constants()[name], abs=2e-3), name
+        assert 0 < par[name]["stderr"] < 5e-3
+    assert any(c.startswith("A0x − 9.815·Axy = ") for c in d["combinations"])
+    assert d["fit"]["verdict"] == "untestable"
+    # the report says it too
+    text = (tmp_path / "REAL_result.txt").read_text(encoding="utf-8")
+    row = next(ln for ln in text.splitlines() if ln.split()[:1] == ["A0x"])
+    assert "n/d" in row and "not determined" in row
+    assert "add any one of: x_dn, y_dn, z_dn" in " ".join(text.split())
+    # the workbench never calls it adequate
+    assert main(["model", "diagnose", str(tmp_path), "--json"]) == 0
+    diag = json.loads(capsys.readouterr().out)
+    assert diag["verdict"] == "untestable"
+    assert any("identifiable from these records: only A0x − 9.815·Axy" in n for n in diag["notes"])
+
+
+def test_model_add_prints_the_calibrate_command(
+    temperature_session: tuple[Path, str, float], capsys: pytest.CaptureFixture[str]
+) -> None:
+    d, term, _ = temperature_session
+    assert main(["model", "add", str(d), term]) == 0
+    out = capsys.readouterr().out
+    line = next(ln for ln in out.splitlines() if ln.startswith("ship this model: "))
+    cmd = line.removeprefix("ship this model: ")
+    assert cmd == f"python3 -m host calibrate --from-dir {d} --model base,{term}"
+    # and that command ships exactly the model the workbench showed
+    args = cmd.split()[3:]
+    assert main([*args, "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["model"] == f"base,{term}"
