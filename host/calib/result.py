@@ -23,7 +23,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from host.calib.calibration import (
+from host.calib.method import (
     ACCEL_BIAS_NAMES,
     CONSTANT_NAMES,
     GYRO_BIAS_NAMES,

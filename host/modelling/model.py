@@ -31,7 +31,6 @@ estimate (numerical Jacobian) and the fit iterated (Gauss-Newton).
 
 from __future__ import annotations
 
-import dataclasses
 import importlib.util
 import inspect
 import math
@@ -43,11 +42,11 @@ from typing import Any
 
 import numpy as np
 
-from host.calib.calibration import (
+from host.calib.checks import build_observations
+from host.calib.method import (
     DEFAULT_HEIGHT_M,
     DEFAULT_LATITUDE_DEG,
     TURN_ANGLE_SIGMA_DEG,
-    build_observations,
     local_gravity,
     record_stats,
     trapezoid_integral,
