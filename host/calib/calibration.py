@@ -406,7 +406,7 @@ def calibrate_from_records(
         noise_std=noise_std,
         fit=quality,
         noise_model={"block_s": nm.block_s, "max_blocks": nm.max_blocks,
-                     "floor": dict(nm.floor), "turn_angle_sigma_deg": nm.turn_angle_sigma_deg},
+                     "floor": dict(ds.floor), "turn_angle_sigma_deg": nm.turn_angle_sigma_deg},
         term_files=tuple(str(Path(f).resolve()) for f in files),
         temp_mean_c=float(ds.signals[0].temp_mean_c) if ds.signals else 25.0,
         time_known=ds.time_known,

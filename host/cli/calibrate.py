@@ -21,6 +21,7 @@ from host.calib.calibration import (
 from host.calib.records import Session, read_session
 from host.calib.report import format_report, write_results
 from host.calib.result import CalibrationResult
+from host.cli.model import _noise
 from host.errors import UserError
 
 
@@ -56,6 +57,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "bias,scale,misalignment,g_sensitivity, method.md §2; see 'model diagnose')",
     )
     p.add_argument(
+        "--floor",
+        default=None,
+        metavar="accel=A,gyro=G",
+        help="bias-instability floor of a record mean (m/s², °/s), as 'model diagnose'; "
+        "default: measured from the records",
+    )
+    p.add_argument(
         "--term-file",
         action="append",
         default=[],
@@ -76,6 +84,7 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
         height_m=args.height,
         model=args.model,
         term_files=args.term_file,
+        noise=_noise(getattr(args, "floor", None)),
     )
     if not out_dir.is_dir():
         raise UserError(f"{out_dir}: no such directory")

@@ -119,7 +119,8 @@ def test_standard_session_recovers_truth(standard: CalibrationResult) -> None:
     for k in SCALE_MIS + ACCEL_BIAS_NAMES + GYRO_BIAS_NAMES + GYRO_GSENS_NAMES:
         assert err[k] < 4.5 * standard.std_errors[k] + 1e-5, (k, err[k], standard.std_errors[k])
     assert standard.turns == 2
-    assert standard.notes == ()
+    # nothing to note but how the noise floor was measured
+    assert all(n.startswith("noise floor of a record mean") for n in standard.notes)
 
 
 def test_closed_form_agrees_with_lsq(standard: CalibrationResult) -> None:
@@ -129,7 +130,7 @@ def test_closed_form_agrees_with_lsq(standard: CalibrationResult) -> None:
         if k in NOISE_NAMES:
             assert v == c[k]
         else:  # far below the noise (the standard errors)
-            assert abs(v - c[k]) < 0.05 * standard.std_errors[k], (k, v, c[k])
+            assert abs(v - c[k]) < 0.2 * standard.std_errors[k], (k, v, c[k])
 
 
 def test_noise_is_largest_static_std(standard: CalibrationResult) -> None:
