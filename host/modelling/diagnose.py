@@ -578,8 +578,17 @@ def diagnose(
     catalogue: Mapping[str, Term] | None = None,
     alpha: float = ALPHA,
 ) -> Diagnosis:
-    """Fit ``model`` to ``ds`` and run the whole diagnosis (module docstring)."""
+    """Fit ``model`` to ``ds`` and run the whole diagnosis (module docstring). UserError when
+    the records leave the fit no degrees of freedom: then nothing tests the model, and any
+    verdict (one record gave ``adequate``) would be a claim without evidence."""
     fit = fit_model(ds, model)
+    if fit.dof <= 0:
+        n = len(ds.signals)
+        raise UserError(
+            f"{n} record{' leaves' if n == 1 else 's leave'} the model no "
+            f"degrees of freedom ({fit.n_params} parameters determined by as many values): "
+            "nothing tests it; diagnose needs more records (at least the six static faces)"
+        )
     cands, _ = evaluate_candidates(ds, fit, catalogue, alpha)
     cat = catalogue if catalogue is not None else CATALOGUE
     # the best usable candidate of each channel (significant, plausible, not made redundant)

@@ -98,3 +98,17 @@ def test_a_sound_user_term_still_works(
     rc, out, err = run(argv, capsys)
     assert rc == 0, err
     assert '"rms_z"' in out
+
+
+def test_diagnose_on_one_record_is_no_verdict(
+    records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Was: ``== verdict: adequate`` from a fit with no degrees of freedom left."""
+    one = tmp_path / "one"
+    one.mkdir()
+    (one / "T8_x_up.txt").write_bytes((records_dir / "T8_x_up.txt").read_bytes())
+    rc, out, err = run(["model", "diagnose", str(one)], capsys)
+    assert rc == 2 and "verdict" not in out
+    assert "1 record leaves the model no degrees of freedom" in err
+    rc, out, _ = run(["model", "diagnose", str(records_dir), "--json"], capsys)
+    assert rc in (0, 1) and '"verdict"' in out
