@@ -7,8 +7,12 @@ port → :class:`host.link.Link` (timestamped reads, every byte into an IMUCAP01
 written atomically as ``SERIAL_name.txt`` when the operator accepts it → at the end
 :func:`host.calibration.calibrate_from_records` and the report files (:mod:`host.report`).
 
-Time column: device time since the start beep, ms: ``t_us`` unwrapped (32-bit wrap) minus the
-``t_us`` of the first sample after the beep (the device clock, not an assumed 50 Hz). Every
+Acquisition window, on device time: at the start beep the host sends PING; the board's PONG
+gives its ``t_us`` at that moment (``device_t_us_beep``), and the measurement holds exactly the
+samples whose device time lies in ``[beep, beep + duration)`` — whatever is still in flight
+from before the beep is dropped by its time stamp, however the reads are chunked and however
+loaded the host is. Time column: device time, ms: ``t_us`` unwrapped (32-bit wrap) minus the
+``t_us`` of the first sample of the window (the device clock, not an assumed 50 Hz). Every
 sample read also feeds a live minimum-delay clock estimate (:class:`host.clock.LiveClock`,
 restarted when the board resets); the record's ``#`` header holds the device→host mapping:
 ``device_t_us_start``, ``host_ns_start_beep``, ``host_ns_first_sample`` (host
@@ -114,6 +118,9 @@ STALL_S = 2.0
 #: no IMU sample for this long during a measurement, whatever other frames arrive (STATUS,
 #: ERROR), is a stalled board: the measurement stops (:class:`SensorFault`), s
 SAMPLE_STALL_S = 5.0
+#: how long the start beep waits for the board's PONG (its device time) before cutting the
+#: window at the newest sample instead, s
+PONG_TIMEOUT_S = 1.0
 SERIAL_RE = re.compile(r"^[A-Za-z0-9_-]{1,12}$")
 MISSED = gen.ENUMS["sample_flags"]["MISSED"]
 #: bytes of one IMU_SAMPLE frame on the wire (for its serialisation time)
@@ -438,6 +445,7 @@ class Acquisition:
     lost_frames: int  # sequence gaps during the measurement
     missed: int  # samples flagged MISSED by the firmware
     crc_errors: int  # CRC failures the decoder saw during the measurement
+    beep_t_us: int = 0  # device t_us (raw, 32-bit) at the start beep: the window's start
 
     @property
     def lost(self) -> int:
@@ -479,6 +487,7 @@ class Board:
         self.clock = LiveClock()
         self._clock_last_t: int | None = None  # raw t_us of the last sample fed to the clock
         self._clock_dev_us = 0  # its unwrapped value
+        self._ping_nonce = 0
 
     # ---- connection ----------------------------------------------------------------------
     def connect(self) -> BoardInfo:
@@ -668,78 +677,122 @@ class Board:
     ) -> Acquisition:
         """Record ``duration_s`` seconds of device time from now (the start beep).
 
-        What the port holds from before is read and dropped first. ``tick(elapsed_s,
-        sums_of_counts(7), n)`` is called about every ``tick_every_s`` (host time);
-        ``check_escape()`` True -> MeasurementAborted. Raises LinkLost / LinkTimeout /
-        BoardReset; nothing is kept then. A sensor ERROR frame, or no IMU sample for
-        ``sample_stall_s`` (host time) whatever else arrives, raises :class:`SensorFault`: the
-        measurement always ends.
+        The window is cut on device time, not on what a read happens to return: at the beep
+        the host sends PING and the board answers PONG with its ``t_us`` at that moment; the
+        measurement holds exactly the samples whose device time lies in
+        ``[PONG t_us, PONG t_us + duration)`` — samples still in flight from before the beep
+        (in the USB/pty buffers, however the reads are chunked and however late the host
+        is) are dropped by their time stamp. A board that does not answer within
+        :data:`PONG_TIMEOUT_S` gets the window from the newest sample seen at that moment.
+        ``tick(elapsed_s, sums_of_counts(7), n)`` is called about every ``tick_every_s``
+        (host time); ``check_escape()`` True -> MeasurementAborted. Raises LinkLost /
+        LinkTimeout / BoardReset; nothing is kept then. A sensor ERROR frame, or no IMU sample
+        for ``sample_stall_s`` (host time) whatever else arrives, raises :class:`SensorFault`:
+        the measurement always ends.
         """
         assert self.link is not None and self.info is not None
         beep_ns = time.monotonic_ns()
         start_time = datetime.now().astimezone().isoformat(timespec="milliseconds")
-        _, old = self.link.read_chunk()  # what the port holds from before the beep: dropped
-        for f in self.link.decoder.feed(old):
-            if f.type != IMU_SAMPLE:
-                self._other(f)
+        self._ping_nonce = (self._ping_nonce + 1) & 0xFFFFFFFF
+        nonce = self._ping_nonce
+        self.link.send("PING", nonce=nonce)
         crc0 = self.link.decoder.stats.crc_errors
         duration_us = int(round(duration_s * 1e6))
+        period_us = 1e6 / self.info.rate_hz
+        t0: int | None = None  # device t_us of the beep (raw, 32-bit)
+        newest_t: int | None = None  # newest sample time seen since the beep (fallback t0)
+        held: list[tuple[int, Frame]] = []  # frames read before t0 was known
         t_raw: list[int] = []
         el: list[int] = []
         rows: list[tuple[int, ...]] = []
         sums = np.zeros(7, dtype=np.int64)
-        first_ns = 0
-        last_seq: int | None = None
-        last_t = 0
-        elapsed = 0
-        lost = missed = 0
+        st = {"first_ns": 0, "last_seq": -1, "last_rel": -1, "lost": 0, "missed": 0}
         next_tick = last_sample = time.monotonic()
+        ping_deadline = next_tick + PONG_TIMEOUT_S
         last_error: Frame | None = None
+
+        def take(arrival_ns: int, f: Frame) -> bool:
+            """One frame of the window's stream (t0 known); True once the window is over."""
+            assert t0 is not None
+            gap = 0
+            if st["last_seq"] >= 0:
+                d = (f.seq - st["last_seq"]) & 0xFFFF
+                if d == 0 or d >= 0x8000:
+                    raise BoardReset("the board restarted during the measurement")
+                gap = d - 1
+            st["last_seq"] = f.seq
+            if f.type != IMU_SAMPLE:
+                self._other(f)
+                if rows:
+                    st["lost"] += gap
+                return False
+            p = f.payload
+            t_us = int.from_bytes(p[0:4], "little")
+            rel = (t_us - t0) & 0xFFFFFFFF
+            if rel >= 0x80000000:  # sampled before the beep: not part of the measurement
+                if rows:
+                    raise BoardReset("the board's clock went back during the measurement")
+                return False
+            if rel >= duration_us:
+                return True
+            if rows:
+                if rel < st["last_rel"]:
+                    raise BoardReset("the board's clock went back during the measurement")
+                st["lost"] += gap
+            else:  # frames lost between the beep and the first sample of the window
+                st["first_ns"] = arrival_ns
+                st["lost"] += min(gap, int(rel // period_us))
+            st["last_rel"] = rel
+            counts = _COUNTS_BE.unpack_from(p, 4)
+            if p[18] & MISSED:
+                st["missed"] += 1
+            t_raw.append(t_us)
+            el.append(rel)
+            rows.append(counts)
+            sums[:] += counts
+            return False
+
+        def take_held() -> bool:
+            nonlocal held
+            batch, held = held, []
+            for a_ns, g in batch:
+                if take(a_ns, g):
+                    return True
+            return False
+
         done = False
         while not done:
             batch = self.read_frames()
             if any(f.type == IMU_SAMPLE for _, f in batch):
                 last_sample = time.monotonic()
             for arrival_ns, f in batch:
-                if last_seq is not None:
-                    d = (f.seq - last_seq) & 0xFFFF
-                    if d == 0 or d >= 0x8000:
-                        raise BoardReset("the board restarted during the measurement")
-                    lost += d - 1
-                last_seq = f.seq
-                if f.type != IMU_SAMPLE:
-                    if f.name == "HELLO":
-                        raise BoardReset("the board restarted during the measurement")
-                    if f.name == "ERROR" and f.fields["code"] in SENSOR_ERROR_CODES:
-                        raise SensorFault(
-                            f"the board reports {error_text(f)}: its sensor stopped; check the "
-                            "IMU and its wiring, then power-cycle the board"
-                        )
-                    if f.name == "ERROR":
-                        last_error = f
-                    self._other(f)
+                if f.name == "HELLO":
+                    raise BoardReset("the board restarted during the measurement")
+                if f.name == "ERROR" and f.fields["code"] in SENSOR_ERROR_CODES:
+                    raise SensorFault(
+                        f"the board reports {error_text(f)}: its sensor stopped; check the "
+                        "IMU and its wiring, then power-cycle the board"
+                    )
+                if f.name == "ERROR":
+                    last_error = f
+                if t0 is None:
+                    if f.name == "PONG" and f.fields["nonce"] == nonce:
+                        t0 = f.fields["t_us"]
+                    elif f.type == IMU_SAMPLE:
+                        newest_t = int.from_bytes(f.payload[0:4], "little")
+                    held.append((arrival_ns, f))
+                    if t0 is not None and take_held():
+                        done = True
+                        break
                     continue
-                p = f.payload
-                t_us = int.from_bytes(p[0:4], "little")
-                if not t_raw:
-                    first_ns = arrival_ns
-                else:
-                    dt = (t_us - last_t) & 0xFFFFFFFF
-                    if dt >= 0x80000000:
-                        raise BoardReset("the board's clock went back during the measurement")
-                    elapsed += dt
-                if elapsed >= duration_us:
+                if take(arrival_ns, f):
                     done = True
                     break
-                last_t = t_us
-                counts = _COUNTS_BE.unpack_from(p, 4)
-                if p[18] & MISSED:
-                    missed += 1
-                t_raw.append(t_us)
-                el.append(elapsed)
-                rows.append(counts)
-                sums += counts
             now = time.monotonic()
+            if t0 is None and now >= ping_deadline and newest_t is not None:
+                # no PONG (an older firmware?): the window starts after the newest sample
+                t0 = (newest_t + 1) & 0xFFFFFFFF
+                done = take_held()
             if now - last_sample > self.sample_stall_s and not done:
                 raise SensorFault(
                     f"no samples from the board for {self.sample_stall_s:g} s"
@@ -752,19 +805,21 @@ class Board:
                 if check_escape is not None and check_escape():
                     raise MeasurementAborted()
                 if tick is not None:
-                    tick(elapsed / 1e6, sums, len(rows))
+                    tick((el[-1] if el else 0) / 1e6, sums, len(rows))
         if tick is not None:
             tick(duration_s, sums, len(rows))
+        first = el[0] if el else 0
         return Acquisition(
-            t_us=np.asarray(el, dtype=np.int64),
+            t_us=np.asarray(el, dtype=np.int64) - first,
             counts=np.asarray(rows, dtype=np.int64).reshape(-1, 7),
             start_t_us=t_raw[0] if t_raw else 0,
             beep_ns=beep_ns,
-            first_ns=first_ns,
+            first_ns=st["first_ns"],
             start_time=start_time,
-            lost_frames=lost,
-            missed=missed,
+            lost_frames=st["lost"],
+            missed=st["missed"],
             crc_errors=self.link.decoder.stats.crc_errors - crc0,
+            beep_t_us=t0 if t0 is not None else 0,
         )
 
     # ---- units ---------------------------------------------------------------------------
@@ -1272,6 +1327,7 @@ class LiveSession:
                 "lost_percent": f"{100 * acq.loss_fraction:.3f}",
                 "crc_errors": str(acq.crc_errors),
                 "device_t_us_start": str(acq.start_t_us),
+                "device_t_us_beep": str(acq.beep_t_us),
                 **self._session_time(acq),
                 "host_ns_start_beep": str(acq.beep_ns),
                 "host_ns_first_sample": str(acq.first_ns),
