@@ -86,6 +86,9 @@ class Screen:
         self.pid, self.fd = pty.fork()
         if self.pid == 0:  # child: the pty is its controlling terminal
             try:
+                # Ctrl+C must reach the program even when this test runs in a background job
+                # (a non-interactive shell's `cmd &` ignores SIGINT, and exec keeps SIG_IGN)
+                signal.signal(signal.SIGINT, signal.SIG_DFL)
                 os.chdir(cwd)
                 os.execvpe(CMD[0], CMD + args, env)
             finally:
