@@ -8,6 +8,7 @@ URL grammar (all options optional, ``&``-separated)::
           [&speed=max|N|realtime][&truth=random|ideal][&effects=NAME,NAME...]
           [&operator=auto|manual][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
           [&operator_fault=wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
+          [&chamber=FROM:TO:MINUTES[@START_S]]
 
 - ``elf``: firmware to run, an ``.elf`` or ``.hex`` (default: ``make -C firmware`` into
   ``firmware/build/`` first; with ``boot``/``flash``: whatever the flash holds).
@@ -28,7 +29,7 @@ URL grammar (all options optional, ``&``-separated)::
   N× the wall clock, so emulated time does too (paced in 2 ms steps: a device clock right to
   ≈ 50 ppm); ``realtime`` (or 1) — the emulator paces itself to the wall clock (as
   ``realtime=1``: a device clock right to a few ppm), the simulator keeping ahead of it.
-- ``truth``, ``effects``, ``latitude``, ``tilt``, ``earth_rate``, ``operator``: as in
+- ``truth``, ``effects``, ``latitude``, ``tilt``, ``earth_rate``, ``operator``, ``chamber``: as in
   ``sim://`` (``host/transports/protocol_sim.py``); ``operator=manual``: hints are only
   recorded (``port.hints``), move the cube with ``port.set_motion(motion)``.
 - ``operator_fault`` (may repeat): the virtual operator misbehaves on purpose, as ``sim://``'s
@@ -85,7 +86,7 @@ from serial.serialposix import Serial as PosixSerial
 from serial.serialutil import SerialException
 
 from host.bench.emulator import FAULTS, STIM_RECORD_HZ, EmulatedBoard, SimStimulus
-from host.transports.protocol_sim import SAMPLE_CLOCK_MAX, SPEED_RANGE, bounded
+from host.transports.protocol_sim import SAMPLE_CLOCK_MAX, SPEED_RANGE, bounded, parse_chamber
 
 if TYPE_CHECKING:
     from host.bench.physics import Bench, Environment, Motion
@@ -97,6 +98,7 @@ _PATH = ("elf", "stimulus", "reglog", "samplelog", "workdir", "flash")
 #: options of the simulator stimulus (parse_sim_options), not of the EmulatedBoard
 _SIM_KEYS = (
     "speed", "truth", "effects", "operator", "latitude", "tilt", "earth_rate", "operator_fault",
+    "chamber",
 )  # fmt: skip
 #: after an operator hint, wait until the emulator is this far past the change, s (every
 #: sample taken before it has then been sent to the port)
@@ -167,6 +169,7 @@ class SimOptions:
     tilt_deg: float = 0.0
     earth_rate: bool = True
     operator_faults: tuple[tuple[str, float], ...] = ()  # (name, K) for host.sim.CubeOperator
+    chamber: tuple[tuple[str, float], ...] = ()  # Environment chamber fields (parse_chamber)
 
 
 def parse_sim_options(url: str) -> SimOptions | None:
@@ -205,6 +208,8 @@ def parse_sim_options(url: str) -> SimOptions | None:
         latitude = bounded(key, one("latitude", "55.75"), -90.0, 90.0)
         key = "tilt"
         tilt = bounded(key, one("tilt", "0"), -90.0, 90.0)
+        key = "chamber"
+        chamber = tuple(parse_chamber(one(key, "")).items()) if key in opts else ()
     except ValueError as exc:
         raise ValueError(f"emu:// option {key}={one(key, '')!r}: {exc}") from None
     earth = one("earth_rate", "1").lower() not in ("0", "false", "no")
@@ -221,7 +226,9 @@ def parse_sim_options(url: str) -> SimOptions | None:
             faults.append((name, float(k) if k else 1.0))
         except ValueError:
             raise ValueError(f"emu:// option operator_fault={text!r}: K must be a number") from None
-    return SimOptions(seed, speed, truth, effects, operator, latitude, tilt, earth, tuple(faults))
+    return SimOptions(
+        seed, speed, truth, effects, operator, latitude, tilt, earth, tuple(faults), chamber
+    )
 
 
 def truth_for_url(url: str) -> SensorTruth | None:
@@ -254,6 +261,15 @@ class _Bench:
         self.environment: Environment = dataclasses.replace(
             env, timer_ppm=0.0, sample_clock_error=0.0
         )
+        if o.chamber:
+            c = dict(o.chamber)
+            self.environment = dataclasses.replace(
+                self.environment,
+                chamber_from_c=c["chamber_from_c"],
+                chamber_to_c=c["chamber_to_c"],
+                chamber_minutes=c["chamber_minutes"],
+                chamber_start_s=c["chamber_start_s"],
+            )
         self.bench: Bench = Bench(
             latitude_deg=o.latitude_deg, tilt_deg=o.tilt_deg, earth_rate=o.earth_rate
         )

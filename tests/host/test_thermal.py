@@ -148,3 +148,20 @@ def test_chamber_url_option_is_checked() -> None:
     for bad in ("10:50", "a:b:c", "10:50:0", "10:500:5"):
         with pytest.raises(ValueError, match="chamber"):
             parse_chamber(bad)
+
+
+def test_sim_and_emu_urls_take_a_chamber_ramp() -> None:
+    from host.board.link import open_port
+    from host.transports.protocol_emu import parse_sim_options
+
+    port = open_port("sim://?seed=2&speed=max&chamber=-10:50:60@30")
+    port.close()
+    env = port.environment
+    t = np.array([0.0, 30.0, 3630.0, 9000.0])
+    rise = env.rise_c * (1 - np.exp(-t / env.tau_s))
+    swing = env.room_amp_c * np.sin(2 * np.pi * t / env.room_period_s + env.room_phase)
+    assert env.temperature(t) - rise - swing == pytest.approx([-10.0, -10.0, 50.0, 50.0])
+    o = parse_sim_options("emu://?chamber=5:45:20")
+    assert o is not None and dict(o.chamber)["chamber_to_c"] == 45.0
+    with pytest.raises(ValueError, match="chamber"):
+        parse_sim_options("emu://?chamber=5:45")
