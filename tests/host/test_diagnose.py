@@ -201,6 +201,9 @@ def test_effect_outside_the_catalogue_is_unexplained_and_named(seed: int) -> Non
     assert d.recommended_spec is None and d.to_dict()["recommended"] is None
     named = [(h.sensor, h.axis, h.signal) for h in d.dominant]
     assert ("gyro", "x", "(specific force z)²") in named, named
+    # the plan measures the Z faces last: the scan says the signal goes with session time
+    hit = next(h for h in d.dominant if h.signal == "(specific force z)²")
+    assert hit.time_confounded and "session time" in hit.describe()
     text = format_diagnosis(d, compare=False)
     assert "try: python" not in text and "recommended: nothing" in text
 
