@@ -117,6 +117,30 @@ def read(path: str | os.PathLike[str]) -> Capture:
     return Capture(raw, np.zeros(1, np.uint64), np.asarray([len(raw)], np.int64))
 
 
+class CaptureUnwrapper:
+    """Incremental IMUCAP01 parser: ``feed`` the file's bytes in any pieces (magic first),
+    get back the recorded port bytes they complete (read times are dropped)."""
+
+    def __init__(self) -> None:
+        self._buf = bytearray()
+        self._magic_left = len(MAGIC)
+
+    def feed(self, data: bytes) -> bytes:
+        self._buf += data
+        if self._magic_left:
+            k = min(self._magic_left, len(self._buf))
+            del self._buf[:k]
+            self._magic_left -= k
+        out = bytearray()
+        while len(self._buf) >= _REC.size:
+            _, n = _REC.unpack_from(self._buf, 0)
+            if len(self._buf) < _REC.size + n:
+                break
+            out += self._buf[_REC.size : _REC.size + n]
+            del self._buf[: _REC.size + n]
+        return bytes(out)
+
+
 class CaptureWriter:
     """Append reads to an IMUCAP01 file as they happen (flushed per read, so a crash keeps them)."""
 

@@ -347,6 +347,8 @@ class Readable(Protocol):
 class FrameReader:
     """Yield ``(raw_bytes, frame)`` from anything with ``read(n)`` (a port, a file, a socket).
 
+    An IMUCAP01 capture (``python -m host capture``, a session's ``SERIAL_session.cap``) is
+    recognised by its magic and unwrapped: the frames come from the bytes it recorded.
     Stops at end of input (``read`` returning ``b""``); for a live port with a timeout, an
     empty read just means no data yet, so pass ``stop_on_empty=False`` and break yourself.
     """
@@ -362,13 +364,28 @@ class FrameReader:
         return self.decoder.stats
 
     def __iter__(self) -> Iterator[tuple[bytes, Frame]]:
+        from host.wire.capture import MAGIC, CaptureUnwrapper
+
+        head: bytes | None = b""  # the first bytes, until they tell if this is IMUCAP01
+        unwrap: CaptureUnwrapper | None = None
         while True:
             data = self.stream.read(self.chunk)
             if not data:
-                if self.stop_on_empty:
-                    yield from self.decoder.flush()
-                    return
-                continue
+                if not self.stop_on_empty:
+                    continue
+                if head:  # shorter than the magic: plain bytes
+                    yield from self.decoder.feed_raw(head)
+                yield from self.decoder.flush()
+                return
+            if head is not None:
+                head += data
+                if len(head) < len(MAGIC) and MAGIC.startswith(head):
+                    continue
+                data, head = head, None
+                if data.startswith(MAGIC):
+                    unwrap = CaptureUnwrapper()
+            if unwrap is not None:
+                data = unwrap.feed(data)
             yield from self.decoder.feed_raw(data)
 
 
@@ -469,7 +486,23 @@ class BulkResult:
 
 def decode_bulk(data: bytes | bytearray | memoryview, sender: str = "device") -> BulkResult:
     """Decode a whole capture at once; same frames and counters as streaming + flush
-    (``sender`` as :class:`StreamDecoder`'s)."""
+    (``sender`` as :class:`StreamDecoder`'s).
+
+    ``data``: raw bytes as read from a port, or a whole IMUCAP01 capture file (recognised by
+    its magic; the frames are decoded from the bytes it recorded, ``offset`` counts in those,
+    and a cut-off last record counts as ``bytes_discarded``)."""
+    from host.wire.capture import MAGIC, parse
+
+    cut = 0
+    if bytes(data[: len(MAGIC)]) == MAGIC:
+        cap = parse(bytes(data))
+        data, cut = cap.data, cap.truncated_bytes
+    result = _decode_bulk_bytes(data, sender)
+    result.stats.bytes_discarded += cut
+    return result
+
+
+def _decode_bulk_bytes(data: bytes | bytearray | memoryview, sender: str) -> BulkResult:
     lengths = LENGTHS_FROM[sender]
     buf = np.frombuffer(data, dtype=np.uint8)
     n = buf.size

@@ -7,7 +7,7 @@ import random
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from host.wire.frames import (
@@ -202,6 +202,9 @@ def test_bulk_equals_streaming_on_corrupted_streams(seed: int, n_ops: int, chunk
 @settings(max_examples=200, deadline=None)
 @given(st.binary(max_size=600))
 def test_fuzz_arbitrary_bytes_never_raise(data: bytes) -> None:
+    from host.wire.capture import MAGIC
+
+    assume(not data.startswith(MAGIC))  # that is a capture file: test_imucap01_* below
     frames, stats = stream_decode(data, [3, 50, 1])
     bulk, bstats = bulk_summary(data)
     assert bulk == summary(frames) and bstats == stats
@@ -221,3 +224,54 @@ def test_one_percent_corrupted_recovers_the_rest(seed: int) -> None:
     assert r.stats.crc_errors + 0 >= hit.size - 5  # a flipped length/type byte is no CRC error
     assert r.stats.lost_frames == hit.size
     assert not set(r.samples["seq"].tolist()) & set(hit.tolist())
+
+
+# --------------------------------------------------------------------------- IMUCAP01 files
+
+
+def imucap(data: bytes, reads: list[int]) -> bytes:
+    """``data`` as ``python -m host capture`` writes it: magic, then (host ns, n, bytes) per
+    read, the reads ``reads`` bytes long (the rest in one last read)."""
+    import struct
+
+    from host.capture import MAGIC
+
+    out = bytearray(MAGIC)
+    pos = 0
+    for k, n in enumerate([*reads, len(data)]):
+        part = data[pos : pos + n]
+        pos += len(part)
+        if part:
+            out += struct.pack("<QI", 10**9 + 1000 * k, len(part)) + part
+    return bytes(out)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(st.integers(1, 300), max_size=30),
+    st.integers(1, 97),
+    st.integers(0, 2**32 - 1),
+    st.integers(0, 10),
+)
+def test_imucap01_files_decode_like_the_bytes_they_hold(
+    reads: list[int], chunk: int, seed: int, n_ops: int
+) -> None:
+    """decode_bulk and FrameReader take a capture file as written by ``capture`` (IMUCAP01,
+    however its reads were split) and find exactly the frames of the bytes it recorded."""
+    data = corrupt(BASE, random.Random(seed), n_ops)
+    cap = imucap(data, reads)
+    want, want_stats = bulk_summary(data)
+    got, got_stats = bulk_summary(cap)
+    assert got == want and got_stats == want_stats
+    reader = FrameReader(io.BytesIO(cap), chunk=chunk)
+    frames = list(reader)
+    assert summary(frames) == want and reader.stats == want_stats
+
+
+def test_imucap01_cut_short_keeps_every_complete_read() -> None:
+    data = make_stream(100, status_every=0)
+    cap = imucap(data, [27 * 10] * 9)  # ten reads of ten frames
+    r = decode_bulk(cap[:-5])  # the last read cut off (a killed recording)
+    assert len(r.samples) == 90 and r.stats.bytes_discarded == 12 + 270 - 5
+    assert np.array_equal(r.samples["t_us"], np.arange(90) * 20000)
+    assert sum(1 for _ in FrameReader(io.BytesIO(cap[:-5]))) == 90
