@@ -53,16 +53,59 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
 }
 
 
+EXIT_CODES = """exit status:
+  0    done (calibrate: every value within tolerance)
+  1    calibrate: some value outside tolerance or not measured
+  2    bad input or a problem to fix (one line on stderr says which)
+  130  interrupted (Ctrl+C)"""
+
+#: command -> examples shown at the end of its --help
+EXAMPLES: dict[str, str] = {
+    "calibrate": """examples:
+  python3 -m host calibrate --serial DEMO01 --yes --warmup 0 --static-seconds 5 --turns 1
+      a whole session on the virtual board (no board plugged in)
+  python3 -m host calibrate --port /dev/ttyACM0 --serial U17
+      the guided dialogue on a real APM 2.6
+  python3 -m host calibrate --port /dev/ttyACM0 --serial U17 --out U17 --resume
+      continue an interrupted session (Ctrl+C prints this command)
+  python3 -m host calibrate --from-dir U17/
+      recompute the report from saved records""",
+    "capture": """examples:
+  python3 -m host capture --port /dev/ttyACM0 session.cap        until Ctrl+C
+  python3 -m host capture --port "sim://?speed=10" --seconds 5 s.cap""",
+    "decode": """examples:
+  python3 -m host decode session.cap --jsonl | head
+  python3 -m host decode session.cap --stats""",
+    "model": """examples:
+  python3 -m host model diagnose DIR --plot plots/
+  python3 -m host model add DIR temperature_bias:gyro:x""",
+    "demo": """examples:
+  python3 -m host demo hidden-effect --effect temperature""",
+}
+
+
+def _version() -> str:
+    from host import __version__
+    from host.wire.protocol_gen import PROTOCOL_VERSION, SPEC_FINGERPRINT
+
+    return f"imu-bench {__version__} (protocol {PROTOCOL_VERSION}, spec {SPEC_FINGERPRINT:#010x})"
+
+
 def build_parser() -> tuple[
     argparse.ArgumentParser, dict[str, Callable[[argparse.Namespace], int]]
 ]:
     parser = argparse.ArgumentParser(
         prog="python -m host", description="IMU calibration bench host (APM 2.6 / MPU-6000)."
     )
+    parser.add_argument("--version", action="version", version=_version())
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     runners: dict[str, Callable[[argparse.Namespace], int]] = {}
     for name, (module, func, help_text) in COMMANDS.items():
-        p = sub.add_parser(name, help=help_text, description=help_text)
+        epilog = "\n\n".join(x for x in (EXAMPLES.get(name, ""), EXIT_CODES) if x)
+        p = sub.add_parser(
+            name, help=help_text, description=help_text, epilog=epilog,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )  # fmt: skip
         runners[name] = getattr(importlib.import_module(module), func)(p)
     return parser, runners
 

@@ -294,6 +294,13 @@ def format_record(record: Record) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _umask() -> int:
+    """The process's umask (reading it means setting it: set it straight back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def write_texts_atomic(files: Mapping[str | os.PathLike[str], str]) -> None:
     """Publish several UTF-8 files together or not at all: each is written to a temp file in
     its directory and fsync'ed; only when all are written are they renamed over the targets
@@ -310,6 +317,8 @@ def write_texts_atomic(files: Mapping[str | os.PathLike[str], str]) -> None:
                 raise write_error(p, exc) from None
             temps.append((tmp, p))
             try:
+                if hasattr(os, "fchmod"):  # a new file's usual mode, not mkstemp's private 0600
+                    os.fchmod(fd, 0o666 & ~_umask())
                 with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
                     f.write(text)
                     f.flush()

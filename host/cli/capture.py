@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -21,17 +22,30 @@ def cli_capture(p: Any) -> Any:
     p.add_argument("file", type=Path, help="IMUCAP01 capture file to write")
     p.add_argument("--port", required=True, help="serial device or URL (sim://, emu://, ...)")
     p.add_argument("--baud", type=int, default=DEFAULT_BAUD)
-    p.add_argument("--seconds", type=float, default=10.0, help="how long to record (host time)")
+    p.add_argument(
+        "--seconds", type=float, default=None,
+        help="how long to record, s of host time (default: until Ctrl+C, which keeps the file)",
+    )  # fmt: skip
     return run_capture
 
 
 def run_capture(args: Any) -> int:
-    if not math.isfinite(args.seconds) or args.seconds <= 0:
-        raise UserError(f"--seconds {args.seconds:g}: give a recording time above 0 s")
+    """Record until ``--seconds`` or Ctrl+C; a status line on stderr once a second (redrawn in
+    place on a terminal); the decoder counters as JSON on stdout at the end."""
+    if args.seconds is not None and (not math.isfinite(args.seconds) or args.seconds <= 0):
+        raise UserError(
+            f"--seconds {args.seconds:g}: give a recording time above 0 s (or leave it out to "
+            "record until Ctrl+C)"
+        )
+    tty = sys.stderr.isatty()
+    until = f"{args.seconds:g} s" if args.seconds is not None else "Ctrl+C stops"
+    print(f"recording {args.port} into {args.file} ({until})", file=sys.stderr)
     with Link.open(args.port, args.baud, capture=args.file) as link:
-        end = time.monotonic() + args.seconds
+        start = time.monotonic()
+        end = start + args.seconds if args.seconds is not None else math.inf
         n_samples = 0
         sensor_error: Frame | None = None
+        next_status = start + 1.0
         try:
             while time.monotonic() < end:
                 _, data = link.read_chunk()
@@ -40,9 +54,17 @@ def run_capture(args: Any) -> int:
                         n_samples += 1
                     elif f.name == "ERROR" and f.fields["code"] in SENSOR_ERROR_CODES:
                         sensor_error = sensor_error or f
+                now = time.monotonic()
+                if now >= next_status:
+                    next_status = now + 1.0
+                    _status(now - start, n_samples, link, tty)
         except KeyboardInterrupt:
-            print("stopped; the capture so far is kept", file=sys.stderr)
+            pass
+        if tty:
+            sys.stderr.write("\n")
+        elapsed = time.monotonic() - start
     stats = link.stats.as_dict() | {"samples": n_samples, "file": str(args.file)}
+    print(f"stopped; {args.file} holds {n_samples} samples", file=sys.stderr)
     print(json.dumps(stats))
     if sensor_error is not None:
         raise UserError(
@@ -51,7 +73,22 @@ def run_capture(args: Any) -> int:
         )
     if n_samples == 0:
         raise UserError(
-            f"no samples from the board in {args.seconds:g} s ({args.file} holds what came); "
+            f"no samples from the board in {elapsed:.1f} s ({args.file} holds what came); "
             "is it streaming? (python -m host flash checks its HELLO)"
         )
     return 0
+
+
+def _status(elapsed_s: float, n_samples: int, link: Link, tty: bool) -> None:
+    """One status line on stderr: redrawn in place (cut to the width) on a terminal."""
+    st = link.stats
+    line = (
+        f"{elapsed_s:7.1f} s  {n_samples} samples  {st.crc_errors} CRC errors  "
+        f"{st.lost_frames} frames lost"
+    )
+    if tty:
+        cols = shutil.get_terminal_size().columns
+        sys.stderr.write("\r" + line[: cols - 1] + "\x1b[K")
+    else:
+        sys.stderr.write(line + "\n")
+    sys.stderr.flush()

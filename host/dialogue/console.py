@@ -43,6 +43,10 @@ class Console(Protocol):
     #: False: no keys can be read (``--yes`` mode, no terminal)
     interactive: bool
 
+    @property
+    def columns(self) -> int:
+        """Width of the screen, characters (a progress line must stay shorter)."""
+
     def write(self, text: str) -> None:
         """Write text as is (no newline added)."""
 
@@ -136,6 +140,21 @@ class TerminalConsole:
         self.close()
 
     # ---- output --------------------------------------------------------------------------
+    @property
+    def columns(self) -> int:
+        """The terminal's width now (it may be resized); COLUMNS or 80 when unknown."""
+        if self._is_tty:
+            try:
+                cols = os.get_terminal_size(self.out.fileno()).columns
+                if cols > 0:
+                    return cols
+            except (OSError, ValueError):
+                pass
+        try:
+            return max(20, int(os.environ.get("COLUMNS", "80")))
+        except ValueError:
+            return 80
+
     def write(self, text: str) -> None:
         self.out.write(text)
         self.out.flush()
@@ -148,9 +167,10 @@ class TerminalConsole:
         self.say(f"\a{BEEP_MARK}")
 
     def progress(self, text: str) -> None:
-        """On a terminal: redraw one line in place. Otherwise (a log): a line every 5 s."""
+        """On a terminal: redraw one line in place, cut to the width (a wrapped line could not
+        be redrawn: every redraw would add a line). Otherwise (a log): a line every 5 s."""
         if self._is_tty:
-            self.write("\r" + text + "\x1b[K")
+            self.write("\r" + text[: self.columns - 1] + "\x1b[K")
             self._progress_on = True
             return
         now = time.monotonic()
@@ -230,10 +250,13 @@ class ScriptedConsole:
 
     interactive = True
 
-    def __init__(self, keys: Iterable[str] = ()) -> None:
+    def __init__(self, keys: Iterable[str] = (), columns: int = 80) -> None:
         self.keys: list[str] = [c for k in keys for c in k]
         self.text = ""
         self.beeps = 0
+        self.columns = columns
+        #: every progress line shown, in order
+        self.progress_lines: list[str] = []
 
     def write(self, text: str) -> None:
         self.text += text
@@ -246,7 +269,7 @@ class ScriptedConsole:
         self.say(BEEP_MARK)
 
     def progress(self, text: str) -> None:
-        pass
+        self.progress_lines.append(text)
 
     def end_progress(self) -> None:
         pass
@@ -296,6 +319,11 @@ class Operator:
     def progress(self, text: str) -> None:
         self.console.progress(text)
 
+    @property
+    def columns(self) -> int:
+        """Width of the screen, characters."""
+        return int(getattr(self.console, "columns", 80))
+
     def end_progress(self) -> None:
         self.console.end_progress()
 
@@ -319,12 +347,20 @@ class Operator:
                 return True
 
     def any_key(self, prompt: str) -> str:
-        """Show ``prompt`` and wait for any key (returned; "" in --yes mode)."""
+        """Show ``prompt`` and wait for any key (returned; "" in --yes mode). Esc does not
+        count: it aborts a measurement, and there is none yet to abort."""
         if self.yes:
             self.say(f"{prompt} [--yes]")
             return ""
         self.console.write(prompt + " ")
-        k = self._wait_key()
+        while True:
+            k = self._wait_key()
+            if k != ESC:
+                break
+            self.console.write(
+                "\n  (Esc aborts a measurement; none is running. Press another key to start, "
+                "Ctrl+C to end the session) "
+            )
         self.console.write("\n")
         return k
 
@@ -343,6 +379,10 @@ class Operator:
             elif k.lower() in ("y", "n"):
                 answer = k.lower() == "y"
             else:
+                shown_key = repr(k) if k.isprintable() else "that key"
+                self.console.write(
+                    f"\n  {shown_key}: press Y or N (Enter: {'Y' if default else 'N'}) "
+                )
                 continue
             self.console.write(("Y" if answer else "N") + "\n")
             return answer

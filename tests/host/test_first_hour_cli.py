@@ -1,0 +1,104 @@
+"""The first hour of a lab user (issue 18), the small things: keys at the prompts, file
+permissions, --version, help texts with examples and exit codes, capture until Ctrl+C."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import re
+from pathlib import Path
+
+import pytest
+
+from host.dialogue.console import ScriptedConsole
+
+
+def test_esc_at_press_any_key_does_not_start_the_measurement() -> None:
+    from host.dialogue.console import ESC, Operator
+
+    con = ScriptedConsole([ESC, " "])
+    assert Operator(con).any_key("Put the cube on the base with X up. Press any key.") == " "
+    assert "Esc aborts a measurement; none is running" in con.text and con.keys == []
+
+
+def test_an_invalid_key_at_a_yes_no_question_is_answered() -> None:
+    from host.dialogue.console import Operator
+
+    con = ScriptedConsole(["x", "n"])
+    assert Operator(con).yes_no("Save <Y> or repeat <N>?", True) is False
+    assert "'x': press Y or N (Enter: Y)" in con.text
+
+
+@pytest.mark.parametrize("umask, mode", [(0o022, 0o644), (0o027, 0o640)])
+def test_records_and_results_get_the_usual_permissions(
+    tmp_path: Path, umask: int, mode: int
+) -> None:
+    import os
+
+    from host.calib.records import write_text_atomic
+
+    old = os.umask(umask)
+    try:
+        write_text_atomic(tmp_path / "F1_result.txt", "x\n")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "F1_result.txt").stat().st_mode & 0o777 == mode
+
+
+def main_output(argv: list[str]) -> tuple[int, str, str]:
+    from host.__main__ import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            rc = main(argv)
+        except SystemExit as exc:
+            rc = int(exc.code or 0)
+    return rc, out.getvalue(), err.getvalue()
+
+
+def test_version() -> None:
+    from host import __version__
+    from host.wire.protocol_gen import PROTOCOL_VERSION
+
+    rc, out, _ = main_output(["--version"])
+    assert rc == 0 and out.startswith(f"imu-bench {__version__} (protocol {PROTOCOL_VERSION}")
+
+
+def test_help_texts_give_examples_and_exit_codes() -> None:
+    rc, out, _ = main_output(["calibrate", "--help"])
+    assert rc == 0 and "examples:" in out and "--resume" in out
+    assert "exit status:" in out and "130  interrupted" in out
+    rc, out, _ = main_output(["capture", "--help"])
+    assert "until Ctrl+C" in out
+
+
+def test_capture_shows_progress_and_runs_until_ctrl_c(tmp_path: Path) -> None:
+    import json
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from host.wire.frames import decode_bulk
+
+    root = Path(__file__).resolve().parents[2]
+    cap = tmp_path / "s.cap"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "host", "capture", "--port", "sim://?speed=5", str(cap)],
+        cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env=dict(os.environ, PYTHONPATH=str(root)),
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )  # fmt: skip
+    assert proc.stderr is not None
+    lines = [proc.stderr.readline(), proc.stderr.readline()]
+    assert "(Ctrl+C stops)" in lines[0]
+    assert re.search(r"\d+\.\d s  \d+ samples  0 CRC errors", lines[1]), lines
+    time.sleep(0.3)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+    stats = json.loads(out)
+    assert stats["samples"] > 40 and "holds" in err
+    assert len(decode_bulk(cap.read_bytes()).samples) == stats["samples"]
