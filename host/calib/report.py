@@ -169,6 +169,20 @@ def format_report(result: CalibrationResult) -> str:
             accs = " ".join(f"{x:7.4f}" for x in res.accel_std)
             gyrs = " ".join(f"{x:8.4f}" for x in res.gyro_std)
             out.append(f"  {'  std':<21}  {accs:<24}{gyrs}")
+    if r.verification is not None:
+        v = r.verification
+        out.append(rule)
+        out.extend(_wrap(f"Verification on records not used in the fit: {v.source}", "", "  "))
+        out.append("  measured − predicted (limits of method.md §8: 0.01 g, 0.5 °/s; turns °)")
+        for x in v.values:
+            out.append(
+                f"  {x.record[:10]:<10} {x.channel:<8}{x.residual:>+11.4f} {x.unit:<5}"
+                f"± {x.sigma:<9.2g} z {x.z:>+7.1f}   limit {x.limit:.3g}  {_mark(x.passed)}"
+            )
+        out.append(
+            f"  RMS z = {v.rms_z:.2f}, χ² = {v.chi2:.1f} on {len(v.values)} values "
+            f"(p = {v.p:.3g}): {'all within' if v.passed else 'NOT all within'} the limits"
+        )
     if r.notes:
         out.append(rule)
         out.append("Notes:")

@@ -33,14 +33,20 @@ from host.calib.method import (
     names_to_gsens,
     names_to_matrix,
 )
+from host.calib.records import Session, read_session
 from host.errors import UserError
 from host.modelling.model import (
     AXES,
     BASE,
     CATALOGUE,
     TEMP_REF_C,
+    NoiseModel,
     RecordSignals,
     Term,
+    _residual_tables,
+    build_dataset,
+    chi2_sf,
+    design,
     load_term_file,
     parse_model,
 )
@@ -254,6 +260,8 @@ class CalibrationResult:
     combinations: tuple[str, ...] = ()
     residuals: tuple[RecordResidual, ...] = ()
     notes: tuple[str, ...] = ()
+    #: held-out verification on records not used in the fit (``calibrate --verify DIR2``)
+    verification: Verification | None = None
     #: format version of the file this was loaded from
     loaded_version: int = 2
 
@@ -300,8 +308,10 @@ class CalibrationResult:
 
     @property
     def all_passed(self) -> bool:
-        """Every toleranced value within tolerance and every parameter determined."""
-        return all(p is not False for p in self.passed().values()) and not self.undetermined
+        """Every toleranced value within tolerance, every parameter determined, and the
+        held-out records (if verified) predicted within the §8 accuracy."""
+        ok = all(p is not False for p in self.passed().values()) and not self.undetermined
+        return ok and (self.verification is None or self.verification.passed)
 
     def accel_m(self) -> np.ndarray:
         """Ma (3×3, method.md §2), NaN where not determined."""
@@ -366,6 +376,7 @@ class CalibrationResult:
             "combinations": list(self.combinations),
             "residuals": [r.to_dict() for r in self.residuals],
             "notes": list(self.notes),
+            "verification": None if self.verification is None else self.verification.to_dict(),
         }
 
     def to_json(self) -> str:
@@ -473,6 +484,9 @@ def _from_v2(d: Mapping[str, Any]) -> CalibrationResult:
         temp_mean_c=float(d.get("temp_mean_c", TEMP_REF_C)),
         time_known=bool(d.get("time_known", True)),
         combinations=tuple(str(x) for x in d.get("combinations", ())),
+        verification=(
+            None if d.get("verification") is None else Verification.from_dict(d["verification"])
+        ),
         **_common(d),
     )
 
@@ -618,3 +632,138 @@ def apply(
         ):
             break
     return (force[0], rate[0]) if single else (force, rate)
+
+
+# ---- held-out verification ------------------------------------------------------------------
+#: method.md §8: compensated error on attitudes/rates not used in the fit, ≤ 0.01 g and ≤ 0.5 °/s
+VERIFY_ACCEL_G = 0.01
+VERIFY_GYRO_DPS = 0.5
+
+
+@dataclass(frozen=True)
+class VerifiedValue:
+    """One record and channel of another session, predicted by the result: ``measured``,
+    ``predicted``, ``residual`` (measured − predicted) and ``sigma`` in ``unit`` (the channel's
+    unit; ° for turn integrals), ``z`` = residual/σ, ``limit`` the §8 accuracy limit in the same
+    unit and ``passed`` |residual| ≤ limit."""
+
+    record: str
+    kind: str
+    channel: str
+    measured: float
+    predicted: float
+    residual: float
+    sigma: float
+    z: float
+    unit: str
+    limit: float
+    passed: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        return {f.name: _jsonable(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> VerifiedValue:
+        return cls(
+            str(d["record"]), str(d["kind"]), str(d["channel"]), _num(d["measured"]),
+            _num(d["predicted"]), _num(d["residual"]), _num(d["sigma"]), _num(d["z"]),
+            str(d["unit"]), _num(d["limit"]), bool(d["passed"]),
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Verification:
+    """Held-out verification: the records of ``source`` (not used in the fit) predicted by the
+    result. ``rms_z`` and ``chi2`` over the values (``p`` = P(χ²_n this large | the result
+    is right)); ``passed``: every value within the §8 accuracy limits."""
+
+    source: str
+    values: tuple[VerifiedValue, ...]
+    rms_z: float
+    chi2: float
+    p: float
+
+    @property
+    def passed(self) -> bool:
+        return all(v.passed for v in self.values)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "source": self.source, "values": [v.to_dict() for v in self.values],
+            "rms_z": _jsonable(self.rms_z), "chi2": _jsonable(self.chi2), "p": _jsonable(self.p),
+            "passed": self.passed,
+        }  # fmt: skip
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> Verification:
+        return cls(
+            str(d["source"]), tuple(VerifiedValue.from_dict(v) for v in d["values"]),
+            _num(d["rms_z"]), _num(d["chi2"]), _num(d["p"]),
+        )  # fmt: skip
+
+
+def verify(
+    result: CalibrationResult,
+    session: Session,
+    *,
+    source: str = "",
+    catalogue: Mapping[str, Term] | None = None,
+) -> Verification:
+    """Predict every record of ``session`` (another session, extra attitudes: records the fit
+    did not use) with the whole model of ``result`` and its noise model; measured − predicted
+    per record and channel (static: record mean; turn: integral), against the accuracy limits
+    of method.md §8 (0.01 g, 0.5 °/s; a turn's limit is 0.5 °/s × its duration, in °).
+    UserError when the result does not determine a parameter the prediction needs."""
+    und = [p.name for p in result.undetermined]
+    if und:
+        raise UserError(
+            f"--verify: the result does not determine {', '.join(und)}: nothing to predict with"
+        )
+    nm = NoiseModel()
+    if result.noise_model:
+        known = {f.name for f in dataclasses.fields(NoiseModel)}
+        nm = dataclasses.replace(nm, **{k: v for k, v in result.noise_model.items() if k in known})
+    model = parse_model(result.model, _catalogue_for(result, catalogue))
+    ds = build_dataset(
+        session, noise=nm, latitude_deg=result.latitude_deg, height_m=result.height_m,
+        earth_rate=result.earth_rate,
+    )  # fmt: skip
+    values = {(p.term, p.sensor, p.axis, p.key): p.value for p in result.parameters}
+    per_term: list[np.ndarray] = []
+    for mt in model:
+        per_term.append(np.array([
+            values.get((mt.term.name, mt.sensor, AXES[ax], k), 0.0)
+            for ax in mt.axes for k in mt.term.params
+        ]))  # fmt: skip
+    thetas: list[np.ndarray | None] = [
+        th if mt.term.nonlinear else None for mt, th in zip(model, per_term, strict=True)
+    ]
+    x, offset, _ = design(ds, model, thetas)
+    theta = np.concatenate(per_term) if per_term else np.zeros(0)
+    predicted = ds.nominal + offset + x @ theta
+    groups, _ = _residual_tables(ds, predicted, ds.y - predicted, np.zeros((ds.n_rows, 0)))
+    out: list[VerifiedValue] = []
+    duration = {s.name: float(s.t_s[-1] - s.t_s[0]) if len(s.t_s) > 1 else 0.0 for s in ds.signals}
+    for g in groups:
+        if g.sensor == "accel":
+            limit = VERIFY_ACCEL_G * result.g
+        else:
+            limit = VERIFY_GYRO_DPS * (duration[g.record] if g.kind == "turn" else 1.0)
+        out.append(VerifiedValue(
+            g.record, g.kind, g.channel, g.measured, g.model, g.residual, g.sigma, g.z, g.unit,
+            limit, abs(g.residual) <= limit,
+        ))  # fmt: skip
+    z = np.array([v.z for v in out])
+    chi2 = float(z @ z)
+    return Verification(
+        source, tuple(out), float(np.sqrt(np.mean(z**2))) if len(z) else math.nan, chi2,
+        chi2_sf(chi2, len(z)),
+    )  # fmt: skip
+
+
+def verify_directory(result: CalibrationResult, directory: str, serial: str | None = None) -> (
+    CalibrationResult
+):  # fmt: skip
+    """``result`` with :func:`verify` on the records in ``directory`` attached."""
+    session = read_session(directory, serial)
+    return dataclasses.replace(result, verification=verify(result, session, source=directory))

@@ -20,7 +20,7 @@ from host.calib.calibration import (
 )
 from host.calib.records import Session, read_session
 from host.calib.report import format_report, write_results
-from host.calib.result import CalibrationResult
+from host.calib.result import CalibrationResult, verify_directory
 from host.cli.model import _noise
 from host.errors import UserError
 
@@ -64,6 +64,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "default: measured from the records",
     )
     p.add_argument(
+        "--verify",
+        metavar="DIR2",
+        help="predict the records in DIR2 (another session, extra attitudes: not used in the "
+        "fit) and report measured − predicted per record and channel",
+    )
+    p.add_argument(
         "--term-file",
         action="append",
         default=[],
@@ -86,6 +92,8 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
         term_files=args.term_file,
         noise=_noise(getattr(args, "floor", None)),
     )
+    if getattr(args, "verify", None):
+        result = verify_directory(result, args.verify)
     if not out_dir.is_dir():
         raise UserError(f"{out_dir}: no such directory")
     txt, js = write_results(result, out_dir)

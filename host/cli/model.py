@@ -286,6 +286,9 @@ def addition_dict(a: Addition) -> dict[str, Any]:
 
     return {
         "added": [mt.label for mt in a.added],
+        "held_out_rms_z": None
+        if a.held_out is None
+        else {"before": a.held_out[0].rms_z, "after": a.held_out[1].rms_z},
         "before": fit_d(a.before),
         "after": fit_d(a.after),
         "new_parameters": [

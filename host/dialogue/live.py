@@ -249,6 +249,7 @@ class SessionOptions:
     reconnect_timeout_s: float | None = None  # None: until Esc/Ctrl+C (--yes: YES_RECONNECT_S)
     model: str = "base"  # the model to fit and ship (host.modelling.model spec)
     term_files: tuple[str, ...] = ()  # Python files of custom terms for ``model``
+    verify: str | None = None  # a directory of records to predict (held-out verification)
 
     @classmethod
     def from_args(cls, args: argparse.Namespace | SessionOptions) -> SessionOptions:
@@ -278,6 +279,7 @@ class SessionOptions:
             ready_s=float(get("ready_seconds", DEFAULT_READY_S)),
             model=str(get("model", "base")),
             term_files=tuple(get("term_file", ())),
+            verify=get("verify"),
         )
 
     def check(self) -> None:
@@ -1419,6 +1421,10 @@ class LiveSession:
             model=self.opts.model,
             term_files=self.opts.term_files,
         )
+        if self.opts.verify:
+            from host.calib.result import verify_directory
+
+            result = verify_directory(result, self.opts.verify)
         txt, js = write_results(result, self.out_dir)
         op.say(f"Results: {txt} and {js}")
         if self.opts.json:

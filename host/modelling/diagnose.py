@@ -42,12 +42,14 @@ from host.modelling.model import (
     Fit,
     GroupResidual,
     ModelTerm,
+    Prediction,
     RecordSignals,
     SpanResidual,
     Term,
     aggregate,
     chi2_sf,
     fit_model,
+    leave_one_out,
     merge_model,
     model_spec,
     parse_model,
@@ -663,6 +665,8 @@ class Addition:
     before: Fit
     after: Fit
     added: tuple[ModelTerm, ...]
+    #: leave-one-record-out prediction error before and after (:func:`host.model.leave_one_out`)
+    held_out: tuple[Prediction, Prediction] | None = None
 
     @property
     def new_parameters(self) -> list[Any]:
@@ -684,7 +688,9 @@ def add_term(
         raise UserError(f"{item} is already in the model {model_spec(model)}")
     before = fit_model(ds, model)
     after = fit_model(ds, merge_model(list(model) + new))
-    return Addition(before, after, tuple(new))
+    return Addition(
+        before, after, tuple(new), (leave_one_out(ds, before), leave_one_out(ds, after))
+    )
 
 
 @dataclass(frozen=True)
@@ -699,6 +705,8 @@ class LadderStep:
     rms_z: float
     bic: float
     p_value: float  # of the addition's LR test (NaN for the start)
+    #: leave-one-record-out prediction RMS z (:func:`host.model.leave_one_out`)
+    held_out_rms_z: float = math.nan
 
 
 def ladder(
@@ -715,7 +723,7 @@ def ladder(
     model = parse_model(start, cat)
     fit = fit_model(ds, model)
     steps = [LadderStep("", model_spec(model), fit.n_params, fit.chi2, fit.dof, fit.rms_z,
-                        fit.bic, math.nan)]  # fmt: skip
+                        fit.bic, math.nan, leave_one_out(ds, fit).rms_z)]  # fmt: skip
     for _ in range(max_steps):
         have = {(mt.term.name, mt.sensor) for mt in model}
         options = [
@@ -741,7 +749,7 @@ def ladder(
         model = merge_model(list(model) + [mt])
         fit = f
         steps.append(LadderStep(mt.label, model_spec(model), f.n_params, f.chi2, f.dof,
-                                f.rms_z, f.bic, p))  # fmt: skip
+                                f.rms_z, f.bic, p, leave_one_out(ds, f).rms_z))  # fmt: skip
     return steps
 
 
@@ -895,6 +903,14 @@ def format_addition(a: Addition) -> str:
         f"  χ²     {b.chi2:8.1f} → {f.chi2:.1f}  (dof {b.dof} → {f.dof}; p {b.chi2_p:.2g} → "
         f"{f.chi2_p:.2g})",
         f"  BIC    {b.bic:8.1f} → {f.bic:.1f}",
+        *(
+            [
+                f"  held-out RMS z (each record predicted from the others) "
+                f"{a.held_out[0].rms_z:.2f} → {a.held_out[1].rms_z:.2f}"
+            ]
+            if a.held_out is not None
+            else []
+        ),  # fmt: skip
         "  worst residuals before → after:",
     ]
     after_of = {(g.record, g.sensor, g.axis): g for g in f.groups}
@@ -912,12 +928,13 @@ def format_addition(a: Addition) -> str:
 
 def format_ladder(steps: Sequence[LadderStep]) -> str:
     lines = [f"{'step':>4}  {'added':<34} {'params':>6} {'chi2':>12} {'dof':>5} {'RMS z':>8} "
-             f"{'BIC':>12} {'p':>9}"]  # fmt: skip
+             f"{'BIC':>12} {'p':>9} {'held-out z':>10}"]  # fmt: skip
     for i, s in enumerate(steps):
         lines.append(
             f"{i:>4}  {(s.added or 'start: ' + s.model):<34} {s.n_params:>6} {s.chi2:>12.1f} "
             f"{s.dof:>5} {s.rms_z:>8.2f} {s.bic:>12.1f} "
-            f"{(f'{s.p_value:.2g}' if math.isfinite(s.p_value) else '—'):>9}"
+            f"{(f'{s.p_value:.2g}' if math.isfinite(s.p_value) else '—'):>9} "
+            f"{s.held_out_rms_z:>10.2f}"
         )
     lines.append(f"final model: {steps[-1].model}")
     return "\n".join(lines)

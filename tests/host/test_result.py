@@ -173,3 +173,67 @@ def test_model_add_prints_the_calibrate_command(
     assert main([*args, "--json"]) == 0
     res = json.loads(capsys.readouterr().out)
     assert res["model"] == f"base,{term}"
+
+
+# ---- held-out verification and leave-one-record-out -----------------------------------------
+def _write(d: Path, serial: str, seed: int, **truth_override: float) -> None:
+    from host.calib.records import record_path, write_record
+
+    try:
+        from calib_truth import TRUTH, make_records
+    except ImportError:  # tests/ imported as a package
+        from tests.host.calib_truth import TRUTH, make_records
+    truth = dict(TRUTH, **truth_override)
+    for name, rec in make_records(seed=seed, truth=truth).items():
+        write_record(record_path(d, serial, name), rec)
+
+
+def test_verify_predicts_another_session(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    fit_dir, same, other = tmp_path / "fit", tmp_path / "same", tmp_path / "other"
+    for d in (fit_dir, same, other):
+        d.mkdir()
+    _write(fit_dir, "U1", 31)
+    _write(same, "U1", 32)  # the same unit again: predicted within the noise
+    _write(other, "U2", 33, A0x=0.2836, Gyy=0.01)  # a unit whose A0x is 0.2 m/s² higher
+    rc = main(["calibrate", "--from-dir", str(fit_dir), "--verify", str(same), "--json"])
+    d = json.loads(capsys.readouterr().out)
+    v = d["verification"]
+    assert rc == 0 and v["passed"] and v["source"] == str(same)
+    assert len(v["values"]) == 6 * 6 + 6 * 3  # statics: 6 channels; turns: 3 gyro integrals
+    assert 0.3 < v["rms_z"] < 2.0
+    rc = main(["calibrate", "--from-dir", str(fit_dir), "--verify", str(other)])
+    text = capsys.readouterr().out
+    assert rc == 1 and "NOT all within the limits" in text
+    res = CalibrationResult.load(fit_dir / "U1_result.json")
+    assert res.verification is not None and not res.all_passed
+    bad = {(x.record, x.channel) for x in res.verification.values if not x.passed}
+    # A0x 0.2 m/s² off on every static; Gyy 0.0136 off: 9.8° on a 720° turn about y
+    assert bad == {(n, "accel x") for n in ("x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn")} | {
+        ("y_ccw", "gyro y"),
+        ("y_cw", "gyro y"),
+    }
+    resid = [x.residual for x in res.verification.values if x.channel == "accel x"]
+    assert np.allclose(resid, 0.2, atol=0.01)
+
+
+def test_held_out_error_shows_a_term_that_only_fits_noise(
+    temperature_session: tuple[Path, str, float],
+) -> None:
+    from host.modelling.diagnose import add_term
+    from host.modelling.model import load_dataset, parse_model
+
+    d, term, _ = temperature_session
+    ds = load_dataset(d)
+    real = add_term(ds, parse_model("base"), term)
+    assert real.held_out is not None
+    before, after = real.held_out
+    assert after.rms_z < 0.8 * before.rms_z  # the real effect: predictions get better
+    assert before.n == after.n > 0
+    # a term with nothing to find (quadratic accel temperature bias) lowers χ² — any term
+    # does — but does not predict the records left out any better
+    noise_only = add_term(ds, parse_model(f"base,{term}"), "scale_nonlinearity:gyro")
+    assert noise_only.after.chi2 < noise_only.before.chi2
+    assert noise_only.held_out is not None
+    assert noise_only.held_out[1].rms_z > noise_only.held_out[0].rms_z
