@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
+from serial.serialutil import Timeout
 
 from host.board.firmware import build_firmware_hex, build_lock
 from host.errors import UserError
@@ -452,8 +453,8 @@ class EmulatedBoard:
 
 def wait_for(cond: Any, timeout_s: float, poll_s: float = 0.01) -> bool:
     """Poll ``cond()`` until true or ``timeout_s`` passes (test helper)."""
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
+    timeout = Timeout(timeout_s)
+    while not timeout.expired():
         if cond():
             return True
         time.sleep(poll_s)
@@ -564,9 +565,9 @@ class SimStimulus:
         """Wait until the emulated time has passed ``t_s`` (s); False on timeout or when the
         writer ended. ``idle()`` is called while waiting (e.g. to keep the pty read: a full pty
         stops the emulator)."""
-        end = time.monotonic() + timeout_s
+        timeout = Timeout(timeout_s)
         while self.emulated_s() < t_s:
-            if not self.running or time.monotonic() > end:
+            if not self.running or timeout.expired():
                 return False
             if idle is not None:
                 idle()

@@ -37,8 +37,8 @@ from typing import Any
 import serial
 
 from host.board.firmware import build_firmware_hex
+from host.board.link import Link, LinkLost, LinkTimeout
 from host.errors import UserError
-from host.wire.frames import StreamDecoder
 from host.wire.protocol_gen import SPEC_FINGERPRINT
 
 DEFAULT_PORT = "/dev/ttyACM0"
@@ -283,19 +283,13 @@ def read_hello(port: str, baud: int, timeout_s: float = HELLO_TIMEOUT_S) -> dict
         ser = serial.Serial(port, baud, timeout=0.05)
     except (serial.SerialException, OSError) as exc:
         raise UserError(f"cannot open {port} after flashing: {exc}") from None
-    dec = StreamDecoder()
-    seen = 0
-    deadline = time.monotonic() + timeout_s
+    link = Link(ser, stall_s=timeout_s)
     try:
-        while time.monotonic() < deadline:
-            try:
-                chunk = ser.read(ser.in_waiting or 1)
-            except (serial.SerialException, OSError) as exc:
-                raise UserError(f"{port} vanished while waiting for HELLO: {exc}") from None
-            for f in dec.feed(chunk):
-                seen += 1
-                if f.name == "HELLO":
-                    return f.fields
+        return link.wait_for("HELLO", timeout_s)[1].fields
+    except LinkLost as exc:
+        raise UserError(f"{port} vanished while waiting for HELLO: {exc}") from None
+    except LinkTimeout:
+        seen = link.stats.frames
     finally:
         ser.close()
     what = f"{seen} other frames" if seen else "no frames"

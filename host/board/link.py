@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import serial
+from serial.serialutil import Timeout
 
 from host.errors import UserError
 from host.wire.capture import CaptureWriter
@@ -137,11 +138,11 @@ class Link:
 
     def wait_for(self, name: str, timeout_s: float = 3.0) -> tuple[int, Frame]:
         """Read until a frame named ``name`` arrives; LinkTimeout after ``timeout_s``."""
-        deadline = time.monotonic() + timeout_s
+        timeout = Timeout(timeout_s)
         for t_ns, f in self.frames():
             if f.name == name:
                 return t_ns, f
-            if time.monotonic() > deadline:
+            if timeout.expired():
                 break
         raise LinkTimeout(f"no {name} frame from the board within {timeout_s:.1f} s")
 

@@ -18,6 +18,7 @@ import urllib.parse
 from typing import Any
 
 import serial
+from serial.serialutil import Timeout
 
 from host.wire import capture
 
@@ -61,7 +62,7 @@ class Serial(serial.SerialBase):
     def read(self, size: int = 1) -> bytes:
         if not self.is_open:
             raise serial.PortNotOpenError()
-        deadline = time.monotonic() + (self.timeout or 0.0)
+        timeout = Timeout(self.timeout)  # type: ignore[arg-type]  # None: no limit (the stub omits it)
         while True:
             end = min(self._available_end(), self._pos + size)
             if end > self._pos:
@@ -71,7 +72,7 @@ class Serial(serial.SerialBase):
             if self._pos >= len(self._cap.data) and self._loop:
                 self._pos, self._t0 = 0, time.monotonic()
                 continue
-            if self.timeout is not None and time.monotonic() >= deadline:
+            if timeout.expired():
                 return b""
             time.sleep(0.001)
 

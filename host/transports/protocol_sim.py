@@ -60,7 +60,7 @@ import urllib.parse as urlparse
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from serial.serialutil import PortNotOpenError, SerialBase, SerialException
+from serial.serialutil import PortNotOpenError, SerialBase, SerialException, Timeout
 
 from host.bench.physics import Bench, Environment, Motion, static_motion
 from host.bench.sim import (
@@ -373,7 +373,7 @@ class Serial(SerialBase):
 
     def read(self, size: int = 1) -> bytes:
         """Read up to ``size`` bytes; blocks until ``size`` or the timeout like a real port."""
-        deadline = None if self.timeout is None else time.monotonic() + self.timeout
+        timeout = Timeout(self.timeout)  # type: ignore[arg-type]  # None: no limit (the stub omits it)
         while True:
             with self._lock:
                 self._check_connected()
@@ -385,16 +385,16 @@ class Serial(SerialBase):
                     del self._out[:n]
                     return data
                 missing = size - len(self._out)
-            now = time.monotonic()
-            if deadline is not None and now >= deadline:
+            if timeout.expired():
                 with self._lock:
                     data = bytes(self._out[:size])
                     del self._out[: len(data)]
                     return data
             # about the time the missing bytes take at 50 Hz × 27 bytes, sped up
             wait = min(0.05, max(0.001, missing / (1350.0 * self.speed)))
-            if deadline is not None:
-                wait = min(wait, max(0.0, deadline - now))
+            left = timeout.time_left()
+            if left is not None:
+                wait = min(wait, left)
             time.sleep(wait)
 
     def write(self, data: Buffer, /) -> int:
