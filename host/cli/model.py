@@ -12,7 +12,8 @@ import dataclasses
 import json
 import math
 import shlex
-from collections.abc import Callable, Sequence
+import sys
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -54,8 +55,33 @@ from host.modelling.scenarios import (
     run_case,
 )
 
-
 # ---- plots ----------------------------------------------------------------------------------
+_FILE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
+
+
+def plot_dir(text: str) -> Path:
+    """``--plot DIR``: a directory (several PNG files go there), not an image file name."""
+    p = Path(text)
+    if p.suffix.lower() in _FILE_SUFFIXES or (p.exists() and not p.is_dir()):
+        raise argparse.ArgumentTypeError(
+            f"{text!r} looks like a file: --plot takes a directory for its PNG files, "
+            f"e.g. --plot {p.with_suffix('') if p.suffix else 'plots'}/"
+        )
+    return p
+
+
+class _Renamed(argparse.Action):
+    """An option's old spelling: still works, with a note naming the new one."""
+
+    def __init__(self, *args: Any, new: str, **kw: Any) -> None:
+        self.new = new
+        super().__init__(*args, **kw)
+
+    def __call__(self, parser: Any, ns: argparse.Namespace, values: Any, opt: Any = None) -> None:
+        print(f"note: {opt} is now {self.new} (the old spelling still works)", file=sys.stderr)
+        setattr(ns, self.dest, values)
+
+
 def _pyplot() -> Any:
     try:
         import matplotlib
@@ -64,7 +90,8 @@ def _pyplot() -> Any:
         import matplotlib.pyplot as plt
     except ImportError as exc:
         raise UserError(
-            "--plot needs matplotlib (pip install 'imu-bench[plot]' or pip install matplotlib)"
+            "--plot needs matplotlib: pip install matplotlib (in a checkout of this project: "
+            "pip install -e '.[plot]')"
         ) from exc
     return plt
 
@@ -340,21 +367,80 @@ def run_ladder(args: argparse.Namespace) -> int:
     return 0
 
 
+def _physics(t: Term) -> str:
+    """The first paragraph of the term's docstring, on one line."""
+    return " ".join(t.doc.strip().split("\n\n")[0].split())
+
+
+def format_terms(cat: Mapping[str, Term]) -> str:
+    """The catalogue for people: each term's physics, parameters with units per sensor, and
+    what data identifies it (lines of at most 80 characters)."""
+    import textwrap
+
+    from host.model import BASE
+
+    out: list[str] = []
+    for t in cat.values():
+        out.append(t.name + ("  (base model, method.md §2)" if t.name in BASE else ""))
+        out += textwrap.wrap(_physics(t), 80, initial_indent="  ", subsequent_indent="  ")
+        for sensor in t.sensors:
+            units = ", ".join(f"{p} [{u}]" for p, u in zip(t.params, t.param_units(sensor),
+                                                             strict=True))  # fmt: skip
+            out += textwrap.wrap(f"{sensor}: {units}", 80, initial_indent="  ",
+                                 subsequent_indent="    ")  # fmt: skip
+        if t.needs:
+            out += textwrap.wrap(f"needs: {t.needs}", 80, initial_indent="  ",
+                                 subsequent_indent="    ")  # fmt: skip
+    out.append("")
+    out.append("Use: --model base,TERM[:SENSOR[:AXES]] (e.g. temperature_bias:gyro:x); your own")
+    out.append("terms: --term-file my_terms.py (README, 'Your own term').")
+    return "\n".join(out) + "\n"
+
+
+def run_terms(args: argparse.Namespace) -> int:
+    """``model terms``: the catalogue (with --term-file: and those terms too)."""
+    cat = _catalogue(args)
+    if args.json:
+        _print_json(
+            [
+                {
+                    "name": t.name,
+                    "physics": _physics(t),
+                    "sensors": list(t.sensors),
+                    "parameters": {
+                        s: dict(zip(t.params, t.param_units(s), strict=True)) for s in t.sensors
+                    },  # fmt: skip
+                    "needs": t.needs,
+                }
+                for t in cat.values()
+            ]
+        )
+    else:
+        sys.stdout.write(format_terms(cat))
+    return 0
+
+
 def cli_model(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
-    """``model diagnose|add|ladder``."""
-    sub = p.add_subparsers(dest="model_command", metavar="diagnose|add|ladder")
+    """``model diagnose|add|ladder|terms``."""
+    sub = p.add_subparsers(dest="model_command", metavar="diagnose|add|ladder|terms")
+    t = sub.add_parser("terms", help="list the terms: physics, parameters and units")
+    t.add_argument("--term-file", action="append", default=[], metavar="F",
+                   help="also list the terms of this Python file (repeatable)")  # fmt: skip
+    t.add_argument("--json", action="store_true", help="the list as JSON")
     d = sub.add_parser("diagnose", help="compare model and records, say what is missing")
     _common(d)
-    d.add_argument("--plot", metavar="DIR_OUT", default=None, help="write PNG plots here")
+    d.add_argument("--plot", metavar="DIR", type=plot_dir, default=None,
+                   help="write the PNG plots into this directory (made if missing)")  # fmt: skip
     d.add_argument("--brief", action="store_true", help="leave out the compare table")
     a = sub.add_parser("add", help="refit with a term added: before → after")
     _common(a)
     a.add_argument("term", help="term[:sensor[:axes]] to add, e.g. temperature_bias:gyro:x")
-    a.add_argument("--plot", metavar="DIR_OUT", default=None, help="write PNG plots here")
+    a.add_argument("--plot", metavar="DIR", type=plot_dir, default=None,
+                   help="write the PNG plots into this directory (made if missing)")  # fmt: skip
     lad = sub.add_parser("ladder", help="greedy path of models from 'bias' upward")
     _common(lad)
     lad.add_argument("--start", default="bias", help="starting model (default bias)")
-    runners = {"diagnose": run_diagnose, "add": run_add, "ladder": run_ladder}
+    runners = {"diagnose": run_diagnose, "add": run_add, "ladder": run_ladder, "terms": run_terms}
 
     def run(args: argparse.Namespace) -> int:
         if not args.model_command:
@@ -412,7 +498,10 @@ def cli_demo(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
     h.add_argument("--seed", type=int, default=1, help="simulation seed (default 1)")
     h.add_argument("--out", default=None, help="also write the records to OUT/EFFECT/")
     h.add_argument("--tilted", action="store_true", help="add the 12 45° attitudes")
-    h.add_argument("--static-s", type=float, default=10.0, help="static record length, s")
+    h.add_argument("--static-seconds", type=float, default=10.0, dest="static_s", metavar="S",
+                   help="static record length, s (as in calibrate; default 10)")  # fmt: skip
+    h.add_argument("--static-s", type=float, dest="static_s", action=_Renamed,
+                   new="--static-seconds", help=argparse.SUPPRESS)  # fmt: skip
 
     def run(args: argparse.Namespace) -> int:
         if args.demo_command != "hidden-effect":

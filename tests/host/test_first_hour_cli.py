@@ -102,3 +102,41 @@ def test_capture_shows_progress_and_runs_until_ctrl_c(tmp_path: Path) -> None:
     stats = json.loads(out)
     assert stats["samples"] > 40 and "holds" in err
     assert len(decode_bulk(cap.read_bytes()).samples) == stats["samples"]
+
+
+def test_model_terms_lists_the_catalogue_with_units_and_physics() -> None:
+    import json
+
+    from host.modelling.model import CATALOGUE
+
+    rc, out, _ = main_output(["model", "terms"])
+    assert rc == 0
+    for name, t in CATALOGUE.items():
+        assert f"\n{name}" in f"\n{out}", name
+        for sensor in t.sensors:
+            for p, u in zip(t.params, t.param_units(sensor), strict=True):
+                assert f"{p} [{u}]" in out, (name, p, u)
+    assert "per_C [°/s/°C]" in out and "(base model, method.md §2)" in out
+    assert max(len(line) for line in out.splitlines()) <= 80
+    rc, out, _ = main_output(["model", "terms", "--json"])
+    listed = json.loads(out)
+    assert [d["name"] for d in listed] == list(CATALOGUE)
+    assert all(d["physics"] and d["parameters"] for d in listed)
+
+
+def test_demo_takes_static_seconds_and_still_the_old_spelling() -> None:
+    from host.__main__ import build_parser
+
+    parser, _ = build_parser()
+    args = parser.parse_args(["demo", "hidden-effect", "--static-seconds", "12"])
+    assert args.static_s == 12.0
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        args = parser.parse_args(["demo", "hidden-effect", "--static-s", "7"])
+    assert args.static_s == 7.0 and "--static-s is now --static-seconds" in err.getvalue()
+
+
+def test_plot_refuses_an_image_file_name(tmp_path: Path) -> None:
+    rc, _, err = main_output(["model", "diagnose", str(tmp_path), "--plot", "OUT.png"])
+    assert rc == 2 and "--plot takes a directory" in err and "--plot OUT/" in err
+    assert not Path("OUT.png").exists()
