@@ -129,7 +129,8 @@ def plot_noise(an: noise.NoiseAnalysis, path: Path, title: str) -> None:
         import matplotlib.pyplot as plt
     except ImportError:
         raise UserError(
-            "--plot needs matplotlib: pip install matplotlib (in a checkout: pip install -e '.[plot]')"
+            "--plot needs matplotlib: pip install matplotlib "
+            "(in a checkout: pip install -e '.[plot]')"
         ) from None
     fig, axs = plt.subplots(2, 3, figsize=(15, 8), squeeze=False)
     for ax, (name, ch) in zip(axs.ravel(), an.channels.items(), strict=False):

@@ -68,7 +68,8 @@ def run(args: argparse.Namespace) -> int:
             thermal.plot_thermal(cal, pts, args.plot)
         except ImportError:
             raise UserError(
-                "--plot needs matplotlib: pip install matplotlib (in a checkout: pip install -e '.[plot]')"
+                "--plot needs matplotlib: pip install matplotlib "
+                "(in a checkout: pip install -e '.[plot]')"
             ) from None
     sys.stdout.write(cal.to_json() if args.json else format_text(cal))
     print(f"written: {path}" + (f" and {args.plot}" if args.plot else ""), file=sys.stderr)
