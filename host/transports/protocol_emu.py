@@ -78,7 +78,6 @@ from __future__ import annotations
 import dataclasses
 import urllib.parse as urlparse
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -86,7 +85,8 @@ from serial.serialposix import Serial as PosixSerial
 from serial.serialutil import SerialException
 
 from host.bench.emulator import FAULTS, STIM_RECORD_HZ, EmulatedBoard, SimStimulus
-from host.transports.protocol_sim import SAMPLE_CLOCK_MAX, SPEED_RANGE, bounded, parse_chamber
+from host.bench.options import KEYS, SAMPLE_CLOCK_MAX, OptionError, SimOptions, bounded
+from host.bench.options import parse_sim_options as parse_bench_options
 
 if TYPE_CHECKING:
     from host.bench.physics import Bench, Environment, Motion
@@ -96,10 +96,7 @@ if TYPE_CHECKING:
 _FLOAT = ("seconds", "fault_at", "noise_accel", "noise_gyro", "clock_ppm")
 _PATH = ("elf", "stimulus", "reglog", "samplelog", "workdir", "flash")
 #: options of the simulator stimulus (parse_sim_options), not of the EmulatedBoard
-_SIM_KEYS = (
-    "speed", "truth", "effects", "operator", "latitude", "tilt", "earth_rate", "operator_fault",
-    "chamber",
-)  # fmt: skip
+_SIM_KEYS = tuple(k for k in KEYS if k != "seed")
 #: after an operator hint, wait until the emulator is this far past the change, s (every
 #: sample taken before it has then been sent to the port)
 HINT_SYNC_S = 0.03
@@ -156,79 +153,17 @@ def parse_url(url: str) -> dict[str, Any]:
     return kw
 
 
-@dataclass(frozen=True)
-class SimOptions:
-    """The simulator stimulus of an ``emu://`` URL (``stimulus=sim``, the default)."""
-
-    seed: int = 0
-    speed: float | None = None  # None: max; else emulated s per wall s
-    truth: str = "random"  # random | ideal
-    effects: tuple[str, ...] | None = None
-    operator: str = "auto"  # auto | manual
-    latitude_deg: float = 55.75
-    tilt_deg: float = 0.0
-    earth_rate: bool = True
-    operator_faults: tuple[tuple[str, float], ...] = ()  # (name, K) for host.sim.CubeOperator
-    chamber: tuple[tuple[str, float], ...] = ()  # Environment chamber fields (parse_chamber)
-
-
 def parse_sim_options(url: str) -> SimOptions | None:
-    """The simulator options of an ``emu://`` URL, or None when the stimulus is ``rest`` or a
-    file (ValueError if bad)."""
-    parts = urlparse.urlsplit(url)
-    opts = urlparse.parse_qs(parts.query, keep_blank_values=True)
-
-    def one(key: str, default: str) -> str:
-        return opts.get(key, [default])[-1]
-
-    if one("stimulus", "sim") != "sim":
+    """The simulator options of an ``emu://`` URL (:func:`host.bench.options.parse_sim_options`,
+    as ``sim://``'s), or None when the stimulus is ``rest`` or a file (ValueError if bad)."""
+    opts = urlparse.parse_qs(urlparse.urlsplit(url).query, keep_blank_values=True)
+    if opts.get("stimulus", ["sim"])[-1] != "sim":
         return None
-    key = ""
     try:
-        key = "speed"
-        speed_text = one("speed", "max").lower()
-        speed: float | None = None
-        if speed_text != "max":
-            speed = 1.0 if speed_text == "realtime" else bounded("speed", speed_text, *SPEED_RANGE)
-        key = "truth"
-        truth = one("truth", "random").lower()
-        if truth not in ("random", "ideal"):
-            raise ValueError("truth must be random or ideal")
-        key = "operator"
-        operator = one("operator", "auto").lower()
-        if operator not in ("auto", "manual"):
-            raise ValueError("operator must be auto or manual")
-        key = "effects"
-        effects = (
-            tuple(e for e in one("effects", "").split(",") if e) if "effects" in opts else None
-        )
-        key = "seed"
-        seed = int(one("seed", "0"), 0)
-        key = "latitude"
-        latitude = bounded(key, one("latitude", "55.75"), -90.0, 90.0)
-        key = "tilt"
-        tilt = bounded(key, one("tilt", "0"), -90.0, 90.0)
-        key = "chamber"
-        chamber = tuple(parse_chamber(one(key, "")).items()) if key in opts else ()
-    except ValueError as exc:
-        raise ValueError(f"emu:// option {key}={one(key, '')!r}: {exc}") from None
-    earth = one("earth_rate", "1").lower() not in ("0", "false", "no")
-    from host.bench.sim import OPERATOR_FAULTS
-
-    faults: list[tuple[str, float]] = []
-    for text in opts.get("operator_fault", []):
-        name, _, k = text.partition("@")
-        if name not in OPERATOR_FAULTS:
-            raise ValueError(
-                f"emu:// option operator_fault={text!r}: known: {', '.join(OPERATOR_FAULTS)}"
-            )
-        try:
-            faults.append((name, float(k) if k else 1.0))
-        except ValueError:
-            raise ValueError(f"emu:// option operator_fault={text!r}: K must be a number") from None
-    return SimOptions(
-        seed, speed, truth, effects, operator, latitude, tilt, earth, tuple(faults), chamber
-    )
+        return parse_bench_options(opts, speed_default="max", fault_is_operator=False)
+    except OptionError as exc:
+        value = opts.get(exc.key, [""])[-1]
+        raise ValueError(f"emu:// option {exc.key}={value!r}: {exc}") from None
 
 
 def truth_for_url(url: str) -> SensorTruth | None:
@@ -243,36 +178,18 @@ class _Bench:
     operator, and where the cube is."""
 
     def __init__(self, o: SimOptions) -> None:
-        from host.bench.physics import Bench, Environment, static_motion
+        from host.bench.physics import static_motion
         from host.bench.sim import CubeOperator
-        from host.bench.truth import SensorTruth
 
-        truth_ss, env_ss, self.noise_ss, op_ss = np.random.SeedSequence(o.seed).spawn(4)
-        truth = (
-            SensorTruth.random(np.random.default_rng(truth_ss))
-            if o.truth == "random"
-            else SensorTruth.ideal()
-        )
-        if o.effects is not None:
-            truth = truth.only(*o.effects)
-        self.truth: SensorTruth = truth
+        drawn = o.draw()
+        self.noise_ss = drawn.noise_ss
+        op_ss = drawn.operator_ss
+        self.truth: SensorTruth = drawn.truth
         # the clocks are the emulator's (exact AVR crystal, MPU off by clock_ppm)
-        env = Environment.random(np.random.default_rng(env_ss))
         self.environment: Environment = dataclasses.replace(
-            env, timer_ppm=0.0, sample_clock_error=0.0
+            drawn.environment, timer_ppm=0.0, sample_clock_error=0.0
         )
-        if o.chamber:
-            c = dict(o.chamber)
-            self.environment = dataclasses.replace(
-                self.environment,
-                chamber_from_c=c["chamber_from_c"],
-                chamber_to_c=c["chamber_to_c"],
-                chamber_minutes=c["chamber_minutes"],
-                chamber_start_s=c["chamber_start_s"],
-            )
-        self.bench: Bench = Bench(
-            latitude_deg=o.latitude_deg, tilt_deg=o.tilt_deg, earth_rate=o.earth_rate
-        )
+        self.bench: Bench = drawn.bench
         self.operator: CubeOperator = CubeOperator(
             np.random.default_rng(op_ss), self.bench, dict(o.operator_faults)
         )

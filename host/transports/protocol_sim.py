@@ -1,9 +1,11 @@
 """``sim://`` — a virtual APM 2.6 board (MPU-6000 on the calibration cube) as a pyserial port.
 
-URL grammar (all options optional, ``&``-separated; ``fault`` may repeat)::
+URL grammar (all options optional, ``&``-separated; ``operator_fault`` and ``fault`` may repeat;
+the options shared with ``emu://`` are read by :mod:`host.bench.options`)::
 
     sim://[?seed=N][&speed=realtime|N|max][&operator=auto|manual][&truth=random|ideal]
-          [&fault=wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]|pull_cable[@SECONDS]]...
+          [&operator_fault=wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
+          [&fault=pull_cable[@SECONDS]|wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
           [&clock_ppm=PPM][&sample_clock=REL][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
           [&effects=NAME,NAME...][&chamber=FROM:TO:MINUTES[@START_S]]
 
@@ -18,7 +20,8 @@ URL grammar (all options optional, ``&``-separated; ``fault`` may repeat)::
 - ``chamber``: a thermal chamber ramps the air from FROM to TO °C over MINUTES, starting
   START_S simulated seconds after power-on (default 0), then holds; the chip's warm-up rides
   on top (e.g. ``chamber=-10:50:60`` for a thermal calibration).
-- ``fault``: the operator or the cable misbehaves on purpose. ``wrong_face@K``: the K-th
+- ``operator_fault`` (as on ``emu://``; ``fault=`` is its older spelling here) and ``fault``:
+  the operator or the cable misbehaves on purpose. ``wrong_face@K``: the K-th
   ``place`` hint (default 1st) puts the next axis up (x→y→z→x, same side);
   ``incomplete_turn@K``: the K-th ``turn`` stops at 0.8 of the turns asked;
   ``too_fast@K``: the K-th ``turn`` peaks at 320 °/s (gyro saturates at ±250 °/s);
@@ -62,7 +65,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, Timeout
 
-from host.bench.physics import Bench, Environment, Motion, static_motion
+from host.bench.options import (
+    CABLE_FAULT,
+    CLOCK_PPM_MAX,
+    KEYS,
+    SAMPLE_CLOCK_MAX,
+    bounded,
+    parse_sim_options,
+)
+from host.bench.physics import Environment, Motion, static_motion
 from host.bench.sim import (
     INCOMPLETE_FRACTION,
     TOO_FAST_PEAK_DPS,
@@ -86,25 +97,6 @@ if TYPE_CHECKING:
     from typing_extensions import Buffer
 
 _ACK = gen.ENUMS["ack_status"]
-_FAULTS = ("wrong_face", "incomplete_turn", "too_fast", "pull_cable")
-#: ``speed=N`` bounds: slower starves the session of samples, faster only spins the CPU
-#: (``speed=max`` is the fast mode: time advances as bytes are read)
-SPEED_RANGE = (0.1, 1000.0)
-#: ``clock_ppm`` bound: a ceramic resonator is off by ±5000 ppm, a crystal by ±100
-CLOCK_PPM_MAX = 10_000.0
-#: ``sample_clock`` bound (relative): the MPU-6000's own oscillator is within ±5 %
-SAMPLE_CLOCK_MAX = 0.05
-
-
-def bounded(name: str, text: str, lo: float, hi: float) -> float:
-    """``text`` as a finite float in [lo, hi]; ValueError naming the option otherwise."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise ValueError(f"{name}={text!r} is not a number") from None
-    if not lo <= v <= hi:  # also false for nan
-        raise ValueError(f"{name}={text!r} is outside {lo:g} … {hi:g}")
-    return v
 
 
 def _usage(msg: str) -> SerialException:
@@ -136,20 +128,7 @@ class Serial(SerialBase):
         if parts.scheme.lower() != "sim":
             raise _usage(f"expected sim://..., got {url!r}")
         opts = urlparse.parse_qs(parts.query, keep_blank_values=True)
-        known = {
-            "seed",
-            "speed",
-            "operator",
-            "fault",
-            "truth",
-            "clock_ppm",
-            "sample_clock",
-            "latitude",
-            "tilt",
-            "earth_rate",
-            "effects",
-            "chamber",
-        }
+        known = {*KEYS, "fault", "clock_ppm", "sample_clock"}
         unknown = sorted(set(opts) - known)
         if unknown:
             raise _usage(f"unknown option(s) {', '.join(unknown)}")
@@ -158,41 +137,16 @@ class Serial(SerialBase):
             return opts.get(key, [default])[-1]
 
         try:
-            self.seed = int(one("seed", "0"))
-            speed = one("speed", "realtime").lower()
-            self.speed: float | None = (
-                1.0
-                if speed == "realtime"
-                else None
-                if speed == "max"
-                else bounded("speed", speed, *SPEED_RANGE)
-            )
-            self.operator = one("operator", "auto").lower()
-            if self.operator not in ("auto", "manual"):
-                raise ValueError(f"operator must be auto or manual, not {self.operator!r}")
-            self.faults: dict[str, float] = {}
-            for f in opts.get("fault", []):
-                name, _, arg = f.partition("@")
-                if name not in _FAULTS:
-                    raise ValueError(f"unknown fault {name!r}; known: {', '.join(_FAULTS)}")
-                self.faults[name] = (
-                    bounded(f"fault={name}@", arg, 0.0, 1e6)
-                    if arg
-                    else (5.0 if name == "pull_cable" else 1.0)
-                )
-            truth_kind = one("truth", "random").lower()
-            if truth_kind not in ("random", "ideal"):
-                raise ValueError(f"truth must be random or ideal, not {truth_kind!r}")
-            ss = np.random.SeedSequence(self.seed)
-            truth_ss, env_ss, self._noise_ss, self._op_ss = ss.spawn(4)
-            truth = (
-                SensorTruth.random(np.random.default_rng(truth_ss))
-                if truth_kind == "random"
-                else SensorTruth.ideal()
-            )
-            if "effects" in opts:
-                truth = truth.only(*[e for e in one("effects", "").split(",") if e])
-            env = Environment.random(np.random.default_rng(env_ss))
+            o = parse_sim_options(opts, speed_default="realtime", fault_is_operator=True)
+            self.seed = o.seed
+            self.speed: float | None = o.speed
+            self.operator = o.operator
+            self.faults: dict[str, float] = dict(o.operator_faults)
+            if o.cable_pull_s is not None:
+                self.faults[CABLE_FAULT] = o.cable_pull_s
+            drawn = o.draw()
+            truth, env = drawn.truth, drawn.environment
+            self._noise_ss, self._op_ss = drawn.noise_ss, drawn.operator_ss
             if "clock_ppm" in opts:
                 ppm = bounded("clock_ppm", one("clock_ppm", "0"), -CLOCK_PPM_MAX, CLOCK_PPM_MAX)
                 env = _replace(env, timer_ppm=ppm)
@@ -200,14 +154,8 @@ class Serial(SerialBase):
                 rel = one("sample_clock", "0")
                 err = bounded("sample_clock", rel, -SAMPLE_CLOCK_MAX, SAMPLE_CLOCK_MAX)
                 env = _replace(env, sample_clock_error=err)
-            if "chamber" in opts:
-                env = _replace(env, **parse_chamber(one("chamber", "")))
             self.environment = env
-            self.bench = Bench(
-                latitude_deg=bounded("latitude", one("latitude", "55.75"), -90.0, 90.0),
-                tilt_deg=bounded("tilt", one("tilt", "0"), -90.0, 90.0),
-                earth_rate=one("earth_rate", "1") not in ("0", "false", "no"),
-            )
+            self.bench = drawn.bench
         except ValueError as exc:
             raise _usage(str(exc)) from exc
         self.truth = truth
@@ -505,26 +453,6 @@ class Serial(SerialBase):
             if self.operator != "auto" or self.sim is None:
                 return {"action": action, "done": False}
             return self._operator.hint(self.sim, now, action, **kw)
-
-
-def parse_chamber(text: str) -> dict[str, float]:
-    """'FROM:TO:MINUTES[@START_S]' -> the chamber fields of :class:`Environment`."""
-    ramp, _, start = text.partition("@")
-    parts = ramp.split(":")
-    if len(parts) != 3:
-        raise ValueError(
-            f"chamber: expected FROM:TO:MINUTES[@START_S] (e.g. -10:50:60), not {text!r}"
-        )
-    lo = bounded("chamber FROM", parts[0], -60.0, 130.0)
-    hi = bounded("chamber TO", parts[1], -60.0, 130.0)
-    minutes = bounded("chamber MINUTES", parts[2], 0.01, 10000.0)
-    t0 = bounded("chamber START_S", start, 0.0, 1e7) if start else 0.0
-    return {
-        "chamber_from_c": lo,
-        "chamber_to_c": hi,
-        "chamber_minutes": minutes,
-        "chamber_start_s": t0,
-    }
 
 
 def _replace(env: Environment, **kw: Any) -> Environment:

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 from host.__main__ import main
+from host.bench.options import parse_chamber
 from host.bench.physics import Environment
 from host.bench.sim import simulate_thermal
 from host.bench.truth import SensorTruth
 from host.calib import thermal
 from host.calib.records import write_record
-from host.transports.protocol_sim import parse_chamber
 
 #: per channel ax ay az gx gy gz: true order 1, 2, 3, 3, 0, 2
 TRUTH = dataclasses.replace(

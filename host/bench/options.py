@@ -1,0 +1,217 @@
+"""The virtual bench's URL options: one parser for ``sim://`` and ``emu://``.
+
+Both schemes drive the same physics simulator (:mod:`host.bench.sim`), so the options that set it
+up are read here, once, with the same meaning and checks:
+
+``seed`` (draws the truth, the room, the noise and the operator: same seed, same sensor on both
+schemes), ``speed`` (``realtime`` | ``N`` | ``max``; the default differs: ``realtime`` on
+``sim://``, ``max`` on ``emu://``), ``truth`` (``random`` | ``ideal``), ``effects``,
+``operator`` (``auto`` | ``manual``), ``latitude``, ``tilt``, ``earth_rate`` and
+``operator_fault=NAME[@K]`` (may repeat: the K-th ``place`` or ``turn`` goes wrong on purpose).
+
+``fault=`` keeps the meaning it always had on each scheme: on ``sim://`` the operator's (and
+``pull_cable@S``, the cable's) faults — the old spelling of ``operator_fault`` —, on ``emu://``
+the *sensor's* faults (``protocol_emu``). Options only one scheme has stay in its module.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from host.bench.physics import Bench, Environment
+    from host.bench.truth import SensorTruth
+
+#: ``speed=N`` bounds: slower starves the session of samples, faster only spins the CPU
+#: (``speed=max`` is the fast mode: time advances as bytes are read)
+SPEED_RANGE = (0.1, 1000.0)
+#: ``clock_ppm`` bound: a ceramic resonator is off by ±5000 ppm, a crystal by ±100
+CLOCK_PPM_MAX = 10_000.0
+#: ``sample_clock`` bound (relative): the MPU-6000's own oscillator is within ±5 %
+SAMPLE_CLOCK_MAX = 0.05
+#: the options read here (a scheme adds its own)
+KEYS = (
+    "seed", "speed", "truth", "effects", "operator", "latitude", "tilt", "earth_rate",
+    "operator_fault", "chamber",
+)  # fmt: skip
+#: ``sim://``'s cable fault (``fault=pull_cable@S``: S simulated s after opening, default 5)
+CABLE_FAULT = "pull_cable"
+
+
+class OptionError(ValueError):
+    """A bad option value; ``key`` names the option (its text is the message)."""
+
+    def __init__(self, key: str, message: str) -> None:
+        super().__init__(message)
+        self.key = key
+
+
+def bounded(name: str, text: str, lo: float, hi: float) -> float:
+    """``text`` as a finite float in [lo, hi]; ValueError naming the option otherwise."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise ValueError(f"{name}={text!r} is not a number") from None
+    if not lo <= v <= hi:  # also false for nan
+        raise ValueError(f"{name}={text!r} is outside {lo:g} … {hi:g}")
+    return v
+
+
+def _int(text: str) -> int:
+    """Decimal (``007`` too), or with a base prefix (``0x10``)."""
+    return int(text, 0) if text[1:2].lower() in ("x", "o", "b") else int(text)
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """The simulator's options of a ``sim://`` or ``emu://`` URL."""
+
+    seed: int = 0
+    speed: float | None = None  # None: max; else simulated s per wall s
+    truth: str = "random"  # random | ideal
+    effects: tuple[str, ...] | None = None
+    operator: str = "auto"  # auto | manual
+    latitude_deg: float = 55.75
+    tilt_deg: float = 0.0
+    earth_rate: bool = True
+    operator_faults: tuple[tuple[str, float], ...] = ()  # (name, K) for sim.CubeOperator
+    chamber: tuple[tuple[str, float], ...] = ()  # Environment chamber fields (parse_chamber)
+    cable_pull_s: float | None = None  # sim:// only: fault=pull_cable@S
+
+    def draw(self) -> BenchDraw:
+        """The sensor, room and bench of these options, and the seeds of the noise and the
+        operator (the same draw on both schemes)."""
+        from host.bench.physics import Bench, Environment
+        from host.bench.truth import SensorTruth
+
+        truth_ss, env_ss, noise_ss, op_ss = np.random.SeedSequence(self.seed).spawn(4)
+        truth = (
+            SensorTruth.random(np.random.default_rng(truth_ss))
+            if self.truth == "random"
+            else SensorTruth.ideal()
+        )
+        if self.effects is not None:
+            truth = truth.only(*self.effects)
+        env = Environment.random(np.random.default_rng(env_ss))
+        if self.chamber:
+            c = dict(self.chamber)
+            env = dataclasses.replace(
+                env,
+                chamber_from_c=c["chamber_from_c"],
+                chamber_to_c=c["chamber_to_c"],
+                chamber_minutes=c["chamber_minutes"],
+                chamber_start_s=c["chamber_start_s"],
+            )
+        return BenchDraw(
+            truth,
+            env,
+            Bench(
+                latitude_deg=self.latitude_deg, tilt_deg=self.tilt_deg, earth_rate=self.earth_rate
+            ),
+            noise_ss,
+            op_ss,
+        )
+
+
+@dataclass(frozen=True)
+class BenchDraw:
+    """What :meth:`SimOptions.draw` draws from the seed."""
+
+    truth: SensorTruth
+    environment: Environment
+    bench: Bench
+    noise_ss: np.random.SeedSequence
+    operator_ss: np.random.SeedSequence
+
+
+def parse_sim_options(
+    opts: Mapping[str, Sequence[str]], speed_default: str, fault_is_operator: bool
+) -> SimOptions:
+    """:data:`KEYS` of parsed query ``opts`` (``urllib.parse.parse_qs``; the last value of a key
+    wins) -> :class:`SimOptions`; :class:`OptionError` naming the bad option.
+
+    ``speed_default``: ``realtime`` or ``max``. ``fault_is_operator``: ``fault=`` is the old
+    spelling of ``operator_fault=`` plus the cable fault (``sim://``).
+    """
+    from host.bench.sim import OPERATOR_FAULTS
+
+    def one(key: str, default: str) -> str:
+        return opts.get(key, [default])[-1]
+
+    key = ""
+    try:
+        key = "seed"
+        seed = _int(one("seed", "0"))
+        key = "speed"
+        speed_text = one("speed", speed_default).lower()
+        speed = (
+            1.0
+            if speed_text == "realtime"
+            else None
+            if speed_text == "max"
+            else bounded("speed", speed_text, *SPEED_RANGE)
+        )
+        key = "truth"
+        truth = one("truth", "random").lower()
+        if truth not in ("random", "ideal"):
+            raise ValueError(f"truth must be random or ideal, not {truth!r}")
+        key = "operator"
+        operator = one("operator", "auto").lower()
+        if operator not in ("auto", "manual"):
+            raise ValueError(f"operator must be auto or manual, not {operator!r}")
+        key = "effects"
+        effects = (
+            tuple(e for e in one("effects", "").split(",") if e) if "effects" in opts else None
+        )
+        key = "latitude"
+        latitude = bounded(key, one("latitude", "55.75"), -90.0, 90.0)
+        key = "tilt"
+        tilt = bounded(key, one("tilt", "0"), -90.0, 90.0)
+        key = "chamber"
+        chamber = tuple(parse_chamber(one(key, "")).items()) if key in opts else ()
+        faults: list[tuple[str, float]] = []
+        cable: float | None = None
+        sources: list[tuple[str, tuple[str, ...]]] = [("operator_fault", OPERATOR_FAULTS)]
+        if fault_is_operator:
+            sources.insert(0, ("fault", (*OPERATOR_FAULTS, CABLE_FAULT)))
+        for key, known in sources:
+            for text in opts.get(key, []):
+                name, _, arg = text.partition("@")
+                if name not in known:
+                    raise ValueError(f"unknown fault {name!r}; known: {', '.join(known)}")
+                k = bounded(f"{key}={name}@", arg, 0.0, 1e6) if arg else None
+                if name == CABLE_FAULT:
+                    cable = 5.0 if k is None else k
+                else:
+                    faults.append((name, 1.0 if k is None else k))
+    except ValueError as exc:
+        raise OptionError(key, str(exc)) from None
+    earth = one("earth_rate", "1").lower() not in ("0", "false", "no")
+    return SimOptions(
+        seed, speed, truth, effects, operator, latitude, tilt, earth, tuple(faults), chamber, cable
+    )
+
+
+def parse_chamber(text: str) -> dict[str, float]:
+    """'FROM:TO:MINUTES[@START_S]' -> the chamber fields of :class:`Environment`."""
+    ramp, _, start = text.partition("@")
+    parts = ramp.split(":")
+    if len(parts) != 3:
+        raise ValueError(
+            f"chamber: expected FROM:TO:MINUTES[@START_S] (e.g. -10:50:60), not {text!r}"
+        )
+    lo = bounded("chamber FROM", parts[0], -60.0, 130.0)
+    hi = bounded("chamber TO", parts[1], -60.0, 130.0)
+    minutes = bounded("chamber MINUTES", parts[2], 0.01, 10000.0)
+    t0 = bounded("chamber START_S", start, 0.0, 1e7) if start else 0.0
+    return {
+        "chamber_from_c": lo,
+        "chamber_to_c": hi,
+        "chamber_minutes": minutes,
+        "chamber_start_s": t0,
+    }
