@@ -50,7 +50,8 @@ class LinearModel:
     """The result's linear model (method.md §2) in one frame: ``ka`` = I + Ma, ``a0`` m/s²,
     ``kg`` = I + Mg, ``ga`` (°/s)/g, ``g0`` °/s, ``g`` local gravity m/s²; ``serial``;
     ``gyro_scale_measured`` False when no turn records gave Mg (then ``kg`` is I, as in
-    ``apply()``); ``frame`` the axes (``x,y,z`` = our chip axes)."""
+    ``apply()``); ``frame`` the axes (``x,y,z`` = our chip axes); ``further`` one sized line per
+    parameter of the result's terms beyond the linear model, which no format here can hold."""
 
     serial: str
     ka: np.ndarray
@@ -62,6 +63,7 @@ class LinearModel:
     gyro_scale_measured: bool
     frame: str = "x,y,z"
     axes: np.ndarray = field(default_factory=lambda: np.eye(3))
+    further: tuple[str, ...] = ()
 
 
 def linear_model(result: CalibrationResult) -> LinearModel:
@@ -77,6 +79,18 @@ def linear_model(result: CalibrationResult) -> LinearModel:
         g0=result.gyro_bias(),
         g=float(result.g),
         gyro_scale_measured=measured,
+        further=further_lines(result),
+    )
+
+
+def further_lines(result: CalibrationResult) -> tuple[str, ...]:
+    """One line per determined parameter of a term beyond method.md §2's linear model (e.g.
+    ``temperature_bias gyro y = -0.0262 ± 0.0055 °/s/°C``): the exports carry only the linear
+    model, so each of these is named as lost rather than dropped in silence."""
+    return tuple(
+        f"{p.term} {p.sensor} {p.axis} ({p.key}) = {p.value:.4g} ± {p.stderr:.2g} {p.unit}"
+        for p in result.further
+        if p.determined
     )
 
 
@@ -95,6 +109,7 @@ def in_frame(model: LinearModel, axes: np.ndarray, text: str) -> LinearModel:
         gyro_scale_measured=model.gyro_scale_measured,
         frame=text,
         axes=p,
+        further=model.further,
     )
 
 
@@ -122,7 +137,7 @@ def _lost_lines(model: LinearModel, *, gyro_scale: bool, gyro_bias: bool = True)
     )
     if not model.gyro_scale_measured:
         out.append("(gyro scale and misalignment were not measured: exported as nominal)")
-    return out
+    return out + [f"further term {x}" for x in model.further]
 
 
 def _header(comment: str, title: str, model: LinearModel, convention: list[str]) -> list[str]:
@@ -254,7 +269,8 @@ def imucal_info(model: LinearModel) -> dict[str, object]:
         "from_acc_unit": "m/s^2",
         "from_gyr_unit": "deg/s",
         "comment": f"imu-bench calibration of serial {model.serial}, frame {model.frame}; "
-        "a = R_a^-1 K_a^-1 (u - b_a), w = R_g^-1 K_g^-1 (u_g - K_ga a - b_g)",
+        "a = R_a^-1 K_a^-1 (u - b_a), w = R_g^-1 K_g^-1 (u_g - K_ga a - b_g)"
+        + "".join(f"; NOT REPRESENTED: further term {x}" for x in model.further),
         "K_a": k_a.tolist(),
         "R_a": r_a.tolist(),
         "b_a": model.a0.tolist(),
@@ -308,6 +324,7 @@ def export_c_header(model: LinearModel) -> str:
     ]
     if not model.gyro_scale_measured:
         lines.append(" * Gyro scale and misalignment were not measured: GYRO_M_INV is identity.")
+    lines += [f" * NOT REPRESENTED: further term {x}" for x in model.further]
     lines += [" */", f"#ifndef {guard}_H", f"#define {guard}_H", ""]
     for name, arr in c_arrays(model).items():
         dims = "".join(f"[{d}]" for d in arr.shape)

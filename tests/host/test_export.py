@@ -7,6 +7,7 @@ relative for the part of the model the target can represent (and visibly not for
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -299,3 +300,22 @@ def test_thermal_for_a_format_without_it_is_refused(tmp_path: Path, capsys) -> N
     assert "TC_G0_X1_0" in capsys.readouterr().out
     assert main(["export", str(rj), "--to", "imucal", "--thermal", str(tj)]) == 2
     assert "no place for bias(T)" in capsys.readouterr().err
+
+
+def test_every_format_names_a_further_term_it_cannot_hold() -> None:
+    # A result of model base,temperature_bias:gyro:y: no export target has a place for the
+    # temperature term, so each must name it with its value, never drop it in silence.
+    from host.calib.result import ParameterResult
+
+    base = _result()
+    extra = ParameterResult(
+        term="temperature_bias", sensor="gyro", axis="y", key="per_C",
+        name="temperature_bias.gyro.y", value=-0.02624, stderr=0.0055, unit="°/s/°C",
+    )  # fmt: skip
+    result = dataclasses.replace(
+        base, model="base,temperature_bias:gyro:y", parameters=(*base.parameters, extra)
+    )
+    for fmt in FORMATS:
+        text = export(result, fmt)
+        assert "temperature_bias gyro y" in text and "-0.02624" in text, fmt
+        assert "temperature_bias" not in export(base, fmt), fmt
