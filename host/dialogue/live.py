@@ -138,14 +138,24 @@ CHANNELS = ("Ax", "Ay", "Az", "Gx", "Gy", "Gz", "temp")
 # --------------------------------------------------------------------------- small helpers
 
 
+SERIAL_RULE = "1 to 12 characters: letters, digits, _ or - (it starts every file name)"
+
+
 def parse_serial(text: str) -> str:
-    """A serial number: 1–12 characters of A-Z a-z 0-9 _ - (it prefixes every file name)."""
+    """A serial number: 1–12 characters of A-Z a-z 0-9 _ - (it prefixes every file name).
+    ValueError states the rule and what in ``text`` breaks it."""
     s = text.strip()
-    if not SERIAL_RE.match(s):
-        raise ValueError(
-            "the serial number is mandatory: 1 to 12 characters, letters, digits, _ or -"
-        )
-    return s
+    if SERIAL_RE.match(s):
+        return s
+    if not s:
+        raise ValueError(f"the serial number is mandatory: {SERIAL_RULE}")
+    bad = sorted({c for c in s if not (c.isascii() and (c.isalnum() or c in "_-"))})
+    why = []
+    if bad:
+        why.append("not allowed: " + " ".join(repr(c) for c in bad))
+    if len(s) > 12:
+        why.append(f"{len(s)} characters")
+    raise ValueError(f"serial number {s!r} ({'; '.join(why)}): use {SERIAL_RULE}")
 
 
 def parse_seconds(text: str) -> float:
@@ -308,6 +318,18 @@ class SessionOptions:
             raise UserError("--ready-seconds must be 0 or more")
         if self.yes and self.serial is None:
             raise UserError("--yes needs --serial (the serial number is mandatory)")
+        if self.yes and self.static_seconds is None and self._statics_to_measure():
+            raise UserError(
+                "--yes needs --static-seconds S, the accumulation time per static orientation "
+                "(e.g. --static-seconds 30): nothing is asked with --yes"
+            )
+
+    def _statics_to_measure(self) -> list[str]:
+        """The static records this session will measure (with --resume: those missing)."""
+        if not self.resume or self.serial is None:
+            return list(STATIC_NAMES)
+        out = self.out if self.out is not None else Path(self.serial)
+        return [n for n in STATIC_NAMES if not record_path(out, self.serial, n).exists()]
         local_gravity(self.latitude_deg, self.height_m)  # validates both
 
 
@@ -949,7 +971,10 @@ class LiveSession:
     def run(self) -> SessionResult:
         op, opts = self.op, self.opts
         op.say("IMU CALIBRATION BENCH — MPU-6000 (APM 2.6): live calibration, method.md §5")
-        op.say("Ctrl+C aborts and discards the session; Esc aborts only the current measurement")
+        op.say(
+            "Ctrl+C ends the session (accepted records are kept, the command to resume is "
+            "printed); Esc aborts only the current measurement"
+        )
         op.say("Level the base. Connect the unit by USB (the board's green LED lights).")
         op.say(f"Opening {self.board.url} ...")
         info = self._connect()
@@ -1224,8 +1249,7 @@ class LiveSession:
                 f"RANGE ALARM: {over} gyro samples at or beyond ±{self.board.info.gyro_range_dps} "
                 f"°/s (peak {peak:.1f} °/s): the turn was too fast, turn more slowly"
             )
-            op.say(f"!!! {msg}")
-            problems.append(msg)
+            problems.append(msg)  # shown once, with the question (_decide)
         else:
             op.say(
                 f"  peak rate {peak:.1f} °/s (working range ±{self.board.info.gyro_range_dps} °/s)"

@@ -140,3 +140,32 @@ def test_plot_refuses_an_image_file_name(tmp_path: Path) -> None:
     rc, _, err = main_output(["model", "diagnose", str(tmp_path), "--plot", "OUT.png"])
     assert rc == 2 and "--plot takes a directory" in err and "--plot OUT/" in err
     assert not Path("OUT.png").exists()
+
+
+def test_serial_number_message_states_the_rule_and_the_culprit() -> None:
+    from host.dialogue import live
+
+    with pytest.raises(ValueError) as e:
+        live.parse_serial("my unit/1")
+    msg = str(e.value)
+    assert "mandatory" not in msg  # it was given
+    assert "' '" in msg and "'/'" in msg and "1 to 12 characters" in msg and "_ or -" in msg
+    with pytest.raises(ValueError, match="13 characters"):
+        live.parse_serial("x" * 13)
+    with pytest.raises(ValueError, match="mandatory"):
+        live.parse_serial("  ")
+
+
+def test_yes_without_static_seconds_fails_before_the_board_and_the_warm_up(
+    tmp_path: Path,
+) -> None:
+    from host.dialogue import live
+    from host.errors import UserError
+
+    opened: list[str] = []
+    o = live.SessionOptions(port="sim://?speed=max", serial="F1", out=tmp_path / "F1",
+                            yes=True, warmup_s=600.0)  # fmt: skip
+    con = ScriptedConsole()
+    with pytest.raises(UserError, match=r"--yes needs --static-seconds S, .*e\.g\."):
+        live.run_live_session(o, con, lambda u: opened.append(u))
+    assert opened == [] and "warm-up" not in con.text

@@ -195,7 +195,7 @@ def test_scripted_dialogue_validates_and_repeats(
     rc, stdout = run(o, con, ports)
     assert con.keys == []
     text = con.text
-    assert "the serial number is mandatory" in text
+    assert "serial number 'bad serial!' (not allowed: ' ' '!')" in text
     assert "give the accumulation time in seconds" in text
     assert "between 1 and 3600" in text
     assert text.count("Measuring x_up") == 2 and text.count("Measuring x_dn") == 1

@@ -194,7 +194,8 @@ def test_interactive_session_with_a_repeat(
     """The whole dialogue typed by hand: serial, stages, seconds, one 'repeat', the turns."""
     s = start(screens, tmp_path, "--port", board_url(board, 21, "max"),
               "--warmup", "0", "--ready-seconds", "0")  # fmt: skip
-    s.expect(r"Ctrl\+C aborts and discards the session; Esc aborts only the current measurement")
+    s.expect(r"Ctrl\+C ends the session \(accepted records are kept, the command to resume is "
+             r"printed\); Esc aborts only the current measurement")  # fmt: skip
     s.expect(r"Level the base\. Connect the unit by USB")
     s.expect(r"WHO_AM_I 0x68 \(MPU-6000\)", timeout=60)  # emu://: may build the firmware first
     s.expect(r"Serial number \(1-12 characters\): ")
@@ -301,6 +302,7 @@ def test_range_alarm_offers_to_repeat(tmp_path: Path, screens: list[Screen], boa
     s.send("\x03")
     assert s.wait() == 130
     assert "\a" in s.text.split("RANGE ALARM")[0][-40:]
+    assert s.text.count("RANGE ALARM") == 1  # one alarm per event
     rec = read_record(tmp_path / "R1" / "R1_x_ccw.txt")
     assert float(np.abs(rec.gyro).max()) < 249.99
     assert 700 < rec.gyro[:, 0].sum() * 0.02 < 760  # about two turns, the second attempt
