@@ -898,6 +898,8 @@ class LiveSession:
         self.static_seconds: float | None = opts.static_seconds
         self._in_idle = False
         self._session_start_ns = time.monotonic_ns()
+        #: True while the warm-up runs (Ctrl+C there discards no measurement)
+        self.in_warm_up = False
 
     # ---- plumbing ------------------------------------------------------------------------
     def _warn(self, text: str) -> None:
@@ -1087,18 +1089,22 @@ class LiveSession:
             m, sec = divmod(int(max(s - elapsed, 0.0) + 0.999), 60)
             op.progress(f"  warm-up: {m}:{sec:02d}")
 
+        self.in_warm_up = True  # stays set if Ctrl+C ends the session here
         try:
             acq = self.board.acquire(s, tick=tick, check_escape=op.escape_pressed)
         except MeasurementAborted:
+            self.in_warm_up = False
             op.end_progress()
             op.say("Warm-up skipped (not recorded).")
             return
         except (LinkLost, LinkTimeout, BoardReset, SensorFault) as exc:
+            self.in_warm_up = False
             op.end_progress()
             self._warn(f"the warm-up is not recorded: {exc}")
             if isinstance(exc, (LinkLost, LinkTimeout)):
                 self._recover(exc, measuring=False)
             return
+        self.in_warm_up = False
         op.end_progress()
         if len(acq.t_us) >= 2:
             rec = self._record(WARMUP_NAME, acq, {"kind": "warmup"})
@@ -1495,7 +1501,11 @@ def run_live_session(
     except KeyboardInterrupt:
         con.end_progress()
         con.say("")
-        con.say("Aborted (Ctrl+C): the measurement in progress is discarded.")
+        con.say(
+            "Aborted (Ctrl+C) during the warm-up (not recorded)."
+            if session is not None and session.in_warm_up
+            else "Aborted (Ctrl+C): the measurement in progress is discarded."
+        )
         if session is not None and session.serial:
             con.say(session._resume_hint())
         return 130

@@ -169,3 +169,26 @@ def test_yes_without_static_seconds_fails_before_the_board_and_the_warm_up(
     with pytest.raises(UserError, match=r"--yes needs --static-seconds S, .*e\.g\."):
         live.run_live_session(o, con, lambda u: opened.append(u))
     assert opened == [] and "warm-up" not in con.text
+
+
+def test_ctrl_c_during_the_warm_up_does_not_speak_of_a_measurement(tmp_path: Path) -> None:
+    import contextlib
+    import io
+
+    from host.board.link import open_port
+    from host.dialogue import live
+
+    con = ScriptedConsole()
+
+    def interrupt_in_warm_up(text: str) -> None:
+        if "warm-up" in text:
+            raise KeyboardInterrupt
+
+    con.progress = interrupt_in_warm_up  # type: ignore[method-assign]
+    o = live.SessionOptions(port="sim://?speed=max&effects=linear,noise&earth_rate=0",
+                            serial="W1", out=tmp_path / "W1", static_seconds=2.0, turns=1,
+                            warmup_s=30.0, yes=True, ready_s=0.0)  # fmt: skip
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert live.run_live_session(o, con, open_port) == 130
+    assert "Aborted (Ctrl+C) during the warm-up (not recorded)." in con.text
+    assert "measurement in progress" not in con.text
