@@ -60,6 +60,9 @@ MOVED: dict[str, str] = {
     "host.export_cli": "host.cli.exporting",
 }
 
+#: old module entry points (``python -m OLD``) -> the ``python -m host`` command they were
+MOVED_COMMANDS: dict[str, str] = {"host.session": "calibrate"}
+
 
 class _MovedModuleLoader(importlib.abc.Loader):
     """Imports the module's new name and puts that very module under the old name too."""
@@ -81,8 +84,12 @@ class _MovedModuleLoader(importlib.abc.Loader):
         sys.modules[old] = importlib.import_module(self.new)
 
     def get_code(self, fullname: str) -> CodeType | None:
-        """For ``python -m OLD_NAME``: the new module's code."""
+        """For ``python -m OLD_NAME``: the new module's code, or the command it was."""
         print(f"note: python -m {fullname} is deprecated; use python -m host", file=sys.stderr)
+        if fullname in MOVED_COMMANDS:
+            run = "import sys\nfrom host.__main__ import main\n"
+            run += f"sys.exit(main([{MOVED_COMMANDS[fullname]!r}, *sys.argv[1:]]))\n"
+            return compile(run, fullname, "exec")
         spec = importlib.util.find_spec(self.new)
         loader = spec.loader if spec is not None else None
         get_code = getattr(loader, "get_code", None)

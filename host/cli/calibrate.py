@@ -22,6 +22,7 @@ from host.calib.records import Session, read_session
 from host.calib.report import format_report, write_results
 from host.calib.result import CalibrationResult, verify_directory
 from host.cli.model import _noise
+from host.dialogue.live import DEFAULT_READY_S, WARMUP_DEFAULT_S
 from host.errors import UserError
 
 
@@ -117,10 +118,39 @@ def run(args: argparse.Namespace) -> int:
     return 0 if result.all_passed else 1
 
 
+def add_live_arguments(p: argparse.ArgumentParser) -> None:
+    """The live-mode options of ``calibrate`` that :func:`add_arguments` lacks
+    (it has --port, --serial, --out, --turns, --latitude, --height, --json)."""
+    p.add_argument(
+        "--static-seconds", type=float, metavar="S",
+        help="accumulation time per static orientation, s (asked if not given)",
+    )  # fmt: skip
+    p.add_argument(
+        "--warmup", type=float, default=WARMUP_DEFAULT_S, metavar="SECONDS",
+        help=f"warm-up wait before measuring, s (default {WARMUP_DEFAULT_S:g}; 0 skips)",
+    )  # fmt: skip
+    p.add_argument(
+        "--yes", action="store_true",
+        help="non-interactive: every question gets its default (both stages, save every "
+        "measurement); needs --serial and --static-seconds",
+    )  # fmt: skip
+    p.add_argument(
+        "--resume", action="store_true",
+        help="keep the records already in the output directory, measure only the missing ones",
+    )  # fmt: skip
+    p.add_argument(
+        "--capture", metavar="FILE",
+        help="IMUCAP01 capture of the session (default OUT/SERIAL_session.cap)",
+    )  # fmt: skip
+    p.add_argument(
+        "--ready-seconds", type=float, default=DEFAULT_READY_S, metavar="S",
+        help="pause between 'get ready' and the start beep of a turn, s "
+        f"(default {DEFAULT_READY_S:g})",
+    )  # fmt: skip
+
+
 def cli_calibrate(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
     """Fill in the ``calibrate`` subparser; returns the runner."""
-    from host.dialogue.live import add_live_arguments
-
     add_arguments(p)
     add_live_arguments(p)
     return run

@@ -204,37 +204,6 @@ def default_port(comports: Callable[[], Iterable[Any]] | None = None) -> tuple[s
 # --------------------------------------------------------------------------- options
 
 
-def add_live_arguments(p: argparse.ArgumentParser) -> None:
-    """The live-mode options of ``calibrate`` that ``calibrate_cli.add_arguments`` lacks
-    (it has --port, --serial, --out, --turns, --latitude, --height, --json)."""
-    p.add_argument(
-        "--static-seconds", type=float, metavar="S",
-        help="accumulation time per static orientation, s (asked if not given)",
-    )  # fmt: skip
-    p.add_argument(
-        "--warmup", type=float, default=WARMUP_DEFAULT_S, metavar="SECONDS",
-        help=f"warm-up wait before measuring, s (default {WARMUP_DEFAULT_S:g}; 0 skips)",
-    )  # fmt: skip
-    p.add_argument(
-        "--yes", action="store_true",
-        help="non-interactive: every question gets its default (both stages, save every "
-        "measurement); needs --serial and --static-seconds",
-    )  # fmt: skip
-    p.add_argument(
-        "--resume", action="store_true",
-        help="keep the records already in the output directory, measure only the missing ones",
-    )  # fmt: skip
-    p.add_argument(
-        "--capture", metavar="FILE",
-        help="IMUCAP01 capture of the session (default OUT/SERIAL_session.cap)",
-    )  # fmt: skip
-    p.add_argument(
-        "--ready-seconds", type=float, default=DEFAULT_READY_S, metavar="S",
-        help="pause between 'get ready' and the start beep of a turn, s "
-        f"(default {DEFAULT_READY_S:g})",
-    )  # fmt: skip
-
-
 @dataclass
 class SessionOptions:
     """Everything the live session needs; units in the names (s, deg, m)."""
@@ -1475,7 +1444,7 @@ def run_live_session(
 ) -> int:
     """Run the live calibration dialogue; the runner of ``python -m host calibrate --port``.
 
-    ``args``: the parsed ``calibrate`` arguments (see :func:`add_live_arguments`) or a
+    ``args``: the parsed ``calibrate`` arguments (``python -m host calibrate``) or a
     :class:`SessionOptions`. ``console``: the terminal (default: the real one; tests pass a
     :class:`host.operator.ScriptedConsole`). ``port_factory(url)``: opens the port (default
     :func:`host.link.open_port`). Returns the exit status: 0 every value within tolerance,
@@ -1521,32 +1490,3 @@ def run_live_session(
             session.board.close()
         if term is not None:
             term.close()
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The ``calibrate`` options: calibrate_cli's plus :func:`add_live_arguments`."""
-    from host.cli.calibrate import add_arguments
-
-    p = argparse.ArgumentParser(
-        prog="python -m host.session", description="live calibration dialogue (method.md §5)"
-    )
-    add_arguments(p)
-    add_live_arguments(p)
-    return p
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m host.session ...`` — the same as ``python -m host calibrate --port ...``."""
-    args = build_parser().parse_args(argv)
-    if getattr(args, "from_dir", None):
-        print("error: --from-dir is for 'python -m host calibrate'", file=sys.stderr)
-        return 2
-    try:
-        return run_live_session(args)
-    except (UserError, OSError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -10,10 +10,7 @@ from pathlib import Path
 HOST = Path(__file__).resolve().parents[2] / "host"
 
 #: arrows still to remove, each with the reason it is here; the list only shrinks
-KNOWN: dict[tuple[str, str], str] = {
-    ("host.dialogue.live", "host.cli.calibrate"): "live's second entry point (main), "
-    "left until the session split (issues 17/18 edit live.py today)",
-}
+KNOWN: dict[tuple[str, str], str] = {}
 
 
 def module_name(path: Path) -> str:

@@ -70,7 +70,7 @@ def _command() -> list[str]:
         wired = False
     if wired:
         return [sys.executable, "-m", "host", "calibrate"]
-    return [sys.executable, "-m", "host.dialogue.live"]
+    return [sys.executable, "-m", "host.session"]
 
 
 CMD = _command()
