@@ -198,7 +198,11 @@ def default_port(comports: Callable[[], Iterable[Any]] | None = None) -> tuple[s
         ).lower()
         if vid in APM_VIDS or any(w in words for w in _APM_WORDS):
             return str(p.device), f"using the board on {p.device}"
-    return "sim://", "no board found: using the virtual board sim://"
+    looked = ", ".join(str(p.device) for p in ports) or "no serial ports at all"
+    return "sim://", (
+        f"NO BOARD FOUND (looked at: {looked}): using the VIRTUAL board sim:// — a simulated "
+        "sensor, not a unit. Plug in the APM or give --port"
+    )
 
 
 # --------------------------------------------------------------------------- options

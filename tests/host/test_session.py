@@ -449,7 +449,9 @@ def test_default_port() -> None:
     apm = SimpleNamespace(device="/dev/ttyACM0", vid=0x2341, description="Arduino Mega 2560")
     assert live.default_port(ports(other, apm))[0] == "/dev/ttyACM0"
     port, note = live.default_port(ports(other))
-    assert port == "sim://" and note == "no board found: using the virtual board sim://"
+    assert port == "sim://" and note is not None
+    assert "NO BOARD FOUND (looked at: /dev/ttyS0)" in note and "VIRTUAL board sim://" in note
+    assert "no serial ports at all" in (live.default_port(ports())[1] or "")
 
 
 def test_gyro_alarm_threshold() -> None:
