@@ -377,7 +377,7 @@ def format_terms(cat: Mapping[str, Term]) -> str:
     what data identifies it (lines of at most 80 characters)."""
     import textwrap
 
-    from host.model import BASE
+    from host.modelling.model import BASE
 
     out: list[str] = []
     for t in cat.values():

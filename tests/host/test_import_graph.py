@@ -135,3 +135,20 @@ def test_every_module_lives_in_a_stage_package() -> None:
     assert flat == ["__init__.py", "__main__.py", "errors.py"], (
         "put a new module in its stage's package (README, 'What is here'), not in host/ itself"
     )
+
+
+def test_the_package_never_imports_an_old_module_name() -> None:
+    """Old flat names (host.MOVED) are for users' code; inside host/ they would only warn."""
+    import host
+
+    old = []
+    for m, path in modules().items():
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            else:
+                continue
+            old += [f"{m}:{node.lineno} {n}" for n in names if n in host.MOVED]
+    assert old == []
