@@ -67,7 +67,14 @@ from host.calib.method import (
     record_stats,
     trapezoid_integral,
 )
-from host.calib.records import STATIC_NAMES, TURN_NAMES, Record, Session
+from host.calib.records import (
+    SIMULATED_BOARD,
+    STATIC_NAMES,
+    TURN_NAMES,
+    Record,
+    Session,
+    simulated_ports,
+)
 from host.calib.result import (
     CalibrationResult,
     FitQuality,
@@ -376,6 +383,9 @@ def calibrate_from_records(
         mt.term.name in ("bias", "scale", "misalignment", "g_sensitivity") for mt in mts
     )
     notes = [n for n in ds.notes if not (only_base and "power_on_s" in n)]
+    sims = simulated_ports(session.records)
+    if sims:  # never let a virtual board pass for a unit (first note: the report heads with it)
+        notes.insert(0, f"{SIMULATED_BOARD} {', '.join(sims)}: not a measurement of a unit")
     if len(ns) > 1:
         notes.append(f"turn records with different numbers of turns: {sorted(ns)}")
     if fit.uncertainty_note():

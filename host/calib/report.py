@@ -22,7 +22,7 @@ from host.calib.calibration import (
     NOISE_NAMES,
     UNITS,
 )
-from host.calib.records import write_texts_atomic
+from host.calib.records import SIMULATED_BOARD, write_texts_atomic
 from host.calib.result import CalibrationResult
 
 WIDTH = 80
@@ -45,6 +45,7 @@ def format_report(result: CalibrationResult) -> str:
     rule = "-" * WIDTH
     out: list[str] = []
     out.append(f"TEST REPORT, IMU MPU-6000, serial No. {r.serial}")
+    out += [f"*** {n} ***" for n in r.notes if n.startswith(SIMULATED_BOARD)]
     out.append(f"Date and time: {r.created.replace('T', ' ')}")
     out.append(
         f"Local gravity g = {r.g:.5f} m/s² (Helmert formula, latitude {r.latitude_deg:.3f}°, "

@@ -78,6 +78,8 @@ from host.calib.calibration import (
     trapezoid_integral,
 )
 from host.calib.records import (
+    SIMULATED_BOARD,
+    SIMULATED_SCHEMES,
     STATIC_NAMES,
     TURN_NAMES,
     WARMUP_NAME,
@@ -1340,6 +1342,11 @@ class LiveSession:
                 "(time.monotonic_ns of the start beep); clock_*: live minimum-delay map",
                 **self.board.clock_meta(acq.start_t_us),
                 "port": self.board.url,
+                **(
+                    {"board": f"{SIMULATED_BOARD} {self.board.url}"}
+                    if self.board.url.startswith(SIMULATED_SCHEMES)
+                    else {}
+                ),
                 "capture": self.board.capture.path.name,
                 "program": "python -m host calibrate (live)",
             }

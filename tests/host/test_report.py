@@ -7,11 +7,12 @@ import re
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from host.__main__ import main
 from host.calib.calibration import CONSTANT_NAMES, calibrate_from_records
-from host.calib.records import Session, record_path, write_record
+from host.calib.records import Record, Session, record_path, write_record
 from host.calib.report import format_report, write_results
 from host.calib.result import CalibrationResult
 
@@ -163,3 +164,22 @@ def test_cli_errors_one_line(
     assert rc == 2
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert re.search(message, err), err
+
+
+def test_only_records_from_a_real_port_make_an_unmarked_report(tmp_path: Path) -> None:
+    # The same records, once from /dev/ttyACM0 and once from emu://: only the second report and
+    # JSON carry the SIMULATED BOARD mark, and it names the URL.
+    from host.bench.sim import Plan, simulate_session
+    from host.bench.truth import SensorTruth
+
+    recs = simulate_session(SensorTruth.random(np.random.default_rng(3)), Plan(turns=1), seed=3)
+    for port, marked in (("/dev/ttyACM0", False), ("emu://?seed=3", True)):
+        records = {
+            n: Record(r.name, r.t_ms, r.accel, r.gyro, r.temp, {**r.meta, "port": port})
+            for n, r in recs.items()
+        }
+        result = calibrate_from_records(Session("M1", records))
+        report = format_report(result).splitlines()
+        assert report[1].startswith("*** SIMULATED BOARD emu://?seed=3") is marked
+        notes = json.loads(result.to_json())["notes"]
+        assert any(n.startswith("SIMULATED BOARD emu://?seed=3") for n in notes) is marked

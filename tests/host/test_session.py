@@ -91,6 +91,13 @@ def test_yes_session_writes_every_file(yes_session: dict[str, Any]) -> None:
     # --json: the result object on stdout, nothing else
     d = json.loads(yes_session["stdout"])
     assert d["serial"] == "S1" and d["turns"] == 2 and len(d["records"]) == 12
+    # a virtual board never passes for a unit: the JSON, the report's second line and every
+    # record's header say so
+    assert d["notes"][0].startswith("SIMULATED BOARD sim://")
+    report = (out / "S1_result.txt").read_text().splitlines()
+    assert report[1].startswith("*** SIMULATED BOARD sim://")
+    for name in STATIC_NAMES + TURN_NAMES:
+        assert read_record(out / f"S1_{name}.txt").meta["board"].startswith("SIMULATED BOARD sim")
 
 
 def test_yes_session_records_are_readable_with_metadata(yes_session: dict[str, Any]) -> None:
