@@ -1,8 +1,10 @@
 """``python -m host export RESULT --to FORMAT``: the calibration in another tool's convention.
 
-RESULT is ``SERIAL_result.json`` (or the directory holding one). The text goes to stdout, or
-to ``--out FILE`` (written atomically). ``--axes`` maps our chip axes to the target's, with the
-same spelling as ``import --axes``. Formats and their conventions: :mod:`host.exporting`.
+RESULT is ``SERIAL_result.json`` (or the directory holding one); ``--to kalibr --noise F``
+needs no result, only the noise file of a long static recording (``noise FILE --save F``).
+The text goes to stdout, or to ``--out FILE`` (written atomically). ``--axes`` maps our chip
+axes to the target's, with the same spelling as ``import --axes``. Formats and their
+conventions: :mod:`host.calib.exporting`.
 """
 
 from __future__ import annotations
@@ -35,6 +37,12 @@ def _result_path(path: Path) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host export``."""
+    if args.to.strip().lower() == "kalibr":
+        return _run_kalibr(args)
+    if args.noise is not None:
+        raise UserError(f"--noise: only --to kalibr reads a noise file, not --to {args.to}")
+    if args.result is None:
+        raise UserError(f"--to {args.to}: give the result, SERIAL_result.json or its directory")
     path = _result_path(args.result)
     try:
         text = path.read_bytes()
@@ -53,26 +61,44 @@ def run(args: argparse.Namespace) -> int:
         except (OSError, ValueError) as exc:
             raise UserError(f"{args.thermal}: cannot read a thermal result ({exc})") from None
         thermal = ThermalCalibration.from_dict(d, str(args.thermal))
-    out = exporting.export(result, args.to, axes, args.axes or "x,y,z", thermal)
+    _emit(args, exporting.export(result, args.to, axes, args.axes or "x,y,z", thermal))
+    return 0
+
+
+def _emit(args: argparse.Namespace, out: str) -> None:
     if args.out:
         write_text_atomic(args.out, out)
         print(f"written: {args.out}", file=sys.stderr)
     else:
         sys.stdout.write(out)
+
+
+def _run_kalibr(args: argparse.Namespace) -> int:
+    """``export … --to kalibr --noise NOISE.json``: Kalibr's imu.yaml from noise figures."""
+    if args.noise is None:
+        raise UserError(f"--to kalibr: {exporting.PENDING['kalibr']}")
+    from host.modelling.noise import load_noise_file
+
+    _emit(args, exporting.export_kalibr(load_noise_file(args.noise)))
     return 0
 
 
 def cli_export(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
     """Fill in the ``export`` subparser; returns the runner."""
-    p.add_argument("result", type=Path, help="SERIAL_result.json (or its directory)")
+    p.add_argument(
+        "result", type=Path, nargs="?", help="SERIAL_result.json (or its directory); not for kalibr"
+    )
     p.add_argument(
         "--to",
         required=True,
-        help=f"format: {', '.join(exporting.FORMATS)} ({', '.join(exporting.PENDING)} pending)",
+        help=f"format: {', '.join(exporting.FORMATS)}, kalibr (with --noise)",
     )
     p.add_argument("--out", type=Path, help="write to this file instead of stdout")
     p.add_argument("--axes", help="target axes from ours with signs, e.g. x,-y,-z (default x,y,z)")
     p.add_argument(
         "--thermal", type=Path, help="SERIAL_thermal.json (python -m host thermal): bias(T), px4"
+    )
+    p.add_argument(
+        "--noise", type=Path, help="noise file (python -m host noise FILE --save F): for kalibr"
     )
     return run

@@ -211,7 +211,7 @@ def test_cli_writes_each_format_and_refuses_unknown_ones(tmp_path: Path, capsys)
         assert main(["export", str(tmp_path), "--to", fmt, "--out", str(out)]) == 0
         assert out.read_text() == export(res, fmt)
     assert main(["export", str(rj), "--to", "kalibr"]) == 2
-    assert "noise densities" in capsys.readouterr().err
+    assert "--noise NOISE.json" in capsys.readouterr().err
     assert main(["export", str(rj), "--to", "betaflight"]) == 2
     err = capsys.readouterr().err
     assert "unknown format" in err and err.count("\n") == 1
@@ -319,3 +319,59 @@ def test_every_format_names_a_further_term_it_cannot_hold() -> None:
         text = export(result, fmt)
         assert "temperature_bias gyro y" in text and "-0.02624" in text, fmt
         assert "temperature_bias" not in export(base, fmt), fmt
+
+
+def _noise_doc() -> dict:
+    """A noise file (``noise --save``) with a different figure on every axis; gy's random
+    walk unresolved (value None, upper bound only)."""
+    figs = {}
+    for k, ch in enumerate(("ax", "ay", "az", "gx", "gy", "gz")):
+        n = (3.1e-3, 2.9e-3, 3.6e-3, 5.0e-3, 5.4e-3, 4.7e-3)[k]
+        rrw = (2.0e-4, 2.6e-4, 2.2e-4, 3.0e-4, None, 2.5e-4)[k]
+        figs[ch] = {
+            "white_noise_density": {"value": n, "ci": [0.9 * n, 1.1 * n]},
+            "bias_instability": {"value": 10 * n, "ci": [5 * n, 20 * n]},
+            "rate_random_walk": {"value": rrw, "ci": [None if rrw is None else rrw / 2, 7e-4]},
+        }
+    return {"format": "imu-bench noise", "format_version": 1, "duration_s": 14400.0,
+            "rate_hz": 50.0, "channels": figs}  # fmt: skip
+
+
+def _yaml_values(text: str) -> dict[str, str]:
+    return dict(
+        (k.strip(), v.strip())
+        for k, v in (line.split(":", 1) for line in text.splitlines() if not line.startswith("#"))
+    )
+
+
+def test_kalibr_yaml_round_trip_through_kalibrs_discrete_noise(tmp_path: Path, capsys) -> None:
+    # Kalibr turns a continuous density into a per-sample std as sigma_d = density * sqrt(rate);
+    # on our Allan model that is the deviation at tau = one sample period (N / sqrt(tau0)),
+    # in SI units (gyro in rad), for the worst axis of each sensor.
+    doc = _noise_doc()
+    nf = tmp_path / "n.json"
+    nf.write_text(json.dumps(doc))
+    out = tmp_path / "imu.yaml"
+    assert main(["export", "--to", "kalibr", "--noise", str(nf), "--out", str(out)]) == 0
+    text = out.read_text()
+    y = _yaml_values(text)
+    rate = float(y["update_rate"])
+    assert rate == 50.0 and y["rostopic"] == "/imu0"
+    tau0 = 1.0 / rate
+    ch = doc["channels"]
+    for key, names, fig, unit in (
+        ("accelerometer_noise_density", ("ax", "ay", "az"), "white_noise_density", 1.0),
+        ("gyroscope_noise_density", ("gx", "gy", "gz"), "white_noise_density", DEG),
+        ("accelerometer_random_walk", ("ax", "ay", "az"), "rate_random_walk", 1.0),
+    ):
+        ours = max(ch[n][fig]["value"] / math.sqrt(tau0) for n in names) * unit
+        assert math.isclose(float(y[key]) * math.sqrt(rate), ours, rel_tol=RTOL), key
+    # gy's rate random walk is unresolved: its upper bound (7e-4 °/s²/√Hz) is the worst axis
+    assert math.isclose(float(y["gyroscope_random_walk"]), 7e-4 * DEG, rel_tol=RTOL)
+    assert "gy rate_random_walk not resolved" in text and "bias instability" in text
+    # a noise file is for kalibr only; kalibr needs one
+    rj = tmp_path / "EXP1_result.json"
+    rj.write_text(_result().to_json())
+    assert main(["export", str(rj), "--to", "px4", "--noise", str(nf)]) == 2
+    assert main(["export", "--to", "px4"]) == 2
+    assert "give the result" in capsys.readouterr().err
