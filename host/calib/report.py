@@ -100,8 +100,7 @@ def format_report(result: CalibrationResult) -> str:
             else:
                 out.append(f"  {p.name:<34}{'not determined':>14}")
         out.append(rule)
-    bad = [n for n in CONSTANT_NAMES if passed[n] is False]
-    bad += [p.name for p in r.undetermined if p.name not in bad]
+    bad = failed_values(r)
     if bad:
         out.append(f"RESULT: {len(bad)} value(s) outside tolerance or not determined:")
         line = "  "
@@ -215,6 +214,24 @@ def result_paths(directory: str | os.PathLike[str], serial: str) -> tuple[Path, 
     """(``DIR/SERIAL_result.txt``, ``DIR/SERIAL_result.json``)."""
     d = Path(directory)
     return d / f"{serial}_result.txt", d / f"{serial}_result.json"
+
+
+def failed_values(result: CalibrationResult) -> list[str]:
+    """Names of the §7 values outside tolerance, then of the parameters not determined."""
+    passed = result.passed()
+    bad = [n for n in CONSTANT_NAMES if passed[n] is False]
+    return bad + [p.name for p in result.undetermined if p.name not in bad]
+
+
+def verdict_line(result: CalibrationResult, report_path: str | os.PathLike[str]) -> str:
+    """The one line a session or ``--from-dir`` ends on: PASS or FAIL, why, and the report."""
+    if result.all_passed:
+        return f"PASS: every value within tolerance; report {report_path}"
+    bad = failed_values(result)
+    why = f"{len(bad)} value(s) outside tolerance or not determined" if bad else ""
+    if result.verification is not None and not result.verification.passed:
+        why = (why + "; " if why else "") + "held-out records not predicted within the limits"
+    return f"FAIL: {why}; report {report_path}"
 
 
 def write_results(

@@ -19,7 +19,7 @@ from host.calib.calibration import (
     calibrate_from_records,
 )
 from host.calib.records import Session, read_session
-from host.calib.report import format_report, write_results
+from host.calib.report import format_report, verdict_line, write_results
 from host.calib.result import CalibrationResult, verify_directory
 from host.cli.model import _noise
 from host.dialogue.live import DEFAULT_READY_S, WARMUP_DEFAULT_S
@@ -103,6 +103,8 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
     else:
         sys.stdout.write(format_report(result))
         print(f"written: {txt} and {js}", file=sys.stderr)
+    sys.stdout.flush()
+    print(verdict_line(result, txt), file=sys.stderr)
     return result
 
 

@@ -1412,7 +1412,7 @@ class LiveSession:
     # ---- results -------------------------------------------------------------------------
     def _results(self) -> SessionResult:
         from host.calib.calibration import calibrate_from_records
-        from host.calib.report import format_report, write_results
+        from host.calib.report import format_report, verdict_line, write_results
 
         op = self.op
         missing = [
@@ -1442,6 +1442,7 @@ class LiveSession:
         else:
             sys.stdout.write(format_report(result))
         sys.stdout.flush()
+        op.say(verdict_line(result, txt))  # the last line on screen
         return SessionResult(self.out_dir, list(self.accepted), result, (txt, js))
 
 

@@ -183,3 +183,15 @@ def test_only_records_from_a_real_port_make_an_unmarked_report(tmp_path: Path) -
         assert report[1].startswith("*** SIMULATED BOARD emu://?seed=3") is marked
         notes = json.loads(result.to_json())["notes"]
         assert any(n.startswith("SIMULATED BOARD emu://?seed=3") for n in notes) is marked
+
+
+def test_from_dir_ends_on_the_verdict_and_the_report(tmp_path: Path, capsys) -> None:
+    # The real imucal session: one-way turns, so it fails (values out of tolerance); the last
+    # line on the terminal says so and where the report is, also with --json on stdout.
+    for extra in ([], ["--json"]):
+        out = tmp_path / f"o{len(extra)}"
+        out.mkdir()
+        rc = main(["calibrate", "--from-dir", str(REAL), "--out", str(out), *extra])
+        err = capsys.readouterr().err.rstrip("\n").splitlines()
+        assert rc == 1 and err[-1].startswith("FAIL: ") and "outside tolerance" in err[-1]
+        assert err[-1].endswith(f"report {out / 'REAL_result.txt'}")

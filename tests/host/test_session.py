@@ -94,6 +94,10 @@ def test_yes_session_writes_every_file(yes_session: dict[str, Any]) -> None:
     # a virtual board never passes for a unit: the JSON, the report's second line and every
     # record's header say so
     assert d["notes"][0].startswith("SIMULATED BOARD sim://")
+    # the session ends on its verdict and the report's path, whatever passed or failed
+    last = yes_session["con"].text.rstrip("\n").splitlines()[-1]
+    verdict = "PASS: " if yes_session["rc"] == 0 else "FAIL: "
+    assert last.startswith(verdict) and last.endswith(f"report {out / 'S1_result.txt'}")
     report = (out / "S1_result.txt").read_text().splitlines()
     assert report[1].startswith("*** SIMULATED BOARD sim://")
     for name in STATIC_NAMES + TURN_NAMES:
