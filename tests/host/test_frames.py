@@ -234,7 +234,7 @@ def imucap(data: bytes, reads: list[int]) -> bytes:
     read, the reads ``reads`` bytes long (the rest in one last read)."""
     import struct
 
-    from host.capture import MAGIC
+    from host.wire.capture import MAGIC
 
     out = bytearray(MAGIC)
     pos = 0
