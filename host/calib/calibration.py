@@ -19,6 +19,7 @@ result and ``apply`` in :mod:`host.calib.result`; this module offers their names
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -81,8 +82,10 @@ from host.calib.result import (
     ParameterResult,
     RecordResidual,
     apply,
+    thermal_parameters,
     within,
 )
+from host.calib.thermal import CHANNELS, ThermalCalibration, corrected_records
 from host.errors import UserError
 from host.modelling.model import (
     ALPHA_FIT,
@@ -284,6 +287,8 @@ def calibrate_from_records(
     model: str = "base",
     term_files: Iterable[str] = (),
     noise: Any = None,
+    thermal: ThermalCalibration | None = None,
+    thermal_source: str = "",
 ) -> CalibrationResult:
     """Check the records of ``session``, fit ``model`` (default ``base``, method.md §2) with
     the workbench's weighted least squares (:func:`host.modelling.model.fit_model`, its noise model
@@ -294,10 +299,25 @@ def calibrate_from_records(
     ``all_passed`` False. ``turns``: n for turn records without meta ``turns`` (None: inferred
     per record). ``term_files``: Python files with custom terms. ``created``: date/time for
     the report header (default: now, local time, ISO).
+
+    ``thermal``: the unit's bias(T) (:mod:`host.calib.thermal`, from ``thermal_source``). The
+    records are first corrected to the session's mean chip temperature T̄ with it, so the
+    model's biases are those at T̄; the result then carries the bias change as the term
+    ``thermal_bias`` about T̄ with the range over which it holds (``thermal_range_c``).
     """
     from datetime import datetime
 
     check_record_lengths(session)
+    t_guess = float(np.mean([float(np.mean(r.temp)) for r in session.records.values()]))
+    if thermal is not None:
+        if thermal.serial and session.serial and thermal.serial != session.serial:
+            raise UserError(
+                f"{thermal_source or 'the thermal calibration'} is of serial {thermal.serial}, "
+                f"the records of {session.serial}: give the unit's own SERIAL_thermal.json"
+            )
+        session = dataclasses.replace(
+            session, records=corrected_records(session.records, thermal, t_guess)
+        )
     files = tuple(str(f) for f in term_files)
     cat = dict(CATALOGUE)
     for f in files:
@@ -383,6 +403,11 @@ def calibrate_from_records(
         mt.term.name in ("bias", "scale", "misalignment", "g_sensitivity") for mt in mts
     )
     notes = [n for n in ds.notes if not (only_base and "power_on_s" in n)]
+    spec = short_spec(mts)
+    t_mean = float(ds.signals[0].temp_mean_c) if ds.signals else 25.0
+    if thermal is not None:
+        params, spec = _with_thermal(params, spec, thermal, t_guess, t_mean)
+        notes.append(_thermal_note(session, thermal, thermal_source))
     sims = simulated_ports(session.records)
     if sims:  # never let a virtual board pass for a unit (first note: the report heads with it)
         notes.insert(0, f"{SIMULATED_BOARD} {', '.join(sims)}: not a measurement of a unit")
@@ -411,14 +436,14 @@ def calibrate_from_records(
         latitude_deg=latitude_deg,
         height_m=height_m,
         turns=n_turns,
-        model=short_spec(mts),
+        model=spec,
         parameters=params,
         noise_std=noise_std,
         fit=quality,
         noise_model={"block_s": nm.block_s, "max_blocks": nm.max_blocks,
                      "floor": dict(ds.floor), "turn_angle_sigma_deg": nm.turn_angle_sigma_deg},
         term_files=tuple(str(Path(f).resolve()) for f in files),
-        temp_mean_c=float(ds.signals[0].temp_mean_c) if ds.signals else 25.0,
+        temp_mean_c=t_mean,
         time_known=ds.time_known,
         earth_rate=earth_rate,
         records=tuple(s.name for s in ds.signals),
@@ -427,4 +452,50 @@ def calibrate_from_records(
         combinations=combos,
         residuals=tuple(residuals),
         notes=tuple(notes),
+        thermal_range_c=None if thermal is None else (thermal.t_min_c, thermal.t_max_c),
+        thermal_source=thermal_source,
     )  # fmt: skip
+
+
+def _with_thermal(
+    params: tuple[ParameterResult, ...],
+    spec: str,
+    thermal: ThermalCalibration,
+    t_corrected: float,
+    t_mean: float,
+) -> tuple[tuple[ParameterResult, ...], str]:
+    """The fitted parameters plus bias(T) as ``thermal_bias`` about ``t_mean`` (°C). The
+    records were corrected to ``t_corrected``: were the fit's mean temperature another (a
+    record left out), the biases move by the bias change between the two."""
+    if t_corrected != t_mean:
+        shift = {}
+        for j, name in enumerate(CHANNELS):
+            ch = thermal.channels[name]
+            d = ch.delta(np.array([t_mean, t_corrected]), thermal.t_ref_c)
+            shift[("accel" if j < 3 else "gyro", "xyz"[j % 3])] = float(d[0] - d[1])
+        params = tuple(
+            dataclasses.replace(p, value=p.value + shift[(p.sensor, p.axis)])
+            if p.term == "bias"
+            else p
+            for p in params
+        )
+    carried = thermal_parameters(thermal, t_mean)
+    return params + carried, spec + (",thermal_bias" if carried else "")
+
+
+def _thermal_note(session: Session, thermal: ThermalCalibration, source: str) -> str:
+    """The report's line on the bias(T) used, and records outside its range."""
+    orders = ", ".join(f"{n} {thermal.channels[n].order}" for n in CHANNELS)
+    note = (
+        f"bias(T) from {source or 'a thermal calibration'} (orders {orders}; valid "
+        f"{thermal.t_min_c:.1f} to {thermal.t_max_c:.1f} degC) removed from the records "
+        "before the fit, carried as thermal_bias"
+    )
+    temps = np.concatenate([r.temp for r in session.records.values()])
+    lo, hi = float(temps.min()), float(temps.max())
+    if lo < thermal.t_min_c or hi > thermal.t_max_c:
+        note += (
+            f"; the records ({lo:.1f} to {hi:.1f} degC) reach outside that range, where it is "
+            "extrapolated"
+        )
+    return note

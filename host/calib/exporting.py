@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host.calib.result import CalibrationResult
+from host.calib.result import CalibrationResult, carried_thermal
 from host.calib.thermal import ThermalCalibration
 from host.errors import UserError
 
@@ -66,8 +66,9 @@ class LinearModel:
     further: tuple[str, ...] = ()
 
 
-def linear_model(result: CalibrationResult) -> LinearModel:
-    """The matrices of a result, as ``apply()`` uses them (unmeasured gyro terms nominal)."""
+def linear_model(result: CalibrationResult, with_thermal: bool = True) -> LinearModel:
+    """The matrices of a result, as ``apply()`` uses them (unmeasured gyro terms nominal).
+    ``with_thermal`` False: the carried bias(T) is exported on its own (not named as lost)."""
     mg = result.gyro_m()
     measured = bool(np.all(np.isfinite(mg)))
     return LinearModel(
@@ -79,18 +80,18 @@ def linear_model(result: CalibrationResult) -> LinearModel:
         g0=result.gyro_bias(),
         g=float(result.g),
         gyro_scale_measured=measured,
-        further=further_lines(result),
+        further=further_lines(result, with_thermal),
     )
 
 
-def further_lines(result: CalibrationResult) -> tuple[str, ...]:
+def further_lines(result: CalibrationResult, with_thermal: bool = True) -> tuple[str, ...]:
     """One line per determined parameter of a term beyond method.md §2's linear model (e.g.
     ``temperature_bias gyro y = -0.0262 ± 0.0055 °/s/°C``): the exports carry only the linear
     model, so each of these is named as lost rather than dropped in silence."""
     return tuple(
         f"{p.term} {p.sensor} {p.axis} ({p.key}) = {p.value:.4g} ± {p.stderr:.2g} {p.unit}"
         for p in result.further
-        if p.determined
+        if p.determined and (with_thermal or p.term != "thermal_bias")
     )
 
 
@@ -422,7 +423,9 @@ def export(
         raise UserError(f"--to {fmt}: {PENDING[key]}")
     if key not in FORMATS:
         raise UserError(f"--to {fmt}: unknown format; choose one of {', '.join(FORMATS)}")
-    model = linear_model(result)
+    if thermal is None and key == "px4":  # the result's own bias(T), if it carries one
+        thermal = carried_thermal(result)
+    model = linear_model(result, with_thermal=thermal is None)
     if axes is not None:
         model = in_frame(model, axes, axes_text)
     if thermal is not None:

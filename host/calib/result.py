@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,10 +35,13 @@ from host.calib.method import (
     names_to_matrix,
 )
 from host.calib.records import Session, read_session
+from host.calib.thermal import CHANNELS as THERMAL_CHANNELS
+from host.calib.thermal import ThermalCalibration, ThermalRangeWarning, recentred
 from host.errors import UserError
 from host.modelling.model import (
     AXES,
     BASE,
+    CARRIED,
     CATALOGUE,
     TEMP_REF_C,
     NoiseModel,
@@ -262,6 +266,11 @@ class CalibrationResult:
     notes: tuple[str, ...] = ()
     #: held-out verification on records not used in the fit (``calibrate --verify DIR2``)
     verification: Verification | None = None
+    #: the chip temperatures (°C, low, high) over which the carried bias(T) (term
+    #: ``thermal_bias``, from ``python -m host thermal``) holds; None: no thermal calibration
+    thermal_range_c: tuple[float, float] | None = None
+    #: where the bias(T) came from (the SERIAL_thermal.json file)
+    thermal_source: str = ""
     #: format version of the file this was loaded from
     loaded_version: int = 2
 
@@ -377,6 +386,13 @@ class CalibrationResult:
             "residuals": [r.to_dict() for r in self.residuals],
             "notes": list(self.notes),
             "verification": None if self.verification is None else self.verification.to_dict(),
+            "thermal": None
+            if self.thermal_range_c is None
+            else {
+                "valid_range_c": list(self.thermal_range_c),
+                "source": self.thermal_source,
+                "model": "thermal_bias: sum_j c_j (T - temp_mean_c)^j, T chip degC",
+            },
         }
 
     def to_json(self) -> str:
@@ -454,6 +470,59 @@ def base_parameters(
     return tuple(out)
 
 
+def thermal_parameters(cal: ThermalCalibration, t_ref_c: float) -> tuple[ParameterResult, ...]:
+    """The bias(T) of a thermal calibration as parameters of the term ``thermal_bias`` about
+    ``t_ref_c`` (°C, the result's ``temp_mean_c``): c_1 … c_k of each channel with order k ≥ 1
+    (:func:`host.calib.thermal.recentred`), 1-σ errors from the fit's covariance."""
+    t = CARRIED["thermal_bias"]
+    out: list[ParameterResult] = []
+    for j, name in enumerate(THERMAL_CHANNELS):
+        ch = cal.channels[name]
+        if not ch.order:
+            continue
+        sensor, ax = ("accel" if j < 3 else "gyro"), j % 3
+        if ch.order > len(t.params):
+            raise UserError(
+                f"{name}: bias(T) of order {ch.order}; a result carries up to order "
+                f"{len(t.params)}: refit with python -m host thermal --max-order {len(t.params)}"
+            )
+        c, cov = recentred(ch, cal.t_ref_c, t_ref_c)
+        labels, units = t.param_labels(sensor, ax), t.param_units(sensor)
+        for i in range(ch.order):
+            out.append(ParameterResult(
+                t.name, sensor, AXES[ax], t.params[i], labels[i], float(c[i]),
+                math.sqrt(max(float(cov[i, i]), 0.0)), units[i],
+            ))  # fmt: skip
+    return tuple(out)
+
+
+def carried_thermal(result: CalibrationResult) -> ThermalCalibration | None:
+    """The bias(T) a result carries (term ``thermal_bias`` about ``temp_mean_c``) as a
+    :class:`~host.calib.thermal.ThermalCalibration` (diagonal covariance, no selection table),
+    for the exports that write thermal compensation; None when it carries none."""
+    if result.thermal_range_c is None:
+        return None
+    from host.calib.thermal import UNITS as THERMAL_UNITS
+    from host.calib.thermal import ChannelThermal
+
+    t = CARRIED["thermal_bias"]
+    chans = {}
+    for j, name in enumerate(THERMAL_CHANNELS):
+        sensor, axis = ("accel" if j < 3 else "gyro"), AXES[j % 3]
+        got = {
+            p.key: p for p in result.parameters
+            if p.term == t.name and p.sensor == sensor and p.axis == axis
+        }  # fmt: skip
+        ps = [got[k] for k in t.params[: len(got)] if k in got]
+        chans[name] = ChannelThermal(
+            name, THERMAL_UNITS[j], len(ps), tuple(p.value for p in ps),
+            tuple(tuple(p.stderr**2 if q is p else 0.0 for q in ps) for p in ps),
+            math.nan, (), (),
+        )  # fmt: skip
+    lo, hi = result.thermal_range_c
+    return ThermalCalibration(result.serial, result.temp_mean_c, lo, hi, chans)
+
+
 def _from_v1(d: Mapping[str, Any]) -> CalibrationResult:
     consts = {n: _num(d["constants"][n]) for n in CONSTANT_NAMES}
     params = base_parameters(consts, {k: _num(v) for k, v in d.get("std_errors", {}).items()})
@@ -474,6 +543,7 @@ def _from_v1(d: Mapping[str, Any]) -> CalibrationResult:
 
 def _from_v2(d: Mapping[str, Any]) -> CalibrationResult:
     fit = d.get("fit")
+    th = d.get("thermal")
     return CalibrationResult(
         model=str(d["model"]),
         parameters=tuple(ParameterResult.from_dict(p) for p in d["parameters"]),
@@ -487,6 +557,10 @@ def _from_v2(d: Mapping[str, Any]) -> CalibrationResult:
         verification=(
             None if d.get("verification") is None else Verification.from_dict(d["verification"])
         ),
+        thermal_range_c=None
+        if th is None
+        else (float(th["valid_range_c"][0]), float(th["valid_range_c"][1])),
+        thermal_source="" if th is None else str(th.get("source", "")),
         **_common(d),
     )
 
@@ -528,7 +602,7 @@ _NEEDS_ARG = {
 def _catalogue_for(result: CalibrationResult, catalogue: Mapping[str, Term] | None) -> dict[
     str, Term
 ]:  # fmt: skip
-    cat = dict(CATALOGUE)
+    cat = {**CATALOGUE, **CARRIED}
     for f in result.term_files:
         if Path(f).is_file():
             cat = load_term_file(f, cat)
@@ -568,7 +642,10 @@ def apply(
     ``catalogue``); the model output = input + Σ terms is inverted by fixed-point iteration on
     (I+M)⁻¹ (exact for the linear model: a = (I+Ma)⁻¹(A − A0), ω = (I+Mg)⁻¹(G − G0 − GA·a/g)).
     Parameters the records did not determine raise UserError unless ``allow_undetermined``
-    (then they are taken as nominal, 0).
+    (then they are taken as nominal, 0). A result carrying a thermal calibration (bias(T),
+    term ``thermal_bias``) needs ``temp_c`` and warns
+    (:class:`host.calib.thermal.ThermalRangeWarning`) for temperatures outside the range over
+    which it holds, where its polynomial is extrapolated.
     """
     a_raw = np.asarray(accel, dtype=np.float64)
     g_raw = np.asarray(gyro, dtype=np.float64)
@@ -593,6 +670,17 @@ def apply(
         theta.setdefault((p.term, p.sensor, p.axis), {})[p.key] = v
     temp: Any = _Missing("temp_c", n) if temp_c is None else _per_sample(temp_c, n, "temp_c", "°C")
     time: Any = _Missing("t_s", n) if t_s is None else _per_sample(t_s, n, "t_s", "s")
+    if result.thermal_range_c is not None and temp_c is not None:
+        lo, hi = result.thermal_range_c
+        outside = (temp < lo) | (temp > hi)
+        if np.any(outside):
+            warnings.warn(
+                f"{int(np.count_nonzero(outside))} samples at {float(temp.min()):.1f} to "
+                f"{float(temp.max()):.1f} degC lie outside the thermal calibration's range "
+                f"{lo:.1f} to {hi:.1f} degC: the bias(T) polynomial is extrapolated there",
+                ThermalRangeWarning,
+                stacklevel=2,
+            )
     inv_a = np.linalg.inv(np.eye(3) + np.nan_to_num(result.accel_m()))
     inv_g = np.linalg.inv(np.eye(3) + np.nan_to_num(result.gyro_m()))
 

@@ -23,11 +23,14 @@ warns outside that range.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+import os
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
@@ -201,6 +204,21 @@ class ChannelThermal:
         return z * np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", g, cov, g), 0.0))
 
 
+def recentred(ch: ChannelThermal, t_from: float, t_to: float) -> tuple[np.ndarray, np.ndarray]:
+    """The same bias change about another reference temperature: Σ_j c_j·(T − t_from)^j less
+    its value at ``t_to`` = Σ_i c̃_i·(T − t_to)^i, with c̃_i = Σ_{j≥i} C(j, i)·δ^(j−i)·c_j,
+    δ = t_to − t_from (°C). Returns c̃ (k,) and its covariance (k, k) (the map is linear)."""
+    k = ch.order
+    delta = t_to - t_from
+    r = np.zeros((k, k))
+    for j in range(1, k + 1):
+        for i in range(1, j + 1):
+            r[i - 1, j - 1] = math.comb(j, i) * delta ** (j - i)
+    c = r @ np.array(ch.coef, dtype=np.float64).reshape(k)
+    cov = r @ np.array(ch.cov, dtype=np.float64).reshape(k, k) @ r.T
+    return c, cov
+
+
 def span_needed(order: int) -> float:
     """Temperature span (°C) a polynomial of ``order`` needs (:data:`SPAN_PER_ORDER_C`)."""
     return SPAN_PER_ORDER_C * max(order, 1)
@@ -309,6 +327,15 @@ class ThermalCalibration:
         return json.dumps(self.to_dict(), indent=2) + "\n"
 
     @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> ThermalCalibration:
+        """Read ``SERIAL_thermal.json``; UserError naming the file when it cannot."""
+        try:
+            d = json.loads(Path(path).read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            raise UserError(f"{path}: cannot read a thermal result ({exc})") from None
+        return cls.from_dict(d, str(path))
+
+    @classmethod
     def from_dict(cls, d: Mapping[str, Any], source: str = "thermal result") -> ThermalCalibration:
         if not isinstance(d, Mapping) or d.get("format") != "imu-bench thermal":
             raise UserError(f"{source}: not an imu-bench thermal result")
@@ -403,6 +430,27 @@ def apply_thermal(
         target = a if j < 3 else g
         target[:, j % 3] -= ch.delta(t, cal.t_ref_c)
     return a, g
+
+
+def corrected_records(
+    records: Mapping[str, Record], cal: ThermalCalibration, t_ref_c: float
+) -> dict[str, Record]:
+    """The records less the bias change from ``t_ref_c`` (°C) to each sample's chip
+    temperature: what they would read at ``t_ref_c`` (the calibration of such records is the
+    calibration at ``t_ref_c``; ``thermal_bias`` about ``t_ref_c`` adds the change back)."""
+    out: dict[str, Record] = {}
+    for name, rec in records.items():
+        a, g = rec.accel.copy(), rec.gyro.copy()
+        for j, ch_name in enumerate(CHANNELS):
+            ch = cal.channels[ch_name]
+            if not ch.order:
+                continue
+            c, _ = recentred(ch, cal.t_ref_c, t_ref_c)
+            d = rec.temp - t_ref_c
+            change = sum(ci * d ** (i + 1) for i, ci in enumerate(c))
+            (a if j < 3 else g)[:, j % 3] -= change
+        out[name] = dataclasses.replace(rec, accel=a, gyro=g)
+    return out
 
 
 # --------------------------------------------------------------------------- plot

@@ -21,6 +21,7 @@ from host.calib.calibration import (
 from host.calib.records import Session, read_session
 from host.calib.report import format_report, verdict_line, write_results
 from host.calib.result import CalibrationResult, verify_directory
+from host.calib.thermal import ThermalCalibration
 from host.cli.model import _noise
 from host.dialogue.live import DEFAULT_READY_S, WARMUP_DEFAULT_S
 from host.errors import UserError
@@ -71,6 +72,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "fit) and report measured − predicted per record and channel",
     )
     p.add_argument(
+        "--thermal",
+        metavar="FILE",
+        help="the unit's bias(T), SERIAL_thermal.json from 'python -m host thermal': removed "
+        "from the records and carried in the result, which apply() then needs temperatures "
+        "for (default: SERIAL_thermal.json in the records' directory if there; 'none': ignore)",
+    )
+    p.add_argument(
         "--term-file",
         action="append",
         default=[],
@@ -79,13 +87,32 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def thermal_of(session: Session, option: str | None) -> tuple[ThermalCalibration | None, str]:
+    """The thermal calibration ``--thermal`` names, else SERIAL_thermal.json beside the
+    records (None for 'none' or when there is none), and its path."""
+    if option is not None and option.lower() == "none":
+        return None, ""
+    if option is not None:
+        return ThermalCalibration.load(option), option
+    if session.directory is None:
+        return None, ""
+    path = Path(session.directory) / f"{session.serial}_thermal.json"
+    if not path.is_file():
+        return None, ""
+    print(f"using the thermal calibration {path} (--thermal none ignores it)", file=sys.stderr)
+    return ThermalCalibration.load(path), str(path)
+
+
 def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -> CalibrationResult:
     """Compute from ``session``, write both result files into ``out_dir``, print the report
     (or the JSON with ``--json``) on stdout."""
     if args.turns is not None and args.turns < 1:
         raise UserError("--turns must be at least 1")
+    thermal, source = thermal_of(session, getattr(args, "thermal", None))
     result = calibrate_from_records(
         session,
+        thermal=thermal,
+        thermal_source=source,
         turns=args.turns,
         latitude_deg=args.latitude,
         height_m=args.height,

@@ -52,15 +52,9 @@ def run(args: argparse.Namespace) -> int:
     axes = parse_axes(args.axes) if args.axes else None
     thermal = None
     if args.thermal is not None:
-        import json
-
         from host.calib.thermal import ThermalCalibration
 
-        try:
-            d = json.loads(args.thermal.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:
-            raise UserError(f"{args.thermal}: cannot read a thermal result ({exc})") from None
-        thermal = ThermalCalibration.from_dict(d, str(args.thermal))
+        thermal = ThermalCalibration.load(args.thermal)
     _emit(args, exporting.export(result, args.to, axes, args.axes or "x,y,z", thermal))
     return 0
 

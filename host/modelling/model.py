@@ -494,6 +494,32 @@ CATALOGUE: dict[str, Term] = {
 #: the linear model of method.md §2
 BASE = ("bias", "scale", "misalignment", "g_sensitivity")
 
+#: highest polynomial order of bias(T) a result carries (the ``thermal`` command's limit)
+THERMAL_MAX_ORDER = 6
+_SUPERSCRIPT = {1: "", 2: "²", 3: "³", 4: "⁴", 5: "⁵", 6: "⁶"}
+
+
+@term(
+    params={
+        f"per_C{'' if j == 1 else j}": f"{{u}}/°C{_SUPERSCRIPT[j]}"
+        for j in range(1, THERMAL_MAX_ORDER + 1)
+    },
+    needs="a thermal calibration of the unit: python -m host thermal DIR (the warm-up record, "
+    "a chamber ramp), then calibrate --thermal SERIAL_thermal.json",
+)
+def thermal_bias(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Bias change with chip temperature measured by the thermal calibration (``python -m host
+    thermal``, method.md §8 "fits bias(T)"): Σ_j c_j·(T − T̄)^j about the session's mean chip
+    temperature T̄, the order chosen per channel by that fit (coefficients not carried are 0)."""
+    d = sig.temp_c - sig.temp_mean_c
+    return np.column_stack([d**j for j in range(1, THERMAL_MAX_ORDER + 1)])
+
+
+#: terms whose values a result carries from a measurement of their own (not fitted to the
+#: calibration records, not offered by the workbench); :func:`host.calib.result.apply`
+#: evaluates them like every other term
+CARRIED: dict[str, Term] = {t.name: t for t in (thermal_bias,)}
+
 
 def load_term_file(
     path: str | Path, catalogue: Mapping[str, Term] | None = None

@@ -165,3 +165,80 @@ def test_sim_and_emu_urls_take_a_chamber_ramp() -> None:
     assert o is not None and dict(o.chamber)["chamber_to_c"] == 45.0
     with pytest.raises(ValueError, match="chamber"):
         parse_sim_options("emu://?chamber=5:45")
+
+
+@pytest.fixture(scope="module")
+def calibrated_with_thermal(ramp, tmp_path_factory) -> tuple:
+    """The six statics and six turns after the same warm-up (chip near 31 °C), calibrated from
+    their directory, which also holds the unit's SERIAL_thermal.json from the ramp."""
+    from host.bench.sim import Plan, simulate_session, write_session
+
+    d = tmp_path_factory.mktemp("thermal_cal")
+    plan = Plan(
+        environment=Environment(room_c=22.0, rise_c=10.0, tau_s=300.0, room_amp_c=0.0),
+        warmup_s=600.0,
+    )
+    write_session(d, "T5", simulate_session(TRUTH, plan, seed=9))
+    cal, _ = thermal.fit_thermal(list(ramp.values()), "T5")
+    (d / "T5_thermal.json").write_text(cal.to_json())
+    return d, cal
+
+
+def test_calibration_carries_bias_of_temperature_and_apply_removes_it(
+    ramp, calibrated_with_thermal, capsys
+) -> None:
+    from host.calib.result import CalibrationResult, apply
+
+    d, cal = calibrated_with_thermal
+    main(["calibrate", "--from-dir", str(d), "--out", str(d), "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    result = CalibrationResult.load(d / "T5_result.json")
+    assert doc["thermal"]["valid_range_c"] == pytest.approx([cal.t_min_c, cal.t_max_c])
+    assert result.thermal_range_c == pytest.approx((cal.t_min_c, cal.t_max_c))
+    assert "thermal_bias" in result.model
+    carried = [p for p in result.parameters if p.term == "thermal_bias"]
+    assert len(carried) == sum(ORDERS.values())
+    plain = CalibrationResult.from_json(
+        json.dumps({**json.loads(result.to_json()), "thermal": None, "model": "base",
+                    "parameters": [p for p in doc["parameters"] if p["term"] != "thermal_bias"]})
+    )  # fmt: skip
+    assert plain.thermal_range_c is None
+    # over the whole ramp (22 -> 70 °C, z up) the corrected outputs are what the cube felt
+    rec = ramp["ramp"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        force, rate = apply(result, rec.accel, rec.gyro, temp_c=rec.temp)
+    raw_force, raw_rate = apply(plain, rec.accel, rec.gyro, temp_c=rec.temp)
+    g = result.g
+    n = len(rec) // 3000 * 3000
+    for j, name in enumerate(thermal.CHANNELS):
+        after = np.column_stack([force, rate])[:n, j].reshape(-1, 3000).mean(axis=1)
+        before = np.column_stack([raw_force, raw_rate])[:n, j].reshape(-1, 3000).mean(axis=1)
+        want = g if name == "az" else 0.0
+        tol = 0.01 if j < 3 else 0.05  # m/s², °/s
+        err_after, err_before = np.max(np.abs(after - want)), np.max(np.abs(before - want))
+        assert err_after < tol, (name, err_after)
+        if ORDERS[name]:  # the bias change the result removed, 10x what is left at least
+            assert err_before > max(2 * tol, 10 * err_after), (name, err_before, err_after)
+    with pytest.warns(thermal.ThermalRangeWarning, match="outside the thermal calibration"):
+        apply(result, rec.accel[:5], rec.gyro[:5], temp_c=np.full(5, 80.0))
+    with pytest.raises(thermal.UserError, match="temp_c"):
+        apply(result, rec.accel[:5], rec.gyro[:5])
+    # PX4 has a place for it (TC_*: coefficients about TREF = the result's mean temperature);
+    # a format without one names every carried coefficient as lost
+    from host.calib.exporting import export
+
+    px4 = dict(
+        (f[2], float(f[3])) for f in (ln.split("\t") for ln in export(result, "px4").splitlines())
+        if len(f) == 5 and f[2].startswith("TC_")
+    )  # fmt: skip
+    gx1 = result.parameter("thermal_bias.gyro.x.per_C").value
+    assert px4["TC_G0_X1_0"] == pytest.approx(np.radians(gx1), rel=1e-6)
+    assert px4["TC_G0_TREF"] == pytest.approx(result.temp_mean_c)
+    assert px4["TC_A0_TMAX"] == pytest.approx(cal.t_max_c)
+    assert export(result, "c-header").count("NOT REPRESENTED: further term thermal_bias") == len(
+        carried
+    )
+    # --thermal none: the plain calibration, which apply() runs without temperatures
+    main(["calibrate", "--from-dir", str(d), "--out", str(d), "--thermal", "none", "--json"])
+    assert json.loads(capsys.readouterr().out)["thermal"] is None
