@@ -67,7 +67,9 @@ EXAMPLES: dict[str, str] = {
   python3 -m host calibrate --port /dev/ttyACM0 --serial U17
       the guided dialogue on a real APM 2.6
   python3 -m host calibrate --port /dev/ttyACM0 --serial U17 --out U17 --resume
-      continue an interrupted session (Ctrl+C prints this command)
+      continue an interrupted session (Ctrl+C prints this command, with every option)
+  python3 -m host calibrate --port /dev/ttyACM0 --serial U17 --out U17 --redo x_ccw
+      measure one record again, keep the others
   python3 -m host calibrate --from-dir U17/
       recompute the report from saved records""",
     "capture": """examples:

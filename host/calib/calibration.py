@@ -411,6 +411,9 @@ def calibrate_from_records(
     sims = simulated_ports(session.records)
     if sims:  # never let a virtual board pass for a unit (first note: the report heads with it)
         notes.insert(0, f"{SIMULATED_BOARD} {', '.join(sims)}: not a measurement of a unit")
+    for name, rec in session.records.items():  # kept by the operator despite a warning
+        if rec.meta.get("warning"):
+            notes.append(f"{name} kept despite a warning: {rec.meta['warning']}")
     if len(ns) > 1:
         notes.append(f"turn records with different numbers of turns: {sorted(ns)}")
     if fit.uncertainty_note():

@@ -9,6 +9,7 @@ directory and then computes like the from-dir mode.
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -143,7 +144,21 @@ def run(args: argparse.Namespace) -> int:
         return run_live_session(args)
     session = read_session(args.from_dir, args.serial)
     out_dir = Path(args.out) if args.out else Path(args.from_dir)
-    result = run_computation(session, args, out_dir)
+    try:
+        result = run_computation(session, args, out_dir)
+    except UserError as exc:
+        from host.dialogue.live import record_named_in
+
+        name = record_named_in(str(exc), session.serial)
+        rec = session.records.get(name) if name is not None else None
+        if name is None or rec is None or "importer" in rec.meta:  # imported: nothing to redo
+            raise
+        cmd = " ".join(
+            shlex.quote(a)
+            for a in ("python3", "-m", "host", "calibrate", "--serial", session.serial,
+                      "--out", str(args.from_dir), "--redo", name)
+        )  # fmt: skip
+        raise UserError(f"{exc}; measure {name} again (the others are kept) with: {cmd}") from None
     return 0 if result.all_passed else 1
 
 
@@ -166,6 +181,11 @@ def add_live_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--resume", action="store_true",
         help="keep the records already in the output directory, measure only the missing ones",
+    )  # fmt: skip
+    p.add_argument(
+        "--redo", action="append", metavar="NAME",
+        help="measure this record again (x_up … z_dn, x_ccw … z_cw; repeat or comma-separate "
+        "for several) and keep the others, as --resume does",
     )  # fmt: skip
     p.add_argument(
         "--capture", metavar="FILE",

@@ -53,9 +53,12 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import re
+import shlex
 import struct
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
@@ -225,6 +228,7 @@ class SessionOptions:
     yes: bool = False
     json: bool = False
     resume: bool = False
+    redo: tuple[str, ...] = ()
     capture: Path | None = None
     ready_s: float = DEFAULT_READY_S
     loss_limit: float = LOSS_LIMIT
@@ -260,6 +264,7 @@ class SessionOptions:
             yes=bool(get("yes", False)),
             json=bool(get("json", False)),
             resume=bool(get("resume", False)),
+            redo=tuple(n.strip() for r in get("redo", []) for n in r.split(",") if n.strip()),
             capture=Path(cap) if cap else None,
             ready_s=float(get("ready_seconds", DEFAULT_READY_S)),
             model=str(get("model", "base")),
@@ -268,7 +273,8 @@ class SessionOptions:
         )
 
     def check(self) -> None:
-        """Option values that cannot work -> UserError."""
+        """Option values and combinations that cannot work -> UserError, before any wait or
+        any I/O with the board (the output directory is looked at, not created)."""
         from host.modelling.model import CATALOGUE, load_term_file, parse_model
 
         cat = dict(CATALOGUE)
@@ -291,21 +297,112 @@ class SessionOptions:
             raise UserError("--warmup must be 0 (skip) or a number of seconds")
         if not math.isfinite(self.ready_s) or self.ready_s < 0:
             raise UserError("--ready-seconds must be 0 or more")
+        unknown = [n for n in self.redo if n not in STATIC_NAMES + TURN_NAMES]
+        if unknown:
+            raise UserError(
+                f"--redo {unknown[0]}: not a record name; use one of "
+                + ", ".join(STATIC_NAMES + TURN_NAMES)
+            )
         if self.yes and self.serial is None:
             raise UserError("--yes needs --serial (the serial number is mandatory)")
+        local_gravity(self.latitude_deg, self.height_m)  # validates both
+        if self.serial is not None:
+            check_out_dir(self.out_dir_for(self.serial))
         if self.yes and self.static_seconds is None and self._statics_to_measure():
             raise UserError(
                 "--yes needs --static-seconds S, the accumulation time per static orientation "
                 "(e.g. --static-seconds 30): nothing is asked with --yes"
             )
 
+    @property
+    def keeps_records(self) -> bool:
+        """--resume or --redo: records already in the output directory are kept."""
+        return self.resume or bool(self.redo)
+
+    def out_dir_for(self, serial: str) -> Path:
+        """The output directory: ``--out``, else a directory named after the serial number."""
+        return self.out if self.out is not None else Path(serial)
+
     def _statics_to_measure(self) -> list[str]:
-        """The static records this session will measure (with --resume: those missing)."""
-        if not self.resume or self.serial is None:
+        """The static records this session will measure (all without --resume/--redo)."""
+        if not self.keeps_records or self.serial is None:
             return list(STATIC_NAMES)
-        out = self.out if self.out is not None else Path(self.serial)
-        return [n for n in STATIC_NAMES if not record_path(out, self.serial, n).exists()]
-        local_gravity(self.latitude_deg, self.height_m)  # validates both
+        out = self.out_dir_for(self.serial)
+        return [
+            n for n in STATIC_NAMES
+            if n in self.redo or not record_path(out, self.serial, n).exists()
+        ]  # fmt: skip
+
+    def command(
+        self,
+        serial: str,
+        *,
+        static_seconds: float | None,
+        turns: int | None,
+        port: str,
+        then: Sequence[str] = ("--resume",),
+    ) -> str:
+        """The ``calibrate`` command line that repeats this session's options (those given
+        and those answered at the prompts) followed by ``then`` (e.g. ``--resume``); every
+        word quoted for a POSIX shell (:func:`shlex.quote`), so it pastes back as it was."""
+        args = ["python3", "-m", "host", "calibrate", "--port", port, "--serial", serial,
+                "--out", str(self.out_dir_for(serial))]  # fmt: skip
+        if static_seconds is not None:
+            args += ["--static-seconds", _number(static_seconds)]
+        if turns is not None:
+            args += ["--turns", str(turns)]
+        args += ["--warmup", _number(self.warmup_s)]
+        if self.ready_s != DEFAULT_READY_S:
+            args += ["--ready-seconds", _number(self.ready_s)]
+        if self.latitude_deg != DEFAULT_LATITUDE_DEG:
+            args += ["--latitude", _number(self.latitude_deg)]
+        if self.height_m != DEFAULT_HEIGHT_M:
+            args += ["--height", _number(self.height_m)]
+        if self.model != "base":
+            args += ["--model", self.model]
+        for f in self.term_files:
+            args += ["--term-file", f]
+        if self.verify:
+            args += ["--verify", self.verify]
+        args += [a for a, on in (("--yes", self.yes), ("--json", self.json)) if on]
+        return " ".join(shlex.quote(a) for a in [*args, *then])
+
+
+def _number(x: float) -> str:
+    """``x`` as a command-line word that reads back as the same float (30, 0.5, 48.137)."""
+    short = f"{x:g}"
+    return short if float(short) == x else repr(float(x))
+
+
+def record_named_in(text: str, serial: str) -> str | None:
+    """The record (``x_up`` … ``z_cw``) whose file ``SERIAL_name.txt`` a message names."""
+    for name in STATIC_NAMES + TURN_NAMES:
+        if f"{serial}_{name}.txt" in text:
+            return name
+    return None
+
+
+def check_out_dir(path: Path) -> None:
+    """UserError unless ``path`` is, or can be created as, a writable directory."""
+    if path.exists() and not path.is_dir():
+        raise UserError(f"output directory {path}: exists and is not a directory; choose --out")
+    probe = path
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise UserError(f"output directory {path}: {probe} is not a directory; choose --out")
+    try:  # a file made and removed: os.access alone says yes to root on a read-only disk
+        if not os.access(probe, os.W_OK | os.X_OK):
+            raise PermissionError
+        with tempfile.TemporaryFile(dir=probe):
+            pass
+    except OSError:
+        where = "" if probe == path else f" ({probe} is not writable)"
+        raise UserError(
+            f"output directory {path}: cannot write there{where}; choose another --out"
+        ) from None
 
 
 # --------------------------------------------------------------------------- the board
@@ -930,13 +1027,22 @@ class LiveSession:
             self._in_idle = False
         op.say(f"The board is back: {info.describe()}")
 
+    def command(self, then: Sequence[str] = ("--resume",)) -> str:
+        """This session's command line (every option given or answered) plus ``then``."""
+        return self.opts.command(
+            self.serial,
+            static_seconds=self.static_seconds,
+            turns=self.turns,
+            port=self.board.url,
+            then=then,
+        )
+
     def _resume_hint(self) -> str:
-        cmd = f"python -m host calibrate --port '{self.board.url}'"
         if not self.serial:
+            cmd = f"python3 -m host calibrate --port {shlex.quote(self.board.url)}"
             return f"nothing was saved; start again with: {cmd}"
         n = len(self._existing_names())
-        cmd += f" --serial {self.serial} --out {self.out_dir} --resume"
-        return f"{n} accepted records are kept in {self.out_dir}; continue with: {cmd}"
+        return f"{n} accepted records are kept in {self.out_dir}; continue with: {self.command()}"
 
     def _existing_names(self) -> list[str]:
         return [
@@ -961,8 +1067,11 @@ class LiveSession:
         if opts.yes and not self.board.has_operator:
             self._warn("--yes on a real board: nobody is asked to place or turn the cube")
 
-        self.serial = opts.serial or op.ask("Serial number (1-12 characters)", parse_serial)
-        self.out_dir = opts.out if opts.out is not None else Path(self.serial)
+        self.serial = opts.serial or op.ask(
+            "Serial number (1-12 characters: letters, digits, _ or -)", parse_serial
+        )
+        self.out_dir = opts.out_dir_for(self.serial)
+        check_out_dir(self.out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self._start_capture()
         self._take_stock()
@@ -976,7 +1085,7 @@ class LiveSession:
                 "Measure the 6 static orientations <Y> or go to the integral gyro calibration <N>?",
                 True,
             )
-        elif opts.resume:
+        elif opts.keeps_records:
             op.say("The six static orientations are already measured (--resume).")
         if do_static:
             self._stage1(need_static)
@@ -985,7 +1094,7 @@ class LiveSession:
             self._show_stage1()
             if need_turn and do_static:
                 do_turns = op.yes_no("Integral gyro calibration <Y> or results <N>?", True)
-        if not need_turn and opts.resume:
+        if not need_turn and opts.keeps_records:
             op.say("The six turns are already measured (--resume).")
         if do_turns and need_turn:
             self._stage2(need_turn)
@@ -1013,7 +1122,7 @@ class LiveSession:
         existing = self._existing_names()
         if not existing:
             return
-        if not self.opts.resume:
+        if not self.opts.keeps_records:
             self._warn(
                 f"{self.out_dir} already holds {len(existing)} records of {self.serial}: those "
                 "measured again are replaced; the others are used for the results "
@@ -1028,9 +1137,11 @@ class LiveSession:
             except RecordError as exc:
                 self._warn(f"{exc}: it will be measured again")
                 continue
-            if self.opts.resume:
+            if self.opts.keeps_records and name not in self.opts.redo:
                 self.done[name] = rec
-        if self.opts.resume:
+        if self.opts.redo:
+            self.op.say(f"Measuring again: {', '.join(self.opts.redo)} (--redo)")
+        if self.opts.keeps_records:
             self.op.say(f"Resuming: kept {', '.join(self.done) or 'nothing'}")
             kept_turns = sorted(
                 r.meta["turns"]
@@ -1123,7 +1234,7 @@ class LiveSession:
             except UserError as exc:
                 problems.append(str(exc))
             if self._decide(name, problems, attempts):
-                self._save(rec)
+                self._save(rec, problems)
                 return
 
     def _show_stage1(self) -> None:
@@ -1202,7 +1313,7 @@ class LiveSession:
             problems = self._loss_problems(name, acq)
             problems += self._show_turn(rec, acq, n)
             if self._decide(name, problems, attempts):
-                self._save(rec)
+                self._save(rec, problems)
                 return
 
     def _show_turn(self, rec: Record, acq: Acquisition, n: int) -> list[str]:
@@ -1402,7 +1513,11 @@ class LiveSession:
             )
         return not op.yes_no("Repeat <Y> or save anyway <N>?", True)
 
-    def _save(self, rec: Record) -> None:
+    def _save(self, rec: Record, problems: Sequence[str] = ()) -> None:
+        """Write the accepted record; one kept despite ``problems`` carries them in its
+        header (``warning``), and the report lists it with them."""
+        if problems:
+            rec.meta["warning"] = " ".join("; ".join(problems).split())
         path = record_path(self.out_dir, self.serial, rec.name)
         write_record(path, rec)
         self.done[rec.name] = rec
@@ -1424,13 +1539,22 @@ class LiveSession:
                 + self._resume_hint()
             )
         session = read_session(self.out_dir, self.serial)
-        result = calibrate_from_records(
-            session,
-            latitude_deg=self.opts.latitude_deg,
-            height_m=self.opts.height_m,
-            model=self.opts.model,
-            term_files=self.opts.term_files,
-        )
+        try:
+            result = calibrate_from_records(
+                session,
+                latitude_deg=self.opts.latitude_deg,
+                height_m=self.opts.height_m,
+                model=self.opts.model,
+                term_files=self.opts.term_files,
+            )
+        except UserError as exc:
+            name = record_named_in(str(exc), self.serial)
+            if name is None:
+                raise
+            raise UserError(
+                f"{exc}; measure {name} again (the other records are kept) with: "
+                + self.command(then=("--redo", name))
+            ) from None
         if self.opts.verify:
             from host.calib.result import verify_directory
 
@@ -1493,7 +1617,8 @@ def run_live_session(
     except (UserError, OSError) as exc:
         # a session ending on an error (disk full, sensor failed, board gone) always says how
         # to continue with the records already accepted
-        if session is None or not session.serial or "--resume" in str(exc):
+        told = any(w in str(exc) for w in ("--resume", "--redo "))  # the command is said
+        if session is None or not session.serial or told:
             raise
         text = str(exc) if isinstance(exc, UserError) else str(write_error(exc.filename, exc))
         raise UserError(f"{text}; {session._resume_hint()}") from None

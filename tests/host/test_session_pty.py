@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import re
 import select
+import shlex
 import signal
 import subprocess
 import sys
@@ -198,7 +199,7 @@ def test_interactive_session_with_a_repeat(
              r"printed\); Esc aborts only the current measurement")  # fmt: skip
     s.expect(r"Level the base\. Connect the unit by USB")
     s.expect(r"WHO_AM_I 0x68 \(MPU-6000\)", timeout=60)  # emu://: may build the firmware first
-    s.expect(r"Serial number \(1-12 characters\): ")
+    s.expect(r"Serial number \(1-12 characters: letters, digits, _ or -\): ")
     s.send("P1\r")
     s.expect(r"Measure the 6 static orientations <Y> or go to the integral gyro calibration <N>\?")
     s.send("y")
@@ -331,7 +332,8 @@ def test_ctrl_c_during_a_measurement_then_resume(
     s.expect(r"y_up \[#*-+\]")  # the progress line is running
     s.send("\x03")
     s.expect(r"Aborted \(Ctrl\+C\): the measurement in progress is discarded")
-    s.expect(r"continue with: .*--serial C1 --out C1 --resume")
+    m = s.expect(r"continue with: (.*--serial C1 --out C1 --static-seconds 3 --warmup 0 --resume)")
+    printed = shlex.split(m.group(1))
     assert s.wait() == 130
     assert "Save <Y> or repeat <N>?" not in s.text.split("Measuring y_up")[1]
     out = tmp_path / "C1"
@@ -341,11 +343,12 @@ def test_ctrl_c_during_a_measurement_then_resume(
     for n in kept:
         read_record(out / f"C1_{n}.txt")
 
-    # resume, non-interactive: no terminal at all (stdin closed, no controlling tty)
+    # resume with the printed command, non-interactive: no terminal at all (stdin closed, no
+    # controlling tty); full speed, one turn, no pause before the turns, nobody to answer
+    assert printed[:4] == ["python3", "-m", "host", "calibrate"]
     proc = subprocess.run(
-        CMD + ["--port", board_url(board, 24, "max"), "--serial", "C1", "--out", "C1",
-               "--static-seconds", "3", "--turns", "1", "--warmup", "0", "--ready-seconds", "0",
-               "--resume", "--yes", "--json"],
+        CMD + printed[4:] + ["--port", board_url(board, 24, "max"), "--turns", "1",
+                             "--ready-seconds", "0", "--yes", "--json"],
         cwd=tmp_path, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60,
         env=dict(os.environ, PYTHONPATH=str(ROOT)), start_new_session=True,
     )  # fmt: skip

@@ -1,0 +1,226 @@
+"""Resume exactly (issue 18): the printed command carries every option and answer, ``--redo
+NAME`` re-measures one record, a record kept despite a warning is carried into the report with
+it, and a session that cannot use a record names it with the command that re-measures it.
+In-process dialogue against ``sim://`` at ``speed=max`` (see test_session.py)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import shlex
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from host.board.link import open_port
+from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record
+from host.dialogue import live
+from host.dialogue.console import CTRL_C, ScriptedConsole
+from host.errors import UserError
+
+LINEAR = "speed=max&effects=linear,noise&earth_rate=0"
+
+
+class Ports:
+    """port_factory that counts the ports it opened."""
+
+    def __init__(self) -> None:
+        self.opened: list[Any] = []
+
+    def __call__(self, url: str) -> Any:
+        p = open_port(url)
+        self.opened.append(p)
+        return p
+
+
+def opts(tmp_path: Path, url: str, **kw: Any) -> live.SessionOptions:
+    base: dict[str, Any] = dict(
+        port=url, serial="F1", out=tmp_path / "F1", static_seconds=2.0, turns=1,
+        warmup_s=0.0, yes=True, ready_s=0.0,
+    )  # fmt: skip
+    base.update(kw)
+    return live.SessionOptions(**base)
+
+
+def run(o: live.SessionOptions, console: ScriptedConsole, ports: Any) -> tuple[int, str]:
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        rc = live.run_live_session(o, console, ports)
+    return rc, out.getvalue()
+
+
+def options_of(command: str) -> live.SessionOptions:
+    """The SessionOptions a printed ``python3 -m host calibrate ...`` command line gives, read
+    as a POSIX shell would split it."""
+    from host.__main__ import build_parser
+
+    argv = shlex.split(command)
+    assert argv[:4] == ["python3", "-m", "host", "calibrate"], command
+    parser, _ = build_parser()
+    return live.SessionOptions.from_args(parser.parse_args(argv[3:]))
+
+
+# --------------------------------------------------------------------------- checks first
+
+
+def test_yes_with_resume_needs_no_static_seconds_when_the_statics_are_kept(
+    tmp_path: Path,
+) -> None:
+    from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
+
+    recs = simulate_session(SensorTruth.ideal(), Plan(static_s=2.0, turns=1), seed=1)
+    write_session(tmp_path / "F1", "F1", {n: r for n, r in recs.items() if n in STATIC_NAMES})
+    o = opts(tmp_path, "sim://", static_seconds=None, resume=True)
+    o.check()  # nothing static to measure: no question to answer
+    o.redo = ("y_dn",)
+    with pytest.raises(UserError, match="--static-seconds"):
+        o.check()
+
+
+def test_an_output_directory_that_cannot_be_one_fails_before_the_board(tmp_path: Path) -> None:
+    (tmp_path / "afile").write_text("x")
+    for out in (tmp_path / "afile", tmp_path / "afile" / "sub"):
+        ports = Ports()
+        with pytest.raises(UserError, match=r"output directory .*afile.*choose"):
+            run(opts(tmp_path, f"sim://?{LINEAR}", out=out, warmup_s=600.0), ScriptedConsole(),
+                ports)  # fmt: skip
+        assert ports.opened == []
+
+
+def test_an_output_directory_where_nothing_can_be_written_fails_before_the_board() -> None:
+    ports = Ports()
+    out = Path("/proc/imu-bench-no-such-dir/F1")  # not writable, even for root
+    with pytest.raises(UserError, match=r"output directory /proc/.*/F1: cannot write there"):
+        run(opts(Path(), f"sim://?{LINEAR}", out=out), ScriptedConsole(), ports)
+    assert ports.opened == []
+
+
+def test_the_latitude_is_checked_before_the_board() -> None:
+    with pytest.raises(UserError, match="latitude"):
+        live.SessionOptions(serial="A", latitude_deg=123.0).check()
+
+
+def test_redo_names_are_checked() -> None:
+    with pytest.raises(UserError, match="--redo x_side: not a record name; use one of x_up"):
+        live.SessionOptions(serial="A", redo=("x_side",)).check()
+
+
+def test_redo_takes_several_names_comma_separated_or_repeated() -> None:
+    from host.__main__ import build_parser
+
+    parser, _ = build_parser()
+    args = parser.parse_args(["calibrate", "--redo", "x_up,y_cw", "--redo", "z_dn"])
+    assert live.SessionOptions.from_args(args).redo == ("x_up", "y_cw", "z_dn")
+
+
+# --------------------------------------------------------------------------- resume exactly
+
+
+def test_ctrl_c_prints_a_command_with_every_option_and_the_answers(tmp_path: Path) -> None:
+    """Options given (turns, warm-up, site, model) and answered at the prompts (the
+    accumulation time) are all in the printed command, quoted so that an output directory
+    with spaces pastes back as it was: resuming asks nothing again."""
+    keys = ["y", "3\r", " ", "y", " ", CTRL_C]  # statics, 3 s, x_up saved, Ctrl+C in x_dn
+    con = ScriptedConsole(keys)
+    url = f"sim://?seed=6&{LINEAR}"
+    out = tmp_path / "my unit's data" / "F1"
+    o = opts(tmp_path, url, out=out, yes=False, static_seconds=None, turns=1, warmup_s=12.5,
+             ready_s=0.25, latitude_deg=48.137, height_m=300.0,
+             model="base,temperature_bias")  # fmt: skip
+    rc, _ = run(o, con, Ports())
+    assert rc == 130
+    assert "Aborted (Ctrl+C): the measurement in progress is discarded." in con.text
+    line = [ln for ln in con.text.splitlines() if "continue with: " in ln][-1]
+    again = options_of(line.split("continue with: ", 1)[1])
+    assert again.resume and again.port == url and again.serial == "F1"
+    assert again.out == out
+    assert (again.static_seconds, again.turns, again.warmup_s, again.ready_s) == (
+        3.0, 1, 12.5, 0.25,
+    )  # fmt: skip
+    assert (again.latitude_deg, again.height_m) == (48.137, 300.0)
+    assert again.model == "base,temperature_bias" and not again.yes
+
+
+def test_redo_measures_one_record_again_and_keeps_the_others(tmp_path: Path) -> None:
+    url = f"sim://?seed=11&{LINEAR}"
+    assert run(opts(tmp_path, url), ScriptedConsole(), Ports())[0] in (0, 1)
+    out = tmp_path / "F1"
+    before = {p.name: p.read_bytes() for p in out.glob("F1_*_*.txt")}
+    assert len(before) == 12
+    con = ScriptedConsole()
+    rc, stdout = run(opts(tmp_path, url, redo=("y_cw",)), con, Ports())
+    assert rc in (0, 1) and "TEST REPORT" in stdout
+    assert "Measuring again: y_cw (--redo)" in con.text
+    starts = ("Turn now! ", "Measuring x", "Measuring y", "Measuring z")
+    started = [ln.split(":")[0] for ln in con.text.splitlines() if ln.startswith(starts)]
+    assert started == ["Turn now! y_cw"]
+    after = {p.name: p.read_bytes() for p in out.glob("F1_*_*.txt")}
+    assert after["F1_y_cw.txt"] != before["F1_y_cw.txt"]
+    assert {k: v for k, v in after.items() if k != "F1_y_cw.txt"} == {
+        k: v for k, v in before.items() if k != "F1_y_cw.txt"
+    }
+
+
+def test_a_turn_kept_despite_its_warning_ends_with_the_record_to_redo(tmp_path: Path) -> None:
+    """'Save anyway' on an incomplete turn: the record keeps the warning in its header; the
+    results cannot use it, and the session says which record to redo and the exact command;
+    that command then ends with a report."""
+    keys = ["y"] + [" ", "y"] * 6  # the statics
+    keys += ["y"]  # on to the turns
+    keys += [" ", "n"]  # x_ccw incomplete: save anyway
+    keys += [" ", "y"] * 5
+    url = f"sim://?seed=12&{LINEAR}&operator_fault=incomplete_turn@1"
+    con = ScriptedConsole(keys)
+    with pytest.raises(UserError) as e:
+        run(opts(tmp_path, url, yes=False, out=tmp_path / "a b" / "F1"), con, Ports())
+    msg = str(e.value)
+    assert "F1_x_ccw.txt" in msg and "measure x_ccw again" in msg
+    assert "--resume" not in msg  # one command, the one that helps
+    header = read_record(tmp_path / "a b" / "F1" / "F1_x_ccw.txt").meta
+    assert "turn" in header["warning"]
+    again = options_of(msg.split(" with: ", 1)[1])
+    assert again.redo == ("x_ccw",) and again.static_seconds == 2.0 and again.turns == 1
+    assert again.out == tmp_path / "a b" / "F1"
+    again.yes = True
+    again.port = f"sim://?seed=12&{LINEAR}"  # the same bench, without the operator's fault
+    rc, stdout = run(again, ScriptedConsole(), Ports())
+    assert rc in (0, 1) and "TEST REPORT" in stdout
+    assert "warning" not in read_record(tmp_path / "a b" / "F1" / "F1_x_ccw.txt").meta
+
+
+def test_from_dir_names_the_record_to_redo(tmp_path: Path) -> None:
+    from host.__main__ import main
+    from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
+
+    recs = simulate_session(SensorTruth.ideal(), Plan(static_s=2.0, turns=1), seed=4)
+    bad = recs["y_ccw"]
+    recs["y_ccw"] = type(bad)(bad.name, bad.t_ms, bad.accel, bad.gyro * 0.8, bad.temp, bad.meta)
+    d = tmp_path / "x y"
+    write_session(d, "R1", recs)
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        assert main(["calibrate", "--from-dir", str(d)]) == 2
+    msg = err.getvalue()
+    assert "R1_y_ccw.txt" in msg and "measure y_ccw again" in msg
+    argv = shlex.split(msg.split(" with: ", 1)[1].strip())
+    assert argv[argv.index("--out") + 1] == str(d) and argv[-2:] == ["--redo", "y_ccw"]
+
+
+def test_a_record_kept_despite_a_warning_is_in_the_report_with_it(tmp_path: Path) -> None:
+    from host.__main__ import main
+    from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
+
+    recs = simulate_session(SensorTruth.random(np.random.default_rng(2)), Plan(static_s=2.0,
+                            turns=1), seed=2)  # fmt: skip
+    recs["y_up"].meta["warning"] = "2.1 % of the samples of y_up were lost (limit 1 %)"
+    write_session(tmp_path, "W1", recs)
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        assert main(["calibrate", "--from-dir", str(tmp_path)]) in (0, 1)
+    text = " ".join((tmp_path / "W1_result.txt").read_text().split())
+    note = "y_up kept despite a warning: 2.1 % of the samples of y_up were lost (limit 1 %)"
+    assert note in text
+    assert [n for n in TURN_NAMES + STATIC_NAMES if f"{n} kept despite" in text] == ["y_up"]
+    assert note in json.loads((tmp_path / "W1_result.json").read_text())["notes"]
