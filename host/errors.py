@@ -1,4 +1,9 @@
-"""Errors the user can act on. The CLI prints them as one line and exits with status 2."""
+"""Errors the user can act on. The CLI prints them as one line and exits with status 2.
+
+Errors are told apart by their type, never by their text: code that must react to one kind of
+problem catches (or tests ``isinstance``) the class below that names it, and the message stays
+free to change.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +13,25 @@ import os
 
 class UserError(Exception):
     """A problem the user can fix (bad file, missing port, wrong option): one clear line."""
+
+
+class RecordCheckError(UserError):
+    """A record failed a check of the method (orientation, range, turn angle, length):
+    ``file_name`` is the record file the message starts with (e.g. ``'U1_x_up.txt'``)."""
+
+    def __init__(self, message: str, *, file_name: str) -> None:
+        super().__init__(message)
+        self.file_name = file_name
+
+
+class ResumableError(UserError):
+    """A live calibration stopped, and the message already says how to continue with the
+    records accepted so far (the ``--resume`` command): nothing must be appended to it."""
+
+
+class BadURLError(Exception):
+    """A ``sim://`` or ``emu://`` URL option the transport refuses; the message names the option.
+    A mixin: the transport raises it together with the exception type pyserial expects."""
 
 
 #: what an OSError while writing means for the user

@@ -19,7 +19,7 @@ from typing import Any
 import serial
 from serial.serialutil import Timeout
 
-from host.errors import UserError
+from host.errors import BadURLError, UserError
 from host.wire.capture import CaptureWriter
 from host.wire.frames import (
     DecoderStats,
@@ -61,7 +61,7 @@ def open_port(url: str, baud: int = DEFAULT_BAUD, timeout_s: float = 0.05) -> se
             "(virtual board) or emu:// (emulated board)"
         ) from None
     except (serial.SerialException, OSError) as exc:
-        if url.startswith(OWN_SCHEMES) and "URL" in str(exc):  # a bad option: named in exc
+        if isinstance(exc, BadURLError):  # a bad sim:// option: the message names it
             raise UserError(f"cannot open {url!r}: {exc}") from None
         raise UserError(
             f"cannot open {url!r}: {exc}; check the USB cable and the port name "

@@ -21,7 +21,7 @@ from host.calib.method import (
     record_stats,
 )
 from host.calib.records import MIN_RECORD_ROWS, Record, Session
-from host.errors import UserError
+from host.errors import RecordCheckError, UserError
 
 
 # ---- least squares ------------------------------------------------------------------------
@@ -77,29 +77,33 @@ def check_orientation(record: Record, stats: RecordStats, g: float, file_name: s
     a = stats.accel_mean
     norm = float(np.linalg.norm(a))
     if not 0.7 * g < norm < 1.3 * g:
-        raise UserError(
+        raise RecordCheckError(
             f"{file_name}: the mean specific force is {norm:.2f} m/s², expected about "
-            f"{g:.2f}: was the unit moving or not connected? {remedy(record)}"
+            f"{g:.2f}: was the unit moving or not connected? {remedy(record)}",
+            file_name=file_name,
         )
     angle = math.degrees(math.acos(max(-1.0, min(1.0, float(a @ up) / norm))))
     if angle > ORIENTATION_TOL_DEG:
         if np.count_nonzero(up) == 1:
-            raise UserError(
+            raise RecordCheckError(
                 f"{file_name}: gravity is on {_axis_label(a)}, expected {_axis_label(up)}: "
-                f"the cube was on the wrong face; {remedy(record)}"
+                f"the cube was on the wrong face; {remedy(record)}",
+                file_name=file_name,
             )
-        raise UserError(
+        raise RecordCheckError(
             f"{file_name}: gravity is {angle:.0f}° away from the expected up direction "
-            f"{np.round(up, 3).tolist()}; {remedy(record)}"
+            f"{np.round(up, 3).tolist()}; {remedy(record)}",
+            file_name=file_name,
         )
     if record.kind == "static":
         if np.any(stats.accel_std > STATIC_MAX_ACCEL_STD) or np.any(
             stats.gyro_std > STATIC_MAX_GYRO_STD
         ):
-            raise UserError(
+            raise RecordCheckError(
                 f"{file_name}: the cube moved during the static measurement (std "
                 f"{stats.accel_std.max():.3f} m/s², {stats.gyro_std.max():.3f} °/s); "
-                f"{remedy(record)}"
+                f"{remedy(record)}",
+                file_name=file_name,
             )
 
 
@@ -111,12 +115,15 @@ def check_range(record: Record, file_name: str) -> None:
     try:
         rng = float(record.meta["gyro_range_dps"])
     except ValueError as exc:
-        raise UserError(f"{file_name}: bad meta gyro_range_dps") from exc
+        raise RecordCheckError(
+            f"{file_name}: bad meta gyro_range_dps", file_name=file_name
+        ) from exc
     peak = float(np.abs(record.gyro).max()) if len(record) else 0.0
     if peak >= rng - 0.01:
-        raise UserError(
+        raise RecordCheckError(
             f"{file_name}: the rate reached {peak:.1f} °/s, outside the working range "
-            f"±{rng:g} °/s; {remedy(record, 'turn more slowly and re-measure')}"
+            f"±{rng:g} °/s; {remedy(record, 'turn more slowly and re-measure')}",
+            file_name=file_name,
         )
 
 
@@ -142,10 +149,11 @@ def check_record_lengths(session: Session) -> None:
     record has no std; its mean would enter the fit as if it were measured)."""
     for name, rec in session.records.items():
         if len(rec) < MIN_RECORD_ROWS:
-            raise UserError(
+            raise RecordCheckError(
                 f"{session.path_of(name)}: {len(rec)} data row{'s' if len(rec) != 1 else ''}; "
                 f"a record needs at least {MIN_RECORD_ROWS} samples (its mean and std) — "
-                "re-measure this record"
+                "re-measure this record",
+                file_name=session.path_of(name),
             )
 
 
@@ -212,20 +220,22 @@ def build_observations(
             if n is None:
                 n = max(1, round(abs(along) / 360.0))
             if n < 1:
-                raise UserError(f"{fname}: turns must be at least 1")
+                raise RecordCheckError(f"{fname}: turns must be at least 1", file_name=fname)
             want = rec.sign * 360.0 * n
             tol = 0.05 * 360.0 * n + TURN_ANGLE_TOL_DEG + (0.0 if pre is not None else 20.0 * t)
             if along * rec.sign < -90.0:
                 direction = "counter-clockwise" if rec.sign > 0 else "clockwise"
-                raise UserError(
+                raise RecordCheckError(
                     f"{fname}: the cube turned {along:+.0f}° about {_axis_label(up)}, the wrong "
-                    f"way (expected {direction}); {remedy(rec)}"
+                    f"way (expected {direction}); {remedy(rec)}",
+                    file_name=fname,
                 )
             if abs(along - want) > tol:
-                raise UserError(
+                raise RecordCheckError(
                     f"{fname}: the cube turned {along:+.0f}° about {_axis_label(up)}, expected "
                     f"{want:+.0f}° ({n} turn{'s' if n > 1 else ''}): the turn was not complete "
-                    f"or --turns is wrong; {remedy(rec)}"
+                    f"or --turns is wrong; {remedy(rec)}",
+                    file_name=fname,
                 )
             sig = np.sqrt(gyro_noise**2 * s.dt_s * t + turn_angle_sigma_deg**2)
             obs.append(
@@ -236,7 +246,9 @@ def build_observations(
             )  # fmt: skip
         elif rec.kind == "rate":
             if "up" not in rec.meta:
-                raise UserError(f"{fname}: a rate-table record needs meta 'up: [x, y, z]'")
+                raise RecordCheckError(
+                    f"{fname}: a rate-table record needs meta 'up: [x, y, z]'", file_name=fname
+                )
             up_r = rec.up
             axis = rec.rate_axis
             force = up_r if abs(float(up_r @ axis)) > 0.999 else float(up_r @ axis) * axis

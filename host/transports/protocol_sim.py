@@ -82,6 +82,7 @@ from host.bench.sim import (
     resting_pose,
 )
 from host.bench.truth import SensorTruth
+from host.errors import BadURLError
 from host.wire import protocol_gen as gen
 from host.wire.frames import StreamDecoder, encode_frame, encode_imu_samples
 
@@ -99,8 +100,13 @@ if TYPE_CHECKING:
 _ACK = gen.ENUMS["ack_status"]
 
 
+class SimURLError(SerialException, BadURLError):
+    """A bad ``sim://`` URL: a SerialException (what pyserial's callers expect) that
+    :func:`host.board.link.open_port` tells apart by its type."""
+
+
 def _usage(msg: str) -> SerialException:
-    return SerialException(f"sim:// URL: {msg} (see host/transports/protocol_sim.py)")
+    return SimURLError(f"sim:// URL: {msg} (see host/transports/protocol_sim.py)")
 
 
 class Serial(SerialBase):

@@ -30,7 +30,7 @@ from host.calib.calibration import (
 )
 from host.calib.records import STATIC_NAMES, TURN_NAMES, Record, Session, read_session
 from host.calib.result import CalibrationResult, apply
-from host.errors import UserError
+from host.errors import RecordCheckError, UserError
 
 try:
     from calib_truth import TRUTH, make_record, make_records
@@ -252,6 +252,8 @@ def test_wrong_face_is_named() -> None:
         "SIM1_x_up.txt: gravity is on +Z, expected +X: the cube was on the wrong face; "
         "re-measure x_up"
     )
+    # the record is named by the error's type and attribute, not only by its text
+    assert isinstance(ei.value, RecordCheckError) and ei.value.file_name == "SIM1_x_up.txt"
 
 
 def test_wrong_face_of_a_turn() -> None:
@@ -303,8 +305,9 @@ def test_moving_static_is_named() -> None:
     r = recs["y_dn"]
     gyro = r.gyro + np.where(np.arange(len(r)) % 50 < 5, 30.0, 0.0)[:, None]
     recs["y_dn"] = Record("y_dn", r.t_ms, r.accel, gyro, r.temp, {})
-    with pytest.raises(UserError, match="SIM1_y_dn.txt: the cube moved"):
+    with pytest.raises(RecordCheckError, match="SIM1_y_dn.txt: the cube moved") as ei:
         calibrate_from_records(_session(recs))
+    assert ei.value.file_name == "SIM1_y_dn.txt"
 
 
 # ---- result and apply ---------------------------------------------------------------------
