@@ -14,18 +14,12 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from host.calib.calibration import (
-    DEFAULT_HEIGHT_M,
-    DEFAULT_LATITUDE_DEG,
-    calibrate_from_records,
-)
+from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
+from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.records import Session, read_session
-from host.calib.report import format_report, verdict_line, write_results
-from host.calib.result import CalibrationResult, verify_directory
-from host.calib.thermal import ThermalCalibration
-from host.cli.model import _noise
+from host.calib.report import verdict_line
+from host.calib.result import CalibrationResult
 from host.dialogue.live import DEFAULT_READY_S, WARMUP_DEFAULT_S
-from host.errors import UserError
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -88,52 +82,29 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def thermal_of(session: Session, option: str | None) -> tuple[ThermalCalibration | None, str]:
-    """The thermal calibration ``--thermal`` names, else SERIAL_thermal.json beside the
-    records (None for 'none' or when there is none), and its path."""
-    if option is not None and option.lower() == "none":
-        return None, ""
-    if option is not None:
-        return ThermalCalibration.load(option), option
-    if session.directory is None:
-        return None, ""
-    path = Path(session.directory) / f"{session.serial}_thermal.json"
-    if not path.is_file():
-        return None, ""
-    print(f"using the thermal calibration {path} (--thermal none ignores it)", file=sys.stderr)
-    return ThermalCalibration.load(path), str(path)
-
-
-def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -> CalibrationResult:
-    """Compute from ``session``, write both result files into ``out_dir``, print the report
-    (or the JSON with ``--json``) on stdout."""
-    if args.turns is not None and args.turns < 1:
-        raise UserError("--turns must be at least 1")
-    thermal, source = thermal_of(session, getattr(args, "thermal", None))
-    result = calibrate_from_records(
-        session,
-        thermal=thermal,
-        thermal_source=source,
+def compute_settings(args: argparse.Namespace) -> ComputeSettings:
+    """The ``calibrate`` options that say how to compute (:class:`ComputeSettings`)."""
+    return ComputeSettings(
         turns=args.turns,
         latitude_deg=args.latitude,
         height_m=args.height,
         model=args.model,
-        term_files=args.term_file,
-        noise=_noise(getattr(args, "floor", None)),
+        term_files=tuple(args.term_file),
+        floor=getattr(args, "floor", None),
+        verify=getattr(args, "verify", None),
+        thermal=getattr(args, "thermal", None),
     )
-    if getattr(args, "verify", None):
-        result = verify_directory(result, args.verify)
-    if not out_dir.is_dir():
-        raise UserError(f"{out_dir}: no such directory")
-    txt, js = write_results(result, out_dir)
-    if args.json:
-        sys.stdout.write(result.to_json())
-    else:
-        sys.stdout.write(format_report(result))
-        print(f"written: {txt} and {js}", file=sys.stderr)
-    sys.stdout.flush()
-    print(verdict_line(result, txt), file=sys.stderr)
-    return result
+
+
+def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -> CalibrationResult:
+    """Compute from ``session``, write both result files into ``out_dir``, print the report
+    (or the JSON with ``--json``) on stdout (:func:`host.calib.publish.compute_and_write`)."""
+    pub = compute_and_write(session, out_dir, compute_settings(args))
+    show_result(pub.result, args.json)
+    if not args.json:
+        print(f"written: {pub.report_path} and {pub.json_path}", file=sys.stderr)
+    print(verdict_line(pub.result, pub.report_path), file=sys.stderr)
+    return pub.result
 
 
 def run(args: argparse.Namespace) -> int:

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from host.calib.publish import parse_floor
 from host.errors import UserError
 from host.modelling.diagnose import (
     Addition,
@@ -32,11 +33,9 @@ from host.modelling.diagnose import (
 from host.modelling.model import (
     AXES,
     CATALOGUE,
-    SENSORS,
     UNIT,
     Dataset,
     Fit,
-    NoiseModel,
     Term,
     load_dataset,
     load_term_file,
@@ -245,30 +244,12 @@ def _catalogue(args: argparse.Namespace) -> dict[str, Term]:
     return cat
 
 
-def _noise(text: str | None) -> NoiseModel:
-    nm = NoiseModel()
-    if not text:
-        return nm
-    floor: dict[str, float] = {}
-    for item in text.split(","):
-        key, _, val = item.partition("=")
-        key = key.strip()
-        try:
-            v = float(val)
-        except ValueError:
-            v = math.nan
-        if key not in SENSORS or not math.isfinite(v) or v < 0:
-            raise UserError(f"--floor: expected accel=VALUE,gyro=VALUE (≥ 0), got {item!r}")
-        floor[key] = v
-    return dataclasses.replace(nm, floor=floor)
-
-
 def _dataset(args: argparse.Namespace) -> Dataset:
     from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
     return load_dataset(
         args.dir,
-        noise=_noise(args.floor),
+        noise=parse_floor(args.floor),
         latitude_deg=DEFAULT_LATITUDE_DEG if args.latitude is None else args.latitude,
         height_m=DEFAULT_HEIGHT_M if args.height is None else args.height,
         serial=args.serial,

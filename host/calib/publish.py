@@ -1,0 +1,136 @@
+"""Compute and write: the one step from a directory of records to the published result.
+
+Both ways to a result end here — the live calibration (:mod:`host.dialogue.live`, after the
+last record) and ``python -m host calibrate --from-dir DIR`` (:mod:`host.cli.calibrate`):
+:func:`compute_and_write` checks the records, fits the model, verifies held-out records if asked
+and writes ``SERIAL_result.txt`` and ``SERIAL_result.json`` together (method.md §7);
+:func:`show_result` prints the report (or the JSON) on stdout. Each caller adds its own lines
+around them (where the files went, the verdict), in its own voice.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TextIO
+
+from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, calibrate_from_records
+from host.calib.records import Session
+from host.calib.report import format_report, write_results
+from host.calib.result import CalibrationResult, verify_directory
+from host.calib.thermal import ThermalCalibration
+from host.errors import UserError
+from host.modelling.model import SENSORS, NoiseModel
+
+
+def _stderr(text: str) -> None:
+    print(text, file=sys.stderr)
+
+
+def parse_floor(text: str | None) -> NoiseModel:
+    """``--floor accel=A,gyro=G`` (m/s², °/s; either may be left out) -> the fit's
+    :class:`~host.modelling.model.NoiseModel`; no text: the floor is measured from the records."""
+    nm = NoiseModel()
+    if not text:
+        return nm
+    floor: dict[str, float] = {}
+    for item in text.split(","):
+        key, _, val = item.partition("=")
+        key = key.strip()
+        try:
+            v = float(val)
+        except ValueError:
+            v = math.nan
+        if key not in SENSORS or not math.isfinite(v) or v < 0:
+            raise UserError(f"--floor: expected accel=VALUE,gyro=VALUE (≥ 0), got {item!r}")
+        floor[key] = v
+    return dataclasses.replace(nm, floor=floor)
+
+
+@dataclass(frozen=True)
+class ComputeSettings:
+    """How to compute a result; units in the names. ``turns``: n for turn records whose
+    header does not say it (None: inferred); ``model``: the model spec
+    (:func:`host.modelling.model.parse_model`); ``floor``: the ``--floor`` text (None: measured);
+    ``verify``: a directory of held-out records to predict (None: no verification);
+    ``thermal``: the ``--thermal`` option (:func:`thermal_of`)."""
+
+    turns: int | None = None
+    latitude_deg: float = DEFAULT_LATITUDE_DEG
+    height_m: float = DEFAULT_HEIGHT_M
+    model: str = "base"
+    term_files: Sequence[str] = field(default_factory=tuple)
+    floor: str | None = None
+    verify: str | None = None
+    thermal: str | None = None
+
+
+@dataclass(frozen=True)
+class Published:
+    """A result and the two files it was written to."""
+
+    result: CalibrationResult
+    report_path: Path
+    json_path: Path
+
+
+def thermal_of(
+    session: Session, option: str | None, note: Callable[[str], None] = _stderr
+) -> tuple[ThermalCalibration | None, str]:
+    """The thermal calibration ``--thermal`` names, else SERIAL_thermal.json beside the
+    records (None for 'none' or when there is none), and its path; ``note`` is told when the
+    file beside the records is used."""
+    if option is not None and option.lower() == "none":
+        return None, ""
+    if option is not None:
+        return ThermalCalibration.load(option), option
+    if session.directory is None:
+        return None, ""
+    path = Path(session.directory) / f"{session.serial}_thermal.json"
+    if not path.is_file():
+        return None, ""
+    note(f"using the thermal calibration {path} (--thermal none ignores it)")
+    return ThermalCalibration.load(path), str(path)
+
+
+def compute_and_write(
+    session: Session,
+    out_dir: Path,
+    settings: ComputeSettings,
+    note: Callable[[str], None] = _stderr,
+) -> Published:
+    """Compute the calibration of ``session`` and write both result files into ``out_dir``
+    (together or not at all, :func:`host.calib.report.write_results`). UserError for what the
+    user can fix (a bad record, option or directory); nothing is written then. ``note``: where
+    remarks go (default stderr)."""
+    if settings.turns is not None and settings.turns < 1:
+        raise UserError("--turns must be at least 1")
+    thermal, source = thermal_of(session, settings.thermal, note)
+    result = calibrate_from_records(
+        session,
+        thermal=thermal,
+        thermal_source=source,
+        turns=settings.turns,
+        latitude_deg=settings.latitude_deg,
+        height_m=settings.height_m,
+        model=settings.model,
+        term_files=settings.term_files,
+        noise=parse_floor(settings.floor),
+    )
+    if settings.verify:
+        result = verify_directory(result, settings.verify)
+    if not out_dir.is_dir():
+        raise UserError(f"{out_dir}: no such directory")
+    txt, js = write_results(result, out_dir)
+    return Published(result, txt, js)
+
+
+def show_result(result: CalibrationResult, as_json: bool, out: TextIO | None = None) -> None:
+    """Print the report (method.md §7) or, ``as_json``, the JSON result on ``out`` (stdout)."""
+    stream = out if out is not None else sys.stdout
+    stream.write(result.to_json() if as_json else format_report(result))
+    stream.flush()

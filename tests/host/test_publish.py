@@ -1,0 +1,60 @@
+"""Compute and write (host/calib/publish.py): the one step from records to the published result,
+shared by the live calibration and ``calibrate --from-dir``."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
+from host.calib.publish import ComputeSettings, compute_and_write, parse_floor, show_result
+from host.calib.records import read_session
+from host.errors import UserError
+
+
+@pytest.fixture(scope="module")
+def records_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("publish") / "Q7"
+    truth = SensorTruth.random(np.random.default_rng(9))
+    write_session(d, "Q7", simulate_session(truth, Plan(static_s=5.0, turns=1, warmup_s=0), 9))
+    return d
+
+
+def test_the_floor_option_reads_each_sensor_apart() -> None:
+    assert dict(parse_floor("accel=0.002,gyro=0.03").floor) == {"accel": 0.002, "gyro": 0.03}
+    assert dict(parse_floor("gyro=0.5").floor) == {"gyro": 0.5}
+    assert dict(parse_floor(None).floor) == {}
+    for bad in ("accel=-1", "mag=1", "gyro=nan", "accel"):
+        with pytest.raises(UserError, match="--floor: expected accel=VALUE,gyro=VALUE"):
+            parse_floor(bad)
+
+
+def test_both_files_are_written_with_the_settings(records_dir: Path, tmp_path: Path) -> None:
+    session = read_session(records_dir, None)
+    pub = compute_and_write(session, tmp_path, ComputeSettings(latitude_deg=-41.5, height_m=820.0))
+    assert (pub.report_path, pub.json_path) == (
+        tmp_path / "Q7_result.txt",
+        tmp_path / "Q7_result.json",
+    )
+    doc = json.loads(pub.json_path.read_text())
+    assert (doc["latitude_deg"], doc["height_m"]) == (-41.5, 820.0)
+    assert "serial No. Q7" in pub.report_path.read_text()
+    out = io.StringIO()
+    show_result(pub.result, as_json=True, out=out)
+    assert json.loads(out.getvalue()) == doc
+    out = io.StringIO()
+    show_result(pub.result, as_json=False, out=out)
+    assert out.getvalue() == pub.report_path.read_text()
+
+
+def test_bad_settings_write_nothing(records_dir: Path, tmp_path: Path) -> None:
+    session = read_session(records_dir, None)
+    with pytest.raises(UserError, match="--turns must be at least 1"):
+        compute_and_write(session, tmp_path, ComputeSettings(turns=0))
+    with pytest.raises(UserError, match="no such directory"):
+        compute_and_write(session, tmp_path / "absent", ComputeSettings())
+    assert list(tmp_path.iterdir()) == []
