@@ -41,8 +41,11 @@ HEADER_LEN = 6
 CRC_LEN = 2
 OVERHEAD = HEADER_LEN + CRC_LEN
 MAX_PAYLOAD = gen.MAX_PAYLOAD
-IMU_SAMPLE = 0x01
-IMU_FIELDS = ("ax", "ay", "az", "temp", "gx", "gy", "gz")
+#: the message types by name, from the generated table (never a number written by hand)
+TYPES: Mapping[str, int] = MappingProxyType({v[0]: k for k, v in gen.MESSAGES.items()})
+IMU_SAMPLE = TYPES["IMU_SAMPLE"]
+#: the sensor counts of an IMU_SAMPLE in wire order (the spec's fields with unit ``count``)
+IMU_FIELDS = tuple(name for name, _, unit in gen.MESSAGES[IMU_SAMPLE][3] if unit == "count")
 
 
 @dataclass(frozen=True)
@@ -609,7 +612,7 @@ def samples_to_physical(samples: np.ndarray, afs_sel: int = 0, fs_sel: int = 0) 
 # --------------------------------------------------------------------------- capture files
 
 
-def _config_from(others: list[tuple[int, Frame]]) -> tuple[int, int]:
+def full_scale_from_hello(others: list[tuple[int, Frame]]) -> tuple[int, int]:
     """Full-scale selections from the first HELLO frame whose codes an MPU-6000 has, or the
     defaults (±2 g, ±250 °/s) without HELLO; UserError when every HELLO is impossible."""
     bad: tuple[int, int] | None = None
@@ -649,7 +652,9 @@ def decode_file(path: Path) -> tuple[BulkResult, np.ndarray | None]:
     return result, arrivals
 
 
-def _baud_from(others: list[tuple[int, Frame]], default: int = 115200) -> int:
+def baud_from_hello(others: list[tuple[int, Frame]], default: int = 115200) -> int:
+    """The link's baud rate from the first HELLO frame stating one (``others`` as in
+    :attr:`BulkResult.others`), else ``default``, baud."""
     for _, f in others:
         if f.name == "HELLO" and f.fields["baud"]:
             return f.fields["baud"]

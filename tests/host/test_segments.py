@@ -3,6 +3,9 @@ frame-by-frame tracker on any sequence of frames."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -13,6 +16,10 @@ from host.timing.segments import (
     SegmentTracker,
     segments,
 )
+from host.wire.frames import IMU_FIELDS, IMU_SAMPLE, TYPES
+from host.wire.protocol_gen import ENUMS
+
+SPEC = Path(__file__).resolve().parents[2] / "protocol" / "spec.json"
 
 
 def run_tracker(seq: list[int], t_us: list[int | None]) -> tuple[list[bool], list[int]]:
@@ -109,6 +116,13 @@ def test_flag_bits_come_from_the_spec() -> None:
                     found.append(f"{path.name}:{node.lineno}: {ast.unparse(node)}")
             if isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant):
                 names = [t.id for t in node.targets if isinstance(t, ast.Name)]
-                if {"MISSED", "FIFO_OVERFLOW", "CONFIG_CHANGED"} & set(names):
+                spec_names = set(ENUMS["sample_flags"]) | set(TYPES)
+                if spec_names & set(names):
                     found.append(f"{path.name}:{node.lineno}: {names[0]} = {node.value.value}")
     assert found == []
+
+
+def test_message_types_and_sample_fields_come_from_the_spec() -> None:
+    imu = next(m for m in json.loads(SPEC.read_text())["messages"] if m["name"] == "IMU_SAMPLE")
+    assert IMU_SAMPLE == imu["type"] == TYPES["IMU_SAMPLE"]
+    assert IMU_FIELDS == tuple(f[0] for f in imu["fields"] if f[0] not in ("t_us", "flags"))
