@@ -18,9 +18,9 @@ import numpy as np
 from host.timing import clock
 from host.wire.frames import (
     IMU_FIELDS,
-    _baud_from,
-    _config_from,
+    baud_from_hello,
     decode_file,
+    full_scale_from_hello,
     samples_to_physical,
 )
 
@@ -70,7 +70,7 @@ def run_decode(args: argparse.Namespace) -> int:
         timeline = clock.build_timeline(
             s,
             arrivals,
-            baud=_baud_from(result.others),
+            baud=baud_from_hello(result.others),
             other_offsets=np.asarray([off for off, _ in result.others], dtype=np.int64),
         )
     if timeline is not None:
@@ -90,7 +90,7 @@ def run_decode(args: argparse.Namespace) -> int:
             out["clock"] = [_clock_summary(seg) for seg in timeline.segments]
         print(json.dumps(out))
         return 0
-    phys = samples_to_physical(s, *_config_from(result.others))
+    phys = samples_to_physical(s, *full_scale_from_hello(result.others))
     cols = _OUT_COLUMNS + _PHYS + (["t_host_ns"] if timeline is not None else [])
     raw_cols = [s["seq"], s["t_us"], s["flags"]] + [s[n] for n in IMU_FIELDS]
     phys_cols = [np.round(phys[k], _DIGITS[k]) for k in _PHYS]

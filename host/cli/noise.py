@@ -34,7 +34,7 @@ def load_static(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
         data = np.column_stack([rec.accel, rec.gyro])
         return rec.t_ms / 1000.0, data, rec.temp, f"record {rec.name} ({len(rec)} samples)"
     from host.timing import clock
-    from host.wire.frames import _config_from, decode_file, samples_to_physical
+    from host.wire.frames import decode_file, full_scale_from_hello, samples_to_physical
 
     result, _ = decode_file(path)
     s = result.samples
@@ -47,7 +47,7 @@ def load_static(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     note = f"capture ({s.size} samples"
     if ids.size > 1:
         note += f", the longest of {ids.size} segments between board resets"
-    afs, fs = _config_from(result.others)
+    afs, fs = full_scale_from_hello(result.others)
     phys = samples_to_physical(s, afs, fs)
     t_s = clock.unwrap(np.asarray(s["t_us"], dtype=np.int64), 32).astype(np.float64) / 1e6
     data = np.column_stack([phys[c] for c in noise.CHANNELS])

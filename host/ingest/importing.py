@@ -458,15 +458,20 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
     capture the pieces are joined on the host clock when the capture has arrival times, else
     only the longest piece is kept (with a note in ``meta``)."""
     from host.timing import clock
-    from host.wire.frames import _baud_from, _config_from, decode_file, samples_to_physical
+    from host.wire.frames import (
+        baud_from_hello,
+        decode_file,
+        full_scale_from_hello,
+        samples_to_physical,
+    )
 
     p = Path(path)
     result, arrivals = decode_file(p)
     s = result.samples
     if s.size < 2:
         raise ForeignFileError(f"{p}: no IMU samples decoded from this capture")
-    timeline = clock.build_timeline(s, arrivals, baud=_baud_from(result.others))
-    phys = samples_to_physical(s, *_config_from(result.others))
+    timeline = clock.build_timeline(s, arrivals, baud=baud_from_hello(result.others))
+    phys = samples_to_physical(s, *full_scale_from_hello(result.others))
     meta = {"source": p.name, "importer": "capture", "units": "device counts (HELLO full scale)"}
     sel = slice(0, s.size)
     if len(timeline.segments) == 1:
