@@ -71,7 +71,6 @@ def run_decode(args: argparse.Namespace) -> int:
             s,
             arrivals,
             baud=baud_from_hello(result.others),
-            other_offsets=np.asarray([off for off, _ in result.others], dtype=np.int64),
         )
     if timeline is not None:
         for k, seg in enumerate(timeline.segments):

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from host.timing.segments import seq_step
 from host.wire.protocol_gen import ENUMS
 
 UART_BITS_PER_BYTE = 10  # 8N1
@@ -299,7 +300,8 @@ def missed_samples(device_us: np.ndarray, seq: np.ndarray, period_us: float) -> 
     """Samples the device skipped: t_us steps of ≥ 1.5 periods between consecutive seq."""
     if device_us.size < 2:
         return 0
-    consecutive = np.mod(np.diff(np.asarray(seq, dtype=np.int64)), 65536) == 1
+    q = np.asarray(seq, dtype=np.int64)
+    consecutive = seq_step(q[:-1], q[1:]) == 1
     steps = np.diff(device_us) / period_us
     return int(np.sum(np.where(consecutive & (steps >= 1.5), np.rint(steps) - 1, 0)))
 
@@ -311,15 +313,13 @@ def build_timeline(
     frame_bytes: int = 27,
     period_us: float | None = None,
     window_s: float = 60.0,
-    other_offsets: np.ndarray | None = None,
 ) -> Timeline:
     """Unwrap, split at resets and map every sample of a decoded capture.
 
-    ``samples`` is :data:`host.frames.SAMPLE_DTYPE` (with ``segment`` from the decoder),
-    ``arrival_ns`` the host time of the read that completed each sample's frame,
-    ``other_offsets`` the byte offsets of the other frames (their seq numbers are not losses).
+    ``samples`` is :data:`host.wire.frames.SAMPLE_DTYPE` (with ``segment`` and ``lost`` from
+    the decoder, which applies the counters' rules of :mod:`host.timing.segments`),
+    ``arrival_ns`` the host time of the read that completed each sample's frame.
     """
-    others = np.sort(np.asarray(other_offsets if other_offsets is not None else [], np.int64))
     n = samples.size
     dev = np.zeros(n, dtype=np.float64)
     host = np.full(n, np.nan)
@@ -333,7 +333,6 @@ def build_timeline(
         s = samples[start:stop]
         arr = None if arrival_ns is None else np.asarray(arrival_ns[start:stop], np.float64)
         d = unwrap(s["t_us"], 32, arr, 1e-3).astype(np.float64)
-        q = unwrap(s["seq"], 16)
         dev[start:stop] = d
         per = period_us or (float(np.median(np.diff(d))) if d.size > 1 else 20000.0)
         clock = None
@@ -341,11 +340,8 @@ def build_timeline(
             floor = arr - serialisation_ns(frame_bytes, baud)
             clock = fit_offline(d, floor, window_s)
             host[start:stop] = clock.to_host_ns(d)
-        lost = 0
-        if q.size > 1:
-            lo, hi = int(s["offset"][0]), int(s["offset"][-1])
-            between = int(np.searchsorted(others, hi) - np.searchsorted(others, lo))
-            lost = int(q[-1] - q[0]) - (q.size - 1) - between
+        # frames lost between the segment's first and last sample, by the counters' rules
+        lost = int(np.sum(s["lost"][1:]))
         missed = max(missed_samples(d, s["seq"], per), int(np.count_nonzero(s["flags"] & MISSED)))
         segs.append(Segment(int(start), int(stop), clock, lost, missed))
     return Timeline(dev, host, tuple(segs))

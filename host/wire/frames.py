@@ -406,11 +406,13 @@ assert _WIRE_IMU.itemsize == _IMU_FRAME_LEN
 #: the same with one pad byte, so that rows have an even width (16-bit word views)
 _WIRE_IMU_PADDED = np.dtype([*_WIRE_IMU_FIELDS, ("pad", "u1")])
 
-#: the decoded samples array: wire values, native byte order, plus the frame's index in the stream
+#: the decoded samples array: wire values, native byte order, plus the frame's offset in the
+#: stream, its segment (between device resets) and ``lost``: the frames lost on the link since
+#: the previous sample (:func:`host.timing.segments.segments`; 0 where a segment starts)
 SAMPLE_DTYPE = np.dtype(
     [("seq", "u2"), ("t_us", "u4")]
     + [(n, "i2") for n in IMU_FIELDS]
-    + [("flags", "u1"), ("offset", "i8"), ("segment", "i4")]
+    + [("flags", "u1"), ("offset", "i8"), ("segment", "i4"), ("lost", "i4")]
 )
 
 
@@ -588,6 +590,8 @@ def _decode_bulk_bytes(data: bytes | bytearray | memoryview, sender: str) -> Bul
         samples[name] = wire[name]
     samples["offset"] = vs[imu_idx]
     samples["segment"] = segment[imu_idx]
+    lost_so_far = np.cumsum(gaps)[imu_idx]
+    samples["lost"] = np.diff(lost_so_far, prepend=0)
     others = [
         (int(vs[i]), Frame(int(vtype[i]), int(seq[i]), bytes(buf[vs[i] + HEADER_LEN : ve[i] - 2])))
         for i in np.flatnonzero(vtype != IMU_SAMPLE)

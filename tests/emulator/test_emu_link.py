@@ -119,8 +119,7 @@ def test_sixty_second_capture_has_an_exact_device_clock(
     result, arrivals = decode_file(cap)
     assert arrivals is not None and result.stats.crc_errors == 0
     s = result.samples
-    others = np.asarray([off for off, _ in result.others], dtype=np.int64)
-    tl = clock.build_timeline(s, arrivals, other_offsets=others)
+    tl = clock.build_timeline(s, arrivals)
     assert len(tl.segments) == 1
     seg = tl.segments[0]
     assert seg.clock is not None

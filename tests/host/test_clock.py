@@ -14,8 +14,7 @@ def decode(lc: LinkCapture) -> tuple[frames.BulkResult, np.ndarray, clock.Timeli
     cap = capture.parse(lc.to_imucap())
     r = frames.decode_bulk(cap.data)
     arrivals = cap.arrival_ns_at(r.samples["offset"] + 26)
-    others = np.asarray([off for off, _ in r.others], dtype=np.int64)
-    return r, arrivals, clock.build_timeline(r.samples, arrivals, other_offsets=others)
+    return r, arrivals, clock.build_timeline(r.samples, arrivals)
 
 
 def rms_after_offset(err: np.ndarray) -> float:
@@ -123,3 +122,24 @@ def test_min_delay_fit_is_exact_on_noise_free_points_and_ignores_late_ones() -> 
     m = clock.fit_min_delay(x, late)
     assert m.skew_ppm == pytest.approx(-50, abs=1e-6)
     assert np.max(np.abs(m.to_host_ns(x) - y)) < 1.0
+
+
+def test_the_timeline_counts_losses_by_the_decoders_rules() -> None:
+    """Frames lost on the link are counted once, by host.timing.segments (through the decoder's
+    per-sample ``lost``): STATUS frames between samples are not losses, a lost STATUS frame is."""
+    lc = simulate_link(LinkParams(seconds=20, seed=12, status_every_s=1))
+    data = bytearray(capture.parse(lc.to_imucap()).data)
+    r = frames.decode_bulk(bytes(data))
+    assert len(r.others) >= 15  # STATUS frames between the samples
+    assert clock.build_timeline(r.samples, None).lost_frames == 0
+    off = r.samples["offset"]
+    k = 700 + int(np.flatnonzero(off[702:] - off[700:-2] == 2 * 27)[0])  # nothing between them
+    a, b = int(off[k]), int(off[k + 2])
+    del data[a:b]  # two samples lost
+    status_at = r.others[5][0]
+    assert status_at < a
+    del data[status_at : status_at + 8 + frames.BY_NAME["STATUS"].length]  # and one STATUS
+    r = frames.decode_bulk(bytes(data))
+    tl = clock.build_timeline(r.samples, None)
+    assert tl.lost_frames == r.stats.lost_frames == 3
+    assert int(r.samples["lost"].sum()) == 3
