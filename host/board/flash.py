@@ -37,9 +37,9 @@ from typing import Any
 import serial
 
 from host.board.firmware import build_firmware_hex
+from host.board.hello import check_spec, wait_for_hello
 from host.board.link import Link, LinkLost, LinkTimeout
 from host.errors import UserError
-from host.wire.protocol_gen import SPEC_FINGERPRINT
 
 DEFAULT_PORT = "/dev/ttyACM0"
 
@@ -285,7 +285,7 @@ def read_hello(port: str, baud: int, timeout_s: float = HELLO_TIMEOUT_S) -> dict
         raise UserError(f"cannot open {port} after flashing: {exc}") from None
     link = Link(ser, stall_s=timeout_s)
     try:
-        return link.wait_for("HELLO", timeout_s)[1].fields
+        return wait_for_hello(link, timeout_s, ask_after_s=None)[1].fields
     except LinkLost as exc:
         raise UserError(f"{port} vanished while waiting for HELLO: {exc}") from None
     except LinkTimeout:
@@ -308,11 +308,12 @@ def check_hello(hello: dict[str, int], expected: FirmwareIdentity | None) -> str
             f"the board says firmware {version} after flashing {expected.version}: "
             "the new firmware is not running"
         )
-    if fp != SPEC_FINGERPRINT:
-        raise UserError(
-            f"the firmware speaks protocol spec 0x{fp:08X}, this host 0x{SPEC_FINGERPRINT:08X}: "
-            "rebuild the firmware (make -C firmware) or update the host"
-        )
+    check_spec(
+        fp,
+        who="the firmware",
+        remedy="rebuild the firmware (make -C firmware) or update the host",
+        protocol_version=hello["protocol_version"],
+    )
     return version
 
 
@@ -337,10 +338,12 @@ def prepare_hex(hex_path: str | Path | None = None) -> tuple[Path, HexImage]:
     path = Path(hex_path) if hex_path else build_firmware_hex()
     image = parse_ihex(path)
     identity = find_identity(image)
-    if identity is not None and identity.spec_fingerprint != SPEC_FINGERPRINT:
-        raise UserError(
-            f"{path} was built from protocol spec 0x{identity.spec_fingerprint:08X}, this host "
-            f"uses 0x{SPEC_FINGERPRINT:08X}: rebuild it (make -C firmware) before flashing"
+    if identity is not None:
+        check_spec(
+            identity.spec_fingerprint,
+            who=str(path),
+            remedy="rebuild it (make -C firmware) before flashing",
+            protocol_version=identity.protocol_version,
         )
     return path, image
 

@@ -17,7 +17,6 @@ from pathlib import Path
 from typing import Any
 
 import serial
-from serial.serialutil import Timeout
 
 from host.errors import BadURLError, UserError
 from host.wire.capture import CaptureWriter
@@ -135,16 +134,6 @@ class Link:
         except (serial.SerialException, OSError) as exc:
             raise LinkLost(f"cannot write to the board ({exc}); reconnect it") from None
         return seq
-
-    def wait_for(self, name: str, timeout_s: float = 3.0) -> tuple[int, Frame]:
-        """Read until a frame named ``name`` arrives; LinkTimeout after ``timeout_s``."""
-        timeout = Timeout(timeout_s)
-        for t_ns, f in self.frames():
-            if f.name == name:
-                return t_ns, f
-            if timeout.expired():
-                break
-        raise LinkTimeout(f"no {name} frame from the board within {timeout_s:.1f} s")
 
     def close(self) -> None:
         if self.capture:
