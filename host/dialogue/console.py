@@ -6,10 +6,10 @@ Two layers:
   a transient ``progress`` line. :class:`TerminalConsole` is the real terminal (keys in cbreak
   mode from the controlling tty, text on stderr); :class:`ScriptedConsole` plays a list of keys
   and records the screen, for unit tests.
-* an :class:`Operator` — the questions the dialogue asks (a line of text, Y/N, any key, a
-  countdown), built on a console. While it waits for the human it calls ``idle()`` about every
-  ``poll_s`` seconds, so the program keeps reading the board. With ``yes=True`` it never reads a
-  key: every question gets its default (works with stdin closed).
+* :class:`Questions` — the questions the dialogue asks the operator (a line of text, Y/N, any
+  key, a countdown), built on a console. While it waits for the human it calls ``idle()``
+  about every ``poll_s`` seconds, so the program keeps reading the board. With ``yes=True``
+  it never reads a key: every question gets its default (works with stdin closed).
 
 Keys are strings: one character, ``ESC`` for a lone Esc, ``"\\r"`` for Enter; escape sequences
 (arrow keys…) come as one string starting with ESC + "[" and count as "any key". Ctrl+C is the
@@ -289,8 +289,9 @@ class ScriptedConsole:
 # --------------------------------------------------------------------------- questions
 
 
-class Operator:
-    """The questions of the dialogue, on a :class:`Console`.
+class Questions:
+    """The questions the dialogue asks the operator (the person at the bench), on a
+    :class:`Console`.
 
     ``yes``: answer every question with its default without reading a key (a question
     without a default raises UserError naming the option to give). ``idle()`` is called about
@@ -462,3 +463,8 @@ class Operator:
             if k is not None:
                 self.end_progress()
                 return k
+
+
+#: the old name of :class:`Questions` ("operator" now means only the person at the bench, or
+#: the virtual bench's simulated one); kept for code written against it
+Operator = Questions

@@ -14,18 +14,18 @@ from host.dialogue.console import ScriptedConsole
 
 
 def test_esc_at_press_any_key_does_not_start_the_measurement() -> None:
-    from host.dialogue.console import ESC, Operator
+    from host.dialogue.console import ESC, Questions
 
     con = ScriptedConsole([ESC, " "])
-    assert Operator(con).any_key("Put the cube on the base with X up. Press any key.") == " "
+    assert Questions(con).any_key("Put the cube on the base with X up. Press any key.") == " "
     assert "Esc aborts a measurement; none is running" in con.text and con.keys == []
 
 
 def test_an_invalid_key_at_a_yes_no_question_is_answered() -> None:
-    from host.dialogue.console import Operator
+    from host.dialogue.console import Questions
 
     con = ScriptedConsole(["x", "n"])
-    assert Operator(con).yes_no("Save <Y> or repeat <N>?", True) is False
+    assert Questions(con).yes_no("Save <Y> or repeat <N>?", True) is False
     assert "'x': press Y or N (Enter: Y)" in con.text
 
 
