@@ -20,6 +20,7 @@ from host.calib.records import Session, read_session
 from host.calib.report import verdict_line
 from host.calib.result import CalibrationResult
 from host.dialogue.live import DEFAULT_READY_S, WARMUP_DEFAULT_S
+from host.errors import UserError
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
