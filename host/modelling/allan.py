@@ -116,13 +116,39 @@ def basis(tau_s: np.ndarray) -> np.ndarray:
     return np.column_stack([1.0 / t, np.full_like(t, FLICKER_AVAR), t / 3.0])
 
 
+#: Greenhall's J_max: above it his EDF takes a closed form (allantools.ci.edf_greenhall)
+_J_MAX = 100
+
+
 def edf(alpha: int, m: int, n: int) -> float:
     """Greenhall's equivalent degrees of freedom of the overlapping Allan variance at averaging
     factor ``m`` over ``n`` rate samples for noise exponent ``alpha`` (0 white FM, −1 flicker
-    FM, −2 random-walk FM)."""
+    FM, −2 random-walk FM).
+
+    Where Greenhall sums J = 3m terms (case 2.1: 3m ≤ J_max, M = n − 2m + 1 ≥ 3m estimator
+    terms), his eq. (10) is 1/edf = (A − B/M)/M with A, B depending on (α, m) only: they are
+    summed once per (α, m) (:func:`_greenhall_ab`), so the planner's many lengths cost nothing
+    more; elsewhere ``allantools.edf_greenhall`` is called."""
     if 2 * m + 1 > n:
         return 1.0
+    big_m = n - 2 * m + 1  # Greenhall's M for N = n + 1 phase points, d = 2, F = S = m
+    if 3 * m <= _J_MAX and big_m >= 3 * m:
+        a, b = _greenhall_ab(int(alpha), int(m))
+        return 1.0 / ((a - b / big_m) / big_m)
     return float(_allantools().edf_greenhall(alpha, 2, int(m), int(n) + 1, overlapping=True))
+
+
+@functools.lru_cache(maxsize=4096)
+def _greenhall_ab(alpha: int, m: int) -> tuple[float, float]:
+    """A, B of 1/edf = (A − B/M)/M for Greenhall's case 2.1 with J = 3m (overlapping Allan
+    variance, d = 2, F = S = m): his BasicSum (eq. 10) split into the part independent of M
+    (A) and the part proportional to 1/M (B), both over s_z(0)²."""
+    ci = _allantools().ci
+    j_big = 3 * m
+    z = [ci.greenhall_sz(j / m, m, alpha, 2) ** 2 for j in range(j_big + 1)]
+    a = z[0] + z[j_big] + 2.0 * sum(z[1:j_big])
+    b = j_big * z[j_big] + 2.0 * sum(j * z[j] for j in range(1, j_big))
+    return a / z[0], b / z[0]
 
 
 def chi2_interval(var: np.ndarray, dof: np.ndarray, ci: float = CI_LEVEL) -> tuple:
@@ -222,13 +248,29 @@ def curve_edf(curve: AllanCurve, coef: np.ndarray) -> np.ndarray:
     return np.array([edf(int(al), int(m), curve.n) for al, m in zip(alphas, curve.m, strict=True)])
 
 
-def _local_slope(tau: np.ndarray, dev: np.ndarray, i: int, half: float = 0.3) -> float | None:
-    """Slope of log σ against log τ over the points within ±``half`` decades of point i."""
-    lt = np.log10(tau)
-    sel = np.abs(lt - lt[i]) <= half
-    if np.count_nonzero(sel) < 3:
-        return None
-    return float(np.polyfit(lt[sel], np.log10(dev[sel]), 1)[0])
+def local_slopes(tau: np.ndarray, dev: np.ndarray, half: float = 0.3) -> np.ndarray:
+    """At each point i: the least-squares slope of log σ against log τ over the points within
+    ±``half`` decades of it (NaN where fewer than 3)."""
+    lt = np.log10(np.asarray(tau, dtype=np.float64))
+    ld = np.log10(np.asarray(dev, dtype=np.float64))
+    sel = (np.abs(lt[:, None] - lt[None, :]) <= half).astype(np.float64)
+    n = sel.sum(axis=1)
+    xm = (sel @ lt) / n
+    ym = (sel @ ld) / n
+    dx = lt[None, :] - xm[:, None]
+    dy = ld[None, :] - ym[:, None]
+    sxx = np.sum(sel * dx * dx, axis=1)
+    sxy = np.sum(sel * dx * dy, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = sxy / sxx
+    out[n < 3] = np.nan
+    return out
+
+
+def _slopes(curve: AllanCurve, coef: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Local slopes (:func:`local_slopes`) of the measured curve and of the model ``coef``."""
+    model = np.sqrt(np.maximum((basis(curve.tau_s) * coef).sum(axis=1), 1e-300))
+    return local_slopes(curve.tau_s, curve.adev), local_slopes(curve.tau_s, model)
 
 
 def _read_term(
@@ -239,12 +281,14 @@ def _read_term(
     hi: np.ndarray,
     unit: str,
     others_band: tuple[np.ndarray, np.ndarray] | None = None,
+    slopes: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Figure:
     """Figure of term k, read at the τ where it holds with the narrowest interval.
 
     At each τ the term is σ² minus the other two terms: the value with their fitted values,
     the interval with the interval of σ² and the others' own intervals (``others_band``: their
-    lowest and highest contribution at each τ; the fitted values when None)."""
+    lowest and highest contribution at each τ; the fitted values when None). ``slopes``: the
+    local slopes of the curve and of the model (:func:`_slopes`), when already known."""
     a = basis(curve.tau_s)
     parts = a * coef
     total = np.maximum(parts.sum(axis=1), 1e-300)
@@ -253,13 +297,12 @@ def _read_term(
     o_lo, o_hi = (others, others) if others_band is None else others_band
     var = curve.adev**2
     best: tuple[float, int] | None = None
-    model_dev = np.sqrt(total)
+    slopes_data, slopes_model = slopes if slopes is not None else _slopes(curve, coef)
     for i in range(curve.tau_s.size):
         if share[i] < DOMINANT_SHARE or lo[i] - o_hi[i] <= 0:
             continue
-        s_data = _local_slope(curve.tau_s, curve.adev, i)
-        s_model = _local_slope(curve.tau_s, model_dev, i)
-        if s_data is None or s_model is None:
+        s_data, s_model = float(slopes_data[i]), float(slopes_model[i])
+        if math.isnan(s_data) or math.isnan(s_model):
             continue
         # the slope agrees within its noise: the relative half-width of σ over the window
         spread = 0.5 * math.log10(hi[i] / lo[i]) / 0.6
@@ -334,10 +377,11 @@ def fit_noise(channel: str, curve: AllanCurve, ci: float = CI_LEVEL) -> ChannelN
     full = AllanCurve(curve.tau_s, curve.adev, curve.n, curve.rate_hz, edfs, lo, hi, ci)
     units = UNITS[sensor_of(channel)]
     # first with the others at their fitted values, then twice with their intervals
-    figs = [_read_term(k, full, coef, lo, hi, units[k]) for k in range(3)]
+    sl = _slopes(full, coef)
+    figs = [_read_term(k, full, coef, lo, hi, units[k], slopes=sl) for k in range(3)]
     for _ in range(2):
         figs = [
-            _read_term(k, full, coef, lo, hi, units[k], _bands(k, full.tau_s, figs, coef))
+            _read_term(k, full, coef, lo, hi, units[k], _bands(k, full.tau_s, figs, coef), sl)
             for k in range(3)
         ]
     return ChannelNoise(channel, full, coef, dict(zip(QUANTITIES, figs, strict=True)))
@@ -365,10 +409,11 @@ def _expected_figures(
     lo, hi = chi2_interval(curve.adev**2, edfs, ci)
     full = AllanCurve(tau, curve.adev, n, rate_hz, edfs, lo, hi, ci)
     units = UNITS[sensor_of(channel)]
-    figs = [_read_term(k, full, coef, lo, hi, units[k]) for k in range(3)]
+    sl = _slopes(full, coef)
+    figs = [_read_term(k, full, coef, lo, hi, units[k], slopes=sl) for k in range(3)]
     for _ in range(2):
         figs = [
-            _read_term(k, full, coef, lo, hi, units[k], _bands(k, tau, figs, coef))
+            _read_term(k, full, coef, lo, hi, units[k], _bands(k, tau, figs, coef), sl)
             for k in range(3)
         ]
     return dict(zip(QUANTITIES, figs, strict=True))
