@@ -190,3 +190,29 @@ def test_noise_file_with_a_newer_version_is_refused(tmp_path) -> None:
     p.write_text(json.dumps({"format": "imu-bench noise", "format_version": 99, "channels": {}}))
     with pytest.raises(noise.UserError, match="update the host software"):
         noise.load_noise_file(p)
+
+
+def test_fast_greenhall_edf_and_local_slopes_equal_the_library_and_polyfit() -> None:
+    """The planner's shortcuts (Greenhall's sum split once per (alpha, m); slopes of every
+    point at once) give what allantools and np.polyfit give, on every branch of Greenhall."""
+    from host.modelling import allan
+
+    for alpha in (0, -1, -2):
+        for m in (1, 2, 7, 33, 34, 80, 400):
+            for n in (60, 101, 250, 4_000, 123_457):
+                if 2 * m + 1 > n:
+                    continue
+                ref = float(allantools.edf_greenhall(alpha, 2, m, n + 1, overlapping=True))
+                assert allan.edf(alpha, m, n) == pytest.approx(ref, rel=1e-12), (alpha, m, n)
+    rng = np.random.default_rng(4)
+    tau = np.unique(np.rint(np.logspace(0, 4, 40))) / 50.0
+    dev = np.exp(rng.normal(size=tau.size)) * tau**-0.5
+    got = allan.local_slopes(tau, dev)
+    lt = np.log10(tau)
+    for i in range(tau.size):
+        sel = np.abs(lt - lt[i]) <= 0.3
+        if np.count_nonzero(sel) < 3:
+            assert np.isnan(got[i])
+        else:
+            want = np.polyfit(lt[sel], np.log10(dev[sel]), 1)[0]
+            assert got[i] == pytest.approx(want, abs=1e-12)
