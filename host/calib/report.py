@@ -58,6 +58,7 @@ def format_report(result: CalibrationResult) -> str:
     turns = "-" if r.turns is None else str(r.turns)
     out.append(f"Records: {len(r.residuals)} ({plan}); turns per turn record: {turns}")
     out.append(f"Method: {r.method}")
+    out.extend(_wrap(f"Verdict: {verdict(r)} (RESULT below)", "", "  "))
     out.append(f"Model: {r.model}")
     if r.fit is not None:
         out.extend(_wrap(r.fit.line(), "", "  "))
@@ -223,15 +224,22 @@ def failed_values(result: CalibrationResult) -> list[str]:
     return bad + [p.name for p in result.undetermined if p.name not in bad]
 
 
-def verdict_line(result: CalibrationResult, report_path: str | os.PathLike[str]) -> str:
-    """The one line a session or ``--from-dir`` ends on: PASS or FAIL, why, and the report."""
+def verdict(result: CalibrationResult) -> str:
+    """PASS or FAIL and why, in one line (the report's header and the last line on screen)."""
     if result.all_passed:
-        return f"PASS: every value within tolerance; report {report_path}"
+        return "PASS: every value within tolerance"
     bad = failed_values(result)
     why = f"{len(bad)} value(s) outside tolerance or not determined" if bad else ""
     if result.verification is not None and not result.verification.passed:
         why = (why + "; " if why else "") + "held-out records not predicted within the limits"
-    return f"FAIL: {why}; report {report_path}"
+    return f"FAIL: {why}"
+
+
+def verdict_line(result: CalibrationResult, report_path: str | os.PathLike[str]) -> str:
+    """The one line a session or ``--from-dir`` ends on: the :func:`verdict`, the report's
+    path, and ``(SIMULATED BOARD)`` when the records came from a virtual or emulated board."""
+    sim = any(n.startswith(SIMULATED_BOARD) for n in result.notes)
+    return f"{verdict(result)}; report {report_path}" + (f" ({SIMULATED_BOARD})" if sim else "")
 
 
 def write_results(

@@ -194,4 +194,6 @@ def test_from_dir_ends_on_the_verdict_and_the_report(tmp_path: Path, capsys) -> 
         rc = main(["calibrate", "--from-dir", str(REAL), "--out", str(out), *extra])
         err = capsys.readouterr().err.rstrip("\n").splitlines()
         assert rc == 1 and err[-1].startswith("FAIL: ") and "outside tolerance" in err[-1]
-        assert err[-1].endswith(f"report {out / 'REAL_result.txt'}")
+        assert err[-1].endswith(f"report {out / 'REAL_result.txt'}")  # real data: no mark
+        head = (out / "REAL_result.txt").read_text().splitlines()[:10]
+        assert any(ln.startswith("Verdict: FAIL: ") for ln in head)

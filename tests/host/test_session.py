@@ -97,8 +97,13 @@ def test_yes_session_writes_every_file(yes_session: dict[str, Any]) -> None:
     # the session ends on its verdict and the report's path, whatever passed or failed
     last = yes_session["con"].text.rstrip("\n").splitlines()[-1]
     verdict = "PASS: " if yes_session["rc"] == 0 else "FAIL: "
-    assert last.startswith(verdict) and last.endswith(f"report {out / 'S1_result.txt'}")
+    assert last.startswith(verdict)
+    assert last.endswith(f"report {out / 'S1_result.txt'} (SIMULATED BOARD)")
     report = (out / "S1_result.txt").read_text().splitlines()
+    # the verdict heads the report too (the RESULT block sits below the table)
+    assert [ln for ln in report[:10] if ln.startswith("Verdict: ")] == [
+        f"Verdict: {last.split('; report')[0]} (RESULT below)"
+    ]
     assert report[1].startswith("*** SIMULATED BOARD sim://")
     for name in STATIC_NAMES + TURN_NAMES:
         assert read_record(out / f"S1_{name}.txt").meta["board"].startswith("SIMULATED BOARD sim")
@@ -302,11 +307,16 @@ def test_board_vanishing_mid_measurement(tmp_path: Path) -> None:
 
 
 class DroppingPort:
-    """Wraps a sim port and drops every 30th read (whole frames at speed=max)."""
+    """Wraps a sim port, reads at most one frame's bytes at a time and drops every 30th
+    read: a link that loses a frame now and then, however the port chunks its output."""
 
     def __init__(self, inner: Any) -> None:
         self.inner = inner
         self.reads = 0
+
+    @property
+    def in_waiting(self) -> int:
+        return min(int(self.inner.in_waiting), live.IMU_FRAME_BYTES)
 
     def read(self, n: int = 1) -> bytes:
         data = self.inner.read(n)
@@ -369,13 +379,13 @@ def test_silent_port_at_connect(tmp_path: Path) -> None:
 
 
 class GoesSilent:
-    """Wraps a sim port; after ``after`` reads it sends nothing (firmware hung) until the
-    port is opened again (the DTR reset of a re-open restarts the board)."""
+    """Wraps a sim port; after ``after`` frames' worth of bytes it sends nothing (firmware
+    hung) until the port is opened again (the DTR reset of a re-open restarts the board)."""
 
     def __init__(self, inner: Any, after: int = 400) -> None:
         self.inner = inner
-        self.after = after
-        self.reads = 0
+        self.after = after * live.IMU_FRAME_BYTES  # bytes
+        self.got = 0
         self.silent_since: float | None = None
 
     @property
@@ -383,18 +393,19 @@ class GoesSilent:
         return 0 if self.silent_since is not None else int(self.inner.in_waiting)
 
     def read(self, n: int = 1) -> bytes:
-        self.reads += 1
-        if self.silent_since is None and self.reads == self.after:
+        if self.silent_since is None and self.after <= self.got < self.after + 10**9:
             self.silent_since = time.monotonic()
         if self.silent_since is not None:
             time.sleep(0.05)
             return b""
-        return bytes(self.inner.read(n))
+        data = bytes(self.inner.read(n))
+        self.got += len(data)
+        return data
 
     def open(self) -> None:
         self.inner.open()
         self.silent_since = None
-        self.reads = -(10**9)  # once is enough
+        self.got = -(10**12)  # once is enough
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.inner, name)
