@@ -164,9 +164,9 @@ def add_live_arguments(p: argparse.ArgumentParser) -> None:
         help="IMUCAP01 capture of the session (default OUT/SERIAL_session.cap)",
     )  # fmt: skip
     p.add_argument(
-        "--ready-seconds", type=float, default=DEFAULT_READY_S, metavar="S",
+        "--ready-seconds", type=float, metavar="S",
         help="pause between 'get ready' and the start beep of a turn, s "
-        f"(default {DEFAULT_READY_S:g})",
+        f"(default {DEFAULT_READY_S:g}; none with --yes on the virtual board: nobody turns)",
     )  # fmt: skip
 
 

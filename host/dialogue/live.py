@@ -230,7 +230,7 @@ class SessionOptions:
     resume: bool = False
     redo: tuple[str, ...] = ()
     capture: Path | None = None
-    ready_s: float = DEFAULT_READY_S
+    ready_s: float | None = None  # None: DEFAULT_READY_S, 0 when nobody turns (--yes, sim)
     loss_limit: float = LOSS_LIMIT
     stall_s: float = STALL_S
     sample_stall_s: float = SAMPLE_STALL_S
@@ -266,7 +266,7 @@ class SessionOptions:
             resume=bool(get("resume", False)),
             redo=tuple(n.strip() for r in get("redo", []) for n in r.split(",") if n.strip()),
             capture=Path(cap) if cap else None,
-            ready_s=float(get("ready_seconds", DEFAULT_READY_S)),
+            ready_s=None if get("ready_seconds") is None else float(get("ready_seconds")),
             model=str(get("model", "base")),
             term_files=tuple(get("term_file", ())),
             verify=get("verify"),
@@ -295,7 +295,7 @@ class SessionOptions:
             raise UserError(f"--turns must be 1 to {MAX_TURNS} (3 or fewer recommended)")
         if not math.isfinite(self.warmup_s) or self.warmup_s < 0:
             raise UserError("--warmup must be 0 (skip) or a number of seconds")
-        if not math.isfinite(self.ready_s) or self.ready_s < 0:
+        if self.ready_s is not None and (not math.isfinite(self.ready_s) or self.ready_s < 0):
             raise UserError("--ready-seconds must be 0 or more")
         unknown = [n for n in self.redo if n not in STATIC_NAMES + TURN_NAMES]
         if unknown:
@@ -352,7 +352,7 @@ class SessionOptions:
         if turns is not None:
             args += ["--turns", str(turns)]
         args += ["--warmup", _number(self.warmup_s)]
-        if self.ready_s != DEFAULT_READY_S:
+        if self.ready_s is not None:
             args += ["--ready-seconds", _number(self.ready_s)]
         if self.latitude_deg != DEFAULT_LATITUDE_DEG:
             args += ["--latitude", _number(self.latitude_deg)]
@@ -1299,7 +1299,10 @@ class LiveSession:
                 f"Get ready to turn {n} turn{'s' if n > 1 else ''} {words} (seen from above) "
                 f"within {window:g} s, between the beeps."
             )
-            if self.opts.ready_s > 0 and op.countdown(self.opts.ready_s, "  start in", False):
+            ready = self.opts.ready_s
+            if ready is None:  # no pause when nobody turns the cube (--yes, virtual board)
+                ready = 0.0 if self.opts.yes and self.board.has_operator else DEFAULT_READY_S
+            if ready > 0 and op.countdown(ready, "  start in", False):
                 op.say("Aborted (Esc): nothing recorded.")
                 continue
             self.board.hint("turn", axis=axis, direction=direction, turns=n, window_s=window)
@@ -1380,7 +1383,7 @@ class LiveSession:
 
         def tick(elapsed: float, sums: np.ndarray, k: int) -> None:
             frac = min(1.0, elapsed / seconds) if seconds > 0 else 1.0
-            bar = "#" * int(frac * 20) + "-" * (20 - int(frac * 20))
+            bar = "#" * int(frac * 10) + "-" * (10 - int(frac * 10))  # means fit 80 columns
             head = f"{name} [{bar}] {elapsed:6.1f}/{seconds:g} s"
             if k == 0:
                 op.progress(head)
@@ -1591,6 +1594,9 @@ def run_live_session(
     note = None
     if not opts.port:
         opts.port, note = default_port()
+        if opts.port == "sim://" and opts.yes:  # nobody watches: as fast as it computes
+            opts.port = "sim://?speed=max"
+            note = f"{note}; at full speed with --yes (--port sim:// shows it in real time)"
     own = console is None
     term = TerminalConsole(interactive=not opts.yes) if own else None
     con: Console = term if term is not None else console  # type: ignore[assignment]

@@ -192,3 +192,75 @@ def test_ctrl_c_during_the_warm_up_does_not_speak_of_a_measurement(tmp_path: Pat
         assert live.run_live_session(o, con, open_port) == 130
     assert "Aborted (Ctrl+C) during the warm-up (not recorded)." in con.text
     assert "measurement in progress" not in con.text
+
+
+@pytest.mark.parametrize("yes, url", [(True, "sim://?speed=max"), (False, "sim://")])
+def test_the_default_virtual_board_runs_at_full_speed_when_nobody_watches(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, yes: bool, url: str
+) -> None:
+    from host.dialogue import live
+    from host.errors import UserError
+
+    monkeypatch.setattr(live, "default_port", lambda: ("sim://", "NO BOARD FOUND"))
+    opened: list[str] = []
+
+    def factory(u: str) -> None:
+        opened.append(u)
+        raise UserError("enough")
+
+    o = live.SessionOptions(serial="F1", out=tmp_path / "F1", static_seconds=2.0, turns=1,
+                            warmup_s=0.0, yes=yes)  # fmt: skip
+    con = ScriptedConsole()
+    with pytest.raises(UserError, match="enough"):
+        live.run_live_session(o, con, factory)  # type: ignore[arg-type]
+    assert opened == [url]
+    assert ("at full speed with --yes (--port sim:// shows it in real time)" in con.text) is yes
+
+
+def test_no_pause_before_a_turn_when_nobody_turns_the_cube(tmp_path: Path) -> None:
+    """--yes on the virtual board: no 'start in' countdown (nobody is getting ready); a given
+    --ready-seconds still counts down."""
+    import contextlib
+    import io
+
+    from host.board.link import open_port
+    from host.dialogue import live
+
+    for ready, counts in ((None, False), (0.5, True)):
+        con = ScriptedConsole()
+        shown: list[str] = []
+        con.progress = shown.append  # type: ignore[method-assign]
+        o = live.SessionOptions(port="sim://?speed=max&effects=linear,noise&earth_rate=0",
+                                serial="R1", out=tmp_path / f"R{ready}", static_seconds=1.0,
+                                turns=1, warmup_s=0.0, yes=True, ready_s=ready)  # fmt: skip
+        with contextlib.redirect_stdout(io.StringIO()):
+            assert live.run_live_session(o, con, open_port) in (0, 1)
+        assert any("start in" in t for t in shown) is counts
+
+
+@pytest.mark.timeout(300)  # a whole session in a subprocess: seconds alone, a minute on a busy CI
+def test_the_readmes_first_command_gives_a_whole_session(tmp_path: Path) -> None:
+    """The command under 'Run a calibration' in README.md, as written (after ``pip install``),
+    with no board: the virtual board at full speed, announced, a report, the verdict last."""
+    import os
+    import shlex
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[2]
+    readme = (root / "README.md").read_text()
+    line = next(ln for ln in readme.splitlines() if ln.startswith("pip install -e . && "))
+    cmd = shlex.split(line.split(" && ", 1)[1])
+    assert cmd[:3] == ["python3", "-m", "host"]
+    env = dict(os.environ, PYTHONPATH=str(root))
+    proc = subprocess.run([sys.executable, *cmd[1:]], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=280, env=env)  # fmt: skip
+    assert proc.returncode in (0, 1), proc.stderr[-1500:]
+    assert "NO BOARD FOUND (looked at:" in proc.stderr and "at full speed" in proc.stderr
+    assert "start in" not in proc.stderr  # no get-ready pause: nobody turns
+    serial = cmd[cmd.index("--serial") + 1]
+    assert (tmp_path / serial / f"{serial}_result.txt").exists()
+    rec = (tmp_path / serial / f"{serial}_x_up.txt").read_text()
+    assert "SIMULATED BOARD sim://?speed=max" in rec
+    last = proc.stderr.rstrip("\n").splitlines()[-1]
+    assert last.startswith(("PASS: ", "FAIL: ")) and last.endswith("(SIMULATED BOARD)")

@@ -80,13 +80,22 @@ CMD = _command()
 class Screen:
     """A child process on a pty: read what it shows, type keys."""
 
-    def __init__(self, args: list[str], cwd: Path) -> None:
+    def __init__(self, args: list[str], cwd: Path, size: tuple[int, int] | None = None) -> None:
+        """``size``: (rows, columns) of the terminal, set on the pty as a terminal window
+        does (TIOCSWINSZ); None leaves the pty unsized and says COLUMNS=120."""
+        import fcntl
         import pty
+        import struct
+        import termios
 
         env = dict(os.environ, PYTHONPATH=str(ROOT), TERM="xterm", COLUMNS="120")
+        if size is not None:  # the program must read the terminal, not a stale COLUMNS
+            env.update(COLUMNS="200", LINES=str(size[0] + 30))
         self.pid, self.fd = pty.fork()
         if self.pid == 0:  # child: the pty is its controlling terminal
             try:
+                if size is not None:
+                    fcntl.ioctl(0, termios.TIOCSWINSZ, struct.pack("HHHH", *size, 0, 0))
                 # Ctrl+C must reach the program even when this test runs in a background job
                 # (a non-interactive shell's `cmd &` ignores SIGINT, and exec keeps SIG_IGN)
                 signal.signal(signal.SIGINT, signal.SIG_DFL)
@@ -362,3 +371,31 @@ def test_ctrl_c_during_a_measurement_then_resume(
 
     assert sorted(json.loads(proc.stdout)["records"]) == sorted(STATIC_NAMES + TURN_NAMES)
     assert leftovers(out) == []
+
+
+def test_an_80x24_terminal_redraws_in_place_and_ends_with_the_verdict(
+    tmp_path: Path, screens: list[Screen]
+) -> None:
+    """80×24 (the pty sized as a terminal window sizes it): every progress redraw, running
+    means included, fits in one line (a wrapped one leaves a line per redraw and pushes the
+    instructions off the screen), and the last line is the verdict with the report's path."""
+    s = Screen(["--port", board_url("sim", 31, "max"), "--serial", "T80", "--yes",
+                "--warmup", "0", "--static-seconds", "3", "--turns", "1"], tmp_path,
+               size=(24, 80))  # fmt: skip
+    screens.append(s)
+    assert s.wait() in (0, 1)
+    redraws = [seg for line in s.text.split("\n") for seg in line.split("\r")[1:]]
+    redraws = [seg.replace("\x1b[K", "") for seg in redraws if seg.strip()]
+    assert len(redraws) > 12, "the progress lines are drawn in place"
+    assert max(len(seg) for seg in redraws) <= 79, max(redraws, key=len)
+    # the running means are all there, not cut off: 3 accel and 3 gyro values
+    means = [seg for seg in redraws if re.search(r" A( [+-]\d+\.\d{3}){3}  G( [+-]\d+\.\d{3}){3}$",
+                                                  seg)]  # fmt: skip
+    assert len(means) > 6, redraws[:20]
+    last = [ln for ln in s.text.replace("\r", "\n").split("\n") if ln.strip()][-1]
+    assert re.fullmatch(
+        r"(PASS: every value within tolerance|FAIL: \d+ value\(s\) .*); report "
+        r"T80/T80_result\.txt \(SIMULATED BOARD\)",
+        last.strip(),
+    ), last
+    assert len(last) <= 80
