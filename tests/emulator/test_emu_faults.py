@@ -55,7 +55,9 @@ def test_yes_session_on_a_failed_sensor_ends_with_exit_2(
         assert "WHO_AM_I" in err[0] and "no sensor answers on SPI" in err[0]
         return
     assert "the board reports ERROR" in err[0] or "no samples from the board" in err[0]
-    assert f"--serial F1 --out {out} --resume" in err[0]
+    # the printed command carries every option given (test_session_resume.py reads it back)
+    assert f"--serial F1 --out {out} --static-seconds 3 --turns 1 --warmup 0" in err[0]
+    assert err[0].endswith(" --yes --resume")
     kept = sorted(p.name for p in out.glob("F1_*_*.txt"))
     if fault_at > 0:
         assert "F1_x_up.txt" in kept, kept  # accepted before the fault: kept
