@@ -1,7 +1,10 @@
 """``python -m host decode FILE``: a capture's samples as JSONL or CSV, or the decoder counters.
 
-The decoding is :mod:`host.wire.frames` (:func:`~host.wire.frames.decode_file`); the device→host
-clock map of an IMUCAP01 capture is :func:`host.timing.clock.build_timeline`.
+The input streams through in chunks (:class:`host.wire.frames.BulkReader`): a capture of any
+size, a FIFO or an endless device decodes in bounded memory, and rows are written as they are
+decoded. The device→host clock map of an IMUCAP01 capture is built as the samples stream in
+(:class:`host.timing.clock.TimelineBuilder`: the same map as
+:func:`host.timing.clock.build_timeline` of the whole file).
 """
 
 from __future__ import annotations
@@ -9,17 +12,22 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import stat
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
 from host.timing import clock
+from host.wire import capture, sensor
 from host.wire.frames import (
     IMU_FIELDS,
+    SAMPLE_DTYPE,
+    BulkReader,
+    BulkResult,
+    Frame,
     baud_from_hello,
-    decode_file,
     full_scale_from_hello,
     samples_to_physical,
 )
@@ -27,7 +35,10 @@ from host.wire.frames import (
 
 def cli_decode(p: argparse.ArgumentParser) -> Any:
     p.add_argument(
-        "file", type=Path, help="raw byte capture or IMUCAP01 capture with arrival times"
+        "file",
+        type=Path,
+        help="raw byte capture or IMUCAP01 capture with arrival times (a file of any size, "
+        "a FIFO or a device: read in chunks until it ends)",
     )
     fmt = p.add_mutually_exclusive_group()
     fmt.add_argument("--jsonl", action="store_true", help="one JSON object per sample (default)")
@@ -36,7 +47,7 @@ def cli_decode(p: argparse.ArgumentParser) -> Any:
     return run_decode
 
 
-def _clock_summary(seg: Any) -> dict[str, Any]:
+def _clock_summary(seg: clock.Segment) -> dict[str, Any]:
     """One segment's device-to-host clock map, for --stats."""
     out: dict[str, Any] = {"samples": seg.stop - seg.start, "lost_frames": seg.lost_frames}
     out["missed_samples"] = seg.missed_samples
@@ -47,7 +58,7 @@ def _clock_summary(seg: Any) -> dict[str, Any]:
             "offset_ns": round(m.host0_ns + m.offset_ns - m.b * m.device0_us),
             "latency_median_us": round(m.latency_median_us, 1),
             "floor_spread_us": round(m.floor_spread_us, 1),
-            "windows": len(seg.clock.maps),
+            "windows": seg.clock.windows,
         }
     return out
 
@@ -60,56 +71,170 @@ _DIGITS = {"ax": 5, "ay": 5, "az": 5, "gx": 4, "gy": 4, "gz": 4, "temp": 3}
 #: a device clock further off the host's than this (ppm) means the arrival times are nonsense
 #: (a ceramic resonator is within ±5000 ppm, a crystal ±100)
 MAX_PLAUSIBLE_SKEW_PPM = 10_000.0
+#: samples held back until a HELLO says how to scale them (a capture started on a running
+#: board sees HELLO only after a reset); beyond, the firmware's ±2 g, ±250 °/s apply
+HOLD_FOR_HELLO = 1 << 18
+#: segments listed under "clock" by --stats (a garbled stream can reset at every frame)
+MAX_LISTED_SEGMENTS = 1000
 
 
-def run_decode(args: argparse.Namespace) -> int:
-    result, arrivals = decode_file(args.file)
-    s = result.samples
-    timeline = None
-    if arrivals is not None:
-        timeline = clock.build_timeline(
-            s,
-            arrivals,
-            baud=baud_from_hello(result.others),
-        )
-    if timeline is not None:
-        for k, seg in enumerate(timeline.segments):
-            skew = seg.clock.overall.skew_ppm if seg.clock is not None else 0.0
+class _Decode:
+    """The decode command's pipeline over the chunks of one input: scale, map, write."""
+
+    def __init__(self, args: argparse.Namespace, out: TextIO) -> None:
+        self.args = args
+        self.path = args.file
+        self.out = out
+        self.hellos: list[tuple[int, Frame]] = []
+        self.config: tuple[int, int] | None = None
+        self.held: list[tuple[np.ndarray, np.ndarray | None]] = []
+        self.held_n = 0
+        self.timeline: clock.TimelineBuilder | None = None
+        self.warned_segments = 0
+        self.capture = False
+        self.writer: Any = None
+        self.cols: list[str] = []
+
+    def add(self, result: BulkResult, arrivals: np.ndarray | None) -> None:
+        self.capture = arrivals is not None
+        self.hellos += [(o, f) for o, f in result.others if f.name == "HELLO"]
+        if self.config is None:
+            self.held.append((result.samples, arrivals))
+            self.held_n += result.samples.size
+            valid = any(
+                f.fields["accel_fs_sel"] in sensor.ACCEL_LSB_PER_G
+                and f.fields["gyro_fs_sel"] in sensor.GYRO_LSB_PER_DPS
+                for _, f in self.hellos
+            )
+            stats_only = self.args.stats and (self.hellos or not self.capture)  # needs no scale
+            if valid or stats_only or self.held_n > HOLD_FOR_HELLO:
+                self._decide()
+            return
+        self._samples(result.samples, arrivals)
+
+    def _decide(self) -> None:
+        """Scaling and baud from the HELLO frames seen (the first valid one, as
+        :func:`~host.wire.frames.full_scale_from_hello`), then release what was held."""
+        self.config = (0, 0) if self.args.stats else full_scale_from_hello(self.hellos)
+        if self.capture:
+            self.timeline = clock.TimelineBuilder(
+                baud=baud_from_hello(self.hellos), keep_segments=MAX_LISTED_SEGMENTS
+            )
+        held, self.held = self.held, []
+        for s, a in held:
+            self._samples(s, a)
+
+    def _samples(self, s: np.ndarray, arrivals: np.ndarray | None) -> None:
+        if self.timeline is None:
+            self._write(s, None, None)
+            return
+        for block in self.timeline.add(s, arrivals):
+            self._write(block.samples, block.host_ns, block.arrival_ns)
+        self._warn()
+
+    def finish(self, reader: BulkReader) -> int:
+        if self.config is None:
+            self._decide()
+        if self.timeline is not None:
+            for block in self.timeline.finish():
+                self._write(block.samples, block.host_ns, block.arrival_ns)
+            self._warn()
+        self._write(np.zeros(0, SAMPLE_DTYPE), None, None)  # the CSV header, with no samples
+        if reader.truncated_bytes:
+            print(
+                f"warning: {self.path}: the last {reader.truncated_bytes} bytes are a cut-off "
+                "read (the recording was interrupted); decoded everything before them",
+                file=sys.stderr,
+            )
+        if self.args.stats:
+            stats: dict[str, Any] = reader.stats.as_dict()
+            if self.timeline is not None:
+                stats["clock"] = [_clock_summary(g) for g in self.timeline.segments]
+                if self.timeline.segments_dropped:
+                    stats["clock_segments_not_listed"] = self.timeline.segments_dropped
+            print(json.dumps(stats), file=self.out)
+        return 0
+
+    def _warn(self) -> None:
+        """One warning per segment whose clock says its arrival times are not its own."""
+        assert self.timeline is not None
+        segs = self.timeline.segments
+        while self.warned_segments < len(segs):
+            k = self.warned_segments
+            seg = segs[k]
+            self.warned_segments += 1
+            if seg.clock is None:
+                continue
+            skew = seg.clock.overall.skew_ppm
             if not abs(skew) <= MAX_PLAUSIBLE_SKEW_PPM:
                 print(
-                    f"warning: {args.file}: segment {k}: the device clock runs {skew:+.0f} ppm "
+                    f"warning: {self.path}: segment {k}: the device clock runs {skew:+.0f} ppm "
                     "against the host's arrival times (a board's is within ±"
                     f"{MAX_PLAUSIBLE_SKEW_PPM:g}): the arrival times do not belong to these "
                     "samples (capture edited or joined?); t_host_ns is not trustworthy",
                     file=sys.stderr,
                 )
-    if args.stats:
-        out: dict[str, Any] = result.stats.as_dict()
-        if timeline is not None:
-            out["clock"] = [_clock_summary(seg) for seg in timeline.segments]
-        print(json.dumps(out))
-        return 0
-    phys = samples_to_physical(s, *full_scale_from_hello(result.others))
-    cols = _OUT_COLUMNS + _PHYS + (["t_host_ns"] if timeline is not None else [])
-    raw_cols = [s["seq"], s["t_us"], s["flags"]] + [s[n] for n in IMU_FIELDS]
-    phys_cols = [np.round(phys[k], _DIGITS[k]) for k in _PHYS]
-    table = [c.tolist() for c in raw_cols + phys_cols]
-    if timeline is not None:
-        h = timeline.host_ns
-        # unmapped or out of int64's range (nonsense arrival times, warned above): the arrival
-        ok = np.isfinite(h) & (np.abs(h) < 2.0**62)
-        mapped = np.where(ok, np.rint(np.where(ok, h, 0.0)), 0.0).astype(np.int64)
-        mapped[~ok] = np.asarray(arrivals, dtype=np.uint64)[~ok].astype(np.int64)
-        table.append(mapped.tolist())
-    stdout = sys.stdout
-    try:
-        if args.csv:
-            w = csv.writer(stdout, lineterminator="\n")
-            w.writerow(cols)
-            w.writerows(zip(*table, strict=True))
+        while self.timeline.implausible:
+            k = self.timeline.implausible.pop(0)
+            print(
+                f"warning: {self.path}: segment {k}: its device times are no board's (more "
+                f"than {clock.MAX_HELD_SAMPLES} samples for one clock window); t_host_ns are "
+                "the arrival times",
+                file=sys.stderr,
+            )
+
+    def _write(self, s: np.ndarray, host_ns: np.ndarray | None, arr: np.ndarray | None) -> None:
+        if self.args.stats or (s.size == 0 and self.writer is not None):
+            return
+        assert self.config is not None
+        if self.writer is None:
+            self.cols = _OUT_COLUMNS + _PHYS + (["t_host_ns"] if self.capture else [])
+            if self.args.csv:
+                self.writer = csv.writer(self.out, lineterminator="\n")
+                self.writer.writerow(self.cols)
+            else:
+                self.writer = True
+        if s.size == 0:
+            return
+        phys = samples_to_physical(s, *self.config)
+        raw_cols = [s["seq"], s["t_us"], s["flags"]] + [s[n] for n in IMU_FIELDS]
+        phys_cols = [np.round(phys[k], _DIGITS[k]) for k in _PHYS]
+        table = [c.tolist() for c in raw_cols + phys_cols]
+        if host_ns is not None and arr is not None:
+            # unmapped or out of int64's range (nonsense arrival times, warned): the arrival
+            ok = np.isfinite(host_ns) & (np.abs(host_ns) < 2.0**62)
+            mapped = np.where(ok, np.rint(np.where(ok, host_ns, 0.0)), 0.0).astype(np.int64)
+            mapped[~ok] = np.asarray(arr, dtype=np.uint64)[~ok].astype(np.int64)
+            table.append(mapped.tolist())
+        if self.args.csv:
+            self.writer.writerows(zip(*table, strict=True))
         else:
-            for row in zip(*table, strict=True):
-                stdout.write(json.dumps(dict(zip(cols, row, strict=True))) + "\n")
-    except BrokenPipeError:  # e.g. piped into head
-        sys.stderr.close()
-    return 0
+            cols = self.cols
+            self.out.write(
+                "".join(
+                    json.dumps(dict(zip(cols, row, strict=True))) + "\n"
+                    for row in zip(*table, strict=True)
+                )
+            )
+
+
+def run_decode(args: argparse.Namespace) -> int:
+    path: Path = args.file
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        mode = 0
+    if stat.S_ISFIFO(mode):
+        print(f"decode: waiting for a writer on the FIFO {path} (Ctrl+C to stop)", file=sys.stderr)
+    elif stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        print(f"decode: reading the device {path} until it ends (Ctrl+C to stop)", file=sys.stderr)
+    with capture.open_stream(path) as stream:
+        reader = BulkReader(stream)
+        job = _Decode(args, sys.stdout)
+        try:
+            for result, arrivals in reader:
+                job.add(result, arrivals)
+            return job.finish(reader)
+        except BrokenPipeError:  # e.g. piped into head: stop reading
+            sys.stderr.close()
+            return 0

@@ -10,6 +10,7 @@ complete record and reports the cut; nothing already written is lost.
 
 from __future__ import annotations
 
+import bisect
 import os
 import stat
 import struct
@@ -73,8 +74,8 @@ def parse(raw: bytes, source: str = "capture") -> Capture:
     )
 
 
-#: captures above this size are refused (decoding holds the capture and its samples in memory):
-#: 512 MiB is ≈ 90 hours of the board's 50 Hz stream
+#: captures above this size are refused where a capture is read whole (import, noise, replay://;
+#: ``decode`` streams instead): 512 MiB is ≈ 90 hours of the board's 50 Hz stream
 MAX_CAPTURE_BYTES = 512 << 20
 
 
@@ -98,12 +99,32 @@ def read_capture_bytes(path: str | os.PathLike[str], limit: int = MAX_CAPTURE_BY
         )
     if st.st_size > limit:
         raise UserError(
-            f"{p}: {st.st_size / 2**20:.0f} MiB is more than the {limit / 2**20:.0f} MiB decode "
-            "reads at once; record shorter captures (capture --seconds)"
+            f"{p}: {st.st_size / 2**20:.0f} MiB is more than the {limit / 2**20:.0f} MiB read "
+            "at once here ('decode' streams captures of any size); record shorter captures "
+            "(capture --seconds)"
         )
     try:
         with open(p, "rb") as f:
             return f.read(limit + 1)[:limit]
+    except OSError as exc:
+        raise UserError(f"{p}: cannot read ({exc.strerror or exc})") from None
+
+
+def open_stream(path: str | os.PathLike[str]) -> BinaryIO:
+    """Open a capture to read as a stream: a file of any size, a FIFO (opening waits for its
+    writer), a device (read until it ends). UserError naming the path when it is missing, a
+    directory or unreadable."""
+    p = Path(path)
+    try:
+        st = p.stat()
+    except FileNotFoundError:
+        raise UserError(f"{p}: no such file; give the path of a capture") from None
+    except OSError as exc:
+        raise UserError(f"{p}: cannot read ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise UserError(f"{p}: is a directory; give the path of a capture file")
+    try:
+        return open(p, "rb", buffering=0)  # noqa: SIM115 - the caller closes it
     except OSError as exc:
         raise UserError(f"{p}: cannot read ({exc.strerror or exc})") from None
 
@@ -119,26 +140,86 @@ def read(path: str | os.PathLike[str]) -> Capture:
 
 class CaptureUnwrapper:
     """Incremental IMUCAP01 parser: ``feed`` the file's bytes in any pieces (magic first),
-    get back the recorded port bytes they complete (read times are dropped)."""
+    get back the recorded port bytes they complete.
 
-    def __init__(self) -> None:
+    With ``times=True`` it also keeps each read's host time and where its bytes end in the
+    port bytes (:meth:`arrival_ns_at`; :meth:`forget_before` drops what is no longer asked
+    for). A read's bytes are held until the read is complete, as :func:`parse` does with a
+    cut-off last read; a read longer than ``hold`` bytes (no port read is: this only happens
+    in a made-up file) is passed on as it comes, so memory stays bounded.
+    """
+
+    def __init__(self, times: bool = False, hold: int = 1 << 20) -> None:
         self._buf = bytearray()
         self._magic_left = len(MAGIC)
+        self._times = times
+        self.hold = hold
+        self._body_left = 0  # bytes of the current read still to come
+        self._streaming = False  # the current read is being passed on as it comes
+        self._header = 0  # bytes of the current read's header taken (while _body_left)
+        self.total = 0  # port bytes passed on so far
+        self._reads_ns: list[int] = []
+        self._reads_end: list[int] = []
 
-    def feed(self, data: bytes) -> bytes:
+    def feed(self, data: bytes | bytearray | memoryview) -> bytes:
         self._buf += data
         if self._magic_left:
             k = min(self._magic_left, len(self._buf))
             del self._buf[:k]
             self._magic_left -= k
         out = bytearray()
-        while len(self._buf) >= _REC.size:
-            _, n = _REC.unpack_from(self._buf, 0)
-            if len(self._buf) < _REC.size + n:
+        while True:
+            if self._body_left:
+                if self._streaming or len(self._buf) >= self._body_left:
+                    k = min(self._body_left, len(self._buf))
+                    out += self._buf[:k]
+                    del self._buf[:k]
+                    self._body_left -= k
+                    self.total += k
+                    if self._body_left:
+                        break
+                    self._streaming = False
+                    continue
+                if len(self._buf) > self.hold:
+                    self._streaming = True
+                    continue
                 break
-            out += self._buf[_REC.size : _REC.size + n]
-            del self._buf[: _REC.size + n]
+            if len(self._buf) < _REC.size:
+                break
+            t_ns, n = _REC.unpack_from(self._buf, 0)
+            del self._buf[: _REC.size]
+            if self._times and n:
+                self._reads_ns.append(t_ns)
+                self._reads_end.append(self.total + n)
+            self._body_left = n
         return bytes(out)
+
+    @property
+    def truncated_bytes(self) -> int:
+        """At the end of the file: the bytes of a cut-off last read (header included) that
+        were not passed on (:attr:`Capture.truncated_bytes`)."""
+        if self._body_left and not self._streaming:
+            return _REC.size + len(self._buf)
+        return len(self._buf)
+
+    def arrival_ns_at(self, offsets: np.ndarray) -> np.ndarray:
+        """Host time (ns) of the read that delivered the port byte at each offset (counted
+        from the first port byte; offsets at or after :meth:`forget_before`'s)."""
+        ends = np.asarray(self._reads_end, dtype=np.int64)
+        k = np.searchsorted(ends, np.asarray(offsets), side="right")
+        k = np.minimum(k, max(ends.size - 1, 0))
+        return (
+            np.asarray(self._reads_ns, dtype=np.uint64)[k]
+            if ends.size
+            else np.zeros(np.shape(offsets), np.uint64)
+        )
+
+    def forget_before(self, offset: int) -> None:
+        """Drop the times of reads that ended at or before ``offset``."""
+        k = min(bisect.bisect_right(self._reads_end, offset), len(self._reads_end) - 1)
+        if k > 0:
+            del self._reads_ns[:k]
+            del self._reads_end[:k]
 
 
 class CaptureWriter:

@@ -35,6 +35,7 @@ from host.errors import UserError
 from host.timing.segments import SegmentTracker, segments
 from host.wire import protocol_gen as gen
 from host.wire import sensor
+from host.wire.capture import CaptureUnwrapper
 
 SYNC = gen.SYNC
 HEADER_LEN = 6
@@ -489,6 +490,62 @@ class BulkResult:
     stats: DecoderStats = field(default_factory=DecoderStats)
 
 
+#: the longest frame on the wire (bytes): a candidate starting this far before the end of the
+#: bytes at hand is complete, so its verdict cannot change with what follows
+MAX_FRAME = HEADER_LEN + MAX_PAYLOAD + CRC_LEN
+
+
+@dataclass
+class _Before:
+    """What the counters' rules remember of the bytes already decoded."""
+
+    last_seq: int | None = None
+    last_t_us: int | None = None  # of the current segment's last IMU sample
+    segment: int = 0  # the current segment's number
+    lost_since_sample: int = 0  # frames lost after the last IMU sample
+
+
+class ChunkedDecoder:
+    """The bulk decoder in bounded memory: :meth:`feed` bytes in chunks of any size, get a
+    :class:`BulkResult` of the frames now final; :meth:`flush` at the end. Concatenated, the
+    results are exactly :func:`decode_bulk` of all the bytes (offsets count from the first
+    byte fed; counters are per call: add them up). Holds at most the bytes of one call plus
+    ``min_batch``."""
+
+    def __init__(self, sender: str = "device", min_batch: int = 1 << 16) -> None:
+        self.sender = sender
+        self.min_batch = max(min_batch, 2 * MAX_FRAME)
+        self._buf = bytearray()
+        self._base = 0  # stream offset of _buf[0]
+        self._before = _Before()
+        self.stats = DecoderStats()  # running totals
+
+    @property
+    def pending(self) -> int:
+        """Bytes held back: a frame may start in them."""
+        return len(self._buf)
+
+    def feed(self, data: bytes | bytearray | memoryview) -> BulkResult:
+        self._buf += data
+        if len(self._buf) < self.min_batch:
+            return BulkResult(np.zeros(0, SAMPLE_DTYPE), [], DecoderStats())
+        return self._decode(len(self._buf) - MAX_FRAME + 1)
+
+    def flush(self) -> BulkResult:
+        """End of input: decode what is held back."""
+        return self._decode(None)
+
+    def _decode(self, limit: int | None) -> BulkResult:
+        result, consumed = _decode_bulk_bytes(self._buf, self.sender, limit, self._before)
+        result.samples["offset"] += self._base
+        result.others = [(off + self._base, f) for off, f in result.others]
+        del self._buf[:consumed]
+        self._base += consumed
+        for k, v in result.stats.as_dict().items():
+            setattr(self.stats, k, getattr(self.stats, k) + v)
+        return result
+
+
 def decode_bulk(data: bytes | bytearray | memoryview, sender: str = "device") -> BulkResult:
     """Decode a whole capture at once; same frames and counters as streaming + flush
     (``sender`` as :class:`StreamDecoder`'s).
@@ -502,21 +559,32 @@ def decode_bulk(data: bytes | bytearray | memoryview, sender: str = "device") ->
     if bytes(data[: len(MAGIC)]) == MAGIC:
         cap = parse(bytes(data))
         data, cut = cap.data, cap.truncated_bytes
-    result = _decode_bulk_bytes(data, sender)
+    result, _ = _decode_bulk_bytes(data, sender)
     result.stats.bytes_discarded += cut
     return result
 
 
-def _decode_bulk_bytes(data: bytes | bytearray | memoryview, sender: str) -> BulkResult:
+def _decode_bulk_bytes(
+    data: bytes | bytearray | memoryview,
+    sender: str,
+    limit: int | None = None,
+    before: _Before | None = None,
+) -> tuple[BulkResult, int]:
+    """Decode ``data``; with ``limit``, only the frames starting before it (every such
+    candidate is complete in ``data`` when ``limit <= len(data) - MAX_FRAME + 1``, so they are
+    final whatever follows). ``before``: the counters' state after the preceding bytes.
+    Returns the result (offsets relative to ``data``) and how many bytes it consumed."""
     lengths = LENGTHS_FROM[sender]
     buf = np.frombuffer(data, dtype=np.uint8)
     n = buf.size
     stats = DecoderStats()
+    if limit is None or limit >= n:
+        limit = n
     if n < 2:
-        stats.bytes_discarded = n
-        return BulkResult(np.zeros(0, SAMPLE_DTYPE), [], stats)
+        stats.bytes_discarded = limit
+        return BulkResult(np.zeros(0, SAMPLE_DTYPE), [], stats), limit
     cand = np.flatnonzero((buf[:-1] == SYNC[0]) & (buf[1:] == SYNC[1]))
-    cand = cand[cand + HEADER_LEN <= n]
+    cand = cand[(cand + HEADER_LEN <= n) & (cand < limit)]
     mtype = buf[cand + 2]
     length = buf[cand + 3].astype(np.int64)
     expected = lengths[mtype]
@@ -571,9 +639,10 @@ def _decode_bulk_bytes(data: bytes | bytearray | memoryview, sender: str) -> Bul
         k = np.searchsorted(vs, bad, side="right") - 1
         inside = (k >= 0) & (bad < np.where(k >= 0, ve[np.maximum(k, 0)], 0))
         stats.crc_errors = int(np.count_nonzero(~inside))
+    consumed = max(limit, int(ve[-1])) if ve.size else limit
     stats.frames = int(vs.size)
     stats.unknown_types = int(np.count_nonzero(_EXPECTED_LEN[vtype] < 0))
-    stats.bytes_discarded = int(n - np.sum(ve - vs))
+    stats.bytes_discarded = int(consumed - np.sum(ve - vs))
 
     seq = (buf[vs + 4].astype(np.int64) | (buf[vs + 5].astype(np.int64) << 8)).astype(np.int64)
     imu_idx = np.flatnonzero(vtype == IMU_SAMPLE)
@@ -581,10 +650,35 @@ def _decode_bulk_bytes(data: bytes | bytearray | memoryview, sender: str) -> Bul
     taken_mask[taken] = True
     imu_taken = taken_mask[imu_cand]
     wire = (imu_rows if imu_taken.all() else imu_rows[imu_taken]).view(_WIRE_IMU_PADDED)[:, 0]
-    reset, gaps = segments(seq, imu_idx, wire["t_us"].astype(np.int64))
+    t_us = wire["t_us"].astype(np.int64)
+    segment0 = 0
+    if before is not None and before.last_seq is not None:
+        # the rules see the last frame before these bytes first (as the IMU sample it was
+        # when its segment has a last sample time): its own verdict was counted already
+        prev_imu = before.last_t_us is not None
+        seq = np.concatenate(([before.last_seq], seq))
+        imu_idx = np.concatenate(([0], imu_idx + 1)) if prev_imu else imu_idx + 1
+        if prev_imu:
+            t_us = np.concatenate((np.asarray([before.last_t_us], np.int64), t_us))
+        reset, gaps = segments(seq, imu_idx, t_us)
+        seq, reset, gaps = seq[1:], reset[1:], gaps[1:]
+        imu_idx = imu_idx[1:] - 1 if prev_imu else imu_idx - 1
+        t_us = t_us[1:] if prev_imu else t_us
+    else:
+        reset, gaps = segments(seq, imu_idx, t_us)
+    if before is not None:
+        segment0 = before.segment
+        if seq.size:
+            seg_of = np.cumsum(reset)
+            before.last_seq = int(seq[-1])
+            if imu_idx.size and seg_of[imu_idx[-1]] == seg_of[-1]:
+                before.last_t_us = int(t_us[-1])
+            elif seg_of[-1] > 0:  # a reset after the last sample forgets its time
+                before.last_t_us = None
+            before.segment += int(seg_of[-1])
     stats.resets = int(np.count_nonzero(reset))
     stats.lost_frames = int(np.sum(gaps))
-    segment = np.cumsum(reset)
+    segment = segment0 + np.cumsum(reset)
     samples = np.zeros(imu_idx.size, dtype=SAMPLE_DTYPE)
     for name in ("seq", "t_us", *IMU_FIELDS, "flags"):
         samples[name] = wire[name]
@@ -592,11 +686,74 @@ def _decode_bulk_bytes(data: bytes | bytearray | memoryview, sender: str) -> Bul
     samples["segment"] = segment[imu_idx]
     lost_so_far = np.cumsum(gaps)[imu_idx]
     samples["lost"] = np.diff(lost_so_far, prepend=0)
+    if before is not None:  # frames lost after the last sample of the bytes before count too
+        after = int(np.sum(gaps)) - (int(lost_so_far[-1]) if imu_idx.size else 0)
+        if imu_idx.size:
+            samples["lost"][0] += before.lost_since_sample
+            before.lost_since_sample = after
+        else:
+            before.lost_since_sample += after
     others = [
         (int(vs[i]), Frame(int(vtype[i]), int(seq[i]), bytes(buf[vs[i] + HEADER_LEN : ve[i] - 2])))
         for i in np.flatnonzero(vtype != IMU_SAMPLE)
     ]
-    return BulkResult(samples, others, stats)
+    return BulkResult(samples, others, stats), consumed
+
+
+class BulkReader:
+    """Decode a stream of any length in bounded memory at the bulk decoder's speed: iterate
+    to get, per chunk read, the :class:`BulkResult` of the frames now final and each sample's
+    arrival time (ns; None for a raw capture). An IMUCAP01 capture is recognised by its magic
+    and unwrapped (:class:`host.wire.capture.CaptureUnwrapper`). Together the results are
+    :func:`decode_file`'s; :attr:`stats` totals the counters, :attr:`truncated_bytes` is the
+    cut-off last read of a capture (counted in ``bytes_discarded``)."""
+
+    def __init__(self, stream: Readable, chunk: int = 1 << 22, sender: str = "device") -> None:
+        self.stream = stream
+        self.chunk = chunk
+        self.decoder = ChunkedDecoder(sender)
+        self.is_capture = False
+        self.truncated_bytes = 0
+        self._unwrap: CaptureUnwrapper | None = None
+
+    @property
+    def stats(self) -> DecoderStats:
+        return self.decoder.stats
+
+    def __iter__(self) -> Iterator[tuple[BulkResult, np.ndarray | None]]:
+        from host.wire.capture import MAGIC, CaptureUnwrapper
+
+        head = b""
+        while len(head) < len(MAGIC):
+            data = self.stream.read(len(MAGIC) - len(head))
+            if not data:
+                break
+            head += data
+        if head == MAGIC:
+            self.is_capture = True
+            self._unwrap = CaptureUnwrapper(times=True)
+            head = self._unwrap.feed(head)
+        data = head
+        while True:
+            if self._unwrap is not None:
+                data = self._unwrap.feed(data)
+            yield self._result(self.decoder.feed(data))
+            data = self.stream.read(self.chunk)
+            if not data:
+                break
+        if self._unwrap is not None:
+            self.truncated_bytes = self._unwrap.truncated_bytes
+        last = self.decoder.flush()
+        last.stats.bytes_discarded += self.truncated_bytes
+        self.decoder.stats.bytes_discarded += self.truncated_bytes
+        yield self._result(last)
+
+    def _result(self, r: BulkResult) -> tuple[BulkResult, np.ndarray | None]:
+        if self._unwrap is None:
+            return r, None
+        arrivals = self._unwrap.arrival_ns_at(r.samples["offset"] + _IMU_FRAME_LEN - 1)
+        self._unwrap.forget_before(self.decoder._base)
+        return r, arrivals
 
 
 # --------------------------------------------------------------------------- physical units

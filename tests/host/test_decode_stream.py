@@ -1,0 +1,213 @@
+"""Decoding in bounded memory (issue 17, item 4): the chunked decoder, the streaming capture
+unwrapper and the streaming clock give exactly what the whole-file paths give, at every chunk
+size; ``decode`` on a file, a FIFO or a device streams. (Memory figures: the benchmark
+``benchmarks/decode_memory.py``; a FIFO and ``/dev/zero``: tests/host/test_bad_input.py.)"""
+
+from __future__ import annotations
+
+import json
+import random
+import struct
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from host.bench.linksim import LinkCapture, LinkParams, simulate_link
+from host.timing import clock
+from host.wire import capture, frames
+from host.wire.frames import ChunkedDecoder, decode_bulk
+from tests.host.test_frames import BASE, corrupt, imucap
+
+
+def chunked(data: bytes, sizes: list[int], min_batch: int) -> frames.BulkResult:
+    d = ChunkedDecoder(min_batch=min_batch)
+    parts, pos, i = [], 0, 0
+    while pos < len(data):
+        k = sizes[i % len(sizes)] if sizes else len(data)
+        parts.append(d.feed(data[pos : pos + k]))
+        pos, i = pos + k, i + 1
+    parts.append(d.flush())
+    return frames.BulkResult(
+        np.concatenate([p.samples for p in parts]), [x for p in parts for x in p.others], d.stats
+    )
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.integers(0, 2**32 - 1),
+    st.integers(0, 60),
+    st.lists(st.integers(1, 2000), max_size=8),
+    st.sampled_from([1, 700, 5000]),
+)
+def test_chunked_bulk_decoder_equals_the_whole_file(
+    seed: int, n_ops: int, sizes: list[int], min_batch: int
+) -> None:
+    """Corrupted streams (resyncs, resets, lost frames) cut anywhere: same samples (with
+    offsets and segment numbers), same other frames, same counters."""
+    rng = random.Random(seed)
+    data = corrupt(BASE + BASE[: rng.randrange(len(BASE))], rng, n_ops)  # a reset mid-way
+    whole = decode_bulk(data)
+    got = chunked(data, sizes, min_batch)
+    assert np.array_equal(got.samples, whole.samples)
+    assert got.others == whole.others
+    assert got.stats == whole.stats
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.integers(0, 400), max_size=40),
+    st.lists(st.integers(1, 500), min_size=1, max_size=6),
+    st.integers(0, 40),
+)
+def test_capture_unwrapper_with_times_equals_parse(
+    reads: list[int], pieces: list[int], cut: int
+) -> None:
+    """Port bytes, each byte's read time and a cut-off last read: as :func:`capture.parse`."""
+    data = corrupt(BASE, random.Random(len(reads)), 3)
+    raw = imucap(data, reads)
+    raw = raw[: len(raw) - cut]
+    want = capture.parse(raw)
+    u = capture.CaptureUnwrapper(times=True)
+    got, pos, i = bytearray(), 0, 0
+    while pos < len(raw):
+        k = pieces[i % len(pieces)]
+        got += u.feed(raw[pos : pos + k])
+        pos, i = pos + k, i + 1
+    assert bytes(got) == want.data
+    assert u.truncated_bytes == want.truncated_bytes
+    offsets = np.arange(len(got))
+    if len(got):
+        assert np.array_equal(u.arrival_ns_at(offsets), want.arrival_ns_at(offsets))
+
+
+def test_a_read_longer_than_the_hold_streams_through() -> None:
+    """A made-up capture with one 5 MiB read: passed on as it comes, not held whole."""
+    body = bytes(5 << 20)
+    raw = capture.MAGIC + struct.pack("<QI", 123, len(body)) + body
+    u = capture.CaptureUnwrapper(times=True, hold=1 << 20)
+    passed = [len(u.feed(raw[i : i + (1 << 19)])) for i in range(0, len(raw), 1 << 19)]
+    assert sum(passed) == len(body) and max(passed) <= (1 << 20) + (1 << 19)
+    assert u.truncated_bytes == 0 and u.arrival_ns_at(np.array([len(body) - 1]))[0] == 123
+
+
+def link_capture() -> LinkCapture:
+    """Two board runs (a reset), 150 s and 100 s: several clock windows each."""
+    a = simulate_link(LinkParams(seconds=150, seed=3, skew_ppm=40, device_t0_us=50_000_000))
+    b = simulate_link(LinkParams(seconds=100, seed=4, host_t0_ns=a.chunks[-1][0] + 2 * 10**9))
+    true = np.concatenate((a.true_host_ns, b.true_host_ns))
+    return LinkCapture(a.chunks + b.chunks, true, np.concatenate((a.device_us, b.device_us)),
+                       a.params)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def two_runs() -> tuple[LinkCapture, bytes]:
+    lc = link_capture()
+    return lc, lc.to_imucap()
+
+
+@settings(max_examples=8, deadline=None)
+@given(st.lists(st.integers(1, 30_000), min_size=1, max_size=5))
+def test_streaming_timeline_equals_the_whole_capture(
+    two_runs: tuple[LinkCapture, bytes], sizes: list[int]
+) -> None:
+    """Host time of every sample, segments, losses and window maps: as build_timeline."""
+    lc, raw = two_runs
+    cap = capture.parse(raw)
+    r = decode_bulk(cap.data)
+    arr = cap.arrival_ns_at(r.samples["offset"] + 26)
+    whole = clock.build_timeline(r.samples, arr)
+    assert len(whole.segments) == 2 and all(s.clock and s.clock.windows > 2 for s in whole.segments)
+    b = clock.TimelineBuilder()
+    blocks, i, n, k = [], 0, r.samples.size, 0
+    while i < n:
+        j = min(n, i + sizes[k % len(sizes)])
+        blocks += b.add(r.samples[i:j], arr[i:j])
+        i, k = j, k + 1
+    blocks += b.finish()
+    assert np.array_equal(np.concatenate([x.samples for x in blocks]), r.samples)
+    assert np.array_equal(np.concatenate([x.host_ns for x in blocks]), whole.host_ns)
+    assert [(s.start, s.stop, s.lost_frames, s.missed_samples, s.clock and s.clock.windows)
+            for s in b.segments] == [
+        (s.start, s.stop, s.lost_frames, s.missed_samples, s.clock and s.clock.windows)
+        for s in whole.segments]  # fmt: skip
+
+
+def test_streaming_timeline_is_accurate(two_runs: tuple[LinkCapture, bytes]) -> None:
+    lc, raw = two_runs
+    cap = capture.parse(raw)
+    r = decode_bulk(cap.data)
+    tl = clock.build_timeline(r.samples, cap.arrival_ns_at(r.samples["offset"] + 26))
+    for s in tl.segments:
+        err = (tl.host_ns - lc.true_host_ns)[s.start : s.stop]
+        assert np.sqrt(np.mean((err - err.mean()) ** 2)) < 60_000  # ns
+    assert tl.segments[0].clock.overall.skew_ppm == pytest.approx(-40, abs=4)
+
+
+def test_a_clock_no_board_has_is_given_up_in_bounded_memory(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Samples 1 µs apart (far denser than any board): the clock of that segment is given
+    up once the window holds too many (t_host_ns then falls back to the arrivals)."""
+    monkeypatch.setattr(clock, "MAX_HELD_SAMPLES", 5000)
+    n = 20_000
+    s = np.zeros(n, frames.SAMPLE_DTYPE)
+    s["seq"] = np.arange(n) % 65536
+    s["t_us"] = np.arange(n)
+    s["offset"] = np.arange(n) * 27
+    b = clock.TimelineBuilder()
+    out = []
+    for i in range(0, n, 1000):
+        out += b.add(s[i : i + 1000], np.arange(i, i + 1000, dtype=np.float64) * 1000)
+        assert sum(x.samples.size for x in out) >= i - 6000  # nothing piles up
+    out += b.finish()
+    assert b.implausible == [0] and b.segments[0].clock is None
+    assert sum(x.samples.size for x in out) == n
+    assert np.isnan(np.concatenate([x.host_ns for x in out])).all()
+
+
+def run_decode(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    from host.__main__ import main
+
+    rc = main(argv)
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+@pytest.mark.parametrize("fmt", ["--csv", "--jsonl", "--stats"])
+def test_decode_output_does_not_depend_on_the_read_size(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    two_runs: tuple[LinkCapture, bytes],
+    fmt: str,
+) -> None:
+    """The command on a 250 s capture with a reset, read whole vs in 1000-byte reads (the
+    rows stream out as the clock windows complete); the mapped times are build_timeline's."""
+    lc, raw = two_runs
+    path = tmp_path / "two.cap"
+    path.write_bytes(raw)
+    rc, whole, err = run_decode(["decode", fmt, str(path)], capsys)
+    assert rc == 0 and "warning" not in err
+    import host.cli.decode as cli_decode
+
+    monkeypatch.setattr(cli_decode, "BulkReader", partial(frames.BulkReader, chunk=1000))
+    rc, pieces, _ = run_decode(["decode", fmt, str(path)], capsys)
+    assert rc == 0 and pieces == whole
+    if fmt == "--stats":
+        st_ = json.loads(whole)
+        assert st_["resets"] == 1 and [c["samples"] for c in st_["clock"]] == [7530, 5020]
+        return
+    cap = capture.parse(raw)
+    r = decode_bulk(cap.data)
+    tl = clock.build_timeline(r.samples, cap.arrival_ns_at(r.samples["offset"] + 26))
+    if fmt == "--csv":
+        rows = whole.splitlines()[1:]
+        t_host = [int(x.rsplit(",", 1)[1]) for x in rows]
+    else:
+        t_host = [json.loads(x)["t_host_ns"] for x in whole.splitlines()]
+    assert t_host == np.rint(tl.host_ns).astype(np.int64).tolist()
+    assert len(t_host) == lc.true_host_ns.size
