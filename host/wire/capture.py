@@ -240,12 +240,25 @@ class CaptureWriter:
             self._f.write(_REC.pack(t_ns, len(data)) + data)
             self._f.flush()
         except OSError as exc:
+            self.failed = True
             raise write_error(self.path, exc, "what was read before is in it") from None
 
+    #: a write failed (and was reported): closing does not report it again
+    failed = False
+
     def close(self) -> None:
-        if self._f is not None:
-            self._f.close()
-            self._f = None
+        """Close the file. After a failed write its unwritten rest cannot be flushed either;
+        that was reported already, so closing (often in a ``finally``, where a new error would
+        hide the first one and its advice) stays quiet."""
+        f, self._f = self._f, None
+        if f is None:
+            return
+        try:
+            f.close()
+        except OSError as exc:
+            if not self.failed:
+                self.failed = True
+                raise write_error(self.path, exc, "what was read before is in it") from None
 
     def __enter__(self) -> CaptureWriter:
         return self

@@ -11,6 +11,8 @@ in tests/emulator/test_emu_faults.py.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import time
 from pathlib import Path
 from typing import Any
@@ -159,3 +161,115 @@ def test_disk_full_in_a_live_session_names_the_record_and_prints_the_resume_hint
     assert ".tmp" not in msg
     assert f"1 accepted records are kept in {out}; continue with:" in msg and "--resume" in msg
     assert sorted(p.name for p in out.glob("S1_*_*.txt")) == ["S1_x_up.txt"]
+
+
+class FillingFile:
+    """A file on a disk with ``room`` bytes left: the write that does not fit writes what
+    fits, then fails with ENOSPC (as a real full disk does)."""
+
+    def __init__(self, f: Any, room: int) -> None:
+        self.f = f
+        self.room = room
+
+    def write(self, data: bytes) -> int:
+        import errno
+        import os
+
+        if len(data) > self.room:
+            self.f.write(data[: self.room])
+            self.f.flush()
+            self.room = 0
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        self.room -= len(data)
+        return int(self.f.write(data))
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.f, name)
+
+
+def session_records(out: Path) -> dict[str, int]:
+    """Record name -> data rows, of every record file in ``out`` (each must read whole)."""
+    return {p.stem.split("_", 1)[1]: read_record(p).t_ms.size for p in out.glob("S1_*_*.txt")}
+
+
+@pytest.mark.timeout(90)
+def test_disk_full_on_the_session_capture_keeps_what_was_recorded(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The raw capture of a live session (SERIAL_session.cap) meets a full disk mid-session:
+    one line naming it, the --resume hint; the records accepted before stay whole and the
+    capture keeps every read written before (a cut-off last one is reported, not fatal)."""
+    from host.dialogue import live
+    from host.wire import capture
+    from host.wire.frames import decode_bulk
+
+    real_start = live.DeferredCapture.start
+
+    written = {}
+
+    def start(self: Any, path: Path) -> None:
+        real_start(self, path)
+        self._f.flush()
+        written["before"] = self._f.tell()  # the magic and the reads held until now
+        self._f = FillingFile(self._f, 60_000)  # ≈ 40 s of the board's stream
+
+    monkeypatch.setattr(live.DeferredCapture, "start", start)
+    o = opts(tmp_path, f"sim://?seed=26&{LINEAR}", static_seconds=2.0, turns=1)
+    with pytest.raises(UserError) as err:
+        run(o, ScriptedConsole(), Ports())
+    msg = str(err.value)
+    out = tmp_path / "S1"
+    cap = out / "S1_session.cap"
+    assert f"cannot write {cap}: the disk is full; what was read before is in it" in msg
+    assert "\n" not in msg and "--resume" in msg and "accepted records are kept" in msg
+    kept = session_records(out)
+    assert kept and all(n >= 2 for n in kept.values())  # each whole, as accepted
+    assert f"{len(kept)} accepted records are kept" in msg
+    assert cap.stat().st_size == written["before"] + 60_000  # everything that fitted is there
+    c = capture.read(cap)  # parses: complete reads kept, the cut-off one reported
+    assert c.truncated_bytes > 0 and len(c.data) > 0
+    r = decode_bulk(c.data)
+    assert r.stats.crc_errors == 0
+    # the accepted records' samples came through this capture: it holds at least as many
+    assert r.samples.size >= sum(kept.values())
+
+
+@pytest.mark.timeout(120)
+def test_a_really_full_disk_in_a_live_session_then_resume(tmp_path: Path) -> None:
+    """No injection: the output directory is a 128 KiB tmpfs. Whichever file meets the full disk
+    first (the capture or a record), the session ends with one error line and the resume
+    hint; with space again, that command finishes the session from the records kept."""
+    import subprocess
+
+    from host.__main__ import main
+
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=128k", "tmpfs", str(disk)],
+                       capture_output=True, check=False)  # fmt: skip
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {r.stderr.decode(errors='replace').strip()}")
+    try:
+        out = disk / "S1"
+        argv = ["calibrate", "--port", f"sim://?seed=27&{LINEAR}", "--serial", "S1", "--yes",
+                "--warmup", "0", "--static-seconds", "4", "--turns", "1",
+                "--out", str(out)]  # fmt: skip
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            rc = main(argv)
+        lines = [x for x in err.getvalue().splitlines() if x.startswith("error:")]
+        assert rc == 2 and len(lines) == 1, err.getvalue()[-1500:]
+        assert "the disk is full" in lines[0] and "--resume" in lines[0]
+        assert "Traceback" not in err.getvalue()
+        kept = session_records(out)  # every record on the disk reads whole
+        assert 0 < len(kept) < 10
+        assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temp files left
+        # space again (the tmpfs grows), and the printed command finishes the session
+        subprocess.run(["mount", "-o", "remount,size=4m", str(disk)], check=True)
+        with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+            rc = main([*argv, "--resume"])
+        assert rc in (0, 1)
+        assert set(kept) < set(session_records(out))  # the kept ones were not re-measured
+        assert (out / "S1_result.json").exists()
+    finally:
+        subprocess.run(["umount", "-l", str(disk)], check=False)
