@@ -44,9 +44,7 @@ def main() -> None:
         r = frames.decode_bulk(cap.data)
         arrivals = cap.arrival_ns_at(r.samples["offset"] + 26)
         t0 = time.perf_counter()
-        tl = clock.build_timeline(
-            r.samples, arrivals, other_offsets=np.asarray([o for o, _ in r.others])
-        )
+        tl = clock.build_timeline(r.samples, arrivals)
         fit_s = time.perf_counter() - t0
         live = clock.LiveClock()
         ser = float(clock.serialisation_ns(27, p.baud))
