@@ -11,6 +11,7 @@ without ``--force``.
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -188,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
             "calibrate --from-dir uses them too",
             file=sys.stderr,
         )
-    print(f"next: python -m host calibrate --from-dir {out}")
+    print(f"next: python3 -m host calibrate --from-dir {shlex.quote(str(out))}")
     return 0
 
 

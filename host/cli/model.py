@@ -448,7 +448,8 @@ def run_demo(args: argparse.Namespace) -> int:
 
             out = Path(args.out) / eff
             write_session(out, "DEMO", dict(case.records))
-            print(f"records written to {out} (try: python -m host model diagnose {out})")
+            try_cmd = shlex.join(["python3", "-m", "host", "model", "diagnose", str(out)])
+            print(f"records written to {out} (try: {try_cmd})")
         o = run_case(case)
         print(format_diagnosis(o.diagnosis, compare=False, max_candidates=6))
         if o.addition is not None:
