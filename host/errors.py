@@ -42,6 +42,7 @@ _WRITE_ERRORS = {
     errno.EPERM: "permission denied",
     errno.EROFS: "the file system is read-only",
     errno.ENOENT: "no such directory",
+    errno.ENOTDIR: "a file stands where its directory should be",
 }
 
 

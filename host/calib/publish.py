@@ -124,9 +124,17 @@ def compute_and_write(
     if settings.verify:
         result = verify_directory(result, settings.verify)
     if not out_dir.is_dir():
-        raise UserError(f"{out_dir}: no such directory")
+        raise UserError(f"{out_dir}: no such directory{_why_not_a_directory(out_dir)}")
     txt, js = write_results(result, out_dir)
     return Published(result, txt, js)
+
+
+def _why_not_a_directory(path: Path) -> str:
+    """What stands in the way of ``path`` being a directory, and what to do, for a message."""
+    for p in (path, *path.parents):
+        if p.exists() and not p.is_dir():
+            return f" ({p} is a file); give --out a directory"
+    return "; create it or give --out an existing directory"
 
 
 def show_result(result: CalibrationResult, as_json: bool, out: TextIO | None = None) -> None:

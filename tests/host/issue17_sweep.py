@@ -231,7 +231,7 @@ CASES: tuple[Case, ...] = (
     Case("emu-not-an-elf", "emu://?elf=<not an ELF> says the board disconnected",
          _not_an_elf, (2,), "not an ELF or Intel HEX file"),
     Case("results-under-a-file", "results written where a file blocks the directory",
-         _results_under_a_file, (2,), "afile/out: no such directory"),
+         _results_under_a_file, (2,), "afile is a file); give --out a directory"),
 )  # fmt: skip
 
 
