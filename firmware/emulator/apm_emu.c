@@ -48,8 +48,10 @@
 #define SPCR_CPOL 0x08
 #define SPCR_CPHA 0x04
 
-enum { FAULT_NONE, FAULT_ABSENT, FAULT_STUCK_MISO, FAULT_NO_DRDY };
-static const char *FAULT_NAMES[] = {"none", "absent", "stuck-miso", "no-drdy"};
+enum { FAULT_NONE, FAULT_ABSENT, FAULT_STUCK_MISO, FAULT_NO_DRDY, FAULT_MARGINAL_BUS };
+static const char *FAULT_NAMES[] = {"none", "absent", "stuck-miso", "no-drdy", "marginal-bus"};
+// marginal bus: above this SCLK, MISO misses the AVR's setup time (a long or loaded cable)
+#define MARGINAL_BUS_MAX_HZ 1e6
 static const dmp_image_desc_t DMP_IMAGES[] = {DMP_IMAGE_DESC_MOTIONAPPS20, DMP_IMAGE_DESC_EMD6};
 
 #define RXQ_SIZE 8192
@@ -70,6 +72,7 @@ static struct {
     double noise_accel, noise_gyro, clock_ppm;
     uint64_t seed;
     unsigned dmp_packet;
+    unsigned product_id;               // --product-id: what PRODUCT_ID reads
     const dmp_image_desc_t *dmp_desc;  // --dmp-image: check the load sequence against it
 
     avr_t *avr;
@@ -105,6 +108,8 @@ static struct {
     double sample_next_exact;  // absolute cycle of the next sample-clock tick; <0: stopped
     int txn_conflict;
     uint8_t spi_prev_mosi_lsb;  // last MOSI bit of the previous byte (wrong SPI mode model)
+    uint8_t spi_prev_miso_lsb;  // last MISO bit of the previous byte (marginal bus model)
+    uint64_t garbled_bytes;     // MISO bytes the marginal bus corrupted
     uint64_t last_drdy_cycle, last_drdy_idx;
     uint64_t rng;
 
@@ -324,10 +329,22 @@ static void spi_out_cb(avr_irq_t *irq, uint32_t value, void *param) {
     if (lsb_first) miso = bitrev8(miso);
     if (f == FAULT_STUCK_MISO) miso = 0xFF;
     if (f == FAULT_ABSENT) miso = 0x00;
+    unsigned div = spi_divider();
+    double hz = (double)E.freq / div;
+    if (f == FAULT_MARGINAL_BUS && hz > MARGINAL_BUS_MAX_HZ) {
+        // the AVR samples each MISO bit before the chip's edge reaches it: one bit late
+        uint8_t late = (uint8_t)((E.spi_prev_miso_lsb << 7) | (miso >> 1));
+        E.spi_prev_miso_lsb = miso & 1;
+        if (late != miso) {
+            E.garbled_bytes++;
+            E.mpu.txn_garbled = 1;
+        }
+        miso = late;
+    } else {
+        E.spi_prev_miso_lsb = miso & 1;
+    }
     if (has) {
         E.reg_accesses++;
-        unsigned div = spi_divider();
-        double hz = (double)E.freq / div;
         int viol = !mpu_is_sensor_reg(acc.reg) && hz > 1e6;
         if (viol) mpu_violate(&E.mpu, MPU_RULE_SPI_CLOCK, acc.reg);
         if (viol) {
@@ -374,6 +391,7 @@ static void cs_cb(avr_irq_t *irq, uint32_t value, void *param) {
     if (low == E.mpu.cs_low) return;
     if (low) {
         E.spi_prev_mosi_lsb = 0;
+        E.spi_prev_miso_lsb = 0;
         E.cs_transactions++;
         E.txn_conflict = !(avr->data[A_PORTG] & (1 << 1));
         mpu_cs(&E.mpu, 1);
@@ -767,7 +785,8 @@ static void usage(FILE *f) {
             "  --realtime            pace simulated time to the wall clock (default: fast)\n"
             "  --reglog FILE         CSV of every MPU register access\n"
             "  --samplelog FILE      CSV of every produced sample (counts, whether read)\n"
-            "  --fault absent|stuck-miso|no-drdy   inject a sensor fault\n"
+            "  --fault absent|stuck-miso|no-drdy|marginal-bus   inject a fault: marginal-bus =\n"
+            "                        above 1 MHz SCLK every MISO byte arrives one bit late\n"
             "  --fault-at S          ... from simulated second S on (default 0)\n"
             "  --pty-file FILE       also write the pty path to FILE\n"
             "  --summary-file FILE   also write the exit summary (JSON) to FILE\n"
@@ -781,6 +800,8 @@ static void usage(FILE *f) {
             "  --dmp-image NAME      motionapps20|emd6: check the DMP load sequence against that\n"
             "                        image's description (firmware/src/dmp_descriptions.h), its packet size\n"
             "                        for the stub packets\n"
+            "  --product-id N        what PRODUCT_ID (0x0C) reads (default 0x58 = rev D8; 0x54/0x55\n"
+            "                        = C4/C5: half the accelerometer LSB/g)\n"
             "  --spi-fixed-timing    keep simavr's 100 us per SPI byte\n"
             "  --quiet               no summary on stdout\n"
             "  --profile FILE        CSV of CPU cycles spent per flash address (awake only)\n");
@@ -835,6 +856,7 @@ static void write_summary(FILE *f, double wall) {
             "\"uart_tx_bytes\": %llu, \"uart_tx_dropped\": %llu, \"uart_rx_bytes\": %llu, "
             "\"uart_rx_dropped\": %llu, \"spi_timing\": \"%s\", \"stimulus_records\": %lu, "
             "\"boot\": %d, \"boot_entries\": %llu, \"flash_saves\": %llu, "
+            "\"product_id\": %u, \"garbled_bytes\": %llu, "
             "\"regs\": {\"PWR_MGMT_1\": %d, \"SMPLRT_DIV\": %d, \"CONFIG\": %d, "
             "\"GYRO_CONFIG\": %d, \"ACCEL_CONFIG\": %d, \"INT_PIN_CFG\": %d, \"INT_ENABLE\": %d, "
             "\"USER_CTRL\": %d, \"FIFO_EN\": %d, \"PWR_MGMT_2\": %d}}\n",
@@ -853,7 +875,8 @@ static void write_summary(FILE *f, double wall) {
             (unsigned long long)E.tx_dropped, (unsigned long long)E.rx_bytes,
             (unsigned long long)E.rx_dropped, E.spi_fixed_timing ? "fixed-100us" : "8x-divider",
             E.stim.records, E.boot, (unsigned long long)E.boot_entries,
-            (unsigned long long)E.flash_saves, r[MPU_PWR_MGMT_1], r[MPU_SMPLRT_DIV], r[MPU_CONFIG],
+            (unsigned long long)E.flash_saves, E.product_id,
+            (unsigned long long)E.garbled_bytes, r[MPU_PWR_MGMT_1], r[MPU_SMPLRT_DIV], r[MPU_CONFIG],
             r[MPU_GYRO_CONFIG], r[MPU_ACCEL_CONFIG], r[MPU_INT_PIN_CFG], r[MPU_INT_ENABLE],
             r[MPU_USER_CTRL], r[MPU_FIFO_EN], r[MPU_PWR_MGMT_2]);
 }
@@ -863,10 +886,11 @@ int main(int argc, char **argv) {
     E.dtr_reset = 1;
     E.seed = 1;
     E.dmp_packet = 42;
+    E.product_id = MPU_PRODUCT_ID_DEFAULT;
     E.sample_next_exact = -1;
     enum {
         O_ELF = 256, O_STIM, O_SECONDS, O_REALTIME, O_REGLOG, O_SAMPLELOG, O_FAULT, O_FAULT_AT,
-        O_PTYFILE, O_SUMMARY, O_NOWAIT, O_NODTR, O_NACC, O_NGYR, O_SEED, O_PPM, O_DMP, O_DMPIMG, O_SPIFIX,
+        O_PTYFILE, O_SUMMARY, O_NOWAIT, O_NODTR, O_NACC, O_NGYR, O_SEED, O_PPM, O_DMP, O_DMPIMG, O_PRODUCT, O_SPIFIX,
         O_QUIET, O_HELP, O_PROFILE, O_HEX, O_BOOT, O_BOOTLOADER, O_FLASHFILE
     };
     static const struct option opts[] = {
@@ -877,7 +901,7 @@ int main(int argc, char **argv) {
         {"no-wait", 0, 0, O_NOWAIT}, {"no-dtr-reset", 0, 0, O_NODTR},
         {"noise-accel", 1, 0, O_NACC}, {"noise-gyro", 1, 0, O_NGYR}, {"seed", 1, 0, O_SEED},
         {"clock-ppm", 1, 0, O_PPM}, {"dmp-packet", 1, 0, O_DMP},
-        {"dmp-image", 1, 0, O_DMPIMG},
+        {"dmp-image", 1, 0, O_DMPIMG}, {"product-id", 1, 0, O_PRODUCT},
         {"spi-fixed-timing", 0, 0, O_SPIFIX}, {"quiet", 0, 0, O_QUIET}, {"help", 0, 0, O_HELP}, {"profile", 1, 0, O_PROFILE},
         {"hex", 1, 0, O_HEX}, {"boot", 0, 0, O_BOOT}, {"bootloader", 1, 0, O_BOOTLOADER},
         {"flash-file", 1, 0, O_FLASHFILE},
@@ -895,8 +919,9 @@ int main(int argc, char **argv) {
                 if (!strcmp(optarg, "absent")) E.fault = FAULT_ABSENT;
                 else if (!strcmp(optarg, "stuck-miso")) E.fault = FAULT_STUCK_MISO;
                 else if (!strcmp(optarg, "no-drdy")) E.fault = FAULT_NO_DRDY;
+                else if (!strcmp(optarg, "marginal-bus")) E.fault = FAULT_MARGINAL_BUS;
                 else if (!strcmp(optarg, "none")) E.fault = FAULT_NONE;
-                else die("--fault: absent, stuck-miso, no-drdy or none");
+                else die("--fault: absent, stuck-miso, no-drdy, marginal-bus or none");
                 break;
             case O_FAULT_AT: E.fault_at = atof(optarg); break;
             case O_PTYFILE: E.pty_file = optarg; break;
@@ -908,6 +933,13 @@ int main(int argc, char **argv) {
             case O_SEED: E.seed = strtoull(optarg, NULL, 0); break;
             case O_PPM: E.clock_ppm = atof(optarg); break;
             case O_DMP: E.dmp_packet = (unsigned)atoi(optarg); break;
+            case O_PRODUCT: {
+                char *end;
+                unsigned long v = strtoul(optarg, &end, 0);
+                if (!*optarg || *end || v > 0xFF) die("--product-id: a byte, e.g. 0x55 (rev C5)");
+                E.product_id = (unsigned)v;
+                break;
+            }
             case O_DMPIMG:
                 for (unsigned i = 0; i < sizeof DMP_IMAGES / sizeof DMP_IMAGES[0]; i++)
                     if (!strcmp(optarg, DMP_IMAGES[i].name)) E.dmp_desc = &DMP_IMAGES[i];
@@ -1014,7 +1046,7 @@ int main(int argc, char **argv) {
     E.irq_uart_in = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
 
     if (E.dmp_desc) E.dmp_packet = E.dmp_desc->packet_size;
-    mpu_power_on(&E.mpu, E.dmp_packet);
+    mpu_power_on(&E.mpu, E.dmp_packet, (uint8_t)E.product_id);
     E.mpu.dmp_desc = E.dmp_desc;
     E.mpu.retire = on_retire;
 

@@ -114,10 +114,14 @@ static int dmp_load_ok(mpu6000_t *m, int *reg) {
     return 1;
 }
 
+int mpu_half_accel_sensitivity(uint8_t id) {
+    return id == 0x14 || id == 0x15 || id == 0x54 || id == 0x55;
+}
+
 static void retire_latched(mpu6000_t *m) {
     if (m->latched_idx && m->retire)
         m->retire(m->retire_ctx, m->latched_idx, m->latched_t, m->latched_counts,
-                  m->latched_fully_read);
+                  m->latched_fully_read ? 1 + m->latched_read_garbled : 0);
     m->latched_idx = 0;
 }
 
@@ -128,7 +132,7 @@ static void reset_registers(mpu6000_t *m) {
     memset(m->reg, 0, sizeof m->reg);
     m->reg[MPU_PWR_MGMT_1] = MPU_PWR1_SLEEP;  // 0x40: asleep after power-on / DEVICE_RESET
     m->reg[MPU_WHO_AM_I] = 0x68;
-    m->reg[MPU_PRODUCT_ID] = 0x58;  // MPU6000 rev D8 (ArduPilot's list); undocumented register
+    m->reg[MPU_PRODUCT_ID] = m->product_id;  // undocumented register (ArduPilot's list)
     // factory self-test codes (plausible values; the firmware only reads them for self-test)
     m->reg[0x0D] = 0x4C;
     m->reg[0x0E] = 0x4D;
@@ -142,8 +146,9 @@ static void reset_registers(mpu6000_t *m) {
     m->q[1] = m->q[2] = m->q[3] = 0.0;
 }
 
-void mpu_power_on(mpu6000_t *m, unsigned dmp_packet_size) {
+void mpu_power_on(mpu6000_t *m, unsigned dmp_packet_size, uint8_t product_id) {
     memset(m, 0, sizeof *m);
+    m->product_id = product_id;
     m->dmp_packet_size = dmp_packet_size ? dmp_packet_size : 42;
     reset_registers(m);
 }
@@ -180,8 +185,9 @@ static int16_t sat16(double c) {
 void mpu_convert(const mpu6000_t *m, const mpu_truth_t *t, int16_t out[7]) {
     unsigned afs = (m->reg[MPU_ACCEL_CONFIG] >> 3) & 3;
     unsigned fs = (m->reg[MPU_GYRO_CONFIG] >> 3) & 3;
+    double half = mpu_half_accel_sensitivity(m->product_id) ? 0.5 : 1.0;
     for (int i = 0; i < 3; i++) {
-        out[i] = sat16(t->f[i] * (ACCEL_LSB_PER_G[afs] / G0));
+        out[i] = sat16(t->f[i] * (half * ACCEL_LSB_PER_G[afs] / G0));
         out[4 + i] = sat16(t->w[i] * GYRO_LSB_PER_DPS[fs]);
     }
     out[3] = sat16((t->temp - 36.53) * 340.0);
@@ -227,6 +233,7 @@ static void latch(mpu6000_t *m) {
     for (int i = 0; i < 7; i++) put16(&m->reg[MPU_ACCEL_XOUT_H + 2 * i], m->counts[i]);
     m->latched_idx = m->produced;
     m->latched_fully_read = 0;
+    m->latched_read_garbled = 0;
     m->latched_early = m->latched_t < m->gyro_valid_from;
     m->latch_pending = 0;
 }
@@ -302,10 +309,12 @@ void mpu_cs(mpu6000_t *m, int low) {
         m->cs_low = 1;
         m->first = 1;
         m->read_mask = 0;
+        m->txn_garbled = 0;
     } else if (!low && m->cs_low) {
         m->cs_low = 0;
         if (m->read_mask == 0x3FFF && m->latched_idx && !m->latched_fully_read) {
             m->latched_fully_read = 1;
+            m->latched_read_garbled = m->txn_garbled != 0;
             m->samples_read++;
             if (m->latched_early) mpu_violate(m, MPU_RULE_GYRO_STARTUP, MPU_GYRO_XOUT_H);
         }

@@ -105,8 +105,14 @@ typedef struct mpu_access {
     uint8_t is_read;
 } mpu_access_t;
 
+// PRODUCT_ID (0x0C): 0x58 = MPU-6000 rev D8 by default. Revisions C4/C5 (0x54/0x55, ES 0x14/0x15)
+// count half the datasheet's LSB/g at every AFS_SEL (ArduPilot's driver; the C4/C5).
+#define MPU_PRODUCT_ID_DEFAULT 0x58
+int mpu_half_accel_sensitivity(uint8_t product_id);
+
 typedef struct mpu6000 {
     uint8_t reg[128];
+    uint8_t product_id;       // what PRODUCT_ID reads (the part's revision)
     uint8_t dmp_mem[MPU_DMP_MEM_SIZE];
     uint8_t fifo[MPU_FIFO_SIZE];
     unsigned fifo_rd, fifo_count;
@@ -124,6 +130,8 @@ typedef struct mpu6000 {
     uint64_t produced;        // samples produced (sample clock ticks while awake)
     uint64_t latched_idx;     // index (1-based) of the sample in the output registers; 0 none
     int latched_fully_read;   // the latched sample has been read completely at least once
+    int txn_garbled;          // glue: a byte of this transaction reached the AVR corrupted
+    int latched_read_garbled; // the latched sample's full read was garbled on the bus
     uint64_t samples_read;    // distinct samples read completely (all 14 bytes in one burst)
     uint64_t fifo_overflows;
 
@@ -132,7 +140,8 @@ typedef struct mpu6000 {
     double now_s;                 // set by the glue before mpu_sample
     double counts_t, latched_t;   // production time of counts[] / of the latched sample
     int16_t latched_counts[7];
-    void (*retire)(void *ctx, uint64_t idx, double t, const int16_t c[7], int read);
+    void (*retire)(void *ctx, uint64_t idx, double t, const int16_t c[7], int read);  // read: 0 no,
+                                                                    // 1 yes, 2 garbled on the bus
     void *retire_ctx;
 
     // DMP stub
@@ -159,7 +168,7 @@ typedef struct mpu6000 {
 // Count a broken rule (reg: the register involved, or -1).
 void mpu_violate(mpu6000_t *m, int rule, int reg);
 
-void mpu_power_on(mpu6000_t *m, unsigned dmp_packet_size);
+void mpu_power_on(mpu6000_t *m, unsigned dmp_packet_size, uint8_t product_id);
 void mpu_device_reset(mpu6000_t *m);
 
 // Chip select: low != 0 starts a transaction, 0 ends it.

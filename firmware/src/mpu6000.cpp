@@ -167,6 +167,15 @@ uint32_t g_deadline_us = 0;      // for the wait states
 uint32_t g_last_sample_us = 0;   // streaming supervision: last data-ready serviced
 uint32_t g_next_check_us = 0;    // streaming supervision: next 1 Hz register check
 uint8_t g_who_am_i = 0;
+uint8_t g_product_id = 0;      // PRODUCT_ID read at the last bring-up (0: not yet)
+// Burst check (ArduPilot's APM2 MPU-6000 driver does the same): a marginal bus at 8 MHz gives
+// silent garbage; after one bad burst the sensor is read at the 1 MHz clock until reset.
+spi::Speed g_burst_speed = spi::Speed::kSensor;
+uint16_t g_bad_bursts = 0;
+bool g_dropped_flag = false;   // a bad burst was dropped: flag the next sample missed
+#if IMU_BENCH_DMP
+uint8_t g_int_status_seen = 0; // INT_STATUS bits consumed by the sample burst (FIFO_OFLOW_INT)
+#endif
 #if IMU_BENCH_DMP
 uint16_t g_dmp_offset = 0;
 #endif
@@ -254,6 +263,8 @@ Event poll(uint32_t now) {
             if (!who_am_i_ok(g_who_am_i)) {
                 return fault(now, PROTO_ERROR_CODE_SENSOR_ABSENT, g_who_am_i);
             }
+            // Which revision: C4/C5 count half as many LSB per g (the host scales by it).
+            g_product_id = read_reg(Register::PRODUCT_ID);
             g_state = State::kSignalPathReset;
             return none;
 
@@ -415,12 +426,40 @@ bool read_sample(Sample* out) {
         g_pending = false;
         g_missed_flag = false;
     }
-    // Sensor registers may be read at up to 20 MHz (PS p.15): 8 MHz here. A burst read returns
-    // one sampling instant: the user-facing registers only update while the bus is idle
-    // (RM p.29-31).
-    read_burst(Register::ACCEL_XOUT_H, out->raw, kSensorBurstLen, spi::Speed::kSensor);
+    // Sensor and interrupt registers may be read at up to 20 MHz (PS p.15): 8 MHz here. A
+    // burst read returns one sampling instant: the user-facing registers only update while the
+    // bus is idle (RM p.29-31).
+    uint8_t burst[1 + kSensorBurstLen];
+    read_burst(Register::INT_STATUS, burst, sizeof burst, g_burst_speed);
     g_last_sample_us = out->t_us;
+#if IMU_BENCH_DMP
+    g_int_status_seen |= burst[0];
+#endif
+    // The check: this burst must be the new sample data-ready announced (INT_STATUS.DATA_RDY_INT,
+    // cleared by reading it, RM p.28), and 14 equal bytes are a bus line stuck low or high
+    // (all zero, all 0xFF), not a measurement.
+    bool same = true;
+    for (uint8_t i = 2; i <= kSensorBurstLen; ++i) {
+        same = same && burst[i] == burst[1];
+    }
+    if (!(burst[0] & DATA_RDY_INT) || same) {
+        ++g_bad_bursts;
+        g_burst_speed = spi::Speed::kRegisters;
+        g_dropped_flag = true;
+        return false;
+    }
+    for (uint8_t i = 0; i < kSensorBurstLen; ++i) {
+        out->raw[i] = burst[1 + i];
+    }
+    out->missed = out->missed || g_dropped_flag;
+    g_dropped_flag = false;
     return true;
+}
+
+uint16_t bad_bursts() { return g_bad_bursts; }
+
+uint8_t bus_flags() {
+    return g_burst_speed == spi::Speed::kSensor ? 0 : PROTO_STATUS_FLAGS_SPI_LOW_CLOCK;
 }
 
 uint32_t missed_count() {
@@ -464,6 +503,7 @@ RateResult set_rate(uint8_t smplrt_div, uint8_t dlpf_cfg, uint8_t* bad_register)
 void read_config(Readback* out) {
     out->who_am_i = read_reg(Register::WHO_AM_I);
     g_who_am_i = out->who_am_i;
+    out->product_id = g_product_id;
     out->accel_fs_sel = (read_reg(Register::ACCEL_CONFIG) & AFS_SEL_MASK) >> AFS_SEL_SHIFT;
     out->gyro_fs_sel = (read_reg(Register::GYRO_CONFIG) & FS_SEL_MASK) >> FS_SEL_SHIFT;
     out->dlpf_cfg = read_reg(Register::CONFIG) & DLPF_CFG_MASK;
@@ -476,7 +516,9 @@ bool read_dmp_quat(int32_t q[4], bool* overflow) {
     if (g_state != State::kStreaming) {
         return false;
     }
-    const uint8_t status = read_reg(Register::INT_STATUS);
+    // INT_STATUS clears on read: the sample burst may have taken the overflow bit already
+    const uint8_t status = read_reg(Register::INT_STATUS) | g_int_status_seen;
+    g_int_status_seen = 0;
     uint8_t count_be[2];
     read_burst(Register::FIFO_COUNTH, count_be, 2, spi::Speed::kRegisters);
     const uint16_t count = static_cast<uint16_t>(count_be[0] << 8 | count_be[1]);

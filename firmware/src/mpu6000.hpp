@@ -33,6 +33,7 @@ struct Sample {
 
 struct Readback {
     uint8_t who_am_i;
+    uint8_t product_id;  // PRODUCT_ID as read at the last bring-up
     uint8_t accel_fs_sel;
     uint8_t gyro_fs_sel;
     uint8_t dlpf_cfg;
@@ -58,11 +59,20 @@ bool idle();
 bool sample_pending();
 
 // Take the pending sample, if any: copies its timestamp and flags, clears the pending flag and
-// burst-reads the 14 sensor bytes at 8 MHz.
+// burst-reads INT_STATUS + the 14 sensor bytes at 8 MHz (1 MHz after a bad burst). A burst
+// that fails the check is dropped (false; the next sample is flagged missed).
 bool read_sample(Sample* out);
 
 // Data-ready events not serviced before the next one, since reset.
 uint32_t missed_count();
+
+// Sensor bursts that failed the check (INT_STATUS without data-ready, or 14 equal bytes),
+// since reset; each was dropped.
+uint16_t bad_bursts();
+
+// PROTO_STATUS_FLAGS_* bits: SPI_LOW_CLOCK once a bad burst made the driver read the sensor
+// at 1 MHz (until reset).
+uint8_t bus_flags();
 
 // SET_RATE: new SMPLRT_DIV and DLPF_CFG through the verified config path. On kVerifyFailed
 // *bad_register says which register read back wrong; the driver restarts its bring-up.

@@ -24,6 +24,10 @@ static constexpr uint32_t kSpiClockAllRegistersHz = 1000000UL;
 static constexpr uint32_t kSpiClockSensorReadHz = 20000000UL;
 
 enum class Register : uint8_t {
+    // Part and revision: undocumented in RM rev 4.2 (inside the self-test/offset block); read
+    // by ArduPilot's and PX4's MPU-6000 drivers. High nibble 0x5 (0x1: engineering sample),
+    // low nibble the revision: 4/5 = C4/C5, which have half the accelerometer sensitivity.
+    PRODUCT_ID = 0x0C,
     SMPLRT_DIV = 0x19,         // 25  RM p.11
     CONFIG = 0x1A,             // 26  RM p.13
     GYRO_CONFIG = 0x1B,        // 27  RM p.14
@@ -49,6 +53,11 @@ enum class Register : uint8_t {
 
 // Length of the sensor burst ACCEL_XOUT_H..GYRO_ZOUT_L (accel 6, temp 2, gyro 6).
 static constexpr uint8_t kSensorBurstLen = 14;
+// The burst as read: INT_STATUS (0x3A) first, then ACCEL_XOUT_H (0x3B)..GYRO_ZOUT_L, one
+// transaction (the address auto-increments, PS p.37), so its data-ready bit vouches for them.
+static_assert(static_cast<uint8_t>(Register::INT_STATUS) + 1 ==
+                  static_cast<uint8_t>(Register::ACCEL_XOUT_H),
+              "the checked burst starts at INT_STATUS");
 
 // CONFIG (RM p.13)
 enum CONFIG_BIT : uint8_t {

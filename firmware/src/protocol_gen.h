@@ -3,8 +3,8 @@
 #pragma once
 #include <stdint.h>
 
-#define PROTO_VERSION 1u
-#define PROTO_SPEC_FINGERPRINT 0x045B84F2ul
+#define PROTO_VERSION 2u
+#define PROTO_SPEC_FINGERPRINT 0x21D7E678ul
 #define PROTO_SYNC0 0xA5u
 #define PROTO_SYNC1 0x5Au
 #define PROTO_MAX_PAYLOAD 64u
@@ -15,6 +15,8 @@
 #define PROTO_SAMPLE_FLAGS_MISSED 1u
 #define PROTO_SAMPLE_FLAGS_FIFO_OVERFLOW 2u
 #define PROTO_SAMPLE_FLAGS_CONFIG_CHANGED 4u
+
+#define PROTO_STATUS_FLAGS_SPI_LOW_CLOCK 1u
 
 #define PROTO_MODE_RAW 0u
 #define PROTO_MODE_DMP 1u
@@ -31,7 +33,7 @@
 #define PROTO_ACK_STATUS_UNSUPPORTED 2u
 #define PROTO_ACK_STATUS_BUSY 3u
 
-// IMU_SAMPLE: One sensor sample: device time latched in the data-ready interrupt, then the 14 bytes burst-read from ACCEL_XOUT_H..GYRO_ZOUT_L (big-endian counts, chip axes), then sample_flags.
+// IMU_SAMPLE: One sensor sample: device time latched in the data-ready interrupt, then the 14 bytes burst-read from ACCEL_XOUT_H..GYRO_ZOUT_L (big-endian counts, chip axes; the burst starts at INT_STATUS, which must show data-ready), then sample_flags (MISSED also when a bad burst was dropped before this sample).
 #define PROTO_TYPE_IMU_SAMPLE 0x01u
 #define PROTO_LEN_IMU_SAMPLE 19u
 #define PROTO_OFF_IMU_SAMPLE_t_us 0u  // u32le us device time when the sample became ready, wraps at 2^32
@@ -67,23 +69,24 @@ static inline void proto_put_IMU_SAMPLE(uint8_t *p, uint32_t t_us, int16_t ax, i
 
 // HELLO: Sent once after reset and in answer to GET_CONFIG: who is talking and how the sensor is set up.
 #define PROTO_TYPE_HELLO 0x02u
-#define PROTO_LEN_HELLO 22u
+#define PROTO_LEN_HELLO 23u
 #define PROTO_OFF_HELLO_fw_major 0u  // u8  firmware version major
 #define PROTO_OFF_HELLO_fw_minor 1u  // u8  firmware version minor
 #define PROTO_OFF_HELLO_fw_patch 2u  // u8  firmware version patch
 #define PROTO_OFF_HELLO_protocol_version 3u  // u8  protocol_version of the spec the firmware was built from
 #define PROTO_OFF_HELLO_spec_fingerprint 4u  // u32le  CRC-32 of the canonical spec.json the firmware was built from
 #define PROTO_OFF_HELLO_who_am_i 8u  // u8  WHO_AM_I register as read (0x68 for MPU-6000)
-#define PROTO_OFF_HELLO_accel_fs_sel 9u  // u8  ACCEL_CONFIG AFS_SEL (0 = +-2 g)
-#define PROTO_OFF_HELLO_gyro_fs_sel 10u  // u8  GYRO_CONFIG FS_SEL (0 = +-250 deg/s)
-#define PROTO_OFF_HELLO_dlpf_cfg 11u  // u8  CONFIG DLPF_CFG
-#define PROTO_OFF_HELLO_smplrt_div 12u  // u8  SMPLRT_DIV; rate = internal / (1 + div)
-#define PROTO_OFF_HELLO_mode 13u  // u8  mode enum
-#define PROTO_OFF_HELLO_timer_resolution_ns 14u  // u16le ns resolution of t_us's hardware timer
-#define PROTO_OFF_HELLO_baud 16u  // u32le baud UART baud rate
-#define PROTO_OFF_HELLO_reset_cause 20u  // u8  MCUSR at boot (bit0 power-on, bit1 external, bit2 brown-out, bit3 watchdog)
-#define PROTO_OFF_HELLO_streaming 21u  // u8  1 if IMU_SAMPLE frames are being sent
-static inline void proto_put_HELLO(uint8_t *p, uint8_t fw_major, uint8_t fw_minor, uint8_t fw_patch, uint8_t protocol_version, uint32_t spec_fingerprint, uint8_t who_am_i, uint8_t accel_fs_sel, uint8_t gyro_fs_sel, uint8_t dlpf_cfg, uint8_t smplrt_div, uint8_t mode, uint16_t timer_resolution_ns, uint32_t baud, uint8_t reset_cause, uint8_t streaming) {
+#define PROTO_OFF_HELLO_product_id 9u  // u8  PRODUCT_ID register (0x0C) as read at bring-up: high nibble the part (0x5 MPU-6000, 0x1 engineering sample), low nibble the revision (4, 5 = C4, C5: half the accelerometer sensitivity; 6..10 = D6..D10)
+#define PROTO_OFF_HELLO_accel_fs_sel 10u  // u8  ACCEL_CONFIG AFS_SEL (0 = +-2 g)
+#define PROTO_OFF_HELLO_gyro_fs_sel 11u  // u8  GYRO_CONFIG FS_SEL (0 = +-250 deg/s)
+#define PROTO_OFF_HELLO_dlpf_cfg 12u  // u8  CONFIG DLPF_CFG
+#define PROTO_OFF_HELLO_smplrt_div 13u  // u8  SMPLRT_DIV; rate = internal / (1 + div)
+#define PROTO_OFF_HELLO_mode 14u  // u8  mode enum
+#define PROTO_OFF_HELLO_timer_resolution_ns 15u  // u16le ns resolution of t_us's hardware timer
+#define PROTO_OFF_HELLO_baud 17u  // u32le baud UART baud rate
+#define PROTO_OFF_HELLO_reset_cause 21u  // u8  MCUSR at boot (bit0 power-on, bit1 external, bit2 brown-out, bit3 watchdog)
+#define PROTO_OFF_HELLO_streaming 22u  // u8  1 if IMU_SAMPLE frames are being sent
+static inline void proto_put_HELLO(uint8_t *p, uint8_t fw_major, uint8_t fw_minor, uint8_t fw_patch, uint8_t protocol_version, uint32_t spec_fingerprint, uint8_t who_am_i, uint8_t product_id, uint8_t accel_fs_sel, uint8_t gyro_fs_sel, uint8_t dlpf_cfg, uint8_t smplrt_div, uint8_t mode, uint16_t timer_resolution_ns, uint32_t baud, uint8_t reset_cause, uint8_t streaming) {
     (p + 0)[0] = (uint8_t)(fw_major);
     (p + 1)[0] = (uint8_t)(fw_minor);
     (p + 2)[0] = (uint8_t)(fw_patch);
@@ -93,24 +96,25 @@ static inline void proto_put_HELLO(uint8_t *p, uint8_t fw_major, uint8_t fw_mino
     (p + 4)[2] = (uint8_t)((uint32_t)(spec_fingerprint) >> 16);
     (p + 4)[3] = (uint8_t)((uint32_t)(spec_fingerprint) >> 24);
     (p + 8)[0] = (uint8_t)(who_am_i);
-    (p + 9)[0] = (uint8_t)(accel_fs_sel);
-    (p + 10)[0] = (uint8_t)(gyro_fs_sel);
-    (p + 11)[0] = (uint8_t)(dlpf_cfg);
-    (p + 12)[0] = (uint8_t)(smplrt_div);
-    (p + 13)[0] = (uint8_t)(mode);
-    (p + 14)[0] = (uint8_t)((uint32_t)(timer_resolution_ns) >> 0);
-    (p + 14)[1] = (uint8_t)((uint32_t)(timer_resolution_ns) >> 8);
-    (p + 16)[0] = (uint8_t)((uint32_t)(baud) >> 0);
-    (p + 16)[1] = (uint8_t)((uint32_t)(baud) >> 8);
-    (p + 16)[2] = (uint8_t)((uint32_t)(baud) >> 16);
-    (p + 16)[3] = (uint8_t)((uint32_t)(baud) >> 24);
-    (p + 20)[0] = (uint8_t)(reset_cause);
-    (p + 21)[0] = (uint8_t)(streaming);
+    (p + 9)[0] = (uint8_t)(product_id);
+    (p + 10)[0] = (uint8_t)(accel_fs_sel);
+    (p + 11)[0] = (uint8_t)(gyro_fs_sel);
+    (p + 12)[0] = (uint8_t)(dlpf_cfg);
+    (p + 13)[0] = (uint8_t)(smplrt_div);
+    (p + 14)[0] = (uint8_t)(mode);
+    (p + 15)[0] = (uint8_t)((uint32_t)(timer_resolution_ns) >> 0);
+    (p + 15)[1] = (uint8_t)((uint32_t)(timer_resolution_ns) >> 8);
+    (p + 17)[0] = (uint8_t)((uint32_t)(baud) >> 0);
+    (p + 17)[1] = (uint8_t)((uint32_t)(baud) >> 8);
+    (p + 17)[2] = (uint8_t)((uint32_t)(baud) >> 16);
+    (p + 17)[3] = (uint8_t)((uint32_t)(baud) >> 24);
+    (p + 21)[0] = (uint8_t)(reset_cause);
+    (p + 22)[0] = (uint8_t)(streaming);
 }
 
 // STATUS: Periodic (1 Hz) counters since reset, and in answer to GET_STATUS.
 #define PROTO_TYPE_STATUS 0x03u
-#define PROTO_LEN_STATUS 23u
+#define PROTO_LEN_STATUS 26u
 #define PROTO_OFF_STATUS_uptime_ms 0u  // u32le ms device uptime
 #define PROTO_OFF_STATUS_samples 4u  // u32le  data-ready events read from the sensor
 #define PROTO_OFF_STATUS_missed 8u  // u32le  data-ready events not serviced before the next one
@@ -119,7 +123,9 @@ static inline void proto_put_HELLO(uint8_t *p, uint8_t fw_major, uint8_t fw_mino
 #define PROTO_OFF_STATUS_spi_faults 18u  // u16le  sensor reads or verifies that failed
 #define PROTO_OFF_STATUS_fifo_overflows 20u  // u16le  sensor FIFO overflow events
 #define PROTO_OFF_STATUS_tx_queue_max 22u  // u8 byte high-water mark of the UART transmit queue / 4
-static inline void proto_put_STATUS(uint8_t *p, uint32_t uptime_ms, uint32_t samples, uint32_t missed, uint32_t dropped, uint16_t crc_errors, uint16_t spi_faults, uint16_t fifo_overflows, uint8_t tx_queue_max) {
+#define PROTO_OFF_STATUS_bad_bursts 23u  // u16le  sensor burst reads that failed the check (INT_STATUS without data-ready, or all 14 data bytes the same value): each is dropped, the next sample sent is flagged MISSED
+#define PROTO_OFF_STATUS_flags 25u  // u8  status_flags bits; SPI_LOW_CLOCK: a bad burst made the firmware read the sensor at the 1 MHz clock from then on (a marginal SPI bus)
+static inline void proto_put_STATUS(uint8_t *p, uint32_t uptime_ms, uint32_t samples, uint32_t missed, uint32_t dropped, uint16_t crc_errors, uint16_t spi_faults, uint16_t fifo_overflows, uint8_t tx_queue_max, uint16_t bad_bursts, uint8_t flags) {
     (p + 0)[0] = (uint8_t)((uint32_t)(uptime_ms) >> 0);
     (p + 0)[1] = (uint8_t)((uint32_t)(uptime_ms) >> 8);
     (p + 0)[2] = (uint8_t)((uint32_t)(uptime_ms) >> 16);
@@ -143,6 +149,9 @@ static inline void proto_put_STATUS(uint8_t *p, uint32_t uptime_ms, uint32_t sam
     (p + 20)[0] = (uint8_t)((uint32_t)(fifo_overflows) >> 0);
     (p + 20)[1] = (uint8_t)((uint32_t)(fifo_overflows) >> 8);
     (p + 22)[0] = (uint8_t)(tx_queue_max);
+    (p + 23)[0] = (uint8_t)((uint32_t)(bad_bursts) >> 0);
+    (p + 23)[1] = (uint8_t)((uint32_t)(bad_bursts) >> 8);
+    (p + 25)[0] = (uint8_t)(flags);
 }
 
 // ERROR: A fault the firmware detected; it keeps trying and repeats the frame about once a second while the fault lasts.

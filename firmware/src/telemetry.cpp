@@ -112,7 +112,7 @@ void send_hello() {
     mpu6000::Readback rb;
     mpu6000::read_config(&rb);
     proto_put_HELLO(frame::payload(g_buf), id8(kIdMajor), id8(kIdMinor), id8(kIdPatch),
-                    id8(kIdProto), id32(kIdFingerprint), rb.who_am_i, rb.accel_fs_sel,
+                    id8(kIdProto), id32(kIdFingerprint), rb.who_am_i, rb.product_id, rb.accel_fs_sel,
                     rb.gyro_fs_sel, rb.dlpf_cfg, rb.smplrt_div, id8(kIdMode), id16(kIdTimerRes),
                     id32(kIdBaud), g_mcusr_at_boot,
                     (g_stream_enabled && mpu6000::streaming()) ? 1 : 0);
@@ -124,7 +124,8 @@ void send_status() {
     proto_put_STATUS(frame::payload(g_buf), g_uptime_ms, g_counters.samples,
                      mpu6000::missed_count(), g_counters.dropped, g_counters.crc_errors,
                      g_counters.spi_faults, g_counters.fifo_overflows,
-                     static_cast<uint8_t>(hw / 4));
+                     static_cast<uint8_t>(hw / 4), mpu6000::bad_bursts(),
+                     mpu6000::bus_flags());
     queue(PROTO_TYPE_STATUS, PROTO_LEN_STATUS, true);
 }
 

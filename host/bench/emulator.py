@@ -48,7 +48,12 @@ SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 
 STIM_MAGIC = b"IMUSTIM1"
 STIM_FIELDS = 8
-FAULTS = ("absent", "stuck-miso", "no-drdy")
+#: faults that stop the sensor (a session must end on them)
+SENSOR_FAULTS = ("absent", "stuck-miso", "no-drdy")
+#: ``marginal-bus``: above 1 MHz SCLK every byte the chip sends arrives one bit late; the
+#: firmware's burst check must see it and carry on at the 1 MHz clock (a session succeeds)
+BUS_FAULTS = ("marginal-bus",)
+FAULTS = SENSOR_FAULTS + BUS_FAULTS
 
 
 def toolchain_problem(need_avr: bool = True) -> str | None:
@@ -209,7 +214,9 @@ class EmulatedBoard:
     while it runs, or None = at rest, Z up, 25 °C), ``seconds`` (simulated; None = until the
     stimulus ends or :meth:`stop`), ``realtime``, ``reglog`` / ``samplelog`` (True = a file in
     ``workdir``, or a path), ``fault`` (absent | stuck-miso | no-drdy) from ``fault_at`` s,
-    ``noise_accel`` (m/s²) / ``noise_gyro`` (°/s) with ``seed``, ``clock_ppm``, ``extra_args``.
+    ``noise_accel`` (m/s²) / ``noise_gyro`` (°/s) with ``seed``, ``clock_ppm``, ``product_id``
+    (what the chip's PRODUCT_ID reads: its revision; None = the emulator's default, rev D8),
+    ``extra_args``.
 
     Boot like the real board (``boot=True``): the stk500v2 bootloader in the boot section runs
     first after every reset (≈ 0.8 s, in real time), then the application; ``elf`` (an ``.elf``
@@ -233,6 +240,7 @@ class EmulatedBoard:
         noise_gyro: float = 0.0,
         seed: int | None = None,
         clock_ppm: float = 0.0,
+        product_id: int | None = None,
         wait_open: bool = True,
         dtr_reset: bool = True,
         workdir: str | Path | None = None,
@@ -254,6 +262,7 @@ class EmulatedBoard:
         self.noise_gyro = noise_gyro
         self.seed = seed
         self.clock_ppm = clock_ppm
+        self.product_id = product_id
         self.wait_open = wait_open
         self.dtr_reset = dtr_reset
         self.emulator = Path(emulator) if emulator else None
@@ -314,6 +323,8 @@ class EmulatedBoard:
             cmd += ["--seed", str(int(self.seed))]
         if self.clock_ppm:
             cmd += ["--clock-ppm", repr(float(self.clock_ppm))]
+        if self.product_id is not None:
+            cmd += ["--product-id", f"{int(self.product_id):#04x}"]
         if not self.wait_open:
             cmd.append("--no-wait")
         if not self.dtr_reset:

@@ -98,7 +98,7 @@ def simulate_link(p: LinkParams) -> LinkCapture:
         if t[k] >= next_status:
             st = encode_frame(
                 "STATUS", seq & 0xFFFF, uptime_ms=int(t[k] * 1000), samples=k, missed=0, dropped=0,
-                crc_errors=0, spi_faults=0, fifo_overflows=0, tx_queue_max=2,
+                crc_errors=0, spi_faults=0, fifo_overflows=0, tx_queue_max=2, bad_bursts=0, flags=0,
             )  # fmt: skip
             seq += 1
             events.append((ready + 1e-4, st))

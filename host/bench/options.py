@@ -6,8 +6,10 @@ up are read here, once, with the same meaning and checks:
 ``seed`` (draws the truth, the room, the noise and the operator: same seed, same sensor on both
 schemes), ``speed`` (``realtime`` | ``N`` | ``max``; the default differs: ``realtime`` on
 ``sim://``, ``max`` on ``emu://``), ``truth`` (``random`` | ``ideal``), ``effects``,
-``operator`` (``auto`` | ``manual``), ``latitude``, ``tilt``, ``earth_rate`` and
-``operator_fault=NAME[@K]`` (may repeat: the K-th ``place`` or ``turn`` goes wrong on purpose).
+``operator`` (``auto`` | ``manual``), ``latitude``, ``tilt``, ``earth_rate``,
+``operator_fault=NAME[@K]`` (may repeat: the K-th ``place`` or ``turn`` goes wrong on purpose)
+and ``revision`` (the MPU-6000's PRODUCT_ID: ``D8`` by default, ``C4``/``C5`` count half the
+accelerometer LSB/g; a name or a number such as ``0x55``; :func:`parse_revision`).
 
 ``fault=`` keeps the meaning it always had on each scheme: on ``sim://`` the operator's (and
 ``pull_cable@S``, the cable's) faults — the old spelling of ``operator_fault`` —, on ``emu://``
@@ -23,6 +25,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from host.wire.sensor import DEFAULT_PRODUCT_ID, product_id_of
+
 if TYPE_CHECKING:
     from host.bench.physics import Bench, Environment
     from host.bench.truth import SensorTruth
@@ -37,7 +41,7 @@ SAMPLE_CLOCK_MAX = 0.05
 #: the options read here (a scheme adds its own)
 KEYS = (
     "seed", "speed", "truth", "effects", "operator", "latitude", "tilt", "earth_rate",
-    "operator_fault", "chamber",
+    "operator_fault", "chamber", "revision",
 )  # fmt: skip
 #: ``sim://``'s cable fault (``fault=pull_cable@S``: S simulated s after opening, default 5)
 CABLE_FAULT = "pull_cable"
@@ -82,6 +86,7 @@ class SimOptions:
     operator_faults: tuple[tuple[str, float], ...] = ()  # (name, K) for sim.CubeOperator
     chamber: tuple[tuple[str, float], ...] = ()  # Environment chamber fields (parse_chamber)
     cable_pull_s: float | None = None  # sim:// only: fault=pull_cable@S
+    product_id: int = DEFAULT_PRODUCT_ID  # the chip's PRODUCT_ID (revision=)
 
     def draw(self) -> BenchDraw:
         """The sensor, room and bench of these options, and the seeds of the noise and the
@@ -174,6 +179,8 @@ def parse_sim_options(
         tilt = bounded(key, one("tilt", "0"), -90.0, 90.0)
         key = "chamber"
         chamber = tuple(parse_chamber(one(key, "")).items()) if key in opts else ()
+        key = "revision"
+        product_id = parse_revision(one(key, "D8"))
         faults: list[tuple[str, float]] = []
         cable: float | None = None
         sources: list[tuple[str, tuple[str, ...]]] = [("operator_fault", OPERATOR_FAULTS)]
@@ -193,8 +200,25 @@ def parse_sim_options(
         raise OptionError(key, str(exc)) from None
     earth = one("earth_rate", "1").lower() not in ("0", "false", "no")
     return SimOptions(
-        seed, speed, truth, effects, operator, latitude, tilt, earth, tuple(faults), chamber, cable
+        seed,
+        speed,
+        truth,
+        effects,
+        operator,
+        latitude,
+        tilt,
+        earth,
+        tuple(faults),
+        chamber,
+        cable,
+        product_id,
     )
+
+
+def parse_revision(text: str) -> int:
+    """``revision=``: ``C4``, ``C5``, ``D6`` … ``D10`` (``ES C4`` … for engineering samples) or a
+    PRODUCT_ID number (``0x55``) -> the PRODUCT_ID the virtual chip reads; ValueError otherwise."""
+    return product_id_of(text)
 
 
 def parse_chamber(text: str) -> dict[str, float]:

@@ -121,12 +121,15 @@ class SampleBlock:
         )
 
 
-def quantise(accel: np.ndarray, gyro: np.ndarray, temp_c: np.ndarray) -> np.ndarray:
+def quantise(
+    accel: np.ndarray, gyro: np.ndarray, temp_c: np.ndarray, product_id: int | None = None
+) -> np.ndarray:
     """Physical outputs -> (N, 7) int16 counts (rounded to the LSB, saturated at full scale),
-    ±2 g and ±250 °/s as the firmware configures the chip."""
+    ±2 g and ±250 °/s as the firmware configures the chip (AFS_SEL 0 counts half the LSB/g on
+    revisions C4/C5: ``product_id``, :func:`host.wire.sensor.accel_lsb_per_g`)."""
     n = accel.shape[0]
     out = np.empty((n, 7), dtype=np.int16)
-    out[:, 0:3] = sensor.accel_counts(accel, 0)
+    out[:, 0:3] = sensor.accel_counts(accel, 0, product_id)
     out[:, 3] = sensor.temp_counts(temp_c)
     out[:, 4:7] = sensor.gyro_counts(gyro, 0)
     return out
@@ -151,6 +154,8 @@ class Simulator:
         power_on_s: float = 0.0,
     ) -> None:
         self.truth = truth
+        #: the chip's PRODUCT_ID (its revision: C4/C5 count half the accelerometer LSB/g)
+        self.product_id = sensor.DEFAULT_PRODUCT_ID
         #: how long the sensor had been powered when this simulator's clock read 0, s
         #: (a board reset restarts the device clock but not the chip's warm-up)
         self.power_on_s = power_on_s
@@ -239,7 +244,8 @@ class Simulator:
         if n and self._config_changed:
             flags[0] |= CONFIG_CHANGED
             self._config_changed = False
-        return SampleBlock(t, self.environment.device_us(t), quantise(accel, gyro, temp), flags)
+        counts = quantise(accel, gyro, temp, self.product_id)
+        return SampleBlock(t, self.environment.device_us(t), counts, flags)
 
     def _outputs(self, t: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Physical sensor output at the sample times ``t`` (period ``dt``): accel (N, 3)

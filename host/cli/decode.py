@@ -29,7 +29,9 @@ from host.wire.frames import (
     Frame,
     baud_from_hello,
     full_scale_from_hello,
+    product_id_from_hello,
     samples_to_physical,
+    status_text,
 )
 
 
@@ -86,7 +88,8 @@ class _Decode:
         self.path = args.file
         self.out = out
         self.hellos: list[tuple[int, Frame]] = []
-        self.config: tuple[int, int] | None = None
+        self.config: tuple[int, int, int | None] | None = None  # AFS_SEL, FS_SEL, PRODUCT_ID
+        self.bus_warning: str | None = None
         self.held: list[tuple[np.ndarray, np.ndarray | None]] = []
         self.held_n = 0
         self.timeline: clock.TimelineBuilder | None = None
@@ -98,6 +101,9 @@ class _Decode:
     def add(self, result: BulkResult, arrivals: np.ndarray | None) -> None:
         self.capture = arrivals is not None
         self.hellos += [(o, f) for o, f in result.others if f.name == "HELLO"]
+        for _, f in result.others:  # the board's word on its bus (STATUS.flags), the latest
+            if f.name == "STATUS" and (text := status_text(f)):
+                self.bus_warning = text
         if self.config is None:
             self.held.append((result.samples, arrivals))
             self.held_n += result.samples.size
@@ -115,7 +121,11 @@ class _Decode:
     def _decide(self) -> None:
         """Scaling and baud from the HELLO frames seen (the first valid one, as
         :func:`~host.wire.frames.full_scale_from_hello`), then release what was held."""
-        self.config = (0, 0) if self.args.stats else full_scale_from_hello(self.hellos)
+        self.config = (
+            (0, 0, None)
+            if self.args.stats
+            else (*full_scale_from_hello(self.hellos), product_id_from_hello(self.hellos))
+        )
         if self.capture:
             self.timeline = clock.TimelineBuilder(
                 baud=baud_from_hello(self.hellos), keep_segments=MAX_LISTED_SEGMENTS
@@ -140,6 +150,8 @@ class _Decode:
                 self._write(block.samples, block.host_ns, block.arrival_ns)
             self._warn()
         self._write(np.zeros(0, SAMPLE_DTYPE), None, None)  # the CSV header, with no samples
+        if self.bus_warning:
+            print(f"warning: {self.path}: {self.bus_warning}", file=sys.stderr)
         if reader.truncated_bytes:
             print(
                 f"warning: {self.path}: the last {reader.truncated_bytes} bytes are a cut-off "

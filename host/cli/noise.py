@@ -34,7 +34,12 @@ def load_static(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
         data = np.column_stack([rec.accel, rec.gyro])
         return rec.t_ms / 1000.0, data, rec.temp, f"record {rec.name} ({len(rec)} samples)"
     from host.timing import clock
-    from host.wire.frames import decode_file, full_scale_from_hello, samples_to_physical
+    from host.wire.frames import (
+        decode_file,
+        full_scale_from_hello,
+        product_id_from_hello,
+        samples_to_physical,
+    )
 
     result, _ = decode_file(path)
     s = result.samples
@@ -48,7 +53,7 @@ def load_static(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     if ids.size > 1:
         note += f", the longest of {ids.size} segments between board resets"
     afs, fs = full_scale_from_hello(result.others)
-    phys = samples_to_physical(s, afs, fs)
+    phys = samples_to_physical(s, afs, fs, product_id_from_hello(result.others))
     t_s = clock.unwrap(np.asarray(s["t_us"], dtype=np.int64), 32).astype(np.float64) / 1e6
     data = np.column_stack([phys[c] for c in noise.CHANNELS])
     return t_s, data, phys["temp"], note + ")"

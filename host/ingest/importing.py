@@ -457,11 +457,13 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
     Times are the device's µs time stamps (unwrapped); if the board was reset during the
     capture the pieces are joined on the host clock when the capture has arrival times, else
     only the longest piece is kept (with a note in ``meta``)."""
+    from host.calib.records import sensor_meta
     from host.timing import clock
     from host.wire.frames import (
         baud_from_hello,
         decode_file,
         full_scale_from_hello,
+        product_id_from_hello,
         samples_to_physical,
     )
 
@@ -471,8 +473,10 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
     if s.size < 2:
         raise ForeignFileError(f"{p}: no IMU samples decoded from this capture")
     timeline = clock.build_timeline(s, arrivals, baud=baud_from_hello(result.others))
-    phys = samples_to_physical(s, *full_scale_from_hello(result.others))
+    product_id = product_id_from_hello(result.others)
+    phys = samples_to_physical(s, *full_scale_from_hello(result.others), product_id)
     meta = {"source": p.name, "importer": "capture", "units": "device counts (HELLO full scale)"}
+    meta |= sensor_meta(None, product_id)
     sel = slice(0, s.size)
     if len(timeline.segments) == 1:
         t_s = (timeline.device_us - timeline.device_us[0]) / 1e6

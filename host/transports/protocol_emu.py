@@ -8,7 +8,7 @@ URL grammar (all options optional, ``&``-separated)::
           [&speed=max|N|realtime][&truth=random|ideal][&effects=NAME,NAME...]
           [&operator=auto|manual][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
           [&operator_fault=wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
-          [&chamber=FROM:TO:MINUTES[@START_S]]
+          [&chamber=FROM:TO:MINUTES[@START_S]][&revision=D8|C4|C5|...|0xNN]
 
 - ``elf``: firmware to run, an ``.elf`` or ``.hex`` (default: ``make -C firmware`` into
   ``firmware/build/`` first; with ``boot``/``flash``: whatever the flash holds).
@@ -38,7 +38,11 @@ URL grammar (all options optional, ``&``-separated)::
   fault.)
 - ``fault``: sensor fault from ``fault_at`` simulated seconds on (default 0): ``absent`` (no
   answer on SPI, no data-ready), ``stuck-miso`` (every byte read is 0xFF), ``no-drdy`` (the INT
-  line never rises).
+  line never rises), ``marginal-bus`` (above 1 MHz SCLK every byte read arrives one bit late:
+  the firmware's burst check drops to the 1 MHz clock and sets STATUS.flags SPI_LOW_CLOCK).
+- ``revision``: what the chip's PRODUCT_ID reads (``host.bench.options.parse_revision``):
+  ``D8`` (default), ``C4``/``C5`` (half the accelerometer LSB/g at every AFS_SEL), ``D6`` …
+  ``D10``, or a number (``0x55``); with any stimulus.
 - ``noise_accel`` (m/s²), ``noise_gyro`` (°/s), ``seed``: white noise added before quantisation.
 - ``clock_ppm``: MPU-6000 sample clock error against the AVR crystal.
 - ``reglog``, ``samplelog``: write the register-access / produced-sample CSV logs there.
@@ -85,7 +89,14 @@ from serial.serialposix import Serial as PosixSerial
 from serial.serialutil import SerialException
 
 from host.bench.emulator import FAULTS, STIM_RECORD_HZ, EmulatedBoard, SimStimulus
-from host.bench.options import KEYS, SAMPLE_CLOCK_MAX, OptionError, SimOptions, bounded
+from host.bench.options import (
+    KEYS,
+    SAMPLE_CLOCK_MAX,
+    OptionError,
+    SimOptions,
+    bounded,
+    parse_revision,
+)
 from host.bench.options import parse_sim_options as parse_bench_options
 
 if TYPE_CHECKING:
@@ -96,7 +107,7 @@ if TYPE_CHECKING:
 _FLOAT = ("seconds", "fault_at", "noise_accel", "noise_gyro", "clock_ppm")
 _PATH = ("elf", "stimulus", "reglog", "samplelog", "workdir", "flash")
 #: options of the simulator stimulus (parse_sim_options), not of the EmulatedBoard
-_SIM_KEYS = tuple(k for k in KEYS if k != "seed")
+_SIM_KEYS = tuple(k for k in KEYS if k not in ("seed", "revision"))
 #: after an operator hint, wait until the emulator is this far past the change, s (every
 #: sample taken before it has then been sent to the port)
 HINT_SYNC_S = 0.03
@@ -142,6 +153,8 @@ def parse_url(url: str) -> dict[str, Any]:
                 kw[key] = value.lower() in ("1", "true", "yes", "")
             elif key == "seed":
                 kw[key] = int(value, 0)
+            elif key == "revision":  # the chip's, whatever the stimulus
+                kw["product_id"] = parse_revision(value)
             elif key == "fault":
                 if value not in FAULTS:
                     raise ValueError(f"fault must be one of {', '.join(FAULTS)}")

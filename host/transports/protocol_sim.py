@@ -7,7 +7,7 @@ the options shared with ``emu://`` are read by :mod:`host.bench.options`)::
           [&operator_fault=wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
           [&fault=pull_cable[@SECONDS]|wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
           [&clock_ppm=PPM][&sample_clock=REL][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
-          [&effects=NAME,NAME...][&chamber=FROM:TO:MINUTES[@START_S]]
+          [&effects=NAME,NAME...][&chamber=FROM:TO:MINUTES[@START_S]][&revision=D8|C4|C5|...]
 
 - ``seed`` (default 0): draws the truth, the room/clock and the noise; same seed, same board.
 - ``speed``: ``realtime`` (default) — simulated time follows the wall clock; ``N`` — it runs N×
@@ -20,6 +20,8 @@ the options shared with ``emu://`` are read by :mod:`host.bench.options`)::
 - ``chamber``: a thermal chamber ramps the air from FROM to TO °C over MINUTES, starting
   START_S simulated seconds after power-on (default 0), then holds; the chip's warm-up rides
   on top (e.g. ``chamber=-10:50:60`` for a thermal calibration).
+- ``revision``: the MPU-6000's PRODUCT_ID, reported in HELLO: ``D8`` (default), ``C4``/``C5``
+  (half the accelerometer LSB/g: the counts say so), ``D6`` … ``D10``, or a number (``0x55``).
 - ``operator_fault`` (as on ``emu://``; ``fault=`` is its older spelling here) and ``fault``:
   the operator or the cable misbehaves on purpose. ``wrong_face@K``: the K-th
   ``place`` hint (default 1st) puts the next axis up (x→y→z→x, same side);
@@ -85,6 +87,7 @@ from host.bench.truth import SensorTruth
 from host.errors import BadURLError
 from host.wire import protocol_gen as gen
 from host.wire.frames import StreamDecoder, encode_frame, encode_imu_samples
+from host.wire.sensor import DEFAULT_PRODUCT_ID
 
 FW_VERSION = (0, 1, 0)
 BAUD = 115200
@@ -116,6 +119,9 @@ def _usage(msg: str) -> SerialException:
 
 class Serial(SerialBase):
     """The virtual board as a pyserial port (``serial.serial_for_url("sim://...")``)."""
+
+    #: the chip's PRODUCT_ID (``revision=``)
+    product_id: int = DEFAULT_PRODUCT_ID
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self._lock = threading.RLock()
@@ -150,6 +156,7 @@ class Serial(SerialBase):
         try:
             o = parse_sim_options(opts, speed_default="realtime", fault_is_operator=True)
             self.seed = o.seed
+            self.product_id = o.product_id
             self.speed: float | None = o.speed
             self.operator = o.operator
             self.faults: dict[str, float] = dict(o.operator_faults)
@@ -209,6 +216,7 @@ class Serial(SerialBase):
         if self.sim is not None:  # the cube stays where it is
             self._pose = resting_pose(self.sim, self._t_gen)
         self.sim = Simulator(self.truth, self.bench, self.environment, seed, 50.0, self._power_s)
+        self.sim.product_id = self.product_id
         self.sim.set_motion(self._pose, 0.0)
         self._out.clear()
         self._decoder = StreamDecoder("any")  # as the firmware: any type
@@ -247,6 +255,7 @@ class Serial(SerialBase):
             protocol_version=gen.PROTOCOL_VERSION,
             spec_fingerprint=gen.SPEC_FINGERPRINT,
             who_am_i=0x68,
+            product_id=self.product_id,
             accel_fs_sel=0,
             gyro_fs_sel=0,
             dlpf_cfg=self._dlpf,
@@ -270,6 +279,8 @@ class Serial(SerialBase):
             spi_faults=0,
             fifo_overflows=0,
             tx_queue_max=7,
+            bad_bursts=0,
+            flags=0,
         )
 
     def _now_target(self) -> float:

@@ -160,6 +160,22 @@ def error_text(f: Frame) -> str:
     )
 
 
+#: STATUS.flags bit: the firmware reads the sensor at the 1 MHz clock after a bad burst
+SPI_LOW_CLOCK = gen.ENUMS["status_flags"]["SPI_LOW_CLOCK"]
+
+
+def status_text(f: Frame) -> str | None:
+    """What a STATUS frame's flags tell the user, or None when there is nothing to tell."""
+    fl = f.fields
+    if not fl["flags"] & SPI_LOW_CLOCK:
+        return None
+    return (
+        f"the SPI bus to the sensor is marginal: {fl['bad_bursts']} sensor reads came back "
+        "garbled at 8 MHz (dropped, counted as lost samples) and the board now reads at 1 MHz; "
+        "the data stay good, but check the IMU's wiring and connector"
+    )
+
+
 def crc16(data: bytes | bytearray | memoryview) -> int:
     """CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF) as the envelope uses it."""
     return binascii.crc_hqx(data, gen.CRC_INIT)
@@ -759,11 +775,13 @@ class BulkReader:
 # --------------------------------------------------------------------------- physical units
 
 
-def samples_to_physical(samples: np.ndarray, afs_sel: int = 0, fs_sel: int = 0) -> dict:
+def samples_to_physical(
+    samples: np.ndarray, afs_sel: int = 0, fs_sel: int = 0, product_id: int | None = None
+) -> dict:
     """Raw sample counts -> physical units: ax..az m/s², gx..gz °/s, temp °C (arrays)."""
     out: dict[str, np.ndarray] = {}
     for a in ("ax", "ay", "az"):
-        out[a] = sensor.accel_mps2(samples[a], afs_sel)
+        out[a] = sensor.accel_mps2(samples[a], afs_sel, product_id)
     for g in ("gx", "gy", "gz"):
         out[g] = sensor.gyro_dps(samples[g], fs_sel)
     out["temp"] = sensor.temp_c(samples["temp"])
@@ -790,6 +808,12 @@ def full_scale_from_hello(others: list[tuple[int, Frame]]) -> tuple[int, int]:
             "this project's (decode --stats still counts the frames)"
         )
     return 0, 0
+
+
+def product_id_from_hello(others: list[tuple[int, Frame]]) -> int | None:
+    """PRODUCT_ID (the sensor's revision: C4/C5 count half the accelerometer LSB/g) from the
+    first HELLO frame, or None without HELLO (the datasheet's sensitivity then)."""
+    return next((f.fields["product_id"] for _, f in others if f.name == "HELLO"), None)
 
 
 def decode_file(path: Path) -> tuple[BulkResult, np.ndarray | None]:

@@ -5,8 +5,8 @@ The frame definitions as plain data; host/wire/frames.py builds its codecs from 
 
 from __future__ import annotations
 
-PROTOCOL_VERSION = 1
-SPEC_FINGERPRINT = 0x045B84F2
+PROTOCOL_VERSION = 2
+SPEC_FINGERPRINT = 0x21D7E678
 SYNC = bytes([165, 90])
 MAX_PAYLOAD = 64
 CRC_INIT = 0xFFFF
@@ -32,6 +32,9 @@ ENUMS: dict[str, dict[str, int]] = {
         'FIFO_OVERFLOW': 2,
         'CONFIG_CHANGED': 4,
     },
+    'status_flags': {
+        'SPI_LOW_CLOCK': 1,
+    },
     'mode': {
         'RAW': 0,
         'DMP': 1,
@@ -55,8 +58,8 @@ ENUMS: dict[str, dict[str, int]] = {
 #: type -> (name, direction, payload length, ((field, type code, unit), ...))
 MESSAGES: dict[int, tuple[str, str, int, tuple[tuple[str, str, str], ...]]] = {
     0x01: ('IMU_SAMPLE', 'device', 19, (('t_us', 'u32le', 'us'), ('ax', 'i16be', 'count'), ('ay', 'i16be', 'count'), ('az', 'i16be', 'count'), ('temp', 'i16be', 'count'), ('gx', 'i16be', 'count'), ('gy', 'i16be', 'count'), ('gz', 'i16be', 'count'), ('flags', 'u8', ''), )),
-    0x02: ('HELLO', 'device', 22, (('fw_major', 'u8', ''), ('fw_minor', 'u8', ''), ('fw_patch', 'u8', ''), ('protocol_version', 'u8', ''), ('spec_fingerprint', 'u32le', ''), ('who_am_i', 'u8', ''), ('accel_fs_sel', 'u8', ''), ('gyro_fs_sel', 'u8', ''), ('dlpf_cfg', 'u8', ''), ('smplrt_div', 'u8', ''), ('mode', 'u8', ''), ('timer_resolution_ns', 'u16le', 'ns'), ('baud', 'u32le', 'baud'), ('reset_cause', 'u8', ''), ('streaming', 'u8', ''), )),
-    0x03: ('STATUS', 'device', 23, (('uptime_ms', 'u32le', 'ms'), ('samples', 'u32le', ''), ('missed', 'u32le', ''), ('dropped', 'u32le', ''), ('crc_errors', 'u16le', ''), ('spi_faults', 'u16le', ''), ('fifo_overflows', 'u16le', ''), ('tx_queue_max', 'u8', 'byte'), )),
+    0x02: ('HELLO', 'device', 23, (('fw_major', 'u8', ''), ('fw_minor', 'u8', ''), ('fw_patch', 'u8', ''), ('protocol_version', 'u8', ''), ('spec_fingerprint', 'u32le', ''), ('who_am_i', 'u8', ''), ('product_id', 'u8', ''), ('accel_fs_sel', 'u8', ''), ('gyro_fs_sel', 'u8', ''), ('dlpf_cfg', 'u8', ''), ('smplrt_div', 'u8', ''), ('mode', 'u8', ''), ('timer_resolution_ns', 'u16le', 'ns'), ('baud', 'u32le', 'baud'), ('reset_cause', 'u8', ''), ('streaming', 'u8', ''), )),
+    0x03: ('STATUS', 'device', 26, (('uptime_ms', 'u32le', 'ms'), ('samples', 'u32le', ''), ('missed', 'u32le', ''), ('dropped', 'u32le', ''), ('crc_errors', 'u16le', ''), ('spi_faults', 'u16le', ''), ('fifo_overflows', 'u16le', ''), ('tx_queue_max', 'u8', 'byte'), ('bad_bursts', 'u16le', ''), ('flags', 'u8', ''), )),
     0x04: ('ERROR', 'device', 4, (('code', 'u8', ''), ('detail', 'u8', ''), ('count', 'u16le', ''), )),
     0x05: ('DMP_QUAT', 'device', 20, (('t_us', 'u32le', 'us'), ('q0', 'i32be', 'q30'), ('q1', 'i32be', 'q30'), ('q2', 'i32be', 'q30'), ('q3', 'i32be', 'q30'), )),
     0x06: ('ACK', 'device', 4, (('cmd_type', 'u8', ''), ('cmd_seq', 'u16le', ''), ('status', 'u8', ''), )),

@@ -1,7 +1,8 @@
 """An unattended ``--yes`` session on the real firmware whose sensor fails (issue 17) ends
 within a minute with exit 2, one line naming the board's reason and the ``--resume`` hint,
 and keeps the records accepted before the fault — from the start and after the first record,
-for every sensor fault the emulator injects (``emu://?fault=...``, host/emulator.py FAULTS).
+for every sensor fault the emulator injects (``emu://?fault=...``, host/bench/emulator.py
+SENSOR_FAULTS; the bus fault the firmware survives is in test_emu_identity.py).
 
 Before this, ``no-drdy`` (and ``absent``/``stuck-miso`` starting after the first record) waited
 forever at ``0.0/5 s``: the board keeps sending STATUS and ERROR frames, so the link's silence
@@ -17,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from host.bench.emulator import FAULTS
+from host.bench.emulator import SENSOR_FAULTS
 
 pytestmark = [pytest.mark.emulator, pytest.mark.slow]
 
@@ -31,7 +32,7 @@ LATE_S = 20.0
 # a whole CLI session on the emulated board, itself bounded at 60 s
 @pytest.mark.timeout(90)
 @pytest.mark.parametrize("fault_at", [0.0, LATE_S], ids=["from-start", "after-records"])
-@pytest.mark.parametrize("fault", FAULTS)
+@pytest.mark.parametrize("fault", SENSOR_FAULTS)
 def test_yes_session_on_a_failed_sensor_ends_with_exit_2(
     emu_toolchain: None, tmp_path: Path, fault: str, fault_at: float
 ) -> None:

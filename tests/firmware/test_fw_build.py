@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import shutil
 
-from fwbuild import FIRMWARE, Build, make, spec_fingerprint
+from fwbuild import FIRMWARE, GENERATE, Build, make, spec_fingerprint
 
 REQUIRED_FLAGS = (
     "-mmcu=atmega2560",
@@ -58,7 +58,7 @@ def test_warnings_are_errors(avr_toolchain, tmp_path) -> None:
 def test_identity_defaults(default_build: Build) -> None:
     ident = default_build.identity()
     assert (ident["major"], ident["minor"], ident["patch"]) == (0, 1, 0)
-    assert ident["protocol_version"] == 1
+    assert ident["protocol_version"] == GENERATE.load_spec()["protocol_version"]
     # From spec.json itself: a stale protocol_gen.h or a firmware that does not use
     # PROTO_SPEC_FINGERPRINT fails here.
     assert ident["fingerprint"] == spec_fingerprint()

@@ -33,7 +33,7 @@ def make_stream(n: int, seed: int = 0, seq0: int = 0, t0: int = 0, status_every:
         if status_every and i % status_every == status_every - 1:
             out += encode_frame(
                 "STATUS", seq, uptime_ms=i * 20, samples=i, missed=0, dropped=0,
-                crc_errors=0, spi_faults=0, fifo_overflows=0, tx_queue_max=1,
+                crc_errors=0, spi_faults=0, fifo_overflows=0, tx_queue_max=1, bad_bursts=0, flags=0,
             )  # fmt: skip
             seq += 1
     return bytes(out)

@@ -57,8 +57,9 @@ def test_decode_jsonl_csv_stats(tmp_path: Path) -> None:
     data, counts = sample_bytes(20)
     hello = encode_frame(
         "HELLO", 20, fw_major=0, fw_minor=1, fw_patch=0, protocol_version=1,
-        spec_fingerprint=1, who_am_i=0x68, accel_fs_sel=0, gyro_fs_sel=0, dlpf_cfg=4,
-        smplrt_div=19, mode=0, timer_resolution_ns=500, baud=115200, reset_cause=1, streaming=1,
+        spec_fingerprint=1, who_am_i=0x68, product_id=0x58, accel_fs_sel=0, gyro_fs_sel=0,
+        dlpf_cfg=4, smplrt_div=19, mode=0, timer_resolution_ns=500, baud=115200, reset_cause=1,
+        streaming=1,
     )  # fmt: skip
     raw = tmp_path / "raw.bin"
     raw.write_bytes(b"\x00garbage" + data + hello)

@@ -478,8 +478,8 @@ def test_default_port() -> None:
 
 def test_gyro_alarm_threshold() -> None:
     fields = dict(fw_major=0, fw_minor=1, fw_patch=0, protocol_version=1, spec_fingerprint=0,
-                  who_am_i=0x68, accel_fs_sel=0, gyro_fs_sel=0, dlpf_cfg=3, smplrt_div=19,
-                  mode=0, timer_resolution_ns=4000, baud=115200, reset_cause=1,
+                  who_am_i=0x68, product_id=0x58, accel_fs_sel=0, gyro_fs_sel=0, dlpf_cfg=3,
+                  smplrt_div=19, mode=0, timer_resolution_ns=4000, baud=115200, reset_cause=1,
                   streaming=1)  # fmt: skip
     info = live.BoardInfo.from_hello(fields)
     # 250 °/s − 1 LSB at 131 LSB/(°/s): 32749 counts = 249.992 °/s
