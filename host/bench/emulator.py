@@ -213,7 +213,7 @@ class EmulatedBoard:
     ``stimulus`` (a stimulus file path, or ``"pipe"`` to write records into ``.stimulus_pipe``
     while it runs, or None = at rest, Z up, 25 °C), ``seconds`` (simulated; None = until the
     stimulus ends or :meth:`stop`), ``realtime``, ``reglog`` / ``samplelog`` (True = a file in
-    ``workdir``, or a path), ``fault`` (absent | stuck-miso | no-drdy) from ``fault_at`` s,
+    ``workdir``, or a path), ``fault`` (:data:`FAULTS`) from ``fault_at`` s,
     ``noise_accel`` (m/s²) / ``noise_gyro`` (°/s) with ``seed``, ``clock_ppm``, ``product_id``
     (what the chip's PRODUCT_ID reads: its revision; None = the emulator's default, rev D8),
     ``extra_args``.

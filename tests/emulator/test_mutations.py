@@ -7,12 +7,19 @@ never by a recorded capture:
 
 - the MPU-6000 model's and the board's hardware rules (``summary["rules"]``, each with its
   datasheet page: ``firmware/emulator/README.md``, *Hardware rules*);
-- four stream rules that hold for any correct firmware, whatever its timing:
+- six stream rules that hold for any correct firmware, whatever its timing:
   ``CALIBRATION_MODE`` (the chip ends up at ±2 g, ±250 °/s, DLPF 20 Hz, 50 Hz: the calibration
   mode of ``firmware/README.md``), ``STREAMING`` (a healthy chip gives samples),
   ``FRAMES_MATCH_CHIP`` (every IMU_SAMPLE carries exactly the counts of a sample the chip
-  produced and the firmware burst-read, in order: ``--samplelog``), ``SAMPLE_PERIOD`` (device
-  time steps equal the chip's sample-clock steps within interrupt latency).
+  produced and the firmware burst-read intact, in order: ``--samplelog``), ``SAMPLE_PERIOD``
+  (device time steps equal the chip's sample-clock steps within interrupt latency),
+  ``SENSOR_IDENTITY`` (HELLO reports the PRODUCT_ID the chip has: the runs use a rev C5 part,
+  0x55, whose accelerometer counts half the LSB/g) and ``BUS_FLAG`` (STATUS.flags says
+  SPI_LOW_CLOCK exactly when the bus garbled a sensor read).
+
+A mutant with ``bus="marginal-bus"`` runs on a marginal SPI bus (``--fault marginal-bus``: above
+1 MHz every byte read arrives one bit late): the firmware's burst check must drop the garbled
+read and carry on at 1 MHz.
 
 Each test asserts that the named rule catches its mutant; the unmutated firmware breaks none.
 The score (caught / total) is in README.md and checked by :func:`test_readme_states_the_score`.
@@ -36,6 +43,8 @@ ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE = ROOT / "firmware"
 RUN_S = 1.5  # emulated: bring-up (~0.25 s) + ~60 samples
 TIMESTAMP_TOL_US = 16  # interrupt latency (as in test_emu_firmware)
+PRODUCT_ID = 0x55  # rev C5: not the emulator's default (a hard-coded or unread id shows)
+SPI_LOW_CLOCK = 1  # STATUS.flags (protocol/spec.json status_flags)
 # a per-test limit with room for a loaded machine: one build (~2 s) + one run (~1 s) normally
 MUTANT_TIMEOUT_S = 120
 
@@ -47,6 +56,7 @@ class Mutant:
     name: str
     rule: str  # the rule that must catch it
     edits: tuple[tuple[str, str, str], ...]  # (file under firmware/src, old text, new text)
+    bus: str | None = None  # an emulator bus fault to run with
 
 
 MUTANTS = (
@@ -95,6 +105,21 @@ MUTANTS = (
     Mutant("t_us_byte_order", "SAMPLE_PERIOD",
            (("mpu6000.cpp", "out->t_us = g_drdy_t_us;",
              "out->t_us = __builtin_bswap32(g_drdy_t_us);"),)),
+    Mutant("product_id_not_read", "SENSOR_IDENTITY",
+           (("mpu6000.cpp", "g_product_id = read_reg(Register::PRODUCT_ID);", ""),)),
+    Mutant("product_id_assumed_rev_d8", "SENSOR_IDENTITY",
+           (("mpu6000.cpp", "out->product_id = g_product_id;", "out->product_id = 0x58;"),)),
+    Mutant("no_burst_check", "FRAMES_MATCH_CHIP",
+           (("mpu6000.cpp", "if (!(burst[0] & DATA_RDY_INT) || same) {",
+             "if (false && (!(burst[0] & DATA_RDY_INT) || same)) {"),), bus="marginal-bus"),
+    Mutant("burst_check_ignores_int_status", "FRAMES_MATCH_CHIP",
+           (("mpu6000.cpp", "if (!(burst[0] & DATA_RDY_INT) || same) {", "if (same) {"),),
+           bus="marginal-bus"),
+    Mutant("no_low_clock_fallback", "STREAMING",
+           (("mpu6000.cpp", "        g_burst_speed = spi::Speed::kRegisters;\n", ""),),
+           bus="marginal-bus"),
+    Mutant("low_clock_flag_not_reported", "BUS_FLAG",
+           (("telemetry.cpp", "mpu6000::bus_flags());", "0);"),), bus="marginal-bus"),
 )  # fmt: skip
 
 
@@ -127,14 +152,29 @@ def stimulus(path: Path) -> Path:
     return path
 
 
-def judge(emu_bin: Path, elf: Path, workdir: Path) -> dict[str, str]:
-    """Run ``elf`` for RUN_S emulated seconds; the broken rules, name -> what happened."""
+def judge(emu_bin: Path, elf: Path, workdir: Path, bus: str | None = None) -> dict[str, str]:
+    """Run ``elf`` for RUN_S emulated seconds (on a rev C5 part, with the bus fault ``bus``);
+    the broken rules, name -> what happened."""
+    workdir.mkdir(parents=True, exist_ok=True)
     board = EmulatedBoard(elf, emulator=emu_bin, stimulus=stimulus(workdir / "stim.bin"),
-                          seconds=RUN_S, samplelog=True, workdir=workdir)  # fmt: skip
+                          seconds=RUN_S, samplelog=True, workdir=workdir, product_id=PRODUCT_ID,
+                          fault=bus)  # fmt: skip
     with board:
         frames = collect(board, max_wall_s=MUTANT_TIMEOUT_S)
     s = board.summary
+    assert s is not None and s["product_id"] == PRODUCT_ID
     broken = {line.split(" ", 1)[0]: line for line in s["rules_broken"]}
+    hello = of_type(frames, "HELLO")
+    if not hello or hello[0].fields["product_id"] != PRODUCT_ID:
+        got = [f"{h.fields['product_id']:#04x}" for h in hello]
+        broken["SENSOR_IDENTITY"] = f"HELLO product_id {got}, the chip's {PRODUCT_ID:#04x}"
+    status = of_type(frames, "STATUS")
+    low = bool(status) and bool(status[-1].fields["flags"] & SPI_LOW_CLOCK)
+    if status and low != (s["garbled_bytes"] > 0):
+        broken["BUS_FLAG"] = (
+            f"STATUS flags {status[-1].fields['flags']}, bad_bursts "
+            f"{status[-1].fields['bad_bursts']}; the bus garbled {s['garbled_bytes']} bytes"
+        )
     regs = s["regs"]
     mode = (regs["ACCEL_CONFIG"] & 0x18, regs["GYRO_CONFIG"] & 0x18, regs["CONFIG"] & 7,
             regs["SMPLRT_DIV"])  # fmt: skip
@@ -150,7 +190,8 @@ def judge(emu_bin: Path, elf: Path, workdir: Path) -> dict[str, str]:
         return broken
     want = np.stack([read[k] for k in ("ax", "ay", "az", "temp", "gx", "gy", "gz")], axis=1)
     if len(got) > len(want) or not np.array_equal(got, want[: len(got)]):
-        broken["FRAMES_MATCH_CHIP"] = f"first frame {got[0].tolist()}, chip {want[0].tolist()}"
+        chip = want[0].tolist() if len(want) else "no sample read intact"
+        broken["FRAMES_MATCH_CHIP"] = f"first frame {got[0].tolist()}, chip {chip}"
     t_dev = np.array([f.fields["t_us"] for f in samples], dtype=np.int64)
     t_chip = read["t_us"][: len(samples)]
     if len(t_chip) == len(t_dev) and np.ptp(t_dev - t_chip) > TIMESTAMP_TOL_US:
@@ -158,17 +199,19 @@ def judge(emu_bin: Path, elf: Path, workdir: Path) -> dict[str, str]:
     return broken
 
 
-@pytest.mark.timeout(MUTANT_TIMEOUT_S)  # one build and one short run, even on a busy machine
+@pytest.mark.timeout(MUTANT_TIMEOUT_S)  # one build and two short runs, even on a busy machine
 def test_unmutated_firmware_breaks_no_rule(emu_bin, emu_toolchain, tmp_path):
     elf = build(mutate(tmp_path / "fw", None))
-    assert judge(emu_bin, elf, tmp_path) == {}
+    assert judge(emu_bin, elf, tmp_path / "clean") == {}
+    # a marginal bus: the garbled first read is dropped, the rest read intact at 1 MHz
+    assert judge(emu_bin, elf, tmp_path / "marginal", bus="marginal-bus") == {}
 
 
 @pytest.mark.timeout(MUTANT_TIMEOUT_S)  # one build and one short run, even on a busy machine
 @pytest.mark.parametrize("mutant", MUTANTS, ids=[m.name for m in MUTANTS])
 def test_mutant_is_caught_by_its_rule(emu_bin, emu_toolchain, tmp_path, mutant):
     elf = build(mutate(tmp_path / "fw", mutant))
-    broken = judge(emu_bin, elf, tmp_path)
+    broken = judge(emu_bin, elf, tmp_path, mutant.bus)
     assert mutant.rule in broken, f"{mutant.name} not caught by {mutant.rule}; broken: {broken}"
     print(f"\n{mutant.name}: {broken[mutant.rule]}")
 
