@@ -13,7 +13,7 @@ from host.bench.truth import SensorTruth
 from host.transports.protocol_sim import Serial as SimSerial
 from host.wire import protocol_gen as gen
 from host.wire import sensor
-from host.wire.frames import Frame, StreamDecoder, encode_frame
+from host.wire.frames import BY_NAME, Frame, StreamDecoder, encode_frame
 
 if "host.transports" not in serial.protocol_handler_packages:
     serial.protocol_handler_packages.append("host.transports")
@@ -149,30 +149,7 @@ def test_commands_are_answered() -> None:
     assert np.median(np.diff(sample_times_us(fr))) == pytest.approx(10000, rel=0.015)
     b.send("SET_RATE", 13, smplrt_div=0, dlpf_cfg=3)  # 1 kHz: more than the board sends
     b.send("SET_RATE", 14, smplrt_div=9, dlpf_cfg=7)
-    b.send(
-        "HELLO",
-        15,
-        **{
-            f: 0
-            for f in (
-                "fw_major",
-                "fw_minor",
-                "fw_patch",
-                "protocol_version",
-                "spec_fingerprint",
-                "who_am_i",
-                "accel_fs_sel",
-                "gyro_fs_sel",
-                "dlpf_cfg",
-                "smplrt_div",
-                "mode",
-                "timer_resolution_ns",
-                "baud",
-                "reset_cause",
-                "streaming",
-            )
-        },
-    )
+    b.send("HELLO", 15, **{f.name: 0 for f in BY_NAME["HELLO"].fields})
     answers = [f for f in b.frames(300) if f.name in ("ACK", "ERROR")]
     acks = [f.fields for f in answers if f.name == "ACK"]
     assert [(a["cmd_seq"], a["status"]) for a in acks] == [(13, 1), (14, 1), (15, 2)]
