@@ -25,6 +25,7 @@ from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record, read_sessi
 from host.dialogue import live
 from host.dialogue.console import CTRL_C, ESC, ScriptedConsole
 from host.errors import UserError
+from host.wire import protocol_gen as gen
 
 LINEAR = "speed=max&effects=linear,noise&earth_rate=0"
 
@@ -350,8 +351,9 @@ def test_yes_gives_up_after_repeated_losses(tmp_path: Path) -> None:
 
 def test_wrong_firmware_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(live, "HOST_SPEC_FINGERPRINT", 0x12345678)
+    v = gen.PROTOCOL_VERSION
     with pytest.raises(
-        UserError, match=r"firmware speaks protocol 1 .*host 1 .*python -m host flash"
+        UserError, match=rf"firmware speaks protocol {v} .*host {v} .*python -m host flash"
     ):
         run(opts(tmp_path, f"sim://?seed=1&{LINEAR}"), ScriptedConsole(), Ports())
 

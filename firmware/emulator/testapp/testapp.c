@@ -155,7 +155,7 @@ int main(void) {
     EIMSK |= _BV(INT6);
 
     uint8_t hello[PROTO_LEN_HELLO];
-    proto_put_HELLO(hello, 0, 0, 1, PROTO_VERSION, PROTO_SPEC_FINGERPRINT, who, 0, 0, 4, 19,
+    proto_put_HELLO(hello, 0, 0, 1, PROTO_VERSION, PROTO_SPEC_FINGERPRINT, who, 0x58, 0, 0, 4, 19,
                     PROTO_MODE_RAW, 500, 115200, mcusr, 1);
     send_frame(PROTO_TYPE_HELLO, hello, sizeof hello);
 
