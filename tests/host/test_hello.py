@@ -13,12 +13,13 @@ from host.wire.protocol_gen import PROTOCOL_VERSION, SPEC_FINGERPRINT
 
 HELLO = encode_frame(
     "HELLO", 0, fw_major=0, fw_minor=3, fw_patch=1, protocol_version=PROTOCOL_VERSION,
-    spec_fingerprint=SPEC_FINGERPRINT, who_am_i=0x68, accel_fs_sel=0, gyro_fs_sel=0, dlpf_cfg=4,
-    smplrt_div=19, mode=0, timer_resolution_ns=500, baud=115200, reset_cause=1, streaming=1,
+    spec_fingerprint=SPEC_FINGERPRINT, who_am_i=0x68, product_id=0x58, accel_fs_sel=0,
+    gyro_fs_sel=0, dlpf_cfg=4, smplrt_div=19, mode=0, timer_resolution_ns=500, baud=115200,
+    reset_cause=1, streaming=1,
 )  # fmt: skip
 STATUS = encode_frame(
     "STATUS", 1, uptime_ms=5, samples=0, missed=0, dropped=0, crc_errors=0, spi_faults=0,
-    fifo_overflows=0, tx_queue_max=0,
+    fifo_overflows=0, tx_queue_max=0, bad_bursts=0, flags=0,
 )  # fmt: skip
 
 
