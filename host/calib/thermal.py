@@ -56,13 +56,20 @@ class ThermalRangeWarning(UserWarning):
 @dataclass(frozen=True)
 class ThermalPoints:
     """Window means: ``temp_c`` (M,) °C, ``values`` (M, 6) ax..gz (m/s², °/s), ``group`` (M,)
-    attitude index into ``attitudes`` (labels), ``order`` (M,) time order of the windows."""
+    attitude index into ``attitudes`` (labels), ``order`` (M,) time order of the windows,
+    ``run`` (M,) the record each window comes from (a record's windows are consecutive, in
+    time order)."""
 
     temp_c: np.ndarray
     values: np.ndarray
     group: np.ndarray
     attitudes: tuple[str, ...]
     order: np.ndarray
+    run: np.ndarray | None = None
+    #: (M,) s since power-on of each window's middle (from meta ``power_on_s``; without it, time
+    #: within the record, and ``timed`` is False: records are then taken as unrelated in time)
+    time_s: np.ndarray | None = None
+    timed: bool = True
 
 
 def attitude_key(rec: Record) -> str:
@@ -82,25 +89,32 @@ def window_means(records: Iterable[Record], window_s: float = 20.0) -> ThermalPo
     vals: list[np.ndarray] = []
     groups: list[int] = []
     times: list[float] = []
+    runs: list[int] = []
     keys: list[str] = []
-    for rec in records:
+    timed = True
+    for r_i, rec in enumerate(records):
         if rec.kind == "turn" or len(rec) < 2:
             continue
         key = attitude_key(rec)
         if key not in keys:
             keys.append(key)
         t = rec.t_ms / 1000.0
+        timed = timed and "power_on_s" in rec.meta
         start = float(rec.meta.get("power_on_s", 0.0) or 0.0)
         idx = np.floor((t - t[0]) / window_s).astype(np.int64)
-        data = np.column_stack([rec.accel, rec.gyro])
-        for w in np.unique(idx):
-            sel = idx == w
-            if np.count_nonzero(sel) < 2 or t[sel][-1] - t[sel][0] < 0.5 * window_s:
-                continue
-            temps.append(float(rec.temp[sel].mean()))
-            vals.append(data[sel].mean(axis=0))
+        data = np.column_stack([rec.accel, rec.gyro, rec.temp, t])
+        # windows are runs of equal idx (t rises): sums by np.add.reduceat
+        first = np.flatnonzero(np.diff(idx, prepend=idx[0] - 1))
+        count = np.diff(np.append(first, idx.size))
+        last = first + count - 1
+        means = np.add.reduceat(data, first, axis=0) / count[:, None]
+        keep = (count >= 2) & (t[last] - t[first] >= 0.5 * window_s)
+        for mean in means[keep]:
+            temps.append(float(mean[6]))
+            vals.append(mean[:6])
             groups.append(keys.index(key))
-            times.append(start + float(t[sel].mean()))
+            times.append(start + float(mean[7]))
+            runs.append(r_i)
     if not temps:
         raise UserError(
             "no static records to fit bias(T): give the warm-up, static or thermal records"
@@ -111,6 +125,9 @@ def window_means(records: Iterable[Record], window_s: float = 20.0) -> ThermalPo
         np.array(groups, dtype=np.int64),
         tuple(keys),
         np.argsort(np.argsort(np.array(times))),
+        np.array(runs, dtype=np.int64),
+        np.array(times),
+        timed,
     )
 
 
@@ -158,18 +175,128 @@ def heldout_rmse(
     return math.sqrt(float(np.mean(err))) if err else math.inf
 
 
-def lag1(resid_in_time_order: np.ndarray) -> float:
-    """Lag-1 autocorrelation of residuals in time order, clipped to [0, 0.95]."""
-    r = resid_in_time_order
-    if r.size < 4 or float(r @ r) <= 0:
-        return 0.0
-    return float(np.clip((r[1:] @ r[:-1]) / (r @ r), 0.0, 0.95))
+#: BIC's log m per temperature coefficient is multiplied by this: the wander's variance and
+#: correlation time are estimated from the same record, a few correlation times long, and come
+#: out too small, so the plain penalty lets wander pass for a higher order (15 simulated
+#: chamber ramps with bias instability, 90 channels: 12 wrong orders at 1, 4 at 1.5)
+BIC_PENALTY = 1.5
+#: the coefficients' covariance is the widest over the wander parameters whose log-likelihood
+#: lies within this of the best (χ²₂(0.95)/2: their joint 95 % region)
+WANDER_LIKELIHOOD_DROP = 3.0
+#: the bias wander's correlation times tried, as multiples of the window (Gauss–Markov)
+WANDER_TAUS = (2.0, 5.0, 15.0, 50.0, 150.0, 500.0)
+#: the wander's variance tried, per variance of the white part of a window mean
+WANDER_RATIOS = (0.0, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 1000.0)
+
+
+def whiten(
+    z: np.ndarray, sequence: np.ndarray, dt: np.ndarray, ratio: np.ndarray, tau_s: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of ``z`` (M, c) whitened for a residual = white noise (variance 1) + a Gauss–Markov
+    wander (variance ``ratio``, correlation time ``tau_s``; G of each, one whitening per pair):
+    the Kalman filter's innovations over the windows in ``sequence`` order, each divided by
+    its standard deviation. ``dt`` (M,) time since the previous window in that order (∞:
+    unrelated, the wander starts anew). Returns the whitened rows (G, M, c) in ``sequence``
+    order and log det of each covariance (G,)."""
+    ratio = np.asarray(ratio, dtype=np.float64).reshape(-1)
+    tau = np.asarray(tau_s, dtype=np.float64).reshape(-1)
+    out = np.empty((ratio.size, sequence.size, z.shape[1]))
+    a = np.zeros((ratio.size, z.shape[1]))
+    p = ratio.copy()
+    logdet = np.zeros(ratio.size)
+    for i, row in enumerate(sequence):
+        phi = np.exp(-dt[i] / tau) if math.isfinite(dt[i]) else np.zeros_like(tau)
+        a *= phi[:, None]
+        p = phi * phi * p + ratio * (1.0 - phi * phi)
+        v = z[row][None, :] - a
+        s = p + 1.0
+        out[:, i] = v / np.sqrt(s)[:, None]
+        logdet += np.log(s)
+        k = p / s
+        a += k[:, None] * v
+        p = p * (1.0 - k)
+    return out, logdet
+
+
+@dataclass(frozen=True)
+class WanderFit:
+    """Generalised least squares of one order with a white + Gauss–Markov residual:
+    ``beta``, ``cov`` its covariance, ``loglik`` the log-likelihood maximised over the wander's
+    variance ratio and correlation time (``ratio``, ``tau_s``), σ² profiled out."""
+
+    beta: np.ndarray
+    cov: np.ndarray
+    loglik: float
+    ratio: float
+    tau_s: float
+
+
+def fit_wander(
+    x: np.ndarray, ys: np.ndarray, pts: ThermalPoints, orders: Sequence[int], n_fixed: int,
+    window_s: float,
+) -> list[list[WanderFit]]:  # fmt: skip
+    """For each column y of ``ys`` (M, C) and order k in ``orders``, the fit of y on the first
+    ``n_fixed`` + k columns of ``x`` with a white + Gauss–Markov residual along time (one
+    list per column), maximum likelihood over
+    :data:`WANDER_RATIOS` × :data:`WANDER_TAUS` (σ² profiled: log L = −(m/2)·log(RSS/m) −
+    ½·log det). Slow bias wander (instability) is then noise with its own correlation, not a
+    temperature effect of higher order."""
+    m, n_y = ys.shape
+    if pts.time_s is not None and pts.timed:
+        seq = np.argsort(pts.time_s, kind="stable")
+        dt = np.diff(pts.time_s[seq], prepend=-math.inf)
+    else:  # records without power-on times: each on its own
+        seq = np.arange(m)
+        run = pts.run if pts.run is not None else np.zeros(m, dtype=np.int64)
+        t = pts.time_s if pts.time_s is not None else np.arange(m) * window_s
+        dt = np.diff(t, prepend=-math.inf)
+        dt[1:][run[1:] != run[:-1]] = math.inf
+    nx = x.shape[1]
+    z = np.column_stack([x, ys])
+    combos = [(0.0, 1.0)] + [(r, f * window_s) for r in WANDER_RATIOS[1:] for f in WANDER_TAUS]
+    ratios = np.array([c[0] for c in combos])
+    taus = np.array([c[1] for c in combos])
+    zws, logdets = whiten(z, seq, dt, ratios, taus)
+    lls = np.empty((len(combos), len(orders), n_y))
+    for g in range(len(combos)):
+        zw = zws[g]
+        for i, k in enumerate(orders):
+            xw = zw[:, : n_fixed + k]
+            beta, *_ = np.linalg.lstsq(xw, zw[:, nx:], rcond=None)
+            rss = np.maximum(np.sum((zw[:, nx:] - xw @ beta) ** 2, axis=0), 1e-300)
+            lls[g, i] = -0.5 * m * np.log(rss / m) - 0.5 * logdets[g]
+    out: list[list[WanderFit]] = []
+    for c in range(n_y):
+        row = []
+        for i, k in enumerate(orders):
+            g_best = int(np.argmax(lls[:, i, c]))
+            # the wander's parameters are uncertain (a few correlation times in a record):
+            # the covariance is the widest among those within the likelihood's 95 % region
+            # (log L within χ²₂(0.95)/2 = 3.0 of the best), so the band does not rest on the
+            # luckiest guess of them
+            cov, beta = None, None
+            for g_i in np.flatnonzero(lls[:, i, c] >= lls[g_best, i, c] - WANDER_LIKELIHOOD_DROP):
+                g = int(g_i)
+                xw, yw = zws[g][:, : n_fixed + k], zws[g][:, nx + c]
+                b_g, rss1 = _lstsq(xw, yw)
+                cov_g = rss1 / max(m - xw.shape[1], 1) * np.linalg.pinv(xw.T @ xw)
+                if g == g_best:
+                    beta = b_g
+                if cov is None or np.trace(cov_g[n_fixed:, n_fixed:]) > np.trace(
+                    cov[n_fixed:, n_fixed:]
+                ):
+                    cov = cov_g
+            assert cov is not None and beta is not None
+            ratio, tau = combos[g_best]
+            row.append(WanderFit(beta, cov, float(lls[g_best, i, c]), ratio, tau))
+        out.append(row)
+    return out
 
 
 @dataclass(frozen=True)
 class ChannelThermal:
     """bias(T) − bias(T_ref) of one channel: ``coef`` c_1..c_k (unit/°C^j), ``cov`` their
-    covariance (inflated for correlated residuals), ``rms`` of the residual (unit), and the
+    covariance (from the fit with the bias wander), ``rms`` of the residual (unit), and the
     selection table ``bic`` / ``heldout_rmse`` per order 0..max."""
 
     channel: str
@@ -225,56 +352,44 @@ def span_needed(order: int) -> float:
 
 
 def fit_channel(
-    pts: ThermalPoints, j: int, t_ref: float, max_order: int, fixed_order: int | None = None
+    pts: ThermalPoints,
+    j: int,
+    t_ref: float,
+    max_order: int,
+    fixed_order: int | None = None,
+    window_s: float = 20.0,
+    fits: Sequence[WanderFit] | None = None,
 ) -> ChannelThermal:
     """Fit channel j's bias(T), choosing the order 0..``max_order`` by BIC and held-out
-    prediction (the lower of the two), or ``fixed_order``."""
+    prediction (the lower of the two), or ``fixed_order``.
+
+    The window means' residual is not independent: bias instability wanders slowly (a
+    Gauss–Markov bias with a correlation time of minutes), and along a ramp that wander is
+    smooth in temperature too, where a polynomial of higher order would take it for a
+    temperature effect. The likelihood behind BIC is therefore that of white noise plus a
+    Gauss–Markov wander along time (:func:`fit_wander`, both fitted for each order),
+    BIC = −2·log L + (n_attitudes + :data:`BIC_PENALTY`·k)·log m, and the coefficients'
+    covariance is that of the same fit."""
     t, y, grp = pts.temp_c, pts.values[:, j], pts.group
     ng = len(pts.attitudes)
     scale = max(float(np.ptp(t)) / 2.0, 1e-6)
     m = t.size
-    in_time = np.argsort(pts.order)
+    top = max(max_order, fixed_order or 0)
+    x_all = design(t, grp, ng, top, t_ref, scale)
+    if fits is None:
+        fits = fit_wander(x_all, y[:, None], pts, range(top + 1), ng, window_s)[0]
     cvs = [heldout_rmse(t, y, grp, ng, k, t_ref, scale) for k in range(max_order + 1)]
-    fits = [_lstsq(design(t, grp, ng, k, t_ref, scale), y) for k in range(max_order + 1)]
-    rss = [max(f[1], 1e-300) for f in fits]
-    p0 = ng
-
-    def bic_table(k: int) -> tuple[float, ...]:
-        # slowly correlated noise (bias instability) makes neighbouring windows agree: the
-        # effective number of independent windows is n_eff = m·(1 − ρ)/(1 + ρ), ρ the lag-1
-        # correlation of order k's residual in time order (a quasi-likelihood BIC)
-        x = design(t, grp, ng, k, t_ref, scale)
-        rho = lag1((y - x @ fits[k][0])[in_time])
-        n_eff = max(m * (1 - rho) / (1 + rho), 2.0)
-        return tuple(
-            n_eff * math.log(rss[i] / m) + (p0 + i) * math.log(n_eff) for i in range(max_order + 1)
-        )
-
-    # forward: from order k, move to the higher order with the lowest BIC (judged with order
-    # k's residual correlation) while that is lower than order k's own
-    order_bic = 0
-    bics = bic_table(0)
-    while True:
-        higher = range(order_bic + 1, max_order + 1)
-        best = min(higher, key=lambda i: bics[i], default=None)
-        if best is None or bics[best] >= bics[order_bic]:
-            break
-        order_bic = best
-        bics = bic_table(order_bic)
+    bics = tuple(-2.0 * f.loglik + (ng + BIC_PENALTY * k) * math.log(m) for k, f in enumerate(fits))
     if fixed_order is not None:
         order = fixed_order
     else:
-        order = min(order_bic, int(np.argmin(cvs)))
-    x = design(t, grp, ng, order, t_ref, scale)
-    beta, rss_k = _lstsq(x, y)
-    dof = max(m - x.shape[1], 1)
-    s2 = rss_k / dof
-    # residuals in time order: lag-1 correlation ρ inflates the variance by (1 + ρ)/(1 − ρ)
-    rho = lag1((y - x @ beta)[in_time])
-    cov_all = s2 * (1 + rho) / (1 - rho) * np.linalg.pinv(x.T @ x)
+        order = min(int(np.argmin(bics[: max_order + 1])), int(np.argmin(cvs)))
+    fit = fits[order]
+    x = x_all[:, : ng + order]
+    rss_k = float(np.sum((y - x @ fit.beta) ** 2))
     sc = np.array([scale**-i for i in range(1, order + 1)])
-    coef = beta[ng:] * sc
-    cov = cov_all[ng:, ng:] * np.outer(sc, sc)
+    coef = fit.beta[ng:] * sc
+    cov = fit.cov[ng:, ng:] * np.outer(sc, sc)
     return ChannelThermal(
         CHANNELS[j],
         UNITS[j],
@@ -282,7 +397,7 @@ def fit_channel(
         tuple(float(c) for c in coef),
         tuple(tuple(float(v) for v in row) for row in cov),
         float(np.sqrt(rss_k / m)),
-        tuple(bics),
+        bics,
         tuple(cvs),
     )
 
@@ -400,7 +515,17 @@ def fit_thermal(
     if t_ref_c is None:
         statics = [r for r in records if r.kind == "static" and r.name.endswith(("_up", "_dn"))]
         t_ref_c = float(np.mean([r.temp.mean() for r in statics])) if statics else (lo + hi) / 2.0
-    chans = {CHANNELS[j]: fit_channel(pts, j, t_ref_c, top, order) for j in range(len(CHANNELS))}
+    # the wander's whitening is the same for every channel: one pass for all six
+    top_fit = max(top, order or 0)
+    scale = max(span / 2.0, 1e-6)
+    x_all = design(pts.temp_c, pts.group, len(pts.attitudes), top_fit, t_ref_c, scale)
+    every = fit_wander(
+        x_all, pts.values, pts, range(top_fit + 1), len(pts.attitudes), window_s
+    )  # fmt: skip
+    chans = {
+        CHANNELS[j]: fit_channel(pts, j, t_ref_c, top, order, window_s, every[j])
+        for j in range(len(CHANNELS))
+    }
     cal = ThermalCalibration(serial, float(t_ref_c), lo, hi, chans, pts.attitudes)
     return cal, pts
 
