@@ -276,8 +276,10 @@ def test_bias_wander_does_not_pass_for_a_higher_order() -> None:
             right += ch.order == 2
             above += ch.order > 2
 
-            def f(x: np.ndarray, b1: float = b1, b2: float = b2) -> np.ndarray:
-                d = x - truth.temp_ref_c
+            def f(
+                x: np.ndarray, b1: float = b1, b2: float = b2, t0: float = truth.temp_ref_c
+            ) -> np.ndarray:
+                d = x - t0
                 return b1 * d + b2 * d * d
 
             err = np.abs(ch.delta(temps, cal.t_ref_c) - (f(temps) - f(np.array(cal.t_ref_c))))
