@@ -14,9 +14,11 @@ import numpy as np
 from host.calib import thermal
 from host.calib.records import (
     WARMUP_NAME,
+    Record,
+    RecordError,
     read_record,
     read_session,
-    record_path,
+    split_file_name,
     write_text_atomic,
 )
 from host.errors import UserError
@@ -42,26 +44,44 @@ def format_text(cal: thermal.ThermalCalibration) -> str:
     return "\n".join(lines) + "\n"
 
 
+def unit_records(directory: str, serial: str | None) -> tuple[str, list[Record]]:
+    """The serial and the static records of one unit in ``directory``: its warm-up
+    (``SERIAL_warmup.txt``) first, then its static and thermal records — or the warm-up alone
+    when the directory holds no other record of it."""
+    warmups = {
+        parts[0]: p
+        for p in sorted(Path(directory).glob(f"*_{WARMUP_NAME}.txt"))
+        if (parts := split_file_name(p)) is not None and parts[1] == WARMUP_NAME
+    }
+    try:
+        session = read_session(directory, serial)
+    except RecordError:
+        only = [s for s in warmups if serial in (None, s)]
+        if len(only) != 1:
+            raise
+        return only[0], [read_record(warmups[only[0]])]
+    records = [r for r in session.records.values() if r.kind != "turn"]
+    if session.serial in warmups:
+        records.insert(0, read_record(warmups[session.serial]))
+    return session.serial, records
+
+
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host thermal``."""
-    session = read_session(args.dir, args.serial)
+    serial, records = unit_records(args.dir, args.serial)
     if args.order is not None and not 0 <= args.order <= 6:
         raise UserError("--order must be between 0 and 6")
     if not 0 <= args.max_order <= 6:
         raise UserError("--max-order must be between 0 and 6")
     if not args.window > 0:
         raise UserError("--window must be a positive number of seconds")
-    records = [r for r in session.records.values() if r.kind != "turn"]
-    warm = record_path(args.dir, session.serial, WARMUP_NAME)
-    if warm.is_file():
-        records.insert(0, read_record(warm))
     cal, pts = thermal.fit_thermal(
-        records, session.serial, order=args.order, max_order=args.max_order, window_s=args.window
+        records, serial, order=args.order, max_order=args.max_order, window_s=args.window
     )
     out_dir = Path(args.out) if args.out else Path(args.dir)
     if not out_dir.is_dir():
         raise UserError(f"{out_dir}: no such directory")
-    path = out_dir / f"{session.serial}_thermal.json"
+    path = out_dir / f"{serial}_thermal.json"
     write_text_atomic(path, cal.to_json())
     if args.plot:
         try:

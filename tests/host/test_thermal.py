@@ -286,3 +286,18 @@ def test_bias_wander_does_not_pass_for_a_higher_order() -> None:
             inside += bool(np.all(err <= ch.band(temps, cal.t_ref_c)))
     assert right >= 43 and above <= 2, (right, above)
     assert inside >= 43, inside
+
+
+def test_a_directory_with_only_the_warm_up_is_fitted_from_it(tmp_path, capsys) -> None:
+    """The dialogue's warm-up alone (SERIAL_warmup.txt: 10 minutes from cold, 8 °C) is a
+    thermal calibration's first ramp: ``thermal`` fits it rather than saying 'no records'."""
+    recs = simulate_thermal(TRUTH, CHAMBER, [("warmup", "z_up", 600.0)], seed=11)
+    write_record(tmp_path / "T6_warmup.txt", recs["warmup"])
+    assert main(["thermal", str(tmp_path), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["serial"] == "T6" and doc["valid_range_c"][1] - doc["valid_range_c"][0] > 7.0
+    assert doc["channels"]["gx"]["order"] >= 1  # gx moves by 0.03 °/s per °C
+    assert (tmp_path / "T6_thermal.json").is_file()
+    (tmp_path / "T6_warmup.txt").unlink()
+    assert main(["thermal", str(tmp_path)]) == 2
+    assert "no record files" in capsys.readouterr().err
