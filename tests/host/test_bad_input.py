@@ -5,6 +5,7 @@ CPU; emu://?elf=<not an ELF> said the board disconnected)."""
 from __future__ import annotations
 
 import json
+import os
 import time
 from pathlib import Path
 
@@ -119,7 +120,7 @@ def test_decode_streams_a_fifo_fed_by_a_writer_process_and_ends_at_eof(
     assert [int(r.split(",")[1]) for r in rows[1:]] == expected["t_us"].tolist()
 
 
-@pytest.mark.timeout(60)
+@pytest.mark.timeout(240)  # waits on bytes read, not wall time: ~15 s idle, slower under load
 def test_decode_dev_zero_streams_in_bounded_memory_until_ctrl_c(tmp_path: Path) -> None:
     """Was: unbounded read, MemoryError (then: refused). Now an endless device is read in
     chunks: memory stays flat while gigabytes pass, Ctrl+C ends it (exit 130, no traceback)."""
@@ -139,8 +140,12 @@ def test_decode_dev_zero_streams_in_bounded_memory_until_ctrl_c(tmp_path: Path) 
     p = subprocess.Popen(
         [sys.executable, "-c", probe], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
-    deadline = time.monotonic() + 40
-    while _read_bytes(p.pid) < 600 << 20 and time.monotonic() < deadline and p.poll() is None:
+    # The stop rule is an amount read, never a wall-clock deadline: on a loaded machine the
+    # read is slower (275 MiB in 40 s was seen), and the per-test limit catches a hang.
+    if not _read_bytes(os.getpid()):
+        p.kill()
+        pytest.skip("no /proc/PID/io here to see how much was read")
+    while _read_bytes(p.pid) < 600 << 20 and p.poll() is None:
         time.sleep(0.2)
     assert p.poll() is None, p.communicate()  # still reading, not refused nor crashed
     read_mb = _read_bytes(p.pid) / 2**20
@@ -149,8 +154,6 @@ def test_decode_dev_zero_streams_in_bounded_memory_until_ctrl_c(tmp_path: Path) 
     assert p.returncode == 130, err
     assert "Traceback" not in err and "reading the device /dev/zero until it ends" in err
     rss_mb = int(err.split("maxrss_kb")[1].split()[0]) / 1024
-    if not read_mb:
-        pytest.skip("no /proc/PID/io here to see how much was read")
     assert read_mb >= 600, read_mb  # ~40x a 4 MiB chunk went through
     assert rss_mb < 250, (rss_mb, read_mb)  # reading it whole would need > 600 MiB
 
