@@ -618,7 +618,11 @@ def read_session(directory: str | os.PathLike[str], serial: str | None = None) -
     """
     d = Path(directory)
     if not d.is_dir():
-        raise RecordError(f"{d}: no such directory")
+        what = "not a directory" if d.exists() else "no such directory"
+        raise RecordError(
+            f"{d}: {what}; give the directory that holds the record files SERIAL_name.txt"
+            " (the --out of the session that measured them)"
+        )
     found: dict[str, list[tuple[str, Path]]] = {}
     for p in sorted(d.iterdir()):
         if p.name.startswith("."):

@@ -205,8 +205,11 @@ def test_read_session(tmp_path: Path) -> None:
     empty.mkdir()
     with pytest.raises(RecordError, match="no record files"):
         read_session(empty)
-    with pytest.raises(RecordError, match="no such directory"):
+    with pytest.raises(RecordError, match="no such directory; give the directory that holds"):
         read_session(tmp_path / "nope")
+    (tmp_path / "a_file").write_text("x")
+    with pytest.raises(RecordError, match="a_file: not a directory; give"):
+        read_session(tmp_path / "a_file")
 
 
 def test_read_session_serial_mismatch(tmp_path: Path) -> None:
