@@ -48,6 +48,7 @@ def wait_for_hello(
     *,
     read: Callable[[], list[tuple[int, Frame]]] | None = None,
     ask_after_s: float | None = ASK_AFTER_S,
+    port_name: str | None = None,
 ) -> tuple[int, Frame, bool]:
     """Read until a HELLO frame arrives: ``(arrival ns, HELLO, anything heard)``.
 
@@ -56,7 +57,7 @@ def wait_for_hello(
     ``timeout_s`` is waited out (a bootloader says nothing for ~1 s). ``ask_after_s``: send
     GET_CONFIG once if no HELLO came by then (None: never ask — right after flashing, bytes
     sent to the bootloader could keep it from starting the firmware). LinkTimeout after
-    ``timeout_s`` wall seconds; LinkLost if the port vanishes.
+    ``timeout_s`` wall seconds (naming ``port_name`` if given); LinkLost if the port vanishes.
     """
     if read is None:
 
@@ -80,6 +81,8 @@ def wait_for_hello(
         if ask is not None and ask.expired():
             link.send("GET_CONFIG")
             ask = None
+    where = f" on {port_name}" if port_name else ""
     raise LinkTimeout(
-        f"no HELLO from the board within {timeout_s:g} s" + ("" if heard else " (it sends nothing)")
+        f"no HELLO from the board{where} within {timeout_s:g} s"
+        + ("" if heard else " (it sends nothing)")
     )

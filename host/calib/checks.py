@@ -20,7 +20,7 @@ from host.calib.method import (
     RecordStats,
     record_stats,
 )
-from host.calib.records import MIN_RECORD_ROWS, Record, Session
+from host.calib.records import MIN_RECORD_ROWS, STATIC_NAMES, TURN_NAMES, Record, Session
 from host.errors import RecordCheckError, UserError
 
 
@@ -66,6 +66,16 @@ def remedy(record: Record, bench: str = "re-measure") -> str:
             "options (--columns, --units, --axes)"
         )
     return f"{bench} {record.name}"
+
+
+def failed_record(exc: RecordCheckError, serial: str) -> str | None:
+    """The bench record (``x_up`` … ``z_cw``) a check failure is about, when its file is this
+    serial's ``SERIAL_name.txt``; None otherwise (another file, or a record the bench does not
+    measure by that name)."""
+    for name in STATIC_NAMES + TURN_NAMES:
+        if exc.file_name == f"{serial}_{name}.txt":
+            return name
+    return None
 
 
 def check_orientation(record: Record, stats: RecordStats, g: float, file_name: str) -> None:

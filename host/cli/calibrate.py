@@ -15,12 +15,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
+from host.calib.checks import failed_record
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.records import Session, read_session
 from host.calib.report import verdict_line
 from host.calib.result import CalibrationResult
 from host.dialogue.live import DEFAULT_READY_S, WARMUP_DEFAULT_S
-from host.errors import UserError
+from host.errors import RecordCheckError, UserError
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -118,10 +119,8 @@ def run(args: argparse.Namespace) -> int:
     out_dir = Path(args.out) if args.out else Path(args.from_dir)
     try:
         result = run_computation(session, args, out_dir)
-    except UserError as exc:
-        from host.dialogue.live import record_named_in
-
-        name = record_named_in(str(exc), session.serial)
+    except RecordCheckError as exc:
+        name = failed_record(exc, session.serial)
         rec = session.records.get(name) if name is not None else None
         if name is None or rec is None or "importer" in rec.meta:  # imported: nothing to redo
             raise

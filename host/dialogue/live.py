@@ -1,11 +1,12 @@
-"""The live calibration program (method.md §5): the operator dialogue on a connected board.
+"""The live calibration program (method.md §5): the dialogue with the operator on a board.
 
-``python -m host calibrate --port PORT ...`` calls :func:`run_live_session`. The data path is
-port → :class:`host.link.Link` (timestamped reads, every byte into an IMUCAP01 capture
-``SERIAL_session.cap`` beside the records) → frames → IMU_SAMPLE counts → m/s², °/s, °C
-(:mod:`host.sensor`, full scales from HELLO) → a :class:`host.records.Record` per measurement,
-written atomically as ``SERIAL_name.txt`` when the operator accepts it → at the end
-:func:`host.calibration.calibrate_from_records` and the report files (:mod:`host.report`).
+``python -m host calibrate --port PORT ...`` calls :func:`run_live_session`. This module only
+asks, decides and records: the board — HELLO, commands, clock feeding, acquisition and units —
+is :class:`host.board.driver.Board` (port → :class:`host.board.link.Link`, every byte into an
+IMUCAP01 capture ``SERIAL_session.cap`` beside the records → frames → counts → m/s², °/s,
+°C); a measurement the operator accepts becomes a :class:`host.calib.records.Record`, written
+atomically as ``SERIAL_name.txt``; at the end :func:`host.calib.publish.compute_and_write`
+computes and writes the results, exactly as ``calibrate --from-dir`` does.
 
 Acquisition window, on device time: at the start beep the host sends PING; the board's PONG
 gives its ``t_us`` at that moment (``device_t_us_beep``), and the measurement holds exactly the
@@ -13,7 +14,7 @@ samples whose device time lies in ``[beep, beep + duration)`` — whatever is st
 from before the beep is dropped by its time stamp, however the reads are chunked and however
 loaded the host is. Time column: device time, ms: ``t_us`` unwrapped (32-bit wrap) minus the
 ``t_us`` of the first sample of the window (the device clock, not an assumed 50 Hz). Every
-sample read also feeds a live minimum-delay clock estimate (:class:`host.clock.LiveClock`,
+sample read also feeds a live minimum-delay clock estimate (:class:`host.timing.clock.LiveClock`,
 restarted when the board resets); the record's ``#`` header holds the device→host mapping:
 ``device_t_us_start``, ``host_ns_start_beep``, ``host_ns_first_sample`` (host
 ``time.monotonic_ns``), and from the live estimate ``clock_host_ns_at_start`` (the first
@@ -56,20 +57,31 @@ import math
 import os
 import re
 import shlex
-import struct
-import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import serial
 
-from host.board.link import DEFAULT_BAUD, Link, LinkLost, LinkTimeout, open_port
+# the board driver's names, importable from here as before it moved to host/board/driver.py
+from host.board.driver import HOST_SPEC_FINGERPRINT as HOST_SPEC_FINGERPRINT
+from host.board.driver import IMU_FRAME_BYTES as IMU_FRAME_BYTES
+from host.board.driver import PONG_TIMEOUT_S as PONG_TIMEOUT_S
+from host.board.driver import SAMPLE_STALL_S as SAMPLE_STALL_S
+from host.board.driver import STALL_S as STALL_S
+from host.board.driver import Acquisition as Acquisition
+from host.board.driver import Board as Board
+from host.board.driver import BoardInfo as BoardInfo
+from host.board.driver import BoardReset as BoardReset
+from host.board.driver import DeferredCapture as DeferredCapture
+from host.board.driver import MeasurementAborted as MeasurementAborted
+from host.board.driver import SensorFault as SensorFault
+from host.board.driver import default_port as default_port
+from host.board.link import LinkLost, LinkTimeout
 from host.calib.calibration import (
     DEFAULT_HEIGHT_M,
     DEFAULT_LATITUDE_DEG,
@@ -80,6 +92,8 @@ from host.calib.calibration import (
     stage1,
     trapezoid_integral,
 )
+from host.calib.checks import failed_record
+from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.records import (
     SIMULATED_BOARD,
     SIMULATED_SCHEMES,
@@ -95,16 +109,11 @@ from host.calib.records import (
     turn_window_s,
     write_record,
 )
+from host.calib.report import verdict_line
 from host.dialogue.console import Console, Operator, TerminalConsole
-from host.errors import UserError, write_error
-from host.timing.clock import LiveClock, serialisation_ns
-from host.wire import protocol_gen as gen
+from host.errors import RecordCheckError, ResumableError, UserError, write_error
 from host.wire import sensor
-from host.wire.capture import MAGIC, CaptureWriter
-from host.wire.frames import IMU_SAMPLE, MESSAGES, OVERHEAD, SENSOR_ERROR_CODES, Frame, error_text
 
-#: the spec this host speaks (HELLO.spec_fingerprint must match)
-HOST_SPEC_FINGERPRINT = gen.SPEC_FINGERPRINT
 WARMUP_DEFAULT_S = 600.0
 DEFAULT_TURNS = 2
 #: more turns than this twist the USB cable (method.md §4)
@@ -118,23 +127,7 @@ YES_MAX_ATTEMPTS = 3
 YES_RECONNECT_S = 60.0
 #: pause between "get ready to turn" and the start beep, s
 DEFAULT_READY_S = 2.0
-#: no bytes at all from the port for this long is a silent board (LinkTimeout), s
-STALL_S = 2.0
-#: no IMU sample for this long during a measurement, whatever other frames arrive (STATUS,
-#: ERROR), is a stalled board: the measurement stops (:class:`SensorFault`), s
-SAMPLE_STALL_S = 5.0
-#: how long the start beep waits for the board's PONG (its device time) before cutting the
-#: window at the newest sample instead, s
-PONG_TIMEOUT_S = 1.0
 SERIAL_RE = re.compile(r"^[A-Za-z0-9_-]{1,12}$")
-MISSED = gen.ENUMS["sample_flags"]["MISSED"]
-#: bytes of one IMU_SAMPLE frame on the wire (for its serialisation time)
-IMU_FRAME_BYTES = MESSAGES[IMU_SAMPLE].length + OVERHEAD
-#: the 7 counts of an IMU_SAMPLE payload (after t_us): ax, ay, az, temp, gx, gy, gz
-_COUNTS_BE = struct.Struct(">7h")
-#: USB vendor ids of boards that look like an APM 2.6 (Arduino Mega 2560 / 16U2, FTDI)
-APM_VIDS = (0x2341, 0x2A03, 0x0403)
-_APM_WORDS = ("arduino mega", "atmega16u2", "apm", "ardupilot", "mega 2560")
 
 AXIS_WORDS = {"x": "X", "y": "Y", "z": "Z"}
 CHANNELS = ("Ax", "Ay", "Az", "Gx", "Gy", "Gz", "temp")
@@ -185,31 +178,6 @@ def parse_turns(text: str) -> int:
     return n
 
 
-def default_port(comports: Callable[[], Iterable[Any]] | None = None) -> tuple[str, str | None]:
-    """The first USB serial port that looks like an APM (Arduino Mega 2560 / ATmega16U2 / FTDI),
-    else ``sim://``. Returns (port, note to print or None)."""
-    if comports is None:
-        from serial.tools import list_ports
-
-        comports = list_ports.comports
-    try:
-        ports = list(comports())
-    except Exception:  # noqa: BLE001 - enumeration problems must not stop the program
-        ports = []
-    for p in ports:
-        vid = getattr(p, "vid", None)
-        words = " ".join(
-            str(getattr(p, a, "") or "") for a in ("description", "product", "manufacturer")
-        ).lower()
-        if vid in APM_VIDS or any(w in words for w in _APM_WORDS):
-            return str(p.device), f"using the board on {p.device}"
-    looked = ", ".join(str(p.device) for p in ports) or "no serial ports at all"
-    return "sim://", (
-        f"NO BOARD FOUND (looked at: {looked}): using the VIRTUAL board sim:// — a simulated "
-        "sensor, not a unit. Plug in the APM or give --port"
-    )
-
-
 # --------------------------------------------------------------------------- options
 
 
@@ -239,6 +207,8 @@ class SessionOptions:
     model: str = "base"  # the model to fit and ship (host.modelling.model spec)
     term_files: tuple[str, ...] = ()  # Python files of custom terms for ``model``
     verify: str | None = None  # a directory of records to predict (held-out verification)
+    floor: str | None = None  # --floor accel=A,gyro=G (None: measured from the records)
+    thermal: str | None = None  # --thermal FILE|none (None: SERIAL_thermal.json if beside)
 
     @classmethod
     def from_args(cls, args: argparse.Namespace | SessionOptions) -> SessionOptions:
@@ -270,6 +240,8 @@ class SessionOptions:
             model=str(get("model", "base")),
             term_files=tuple(get("term_file", ())),
             verify=get("verify"),
+            floor=get("floor"),
+            thermal=get("thermal"),
         )
 
     def check(self) -> None:
@@ -374,14 +346,6 @@ def _number(x: float) -> str:
     return short if float(short) == x else repr(float(x))
 
 
-def record_named_in(text: str, serial: str) -> str | None:
-    """The record (``x_up`` … ``z_cw``) whose file ``SERIAL_name.txt`` a message names."""
-    for name in STATIC_NAMES + TURN_NAMES:
-        if f"{serial}_{name}.txt" in text:
-            return name
-    return None
-
-
 def check_out_dir(path: Path) -> None:
     """UserError unless ``path`` is, or can be created as, a writable directory."""
     if path.exists() and not path.is_dir():
@@ -403,530 +367,6 @@ def check_out_dir(path: Path) -> None:
         raise UserError(
             f"output directory {path}: cannot write there{where}; choose another --out"
         ) from None
-
-
-# --------------------------------------------------------------------------- the board
-
-
-@dataclass(frozen=True)
-class BoardInfo:
-    """What HELLO says about the board."""
-
-    firmware: str
-    protocol_version: int
-    spec_fingerprint: int
-    who_am_i: int
-    accel_fs_sel: int
-    gyro_fs_sel: int
-    dlpf_cfg: int
-    smplrt_div: int
-    streaming: bool
-    reset_cause: int
-    baud: int = DEFAULT_BAUD
-
-    @classmethod
-    def from_hello(cls, f: dict[str, int]) -> BoardInfo:
-        return cls(
-            firmware=f"{f['fw_major']}.{f['fw_minor']}.{f['fw_patch']}",
-            protocol_version=f["protocol_version"],
-            spec_fingerprint=f["spec_fingerprint"],
-            who_am_i=f["who_am_i"],
-            accel_fs_sel=f["accel_fs_sel"],
-            gyro_fs_sel=f["gyro_fs_sel"],
-            dlpf_cfg=f["dlpf_cfg"],
-            smplrt_div=f["smplrt_div"],
-            streaming=bool(f["streaming"]),
-            reset_cause=f["reset_cause"],
-            baud=f["baud"] or DEFAULT_BAUD,
-        )
-
-    @property
-    def rate_hz(self) -> float:
-        """Nominal output rate, Hz: internal rate (8 kHz with DLPF 0/7, else 1 kHz) / (1+div)."""
-        internal = 8000.0 if self.dlpf_cfg in (0, 7) else 1000.0
-        return internal / (1 + self.smplrt_div)
-
-    @property
-    def accel_range_g(self) -> int:
-        return sensor.ACCEL_RANGE_G.get(self.accel_fs_sel, 0)
-
-    @property
-    def gyro_range_dps(self) -> int:
-        return sensor.GYRO_RANGE_DPS.get(self.gyro_fs_sel, 0)
-
-    @property
-    def gyro_alarm_counts(self) -> int:
-        """|count| at or above which a gyro sample is out of the working range: range − 1 LSB."""
-        return int(math.ceil(self.gyro_range_dps * sensor.GYRO_LSB_PER_DPS[self.gyro_fs_sel])) - 1
-
-    def describe(self) -> str:
-        who = "MPU-6000" if self.who_am_i == sensor.WHO_AM_I_MPU6000 else "not an MPU-6000!"
-        return (
-            f"firmware {self.firmware}, protocol {self.protocol_version} "
-            f"(spec {self.spec_fingerprint:#010x}), WHO_AM_I {self.who_am_i:#04x} ({who}), "
-            f"accel ±{self.accel_range_g} g, gyro ±{self.gyro_range_dps} °/s, "
-            f"DLPF_CFG {self.dlpf_cfg}, SMPLRT_DIV {self.smplrt_div} ({self.rate_hz:g} Hz)"
-        )
-
-    def meta(self) -> dict[str, str]:
-        return {
-            "firmware": self.firmware,
-            "protocol_version": str(self.protocol_version),
-            "spec_fingerprint": f"{self.spec_fingerprint:#010x}",
-            "who_am_i": f"{self.who_am_i:#04x}",
-            "accel_range_g": str(self.accel_range_g),
-            "gyro_range_dps": str(self.gyro_range_dps),
-            "dlpf_cfg": str(self.dlpf_cfg),
-            "smplrt_div": str(self.smplrt_div),
-            "sample_rate_hz": f"{self.rate_hz:g}",
-        }
-
-
-class BoardReset(Exception):
-    """The board restarted during a measurement (sequence or device time went back)."""
-
-
-class MeasurementAborted(Exception):
-    """The operator pressed Esc during a measurement."""
-
-
-class SensorFault(UserError):
-    """The board's sensor stopped during a measurement: the board sent a sensor ERROR frame
-    (the message carries its reason), or no IMU sample came for ``sample_stall_s`` while the
-    board kept talking (STATUS, ERROR). Reconnecting does not help; the sensor needs a look."""
-
-
-class DeferredCapture(CaptureWriter):
-    """An IMUCAP01 writer that keeps the reads in memory until :meth:`start` names the file
-    (the port is opened before the serial number, which names the file, is known)."""
-
-    def __init__(self) -> None:  # no file yet: CaptureWriter.__init__ is not called
-        self.path = Path()
-        self._f = None
-        self._held: list[tuple[int, bytes]] = []
-        self._held_bytes = 0
-
-    def write(self, t_ns: int, data: bytes) -> None:
-        if self._f is not None:
-            super().write(t_ns, data)
-        elif data and self._held_bytes < 16 << 20:
-            self._held.append((t_ns, bytes(data)))
-            self._held_bytes += len(data)
-
-    def start(self, path: Path) -> None:
-        """Create ``path`` and write what was held so far."""
-        self.path = path
-        path.parent.mkdir(parents=True, exist_ok=True)
-        self._f = open(path, "wb")  # noqa: SIM115 - closed in close()
-        self._f.write(MAGIC)
-        held, self._held = self._held, []
-        for t_ns, data in held:
-            super().write(t_ns, data)
-
-    @property
-    def started(self) -> bool:
-        return self._f is not None
-
-
-@dataclass
-class Acquisition:
-    """The samples of one measurement, raw, with its bookkeeping."""
-
-    t_us: np.ndarray  # (N,) int64 µs since the first sample (device clock, unwrapped)
-    counts: np.ndarray  # (N, 7) int counts: ax, ay, az, temp, gx, gy, gz
-    start_t_us: int  # device t_us (raw, 32-bit) of the first sample
-    beep_ns: int  # host monotonic ns of the start beep
-    first_ns: int  # host monotonic ns of the read that brought the first sample
-    start_time: str  # wall clock of the start beep, ISO
-    lost_frames: int  # sequence gaps during the measurement
-    missed: int  # samples flagged MISSED by the firmware
-    crc_errors: int  # CRC failures the decoder saw during the measurement
-    beep_t_us: int = 0  # device t_us (raw, 32-bit) at the start beep: the window's start
-
-    @property
-    def lost(self) -> int:
-        return self.lost_frames + self.missed
-
-    @property
-    def loss_fraction(self) -> float:
-        n = len(self.t_us) + self.lost
-        return self.lost / n if n else 0.0
-
-
-class Board:
-    """The connected board: opens the port, checks HELLO, reads frames, survives reconnects.
-
-    ``port_factory(url)`` opens the port (default :func:`host.link.open_port`); re-connecting
-    re-opens the *same* port object (``close()`` + ``open()``), which is what a USB serial
-    device needs after it re-appears and what ``sim://`` supports after ``pull_cable``.
-    """
-
-    def __init__(
-        self,
-        url: str,
-        port_factory: Callable[[str], serial.SerialBase] | None = None,
-        stall_s: float = STALL_S,
-        warn: Callable[[str], None] | None = None,
-        hello_timeout_s: float = 5.0,
-        sample_stall_s: float = SAMPLE_STALL_S,
-    ) -> None:
-        self.url = url
-        self.hello_timeout_s = hello_timeout_s
-        self.sample_stall_s = sample_stall_s
-        self.port_factory = port_factory or (lambda u: open_port(u, DEFAULT_BAUD))
-        self.stall_s = stall_s
-        self.capture = DeferredCapture()
-        self.warn: Callable[[str], None] = warn or (lambda s: None)
-        self.link: Link | None = None
-        self.info: BoardInfo | None = None
-        self._errors_seen: set[tuple[int, int]] = set()
-        self.clock = LiveClock()
-        self._clock_last_t: int | None = None  # raw t_us of the last sample fed to the clock
-        self._clock_dev_us = 0  # its unwrapped value
-        self._ping_nonce = 0
-
-    # ---- connection ----------------------------------------------------------------------
-    def connect(self) -> BoardInfo:
-        """Open the port and wait for HELLO (UserError if it cannot be opened)."""
-        port = self.port_factory(self.url)
-        self._attach(port)
-        return self.await_hello()
-
-    def reopen(self) -> BoardInfo:
-        """Close and re-open the same port, then wait for HELLO. Raises SerialException /
-        OSError while the device is absent, LinkTimeout if it says nothing."""
-        assert self.link is not None
-        port: Any = self.link.port
-        try:
-            port.close()
-        except (serial.SerialException, OSError):
-            pass
-        port.open()
-        self._attach(port)
-        return self.await_hello()
-
-    def _attach(self, port: serial.SerialBase) -> None:
-        self.restart_clock()
-        link = Link(port, capture=None, stall_s=self.stall_s)
-        link.capture = self.capture  # one capture over the whole session, across reconnects
-        self.link = link
-
-    def close(self) -> None:
-        if self.link is not None:
-            self.link.close()  # closes the capture too
-        else:
-            self.capture.close()
-
-    @property
-    def port(self) -> Any:
-        assert self.link is not None
-        return self.link.port
-
-    def hint(self, action: str, **kw: Any) -> dict[str, Any] | None:
-        """Tell a virtual bench what the operator is asked (no-op on a real board)."""
-        fn = getattr(self.port, "operator_hint", None) if self.link is not None else None
-        if fn is None:
-            return None
-        result = fn(action, **kw)
-        return result if isinstance(result, dict) else None
-
-    @property
-    def has_operator(self) -> bool:
-        """True when the port moves the cube itself (virtual bench)."""
-        return self.link is not None and hasattr(self.port, "operator_hint")
-
-    def await_hello(self, timeout_s: float | None = None) -> BoardInfo:
-        """Read until HELLO (asking with GET_CONFIG if it does not come); check the spec.
-        ``timeout_s`` default: ``hello_timeout_s`` (a real board's bootloader takes ~1-2 s)."""
-        assert self.link is not None
-        timeout_s = self.hello_timeout_s if timeout_s is None else timeout_s
-        start = time.monotonic()
-        asked = False
-        last_err: Exception | None = None
-        while time.monotonic() - start < timeout_s:
-            try:
-                batch = self.read_frames()
-            except LinkTimeout as exc:  # silent for a while: a bootloader, or no firmware
-                last_err = exc
-                batch = []
-            for _, f in batch:
-                if f.name == "HELLO":
-                    return self._accept_hello(f)
-            if not asked and time.monotonic() - start > 1.0:
-                self.link.send("GET_CONFIG")
-                asked = True
-        raise LinkTimeout(
-            f"no HELLO from the board on {self.url} within {timeout_s:g} s"
-            + (" (it sends nothing)" if last_err else "")
-            + ": is the firmware flashed? (python -m host flash)"
-        )
-
-    def _accept_hello(self, f: Frame) -> BoardInfo:
-        assert self.link is not None
-        info = BoardInfo.from_hello(f.fields)
-        if info.spec_fingerprint != HOST_SPEC_FINGERPRINT:
-            raise UserError(
-                f"firmware speaks protocol {info.protocol_version} (spec "
-                f"{info.spec_fingerprint:#010x}), host {gen.PROTOCOL_VERSION} (spec "
-                f"{HOST_SPEC_FINGERPRINT:#010x}): flash the matching firmware "
-                "(python -m host flash)"
-            )
-        if info.who_am_i in (0x00, 0xFF):
-            raise UserError(
-                f"the board reads WHO_AM_I {info.who_am_i:#04x}: no sensor answers on SPI; "
-                "check the IMU (an MPU-6000 reads 0x68)"
-            )
-        if info.gyro_fs_sel not in sensor.GYRO_LSB_PER_DPS or (
-            info.accel_fs_sel not in sensor.ACCEL_LSB_PER_G
-        ):
-            raise UserError(f"the board reports impossible full-scale settings: {info}")
-        if not info.streaming:
-            self.link.send("START_STREAM")
-        self.info = info
-        return info
-
-    # ---- time ----------------------------------------------------------------------------
-    def restart_clock(self) -> None:
-        """Forget the device→host clock estimate (the board restarted: a new device clock)."""
-        self.clock = LiveClock()
-        self._clock_last_t = None
-
-    def _feed_clock(self, arrival_ns: int, t_us: int) -> None:
-        """One sample for the live clock map: unwrapped device µs vs arrival minus the time
-        the UART needed to send the frame (host.clock, eq. 1)."""
-        if self._clock_last_t is not None:
-            d = (t_us - self._clock_last_t) & 0xFFFFFFFF
-            if d >= 0x80000000:  # went back: the board restarted
-                self.restart_clock()
-            else:
-                self._clock_dev_us += d
-        if self._clock_last_t is None:
-            self._clock_dev_us = t_us
-        self._clock_last_t = t_us
-        baud = self.info.baud if self.info is not None else DEFAULT_BAUD
-        floor = arrival_ns - float(serialisation_ns(IMU_FRAME_BYTES, baud))
-        self.clock.add(self._clock_dev_us, floor)
-
-    def power_on_s(self, t_us_start: int) -> float | None:
-        """Device time of the sample with raw ``t_us_start`` since the board's last reset
-        (its power-on: the board restarts when the port opens), s, from the unwrapped clock
-        fed by every sample; None before any sample."""
-        if self._clock_last_t is None:
-            return None
-        back = (self._clock_last_t - t_us_start) & 0xFFFFFFFF
-        return (self._clock_dev_us - back) / 1e6
-
-    def clock_meta(self, t_us_start: int) -> dict[str, str]:
-        """The live clock map as record metadata (empty until it has an estimate)."""
-        m = self.clock.map
-        if m is None or self._clock_last_t is None:
-            return {}
-        back = (self._clock_last_t - t_us_start) & 0xFFFFFFFF
-        host_at_start = float(m.to_host_ns(self._clock_dev_us - back))
-        return {
-            "clock_host_ns_at_start": str(int(round(host_at_start))),
-            "clock_skew_ppm": f"{m.skew_ppm:.2f}",
-            "clock_points": str(m.points),
-            "clock_latency_median_us": f"{m.latency_median_us:.0f}",
-            "clock_floor_spread_us": f"{m.floor_spread_us:.0f}",
-        }
-
-    # ---- reading -------------------------------------------------------------------------
-    def read_frames(self) -> list[tuple[int, Frame]]:
-        """One read of the port: (host ns of the read, frame) for each frame it completed.
-        Every IMU sample also feeds the live clock estimate."""
-        assert self.link is not None
-        t_ns, data = self.link.read_chunk()
-        if not data:
-            return []
-        out = [(t_ns, f) for f in self.link.decoder.feed(data)]
-        for arrival_ns, f in out:
-            if f.type == IMU_SAMPLE:
-                self._feed_clock(arrival_ns, int.from_bytes(f.payload[0:4], "little"))
-            elif f.name == "HELLO":
-                self.restart_clock()
-        return out
-
-    def pump(self) -> None:
-        """Read and drop samples (between measurements); report ERROR frames and resets."""
-        for _, f in self.read_frames():
-            if f.type != IMU_SAMPLE:
-                self._other(f)
-
-    def _other(self, f: Frame) -> None:
-        if f.name == "ERROR":
-            fl = f.fields
-            key = (fl["code"], fl["detail"])
-            if key not in self._errors_seen:
-                self._errors_seen.add(key)
-                self.warn(f"the board reports {error_text(f)}")
-        elif f.name == "HELLO":
-            info = self._accept_hello(f)
-            self.warn(f"the board restarted (reset cause {info.reset_cause:#04x})")
-
-    def acquire(
-        self,
-        duration_s: float,
-        tick: Callable[[float, np.ndarray, int], None] | None = None,
-        check_escape: Callable[[], bool] | None = None,
-        tick_every_s: float = 0.1,
-    ) -> Acquisition:
-        """Record ``duration_s`` seconds of device time from now (the start beep).
-
-        The window is cut on device time, not on what a read happens to return: at the beep
-        the host sends PING and the board answers PONG with its ``t_us`` at that moment; the
-        measurement holds exactly the samples whose device time lies in
-        ``[PONG t_us, PONG t_us + duration)`` — samples still in flight from before the beep
-        (in the USB/pty buffers, however the reads are chunked and however late the host
-        is) are dropped by their time stamp. A board that does not answer within
-        :data:`PONG_TIMEOUT_S` gets the window from the newest sample seen at that moment.
-        ``tick(elapsed_s, sums_of_counts(7), n)`` is called about every ``tick_every_s``
-        (host time); ``check_escape()`` True -> MeasurementAborted. Raises LinkLost /
-        LinkTimeout / BoardReset; nothing is kept then. A sensor ERROR frame, or no IMU sample
-        for ``sample_stall_s`` (host time) whatever else arrives, raises :class:`SensorFault`:
-        the measurement always ends.
-        """
-        assert self.link is not None and self.info is not None
-        beep_ns = time.monotonic_ns()
-        start_time = datetime.now().astimezone().isoformat(timespec="milliseconds")
-        self._ping_nonce = (self._ping_nonce + 1) & 0xFFFFFFFF
-        nonce = self._ping_nonce
-        self.link.send("PING", nonce=nonce)
-        crc0 = self.link.decoder.stats.crc_errors
-        duration_us = int(round(duration_s * 1e6))
-        period_us = 1e6 / self.info.rate_hz
-        t0: int | None = None  # device t_us of the beep (raw, 32-bit)
-        newest_t: int | None = None  # newest sample time seen since the beep (fallback t0)
-        held: list[tuple[int, Frame]] = []  # frames read before t0 was known
-        t_raw: list[int] = []
-        el: list[int] = []
-        rows: list[tuple[int, ...]] = []
-        sums = np.zeros(7, dtype=np.int64)
-        st = {"first_ns": 0, "last_seq": -1, "last_rel": -1, "lost": 0, "missed": 0}
-        next_tick = last_sample = time.monotonic()
-        ping_deadline = next_tick + PONG_TIMEOUT_S
-        last_error: Frame | None = None
-
-        def take(arrival_ns: int, f: Frame) -> bool:
-            """One frame of the window's stream (t0 known); True once the window is over."""
-            assert t0 is not None
-            gap = 0
-            if st["last_seq"] >= 0:
-                d = (f.seq - st["last_seq"]) & 0xFFFF
-                if d == 0 or d >= 0x8000:
-                    raise BoardReset("the board restarted during the measurement")
-                gap = d - 1
-            st["last_seq"] = f.seq
-            if f.type != IMU_SAMPLE:
-                self._other(f)
-                if rows:
-                    st["lost"] += gap
-                return False
-            p = f.payload
-            t_us = int.from_bytes(p[0:4], "little")
-            rel = (t_us - t0) & 0xFFFFFFFF
-            if rel >= 0x80000000:  # sampled before the beep: not part of the measurement
-                if rows:
-                    raise BoardReset("the board's clock went back during the measurement")
-                return False
-            if rel >= duration_us:
-                return True
-            if rows:
-                if rel < st["last_rel"]:
-                    raise BoardReset("the board's clock went back during the measurement")
-                st["lost"] += gap
-            else:  # frames lost between the beep and the first sample of the window
-                st["first_ns"] = arrival_ns
-                st["lost"] += min(gap, int(rel // period_us))
-            st["last_rel"] = rel
-            counts = _COUNTS_BE.unpack_from(p, 4)
-            if p[18] & MISSED:
-                st["missed"] += 1
-            t_raw.append(t_us)
-            el.append(rel)
-            rows.append(counts)
-            sums[:] += counts
-            return False
-
-        def take_held() -> bool:
-            nonlocal held
-            batch, held = held, []
-            for a_ns, g in batch:
-                if take(a_ns, g):
-                    return True
-            return False
-
-        done = False
-        while not done:
-            batch = self.read_frames()
-            if any(f.type == IMU_SAMPLE for _, f in batch):
-                last_sample = time.monotonic()
-            for arrival_ns, f in batch:
-                if f.name == "HELLO":
-                    raise BoardReset("the board restarted during the measurement")
-                if f.name == "ERROR" and f.fields["code"] in SENSOR_ERROR_CODES:
-                    raise SensorFault(
-                        f"the board reports {error_text(f)}: its sensor stopped; check the "
-                        "IMU and its wiring, then power-cycle the board"
-                    )
-                if f.name == "ERROR":
-                    last_error = f
-                if t0 is None:
-                    if f.name == "PONG" and f.fields["nonce"] == nonce:
-                        t0 = f.fields["t_us"]
-                    elif f.type == IMU_SAMPLE:
-                        newest_t = int.from_bytes(f.payload[0:4], "little")
-                    held.append((arrival_ns, f))
-                    if t0 is not None and take_held():
-                        done = True
-                        break
-                    continue
-                if take(arrival_ns, f):
-                    done = True
-                    break
-            now = time.monotonic()
-            if t0 is None and now >= ping_deadline and newest_t is not None:
-                # no PONG (an older firmware?): the window starts after the newest sample
-                t0 = (newest_t + 1) & 0xFFFFFFFF
-                done = take_held()
-            if now - last_sample > self.sample_stall_s and not done:
-                raise SensorFault(
-                    f"no samples from the board for {self.sample_stall_s:g} s"
-                    + (f" (last: {error_text(last_error)})" if last_error else "")
-                    + " although it still answers: the sensor has stalled; check the IMU, "
-                    "then power-cycle the board"
-                )
-            if now >= next_tick:
-                next_tick = now + tick_every_s
-                if check_escape is not None and check_escape():
-                    raise MeasurementAborted()
-                if tick is not None:
-                    tick((el[-1] if el else 0) / 1e6, sums, len(rows))
-        if tick is not None:
-            tick(duration_s, sums, len(rows))
-        first = el[0] if el else 0
-        return Acquisition(
-            t_us=np.asarray(el, dtype=np.int64) - first,
-            counts=np.asarray(rows, dtype=np.int64).reshape(-1, 7),
-            start_t_us=t_raw[0] if t_raw else 0,
-            beep_ns=beep_ns,
-            first_ns=st["first_ns"],
-            start_time=start_time,
-            lost_frames=st["lost"],
-            missed=st["missed"],
-            crc_errors=self.link.decoder.stats.crc_errors - crc0,
-            beep_t_us=t0 if t0 is not None else 0,
-        )
-
-    # ---- units ---------------------------------------------------------------------------
-    def physical(self, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(N,7) counts -> accel (N,3) m/s², gyro (N,3) °/s, temp (N,) °C."""
-        assert self.info is not None
-        c = np.asarray(counts).reshape(-1, 7)
-        a = sensor.accel_mps2(c[:, 0:3], self.info.accel_fs_sel)
-        g = sensor.gyro_dps(c[:, 4:7], self.info.gyro_fs_sel)
-        t = sensor.temp_c(c[:, 3])
-        return a, g, t
 
 
 # --------------------------------------------------------------------------- the dialogue
@@ -1018,11 +458,11 @@ class LiveSession:
                 except (serial.SerialException, OSError, LinkLost, LinkTimeout):
                     pass
                 if limit is not None and time.monotonic() - start > limit:
-                    raise UserError(
+                    raise ResumableError(
                         f"the board did not come back within {limit:.0f} s; {self._resume_hint()}"
                     )
                 if op.countdown(1.0, f"  waiting for the board (attempt {attempt})", False):
-                    raise UserError(f"gave up waiting for the board; {self._resume_hint()}")
+                    raise ResumableError(f"gave up waiting for the board; {self._resume_hint()}")
         finally:
             self._in_idle = False
         op.say(f"The board is back: {info.describe()}")
@@ -1352,16 +792,18 @@ class LiveSession:
         fname = f"{self.serial}_{rec.name}.txt"
         try:
             check_orientation(rec, record_stats(rec), self.g, fname)
-        except UserError as exc:
+        except RecordCheckError as exc:
             problems.append(str(exc))
         statics = {k: v for k, v in self.done.items() if k in STATIC_NAMES}
         if statics and not over:  # the engine's angle check, with the statics' bias
             sess = Session(self.serial, {**statics, rec.name: rec}, self.out_dir)
             try:
                 build_observations(sess, self.g, turns=n, latitude_deg=self.opts.latitude_deg)
-            except UserError as exc:
-                if str(exc).startswith(fname):
+            except RecordCheckError as exc:
+                if exc.file_name == fname:  # a problem of this record, not of the statics
                     problems.append(str(exc))
+            except UserError:
+                pass
         return problems
 
     # ---- one measurement -----------------------------------------------------------------
@@ -1425,7 +867,7 @@ class LiveSession:
             self._warn(f"{exc}")
             self._warn(f"the measurement of {name} is discarded")
             if self.opts.yes or not op.yes_no("Measure again <Y> or stop <N>?", True):
-                raise UserError(f"{name}: {exc}; {self._resume_hint()}") from None
+                raise ResumableError(f"{name}: {exc}; {self._resume_hint()}") from None
             return None
         op.end_progress()
         op.beep()
@@ -1510,7 +952,7 @@ class LiveSession:
         for p in problems:
             op.say(f"!!! {p}")
         if self.opts.yes and attempts >= YES_MAX_ATTEMPTS:
-            raise UserError(
+            raise ResumableError(
                 f"{name}: still wrong after {attempts} attempts ({problems[0]}); "
                 + self._resume_hint()
             )
@@ -1529,48 +971,43 @@ class LiveSession:
 
     # ---- results -------------------------------------------------------------------------
     def _results(self) -> SessionResult:
-        from host.calib.calibration import calibrate_from_records
-        from host.calib.report import format_report, verdict_line, write_results
-
+        """Compute and write the results from every record of this serial in the output
+        directory (:func:`host.calib.publish.compute_and_write`, as ``calibrate --from-dir``)."""
         op = self.op
         missing = [
             n for n in STATIC_NAMES if not record_path(self.out_dir, self.serial, n).exists()
         ]
         if missing:
-            raise UserError(
+            raise ResumableError(
                 f"the results need the six static records; missing {', '.join(missing)}; "
                 + self._resume_hint()
             )
         session = read_session(self.out_dir, self.serial)
+        settings = ComputeSettings(
+            latitude_deg=self.opts.latitude_deg,
+            height_m=self.opts.height_m,
+            model=self.opts.model,
+            term_files=self.opts.term_files,
+            floor=self.opts.floor,
+            verify=self.opts.verify,
+            thermal=self.opts.thermal,
+        )
         try:
-            result = calibrate_from_records(
-                session,
-                latitude_deg=self.opts.latitude_deg,
-                height_m=self.opts.height_m,
-                model=self.opts.model,
-                term_files=self.opts.term_files,
-            )
-        except UserError as exc:
-            name = record_named_in(str(exc), self.serial)
+            pub = compute_and_write(session, self.out_dir, settings, note=op.say)
+        except RecordCheckError as exc:
+            name = failed_record(exc, self.serial)
             if name is None:
                 raise
-            raise UserError(
+            raise ResumableError(
                 f"{exc}; measure {name} again (the other records are kept) with: "
                 + self.command(then=("--redo", name))
             ) from None
-        if self.opts.verify:
-            from host.calib.result import verify_directory
-
-            result = verify_directory(result, self.opts.verify)
-        txt, js = write_results(result, self.out_dir)
-        op.say(f"Results: {txt} and {js}")
-        if self.opts.json:
-            sys.stdout.write(result.to_json())
-        else:
-            sys.stdout.write(format_report(result))
-        sys.stdout.flush()
-        op.say(verdict_line(result, txt))  # the last line on screen
-        return SessionResult(self.out_dir, list(self.accepted), result, (txt, js))
+        op.say(f"Results: {pub.report_path} and {pub.json_path}")
+        show_result(pub.result, self.opts.json)
+        op.say(verdict_line(pub.result, pub.report_path))  # the last line on screen
+        return SessionResult(
+            self.out_dir, list(self.accepted), pub.result, (pub.report_path, pub.json_path)
+        )
 
 
 # --------------------------------------------------------------------------- entry points
@@ -1623,7 +1060,7 @@ def run_live_session(
     except (UserError, OSError) as exc:
         # a session ending on an error (disk full, sensor failed, board gone) always says how
         # to continue with the records already accepted
-        told = any(w in str(exc) for w in ("--resume", "--redo "))  # the command is said
+        told = isinstance(exc, ResumableError)  # the message already says how to continue
         if session is None or not session.serial or told:
             raise
         text = str(exc) if isinstance(exc, UserError) else str(write_error(exc.filename, exc))

@@ -144,6 +144,20 @@ def sample_t_us(payload: bytes) -> int:
     return _unpack_field(_T_US.code, payload, _T_US.offset)
 
 
+_IMU_DEFS = {f.name: f for f in MESSAGES[IMU_SAMPLE].fields}
+_FLAGS = _IMU_DEFS["flags"]
+
+
+def sample_counts(payload: bytes) -> tuple[int, ...]:
+    """The raw counts of an IMU_SAMPLE payload in :data:`IMU_FIELDS` order, by the spec."""
+    return tuple(_unpack_field(_IMU_DEFS[n].code, payload, _IMU_DEFS[n].offset) for n in IMU_FIELDS)
+
+
+def sample_flags(payload: bytes) -> int:
+    """The flag bits of an IMU_SAMPLE payload (spec enum ``sample_flags``)."""
+    return _unpack_field(_FLAGS.code, payload, _FLAGS.offset)
+
+
 #: ERROR codes that mean the sensor stopped delivering (BAD_COMMAND answers a bad command)
 SENSOR_ERROR_CODES = frozenset(
     code for name, code in gen.ENUMS["error_code"].items() if name != "BAD_COMMAND"

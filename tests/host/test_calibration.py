@@ -428,3 +428,16 @@ def test_real_data_plan(real: tuple[CalibrationResult, dict[str, np.ndarray]]) -
     turn_res = [r for r in res.residuals if r.kind == "turn"]
     assert len(turn_res) == 3  # one-way turns: exactly determined, residual ~0
     assert all(max(abs(x) for x in (r.angle_deg or ())) < 1e-6 for r in turn_res)
+
+
+def test_a_failed_check_names_its_bench_record() -> None:
+    from host.calib.checks import failed_record
+    from host.errors import RecordCheckError
+
+    def err(f: str) -> RecordCheckError:
+        return RecordCheckError(f"{f}: bad", file_name=f)
+
+    assert failed_record(err("U7_y_cw.txt"), "U7") == "y_cw"
+    assert failed_record(err("U7_z_dn.txt"), "U7") == "z_dn"
+    assert failed_record(err("U8_z_dn.txt"), "U7") is None  # another unit's file
+    assert failed_record(err("U7_x_up_2.txt"), "U7") is None  # not a record the bench measures

@@ -52,17 +52,13 @@ def test_the_scanner_finds_a_text_filter() -> None:
     assert _text_filters(ast.parse(src)) == [4, 4]
 
 
-#: known until the Board split of host/dialogue/live.py (issue 14 step B) removes them
-KNOWN = {"dialogue/live.py": 2}
-
-
 def test_no_module_filters_errors_by_their_message() -> None:
     found = {}
     for path in sorted(HOST.rglob("*.py")):
         hits = _text_filters(ast.parse(path.read_text(encoding="utf-8")))
         if hits:
             found[path.relative_to(HOST).as_posix()] = len(hits)
-    assert found == KNOWN
+    assert found == {}
 
 
 @pytest.mark.parametrize(

@@ -275,3 +275,22 @@ def test_imucap01_cut_short_keeps_every_complete_read() -> None:
     assert len(r.samples) == 90 and r.stats.bytes_discarded == 12 + 270 - 5
     assert np.array_equal(r.samples["t_us"], np.arange(90) * 20000)
     assert sum(1 for _ in FrameReader(io.BytesIO(cap[:-5]))) == 90
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(min_size=19, max_size=19))
+def test_the_sample_accessors_read_the_spec_fields(payload: bytes) -> None:
+    """The board driver's per-sample reads (t_us, counts, flags) are the spec codec's fields."""
+    from host.wire.frames import (
+        IMU_FIELDS,
+        IMU_SAMPLE,
+        MESSAGES,
+        sample_counts,
+        sample_flags,
+        sample_t_us,
+    )
+
+    fields = MESSAGES[IMU_SAMPLE].unpack(payload)
+    assert sample_t_us(payload) == fields["t_us"]
+    assert sample_counts(payload) == tuple(fields[n] for n in IMU_FIELDS)
+    assert sample_flags(payload) == fields["flags"]

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from host.board import driver
 from host.board.link import open_port
 from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record, read_session
 from host.dialogue import live
@@ -116,7 +117,7 @@ def test_yes_session_records_are_readable_with_metadata(yes_session: dict[str, A
         rec = read_record(out / f"S1_{name}.txt")
         m = rec.meta
         assert rec.name == name and m["serial"] == "S1"
-        assert m["spec_fingerprint"] == f"{live.HOST_SPEC_FINGERPRINT:#010x}"
+        assert m["spec_fingerprint"] == f"{driver.HOST_SPEC_FINGERPRINT:#010x}"
         assert m["firmware"] == "0.1.0" and m["gyro_range_dps"] == "250"
         assert m["smplrt_div"] == "19" and m["accel_range_g"] == "2"
         assert m["lost_frames"] == "0" and m["missed_samples"] == "0"
@@ -350,10 +351,12 @@ def test_yes_gives_up_after_repeated_losses(tmp_path: Path) -> None:
 
 
 def test_wrong_firmware_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(live, "HOST_SPEC_FINGERPRINT", 0x12345678)
+    from host.board import hello
+
+    monkeypatch.setattr(hello, "SPEC_FINGERPRINT", 0x12345678)  # this host, as another spec
     v = gen.PROTOCOL_VERSION
     with pytest.raises(
-        UserError, match=rf"firmware speaks protocol {v} .*host {v} .*python -m host flash"
+        UserError, match=rf"firmware speaks protocol {v} .*this host protocol {v} .*host flash"
     ):
         run(opts(tmp_path, f"sim://?seed=1&{LINEAR}"), ScriptedConsole(), Ports())
 
@@ -471,11 +474,11 @@ def test_default_port() -> None:
 
     other = SimpleNamespace(device="/dev/ttyS0", vid=None, description="n/a")
     apm = SimpleNamespace(device="/dev/ttyACM0", vid=0x2341, description="Arduino Mega 2560")
-    assert live.default_port(ports(other, apm))[0] == "/dev/ttyACM0"
-    port, note = live.default_port(ports(other))
+    assert driver.default_port(ports(other, apm))[0] == "/dev/ttyACM0"
+    port, note = driver.default_port(ports(other))
     assert port == "sim://" and note is not None
     assert "NO BOARD FOUND (looked at: /dev/ttyS0)" in note and "VIRTUAL board sim://" in note
-    assert "no serial ports at all" in (live.default_port(ports())[1] or "")
+    assert "no serial ports at all" in (driver.default_port(ports())[1] or "")
 
 
 def test_gyro_alarm_threshold() -> None:
@@ -483,7 +486,7 @@ def test_gyro_alarm_threshold() -> None:
                   who_am_i=0x68, product_id=0x58, accel_fs_sel=0, gyro_fs_sel=0, dlpf_cfg=3,
                   smplrt_div=19, mode=0, timer_resolution_ns=4000, baud=115200, reset_cause=1,
                   streaming=1)  # fmt: skip
-    info = live.BoardInfo.from_hello(fields)
+    info = driver.BoardInfo.from_hello(fields)
     # 250 °/s − 1 LSB at 131 LSB/(°/s): 32749 counts = 249.992 °/s
     assert info.gyro_alarm_counts == 32749 and info.rate_hz == 50.0
 
@@ -509,10 +512,10 @@ def _emu_available() -> bool:
 def test_emulated_board(tmp_path: Path) -> None:
     """The real firmware in simavr: HELLO passes the spec check and a measurement has the
     firmware's rate and no losses; with a virtual operator, a whole --yes session."""
-    board = live.Board("emu://", hello_timeout_s=30.0)
+    board = driver.Board("emu://", hello_timeout_s=30.0)
     try:
         info = board.connect()
-        assert info.spec_fingerprint == live.HOST_SPEC_FINGERPRINT
+        assert info.spec_fingerprint == driver.HOST_SPEC_FINGERPRINT
         acq = board.acquire(2.0)
         assert acq.lost == 0
         assert abs(len(acq.t_us) - 2.0 * info.rate_hz) <= 0.02 * 2.0 * info.rate_hz + 2
@@ -541,7 +544,7 @@ def test_board_live_clock_maps_the_record_start_to_host_time() -> None:
     from host.wire.frames import StreamDecoder
 
     lc = simulate_link(LinkParams(seconds=30, skew_ppm=80, device_t0_us=2**32 - 5_000_000, seed=9))
-    board = live.Board("unused://")
+    board = driver.Board("unused://")
     dec = StreamDecoder()
     k = 0
     start = None
@@ -617,7 +620,7 @@ def test_measurement_is_cut_on_device_time_not_on_reads(chunk: int) -> None:
     bytes behind, delivered in pieces of ``chunk`` bytes) are not part of the measurement:
     it holds exactly the samples whose device time is inside its window."""
     period_us = 20_000
-    board = live.Board(
+    board = driver.Board(
         f"sim://?seed=5&{LINEAR}",
         port_factory=lambda u: LaggingPort(open_port(u), lag=27 * 20, chunk=chunk),
     )
