@@ -52,7 +52,15 @@ def write_error(
     """A write failure as one line naming the user's file (not the hidden temp file) and what
     is ``kept`` of it."""
     what = _WRITE_ERRORS.get(exc.errno or 0, exc.strerror or str(exc))
-    return UserError(
-        f"cannot write {path or 'a file'}: {what}; {kept} (free some space or choose another "
-        "directory, then run again)"
-    )
+    return UserError(f"cannot write {path or 'a file'}: {what}; {kept} ({_remedy(exc)})")
+
+
+def _remedy(exc: OSError) -> str:
+    """What to do about a failed write, by its cause."""
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return "free some space or choose another directory, then run again"
+    if exc.errno in (errno.ENOENT, errno.ENOTDIR):
+        return "create the directory or choose another one, then run again"
+    if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        return "choose a directory you may write to, then run again"
+    return "choose another directory, then run again"

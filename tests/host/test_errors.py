@@ -4,6 +4,8 @@ never by searching the message."""
 from __future__ import annotations
 
 import ast
+import errno
+import os
 from pathlib import Path
 
 import pytest
@@ -80,3 +82,20 @@ def test_a_bad_sim_option_is_told_apart_by_its_type(url: str, named: str) -> Non
 def test_a_missing_device_gets_the_cable_advice() -> None:
     with pytest.raises(UserError, match="check the USB cable"):
         open_port("/dev/ttyNOSUCH_stages")
+
+
+@pytest.mark.parametrize(
+    ("code", "says", "not_says"),
+    [
+        (errno.ENOSPC, "the disk is full; the file is unchanged (free some space", "create"),
+        (errno.ENOENT, "no such directory; the file is unchanged (create the directory", "space"),
+        (errno.EACCES, "permission denied; the file is unchanged (choose a directory you", "space"),
+    ],
+)
+def test_write_error_advice_fits_its_cause(code: int, says: str, not_says: str) -> None:
+    """A missing directory was told to 'free some space'; each cause now gets its own advice."""
+    from host.errors import write_error
+
+    msg = str(write_error("/x/S1_result.txt", OSError(code, os.strerror(code))))
+    assert msg.startswith("cannot write /x/S1_result.txt: ") and says in msg, msg
+    assert not_says not in msg, msg
