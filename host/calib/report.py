@@ -236,10 +236,13 @@ def verdict(result: CalibrationResult) -> str:
 
 
 def verdict_line(result: CalibrationResult, report_path: str | os.PathLike[str]) -> str:
-    """The one line a session or ``--from-dir`` ends on: the :func:`verdict`, the report's
-    path, and ``(SIMULATED BOARD)`` when the records came from a virtual or emulated board."""
-    sim = any(n.startswith(SIMULATED_BOARD) for n in result.notes)
-    return f"{verdict(result)}; report {report_path}" + (f" ({SIMULATED_BOARD})" if sim else "")
+    """What a session or ``--from-dir`` ends on: the :func:`verdict` and the report's path as
+    the last line, preceded by ``*** SIMULATED BOARD <url>: not a measurement of a unit ***``
+    when the records came from a virtual or emulated board (on its own line, so the verdict
+    still fits an 80-column terminal)."""
+    line = f"{verdict(result)}; report {report_path}"
+    sims = [n for n in result.notes if n.startswith(SIMULATED_BOARD)]
+    return f"*** {sims[0]} ***\n{line}" if sims else line
 
 
 def write_results(

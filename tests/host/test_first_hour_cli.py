@@ -262,5 +262,6 @@ def test_the_readmes_first_command_gives_a_whole_session(tmp_path: Path) -> None
     assert (tmp_path / serial / f"{serial}_result.txt").exists()
     rec = (tmp_path / serial / f"{serial}_x_up.txt").read_text()
     assert "SIMULATED BOARD sim://?speed=max" in rec
-    last = proc.stderr.rstrip("\n").splitlines()[-1]
-    assert last.startswith(("PASS: ", "FAIL: ")) and last.endswith("(SIMULATED BOARD)")
+    mark, last = proc.stderr.rstrip("\n").splitlines()[-2:]
+    assert last.startswith(("PASS: ", "FAIL: ")) and last.endswith(f"{serial}_result.txt")
+    assert mark == "*** SIMULATED BOARD sim://?speed=max: not a measurement of a unit ***"

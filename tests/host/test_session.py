@@ -97,10 +97,11 @@ def test_yes_session_writes_every_file(yes_session: dict[str, Any]) -> None:
     # record's header say so
     assert d["notes"][0].startswith("SIMULATED BOARD sim://")
     # the session ends on its verdict and the report's path, whatever passed or failed
-    last = yes_session["con"].text.rstrip("\n").splitlines()[-1]
+    mark, last = yes_session["con"].text.rstrip("\n").splitlines()[-2:]
     verdict = "PASS: " if yes_session["rc"] == 0 else "FAIL: "
-    assert last.startswith(verdict)
-    assert last.endswith(f"report {out / 'S1_result.txt'} (SIMULATED BOARD)")
+    assert last.startswith(verdict) and last.endswith(f"report {out / 'S1_result.txt'}")
+    assert mark.startswith("*** SIMULATED BOARD sim://")
+    assert mark.endswith("not a measurement of a unit ***")
     report = (out / "S1_result.txt").read_text().splitlines()
     # the verdict heads the report too (the RESULT block sits below the table)
     assert [ln for ln in report[:10] if ln.startswith("Verdict: ")] == [
