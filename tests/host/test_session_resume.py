@@ -183,6 +183,12 @@ def test_a_turn_kept_despite_its_warning_ends_with_the_record_to_redo(tmp_path: 
     assert "turn" in header["warning"]
     again = options_of(msg.split(" with: ", 1)[1])
     assert again.redo == ("x_ccw",) and again.static_seconds == 2.0 and again.turns == 1
+    # --resume (everything measured) does not stop on the bare error either: it names the redo
+    resumed = options_of(msg.split(" with: ", 1)[1].replace("--redo x_ccw", "--resume"))
+    resumed.yes = True
+    with pytest.raises(UserError) as e2:
+        run(resumed, ScriptedConsole(), Ports())
+    assert "measure x_ccw again" in str(e2.value) and str(e2.value).endswith("--redo x_ccw")
     assert again.out == tmp_path / "a b" / "F1"
     again.yes = True
     again.port = f"sim://?seed=12&{LINEAR}"  # the same bench, without the operator's fault
