@@ -483,12 +483,16 @@ def _with_thermal(
             for p in params
         )
     carried = thermal_parameters(thermal, t_mean)
-    return params + carried, spec + (",thermal_bias" if carried else "")
+    terms = [t for t in ("thermal_bias", "thermal_scale") if any(p.term == t for p in carried)]
+    return params + carried, ",".join([spec, *terms])
 
 
 def _thermal_note(session: Session, thermal: ThermalCalibration, source: str) -> str:
     """The report's line on the bias(T) used, and records outside its range."""
-    orders = ", ".join(f"{n} {thermal.channels[n].order}" for n in CHANNELS)
+    orders = ", ".join(
+        f"{n} {ch.order}" + (f" (scale {ch.scale_order})" if ch.scale_order else "")
+        for n, ch in thermal.channels.items()
+    )
     note = (
         f"bias(T) from {source or 'a thermal calibration'} (orders {orders}; valid "
         f"{thermal.t_min_c:.1f} to {thermal.t_max_c:.1f} degC) removed from the records "

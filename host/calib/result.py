@@ -36,7 +36,12 @@ from host.calib.method import (
 )
 from host.calib.records import Session, read_session
 from host.calib.thermal import CHANNELS as THERMAL_CHANNELS
-from host.calib.thermal import ThermalCalibration, ThermalRangeWarning, recentred
+from host.calib.thermal import (
+    ThermalCalibration,
+    ThermalRangeWarning,
+    recentre_poly,
+    recentred,
+)
 from host.errors import UserError
 from host.modelling.model import (
     AXES,
@@ -475,12 +480,23 @@ def thermal_parameters(cal: ThermalCalibration, t_ref_c: float) -> tuple[Paramet
     ``t_ref_c`` (°C, the result's ``temp_mean_c``): c_1 … c_k of each channel with order k ≥ 1
     (:func:`host.calib.thermal.recentred`), 1-σ errors from the fit's covariance."""
     t = CARRIED["thermal_bias"]
+    ts = CARRIED["thermal_scale"]
     out: list[ParameterResult] = []
     for j, name in enumerate(THERMAL_CHANNELS):
         ch = cal.channels[name]
+        sensor, ax = ("accel" if j < 3 else "gyro"), j % 3
+        if ch.scale_order:
+            if ch.scale_order > len(ts.params):
+                raise UserError(f"{name}: scale(T) of order {ch.scale_order} is not carried")
+            c, cov = recentre_poly(ch.scale_coef, ch.scale_cov, cal.t_ref_c, t_ref_c)
+            labels, units = ts.param_labels(sensor, ax), ts.param_units(sensor)
+            for i in range(ch.scale_order):
+                out.append(ParameterResult(
+                    ts.name, sensor, AXES[ax], ts.params[i], labels[i], float(c[i]),
+                    math.sqrt(max(float(cov[i, i]), 0.0)), units[i],
+                ))  # fmt: skip
         if not ch.order:
             continue
-        sensor, ax = ("accel" if j < 3 else "gyro"), j % 3
         if ch.order > len(t.params):
             raise UserError(
                 f"{name}: bias(T) of order {ch.order}; a result carries up to order "
@@ -505,19 +521,25 @@ def carried_thermal(result: CalibrationResult) -> ThermalCalibration | None:
     from host.calib.thermal import UNITS as THERMAL_UNITS
     from host.calib.thermal import ChannelThermal
 
-    t = CARRIED["thermal_bias"]
-    chans = {}
-    for j, name in enumerate(THERMAL_CHANNELS):
-        sensor, axis = ("accel" if j < 3 else "gyro"), AXES[j % 3]
+    def carried(term: str, sensor: str, axis: str) -> list[ParameterResult]:
+        t = CARRIED[term]
         got = {
             p.key: p for p in result.parameters
             if p.term == t.name and p.sensor == sensor and p.axis == axis
         }  # fmt: skip
-        ps = [got[k] for k in t.params[: len(got)] if k in got]
+        return [got[k] for k in t.params[: len(got)] if k in got]
+
+    def diag(ps: list[ParameterResult]) -> tuple[tuple[float, ...], ...]:
+        return tuple(tuple(p.stderr**2 if q is p else 0.0 for q in ps) for p in ps)
+
+    chans = {}
+    for j, name in enumerate(THERMAL_CHANNELS):
+        sensor, axis = ("accel" if j < 3 else "gyro"), AXES[j % 3]
+        ps = carried("thermal_bias", sensor, axis)
+        ss = carried("thermal_scale", sensor, axis) if sensor == "accel" else []
         chans[name] = ChannelThermal(
-            name, THERMAL_UNITS[j], len(ps), tuple(p.value for p in ps),
-            tuple(tuple(p.stderr**2 if q is p else 0.0 for q in ps) for p in ps),
-            math.nan, (), (),
+            name, THERMAL_UNITS[j], len(ps), tuple(p.value for p in ps), diag(ps),
+            math.nan, (), (), len(ss), tuple(p.value for p in ss), diag(ss),
         )  # fmt: skip
     lo, hi = result.thermal_range_c
     return ThermalCalibration(result.serial, result.temp_mean_c, lo, hi, chans)

@@ -70,6 +70,8 @@ class ThermalPoints:
     #: within the record, and ``timed`` is False: records are then taken as unrelated in time)
     time_s: np.ndarray | None = None
     timed: bool = True
+    #: (M, 3) the up direction of each window's attitude in chip axes (NaN: not known)
+    up: np.ndarray | None = None
 
 
 def attitude_key(rec: Record) -> str:
@@ -90,12 +92,17 @@ def window_means(records: Iterable[Record], window_s: float = 20.0) -> ThermalPo
     groups: list[int] = []
     times: list[float] = []
     runs: list[int] = []
+    ups: list[np.ndarray] = []
     keys: list[str] = []
     timed = True
     for r_i, rec in enumerate(records):
         if rec.kind == "turn" or len(rec) < 2:
             continue
         key = attitude_key(rec)
+        try:
+            up = np.asarray(rec.up, dtype=np.float64)
+        except UserError:
+            up = np.full(3, np.nan)
         if key not in keys:
             keys.append(key)
         t = rec.t_ms / 1000.0
@@ -115,6 +122,7 @@ def window_means(records: Iterable[Record], window_s: float = 20.0) -> ThermalPo
             groups.append(keys.index(key))
             times.append(start + float(mean[7]))
             runs.append(r_i)
+            ups.append(up)
     if not temps:
         raise UserError(
             "no static records to fit bias(T): give the warm-up, static or thermal records"
@@ -128,6 +136,7 @@ def window_means(records: Iterable[Record], window_s: float = 20.0) -> ThermalPo
         np.array(runs, dtype=np.int64),
         np.array(times),
         timed,
+        np.array(ups).reshape(-1, 3),
     )
 
 
@@ -307,6 +316,21 @@ class ChannelThermal:
     rms: float
     bic: tuple[float, ...]
     heldout_rmse: tuple[float, ...]
+    #: scale change with temperature (accelerometer, where the attitudes allow): the reading
+    #: gains s_q·(T − T_ref)^q times the specific force along the axis; ``scale_coef`` s_1..s_q
+    #: (1/°C^q), ``scale_cov`` their covariance, ``scale_bic`` the selection table per order
+    scale_order: int = 0
+    scale_coef: tuple[float, ...] = ()
+    scale_cov: tuple[tuple[float, ...], ...] = ()
+    scale_bic: tuple[float, ...] = ()
+
+    def scale_delta(self, temp_c: np.ndarray, t_ref: float) -> np.ndarray:
+        """Relative scale change at ``temp_c`` (°C) from T_ref (dimensionless)."""
+        d = np.asarray(temp_c, dtype=np.float64) - t_ref
+        out = np.zeros_like(d)
+        for j, c in enumerate(self.scale_coef, start=1):
+            out += c * d**j
+        return out
 
     def delta(self, temp_c: np.ndarray, t_ref: float) -> np.ndarray:
         """Bias change at ``temp_c`` (°C) from T_ref, channel unit."""
@@ -335,15 +359,23 @@ def recentred(ch: ChannelThermal, t_from: float, t_to: float) -> tuple[np.ndarra
     """The same bias change about another reference temperature: Σ_j c_j·(T − t_from)^j less
     its value at ``t_to`` = Σ_i c̃_i·(T − t_to)^i, with c̃_i = Σ_{j≥i} C(j, i)·δ^(j−i)·c_j,
     δ = t_to − t_from (°C). Returns c̃ (k,) and its covariance (k, k) (the map is linear)."""
-    k = ch.order
+    return recentre_poly(ch.coef, ch.cov, t_from, t_to)
+
+
+def recentre_poly(
+    coef: Sequence[float], cov: Sequence[Sequence[float]], t_from: float, t_to: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`recentred` for any polynomial without constant term: coefficients c_1..c_k
+    about ``t_from`` and their covariance -> the same about ``t_to``, constant dropped."""
+    k = len(coef)
     delta = t_to - t_from
     r = np.zeros((k, k))
     for j in range(1, k + 1):
         for i in range(1, j + 1):
             r[i - 1, j - 1] = math.comb(j, i) * delta ** (j - i)
-    c = r @ np.array(ch.coef, dtype=np.float64).reshape(k)
-    cov = r @ np.array(ch.cov, dtype=np.float64).reshape(k, k) @ r.T
-    return c, cov
+    c = r @ np.array(coef, dtype=np.float64).reshape(k)
+    cv = r @ np.array(cov, dtype=np.float64).reshape(k, k) @ r.T
+    return c, cv
 
 
 def span_needed(order: int) -> float:
@@ -402,12 +434,107 @@ def fit_channel(
     )
 
 
+#: highest order of the accelerometer scale against temperature
+MAX_SCALE_ORDER = 2
+#: nominal gravity, m/s²: the specific force of a static attitude, up · g (for the scale term)
+G_NOMINAL = 9.80665
+
+
+def fit_scale(
+    pts: ThermalPoints,
+    j: int,
+    t_ref: float,
+    ch: ChannelThermal,
+    top: int,
+    window_s: float = 20.0,
+    required: bool = False,
+    fixed_order: int | None = None,
+) -> ChannelThermal:
+    """Accelerometer channel j's scale against temperature on top of its bias(T) ``ch``:
+    reading = offset(attitude) + Σ c_k·d^k + Σ s_q·d^q·g·up_j, d = T − T_ref. Determined
+    only when attitudes with different gravity along the axis each span temperature (axis up
+    and axis down along a ramp, say); the order q (0 … :data:`MAX_SCALE_ORDER`) is chosen by
+    the same wander-aware BIC as the bias. Not determinable: ``ch`` unchanged, or UserError
+    naming the axis and the records needed when ``required``."""
+    name = CHANNELS[j]
+    t, y, grp = pts.temp_c, pts.values[:, j], pts.group
+    ng, k, m = len(pts.attitudes), ch.order, t.size
+    span = max(float(np.ptp(t)) / 2.0, 1e-6)
+    force = (pts.up[:, j] if pts.up is not None else np.full(m, np.nan)) * G_NOMINAL
+    q_top = min(MAX_SCALE_ORDER, max(top, 1))
+    d = (t - t_ref) / span
+    x = np.column_stack(
+        [design(t, grp, ng, k, t_ref, span)] + [force * d**q for q in range(1, q_top + 1)]
+    )
+    cols = x[:, : ng + k + 1]
+    norm = np.linalg.norm(cols, axis=0)
+    ok = bool(np.all(np.isfinite(force))) and bool(np.all(norm > 0))
+    if ok:
+        sv = np.linalg.svd(cols / norm, compute_uv=False)
+        ok = bool(sv[-1] > 1e-3 * sv[0])
+    if not ok:
+        if required:
+            raise UserError(
+                f"{name}: the accelerometer's scale against temperature needs attitudes with "
+                f"different gravity along {name[1]} (e.g. {name[1]} up and {name[1]} down), "
+                "each measured across the temperature span; these records have "
+                + ("attitudes of unknown direction" if not np.all(np.isfinite(force)) else
+                   f"one gravity along {name[1]} over the span")
+            )  # fmt: skip
+        return ch
+    # the bias order and the scale order together (a scale change left out makes the bias
+    # look like wander): BIC over every pair, with the scale as the last columns
+    scale_cols = [force * d**q for q in range(1, q_top + 1)]
+    best: tuple[float, int, int, WanderFit] | None = None
+    no_scale = math.inf  # the best BIC without a scale term
+    bics: tuple[float, ...] = ()
+    for kk in [fixed_order] if fixed_order is not None else range(top + 1):
+        xk = np.column_stack([design(t, grp, ng, kk, t_ref, span), *scale_cols])
+        fits = fit_wander(xk, y[:, None], pts, range(q_top + 1), ng + kk, window_s)[0]
+        row = tuple(
+            -2.0 * f.loglik + (ng + BIC_PENALTY * (kk + q)) * math.log(m)
+            for q, f in enumerate(fits)
+        )
+        if kk == k:
+            bics = row
+        no_scale = min(no_scale, row[0])
+        for q in range(1, q_top + 1):
+            if best is None or row[q] < best[0]:
+                best = (row[q], kk, q, fits[q])
+    if best is None or best[0] >= no_scale:
+        return dataclasses.replace(ch, scale_bic=bics)
+    _, k, q, fit = best
+    x = np.column_stack([design(t, grp, ng, k, t_ref, span), *scale_cols[:q]])
+    sc_b = np.array([span**-i for i in range(1, k + 1)])
+    sc_s = np.array([span**-i for i in range(1, q + 1)])
+    cols_b = slice(ng, ng + k)
+    cols_s = slice(ng + k, ng + k + q)
+    rss = float(np.sum((y - x @ fit.beta) ** 2))
+    return dataclasses.replace(
+        ch,
+        order=k,
+        coef=tuple(float(c) for c in fit.beta[cols_b] * sc_b),
+        cov=tuple(
+            tuple(float(v) for v in r) for r in fit.cov[cols_b, cols_b] * np.outer(sc_b, sc_b)
+        ),
+        rms=float(np.sqrt(rss / m)),
+        scale_order=q,
+        scale_coef=tuple(float(c) for c in fit.beta[cols_s] * sc_s),
+        scale_cov=tuple(
+            tuple(float(v) for v in r) for r in fit.cov[cols_s, cols_s] * np.outer(sc_s, sc_s)
+        ),
+        scale_bic=bics,
+    )
+
+
 @dataclass(frozen=True)
 class ThermalCalibration:
     """The thermal result: per channel :class:`ChannelThermal`, the reference temperature
     ``t_ref_c`` and the range ``[t_min_c, t_max_c]`` (°C) over which the coefficients hold."""
 
-    FORMAT_VERSION: ClassVar[int] = 1
+    FORMAT_VERSION: ClassVar[int] = 2
+    #: format versions this program reads (v1: bias(T) only)
+    READS: ClassVar[tuple[int, ...]] = (1, 2)
 
     serial: str
     t_ref_c: float
@@ -421,7 +548,8 @@ class ThermalCalibration:
             "format": "imu-bench thermal",
             "format_version": self.FORMAT_VERSION,
             "serial": self.serial,
-            "model": "bias(T) - bias(T_ref) = sum_j c_j (T - T_ref)^j, T in degC",
+            "model": "bias(T) - bias(T_ref) = sum_j c_j (T - T_ref)^j, T in degC; accelerometer "
+            "scale: reading += sum_q s_q (T - T_ref)^q * specific force along the axis",
             "t_ref_c": self.t_ref_c,
             "valid_range_c": [self.t_min_c, self.t_max_c],
             "attitudes": list(self.attitudes),
@@ -433,6 +561,13 @@ class ThermalCalibration:
                     "covariance": [list(r) for r in ch.cov],
                     "rms": ch.rms,
                     "selection": {"bic": list(ch.bic), "heldout_rmse": list(ch.heldout_rmse)},
+                    "scale": {
+                        "order": ch.scale_order,
+                        "coefficients": list(ch.scale_coef),
+                        "units": [f"1/degC^{q}" for q in range(1, ch.scale_order + 1)],
+                        "covariance": [list(r) for r in ch.scale_cov],
+                        "selection": {"bic": list(ch.scale_bic)},
+                    },
                 }
                 for name, ch in self.channels.items()
             },
@@ -455,7 +590,7 @@ class ThermalCalibration:
         if not isinstance(d, Mapping) or d.get("format") != "imu-bench thermal":
             raise UserError(f"{source}: not an imu-bench thermal result")
         v = d.get("format_version")
-        if v != cls.FORMAT_VERSION:
+        if v not in cls.READS:
             raise UserError(
                 f"{source}: thermal result format v{v}, this program reads "
                 f"v{cls.FORMAT_VERSION}; update the host software or refit"
@@ -464,6 +599,7 @@ class ThermalCalibration:
             chans = {}
             for j, name in enumerate(CHANNELS):
                 c = d["channels"][name]
+                sc = c.get("scale") or {}
                 chans[name] = ChannelThermal(
                     name,
                     UNITS[j],
@@ -473,6 +609,10 @@ class ThermalCalibration:
                     float(c["rms"]),
                     tuple(float(x) for x in c["selection"]["bic"]),
                     tuple(float(x) for x in c["selection"]["heldout_rmse"]),
+                    int(sc.get("order", 0)),
+                    tuple(float(x) for x in sc.get("coefficients", ())),
+                    tuple(tuple(float(x) for x in r) for r in sc.get("covariance", ())),
+                    tuple(float(x) for x in sc.get("selection", {}).get("bic", ())),
                 )
             lo, hi = (float(x) for x in d["valid_range_c"])
             return cls(str(d["serial"]), float(d["t_ref_c"]), lo, hi, chans, tuple(d["attitudes"]))
@@ -487,11 +627,16 @@ def fit_thermal(
     max_order: int = MAX_ORDER,
     window_s: float = 20.0,
     t_ref_c: float | None = None,
+    scale: bool | None = None,
 ) -> tuple[ThermalCalibration, ThermalPoints]:
     """Fit bias(T) of every channel from static ``records`` (any attitudes). ``order`` fixes
     the polynomial order; otherwise it is chosen per channel up to ``max_order`` (and no
     higher than the span supports). Raises UserError when the span or the attitudes cannot
-    determine what is asked, naming the span needed."""
+    determine what is asked, naming the span needed.
+
+    The accelerometers' scale against temperature (:func:`fit_scale`) is fitted where the
+    attitudes allow (``scale`` None), for every accelerometer axis or refused naming what is
+    missing (True), or not at all (False). Static records cannot show a gyro's scale."""
     pts = window_means(records, window_s)
     lo, hi = float(pts.temp_c.min()), float(pts.temp_c.max())
     span = hi - lo
@@ -517,8 +662,8 @@ def fit_thermal(
         t_ref_c = float(np.mean([r.temp.mean() for r in statics])) if statics else (lo + hi) / 2.0
     # the wander's whitening is the same for every channel: one pass for all six
     top_fit = max(top, order or 0)
-    scale = max(span / 2.0, 1e-6)
-    x_all = design(pts.temp_c, pts.group, len(pts.attitudes), top_fit, t_ref_c, scale)
+    t_scale = max(span / 2.0, 1e-6)
+    x_all = design(pts.temp_c, pts.group, len(pts.attitudes), top_fit, t_ref_c, t_scale)
     every = fit_wander(
         x_all, pts.values, pts, range(top_fit + 1), len(pts.attitudes), window_s
     )  # fmt: skip
@@ -526,6 +671,11 @@ def fit_thermal(
         CHANNELS[j]: fit_channel(pts, j, t_ref_c, top, order, window_s, every[j])
         for j in range(len(CHANNELS))
     }
+    if scale is not False:
+        for j in range(3):
+            chans[CHANNELS[j]] = fit_scale(
+                pts, j, t_ref_c, chans[CHANNELS[j]], top, window_s, bool(scale), order
+            )
     cal = ThermalCalibration(serial, float(t_ref_c), lo, hi, chans, pts.attitudes)
     return cal, pts
 
@@ -554,6 +704,8 @@ def apply_thermal(
         ch = cal.channels[name]
         target = a if j < 3 else g
         target[:, j % 3] -= ch.delta(t, cal.t_ref_c)
+        if ch.scale_order:
+            target[:, j % 3] /= 1.0 + ch.scale_delta(t, cal.t_ref_c)
     return a, g
 
 
@@ -568,12 +720,15 @@ def corrected_records(
         a, g = rec.accel.copy(), rec.gyro.copy()
         for j, ch_name in enumerate(CHANNELS):
             ch = cal.channels[ch_name]
-            if not ch.order:
-                continue
-            c, _ = recentred(ch, cal.t_ref_c, t_ref_c)
             d = rec.temp - t_ref_c
-            change = sum(ci * d ** (i + 1) for i, ci in enumerate(c))
-            (a if j < 3 else g)[:, j % 3] -= change
+            if ch.order:
+                c, _ = recentred(ch, cal.t_ref_c, t_ref_c)
+                (a if j < 3 else g)[:, j % 3] -= sum(ci * d ** (i + 1) for i, ci in enumerate(c))
+            if ch.scale_order:
+                s_c, _ = recentre_poly(ch.scale_coef, ch.scale_cov, cal.t_ref_c, t_ref_c)
+                (a if j < 3 else g)[:, j % 3] /= 1.0 + sum(
+                    si * d ** (i + 1) for i, si in enumerate(s_c)
+                )
         out[name] = dataclasses.replace(rec, accel=a, gyro=g)
     return out
 

@@ -41,6 +41,13 @@ def format_text(cal: thermal.ThermalCalibration) -> str:
             f"{name}: order {ch.order}  {terms}  (change over the range {full[0]:+.4g} .. "
             f"{full[1]:+.4g} {ch.unit}; residual rms {ch.rms:.3g})"
         )
+        if ch.scale_order:
+            sc = "  ".join(f"s{q}={c:+.4g}/degC^{q}" for q, c in enumerate(ch.scale_coef, 1))
+            ends = ch.scale_delta(np.array([cal.t_min_c, cal.t_max_c]), cal.t_ref_c)
+            lines.append(
+                f"{name}: scale order {ch.scale_order}  {sc}  (scale change over the range "
+                f"{100 * ends[0]:+.3f} .. {100 * ends[1]:+.3f} %)"
+            )
     return "\n".join(lines) + "\n"
 
 
@@ -76,8 +83,9 @@ def run(args: argparse.Namespace) -> int:
     if not args.window > 0:
         raise UserError("--window must be a positive number of seconds")
     cal, pts = thermal.fit_thermal(
-        records, serial, order=args.order, max_order=args.max_order, window_s=args.window
-    )
+        records, serial, order=args.order, max_order=args.max_order, window_s=args.window,
+        scale=True if args.scale else None,
+    )  # fmt: skip
     out_dir = Path(args.out) if args.out else Path(args.dir)
     if not out_dir.is_dir():
         raise UserError(f"{out_dir}: no such directory")
@@ -103,6 +111,13 @@ def cli_thermal(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], in
     p.add_argument("--order", type=int, help="fix the polynomial order (default: chosen)")
     p.add_argument(
         "--max-order", type=int, default=thermal.MAX_ORDER, help="highest order tried (default 4)"
+    )
+    p.add_argument(
+        "--scale",
+        action="store_true",
+        help="fit every accelerometer axis's scale against temperature, or say which records "
+        "are missing (default: fitted where the attitudes allow — the axis up and down across "
+        "the span)",
     )
     p.add_argument("--window", type=float, default=20.0, help="averaging window, s (default 20)")
     p.add_argument("--out", metavar="DIR", help="where to write SERIAL_thermal.json (default DIR)")

@@ -515,10 +515,25 @@ def thermal_bias(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     return np.column_stack([d**j for j in range(1, THERMAL_MAX_ORDER + 1)])
 
 
+@term(
+    sensors=("accel",),
+    params={"per_C": "1/°C", "per_C2": "1/°C²"},
+    needs="a thermal calibration with the axis up and down across the temperature span: "
+    "python -m host thermal DIR --scale, then calibrate --thermal SERIAL_thermal.json",
+)
+def thermal_scale(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """Accelerometer scale change with chip temperature measured by the thermal calibration
+    (``python -m host thermal``): output += Σ_q s_q·(T − T̄)^q · input along the axis, about
+    the session's mean chip temperature T̄ (coefficients not carried are 0)."""
+    d = sig.temp_c - sig.temp_mean_c
+    f = sig.reference(sensor)[:, axis]
+    return np.column_stack([d * f, d * d * f])
+
+
 #: terms whose values a result carries from a measurement of their own (not fitted to the
 #: calibration records, not offered by the workbench); :func:`host.calib.result.apply`
 #: evaluates them like every other term
-CARRIED: dict[str, Term] = {t.name: t for t in (thermal_bias,)}
+CARRIED: dict[str, Term] = {t.name: t for t in (thermal_bias, thermal_scale)}
 
 
 def load_term_file(
