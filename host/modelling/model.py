@@ -1049,6 +1049,13 @@ def build_dataset(
         v_blocks = var_tau / counts  # variance of each block mean
         b = len(idx)
         v_mean = float(np.sum(v_blocks)) / b**2 + floor**2
+        if not v_mean > 0.0:
+            raise UserError(
+                f"{signals[ri].name}: {s} {'xyz'[ax]} reads the same value in every sample "
+                "(noise-free data, or a stuck sensor): the fit weighs each record by its "
+                "noise; give a floor, e.g. --floor accel=1e-4,gyro=1e-3 (m/s², °/s), or check "
+                "the sensor"
+            )
         whiten[idx[0], idx] = (1.0 / b) / math.sqrt(v_mean)
         v_c = float(np.mean(v_blocks)) * inflate.get((s, ax), 1.0)
         if b >= 2:

@@ -220,3 +220,24 @@ def test_empty_session_is_a_user_error() -> None:
 
     with pytest.raises(UserError):
         build_dataset(Session("X", {}))
+
+
+@pytest.mark.timeout(60)
+def test_noise_free_records_ask_for_a_floor_instead_of_dividing_by_zero(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Constant readings (noise-free simulation, a stuck sensor) left the fit no noise to weigh
+    by: ZeroDivisionError traceback. Now one line naming the record and channel, and --floor
+    makes the same records fit."""
+    from host.__main__ import main
+    from host.bench.sim import write_session
+
+    write_session(
+        tmp_path, "I1", simulate_session(SensorTruth.ideal(), Plan(static_s=2.0, turns=1), seed=2)
+    )
+    assert main(["calibrate", "--from-dir", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "reads the same value in every sample" in err[0], err
+    assert "--floor accel=" in err[0] and not list(tmp_path.glob("I1_result.*"))
+    rc = main(["calibrate", "--from-dir", str(tmp_path), "--floor", "accel=1e-4,gyro=1e-3"])
+    assert rc == 0 and (tmp_path / "I1_result.json").exists()
