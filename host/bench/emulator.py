@@ -14,6 +14,9 @@ ATmega2560 with an MPU-6000 model on SPI and UART0 on a pseudo-terminal (see
 ``emu://`` URLs (``host/transports/protocol_emu.py``) wrap the same class as a pyserial port;
 :class:`SimStimulus` feeds a running board's stimulus pipe from the physics simulator
 (:class:`host.sim.Simulator`), a bounded horizon ahead of the emulated time.
+
+Length (over 600 lines): the emulator's build, its stimulus file, its log readers and the running
+board share its file formats and paths; split apart, each format would be written in two places.
 """
 
 from __future__ import annotations

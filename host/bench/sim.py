@@ -17,6 +17,9 @@ Timing: the sensor samples at ``rate_hz·(1 + Environment.sample_clock_error)`` 
 device time stamp is the MCU µs timer (``Environment.device_us``). Times ``t_s`` are true
 seconds since the board's reset (device clock zero); the chip's warm-up and drift run on
 ``t_s + Simulator.power_on_s`` (a reset does not cool the chip).
+
+Length (over 600 lines): the simulated sensor, the plan, the virtual operator who carries the plan
+out and the frame stream all run on the plan's one time line; split, each would re-derive it.
 """
 
 from __future__ import annotations

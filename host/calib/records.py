@@ -15,6 +15,9 @@ Columns: time since the start beep in ms (1 decimal, device clock); Ax Ay Az in 
 (4 decimals); Gx Gy Gz in °/s (3 decimals); temperature in °C (1 decimal). Files without any
 header and without the 'mean'/'std' labels (as the source program wrote them) are accepted.
 File names are ``SERIAL_name.txt`` (method.md §6).
+
+Length (over 600 lines): the record file format — parse, format, atomic publication and the
+directory of one session — in one place, so that the reader and the writer cannot drift apart.
 """
 
 from __future__ import annotations

@@ -9,6 +9,9 @@ they become the ``base`` model.
 
 A parameter whose value is NaN was **not determined** by the records; ``needs`` says what
 would determine it. :func:`apply` refuses such a result unless asked to take them as nominal.
+
+Length (over 600 lines): one versioned object — its v2 file, loading v1 and v2, ``apply`` and
+held-out ``verify`` — must agree on every parameter's meaning; they change together.
 """
 
 from __future__ import annotations

@@ -48,6 +48,10 @@ records in the directory (so stage 2 alone reuses earlier statics, as the method
 
 Operator hints: a port with ``operator_hint`` (the ``sim://`` virtual board) is told what the
 human is asked (``place`` before the placement prompt, ``turn`` at the start beep of a turn).
+
+Length (over 600 lines): one dialogue — the §5 program with its resume, redo, reconnect, warm-up
+and checks of each measurement — whose steps share the state of the sitting; the board, the
+records and the results live elsewhere (host/board/driver.py, host/calib/).
 """
 
 from __future__ import annotations

@@ -21,6 +21,10 @@ A stream from anywhere (a logger's CSV, a capture) has no beeps: the records are
    labels file (:func:`read_labels`), which then defines the segments.
 
 Every integral uses the true sample times (trapezoid rule over ``t``), never a nominal rate.
+
+Length (over 600 lines): finding the records, checking them and the labels file that lets a user
+correct the cut are one algorithm with its own input/output format; kept together so the labels
+file cannot drift from what the cut produces.
 """
 
 from __future__ import annotations
