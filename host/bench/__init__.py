@@ -1,7 +1,12 @@
 """The virtual bench: a known truth to test against (our own simulator is not evidence).
 
-``truth`` (every sensor error term), ``physics`` (the cube, hand turns, gravity, room, clocks),
-``sim`` (the simulator: poses, turns, records), ``options`` (the simulator's URL options, one
-parser for ``sim://`` and ``emu://``), ``linksim`` (USB/UART latency for the clock estimator),
-``emulator`` (the real firmware ELF in simavr against an MPU-6000 model).
+Beside the stages, not in the data's path: it produces what a real board and operator would.
+
+- ``truth`` — every sensor error term, and the sensor model.
+- ``physics`` — the cube, hand turns, gravity, Earth rate, room, clocks.
+- ``sim`` — the simulator: poses, turns, the virtual operator, records, frame streams.
+- ``options`` — the simulator's URL options, one parser for ``sim://`` and ``emu://``.
+- ``linksim`` — USB/UART latency, for the clock estimator.
+- ``emulator`` — the real firmware ELF in simavr against an MPU-6000 model.
+- ``noise`` — long static recordings with known noise.
 """

@@ -1,5 +1,12 @@
-"""The board: ports by URL and what runs on it.
+"""Stage 1, the port: a board on a serial port or URL, and what runs on it.
 
-``link`` (open a port by URL, timestamped reads, every byte into a capture), ``flash`` (build the
-firmware hex, flash it with avrdude through the bootloader, check its HELLO).
+Data in: bytes from a port. Out: timestamped reads and decoded frames, HELLO, measurements.
+
+- ``link`` — open a port by URL (a device, ``sim://``, ``emu://``, ``replay://``), timestamped
+  reads, every byte into a capture, commands out.
+- ``hello`` — the one wait for HELLO and the one check of the spec fingerprint.
+- ``driver`` — the board driver (:class:`~host.board.driver.Board`): HELLO, commands, clock
+  feeding, acquisition of one measurement on device time, counts to SI units.
+- ``firmware`` — build the firmware hex (make / avr-gcc).
+- ``flash`` — flash it with avrdude through the bootloader and check its HELLO.
 """

@@ -1,6 +1,16 @@
-"""Stage 4-5, calibration: records -> closed-form fit -> result -> report.
+"""Stage 5, calibration: records -> checks -> fit -> result -> report.
 
-``records`` (the record files of a session directory), ``calibration`` (method constants, the
-closed-form calibration, the versioned result), ``report`` (the test report and result files),
-``exporting`` (the result as other tools' parameters and files).
+Data in: a session (the record files of one sitting). Out: the result (JSON, v2) and the signed
+test report, and the result in other tools' formats.
+
+- ``records`` — the record files and the session directory (read, write atomically).
+- ``method`` — the method's constants, sign layout and local gravity.
+- ``checks`` — each record checked against the method (orientation, range, turn angle).
+- ``calibration`` — the calibration through the one fit, the closed form beside it.
+- ``publish`` — compute and write: the one step from records to the published result (live and
+  ``--from-dir``).
+- ``result`` — the versioned result object, ``apply`` and held-out ``verify``.
+- ``report`` — the test report (method.md §7) and the result files.
+- ``thermal`` — bias against temperature from warm-up, static and chamber records.
+- ``exporting`` — the result as other tools' parameters and files.
 """

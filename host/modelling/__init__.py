@@ -1,6 +1,10 @@
-"""The model workbench: the error model as named physical terms.
+"""Stage 6, the model: the error model as named physical terms, and how well it explains the data.
 
-``model`` (terms, dataset and noise model, the least-squares fit), ``diagnose`` (where the model
-fails and which missing term explains it), ``scenarios`` (a simulated session with one hidden
-effect, and what the workbench makes of it).
+Data in: a session's records. Out: fits, residuals, diagnoses, noise figures.
+
+- ``model`` — terms, dataset and noise model, the least-squares fit.
+- ``diagnose`` — where the model fails and which missing term explains it.
+- ``scenarios`` — simulated sessions each hiding one effect, and what the workbench finds.
+- ``allan`` — Allan deviation and the noise figures read from it.
+- ``noise`` — a recording's noise, the planner and the noise file.
 """

@@ -1,5 +1,9 @@
-"""Port URL schemes beyond pyserial's own, one module per scheme (``protocol_<scheme>.py``).
+"""Port URL schemes beyond pyserial's own, one thin adapter per scheme (``protocol_<scheme>.py``).
 
-pyserial finds them through ``serial.protocol_handler_packages``; importing ``host.link``
-registers this package there.
+- ``protocol_sim`` — ``sim://``: the virtual bench's firmware (:mod:`host.bench`) behind a port.
+- ``protocol_emu`` — ``emu://``: the emulated board (:mod:`host.bench.emulator`) behind a port.
+- ``protocol_replay`` — ``replay://``: a capture file played back.
+
+pyserial finds them through ``serial.protocol_handler_packages``; importing
+:mod:`host.board.link` registers this package there.
 """
