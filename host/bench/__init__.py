@@ -5,6 +5,8 @@ Beside the stages, not in the data's path: it produces what a real board and ope
 - ``truth`` — every sensor error term, and the sensor model.
 - ``physics`` — the cube, hand turns, gravity, Earth rate, room, clocks.
 - ``sim`` — the simulator: poses, turns, the virtual operator, records, frame streams.
+- ``firmware`` — the virtual firmware: host command bytes in, device frame bytes out (what
+  ``sim://`` runs behind its port).
 - ``options`` — the simulator's URL options, one parser for ``sim://`` and ``emu://``.
 - ``linksim`` — USB/UART latency, for the clock estimator.
 - ``emulator`` — the real firmware ELF in simavr against an MPU-6000 model.

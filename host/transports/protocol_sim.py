@@ -31,13 +31,10 @@ the options shared with ``emu://`` are read by :mod:`host.bench.options`)::
   ``serial.SerialException("device disconnected")``; closing and re-opening works (once per
   port object: the re-opened board is powered up afresh and stays connected).
 
-On the wire it behaves like the firmware: on ``open`` the board resets (the host's DTR), sends
-HELLO (with this host's ``SPEC_FINGERPRINT``), then IMU_SAMPLE frames at 50 Hz (device time in
-µs, 0.5 µs timer) and STATUS once a second, one ``seq`` counter over all frames. Commands:
-PING → PONG + ACK, START_STREAM / STOP_STREAM → ACK, SET_RATE → ACK (samples after it carry
-CONFIG_CHANGED; DLPF_CFG > 6 or a rate above 500 Hz → ACK BAD_ARGUMENT), GET_CONFIG → HELLO +
-ACK, GET_STATUS → STATUS + ACK, anything else → ACK UNSUPPORTED + ERROR BAD_COMMAND. Bad-CRC
-command frames are counted in STATUS.crc_errors.
+A thin adapter: on the wire it is the virtual firmware (:class:`host.bench.firmware.
+VirtualFirmware`: HELLO, samples, STATUS, the answers to commands — byte in, byte out). This
+module only paces it (``speed``), delivers its bytes through the pyserial API, resets it when
+the port opens (the host's DTR) and pulls the cable.
 
 Operator API (the calibration program tells the bench what it asks the human)::
 
@@ -67,6 +64,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, Timeout
 
+from host.bench.firmware import RESET_EXTERNAL, RESET_POWER_ON, VirtualFirmware
 from host.bench.options import (
     CABLE_FAULT,
     CLOCK_PPM_MAX,
@@ -85,22 +83,12 @@ from host.bench.sim import (
 )
 from host.bench.truth import SensorTruth
 from host.errors import BadURLError
-from host.wire import protocol_gen as gen
-from host.wire.frames import StreamDecoder, encode_frame, encode_imu_samples
 from host.wire.sensor import DEFAULT_PRODUCT_ID
 
-FW_VERSION = (0, 1, 0)
-BAUD = 115200
-DEFAULT_DLPF = 4  # as the firmware: ≈20 Hz bandwidth at 1 kHz internal rate
-DEFAULT_SMPLRT_DIV = 19  # 1 kHz / (1 + 19) = 50 Hz
-ERROR_BAD_COMMAND = gen.ENUMS["error_code"]["BAD_COMMAND"]
-TIMER_RESOLUTION_NS = 500  # as the firmware: Timer1 at fosc/8
-MAX_RATE_HZ = 500.0
 __all__ = ["INCOMPLETE_FRACTION", "TOO_FAST_PEAK_DPS", "Serial"]
 if TYPE_CHECKING:
     from typing_extensions import Buffer
 
-_ACK = gen.ENUMS["ack_status"]
 #: ``speed=max``: samples simulated at once when a reader asks what is waiting (one at a
 #: time, the simulator's per-call overhead dominated a session: 3600 calls for 6000 samples)
 MAX_SPEED_CHUNK = 10
@@ -125,18 +113,30 @@ class Serial(SerialBase):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self._lock = threading.RLock()
-        self._out = bytearray()
-        self._decoder = StreamDecoder("any")  # as the firmware: any type
         self.hints: list[tuple[float, str, dict[str, Any]]] = []
         self.truth: SensorTruth | None = None
-        self.sim: Simulator | None = None
+        #: the board's firmware since the last reset (None before the first open)
+        self.firmware: VirtualFirmware | None = None
         self._opened_once = False
         self._pulled_done = False
         self._pulled = False
         self._pose: Motion = static_motion("z_up")
         self._power_s = 0.0
-        self._t_gen = 0.0
         super().__init__(*args, **kwargs)
+
+    @property
+    def sim(self) -> Simulator | None:
+        """The running simulated sensor (None before the first open)."""
+        return self.firmware.sim if self.firmware is not None else None
+
+    @property
+    def _t_gen(self) -> float:
+        return self.firmware.t_s if self.firmware is not None else 0.0
+
+    @property
+    def _out(self) -> bytearray:
+        assert self.firmware is not None
+        return self.firmware.output
 
     # ---- URL ---------------------------------------------------------------------------
     def from_url(self, url: str) -> None:
@@ -215,19 +215,16 @@ class Serial(SerialBase):
         )
         if self.sim is not None:  # the cube stays where it is
             self._pose = resting_pose(self.sim, self._t_gen)
-        self.sim = Simulator(self.truth, self.bench, self.environment, seed, 50.0, self._power_s)
-        self.sim.product_id = self.product_id
-        self.sim.set_motion(self._pose, 0.0)
-        self._out.clear()
-        self._decoder = StreamDecoder("any")  # as the firmware: any type
-        self._seq = 0
-        self._t_gen = 0.0
-        self._next_status_s = 1.0
-        self._streaming = True
-        self._dlpf = DEFAULT_DLPF
-        self._bad_commands = 0
-        self._div = DEFAULT_SMPLRT_DIV
-        self._reset_cause = 1 if power_cycle else 2
+        self.firmware = VirtualFirmware(
+            self.truth,
+            self.bench,
+            self.environment,
+            seed,
+            self._power_s,
+            self._pose,
+            RESET_POWER_ON if power_cycle else RESET_EXTERNAL,
+            self.product_id,
+        )
         self._pulled = False
         self._pull_at = (
             self.faults["pull_cable"]
@@ -235,7 +232,6 @@ class Serial(SerialBase):
             else None
         )
         self._wall0 = time.monotonic()
-        self._emit("HELLO", **self._hello_fields())
 
     # ---- device side -------------------------------------------------------------------
     @property
@@ -243,68 +239,19 @@ class Serial(SerialBase):
         """Simulated seconds since the last reset up to which output has been produced."""
         return self._t_gen
 
-    def _emit(self, msg: str, **fields: int) -> None:
-        self._out += encode_frame(msg, self._seq, **fields)
-        self._seq = (self._seq + 1) & 0xFFFF
-
-    def _hello_fields(self) -> dict[str, int]:
-        return dict(
-            fw_major=FW_VERSION[0],
-            fw_minor=FW_VERSION[1],
-            fw_patch=FW_VERSION[2],
-            protocol_version=gen.PROTOCOL_VERSION,
-            spec_fingerprint=gen.SPEC_FINGERPRINT,
-            who_am_i=0x68,
-            product_id=self.product_id,
-            accel_fs_sel=0,
-            gyro_fs_sel=0,
-            dlpf_cfg=self._dlpf,
-            smplrt_div=self._div,
-            mode=0,
-            timer_resolution_ns=TIMER_RESOLUTION_NS,
-            baud=BAUD,
-            reset_cause=self._reset_cause,
-            streaming=int(self._streaming),
-        )
-
-    def _status_fields(self) -> dict[str, int]:
-        assert self.sim is not None
-        uptime_us = int(self.environment.device_us(np.array([self._t_gen]))[0])
-        return dict(
-            uptime_ms=(uptime_us // 1000) & 0xFFFFFFFF,
-            samples=self.sim.samples & 0xFFFFFFFF,
-            missed=0,
-            dropped=0,
-            crc_errors=min(self._decoder.stats.crc_errors, 0xFFFF),
-            spi_faults=0,
-            fifo_overflows=0,
-            tx_queue_max=7,
-            bad_bursts=0,
-            flags=0,
-        )
-
     def _now_target(self) -> float:
         """Simulated time the wall clock has reached (realtime / N× speed)."""
         assert self.speed is not None
         return (time.monotonic() - self._wall0) * self.speed
 
     def _advance(self, t_target: float) -> None:
-        """Produce every frame up to simulated time ``t_target`` (or until the cable goes)."""
-        assert self.sim is not None
+        """Run the firmware up to simulated time ``t_target`` (or until the cable goes)."""
+        assert self.firmware is not None
         if self._pulled:
             return
         if self._pull_at is not None and t_target >= self._pull_at:
             t_target = self._pull_at
-        while self._t_gen < t_target:
-            t_stop = min(t_target, self._next_status_s)
-            block = self.sim.run_until(t_stop)
-            if self._streaming and len(block):
-                self._out += encode_imu_samples(self._seq, block.t_us, block.counts, block.flags)
-                self._seq = (self._seq + len(block)) & 0xFFFF
-            self._t_gen = t_stop
-            if t_stop >= self._next_status_s:
-                self._emit("STATUS", **self._status_fields())
-                self._next_status_s += 1.0
+        self.firmware.run_until(t_target)
         if self._pull_at is not None and self._t_gen >= self._pull_at:
             self._pulled = True
             self._pulled_done = True
@@ -376,40 +323,9 @@ class Serial(SerialBase):
             if self.speed is not None:
                 self._advance(self._now_target())
                 self._check_connected()
-            for frame in self._decoder.feed(bytes(data)):
-                self._handle(frame.type, frame.seq, frame.fields)
+            assert self.firmware is not None
+            self.firmware.receive(bytes(data))
             return len(memoryview(data))
-
-    def _handle(self, mtype: int, cmd_seq: int, fields: dict[str, int]) -> None:
-        assert self.sim is not None
-        name = gen.MESSAGES[mtype][0] if mtype in gen.MESSAGES else ""
-        status = _ACK["OK"]
-        if name == "PING":
-            t_us = int(self.environment.device_us(np.array([self._t_gen]))[0])
-            self._emit("PONG", nonce=fields["nonce"], t_us=t_us & 0xFFFFFFFF)
-        elif name == "START_STREAM":
-            self._streaming = True
-        elif name == "STOP_STREAM":
-            self._streaming = False
-        elif name == "SET_RATE":
-            div, dlpf = fields["smplrt_div"], fields["dlpf_cfg"]
-            internal = 8000.0 if dlpf in (0, 7) else 1000.0
-            rate = internal / (1 + div)
-            if dlpf > 6 or rate > MAX_RATE_HZ:
-                status = _ACK["BAD_ARGUMENT"]
-            else:
-                self._div, self._dlpf = div, dlpf
-                self.sim.set_rate(rate)
-        elif name == "GET_CONFIG":
-            self._emit("HELLO", **self._hello_fields())
-        elif name == "GET_STATUS":
-            self._emit("STATUS", **self._status_fields())
-        else:
-            status = _ACK["UNSUPPORTED"]
-        self._emit("ACK", cmd_type=mtype, cmd_seq=cmd_seq, status=status)
-        if status == _ACK["UNSUPPORTED"]:  # as the firmware: an ERROR frame follows the ACK
-            self._bad_commands += 1
-            self._emit("ERROR", code=ERROR_BAD_COMMAND, detail=mtype, count=self._bad_commands)
 
     def reset_input_buffer(self) -> None:
         with self._lock:

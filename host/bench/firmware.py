@@ -1,0 +1,168 @@
+"""The virtual firmware: what the board's firmware does on the wire, simulated byte in, byte out.
+
+A :class:`VirtualFirmware` is one power-up of the virtual board: the simulated MPU-6000 on the
+cube (:class:`host.bench.sim.Simulator`) read at its sample rate, and the firmware's protocol
+behaviour (protocol/messages.md) around it. Host bytes go in with :meth:`~VirtualFirmware.receive`
+(command frames, any chunking; bad CRCs are counted in STATUS.crc_errors); device bytes come
+out of :attr:`~VirtualFirmware.output` as simulated time is run forward with
+:meth:`~VirtualFirmware.run_until`:
+
+- at power-up: HELLO (this host's spec fingerprint, the reset cause), then IMU_SAMPLE frames at
+  50 Hz (device time in µs from the MCU timer, 0.5 µs resolution) and STATUS once a second, one
+  ``seq`` counter over all frames;
+- PING → PONG (device time now) + ACK; START_STREAM / STOP_STREAM → ACK; SET_RATE → ACK (the
+  samples after it carry CONFIG_CHANGED; DLPF_CFG > 6 or a rate above 500 Hz → ACK
+  BAD_ARGUMENT); GET_CONFIG → HELLO + ACK; GET_STATUS → STATUS + ACK; anything else → ACK
+  UNSUPPORTED + ERROR BAD_COMMAND.
+
+It knows nothing of ports, wall clocks or cables: the ``sim://`` adapter
+(:mod:`host.transports.protocol_sim`) paces it, delivers its bytes and pulls the cable.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from host.bench.physics import Bench, Environment, Motion
+from host.bench.sim import Simulator
+from host.bench.truth import SensorTruth
+from host.wire import protocol_gen as gen
+from host.wire.frames import StreamDecoder, encode_frame, encode_imu_samples
+from host.wire.sensor import DEFAULT_PRODUCT_ID
+
+FW_VERSION = (0, 1, 0)
+BAUD = 115200
+DEFAULT_DLPF = 4  # as the firmware: ≈20 Hz bandwidth at 1 kHz internal rate
+DEFAULT_SMPLRT_DIV = 19  # 1 kHz / (1 + 19) = 50 Hz
+TIMER_RESOLUTION_NS = 500  # as the firmware: Timer1 at fosc/8
+MAX_RATE_HZ = 500.0
+#: reset causes in HELLO: power-on, and the reset the host's DTR gives when it opens the port
+RESET_POWER_ON, RESET_EXTERNAL = 1, 2
+ERROR_BAD_COMMAND = gen.ENUMS["error_code"]["BAD_COMMAND"]
+_ACK = gen.ENUMS["ack_status"]
+
+
+class VirtualFirmware:
+    """One power-up of the virtual board: host bytes in (:meth:`receive`), device bytes out
+    (:attr:`output`, filled by :meth:`run_until`). ``power_on_s``: time since the board was
+    powered, s (a reset without a power cycle keeps the chip warm); ``pose``: where the cube
+    is at the reset; ``product_id`` the chip's revision (``revision=``)."""
+
+    def __init__(
+        self,
+        truth: SensorTruth,
+        bench: Bench,
+        environment: Environment,
+        seed: np.random.SeedSequence,
+        power_on_s: float,
+        pose: Motion,
+        reset_cause: int = RESET_POWER_ON,
+        product_id: int = DEFAULT_PRODUCT_ID,
+    ) -> None:
+        self.environment = environment
+        self.sim = Simulator(truth, bench, environment, seed, 50.0, power_on_s)
+        self.sim.product_id = product_id  # the chip revision (HELLO, and its accel scale)
+        self.sim.set_motion(pose, 0.0)
+        #: device bytes not yet delivered to the host
+        self.output = bytearray()
+        self._decoder = StreamDecoder("any")  # as the firmware: any type
+        self._seq = 0
+        #: simulated seconds since the reset up to which output has been produced
+        self.t_s = 0.0
+        self._next_status_s = 1.0
+        self.streaming = True
+        self.dlpf = DEFAULT_DLPF
+        self.div = DEFAULT_SMPLRT_DIV
+        self.reset_cause = reset_cause
+        self._bad_commands = 0
+        self._emit("HELLO", **self.hello_fields())
+
+    # ---- device → host -----------------------------------------------------------------
+    def _emit(self, msg: str, **fields: int) -> None:
+        self.output += encode_frame(msg, self._seq, **fields)
+        self._seq = (self._seq + 1) & 0xFFFF
+
+    def hello_fields(self) -> dict[str, int]:
+        """The fields of this board's HELLO frame."""
+        return dict(
+            fw_major=FW_VERSION[0],
+            fw_minor=FW_VERSION[1],
+            fw_patch=FW_VERSION[2],
+            protocol_version=gen.PROTOCOL_VERSION,
+            spec_fingerprint=gen.SPEC_FINGERPRINT,
+            who_am_i=0x68,
+            accel_fs_sel=0,
+            gyro_fs_sel=0,
+            dlpf_cfg=self.dlpf,
+            smplrt_div=self.div,
+            mode=0,
+            timer_resolution_ns=TIMER_RESOLUTION_NS,
+            baud=BAUD,
+            reset_cause=self.reset_cause,
+            streaming=int(self.streaming),
+        )
+
+    def status_fields(self) -> dict[str, int]:
+        """The fields of a STATUS frame now."""
+        uptime_us = int(self.environment.device_us(np.array([self.t_s]))[0])
+        return dict(
+            uptime_ms=(uptime_us // 1000) & 0xFFFFFFFF,
+            samples=self.sim.samples & 0xFFFFFFFF,
+            missed=0,
+            dropped=0,
+            crc_errors=min(self._decoder.stats.crc_errors, 0xFFFF),
+            spi_faults=0,
+            fifo_overflows=0,
+            tx_queue_max=7,
+            bad_bursts=0,
+            flags=0,
+        )
+
+    def run_until(self, t_s: float) -> None:
+        """Produce every frame up to ``t_s`` simulated seconds since the reset."""
+        while self.t_s < t_s:
+            t_stop = min(t_s, self._next_status_s)
+            block = self.sim.run_until(t_stop)
+            if self.streaming and len(block):
+                self.output += encode_imu_samples(self._seq, block.t_us, block.counts, block.flags)
+                self._seq = (self._seq + len(block)) & 0xFFFF
+            self.t_s = t_stop
+            if t_stop >= self._next_status_s:
+                self._emit("STATUS", **self.status_fields())
+                self._next_status_s += 1.0
+
+    # ---- host → device -----------------------------------------------------------------
+    def receive(self, data: bytes) -> None:
+        """Host bytes (command frames in any chunking), answered at the current time."""
+        for frame in self._decoder.feed(data):
+            self._handle(frame.type, frame.seq, frame.fields)
+
+    def _handle(self, mtype: int, cmd_seq: int, fields: dict[str, int]) -> None:
+        name = gen.MESSAGES[mtype][0] if mtype in gen.MESSAGES else ""
+        status = _ACK["OK"]
+        if name == "PING":
+            t_us = int(self.environment.device_us(np.array([self.t_s]))[0])
+            self._emit("PONG", nonce=fields["nonce"], t_us=t_us & 0xFFFFFFFF)
+        elif name == "START_STREAM":
+            self.streaming = True
+        elif name == "STOP_STREAM":
+            self.streaming = False
+        elif name == "SET_RATE":
+            div, dlpf = fields["smplrt_div"], fields["dlpf_cfg"]
+            internal = 8000.0 if dlpf in (0, 7) else 1000.0
+            rate = internal / (1 + div)
+            if dlpf > 6 or rate > MAX_RATE_HZ:
+                status = _ACK["BAD_ARGUMENT"]
+            else:
+                self.div, self.dlpf = div, dlpf
+                self.sim.set_rate(rate)
+        elif name == "GET_CONFIG":
+            self._emit("HELLO", **self.hello_fields())
+        elif name == "GET_STATUS":
+            self._emit("STATUS", **self.status_fields())
+        else:
+            status = _ACK["UNSUPPORTED"]
+        self._emit("ACK", cmd_type=mtype, cmd_seq=cmd_seq, status=status)
+        if status == _ACK["UNSUPPORTED"]:  # as the firmware: an ERROR frame follows the ACK
+            self._bad_commands += 1
+            self._emit("ERROR", code=ERROR_BAD_COMMAND, detail=mtype, count=self._bad_commands)
