@@ -8,7 +8,7 @@ The clean source is ``emu_clean.bin``: bytes the real firmware sent through the 
 
 Each BAD_*.bin is the clean stream damaged in one known way; ``corpus.json`` records what a
 correct decoder must report for it, derived from the damage itself (which frames were hit,
-how many bytes were added), never from running the decoder. tests/host/test_corpus.py
+how many bytes were added), never from running the decoder. tests/host/wire/test_frames_corpus.py
 decodes every file with both decoder paths and checks them against it.
 """
 

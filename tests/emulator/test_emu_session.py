@@ -2,10 +2,10 @@
 MPU-6000 fed by the physics simulator whose operator follows the program's prompts
 (``emu://``, ``stimulus=sim``: host/transports/protocol_emu.py, host.emulator.SimStimulus).
 
-Truth comparisons use ``effects=linear,noise&earth_rate=0`` as tests/host/test_session.py does
+Truth comparisons use ``effects=linear,noise&earth_rate=0`` as tests/host/dialogue/test_live.py does
 for ``sim://``: the other effects are outside the linear model of method.md §2. The dialogue
-helpers are those of tests/host/test_session.py; the pty-driven dialogue (repeat, Esc, range
-alarm, Ctrl+C and resume) runs on both boards in tests/host/test_session_pty.py.
+helpers are those of tests/host/dialogue/test_live.py; the pty-driven dialogue (repeat, Esc, range
+alarm, Ctrl+C and resume) runs on both boards in tests/host/dialogue/test_live_pty.py.
 
 Durations: statics of 10 s (the program warns they are short; the tolerances still hold),
 1 turn (7 s windows), ``--ready-seconds 0``; at ``speed=max`` the emulator runs ≈ 30–40× real
@@ -29,7 +29,7 @@ import pytest
 from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record
 from host.dialogue.console import ScriptedConsole
 from host.transports.protocol_emu import truth_for_url
-from tests.host.test_session import Ports, opts, run
+from tests.host.dialogue.test_live import Ports, opts, run
 
 pytestmark = [
     pytest.mark.emulator,

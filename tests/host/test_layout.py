@@ -122,3 +122,29 @@ def test_the_readme_table_and_each_package_docstring_name_every_module() -> None
         for m in modules:
             assert f"`{m}.py`" in rows[0], f"README row of host/{pkg.name}/ lacks {m}.py"
             assert f"``{m}``" in doc, f"host/{pkg.name}/__init__.py docstring lacks {m}"
+
+
+#: tests about the whole package, not one stage (they stay in tests/host/)
+CROSS_CUTTING = {
+    "test_bad_input.py",
+    "test_bad_records.py",
+    "test_errors.py",  # host/errors.py
+    "test_import_graph.py",
+    "test_layout.py",
+}
+
+
+def test_the_tests_mirror_the_source_tree() -> None:
+    """tests/host/<stage>/test_<module>….py for host/<stage>/<module>.py; only tests about the
+    whole package stay in tests/host/."""
+    tests = ROOT / "tests" / "host"
+    assert {p.name for p in tests.glob("test_*.py")} == CROSS_CUTTING
+    for path in sorted(tests.glob("*/test_*.py")):
+        stage = ROOT / "host" / path.parent.name
+        assert (stage / "__init__.py").is_file(), f"{path}: no package host/{stage.name}/"
+        modules = {m.stem for m in stage.glob("*.py")}
+        name = path.stem.removeprefix("test_")
+        # a module of the stage, or (cli) a test across its commands
+        assert any(name == m or name.startswith(m + "_") for m in modules) or (
+            stage.name == "cli" and (name.endswith("cli") or name == "cli_properties")
+        ), f"{path.relative_to(ROOT)} tests no module of host/{stage.name}/"

@@ -83,7 +83,7 @@ def test_capture_shows_progress_and_runs_until_ctrl_c(tmp_path: Path) -> None:
 
     from host.wire.frames import decode_bulk
 
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[3]
     cap = tmp_path / "s.cap"
     proc = subprocess.Popen(
         [sys.executable, "-m", "host", "capture", "--port", "sim://?speed=5", str(cap)],
@@ -247,7 +247,7 @@ def test_the_readmes_first_command_gives_a_whole_session(tmp_path: Path) -> None
     import subprocess
     import sys
 
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[3]
     readme = (root / "README.md").read_text()
     line = next(ln for ln in readme.splitlines() if ln.startswith("pip install -e . && "))
     cmd = shlex.split(line.split(" && ", 1)[1])

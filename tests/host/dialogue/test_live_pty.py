@@ -27,7 +27,7 @@ from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="needs a POSIX pty")
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 LINEAR = "effects=linear,noise&earth_rate=0"
 
 

@@ -22,7 +22,7 @@ except ImportError:  # tests/ imported as a package
     from tests.host.calib_truth import TRUTH, make_records
 
 # shared/ sits beside the checkout (as in CI)
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
+REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
 
 
 @pytest.fixture(scope="module")

@@ -38,7 +38,7 @@ except ImportError:  # tests/ imported as a package
     from tests.host.calib_truth import TRUTH, make_record, make_records
 
 # shared/ sits beside the checkout (as in CI)
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
+REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
 G = local_gravity()
 SCALE_MIS = ACCEL_SCALE_NAMES + ACCEL_MIS_NAMES + GYRO_SCALE_NAMES + GYRO_MIS_NAMES
 

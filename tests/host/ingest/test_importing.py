@@ -378,7 +378,7 @@ def test_accel_in_g_without_units_is_named(tmp_path: Path) -> None:
 
 
 # ---- imucal's session ---------------------------------------------------------------------
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
+REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
 IMUCAL_ORDER = {"x_p": "x_up", "x_a": "x_dn", "y_p": "y_up", "y_a": "y_dn", "z_p": "z_up",
                 "z_a": "z_dn", "x_rot": "x_cw", "y_rot": "y_cw", "z_rot": "z_cw"}  # fmt: skip
 

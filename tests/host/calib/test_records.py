@@ -26,8 +26,8 @@ from host.calib.records import (
 from host.errors import UserError
 
 # shared/ sits beside the checkout (as in CI)
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
-DATA = Path(__file__).resolve().parents[1] / "data"
+REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
+DATA = Path(__file__).resolve().parents[2] / "data"
 
 
 def _rec(n: int = 5, name: str = "x_up", meta: dict[str, str] | None = None) -> Record:

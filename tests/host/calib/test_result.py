@@ -19,8 +19,8 @@ from host.calib.result import CalibrationResult, apply
 from host.errors import UserError
 from host.modelling.scenarios import hidden_effect_case
 
-DATA = Path(__file__).resolve().parents[1] / "data"
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
+DATA = Path(__file__).resolve().parents[2] / "data"
+REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
 
 
 # ---- format v1 still loads and applies ------------------------------------------------------

@@ -15,7 +15,7 @@ from host.board.link import Link, LinkTimeout, open_port
 from host.wire import capture
 from host.wire.frames import encode_frame, encode_imu_samples
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def sample_bytes(n: int, seq0: int = 0) -> tuple[bytes, np.ndarray]:

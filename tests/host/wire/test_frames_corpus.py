@@ -9,7 +9,7 @@ import pytest
 
 from host.wire.frames import StreamDecoder, decode_bulk
 
-CORPUS = Path(__file__).resolve().parents[1] / "captures"
+CORPUS = Path(__file__).resolve().parents[2] / "captures"
 TABLE = json.loads((CORPUS / "corpus.json").read_text())
 
 

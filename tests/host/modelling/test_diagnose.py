@@ -27,7 +27,7 @@ from host.modelling.model import (
 )
 from host.modelling.scenarios import case_dataset, hidden_effect_case, run_case
 
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
+REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
 
 
 def _check_found(effect: str, seed: int, *, tilted: bool = False, alone: bool = True) -> None:

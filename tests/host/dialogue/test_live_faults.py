@@ -24,7 +24,7 @@ from host.dialogue.console import CTRL_C, ScriptedConsole
 from host.errors import UserError
 from host.wire import protocol_gen as gen
 from host.wire.frames import IMU_SAMPLE, StreamDecoder, _envelope, encode_frame
-from tests.host.test_session import LINEAR, Ports, opts, run
+from tests.host.dialogue.test_live import LINEAR, Ports, opts, run
 
 SPI_FAULT = gen.ENUMS["error_code"]["SPI_FAULT"]
 

@@ -19,7 +19,7 @@ from host.timing.segments import (
 from host.wire.frames import IMU_FIELDS, IMU_SAMPLE, TYPES
 from host.wire.protocol_gen import ENUMS
 
-SPEC = Path(__file__).resolve().parents[2] / "protocol" / "spec.json"
+SPEC = Path(__file__).resolve().parents[3] / "protocol" / "spec.json"
 
 
 def run_tracker(seq: list[int], t_us: list[int | None]) -> tuple[list[bool], list[int]]:
@@ -103,7 +103,7 @@ def test_flag_bits_come_from_the_spec() -> None:
     import ast
     from pathlib import Path
 
-    host = Path(__file__).resolve().parents[2] / "host"
+    host = Path(__file__).resolve().parents[3] / "host"
     found = []
     for path in host.rglob("*.py"):
         if path.name == "protocol_gen.py":

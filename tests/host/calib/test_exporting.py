@@ -218,7 +218,7 @@ def test_cli_writes_each_format_and_refuses_unknown_ones(tmp_path: Path, capsys)
     assert main(["export", str(tmp_path / "nope.json"), "--to", "px4"]) == 2
 
 
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "imucal-example"
+REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
 
 
 def test_imucal_export_of_the_real_session_agrees_with_imucals_own_result() -> None:
