@@ -42,6 +42,32 @@ ERROR_BAD_COMMAND = gen.ENUMS["error_code"]["BAD_COMMAND"]
 _ACK = gen.ENUMS["ack_status"]
 
 
+def hello_fields(
+    dlpf: int = DEFAULT_DLPF,
+    div: int = DEFAULT_SMPLRT_DIV,
+    reset_cause: int = RESET_POWER_ON,
+    streaming: bool = True,
+) -> dict[str, int]:
+    """The fields of the virtual board's HELLO frame (this host's spec, ±2 g, ±250 °/s)."""
+    return dict(
+        fw_major=FW_VERSION[0],
+        fw_minor=FW_VERSION[1],
+        fw_patch=FW_VERSION[2],
+        protocol_version=gen.PROTOCOL_VERSION,
+        spec_fingerprint=gen.SPEC_FINGERPRINT,
+        who_am_i=0x68,
+        accel_fs_sel=0,
+        gyro_fs_sel=0,
+        dlpf_cfg=dlpf,
+        smplrt_div=div,
+        mode=0,
+        timer_resolution_ns=TIMER_RESOLUTION_NS,
+        baud=BAUD,
+        reset_cause=reset_cause,
+        streaming=int(streaming),
+    )
+
+
 class VirtualFirmware:
     """One power-up of the virtual board: host bytes in (:meth:`receive`), device bytes out
     (:attr:`output`, filled by :meth:`run_until`). ``power_on_s``: time since the board was
@@ -83,24 +109,8 @@ class VirtualFirmware:
         self._seq = (self._seq + 1) & 0xFFFF
 
     def hello_fields(self) -> dict[str, int]:
-        """The fields of this board's HELLO frame."""
-        return dict(
-            fw_major=FW_VERSION[0],
-            fw_minor=FW_VERSION[1],
-            fw_patch=FW_VERSION[2],
-            protocol_version=gen.PROTOCOL_VERSION,
-            spec_fingerprint=gen.SPEC_FINGERPRINT,
-            who_am_i=0x68,
-            accel_fs_sel=0,
-            gyro_fs_sel=0,
-            dlpf_cfg=self.dlpf,
-            smplrt_div=self.div,
-            mode=0,
-            timer_resolution_ns=TIMER_RESOLUTION_NS,
-            baud=BAUD,
-            reset_cause=self.reset_cause,
-            streaming=int(self.streaming),
-        )
+        """The fields of this board's HELLO frame now."""
+        return hello_fields(self.dlpf, self.div, self.reset_cause, self.streaming)
 
     def status_fields(self) -> dict[str, int]:
         """The fields of a STATUS frame now."""

@@ -20,6 +20,10 @@ serialisation time at the link's baud rate.
 Counters wrap (t_us at 2³², seq at 2¹⁶); :func:`unwrap` resolves wraps, using host time when a
 gap is too long for the counter alone. A device reset (time or seq going back) starts a new
 segment with its own map (:func:`build_timeline`).
+
+Length (over 600 lines): one estimator (eq. 1) used three ways — offline over a whole capture,
+live on a sliding window, and streaming (:class:`TimelineBuilder`, the same windows as
+:func:`build_timeline` in bounded memory); they must give the same map, so they share this file.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ one-line reason, or takes longer than its bound.
 
 What needs an emulated board (``emu://?fault=no-drdy|absent|stuck-miso`` under ``--yes``) is in
 tests/emulator/test_emu_faults.py; a full disk needs an injected or a real small file system:
-tests/host/test_publication.py and test_session_faults.py.
+tests/host/calib/test_report_publication.py and dialogue/test_live_faults.py.
 """
 
 from __future__ import annotations
@@ -79,12 +79,10 @@ def _session(d: Path, serial: str = "Q1", turns: int = 1) -> Path:
 
 
 def _hello_bad_codes(d: Path) -> list[str]:
-    from host.transports.protocol_sim import Serial as SimSerial
+    from host.bench.firmware import hello_fields
     from host.wire.frames import encode_frame
 
-    sim = SimSerial.__new__(SimSerial)
-    sim._div, sim._dlpf, sim._reset_cause, sim._streaming = 19, 4, 1, True
-    fields = SimSerial._hello_fields(sim) | {"accel_fs_sel": 7, "gyro_fs_sel": 0}
+    fields = hello_fields() | {"accel_fs_sel": 7, "gyro_fs_sel": 0}
     p = d / "hello.bin"
     p.write_bytes(encode_frame("HELLO", 0, **fields) + _imu(1, 1000))
     return ["decode", str(p)]

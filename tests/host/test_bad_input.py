@@ -191,12 +191,10 @@ def test_decode_hello_with_impossible_full_scale_codes(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], afs: int, fs: int
 ) -> None:
     """Was ``KeyError: 7`` in host/sensor.py."""
-    from host.transports.protocol_sim import Serial as SimSerial
+    from host.bench.firmware import hello_fields
     from host.wire.frames import encode_frame
 
-    hello = SimSerial.__new__(SimSerial)
-    hello._div, hello._dlpf, hello._reset_cause, hello._streaming = 19, 4, 1, True
-    fields = SimSerial._hello_fields(hello) | {"accel_fs_sel": afs, "gyro_fs_sel": fs}
+    fields = hello_fields() | {"accel_fs_sel": afs, "gyro_fs_sel": fs}
     cap = tmp_path / "h.bin"
     sample = dict(t_us=1000, ax=1, ay=2, az=3, temp=4, gx=5, gy=6, gz=7, flags=0)
     cap.write_bytes(encode_frame("HELLO", 0, **fields) + encode_frame("IMU_SAMPLE", 1, **sample))

@@ -20,7 +20,7 @@ from host.bench.linksim import LinkCapture, LinkParams, simulate_link
 from host.timing import clock
 from host.wire import capture, frames
 from host.wire.frames import ChunkedDecoder, decode_bulk
-from tests.host.test_frames import BASE, corrupt, imucap
+from tests.host.wire.test_frames import BASE, corrupt, imucap
 
 
 def chunked(data: bytes, sizes: list[int], min_batch: int) -> frames.BulkResult:
