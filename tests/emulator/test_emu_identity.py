@@ -5,7 +5,7 @@
 - Every sensor burst is checked (INT_STATUS data-ready, not 14 equal bytes): on a marginal bus
   (``--fault marginal-bus``: above 1 MHz every byte read arrives one bit late) the garbled read
   is dropped, the next sample is flagged MISSED, the firmware reads at 1 MHz from then on and
-  says so in STATUS.flags (the host's side: tests/host/test_sensor_identity.py).
+  says so in STATUS.flags (the host's side: tests/host/wire/test_sensor_identity.py).
 """
 
 from __future__ import annotations

@@ -29,7 +29,7 @@ from host.wire.frames import (
 )
 
 register_transports()
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 HALF = (0x14, 0x15, 0x54, 0x55)
 
 
