@@ -47,8 +47,10 @@ def hello_fields(
     div: int = DEFAULT_SMPLRT_DIV,
     reset_cause: int = RESET_POWER_ON,
     streaming: bool = True,
+    product_id: int = DEFAULT_PRODUCT_ID,
 ) -> dict[str, int]:
-    """The fields of the virtual board's HELLO frame (this host's spec, ±2 g, ±250 °/s)."""
+    """The fields of the virtual board's HELLO frame (this host's spec, ±2 g, ±250 °/s;
+    ``product_id``: the chip's revision)."""
     return dict(
         fw_major=FW_VERSION[0],
         fw_minor=FW_VERSION[1],
@@ -56,6 +58,7 @@ def hello_fields(
         protocol_version=gen.PROTOCOL_VERSION,
         spec_fingerprint=gen.SPEC_FINGERPRINT,
         who_am_i=0x68,
+        product_id=product_id,
         accel_fs_sel=0,
         gyro_fs_sel=0,
         dlpf_cfg=dlpf,
@@ -110,7 +113,9 @@ class VirtualFirmware:
 
     def hello_fields(self) -> dict[str, int]:
         """The fields of this board's HELLO frame now."""
-        return hello_fields(self.dlpf, self.div, self.reset_cause, self.streaming)
+        return hello_fields(
+            self.dlpf, self.div, self.reset_cause, self.streaming, self.sim.product_id
+        )
 
     def status_fields(self) -> dict[str, int]:
         """The fields of a STATUS frame now."""

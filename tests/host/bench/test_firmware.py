@@ -4,6 +4,7 @@ firmware behaves on the wire — no port, no wall clock."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from host.bench.firmware import RESET_EXTERNAL, VirtualFirmware
 from host.bench.options import parse_sim_options
@@ -71,3 +72,20 @@ def test_an_unknown_command_gets_unsupported_and_an_error_frame() -> None:
         "ACK", 0x9A, ACK["UNSUPPORTED"],
     )  # fmt: skip
     assert err.name == "ERROR" and err.fields["detail"] == 0x9A and err.fields["count"] == 1
+
+
+def test_hello_reports_the_chips_revision_and_counts_follow_it() -> None:
+    from host.wire.sensor import PRODUCT_REVISIONS
+
+    drawn = parse_sim_options({"seed": ["4"]}, "max", True).draw()
+    for pid in (next(p for p, n in PRODUCT_REVISIONS.items() if n == "C5"), 0x58):
+        fw = VirtualFirmware(
+            drawn.truth, drawn.bench, drawn.environment, np.random.SeedSequence(4), 0.0,
+            static_motion("y_dn"), RESET_EXTERNAL, pid,
+        )  # fmt: skip
+        fw.run_until(0.5)
+        got = frames(fw)
+        assert got[0].fields["product_id"] == pid
+        ay = np.mean([f.fields["ay"] for f in got if f.type == IMU_SAMPLE])
+        # C4/C5 parts count half the LSB per g (host.wire.sensor.accel_lsb_per_g)
+        assert ay == pytest.approx(-16384 / (2 if pid != 0x58 else 1), rel=0.1)
