@@ -112,9 +112,9 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host calibrate``."""
     if not args.from_dir:
-        from host.dialogue.live import run_live_session
+        from host.dialogue.live import run_dialogue
 
-        return run_live_session(args)
+        return run_dialogue(args)
     session = read_session(args.from_dir, args.serial)
     out_dir = Path(args.out) if args.out else Path(args.from_dir)
     try:

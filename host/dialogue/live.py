@@ -114,7 +114,7 @@ from host.calib.records import (
     write_record,
 )
 from host.calib.report import verdict_line
-from host.dialogue.console import Console, Operator, TerminalConsole
+from host.dialogue.console import Console, Questions, TerminalConsole
 from host.errors import RecordCheckError, ResumableError, UserError, write_error
 from host.wire import sensor
 
@@ -186,8 +186,8 @@ def parse_turns(text: str) -> int:
 
 
 @dataclass
-class SessionOptions:
-    """Everything the live session needs; units in the names (s, deg, m)."""
+class DialogueOptions:
+    """Everything the dialogue needs; units in the names (s, deg, m)."""
 
     port: str | None = None
     serial: str | None = None
@@ -215,9 +215,9 @@ class SessionOptions:
     thermal: str | None = None  # --thermal FILE|none (None: SERIAL_thermal.json if beside)
 
     @classmethod
-    def from_args(cls, args: argparse.Namespace | SessionOptions) -> SessionOptions:
+    def from_args(cls, args: argparse.Namespace | DialogueOptions) -> DialogueOptions:
         """From the ``calibrate`` arguments (missing attributes take the defaults)."""
-        if isinstance(args, SessionOptions):
+        if isinstance(args, DialogueOptions):
             return args
 
         def get(name: str, default: Any = None) -> Any:
@@ -377,8 +377,8 @@ def check_out_dir(path: Path) -> None:
 
 
 @dataclass
-class SessionResult:
-    """What a finished live session produced."""
+class DialogueResult:
+    """What a finished dialogue produced (the records accepted in this sitting, the result)."""
 
     out_dir: Path
     records: list[str] = field(default_factory=list)  # accepted in this session
@@ -386,17 +386,17 @@ class SessionResult:
     files: tuple[Path, ...] = ()
 
 
-class LiveSession:
+class CalibrationDialogue:
     """The §5 dialogue. ``op`` asks, ``board`` measures; files go to ``opts.out``."""
 
     def __init__(
         self,
-        opts: SessionOptions,
+        opts: DialogueOptions,
         console: Console,
         port_factory: Callable[[str], serial.SerialBase] | None = None,
     ) -> None:
         self.opts = opts
-        self.op = Operator(console, yes=opts.yes, idle=self._idle)
+        self.op = Questions(console, yes=opts.yes, idle=self._idle)
         self.board = Board(
             opts.port or "sim://",
             port_factory,
@@ -495,7 +495,7 @@ class LiveSession:
         ]  # fmt: skip
 
     # ---- the program ---------------------------------------------------------------------
-    def run(self) -> SessionResult:
+    def run(self) -> DialogueResult:
         op, opts = self.op, self.opts
         op.say("IMU CALIBRATION BENCH — MPU-6000 (APM 2.6): live calibration, method.md §5")
         op.say(
@@ -974,7 +974,7 @@ class LiveSession:
         self.op.say(f"Saved {path}")
 
     # ---- results -------------------------------------------------------------------------
-    def _results(self) -> SessionResult:
+    def _results(self) -> DialogueResult:
         """Compute and write the results from every record of this serial in the output
         directory (:func:`host.calib.publish.compute_and_write`, as ``calibrate --from-dir``)."""
         op = self.op
@@ -1009,7 +1009,7 @@ class LiveSession:
         op.say(f"Results: {pub.report_path} and {pub.json_path}")
         show_result(pub.result, self.opts.json)
         op.say(verdict_line(pub.result, pub.report_path))  # the last line on screen
-        return SessionResult(
+        return DialogueResult(
             self.out_dir, list(self.accepted), pub.result, (pub.report_path, pub.json_path)
         )
 
@@ -1017,20 +1017,20 @@ class LiveSession:
 # --------------------------------------------------------------------------- entry points
 
 
-def run_live_session(
-    args: argparse.Namespace | SessionOptions,
+def run_dialogue(
+    args: argparse.Namespace | DialogueOptions,
     console: Console | None = None,
     port_factory: Callable[[str], serial.SerialBase] | None = None,
 ) -> int:
     """Run the live calibration dialogue; the runner of ``python -m host calibrate --port``.
 
     ``args``: the parsed ``calibrate`` arguments (``python -m host calibrate``) or a
-    :class:`SessionOptions`. ``console``: the terminal (default: the real one; tests pass a
+    :class:`DialogueOptions`. ``console``: the terminal (default: the real one; tests pass a
     :class:`host.operator.ScriptedConsole`). ``port_factory(url)``: opens the port (default
     :func:`host.link.open_port`). Returns the exit status: 0 every value within tolerance,
     1 some outside, 130 aborted with Ctrl+C. UserError for what the user can fix.
     """
-    opts = SessionOptions.from_args(args)
+    opts = DialogueOptions.from_args(args)
     opts.check()
     note = None
     if not opts.port:
@@ -1043,11 +1043,11 @@ def run_live_session(
     con: Console = term if term is not None else console  # type: ignore[assignment]
     if term is not None:
         term.open()
-    session: LiveSession | None = None
+    session: CalibrationDialogue | None = None
     try:
         if note:
             con.say(note)
-        session = LiveSession(opts, con, port_factory)
+        session = CalibrationDialogue(opts, con, port_factory)
         outcome = session.run()
         return 0 if outcome.result is not None and outcome.result.all_passed else 1
     except KeyboardInterrupt:
@@ -1074,3 +1074,11 @@ def run_live_session(
             session.board.close()
         if term is not None:
             term.close()
+
+
+# the names before "session" got its one meaning (the records of one sitting, README "Words");
+# kept for code written against them
+SessionOptions = DialogueOptions
+SessionResult = DialogueResult
+LiveSession = CalibrationDialogue
+run_live_session = run_dialogue
