@@ -20,10 +20,10 @@ gravity from temperature (each attitude measured at one temperature only).
 temperature range over which they hold); :func:`apply_thermal` removes the bias change and
 warns outside that range.
 
-Length (over 600 lines): one fit and its versioned result — windows, the bias(T) fit with its
-order chosen on held-out data, the wander model, the saved file, ``apply_thermal`` and the plot —
-that must agree on the reference temperature and the valid range; the plot (about 60 lines)
-could move to the command.
+Length (over 600 lines): one fit and its versioned result — windows, the bias(T) and scale(T)
+fits with their orders chosen on held-out data, the wander model, the saved file,
+``apply_thermal`` and the plot — that must agree on the reference temperature and the valid
+range; the plot (about 60 lines) could move to the command.
 """
 
 from __future__ import annotations
