@@ -106,6 +106,7 @@ static struct {
     const char *stop_reason;
     int int_asserted;
     double sample_next_exact;  // absolute cycle of the next sample-clock tick; <0: stopped
+    double filt_last_t;        // emulated time of the last DLPF (internal-rate) step; <0: none
     int txn_conflict;
     uint8_t spi_prev_mosi_lsb;  // last MOSI bit of the previous byte (wrong SPI mode model)
     uint8_t spi_prev_miso_lsb;  // last MISO bit of the previous byte (marginal bus model)
@@ -211,6 +212,26 @@ static double sample_period_cycles(void) {
 
 static avr_cycle_count_t sample_tick(avr_t *avr, avr_cycle_count_t when, void *param);
 
+// The DLPF runs at the internal rate: step it through the instants since the last sample up to
+// t (the sample clock divides the internal clock by 1 + SMPLRT_DIV, so a sample instant is
+// always an internal step). Each step takes the stimulus its delay before its own instant.
+static void dlpf_steps_until(double t) {
+    unsigned n = 1u + E.mpu.reg[MPU_SMPLRT_DIV];
+    double ts = (1.0 + E.clock_ppm * 1e-6) / mpu_internal_rate_hz(&E.mpu);
+    for (unsigned j = n; j-- > 0;) {
+        double tj = t - (double)j * ts;
+        if (tj <= E.filt_last_t + 0.25 * ts) continue;  // stepped already (or before a wake)
+        double da, dg;
+        mpu_dlpf_delays(&E.mpu, &da, &dg);
+        mpu_truth_t a, g;
+        stim_at(&E.stim, tj, &a);  // advances the stream to tj: the delayed lookups look back
+        stim_back(&E.stim, tj - da, &a);
+        stim_back(&E.stim, tj - dg, &g);
+        mpu_internal_tick(&E.mpu, &a, &g);
+        E.filt_last_t = tj;
+    }
+}
+
 static void sample_clock_schedule(void) {
     // (re)register at the absolute time sample_next_exact (survives AVR resets: the sensor is a
     // separate chip whose clock does not stop when the AVR resets)
@@ -224,6 +245,9 @@ static void sample_clock_update(void) {
         // waking (or re-waking) restarts the divider: first sample one period from now
         E.sample_next_exact = (double)E.avr->cycle + sample_period_cycles();
         sample_clock_schedule();
+        // the signal path starts from what it measures now: no step before this instant
+        E.filt_last_t = sim_s();
+        mpu_filter_reset(&E.mpu);
     } else {
         E.sample_next_exact = -1;
         avr_cycle_timer_cancel(E.avr, sample_tick, NULL);
@@ -234,10 +258,15 @@ static avr_cycle_count_t sample_tick(avr_t *avr, avr_cycle_count_t when, void *p
     (void)param, (void)when;
     if (!mpu_awake(&E.mpu) || E.sample_next_exact < 0) return 0;
     double t = sim_s();
+    dlpf_steps_until(t);
     mpu_truth_t truth;
     if (!stim_at(&E.stim, t, &truth) && E.seconds <= 0 && !E.done) {
         E.done = 1;
         E.stop_reason = "stimulus ended";
+    }
+    for (int i = 0; i < 3; i++) {  // what the DLPF made of it (temperature is not filtered)
+        truth.f[i] = E.mpu.filtered[i];
+        truth.w[i] = E.mpu.filtered[3 + i];
     }
     if (E.noise_accel > 0)
         for (int i = 0; i < 3; i++) truth.f[i] += E.noise_accel * grand();
@@ -1049,6 +1078,8 @@ int main(int argc, char **argv) {
     mpu_power_on(&E.mpu, E.dmp_packet, (uint8_t)E.product_id);
     E.mpu.dmp_desc = E.dmp_desc;
     E.mpu.retire = on_retire;
+    E.mpu.power_on_until = MPU_POWER_ON_S - STARTUP_HOLD_S;  // power-on reset, in emulated time
+    E.filt_last_t = -1.0;
 
     // pseudo-terminal
     int slave;

@@ -12,11 +12,12 @@ static const double GYRO_LSB_PER_DPS[4] = {131.0, 65.5, 32.8, 16.4};  // datashe
 const char *const MPU_RULE_NAME[MPU_RULE_COUNT] = {
     "SPI_CLOCK", "SPI_MODE", "SPI_BIT_ORDER", "BARO_CS", "DRDY_EDGE", "RESET_WAIT",
     "SIGNAL_PATH_RESET", "SIGNAL_PATH_WAIT", "GYRO_STARTUP", "I2C_IF_DIS", "READ_ONLY",
-    "RESERVED", "DMP_LOAD",
+    "RESERVED", "DMP_LOAD", "POWER_ON",
 };
 const char *const MPU_RULE_REF[MPU_RULE_COUNT] = {
     "PS p.15", "PS p.37", "PS p.37", "APM 2.6 schematic", "RM p.26", "RM p.41", "RM p.41",
     "RM p.41", "PS p.12", "RM p.38", "RM p.6-8", "RM p.6-8", "firmware/src/dmp_descriptions.h",
+    "RM p.41, PS p.14",
 };
 const char *const MPU_RULE_TEXT[MPU_RULE_COUNT] = {
     "configuration registers are specified up to 1 MHz SPI clock (20 MHz only for sensor and "
@@ -40,7 +41,100 @@ const char *const MPU_RULE_TEXT[MPU_RULE_COUNT] = {
     "the DMP runs its image only when the whole image was written and read back, the FIFO-rate "
     "update written, DMP_CFG_1/2 hold its start address and FS_SEL, SMPLRT_DIV and DLPF_CFG are "
     "what the image assumes, before DMP_EN",
+    "after power-on the part is in reset for 100 ms from VDD valid: registers are unreachable "
+    "(reads 0x00, writes lost); the AVR starts 65 ms after power-on, so wait >= 35 ms more",
 };
+
+// RM p.13, DLPF_CFG 0..6; 7 is reserved (modelled as 0: no filter, 8 kHz)
+const mpu_dlpf_spec_t MPU_DLPF[8] = {
+    {260.0, 0.0, 256.0, 0.98}, {184.0, 2.0, 188.0, 1.9}, {94.0, 3.0, 98.0, 2.8},
+    {44.0, 4.9, 42.0, 4.8},    {21.0, 8.5, 20.0, 8.3},   {10.0, 13.8, 10.0, 13.4},
+    {5.0, 19.0, 5.0, 18.6},    {0.0, 0.0, 0.0, 0.0},
+};
+
+// b(zeta): -3 dB frequency / natural frequency of H = w0^2 / (s^2 + 2 zeta w0 s + w0^2)
+static double bw_ratio(double z) {
+    double a = 1.0 - 2.0 * z * z;
+    return sqrt(a + sqrt(a * a + 1.0));
+}
+
+void mpu_filter_design(mpu_filter_t *f, double bw, double delay_s, double fs) {
+    double T = 1.0 / fs;
+    f->b0 = 1.0;
+    f->a1 = f->a2 = 0.0;
+    f->delay_s = delay_s > 0 ? delay_s : 0.0;
+    if (bw <= 0 || delay_s <= 0) return;
+    double P = bw * delay_s;  // bandwidth x delay: 1/(2 pi) for a first-order low-pass
+    if (P >= 1.0 / (2.0 * M_PI)) {
+        // first order, its pole placed so that the discrete -3 dB point is exactly bw
+        double c = cos(2.0 * M_PI * bw * T);
+        double p = (2.0 - c) - sqrt((2.0 - c) * (2.0 - c) - 1.0);
+        f->a1 = -p;
+    } else {
+        // less delay than a first-order low-pass of that bandwidth has (DLPF_CFG 5, 6): an
+        // underdamped second order, zeta from bw * delay = zeta * b(zeta) / pi (increasing on
+        // 0 < zeta <= 1/sqrt(2)), poles matched to the continuous ones
+        double lo = 1e-4, hi = M_SQRT1_2;
+        for (int i = 0; i < 60; i++) {
+            double z = 0.5 * (lo + hi);
+            if (z * bw_ratio(z) / M_PI < P) lo = z; else hi = z;
+        }
+        double z = 0.5 * (lo + hi), w0 = 2.0 * M_PI * bw / bw_ratio(z);
+        double r = exp(-z * w0 * T), th = w0 * T * sqrt(1.0 - z * z);
+        f->a1 = -2.0 * r * cos(th);
+        f->a2 = r * r;
+    }
+    f->b0 = 1.0 + f->a1 + f->a2;
+    // the section's own DC group delay, -(a1 + 2 a2) / (1 + a1 + a2) samples; the rest is pure
+    double lag = -(f->a1 + 2.0 * f->a2) / f->b0 * T;
+    f->delay_s = delay_s - lag > 0 ? delay_s - lag : 0.0;
+}
+
+double mpu_filter_group_delay_s(const mpu_filter_t *f, double fs) {
+    return f->delay_s - (f->a1 + 2.0 * f->a2) / f->b0 / fs;
+}
+
+double mpu_internal_rate_hz(const mpu6000_t *m) {
+    unsigned dlpf = m->reg[MPU_CONFIG] & 7;
+    return (dlpf == 0 || dlpf == 7) ? 8000.0 : 1000.0;
+}
+
+void mpu_filter_reset(mpu6000_t *m) { m->filt_settle = 1; }
+
+static double filter_step(mpu_filter_t *f, int axis, double x, int settle) {
+    if (settle) f->y1[axis] = f->y2[axis] = x;
+    double y = f->b0 * x - f->a1 * f->y1[axis] - f->a2 * f->y2[axis];
+    f->y2[axis] = f->y1[axis];
+    f->y1[axis] = y;
+    return y;
+}
+
+void mpu_dlpf_delays(mpu6000_t *m, double *accel_s, double *gyro_s) {
+    double fs = mpu_internal_rate_hz(m);
+    int cfg = m->reg[MPU_CONFIG] & 7;
+    if (cfg != m->filt_cfg || fs != m->filt_fs) {  // a new design keeps the filters' state
+        const mpu_dlpf_spec_t *s = &MPU_DLPF[cfg];
+        mpu_filter_t a = m->filt_accel, g = m->filt_gyro;
+        mpu_filter_design(&m->filt_accel, s->accel_bw_hz, s->accel_delay_ms * 1e-3, fs);
+        mpu_filter_design(&m->filt_gyro, s->gyro_bw_hz, s->gyro_delay_ms * 1e-3, fs);
+        memcpy(m->filt_accel.y1, a.y1, sizeof a.y1);
+        memcpy(m->filt_accel.y2, a.y2, sizeof a.y2);
+        memcpy(m->filt_gyro.y1, g.y1, sizeof g.y1);
+        memcpy(m->filt_gyro.y2, g.y2, sizeof g.y2);
+        m->filt_cfg = cfg;
+        m->filt_fs = fs;
+    }
+    *accel_s = m->filt_accel.delay_s;
+    *gyro_s = m->filt_gyro.delay_s;
+}
+
+void mpu_internal_tick(mpu6000_t *m, const mpu_truth_t *a, const mpu_truth_t *g) {
+    for (int i = 0; i < 3; i++) {
+        m->filtered[i] = filter_step(&m->filt_accel, i, a->f[i], m->filt_settle);
+        m->filtered[3 + i] = filter_step(&m->filt_gyro, i, g->w[i], m->filt_settle);
+    }
+    m->filt_settle = 0;
+}
 
 void mpu_violate(mpu6000_t *m, int rule, int reg) {
     if (rule < 0 || rule >= MPU_RULE_COUNT) return;
@@ -144,6 +238,7 @@ static void reset_registers(mpu6000_t *m) {
     memset(m->counts, 0, sizeof m->counts);
     m->q[0] = 1.0;
     m->q[1] = m->q[2] = m->q[3] = 0.0;
+    mpu_filter_reset(m);
 }
 
 void mpu_power_on(mpu6000_t *m, unsigned dmp_packet_size, uint8_t product_id) {
@@ -407,6 +502,7 @@ static void reg_write(mpu6000_t *m, uint8_t r, uint8_t v) {
             if ((v & 0x7) == 0x7) m->signal_path_needed = 0;
             if (v & 0x7) m->signal_path_until = m->now_s + MPU_SIGNAL_PATH_WAIT_S;
             if (v & 0x7) memset(&m->reg[MPU_ACCEL_XOUT_H], 0, MPU_GYRO_ZOUT_L - MPU_ACCEL_XOUT_H + 1);
+            if (v & 0x7) mpu_filter_reset(m);  // the digital signal paths restart
             return;  // self-clearing
         case MPU_INT_PIN_CFG:
             m->reg[r] = v;
@@ -431,9 +527,9 @@ uint8_t mpu_spi_byte(mpu6000_t *m, uint8_t mosi, mpu_access_t *acc, int *has_acc
     uint8_t r = m->addr;
     uint8_t out = 0;
     int data_reg = r >= MPU_ACCEL_XOUT_H && r <= MPU_GYRO_ZOUT_L;
-    if (m->now_s < m->reset_until) {
+    if (m->now_s < m->reset_until || m->now_s < m->power_on_until) {
         // in reset: nothing answers, nothing is stored
-        mpu_violate(m, MPU_RULE_RESET_WAIT, r);
+        mpu_violate(m, m->now_s < m->power_on_until ? MPU_RULE_POWER_ON : MPU_RULE_RESET_WAIT, r);
         acc->reg = r;
         acc->is_read = (uint8_t)m->rd;
         acc->value = m->rd ? 0 : mosi;

@@ -83,6 +83,7 @@ enum mpu_rule {
     MPU_RULE_READ_ONLY,          // write to a read-only register
     MPU_RULE_RESERVED,           // write to a reserved (undocumented, unused) register
     MPU_RULE_DMP_LOAD,           // DMP enabled without the load sequence its image needs
+    MPU_RULE_POWER_ON,           // access within the power-on start-up time
     MPU_RULE_COUNT
 };
 extern const char *const MPU_RULE_NAME[MPU_RULE_COUNT];
@@ -92,6 +93,32 @@ extern const char *const MPU_RULE_TEXT[MPU_RULE_COUNT];  // what a real part doe
 #define MPU_RESET_WAIT_S 0.100        // RM p.41: DEVICE_RESET, wait 100 ms (SPI reset sequence)
 #define MPU_SIGNAL_PATH_WAIT_S 0.100  // RM p.41: SIGNAL_PATH_RESET, wait 100 ms
 #define MPU_GYRO_STARTUP_S 0.030      // PS p.12: gyroscope start-up time 30 ms
+// Power-on: the part comes out of its power-on reset 100 ms after VDD is valid (the reset time of
+// RM p.41; PS p.14 allows VDD itself to ramp for up to 100 ms). The AVR starts 65 ms after power-on
+// (Arduino Mega fuses: 16K CK + 65 ms, ATmega2560 datasheet table 10-5), so the glue sets
+// power_on_until = 0.100 - 0.065 s of emulated time.
+#define MPU_POWER_ON_S 0.100
+
+// DLPF (RM p.13): per DLPF_CFG the accelerometer's and the gyroscope's bandwidth (Hz) and delay
+// (ms). The model filters each axis at the internal rate (1 kHz, 8 kHz with DLPF_CFG 0/7) with a
+// pure delay and an all-pole section whose -3 dB bandwidth and DC group delay are the table's.
+typedef struct mpu_dlpf_spec {
+    double accel_bw_hz, accel_delay_ms, gyro_bw_hz, gyro_delay_ms;
+} mpu_dlpf_spec_t;
+extern const mpu_dlpf_spec_t MPU_DLPF[8];
+
+typedef struct mpu_filter {
+    double b0, a1, a2;  // y[k] = b0 x[k] - a1 y[k-1] - a2 y[k-2], unit DC gain
+    double delay_s;     // pure delay ahead of it (DC group delay = table's delay)
+    double y1[3], y2[3];
+} mpu_filter_t;
+
+// Design a filter of -3 dB bandwidth bw_hz and DC group delay delay_s at sample rate fs_hz
+// (bw_hz <= 0 or delay_s <= 0: no filtering, only the delay).
+void mpu_filter_design(mpu_filter_t *f, double bw_hz, double delay_s, double fs_hz);
+// Its DC group delay (s) and -3 dB frequency (Hz), computed from the coefficients.
+double mpu_filter_group_delay_s(const mpu_filter_t *f, double fs_hz);
+
 
 typedef struct mpu_truth {
     double f[3];  // specific force, m/s^2, chip axes
@@ -154,6 +181,16 @@ typedef struct mpu6000 {
 
     unsigned events;
 
+    // DLPF: at the internal rate the glue takes the truth at (now - accel delay) and (now -
+    // gyro delay) (mpu_dlpf_delays) and steps the filters (mpu_internal_tick); their output
+    // (filtered: fx fy fz wx wy wz) is what a sample converts (temperature is not filtered)
+    mpu_filter_t filt_accel, filt_gyro;
+    int filt_cfg;              // DLPF_CFG the filters are designed for (-1: none yet)
+    double filt_fs;            // ... and the internal rate
+    int filt_settle;           // the next step starts the filters settled at their input
+    double filtered[6];
+    double power_on_until;     // registers unreachable before this time (power-on reset)
+
     // hardware rules (time: now_s, set by the glue before every call)
     uint64_t rule_count[MPU_RULE_COUNT];
     double rule_first_t[MPU_RULE_COUNT];
@@ -180,7 +217,17 @@ uint8_t mpu_spi_byte(mpu6000_t *m, uint8_t mosi, mpu_access_t *acc, int *has_acc
 int mpu_awake(const mpu6000_t *m);
 // Sample period in units of the 8 kHz base clock (125 us): 8 (1 kHz) or 1 (8 kHz) x (1 + div).
 unsigned mpu_period_ticks_8k(const mpu6000_t *m);
+// The internal rate (Hz) for the current DLPF_CFG: 8000 with 0 or 7, else 1000.
+double mpu_internal_rate_hz(const mpu6000_t *m);
+// The pure delays (s) ahead of the accel and gyro filters for the current DLPF_CFG (designs
+// the filters for it first).
+void mpu_dlpf_delays(mpu6000_t *m, double *accel_s, double *gyro_s);
+// One internal-rate step: accel from *a (the truth accel delay ago), gyro from *g.
+void mpu_internal_tick(mpu6000_t *m, const mpu_truth_t *a, const mpu_truth_t *g);
+// Drop the filter state: the next step starts settled at its input (wake, signal path reset).
+void mpu_filter_reset(mpu6000_t *m);
 // One sample-clock tick: convert truth with the configured full scale, latch (or defer), FIFO.
+// When mpu_internal_tick ran, accel and gyro come from the DLPF's output instead of *t.
 // dt_s is the sample period (for the DMP quaternion integration).
 void mpu_sample(mpu6000_t *m, const mpu_truth_t *t, double dt_s);
 // Whether a register is a "sensor data" register (fast SPI allowed).

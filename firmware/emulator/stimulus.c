@@ -62,6 +62,9 @@ int stim_at(stim_t *s, double t, mpu_truth_t *out) {
         return 1;
     }
     while (s->have_next && s->next.t <= t) {
+        s->back[s->back_head] = s->cur;
+        s->back_head = (s->back_head + 1) % STIM_BACK;
+        if (s->back_n < STIM_BACK) s->back_n++;
         s->cur = s->next;
         s->have_next = read_rec(s, &s->next);
         if (!s->have_next) s->eof = 1;
@@ -69,6 +72,25 @@ int stim_at(stim_t *s, double t, mpu_truth_t *out) {
     *out = s->cur.v;
     if (t < s->cur.t) *out = s->cur.v;  // before the first record: hold the first value
     return !(s->eof && !s->have_next && t > s->cur.t);
+}
+
+void stim_back(stim_t *s, double t, mpu_truth_t *out) {
+    if (!s->fp) {
+        *out = REST;
+        return;
+    }
+    if (t >= s->cur.t || !s->back_n) {
+        *out = s->cur.v;
+        return;
+    }
+    unsigned k = 0;
+    const stim_rec_t *r = &s->cur;
+    while (k < s->back_n) {
+        r = &s->back[(s->back_head + STIM_BACK - 1 - k) % STIM_BACK];
+        if (r->t <= t) break;
+        k++;
+    }
+    *out = r->v;
 }
 
 void stim_close(stim_t *s) {

@@ -145,6 +145,7 @@ void drdy_disable() {
 // Bring-up state machine.
 
 enum class State : uint8_t {
+    kPowerOn,         // power-on start-up: 100 ms before the first access
     kProbe,           // read WHO_AM_I
     kReset,           // PWR_MGMT_1.DEVICE_RESET
     kWaitReset,       // 100 ms, then WHO_AM_I again
@@ -180,6 +181,10 @@ uint8_t g_int_status_seen = 0; // INT_STATUS bits consumed by the sample burst (
 uint16_t g_dmp_offset = 0;
 #endif
 
+// Power-on: the MPU-6000 is in its power-on reset for 100 ms from VDD valid (RM p.41's reset
+// time; PS p.14: VDD may ramp for 100 ms). Counted from the firmware's start, conservatively
+// (the AVR's own start-up, 65 ms with the Mega fuses, has already passed by then).
+constexpr uint32_t kPowerOnWaitUs = 100000UL;
 constexpr uint32_t kResetWaitUs = 100000UL;        // RM p.41: SPI reset sequence, 100 ms each
 constexpr uint32_t kSignalPathWaitUs = 100000UL;   // RM p.41
 constexpr uint32_t kGyroStartUs = 30000UL;         // PS p.12: gyro start-up time 30 ms
@@ -215,13 +220,14 @@ void init() {
     BOARD_MPU_INT_PORT &= static_cast<uint8_t>(~_BV(BOARD_MPU_INT_BIT));  // no pull-up: push-pull
     EIMSK &= static_cast<uint8_t>(~_BV(INT6));
     EICRB = static_cast<uint8_t>((EICRB & ~(_BV(ISC61) | _BV(ISC60))) | _BV(ISC61) | _BV(ISC60));
-    g_state = State::kProbe;
+    wait_then(State::kPowerOn, timebase::micros(), kPowerOnWaitUs);
 }
 
 bool streaming() { return g_state == State::kStreaming; }
 
 bool idle() {
     switch (g_state) {
+        case State::kPowerOn:
         case State::kWaitReset:
         case State::kWaitSignalPath:
         case State::kWaitClock:
@@ -238,6 +244,11 @@ bool sample_pending() { return g_pending; }
 Event poll(uint32_t now) {
     const Event none{Event::kNone, 0, 0};
     switch (g_state) {
+        case State::kPowerOn:
+            if (!reached(now, g_deadline_us)) return none;
+            g_state = State::kProbe;
+            return none;
+
         case State::kProbe:
             g_who_am_i = read_reg(Register::WHO_AM_I);
             if (!who_am_i_ok(g_who_am_i)) {

@@ -14,8 +14,11 @@ never by a recorded capture:
   produced and the firmware burst-read intact, in order: ``--samplelog``), ``SAMPLE_PERIOD``
   (device time steps equal the chip's sample-clock steps within interrupt latency),
   ``SENSOR_IDENTITY`` (HELLO reports the PRODUCT_ID the chip has: the runs use a rev C5 part,
-  0x55, whose accelerometer counts half the LSB/g) and ``BUS_FLAG`` (STATUS.flags says
-  SPI_LOW_CLOCK exactly when the bus garbled a sensor read).
+  0x55, whose accelerometer counts half the LSB/g), ``BUS_FLAG`` (STATUS.flags says
+  SPI_LOW_CLOCK exactly when the bus garbled a sensor read) and ``SAMPLE_INSTANT`` (a sample's
+  time stamp is the instant the chip made it, within the data-ready latency: the device clock
+  starts with the emulated CPU; the DLPF's delay back to the physical instant is checked in
+  test_emu_dlpf.py).
 
 A mutant with ``bus="marginal-bus"`` runs on a marginal SPI bus (``--fault marginal-bus``: above
 1 MHz every byte read arrives one bit late): the firmware's burst check must drop the garbled
@@ -43,6 +46,9 @@ ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE = ROOT / "firmware"
 RUN_S = 1.5  # emulated: bring-up (~0.25 s) + ~60 samples
 TIMESTAMP_TOL_US = 16  # interrupt latency (as in test_emu_firmware)
+#: time stamp - the chip's production instant: data-ready latency (~15 µs) minus the device
+#: clock's origin (the timer starts a few µs after the emulated CPU)
+INSTANT_RANGE_US = (-500, 1000)
 PRODUCT_ID = 0x55  # rev C5: not the emulator's default (a hard-coded or unread id shows)
 SPI_LOW_CLOCK = 1  # STATUS.flags (protocol/spec.json status_flags)
 # a per-test limit with room for a loaded machine: one build (~2 s) + one run (~1 s) normally
@@ -105,6 +111,11 @@ MUTANTS = (
     Mutant("t_us_byte_order", "SAMPLE_PERIOD",
            (("mpu6000.cpp", "out->t_us = g_drdy_t_us;",
              "out->t_us = __builtin_bswap32(g_drdy_t_us);"),)),
+    Mutant("no_power_on_wait", "POWER_ON",
+           (("mpu6000.cpp", "kPowerOnWaitUs = 100000UL", "kPowerOnWaitUs = 0UL"),)),
+    Mutant("timestamp_of_previous_data_ready", "SAMPLE_INSTANT",
+           (("mpu6000.cpp", "    g_drdy_t_us = t;\n",
+             "    static uint32_t s_prev = 0;\n    g_drdy_t_us = s_prev;\n    s_prev = t;\n"),)),
     Mutant("product_id_not_read", "SENSOR_IDENTITY",
            (("mpu6000.cpp", "g_product_id = read_reg(Register::PRODUCT_ID);", ""),)),
     Mutant("product_id_assumed_rev_d8", "SENSOR_IDENTITY",
@@ -196,6 +207,10 @@ def judge(emu_bin: Path, elf: Path, workdir: Path, bus: str | None = None) -> di
     t_chip = read["t_us"][: len(samples)]
     if len(t_chip) == len(t_dev) and np.ptp(t_dev - t_chip) > TIMESTAMP_TOL_US:
         broken["SAMPLE_PERIOD"] = f"device time - chip time spreads {np.ptp(t_dev - t_chip)} µs"
+    if len(t_chip) == len(t_dev):
+        offset = float(np.median(t_dev - t_chip))
+        if not INSTANT_RANGE_US[0] <= offset <= INSTANT_RANGE_US[1]:
+            broken["SAMPLE_INSTANT"] = f"time stamps {offset:.0f} µs off the chip's sample instants"
     return broken
 
 
