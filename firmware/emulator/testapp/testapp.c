@@ -133,6 +133,8 @@ int main(void) {
     set_sleep_mode(SLEEP_MODE_IDLE);
     sei();
 
+    delay_ms(100);  // the MPU-6000's power-on reset (RM p.41): unreachable until then
+
     uint8_t who = 0;
     uint16_t absent = 0;
     for (;;) {
