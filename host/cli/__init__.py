@@ -9,4 +9,30 @@
 - ``model`` — ``model`` and ``demo``: the workbench.
 - ``noise`` — ``noise``: Allan deviation and noise figures of a recording.
 - ``thermal`` — ``thermal``: bias against temperature.
+
+Shared by the commands: :func:`pyplot` (the one place that says how to get matplotlib).
 """
+
+from __future__ import annotations
+
+from typing import Any
+
+from host.errors import UserError
+
+#: what --plot says when matplotlib is missing (every command says the same)
+NO_MATPLOTLIB = (
+    "--plot needs matplotlib: pip install matplotlib (in a checkout of this project: "
+    "pip install -e '.[plot]')"
+)
+
+
+def pyplot() -> Any:
+    """matplotlib.pyplot on the file-only Agg backend, or a UserError saying how to install it."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError as exc:
+        raise UserError(NO_MATPLOTLIB) from exc
+    return plt

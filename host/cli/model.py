@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from host.calib.publish import parse_floor
+from host.cli import pyplot
 from host.errors import UserError
 from host.modelling.diagnose import (
     Addition,
@@ -81,20 +82,6 @@ class _Renamed(argparse.Action):
         setattr(ns, self.dest, values)
 
 
-def _pyplot() -> Any:
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError as exc:
-        raise UserError(
-            "--plot needs matplotlib: pip install matplotlib (in a checkout of this project: "
-            "pip install -e '.[plot]')"
-        ) from exc
-    return plt
-
-
 def measurement_order(ds: Dataset) -> list[str]:
     """Record names in the order they were measured: by time since power-on when the records
     carry it, else the method's plan order (six statics, then the turns), then the rest."""
@@ -122,7 +109,7 @@ def write_plots(
     same scale before and after; record residuals (z) against the suspect term's signal."""
     import textwrap
 
-    plt = _pyplot()
+    plt = pyplot()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths: list[Path] = []

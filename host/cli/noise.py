@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from host.calib.records import write_text_atomic
+from host.cli import pyplot
 from host.errors import UserError
 from host.modelling import noise
 
@@ -127,16 +128,7 @@ def parse_precision(text: str) -> float:
 def plot_noise(an: noise.NoiseAnalysis, path: Path, title: str) -> None:
     """Log–log Allan deviation per channel: data with its confidence band, each fitted term's
     line (labelled with the printed value) and their sum."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise UserError(
-            "--plot needs matplotlib: pip install matplotlib "
-            "(in a checkout: pip install -e '.[plot]')"
-        ) from None
+    plt = pyplot()
     fig, axs = plt.subplots(2, 3, figsize=(15, 8), squeeze=False)
     for ax, (name, ch) in zip(axs.ravel(), an.channels.items(), strict=False):
         c = ch.curve

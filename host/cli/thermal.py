@@ -21,6 +21,7 @@ from host.calib.records import (
     split_file_name,
     write_text_atomic,
 )
+from host.cli import NO_MATPLOTLIB
 from host.errors import UserError
 
 
@@ -95,10 +96,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             thermal.plot_thermal(cal, pts, args.plot)
         except ImportError:
-            raise UserError(
-                "--plot needs matplotlib: pip install matplotlib "
-                "(in a checkout: pip install -e '.[plot]')"
-            ) from None
+            raise UserError(NO_MATPLOTLIB) from None
     sys.stdout.write(cal.to_json() if args.json else format_text(cal))
     print(f"written: {path}" + (f" and {args.plot}" if args.plot else ""), file=sys.stderr)
     return 0

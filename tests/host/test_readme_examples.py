@@ -68,3 +68,14 @@ def test_plot_without_matplotlib_names_a_package_that_exists(
     assert rc == 2
     assert "pip install matplotlib" in err.getvalue()
     assert "imu-bench[plot]" not in err.getvalue()  # on no package index
+    # every command with --plot gives the same advice (one text: host.cli.NO_MATPLOTLIB)
+    from host.cli import NO_MATPLOTLIB
+
+    for argv in (
+        ["model", "diagnose", str(tmp_path / "d"), "--plot", str(tmp_path / "plots")],
+        ["noise", str(tmp_path / "d" / "P1_x_up.txt"), "--plot", str(tmp_path / "n.png")],
+    ):
+        err = io.StringIO()
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+            assert main(argv) == 2
+        assert err.getvalue().strip() == f"error: {NO_MATPLOTLIB}", err.getvalue()
