@@ -347,6 +347,13 @@ class Questions:
             if k == ESC:
                 return True
 
+    def key_pressed(self) -> bool:
+        """True if any key (Esc too) was pressed, looked at without waiting: what the warm-up's
+        "Press any key when ready" (method.md §5 step 3) listens for."""
+        if self.yes or not self.console.interactive:
+            return False
+        return self.console.key(0.0) is not None
+
     def any_key(self, prompt: str) -> str:
         """Show ``prompt`` and wait for any key (returned; "" in --yes mode). Esc does not
         count: it aborts a measurement, and there is none yet to abort."""

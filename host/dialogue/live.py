@@ -604,7 +604,7 @@ class CalibrationDialogue:
     def _warm_up(self) -> None:
         """The warm-up (method.md §5 step 3), recorded as ``SERIAL_warmup.txt``: one attitude,
         the chip temperature rising — the thermal calibration's first ramp
-        (``python -m host thermal``). Esc skips the rest of the wait (nothing recorded)."""
+        (``python -m host thermal``). Any key skips the rest of the wait (nothing recorded)."""
         s = self.opts.warmup_s
         if s <= 0:
             return
@@ -612,7 +612,7 @@ class CalibrationDialogue:
         span = f"{s / 60:.0f} minutes" if s >= 120 else f"{s:.0f} seconds"
         op.say(
             f"Keep the unit powered about {span} (warm-up; recorded for the thermal "
-            "calibration)." + ("" if self.opts.yes else " Esc skips the wait.")
+            "calibration)." + ("" if self.opts.yes else " Press any key when ready (skips it).")
         )
 
         def tick(elapsed: float, _sums: np.ndarray, _k: int) -> None:
@@ -621,11 +621,11 @@ class CalibrationDialogue:
 
         self.in_warm_up = True  # stays set if Ctrl+C ends the session here
         try:
-            acq = self.board.acquire(s, tick=tick, check_escape=op.escape_pressed)
+            acq = self.board.acquire(s, tick=tick, check_escape=op.key_pressed)
         except MeasurementAborted:
             self.in_warm_up = False
             op.end_progress()
-            op.say("Warm-up skipped (not recorded).")
+            op.say("Warm-up ended by a key (not recorded).")
             return
         except (LinkLost, LinkTimeout, BoardReset, SensorFault) as exc:
             self.in_warm_up = False

@@ -265,3 +265,24 @@ def test_the_readmes_first_command_gives_a_whole_session(tmp_path: Path) -> None
     mark, last = proc.stderr.rstrip("\n").splitlines()[-2:]
     assert last.startswith(("PASS: ", "FAIL: ")) and last.endswith(f"{serial}_result.txt")
     assert mark == "*** SIMULATED BOARD sim://?speed=max: not a measurement of a unit ***"
+
+
+def test_any_key_ends_the_warm_up_as_the_prompt_says() -> None:
+    """The warm-up says 'Press any key when ready' (method.md § 5 step 3): it listens for any
+    key, not only Esc; --yes never reads one."""
+    from host.dialogue.console import ESC, Questions
+
+    class Pressed:  # a terminal whose operator typed these keys
+        interactive = True
+
+        def __init__(self, *keys: str) -> None:
+            self.keys = list(keys)
+
+        def key(self, timeout_s: float) -> str | None:
+            return self.keys.pop(0) if self.keys else None
+
+    for k in ("x", " ", "\r", ESC):
+        q = Questions(Pressed(k))
+        assert q.key_pressed() is True and q.key_pressed() is False, k
+    assert Questions(Pressed("x"), yes=True).key_pressed() is False
+    assert Questions(Pressed("x")).escape_pressed() is False  # a measurement's Esc stays Esc
