@@ -8,7 +8,9 @@ from __future__ import annotations
 import json
 import math
 import shutil
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -46,8 +48,12 @@ def run_capture(args: Any) -> int:
         n_samples = 0
         sensor_error: Frame | None = None
         next_status = start + 1.0
-        try:
-            while time.monotonic() < end:
+        # Ctrl+C is taken between reads, never between writing a chunk to the file and
+        # counting its samples (the printed count is what the file holds); a read returns
+        # within the port's timeout (50 ms), so the stop is prompt.
+        stop = _StopOnCtrlC()
+        with stop:
+            while time.monotonic() < end and not stop.requested:
                 _, data = link.read_chunk()
                 for f in link.decoder.feed(data):
                     if f.type == IMU_SAMPLE:
@@ -58,8 +64,6 @@ def run_capture(args: Any) -> int:
                 if now >= next_status:
                     next_status = now + 1.0
                     _status(now - start, n_samples, link, tty)
-        except KeyboardInterrupt:
-            pass
         if tty:
             sys.stderr.write("\n")
         elapsed = time.monotonic() - start
@@ -77,6 +81,27 @@ def run_capture(args: Any) -> int:
             "is it streaming? (python -m host flash checks its HELLO)"
         )
     return 0
+
+
+class _StopOnCtrlC:
+    """While entered, SIGINT sets :attr:`requested` instead of raising KeyboardInterrupt
+    (the previous handler is restored on exit)."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._old: Any = None
+
+    def _on_sigint(self, _signum: int, _frame: Any) -> None:
+        self.requested = True
+
+    def __enter__(self) -> _StopOnCtrlC:
+        if threading.current_thread() is threading.main_thread():  # signals go to it only
+            self._old = signal.signal(signal.SIGINT, self._on_sigint)
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
 
 
 def _status(elapsed_s: float, n_samples: int, link: Link, tty: bool) -> None:
