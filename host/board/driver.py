@@ -45,6 +45,7 @@ from host.wire.frames import (
     sample_counts,
     sample_flags,
     sample_t_us,
+    status_text,
 )
 
 #: the spec this host speaks (HELLO.spec_fingerprint must match)
@@ -105,6 +106,7 @@ class BoardInfo:
     streaming: bool
     reset_cause: int
     baud: int = DEFAULT_BAUD
+    product_id: int | None = None  # the revision: C4/C5 count half the accelerometer LSB/g
 
     @classmethod
     def from_hello(cls, f: dict[str, int]) -> BoardInfo:
@@ -120,6 +122,7 @@ class BoardInfo:
             streaming=bool(f["streaming"]),
             reset_cause=f["reset_cause"],
             baud=f["baud"] or DEFAULT_BAUD,
+            product_id=f.get("product_id"),
         )
 
     @property
@@ -130,7 +133,12 @@ class BoardInfo:
 
     @property
     def accel_range_g(self) -> int:
-        return sensor.ACCEL_RANGE_G.get(self.accel_fs_sel, 0)
+        return sensor.accel_range_g(self.accel_fs_sel, self.product_id)
+
+    @property
+    def accel_lsb_per_g(self) -> float:
+        """Accelerometer sensitivity of this part at its AFS_SEL, LSB/g (C4/C5: halved)."""
+        return sensor.accel_lsb_per_g(self.accel_fs_sel, self.product_id)
 
     @property
     def gyro_range_dps(self) -> int:
@@ -145,7 +153,8 @@ class BoardInfo:
         who = "MPU-6000" if self.who_am_i == sensor.WHO_AM_I_MPU6000 else "not an MPU-6000!"
         return (
             f"firmware {self.firmware}, protocol {self.protocol_version} "
-            f"(spec {self.spec_fingerprint:#010x}), WHO_AM_I {self.who_am_i:#04x} ({who}), "
+            f"(spec {self.spec_fingerprint:#010x}), WHO_AM_I {self.who_am_i:#04x} ({who}) "
+            f"rev {sensor.revision_name(self.product_id)}, "
             f"accel ±{self.accel_range_g} g, gyro ±{self.gyro_range_dps} °/s, "
             f"DLPF_CFG {self.dlpf_cfg}, SMPLRT_DIV {self.smplrt_div} ({self.rate_hz:g} Hz)"
         )
@@ -155,7 +164,7 @@ class BoardInfo:
             "firmware": self.firmware,
             "protocol_version": str(self.protocol_version),
             "spec_fingerprint": f"{self.spec_fingerprint:#010x}",
-            "who_am_i": f"{self.who_am_i:#04x}",
+            **sensor.identity_meta(self.who_am_i, self.product_id),
             "accel_range_g": str(self.accel_range_g),
             "gyro_range_dps": str(self.gyro_range_dps),
             "dlpf_cfg": str(self.dlpf_cfg),
@@ -262,6 +271,7 @@ class Board:
         self.link: Link | None = None
         self.info: BoardInfo | None = None
         self._errors_seen: set[tuple[int, int]] = set()
+        self._status_flags_seen = 0  # STATUS.flags bits already shown
         self.clock = LiveClock()
         self._clock_last_t: int | None = None  # raw t_us of the last sample fed to the clock
         self._clock_dev_us = 0  # its unwrapped value
@@ -414,6 +424,9 @@ class Board:
                 self._feed_clock(arrival_ns, sample_t_us(f.payload))
             elif f.name == "HELLO":
                 self.restart_clock()
+            elif f.name == "STATUS" and f.fields["flags"] & ~self._status_flags_seen:
+                self._status_flags_seen |= f.fields["flags"]  # shown once, whenever it comes
+                self.warn(status_text(f) or f"the board reports STATUS flags {f.fields['flags']}")
         return out
 
     def pump(self) -> None:
@@ -592,7 +605,7 @@ class Board:
         """(N,7) counts -> accel (N,3) m/s², gyro (N,3) °/s, temp (N,) °C."""
         assert self.info is not None
         c = np.asarray(counts).reshape(-1, 7)
-        a = sensor.accel_mps2(c[:, 0:3], self.info.accel_fs_sel)
+        a = sensor.accel_mps2(c[:, 0:3], self.info.accel_fs_sel, self.info.product_id)
         g = sensor.gyro_dps(c[:, 4:7], self.info.gyro_fs_sel)
         t = sensor.temp_c(c[:, 3])
         return a, g, t

@@ -35,7 +35,6 @@ from pathlib import Path
 import numpy as np
 
 from host.errors import UserError, write_error
-from host.wire.sensor import revision_name
 
 RECORD_FORMAT_VERSION = 1
 #: fewer data rows than this cannot be calibrated with (no std): such a record is refused
@@ -63,22 +62,9 @@ def turn_window_s(turns: int) -> float:
 #: terms read it) and ``session_s`` s since the calibration session began
 TIME_KEYS = ("power_on_s", "session_s")
 
-#: which sensor a record measured, in its header (live records and imported captures): WHO_AM_I,
-#: PRODUCT_ID and its revision name (C4/C5 count half the accelerometer LSB/g; the host scaled
-#: the counts by it)
+#: which sensor a record measured, in its header (live records and imported captures):
+#: :func:`host.wire.sensor.identity_meta` writes them
 SENSOR_KEYS = ("who_am_i", "product_id", "sensor_revision")
-
-
-def sensor_meta(who_am_i: int | None, product_id: int | None) -> dict[str, str]:
-    """The :data:`SENSOR_KEYS` header lines of a record measured by this sensor (a value the
-    board did not report is left out)."""
-    out: dict[str, str] = {}
-    if who_am_i is not None:
-        out["who_am_i"] = f"{who_am_i:#04x}"
-    if product_id is not None:
-        out["product_id"] = f"{product_id:#04x}"
-        out["sensor_revision"] = revision_name(product_id)
-    return out
 
 
 #: names of the report/result files that live beside the records and are not records

@@ -820,7 +820,7 @@ class CalibrationDialogue:
         info = board.info
         op.beep()
         op.say(f"{title} {name}: {seconds:g} s" + ("" if self.opts.yes else " (Esc aborts)"))
-        a_scale = sensor.G0 / sensor.ACCEL_LSB_PER_G[info.accel_fs_sel]
+        a_scale = sensor.G0 / info.accel_lsb_per_g
         g_scale = 1.0 / sensor.GYRO_LSB_PER_DPS[info.gyro_fs_sel]
         up_axis = "xyz".index(name[0])
         # for a turn: the angle turned so far about the up axis, from the mean rate between

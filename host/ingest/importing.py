@@ -457,8 +457,8 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
     Times are the device's µs time stamps (unwrapped); if the board was reset during the
     capture the pieces are joined on the host clock when the capture has arrival times, else
     only the longest piece is kept (with a note in ``meta``)."""
-    from host.calib.records import sensor_meta
     from host.timing import clock
+    from host.wire import sensor
     from host.wire.frames import (
         baud_from_hello,
         decode_file,
@@ -476,7 +476,7 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
     product_id = product_id_from_hello(result.others)
     phys = samples_to_physical(s, *full_scale_from_hello(result.others), product_id)
     meta = {"source": p.name, "importer": "capture", "units": "device counts (HELLO full scale)"}
-    meta |= sensor_meta(None, product_id)
+    meta |= sensor.identity_meta(None, product_id)
     sel = slice(0, s.size)
     if len(timeline.segments) == 1:
         t_s = (timeline.device_us - timeline.device_us[0]) / 1e6

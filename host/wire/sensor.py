@@ -57,6 +57,18 @@ def product_id_of(text: str) -> int:
     raise ValueError(f"unknown MPU-6000 revision {text!r}; known: {known} (or ES C4 ...)")
 
 
+def identity_meta(who_am_i: int | None, product_id: int | None) -> dict[str, str]:
+    """Record header lines naming the sensor (``host.calib.records.SENSOR_KEYS``): WHO_AM_I,
+    PRODUCT_ID and its revision name; a value the board did not report is left out."""
+    out: dict[str, str] = {}
+    if who_am_i is not None:
+        out["who_am_i"] = f"{who_am_i:#04x}"
+    if product_id is not None:
+        out["product_id"] = f"{product_id:#04x}"
+        out["sensor_revision"] = revision_name(product_id)
+    return out
+
+
 def accel_lsb_per_g(afs_sel: int = 0, product_id: int | None = None) -> float:
     """Accelerometer sensitivity, LSB/g, of AFS_SEL on the part with this PRODUCT_ID (datasheet
     p. 13; halved on revisions C4/C5; None = the datasheet's value)."""

@@ -17,6 +17,7 @@ import pytest
 from emu_helpers import collect, of_type, sample_counts
 
 from host.bench.emulator import EmulatedBoard, write_stimulus
+from host.board.driver import Board
 from host.wire import sensor
 from host.wire.frames import SPI_LOW_CLOCK
 
@@ -87,3 +88,25 @@ def test_marginal_bus_drops_the_garbled_read_and_carries_on_at_1_mhz(
     # and it is true: every sensor burst after the bad one is clocked at 1 MHz
     bursts = [a for a in board.reglog() if a.op == "R" and a.reg == INT_STATUS]
     assert bursts[0].spi_hz == 8e6 and all(a.spi_hz <= 1e6 for a in bursts[1:])
+
+
+@pytest.mark.timeout(120)  # one emulator run through the board driver the dialogue uses
+def test_live_board_scales_a_rev_c4_part_and_shows_the_low_clock(tmp_path: Path) -> None:
+    warnings: list[str] = []
+    board = Board("emu://?stimulus=rest&revision=C4&fault=marginal-bus", warn=warnings.append)
+    info = board.connect()
+    try:
+        assert info.product_id == 0x54 and info.accel_range_g == 4
+        assert "rev C4" in info.describe()
+        meta = info.meta()
+        assert (meta["product_id"], meta["sensor_revision"]) == ("0x54", "C4")
+        acq = board.acquire(1.5)
+        a, _, _ = board.physical(acq.counts)
+    finally:
+        assert board.link is not None
+        board.link.port.close()
+    # at rest, Z up: 1 g on z with half the counts (8192 LSB/g), the host's scale follows
+    assert abs(np.median(acq.counts[:, 2]) - 8192) <= 1
+    np.testing.assert_allclose(a.mean(axis=0), [0.0, 0.0, sensor.G0], atol=2e-3)
+    shown = [w for w in warnings if "marginal" in w]
+    assert len(shown) == 1 and "1 MHz" in shown[0], warnings

@@ -121,6 +121,8 @@ def test_yes_session_records_are_readable_with_metadata(yes_session: dict[str, A
         assert m["spec_fingerprint"] == f"{driver.HOST_SPEC_FINGERPRINT:#010x}"
         assert m["firmware"] == "0.1.0" and m["gyro_range_dps"] == "250"
         assert m["smplrt_div"] == "19" and m["accel_range_g"] == "2"
+        # which sensor: HELLO's identity (the virtual board is a rev D8 unless told otherwise)
+        assert (m["who_am_i"], m["product_id"], m["sensor_revision"]) == ("0x68", "0x58", "D8")
         assert m["lost_frames"] == "0" and m["missed_samples"] == "0"
         assert int(m["host_ns_start_beep"]) <= int(m["host_ns_first_sample"])
         assert 0 <= int(m["device_t_us_start"]) < 2**32

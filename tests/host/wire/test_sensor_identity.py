@@ -16,7 +16,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from host.board.link import register_transports
-from host.calib.records import SENSOR_KEYS, sensor_meta
+from host.calib.records import SENSOR_KEYS
 from host.ingest.importing import read_capture_stream
 from host.transports import protocol_emu
 from host.wire import sensor
@@ -139,6 +139,7 @@ def test_decode_scales_by_the_revision_and_warns_of_the_low_clock(tmp_path: Path
 
 def test_imported_capture_names_its_sensor_and_scales_by_it(tmp_path: Path) -> None:
     stream = read_capture_stream(_capture(tmp_path, 0x54, 0))
-    assert {k: stream.meta[k] for k in SENSOR_KEYS if k in stream.meta} == sensor_meta(None, 0x54)
+    named = {k: stream.meta[k] for k in SENSOR_KEYS if k in stream.meta}
+    assert named == sensor.identity_meta(None, 0x54)
     assert stream.meta["sensor_revision"] == "C4"
     np.testing.assert_allclose(stream.accel[0], np.array([100, -200, 8192]) / 8192 * sensor.G0)
