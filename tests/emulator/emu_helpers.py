@@ -30,7 +30,10 @@ def collect(
         while time.monotonic() < deadline:
             try:
                 chunk = ser.read(ser.in_waiting or 1)
-            except serial.SerialException:  # the emulator ended: the pty is gone
+            except (serial.SerialException, OSError):
+                # the emulator ended and hung the pty up (after the host read everything it
+                # sent: drain_to_host): read() says so as SerialException, but the hang-up can
+                # land between two reads, and then in_waiting's ioctl raises EIO (OSError)
                 break
             if chunk:
                 new = dec.feed(chunk)

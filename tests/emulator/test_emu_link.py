@@ -58,7 +58,7 @@ def record_clean(stimulus: Path, elf: Path | None = None) -> bytes:
         while time.monotonic() < deadline:
             try:
                 chunk = port.read(port.in_waiting or 1)
-            except serial.SerialException:  # the emulator ended: the pty is gone
+            except (serial.SerialException, OSError):  # hung up (see emu_helpers.collect)
                 break
             data += chunk
             if not chunk and not port.board.running:
