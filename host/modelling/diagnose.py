@@ -333,6 +333,10 @@ def candidate_terms(
     out = []
     for t in cat.values():
         for s in t.sensors:
+            if t.shared:  # one set of parameters for all the channels: tried once
+                if not any((t.name, s, a) in have for a in range(3)):
+                    out.append(ModelTerm(t, s, (0, 1, 2)))
+                continue
             for a in range(3):
                 if (t.name, s, a) not in have:
                     out.append(ModelTerm(t, s, (a,)))
@@ -398,7 +402,8 @@ def evaluate_candidates(
         out.append(
             (
                 Candidate(
-                    term=mt.term.name, sensor=mt.sensor, axes=AXES[mt.axes[0]],
+                    term=mt.term.name, sensor=mt.sensor,
+                    axes="".join(AXES[a] for a in mt.axes),
                     n_params=mt.n_params, physics=mt.term.physics,
                     identifiable=not t.reason, reason=t.reason, needs=mt.term.needs,
                     delta_chi2=t.delta, p_value=pv.get(id(t), math.nan),
@@ -598,6 +603,12 @@ def diagnose(
         )
     cands, _ = evaluate_candidates(ds, fit, catalogue, alpha)
     cat = catalogue if catalogue is not None else CATALOGUE
+    usable_all = [c for c in cands if c.significant and not c.explained_by and not c.implausible]
+    top = max(usable_all, key=lambda c: c.delta_chi2, default=None)
+    if top is not None and cat[top.term].shared:
+        # a property of the bench (one set of parameters for every channel) explains more than
+        # any single channel's term: take it first and diagnose what is left after it
+        return _after_shared(ds, fit, cands, top, model, cat, alpha)
     # the best usable candidate of each channel (significant, plausible, not made redundant)
     best: dict[tuple[str, str], Candidate] = {}
     for c in cands:
@@ -611,7 +622,8 @@ def diagnose(
         if ch not in dominant and (cb is None or h.delta_chi2 > DOMINANT * cb.delta_chi2):
             dominant[ch] = h
     usable = [c for ch, c in best.items() if ch not in dominant]
-    extra = [ModelTerm(cat[c.term], c.sensor, (AXES.index(c.axes),)) for c in usable]
+    extra = [ModelTerm(cat[c.term], c.sensor, tuple(AXES.index(a) for a in c.axes))
+             for c in usable]  # fmt: skip
     aug = fit_model(ds, merge_model(list(model) + extra)) if extra else fit
     misfit = max(fit.chi2 - fit.dof, 0.0)
     removed = fit.chi2 - aug.chi2
@@ -658,6 +670,38 @@ def diagnose(
     return Diagnosis(
         fit, tuple(cands), tuple(hits), verdict, tuple(notes), recommended,
         tuple(dominant.values()), model_spec(merge_model(extra)) if recommended else None, ds.g,
+    )  # fmt: skip
+
+
+def _after_shared(
+    ds: Dataset,
+    fit: Fit,
+    cands: Sequence[Candidate],
+    top: Candidate,
+    model: Sequence[ModelTerm],
+    cat: Mapping[str, Term],
+    alpha: float,
+) -> Diagnosis:
+    """The diagnosis when the strongest candidate is a shared (bench) term: the model with it
+    is diagnosed again; its recommendation (if any) follows the shared term's."""
+    shared = ModelTerm(cat[top.term], top.sensor, tuple(AXES.index(a) for a in top.axes))
+    inner = diagnose(ds, merge_model([*model, shared]), cat, alpha)
+    misfit = max(fit.chi2 - fit.dof, 0.0)
+    removed = fit.chi2 - inner.fit.chi2
+    notes = list(ds.notes)
+    notes.append(
+        f"{top.label} (one set of parameters for every channel) explains the most; the "
+        f"diagnosis of the model with it: {inner.verdict}"
+    )
+    notes.extend(n for n in inner.notes if n not in ds.notes)
+    if inner.verdict == "unexplained" or removed < MOST * misfit:
+        return Diagnosis(fit, tuple(cands), inner.unexplained, "unexplained", tuple(notes), (),
+                         inner.dominant, None, ds.g)  # fmt: skip
+    recommended = (top.label, *inner.recommended)
+    extra = [shared] + [mt for mt in inner.fit.model if mt.label in inner.recommended]
+    return Diagnosis(
+        fit, tuple(cands), inner.unexplained, "missing_effect", tuple(notes), recommended,
+        (), model_spec(merge_model(extra)), ds.g,
     )  # fmt: skip
 
 
@@ -890,7 +934,17 @@ def explain(c: Candidate, g: float) -> list[str]:
             )
     elif c.term == "plate_tilt":
         for name, (v, se, _) in c.coefficients.items():
-            out.append(f"{name}: {1000 * v:+.2f} ± {1000 * se:.2f} mrad ({math.degrees(v):+.3f}°)")
+            side = name.rsplit(".", 1)[-1]
+            ruler = " (along the ruler)" if side == "east" else " (across the ruler)"
+            out.append(
+                f"the plate leans {1000 * v:+.2f} ± {1000 * se:.2f} mrad "
+                f"({math.degrees(v):+.3f}°) {side}{ruler}: {g * v:+.4f} m/s² of gravity on "
+                "whichever accelerometer points that way, following the heading as the cube turns"
+            )
+        out.append(
+            "  (a fixture error turns with the cube, a plate tilt stays in the room: the still "
+            "moments of the turns, at several headings, tell them apart)"
+        )
     else:
         for name, (v, se, unit) in c.coefficients.items():
             out.append(f"{name} = {_fmt(v, '')} ± {_fmt(se, unit)}")

@@ -77,7 +77,9 @@ class RecordSignals:
     specific force m/s² (g along the up direction), ``rate`` (N,3) reference rate °/s (zero for
     statics; for a turn the measured profile about the up axis scaled to the known ±360·n°),
     ``accel``/``gyro`` (N,3) the measured outputs. ``g`` m/s². ``temp_mean_c``: mean chip
-    temperature of the whole session, °C.
+    temperature of the whole session, °C. ``heading_deg`` (N,) the angle the cube has turned
+    about its up axis since the record began, ° (positive counter-clockwise seen from above;
+    None: it did not turn, 0).
     """
 
     name: str
@@ -91,6 +93,7 @@ class RecordSignals:
     g: float
     up: np.ndarray
     temp_mean_c: float = TEMP_REF_C
+    heading_deg: np.ndarray | None = None
 
     def reference(self, sensor: str) -> np.ndarray:
         """(N,3) the true input of ``sensor``: specific force m/s² or rate °/s."""
@@ -109,6 +112,13 @@ class RecordSignals:
     def d_temp(self) -> np.ndarray:
         """(N,) chip temperature − :data:`TEMP_REF_C`, °C."""
         return self.temp_c - TEMP_REF_C
+
+    @property
+    def heading(self) -> np.ndarray:
+        """(N,) :attr:`heading_deg` in rad (zeros when the record did not turn)."""
+        if self.heading_deg is None:
+            return np.zeros(len(self.t_s))
+        return np.radians(self.heading_deg)
 
 
 # ---- terms ----------------------------------------------------------------------------------
@@ -145,6 +155,9 @@ class Term:
     #: figure comes from; a fitted value beyond it is not a physical reading of the term
     plausible: Mapping[str, float] = field(default_factory=dict)
     plausible_source: str = ""
+    #: one set of parameters for every channel the term acts on (a property of the bench, e.g.
+    #: the plate's tilt, not of one output channel): the channels' columns share them
+    shared: bool = False
 
     @property
     def physics(self) -> str:
@@ -156,10 +169,11 @@ class Term:
         return self.value is not None
 
     def param_labels(self, sensor: str, axis: int) -> tuple[str, ...]:
-        """Names of the parameters on channel ``axis`` of ``sensor`` (§2 names for base terms)."""
+        """Names of the parameters on channel ``axis`` of ``sensor`` (§2 names for base terms;
+        a :attr:`shared` term's names do not depend on ``axis``)."""
         if self.labels is not None:
             return self.labels(sensor, axis)
-        stem = f"{self.name}.{sensor}.{AXES[axis]}"
+        stem = f"{self.name}.{sensor}" + ("" if self.shared else f".{AXES[axis]}")
         return tuple(stem if len(self.params) == 1 else f"{stem}.{p}" for p in self.params)
 
     def param_units(self, sensor: str) -> tuple[str, ...]:
@@ -356,9 +370,9 @@ def scale_nonlinearity(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray
 
 # ---- placement and geometry: attitudes that are not exactly the nominal ones ---------------
 def _face(sig: RecordSignals) -> tuple[int, int] | None:
-    """(axis, ±1) of the fixture face a static record rests on (its up axis), None for a turn,
+    """(axis, ±1) of the fixture face a static or turn record rests on (its up axis), None for
     a rate-table record or an attitude that is not one of the six faces (e.g. tilt_45_*)."""
-    if sig.kind != "static":
+    if sig.kind not in ("static", "turn"):  # a turn: the cube turns resting on that face
         return None
     k = int(np.argmax(np.abs(sig.up)))
     if abs(abs(float(sig.up[k])) - 1.0) > 1e-6:
@@ -412,21 +426,34 @@ def _placement(up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @term(sensors=("accel",), params={"tilt_east": "rad", "tilt_north": "rad"},
-      needs="static attitudes beyond the six faces (tilt_45_*), or the accelerometer at several "
-      "headings on the plate (the still moments of a turn)")  # fmt: skip
+      labels=lambda s, i: ("plate_tilt.east", "plate_tilt.north"),
+      needs="the accelerometer at several headings on the plate (the still moments inside the "
+      "turn records, a quarter turn or more apart), or static attitudes beyond the six faces "
+      "(tilt_45_*)")  # fmt: skip
 def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     """A base plate that is not level: gravity leans by the same two angles in every record.
 
-    Two small angles (east, north, rad) in the plate's frame, the same for every static record
-    made on it; on the fixture's faces it
-    reaches the horizontal accelerometers as g·(tilt_east·e + tilt_north·n), with e, n the
-    plate's axes in body coordinates (the program's placement: the first body axis not along
-    up lies along the ruler)."""
+    ONE pair of small angles (rad) for the whole session, in the plate's frame: gravity's
+    up direction leans ``tilt_east`` toward the ruler (east) and ``tilt_north`` toward
+    north = up × east. The plate does not move, so the angles are shared by every record made
+    on it and by all three accelerometer channels (:attr:`Term.shared`). Resting on a face, the
+    horizontal accelerometers read g·(tilt_east·e + tilt_north·n), with e, n the plate's axes
+    in body coordinates: at placement the first body axis not along up lies along the ruler.
+
+    What tells it from a fixture-face error or a bias: the cube turning on the plate. A face
+    error is fixed in the body, a plate tilt is fixed in the room: at heading ψ (turned ψ
+    counter-clockwise about up since the placement) the plate's axes in the body are
+    e(ψ) = e·cos ψ − n·sin ψ and n(ψ) = n·cos ψ + e·sin ψ, so at the still moments inside a
+    turn record the horizontal accelerometers follow g·|tilt|·cos(ψ − ψ₀) while a face error,
+    a bias and a misalignment stay put. On the six static faces alone the two angles act like
+    accelerometer biases and misalignments (each face is one heading)."""
     cols = np.zeros((len(sig.t_s), 2))
-    if sig.kind == "static":
-        e, n = _placement(sig.up)
-        cols[:, 0] = sig.g * e[axis]
-        cols[:, 1] = sig.g * n[axis]
+    if sig.kind in ("static", "turn"):
+        e0, n0 = _placement(sig.up)
+        psi = sig.heading
+        c, s = np.cos(psi), np.sin(psi)
+        cols[:, 0] = sig.g * (e0[axis] * c - n0[axis] * s)
+        cols[:, 1] = sig.g * (n0[axis] * c + e0[axis] * s)
     return cols
 
 
@@ -487,9 +514,13 @@ _PLAUSIBLE: dict[str, tuple[dict[str, float], str]] = {
                                         "was not resting on the plate"),
 }  # fmt: skip
 
+#: catalogue terms whose parameters are properties of the bench, one set for all channels
+_SHARED = ("plate_tilt",)
+
 #: the built-in terms, in catalogue order
 CATALOGUE: dict[str, Term] = {
-    t.name: replace(t, plausible=_PLAUSIBLE[t.name][0], plausible_source=_PLAUSIBLE[t.name][1])
+    t.name: replace(t, plausible=_PLAUSIBLE[t.name][0], plausible_source=_PLAUSIBLE[t.name][1],
+                    shared=t.name in _SHARED)
     for t in (
         bias, scale, misalignment, g_sensitivity, temperature_bias, temperature_bias_quadratic,
         temperature_scale, time_drift, scale_asymmetry, scale_nonlinearity, face_error,
@@ -591,7 +622,19 @@ class ModelTerm:
 
     @property
     def n_params(self) -> int:
-        return len(self.term.params) * len(self.axes)
+        return len(self.term.params) * (1 if self.term.shared else len(self.axes))
+
+    def slots(self) -> list[tuple[int | None, str, str]]:
+        """(output axis or None for a shared parameter, name, parameter key) of each of its
+        parameters, in the order of its design columns."""
+        if self.term.shared:
+            names = self.term.param_labels(self.sensor, self.axes[0])
+            return [(None, n, k) for n, k in zip(names, self.term.params, strict=True)]
+        return [
+            (ax, n, self.term.params[q])
+            for ax in self.axes
+            for q, n in enumerate(self.term.param_labels(self.sensor, ax))
+        ]
 
 
 def parse_model(spec: str, catalogue: Mapping[str, Term] | None = None) -> list[ModelTerm]:
@@ -685,15 +728,28 @@ class NoiseModel:
 
 #: a still moment inside a turn record lasts at least this long, s, after :data:`STILL_TRIM_S`
 #: is cut at each end (the hand letting go / taking hold)
-STILL_MIN_S = 0.2
-STILL_TRIM_S = 0.15
+STILL_MIN_S = 0.1
+STILL_TRIM_S = 0.05
+#: the floor (:func:`repeat_floor`) compares still moments with static records: it keeps only
+#: long, settled ones (a hand letting go rocks the cube for a moment)
+FLOOR_MIN_S = 0.2
+FLOOR_TRIM_S = 0.15
 
 
-def still_runs(rate_up_dps: np.ndarray, t_s: np.ndarray, sigma_dps: float) -> list[tuple[int, int]]:
+def still_runs(
+    rate_up_dps: np.ndarray,
+    t_s: np.ndarray,
+    sigma_dps: float,
+    *,
+    trim_s: float | None = None,
+    min_s: float | None = None,
+) -> list[tuple[int, int]]:
     """[start, stop) index ranges where the cube rests inside a turn record: the rate about the
     up axis ``rate_up_dps`` (N,) °/s (static bias removed) stays within 4·``sigma_dps`` (the
-    gyro's per-sample noise, °/s) of zero; :data:`STILL_TRIM_S` s cut at each end, at least
-    :data:`STILL_MIN_S` s left (times ``t_s`` (N,) s)."""
+    gyro's per-sample noise, °/s) of zero; ``trim_s`` (default :data:`STILL_TRIM_S`) s cut at
+    each end, at least ``min_s`` (:data:`STILL_MIN_S`) s left (times ``t_s`` (N,) s)."""
+    trim = STILL_TRIM_S if trim_s is None else trim_s
+    least = STILL_MIN_S if min_s is None else min_s
     still = np.abs(rate_up_dps) < 4.0 * max(sigma_dps, 1e-6)
     out: list[tuple[int, int]] = []
     i, n = 0, len(still)
@@ -704,9 +760,9 @@ def still_runs(rate_up_dps: np.ndarray, t_s: np.ndarray, sigma_dps: float) -> li
         j = i
         while j < n and still[j]:
             j += 1
-        a = int(np.searchsorted(t_s, t_s[i] + STILL_TRIM_S))
-        b = int(np.searchsorted(t_s, t_s[j - 1] - STILL_TRIM_S, side="right"))
-        if b - a >= 4 and t_s[b - 1] - t_s[a] >= STILL_MIN_S:
+        a = int(np.searchsorted(t_s, t_s[i] + trim))
+        b = int(np.searchsorted(t_s, t_s[j - 1] - trim, side="right"))
+        if b - a >= 4 and t_s[b - 1] - t_s[a] >= least:
             out.append((a, b))
         i = j
     return out
@@ -819,10 +875,17 @@ class Dataset:
     floor: Mapping[str, float] = field(default_factory=dict)
     #: turns n of each turn record (record name -> n)
     turns_of: Mapping[str, int] = field(default_factory=dict)
+    #: (record, sensor) -> its own aggregator where it differs from the record's: the
+    #: accelerometer of a turn record is read at the still moments (one row per still moment)
+    sensor_aggregators: Mapping[tuple[int, str], np.ndarray] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
         return int(self.y.shape[0])
+
+    def aggregator(self, record: int, sensor: str) -> np.ndarray:
+        """(B, N) weights turning record ``record``'s samples into its rows of ``sensor``."""
+        return self.sensor_aggregators.get((record, sensor), self.aggregators[record])
 
     def record_name(self, i: int) -> str:
         return self.signals[i].name
@@ -833,6 +896,24 @@ def _block_edges(n: int, duration_s: float, noise: NoiseModel) -> list[tuple[int
     b = max(1, min(b, n // 8 if n >= 8 else 1))
     edges = np.linspace(0, n, b + 1).round().astype(int)
     return [(int(edges[i]), int(edges[i + 1])) for i in range(b)]
+
+
+def _runs_of(agg: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) sample ranges of the rows of a still-moment aggregator."""
+    out = []
+    for row in agg:
+        nz = np.flatnonzero(row)
+        out.append((int(nz[0]), int(nz[-1]) + 1))
+    return out
+
+
+def turn_heading(t_s: np.ndarray, rate_up_dps: np.ndarray) -> np.ndarray:
+    """(N,) the angle turned about the up axis since the record began, ° (trapezoid rule over
+    the reference rate ``rate_up_dps`` (N,) °/s at times ``t_s`` (N,) s; method.md §4)."""
+    if len(t_s) < 2:
+        return np.zeros(len(t_s))
+    step = np.diff(t_s) * (rate_up_dps[1:] + rate_up_dps[:-1]) / 2.0
+    return np.concatenate([[0.0], np.cumsum(step)])
 
 
 def _turn_reference(
@@ -871,7 +952,8 @@ def _session_floor(
         ref = signals[match]
         up_axis = int(np.argmax(np.abs(sig.up)))
         sd = math.sqrt(rec_noise[(match, "gyro", up_axis)][0])
-        for a, b in still_runs(sig.rate @ sig.up, sig.t_s, sd):
+        for a, b in still_runs(sig.rate @ sig.up, sig.t_s, sd, trim_s=FLOOR_TRIM_S,
+                               min_s=FLOOR_MIN_S):  # fmt: skip
             m = b - a
             for s, axes in (("gyro", (0, 1, 2)), ("accel", (up_axis,))):
                 for ax in axes:
@@ -911,6 +993,52 @@ def _session_floor(
     return out, "noise floor of a record mean: " + "; ".join(said)
 
 
+def _seating_sigma(
+    signals: Sequence[RecordSignals],
+    sensor_aggs: Mapping[tuple[int, str], np.ndarray],
+    groups_raw: Sequence[tuple[int, str, int, list[int], np.ndarray, float]],
+) -> tuple[float, str]:
+    """How far the cube's attitude at a still moment of a hand turn departs from resting flat,
+    as specific force on a horizontal accelerometer, m/s² (and a note; 0 and '' without the
+    data). The hand holds or presses the cube between pushes, so each still moment is a new
+    seating. Measured from the still moments themselves: per turn and horizontal channel a
+    constant (bias, face error, misalignment: all fixed in the body) plus ONE plate tilt for
+    the session, g·(t_e·e(ψ) + t_n·n(ψ)) (:func:`plate_tilt`); the scatter beyond each mean's
+    white noise, Σ(r² − w)/dof, is the seating variance (method.md §8: repeatability)."""
+    rows: list[tuple[int, int, float, np.ndarray, float]] = []  # (record, axis, y, (2,), w)
+    for ri, s, ax, _idx, agg, var_tau in groups_raw:
+        sig = signals[ri]
+        if s != "accel" or sig.kind != "turn" or abs(float(sig.up[ax])) > 0.5:
+            continue
+        if (ri, "accel") not in sensor_aggs:
+            continue
+        cols = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
+        assert cols is not None
+        for b in range(agg.shape[0]):
+            m = float(np.count_nonzero(agg[b]))
+            rows.append((ri, ax, float(agg[b] @ sig.accel[:, ax]), agg[b] @ cols, var_tau / m))
+    keys = sorted({(r[0], r[1]) for r in rows})
+    if not rows or len(rows) <= len(keys) + 2:
+        return 0.0, ""
+    x = np.zeros((len(rows), len(keys) + 2))
+    for i, (ri, ax, _, c, _) in enumerate(rows):
+        x[i, keys.index((ri, ax))] = 1.0
+        x[i, -2:] = c
+    y = np.array([r[2] for r in rows])
+    w = np.array([r[4] for r in rows])
+    beta, _, rank, _ = np.linalg.lstsq(x, y, rcond=None)
+    dof = len(rows) - int(rank)
+    if dof <= 0:
+        return 0.0, ""
+    r = y - x @ beta
+    sigma = math.sqrt(max(0.0, float(np.sum(r * r - w)) / dof))
+    return sigma, (
+        f"seating of the cube at the still moments of the turns: {sigma:.2g} m/s² on a "
+        f"horizontal accelerometer ({1000 * sigma / 9.8:.2g} mrad), from {len(rows)} still "
+        f"moments ({dof} dof beyond one plate tilt and a constant per turn and channel)"
+    )
+
+
 def build_dataset(
     session: Session,
     *,
@@ -947,6 +1075,8 @@ def build_dataset(
     xs = np.array([np.concatenate([obs_of[n].force, [1.0]]) for n in statics])
     ys = np.array([stats[n].gyro_mean - obs_of[n].rate for n in statics])
     pre, *_ = np.linalg.lstsq(xs, ys, rcond=None)
+    # per-sample gyro noise (°/s) per axis: finds the still moments inside the turns
+    gyro_sd = np.median([stats[n].gyro_std for n in statics], axis=0)
 
     temp_mean = float(np.mean([float(np.mean(session.records[n].temp)) for n in names]))
     signals: list[RecordSignals] = []
@@ -958,6 +1088,8 @@ def build_dataset(
     # white-noise levels from the statics (for the turns): sensor -> axis -> (var, tau) lists
     static_noise: dict[tuple[str, int], list[tuple[float, float]]] = {}
     rec_noise: dict[tuple[int, str, int], tuple[float, float]] = {}
+    sensor_aggs: dict[tuple[int, str], np.ndarray] = {}
+    still_spans: dict[int, list[tuple[float, float]]] = {}
 
     for ri, name in enumerate(names):
         rec = session.records[name]
@@ -971,11 +1103,14 @@ def build_dataset(
             bias_up = pre[:3].T @ o.up + pre[3]
             want = float(o.rate @ o.up)
             rate = _turn_reference(rec.gyro, rec.t_ms, o.up, bias_up, want)
+            heading: np.ndarray | None = turn_heading(t_rel, rate @ o.up)
         else:  # rate table; statics: zero, or the vertical Earth rate
             rate = np.tile(o.rate, (n, 1))
+            heading = None
         sig = RecordSignals(
             name=name, kind=o.kind, t_s=t0 + t_rel, temp_c=rec.temp.copy(), force=force,
             rate=rate, accel=rec.accel, gyro=rec.gyro, g=g, up=o.up, temp_mean_c=temp_mean,
+            heading_deg=heading,
         )  # fmt: skip
         signals.append(sig)
         if o.kind == "turn":
@@ -986,6 +1121,16 @@ def build_dataset(
             agg = w[None, :]
             spans = [(0.0, float(t_rel[-1]))]
             sensors: tuple[str, ...] = ("gyro",)
+            # the accelerometer at the still moments: gravity seen at several headings
+            up_k = int(np.argmax(np.abs(o.up)))
+            runs = still_runs(rate @ o.up, t_rel, float(gyro_sd[up_k]))
+            if runs:
+                acc_agg = np.zeros((len(runs), n))
+                for b, (a, e) in enumerate(runs):
+                    acc_agg[b, a:e] = 1.0 / (e - a)
+                sensor_aggs[(ri, "accel")] = acc_agg
+                still_spans[ri] = [(float(t_rel[a]), float(t_rel[e - 1])) for a, e in runs]
+                sensors = ("accel", "gyro")
         else:
             edges = _block_edges(n, float(t_rel[-1]) if n else 0.0, nm)
             agg = np.zeros((len(edges), n))
@@ -997,21 +1142,34 @@ def build_dataset(
         for s in sensors:
             meas = sig.measured(s)
             ref = sig.reference(s)
+            still = o.kind == "turn" and s == "accel"
+            s_agg = sensor_aggs[(ri, s)] if still else agg
+            s_spans = still_spans[ri] if still else spans
             for ax in range(3):
-                idx = list(range(len(y_list), len(y_list) + agg.shape[0]))
-                yv = agg @ meas[:, ax]
-                nv = agg @ ref[:, ax]
+                idx = list(range(len(y_list), len(y_list) + s_agg.shape[0]))
+                yv = s_agg @ meas[:, ax]
+                nv = s_agg @ ref[:, ax]
                 y_list.extend(yv.tolist())
                 nom_list.extend(nv.tolist())
-                for b in range(agg.shape[0]):
+                for b in range(s_agg.shape[0]):
                     rows["rec"].append(ri)
                     rows["sen"].append(SENSORS.index(s))
                     rows["ax"].append(ax)
-                    rows["int"].append(o.kind == "turn")
-                    rows["t0"].append(spans[b][0])
-                    rows["t1"].append(spans[b][1])
-                if o.kind == "turn":
+                    rows["int"].append(o.kind == "turn" and not still)
+                    rows["t0"].append(s_spans[b][0])
+                    rows["t1"].append(s_spans[b][1])
+                if o.kind == "turn" and not still:
                     groups_raw.append((ri, s, ax, idx, agg, 0.0))
+                    continue
+                if still:
+                    # white noise of a still moment's mean from its own samples
+                    dev = np.concatenate(
+                        [meas[a:e, ax] - meas[a:e, ax].mean() for a, e in _runs_of(s_agg)]
+                    )
+                    dof = max(len(dev) - s_agg.shape[0], 1)
+                    var = max(float(dev @ dev) / dof, _resolution(meas[:, ax]) ** 2 / 12.0)
+                    tau = integrated_autocorrelation(dev, nm.max_lag)
+                    groups_raw.append((ri, s, ax, idx, s_agg, var * tau))
                     continue
                 # white noise of a block mean from the record's own samples
                 dev = np.concatenate([meas[a:e, ax] - meas[a:e, ax].mean() for a, e in edges])
@@ -1024,6 +1182,9 @@ def build_dataset(
 
     floors, floor_note = _session_floor(signals, rec_noise, nm)
     notes.append(floor_note)
+    seat, seat_note = _seating_sigma(signals, sensor_aggs, groups_raw)
+    if seat_note:
+        notes.append(seat_note)
     n_rows = len(y_list)
     whiten = np.zeros((n_rows, n_rows))
     groups: list[Group] = []
@@ -1031,7 +1192,7 @@ def build_dataset(
     excess: dict[tuple[str, int], list[float]] = {}
     y_arr = np.array(y_list)
     for _ri, s, ax, idx, agg, var_tau in groups_raw:
-        if len(idx) >= 2:
+        if len(idx) >= 2 and signals[_ri].kind != "turn":
             m = agg.sum(axis=1)  # ones
             counts = np.count_nonzero(agg, axis=1)
             v_b = var_tau / counts * m
@@ -1041,7 +1202,7 @@ def build_dataset(
     inflate = {k: max(1.0, sum(v[0::2]) / max(sum(v[1::2]), 1.0)) for k, v in excess.items()}
     for ri, s, ax, idx, agg, var_tau in groups_raw:
         floor = floors[s]
-        if agg.shape[0] == 1 and signals[ri].kind == "turn":
+        if signals[ri].kind == "turn" and s == "gyro":
             w = agg[0]
             levels = static_noise.get((s, ax), [(0.0, 1.0)])
             v_white = float(np.mean([v * t for v, t in levels]))
@@ -1052,6 +1213,8 @@ def build_dataset(
             continue
         counts = np.count_nonzero(agg, axis=1).astype(float)
         v_blocks = var_tau / counts  # variance of each block mean
+        if signals[ri].kind == "turn" and abs(float(signals[ri].up[ax])) < 0.5:
+            v_blocks = v_blocks + seat**2  # a horizontal channel at a still moment
         b = len(idx)
         v_mean = float(np.sum(v_blocks)) / b**2 + floor**2
         if not v_mean > 0.0:
@@ -1062,7 +1225,8 @@ def build_dataset(
                 "the sensor"
             )
         whiten[idx[0], idx] = (1.0 / b) / math.sqrt(v_mean)
-        v_c = float(np.mean(v_blocks)) * inflate.get((s, ax), 1.0)
+        turn = signals[ri].kind == "turn"  # still moments: their spread is the signal
+        v_c = float(np.mean(v_blocks)) * (1.0 if turn else inflate.get((s, ax), 1.0))
         if b >= 2:
             # orthonormal Helmert contrasts of the b blocks
             for k in range(1, b):
@@ -1093,6 +1257,7 @@ def build_dataset(
         time_known=has_power,
         floor=floors,
         turns_of={o.record: o.turns for o in obs if o.kind == "turn" and o.turns is not None},
+        sensor_aggregators=sensor_aggs,
     )
 
 
@@ -1145,9 +1310,23 @@ def term_columns(
     """Design columns (n_rows, n_params) of a model term and its offset (n_rows,).
 
     Linear terms: offset 0. Nonlinear terms: the Jacobian at ``theta`` (parameters in the
-    order axis-major) and offset value(θ) − J·θ, so that value ≈ offset + J·θ'.
+    order axis-major) and offset value(θ) − J·θ, so that value ≈ offset + J·θ'. A shared
+    term (:attr:`Term.shared`, linear only) has one set of k columns: each channel's rows hold
+    that channel's regressors.
     """
     k = len(mt.term.params)
+    if mt.term.shared:
+        if mt.term.nonlinear:
+            raise UserError(f"term {mt.term.name}: a shared term must be linear (columns())")
+        cols = np.zeros((ds.n_rows, k))
+        for ax in mt.axes:
+            for ri, sig in enumerate(ds.signals):
+                rows = ds.rows_of.get((ri, mt.sensor, ax))
+                if rows is not None:
+                    cols[rows] = aggregate(
+                        ds.aggregator(ri, mt.sensor), _regressors(mt.term, sig, mt.sensor, ax)
+                    )
+        return cols, np.zeros(ds.n_rows)
     cols = np.zeros((ds.n_rows, k * len(mt.axes)))
     offset = np.zeros(ds.n_rows)
     th = (
@@ -1160,7 +1339,7 @@ def term_columns(
             rows = ds.rows_of.get((ri, mt.sensor, ax))
             if rows is None:
                 continue
-            agg = ds.aggregators[ri]
+            agg = ds.aggregator(ri, mt.sensor)
             if not mt.term.nonlinear:
                 cols[rows, j * k : (j + 1) * k] = aggregate(
                     agg, _regressors(mt.term, sig, mt.sensor, ax)
@@ -1508,14 +1687,16 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
     chi2 = float(wres @ wres)
     n_par = int(keep.sum())
     # who owns each column: (name, unit, channel, term label, sensor, axis, key)
+    # (axis -1: a shared parameter of all the sensor's channels)
     owners: list[tuple[str, str, tuple[str, int], str, str]] = []
     for mt in model:
-        units = mt.term.param_units(mt.sensor)
-        for ax in mt.axes:
-            for q, name in enumerate(mt.term.param_labels(mt.sensor, ax)):
-                owners.append((name, units[q], (mt.sensor, ax), mt.label, mt.term.params[q]))
+        units = dict(zip(mt.term.params, mt.term.param_units(mt.sensor), strict=True))
+        for ax, name, key in mt.slots():
+            owners.append((name, units[key], (mt.sensor, -1 if ax is None else ax), mt.label, key))
     channels, estimable = _channel_fits(ds, x, xw, wres, th0, cov, owners)
     scale_of = {(c.sensor, AXES.index(c.axis)): c.se_scale for c in channels}
+    for chf in channels:  # a shared parameter: the largest scale of its sensor's channels
+        scale_of[(chf.sensor, -1)] = max(scale_of.get((chf.sensor, -1), 1.0), chf.se_scale)
     params: list[Parameter] = []
     undetermined: list[str] = []
     for c, (name, unit, ch, label, key) in enumerate(owners):
@@ -1523,7 +1704,7 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
         se = math.sqrt(max(float(cov[c, c]), 0.0)) * scale_of.get(ch, 1.0) if ok else math.nan
         params.append(
             Parameter(name, label, float(theta[c]) if ok else math.nan, se, unit,
-                      ch[0], AXES[ch[1]], key)
+                      ch[0], AXES[ch[1]] if ch[1] >= 0 else "", key)
         )  # fmt: skip
         if not ok:
             undetermined.append(name)
@@ -1589,7 +1770,10 @@ def _channel_fits(
             rows = np.flatnonzero((ds.row_sensor == s_i) & (ds.row_axis == ax))
             if not len(rows):
                 continue
-            cols = np.array([c for c, o in enumerate(owners) if o[2] == (sensor, ax)], dtype=int)
+            cols = np.array(
+                [c for c, o in enumerate(owners) if o[2] in ((sensor, ax), (sensor, -1))],
+                dtype=int,
+            )
             xc = xw[np.ix_(rows, cols)] if len(cols) else np.zeros((len(rows), 0))
             norms = np.linalg.norm(xc, axis=0)
             live = norms > 0
@@ -1601,8 +1785,10 @@ def _channel_fits(
                 null = np.zeros((len(cols), vt.shape[0] - rank))
                 null[live] = vt[rank:].T / norms[live, None]  # back to parameter units
             for j, c in enumerate(cols):
-                estimable[c] = bool(live[j]) and (
-                    null.shape[1] == 0 or float(np.linalg.norm(null[j] * norms[j])) < 1e-6
+                estimable[c] = (
+                    estimable[c]
+                    or bool(live[j])
+                    and (null.shape[1] == 0 or float(np.linalg.norm(null[j] * norms[j])) < 1e-6)
                 )
             # record-level design: one row per record/channel value (mean of its rows)
             grs = [g for g in ds.groups if g.sensor == sensor and g.axis == ax]
@@ -1620,7 +1806,27 @@ def _channel_fits(
                 else ()
             )
             out.append(ChannelFit(sensor, AXES[ax], chi2, dof, len(grs) - rank_g, scale, combos))
+    if any(o[2][1] < 0 for o in owners):
+        # shared parameters couple the channels: what all rows together determine
+        estimable = _estimable(xw)
     return out, estimable
+
+
+def _estimable(xw: np.ndarray) -> np.ndarray:
+    """(P,) which columns of the whitened design ``xw`` (n, P) the rows determine: the
+    parameter's unit vector lies in the row space (it has no part in the null space)."""
+    norms = np.linalg.norm(xw, axis=0)
+    live = norms > 0
+    out = np.zeros(xw.shape[1], dtype=bool)
+    if not live.any():
+        return out
+    _, sv, vt = np.linalg.svd(xw[:, live] / norms[live], full_matrices=True)
+    rank = int(np.sum(sv > 1e-9 * sv[0])) if len(sv) else 0
+    null = vt[rank:].T
+    idx = np.flatnonzero(live)
+    for j, c in enumerate(idx):
+        out[c] = null.shape[1] == 0 or float(np.linalg.norm(null[j])) < 1e-6
+    return out
 
 
 def _combinations(
@@ -1668,7 +1874,7 @@ def _residual_tables(
     sd_res = residual_sigmas(ds, basis)
     for k, gr in enumerate(ds.groups):
         sig = ds.signals[gr.record]
-        turn = sig.kind == "turn"
+        turn = sig.kind == "turn" and gr.sensor == "gyro"  # an integral, °
         unit = "°" if turn else UNIT[gr.sensor]
         r = float(np.mean(resid[gr.rows]))
         sd = float(sd_res[k])

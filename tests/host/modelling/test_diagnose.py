@@ -183,12 +183,22 @@ def test_real_imucal_recommended_terms_take_rms_z_down_3x_and_explain_the_biases
     d = diagnose(ds, base)
     assert d.verdict == "missing_effect" and d.recommended_spec is not None
     assert d.recommended_spec.startswith("face_error:accel")
+    # the still moments inside the turns see gravity at several headings: the plate's tilt,
+    # one pair of angles for the whole session, is determined and recommended with it
+    assert "plate_tilt:accel:xyz" in d.recommended_spec.split(",")
     a = add_term(ds, base, d.recommended_spec)
     assert a.before.rms_z >= 3.0 * a.after.rms_z, (a.before.rms_z, a.after.rms_z)
     assert a.after.chi2_p > 0.01  # and what is left is noise
+    # ... with degrees of freedom left on every accelerometer channel to test it
+    acc = [c for c in a.after.channels if c.sensor == "accel"]
+    assert acc and all(c.dof_records > 0 for c in acc), [(c.axis, c.dof_records) for c in acc]
+    tilt = [p for p in a.after.parameters if p.term_name == "plate_tilt"]
+    assert [p.name for p in tilt] == ["plate_tilt.east", "plate_tilt.north"]
+    assert all(math.isfinite(p.value) and abs(p.value) < 0.0175 for p in tilt)
     text = format_diagnosis(d, compare=False)
     assert "faces ±z lean" in text and "of gravity on accelerometer x" in text
     assert "bias estimate from the ±z pair" in text
+    assert "the plate leans" in text and "following the heading" in text
     assert d.to_dict()["recommended"] == d.recommended_spec
 
 
@@ -270,3 +280,71 @@ def test_a_repeated_static_attitude_counts_for_the_floor() -> None:
     once, twice = counts(STATIC_NAMES), counts((*STATIC_NAMES, "x_up_2"))
     assert len(once) == len(twice) == 2
     assert [b - a for a, b in zip(once, twice, strict=True)] == [3, 3]
+
+
+def _stepped_session(tilt_en: tuple[float, float], seed: int) -> dict:
+    """Six static faces (20 s) and a CCW turn about each axis made as four quarter turns with
+    1.5 s rests (the way imucal's session was made), on a plate tilted by ``tilt_en`` (east,
+    north, rad; the program's placement convention). Biases differ per axis; white noise."""
+    from host.bench.physics import pose_from_up
+    from host.calib.records import Record
+
+    rng = np.random.default_rng(seed)
+    g = 9.80665
+    bias_a = np.array([0.05, -0.08, 0.11])
+    bias_g = np.array([0.4, -0.7, 0.25])
+    out: dict[str, Record] = {}
+
+    def gravity(up: np.ndarray, psi: np.ndarray) -> np.ndarray:
+        r = pose_from_up(up)
+        e0, n0 = r[0], r[1]
+        c, s = np.cos(psi)[:, None], np.sin(psi)[:, None]
+        e, n = e0 * c - n0 * s, n0 * c + e0 * s
+        return g * (up[None, :] + tilt_en[0] * e + tilt_en[1] * n)
+
+    for k, ax in enumerate("xyz"):
+        for sign, tag in ((1, "up"), (-1, "dn")):
+            up = np.zeros(3)
+            up[k] = sign
+            n = 1000
+            t = np.arange(n) * 20.0
+            acc = gravity(up, np.zeros(n)) + bias_a + rng.normal(0, 0.01, (n, 3))
+            gyr = bias_g + rng.normal(0, 0.03, (n, 3))
+            out[f"{ax}_{tag}"] = Record(f"{ax}_{tag}", t, acc, gyr, np.full(n, 25.0), {})
+        up = np.zeros(3)
+        up[k] = 1.0
+        # rest 1.5 s, quarter turn in 1 s (raised-cosine rate), four times, rest 1.5 s
+        dt = 0.02
+        seg_rest, seg_turn = int(1.5 / dt), int(1.0 / dt)
+        rates = [np.zeros(seg_rest)]
+        for _ in range(4):
+            u = (np.arange(seg_turn) + 0.5) / seg_turn
+            rates += [90.0 * (1 - np.cos(2 * np.pi * u)), np.zeros(seg_rest)]
+        rate = np.concatenate(rates)  # °/s, integral 360°
+        n = len(rate)
+        psi = np.radians(np.concatenate([[0.0], np.cumsum((rate[1:] + rate[:-1]) / 2 * dt)]))
+        acc = gravity(up, psi) + bias_a + rng.normal(0, 0.01, (n, 3))
+        gyr = rate[:, None] * up[None, :] + bias_g + rng.normal(0, 0.03, (n, 3))
+        out[f"{ax}_ccw"] = Record(f"{ax}_ccw", np.arange(n) * dt * 1000, acc, gyr,
+                                  np.full(n, 25.0), {"turns": "1"})  # fmt: skip
+    return out
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_plate_tilt_is_one_pair_of_angles_read_from_the_still_moments_of_turns(seed: int) -> None:
+    """A tilted plate, stepped turns: the horizontal accelerometers follow the heading at the
+    still moments, which only a plate tilt explains (a face error or bias turns with the
+    cube). The verdict names plate_tilt (ONE shared pair of angles) and the fit reads it."""
+    tilt = (0.003, -0.002)
+    ds = build_dataset(session_from_records(_stepped_session(tilt, seed)), turns=1)
+    d = diagnose(ds, parse_model("base"))
+    assert d.verdict == "missing_effect" and d.recommended_spec is not None
+    assert d.recommended_spec.split(",") == ["plate_tilt:accel:xyz"], d.recommended_spec
+    first = d.candidates[0]
+    assert first.term == "plate_tilt" and first.n_params == 2  # shared, not per channel
+    a = add_term(ds, parse_model("base"), d.recommended_spec)
+    east, north = (a.after.parameter(f"plate_tilt.{s}") for s in ("east", "north"))
+    assert east.value == pytest.approx(tilt[0], abs=4 * east.stderr + 1e-4)
+    assert north.value == pytest.approx(tilt[1], abs=4 * north.stderr + 1e-4)
+    assert a.after.chi2_p > 0.001
+    assert a.before.rms_z > 3 * a.after.rms_z

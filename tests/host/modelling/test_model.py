@@ -133,7 +133,12 @@ def test_blocks_give_within_record_rows() -> None:
     static_groups = [g for g in ds.groups if ds.signals[g.record].kind == "static"]
     assert all(len(g.rows) == 2 for g in static_groups)  # 10 s records, 5 s blocks
     turn_groups = [g for g in ds.groups if ds.signals[g.record].kind == "turn"]
-    assert all(len(g.rows) == 1 and g.sensor == "gyro" for g in turn_groups)
+    # a turn: one integral per gyro channel; the accelerometer one row per still moment
+    assert all(len(g.rows) == 1 for g in turn_groups if g.sensor == "gyro")
+    for g in turn_groups:
+        if g.sensor == "accel":
+            assert len(g.rows) == ds.aggregator(g.record, "accel").shape[0] >= 1
+            assert not ds.row_integral[g.rows].any()
     # W whitens each group exactly: the record mean has variance σ² (white/B + floor²),
     # a block's departure from it the contrast variance
     for g in static_groups:
