@@ -119,8 +119,11 @@ def test_standard_session_recovers_truth(standard: CalibrationResult) -> None:
     for k in SCALE_MIS + ACCEL_BIAS_NAMES + GYRO_BIAS_NAMES + GYRO_GSENS_NAMES:
         assert err[k] < 4.5 * standard.std_errors[k] + 1e-5, (k, err[k], standard.std_errors[k])
     assert standard.turns == 2
-    # nothing to note but how the noise floor was measured
-    assert all(n.startswith("noise floor of a record mean") for n in standard.notes)
+    # nothing to note but how the noise floor and the seating at still moments were measured
+    assert all(
+        n.startswith(("noise floor of a record mean", "seating of the cube"))
+        for n in standard.notes
+    ), standard.notes
 
 
 def test_closed_form_agrees_with_lsq(standard: CalibrationResult) -> None:
@@ -129,6 +132,11 @@ def test_closed_form_agrees_with_lsq(standard: CalibrationResult) -> None:
     for k, v in standard.closed_form.items():
         if k in NOISE_NAMES:
             assert v == c[k]
+        elif k.startswith("A"):
+            # the fit also reads the accelerometer at the still moments inside the turns,
+            # which the closed form (statics only) does not: the two differ by that extra
+            # data, within the standard error
+            assert abs(v - c[k]) < 1.0 * standard.std_errors[k], (k, v, c[k])
         else:  # far below the noise (the standard errors)
             assert abs(v - c[k]) < 0.2 * standard.std_errors[k], (k, v, c[k])
 
