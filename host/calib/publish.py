@@ -51,13 +51,33 @@ def parse_floor(text: str | None) -> NoiseModel:
     return dataclasses.replace(nm, floor=floor)
 
 
+def session_noise(session: Session, floor: str | None, noise_file: str | None) -> NoiseModel:
+    """The fit's noise model: ``--floor`` (:func:`parse_floor`) names the sensors it sets;
+    the others come from the noise file ``noise_file`` (``noise FILE --save``) when given —
+    :func:`host.modelling.noise.workbench_floor` at the median length of the session's static
+    records — and are otherwise measured from the records themselves."""
+    nm = parse_floor(floor)
+    if not noise_file:
+        return nm
+    from host.modelling.noise import load_noise_file, workbench_floor
+
+    doc = load_noise_file(noise_file)
+    lengths = [r.duration_s for r in session.records.values() if r.kind == "static"]
+    if not lengths:
+        raise UserError(f"--noise {noise_file}: the session has no static records to size it")
+    out = workbench_floor(doc, float(sorted(lengths)[len(lengths) // 2]))
+    out.update(nm.floor)  # --floor names the sensors it overrides
+    return dataclasses.replace(nm, floor=out)
+
+
 @dataclass(frozen=True)
 class ComputeSettings:
     """How to compute a result; units in the names. ``turns``: n for turn records whose
     header does not say it (None: inferred); ``model``: the model spec
     (:func:`host.modelling.model.parse_model`); ``floor``: the ``--floor`` text (None: measured);
     ``verify``: a directory of held-out records to predict (None: no verification);
-    ``thermal``: the ``--thermal`` option (:func:`thermal_of`)."""
+    ``thermal``: the ``--thermal`` option (:func:`thermal_of`); ``noise_file``: the
+    ``--noise`` file (:func:`session_noise`)."""
 
     turns: int | None = None
     latitude_deg: float = DEFAULT_LATITUDE_DEG
@@ -67,6 +87,7 @@ class ComputeSettings:
     floor: str | None = None
     verify: str | None = None
     thermal: str | None = None
+    noise_file: str | None = None
 
 
 @dataclass(frozen=True)
@@ -119,7 +140,7 @@ def compute_and_write(
         height_m=settings.height_m,
         model=settings.model,
         term_files=settings.term_files,
-        noise=parse_floor(settings.floor),
+        noise=session_noise(session, settings.floor, settings.noise_file),
     )
     if settings.verify:
         result = verify_directory(result, settings.verify)

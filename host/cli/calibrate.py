@@ -60,7 +60,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="accel=A,gyro=G",
         help="bias-instability floor of a record mean (m/s², °/s), as 'model diagnose'; "
-        "default: measured from the records",
+        "default: from --noise, else measured from the records",
+    )
+    p.add_argument(
+        "--noise",
+        default=None,
+        metavar="NOISE.json",
+        help="noise file of this unit (noise FILE --save): the floor of a record mean from its "
+        "Allan variance, as 'model diagnose --noise'",
     )
     p.add_argument(
         "--verify",
@@ -95,6 +102,7 @@ def compute_settings(args: argparse.Namespace) -> ComputeSettings:
         floor=getattr(args, "floor", None),
         verify=getattr(args, "verify", None),
         thermal=getattr(args, "thermal", None),
+        noise_file=getattr(args, "noise", None),
     )
 
 

@@ -19,7 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from host.calib.publish import parse_floor
+from host.calib.publish import session_noise
+from host.calib.records import read_session
 from host.cli import pyplot
 from host.errors import UserError
 from host.modelling.diagnose import (
@@ -38,7 +39,7 @@ from host.modelling.model import (
     Dataset,
     Fit,
     Term,
-    load_dataset,
+    build_dataset,
     load_term_file,
     model_spec,
     parse_model,
@@ -217,7 +218,15 @@ def _common(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="accel=A,gyro=G",
         help="bias-instability floor of a record mean (m/s², °/s), e.g. accel=5e-4,gyro=3e-3; a "
-        "sensor not given is measured from the session (repeated attitudes)",
+        "sensor not given comes from --noise, else is measured from the session (repeated "
+        "attitudes)",
+    )
+    p.add_argument(
+        "--noise",
+        default=None,
+        metavar="NOISE.json",
+        help="noise file of this unit (python3 -m host noise FILE --save NOISE.json): the floor "
+        "is its Allan variance at the static records' length without the white part",
     )
     p.add_argument("--latitude", type=float, default=None, help="site latitude, degrees")
     p.add_argument("--height", type=float, default=None, help="site height, m")
@@ -234,12 +243,12 @@ def _catalogue(args: argparse.Namespace) -> dict[str, Term]:
 def _dataset(args: argparse.Namespace) -> Dataset:
     from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
-    return load_dataset(
-        args.dir,
-        noise=parse_floor(args.floor),
+    session = read_session(args.dir, args.serial)
+    return build_dataset(
+        session,
+        noise=session_noise(session, args.floor, getattr(args, "noise", None)),
         latitude_deg=DEFAULT_LATITUDE_DEG if args.latitude is None else args.latitude,
         height_m=DEFAULT_HEIGHT_M if args.height is None else args.height,
-        serial=args.serial,
     )
 
 
@@ -300,7 +309,8 @@ def calibrate_command(args: argparse.Namespace, model: str) -> str:
     for f in args.term_file:
         cmd += ["--term-file", f]
     for opt, val in (("--serial", args.serial), ("--latitude", args.latitude),
-                     ("--height", args.height), ("--floor", args.floor)):  # fmt: skip
+                     ("--height", args.height), ("--floor", args.floor),
+                     ("--noise", getattr(args, "noise", None))):  # fmt: skip
         if val is not None:
             cmd += [opt, str(val)]
     return shlex.join(cmd)

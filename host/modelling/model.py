@@ -937,7 +937,8 @@ def _session_floor(
     moments of the turn records against the static record of the same face — every gyro
     channel and the accelerometer on the up axis, whose readings do not depend on the
     heading — and over static records of the same attitude, e.g. a repeated ``x_up_2``, every
-    channel) and a note saying where it came from."""
+    channel) and a note saying where it came from. (A slow effect that differs between the
+    two measurements, e.g. a drift, inflates it: a noise file, ``--noise``, does not.)"""
     diffs: dict[str, tuple[list[float], list[float]]] = {s: ([], []) for s in SENSORS}
 
     for sig in signals:

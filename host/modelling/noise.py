@@ -50,6 +50,7 @@ __all__ = [
     "plan",
     "plan_duration",
     "record_mean_floor",
+    "workbench_floor",
     "relative_precision",
     "thermal_drift",
 ]
@@ -248,6 +249,23 @@ def record_mean_floor(doc: Mapping[str, Any], duration_s: float) -> dict[str, fl
     return {
         name: float(np.sqrt(basis(tau) @ coef)[0]) for name, coef in model_from_dict(doc).items()
     }
+
+
+def workbench_floor(doc: Mapping[str, Any], duration_s: float) -> dict[str, float]:
+    """Per sensor ('accel' m/s², 'gyro' °/s) how far the mean of a ``duration_s`` s record
+    wanders in ways its own samples cannot show: the Allan variance of the noise model at
+    τ = ``duration_s`` without its white part (B²·2·ln2/π + K²·τ/3, :func:`allan.basis`),
+    the largest of the sensor's three channels. This is the workbench's ``--noise`` floor:
+    each record measures its white noise itself, so that part is not counted twice."""
+    if not duration_s > 0:
+        raise ValueError("duration_s must be positive")
+    row = basis(np.array([float(duration_s)]))[0]
+    row[0] = 0.0  # the white part: the record's own samples give it
+    out: dict[str, float] = {}
+    for name, coef in model_from_dict(doc).items():
+        s = sensor_of(name)
+        out[s] = max(out.get(s, 0.0), float(np.sqrt(max(float(row @ coef), 0.0))))
+    return out
 
 
 # --------------------------------------------------------------------------- display units

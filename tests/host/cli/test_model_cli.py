@@ -134,3 +134,44 @@ def test_plots_follow_measurement_order_with_one_scale(
     paths = write_plots(tmp_path / "p", ds, a.before, a.after, term)
     assert [p.name for p in paths] == ["compare_before.png", "compare_after.png", "suspect.png"]
     assert all(p.stat().st_size > 10_000 for p in paths)
+
+
+def _noise_doc(b_accel: float, b_gyro: float) -> dict:
+    """A noise file (format of ``noise --save``) with white noise, the given bias instability
+    B per sensor and no rate random walk; a different B on each axis of a sensor."""
+    chans = {}
+    for c in ("ax", "ay", "az", "gx", "gy", "gz"):
+        b = (b_accel if c[0] == "a" else b_gyro) * {"x": 0.5, "y": 1.0, "z": 0.75}[c[1]]
+        chans[c] = {
+            "white_noise_density": {"value": 0.01, "ci": [0.009, 0.011], "unit": "u"},
+            "bias_instability": {"value": b, "ci": [0.9 * b, 1.1 * b], "unit": "u"},
+            "rate_random_walk": {"value": 0.0, "ci": [0.0, 0.0], "unit": "u"},
+        }
+    return {"format": "imu-bench noise", "format_version": 1, "channels": chans}
+
+
+def test_noise_file_gives_the_floor(
+    temp_dir: tuple[Path, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--noise NOISE.json: the floor of a record mean is the Allan variance's slow part (the
+    bias instability, σ² = B²·2·ln2/π; the white part each record measures itself), the
+    largest axis of each sensor; --floor still overrides a sensor."""
+    import math
+
+    d, _ = temp_dir
+    f = tmp_path / "U7_noise.json"
+    f.write_text(json.dumps(_noise_doc(4e-4, 6e-3)))
+    assert main(["model", "diagnose", str(d), "--noise", str(f), "--json"]) == 0
+    notes = " ".join(json.loads(capsys.readouterr().out)["notes"])
+    k = math.sqrt(2 * math.log(2) / math.pi)
+    assert f"accel {4e-4 * k:.2g} m/s² (given)" in notes, notes
+    assert f"gyro {6e-3 * k:.2g} °/s (given)" in notes
+    argv = ["model", "diagnose", str(d), "--noise", str(f), "--floor", "gyro=0.02", "--json"]
+    assert main(argv) == 0
+    notes = " ".join(json.loads(capsys.readouterr().out)["notes"])
+    assert "gyro 0.02 °/s (given)" in notes and f"accel {4e-4 * k:.2g} m/s²" in notes
+    # a file that is not a noise file: one line, exit 2
+    bad = tmp_path / "bad.json"
+    bad.write_text("{}")
+    assert main(["model", "diagnose", str(d), "--noise", str(bad)]) == 2
+    assert "not a readable noise file" in capsys.readouterr().err
