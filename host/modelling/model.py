@@ -36,6 +36,7 @@ next step of issue 14.
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import inspect
 import math
@@ -883,6 +884,15 @@ class Dataset:
     def n_rows(self) -> int:
         return int(self.y.shape[0])
 
+    @functools.cached_property
+    def group_means_whitened(self) -> np.ndarray:
+        """(n_rows, groups) W⁻ᵀ·a for each group's mean a (:func:`residual_sigmas`), solved
+        once per dataset (W does not change between fits)."""
+        a = np.zeros((self.n_rows, len(self.groups)))
+        for k, gr in enumerate(self.groups):
+            a[gr.rows, k] = 1.0 / len(gr.rows)
+        return np.asarray(np.linalg.solve(self.whiten.T, a))
+
     def aggregator(self, record: int, sensor: str) -> np.ndarray:
         """(B, N) weights turning record ``record``'s samples into its rows of ``sensor``."""
         return self.sensor_aggregators.get((record, sensor), self.aggregators[record])
@@ -1723,10 +1733,7 @@ def residual_sigmas(ds: Dataset, basis: np.ndarray) -> np.ndarray:
     right: the measurement's σ less what the fit absorbed. Cov(r) = W⁻¹(I − QQᵀ)W⁻ᵀ with Q the
     orthonormal basis of the whitened design, so var(aᵀr) = ‖W⁻ᵀa‖² − ‖QᵀW⁻ᵀa‖²; 0 where the
     model has a parameter for that value alone (it is fitted exactly)."""
-    a = np.zeros((ds.n_rows, len(ds.groups)))
-    for k, gr in enumerate(ds.groups):
-        a[gr.rows, k] = 1.0 / len(gr.rows)
-    v = np.linalg.solve(ds.whiten.T, a)
+    v = ds.group_means_whitened
     var = np.sum(v * v, axis=0)
     if basis.shape[1]:
         var = var - np.sum((basis.T @ v) ** 2, axis=0)
