@@ -447,7 +447,9 @@ def run_demo(args: argparse.Namespace) -> int:
             write_session(out, "DEMO", dict(case.records))
             try_cmd = shlex.join(["python3", "-m", "host", "model", "diagnose", str(out)])
             print(f"records written to {out} (try: {try_cmd})")
-        o = run_case(case)
+        # the unit's noise known, as from a noise file (--noise): the floor does not carry
+        # the hidden effect the way the session's repeated attitudes would
+        o = run_case(case, case.known_noise())
         print(format_diagnosis(o.diagnosis, compare=False, max_candidates=6))
         if o.addition is not None:
             print("-- " + ("adding the hidden term" if case.term else "adding the top candidate"))

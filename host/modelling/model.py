@@ -784,7 +784,9 @@ def repeat_floor(
     A bias that follows time or temperature is an effect for the model to find, not noise:
     with ``channel`` (K,) ids and ``explain`` (K, m) the differences of those signals (elapsed
     time, temperature change), each channel's d is first regressed on them (dof = K − the
-    columns used). None without any difference left (then nothing measures the floor)."""
+    columns used). None without any difference left (then nothing measures the floor). A
+    floor the differences cannot resolve (f² below its standard error) is given as that
+    bound, not as 0."""
     d = np.asarray(differences, dtype=np.float64)
     w = np.asarray(white_var, dtype=np.float64)
     if d.size == 0:
@@ -804,7 +806,11 @@ def repeat_floor(
     dof = d.size - used
     if dof <= 0:
         return None
-    return math.sqrt(max(0.0, float(np.sum(resid * resid - w)) / (2.0 * dof)))
+    f2 = float(np.sum(resid * resid - w)) / (2.0 * dof)
+    # its standard error with no wander (var d² = 2·w²): a floor below it is not resolved by
+    # these repeats, and 0 would claim a precision the data do not have — take that bound
+    resolved = math.sqrt(float(np.sum(2.0 * w * w))) / (2.0 * dof)
+    return math.sqrt(max(f2, resolved))
 
 
 def _resolution(x: np.ndarray) -> float:
@@ -966,7 +972,12 @@ def _session_floor(
         for a, b in still_runs(sig.rate @ sig.up, sig.t_s, sd, trim_s=FLOOR_TRIM_S,
                                min_s=FLOOR_MIN_S):  # fmt: skip
             m = b - a
-            for s, axes in (("gyro", (0, 1, 2)), ("accel", (up_axis,))):
+            # back at the placement heading (a whole number of turns: the record's start and
+            # end) every accelerometer axis repeats the static attitude; elsewhere only the up
+            # axis does (a plate tilt moves the horizontal ones with the heading)
+            turned = float(np.mean(sig.heading_deg[a:b])) if sig.heading_deg is not None else 0.0
+            home = abs(turned - 360.0 * round(turned / 360.0)) < 5.0
+            for s, axes in (("gyro", (0, 1, 2)), ("accel", (0, 1, 2) if home else (up_axis,))):
                 for ax in axes:
                     var, tau = rec_noise[(match, s, ax)]
                     d = float(np.mean(sig.measured(s)[a:b, ax]) - np.mean(ref.measured(s)[:, ax]))

@@ -54,6 +54,15 @@ class HiddenCase:
     unit: str
     records: Mapping[str, Any]
     description: str
+    #: the unit's bias wander per sensor, m/s² and °/s: the RMS over the axes of its
+    #: Gauss-Markov bias instability (steady-state std) — what a noise file of this unit
+    #: gives the workbench (``--noise``), where the session's own repeated attitudes (the
+    #: default floor) also carry any slow effect that differs between them
+    known_floor: Mapping[str, float] = dataclasses.field(default_factory=dict)
+
+    def known_noise(self) -> NoiseModel:
+        """The noise model with :attr:`known_floor` (as ``--noise``/``--floor`` would give)."""
+        return NoiseModel(floor=dict(self.known_floor))
 
 
 def hidden_effect_case(
@@ -114,7 +123,11 @@ def hidden_effect_case(
     plan = Plan(static_s=static_s, gap_s=20.0, environment=env, warmup_s=warmup_s,
                 tilted=tilted_45() if tilted else ())  # fmt: skip
     records = simulate_session(truth_obj, plan, seed)
-    return HiddenCase(effect, term, truth, unit, records, EFFECTS[effect])
+    floor = {
+        s: float(np.sqrt(np.mean(np.square(getattr(truth_obj, f"{s}_bias_instability")))))
+        for s in ("accel", "gyro")
+    }
+    return HiddenCase(effect, term, truth, unit, records, EFFECTS[effect], floor)
 
 
 def case_dataset(case: HiddenCase, noise: NoiseModel | None = None) -> Dataset:

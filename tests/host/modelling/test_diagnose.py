@@ -31,8 +31,12 @@ REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example
 
 
 def _check_found(effect: str, seed: int, *, tilted: bool = False, alone: bool = True) -> None:
+    """The hidden term is named first and recommended; adding it takes RMS z down at least
+    3× to the noise. The floor is the unit's known bias wander (what ``--noise`` gives from a
+    noise file): a floor measured from the session's repeated attitudes also carries a slow
+    effect that differs between them (a drift), which would hide part of it."""
     case = hidden_effect_case(effect, seed, tilted=tilted)
-    out = run_case(case)
+    out = run_case(case, case.known_noise())
     d = out.diagnosis
     assert d.verdict == "missing_effect"
     first = d.candidates[0]
@@ -44,10 +48,8 @@ def _check_found(effect: str, seed: int, *, tilted: bool = False, alone: bool = 
     assert d.recommended_spec is not None and case.term in d.recommended_spec.split(",")
     a = out.addition
     assert a is not None
-    assert a.after.rms_z <= 1.6, a.after.rms_z
-    # the floor is measured from the session's repeated attitudes, which an effect that
-    # changes between them inflates: the χ² drop, not a fixed RMS z ratio, is the evidence
-    assert a.before.rms_z > a.after.rms_z
+    assert a.after.rms_z <= 1.5, a.after.rms_z
+    assert a.before.rms_z >= 3.0 * a.after.rms_z, (a.before.rms_z, a.after.rms_z)
     assert a.before.chi2 - a.after.chi2 > chi2_isf(1e-4, 1), (a.before.chi2, a.after.chi2)
     assert out.coefficient == pytest.approx(case.truth, rel=0.2)
 
@@ -68,7 +70,8 @@ def test_hidden_accel_scale_asymmetry_six_attitudes_is_confounded(seed: int) -> 
     """With only the six ±1 g faces asymmetry and quadratic nonlinearity move the record means
     identically: the confounded pair comes first, with what would separate them."""
     _check_found("asymmetry", seed, alone=False)
-    d = run_case(hidden_effect_case("asymmetry", seed)).diagnosis
+    case = hidden_effect_case("asymmetry", seed)
+    d = run_case(case, case.known_noise()).diagnosis
     first = d.candidates[0]
     pair = {first.term, *(c.split(":")[0] for c in first.confounded_with)}
     # on the six faces a face error of the two other pairs moves the bias estimates alike too
@@ -203,11 +206,17 @@ def test_real_imucal_recommended_terms_take_rms_z_down_3x_and_explain_the_biases
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_effect_outside_the_catalogue_is_unexplained_and_named(seed: int) -> None:
+@pytest.mark.parametrize("known_noise", [False, True])
+def test_effect_outside_the_catalogue_is_unexplained_and_named(
+    seed: int, known_noise: bool
+) -> None:
     """A gyro g²-sensitivity (not in the catalogue): verdict unexplained, the signal named on
-    the right channel, nothing recommended."""
+    the right channel, nothing recommended — with the floor measured from the session and
+    with the unit's known noise (``--noise``)."""
     case = hidden_effect_case("none", seed)
-    ds = build_dataset(session_from_records(_with_gyro_g2(dict(case.records), 0.03)))
+    noise = case.known_noise() if known_noise else None
+    recs = _with_gyro_g2(dict(case.records), 0.03)
+    ds = build_dataset(session_from_records(recs), noise=noise)
     d = diagnose(ds, parse_model("base"))
     assert d.verdict == "unexplained"
     assert d.recommended_spec is None and d.to_dict()["recommended"] is None
