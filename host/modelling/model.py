@@ -1946,8 +1946,8 @@ class Prediction:
     """Leave-one-record-out prediction error of a model (:func:`leave_one_out`): each record
     is predicted by the model fitted to all the others; ``rms_z`` = RMS over the predicted
     record/channel values of (measured − predicted)/σ, σ² = the measurement's variance + the
-    prediction's; ``n`` values predicted, ``skipped`` records the others cannot predict (they
-    alone determine some parameter)."""
+    prediction's; ``n`` values predicted, ``skipped`` records none of whose values the others
+    can predict (a value needing a parameter only its own record determines is left out)."""
 
     rms_z: float
     n: int
@@ -2004,8 +2004,7 @@ def leave_one_out(ds: Dataset, fit: Fit) -> Prediction:
             if np.any(a[~live] != 0.0) or float(np.linalg.norm(an @ null)) > 1e-6 * max(
                 float(np.linalg.norm(an)), 1e-300
             ):
-                rows_z = []  # the others do not determine what this record needs
-                break
+                continue  # the others do not determine what this value needs
             r = float(np.mean(y[gr.rows]) - a @ theta)
             var = gr.sigma**2 + float(a[cols] @ cov @ a[cols])
             rows_z.append(r / math.sqrt(var))
