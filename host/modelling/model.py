@@ -1249,6 +1249,8 @@ def build_dataset(
         whiten[idx[0], idx] = (1.0 / b) / math.sqrt(v_mean)
         turn = signals[ri].kind == "turn"  # still moments: their spread is the signal
         v_c = float(np.mean(v_blocks)) * (1.0 if turn else inflate.get((s, ax), 1.0))
+        if not v_c > 0.0:  # noise-free samples (with a given floor): the only scale there is
+            v_c = v_mean
         if b >= 2:
             # orthonormal Helmert contrasts of the b blocks
             for k in range(1, b):
