@@ -153,6 +153,12 @@ def add_live_arguments(p: argparse.ArgumentParser) -> None:
         help=f"warm-up wait before measuring, s (default {WARMUP_DEFAULT_S:g}; 0 skips)",
     )  # fmt: skip
     p.add_argument(
+        "--no-closing", action="store_true",
+        help="leave out the closing check (by default the session ends by measuring the first "
+        "attitude again, SERIAL_x_up_2.txt: its difference from the first shows the drift, "
+        "and the fit takes it as one more static record)",
+    )  # fmt: skip
+    p.add_argument(
         "--yes", action="store_true",
         help="non-interactive: every question gets its default (both stages, save every "
         "measurement); needs --serial and --static-seconds",

@@ -119,6 +119,9 @@ from host.errors import RecordCheckError, ResumableError, UserError, write_error
 from host.wire import sensor
 
 WARMUP_DEFAULT_S = 600.0
+#: the closing check: the first static attitude measured again at the end of the session
+#: (``--no-closing`` leaves it out); its difference from the opening shows the drift directly
+CLOSING_NAME = f"{STATIC_NAMES[0]}_2"
 DEFAULT_TURNS = 2
 #: more turns than this twist the USB cable (method.md §4)
 MAX_RECOMMENDED_TURNS = 3
@@ -213,6 +216,8 @@ class DialogueOptions:
     verify: str | None = None  # a directory of records to predict (held-out verification)
     floor: str | None = None  # --floor accel=A,gyro=G (None: measured from the records)
     thermal: str | None = None  # --thermal FILE|none (None: SERIAL_thermal.json if beside)
+    noise: str | None = None  # --noise NOISE.json (the floor from the unit's noise file)
+    closing: bool = True  # measure the first attitude again at the end (CLOSING_NAME)
 
     @classmethod
     def from_args(cls, args: argparse.Namespace | DialogueOptions) -> DialogueOptions:
@@ -246,6 +251,8 @@ class DialogueOptions:
             verify=get("verify"),
             floor=get("floor"),
             thermal=get("thermal"),
+            noise=get("noise"),
+            closing=not bool(get("no_closing", False)),
         )
 
     def check(self) -> None:
@@ -273,11 +280,11 @@ class DialogueOptions:
             raise UserError("--warmup must be 0 (skip) or a number of seconds")
         if self.ready_s is not None and (not math.isfinite(self.ready_s) or self.ready_s < 0):
             raise UserError("--ready-seconds must be 0 or more")
-        unknown = [n for n in self.redo if n not in STATIC_NAMES + TURN_NAMES]
+        names = (*STATIC_NAMES, *TURN_NAMES, CLOSING_NAME)
+        unknown = [n for n in self.redo if n not in names]
         if unknown:
             raise UserError(
-                f"--redo {unknown[0]}: not a record name; use one of "
-                + ", ".join(STATIC_NAMES + TURN_NAMES)
+                f"--redo {unknown[0]}: not a record name; use one of " + ", ".join(names)
             )
         if self.yes and self.serial is None:
             raise UserError("--yes needs --serial (the serial number is mandatory)")
@@ -340,6 +347,12 @@ class DialogueOptions:
             args += ["--term-file", f]
         if self.verify:
             args += ["--verify", self.verify]
+        for opt, val in (("--floor", self.floor), ("--thermal", self.thermal),
+                         ("--noise", self.noise)):  # fmt: skip
+            if val:
+                args += [opt, val]
+        if not self.closing:
+            args += ["--no-closing"]
         args += [a for a, on in (("--yes", self.yes), ("--json", self.json)) if on]
         return " ".join(shlex.quote(a) for a in [*args, *then])
 
@@ -490,7 +503,7 @@ class CalibrationDialogue:
 
     def _existing_names(self) -> list[str]:
         return [
-            n for n in STATIC_NAMES + TURN_NAMES
+            n for n in (*STATIC_NAMES, *TURN_NAMES, CLOSING_NAME)
             if record_path(self.out_dir, self.serial, n).exists()
         ]  # fmt: skip
 
@@ -542,6 +555,8 @@ class CalibrationDialogue:
             op.say("The six turns are already measured (--resume).")
         if do_turns and need_turn:
             self._stage2(need_turn)
+        if opts.closing and CLOSING_NAME not in self.done and STATIC_NAMES[0] in self.done:
+            self._closing_check()
         return self._results()
 
     def _connect(self) -> BoardInfo:
@@ -657,14 +672,39 @@ class CalibrationDialogue:
         for name in names:
             self._measure_static(name)
 
+    def _closing_check(self) -> None:
+        """The first attitude measured again (:data:`CLOSING_NAME`): the fit takes it as one
+        more static record; its difference from the opening measurement is the drift over the
+        session, shown here in the channels' units."""
+        first = STATIC_NAMES[0]
+        op = self.op
+        op.say(
+            f"Closing check: {first} once more (its difference from the first measurement "
+            "shows the drift over the session; --no-closing leaves it out)."
+        )
+        if self.static_seconds is None:
+            self.static_seconds = float(self.done[first].duration_s)
+        self._measure_static(CLOSING_NAME)
+        a, b = self.done[first], self.done[CLOSING_NAME]
+        sa, sb = record_stats(a), record_stats(b)
+        t = [float(r.meta.get("session_s", "nan")) for r in (a, b)]
+        gap = f" {(t[1] - t[0]) / 60:.1f} min later" if all(map(math.isfinite, t)) else ""
+        op.say(
+            f"Closing − opening{gap}: accel "
+            + " ".join(f"{v:+.4f}" for v in sb.accel_mean - sa.accel_mean)
+            + " m/s², gyro "
+            + " ".join(f"{v:+.4f}" for v in sb.gyro_mean - sa.gyro_mean)
+            + " °/s (x y z)"
+        )
+
     def _measure_static(self, name: str) -> None:
         op = self.op
-        axis, side = name.split("_")
+        axis, side = name.split("_")[:2]  # x_up_2: the attitude x_up again
         assert self.static_seconds is not None
         attempts = 0
         while True:
             attempts += 1
-            self.board.hint("place", name=name)
+            self.board.hint("place", name=f"{axis}_{side}")
             where = "up" if side == "up" else "down"
             op.any_key(f"Put the cube on the base with {AXIS_WORDS[axis]} {where}. Press any key.")
             acq = self._acquire(name, self.static_seconds, "Measuring")
@@ -995,6 +1035,7 @@ class CalibrationDialogue:
             floor=self.opts.floor,
             verify=self.opts.verify,
             thermal=self.opts.thermal,
+            noise_file=self.opts.noise,
         )
         try:
             pub = compute_and_write(session, self.out_dir, settings, note=op.say)

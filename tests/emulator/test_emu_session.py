@@ -103,7 +103,7 @@ def test_full_calibration_recovers_the_simulator_truth(tmp_path: Path, fw_elf: P
     for group, (ratio, name) in worst.items():
         assert ratio < 1.0, (group, name, ratio)
     out = tmp_path / "E1"
-    for name in STATIC_NAMES + TURN_NAMES:
+    for name in (*STATIC_NAMES, *TURN_NAMES, "x_up_2"):  # the closing check last
         rec = read_record(out / f"E1_{name}.txt")
         m = rec.meta
         assert m["lost_frames"] == "0" and m["missed_samples"] == "0", name
@@ -183,7 +183,7 @@ def test_emulator_killed_and_paused_mid_measurement(tmp_path: Path, fw_elf: Path
     out = tmp_path / "S1"
     for name, data in events["kept"].items():
         assert (out / f"S1_{name}.txt").read_bytes() == data  # not measured again
-    assert len(list(out.glob("S1_*_*.txt"))) == 12
+    assert len(list(out.glob("S1_*_*.txt"))) == 13  # with the closing check (x_up_2)
     # the sensor did not change with the emulator: the constants are still the truth's
     worst = truth_errors(url, json.loads(stdout)["constants"])
     print("worst error / tolerance per group:", worst)

@@ -28,6 +28,9 @@ from host.dialogue.console import CTRL_C, ESC, ScriptedConsole
 from host.errors import UserError
 from host.wire import protocol_gen as gen
 
+#: every record a default session writes, in the order measured: the closing check last
+ALL = (*STATIC_NAMES, *TURN_NAMES, live.CLOSING_NAME)
+
 LINEAR = "speed=max&effects=linear,noise&earth_rate=0"
 
 
@@ -84,15 +87,15 @@ def test_yes_session_writes_every_file(yes_session: dict[str, Any]) -> None:
     out: Path = yes_session["out"]
     names = sorted(p.name for p in out.iterdir())
     expected = sorted(
-        [f"S1_{n}.txt" for n in STATIC_NAMES + TURN_NAMES]
-        + ["S1_result.txt", "S1_result.json", "S1_session.cap"]
+        [f"S1_{n}.txt" for n in ALL] + ["S1_result.txt", "S1_result.json", "S1_session.cap"]
     )
     assert names == expected
     assert yes_session["rc"] == 0
     assert no_temp_files(out)
-    # --json: the result object on stdout, nothing else
+    # --json: the result object on stdout, nothing else; the closing check is one more
+    # static record of the fit
     d = json.loads(yes_session["stdout"])
-    assert d["serial"] == "S1" and d["turns"] == 2 and len(d["records"]) == 12
+    assert d["serial"] == "S1" and d["turns"] == 2 and len(d["records"]) == 13
     # a virtual board never passes for a unit: the JSON, the report's second line and every
     # record's header say so
     assert d["notes"][0].startswith("SIMULATED BOARD sim://")
@@ -108,7 +111,7 @@ def test_yes_session_writes_every_file(yes_session: dict[str, Any]) -> None:
         f"Verdict: {last.split('; report')[0]} (RESULT below)"
     ]
     assert report[1].startswith("*** SIMULATED BOARD sim://")
-    for name in STATIC_NAMES + TURN_NAMES:
+    for name in ALL:
         assert read_record(out / f"S1_{name}.txt").meta["board"].startswith("SIMULATED BOARD sim")
 
 
@@ -161,7 +164,8 @@ def test_yes_session_capture_decodes_to_the_same_samples(yes_session: dict[str, 
 
 def test_yes_session_hints_follow_the_dialogue(yes_session: dict[str, Any]) -> None:
     hints = [(a, kw) for _, a, kw in yes_session["ports"].sim.hints]
-    assert [kw["name"] for a, kw in hints if a == "place"] == list(STATIC_NAMES)
+    # the closing check puts the cube back on the first attitude
+    assert [kw["name"] for a, kw in hints if a == "place"] == [*STATIC_NAMES, STATIC_NAMES[0]]
     turns = [kw for a, kw in hints if a == "turn"]
     assert [(t["axis"], t["direction"]) for t in turns] == [
         (n.split("_")[0], n.split("_")[1]) for n in TURN_NAMES
@@ -177,7 +181,7 @@ def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> 
 
     out: Path = yes_session["out"]
     hint_t = [t for t, a, _ in yes_session["ports"].sim.hints if a in ("place", "turn")]
-    names = list(STATIC_NAMES) + list(TURN_NAMES)
+    names = list(ALL)
     starts = [float(read_record(out / f"S1_{n}.txt").meta["power_on_s"]) for n in names]
     session = [float(read_record(out / f"S1_{n}.txt").meta["session_s"]) for n in names]
     assert len(hint_t) == len(names)
@@ -187,7 +191,7 @@ def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> 
     ds = load_dataset(out)
     assert ds.time_known
     t_end = max(float(s.t_s[-1]) for s in ds.signals)
-    assert abs(t_end - (starts[-1] + 12.0)) < 0.5
+    assert abs(t_end - (starts[-1] + 10.0)) < 0.5  # the closing check: a 10 s static
     # time_drift on the records alone (no simulator metadata in them): identifiable
     from host.modelling.diagnose import evaluate_candidates
     from host.modelling.model import fit_model, parse_model
@@ -196,6 +200,24 @@ def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> 
     cands, _ = evaluate_candidates(ds, fit_model(ds, parse_model("base")))
     drift = [c for c in cands if c.term == "time_drift"]
     assert len(drift) == 6 and all(c.identifiable for c in drift), [c.reason for c in drift]
+    # the closing check repeats the first attitude at the end: what it adds is drift
+    # information — without it the gyro drift is less well determined
+    without = load_dataset_without(out, live.CLOSING_NAME)
+    c2, _ = evaluate_candidates(without, fit_model(without, parse_model("base")))
+    se = {c.label: c.stderr for c in drift}
+    se2 = {c.label: c.stderr for c in c2 if c.term == "time_drift"}
+    assert all(se[k] < se2[k] for k in se if k.startswith("time_drift:gyro")), (se, se2)
+    # and the dialogue showed closing − opening
+    assert "Closing − opening" in yes_session["con"].text
+
+
+def load_dataset_without(directory: Path, name: str) -> Any:
+    """The dataset of ``directory``'s session without record ``name``."""
+    from host.calib.records import Session
+    from host.modelling.model import build_dataset
+
+    s = read_session(directory)
+    return build_dataset(Session(s.serial, {k: v for k, v in s.records.items() if k != name}))
 
 
 # --------------------------------------------------------------------------- scripted dialogue
@@ -208,7 +230,8 @@ def test_scripted_dialogue_validates_and_repeats(
     keys = ["bad serial!\r", "S7\r", "y", "abc\r", "0.5\r", "3\r"]
     keys += [" ", "n", " ", "y"]  # x_up: repeat once, then save
     keys += [" ", "y"] * 5  # the other five statics
-    keys += ["n"]  # no turns: results
+    keys += ["n"]  # no turns
+    keys += [" ", "y"]  # the closing check (x_up again), saved; then the results
     con = ScriptedConsole(keys)
     ports = Ports()
     o = opts(tmp_path, f"sim://?seed=5&{LINEAR}", serial=None, out=None, static_seconds=None,
@@ -219,12 +242,13 @@ def test_scripted_dialogue_validates_and_repeats(
     assert "serial number 'bad serial!' (not allowed: ' ' '!')" in text
     assert "give the accumulation time in seconds" in text
     assert "between 1 and 3600" in text
-    assert text.count("Measuring x_up") == 2 and text.count("Measuring x_dn") == 1
+    assert text.count("Measuring x_up:") == 2 and text.count("Measuring x_dn") == 1
+    assert text.count(f"Measuring {live.CLOSING_NAME}:") == 1
     assert "Stage 1 constants" in text
     # the default output directory is ./SERIAL/
     out = tmp_path / "S7"
     assert sorted(p.name for p in out.glob("S7_*.txt")) == sorted(
-        [f"S7_{n}.txt" for n in STATIC_NAMES] + ["S7_result.txt"]
+        [f"S7_{n}.txt" for n in (*STATIC_NAMES, live.CLOSING_NAME)] + ["S7_result.txt"]
     )
     assert "TEST REPORT" in stdout and "serial No. S7" in stdout
     # gyro scale was not measured (no turns): the unit fails, exit status 1
@@ -234,8 +258,8 @@ def test_scripted_dialogue_validates_and_repeats(
     assert float(shown) == pytest.approx(read_record(out / "S7_x_up.txt").accel[:, 0].mean(),
                                          abs=1e-4)  # fmt: skip
     places = [kw["name"] for _, a, kw in ports.sim.hints if a == "place"]
-    assert places == ["x_up", "x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn"]
-    assert con.beeps >= 14  # start and end of each of the 7 measurements
+    assert places == ["x_up", "x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn", "x_up"]
+    assert con.beeps >= 16  # start and end of each of the 8 measurements
 
 
 def test_esc_aborts_one_measurement_and_ctrl_c_keeps_accepted(tmp_path: Path) -> None:
@@ -267,12 +291,12 @@ def test_resume_measures_only_the_missing_records(tmp_path: Path) -> None:
     rc, _ = run(opts(tmp_path, url, static_seconds=3.0, turns=1, resume=True), con2, ports)
     assert rc in (0, 1)
     assert "Resuming: kept x_up, x_dn" in con2.text
-    assert "Measuring x_up" not in con2.text and "Measuring y_up" in con2.text
+    assert "Measuring x_up:" not in con2.text and "Measuring y_up" in con2.text
     places = [kw["name"] for _, a, kw in ports.sim.hints if a == "place"]
-    assert places == ["y_up", "y_dn", "z_up", "z_dn"]
+    assert places == ["y_up", "y_dn", "z_up", "z_dn", "x_up"]  # ... and the closing check
     for name, data in before.items():
         assert (out / name).read_bytes() == data
-    assert len(list(out.glob("S1_*_*.txt"))) == 12 and (out / "S1_result.json").exists()
+    assert len(list(out.glob("S1_*_*.txt"))) == 13 and (out / "S1_result.json").exists()
     # the first session's capture is kept; the resumed one gets its own file
     assert (out / "S1_session.cap").exists() and (out / "S1_session_2.cap").exists()
 
@@ -304,10 +328,12 @@ def test_board_vanishing_mid_measurement(tmp_path: Path) -> None:
     assert saved_before, "the cable should come out after some record was accepted"
     cut = STATIC_NAMES[len(saved_before)]  # the measurement the cable interrupted
     places = [kw["name"] for _, a, kw in ports.sim.hints if a == "place"]
+    assert places[-1] == STATIC_NAMES[0]  # the closing check, last
+    places = places[:-1]
     assert places.count(cut) == 2  # measured again after the reconnect
     assert all(places.count(n) == 1 for n in saved_before)  # accepted ones kept, not redone
     out = tmp_path / "S1"
-    assert len(list(out.glob("S1_*_*.txt"))) == 12
+    assert len(list(out.glob("S1_*_*.txt"))) == 13
     assert read_record(out / f"S1_{cut}.txt").duration_s > 9.9
 
 
@@ -439,7 +465,7 @@ def test_silent_board_mid_session_is_reported_and_recovered(tmp_path: Path) -> N
     assert rc in (0, 1)
     assert len(seen) == 1 and 1.9 < seen[0] < 3.0  # the message within ~2 s of the silence
     assert "The board is back" in con.text
-    assert len(list((tmp_path / "S1").glob("S1_*_*.txt"))) == 12
+    assert len(list((tmp_path / "S1").glob("S1_*_*.txt"))) == 13  # with the closing check
 
 
 # --------------------------------------------------------------------------- pieces
@@ -531,12 +557,9 @@ def test_emulated_board(tmp_path: Path) -> None:
     rc, stdout = run(opts(tmp_path, "emu://", static_seconds=2.0, turns=1, json=True,
                           hello_timeout_s=30.0), ScriptedConsole(), Ports())  # fmt: skip
     assert rc in (0, 1)
-    assert len(json.loads(stdout)["records"]) == 12
+    assert len(json.loads(stdout)["records"]) == 13
     # session time from the firmware's own clock, in measurement order
-    starts = [
-        float(read_record(tmp_path / "S1" / f"S1_{n}.txt").meta["power_on_s"])
-        for n in STATIC_NAMES + TURN_NAMES
-    ]
+    starts = [float(read_record(tmp_path / "S1" / f"S1_{n}.txt").meta["power_on_s"]) for n in ALL]
     assert np.all(np.diff(starts) > 1.9), starts
 
 
@@ -643,3 +666,21 @@ def test_measurement_is_cut_on_device_time_not_on_reads(chunk: int) -> None:
             assert acq.lost == 0 and np.all(np.diff(acq.t_us) > 0)
     finally:
         board.close()
+
+
+def test_no_closing_leaves_the_closing_check_out(tmp_path: Path) -> None:
+    """--no-closing: no x_up_2, no closing prompt; the printed resume command keeps it."""
+    url = f"sim://?seed=13&{LINEAR}"
+    con = ScriptedConsole()
+    rc, _ = run(opts(tmp_path, url, static_seconds=2.0, turns=1, closing=False), con, Ports())
+    assert rc in (0, 1)
+    out = tmp_path / "S1"
+    assert sorted(p.stem.removeprefix("S1_") for p in out.glob("S1_*_*.txt")) == sorted(
+        (*STATIC_NAMES, *TURN_NAMES)
+    )
+    assert "Closing check" not in con.text
+    o = opts(tmp_path, url, closing=False)
+    assert "--no-closing" in o.command("S1", static_seconds=2.0, turns=1, port=url)
+    assert "--no-closing" not in opts(tmp_path, url).command(
+        "S1", static_seconds=2.0, turns=1, port=url
+    )

@@ -251,11 +251,20 @@ def test_interactive_session_with_a_repeat(
         s.expect(r"Save <Y> or repeat <N>\?")
         s.send("y")
         s.expect(rf"Saved .*P1_{name}\.txt")
+    # the closing check: X up once more, and the drift it shows
+    s.expect(r"Closing check: x_up once more")
+    s.expect(r"Put the cube on the base with X up\. Press any key\.")
+    s.send(" ")
+    s.expect(r"Measuring x_up_2")
+    s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
+    s.send("y")
+    s.expect(r"Saved .*P1_x_up_2\.txt")
+    s.expect(r"Closing − opening [0-9.]+ min later: accel .* m/s², gyro .* °/s \(x y z\)")
     s.expect(r"TEST REPORT, IMU MPU-6000, serial No\. P1")
     assert s.wait() in (0, 1)
     out = tmp_path / "P1"  # the default output directory
     assert (out / "P1_result.txt").exists() and (out / "P1_result.json").exists()
-    assert s.text.count("Measuring x_up") == 2
+    assert s.text.count("Measuring x_up:") == 2
     saved = read_record(out / "P1_x_up.txt")
     assert saved.accel[:, 0].mean() == pytest.approx(shown["x_up"], abs=1e-4)
     assert abs(shown["x_up"] - 9.81) < 0.3  # what was shown and saved: +g on X
@@ -364,12 +373,14 @@ def test_ctrl_c_during_a_measurement_then_resume(
     assert proc.returncode in (0, 1), proc.stderr[-2000:]
     assert "Resuming: kept x_up, x_dn" in proc.stderr
     measured = re.findall(r"(?:Measuring|Turn now!) (\w+):", proc.stderr)
-    assert measured == ["y_up", "y_dn", "z_up", "z_dn", *TURN_NAMES]
+    assert measured == ["y_up", "y_dn", "z_up", "z_dn", *TURN_NAMES, "x_up_2"]
     for n, data in kept.items():
         assert (out / f"C1_{n}.txt").read_bytes() == data
     import json
 
-    assert sorted(json.loads(proc.stdout)["records"]) == sorted(STATIC_NAMES + TURN_NAMES)
+    assert sorted(json.loads(proc.stdout)["records"]) == sorted(
+        [*STATIC_NAMES, *TURN_NAMES, "x_up_2"]
+    )
     assert leftovers(out) == []
 
 

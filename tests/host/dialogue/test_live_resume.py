@@ -149,7 +149,7 @@ def test_redo_measures_one_record_again_and_keeps_the_others(tmp_path: Path) -> 
     assert run(opts(tmp_path, url), ScriptedConsole(), Ports())[0] in (0, 1)
     out = tmp_path / "F1"
     before = {p.name: p.read_bytes() for p in out.glob("F1_*_*.txt")}
-    assert len(before) == 12
+    assert len(before) == 13  # with the closing check, kept like the others
     con = ScriptedConsole()
     rc, stdout = run(opts(tmp_path, url, redo=("y_cw",)), con, Ports())
     assert rc in (0, 1) and "TEST REPORT" in stdout
@@ -172,6 +172,7 @@ def test_a_turn_kept_despite_its_warning_ends_with_the_record_to_redo(tmp_path: 
     keys += ["y"]  # on to the turns
     keys += [" ", "n"]  # x_ccw incomplete: save anyway
     keys += [" ", "y"] * 5
+    keys += [" ", "y"]  # the closing check (x_up again)
     url = f"sim://?seed=12&{LINEAR}&operator_fault=incomplete_turn@1"
     con = ScriptedConsole(keys)
     with pytest.raises(UserError) as e:
