@@ -12,6 +12,10 @@ full scales HELLO reported (:mod:`host.wire.sensor`).
 
 The dialogue that asks the operator (:mod:`host.dialogue.live`) drives a Board; nothing here
 talks to the operator.
+
+Length (over 600 lines): one driver — connection and reconnects, HELLO and the sensor's
+identity (PRODUCT_ID scales the accelerometer), the live clock, and the acquisition cut on
+device time share the Board's state; splitting them would pass that state between modules.
 """
 
 from __future__ import annotations
