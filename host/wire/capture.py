@@ -84,14 +84,7 @@ def read_capture_bytes(path: str | os.PathLike[str], limit: int = MAX_CAPTURE_BY
     ``/dev/zero`` never ends; opening a FIFO blocks until a writer comes), a directory, a file
     above ``limit`` bytes. UserError naming the file and what to do."""
     p = Path(path)
-    try:
-        st = p.stat()  # stat never blocks, opening a FIFO does
-    except FileNotFoundError:
-        raise UserError(f"{p}: no such file; give the path of a capture") from None
-    except OSError as exc:
-        raise UserError(f"{p}: cannot read ({exc.strerror or exc})") from None
-    if stat.S_ISDIR(st.st_mode):
-        raise UserError(f"{p}: is a directory; give the path of a capture file")
+    st = _stat_capture(p)
     if not stat.S_ISREG(st.st_mode):
         raise UserError(
             f"{p}: not a regular file (a device or a pipe); to record a port use "
@@ -110,11 +103,9 @@ def read_capture_bytes(path: str | os.PathLike[str], limit: int = MAX_CAPTURE_BY
         raise UserError(f"{p}: cannot read ({exc.strerror or exc})") from None
 
 
-def open_stream(path: str | os.PathLike[str]) -> BinaryIO:
-    """Open a capture to read as a stream: a file of any size, a FIFO (opening waits for its
-    writer), a device (read until it ends). UserError naming the path when it is missing, a
-    directory or unreadable."""
-    p = Path(path)
+def _stat_capture(p: Path) -> os.stat_result:
+    """``p``'s status (stat never blocks, opening a FIFO does); UserError when it is missing,
+    unreadable or a directory."""
     try:
         st = p.stat()
     except FileNotFoundError:
@@ -123,6 +114,15 @@ def open_stream(path: str | os.PathLike[str]) -> BinaryIO:
         raise UserError(f"{p}: cannot read ({exc.strerror or exc})") from None
     if stat.S_ISDIR(st.st_mode):
         raise UserError(f"{p}: is a directory; give the path of a capture file")
+    return st
+
+
+def open_stream(path: str | os.PathLike[str]) -> BinaryIO:
+    """Open a capture to read as a stream: a file of any size, a FIFO (opening waits for its
+    writer), a device (read until it ends). UserError naming the path when it is missing, a
+    directory or unreadable."""
+    p = Path(path)
+    _stat_capture(p)
     try:
         return open(p, "rb", buffering=0)  # noqa: SIM115 - the caller closes it
     except OSError as exc:
