@@ -9,20 +9,16 @@ import os
 import re
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from host.__main__ import main
-from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
 from host.calib.records import RecordError, read_record, read_session
+from tests.host.sim_sessions import write_sim_session
 
 
 @pytest.fixture(scope="module")
 def session_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    d = tmp_path_factory.mktemp("recs") / "R1"
-    truth = SensorTruth.random(np.random.default_rng(9))
-    write_session(d, "R1", simulate_session(truth, Plan(static_s=5.0, turns=2, warmup_s=0), 9))
-    return d
+    return write_sim_session(tmp_path_factory.mktemp("recs") / "R1", "R1", seed=9, turns=2)
 
 
 def copy_of(session_dir: Path, tmp_path: Path) -> Path:

@@ -7,21 +7,17 @@ import io
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
 from host.calib.publish import ComputeSettings, compute_and_write, parse_floor, show_result
 from host.calib.records import read_session
 from host.errors import UserError
+from tests.host.sim_sessions import write_sim_session
 
 
 @pytest.fixture(scope="module")
 def records_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    d = tmp_path_factory.mktemp("publish") / "Q7"
-    truth = SensorTruth.random(np.random.default_rng(9))
-    write_session(d, "Q7", simulate_session(truth, Plan(static_s=5.0, turns=1, warmup_s=0), 9))
-    return d
+    return write_sim_session(tmp_path_factory.mktemp("publish") / "Q7", "Q7", seed=9)
 
 
 def test_the_floor_option_reads_each_sensor_apart() -> None:

@@ -11,19 +11,15 @@ import os
 from collections.abc import Iterator
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from host.__main__ import main
-from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
+from tests.host.sim_sessions import write_sim_session
 
 
 @pytest.fixture(scope="module")
 def records_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    d = tmp_path_factory.mktemp("pub") / "P1"
-    truth = SensorTruth.random(np.random.default_rng(5))
-    write_session(d, "P1", simulate_session(truth, Plan(static_s=5.0, turns=1, warmup_s=0), 5))
-    return d
+    return write_sim_session(tmp_path_factory.mktemp("pub") / "P1", "P1", seed=5)
 
 
 def calibrate(d: Path, out: Path, latitude: float, capsys: pytest.CaptureFixture[str]) -> tuple:

@@ -16,15 +16,14 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from host.__main__ import main
-from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
 from host.wire.capture import MAGIC
 from host.wire.frames import _envelope, encode_frame
+from tests.host.sim_sessions import write_sim_session
 
 SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
 #: per example, s (generous: the machine is shared); the property is "bounded", not "fast"
@@ -99,10 +98,7 @@ def session_dir() -> Path:
     """One simulated session's record files (made once; examples copy it)."""
     if "dir" not in _SESSION:
         d = Path(tempfile.mkdtemp(prefix="cliprop_")) / "Q1"
-        truth = SensorTruth.random(np.random.default_rng(4))
-        recs = simulate_session(truth, Plan(static_s=3.0, turns=1, warmup_s=0), 4)
-        write_session(d, "Q1", recs)
-        _SESSION["dir"] = d
+        _SESSION["dir"] = write_sim_session(d, "Q1", seed=4, static_s=3.0)
     return _SESSION["dir"]
 
 

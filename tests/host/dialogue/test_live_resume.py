@@ -15,41 +15,18 @@ from typing import Any
 import numpy as np
 import pytest
 
-from host.board.link import open_port
 from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record
 from host.dialogue import live
 from host.dialogue.console import CTRL_C, ScriptedConsole
 from host.errors import UserError
-
-LINEAR = "speed=max&effects=linear,noise&earth_rate=0"
-
-
-class Ports:
-    """port_factory that counts the ports it opened."""
-
-    def __init__(self) -> None:
-        self.opened: list[Any] = []
-
-    def __call__(self, url: str) -> Any:
-        p = open_port(url)
-        self.opened.append(p)
-        return p
+from tests.host.dialogue.test_live import LINEAR, Ports, run
+from tests.host.dialogue.test_live import opts as live_opts
 
 
 def opts(tmp_path: Path, url: str, **kw: Any) -> live.SessionOptions:
-    base: dict[str, Any] = dict(
-        port=url, serial="F1", out=tmp_path / "F1", static_seconds=2.0, turns=1,
-        warmup_s=0.0, yes=True, ready_s=0.0,
-    )  # fmt: skip
-    base.update(kw)
-    return live.SessionOptions(**base)
-
-
-def run(o: live.SessionOptions, console: ScriptedConsole, ports: Any) -> tuple[int, str]:
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out):
-        rc = live.run_live_session(o, console, ports)
-    return rc, out.getvalue()
+    """test_live's options for unit F1: 2 s statics, one turn each way."""
+    short: dict[str, Any] = dict(serial="F1", out=tmp_path / "F1", static_seconds=2.0, turns=1)
+    return live_opts(tmp_path, url, **{**short, **kw})
 
 
 def options_of(command: str) -> live.SessionOptions:

@@ -6,19 +6,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from host.__main__ import main
-from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
+from tests.host.sim_sessions import write_sim_session
 
 
 @pytest.fixture(scope="module")
 def records_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    d = tmp_path_factory.mktemp("terms")
-    truth = SensorTruth.random(np.random.default_rng(8))
-    write_session(d, "T8", simulate_session(truth, Plan(static_s=5.0, turns=1, warmup_s=0), 8))
-    return d
+    return write_sim_session(tmp_path_factory.mktemp("terms"), "T8", seed=8)
 
 
 TERM = (
