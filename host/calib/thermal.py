@@ -307,6 +307,17 @@ def fit_wander(
     return out
 
 
+def change_from_reference(coef: tuple[float, ...], temp_c: np.ndarray, t_ref: float) -> np.ndarray:
+    """Σ_j c_j·(T − T_ref)^j for j = 1…len(coef) at ``temp_c`` (°C): the change from the value
+    at T_ref, in the unit of the coefficients times °C^j (the module's polynomial model of
+    method.md §8, without its constant term)."""
+    d = np.asarray(temp_c, dtype=np.float64) - t_ref
+    out = np.zeros_like(d)
+    for j, c in enumerate(coef, start=1):
+        out += c * d**j
+    return out
+
+
 @dataclass(frozen=True)
 class ChannelThermal:
     """bias(T) − bias(T_ref) of one channel: ``coef`` c_1..c_k (unit/°C^j), ``cov`` their
@@ -331,19 +342,11 @@ class ChannelThermal:
 
     def scale_delta(self, temp_c: np.ndarray, t_ref: float) -> np.ndarray:
         """Relative scale change at ``temp_c`` (°C) from T_ref (dimensionless)."""
-        d = np.asarray(temp_c, dtype=np.float64) - t_ref
-        out = np.zeros_like(d)
-        for j, c in enumerate(self.scale_coef, start=1):
-            out += c * d**j
-        return out
+        return change_from_reference(self.scale_coef, temp_c, t_ref)
 
     def delta(self, temp_c: np.ndarray, t_ref: float) -> np.ndarray:
         """Bias change at ``temp_c`` (°C) from T_ref, channel unit."""
-        d = np.asarray(temp_c, dtype=np.float64) - t_ref
-        out = np.zeros_like(d)
-        for j, c in enumerate(self.coef, start=1):
-            out += c * d**j
-        return out
+        return change_from_reference(self.coef, temp_c, t_ref)
 
     def band(self, temp_c: np.ndarray, t_ref: float) -> np.ndarray:
         """Half-width of the simultaneous 95 % band of :meth:`delta` at ``temp_c`` (channel
