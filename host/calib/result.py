@@ -478,6 +478,27 @@ def base_parameters(
     return tuple(out)
 
 
+def _poly_parameters(
+    term: Term, sensor: str, ax: int, coef: np.ndarray, cov: np.ndarray
+) -> list[ParameterResult]:
+    """c_1 … c_k of one channel's polynomial in temperature as parameters of ``term``, each
+    with its 1-σ error from the diagonal of ``cov``."""
+    labels, units = term.param_labels(sensor, ax), term.param_units(sensor)
+    return [
+        ParameterResult(
+            term.name,
+            sensor,
+            AXES[ax],
+            term.params[i],
+            labels[i],
+            float(coef[i]),
+            math.sqrt(max(float(cov[i, i]), 0.0)),
+            units[i],
+        )  # fmt: skip
+        for i in range(len(coef))
+    ]
+
+
 def thermal_parameters(cal: ThermalCalibration, t_ref_c: float) -> tuple[ParameterResult, ...]:
     """The bias(T) of a thermal calibration as parameters of the term ``thermal_bias`` about
     ``t_ref_c`` (°C, the result's ``temp_mean_c``): c_1 … c_k of each channel with order k ≥ 1
@@ -492,12 +513,7 @@ def thermal_parameters(cal: ThermalCalibration, t_ref_c: float) -> tuple[Paramet
             if ch.scale_order > len(ts.params):
                 raise UserError(f"{name}: scale(T) of order {ch.scale_order} is not carried")
             c, cov = recentre_poly(ch.scale_coef, ch.scale_cov, cal.t_ref_c, t_ref_c)
-            labels, units = ts.param_labels(sensor, ax), ts.param_units(sensor)
-            for i in range(ch.scale_order):
-                out.append(ParameterResult(
-                    ts.name, sensor, AXES[ax], ts.params[i], labels[i], float(c[i]),
-                    math.sqrt(max(float(cov[i, i]), 0.0)), units[i],
-                ))  # fmt: skip
+            out += _poly_parameters(ts, sensor, ax, c[: ch.scale_order], cov)
         if not ch.order:
             continue
         if ch.order > len(t.params):
@@ -506,12 +522,7 @@ def thermal_parameters(cal: ThermalCalibration, t_ref_c: float) -> tuple[Paramet
                 f"{len(t.params)}: refit with python -m host thermal --max-order {len(t.params)}"
             )
         c, cov = recentred(ch, cal.t_ref_c, t_ref_c)
-        labels, units = t.param_labels(sensor, ax), t.param_units(sensor)
-        for i in range(ch.order):
-            out.append(ParameterResult(
-                t.name, sensor, AXES[ax], t.params[i], labels[i], float(c[i]),
-                math.sqrt(max(float(cov[i, i]), 0.0)), units[i],
-            ))  # fmt: skip
+        out += _poly_parameters(t, sensor, ax, c[: ch.order], cov)
     return tuple(out)
 
 
