@@ -503,6 +503,10 @@ class SimStimulus:
     the host's point of view, at most one horizon after the emulated time. :meth:`emulated_s`
     (a lower bound of the emulator's time, from the pipe's fill level) and
     :meth:`wait_emulated` tell when the emulator has got past a time.
+
+    :meth:`hold_at` stops the records at a time until :meth:`release`: the emulator then waits
+    there (its time stands still), however long the host takes — so where the host's next
+    command lands in emulated time does not depend on how fast the host is.
     """
 
     def __init__(
@@ -530,6 +534,8 @@ class SimStimulus:
         self._written = 0  # records written into the pipe
         self._t_first: float | None = None
         self._stop = threading.Event()
+        self._hold_s: float | None = None  # no record at or beyond this time until release()
+        self._released = threading.Event()
         self._thread: threading.Thread | None = None
         self._wall0 = time.monotonic()
         with contextlib.suppress(OSError, AttributeError):
@@ -602,6 +608,26 @@ class SimStimulus:
     def request_stop(self) -> None:
         """Ask the writer to end at its next chunk (without waiting)."""
         self._stop.set()
+        self._released.set()
+
+    def hold_at(self, t_s: float) -> None:
+        """Write no record later than ``t_s`` (s since the emulator started) until
+        :meth:`release`: the emulator stops there (≈ one record period before ``t_s``) and waits,
+        whatever the wall clock does. A later call moves the hold."""
+        with self.lock:
+            self._hold_s = float(t_s)
+            self._released.clear()
+
+    def release(self) -> None:
+        """End a :meth:`hold_at`: the records (and the emulated time) go on."""
+        with self.lock:
+            self._hold_s = None
+        self._released.set()
+
+    @property
+    def holding(self) -> bool:
+        """True while a :meth:`hold_at` is in force."""
+        return self._hold_s is not None
 
     # -- the writer thread
     def _write_all(self, data: bytes) -> None:
@@ -615,12 +641,20 @@ class SimStimulus:
             while not self._stop.is_set():
                 with self.lock:
                     t_end = self.horizon_s + self.chunk_s
+                    held = False
+                    if self._hold_s is not None and t_end > self._hold_s:
+                        # records strictly before the hold; none left to write: wait
+                        t_end = self._hold_s
+                        held = t_end <= self.horizon_s
                     delay = 0.0
-                    if self.speed is not None:
+                    if self.speed is not None and not held:
                         allowed = (time.monotonic() - self._wall0) * self.speed
                         delay = (t_end - allowed) / self.speed
-                    if delay <= 0:
+                    if delay <= 0 and not held:
                         series = self.sim.outputs_until(t_end)
+                if held:
+                    self._released.wait(0.05)
+                    continue
                 if delay > 0:
                     self._stop.wait(min(delay, 0.05))
                     continue

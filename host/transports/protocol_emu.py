@@ -67,7 +67,11 @@ host has fed. ``port.operator_hint("place", name=...)`` / ``("turn", axis=, dire
 turns=, window_s=)`` act as in ``sim://`` (:class:`host.sim.CubeOperator`): the motion starts at
 the fed horizon, and the call returns once the emulator has got 30 ms past it — every sample
 sent before the change is then in the port's input, so a measurement that drops what the port
-holds at its start beep sees only the new pose. ``port.truth`` is the
+holds at its start beep sees only the new pose. The emulated time then stands still 35 ms past
+the change until the host next writes to the port (the start beep's PING): the beep, and so the
+measurement window, lands at the same emulated instant after the hint however slow or loaded
+the host is (a turn starts 0.8–1.3 s after the hint: never cut by the window's start). A
+program that gives hints must write to the port to let time go on. ``port.truth`` is the
 :class:`host.sim.SensorTruth`, ``port.sim`` the running simulator, ``port.sim_time`` the
 emulated time (s, a lower bound). The clocks are the emulator's: the AVR crystal is exact, the
 MPU sample clock is off by ``clock_ppm``. Re-opening the port (after ``close()``, or when the
@@ -111,6 +115,11 @@ _SIM_KEYS = tuple(k for k in KEYS if k not in ("seed", "revision"))
 #: after an operator hint, wait until the emulator is this far past the change, s (every
 #: sample taken before it has then been sent to the port)
 HINT_SYNC_S = 0.03
+#: after an operator hint the emulated time stops this far past the change, s, until the host
+#: next writes to the port (the start beep's PING): where the beep lands in emulated time then
+#: does not depend on how fast the host is (HINT_SYNC_S plus one stimulus record, 1 ms, and
+#: a little room)
+HINT_HOLD_S = HINT_SYNC_S + 0.005
 
 
 def check_firmware_file(path: str) -> str:
@@ -343,6 +352,10 @@ class Serial(PosixSerial):
             if self._sim_opts is None or self._sim_opts.operator != "auto":
                 return {"action": action, "done": False}
             result = self._bench.operator.hint(stim.sim, now, action, **kw)
+            if result.get("done"):
+                # the operator acts on the program's start beep: no emulated time passes
+                # until the host sends it (write), however long the host takes
+                stim.hold_at(now + HINT_HOLD_S)
         if result.get("done"):
             stim.wait_emulated(now + HINT_SYNC_S, idle=self._hold_input)
         return result
@@ -357,6 +370,16 @@ class Serial(PosixSerial):
             t = stim.horizon_s if t_from_s is None else max(t_from_s, stim.horizon_s)
             stim.sim.set_motion(motion, t)
         stim.wait_emulated(t + HINT_SYNC_S, idle=self._hold_input)
+
+    def write(self, data: Any) -> int | None:
+        """Write to the board; the first write after an operator hint (the start beep's
+        PING) lets the emulated time go on — after the bytes are in the pty, so that the
+        board reads them at the held instant."""
+        n = super().write(data)
+        stim = self.stimulus
+        if stim is not None and stim.holding:
+            stim.release()
+        return n
 
     # ---- input held while waiting for the emulator ---------------------------------------
     def _hold_input(self) -> None:

@@ -26,9 +26,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from host.board.driver import Board
 from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record
 from host.dialogue.console import ScriptedConsole
-from host.transports.protocol_emu import truth_for_url
+from host.transports.protocol_emu import HINT_HOLD_S, HINT_SYNC_S, truth_for_url
 from tests.host.dialogue.test_live import Ports, opts, run
 
 pytestmark = [
@@ -113,6 +114,43 @@ def test_full_calibration_recovers_the_simulator_truth(tmp_path: Path, fw_elf: P
         window = 7.0 if name in TURN_NAMES else 10.0
         assert window - 0.05 < rec.duration_s < window, name
     assert "Board: firmware 0.1.0" in proc.stderr
+
+
+# --------------------------------------------------------------------------- a slow host
+
+
+@pytest.mark.timeout(120)  # one emulator run through the board driver
+def test_the_start_beep_lands_at_the_same_emulated_instant_however_slow_the_host(
+    fw_elf: Path,
+) -> None:
+    """After an operator hint the emulated time waits for the program's start beep (the PING
+    of ``Board.acquire``): a host that is slow between the hint and the beep — as a loaded
+    machine makes it — gets its measurement window at the same emulated instant after the hint
+    as a quick one. (Before, at ``speed=max`` the emulator ran on meanwhile: a host 0.3 s slow
+    moved the beep by 4.6–5.5 s of emulated time, and under load a turn, which starts 0.8–1.3 s
+    after the hint, could be cut by the window's start: the calibration then failed.)
+    """
+    url = f"emu://?elf={fw_elf}&seed=4&{LINEAR}"
+    board = Board(url)
+    info = board.connect()
+    delays: dict[float, list[float]] = {0.0: [], 0.3: []}
+    try:
+        for k, name in enumerate(("x_up", "y_up", "z_up", "x_dn", "y_dn", "z_dn")):
+            slow_s = (0.0, 0.3)[k % 2]
+            board.hint("place", name=name)
+            hint_s = board.port.hints[-1][0]  # the emulated instant of the change, s
+            time.sleep(slow_s)  # the slow host this test is about (not a wait for a result)
+            acq = board.acquire(0.1)
+            delays[slow_s].append(acq.beep_t_us / 1e6 - hint_s)
+    finally:
+        board.close()
+    print("\nbeep after the hint, s (quick host, 0.3 s slow host):", delays)
+    # the beep (PONG) at the held instant: the emulator has got HINT_SYNC_S past the change;
+    # it stops at the first sample period at or after HINT_HOLD_S, the PING's 12 bytes and
+    # the 1 ms host poll follow (the device clock starts 0.24 ms after the emulated CPU)
+    late = HINT_HOLD_S + 1.0 / info.rate_hz + 0.004
+    for slow_s, ds in delays.items():
+        assert all(HINT_SYNC_S - 0.001 <= d <= late for d in ds), (slow_s, ds)
 
 
 # --------------------------------------------------------------------------- port trouble
