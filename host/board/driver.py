@@ -237,6 +237,7 @@ class Acquisition:
     missed: int  # samples flagged MISSED by the firmware
     crc_errors: int  # CRC failures the decoder saw during the measurement
     beep_t_us: int = 0  # device t_us (raw, 32-bit) at the start beep: the window's start
+    status_flags: int | None = None  # newest STATUS.flags by the window's end (None: no STATUS)
 
     @property
     def lost(self) -> int:
@@ -276,6 +277,8 @@ class Board:
         self.info: BoardInfo | None = None
         self._errors_seen: set[tuple[int, int]] = set()
         self._status_flags_seen = 0  # STATUS.flags bits already shown
+        #: flags of the newest STATUS since the last HELLO (None: none yet)
+        self.status_flags: int | None = None
         self.clock = LiveClock()
         self._clock_last_t: int | None = None  # raw t_us of the last sample fed to the clock
         self._clock_dev_us = 0  # its unwrapped value
@@ -365,6 +368,9 @@ class Board:
             raise UserError(f"the board reports impossible full-scale settings: {info}")
         if not info.streaming:
             self.link.send("START_STREAM")
+        unknown = sensor.revision_warning(info.product_id)
+        if unknown and (self.info is None or self.info.product_id != info.product_id):
+            self.warn(unknown)  # once per part, not at every restart
         self.info = info
         return info
 
@@ -428,9 +434,12 @@ class Board:
                 self._feed_clock(arrival_ns, sample_t_us(f.payload))
             elif f.name == "HELLO":
                 self.restart_clock()
-            elif f.name == "STATUS" and f.fields["flags"] & ~self._status_flags_seen:
-                self._status_flags_seen |= f.fields["flags"]  # shown once, whenever it comes
-                self.warn(status_text(f) or f"the board reports STATUS flags {f.fields['flags']}")
+                self.status_flags = None  # a restarted firmware reads at 8 MHz again
+            elif f.name == "STATUS":
+                flags = self.status_flags = int(f.fields["flags"])
+                if flags & ~self._status_flags_seen:
+                    self._status_flags_seen |= flags  # shown once, whenever it comes
+                    self.warn(status_text(f) or f"the board reports STATUS flags {flags}")
         return out
 
     def pump(self) -> None:
@@ -602,6 +611,7 @@ class Board:
             missed=st["missed"],
             crc_errors=self.link.decoder.stats.crc_errors - crc0,
             beep_t_us=t0 if t0 is not None else 0,
+            status_flags=self.status_flags,
         )
 
     # ---- units ---------------------------------------------------------------------------

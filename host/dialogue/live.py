@@ -117,6 +117,7 @@ from host.calib.report import verdict_line
 from host.dialogue.console import Console, Questions, TerminalConsole
 from host.errors import RecordCheckError, ResumableError, UserError, write_error
 from host.wire import sensor
+from host.wire.frames import bus_meta
 
 WARMUP_DEFAULT_S = 600.0
 #: the closing check: the first static attitude measured again at the end of the session
@@ -941,6 +942,7 @@ class CalibrationDialogue:
                 "time_mapping": "device_t_us_start (first sample) at host_ns_start_beep "
                 "(time.monotonic_ns of the start beep); clock_*: live minimum-delay map",
                 **self.board.clock_meta(acq.start_t_us),
+                **bus_meta(acq.status_flags),
                 "port": self.board.url,
                 **(
                     {"board": f"{SIMULATED_BOARD} {self.board.url}"}

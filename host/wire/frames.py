@@ -182,6 +182,19 @@ def error_text(f: Frame) -> str:
 SPI_LOW_CLOCK = gen.ENUMS["status_flags"]["SPI_LOW_CLOCK"]
 
 
+def bus_meta(status_flags: int | None) -> dict[str, str]:
+    """Record header line naming the SPI clock the sensor was read at, from the newest STATUS
+    ``flags`` seen by the end of the measurement (None: no STATUS seen since HELLO -> no line):
+    ``sensor_spi_clock: 8 MHz``, or ``1 MHz (SPI_LOW_CLOCK …)`` once the firmware has fallen
+    back after a garbled read (it stays at 1 MHz until reset)."""
+    if status_flags is None:
+        return {}
+    if status_flags & SPI_LOW_CLOCK:
+        why = "SPI_LOW_CLOCK: fell back after garbled 8 MHz reads; check the IMU's wiring"
+        return {"sensor_spi_clock": f"1 MHz ({why})"}
+    return {"sensor_spi_clock": "8 MHz"}
+
+
 def status_text(f: Frame) -> str | None:
     """What a STATUS frame's flags tell the user, or None when there is nothing to tell."""
     fl = f.fields

@@ -40,6 +40,19 @@ def revision_name(product_id: int | None) -> str:
     return PRODUCT_REVISIONS.get(product_id, f"unknown {product_id:#04x}")
 
 
+def revision_warning(product_id: int | None) -> str | None:
+    """What to tell the user when the part's PRODUCT_ID is no known MPU-6000 revision (None
+    when it is known, or not reported): its accelerometer is scaled as a revision D part's."""
+    if product_id is None or product_id in PRODUCT_REVISIONS:
+        return None
+    known = ", ".join(f"{n} {p:#04x}" for p, n in PRODUCT_REVISIONS.items() if n[0] != "E")
+    return (
+        f"the sensor's PRODUCT_ID {product_id:#04x} is no known MPU-6000 revision ({known}): "
+        "its accelerometer is scaled as a revision D part's (the datasheet's LSB/g); a C4/C5 "
+        "counts half as much, so if 1 g does not read about 9.8 m/s², check the part"
+    )
+
+
 def product_id_of(text: str) -> int:
     """A revision as a user writes it (``C4``, ``es d8``, ``D10``) or a PRODUCT_ID number
     (``0x55``, ``85``) -> the PRODUCT_ID; ValueError naming the known revisions otherwise."""

@@ -109,6 +109,7 @@ def test_full_calibration_recovers_the_simulator_truth(tmp_path: Path, fw_elf: P
         m = rec.meta
         assert m["lost_frames"] == "0" and m["missed_samples"] == "0", name
         assert m["port"] == url and m["firmware"] == "0.1.0"
+        assert m["sensor_spi_clock"] == "8 MHz"  # a clean bus: no fallback (STATUS.flags)
         dt = np.diff(rec.t_ms)
         assert np.all(np.abs(dt - 20.0) < 0.1), name  # the firmware's own clock, exact AVR
         window = 7.0 if name in TURN_NAMES else 10.0

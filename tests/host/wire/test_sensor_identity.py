@@ -15,6 +15,7 @@ import serial
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from host.board.driver import Board
 from host.board.link import register_transports
 from host.calib.records import SENSOR_KEYS
 from host.ingest.importing import read_capture_stream
@@ -23,6 +24,7 @@ from host.wire import sensor
 from host.wire.frames import (
     SPI_LOW_CLOCK,
     StreamDecoder,
+    bus_meta,
     encode_frame,
     encode_imu_samples,
     status_text,
@@ -103,6 +105,40 @@ def test_status_text_speaks_only_of_a_set_flag() -> None:
     assert status_text(clean) is None
     text = status_text(low)
     assert text is not None and "3 sensor reads" in text and "1 MHz" in text
+
+
+@given(st.integers(0, 0xFF))
+def test_only_an_unknown_product_id_is_warned_of(pid: int) -> None:
+    text = sensor.revision_warning(pid)
+    assert (text is None) == (pid in sensor.PRODUCT_REVISIONS)
+    if text is not None:
+        assert f"{pid:#04x}" in text and "D8 0x58" in text and "C5 0x55" in text
+    assert sensor.revision_warning(None) is None  # not reported: nothing to warn of
+
+
+def test_the_record_header_names_the_spi_clock_the_status_tells() -> None:
+    assert bus_meta(None) == {}  # no STATUS seen: no claim
+    assert bus_meta(0) == {"sensor_spi_clock": "8 MHz"}
+    low = bus_meta(SPI_LOW_CLOCK | 0x80)["sensor_spi_clock"]
+    assert low.startswith("1 MHz (SPI_LOW_CLOCK") and bus_meta(0x80) == bus_meta(0)
+
+
+@pytest.mark.parametrize(("revision", "warned"), [("0x33", True), ("C5", False), ("D8", False)])
+def test_board_warns_once_of_an_unknown_product_id(revision: str, warned: bool) -> None:
+    """An unknown revision is said once (not at every restart); the records still name it."""
+    warnings: list[str] = []
+    board = Board(f"sim://?seed=3&speed=max&revision={revision}", warn=warnings.append)
+    info = board.connect()
+    try:
+        acq = board.acquire(1.5)  # STATUS comes every second
+        again = board.reopen()  # the port opened again: the board restarts, HELLO again
+    finally:
+        board.close()
+    unknown = [w for w in warnings if "no known MPU-6000 revision" in w]
+    assert len(unknown) == (1 if warned else 0), warnings
+    assert again.product_id == info.product_id and again.reset_cause & 0x02  # DTR reset
+    assert info.meta()["sensor_revision"] == sensor.revision_name(info.product_id)
+    assert acq.status_flags == 0 and bus_meta(acq.status_flags) == {"sensor_spi_clock": "8 MHz"}
 
 
 def _capture(tmp_path: Path, product_id: int, flags: int) -> Path:
