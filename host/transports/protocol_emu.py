@@ -68,10 +68,12 @@ turns=, window_s=)`` act as in ``sim://`` (:class:`host.sim.CubeOperator`): the 
 the fed horizon, and the call returns once the emulator has got 30 ms past it — every sample
 sent before the change is then in the port's input, so a measurement that drops what the port
 holds at its start beep sees only the new pose. The emulated time then stands still 35 ms past
-the change until the host next writes to the port (the start beep's PING): the beep, and so the
-measurement window, lands at the same emulated instant after the hint however slow or loaded
-the host is (a turn starts 0.8–1.3 s after the hint: never cut by the window's start). A
-program that gives hints must write to the port to let time go on. ``port.truth`` is the
+the change until the host next writes to the port or reads from it: in ``--yes`` mode the next
+I/O is the start beep's PING, so the beep, and with it the measurement window, lands at the
+same emulated instant after the hint however slow or loaded the host is (a turn starts
+0.8–1.3 s after the hint: never cut by the window's start); a program that reads the port
+while it waits for a human operator lets the time go on as a real board's would.
+``port.truth`` is the
 :class:`host.sim.SensorTruth`, ``port.sim`` the running simulator, ``port.sim_time`` the
 emulated time (s, a lower bound). The clocks are the emulator's: the AVR crystal is exact, the
 MPU sample clock is off by ``clock_ppm``. Re-opening the port (after ``close()``, or when the
@@ -116,9 +118,9 @@ _SIM_KEYS = tuple(k for k in KEYS if k not in ("seed", "revision"))
 #: sample taken before it has then been sent to the port)
 HINT_SYNC_S = 0.03
 #: after an operator hint the emulated time stops this far past the change, s, until the host
-#: next writes to the port (the start beep's PING): where the beep lands in emulated time then
-#: does not depend on how fast the host is (HINT_SYNC_S plus one stimulus record, 1 ms, and
-#: a little room)
+#: next writes to or reads from the port (the start beep's PING): where the beep lands in
+#: emulated time then does not depend on how fast the host is (HINT_SYNC_S plus one stimulus
+#: record, 1 ms, and a little room)
 HINT_HOLD_S = HINT_SYNC_S + 0.005
 
 
@@ -376,10 +378,14 @@ class Serial(PosixSerial):
         PING) lets the emulated time go on — after the bytes are in the pty, so that the
         board reads them at the held instant."""
         n = super().write(data)
+        self._release_hint_hold()
+        return n
+
+    def _release_hint_hold(self) -> None:
+        """The host acts again after an operator hint: the emulated time goes on."""
         stim = self.stimulus
         if stim is not None and stim.holding:
             stim.release()
-        return n
 
     # ---- input held while waiting for the emulator ---------------------------------------
     def _hold_input(self) -> None:
@@ -397,6 +403,9 @@ class Serial(PosixSerial):
         return len(self._held) + super().in_waiting
 
     def read(self, size: int = 1) -> bytes:
+        """Read from the board (what :meth:`_hold_input` kept first). A read after an operator
+        hint lets the emulated time go on: the host reads while it waits for a person."""
+        self._release_hint_hold()
         if not self._held:
             return super().read(size)
         n = min(size, len(self._held))

@@ -125,11 +125,12 @@ def test_the_start_beep_lands_at_the_same_emulated_instant_however_slow_the_host
     fw_elf: Path,
 ) -> None:
     """After an operator hint the emulated time waits for the program's start beep (the PING
-    of ``Board.acquire``): a host that is slow between the hint and the beep — as a loaded
-    machine makes it — gets its measurement window at the same emulated instant after the hint
-    as a quick one. (Before, at ``speed=max`` the emulator ran on meanwhile: a host 0.3 s slow
-    moved the beep by 4.6–5.5 s of emulated time, and under load a turn, which starts 0.8–1.3 s
-    after the hint, could be cut by the window's start: the calibration then failed.)
+    of ``Board.acquire``, its next I/O): a host that is slow between the hint and the beep — as
+    a loaded machine makes it — gets its measurement window at the same emulated instant after
+    the hint as a quick one; a host that reads the board while it waits lets the time go on.
+    (Before, at ``speed=max`` the emulator ran on meanwhile: a host 0.3 s slow moved the beep
+    by 4.6–5.5 s of emulated time, and under load a turn, which starts 0.8–1.3 s after the
+    hint, could be cut by the window's start: the calibration then failed.)
     """
     url = f"emu://?elf={fw_elf}&seed=4&{LINEAR}"
     board = Board(url)
@@ -143,8 +144,17 @@ def test_the_start_beep_lands_at_the_same_emulated_instant_however_slow_the_host
             time.sleep(slow_s)  # the slow host this test is about (not a wait for a result)
             acq = board.acquire(0.1)
             delays[slow_s].append(acq.beep_t_us / 1e6 - hint_s)
+        # a person, not --yes: the dialogue reads the board while it waits for a key; the
+        # reads let the emulated time go on (no "no data from the board" after 2 s)
+        board.hint("place", name="z_up")
+        hint_s = board.port.hints[-1][0]
+        t_end = time.monotonic() + 2.5  # longer than the link's 2 s stall limit
+        while time.monotonic() < t_end:
+            board.pump()  # LinkTimeout here if the time stood still
+        waited_s = board.port.sim_time - hint_s
     finally:
         board.close()
+    assert waited_s > 1.0, waited_s
     print("\nbeep after the hint, s (quick host, 0.3 s slow host):", delays)
     # the beep (PONG) at the held instant: the emulator has got HINT_SYNC_S past the change;
     # it stops at the first sample period at or after HINT_HOLD_S, the PING's 12 bytes and
