@@ -152,6 +152,8 @@ class _Decode:
         self._write(np.zeros(0, SAMPLE_DTYPE), None, None)  # the CSV header, with no samples
         if self.bus_warning:
             print(f"warning: {self.path}: {self.bus_warning}", file=sys.stderr)
+        if self.config is not None and (unknown := sensor.revision_warning(self.config[2])):
+            print(f"warning: {self.path}: {unknown}", file=sys.stderr)
         if reader.truncated_bytes:
             print(
                 f"warning: {self.path}: the last {reader.truncated_bytes} bytes are a cut-off "

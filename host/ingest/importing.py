@@ -461,6 +461,7 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
     from host.wire import sensor
     from host.wire.frames import (
         baud_from_hello,
+        bus_meta,
         decode_file,
         full_scale_from_hello,
         product_id_from_hello,
@@ -477,6 +478,8 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
     phys = samples_to_physical(s, *full_scale_from_hello(result.others), product_id)
     meta = {"source": p.name, "importer": "capture", "units": "device counts (HELLO full scale)"}
     meta |= sensor.identity_meta(None, product_id)
+    statuses = [f for _, f in result.others if f.name == "STATUS"]
+    meta |= bus_meta(int(statuses[-1].fields["flags"]) if statuses else None)
     sel = slice(0, s.size)
     if len(timeline.segments) == 1:
         t_s = (timeline.device_us - timeline.device_us[0]) / 1e6

@@ -171,6 +171,11 @@ def test_decode_scales_by_the_revision_and_warns_of_the_low_clock(tmp_path: Path
     assert z_d8 == pytest.approx(sensor.G0 / 2, abs=1e-3)
     assert "marginal" in c5.stderr and "1 MHz" in c5.stderr
     assert "marginal" not in d8.stderr
+    # a PRODUCT_ID that is no known revision: said once, scaled as a revision D part
+    odd = decode(_capture(tmp_path, 0x33, 0))
+    assert odd.returncode == 0 and odd.stderr.count("0x33 is no known MPU-6000 revision") == 1
+    assert "no known" not in c5.stderr + d8.stderr
+    assert odd.stdout.splitlines()[1] == d8.stdout.splitlines()[1]
 
 
 def test_imported_capture_names_its_sensor_and_scales_by_it(tmp_path: Path) -> None:
@@ -179,3 +184,7 @@ def test_imported_capture_names_its_sensor_and_scales_by_it(tmp_path: Path) -> N
     assert named == sensor.identity_meta(None, 0x54)
     assert stream.meta["sensor_revision"] == "C4"
     np.testing.assert_allclose(stream.accel[0], np.array([100, -200, 8192]) / 8192 * sensor.G0)
+    # the bus the data came over, from the capture's STATUS
+    assert stream.meta["sensor_spi_clock"] == "8 MHz"
+    low = read_capture_stream(_capture(tmp_path, 0x58, SPI_LOW_CLOCK)).meta["sensor_spi_clock"]
+    assert low.startswith("1 MHz (SPI_LOW_CLOCK")
