@@ -168,7 +168,7 @@ def write_plots(
                 if gr.sensor != mt.sensor or gr.axis != mt.axes[0]:
                     continue
                 xv = float(np.mean(x[gr.rows]))
-                if ds.signals[gr.record].kind == "turn":
+                if ds.signals[gr.record].kind == "turn" and gr.sensor == "gyro":
                     xv /= max(float(ds.aggregators[gr.record].sum()), 1e-9)
                 g = next(g for g in fit.groups if g.record == ds.signals[gr.record].name
                          and g.sensor == mt.sensor and g.axis == AXES[mt.axes[0]])  # fmt: skip
@@ -439,7 +439,12 @@ def run_demo(args: argparse.Namespace) -> int:
         case = hidden_effect_case(eff, args.seed, tilted=args.tilted, static_s=args.static_s)
         print(f"######## hidden effect: {eff} — {case.description}")
         if case.term:
-            print(f"hidden from the fit: {case.term} = {case.truth:.4g} {case.unit}")
+            value = (
+                "(" + ", ".join(f"{v:.4g}" for v in case.truth_vector) + ")"
+                if case.truth_vector
+                else f"{case.truth:.4g}"
+            )
+            print(f"hidden from the fit: {case.term} = {value} {case.unit}")
         if args.out:
             from host.bench.sim import write_session
 

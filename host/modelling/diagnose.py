@@ -539,7 +539,9 @@ def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
             if rows is None:
                 continue
             any_rows = True
-            col[rows] = aggregate(ds.aggregators[ri], np.asarray(fn(rs, sensor, a), float))
+            col[rows] = aggregate(
+                ds.aggregator(ri, sensor, a), np.asarray(fn(rs, sensor, a), float)
+            )
         if not any_rows:
             return None
         cw = ds.whiten @ col
@@ -944,6 +946,17 @@ def explain(c: Candidate, g: float) -> list[str]:
         out.append(
             "  (a fixture error turns with the cube, a plate tilt stays in the room: the still "
             "moments of the turns, at several headings, tell them apart)"
+        )
+    elif c.term == "lever_arm" and len(c.coefficients) == 3:
+        vals = [(float(v), float(e)) for v, e, _ in c.coefficients.values()]
+        w2 = math.radians(90.0) ** 2
+        perp = max(math.hypot(vals[i][0], vals[j][0]) for i, j in ((1, 2), (0, 2), (0, 1)))
+        where = ", ".join(f"{a} {1000 * v:+.1f} ± {1000 * e:.1f} mm"
+                          for a, (v, e) in zip("xyz", vals, strict=True))  # fmt: skip
+        out.append(
+            f"the sensor sits {where} from the centre of the cube (the turn axis): turning at "
+            f"90 °/s the centripetal acceleration ω²·r⊥ puts up to {w2 * perp:.3f} m/s² on the "
+            "horizontal accelerometers, and each push adds the tangential ω̇×r"
         )
     else:
         for name, (v, se, unit) in c.coefficients.items():

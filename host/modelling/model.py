@@ -13,8 +13,9 @@ The fit (:func:`fit_model`) is ONE weighted linear least-squares problem over ev
   block mean of each channel is a row, so temperature and time terms see within-record variation
   as well as the differences between records;
 * each turn record gives one row per gyro channel, the trapezoid integral (method.md §4), in °;
-* accelerometer rows come from the static records only (during a hand turn the wobble and the
-  centripetal force dominate).
+* accelerometer rows of a turn record: one per still moment (gravity at another heading) and, on
+  the horizontal channels, one per moving block (:mod:`host.modelling.turning`: the lever arm's
+  centripetal and tangential acceleration, with the hand's scatter measured from the blocks).
 
 Noise model (:class:`NoiseModel`, method.md §8 "residual mean near 0"): the rows of one
 record and channel share one covariance ``v·I + f²·11ᵀ``: ``v`` = variance of a block mean from
@@ -59,6 +60,7 @@ from host.calib.method import (
 )
 from host.calib.records import Session
 from host.errors import UserError
+from host.modelling import turning
 
 SENSORS = ("accel", "gyro")
 AXES = "xyz"
@@ -479,6 +481,39 @@ def turn_axis_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     return cols
 
 
+def _lever_check(signals: Sequence[RecordSignals]) -> str | None:
+    turns = [s for s in signals if s.kind == "turn"]
+    if not turns:
+        return "no turn records: a lever arm shows only while the cube turns"
+    rms = max(turning.rms_rate_dps(s.rate @ s.up, [(0, len(s.t_s))]) for s in turns)
+    if rms < turning.MIN_RATE_DPS:
+        return (
+            f"the turns reach only {rms:.0f} °/s RMS: ω²·r there is below the hand's scatter "
+            f"(turn at {turning.MIN_RATE_DPS:.0f} °/s or faster)"
+        )
+    return None
+
+
+@term(sensors=("accel",), params={"x": "m", "y": "m", "z": "m"}, check=_lever_check,
+      labels=lambda s, i: ("lever_arm.x", "lever_arm.y", "lever_arm.z"),
+      needs="turns about at least two axes at a brisk rate (≥ 30 °/s; each turn sees the two "
+      "components of the offset perpendicular to its axis)")  # fmt: skip
+def lever_arm(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """The sensor sits off the turn axis: turning, the accelerometer also reads ω̇×r + ω×(ω×r).
+
+    ONE offset r = (x, y, z) m of the sensor from the cube's centre, in body axes, shared by
+    every channel and every turn (:attr:`Term.shared`; geometry and physics in
+    :mod:`host.modelling.turning`): the turns pivot about the vertical through the cube's
+    centre, so a turn about up axis k adds the centripetal −ω²·r⊥ (r without its k component)
+    and the tangential ω̇·(e_k × r) to the horizontal accelerometers, with ω the calibrated rate
+    of the turn (the reference rate: the gyro about up scaled to ±360°·n, method.md §4) in
+    rad/s. Read from the moving blocks of the turn records; zero at rest (static records, the
+    still moments). 0.12 m/s² at 90 °/s and r = 5 cm."""
+    if sig.kind != "turn":
+        return np.zeros((len(sig.t_s), 3))
+    return turning.lever_arm_matrix(sig.t_s, sig.rate)[:, axis, :]
+
+
 #: plausible magnitude of each catalogue term's parameters per sensor, from the InvenSense
 #: MPU-6000/6050 product specification rev. 3.4 (§6.1 gyro, §6.2 accelerometer) where it has a
 #: figure, else from the bench (a levelled plate, a machined fixture)
@@ -513,10 +548,12 @@ _PLAUSIBLE: dict[str, tuple[dict[str, float], str]] = {
     "plate_tilt": ({"accel": 0.0175}, "a plate more than 1° off level was not levelled"),
     "turn_axis_tilt": ({"gyro": 0.035}, "the turn axis more than 2° off the up axis: the cube "
                                         "was not resting on the plate"),
+    "lever_arm": ({"accel": 0.1}, "a sensor more than 10 cm from the centre of a hand-held "
+                                  "calibration cube is not inside the cube"),
 }  # fmt: skip
 
 #: catalogue terms whose parameters are properties of the bench, one set for all channels
-_SHARED = ("plate_tilt",)
+_SHARED = ("plate_tilt", "lever_arm")
 
 #: the built-in terms, in catalogue order
 CATALOGUE: dict[str, Term] = {
@@ -525,9 +562,11 @@ CATALOGUE: dict[str, Term] = {
     for t in (
         bias, scale, misalignment, g_sensitivity, temperature_bias, temperature_bias_quadratic,
         temperature_scale, time_drift, scale_asymmetry, scale_nonlinearity, face_error,
-        plate_tilt, turn_axis_tilt,
+        plate_tilt, turn_axis_tilt, lever_arm,
     )
 }  # fmt: skip
+#: terms that explain the accelerometer while the cube turns (:func:`reads_moving`)
+MOVING_TERMS = ("lever_arm",)
 #: the linear model of method.md §2
 BASE = ("bias", "scale", "misalignment", "g_sensitivity")
 
@@ -882,9 +921,10 @@ class Dataset:
     floor: Mapping[str, float] = field(default_factory=dict)
     #: turns n of each turn record (record name -> n)
     turns_of: Mapping[str, int] = field(default_factory=dict)
-    #: (record, sensor) -> its own aggregator where it differs from the record's: the
+    #: (record, sensor, axis) -> its own aggregator where it differs from the record's: the
     #: accelerometer of a turn record is read at the still moments (one row per still moment)
-    sensor_aggregators: Mapping[tuple[int, str], np.ndarray] = field(default_factory=dict)
+    #: and, on the horizontal axes, in the moving blocks (:mod:`host.modelling.turning`)
+    sensor_aggregators: Mapping[tuple[int, str, int], np.ndarray] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
@@ -899,9 +939,10 @@ class Dataset:
             a[gr.rows, k] = 1.0 / len(gr.rows)
         return np.asarray(np.linalg.solve(self.whiten.T, a))
 
-    def aggregator(self, record: int, sensor: str) -> np.ndarray:
-        """(B, N) weights turning record ``record``'s samples into its rows of ``sensor``."""
-        return self.sensor_aggregators.get((record, sensor), self.aggregators[record])
+    def aggregator(self, record: int, sensor: str, axis: int) -> np.ndarray:
+        """(B, N) weights turning record ``record``'s samples into its rows of ``sensor``'s
+        channel ``axis``."""
+        return self.sensor_aggregators.get((record, sensor, axis), self.aggregators[record])
 
     def record_name(self, i: int) -> str:
         return self.signals[i].name
@@ -1017,8 +1058,9 @@ def _session_floor(
 
 def _seating_sigma(
     signals: Sequence[RecordSignals],
-    sensor_aggs: Mapping[tuple[int, str], np.ndarray],
+    sensor_aggs: Mapping[tuple[int, str, int], np.ndarray],
     groups_raw: Sequence[tuple[int, str, int, list[int], np.ndarray, float]],
+    n_still: Mapping[int, int],
 ) -> tuple[float, str]:
     """How far the cube's attitude at a still moment of a hand turn departs from resting flat,
     as specific force on a horizontal accelerometer, m/s² (and a note; 0 and '' without the
@@ -1026,39 +1068,112 @@ def _seating_sigma(
     seating. Measured from the still moments themselves: per turn and horizontal channel a
     constant (bias, face error, misalignment: all fixed in the body) plus ONE plate tilt for
     the session, g·(t_e·e(ψ) + t_n·n(ψ)) (:func:`plate_tilt`); the scatter beyond each mean's
-    white noise, Σ(r² − w)/dof, is the seating variance (method.md §8: repeatability)."""
-    rows: list[tuple[int, int, float, np.ndarray, float]] = []  # (record, axis, y, (2,), w)
+    white noise, Σ(r² − w)/dof, is the seating variance (method.md §8: repeatability;
+    :func:`host.modelling.turning.excess_scatter`)."""
+    keys: list[tuple[int, int]] = []
+    ys: list[float] = []
+    cols_l: list[np.ndarray] = []
+    ws: list[float] = []
     for ri, s, ax, _idx, agg, var_tau in groups_raw:
         sig = signals[ri]
         if s != "accel" or sig.kind != "turn" or abs(float(sig.up[ax])) > 0.5:
             continue
-        if (ri, "accel") not in sensor_aggs:
+        if (ri, "accel", ax) not in sensor_aggs:
             continue
         cols = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
         assert cols is not None
-        for b in range(agg.shape[0]):
+        for b in range(n_still.get(ri, 0)):
             m = float(np.count_nonzero(agg[b]))
-            rows.append((ri, ax, float(agg[b] @ sig.accel[:, ax]), agg[b] @ cols, var_tau / m))
-    keys = sorted({(r[0], r[1]) for r in rows})
-    if not rows or len(rows) <= len(keys) + 2:
+            keys.append((ri, ax))
+            ys.append(float(agg[b] @ sig.accel[:, ax]))
+            cols_l.append(agg[b] @ cols)
+            ws.append(var_tau / m)
+    if not ys or len(ys) <= len(set(keys)) + 2:
         return 0.0, ""
-    x = np.zeros((len(rows), len(keys) + 2))
-    for i, (ri, ax, _, c, _) in enumerate(rows):
-        x[i, keys.index((ri, ax))] = 1.0
-        x[i, -2:] = c
-    y = np.array([r[2] for r in rows])
-    w = np.array([r[4] for r in rows])
-    beta, _, rank, _ = np.linalg.lstsq(x, y, rcond=None)
-    dof = len(rows) - int(rank)
+    sigma, dof = turning.excess_scatter(np.array(ys), keys, np.array(cols_l), np.array(ws))
     if dof <= 0:
         return 0.0, ""
-    r = y - x @ beta
-    sigma = math.sqrt(max(0.0, float(np.sum(r * r - w)) / dof))
     return sigma, (
         f"seating of the cube at the still moments of the turns: {sigma:.2g} m/s² on a "
-        f"horizontal accelerometer ({1000 * sigma / 9.8:.2g} mrad), from {len(rows)} still "
+        f"horizontal accelerometer ({1000 * sigma / 9.8:.2g} mrad), from {len(ys)} still "
         f"moments ({dof} dof beyond one plate tilt and a constant per turn and channel)"
     )
+
+
+def _hand_sigma(
+    signals: Sequence[RecordSignals],
+    sensor_aggs: Mapping[tuple[int, str, int], np.ndarray],
+    n_still: Mapping[int, int],
+    white_level: Mapping[tuple[str, int], float],
+) -> tuple[float, str]:
+    """The hand's scatter of a moving block's mean on a horizontal accelerometer while the cube
+    turns, m/s², and a note ('' without moving blocks): the scatter beyond a constant per turn
+    and channel, the lever arm and the plate tilt, and beyond the sensor's white noise
+    (``white_level`` (sensor, axis) -> variance·τ of one sample, from the static records) —
+    :func:`host.modelling.turning.excess_scatter`, module docstring there."""
+    keys: list[tuple[int, int]] = []
+    ys: list[float] = []
+    cl: list[np.ndarray] = []
+    ws: list[float] = []
+    for ri, sig in enumerate(signals):
+        if sig.kind != "turn":
+            continue
+        lever: np.ndarray | None = None
+        for ax in range(3):
+            agg = sensor_aggs.get((ri, "accel", ax))
+            if agg is None or n_still.get(ri, 0) >= agg.shape[0]:
+                continue
+            moving = agg[n_still[ri] :]
+            counts = np.count_nonzero(moving, axis=1).astype(float)
+            if lever is None:
+                lever = turning.lever_arm_matrix(sig.t_s, sig.rate)
+            tilt = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
+            assert tilt is not None
+            keys.extend([(ri, ax)] * len(moving))
+            ys.extend((moving @ sig.accel[:, ax]).tolist())
+            cl.extend(moving @ np.column_stack([lever[:, ax, :], tilt]))
+            ws.extend((white_level.get(("accel", ax), 0.0) / counts).tolist())
+    if not ys:
+        return 0.0, ""
+    sigma, dof = turning.excess_scatter(np.array(ys), keys, np.array(cl), np.array(ws))
+    return sigma, (
+        f"the hand while the cube turns: {sigma:.2g} m/s² on a horizontal accelerometer's "
+        f"block mean ({turning.BLOCK_S:g} s), from {len(ys)} moving blocks ({dof} dof beyond a "
+        "constant per turn and channel, the lever arm and the plate tilt)"
+    )
+
+
+def _whiten_exact(
+    whiten: np.ndarray,
+    record: int,
+    sensor: str,
+    axis: int,
+    idx: Sequence[int],
+    v_rows: np.ndarray,
+    floor: float,
+) -> Group:
+    """Whiten the rows ``idx`` of one record and channel exactly when their variances differ
+    (still moments and moving blocks of a turn): Cov = diag(``v_rows``) + floor²·11ᵀ, W = L⁻¹
+    with L its Cholesky factor, written into ``whiten``; -> the :class:`Group`."""
+    b = len(idx)
+    cov = np.diag(v_rows) + floor**2 * np.ones((b, b))
+    if not np.all(v_rows > 0.0):
+        raise UserError(
+            f"record {record}: accel {'xyz'[axis]} reads the same value in every sample while "
+            "turning (noise-free data): give a floor, e.g. --floor accel=1e-4,gyro=1e-3"
+        )
+    w = np.linalg.inv(np.linalg.cholesky(cov))
+    whiten[np.ix_(list(idx), list(idx))] = w
+    v_mean = float(np.sum(cov)) / b**2
+    return Group(record, sensor, axis, np.array(idx), math.sqrt(v_mean), float(np.mean(v_rows)))
+
+
+def reads_moving(model: Sequence[ModelTerm]) -> bool:
+    """Whether ``model`` explains the accelerometer while the cube turns (it holds a term of
+    :data:`MOVING_TERMS`): only then does a calibration fit the moving blocks
+    (:func:`build_dataset` ``moving``), which otherwise would bias the accelerometer's
+    constants by the centripetal acceleration."""
+    return any(mt.term.name in MOVING_TERMS for mt in model)
 
 
 def build_dataset(
@@ -1069,12 +1184,16 @@ def build_dataset(
     height_m: float = DEFAULT_HEIGHT_M,
     turns: int | None = None,
     earth_rate: bool = False,
+    moving: bool = True,
 ) -> Dataset:
     """Check the records (:func:`host.calibration.build_observations`) and build the rows.
 
     ``earth_rate``: the reference rate includes the vertical Earth rate (as
-    :func:`~host.calibration.build_observations`). UserError when there is nothing to fit (no
-    static records, bad records).
+    :func:`~host.calibration.build_observations`). ``moving``: the accelerometer's block means
+    over the turning parts of the turn records are rows too (:mod:`host.modelling.turning`;
+    the lever arm shows only there); a calibration whose model cannot explain them
+    (:func:`reads_moving`) leaves them out. UserError when there is nothing to fit (no static
+    records, bad records).
     """
     nm = noise or NoiseModel()
     if not session.records:
@@ -1110,8 +1229,10 @@ def build_dataset(
     # white-noise levels from the statics (for the turns): sensor -> axis -> (var, tau) lists
     static_noise: dict[tuple[str, int], list[tuple[float, float]]] = {}
     rec_noise: dict[tuple[int, str, int], tuple[float, float]] = {}
-    sensor_aggs: dict[tuple[int, str], np.ndarray] = {}
+    sensor_aggs: dict[tuple[int, str, int], np.ndarray] = {}
     still_spans: dict[int, list[tuple[float, float]]] = {}
+    #: turn record -> how many of its accelerometer rows are still moments (the rest: moving)
+    n_still: dict[int, int] = {}
 
     for ri, name in enumerate(names):
         rec = session.records[name]
@@ -1146,12 +1267,23 @@ def build_dataset(
             # the accelerometer at the still moments: gravity seen at several headings
             up_k = int(np.argmax(np.abs(o.up)))
             runs = still_runs(rate @ o.up, t_rel, float(gyro_sd[up_k]))
-            if runs:
-                acc_agg = np.zeros((len(runs), n))
-                for b, (a, e) in enumerate(runs):
+            # ... and while it turns (the lever arm): block means of the moving parts
+            blocks = (
+                turning.moving_blocks(rate @ o.up, t_rel, float(gyro_sd[up_k])) if moving else []
+            )
+            if runs or blocks:
+                acc_agg = np.zeros((len(runs) + len(blocks), n))
+                for b, (a, e) in enumerate([*runs, *blocks]):
                     acc_agg[b, a:e] = 1.0 / (e - a)
-                sensor_aggs[(ri, "accel")] = acc_agg
-                still_spans[ri] = [(float(t_rel[a]), float(t_rel[e - 1])) for a, e in runs]
+                for ax in range(3):
+                    # the up channel reads no lever arm, only the hand pressing and tilting
+                    # the cube (g·(1 − cos θ), one-signed): its moving blocks are left out
+                    horizontal = abs(float(o.up[ax])) < 0.5
+                    sensor_aggs[(ri, "accel", ax)] = acc_agg if horizontal else acc_agg[: len(runs)]
+                still_spans[ri] = [
+                    (float(t_rel[a]), float(t_rel[e - 1])) for a, e in [*runs, *blocks]
+                ]
+                n_still[ri] = len(runs)
                 sensors = ("accel", "gyro")
         else:
             edges = _block_edges(n, float(t_rel[-1]) if n else 0.0, nm)
@@ -1165,9 +1297,11 @@ def build_dataset(
             meas = sig.measured(s)
             ref = sig.reference(s)
             still = o.kind == "turn" and s == "accel"
-            s_agg = sensor_aggs[(ri, s)] if still else agg
-            s_spans = still_spans[ri] if still else spans
             for ax in range(3):
+                s_agg = sensor_aggs[(ri, s, ax)] if still else agg
+                s_spans = still_spans[ri] if still else spans
+                if not s_agg.shape[0]:
+                    continue
                 idx = list(range(len(y_list), len(y_list) + s_agg.shape[0]))
                 yv = s_agg @ meas[:, ax]
                 nv = s_agg @ ref[:, ax]
@@ -1184,11 +1318,16 @@ def build_dataset(
                     groups_raw.append((ri, s, ax, idx, agg, 0.0))
                     continue
                 if still:
-                    # white noise of a still moment's mean from its own samples
+                    # white noise of a still moment's mean from its own samples (NaN without
+                    # still moments: the static records' level is taken below)
+                    ns = n_still[ri]
+                    if ns == 0:
+                        groups_raw.append((ri, s, ax, idx, s_agg, math.nan))
+                        continue
                     dev = np.concatenate(
-                        [meas[a:e, ax] - meas[a:e, ax].mean() for a, e in _runs_of(s_agg)]
+                        [meas[a:e, ax] - meas[a:e, ax].mean() for a, e in _runs_of(s_agg[:ns])]
                     )
-                    dof = max(len(dev) - s_agg.shape[0], 1)
+                    dof = max(len(dev) - ns, 1)
                     var = max(float(dev @ dev) / dof, _resolution(meas[:, ax]) ** 2 / 12.0)
                     tau = integrated_autocorrelation(dev, nm.max_lag)
                     groups_raw.append((ri, s, ax, idx, s_agg, var * tau))
@@ -1204,9 +1343,13 @@ def build_dataset(
 
     floors, floor_note = _session_floor(signals, rec_noise, nm)
     notes.append(floor_note)
-    seat, seat_note = _seating_sigma(signals, sensor_aggs, groups_raw)
+    seat, seat_note = _seating_sigma(signals, sensor_aggs, groups_raw, n_still)
     if seat_note:
         notes.append(seat_note)
+    white_level = {k: float(np.mean([v * t for v, t in lv])) for k, lv in static_noise.items()}
+    hand, hand_note = _hand_sigma(signals, sensor_aggs, n_still, white_level)
+    if hand_note:
+        notes.append(hand_note)
     n_rows = len(y_list)
     whiten = np.zeros((n_rows, n_rows))
     groups: list[Group] = []
@@ -1234,9 +1377,17 @@ def build_dataset(
             groups.append(Group(ri, s, ax, np.array(idx), math.sqrt(var), math.nan))
             continue
         counts = np.count_nonzero(agg, axis=1).astype(float)
-        v_blocks = var_tau / counts  # variance of each block mean
-        if signals[ri].kind == "turn" and abs(float(signals[ri].up[ax])) < 0.5:
-            v_blocks = v_blocks + seat**2  # a horizontal channel at a still moment
+        level = white_level.get((s, ax), 0.0)
+        v_blocks = (var_tau if math.isfinite(var_tau) else level) / counts  # each block mean
+        horizontal = abs(float(signals[ri].up[ax])) < 0.5
+        ns = n_still.get(ri, len(idx)) if signals[ri].kind == "turn" else len(idx)
+        if signals[ri].kind == "turn" and horizontal:
+            v_blocks[:ns] = v_blocks[:ns] + seat**2  # a horizontal channel at a still moment
+        if ns < len(idx):
+            # moving blocks: the sensor's white noise (the static records' level) + the hand
+            v_blocks[ns:] = level / counts[ns:] + hand**2
+            groups.append(_whiten_exact(whiten, ri, s, ax, idx, v_blocks, floor))
+            continue
         b = len(idx)
         v_mean = float(np.sum(v_blocks)) / b**2 + floor**2
         if not v_mean > 0.0:
@@ -1348,7 +1499,7 @@ def term_columns(
                 rows = ds.rows_of.get((ri, mt.sensor, ax))
                 if rows is not None:
                     cols[rows] = aggregate(
-                        ds.aggregator(ri, mt.sensor), _regressors(mt.term, sig, mt.sensor, ax)
+                        ds.aggregator(ri, mt.sensor, ax), _regressors(mt.term, sig, mt.sensor, ax)
                     )
         return cols, np.zeros(ds.n_rows)
     cols = np.zeros((ds.n_rows, k * len(mt.axes)))
@@ -1363,7 +1514,7 @@ def term_columns(
             rows = ds.rows_of.get((ri, mt.sensor, ax))
             if rows is None:
                 continue
-            agg = ds.aggregator(ri, mt.sensor)
+            agg = ds.aggregator(ri, mt.sensor, ax)
             if not mt.term.nonlinear:
                 cols[rows, j * k : (j + 1) * k] = aggregate(
                     agg, _regressors(mt.term, sig, mt.sensor, ax)

@@ -37,6 +37,8 @@ EFFECTS: dict[str, str] = {
     "drift": "gyro bias drifting linearly with time since power-on, at constant temperature",
     "warmup": "gyro bias linear in temperature while the chip warms steadily (~0.5 °C/min): "
     "temperature and time cannot be told apart (confounded)",
+    "lever_arm": "the sensor sits 2–5 cm off the cube's centre on every axis: while the cube "
+    "turns the accelerometer reads the centripetal ω×(ω×r) and tangential ω̇×r accelerations",
     "none": "control: nothing hidden (the §2 linear model, white noise, bias instability)",
 }
 #: the demo runs these by default (``--effect all``)
@@ -59,6 +61,8 @@ class HiddenCase:
     #: gives the workbench (``--noise``), where the session's own repeated attitudes (the
     #: default floor) also carry any slow effect that differs between them
     known_floor: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    #: every component of a vector effect's truth (the lever arm's x, y, z in m), else ()
+    truth_vector: tuple[float, ...] = ()
 
     def known_noise(self) -> NoiseModel:
         """The noise model with :attr:`known_floor` (as ``--noise``/``--floor`` would give)."""
@@ -117,6 +121,11 @@ def hidden_effect_case(
         warmup_s = 0.0
         static_s = max(static_s, 30.0)
         term, unit = f"temperature_bias:gyro:{AXES[axis]}", "°/s/°C"
+    elif effect == "lever_arm":
+        arm = rng.uniform(0.02, 0.05, 3) * np.where(rng.random(3) < 0.5, -1.0, 1.0)
+        fields = {"lever_arm_m": tuple(float(v) for v in arm)}
+        truth = float(arm[0])
+        term, unit = "lever_arm:accel:xyz", "m"
     else:
         fields = {}
     truth_obj = dataclasses.replace(base, **fields)
@@ -127,7 +136,8 @@ def hidden_effect_case(
         s: float(np.sqrt(np.mean(np.square(getattr(truth_obj, f"{s}_bias_instability")))))
         for s in ("accel", "gyro")
     }
-    return HiddenCase(effect, term, truth, unit, records, EFFECTS[effect], floor)
+    vector = tuple(float(v) for v in fields["lever_arm_m"]) if effect == "lever_arm" else ()
+    return HiddenCase(effect, term, truth, unit, records, EFFECTS[effect], floor, vector)
 
 
 def case_dataset(case: HiddenCase, noise: NoiseModel | None = None) -> Dataset:

@@ -133,12 +133,23 @@ def test_blocks_give_within_record_rows() -> None:
     static_groups = [g for g in ds.groups if ds.signals[g.record].kind == "static"]
     assert all(len(g.rows) == 2 for g in static_groups)  # 10 s records, 5 s blocks
     turn_groups = [g for g in ds.groups if ds.signals[g.record].kind == "turn"]
-    # a turn: one integral per gyro channel; the accelerometer one row per still moment
+    # a turn: one integral per gyro channel; the accelerometer one row per still moment and,
+    # on the horizontal channels, one per moving block (the lever arm shows there)
     assert all(len(g.rows) == 1 for g in turn_groups if g.sensor == "gyro")
     for g in turn_groups:
         if g.sensor == "accel":
-            assert len(g.rows) == ds.aggregator(g.record, "accel").shape[0] >= 1
+            agg = ds.aggregator(g.record, "accel", g.axis)
+            assert len(g.rows) == agg.shape[0] >= 1
             assert not ds.row_integral[g.rows].any()
+            up = abs(float(ds.signals[g.record].up[g.axis])) > 0.5
+            others = [ds.aggregator(g.record, "accel", a).shape[0] for a in range(3)]
+            # the up channel has only the still moments: fewer rows than the horizontal ones
+            assert (len(g.rows) < max(others)) if up else (len(g.rows) == max(others))
+            # the rows' mean is whitened exactly (still moments and moving blocks differ)
+            w = ds.whiten[np.ix_(g.rows, g.rows)]
+            cov = np.linalg.inv(w.T @ w)
+            mean = np.full(len(g.rows), 1.0 / len(g.rows))
+            assert mean @ cov @ mean == pytest.approx(g.sigma**2, rel=1e-9)
     # W whitens each group exactly: the record mean has variance σ² (white/B + floor²),
     # a block's departure from it the contrast variance
     for g in static_groups:

@@ -1,0 +1,151 @@
+"""The accelerometer while the cube turns: the sensor's lever arm, the moving blocks, the hand.
+
+Physics (rigid body; method.md §2 for the accelerometer model, §4 for the hand turns). The
+accelerometer measures specific force at the point where the sensor sits. With the cube turning
+about a fixed point O at angular rate ω (body frame, rad/s), the sensor at r (body frame, m,
+from O) accelerates by
+
+    a = ω̇ × r + ω × (ω × r)                                   (tangential + centripetal)
+
+so that, beside gravity, each accelerometer channel i reads Σ_j M_ij(t)·r_j with
+
+    M(t) = [ω̇]ₓ + [ω]ₓ[ω]ₓ = [ω̇]ₓ + ω·ωᵀ − |ω|²·I          ([v]ₓ: the cross-product matrix)
+
+linear in r. For a hand turn about the body axis k that points up (ω = ω·e_k) only the two
+components of r perpendicular to k matter: the centripetal term is −ω²·r⊥ (toward the axis), the
+tangential one ω̇·(e_k × r); the up channel reads neither.
+
+Geometry assumption: every turn pivots about the vertical through the centre of the cube (the
+operator turns the cube in place against the ruler), so ONE vector r — the sensor's offset from
+the cube's centre, in body axes — explains every turn: each component of r is seen by the two
+turns about the other axes, which is also the test of the assumption. Rate-table records turn
+about the table's axis (another point): their rows are not read here.
+
+Size of the signal: ω²·r = 0.12 m/s² at 90 °/s and r = 5 cm (3 mm at 1 cm and 30 °/s); the
+hand's block means scatter by a few 0.01 m/s² (wobble tilts gravity by g·θ), so a turn at ≥ 60 °/s
+resolves r to millimetres.
+
+Rows (:func:`moving_blocks`): the turning parts of a turn record (the rate about up beyond its
+noise) cut into blocks of :data:`BLOCK_S`; the accelerometer's block means are rows of the fit.
+A block mean of ω² keeps the centripetal term (ω² > 0 on every sample); ω̇ averages to
+(ω_end − ω_start)/T, so blocks shorter than one push also see the tangential term. Accelerometer
+and gyro are sampled at the same instant by the MPU-6000 (its DLPF delays differ by < 1 ms,
+which moves a 0.5 s block mean of ω² by < 0.3 %): no time alignment is needed.
+
+Their noise (:func:`excess_scatter`): the white noise of the accelerometer plus the hand — the
+cube wobbles and is pushed while it turns. That scatter is measured from the moving blocks
+themselves: the scatter beyond a constant per turn and channel (bias, face error,
+misalignment: fixed in the body), the lever arm and the plate tilt (the effects the rows are read
+for), and beyond each block's white noise. The lever arm is in that regression on purpose: the
+scatter it explains is signal, not noise (as the plate tilt for the still moments' seating).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Hashable, Sequence
+
+import numpy as np
+
+#: length of a moving block, s: shorter than a push (≈ 1 s) so the tangential term survives
+BLOCK_S = 0.5
+#: a turn whose moving samples' RMS rate is below this, °/s, shows no lever arm: ω²·r at
+#: 30 °/s and 5 cm is 0.014 m/s², the hand's scatter of one block mean
+MIN_RATE_DPS = 30.0
+#: the fewest samples of a moving block
+MIN_BLOCK_SAMPLES = 4
+#: below this rate, °/s, the cube is at rest: the gyro's noise is not a rate (ω²·r at 1 °/s
+#: and 10 cm is 3·10⁻⁵ m/s²), so M(t) is exactly 0 there
+REST_DPS = 1.0
+
+
+def angular_acceleration(t_s: np.ndarray, rate_dps: np.ndarray) -> np.ndarray:
+    """(N, 3) ω̇ in rad/s² from the rate ``rate_dps`` (N, 3) °/s at times ``t_s`` (N,) s
+    (central differences; one-sided at the ends; zeros for fewer than two samples)."""
+    rate = np.radians(np.asarray(rate_dps, dtype=np.float64))
+    t = np.asarray(t_s, dtype=np.float64)
+    if len(t) < 2:
+        return np.zeros_like(rate)
+    return np.asarray(np.gradient(rate, t, axis=0))
+
+
+def lever_arm_matrix(t_s: np.ndarray, rate_dps: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) M(t) = [ω̇]ₓ + [ω]ₓ[ω]ₓ (module docstring): the specific force the sensor
+    reads, m/s², is M·r for a lever arm r in metres (body axes); rate ``rate_dps`` (N, 3) °/s
+    at times ``t_s`` (N,) s. Exactly 0 at rest (|ω| < :data:`REST_DPS`)."""
+    w = np.radians(np.asarray(rate_dps, dtype=np.float64))
+    wd = angular_acceleration(t_s, rate_dps)
+    m = np.zeros((len(w), 3, 3))
+    # [ω̇]ₓ
+    m[:, 0, 1], m[:, 0, 2] = -wd[:, 2], wd[:, 1]
+    m[:, 1, 0], m[:, 1, 2] = wd[:, 2], -wd[:, 0]
+    m[:, 2, 0], m[:, 2, 1] = -wd[:, 1], wd[:, 0]
+    # [ω]ₓ[ω]ₓ = ω·ωᵀ − |ω|²·I
+    m += w[:, :, None] * w[:, None, :]
+    m -= np.sum(w * w, axis=1)[:, None, None] * np.eye(3)[None]
+    rest = np.linalg.norm(np.asarray(rate_dps, dtype=np.float64), axis=1) < REST_DPS
+    m[rest] = 0.0
+    return m
+
+
+def moving_blocks(
+    rate_up_dps: np.ndarray, t_s: np.ndarray, sigma_dps: float, block_s: float = BLOCK_S
+) -> list[tuple[int, int]]:
+    """[start, stop) index ranges of the turning parts of a turn record, cut into blocks of about
+    ``block_s`` s: where the rate about the up axis ``rate_up_dps`` (N,) °/s (bias removed) is
+    beyond 4·``sigma_dps`` (the gyro's per-sample noise, °/s), at times ``t_s`` (N,) s. A run
+    of fewer than :data:`MIN_BLOCK_SAMPLES` samples is left out."""
+    t = np.asarray(t_s, dtype=np.float64)
+    moving = np.abs(np.asarray(rate_up_dps, dtype=np.float64)) >= 4.0 * max(sigma_dps, 1e-6)
+    out: list[tuple[int, int]] = []
+    i, n = 0, len(moving)
+    while i < n:
+        if not moving[i]:
+            i += 1
+            continue
+        j = i
+        while j < n and moving[j]:
+            j += 1
+        if j - i >= MIN_BLOCK_SAMPLES:
+            length = float(t[j - 1] - t[i])
+            k = max(1, min(round(length / block_s), (j - i) // MIN_BLOCK_SAMPLES))
+            edges = np.linspace(i, j, k + 1).round().astype(int)
+            out.extend((int(edges[b]), int(edges[b + 1])) for b in range(k))
+        i = j
+    return out
+
+
+def rms_rate_dps(rate_up_dps: np.ndarray, blocks: Sequence[tuple[int, int]]) -> float:
+    """RMS of the rate ``rate_up_dps`` (N,) °/s over the samples of ``blocks`` (0 without)."""
+    if not blocks:
+        return 0.0
+    r = np.concatenate([np.asarray(rate_up_dps)[a:b] for a, b in blocks])
+    return float(np.sqrt(np.mean(r * r)))
+
+
+def excess_scatter(
+    y: np.ndarray,
+    keys: Sequence[Hashable],
+    columns: np.ndarray,
+    white_var: np.ndarray,
+) -> tuple[float, int]:
+    """Scatter of values beyond their white noise and what explains them: ``y`` (K,) values,
+    ``keys`` (K,) a constant per key (e.g. per turn and channel), ``columns`` (K, m) shared
+    regressors (e.g. the lever arm, the plate tilt), ``white_var`` (K,) each value's white-noise
+    variance. Least squares, then σ² = Σ(r² − w)/dof (≥ 0): -> (σ in y's unit, dof); (0, 0)
+    when nothing is left over (dof ≤ 0)."""
+    yv = np.asarray(y, dtype=np.float64)
+    w = np.asarray(white_var, dtype=np.float64)
+    uniq = list(dict.fromkeys(keys))
+    if len(yv) == 0:
+        return 0.0, 0
+    x = np.zeros((len(yv), len(uniq) + columns.shape[1]))
+    for i, k in enumerate(keys):
+        x[i, uniq.index(k)] = 1.0
+    x[:, len(uniq) :] = columns
+    beta, _, rank, _ = np.linalg.lstsq(x, yv, rcond=None)
+    dof = len(yv) - int(rank)
+    if dof <= 0:
+        return 0.0, 0
+    r = yv - x @ beta
+    return math.sqrt(max(0.0, float(np.sum(r * r - w)) / dof)), dof
