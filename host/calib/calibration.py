@@ -95,7 +95,6 @@ from host.modelling.model import (
     fit_model,
     load_term_file,
     parse_model,
-    reads_moving,
     short_spec,
 )
 
@@ -248,7 +247,7 @@ def what_would_determine(
         try:
             ds = build_dataset(
                 Session(session.serial, records), latitude_deg=latitude_deg, height_m=height_m,
-                turns=n_turns, moving=reads_moving(model),
+                turns=n_turns,
             )  # fmt: skip
         except UserError:
             return set()
@@ -326,10 +325,9 @@ def calibrate_from_records(
     mts = parse_model(model, cat)
     nm = noise if noise is not None else NoiseModel()
     g = local_gravity(latitude_deg, height_m)
-    # the accelerometer while turning only when the model explains it (the lever arm)
     ds = build_dataset(
         session, noise=nm, latitude_deg=latitude_deg, height_m=height_m, turns=turns,
-        earth_rate=earth_rate, moving=reads_moving(mts),
+        earth_rate=earth_rate,
     )  # fmt: skip
     fit = fit_model(ds, mts)
     stats = {n: record_stats(r) for n, r in session.records.items()}

@@ -61,7 +61,6 @@ from host.modelling.model import (
     design,
     load_term_file,
     parse_model,
-    reads_moving,
 )
 
 FORMAT = "imu-bench calibration result"
@@ -851,7 +850,7 @@ def verify(
     model = parse_model(result.model, _catalogue_for(result, catalogue))
     ds = build_dataset(
         session, noise=nm, latitude_deg=result.latitude_deg, height_m=result.height_m,
-        earth_rate=result.earth_rate, moving=reads_moving(model),
+        earth_rate=result.earth_rate,
     )  # fmt: skip
     values = {(p.term, p.sensor, p.axis, p.key): p.value for p in result.parameters}
     per_term: list[np.ndarray] = []

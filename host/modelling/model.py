@@ -42,7 +42,7 @@ import importlib.util
 import inspect
 import math
 import sys
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Hashable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -565,8 +565,6 @@ CATALOGUE: dict[str, Term] = {
         plate_tilt, turn_axis_tilt, lever_arm,
     )
 }  # fmt: skip
-#: terms that explain the accelerometer while the cube turns (:func:`reads_moving`)
-MOVING_TERMS = ("lever_arm",)
 #: the linear model of method.md §2
 BASE = ("bias", "scale", "misalignment", "g_sensitivity")
 
@@ -1105,16 +1103,18 @@ def _hand_sigma(
     sensor_aggs: Mapping[tuple[int, str, int], np.ndarray],
     n_still: Mapping[int, int],
     white_level: Mapping[tuple[str, int], float],
-) -> tuple[float, str]:
-    """The hand's scatter of a moving block's mean on a horizontal accelerometer while the cube
-    turns, m/s², and a note ('' without moving blocks): the scatter beyond a constant per turn
-    and channel, the lever arm and the plate tilt, and beyond the sensor's white noise
-    (``white_level`` (sensor, axis) -> variance·τ of one sample, from the static records) —
-    :func:`host.modelling.turning.excess_scatter`, module docstring there."""
+) -> tuple[tuple[float, float], str]:
+    """The hand's scatter on a horizontal accelerometer while the cube turns, m/s²: (of a
+    moving block's mean about its turn's level, of that level about the turn's level at rest)
+    and a note ('' without moving blocks): beyond a constant per turn and channel, the lever arm
+    and the plate tilt, and beyond the sensor's white noise (``white_level`` (sensor, axis) ->
+    variance·τ of one sample, from the static records) —
+    :func:`host.modelling.turning.hand_scatter`, module docstring there."""
     keys: list[tuple[int, int]] = []
     ys: list[float] = []
     cl: list[np.ndarray] = []
     ws: list[float] = []
+    rest: dict[Hashable, tuple[float, float, np.ndarray]] = {}
     for ri, sig in enumerate(signals):
         if sig.kind != "turn":
             continue
@@ -1125,6 +1125,18 @@ def _hand_sigma(
                 continue
             moving = agg[n_still[ri] :]
             counts = np.count_nonzero(moving, axis=1).astype(float)
+            tilt0 = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
+            assert tilt0 is not None
+            if n_still[ri]:
+                # the same turn and channel at rest: the still moments' mean
+                still = agg[: n_still[ri]]
+                m_still = still.mean(axis=0)
+                n_s = float(np.count_nonzero(still))
+                rest[(ri, ax)] = (
+                    float(m_still @ sig.accel[:, ax]),
+                    white_level.get(("accel", ax), 0.0) / n_s,
+                    np.concatenate([np.zeros(3), m_still @ tilt0]),
+                )
             if lever is None:
                 lever = turning.lever_arm_matrix(sig.t_s, sig.rate)
             tilt = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
@@ -1134,12 +1146,14 @@ def _hand_sigma(
             cl.extend(moving @ np.column_stack([lever[:, ax, :], tilt]))
             ws.extend((white_level.get(("accel", ax), 0.0) / counts).tolist())
     if not ys:
-        return 0.0, ""
-    sigma, dof = turning.excess_scatter(np.array(ys), keys, np.array(cl), np.array(ws))
-    return sigma, (
-        f"the hand while the cube turns: {sigma:.2g} m/s² on a horizontal accelerometer's "
-        f"block mean ({turning.BLOCK_S:g} s), from {len(ys)} moving blocks ({dof} dof beyond a "
-        "constant per turn and channel, the lever arm and the plate tilt)"
+        return (0.0, 0.0), ""
+    block, level, dof = turning.hand_scatter(np.array(ys), keys, np.array(cl), np.array(ws),
+                                             rest)  # fmt: skip
+    return (block, level), (
+        f"the hand while the cube turns: {block:.2g} m/s² on a horizontal accelerometer's "
+        f"block mean ({turning.BLOCK_S:g} s) about the turn's level, from {len(ys)} moving "
+        f"blocks ({dof} dof beyond a constant per turn and channel, the lever arm and the "
+        f"plate tilt); a turn's level while moving departs from its level at rest by {level:.2g}"
     )
 
 
@@ -1149,15 +1163,14 @@ def _whiten_exact(
     sensor: str,
     axis: int,
     idx: Sequence[int],
-    v_rows: np.ndarray,
-    floor: float,
+    cov: np.ndarray,
 ) -> Group:
     """Whiten the rows ``idx`` of one record and channel exactly when their variances differ
-    (still moments and moving blocks of a turn): Cov = diag(``v_rows``) + floor²·11ᵀ, W = L⁻¹
-    with L its Cholesky factor, written into ``whiten``; -> the :class:`Group`."""
+    or they are correlated (still moments and moving blocks of a turn): ``cov`` their
+    covariance, W = L⁻¹ with L its Cholesky factor, written into ``whiten``; -> the
+    :class:`Group`."""
     b = len(idx)
-    cov = np.diag(v_rows) + floor**2 * np.ones((b, b))
-    if not np.all(v_rows > 0.0):
+    if not np.all(np.diag(cov) > 0.0):
         raise UserError(
             f"record {record}: accel {'xyz'[axis]} reads the same value in every sample while "
             "turning (noise-free data): give a floor, e.g. --floor accel=1e-4,gyro=1e-3"
@@ -1165,15 +1178,9 @@ def _whiten_exact(
     w = np.linalg.inv(np.linalg.cholesky(cov))
     whiten[np.ix_(list(idx), list(idx))] = w
     v_mean = float(np.sum(cov)) / b**2
-    return Group(record, sensor, axis, np.array(idx), math.sqrt(v_mean), float(np.mean(v_rows)))
-
-
-def reads_moving(model: Sequence[ModelTerm]) -> bool:
-    """Whether ``model`` explains the accelerometer while the cube turns (it holds a term of
-    :data:`MOVING_TERMS`): only then does a calibration fit the moving blocks
-    (:func:`build_dataset` ``moving``), which otherwise would bias the accelerometer's
-    constants by the centripetal acceleration."""
-    return any(mt.term.name in MOVING_TERMS for mt in model)
+    return Group(
+        record, sensor, axis, np.array(idx), math.sqrt(v_mean), float(np.mean(np.diag(cov)))
+    )
 
 
 def build_dataset(
@@ -1191,8 +1198,7 @@ def build_dataset(
     ``earth_rate``: the reference rate includes the vertical Earth rate (as
     :func:`~host.calibration.build_observations`). ``moving``: the accelerometer's block means
     over the turning parts of the turn records are rows too (:mod:`host.modelling.turning`;
-    the lever arm shows only there); a calibration whose model cannot explain them
-    (:func:`reads_moving`) leaves them out. UserError when there is nothing to fit (no static
+    the lever arm shows only there). UserError when there is nothing to fit (no static
     records, bad records).
     """
     nm = noise or NoiseModel()
@@ -1385,8 +1391,10 @@ def build_dataset(
             v_blocks[:ns] = v_blocks[:ns] + seat**2  # a horizontal channel at a still moment
         if ns < len(idx):
             # moving blocks: the sensor's white noise (the static records' level) + the hand
-            v_blocks[ns:] = level / counts[ns:] + hand**2
-            groups.append(_whiten_exact(whiten, ri, s, ax, idx, v_blocks, floor))
+            v_blocks[ns:] = level / counts[ns:]
+            cov = np.diag(v_blocks) + floor**2
+            cov[ns:, ns:] += turning.hand_covariance(hand[0], hand[1], len(idx) - ns)
+            groups.append(_whiten_exact(whiten, ri, s, ax, idx, cov))
             continue
         b = len(idx)
         v_mean = float(np.sum(v_blocks)) / b**2 + floor**2

@@ -32,18 +32,22 @@ A block mean of ω² keeps the centripetal term (ω² > 0 on every sample); ω̇
 and gyro are sampled at the same instant by the MPU-6000 (its DLPF delays differ by < 1 ms,
 which moves a 0.5 s block mean of ω² by < 0.3 %): no time alignment is needed.
 
-Their noise (:func:`excess_scatter`): the white noise of the accelerometer plus the hand — the
+Their noise (:func:`hand_scatter`): the white noise of the accelerometer plus the hand — the
 cube wobbles and is pushed while it turns. That scatter is measured from the moving blocks
 themselves: the scatter beyond a constant per turn and channel (bias, face error,
 misalignment: fixed in the body), the lever arm and the plate tilt (the effects the rows are read
-for), and beyond each block's white noise. The lever arm is in that regression on purpose: the
-scatter it explains is signal, not noise (as the plate tilt for the still moments' seating).
+for), and beyond each block's white noise; and, apart, how far a turn's level while moving
+departs from its level at rest (the still moments): a wobble has no net tilt, so a turn's
+blocks scatter about a level that is nearly the resting one (σ_block·(I − 11ᵀ/n) +
+σ_turn²·11ᵀ, :func:`hand_covariance`), not like independent blocks. The lever arm is in that
+regression on purpose: the scatter it explains is signal, not noise (as the plate tilt for the
+still moments' seating).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Hashable, Sequence
+from collections.abc import Hashable, Mapping, Sequence
 
 import numpy as np
 
@@ -121,6 +125,65 @@ def rms_rate_dps(rate_up_dps: np.ndarray, blocks: Sequence[tuple[int, int]]) -> 
         return 0.0
     r = np.concatenate([np.asarray(rate_up_dps)[a:b] for a, b in blocks])
     return float(np.sqrt(np.mean(r * r)))
+
+
+def hand_scatter(
+    y: np.ndarray,
+    keys: Sequence[Hashable],
+    columns: np.ndarray,
+    white_var: np.ndarray,
+    rest: Mapping[Hashable, tuple[float, float, np.ndarray]],
+) -> tuple[float, float, int]:
+    """The hand's scatter of the moving blocks: ``y`` (K,) block means, ``keys`` (K,) their
+    turn and channel, ``columns`` (K, m) the shared regressors (lever arm, plate tilt),
+    ``white_var`` (K,) each mean's white-noise variance; ``rest`` key -> (the mean of that
+    turn's still moments, its variance, the shared regressors there (m,)). Least squares with
+    a constant per key, then -> (σ_block, σ_turn, dof): σ_block² = Σ(r² − w)/dof, the scatter
+    of a block about its turn's level; σ_turn² the scatter of a turn's level while moving about
+    its level at rest (the constants against ``rest``, beyond their own variance; at least the
+    standard error of that estimate, as :func:`host.modelling.model.repeat_floor`; without
+    ``rest`` σ_block). A wobble has no net tilt: σ_turn is far below σ_block/√n."""
+    yv = np.asarray(y, dtype=np.float64)
+    w = np.asarray(white_var, dtype=np.float64)
+    uniq = list(dict.fromkeys(keys))
+    if len(yv) == 0:
+        return 0.0, 0.0, 0
+    x = np.zeros((len(yv), len(uniq) + columns.shape[1]))
+    for i, k in enumerate(keys):
+        x[i, uniq.index(k)] = 1.0
+    x[:, len(uniq) :] = columns
+    beta, _, rank, _ = np.linalg.lstsq(x, yv, rcond=None)
+    dof = len(yv) - int(rank)
+    if dof <= 0:
+        return 0.0, 0.0, 0
+    r = yv - x @ beta
+    block2 = max(0.0, float(np.sum(r * r - w)) / dof)
+    shared = beta[len(uniq) :]
+    d: list[float] = []
+    v: list[float] = []
+    karr = [uniq.index(k) for k in keys]
+    for j, k in enumerate(uniq):
+        if k not in rest:
+            continue
+        level, var0, cols0 = rest[k]
+        n = sum(1 for q in karr if q == j)
+        wk = float(np.mean(w[[i for i, q in enumerate(karr) if q == j]]))
+        d.append(float(beta[j]) - (level - float(np.asarray(cols0) @ shared)))
+        v.append(var0 + (block2 + wk) / n)
+    if not d:
+        return math.sqrt(block2), math.sqrt(block2), dof
+    dd, vv = np.array(d), np.array(v)
+    turn2 = float(np.sum(dd * dd - vv)) / len(dd)
+    resolved = math.sqrt(float(np.sum(2.0 * vv * vv))) / len(dd)
+    return math.sqrt(block2), math.sqrt(max(turn2, resolved)), dof
+
+
+def hand_covariance(sigma_block: float, sigma_turn: float, n: int) -> np.ndarray:
+    """(n, n) covariance of a turn's ``n`` moving blocks from :func:`hand_scatter`: each block
+    scatters by ``sigma_block`` about the turn's level, the level by ``sigma_turn``:
+    σ_block²·(I − 11ᵀ/n) + σ_turn²·11ᵀ, in y's unit²."""
+    ones = np.ones((n, n))
+    return np.asarray(sigma_block**2 * (np.eye(n) - ones / n) + sigma_turn**2 * ones)
 
 
 def excess_scatter(

@@ -19,7 +19,6 @@ from host.modelling.model import (
     build_dataset,
     fit_model,
     parse_model,
-    reads_moving,
     session_from_records,
 )
 from host.modelling.scenarios import hidden_effect_case, run_case
@@ -80,8 +79,6 @@ def test_lever_arm_is_one_shared_term_with_a_plausible_range() -> None:
     t = CATALOGUE["lever_arm"]
     assert t.shared and t.sensors == ("accel",) and t.plausible["accel"] == pytest.approx(0.1)
     assert t.param_units("accel") == ("m", "m", "m")
-    assert reads_moving(parse_model("base,lever_arm:accel"))
-    assert not reads_moving(parse_model("base,plate_tilt:accel"))
 
 
 @pytest.mark.timeout(300)  # two simulated sessions, each diagnosed twice (~15 s each idle)
@@ -142,9 +139,9 @@ def test_turns_about_one_axis_see_only_the_perpendicular_offset() -> None:
     assert math.isnan(z.value) and "lever_arm.z" in fit.undetermined
 
 
-def test_a_calibration_without_the_term_does_not_read_the_moving_blocks() -> None:
-    """The moving blocks enter the dataset only when asked (a calibration whose model cannot
-    explain them would bias the accelerometer by the centripetal acceleration)."""
+def test_the_moving_blocks_are_rows_of_their_own_and_can_be_left_out() -> None:
+    """The moving blocks are rows beside the still moments (``moving=False`` leaves them
+    out) and their noise comes with a note saying where it was measured."""
     case = hidden_effect_case("none", 0)
     session = session_from_records(case.records)
     with_moving = build_dataset(session)
