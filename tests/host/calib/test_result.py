@@ -122,8 +122,9 @@ def test_imucal_same_constants_and_errors_from_calibrate_and_diagnose(
         assert mine[name]["value"] == pytest.approx(p["value"], rel=1e-12), name
         assert mine[name]["stderr"] == pytest.approx(p["stderr"], rel=1e-12), name
     # the accelerometer misfit (bias estimates 0.02-0.04 m/s² apart) scales its errors:
-    # the same policy in both, said in both
-    assert mine["A0x"]["stderr"] > 0.005 and cal["fit"]["verdict"] == "inadequate"
+    # the same policy in both, said in both (unscaled, A0x's error would be 0.0003 m/s²: the
+    # scale is ~16; the moving blocks of the turns add degrees of freedom the model fits)
+    assert mine["A0x"]["stderr"] > 0.004 and cal["fit"]["verdict"] == "inadequate"
     assert "standard errors scaled" in cal["fit"]["stderr_note"]
     assert any("standard errors scaled" in n for n in diag["notes"])
 
