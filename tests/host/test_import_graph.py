@@ -133,7 +133,7 @@ def test_every_module_lives_in_a_stage_package() -> None:
     """host/ holds only the package files; every module is in its stage's subpackage."""
     flat = sorted(p.name for p in HOST.glob("*.py"))
     assert flat == ["__init__.py", "__main__.py", "errors.py"], (
-        "put a new module in its stage's package (README, 'What is here'), not in host/ itself"
+        "put a new module in its stage's package (docs/layout.md), not in host/ itself"
     )
 
 

@@ -106,21 +106,23 @@ def test_every_long_module_states_why_in_its_docstring() -> None:
     assert unexplained == [], "split these or say why they are long: " + ", ".join(unexplained)
 
 
-def test_the_readme_table_and_each_package_docstring_name_every_module() -> None:
-    """A reader goes from the README's 'What is here' table to any stage in one step: each
-    package has a row linking its opening docstring, and both name every module in it."""
+def test_the_layout_table_and_each_package_docstring_name_every_module() -> None:
+    """A reader goes from the layout table (docs/layout.md, linked from the README's 'What is
+    here') to any stage in one step: each package has a row linking its opening docstring, and
+    both name every module in it."""
     import ast
 
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert "](docs/layout.md)" in (ROOT / "README.md").read_text(encoding="utf-8")
+    table = (ROOT / "docs" / "layout.md").read_text(encoding="utf-8")
     for pkg in sorted(p for p in (ROOT / "host").iterdir() if (p / "__init__.py").is_file()):
         modules = sorted(f.stem for f in pkg.glob("*.py") if f.name != "__init__.py")
-        link = f"| [`host/{pkg.name}/`](host/{pkg.name}/__init__.py) |"
-        rows = [line for line in readme.splitlines() if line.startswith(link)]
-        assert len(rows) == 1, f"README: no row {link}"
+        link = f"| [`host/{pkg.name}/`](../host/{pkg.name}/__init__.py) |"
+        rows = [line for line in table.splitlines() if line.startswith(link)]
+        assert len(rows) == 1, f"docs/layout.md: no row {link}"
         doc = ast.get_docstring(ast.parse((pkg / "__init__.py").read_text(encoding="utf-8")))
         assert doc, f"host/{pkg.name}/__init__.py has no docstring"
         for m in modules:
-            assert f"`{m}.py`" in rows[0], f"README row of host/{pkg.name}/ lacks {m}.py"
+            assert f"`{m}.py`" in rows[0], f"docs/layout.md row of host/{pkg.name}/ lacks {m}.py"
             assert f"``{m}``" in doc, f"host/{pkg.name}/__init__.py docstring lacks {m}"
 
 
