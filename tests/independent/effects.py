@@ -1,0 +1,281 @@
+"""The one optional effect of an independent session: each a small function.
+
+An effect is either a change of the bench's geometry (plate tilt, tilted turn axis, face lean,
+lever arm: it sets :class:`~tests.independent.truth.Geometry`) or a sensor effect, a function of
+the record's true signals that adds to the outputs. ``EFFECTS`` maps a name to a maker
+``(rng) -> Effect``; the effect's ``params`` are its truth (written to the session's truth file).
+Sizes are "clear": about 100× the white noise of a 10 s record mean (accel 4.5e-4 m/s², gyro
+1.1e-3 °/s) where the issue asks for that.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from tests.independent.physics import AXES
+from tests.independent.truth import Geometry
+
+#: the session's first record starts this long after power-on (the dialogue's warm-up), s
+FIRST_RECORD_S = 600.0
+
+
+@dataclass
+class Signals:
+    """True inputs of one record, per sample: ``power_on_s`` (N,) s, ``temp_c`` (N,) °C,
+    ``dtemp_c_per_s`` (N,) °C/s, ``force`` (N, 3) m/s², ``rate`` (N, 3) °/s, ``g`` m/s²."""
+
+    power_on_s: np.ndarray
+    temp_c: np.ndarray
+    dtemp_c_per_s: np.ndarray
+    force: np.ndarray
+    rate: np.ndarray
+    g: float
+
+
+#: (signals) -> (accel add (N,3) m/s², gyro add (N,3) °/s)
+SensorFn = Callable[[Signals], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass
+class Effect:
+    """One effect: ``name``, its truth ``params``, an optional sensor function ``sensor`` and an
+    optional ``geometry`` change (applied to the session's Geometry)."""
+
+    name: str
+    params: dict[str, Any] = field(default_factory=dict)
+    sensor: SensorFn | None = None
+    geometry: Callable[[Geometry], None] | None = None
+
+
+def _channel(sensor: str, axis: int, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``values`` (N,) on one channel, zero elsewhere."""
+    n = values.shape[0]
+    a, g = np.zeros((n, 3)), np.zeros((n, 3))
+    (a if sensor == "accel" else g)[:, axis] = values
+    return a, g
+
+
+def _pick(rng: np.random.Generator, k: int = 1) -> list[int]:
+    return [int(i) for i in rng.choice(3, size=k, replace=False)]
+
+
+def _sign(rng: np.random.Generator) -> float:
+    return float(rng.choice([-1.0, 1.0]))
+
+
+# ---- geometry ----------------------------------------------------------------------------
+def plate_tilt(rng: np.random.Generator) -> Effect:
+    """The plate's normal leans 0.1°–1° toward any room azimuth."""
+    tilt = math.radians(rng.uniform(0.1, 1.0))
+    az = rng.uniform(0.0, 2 * math.pi)
+
+    def geo(g: Geometry) -> None:
+        g.plate_tilt_rad, g.plate_azimuth_rad = tilt, az
+
+    # gravity's up direction in the plate's frame: the plate's normal leans toward az, so up
+    # leans the other way (east = along the fence, north = up × east)
+    up_e, up_n = -math.sin(tilt) * math.cos(az), -math.sin(tilt) * math.sin(az)
+    params = {
+        "tilt_rad": tilt,
+        "tilt_deg": math.degrees(tilt),
+        "normal_azimuth_deg": math.degrees(az),
+        "up_east_rad": up_e,
+        "up_north_rad": up_n,
+    }
+    return Effect("plate_tilt", params, geometry=geo)
+
+
+def turn_axis_tilt(rng: np.random.Generator) -> Effect:
+    """The turns about one axis (both ways) are made with the cube seated 2°–5° off its face:
+    the turn axis (vertical) and gravity both lean from the nominal up axis in the body."""
+    k = _pick(rng)[0]
+    size = math.radians(rng.uniform(2.0, 5.0))
+    phi = rng.uniform(0, 2 * math.pi)
+    others = [i for i in range(3) if i != k]
+    lean = np.zeros(3)
+    lean[others[0]], lean[others[1]] = size * math.cos(phi), size * math.sin(phi)
+
+    def geo(g: Geometry) -> None:
+        g.turn_lean[AXES[k]] = lean
+
+    params = {"axis": AXES[k], "lean_rad": lean.tolist(), "tilt_deg": math.degrees(size)}
+    return Effect("turn_axis_tilt", params, geometry=geo)
+
+
+def face_lean(rng: np.random.Generator) -> Effect:
+    """Every face of the fixture leans 1–5 mrad (either sign) toward both other axes."""
+    leans: dict[str, np.ndarray] = {}
+    for k in range(3):
+        for s in "+-":
+            v = np.zeros(3)
+            for i in range(3):
+                if i != k:
+                    v[i] = _sign(rng) * rng.uniform(1e-3, 5e-3)
+            leans[s + AXES[k]] = v
+
+    def geo(g: Geometry) -> None:
+        g.face_lean.update(leans)
+
+    return Effect(
+        "face_lean", {"lean_rad": {f: v.tolist() for f, v in leans.items()}}, geometry=geo
+    )
+
+
+def lever_arm(rng: np.random.Generator) -> Effect:
+    """The sensor sits 2–6 cm off the cube's centre along every axis (either sign)."""
+    r = np.array([_sign(rng) * rng.uniform(0.02, 0.06) for _ in range(3)])
+
+    def geo(g: Geometry) -> None:
+        g.lever_arm_m = r
+
+    return Effect("lever_arm", {"r_m": r.tolist()}, geometry=geo)
+
+
+# ---- sensor ------------------------------------------------------------------------------
+def bias_step(sensor: str) -> Callable[[np.random.Generator], Effect]:
+    """A bias step half-way through the session (100× the white noise of a record mean)."""
+
+    def make(rng: np.random.Generator) -> Effect:
+        i = _pick(rng)[0]
+        size = _sign(rng) * (0.05 if sensor == "accel" else 0.12)
+        at = FIRST_RECORD_S + rng.uniform(0.4, 0.6) * 420.0
+
+        def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
+            return _channel(sensor, i, np.where(s.power_on_s >= at, size, 0.0))
+
+        p = {"sensor": sensor, "axis": AXES[i], "step": size, "at_power_on_s": at}
+        return Effect(f"bias_step_{sensor}", p, sensor=fn)
+
+    return make
+
+
+def bias_drift(sensor: str) -> Callable[[np.random.Generator], Effect]:
+    """A bias linear in time since power-on, d·hours (catalogue: time_drift)."""
+
+    def make(rng: np.random.Generator) -> Effect:
+        i = _pick(rng)[0]
+        per_h = _sign(rng) * (0.3 if sensor == "accel" else 0.7)
+
+        def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
+            return _channel(sensor, i, per_h * s.power_on_s / 3600.0)
+
+        p = {"sensor": sensor, "axis": AXES[i], "per_h": per_h}
+        return Effect(f"bias_drift_{sensor}", p, sensor=fn)
+
+    return make
+
+
+def temperature_bias(rng: np.random.Generator) -> Effect:
+    """A gyro bias linear in chip temperature, c·(T − 25 °C) (catalogue: temperature_bias)."""
+    i = _pick(rng)[0]
+    c = _sign(rng) * 0.05
+
+    def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
+        return _channel("gyro", i, c * (s.temp_c - 25.0))
+
+    return Effect("temperature_bias", {"sensor": "gyro", "axis": AXES[i], "per_C": c}, sensor=fn)
+
+
+def dtdt_bias(rng: np.random.Generator) -> Effect:
+    """A gyro bias that follows the rate of change of the chip temperature, c·dT/dt
+    (thermal gradients across the die while it warms; off the catalogue)."""
+    i = _pick(rng)[0]
+    c = _sign(rng) * 25.0  # (°/s)/(°C/s)
+
+    def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
+        return _channel("gyro", i, c * s.dtemp_c_per_s)
+
+    p = {"sensor": "gyro", "axis": AXES[i], "per_C_per_s": c}
+    return Effect("dtdt_bias", p, sensor=fn)
+
+
+def cross_g2(rng: np.random.Generator) -> Effect:
+    """Accelerometer i reads the square of a cross-axis force: += c·(f_j/g)² (off-catalogue)."""
+    i, j = _pick(rng, 2)
+    c = _sign(rng) * 0.05
+
+    def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
+        return _channel("accel", i, c * (s.force[:, j] / s.g) ** 2)
+
+    p = {"sensor": "accel", "axis": AXES[i], "source": AXES[j], "c": c}
+    return Effect("cross_g2", p, sensor=fn)
+
+
+def abs_leak(rng: np.random.Generator) -> Effect:
+    """Accelerometer i reads the magnitude of a cross-axis force: += c·|f_j|/g
+    (a rectifying leak; off-catalogue)."""
+    i, j = _pick(rng, 2)
+    c = _sign(rng) * 0.05
+
+    def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
+        return _channel("accel", i, c * np.abs(s.force[:, j]) / s.g)
+
+    p = {"sensor": "accel", "axis": AXES[i], "source": AXES[j], "c": c}
+    return Effect("abs_leak", p, sensor=fn)
+
+
+def gyro_g2(rng: np.random.Generator) -> Effect:
+    """Gyro i reads the square of a specific force: += c·(f_j/g)² (off-catalogue)."""
+    i, j = _pick(rng, 2)
+    c = _sign(rng) * 0.15
+
+    def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
+        return _channel("gyro", i, c * (s.force[:, j] / s.g) ** 2)
+
+    p = {"sensor": "gyro", "axis": AXES[i], "source": AXES[j], "c": c}
+    return Effect("gyro_g2", p, sensor=fn)
+
+
+def scale_asymmetry(rng: np.random.Generator) -> Effect:
+    """Gyro i's scale differs by ``asym`` between positive and negative rates:
+    += ½·asym·|ω_i| (catalogue: scale_asymmetry)."""
+    i = _pick(rng)[0]
+    asym = _sign(rng) * 0.004
+
+    def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
+        return _channel("gyro", i, 0.5 * asym * np.abs(s.rate[:, i]))
+
+    return Effect("scale_asymmetry", {"sensor": "gyro", "axis": AXES[i], "asym": asym}, sensor=fn)
+
+
+def scale_nonlinearity(rng: np.random.Generator) -> Effect:
+    """Gyro i reads k2·ω_i² more (°/s; catalogue: scale_nonlinearity)."""
+    i = _pick(rng)[0]
+    k2 = _sign(rng) * 5e-6
+
+    def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
+        return _channel("gyro", i, k2 * s.rate[:, i] ** 2)
+
+    p = {"sensor": "gyro", "axis": AXES[i], "k2": k2}
+    return Effect("scale_nonlinearity", p, sensor=fn)
+
+
+def none(rng: np.random.Generator) -> Effect:
+    """Nothing hidden: the base model is the whole truth."""
+    del rng
+    return Effect("none")
+
+
+EFFECTS: dict[str, Callable[[np.random.Generator], Effect]] = {
+    "none": none,
+    "plate_tilt": plate_tilt,
+    "turn_axis_tilt": turn_axis_tilt,
+    "face_lean": face_lean,
+    "lever_arm": lever_arm,
+    "bias_step_accel": bias_step("accel"),
+    "bias_step_gyro": bias_step("gyro"),
+    "bias_drift_accel": bias_drift("accel"),
+    "bias_drift_gyro": bias_drift("gyro"),
+    "temperature_bias": temperature_bias,
+    "dtdt_bias": dtdt_bias,
+    "cross_g2": cross_g2,
+    "abs_leak": abs_leak,
+    "gyro_g2": gyro_g2,
+    "scale_asymmetry": scale_asymmetry,
+    "scale_nonlinearity": scale_nonlinearity,
+}

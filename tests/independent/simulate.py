@@ -1,0 +1,220 @@
+"""An independent session: six static faces, hand turns each way about each axis and the
+closing X-up, written in the project's record format with the truth beside it.
+
+``simulate(SessionSpec(seed=…, effect=…))`` returns the records in memory (with their
+noiseless true inputs, for the tests); ``write_session(directory, spec)`` writes
+``SERIAL_name.txt`` files and ``truth.json`` (not a record file: the host skips it).
+
+The plan follows method.md §4–§5 and the dialogue: 10 min warm-up, the statics x_up … z_dn
+(``static_s`` each), the turns x_ccw, x_cw … z_cw (``turns`` whole turns in the fixed window,
+made as quarter turns with rests: before, between and after), then x_up again (``x_up_2``).
+The operator takes 15–25 s between records. Headings: every record is placed at heading 0
+(the reference axis along the fence) or, with ``headings='random'``, at a random multiple of
+90°; ``record_heading`` writes it in the header as ``placement_heading_deg``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tests.independent import physics as ph
+from tests.independent.effects import EFFECTS, FIRST_RECORD_S, Effect, Signals
+from tests.independent.recordfile import record_text, write_record_file
+from tests.independent.truth import BaseTruth, Geometry, random_base
+
+#: header key of the placement heading, ° counter-clockwise (seen from above) from the fence to
+#: the record's reference axis (the first of +x, +y, +z not along up), at the record's start
+HEADING_KEY = "placement_heading_deg"
+#: the fixed windows of method.md §4, s
+TURN_WINDOW_S = {1: 7.0, 2: 12.0, 3: 15.0}
+STATICS = ("x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn")
+TURNS = ("x_ccw", "x_cw", "y_ccw", "y_cw", "z_ccw", "z_cw")
+
+
+@dataclass(frozen=True)
+class SessionSpec:
+    """What to simulate. Noise densities are one-sided white densities (unit/√Hz)."""
+
+    seed: int
+    effect: str = "none"
+    serial: str = "IND01"
+    static_s: float = 10.0
+    turns: int = 2
+    closing: bool = True
+    headings: str = "zero"  # "zero" | "random"
+    record_heading: bool = False
+    accel_density: float = 0.0020  # m/s²/√Hz -> 0.010 m/s² per sample at 50 Hz
+    gyro_density: float = 0.0050  # °/s/√Hz -> 0.025 °/s per sample
+    temp_noise_c: float = 0.02
+    quantise: bool = True
+    latitude_deg: float = 55.75
+    height_m: float = 150.0
+
+
+@dataclass
+class SimRecord:
+    """One record: what the file holds plus the true inputs behind it."""
+
+    name: str
+    meta: dict[str, str]
+    t_ms: np.ndarray
+    accel: np.ndarray
+    gyro: np.ndarray
+    temp_c: np.ndarray
+    true_force: np.ndarray  # (N, 3) m/s², body axes
+    true_rate: np.ndarray  # (N, 3) °/s, body axes
+    heading_deg: float
+    turn_deg: float = 0.0  # signed turned angle about the plate's normal (turn records)
+
+
+@dataclass
+class SimSession:
+    spec: SessionSpec
+    base: BaseTruth
+    geometry: Geometry
+    effect: Effect
+    g: float
+    temp: ph.TempModel = field(default_factory=ph.TempModel)
+    records: list[SimRecord] = field(default_factory=list)
+
+    def truth(self) -> dict[str, Any]:
+        """The truth file's content (JSON-able)."""
+        geo = self.geometry
+        return {
+            "format": "independent-sim truth v1",
+            "spec": asdict(self.spec),
+            "g": self.g,
+            "constants": self.base.constants(),
+            "effect": {"name": self.effect.name, **self.effect.params},
+            "geometry": {
+                "plate_tilt_rad": geo.plate_tilt_rad,
+                "plate_azimuth_rad": geo.plate_azimuth_rad,
+                "face_lean_rad": {k: v.tolist() for k, v in geo.face_lean.items()},
+                "turn_lean_rad": {k: v.tolist() for k, v in geo.turn_lean.items()},
+                "lever_arm_m": geo.lever_arm_m.tolist(),
+            },
+            "temperature": asdict(self.temp),
+            "headings_deg": {r.name: r.heading_deg for r in self.records},
+        }
+
+
+def _face(name: str) -> str:
+    """'x_dn' -> '-x', 'y_cw' -> '+y' (turns rest on their up face)."""
+    axis, kind = name.split("_")[:2]
+    return ("-" if kind == "dn" else "+") + axis
+
+
+def _record(
+    rng: np.random.Generator,
+    s: SimSession,
+    name: str,
+    start_s: float,
+    duration_s: float,
+    heading_deg: float,
+) -> SimRecord:
+    spec, geo, base = s.spec, s.geometry, s.base
+    face = _face(name)
+    kind = "turn" if name.split("_")[1] in ("ccw", "cw") else "static"
+    n = int(round(duration_s * ph.FS_HZ))
+    t_s = rng.uniform(0.0, 1.0 / ph.FS_HZ) + np.arange(n) / ph.FS_HZ
+    up = ph.axis_vector(face)
+    r0 = ph.placement(ph.seat_direction(up, geo.lean(face, kind)), ph.reference_axis(up), 0.0)
+    normal_b = r0.T @ np.array([0.0, 0.0, 1.0])  # the turn axis in body axes
+    up_plate = ph.plate_to_room(geo.plate_tilt_rad, geo.plate_azimuth_rad).T @ [0.0, 0.0, 1.0]
+    psi = np.full(n, math.radians(heading_deg))
+    rate_up = acc_up = np.zeros(n)
+    turn_deg = 0.0
+    if kind == "turn":
+        sign = 1 if name.endswith("_ccw") else -1
+        prof = ph.hand_turn(rng, spec.turns, duration_s, sign)
+        psi = psi + np.radians(prof.angle_deg(t_s))
+        rate_up, acc_up = prof.rate_dps(t_s), prof.accel_dps2(t_s)
+        turn_deg = 360.0 * spec.turns * sign
+    # gravity's up in the plate frame, seen from the turned cube: rotate by −ψ about the normal
+    c, sn = np.cos(psi), np.sin(psi)
+    w = np.column_stack(
+        [c * up_plate[0] + sn * up_plate[1], -sn * up_plate[0] + c * up_plate[1],
+         np.full(n, up_plate[2])]
+    )  # fmt: skip
+    force = s.g * (w @ r0)  # rows: (R0ᵀ w)ᵀ
+    rate = rate_up[:, None] * normal_b[None, :]
+    om = np.radians(rate)
+    om_dot = np.radians(acc_up)[:, None] * normal_b[None, :]
+    r = geo.lever_arm_m
+    force = force + np.cross(om_dot, r) + np.cross(om, np.cross(om, r))
+    pow_s = start_s + t_s
+    temp, dtemp = ph.chip_temperature(pow_s, s.temp)
+    sig = Signals(pow_s, temp, dtemp, force, rate, s.g)
+    accel = force @ base.accel_matrix.T + base.accel_bias
+    gyro = rate @ base.gyro_matrix.T + (force / s.g) @ base.g_sens.T + base.gyro_bias
+    if s.effect.sensor is not None:
+        da, dg = s.effect.sensor(sig)
+        accel, gyro = accel + da, gyro + dg
+    accel = accel + ph.white_noise(rng, spec.accel_density, (n, 3))
+    gyro = gyro + ph.white_noise(rng, spec.gyro_density, (n, 3))
+    temp_meas = temp + rng.normal(0.0, spec.temp_noise_c, n)
+    if spec.quantise:
+        accel, gyro = ph.quantise(accel, ph.ACCEL_LSB), ph.quantise(gyro, ph.GYRO_LSB)
+        temp_meas = ph.quantise(temp_meas - ph.TEMP_OFFSET_C, ph.TEMP_LSB) + ph.TEMP_OFFSET_C
+    meta = {
+        "serial": spec.serial,
+        "kind": kind,
+        "up": face,
+        "source": "independent simulator (tests/independent)",
+        "power_on_s": f"{start_s:.3f}",
+        "session_s": f"{start_s - FIRST_RECORD_S + 10.0:.3f}",
+    }
+    if kind == "turn":
+        meta.update(turns=str(spec.turns), direction=name.split("_")[1], window_s=f"{duration_s:g}")
+    if spec.record_heading:
+        meta[HEADING_KEY] = f"{heading_deg:g}"
+    return SimRecord(
+        name, meta, t_s * 1000.0, accel, gyro, temp_meas, force, rate, heading_deg, turn_deg
+    )
+
+
+def simulate(spec: SessionSpec) -> SimSession:
+    """The records of one session (see the module docstring)."""
+    if spec.effect not in EFFECTS:
+        raise ValueError(f"unknown effect {spec.effect!r}; one of {', '.join(EFFECTS)}")
+    if spec.headings not in ("zero", "random"):
+        raise ValueError("headings: 'zero' or 'random'")
+    # separate streams: the same seed gives the same unit, plan and noise whatever the effect
+    rng = np.random.default_rng([spec.seed, 0])
+    base = random_base(rng)
+    effect = EFFECTS[spec.effect](np.random.default_rng([spec.seed, 1]))
+    geo = Geometry()
+    if effect.geometry is not None:
+        effect.geometry(geo)
+    temp = ph.TempModel(phase=float(rng.uniform(0.0, 2 * math.pi)))
+    s = SimSession(spec, base, geo, effect, ph.local_g(spec.latitude_deg, spec.height_m), temp)
+    plan = [(n, spec.static_s) for n in STATICS]
+    window = TURN_WINDOW_S.get(spec.turns, 15.0 + 4.0 * (spec.turns - 3))
+    plan += [(n, window) for n in TURNS]
+    if spec.closing:
+        plan.append(("x_up_2", spec.static_s))
+    t = FIRST_RECORD_S
+    for name, dur in plan:
+        heading = 0.0 if spec.headings == "zero" else 90.0 * int(rng.integers(0, 4))
+        s.records.append(_record(rng, s, name, t, dur, heading))
+        t += dur + rng.uniform(15.0, 25.0)
+    return s
+
+
+def write_session(directory: str | Path, spec: SessionSpec) -> SimSession:
+    """Simulate and write ``directory/SERIAL_name.txt`` for every record and
+    ``directory/truth.json``; returns the session."""
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    s = simulate(spec)
+    for r in s.records:
+        text = record_text(r.name, r.meta, r.t_ms, r.accel, r.gyro, r.temp_c)
+        write_record_file(d, spec.serial, r.name, text)
+    (d / "truth.json").write_text(json.dumps(s.truth(), indent=1) + "\n", encoding="utf-8")
+    return s
