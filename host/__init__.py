@@ -7,7 +7,8 @@ One subpackage per stage of the data's journey (README, "What is here"):
 - :mod:`host.board` — ports and URLs (link), flashing and the firmware build
 - :mod:`host.dialogue` — the live calibration dialogue (method.md §5) and its console
 - :mod:`host.ingest` — foreign data in: column files, imucal sessions, captures -> records
-- :mod:`host.calib` — records, the closed-form calibration and its result, the report, export
+- :mod:`host.session` — records, the session directory, the method's constants, record checks
+- :mod:`host.calib` — the closed-form calibration and its result, the report, export
 - :mod:`host.modelling` — the model workbench: terms, fit, diagnosis
 - :mod:`host.bench` — the virtual bench: truth, physics, simulator, link simulator, emulator
 - :mod:`host.transports` — pyserial URL adapters (``sim://``, ``emu://``, ``replay://``)
@@ -39,7 +40,7 @@ MOVED: dict[str, str] = {
     "host.clock": "host.timing.clock",
     "host.link": "host.board.link",
     "host.flash": "host.board.flash",
-    "host.records": "host.calib.records",
+    "host.records": "host.session.records",
     "host.calibration": "host.calib.calibration",
     "host.report": "host.calib.report",
     "host.model": "host.modelling.model",
@@ -49,7 +50,6 @@ MOVED: dict[str, str] = {
     "host.sim_truth": "host.bench.truth",
     "host.linksim": "host.bench.linksim",
     "host.emulator": "host.bench.emulator",
-    "host.session": "host.dialogue.live",
     "host.operator": "host.dialogue.console",
     "host.calibrate_cli": "host.cli.calibrate",
     "host.model_cli": "host.cli.model",
@@ -61,7 +61,7 @@ MOVED: dict[str, str] = {
 }
 
 #: old module entry points (``python -m OLD``) -> the ``python -m host`` command they were
-MOVED_COMMANDS: dict[str, str] = {"host.session": "calibrate"}
+MOVED_COMMANDS: dict[str, str] = {}
 
 
 class _MovedModuleLoader(importlib.abc.Loader):

@@ -46,7 +46,8 @@ from host.bench.physics import (
     up_vector,
 )
 from host.bench.truth import SensorTruth, gauss_markov, sensor_output
-from host.calib.records import STATIC_NAMES, Record, record_path, turn_window_s, write_record
+from host.session.directory import record_path, write_record
+from host.session.records import STATIC_NAMES, Record, turn_window_s
 from host.wire import sensor
 from host.wire.protocol_gen import ENUMS
 

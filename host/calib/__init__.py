@@ -1,11 +1,8 @@
 """Stage 5, calibration: records -> checks -> fit -> result -> report.
 
-Data in: a session (the record files of one sitting). Out: the result (JSON, v2) and the signed
-test report, and the result in other tools' formats.
+Data in: a session (the record files of one sitting, :mod:`host.session`). Out: the result
+(JSON, v2) and the signed test report, and the result in other tools' formats.
 
-- ``records`` — the record files and the session directory (read, write atomically).
-- ``method`` — the method's constants, sign layout and local gravity.
-- ``checks`` — each record checked against the method (orientation, range, turn angle).
 - ``calibration`` — the calibration through the one fit, the closed form beside it.
 - ``publish`` — compute and write: the one step from records to the published result (live and
   ``--from-dir``).

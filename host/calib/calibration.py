@@ -28,15 +28,30 @@ from typing import Any
 
 import numpy as np
 
-from host.calib.checks import (
-    Observation,
-    build_observations,
-    check_orientation,
-    check_range,
-    check_record_lengths,
-    remedy,
+from host.calib.result import (
+    CalibrationResult,
+    FitQuality,
+    ParameterResult,
+    RecordResidual,
+    apply,
+    thermal_parameters,
+    within,
 )
-from host.calib.method import (
+from host.calib.thermal import CHANNELS, ThermalCalibration, corrected_records
+from host.errors import UserError
+from host.modelling.model import (
+    ALPHA_FIT,
+    CATALOGUE,
+    NoiseModel,
+    build_dataset,
+    fit_model,
+    load_term_file,
+    parse_model,
+    short_spec,
+)
+from host.session.checks import check_orientation, check_range, check_record_lengths, remedy
+from host.session.directory import SIMULATED_BOARD, Session, simulated_ports
+from host.session.method import (
     ACCEL_BIAS_NAMES,
     ACCEL_MIS_NAMES,
     ACCEL_NOISE_NAMES,
@@ -68,35 +83,8 @@ from host.calib.method import (
     record_stats,
     trapezoid_integral,
 )
-from host.calib.records import (
-    SIMULATED_BOARD,
-    STATIC_NAMES,
-    TURN_NAMES,
-    Record,
-    Session,
-    simulated_ports,
-)
-from host.calib.result import (
-    CalibrationResult,
-    FitQuality,
-    ParameterResult,
-    RecordResidual,
-    apply,
-    thermal_parameters,
-    within,
-)
-from host.calib.thermal import CHANNELS, ThermalCalibration, corrected_records
-from host.errors import UserError
-from host.modelling.model import (
-    ALPHA_FIT,
-    CATALOGUE,
-    NoiseModel,
-    build_dataset,
-    fit_model,
-    load_term_file,
-    parse_model,
-    short_spec,
-)
+from host.session.observations import Observation, build_observations
+from host.session.records import STATIC_NAMES, TURN_NAMES, Record
 
 #: names this module has always offered (the constants and checks now live in
 #: host.calib.method and host.calib.checks, the result in host.calib.result)
@@ -193,7 +181,7 @@ def _synthetic_record(
 ) -> Record:
     """An ideal record of the standard plan (statics and turns of method.md §3, §4), used only
     to ask whether adding it would determine a parameter (the values do not matter)."""
-    from host.calib.records import turn_window_s
+    from host.session.records import turn_window_s
 
     rng = np.random.default_rng(abs(hash(name)) % 2**32)
     up = np.zeros(3)

@@ -19,12 +19,12 @@ from pathlib import Path
 from typing import TextIO
 
 from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, calibrate_from_records
-from host.calib.records import Session
 from host.calib.report import format_report, write_results
 from host.calib.result import CalibrationResult, verify_directory
 from host.calib.thermal import ThermalCalibration
 from host.errors import UserError
 from host.modelling.model import SENSORS, NoiseModel
+from host.session.directory import Session
 
 
 def _stderr(text: str) -> None:

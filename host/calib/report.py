@@ -22,8 +22,9 @@ from host.calib.calibration import (
     NOISE_NAMES,
     UNITS,
 )
-from host.calib.records import SIMULATED_BOARD, write_texts_atomic
 from host.calib.result import CalibrationResult
+from host.session.atomic import write_texts_atomic
+from host.session.directory import SIMULATED_BOARD
 
 WIDTH = 80
 PLUS, MINUS = "+", "−"

@@ -27,17 +27,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from host.calib.method import (
-    ACCEL_BIAS_NAMES,
-    CONSTANT_NAMES,
-    GYRO_BIAS_NAMES,
-    NOISE_NAMES,
-    TOLERANCES,
-    UNITS,
-    names_to_gsens,
-    names_to_matrix,
-)
-from host.calib.records import Session, read_session
 from host.calib.thermal import CHANNELS as THERMAL_CHANNELS
 from host.calib.thermal import (
     ThermalCalibration,
@@ -61,6 +50,17 @@ from host.modelling.model import (
     design,
     load_term_file,
     parse_model,
+)
+from host.session.directory import Session, read_session
+from host.session.method import (
+    ACCEL_BIAS_NAMES,
+    CONSTANT_NAMES,
+    GYRO_BIAS_NAMES,
+    NOISE_NAMES,
+    TOLERANCES,
+    UNITS,
+    names_to_gsens,
+    names_to_matrix,
 )
 
 FORMAT = "imu-bench calibration result"

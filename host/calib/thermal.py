@@ -40,8 +40,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from host.calib.records import Record
 from host.errors import UserError
+from host.session.records import Record
 
 CHANNELS = ("ax", "ay", "az", "gx", "gy", "gz")
 UNITS = ("m/s^2", "m/s^2", "m/s^2", "deg/s", "deg/s", "deg/s")

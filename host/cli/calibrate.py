@@ -15,13 +15,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
-from host.calib.checks import failed_record
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
-from host.calib.records import Session, read_session
 from host.calib.report import verdict_line
 from host.calib.result import CalibrationResult
 from host.dialogue.live import DEFAULT_READY_S, WARMUP_DEFAULT_S
 from host.errors import RecordCheckError, UserError
+from host.session.checks import failed_record
+from host.session.directory import Session, read_session
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -15,10 +15,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 from host.calib import exporting
-from host.calib.records import write_text_atomic
 from host.calib.result import CalibrationResult
 from host.errors import UserError
 from host.ingest.importing import parse_axes
+from host.session.atomic import write_text_atomic
 
 
 def _result_path(path: Path) -> Path:

@@ -18,9 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from host.calib.records import Record, record_path, write_record, write_text_atomic
 from host.errors import UserError
 from host.ingest import importing, segmentation
+from host.session.atomic import write_text_atomic
+from host.session.directory import record_path, write_record
+from host.session.records import Record
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

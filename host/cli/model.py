@@ -20,7 +20,6 @@ from typing import Any
 import numpy as np
 
 from host.calib.publish import session_noise
-from host.calib.records import read_session
 from host.cli import pyplot
 from host.errors import UserError
 from host.modelling.diagnose import (
@@ -55,6 +54,7 @@ from host.modelling.scenarios import (
     hidden_effect_case,
     run_case,
 )
+from host.session.directory import read_session
 
 # ---- plots ----------------------------------------------------------------------------------
 _FILE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
@@ -86,7 +86,7 @@ class _Renamed(argparse.Action):
 def measurement_order(ds: Dataset) -> list[str]:
     """Record names in the order they were measured: by time since power-on when the records
     carry it, else the method's plan order (six statics, then the turns), then the rest."""
-    from host.calib.records import STATIC_NAMES, TURN_NAMES
+    from host.session.records import STATIC_NAMES, TURN_NAMES
 
     plan = {n: i for i, n in enumerate((*STATIC_NAMES, *TURN_NAMES))}
     sigs = list(ds.signals)

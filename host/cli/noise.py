@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from host.calib.records import write_text_atomic
 from host.cli import pyplot
 from host.errors import UserError
 from host.modelling import noise
+from host.session.atomic import write_text_atomic
 
 
 def load_static(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
@@ -29,7 +29,7 @@ def load_static(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     if not path.exists():
         raise UserError(f"{path}: no such file; give a capture (.cap) or a record (.txt)")
     if path.suffix.lower() == ".txt":
-        from host.calib.records import read_record
+        from host.session.directory import read_record
 
         rec = read_record(path)
         data = np.column_stack([rec.accel, rec.gyro])

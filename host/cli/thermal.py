@@ -12,17 +12,11 @@ from pathlib import Path
 import numpy as np
 
 from host.calib import thermal
-from host.calib.records import (
-    WARMUP_NAME,
-    Record,
-    RecordError,
-    read_record,
-    read_session,
-    split_file_name,
-    write_text_atomic,
-)
 from host.cli import NO_MATPLOTLIB
 from host.errors import UserError
+from host.session.atomic import write_text_atomic
+from host.session.directory import read_record, read_session, split_file_name
+from host.session.records import WARMUP_NAME, Record, RecordError
 
 
 def format_text(cal: thermal.ThermalCalibration) -> str:

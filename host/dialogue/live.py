@@ -96,26 +96,28 @@ from host.calib.calibration import (
     stage1,
     trapezoid_integral,
 )
-from host.calib.checks import failed_record
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
-from host.calib.records import (
+from host.calib.report import verdict_line
+from host.dialogue.console import Console, Questions, TerminalConsole
+from host.errors import RecordCheckError, ResumableError, UserError, write_error
+from host.session.checks import failed_record
+from host.session.directory import (
     SIMULATED_BOARD,
     SIMULATED_SCHEMES,
+    Session,
+    read_record,
+    read_session,
+    record_path,
+    write_record,
+)
+from host.session.records import (
     STATIC_NAMES,
     TURN_NAMES,
     WARMUP_NAME,
     Record,
     RecordError,
-    Session,
-    read_record,
-    read_session,
-    record_path,
     turn_window_s,
-    write_record,
 )
-from host.calib.report import verdict_line
-from host.dialogue.console import Console, Questions, TerminalConsole
-from host.errors import RecordCheckError, ResumableError, UserError, write_error
 from host.wire import sensor
 from host.wire.frames import bus_meta
 

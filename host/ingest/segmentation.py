@@ -37,9 +37,9 @@ from pathlib import Path
 
 import numpy as np
 
-from host.calib.records import STATIC_NAMES, TURN_NAMES, Record
 from host.errors import UserError
 from host.ingest.importing import Stream
+from host.session.records import STATIC_NAMES, TURN_NAMES, Record
 
 # ---- stated thresholds ----------------------------------------------------------------------
 STILL_WINDOW_S = 0.5  #: moving window of the stillness detector, s (at least 5 samples)

@@ -49,8 +49,10 @@ from typing import Any
 
 import numpy as np
 
-from host.calib.checks import build_observations
-from host.calib.method import (
+from host.errors import UserError
+from host.modelling import turning
+from host.session.directory import Session
+from host.session.method import (
     DEFAULT_HEIGHT_M,
     DEFAULT_LATITUDE_DEG,
     TURN_ANGLE_SIGMA_DEG,
@@ -58,9 +60,7 @@ from host.calib.method import (
     record_stats,
     trapezoid_integral,
 )
-from host.calib.records import Session
-from host.errors import UserError
-from host.modelling import turning
+from host.session.observations import build_observations
 
 SENSORS = ("accel", "gyro")
 AXES = "xyz"
@@ -2087,7 +2087,7 @@ def load_dataset(
     serial: str | None = None,
 ) -> Dataset:
     """Read the session in ``directory`` (:func:`host.records.read_session`) and build it."""
-    from host.calib.records import read_session
+    from host.session.directory import read_session
 
     session = read_session(directory, serial)
     return build_dataset(session, noise=noise, latitude_deg=latitude_deg, height_m=height_m)
@@ -2095,7 +2095,7 @@ def load_dataset(
 
 def session_from_records(records: Mapping[str, object], serial: str = "SIM") -> Session:
     """A :class:`Session` of in-memory records (e.g. :func:`host.sim.simulate_session`)."""
-    from host.calib.records import Record
+    from host.session.records import Record
 
     recs = {k: v for k, v in records.items() if isinstance(v, Record)}
     return Session(serial=serial, records=recs)

@@ -27,8 +27,9 @@ import numpy as np
 import pytest
 
 from host.board.driver import Board
-from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record
 from host.dialogue.console import ScriptedConsole
+from host.session.directory import read_record
+from host.session.records import STATIC_NAMES, TURN_NAMES
 from host.transports.protocol_emu import HINT_HOLD_S, HINT_SYNC_S, truth_for_url
 from tests.host.dialogue.test_live import Ports, opts, run
 

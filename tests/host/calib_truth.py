@@ -16,7 +16,7 @@ from host.calib.calibration import (
     names_to_gsens,
     names_to_matrix,
 )
-from host.calib.records import DECIMALS, STATIC_NAMES, TURN_NAMES, Record
+from host.session.records import DECIMALS, STATIC_NAMES, TURN_NAMES, Record
 
 #: the true constants (names of method.md §7); all different, realistic magnitudes
 TRUTH: dict[str, float] = {

@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from host.__main__ import main
-from host.calib.records import RecordError, read_record, read_session
+from host.session.directory import read_record, read_session
+from host.session.records import RecordError
 from tests.host.sim_sessions import write_sim_session
 
 
@@ -88,10 +89,10 @@ def test_things_named_like_records_that_are_not_files_are_named(
 
 
 def test_a_record_file_above_the_stated_size_is_refused(tmp_path: Path) -> None:
-    from host.calib import records
+    from host.session import directory
 
     big = tmp_path / "S1_x_up.txt"
     with open(big, "wb") as f:
-        f.truncate(records.MAX_RECORD_BYTES + 1)  # sparse: no disk used
+        f.truncate(directory.MAX_RECORD_BYTES + 1)  # sparse: no disk used
     with pytest.raises(RecordError, match=r"S1_x_up\.txt: 64 MiB, more than a record can be"):
         read_record(big)

@@ -74,19 +74,6 @@ def test_the_readme_example_import_still_works_in_a_user_script(tmp_path: Path) 
     assert "host.calibration has moved to host.calib.calibration" in run.stderr
 
 
-def test_python_m_old_module_name_still_runs_with_a_note() -> None:
-    run = subprocess.run(
-        [sys.executable, "-m", "host.session", "--help"],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    assert run.returncode == 0, run.stderr
-    assert "--port" in run.stdout
-    assert "python -m host.session is deprecated" in run.stderr
-
-
 #: above this many lines a module states why it is long (issue 14: "no module is longer than
 #: about 600 lines without a reason stated in its docstring")
 LONG_MODULE_LINES = 600

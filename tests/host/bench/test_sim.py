@@ -33,7 +33,8 @@ from host.bench.sim import (
     write_session,
 )
 from host.bench.truth import CONSTANT_NAMES, EFFECTS, SensorTruth, gauss_markov
-from host.calib.records import Record, read_session
+from host.session.directory import read_session
+from host.session.records import Record
 from host.wire import sensor
 from host.wire.frames import StreamDecoder
 

@@ -28,9 +28,10 @@ from host.calib.calibration import (
     stage2,
     trapezoid_integral,
 )
-from host.calib.records import STATIC_NAMES, TURN_NAMES, Record, Session, read_session
 from host.calib.result import CalibrationResult, apply
 from host.errors import RecordCheckError, UserError
+from host.session.directory import Session, read_session
+from host.session.records import STATIC_NAMES, TURN_NAMES, Record
 
 try:
     from calib_truth import TRUTH, make_record, make_records
@@ -442,8 +443,8 @@ def test_real_data_plan(real: tuple[CalibrationResult, dict[str, np.ndarray]]) -
 
 
 def test_a_failed_check_names_its_bench_record() -> None:
-    from host.calib.checks import failed_record
     from host.errors import RecordCheckError
+    from host.session.checks import failed_record
 
     def err(f: str) -> RecordCheckError:
         return RecordCheckError(f"{f}: bad", file_name=f)

@@ -226,7 +226,7 @@ def test_imucal_export_of_the_real_session_agrees_with_imucals_own_result() -> N
     convention (a transposed R or K_ga per g would miss by 10-100× these tolerances). imucal
     uses g = 9.81 and its own bias estimator: K_a and b_a agree less closely."""
     from host.calib.calibration import calibrate_from_records
-    from host.calib.records import read_session
+    from host.session.directory import read_session
 
     ours = json.loads(export(calibrate_from_records(read_session(REAL)), "imucal"))
     theirs = json.loads((REAL / "imucal_result.json").read_text())

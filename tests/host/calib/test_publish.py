@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from host.calib.publish import ComputeSettings, compute_and_write, parse_floor, show_result
-from host.calib.records import read_session
 from host.errors import UserError
+from host.session.directory import read_session
 from tests.host.sim_sessions import write_sim_session
 
 

@@ -12,9 +12,10 @@ import pytest
 
 from host.__main__ import main
 from host.calib.calibration import CONSTANT_NAMES, calibrate_from_records
-from host.calib.records import Record, Session, record_path, write_record
 from host.calib.report import format_report, write_results
 from host.calib.result import CalibrationResult
+from host.session.directory import Session, record_path, write_record
+from host.session.records import Record
 
 try:
     from calib_truth import TRUTH, make_records

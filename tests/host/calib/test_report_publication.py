@@ -141,7 +141,7 @@ def test_disk_fills_between_the_two_renames_both_stay_old(
 
 def test_interrupt_between_the_two_renames_rolls_back(tmp_path: Path) -> None:
     """Ctrl+C (or any exception) between the renames: the old pair, and the interrupt goes on."""
-    from host.calib.records import write_texts_atomic
+    from host.session.atomic import write_texts_atomic
 
     a, b = tmp_path / "a.txt", tmp_path / "b.json"
     write_texts_atomic({a: "old a", b: "old b"})
@@ -158,8 +158,8 @@ def test_interrupt_between_the_two_renames_rolls_back(tmp_path: Path) -> None:
 
 def test_first_publication_failing_between_the_renames_leaves_neither(tmp_path: Path) -> None:
     """No old pair: the rollback removes the one file already renamed into place."""
-    from host.calib.records import write_texts_atomic
     from host.errors import UserError
+    from host.session.atomic import write_texts_atomic
 
     a, b = tmp_path / "a.txt", tmp_path / "b.json"
     with pytest.MonkeyPatch.context() as mp:

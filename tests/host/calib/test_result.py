@@ -14,10 +14,10 @@ import pytest
 from host.__main__ import main
 from host.bench.sim import write_session
 from host.calib.calibration import calibrate_from_records
-from host.calib.records import read_session
 from host.calib.result import CalibrationResult, apply
 from host.errors import UserError
 from host.modelling.scenarios import hidden_effect_case
+from host.session.directory import read_session
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
@@ -181,7 +181,7 @@ def test_model_add_prints_the_calibrate_command(
 
 # ---- held-out verification and leave-one-record-out -----------------------------------------
 def _write(d: Path, serial: str, seed: int, **truth_override: float) -> None:
-    from host.calib.records import record_path, write_record
+    from host.session.directory import record_path, write_record
 
     try:
         from calib_truth import TRUTH, make_records

@@ -17,7 +17,7 @@ from host.bench.physics import Environment
 from host.bench.sim import simulate_thermal
 from host.bench.truth import SensorTruth
 from host.calib import thermal
-from host.calib.records import write_record
+from host.session.directory import write_record
 
 #: per channel ax ay az gx gy gz: true order 1, 2, 3, 3, 0, 2
 TRUTH = dataclasses.replace(
@@ -351,8 +351,8 @@ def test_scale_against_temperature_is_carried_by_the_result(tmp_path) -> None:
     (chip near 31 °C): apply() returns ±g along z over 22–70 °C in both attitudes."""
     from host.bench.sim import Plan, simulate_session, write_session
     from host.calib.calibration import calibrate_from_records
-    from host.calib.records import read_session
     from host.calib.result import CalibrationResult, apply
+    from host.session.directory import read_session
 
     recs = simulate_thermal(SCALE_TRUTH, CHAMBER, FLIP_PLAN, seed=13)
     cal, _ = thermal.fit_thermal(list(recs.values()), "T8")

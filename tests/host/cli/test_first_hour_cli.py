@@ -35,7 +35,7 @@ def test_records_and_results_get_the_usual_permissions(
 ) -> None:
     import os
 
-    from host.calib.records import write_text_atomic
+    from host.session.atomic import write_text_atomic
 
     old = os.umask(umask)
     try:

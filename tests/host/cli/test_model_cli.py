@@ -116,10 +116,10 @@ def test_plots_follow_measurement_order_with_one_scale(
 ) -> None:
     """Files come back alphabetically; the plots put the records in the order they were
     measured (time since power-on), and before/after share one z scale."""
-    from host.calib.records import STATIC_NAMES
     from host.cli.model import measurement_order, write_plots, z_limit
     from host.modelling.diagnose import add_term
     from host.modelling.model import load_dataset, parse_model
+    from host.session.records import STATIC_NAMES
 
     d, term = temp_dir
     ds = load_dataset(d)

@@ -22,10 +22,11 @@ import pytest
 
 from host.board import driver
 from host.board.link import open_port
-from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record, read_session
 from host.dialogue import live
 from host.dialogue.console import CTRL_C, ESC, ScriptedConsole
 from host.errors import UserError
+from host.session.directory import read_record, read_session
+from host.session.records import STATIC_NAMES, TURN_NAMES
 from host.wire import protocol_gen as gen
 
 #: every record a default session writes, in the order measured: the closing check last
@@ -213,8 +214,8 @@ def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> 
 
 def load_dataset_without(directory: Path, name: str) -> Any:
     """The dataset of ``directory``'s session without record ``name``."""
-    from host.calib.records import Session
     from host.modelling.model import build_dataset
+    from host.session.directory import Session
 
     s = read_session(directory)
     return build_dataset(Session(s.serial, {k: v for k, v in s.records.items() if k != name}))

@@ -19,9 +19,9 @@ from typing import Any
 
 import pytest
 
-from host.calib.records import read_record
 from host.dialogue.console import CTRL_C, ScriptedConsole
 from host.errors import UserError
+from host.session.directory import read_record
 from host.wire import protocol_gen as gen
 from host.wire.frames import IMU_SAMPLE, StreamDecoder, _envelope, encode_frame
 from tests.host.dialogue.test_live import LINEAR, Ports, opts, run

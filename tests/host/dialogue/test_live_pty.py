@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record
+from host.session.directory import read_record
+from host.session.records import STATIC_NAMES, TURN_NAMES
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="needs a POSIX pty")
 

@@ -15,10 +15,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from host.calib.records import STATIC_NAMES, TURN_NAMES, read_record
 from host.dialogue import live
 from host.dialogue.console import CTRL_C, ScriptedConsole
 from host.errors import UserError
+from host.session.directory import read_record
+from host.session.records import STATIC_NAMES, TURN_NAMES
 from tests.host.dialogue.test_live import LINEAR, Ports, run
 from tests.host.dialogue.test_live import opts as live_opts
 

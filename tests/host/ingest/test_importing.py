@@ -14,7 +14,6 @@ from host.__main__ import main
 from host.bench.physics import static_motion
 from host.bench.sim import Bench, Environment, SensorTruth, Simulator, turn_motion
 from host.calib.calibration import calibrate_from_records
-from host.calib.records import STATIC_NAMES, TURN_NAMES, Record, Session, read_record, read_session
 from host.errors import UserError
 from host.ingest.importing import (
     STANDARD_G,
@@ -32,6 +31,8 @@ from host.ingest.segmentation import (
     trapezoid,
     uniform_rate_error_deg,
 )
+from host.session.directory import Session, read_record, read_session
+from host.session.records import STATIC_NAMES, TURN_NAMES, Record
 from host.wire.capture import CaptureWriter
 from host.wire.frames import encode_imu_samples
 

@@ -167,7 +167,7 @@ def test_real_imucal_data() -> None:
 def _with_gyro_g2(records: dict, coef_dps: float) -> dict:
     """The records with an effect outside the catalogue added: gyro x reads coef·(f_z/g)²
     (a gyro g²-sensitivity), on every sample (statics and turns)."""
-    from host.calib.records import Record
+    from host.session.records import Record
 
     out = {}
     for name, r in records.items():
@@ -277,7 +277,7 @@ def test_a_repeated_static_attitude_counts_for_the_floor() -> None:
 
     from host.bench.sim import Plan, simulate_session
     from host.bench.truth import SensorTruth
-    from host.calib.records import STATIC_NAMES
+    from host.session.records import STATIC_NAMES
 
     truth = SensorTruth.random(np.random.default_rng(4)).only("linear", "noise")
 
@@ -296,7 +296,7 @@ def _stepped_session(tilt_en: tuple[float, float], seed: int) -> dict:
     1.5 s rests (the way imucal's session was made), on a plate tilted by ``tilt_en`` (east,
     north, rad; the program's placement convention). Biases differ per axis; white noise."""
     from host.bench.physics import pose_from_up
-    from host.calib.records import Record
+    from host.session.records import Record
 
     rng = np.random.default_rng(seed)
     g = 9.80665

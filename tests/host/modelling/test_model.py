@@ -232,7 +232,7 @@ def test_nonlinear_term_is_linearised_and_iterated(tmp_path: Path) -> None:
 
 
 def test_empty_session_is_a_user_error() -> None:
-    from host.calib.records import Session
+    from host.session.directory import Session
 
     with pytest.raises(UserError):
         build_dataset(Session("X", {}))

@@ -17,8 +17,9 @@ import pytest
 from host.__main__ import main
 from host.bench.noise import NoiseTruth, capture_bytes, static_noise
 from host.bench.physics import Environment
-from host.calib.records import Record, write_record
 from host.modelling import noise
+from host.session.directory import write_record
+from host.session.records import Record
 from host.wire import sensor
 
 TRUTH = NoiseTruth.mpu6000()

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host.calib.records import read_session
 from host.modelling import turning
 from host.modelling.diagnose import add_term, diagnose, format_diagnosis
 from host.modelling.model import (
@@ -22,6 +21,7 @@ from host.modelling.model import (
     session_from_records,
 )
 from host.modelling.scenarios import hidden_effect_case, run_case
+from host.session.directory import read_session
 
 REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
 

@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 
 from host.board.driver import Board
 from host.board.link import register_transports
-from host.calib.records import SENSOR_KEYS
 from host.ingest.importing import read_capture_stream
+from host.session.records import SENSOR_KEYS
 from host.transports import protocol_emu
 from host.wire import sensor
 from host.wire.frames import (

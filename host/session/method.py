@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host.calib.records import Record
 from host.errors import UserError
+from host.session.records import Record
 
 # ---- constants ----------------------------------------------------------------------------
 #: default site: Moscow (the source documents' bench), latitude in degrees, height in metres

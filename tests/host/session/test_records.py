@@ -9,7 +9,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from host.calib.records import (
+from host.errors import UserError
+from host.session.directory import (
+    read_record,
+    read_session,
+    record_path,
+    split_file_name,
+    write_record,
+)
+from host.session.records import (
     DECIMALS,
     STATIC_NAMES,
     TURN_NAMES,
@@ -17,13 +25,7 @@ from host.calib.records import (
     RecordError,
     format_record,
     parse_record_text,
-    read_record,
-    read_session,
-    record_path,
-    split_file_name,
-    write_record,
 )
-from host.errors import UserError
 
 # shared/ sits beside the checkout (as in CI)
 REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"

@@ -14,34 +14,25 @@ A record file is plain UTF-8 text::
 Columns: time since the start beep in ms (1 decimal, device clock); Ax Ay Az in m/s²
 (4 decimals); Gx Gy Gz in °/s (3 decimals); temperature in °C (1 decimal). Files without any
 header and without the 'mean'/'std' labels (as the source program wrote them) are accepted.
-File names are ``SERIAL_name.txt`` (method.md §6).
+File names are ``SERIAL_name.txt`` (method.md §6): :mod:`host.session.directory`.
 
-Length (over 600 lines): the record file format — parse, format, atomic publication and the
-directory of one session — in one place, so that the reader and the writer cannot drift apart.
+This module is the format alone (text <-> :class:`Record`), so that the reader and the
+writer cannot drift apart; the files on disk are :mod:`host.session.directory`.
 """
 
 from __future__ import annotations
 
-import errno
 import math
-import os
 import re
-import stat
-import tempfile
-from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from host.errors import UserError, write_error
+from host.errors import UserError
 
 RECORD_FORMAT_VERSION = 1
 #: fewer data rows than this cannot be calibrated with (no std): such a record is refused
 MIN_RECORD_ROWS = 2
-#: record files above this size are refused: 64 MiB is ≈ 1 hour of 50 Hz rows (a record is
-#: seconds to minutes), and reading holds the whole file in memory
-MAX_RECORD_BYTES = 64 << 20
 STATIC_NAMES = ("x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn")
 #: ccw = positive rotation about the up axis, seen from above; cw = negative
 TURN_NAMES = ("x_ccw", "x_cw", "y_ccw", "y_cw", "z_ccw", "z_cw")
@@ -74,7 +65,7 @@ WARMUP_NAME = "warmup"
 NON_RECORD_NAMES = ("result", WARMUP_NAME)
 
 _AXES = "xyz"
-_NAME_RE = re.compile(r"^(?P<axis>[xyz])_(?P<dir>up|dn|ccw|cw)(?:_(?P<rep>[0-9A-Za-z]+))?$")
+RECORD_NAME_RE = re.compile(r"^(?P<axis>[xyz])_(?P<dir>up|dn|ccw|cw)(?:_(?P<rep>[0-9A-Za-z]+))?$")
 _HEADER_RE = re.compile(r"^imu-bench record v(?P<v>\d+)\s*$")
 _META_RE = re.compile(r"^(?P<key>[^:]+?)\s*:\s?(?P<value>.*)$")
 _UNDERSCORES_RE = re.compile(r"^_{3,}\s*$")
@@ -133,7 +124,7 @@ class Record:
         k = self.meta.get("kind", "").strip().lower()
         if k in ("static", "turn", "rate"):
             return k
-        m = _NAME_RE.match(self.name)
+        m = RECORD_NAME_RE.match(self.name)
         if m:
             return "static" if m.group("dir") in ("up", "dn") else "turn"
         if "rate_dps" in self.meta:
@@ -147,7 +138,7 @@ class Record:
         """Unit vector of the up direction in chip axes (from meta ``up`` or the name)."""
         if "up" in self.meta:
             return parse_vector(self.meta["up"], f"record {self.name}: meta 'up'")
-        m = _NAME_RE.match(self.name)
+        m = RECORD_NAME_RE.match(self.name)
         if not m:
             raise RecordError(f"record {self.name}: no up direction (name or meta 'up: [x,y,z]')")
         v = np.zeros(3)
@@ -163,7 +154,7 @@ class Record:
     @property
     def sign(self) -> int:
         """+1 for up / ccw (positive rate), -1 for dn / cw."""
-        m = _NAME_RE.match(self.name)
+        m = RECORD_NAME_RE.match(self.name)
         if self.kind == "turn":
             if m and "up" not in self.meta:
                 return 1 if m.group("dir") == "ccw" else -1
@@ -224,57 +215,6 @@ def parse_vector(text: str, what: str) -> np.ndarray:
     return v / float(np.linalg.norm(v))
 
 
-#: port URL schemes of boards that are not a unit: the physics simulator and the emulated APM
-SIMULATED_SCHEMES = ("sim://", "emu://")
-SIMULATED_BOARD = "SIMULATED BOARD"
-
-
-def simulated_ports(records: Mapping[str, Record]) -> list[str]:
-    """The distinct ``port`` URLs of ``records`` that name a virtual or emulated board."""
-    ports = {r.meta.get("port", "").strip() for r in records.values()}
-    return sorted(p for p in ports if p.startswith(SIMULATED_SCHEMES))
-
-
-@dataclass(frozen=True, eq=False)
-class Session:
-    """The records of one unit: ``serial`` and ``records`` name -> Record."""
-
-    serial: str
-    records: dict[str, Record]
-    directory: Path | None = None
-
-    def path_of(self, name: str) -> str:
-        """File name used in messages, e.g. 'S1_x_up.txt'."""
-        return f"{self.serial}_{name}.txt"
-
-
-# ---- file names ---------------------------------------------------------------------------
-def record_path(out_dir: str | os.PathLike[str], serial: str, name: str) -> Path:
-    """``out_dir/SERIAL_name.txt``."""
-    return Path(out_dir) / f"{serial}_{name}.txt"
-
-
-def split_file_name(path: str | os.PathLike[str]) -> tuple[str, str] | None:
-    """'S1_x_up.txt' -> ('S1', 'x_up'); None if the name has no '_' or is not .txt.
-
-    Standard names (and ``x_up_2`` style repeats) are matched at the end, so a serial may hold
-    underscores; otherwise the serial is the part before the first underscore.
-    """
-    p = Path(path)
-    if p.suffix.lower() != ".txt":
-        return None
-    stem = p.stem
-    for i in range(len(stem) - 1, 0, -1):
-        if stem[i] == "_" and _NAME_RE.match(stem[i + 1 :]):
-            return stem[:i], stem[i + 1 :]
-    if "_" not in stem:
-        return None
-    serial, name = stem.split("_", 1)
-    if not serial or not name:
-        return None
-    return serial, name
-
-
 # ---- writing ------------------------------------------------------------------------------
 def _fmt(v: float, dec: int) -> str:
     s = f"{v:.{dec}f}"
@@ -312,132 +252,6 @@ def format_record(record: Record) -> str:
     lines.append("mean\t" + "\t".join(_fmt(float(v), SUMMARY_DECIMALS) for v in mean))
     lines.append("std\t" + "\t".join(_fmt(float(v), SUMMARY_DECIMALS) for v in std))
     return "\n".join(lines) + "\n"
-
-
-def _umask() -> int:
-    """The process's umask (reading it means setting it: set it straight back)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def write_texts_atomic(files: Mapping[str | os.PathLike[str], str]) -> None:
-    """Publish several UTF-8 files together or not at all.
-
-    1. Each file is written to a temp file in its directory and fsync'ed (a full disk fails
-       here, before any target is touched).
-    2. Each existing target gets a hard link as its backup (a name, no data blocks).
-    3. The temp files are renamed over the targets (``os.replace``, atomic per file).
-    4. A failure (or an interrupt) in step 3 *rolls back* the targets already replaced: each
-       is renamed back from its backup, or removed if it did not exist before. So the targets
-       are either all new or all as they were, never one new beside one old.
-    5. The backups are removed.
-
-    The one window left is a power cut or ``kill -9`` in the microseconds between two renames
-    of step 3; the backup ``.NAME.old-*`` files then remain beside the targets. UserError names
-    the target that failed, never a hidden temp file; no temp file is left.
-    """
-    temps: list[tuple[str, Path]] = []  # written, not yet renamed
-    backups: dict[Path, str | None] = {}  # target -> its hard-linked backup (None: a new file)
-    keep: list[str] = []  # backups a failed rollback could not put back: the only old copy
-    try:
-        for path, text in files.items():
-            p = Path(path)
-            try:
-                fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
-            except OSError as exc:
-                raise write_error(p, exc) from None
-            temps.append((tmp, p))
-            try:
-                if hasattr(os, "fchmod"):  # a new file's usual mode, not mkstemp's private 0600
-                    os.fchmod(fd, 0o666 & ~_umask())
-                with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-                    f.write(text)
-                    f.flush()
-                    os.fsync(f.fileno())
-            except OSError as exc:
-                raise write_error(p, exc) from None
-        for _, p in temps:
-            backups[p] = _backup_link(p)
-        replaced: list[Path] = []
-        try:
-            while temps:
-                tmp, p = temps[0]
-                try:
-                    os.replace(tmp, p)
-                except OSError as exc:
-                    keep = _roll_back(replaced, backups)
-                    kept = "every file is unchanged" if not keep else (
-                        "the old files could not all be put back; they are kept as "
-                        + ", ".join(keep)
-                    )  # fmt: skip
-                    raise write_error(p, exc, kept) from None
-                replaced.append(p)
-                temps.pop(0)
-        except BaseException:  # an interrupt between two renames: roll back too
-            if replaced:
-                keep = _roll_back(replaced, backups)
-            raise
-    finally:
-        for tmp, _ in temps:
-            _unlink_quietly(tmp)
-        for backup in backups.values():
-            if backup is not None and backup not in keep:
-                _unlink_quietly(backup)
-
-
-def _backup_link(target: Path) -> str | None:
-    """A hard link to ``target`` under a hidden unique name beside it (None if there is no
-    target yet); raises the user's write error if the file system refuses."""
-    if not target.exists():
-        return None
-    for k in range(100):
-        backup = target.parent / f".{target.name}.old-{os.getpid()}-{k}"
-        try:
-            os.link(target, backup)
-            return str(backup)
-        except FileExistsError:
-            continue
-        except OSError as exc:
-            raise write_error(target, exc) from None
-    raise write_error(target, FileExistsError(errno.EEXIST, "cannot name a backup"))
-
-
-def _roll_back(replaced: list[Path], backups: Mapping[Path, str | None]) -> list[str]:
-    """Undo published renames, newest first: each target's backup renamed back over it, or a
-    target that did not exist before removed. Returns the backups that could not be put back
-    (empties ``replaced``)."""
-    failed: list[str] = []
-    while replaced:
-        target = replaced.pop()
-        backup = backups[target]
-        try:
-            if backup is None:
-                os.unlink(target)
-            else:
-                os.replace(backup, target)
-        except OSError:
-            if backup is not None:
-                failed.append(backup)
-    return failed
-
-
-def _unlink_quietly(path: str | os.PathLike[str]) -> None:
-    try:
-        os.unlink(path)
-    except OSError:
-        pass
-
-
-def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
-    """Write UTF-8 ``text`` to ``path`` atomically (:func:`write_texts_atomic` of one file):
-    a crash or an abort never leaves a half-written file."""
-    write_texts_atomic({path: text})
-
-
-def write_record(path: str | os.PathLike[str], record: Record) -> None:
-    """Write ``record`` to ``path`` atomically (:func:`write_text_atomic`)."""
-    write_text_atomic(path, format_record(record))
 
 
 # ---- reading ------------------------------------------------------------------------------
@@ -553,92 +367,3 @@ def parse_record_text(text: str, source: str, name: str | None = None) -> Record
         temp=data[:, 7],
         meta=meta,
     )
-
-
-def _not_a_record_file(p: Path) -> str | None:
-    """Why ``p`` (named like a record) cannot be read as one, or None. Never blocks (a FIFO
-    is only stat'ed)."""
-    try:
-        st = p.stat()
-    except FileNotFoundError:
-        return (
-            "a broken link (its target is missing)"
-            if p.is_symlink()
-            else "cannot read (no such file)"
-        )
-    except OSError as exc:
-        return f"cannot read ({exc.strerror or exc})"
-    if stat.S_ISDIR(st.st_mode):
-        return "a directory, named like a record"
-    if not stat.S_ISREG(st.st_mode):
-        return "not a regular file (a device or a pipe)"
-    if st.st_size > MAX_RECORD_BYTES:
-        return (
-            f"{st.st_size / 2**20:.0f} MiB, more than a record can be "
-            f"({MAX_RECORD_BYTES >> 20} MiB ≈ 1 hour at 50 Hz)"
-        )
-    return None
-
-
-def read_record(path: str | os.PathLike[str]) -> Record:
-    """Read a record file; the name comes from the file name ``SERIAL_name.txt`` (or the
-    ``# record:`` header). Raises RecordError naming the file and line."""
-    p = Path(path)
-    why = _not_a_record_file(p)
-    if why is not None:
-        raise RecordError(f"{p}: {why}; move it away or re-measure this record")
-    try:
-        raw = p.read_bytes()
-    except OSError as exc:
-        raise RecordError(f"{p}: cannot read ({exc.strerror or exc})") from exc
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise RecordError(f"{p}: not a UTF-8 text file (byte {exc.start})") from exc
-    parts = split_file_name(p)
-    return parse_record_text(text, str(p), name=parts[1] if parts else None)
-
-
-def read_session(directory: str | os.PathLike[str], serial: str | None = None) -> Session:
-    """Read every ``SERIAL_name.txt`` record of one unit in ``directory``.
-
-    ``serial`` None: inferred from the file names; several serials or none -> RecordError.
-    ``SERIAL_result.txt`` is skipped.
-    """
-    d = Path(directory)
-    if not d.is_dir():
-        what = "not a directory" if d.exists() else "no such directory"
-        raise RecordError(
-            f"{d}: {what}; give the directory that holds the record files SERIAL_name.txt"
-            " (the --out of the session that measured them)"
-        )
-    found: dict[str, list[tuple[str, Path]]] = {}
-    for p in sorted(d.iterdir()):
-        if p.name.startswith("."):
-            continue
-        parts = split_file_name(p)
-        if parts is None or parts[1] in NON_RECORD_NAMES:
-            continue
-        if not p.is_file():  # a directory or a broken link named like a record: say so
-            why = _not_a_record_file(p) or "not a regular file"
-            raise RecordError(f"{p}: {why}; move it away (or restore the record)")
-        found.setdefault(parts[0], []).append((parts[1], p))
-    if serial is None:
-        if not found:
-            raise RecordError(f"{d}: no record files SERIAL_name.txt (e.g. S1_x_up.txt) here")
-        if len(found) > 1:
-            raise RecordError(
-                f"{d}: records of several units ({', '.join(sorted(found))}); "
-                "choose one with --serial"
-            )
-        serial = next(iter(found))
-    if serial not in found:
-        raise RecordError(f"{d}: no records of serial {serial!r} ({serial}_x_up.txt ...)")
-    records: dict[str, Record] = {}
-    for name, p in found[serial]:
-        rec = read_record(p)
-        ms = rec.meta.get("serial")
-        if ms is not None and ms != serial:
-            raise RecordError(f"{p}: header says serial {ms!r}, file name says {serial!r}")
-        records[name] = rec
-    return Session(serial=serial, records=records, directory=d)

@@ -1,0 +1,133 @@
+"""The checks every record passes before a fit (method.md §3, §4: the face up, the cube at
+rest, the whole turn, the gyro range); :mod:`host.session.observations` applies them."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from host.errors import RecordCheckError, UserError
+from host.session.directory import Session
+from host.session.method import (
+    ORIENTATION_TOL_DEG,
+    STATIC_MAX_ACCEL_STD,
+    STATIC_MAX_GYRO_STD,
+    RecordStats,
+)
+from host.session.records import MIN_RECORD_ROWS, STATIC_NAMES, TURN_NAMES, Record
+
+
+def axis_label(v: np.ndarray) -> str:
+    k = int(np.argmax(np.abs(v)))
+    return ("+" if v[k] > 0 else "-") + "XYZ"[k]
+
+
+def remedy(record: Record, bench: str = "re-measure") -> str:
+    """What to do about a bad record: on the bench, ``re-measure NAME``; for data imported
+    from elsewhere (meta ``importer``) there is nothing to re-measure — fix the cut instead."""
+    if "importer" in record.meta:
+        return (
+            f"check the {record.name} segment (SERIAL_segments.tsv, --labels) or the import "
+            "options (--columns, --units, --axes)"
+        )
+    return f"{bench} {record.name}"
+
+
+def failed_record(exc: RecordCheckError, serial: str) -> str | None:
+    """The bench record (``x_up`` … ``z_cw``) a check failure is about, when its file is this
+    serial's ``SERIAL_name.txt``; None otherwise (another file, or a record the bench does not
+    measure by that name)."""
+    for name in STATIC_NAMES + TURN_NAMES:
+        if exc.file_name == f"{serial}_{name}.txt":
+            return name
+    return None
+
+
+def check_orientation(record: Record, stats: RecordStats, g: float, file_name: str) -> None:
+    """Gravity must be along the record's up direction (static, turn): else UserError naming
+    the file, where gravity is and what to re-measure."""
+    if record.kind not in ("static", "turn"):
+        return
+    up = record.up
+    a = stats.accel_mean
+    norm = float(np.linalg.norm(a))
+    if not 0.7 * g < norm < 1.3 * g:
+        raise RecordCheckError(
+            f"{file_name}: the mean specific force is {norm:.2f} m/s², expected about "
+            f"{g:.2f}: was the unit moving or not connected? {remedy(record)}",
+            file_name=file_name,
+        )
+    angle = math.degrees(math.acos(max(-1.0, min(1.0, float(a @ up) / norm))))
+    if angle > ORIENTATION_TOL_DEG:
+        if np.count_nonzero(up) == 1:
+            raise RecordCheckError(
+                f"{file_name}: gravity is on {axis_label(a)}, expected {axis_label(up)}: "
+                f"the cube was on the wrong face; {remedy(record)}",
+                file_name=file_name,
+            )
+        raise RecordCheckError(
+            f"{file_name}: gravity is {angle:.0f}° away from the expected up direction "
+            f"{np.round(up, 3).tolist()}; {remedy(record)}",
+            file_name=file_name,
+        )
+    if record.kind == "static":
+        if np.any(stats.accel_std > STATIC_MAX_ACCEL_STD) or np.any(
+            stats.gyro_std > STATIC_MAX_GYRO_STD
+        ):
+            raise RecordCheckError(
+                f"{file_name}: the cube moved during the static measurement (std "
+                f"{stats.accel_std.max():.3f} m/s², {stats.gyro_std.max():.3f} °/s); "
+                f"{remedy(record)}",
+                file_name=file_name,
+            )
+
+
+def check_range(record: Record, file_name: str) -> None:
+    """§4: every gyro sample of a turn must stay inside the working range (meta
+    ``gyro_range_dps``, e.g. 250); no check when the record does not state its range."""
+    if "gyro_range_dps" not in record.meta:
+        return
+    try:
+        rng = float(record.meta["gyro_range_dps"])
+    except ValueError as exc:
+        raise RecordCheckError(
+            f"{file_name}: bad meta gyro_range_dps", file_name=file_name
+        ) from exc
+    peak = float(np.abs(record.gyro).max()) if len(record) else 0.0
+    if peak >= rng - 0.01:
+        raise RecordCheckError(
+            f"{file_name}: the rate reached {peak:.1f} °/s, outside the working range "
+            f"±{rng:g} °/s; {remedy(record, 'turn more slowly and re-measure')}",
+            file_name=file_name,
+        )
+
+
+def turns_of(record: Record, default: int | None) -> int | None:
+    if "turns" in record.meta:
+        try:
+            n = int(record.meta["turns"])
+        except ValueError as exc:
+            raise UserError(
+                f"record {record.name}: bad meta turns {record.meta['turns']!r}"
+            ) from exc
+        if default is not None and default != n:
+            raise UserError(
+                f"--turns {default}, but record {record.name} says 'turns: {n}' in its header; "
+                f"drop --turns (the header is used) or give --turns {n}"
+            )
+        return n
+    return default
+
+
+def check_record_lengths(session: Session) -> None:
+    """UserError naming the first record with fewer than MIN_RECORD_ROWS samples (a one-row
+    record has no std; its mean would enter the fit as if it were measured)."""
+    for name, rec in session.records.items():
+        if len(rec) < MIN_RECORD_ROWS:
+            raise RecordCheckError(
+                f"{session.path_of(name)}: {len(rec)} data row{'s' if len(rec) != 1 else ''}; "
+                f"a record needs at least {MIN_RECORD_ROWS} samples (its mean and std) — "
+                "re-measure this record",
+                file_name=session.path_of(name),
+            )
