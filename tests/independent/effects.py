@@ -20,16 +20,15 @@ import numpy as np
 from tests.independent.physics import AXES
 from tests.independent.truth import Geometry
 
-#: the session's first record starts this long after power-on (the dialogue's warm-up), s
-FIRST_RECORD_S = 600.0
-
 
 @dataclass
 class Signals:
-    """True inputs of one record, per sample: ``power_on_s`` (N,) s, ``temp_c`` (N,) °C,
+    """True inputs of one record, per sample: ``power_on_s`` (N,) s since power-on,
+    ``session_s`` (N,) s since the session's first record, ``temp_c`` (N,) °C,
     ``dtemp_c_per_s`` (N,) °C/s, ``force`` (N, 3) m/s², ``rate`` (N, 3) °/s, ``g`` m/s²."""
 
     power_on_s: np.ndarray
+    session_s: np.ndarray
     temp_c: np.ndarray
     dtemp_c_per_s: np.ndarray
     force: np.ndarray
@@ -143,12 +142,12 @@ def bias_step(sensor: str) -> Callable[[np.random.Generator], Effect]:
     def make(rng: np.random.Generator) -> Effect:
         i = _pick(rng)[0]
         size = _sign(rng) * (0.05 if sensor == "accel" else 0.12)
-        at = FIRST_RECORD_S + rng.uniform(0.4, 0.6) * 420.0
+        at = rng.uniform(0.4, 0.6) * 420.0  # the session lasts about 420 s
 
         def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
-            return _channel(sensor, i, np.where(s.power_on_s >= at, size, 0.0))
+            return _channel(sensor, i, np.where(s.session_s >= at, size, 0.0))
 
-        p = {"sensor": sensor, "axis": AXES[i], "step": size, "at_power_on_s": at}
+        p = {"sensor": sensor, "axis": AXES[i], "step": size, "at_session_s": at}
         return Effect(f"bias_step_{sensor}", p, sensor=fn)
 
     return make

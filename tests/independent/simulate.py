@@ -5,9 +5,10 @@ closing X-up, written in the project's record format with the truth beside it.
 noiseless true inputs, for the tests); ``write_session(directory, spec)`` writes
 ``SERIAL_name.txt`` files and ``truth.json`` (not a record file: the host skips it).
 
-The plan follows method.md §4–§5 and the dialogue: 10 min warm-up, the statics x_up … z_dn
-(``static_s`` each), the turns x_ccw, x_cw … z_cw (``turns`` whole turns in the fixed window,
-made as quarter turns with rests: before, between and after), then x_up again (``x_up_2``).
+The plan follows method.md §4–§5 and the dialogue: ``warmup_s`` (10 min) after power-on,
+the statics x_up … z_dn (``static_s`` each), the turns x_ccw, x_cw … z_cw (``turns`` whole
+turns in the fixed window, made as quarter turns with rests: before, between and after), then
+x_up again (``x_up_2``).
 The operator takes 15–25 s between records. Headings: every record is placed at heading 0
 (the reference axis along the fence) or, with ``headings='random'``, at a random multiple of
 90°; ``record_heading`` writes it in the header as ``placement_heading_deg``.
@@ -24,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from tests.independent import physics as ph
-from tests.independent.effects import EFFECTS, FIRST_RECORD_S, Effect, Signals
+from tests.independent.effects import EFFECTS, Effect, Signals
 from tests.independent.recordfile import record_text, write_record_file
 from tests.independent.truth import BaseTruth, Geometry, random_base
 
@@ -47,6 +48,8 @@ class SessionSpec:
     static_s: float = 10.0
     turns: int = 2
     closing: bool = True
+    #: the first record starts this long after power-on (the dialogue's warm-up), s
+    warmup_s: float = 600.0
     headings: str = "zero"  # "zero" | "random"
     record_heading: bool = False
     accel_density: float = 0.0020  # m/s²/√Hz -> 0.010 m/s² per sample at 50 Hz
@@ -150,7 +153,7 @@ def _record(
     force = force + np.cross(om_dot, r) + np.cross(om, np.cross(om, r))
     pow_s = start_s + t_s
     temp, dtemp = ph.chip_temperature(pow_s, s.temp)
-    sig = Signals(pow_s, temp, dtemp, force, rate, s.g)
+    sig = Signals(pow_s, pow_s - spec.warmup_s, temp, dtemp, force, rate, s.g)
     accel = force @ base.accel_matrix.T + base.accel_bias
     gyro = rate @ base.gyro_matrix.T + (force / s.g) @ base.g_sens.T + base.gyro_bias
     if s.effect.sensor is not None:
@@ -168,7 +171,7 @@ def _record(
         "up": face,
         "source": "independent simulator (tests/independent)",
         "power_on_s": f"{start_s:.3f}",
-        "session_s": f"{start_s - FIRST_RECORD_S + 10.0:.3f}",
+        "session_s": f"{start_s - spec.warmup_s + 10.0:.3f}",
     }
     if kind == "turn":
         meta.update(turns=str(spec.turns), direction=name.split("_")[1], window_s=f"{duration_s:g}")
@@ -199,7 +202,7 @@ def simulate(spec: SessionSpec) -> SimSession:
     plan += [(n, window) for n in TURNS]
     if spec.closing:
         plan.append(("x_up_2", spec.static_s))
-    t = FIRST_RECORD_S
+    t = spec.warmup_s
     for name, dur in plan:
         heading = 0.0 if spec.headings == "zero" else 90.0 * int(rng.integers(0, 4))
         s.records.append(_record(rng, s, name, t, dur, heading))

@@ -245,3 +245,26 @@ def test_each_effect_is_the_only_difference(name: str) -> None:
             want = p["c"] * (np.abs(u) if name == "abs_leak" else u**2)
             got = (e.accel - c.accel if sensor == "accel" else e.gyro - c.gyro)[:, i]
             np.testing.assert_allclose(got, want, atol=1e-12)
+    if name.startswith(("bias_step", "bias_drift", "temperature_bias", "dtdt_bias")):
+        i = "xyz".index(p["axis"])
+        for e, c in zip(eff.records, ctrl.records, strict=True):
+            got = (e.accel - c.accel if p["sensor"] == "accel" else e.gyro - c.gyro)[:, i]
+            pow_s = float(c.meta["power_on_s"]) + c.t_ms / 1000.0
+            if name.startswith("bias_step"):
+                want = np.where(pow_s - spec.warmup_s >= p["at_session_s"], p["step"], 0.0)
+            elif name.startswith("bias_drift"):
+                want = p["per_h"] * pow_s / 3600.0
+            elif name == "temperature_bias":
+                want = p["per_C"] * (c.temp_c - 25.0)
+            else:
+                _, rate = ph.chip_temperature(pow_s, ctrl.temp)
+                want = p["per_C_per_s"] * rate
+            np.testing.assert_allclose(got, want, atol=1e-6)
+
+
+def test_chip_temperature_rate_is_its_derivative() -> None:
+    t = np.linspace(0.0, 2000.0, 20001)
+    temp, rate = ph.chip_temperature(t, ph.TempModel(phase=1.0))
+    np.testing.assert_allclose(np.gradient(temp, t)[1:-1], rate[1:-1], atol=1e-6)
+    assert temp[0] == pytest.approx(22.0 + 0.4 * math.sin(1.0))
+    assert 30.0 < temp[-1] < 31.5  # warmed by 9 °C with τ = 500 s
