@@ -44,7 +44,6 @@ MOVED: dict[str, str] = {
     "host.calibration": "host.calib.calibration",
     "host.report": "host.calib.report",
     "host.model": "host.modelling.model",
-    "host.diagnose": "host.modelling.diagnose",
     "host.sim": "host.bench.sim",
     "host.sim_physics": "host.bench.physics",
     "host.sim_truth": "host.bench.truth",

@@ -1,8 +1,8 @@
 """``python -m host model diagnose|add|ladder`` and ``python -m host demo hidden-effect``.
 
-The model workbench on the command line (:mod:`host.modelling.model`,
-:mod:`host.modelling.diagnose`), and a demo that hides ONE physical effect in a simulated session
-(:mod:`host.modelling.scenarios`) and shows the workbench finding it.
+The model workbench on the command line (:mod:`host.workbench`: the diagnosis, a term added,
+the ladder, their words in :mod:`host.workbench.text`), and a demo that hides ONE physical effect
+in a simulated session (:mod:`host.workbench.scenarios`) and shows the workbench finding it.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import json
 import math
 import shlex
 import sys
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -22,15 +22,6 @@ import numpy as np
 from host.calib.publish import session_noise
 from host.cli import pyplot
 from host.errors import UserError
-from host.modelling.diagnose import (
-    Addition,
-    add_term,
-    diagnose,
-    format_addition,
-    format_diagnosis,
-    format_ladder,
-    ladder,
-)
 from host.modelling.model import (
     AXES,
     CATALOGUE,
@@ -45,16 +36,19 @@ from host.modelling.model import (
     short_spec,
     term_columns,
 )
-from host.modelling.scenarios import (
-    DEFAULT_EFFECTS,
-    EFFECTS,
-    DemoOutcome,
-    HiddenCase,
-    case_dataset,
-    hidden_effect_case,
-    run_case,
-)
 from host.session.directory import read_session
+from host.workbench.ladder import add_term, ladder
+from host.workbench.scenarios import DEFAULT_EFFECTS, EFFECTS, hidden_effect_case, run_case
+from host.workbench.text import (
+    format_addition,
+    format_case,
+    format_diagnosis,
+    format_ladder,
+    format_outcome,
+    format_terms,
+    physics_paragraph,
+)
+from host.workbench.verdict import diagnose
 
 # ---- plots ----------------------------------------------------------------------------------
 _FILE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
@@ -281,27 +275,6 @@ def run_diagnose(args: argparse.Namespace) -> int:
     return 0
 
 
-def addition_dict(a: Addition) -> dict[str, Any]:
-    """JSON of a before → after."""
-
-    def fit_d(f: Fit) -> dict[str, Any]:
-        return {"model": [mt.label for mt in f.model], "rms_z": f.rms_z, "chi2": f.chi2,
-                "chi2_p": f.chi2_p, "dof": f.dof, "bic": f.bic}  # fmt: skip
-
-    return {
-        "added": [mt.label for mt in a.added],
-        "held_out_rms_z": None
-        if a.held_out is None
-        else {"before": a.held_out[0].rms_z, "after": a.held_out[1].rms_z},
-        "before": fit_d(a.before),
-        "after": fit_d(a.after),
-        "new_parameters": [
-            {"name": p.name, "value": p.value, "stderr": p.stderr, "unit": p.unit}
-            for p in a.new_parameters
-        ],  # fmt: skip
-    }
-
-
 def calibrate_command(args: argparse.Namespace, model: str) -> str:
     """The exact ``calibrate`` command that fits and ships ``model`` on the records the
     workbench just used (same directory, serial, site, floor and term files)."""
@@ -325,7 +298,7 @@ def run_add(args: argparse.Namespace) -> int:
         write_plots(args.plot, ds, a.before, a.after, a.added[0].label)
     ship = calibrate_command(args, short_spec(a.after.model))
     if args.json:
-        _print_json({**addition_dict(a), "calibrate_command": ship})
+        _print_json({**a.to_dict(), "calibrate_command": ship})
     else:
         print(format_addition(a))
         print(f"ship this model: {ship}")
@@ -345,36 +318,6 @@ def run_ladder(args: argparse.Namespace) -> int:
     return 0
 
 
-def _physics(t: Term) -> str:
-    """The first paragraph of the term's docstring, on one line."""
-    return " ".join(t.doc.strip().split("\n\n")[0].split())
-
-
-def format_terms(cat: Mapping[str, Term]) -> str:
-    """The catalogue for people: each term's physics, parameters with units per sensor, and
-    what data identifies it (lines of at most 80 characters)."""
-    import textwrap
-
-    from host.modelling.model import BASE
-
-    out: list[str] = []
-    for t in cat.values():
-        out.append(t.name + ("  (base model, method.md §2)" if t.name in BASE else ""))
-        out += textwrap.wrap(_physics(t), 80, initial_indent="  ", subsequent_indent="  ")
-        for sensor in t.sensors:
-            units = ", ".join(f"{p} [{u}]" for p, u in zip(t.params, t.param_units(sensor),
-                                                             strict=True))  # fmt: skip
-            out += textwrap.wrap(f"{sensor}: {units}", 80, initial_indent="  ",
-                                 subsequent_indent="    ")  # fmt: skip
-        if t.needs:
-            out += textwrap.wrap(f"needs: {t.needs}", 80, initial_indent="  ",
-                                 subsequent_indent="    ")  # fmt: skip
-    out.append("")
-    out.append("Use: --model base,TERM[:SENSOR[:AXES]] (e.g. temperature_bias:gyro:x); your own")
-    out.append("terms: --term-file my_terms.py (README, 'Your own term').")
-    return "\n".join(out) + "\n"
-
-
 def run_terms(args: argparse.Namespace) -> int:
     """``model terms``: the catalogue (with --term-file: and those terms too)."""
     cat = _catalogue(args)
@@ -383,7 +326,7 @@ def run_terms(args: argparse.Namespace) -> int:
             [
                 {
                     "name": t.name,
-                    "physics": _physics(t),
+                    "physics": physics_paragraph(t),
                     "sensors": list(t.sensors),
                     "parameters": {
                         s: dict(zip(t.params, t.param_units(s), strict=True)) for s in t.sensors
@@ -437,14 +380,7 @@ def run_demo(args: argparse.Namespace) -> int:
             raise UserError(f"unknown effect {eff!r}; known: all, {', '.join(EFFECTS)}")
     for eff in effects:
         case = hidden_effect_case(eff, args.seed, tilted=args.tilted, static_s=args.static_s)
-        print(f"######## hidden effect: {eff} — {case.description}")
-        if case.term:
-            value = (
-                "(" + ", ".join(f"{v:.4g}" for v in case.truth_vector) + ")"
-                if case.truth_vector
-                else f"{case.truth:.4g}"
-            )
-            print(f"hidden from the fit: {case.term} = {value} {case.unit}")
+        print(format_case(case))
         if args.out:
             from host.bench.sim import write_session
 
@@ -454,23 +390,7 @@ def run_demo(args: argparse.Namespace) -> int:
             print(f"records written to {out} (try: {try_cmd})")
         # the unit's noise known, as from a noise file (--noise): the floor does not carry
         # the hidden effect the way the session's repeated attitudes would
-        o = run_case(case, case.known_noise())
-        print(format_diagnosis(o.diagnosis, compare=False, max_candidates=6))
-        if o.addition is not None:
-            print("-- " + ("adding the hidden term" if case.term else "adding the top candidate"))
-            print(format_addition(o.addition))
-        if case.term:
-            ok = case.term in o.group
-            est = o.coefficient
-            err = abs(est - case.truth) / abs(case.truth) if case.truth else math.nan
-            print(
-                f"== result: named first: {o.found or 'nothing'}"
-                + (f" (confounded group {', '.join(o.group)})" if len(o.group) > 1 else "")
-                + f" → {'FOUND' if ok else 'MISSED'}; coefficient {est:.4g} vs truth "
-                f"{case.truth:.4g} {case.unit} ({100 * err:.1f} % off)"
-            )
-        else:
-            print(f"== result: verdict {o.diagnosis.verdict} (expected adequate)")
+        print(format_outcome(run_case(case, case.known_noise())))
         print()
     return 0
 
@@ -496,9 +416,3 @@ def cli_demo(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
         return run_demo(args)
 
     return run
-
-
-__all__ = [
-    "DEFAULT_EFFECTS", "EFFECTS", "DemoOutcome", "HiddenCase", "case_dataset", "cli_demo",
-    "cli_model", "hidden_effect_case", "run_case", "write_plots",
-]  # fmt: skip

@@ -16,8 +16,8 @@ from host.bench.sim import write_session
 from host.calib.calibration import calibrate_from_records
 from host.calib.result import CalibrationResult, apply
 from host.errors import UserError
-from host.modelling.scenarios import hidden_effect_case
 from host.session.directory import read_session
+from host.workbench.scenarios import hidden_effect_case
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
@@ -235,8 +235,8 @@ def test_verify_predicts_another_session(
 def test_held_out_error_shows_a_term_that_only_fits_noise(
     temperature_session: tuple[Path, str, float],
 ) -> None:
-    from host.modelling.diagnose import add_term
     from host.modelling.model import load_dataset, parse_model
+    from host.workbench.ladder import add_term
 
     d, term, _ = temperature_session
     ds = load_dataset(d)

@@ -1,4 +1,4 @@
-"""``python -m host model diagnose|add|ladder`` and ``demo hidden-effect`` (host/model_cli.py)."""
+"""``python -m host model diagnose|add|ladder`` and ``demo hidden-effect`` (host/cli/model.py)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 from host.__main__ import main
 from host.bench.sim import write_session
-from host.modelling.scenarios import hidden_effect_case
+from host.workbench.scenarios import hidden_effect_case
 
 
 @pytest.fixture(scope="module")
@@ -117,9 +117,9 @@ def test_plots_follow_measurement_order_with_one_scale(
     """Files come back alphabetically; the plots put the records in the order they were
     measured (time since power-on), and before/after share one z scale."""
     from host.cli.model import measurement_order, write_plots, z_limit
-    from host.modelling.diagnose import add_term
     from host.modelling.model import load_dataset, parse_model
     from host.session.records import STATIC_NAMES
+    from host.workbench.ladder import add_term
 
     d, term = temp_dir
     ds = load_dataset(d)

@@ -194,8 +194,8 @@ def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> 
     t_end = max(float(s.t_s[-1]) for s in ds.signals)
     assert abs(t_end - (starts[-1] + 10.0)) < 0.5  # the closing check: a 10 s static
     # time_drift on the records alone (no simulator metadata in them): identifiable
-    from host.modelling.diagnose import evaluate_candidates
     from host.modelling.model import fit_model, parse_model
+    from host.workbench.candidates import evaluate_candidates
 
     assert not any(k.startswith("sim") for k in read_record(out / "S1_x_up.txt").meta)
     cands, _ = evaluate_candidates(ds, fit_model(ds, parse_model("base")))

@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 
 from host.modelling import turning
-from host.modelling.diagnose import add_term, diagnose, format_diagnosis
 from host.modelling.model import (
     CATALOGUE,
     build_dataset,
@@ -20,8 +19,11 @@ from host.modelling.model import (
     parse_model,
     session_from_records,
 )
-from host.modelling.scenarios import hidden_effect_case, run_case
 from host.session.directory import read_session
+from host.workbench.ladder import add_term
+from host.workbench.scenarios import hidden_effect_case, run_case
+from host.workbench.text import format_diagnosis
+from host.workbench.verdict import diagnose
 
 REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
 

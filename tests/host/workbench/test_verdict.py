@@ -1,4 +1,4 @@
-"""The diagnosis (host/diagnose.py) on simulated sessions with ONE hidden effect, a control
+"""The diagnosis (host/workbench/verdict.py) on simulated sessions with ONE hidden effect, a control
 with none, confounded and unidentifiable cases, and the real imucal data."""
 
 from __future__ import annotations
@@ -10,14 +10,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host.modelling.diagnose import (
-    VERDICTS,
-    add_term,
-    diagnose,
-    format_diagnosis,
-    holm,
-    ladder,
-)
 from host.modelling.model import (
     build_dataset,
     chi2_isf,
@@ -25,7 +17,11 @@ from host.modelling.model import (
     parse_model,
     session_from_records,
 )
-from host.modelling.scenarios import case_dataset, hidden_effect_case, run_case
+from host.workbench.candidates import holm
+from host.workbench.ladder import add_term, ladder
+from host.workbench.scenarios import case_dataset, hidden_effect_case, run_case
+from host.workbench.text import format_diagnosis
+from host.workbench.verdict import VERDICTS, diagnose
 
 REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
 

@@ -3,7 +3,7 @@ the workbench makes of it (``python -m host demo hidden-effect``, the diagnosis 
 ``benchmarks/model_bench.py``).
 
 The sessions come from the virtual bench (:mod:`host.bench.sim`, imported when a case is made);
-the diagnosis is :mod:`host.modelling.diagnose`.
+the diagnosis is :mod:`host.workbench.verdict`, the refit :mod:`host.workbench.ladder`.
 """
 
 from __future__ import annotations
@@ -17,7 +17,6 @@ from typing import Any
 import numpy as np
 
 from host.errors import UserError
-from host.modelling.diagnose import Addition, Diagnosis, add_term, diagnose
 from host.modelling.model import (
     AXES,
     Dataset,
@@ -26,6 +25,8 @@ from host.modelling.model import (
     parse_model,
     session_from_records,
 )
+from host.workbench.ladder import Addition, add_term
+from host.workbench.verdict import Diagnosis, diagnose
 
 # ---- hidden-effect scenarios ----------------------------------------------------------------
 #: effect name -> one-line description
@@ -175,6 +176,17 @@ class DemoOutcome:
             if p.name == labels[0]:
                 return p.value
         return math.nan
+
+    @property
+    def named_hidden(self) -> bool:
+        """The hidden term is the first one named, or in its confounded group."""
+        return self.case.term in self.group
+
+    @property
+    def coefficient_error(self) -> float:
+        """|fitted − truth| / |truth| of the hidden term's coefficient (1; NaN for the control)."""
+        t = self.case.truth
+        return abs(self.coefficient - t) / abs(t) if t else math.nan
 
 
 def run_case(case: HiddenCase, noise: NoiseModel | None = None) -> DemoOutcome:

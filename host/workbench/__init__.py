@@ -1,0 +1,13 @@
+"""The model workbench: how well the error model explains the records, and what it misses.
+
+Data in: a fitted model and its dataset (:mod:`host.modelling.model`). Out: candidates, the
+residual scan, the verdict, the refits and their words. Never imports the calibration.
+
+- ``candidates`` — every catalogue term not in the model tried on top of the fit, Holm-corrected,
+  confounded and explained-by groups.
+- ``scan`` — the residuals against every signal (temperature, time, inputs, their squares).
+- ``verdict`` — the whole diagnosis: compare, where it fails, what is missing, the verdict.
+- ``ladder`` — add a term (before → after) and the greedy ladder of models.
+- ``text`` — the words for people: diagnosis, addition, ladder, the catalogue, a demo's outcome.
+- ``scenarios`` — simulated sessions each hiding one effect, and what the workbench finds.
+"""

@@ -1,0 +1,336 @@
+"""What is missing: every catalogue term not in the model, tried on top of the fit.
+
+method.md §8: "large or trending residuals mean the model misses an effect". Each (term, sensor,
+axis) of the catalogue that the model does not hold is added to the same data (Frisch-Waugh-Lovell:
+its columns orthogonalised to the model's). With the noise model's known variances the drop in χ²
+is χ²(k) under the null: p-values are Holm-corrected over all candidates (family α = 0.01). Each
+candidate reports ΔBIC, RMS z after, its coefficient ± std error, and whether the records can
+identify it at all (and what data would). Significant candidates are tested against each other:
+when neither adds significantly to the other they are CONFOUNDED (reported together); when one
+adds nothing to a better one it is "explained by" it. The verdict built on them is
+:mod:`host.workbench.verdict`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from host.modelling.model import (
+    AXES,
+    BASE,
+    CATALOGUE,
+    Dataset,
+    Fit,
+    ModelTerm,
+    Term,
+    chi2_sf,
+    residual_sigmas,
+    term_columns,
+)
+
+#: family-wise error rate of each family of tests (candidates; signal scan; overall χ²)
+ALPHA = 0.01
+#: a candidate whose columns keep less than this fraction of their norm after removing the
+#: model's columns cannot be identified from the records
+IDENTIFIABLE_TOL = 1e-3
+#: a candidate with p up to this many times the Bonferroni threshold is "just below
+#: significance": it is still compared with the significant ones for confounding
+NEAR_FACTOR = 100.0
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One term tried on top of the model (per sensor and axis).
+
+    ``delta_chi2``: drop of χ²; ``p_value`` of the LR test (χ² with ``n_params`` dof);
+    ``significant`` after Holm's correction; ``delta_bic`` = −Δχ² + k·ln n (negative: better);
+    ``coefficient``/``stderr``/``unit`` of its (largest, in σ) parameter, ``coefficients`` all
+    of them (name -> (value, stderr, unit)). ``identifiable`` False: ``reason`` says why and
+    ``needs`` what data would help. ``confounded_with``: candidates the data cannot tell apart
+    from this one; ``explained_by``: a better candidate that makes this one redundant.
+    """
+
+    term: str
+    sensor: str
+    axes: str
+    n_params: int
+    physics: str
+    identifiable: bool
+    reason: str = ""
+    needs: str = ""
+    delta_chi2: float = math.nan
+    p_value: float = math.nan
+    significant: bool = False
+    delta_bic: float = math.nan
+    rms_z_after: float = math.nan
+    coefficient: float = math.nan
+    stderr: float = math.nan
+    unit: str = ""
+    coefficients: Mapping[str, tuple[float, float, str]] = field(default_factory=dict)
+    confounded_with: tuple[str, ...] = ()
+    explained_by: str = ""
+    implausible: str = ""
+
+    @property
+    def label(self) -> str:
+        return f"{self.term}:{self.sensor}:{self.axes}"
+
+    @property
+    def channel(self) -> tuple[str, str]:
+        return (self.sensor, self.axes)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "term": self.term, "sensor": self.sensor, "axes": self.axes, "label": self.label,
+            "significant": self.significant, "identifiable": self.identifiable,
+            "delta_chi2": json_number(self.delta_chi2), "p_value": json_number(self.p_value),
+            "delta_bic": json_number(self.delta_bic),
+            "rms_z_after": json_number(self.rms_z_after),
+            "coefficient": json_number(self.coefficient), "stderr": json_number(self.stderr),
+            "unit": self.unit,
+            "coefficients": {k: {"value": json_number(v), "stderr": json_number(s), "unit": u}
+                             for k, (v, s, u) in self.coefficients.items()},
+            "confounded_with": list(self.confounded_with), "explained_by": self.explained_by,
+            "reason": self.reason, "needs": self.needs, "physics": self.physics,
+            "implausible": self.implausible,
+        }  # fmt: skip
+
+
+def json_number(v: float) -> float | None:
+    """``v`` for a JSON file: a float, or None when it is not finite."""
+    return float(v) if v is not None and math.isfinite(float(v)) else None
+
+
+# ---- multiple testing -----------------------------------------------------------------------
+def holm(p_values: Sequence[float], alpha: float = ALPHA) -> list[bool]:
+    """Holm's step-down procedure: which of ``p_values`` are significant at family ``alpha``."""
+    order = sorted(range(len(p_values)), key=lambda i: p_values[i])
+    out = [False] * len(p_values)
+    m = len(p_values)
+    for rank, i in enumerate(order):
+        if not p_values[i] <= alpha / (m - rank):
+            break
+        out[i] = True
+    return out
+
+
+# ---- one candidate --------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class _Tried:
+    mt: ModelTerm
+    cw_perp: np.ndarray  # whitened columns, orthogonalised to the model
+    r: np.ndarray  # whitened residual to explain (offset of a nonlinear term removed)
+    beta: np.ndarray
+    cov: np.ndarray
+    delta: float
+    reason: str
+
+
+def _try(ds: Dataset, fit: Fit, mt: ModelTerm) -> _Tried:
+    """Add ``mt`` to the fitted model by orthogonal projection (exact for linear terms)."""
+    x, off = term_columns(ds, mt)
+    cw = ds.whiten @ x
+    q = fit.basis
+
+    def perp(v: np.ndarray) -> np.ndarray:
+        return v - q @ (q.T @ v) if q.shape[1] else v
+
+    cp = perp(cw)
+    r = fit.white_residual - perp(ds.whiten @ off) if np.any(off) else fit.white_residual
+    norms = np.linalg.norm(cw, axis=0)
+    kept = np.linalg.norm(cp, axis=0)
+    reason = ""
+    if mt.term.check is not None:
+        reason = mt.term.check(ds.signals) or ""
+    if not reason and (np.any(norms == 0) or np.any(kept < IDENTIFIABLE_TOL * norms)):
+        reason = (
+            "no variation of its input in these records"
+            if np.any(norms == 0)
+            else "on these records it acts exactly like terms already in the model"
+        )
+    if not reason and cp.shape[1] > 1:
+        s = np.linalg.svd(cp / kept, compute_uv=False)
+        if s[-1] < IDENTIFIABLE_TOL * s[0]:
+            reason = "its parameters cannot be told apart on these records"
+    if reason:
+        k = cp.shape[1]
+        return _Tried(mt, cp, r, np.full(k, np.nan), np.full((k, k), np.nan), math.nan, reason)
+    beta, *_ = np.linalg.lstsq(cp, r, rcond=None)
+    cov = np.linalg.inv(cp.T @ cp)
+    after = r - cp @ beta
+    delta = float(fit.white_residual @ fit.white_residual - after @ after)
+    return _Tried(mt, cp, r, beta, cov, delta, "")
+
+
+def _conditional_delta(a: _Tried, b: _Tried) -> float:
+    """Δχ² of adding ``b`` to the model that already holds ``a`` (both orthogonal to it)."""
+    qa, _ = np.linalg.qr(a.cw_perp)
+    cb = b.cw_perp - qa @ (qa.T @ b.cw_perp)
+    ra = a.r - a.cw_perp @ a.beta
+    if np.any(np.linalg.norm(cb, axis=0) < IDENTIFIABLE_TOL * np.linalg.norm(b.cw_perp, axis=0)):
+        return 0.0
+    beta, *_ = np.linalg.lstsq(cb, ra, rcond=None)
+    after = ra - cb @ beta
+    return float(ra @ ra - after @ after)
+
+
+def candidate_terms(
+    model: Sequence[ModelTerm], catalogue: Mapping[str, Term] | None = None
+) -> list[ModelTerm]:
+    """Every (term, sensor, axis) of the catalogue that the model does not hold."""
+    cat = catalogue if catalogue is not None else CATALOGUE
+    have = {(mt.term.name, mt.sensor, a) for mt in model for a in mt.axes}
+    out = []
+    for t in cat.values():
+        for s in t.sensors:
+            if t.shared:  # one set of parameters for all the channels: tried once
+                if not any((t.name, s, a) in have for a in range(3)):
+                    out.append(ModelTerm(t, s, (0, 1, 2)))
+                continue
+            for a in range(3):
+                if (t.name, s, a) not in have:
+                    out.append(ModelTerm(t, s, (a,)))
+    return out
+
+
+def evaluate_candidates(
+    ds: Dataset,
+    fit: Fit,
+    catalogue: Mapping[str, Term] | None = None,
+    alpha: float = ALPHA,
+) -> tuple[list[Candidate], list[_Tried]]:
+    """Try every candidate on ``fit``; Holm-correct; find confounded groups; sort best first."""
+    tried = [_try(ds, fit, mt) for mt in candidate_terms(fit.model, catalogue)]
+    n_rows = len(fit.residual)
+    ident = [t for t in tried if not t.reason]
+    pvals = [chi2_sf(t.delta, t.mt.n_params) for t in ident]
+    sig = dict(zip([id(t) for t in ident], holm(pvals, alpha), strict=True))
+    pv = dict(zip([id(t) for t in ident], pvals, strict=True))
+    # significant candidates of the same channel against each other
+    significant = [t for t in ident if sig[id(t)]]
+    m = max(len(ident), 1)
+    # members just below significance (p within NEAR_FACTOR of the threshold) join the
+    # comparison: a group the data cannot resolve is reported whole
+    near = [t for t in ident if not sig[id(t)] and pv[id(t)] <= NEAR_FACTOR * alpha / m]
+    confounded: dict[int, list[str]] = {id(t): [] for t in tried}
+    explained_by: dict[int, str] = {}
+    pool = significant + near
+    for i, a in enumerate(pool):
+        for b in pool[i + 1 :]:
+            if (a.mt.sensor, a.mt.axes) != (b.mt.sensor, b.mt.axes):
+                continue
+            if not (sig[id(a)] or sig[id(b)]):
+                continue
+            b_given_a = chi2_sf(_conditional_delta(a, b), b.mt.n_params) <= alpha / m
+            a_given_b = chi2_sf(_conditional_delta(b, a), a.mt.n_params) <= alpha / m
+            if not b_given_a and not a_given_b:
+                confounded[id(a)].append(b.mt.label)
+                confounded[id(b)].append(a.mt.label)
+            elif a_given_b and not b_given_a:
+                explained_by.setdefault(id(b), a.mt.label)
+            elif b_given_a and not a_given_b:
+                explained_by.setdefault(id(a), b.mt.label)
+    out: list[tuple[Candidate, _Tried]] = []
+    winv = np.linalg.inv(ds.whiten)
+    for t in tried:
+        mt = t.mt
+        labels = mt.term.param_labels(mt.sensor, mt.axes[0])
+        units = mt.term.param_units(mt.sensor)
+        coefs: dict[str, tuple[float, float, str]] = {}
+        best = 0
+        if not t.reason:
+            se = np.sqrt(np.diag(t.cov))
+            coefs = {
+                labels[j]: (float(t.beta[j]), float(se[j]), units[j]) for j in range(len(labels))
+            }
+            best = int(np.argmax(np.abs(t.beta) / se))
+        name0 = labels[best]
+        c0 = coefs.get(name0, (math.nan, math.nan, units[best]))
+        after_rms = math.nan
+        if not t.reason:
+            after_rms = _rms_z_after(ds, fit, t, winv)
+        out.append(
+            (
+                Candidate(
+                    term=mt.term.name, sensor=mt.sensor,
+                    axes="".join(AXES[a] for a in mt.axes),
+                    n_params=mt.n_params, physics=mt.term.physics,
+                    identifiable=not t.reason, reason=t.reason, needs=mt.term.needs,
+                    delta_chi2=t.delta, p_value=pv.get(id(t), math.nan),
+                    significant=bool(sig.get(id(t), False)),
+                    delta_bic=(-t.delta + mt.n_params * math.log(max(n_rows, 2)))
+                    if not t.reason else math.nan,
+                    rms_z_after=after_rms, coefficient=c0[0], stderr=c0[1], unit=c0[2],
+                    coefficients=coefs, confounded_with=tuple(confounded[id(t)]),
+                    explained_by=explained_by.get(id(t), ""),
+                    implausible=_implausible(mt, coefs, fit) if sig.get(id(t)) else "",
+                ),
+                t,
+            )
+        )  # fmt: skip
+
+    def key(item: tuple[Candidate, _Tried]) -> tuple[int, int, float]:
+        c = item[0]
+        usable = c.significant and not c.explained_by and not c.implausible
+        rank = 0 if usable else 1 if c.significant else 2
+        if not c.identifiable:
+            rank = 3
+        return (rank, 0, c.delta_bic if math.isfinite(c.delta_bic) else math.inf)
+
+    out.sort(key=key)
+    # confounded partners right after the first of their group
+    ordered: list[tuple[Candidate, _Tried]] = []
+    placed: set[str] = set()
+    by_label = {c.label: (c, t) for c, t in out}
+    for c, t in out:
+        if c.label in placed:
+            continue
+        ordered.append((c, t))
+        placed.add(c.label)
+        for other in c.confounded_with:
+            if other not in placed and other in by_label:
+                ordered.append(by_label[other])
+                placed.add(other)
+    return [c for c, _ in ordered], [t for _, t in ordered]
+
+
+def _implausible(mt: ModelTerm, coefs: Mapping[str, tuple[float, float, str]], fit: Fit) -> str:
+    """Why the fitted coefficients are not a physical reading of the term ("" if they are):
+    beyond the term's documented plausible range, and — when the model lacks a base term on
+    that channel — probably standing in for it (an alias)."""
+    bound = mt.term.plausible.get(mt.sensor)
+    if bound is None:
+        return ""
+    worst = max(coefs.items(), key=lambda kv: abs(kv[1][0]), default=None)
+    if worst is None or abs(worst[1][0]) <= bound:
+        return ""
+    name, (v, _, unit) = worst
+    why = f"{name} = {v:.3g} {unit} is beyond the plausible ±{bound:g} ({mt.term.plausible_source})"
+    have = {(m.term.name, m.sensor, a) for m in fit.model for a in m.axes}
+    missing = [b for b in BASE if (b, mt.sensor, mt.axes[0]) not in have
+               and mt.sensor in CATALOGUE[b].sensors]  # fmt: skip
+    if missing:
+        why += "; probably an alias of the omitted base term(s) " + ", ".join(
+            f"{b}:{mt.sensor}:{AXES[mt.axes[0]]}" for b in missing
+        )
+    return why
+
+
+def _rms_z_after(ds: Dataset, fit: Fit, t: _Tried, winv: np.ndarray) -> float:
+    """RMS of the record/channel z after adding the candidate: the refit's whitened residual
+    is r − C⊥·β; ``winv`` = W⁻¹ brings it back to the rows."""
+    resid_after = winv @ (t.r - t.cw_perp @ t.beta)
+    q, _ = np.linalg.qr(t.cw_perp)
+    basis = np.column_stack([fit.basis, q]) if fit.basis.shape[1] else q
+    sd = residual_sigmas(ds, basis)
+    zs = [
+        float(np.mean(resid_after[gr.rows])) / sd[k]
+        for k, gr in enumerate(ds.groups)
+        if sd[k] > 1e-3 * gr.sigma
+    ]
+    return float(np.sqrt(np.mean(np.square(zs)))) if zs else math.nan

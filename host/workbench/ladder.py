@@ -1,0 +1,145 @@
+"""Add a term, climb the ladder: the refits of the workbench.
+
+:func:`add_term` refits with one term added and says before → after (with the leave-one-record-out
+prediction error of both); :func:`ladder` is the greedy path of models from ``bias`` upward, each
+rung the (term, sensor) that lowers BIC most while its LR test stays significant.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from host.errors import UserError
+from host.modelling.model import (
+    CATALOGUE,
+    Dataset,
+    Fit,
+    ModelTerm,
+    Prediction,
+    Term,
+    chi2_sf,
+    fit_model,
+    leave_one_out,
+    merge_model,
+    model_spec,
+    parse_model,
+)
+from host.workbench.candidates import ALPHA
+
+
+@dataclass(frozen=True, eq=False)
+class Addition:
+    """Before → after of adding ``added`` to a model."""
+
+    before: Fit
+    after: Fit
+    added: tuple[ModelTerm, ...]
+    #: leave-one-record-out prediction error before and after (:func:`host.model.leave_one_out`)
+    held_out: tuple[Prediction, Prediction] | None = None
+
+    @property
+    def new_parameters(self) -> list[Any]:
+        labels = {mt.label for mt in self.after.model}
+        old = {p.name for p in self.before.parameters}
+        return [p for p in self.after.parameters if p.name not in old and p.term in labels]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``add --json`` object: before → after."""
+
+        def fit_d(f: Fit) -> dict[str, Any]:
+            return {"model": [mt.label for mt in f.model], "rms_z": f.rms_z, "chi2": f.chi2,
+                    "chi2_p": f.chi2_p, "dof": f.dof, "bic": f.bic}  # fmt: skip
+
+        return {
+            "added": [mt.label for mt in self.added],
+            "held_out_rms_z": None
+            if self.held_out is None
+            else {"before": self.held_out[0].rms_z, "after": self.held_out[1].rms_z},
+            "before": fit_d(self.before),
+            "after": fit_d(self.after),
+            "new_parameters": [
+                {"name": p.name, "value": p.value, "stderr": p.stderr, "unit": p.unit}
+                for p in self.new_parameters
+            ],  # fmt: skip
+        }
+
+
+def add_term(
+    ds: Dataset,
+    model: Sequence[ModelTerm],
+    item: str,
+    catalogue: Mapping[str, Term] | None = None,
+) -> Addition:
+    """Refit with ``item`` (``term[:sensor[:axes]]``) added."""
+    new = parse_model(item, catalogue)
+    have = {(mt.term.name, mt.sensor, a) for mt in model for a in mt.axes}
+    if all((mt.term.name, mt.sensor, a) in have for mt in new for a in mt.axes):
+        raise UserError(f"{item} is already in the model {model_spec(model)}")
+    before = fit_model(ds, model)
+    after = fit_model(ds, merge_model(list(model) + new))
+    return Addition(
+        before, after, tuple(new), (leave_one_out(ds, before), leave_one_out(ds, after))
+    )
+
+
+@dataclass(frozen=True)
+class LadderStep:
+    """One rung: the model after adding ``added`` (``""`` for the start)."""
+
+    added: str
+    model: str
+    n_params: int
+    chi2: float
+    dof: int
+    rms_z: float
+    bic: float
+    p_value: float  # of the addition's LR test (NaN for the start)
+    #: leave-one-record-out prediction RMS z (:func:`host.model.leave_one_out`)
+    held_out_rms_z: float = math.nan
+
+
+def ladder(
+    ds: Dataset,
+    start: str = "bias",
+    catalogue: Mapping[str, Term] | None = None,
+    alpha: float = ALPHA,
+    max_steps: int = 20,
+) -> list[LadderStep]:
+    """Greedy forward selection from ``start``: at each rung add the (term, sensor) — all three
+    axes — that lowers BIC most, while its LR test is significant after Bonferroni over that
+    rung's candidates; stop otherwise."""
+    cat = catalogue if catalogue is not None else CATALOGUE
+    model = parse_model(start, cat)
+    fit = fit_model(ds, model)
+    steps = [LadderStep("", model_spec(model), fit.n_params, fit.chi2, fit.dof, fit.rms_z,
+                        fit.bic, math.nan, leave_one_out(ds, fit).rms_z)]  # fmt: skip
+    for _ in range(max_steps):
+        have = {(mt.term.name, mt.sensor) for mt in model}
+        options = [
+            ModelTerm(t, s, (0, 1, 2))
+            for t in cat.values()
+            for s in t.sensors
+            if (t.name, s) not in have
+        ]
+        if not options:
+            break
+        results = []
+        for mt in options:
+            f = fit_model(ds, merge_model(list(model) + [mt]))
+            k = f.n_params - fit.n_params
+            if k <= 0:
+                continue
+            results.append((f.bic, mt, f, chi2_sf(fit.chi2 - f.chi2, k)))
+        if not results:
+            break
+        bic, mt, f, p = min(results, key=lambda r: r[0])
+        if bic >= fit.bic or p > alpha / len(results):
+            break
+        model = merge_model(list(model) + [mt])
+        fit = f
+        steps.append(LadderStep(mt.label, model_spec(model), f.n_params, f.chi2, f.dof,
+                                f.rms_z, f.bic, p, leave_one_out(ds, f).rms_z))  # fmt: skip
+    return steps

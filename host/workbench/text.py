@@ -1,0 +1,287 @@
+"""The workbench in words: the diagnosis, a before → after, the ladder, the catalogue, a demo.
+
+Text rendering only (no statistics): the report of :func:`host.workbench.verdict.diagnose`, of
+:func:`host.workbench.ladder.add_term` and :func:`host.workbench.ladder.ladder`, the term
+catalogue for people, and what the workbench made of a hidden-effect case
+(:mod:`host.workbench.scenarios`).
+"""
+
+from __future__ import annotations
+
+import math
+import textwrap
+from collections.abc import Mapping, Sequence
+
+from host.modelling.model import BASE, Fit, GroupResidual, Term, model_spec
+from host.workbench.candidates import Candidate
+from host.workbench.ladder import Addition, LadderStep
+from host.workbench.scenarios import DemoOutcome, HiddenCase
+from host.workbench.verdict import Diagnosis
+
+
+def _fmt(v: float, unit: str) -> str:
+    if not math.isfinite(v):
+        return "—"
+    a = abs(v)
+    s = f"{v:.4g}" if a >= 1e-3 or a == 0 else f"{v:.3e}"
+    return f"{s} {unit}".strip()
+
+
+def describe_residual(g: GroupResidual) -> str:
+    """'gyro x, record y_up: measured 0.731 °/s, model 0.702, 8.1 σ'."""
+    what = "integral" if g.unit == "°" else "mean"
+    return (
+        f"{g.sensor} {g.axis}, record {g.record}: measured {what} {g.measured:.4f} {g.unit}, "
+        f"model {g.model:.4f}, residual {g.residual:+.4f} = {g.z:+.1f} σ"
+    )
+
+
+def format_fit(fit: Fit, compare: bool = True) -> list[str]:
+    """The fit's summary (and the compare table)."""
+    lines = [
+        f"model: {model_spec(fit.model)}",
+        f"fit: RMS z = {fit.rms_z:.2f} over {len(fit.groups)} record/channel values; "
+        f"χ² = {fit.chi2:.1f} on {fit.dof} dof (p = {fit.chi2_p:.3g})",
+    ]
+    if compare:
+        lines.append("compare (record, channel: measured, model, residual, z):")
+        for g in fit.groups:
+            lines.append(
+                f"  {g.record:<10} {g.sensor} {g.axis}: {g.measured:>11.4f} {g.model:>11.4f} "
+                f"{g.residual:>+9.4f} {g.unit:<4} {g.z:>+6.1f}"
+            )
+    return lines
+
+
+def format_candidate(c: Candidate) -> str:
+    if not c.identifiable:
+        return f"{c.label}: NOT identifiable — {c.reason}; would need {c.needs}"
+    mark = "SIGNIFICANT" if c.significant else "not significant"
+    extra = ""
+    if c.confounded_with:
+        extra += f"; CONFOUNDED with {', '.join(c.confounded_with)}"
+    if c.explained_by:
+        extra += f"; explained by {c.explained_by}"
+    if c.implausible:
+        extra += f"; IMPLAUSIBLE: {c.implausible}"
+    return (
+        f"{c.label}: {mark}, Δχ² = {c.delta_chi2:.1f} (p = {c.p_value:.2g}), "
+        f"ΔBIC = {c.delta_bic:+.1f}, RMS z after {c.rms_z_after:.2f}, "
+        f"coefficient {_fmt(c.coefficient, '')} ± {_fmt(c.stderr, c.unit)}{extra}"
+    )
+
+
+def format_diagnosis(d: Diagnosis, compare: bool = True, max_candidates: int = 12) -> str:
+    """The human-readable report of :func:`diagnose`."""
+    lines = ["== 1. compare: measured vs model"] + format_fit(d.fit, compare)
+    lines.append("== 2. where it fails (|z| > 3, worst first)")
+    if not d.worst and not d.worst_spans:
+        lines.append("  nowhere: every record and channel within 3 σ")
+    for g in d.worst[:15]:
+        lines.append("  " + describe_residual(g))
+    for s in d.worst_spans[:5]:
+        lines.append(
+            f"  {s.sensor} {s.axis}, record {s.record}, {s.t0_s:.1f}–{s.t1_s:.1f} s: departs "
+            f"from the record's mean by {s.residual:+.4f} {s.unit} = {s.z:+.1f} σ"
+        )
+    lines.append("== 3. what is missing (candidates, best first; Holm α = 0.01)")
+    sig = [c for c in d.candidates if c.significant]
+    shown = (
+        sig
+        + [c for c in d.candidates if not c.significant and c.identifiable][
+            : max(0, max_candidates - len(sig))
+        ]
+    )
+    for c in shown:
+        lines.append("  " + format_candidate(c))
+    unident = [c for c in d.candidates if not c.identifiable]
+    groups: dict[tuple[str, str], list[str]] = {}
+    for c in unident:
+        groups.setdefault((c.term, c.reason), []).append(f"{c.sensor}:{c.axes}")
+    for (name, reason), chans in groups.items():
+        needs = next(c.needs for c in unident if c.term == name)
+        lines.append(
+            f"  {name} ({', '.join(chans)}): NOT identifiable — {reason}; would need {needs}"
+        )
+    if d.unexplained:
+        lines.append("== unexplained structure (no term of the catalogue explains it)")
+        for h in d.unexplained[:10]:
+            lines.append("  unexplained: " + h.describe())
+    for n in d.notes:
+        lines.append(f"note: {n}")
+    lines.append(f"== verdict: {d.verdict}")
+    for h in d.dominant:
+        lines.append(
+            f"  {h.sensor} {h.axis}: no catalogue term explains it; the residual follows "
+            f"{h.signal} (Δχ² = {h.delta_chi2:.1f})"
+            + ("; confounded with session time in this plan" if h.time_confounded else "")
+        )
+    by_label = {c.label: c for c in d.candidates}
+    for label in d.recommended:
+        c = by_label[label]
+        lines.append(f"  {label}: {c.physics}")
+        lines.extend("    " + t for t in explain(c, d.g))
+        group = [c.label, *c.confounded_with]
+        if len(group) > 1:
+            lines.append(f"    the data cannot tell apart {' / '.join(group)}; to separate them:")
+            for other in group:
+                o = by_label.get(other)
+                if o is not None:
+                    lines.append(f"      {other}: {o.needs}")
+    if d.recommended_spec:
+        lines.append(f"  try: python -m host model add DIR {d.recommended_spec} --model "
+                     f"{model_spec(d.fit.model)}")  # fmt: skip
+    elif d.verdict != "adequate":
+        lines.append("  recommended: nothing from the catalogue")
+    return "\n".join(lines)
+
+
+def explain(c: Candidate, g: float) -> list[str]:
+    """The candidate's coefficients in physical words (for the geometry terms: what tilt puts
+    how much gravity on the channel, and which §3 bias estimate it moves)."""
+    out = []
+    if c.term == "face_error":
+        for name, (v, se, _) in c.coefficients.items():
+            pair = name.rsplit(".", 1)[-1]
+            out.append(
+                f"faces {pair} lean {1000 * v:+.2f} ± {1000 * se:.2f} mrad "
+                f"({math.degrees(v):+.3f}°) toward {c.axes}: they put {g * v:+.4f} m/s² of "
+                f"gravity on accelerometer {c.axes}, so its bias estimate from the {pair} pair "
+                "(method.md §3) is off by that much"
+            )
+    elif c.term == "plate_tilt":
+        for name, (v, se, _) in c.coefficients.items():
+            side = name.rsplit(".", 1)[-1]
+            ruler = " (along the ruler)" if side == "east" else " (across the ruler)"
+            out.append(
+                f"the plate leans {1000 * v:+.2f} ± {1000 * se:.2f} mrad "
+                f"({math.degrees(v):+.3f}°) {side}{ruler}: {g * v:+.4f} m/s² of gravity on "
+                "whichever accelerometer points that way, following the heading as the cube turns"
+            )
+        out.append(
+            "  (a fixture error turns with the cube, a plate tilt stays in the room: the still "
+            "moments of the turns, at several headings, tell them apart)"
+        )
+    elif c.term == "lever_arm" and len(c.coefficients) == 3:
+        vals = [(float(v), float(e)) for v, e, _ in c.coefficients.values()]
+        w2 = math.radians(90.0) ** 2
+        perp = max(math.hypot(vals[i][0], vals[j][0]) for i, j in ((1, 2), (0, 2), (0, 1)))
+        where = ", ".join(f"{a} {1000 * v:+.1f} ± {1000 * e:.1f} mm"
+                          for a, (v, e) in zip("xyz", vals, strict=True))  # fmt: skip
+        out.append(
+            f"the sensor sits {where} from the centre of the cube (the turn axis): turning at "
+            f"90 °/s the centripetal acceleration ω²·r⊥ puts up to {w2 * perp:.3f} m/s² on the "
+            "horizontal accelerometers, and each push adds the tangential ω̇×r"
+        )
+    else:
+        for name, (v, se, unit) in c.coefficients.items():
+            out.append(f"{name} = {_fmt(v, '')} ± {_fmt(se, unit)}")
+    return out
+
+
+def format_addition(a: Addition) -> str:
+    """Before → after of :func:`add_term`."""
+    b, f = a.before, a.after
+    lines = [
+        f"added {', '.join(mt.label for mt in a.added)}",
+        f"  RMS z  {b.rms_z:8.2f} → {f.rms_z:.2f}"
+        + (f"  ({b.rms_z / f.rms_z:.1f}× smaller)" if f.rms_z > 0 else ""),
+        f"  χ²     {b.chi2:8.1f} → {f.chi2:.1f}  (dof {b.dof} → {f.dof}; p {b.chi2_p:.2g} → "
+        f"{f.chi2_p:.2g})",
+        f"  BIC    {b.bic:8.1f} → {f.bic:.1f}",
+        *(
+            [
+                f"  held-out RMS z (each record predicted from the others) "
+                f"{a.held_out[0].rms_z:.2f} → {a.held_out[1].rms_z:.2f}"
+            ]
+            if a.held_out is not None
+            else []
+        ),  # fmt: skip
+        "  worst residuals before → after:",
+    ]
+    after_of = {(g.record, g.sensor, g.axis): g for g in f.groups}
+    for g in sorted(b.groups, key=lambda g: -abs(g.z))[:5]:
+        g2 = after_of[(g.record, g.sensor, g.axis)]
+        lines.append(
+            f"    {g.sensor} {g.axis}, {g.record}: {g.residual:+.4f} {g.unit} ({g.z:+.1f} σ) → "
+            f"{g2.residual:+.4f} ({g2.z:+.1f} σ)"
+        )
+    lines.append("  new coefficients:")
+    for p in a.new_parameters:
+        lines.append(f"    {p.name} = {_fmt(p.value, '')} ± {_fmt(p.stderr, p.unit)}")
+    return "\n".join(lines)
+
+
+def format_ladder(steps: Sequence[LadderStep]) -> str:
+    lines = [f"{'step':>4}  {'added':<34} {'params':>6} {'chi2':>12} {'dof':>5} {'RMS z':>8} "
+             f"{'BIC':>12} {'p':>9} {'held-out z':>10}"]  # fmt: skip
+    for i, s in enumerate(steps):
+        lines.append(
+            f"{i:>4}  {(s.added or 'start: ' + s.model):<34} {s.n_params:>6} {s.chi2:>12.1f} "
+            f"{s.dof:>5} {s.rms_z:>8.2f} {s.bic:>12.1f} "
+            f"{(f'{s.p_value:.2g}' if math.isfinite(s.p_value) else '—'):>9} "
+            f"{s.held_out_rms_z:>10.2f}"
+        )
+    lines.append(f"final model: {steps[-1].model}")
+    return "\n".join(lines)
+
+
+def physics_paragraph(t: Term) -> str:
+    """The first paragraph of the term's docstring, on one line."""
+    return " ".join(t.doc.strip().split("\n\n")[0].split())
+
+
+def format_terms(cat: Mapping[str, Term]) -> str:
+    """The catalogue for people: each term's physics, parameters with units per sensor, and
+    what data identifies it (lines of at most 80 characters)."""
+    out: list[str] = []
+    for t in cat.values():
+        out.append(t.name + ("  (base model, method.md §2)" if t.name in BASE else ""))
+        out += textwrap.wrap(physics_paragraph(t), 80, initial_indent="  ",
+                             subsequent_indent="  ")  # fmt: skip
+        for sensor in t.sensors:
+            units = ", ".join(f"{p} [{u}]" for p, u in zip(t.params, t.param_units(sensor),
+                                                             strict=True))  # fmt: skip
+            out += textwrap.wrap(f"{sensor}: {units}", 80, initial_indent="  ",
+                                 subsequent_indent="    ")  # fmt: skip
+        if t.needs:
+            out += textwrap.wrap(f"needs: {t.needs}", 80, initial_indent="  ",
+                                 subsequent_indent="    ")  # fmt: skip
+    out.append("")
+    out.append("Use: --model base,TERM[:SENSOR[:AXES]] (e.g. temperature_bias:gyro:x); your own")
+    out.append("terms: --term-file my_terms.py (README, 'Your own term').")
+    return "\n".join(out) + "\n"
+
+
+def format_case(case: HiddenCase) -> str:
+    """The heading of a hidden-effect demo: the effect and the term hidden from the fit."""
+    lines = [f"######## hidden effect: {case.effect} — {case.description}"]
+    if case.term:
+        value = (
+            "(" + ", ".join(f"{v:.4g}" for v in case.truth_vector) + ")"
+            if case.truth_vector
+            else f"{case.truth:.4g}"
+        )
+        lines.append(f"hidden from the fit: {case.term} = {value} {case.unit}")
+    return "\n".join(lines)
+
+
+def format_outcome(o: DemoOutcome) -> str:
+    """What the workbench made of a hidden-effect case: the diagnosis, the addition, and
+    whether it named the hidden term (and how close its coefficient came to the truth)."""
+    case = o.case
+    lines = [format_diagnosis(o.diagnosis, compare=False, max_candidates=6)]
+    if o.addition is not None:
+        what = "the hidden term" if case.term else "the top candidate"
+        lines.append(f"-- adding {what}")
+        lines.append(format_addition(o.addition))
+    if case.term:
+        lines.append(
+            f"== result: named first: {o.found or 'nothing'}"
+            + (f" (confounded group {', '.join(o.group)})" if len(o.group) > 1 else "")
+            + f" → {'FOUND' if o.named_hidden else 'MISSED'}; coefficient {o.coefficient:.4g} "
+            f"vs truth {case.truth:.4g} {case.unit} ({100 * o.coefficient_error:.1f} % off)"
+        )
+    else:
+        lines.append(f"== result: verdict {o.diagnosis.verdict} (expected adequate)")
+    return "\n".join(lines)

@@ -1,0 +1,238 @@
+"""The diagnosis: compare the model with the measurements, locate the misfit, say what is missing.
+
+method.md §8: "large or trending residuals mean the model misses an effect (cross-coupling,
+temperature …)"; §3: "the three bias estimates disagreeing is itself a sign the linear model is
+missing something". :func:`diagnose` turns that into a test:
+
+1. compare — per record and channel measured vs model, residual and z (the engine's ``Fit``);
+2. where it fails — |z| > 3, worst first, and within-record time spans that depart;
+3. what is missing — the candidates of :mod:`host.workbench.candidates`;
+4. unexplained structure — the residuals of the model plus the best candidate per channel are
+   scanned against every signal (:mod:`host.workbench.scan`), Holm-corrected;
+5. verdict — ``adequate`` / ``missing_effect`` / ``unexplained``, or ``untestable`` when
+   nothing is found but some channel's record values leave no degrees of freedom (the model
+   passes through them exactly: it is not tested at all, so it is never called adequate).
+
+The words for people are :mod:`host.workbench.text`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from host.errors import UserError
+from host.modelling.model import (
+    AXES,
+    CATALOGUE,
+    Dataset,
+    Fit,
+    GroupResidual,
+    ModelTerm,
+    SpanResidual,
+    Term,
+    fit_model,
+    merge_model,
+    model_spec,
+)
+from host.workbench.candidates import ALPHA, Candidate, evaluate_candidates, json_number
+from host.workbench.scan import ScanHit, scan_signals
+
+VERDICTS = ("adequate", "missing_effect", "unexplained", "untestable")
+#: the verdict advises adding terms only when together they remove at least this fraction of
+#: the misfit (χ² − dof) of the model
+MOST = 0.5
+#: a signal of the residual scan "explains the channel better" than its best candidate when its
+#: Δχ² exceeds the candidate's by this factor (equal: the candidate IS that signal)
+DOMINANT = 1.05
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnosis:
+    """Everything :func:`diagnose` found (see the module docstring)."""
+
+    fit: Fit
+    candidates: tuple[Candidate, ...]
+    unexplained: tuple[ScanHit, ...]
+    verdict: str
+    notes: tuple[str, ...] = ()
+    #: labels of the candidates the verdict advises adding (empty: none)
+    recommended: tuple[str, ...] = ()
+    #: per channel, the signal that explains the model's residual better than any candidate
+    dominant: tuple[ScanHit, ...] = ()
+    #: the model spec of the recommended terms (``diagnose --json`` key ``recommended``)
+    recommended_spec: str | None = None
+    #: local gravity of the dataset, m/s²
+    g: float = 9.80665
+
+    @property
+    def worst(self) -> tuple[GroupResidual, ...]:
+        """Record/channel residuals with |z| > 3, worst first."""
+        bad = [g for g in self.fit.groups if abs(g.z) > 3.0]
+        return tuple(sorted(bad, key=lambda g: -abs(g.z)))
+
+    @property
+    def worst_spans(self) -> tuple[SpanResidual, ...]:
+        """Blocks departing from their record's own mean by |z| > 3, worst first."""
+        bad = [s for s in self.fit.spans if abs(s.z) > 3.0]
+        return tuple(sorted(bad, key=lambda s: -abs(s.z)))
+
+    @property
+    def significant(self) -> tuple[Candidate, ...]:
+        return tuple(c for c in self.candidates if c.significant)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``--json`` object."""
+        f = self.fit
+        return {
+            "model": [mt.label for mt in f.model],
+            "fit": {"rms_z": json_number(f.rms_z), "chi2": json_number(f.chi2),
+                    "chi2_p": json_number(f.chi2_p), "dof": f.dof, "n_rows": len(f.residual),
+                    "n_params": f.n_params},
+            "parameters": [{"name": p.name, "term": p.term, "value": json_number(p.value),
+                            "stderr": json_number(p.stderr), "unit": p.unit}
+                           for p in f.parameters],
+            "compare": [_group_dict(g) for g in f.groups],
+            "worst": [_group_dict(g) for g in self.worst],
+            "worst_spans": [{"record": s.record, "channel": f"{s.sensor} {s.axis}",
+                             "t0_s": s.t0_s, "t1_s": s.t1_s, "residual": json_number(s.residual),
+                             "z": json_number(s.z), "unit": s.unit} for s in self.worst_spans],
+            "candidates": [c.to_dict() for c in self.candidates],
+            "unexplained": [h.to_dict() for h in self.unexplained],
+            "verdict": self.verdict,
+            "recommended": self.recommended_spec,
+            "unexplained_signals": [h.to_dict() for h in self.dominant],
+            "notes": list(self.notes),
+        }  # fmt: skip
+
+
+def _group_dict(g: GroupResidual) -> dict[str, Any]:
+    return {
+        "record": g.record, "channel": g.channel, "sensor": g.sensor, "axis": g.axis,
+        "measured": json_number(g.measured), "model": json_number(g.model),
+        "residual": json_number(g.residual), "sigma": json_number(g.sigma),
+        "z": json_number(g.z), "unit": g.unit,
+    }  # fmt: skip
+
+
+# ---- the diagnosis --------------------------------------------------------------------------
+def diagnose(
+    ds: Dataset,
+    model: Sequence[ModelTerm],
+    catalogue: Mapping[str, Term] | None = None,
+    alpha: float = ALPHA,
+) -> Diagnosis:
+    """Fit ``model`` to ``ds`` and run the whole diagnosis (module docstring). UserError when
+    the records leave the fit no degrees of freedom: then nothing tests the model, and any
+    verdict (one record gave ``adequate``) would be a claim without evidence."""
+    fit = fit_model(ds, model)
+    if fit.dof <= 0:
+        n = len(ds.signals)
+        raise UserError(
+            f"{n} record{' leaves' if n == 1 else 's leave'} the model no "
+            f"degrees of freedom ({fit.n_params} parameters determined by as many values): "
+            "nothing tests it; diagnose needs more records (at least the six static faces)"
+        )
+    cands, _ = evaluate_candidates(ds, fit, catalogue, alpha)
+    cat = catalogue if catalogue is not None else CATALOGUE
+    usable_all = [c for c in cands if c.significant and not c.explained_by and not c.implausible]
+    top = max(usable_all, key=lambda c: c.delta_chi2, default=None)
+    if top is not None and cat[top.term].shared:
+        # a property of the bench (one set of parameters for every channel) explains more than
+        # any single channel's term: take it first and diagnose what is left after it
+        return _after_shared(ds, fit, cands, top, model, cat, alpha)
+    # the best usable candidate of each channel (significant, plausible, not made redundant)
+    best: dict[tuple[str, str], Candidate] = {}
+    for c in cands:
+        if c.significant and not c.explained_by and not c.implausible:
+            best.setdefault(c.channel, c)
+    # structure in the model's residual that a plain signal explains better than any candidate
+    dominant: dict[tuple[str, str], ScanHit] = {}
+    for h in scan_signals(ds, fit, alpha):
+        ch = (h.sensor, h.axis)
+        cb = best.get(ch)
+        if ch not in dominant and (cb is None or h.delta_chi2 > DOMINANT * cb.delta_chi2):
+            dominant[ch] = h
+    usable = [c for ch, c in best.items() if ch not in dominant]
+    extra = [ModelTerm(cat[c.term], c.sensor, tuple(AXES.index(a) for a in c.axes))
+             for c in usable]  # fmt: skip
+    aug = fit_model(ds, merge_model(list(model) + extra)) if extra else fit
+    misfit = max(fit.chi2 - fit.dof, 0.0)
+    removed = fit.chi2 - aug.chi2
+    recommended = tuple(c.label for c in usable) if usable and removed >= MOST * misfit else ()
+    hits = scan_signals(ds, aug, alpha)
+    notes = list(ds.notes)
+    if fit.undetermined:
+        notes.append("not determined by these records: " + ", ".join(fit.undetermined))
+        combos = [c.describe() for ch in fit.channels for c in ch.combinations]
+        if combos:
+            notes.append("identifiable from these records: only " + "; ".join(combos))
+    if fit.untestable:
+        notes.append(
+            f"no degrees of freedom on {', '.join(fit.untestable)}: the model passes through "
+            "these records exactly, so they cannot test it (add records: other attitudes, "
+            "turns both ways)"
+        )
+    if fit.uncertainty_note():
+        notes.append(fit.uncertainty_note())
+    if usable and not recommended:
+        notes.append(
+            f"the best candidates ({', '.join(c.label for c in usable)}) remove only "
+            f"{100 * removed / misfit:.0f} % of the misfit (χ² − dof = {misfit:.1f}): "
+            "none of them is what is missing"
+        )
+    for c in cands:
+        if c.implausible:
+            notes.append(f"{c.label} is significant but not physical: {c.implausible}")
+    if dominant:
+        verdict = "unexplained"
+    elif recommended:
+        verdict = "missing_effect"
+    elif hits or aug.chi2_p < alpha or any(c.significant for c in cands):
+        verdict = "unexplained"
+    elif fit.untestable:
+        verdict = "untestable"
+    else:
+        verdict = "adequate"
+    if verdict == "missing_effect" and aug.chi2_p < alpha and not hits:
+        notes.append(
+            f"even with the recommended terms the fit is poor (χ² p = {aug.chi2_p:.2g}): "
+            "more is missing, or the noise model is too optimistic"
+        )
+    return Diagnosis(
+        fit, tuple(cands), tuple(hits), verdict, tuple(notes), recommended,
+        tuple(dominant.values()), model_spec(merge_model(extra)) if recommended else None, ds.g,
+    )  # fmt: skip
+
+
+def _after_shared(
+    ds: Dataset,
+    fit: Fit,
+    cands: Sequence[Candidate],
+    top: Candidate,
+    model: Sequence[ModelTerm],
+    cat: Mapping[str, Term],
+    alpha: float,
+) -> Diagnosis:
+    """The diagnosis when the strongest candidate is a shared (bench) term: the model with it
+    is diagnosed again; its recommendation (if any) follows the shared term's."""
+    shared = ModelTerm(cat[top.term], top.sensor, tuple(AXES.index(a) for a in top.axes))
+    inner = diagnose(ds, merge_model([*model, shared]), cat, alpha)
+    misfit = max(fit.chi2 - fit.dof, 0.0)
+    removed = fit.chi2 - inner.fit.chi2
+    notes = list(ds.notes)
+    notes.append(
+        f"{top.label} (one set of parameters for every channel) explains the most; the "
+        f"diagnosis of the model with it: {inner.verdict}"
+    )
+    notes.extend(n for n in inner.notes if n not in ds.notes)
+    if inner.verdict == "unexplained" or removed < MOST * misfit:
+        return Diagnosis(fit, tuple(cands), inner.unexplained, "unexplained", tuple(notes), (),
+                         inner.dominant, None, ds.g)  # fmt: skip
+    recommended = (top.label, *inner.recommended)
+    extra = [shared] + [mt for mt in inner.fit.model if mt.label in inner.recommended]
+    return Diagnosis(
+        fit, tuple(cands), inner.unexplained, "missing_effect", tuple(notes), recommended,
+        (), model_spec(merge_model(extra)), ds.g,
+    )  # fmt: skip
