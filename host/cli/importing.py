@@ -19,7 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from host.errors import UserError
-from host.ingest import importing, segmentation
+from host.ingest import importing, labels, segmentation, spacing
+from host.ingest.reading import Segment
+from host.ingest.stillness import attitude
 from host.session.atomic import write_text_atomic
 from host.session.directory import record_path, write_record
 from host.session.records import Record
@@ -52,7 +54,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="overwrite records already in --out")
 
 
-def _read_stream(args: argparse.Namespace) -> tuple[importing.Stream, list[segmentation.Segment]]:
+def _read_stream(args: argparse.Namespace) -> tuple[importing.Stream, list[Segment]]:
     """The stream, and the segments when the file itself says where they are (imucal)."""
     path: Path = args.file
     if path.suffix.lower() == ".cap":
@@ -78,10 +80,9 @@ def _read_stream(args: argparse.Namespace) -> tuple[importing.Stream, list[segme
         return stream, [_section_segment(stream, lab, a, b) for lab, a, b in spans]
     if not args.columns:
         if importing.looks_like_imucal(text):
-            raise UserError(
-                f"{path}: an imucal session; give its section list with --sections LIST.json "
-                "and its rate with --rate HZ"
-            )
+            stream = importing.parse_imucal_stream(text, str(path), args.rate)
+            print(f"sections: none given (no {beside.name}): the records are found in the stream")
+            return stream, []
         raise UserError(
             f"{path}: say what each column is with --columns, e.g. "
             "--columns t,ax,ay,az,gx,gy,gz,temp (skip for a column to ignore)"
@@ -92,7 +93,7 @@ def _read_stream(args: argparse.Namespace) -> tuple[importing.Stream, list[segme
     return importing.parse_column_text(text, str(path), columns, units, axes, args.rate), []
 
 
-def _section_segment(stream: importing.Stream, label: str, a: int, b: int) -> segmentation.Segment:
+def _section_segment(stream: importing.Stream, label: str, a: int, b: int) -> Segment:
     """A segment for one imucal section; a rotation's direction and turns from its integral."""
     t = stream.t_s
     acc = stream.accel[a:b].mean(axis=0)
@@ -101,33 +102,33 @@ def _section_segment(stream: importing.Stream, label: str, a: int, b: int) -> se
         k = "xyz".index(axis)
         up = np.zeros(3)
         up[k] = 1.0 if acc[k] >= 0 else -1.0
-        angle = float(segmentation.trapezoid(t[a:b], stream.gyro[a:b]) @ up)
+        angle = float(spacing.trapezoid(t[a:b], stream.gyro[a:b]) @ up)
         n = max(1, round(abs(angle) / 360.0))
         d = 1 if angle > 0 else -1
         name = f"{axis}_{'ccw' if d > 0 else 'cw'}"
         q = f"{n} turn{'s' if n > 1 else ''}, {angle:+.1f}° about {'+' if up[k] > 0 else '-'}{axis}"
-        return segmentation.Segment(
+        return Segment(
             a, b, float(t[a]), float(t[b - 1]), "imucal section", name, q,
             (float(up[0]), float(up[1]), float(up[2])), n, d,
         )  # fmt: skip
-    lab, up, angle = segmentation.attitude(acc)
+    lab, up, angle = attitude(acc)
     if lab != label:
         raise UserError(
             f"section {label}: gravity is on {lab} ({angle:.0f}° off), not on {label}; "
             "check the section list or --axes"
         )
-    return segmentation.Segment(
+    return Segment(
         a, b, float(t[a]), float(t[b - 1]), "imucal section", label,
         f"gravity {angle:.1f}° off the axis", (float(up[0]), float(up[1]), float(up[2])),
     )  # fmt: skip
 
 
-def _whole_file(stream: importing.Stream, name: str) -> list[segmentation.Segment]:
-    if not segmentation.valid_label(name):
+def _whole_file(stream: importing.Stream, name: str) -> list[Segment]:
+    if not labels.valid_label(name):
         raise UserError(f"--record {name}: not a record name (x_up … z_dn, x_ccw … z_cw)")
     t = stream.t_s
     rows = f"0\t{t[0]:.6f}\t{t[-1]:.6f}\t{name}\n"
-    return segmentation.parse_labels(rows, f"--record {name}", stream)
+    return labels.parse_labels(rows, f"--record {name}", stream)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -140,12 +141,13 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--serial: {exc}") from None
     stream, segments = _read_stream(args)
     thresholds = None
+    notes: list[str] = []
     if args.record:
         segments = _whole_file(stream, args.record)
     elif args.labels is not None:
-        segments = segmentation.read_labels(args.labels, stream)
+        segments = labels.read_labels(args.labels, stream)
     elif not segments:
-        segments, thresholds = segmentation.segment_stream(stream)
+        segments, thresholds, notes = segmentation.segment_stream(stream)
         hint = segmentation.gyro_unit_hint(stream, segments)
         if hint:
             print(f"warning: {hint}", file=sys.stderr)
@@ -166,13 +168,15 @@ def run(args: argparse.Namespace) -> int:
     print(f"{src}: {len(stream)} samples, {stream.t_s[-1] - stream.t_s[0]:.1f} s")
     if thresholds is not None:
         print(f"stillness: {thresholds.text()}")
-    sys.stdout.write(segmentation.format_table(segments))
+    sys.stdout.write(labels.format_table(segments))
+    for note in notes:
+        print(f"ambiguous: {note}; to take the other, swap their labels in the labels file")
     sys.stdout.write(segmentation.format_timing(records))
     _warn_timing(records)
     labels_path = out / f"{serial}_segments.tsv"
     editable = not args.record and args.labels is None  # found or from imucal's sections
     if editable:
-        write_text_atomic(labels_path, segmentation.format_labels(segments, src))
+        write_text_atomic(labels_path, labels.format_labels(segments, src))
     for name, rec in records.items():
         write_record(record_path(out, serial, name), rec)
     print(segmentation.plan_summary(records))
@@ -197,12 +201,12 @@ def run(args: argparse.Namespace) -> int:
 
 def _warn_timing(records: dict[str, Record]) -> None:
     for name, rec in records.items():
-        tq = segmentation.timing_quality(rec.t_ms / 1000.0)
+        tq = spacing.timing_quality(rec.t_ms / 1000.0)
         if not tq.warning:
             continue
         msg = f"warning: {name}: irregular sample times ({tq.describe()})"
         if rec.meta.get("kind") == "turn":
-            err = segmentation.uniform_rate_error_deg(rec.t_ms / 1000.0, rec.gyro)
+            err = spacing.uniform_rate_error_deg(rec.t_ms / 1000.0, rec.gyro)
             msg += (
                 f"; the turn integral uses the true times (assuming a uniform rate would move "
                 f"it by {err:.2f}°)"

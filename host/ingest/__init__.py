@@ -3,6 +3,11 @@
 Data in: a logger's columns, an imucal session, a capture. Out: record files with timing quality.
 
 - ``importing`` — column files, imucal sessions and captures as one stream of SI samples.
-- ``segmentation`` — cutting a stream into the plan's records by stillness and turns; timing
-  quality; the labels file that corrects the cut.
+- ``spacing`` — timing quality of sample times and integrals over the true times.
+- ``stillness`` — where the stream rests (noise floors from the data, sample-exact rests) and
+  the attitude of a rest.
+- ``reading`` — the session read as a person would: visits to faces, whole turns, the plan's
+  choice of statics, the warm-up apart, each choice with its reason.
+- ``segmentation`` — unit checks, the found segments, and the records built from them.
+- ``labels`` — the printed table and the labels file that corrects the cut.
 """

@@ -392,12 +392,9 @@ def looks_like_imucal(text: str) -> bool:
     return all(c in names for c in IMUCAL_COLUMNS)
 
 
-def parse_imucal_session(
-    text: str, sections_text: str, source: str, sections_source: str, rate_hz: float | None
-) -> tuple[Stream, list[tuple[str, int, int]]]:
-    """imucal's session CSV (header with ``acc_x … gyr_z``, m/s² and °/s, no time column) and
-    its section list JSON (``{"x_p": {"start": i, "end": j}, …}``, j exclusive) -> the stream
-    (t = n / rate) and the sections as (our label, start, stop) sample indices."""
+def parse_imucal_stream(text: str, source: str, rate_hz: float | None) -> Stream:
+    """imucal's session CSV (header with ``acc_x … gyr_z``, m/s² and °/s, no time column) ->
+    the stream, t = n / ``rate_hz`` (s)."""
     if not rate_hz:
         raise ForeignFileError(
             f"{source}: imucal sessions have no time column; give the sampling rate with "
@@ -418,8 +415,20 @@ def parse_imucal_session(
     )
     stream = parse_column_text(text, source, columns, rate_hz=rate_hz)
     meta = dict(stream.meta)
-    meta.update(importer="imucal session", sections=Path(sections_source).name)
+    meta["importer"] = "imucal session"
     meta.pop("header", None)
+    return Stream(stream.t_s, stream.accel, stream.gyro, stream.temp, meta)
+
+
+def parse_imucal_session(
+    text: str, sections_text: str, source: str, sections_source: str, rate_hz: float | None
+) -> tuple[Stream, list[tuple[str, int, int]]]:
+    """imucal's session CSV (:func:`parse_imucal_stream`) and its section list JSON
+    (``{"x_p": {"start": i, "end": j}, …}``, j exclusive) -> the stream (t = n / rate) and the
+    sections as (our label, start, stop) sample indices."""
+    stream = parse_imucal_stream(text, source, rate_hz)
+    meta = dict(stream.meta)
+    meta["sections"] = Path(sections_source).name
     try:
         raw = json.loads(sections_text)
     except ValueError as exc:

@@ -1,0 +1,165 @@
+"""The found segments as the user sees and corrects them: the printed table and the labels file.
+
+The import prints one row per segment (start, duration, what was found, the label it got, its
+quality and the reason for the label) and writes the same rows to ``SERIAL_segments.tsv``. The
+user edits the label column (or the times) and imports again with ``--labels``: the file then
+defines the records. Rows the plan left out keep ``-`` and say why (an alternative for a record
+is named so): relabelling one and setting the chosen row to ``-`` swaps them.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+
+from host.ingest.importing import Stream
+from host.ingest.reading import Segment
+from host.ingest.spacing import trapezoid
+from host.ingest.stillness import SegmentationError, attitude, axis_text
+from host.session.records import WARMUP_NAME
+
+LABELS_HEADER = "# imu-bench segments v1"
+_LABEL_RE = re.compile(r"^(?P<axis>[xyz])_(?P<dir>up|dn|ccw|cw)(?:_(?P<rep>[0-9A-Za-z]+))?$")
+
+
+def _t3(v: np.ndarray) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def format_table(segments: list[Segment]) -> str:
+    """The printed table: row, start, duration, found, label, quality; the reason under it."""
+    lines = [f"{'#':>3} {'start s':>9} {'dur s':>7}  {'found':<24} {'label':<9} quality"]
+    for i, s in enumerate(segments, start=1):
+        lines.append(
+            f"{i:>3} {s.t0_s:>9.2f} {s.duration_s:>7.2f}  {s.found:<24} {s.label:<9} {s.quality}"
+        )
+        if s.reason:
+            lines.append(f"{'':>47}↳ {s.reason}")
+    return "\n".join(lines) + "\n"
+
+
+def format_labels(segments: list[Segment], source: str) -> str:
+    """The labels file (TSV) the user edits: one row per segment, times in s of the stream."""
+    out = [
+        f"{LABELS_HEADER} of {source}",
+        "# Edit the label column (x_up … z_dn, x_ccw … z_cw, x_up_2 for a repeat, warmup, '-' "
+        "to leave a row out),",
+        "# or the start/end times; add rows for what was missed. Then run the same import with "
+        "--labels THIS_FILE.",
+        "# row\tstart_s\tend_s\tlabel\tfound\tquality\treason",
+    ]
+    for i, s in enumerate(segments, start=1):
+        out.append(
+            f"{i}\t{s.t0_s:.3f}\t{s.t1_s:.3f}\t{s.label}\t{s.found}\t{s.quality}\t{s.reason}"
+        )
+    return "\n".join(out) + "\n"
+
+
+def valid_label(label: str) -> bool:
+    """A record name the import writes: x_up … z_cw (optional _repeat suffix) or warmup."""
+    return label == WARMUP_NAME or bool(_LABEL_RE.match(label))
+
+
+def read_labels(path: str | os.PathLike[str], stream: Stream) -> list[Segment]:
+    """Segments from a labels file (:func:`format_labels`, edited): each row's start/end
+    times (s) and label; turns are measured from the stream (angle about the label's axis)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SegmentationError(
+            f"{p}: cannot read the labels file ({exc.strerror or exc})"
+        ) from exc
+    return parse_labels(text, str(p), stream)
+
+
+def parse_labels(text: str, source: str, stream: Stream) -> list[Segment]:
+    """The segments of a labels file's text (see :func:`read_labels`); ``source`` names it."""
+    p = source
+    t = stream.t_s
+    segs: list[Segment] = []
+    seen: dict[str, int] = {}
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        where = f"{p}:{lineno}"
+        f = line.split("\t") if "\t" in line else line.split()
+        if len(f) < 4:
+            raise SegmentationError(f"{where}: expected row, start_s, end_s, label")
+        try:
+            t0, t1 = float(f[1]), float(f[2])
+        except ValueError:
+            raise SegmentationError(f"{where}: start_s and end_s must be numbers") from None
+        label = f[3].strip()
+        if label == "-":
+            continue
+        if not valid_label(label):
+            raise SegmentationError(
+                f"{where}: label {label!r} is not a record name (x_up … z_dn, x_ccw … z_cw, "
+                "x_up_2, warmup, or - to leave the row out)"
+            )
+        if label in seen:
+            raise SegmentationError(
+                f"{where}: label {label} is also on line {seen[label]}; name a repeat {label}_2"
+            )
+        seen[label] = lineno
+        if not t1 > t0:
+            raise SegmentationError(f"{where}: end_s must be after start_s")
+        start = int(np.searchsorted(t, t0, side="left"))
+        stop = int(np.searchsorted(t, t1, side="right"))
+        if stop - start < 2:
+            raise SegmentationError(
+                f"{where}: {t0:g}..{t1:g} s holds fewer than 2 samples (the stream spans "
+                f"{t[0]:.3f}..{t[-1]:.3f} s)"
+            )
+        if label == WARMUP_NAME:
+            up = attitude(stream.accel[start:stop].mean(axis=0))[1]
+            segs.append(
+                Segment(start, stop, float(t[start]), float(t[stop - 1]), "labelled", label,
+                        "from the labels file (kept apart from the plan)", _t3(up))
+            )  # fmt: skip
+            continue
+        m = _LABEL_RE.match(label)
+        assert m
+        axis, d = m.group("axis"), m.group("dir")
+        up = np.zeros(3)
+        if d in ("up", "dn"):
+            up["xyz".index(axis)] = 1.0 if d == "up" else -1.0
+            segs.append(
+                Segment(start, stop, float(t[start]), float(t[stop - 1]), "labelled", label,
+                        "from the labels file", _t3(up))
+            )  # fmt: skip
+            continue
+        seg = _turn_from_label(stream, start, stop, label, axis, d, where)
+        segs.append(seg)
+    if not segs:
+        raise SegmentationError(f"{p}: no labelled rows (every label is '-')")
+    segs.sort(key=lambda s: s.start)
+    return segs
+
+
+def _turn_from_label(
+    stream: Stream, start: int, stop: int, label: str, axis: str, d: str, where: str
+) -> Segment:
+    t, acc, gyr = stream.t_s, stream.accel, stream.gyro
+    k = "xyz".index(axis)
+    sign_up = 1.0 if acc[start:stop, k].mean() >= 0 else -1.0
+    up = np.zeros(3)
+    up[k] = sign_up
+    angle = float(trapezoid(t[start:stop], gyr[start:stop]) @ up)
+    n = max(1, round(abs(angle) / 360.0))
+    direction = 1 if d == "ccw" else -1
+    if angle * direction < 0:
+        raise SegmentationError(
+            f"{where}: {label} turned {angle:+.0f}° about {axis_text(up)}, the other way: "
+            f"label it {axis}_{'cw' if d == 'ccw' else 'ccw'}"
+        )
+    q = f"{n} turn{'s' if n > 1 else ''}, {angle:+.1f}° about {axis_text(up)} (labelled)"
+    return Segment(
+        start, stop, float(t[start]), float(t[stop - 1]), "labelled", label, q, _t3(up), n,
+        direction,
+    )  # fmt: skip

@@ -1,0 +1,367 @@
+"""Reading a session as a person would: visits to faces, turns, and the plan's records.
+
+A stream from anywhere (a logger's CSV, a capture, record files joined end to end) has no beeps:
+the records are found in it, in the words of method.md §3-§5.
+
+1. **Rests** (:func:`host.ingest.stillness.rests`) and their attitude from gravity.
+2. **Visits**: consecutive rests on the same face with the cube never leaving that face in
+   between (gravity never more than ``FACE_LEAVE_DEG`` off its axis) are one visit; a
+   re-orientation starts the next.
+3. **Turns** inside a visit: the rotation about the up axis (gyro bias removed, over the true
+   sample times) from rest to rest. A turn ends at a rest where it has reached a whole number of
+   turns (within ``TURN_HEADING_TOL_DEG``), started from the latest rest that makes it whole
+   (an aborted start that was turned back is left out); steps with pauses in between count as
+   one turn (four 90° steps are one turn), and a pause shorter than ``TURN_MERGE_REST_S`` at a
+   whole turn with the motion going on the same way is part of a longer turn. A turn record is
+   cut as the method's beeps would: from ``TURN_LEAD_S`` before the motion (inside the opening
+   rest) for the fixed window of method.md §4 (7/12/15 s), at least ``TURN_PAD_S`` past the
+   motion, never beyond its closing rest (never the next attitude's rest). Rests inside a turn
+   belong to it.
+4. **The plan** picks the statics: visits without turns, with a rest of at least
+   ``MIN_STATIC_S``, are matched to the plan's faces (x_up, x_dn, y_up, y_dn, z_up, z_dn) in
+   order, keeping as many as the order allows (when two visits could serve a face, the later
+   one: the operator placed it again); the record is the visit's longest rest. A visit before
+   the plan's first static whose temperature rises by ``WARMUP_RISE_C`` or more is the warm-up
+   (record ``warmup``, kept apart); a static visit after the last turn on a face already
+   measured is a repeat (``x_up_2``: the closing check). Every other rest is left out with its
+   reason, and the ones that could have been chosen are named as alternatives.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from host.ingest.spacing import cumulative_trapezoid
+from host.ingest.stillness import Rest, Thresholds, attitude, axis_text, rests
+from host.session.records import STATIC_NAMES, WARMUP_NAME, turn_window_s
+
+FACE_LEAVE_DEG = 45.0  #: gravity this far off a face's axis means the cube left the face
+SMOOTH_S = 0.1  #: the accelerometer is averaged over this long to follow gravity, s
+TURN_HEADING_TOL_DEG = 45.0  #: a rest within this of a whole number of turns ends a turn
+TURN_MERGE_REST_S = 1.5  #: a shorter pause at a whole turn, motion going on the same way: one turn
+BACKSTEP_DEG = 20.0  #: a turn may step back this far between its rests (a hand correcting)
+TURN_LEAD_S = 1.0  #: a turn record starts this long before the motion (in its opening rest), s
+TURN_PAD_S = 0.5  #: … and lasts the method's window (7/12/15 s) or this long past the motion, s
+MIN_STATIC_S = 1.0  #: a rest shorter than this is not a static record, s
+WARMUP_RISE_C = 0.5  #: a rise of the temperature this large before the plan: the warm-up, °C
+ABORTED_MIN_DEG = 30.0  #: a rotation about up this large that is no whole turn is named, °
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A found (or labelled) piece of the stream: samples ``start`` … ``stop − 1``.
+
+    ``found``: what the detector saw ("still +x", "turn +720° about +x", "move");
+    ``label``: the record it becomes (``x_up``, ``x_ccw``, ``warmup`` … or ``-`` for none);
+    ``quality``: a short human note; ``reason``: why this label (the plan's choice);
+    ``up`` the up vector; ``turns``/``direction`` of a turn."""
+
+    start: int
+    stop: int
+    t0_s: float
+    t1_s: float
+    found: str
+    label: str
+    quality: str
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    turns: int = 0
+    direction: int = 0
+    reason: str = ""
+
+    @property
+    def duration_s(self) -> float:
+        """End minus start, s."""
+        return self.t1_s - self.t0_s
+
+
+@dataclass
+class _Visit:
+    """Consecutive rests on one face; ``yaw`` (°) about its up axis per sample of the stream
+    from the first rest on, ``turns`` as (opening rest, closing rest, angle °) indices."""
+
+    face: str
+    up: np.ndarray
+    rests: list[Rest]
+    yaw: np.ndarray
+    offset: int
+    turns: list[tuple[int, int, float]] = field(default_factory=list)
+    aborted: list[tuple[int, int, float]] = field(default_factory=list)
+
+    def yaw_at(self, i: int) -> float:
+        return float(self.yaw[i - self.offset])
+
+
+def _t3(v: np.ndarray) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def _visits(
+    t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, bias: np.ndarray, found: list[Rest]
+) -> tuple[list[_Visit], list[Rest]]:
+    """Group the rests into visits (module docstring item 2); -> visits, tilted rests."""
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.01
+    k = max(1, int(round(SMOOTH_S / dt)))
+    c = np.concatenate([np.zeros((1, 3)), np.cumsum(acc, axis=0)])
+    lo = np.clip(np.arange(len(t)) - k // 2, 0, len(t) - 1)
+    hi = np.clip(lo + k, 1, len(t))
+    smooth = (c[hi] - c[lo]) / (hi - lo)[:, None]
+    norm = np.maximum(np.linalg.norm(smooth, axis=1), 1e-9)
+    cos_leave = math.cos(math.radians(FACE_LEAVE_DEG))
+    visits: list[_Visit] = []
+    tilted: list[Rest] = []
+    for r in found:
+        label, up, _ = attitude(acc[r.start : r.stop].mean(axis=0))
+        if label == "tilted":
+            tilted.append(r)
+            continue
+        v = visits[-1] if visits else None
+        if v is not None and v.face == label:
+            between = slice(v.rests[-1].stop, r.start)
+            stays = smooth[between] @ v.up / norm[between]
+            if stays.size == 0 or float(stays.min()) > cos_leave:
+                v.rests.append(r)
+                continue
+        visits.append(_Visit(label, up, [r], np.zeros(0), r.start))
+    for v in visits:
+        a, b = v.rests[0].start, v.rests[-1].stop
+        v.yaw = cumulative_trapezoid(t[a:b], (gyr[a:b] - bias[a:b]) @ v.up)
+    return visits, tilted
+
+
+def _whole(angle: float) -> int:
+    n = round(angle / 360.0)
+    return n if n != 0 and abs(angle - 360.0 * n) <= TURN_HEADING_TOL_DEG else 0
+
+
+def _find_turns(v: _Visit, t: np.ndarray) -> None:
+    """Turns of a visit (module docstring item 3), into ``v.turns``/``v.aborted``."""
+    rs = v.rests
+    k = len(rs)
+    start_yaw = [v.yaw_at(r.stop - 1) for r in rs]
+    end_yaw = [v.yaw_at(r.start) for r in rs]
+
+    def steady(i: int, j: int, sign: float) -> bool:
+        """No step from rest i to rest j goes back more than BACKSTEP_DEG."""
+        return all(sign * (end_yaw[m + 1] - start_yaw[m]) > -BACKSTEP_DEG for m in range(i, j))
+
+    first = 0
+    j = 1
+    while j < k:
+        begin = None
+        for i in range(j - 1, first - 1, -1):
+            d = end_yaw[j] - start_yaw[i]
+            if _whole(d) and steady(i, j, math.copysign(1.0, d)):
+                begin = i
+                break
+        if begin is None:
+            j += 1
+            continue
+        end = j
+        n = _whole(end_yaw[j] - start_yaw[begin])
+        while end < k - 1 and t[rs[end].stop - 1] - t[rs[end].start] < TURN_MERGE_REST_S:
+            more = None
+            for j2 in range(end + 1, k):
+                d2 = end_yaw[j2] - start_yaw[begin]
+                if not steady(begin, j2, math.copysign(1.0, n)):
+                    break
+                n2 = _whole(d2)
+                if n2 * n > 0 and abs(n2) > abs(n):
+                    more = (j2, n2)
+                    break
+            if more is None:
+                break
+            end, n = more
+        if begin > first:
+            _aborted(v, first, begin, start_yaw, end_yaw)
+        v.turns.append((begin, end, end_yaw[end] - start_yaw[begin]))
+        first = end
+        j = end + 1
+    _aborted(v, first, k - 1, start_yaw, end_yaw)
+
+
+def _aborted(v: _Visit, a: int, b: int, start_yaw: list[float], end_yaw: list[float]) -> None:
+    """Rotations about up between rests a … b that are no whole turn (named, not records)."""
+    for m in range(a, b):
+        d = end_yaw[m + 1] - start_yaw[m]
+        if abs(d) >= ABORTED_MIN_DEG:
+            v.aborted.append((m, m + 1, d))
+
+
+def _rise(temp: np.ndarray) -> float:
+    """Temperature change over a span (°C): mean of its last tenth − mean of its first tenth."""
+    n = max(1, temp.size // 10)
+    return float(temp[-n:].mean() - temp[:n].mean())
+
+
+def _plan_match(faces: list[str]) -> dict[int, str]:
+    """Visit index -> static name: the longest match of ``faces`` to the plan's order, the
+    later visit when two could serve a face."""
+    m, p = len(faces), len(STATIC_NAMES)
+    dp = np.zeros((m + 1, p + 1), dtype=int)
+    for i in range(m - 1, -1, -1):
+        for j in range(p - 1, -1, -1):
+            best = max(dp[i + 1, j], dp[i, j + 1])
+            if faces[i] == STATIC_NAMES[j]:
+                best = max(best, 1 + dp[i + 1, j + 1])
+            dp[i, j] = best
+    out: dict[int, str] = {}
+    i = j = 0
+    while i < m and j < p:
+        if dp[i + 1, j] == dp[i, j]:
+            i += 1
+        elif faces[i] == STATIC_NAMES[j] and dp[i, j] == 1 + dp[i + 1, j + 1]:
+            out[i] = STATIC_NAMES[j]
+            i += 1
+            j += 1
+        else:
+            j += 1
+    return out
+
+
+def read_session(
+    t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, temp: np.ndarray, temp_recorded: bool
+) -> tuple[list[Segment], Thresholds, list[str]]:
+    """Segments of a stream (times s, accel m/s², gyro °/s, temperature °C) with labels and
+    reasons, the stillness thresholds, and notes on ambiguous choices (module docstring)."""
+    found, thr, bias = rests(t, acc, gyr)
+    visits, tilted = _visits(t, acc, gyr, bias, found)
+    for v in visits:
+        _find_turns(v, t)
+    dur = lambda r: float(t[r.stop - 1] - t[r.start])  # noqa: E731
+    segs: list[Segment] = []
+    notes: list[str] = []
+
+    def rest_seg(r: Rest, v: _Visit | None, label: str, reason: str) -> Segment:
+        am = acc[r.start : r.stop].mean(axis=0)
+        _, up, angle = attitude(am)
+        q = (
+            f"gravity {angle:.1f}° off {axis_text(up)}, |a| {np.linalg.norm(am):.3f} m/s², "
+            f"std a {acc[r.start : r.stop].std(axis=0).max():.3g} m/s², "
+            f"std g {gyr[r.start : r.stop].std(axis=0).max():.3g} °/s"
+        )
+        what = f"still {axis_text(up)}" if v is not None else "still tilted"
+        return Segment(r.start, r.stop, float(t[r.start]), float(t[r.stop - 1]), what, label, q,
+                       _t3(up), reason=reason)  # fmt: skip
+
+    # statics: visits without turns, longest rest each, matched to the plan
+    static_v = [i for i, v in enumerate(visits) if not v.turns
+                and max(dur(r) for r in v.rests) >= MIN_STATIC_S]  # fmt: skip
+    best = {i: max(visits[i].rests, key=dur) for i in static_v}
+    match = _plan_match([visits[i].face for i in static_v])
+    chosen: dict[int, str] = {static_v[k]: name for k, name in match.items()}
+    first_static = min(chosen) if chosen else len(visits)
+    turn_v = [i for i, v in enumerate(visits) if v.turns]
+    last_turn = max(turn_v) if turn_v else -1
+    used = set(chosen.values())
+    why: dict[int, str] = {}
+    for i in static_v:
+        v = visits[i]
+        if i in chosen:
+            why[i] = f"{chosen[i]}: the plan's {STATIC_NAMES.index(chosen[i]) + 1}. face in order"
+            continue
+        a, b = best[i].start, best[i].stop
+        rise = _rise(temp[v.rests[0].start : v.rests[-1].stop]) if temp_recorded else 0.0
+        if i < first_static and rise >= WARMUP_RISE_C and WARMUP_NAME not in used:
+            chosen[i] = WARMUP_NAME
+            used.add(WARMUP_NAME)
+            why[i] = (f"warm-up: before the plan's first static, temperature {rise:+.1f} °C "
+                      f"over {t[b - 1] - t[a]:.0f} s")  # fmt: skip
+        elif i > last_turn >= 0 and v.face in used:
+            name = f"{v.face}_2"
+            k = 2
+            while name in used:
+                k += 1
+                name = f"{v.face}_{k}"
+            chosen[i] = name
+            used.add(name)
+            why[i] = f"{name}: {v.face} again after the turns, a repeat (the closing check)"
+        elif i > last_turn >= 0 and v.face not in used:
+            chosen[i] = v.face
+            used.add(v.face)
+            why[i] = f"{v.face}: after the turns, the only visit to {axis_text(v.up)}"
+    for i in static_v:
+        if i in chosen:
+            continue
+        v = visits[i]
+        owner = next((j for j, n in chosen.items() if n == v.face), None)
+        if i < first_static:
+            why[i] = "before the plan's first static" + (
+                " (its temperature does not rise: not a warm-up)" if temp_recorded else ""
+            )
+        elif owner is not None:
+            why[i] = (f"alternative for {v.face}: another visit to {axis_text(v.up)}, the plan's "
+                      f"order chose the one at {t[best[owner].start]:.1f} s")  # fmt: skip
+            notes.append(f"{v.face}: visits at {t[best[owner].start]:.1f} s (chosen) and "
+                         f"{t[best[i].start]:.1f} s (alternative)")  # fmt: skip
+        else:
+            why[i] = f"{axis_text(v.up)} out of the plan's order"
+    for i, v in enumerate(visits):
+        turn_spans = [(v.rests[a].stop, v.rests[b].start) for a, b, _ in v.turns]
+        for r in v.rests:
+            if dur(r) < MIN_STATIC_S or any(s <= r.start and r.stop <= e for s, e in turn_spans):
+                continue  # a pause inside a turn, or too short to be a static
+            if v.turns:
+                segs.append(rest_seg(r, v, "-", f"a rest on {axis_text(v.up)} between turns, "
+                                     "belongs to the turns"))  # fmt: skip
+            elif r is best[i]:
+                segs.append(rest_seg(r, v, chosen.get(i, "-"), why.get(i, "")))
+            else:
+                ref = best[i]
+                lab = chosen.get(i)
+                reason = f"a shorter rest of the same visit ({dur(r):.1f} s < {dur(ref):.1f} s)"
+                if lab:
+                    reason += f"; alternative for {lab}"
+                    if dur(r) > 0.5 * dur(ref):
+                        notes.append(
+                            f"{lab}: rests of {dur(ref):.1f} s (chosen) and "
+                            f"{dur(r):.1f} s at {t[r.start]:.1f} s (alternative)"
+                        )
+                segs.append(rest_seg(r, v, "-", reason))
+        segs.extend(_turn_segments(v, t, used))
+        for a, b, d in v.aborted:
+            s, e = v.rests[a].stop - 1, v.rests[b].start + 1
+            segs.append(Segment(s, e, float(t[s]), float(t[e - 1]), f"move about {axis_text(v.up)}",
+                                "-", f"{d:+.0f}° about {axis_text(v.up)}", _t3(v.up),
+                                reason="no whole turn (an aborted turn?)"))  # fmt: skip
+    for r in tilted:
+        if dur(r) >= MIN_STATIC_S:
+            segs.append(rest_seg(r, None, "-", "gravity is on no axis"))
+    segs.sort(key=lambda s: s.start)
+    return segs, thr, notes
+
+
+def _turn_segments(v: _Visit, t: np.ndarray, used: set[str]) -> list[Segment]:
+    out = []
+    for a, b, angle in v.turns:
+        ra, rb = v.rests[a], v.rests[b]
+        n = round(abs(angle) / 360.0)
+        m0, m1 = float(t[ra.stop - 1]), float(t[rb.start])
+        start = max(ra.start, int(np.searchsorted(t, m0 - TURN_LEAD_S, "left")))
+        end_s = max(float(t[start]) + turn_window_s(n), m1 + TURN_PAD_S)
+        stop = min(rb.stop, int(np.searchsorted(t, end_s, "left")))
+        direction = 1 if angle > 0 else -1
+        base = f"{'xyz'[int(np.argmax(np.abs(v.up)))]}_{'ccw' if direction > 0 else 'cw'}"
+        label, k = base, 1
+        while label in used:
+            k += 1
+            label = f"{base}_{k}"
+        used.add(label)
+        steps = sum(
+            1 for m in range(a, b)
+            if abs(v.yaw_at(v.rests[m + 1].start) - v.yaw_at(v.rests[m].stop - 1)) > 10.0
+        )  # fmt: skip
+        q = f"{n} turn{'s' if n > 1 else ''}, {angle:+.1f}° about {axis_text(v.up)}"
+        if steps > 1:
+            q += f" in {steps} steps"
+        reason = (
+            f"{label}: {angle:+.0f}° about {axis_text(v.up)} is {n} whole turn"
+            + ("s" if n > 1 else "")
+            + ", cut at its own rests"
+        )
+        out.append(Segment(start, stop, float(t[start]), float(t[stop - 1]),
+                           f"turn {angle:+.0f}° about {axis_text(v.up)}", label, q, _t3(v.up),
+                           n, direction, reason))  # fmt: skip
+    return out

@@ -1,0 +1,202 @@
+"""Reading a session as a person would (issue 26): real imucal data, the bench's own captures
+and continuous sessions from a simulator written apart from host/bench/."""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from host.__main__ import main
+from host.calib.calibration import calibrate_from_records
+from host.ingest.importing import Stream
+from host.ingest.labels import format_labels
+from host.ingest.segmentation import build_records, segment_stream
+from host.ingest.stillness import attitude
+from host.session.directory import Session, read_record, read_session
+from host.session.method import TOLERANCES
+from host.session.records import STATIC_NAMES, TURN_NAMES
+from tests.host.ingest.continuous_sessions import OPERATORS, Operator, make_session
+
+REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
+#: imucal's section order (x_p, x_a, y_p, y_a, z_p, z_a, x_rot, y_rot, z_rot) in our names
+IMUCAL_ORDER = ("x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn", "x_cw", "y_cw", "z_cw")
+IMUCAL_HZ = 102.4
+
+
+def _segmented(op: Operator, seed: int) -> tuple[object, list, dict]:
+    cs = make_session(seed, op)
+    stream = Stream(cs.t, cs.accel, cs.gyro, cs.temp, {"source": op.name})
+    segs, thr, _ = segment_stream(stream)
+    return cs, segs, build_records(stream, segs, thr, "S")
+
+
+# ---- continuous sessions from the independent simulator ----------------------------------
+@pytest.mark.slow
+def test_continuous_sessions_of_ten_operators_give_the_true_constants() -> None:
+    """Issue 26 Done-when: on 10 sessions (one per operator: fast, slow, stepped, long and short
+    rests, warm-up first, a face placed twice, an aborted turn, …) the records are the labelled
+    ones and every constant is within a tenth of its method.md §7 tolerance of the truth in at
+    least 9. A tenth: a constant that was not measured (0, or a wrong record) is further off."""
+    good = 0
+    failures = []
+    for i, op in enumerate(OPERATORS):
+        cs, segs, records = _segmented(op, 500 + i)
+        if set(records) != set(cs.windows):  # type: ignore[attr-defined]
+            failures.append(f"{op.name}: {sorted(records)}")
+            continue
+        fit = calibrate_from_records(Session("S", {k: v for k, v in records.items()
+                                                   if k != "warmup"}))  # fmt: skip
+        c = fit.constants()
+        off = {k: abs(c[k] - v) / TOLERANCES[k] for k, v in cs.truth.items()}  # type: ignore[attr-defined]
+        worst = max(off, key=off.__getitem__)
+        if off[worst] <= 0.1:
+            good += 1
+        else:
+            failures.append(f"{op.name}: {worst} off by {off[worst]:.2f} of its tolerance")
+    assert good >= 9, failures
+
+
+@pytest.mark.parametrize("op", [OPERATORS[2], OPERATORS[5], OPERATORS[6], OPERATORS[7]],
+                         ids=lambda o: o.name)  # fmt: skip
+def test_statics_on_the_labelled_samples_and_turns_without_the_next_attitude(
+    op: Operator,
+) -> None:
+    cs, segs, records = _segmented(op, 77)
+    for name, (t0, t1) in cs.windows.items():  # type: ignore[attr-defined]
+        seg = next(s for s in segs if s.label == name)
+        if name in TURN_NAMES:
+            # the whole motion (labelled with 0.3 s either side) and nothing of another face
+            assert seg.t0_s <= t0 + 0.35 and seg.t1_s >= t1 - 0.35, name
+            rec = records[name]
+            faces = {attitude(a)[0] for a in rec.accel}
+            assert faces == {f"{name[0]}_up"}, (name, faces)
+        else:
+            assert abs(seg.t0_s - t0) < 1.0 and abs(seg.t1_s - t1) < 1.0, (name, seg, t0, t1)
+
+
+def test_every_choice_says_why_and_alternatives_are_in_the_labels_file() -> None:
+    cs, segs, _ = _segmented(OPERATORS[6], 3)  # y_up placed, lifted, placed again
+    y = [s for s in segs if s.found == "still +y" and s.duration_s > 2.0]
+    chosen = [s for s in y if s.label == "y_up"]
+    assert len(chosen) == 1 and chosen[0].t0_s == pytest.approx(cs.windows["y_up"][0], abs=1)  # type: ignore[attr-defined]
+    other = [s for s in y if s.label == "-" and "alternative for y_up" in s.reason]
+    assert other and other[0].t1_s < chosen[0].t0_s
+    assert all(s.reason for s in segs)
+    tsv = format_labels(segs, "s.csv")
+    assert "alternative for y_up" in tsv
+    _, segs, _ = _segmented(OPERATORS[7], 3)  # x_ccw begun, turned back, then made
+    aborted = [s for s in segs if s.found.startswith("move")]
+    assert aborted and "aborted" in aborted[0].reason
+    assert [s.label for s in segs if s.turns and s.up[0] > 0] == ["x_ccw", "x_cw"]
+    _, segs, records = _segmented(OPERATORS[5], 3)
+    warm = [s for s in segs if s.label == "warmup"]
+    assert len(warm) == 1 and "temperature +" in warm[0].reason
+    assert records["warmup"].meta["kind"] == "warmup"
+
+
+# ---- imucal's real session, without its section list ------------------------------------
+def _imucal_stream_files(d: Path) -> tuple[Path, Path, dict[str, tuple[float, float]]]:
+    """imucal's session joined from the shared record files, as a column file (t ms, accel,
+    gyro) and as imucal's own CSV (n_samples, gyr_*, acc_*); and each section's span, s."""
+    real = read_session(REAL)
+    cols, imu = ["t_ms,ax,ay,az,gx,gy,gz"], ["n_samples,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z"]
+    spans = {}
+    n = 0
+    for name in IMUCAL_ORDER:
+        rec = real.records[name]
+        spans[name] = (n / IMUCAL_HZ, (n + len(rec) - 1) / IMUCAL_HZ)
+        for a, g in zip(rec.accel, rec.gyro, strict=True):
+            cols.append(f"{1000 * n / IMUCAL_HZ:.3f},{a[0]},{a[1]},{a[2]},{g[0]},{g[1]},{g[2]}")
+            imu.append(f"{n},{g[0]},{g[1]},{g[2]},{a[0]},{a[1]},{a[2]}")
+            n += 1
+    (d / "cols.csv").write_text("\n".join(cols) + "\n")
+    (d / "session.csv").write_text("\n".join(imu) + "\n")
+    return d / "cols.csv", d / "session.csv", spans
+
+
+def _span(text: str) -> tuple[float, float]:
+    """'12.300..19.100 of the stream' -> (12.3, 19.1)."""
+    a, b = text.split(" ")[0].split("..")
+    return float(a), float(b)
+
+
+def _verdict(directory: Path, capsys: pytest.CaptureFixture[str]) -> str:
+    capsys.readouterr()
+    assert main(["model", "diagnose", str(directory)]) == 0
+    m = re.search(r"== verdict: (\w+)", capsys.readouterr().out)
+    assert m
+    return m.group(1)
+
+
+@pytest.mark.slow
+def test_imucal_without_its_section_list_gives_the_same_records_and_constants(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cols, csv, spans = _imucal_stream_files(tmp_path)
+    ref = calibrate_from_records(read_session(REAL))
+    ref_c, ref_s = ref.constants(), ref.std_errors
+    argvs = {
+        "columns": ["import", str(cols), "--columns", "t,ax,ay,az,gx,gy,gz", "--units", "t=ms"],
+        "imucal csv": ["import", str(csv), "--rate", str(IMUCAL_HZ)],
+    }
+    verdict = _verdict(REAL, capsys)
+    for what, argv in argvs.items():
+        out = tmp_path / what.replace(" ", "_")
+        assert main([*argv, "--serial", "R", "--out", str(out)]) == 0, what
+        printed = capsys.readouterr().out
+        session = read_session(out)
+        assert sorted(session.records) == sorted(IMUCAL_ORDER), (what, printed)
+        for name, (t0, t1) in spans.items():
+            a, b = _span(session.records[name].meta["segment_s"])
+            if name in TURN_NAMES:  # inside its own section: no rest of another record
+                assert t0 - 0.01 <= a and b <= t1 + 0.01, (what, name, a, b, t0, t1)
+                assert b - a > 0.85 * (t1 - t0), (what, name)
+            else:
+                assert abs(a - t0) <= 1.0 and abs(b - t1) <= 1.0, (what, name, a, b, t0, t1)
+        c = calibrate_from_records(session).constants()
+        for k, v in ref_c.items():
+            if math.isfinite(v) and "std" not in k:
+                assert abs(c[k] - v) <= 0.5 * ref_s[k], (what, k, c[k], v, ref_s[k])
+        assert _verdict(out, capsys) == verdict, what
+
+
+# ---- the bench's own capture ------------------------------------------------------------
+@pytest.mark.slow
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("warmup", ["40", "0"])
+def test_sim_capture_is_cut_into_the_records_the_dialogue_wrote(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], warmup: str
+) -> None:
+    cap, rec, out = tmp_path / "s.cap", tmp_path / "rec", tmp_path / "imp"
+    argv = ["calibrate", "--port", "sim://?speed=max", "--yes", "--serial", "S1",
+            "--static-seconds", "6", "--warmup", warmup, "--capture", str(cap),
+            "--out", str(rec)]  # fmt: skip
+    assert main(argv) in (0, 1)
+    assert main(["import", str(cap), "--serial", "S1", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    live = read_session(rec)
+    imported = read_session(out)
+    names = set(live.records) | ({"warmup"} if warmup != "0" else set())
+    assert (
+        set(imported.records) | ({"warmup"} if (out / "S1_warmup.txt").exists() else set()) == names
+    ), printed
+    first_us = min(int(r.meta["device_t_us_start"]) for r in live.records.values())
+    warm = read_record(rec / "S1_warmup.txt") if warmup != "0" else None
+    if warm is not None:
+        first_us = min(first_us, int(warm.meta["device_t_us_start"]))
+        got = read_record(out / "S1_warmup.txt")
+        assert got.meta["kind"] == "warmup"
+    for name in STATIC_NAMES:
+        t0 = (int(live.records[name].meta["device_t_us_start"]) - first_us) / 1e6
+        a = _span(imported.records[name].meta["segment_s"])[0]
+        assert abs(a - t0) < 1.0, (name, a, t0)
+    ref = calibrate_from_records(live)
+    got_c = calibrate_from_records(imported).constants()
+    for k, v in ref.constants().items():
+        if math.isfinite(v) and "std" not in k:
+            assert abs(got_c[k] - v) <= 0.5 * ref.std_errors[k], (k, got_c[k], v)
+    assert np.isfinite(list(got_c.values())).any()
