@@ -12,7 +12,9 @@ the records are found in it, in the words of method.md §3-§5.
    turns (within ``TURN_HEADING_TOL_DEG``), started from the latest rest that makes it whole
    (an aborted start that was turned back is left out); steps with pauses in between count as
    one turn (four 90° steps are one turn), and a pause shorter than ``TURN_MERGE_REST_S`` at a
-   whole turn with the motion going on the same way is part of a longer turn. A turn record is
+   whole turn with the motion going on the same way is part of a longer turn; rests within
+   ``SAME_STOP_DEG`` of each other around a turn's start or end (a slow hand leaves and reaches
+   its rest in pieces) are one opening or closing rest. A turn record is
    cut as the method's beeps would: from ``TURN_LEAD_S`` before the motion (inside the opening
    rest) for the fixed window of method.md §4 (7/12/15 s), at least ``TURN_PAD_S`` past the
    motion, never beyond its closing rest (never the next attitude's rest). Rests inside a turn
@@ -42,6 +44,7 @@ FACE_LEAVE_DEG = 45.0  #: gravity this far off a face's axis means the cube left
 SMOOTH_S = 0.1  #: the accelerometer is averaged over this long to follow gravity, s
 TURN_HEADING_TOL_DEG = 45.0  #: a rest within this of a whole number of turns ends a turn
 TURN_MERGE_REST_S = 1.5  #: a shorter pause at a whole turn, motion going on the same way: one turn
+SAME_STOP_DEG = 5.0  #: rests this close in heading are one stop of the hand (a slow start or end)
 BACKSTEP_DEG = 20.0  #: a turn may step back this far between its rests (a hand correcting)
 TURN_LEAD_S = 1.0  #: a turn record starts this long before the motion (in its opening rest), s
 TURN_PAD_S = 0.5  #: … and lasts the method's window (7/12/15 s) or this long past the motion, s
@@ -159,6 +162,8 @@ def _find_turns(v: _Visit, t: np.ndarray) -> None:
         if begin is None:
             j += 1
             continue
+        while begin > first and abs(end_yaw[begin] - start_yaw[begin - 1]) < SAME_STOP_DEG:
+            begin -= 1  # a slow start breaks the opening rest into pieces: its first piece
         end = j
         n = _whole(end_yaw[j] - start_yaw[begin])
         while end < k - 1 and t[rs[end].stop - 1] - t[rs[end].start] < TURN_MERGE_REST_S:
@@ -174,6 +179,8 @@ def _find_turns(v: _Visit, t: np.ndarray) -> None:
             if more is None:
                 break
             end, n = more
+        while end < k - 1 and abs(end_yaw[end + 1] - start_yaw[end]) < SAME_STOP_DEG:
+            end += 1  # … and a slow end its closing rest: up to its last piece
         if begin > first:
             _aborted(v, first, begin, start_yaw, end_yaw)
         v.turns.append((begin, end, end_yaw[end] - start_yaw[begin]))

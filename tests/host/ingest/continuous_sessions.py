@@ -19,6 +19,7 @@ import numpy as np
 G = 9.80665
 ACCEL_LSB = 4 * 9.81 / 2**16  #: m/s² per count at ±2 g (method.md §1)
 GYRO_LSB = 500 / 2**16  #: °/s per count at ±250 °/s
+TURN_WINDOW_S = {1: 7.0, 2: 12.0, 3: 15.0}  #: method.md §4: the recording window of n turns, s
 FACES = ("x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn")
 
 
@@ -59,7 +60,9 @@ OPERATORS = (
 @dataclass
 class ContinuousSession:
     """The stream (t s, accel m/s², gyro °/s, temp °C), the true constants (method.md §7
-    names) and the labelled windows: record name -> (t0, t1) s."""
+    names), the labelled windows: record name -> (t0, t1) s — a static's rest, a turn as the
+    dialogue's beeps would cut it (from 1 s before the motion for the method's window of
+    7/12/15 s, or to 0.5 s past a longer motion, within its rests) — and each turn's motion."""
 
     t: np.ndarray
     accel: np.ndarray
@@ -67,6 +70,7 @@ class ContinuousSession:
     temp: np.ndarray
     truth: dict[str, float]
     windows: dict[str, tuple[float, float]] = field(default_factory=dict)
+    motions: dict[str, tuple[float, float]] = field(default_factory=dict)
 
 
 def random_truth(rng: np.random.Generator) -> dict[str, float]:
@@ -170,6 +174,7 @@ def make_session(seed: int, op: Operator) -> ContinuousSession:
     truth = random_truth(rng)
     b = _Builder(rng, op)
     windows: dict[str, tuple[float, float]] = {}
+    motions: dict[str, tuple[float, float]] = {}
     if op.warmup_s:
         windows["warmup"] = b.rest(op.warmup_s)
     for face in FACES:
@@ -193,9 +198,15 @@ def make_session(seed: int, op: Operator) -> ContinuousSession:
                 b.rest(1.5)
             t0 = b.t_now
             b.turn(d * (360.0 * op.turns + rng.normal(0, 0.5)))
-            windows[f"{ax}_{sfx}"] = (t0 - 0.3, b.t_now + 0.3)
-    b.rest(op.between_turns_s)
-    return _sample(b, rng, op, truth, windows)
+            motions[f"{ax}_{sfx}"] = (t0, b.t_now)
+        b.rest(op.between_turns_s)
+    for name, (t0, t1) in motions.items():
+        after = op.between_turns_s
+        start = t0 - min(1.0, op.pre_turn_s if name.endswith("ccw") else op.between_turns_s)
+        windows[name] = (start, min(t1 + after, max(start + TURN_WINDOW_S[op.turns], t1 + 0.5)))
+    cs = _sample(b, rng, op, truth, windows)
+    cs.motions = motions
+    return cs
 
 
 def _sample(

@@ -69,8 +69,10 @@ def test_statics_on_the_labelled_samples_and_turns_without_the_next_attitude(
     for name, (t0, t1) in cs.windows.items():  # type: ignore[attr-defined]
         seg = next(s for s in segs if s.label == name)
         if name in TURN_NAMES:
-            # the whole motion (labelled with 0.3 s either side) and nothing of another face
-            assert seg.t0_s <= t0 + 0.35 and seg.t1_s >= t1 - 0.35, name
+            # the whole motion, as the beeps would have cut it, and nothing of another face
+            m0, m1 = cs.motions[name]  # type: ignore[attr-defined]
+            assert seg.t0_s <= m0 and seg.t1_s >= m1, name
+            assert abs(seg.t0_s - t0) < 0.1 and abs(seg.t1_s - t1) < 0.1, (name, seg, t0, t1)
             rec = records[name]
             faces = {attitude(a)[0] for a in rec.accel}
             assert faces == {f"{name[0]}_up"}, (name, faces)
