@@ -25,12 +25,13 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from host.calib.calibration import calibrate_from_records
-from host.calib.method import TOLERANCES
-from host.calib.records import TURN_NAMES, WARMUP_NAME, Record, Session
 from host.ingest.importing import Stream
 from host.ingest.labels import parse_labels
 from host.ingest.segmentation import build_records, segment_stream
 from host.ingest.stillness import attitude
+from host.session.directory import Session
+from host.session.method import TOLERANCES
+from host.session.records import TURN_NAMES, WARMUP_NAME, Record
 from tests.host.ingest.continuous_sessions import OPERATORS, ContinuousSession, make_session
 
 
