@@ -10,7 +10,7 @@ decodes with the spec's codecs (:func:`host.wire.frames.sample_t_us`, ``sample_c
 :mod:`host.timing.segments`; :meth:`Board.physical` turns counts into m/s², °/s and °C with the
 full scales HELLO reported (:mod:`host.wire.sensor`).
 
-The dialogue that asks the operator (:mod:`host.dialogue.live`) drives a Board; nothing here
+The dialogue that asks the operator (:mod:`host.dialogue.flow`) drives a Board; nothing here
 talks to the operator.
 
 Length (over 600 lines): one driver — connection and reconnects, HELLO and the sensor's

@@ -1,6 +1,6 @@
 """Compute and write: the one step from a directory of records to the published result.
 
-Both ways to a result end here — the live calibration (:mod:`host.dialogue.live`, after the
+Both ways to a result end here — the live calibration (:mod:`host.dialogue.flow`, after the
 last record) and ``python -m host calibrate --from-dir DIR`` (:mod:`host.cli.calibrate`):
 :func:`compute_and_write` checks the records, fits the model, verifies held-out records if asked
 and writes ``SERIAL_result.txt`` and ``SERIAL_result.json`` together (method.md §7);

@@ -1,7 +1,7 @@
 """``python -m host calibrate``: compute the calibration from records and write the report.
 
 ``--from-dir DIR`` recomputes from the record files in DIR. Otherwise the live dialogue of
-method.md §5 runs (:func:`host.dialogue.live.run_live_session`) on ``--port`` — or, with no port
+method.md §5 runs (:func:`host.dialogue.flow.run_dialogue`) on ``--port`` — or, with no port
 given, on the first board found, else the virtual board ``sim://``; it records into a
 directory and then computes like the from-dir mode.
 """
@@ -18,7 +18,7 @@ from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.report import verdict_line
 from host.calib.result import CalibrationResult
-from host.dialogue.live import DEFAULT_READY_S, WARMUP_DEFAULT_S
+from host.dialogue.options import DEFAULT_READY_S, WARMUP_DEFAULT_S
 from host.errors import RecordCheckError, UserError
 from host.session.checks import failed_record
 from host.session.directory import Session, read_session
@@ -120,7 +120,7 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host calibrate``."""
     if not args.from_dir:
-        from host.dialogue.live import run_dialogue
+        from host.dialogue.flow import run_dialogue
 
         return run_dialogue(args)
     session = read_session(args.from_dir, args.serial)

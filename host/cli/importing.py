@@ -133,7 +133,7 @@ def _whole_file(stream: importing.Stream, name: str) -> list[Segment]:
 
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host import``."""
-    from host.dialogue.live import parse_serial
+    from host.dialogue.options import parse_serial
 
     try:
         serial = parse_serial(args.serial)

@@ -3,8 +3,13 @@
 Data in: a board (:mod:`host.board.driver`) and the operator's answers. Out: record files, then
 the results through :mod:`host.calib.publish`.
 
-- ``live`` — the dialogue: the operator guided through the poses and turns, each measurement
-  checked and written when accepted; resume, redo, reconnect.
+- ``flow`` — the dialogue's sequence: the faces, the turns, the closing check, the results;
+  resume, redo, reconnect (:func:`host.dialogue.flow.run_dialogue`).
+- ``options`` — the dialogue's options and the operator's answers: parsed, checked before any
+  I/O, and written back as the command line that continues a session.
+- ``measurement`` — one measurement: its acquisition through the board driver, the record and
+  its header, the checks of that record.
+- ``screens`` — what is shown: prompts, the progress line, the summaries of records and stages.
 - ``console`` — the terminal the operator answers at (and a scripted one for tests), and the
   questions asked on it.
 """

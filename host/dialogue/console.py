@@ -470,19 +470,3 @@ class Questions:
             if k is not None:
                 self.end_progress()
                 return k
-
-
-def __getattr__(name: str) -> object:
-    """``Operator``: the old name of :class:`Questions` ("operator" now means only the person
-    at the bench, or the virtual bench's simulated one); still works, with a warning."""
-    if name == "Operator":
-        import warnings
-
-        warnings.warn(
-            "host.dialogue.console.Operator is now Questions (the questions asked of the "
-            "operator); the old name will go",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return Questions
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -110,6 +110,6 @@ def test_live_board_scales_a_rev_c4_part_and_shows_the_low_clock(tmp_path: Path)
     np.testing.assert_allclose(a.mean(axis=0), [0.0, 0.0, sensor.G0], atol=2e-3)
     shown = [w for w in warnings if "marginal" in w]
     assert len(shown) == 1 and "1 MHz" in shown[0], warnings
-    # and the records made from it say so in their header (live.py: bus_meta)
+    # and the records made from it say so in their header (host/dialogue/measurement.py: bus_meta)
     assert acq.status_flags is not None and acq.status_flags & SPI_LOW_CLOCK
     assert bus_meta(acq.status_flags)["sensor_spi_clock"].startswith("1 MHz (SPI_LOW_CLOCK")

@@ -2,10 +2,10 @@
 MPU-6000 fed by the physics simulator whose operator follows the program's prompts
 (``emu://``, ``stimulus=sim``: host/transports/protocol_emu.py, host.emulator.SimStimulus).
 
-Truth comparisons use ``effects=linear,noise&earth_rate=0`` as tests/host/dialogue/test_live.py does
+Truth comparisons use ``effects=linear,noise&earth_rate=0`` as tests/host/dialogue/test_flow.py does
 for ``sim://``: the other effects are outside the linear model of method.md §2. The dialogue
-helpers are those of tests/host/dialogue/test_live.py; the pty-driven dialogue (repeat, Esc, range
-alarm, Ctrl+C and resume) runs on both boards in tests/host/dialogue/test_live_pty.py.
+helpers are those of tests/host/dialogue/test_flow.py; the pty-driven dialogue (repeat, Esc, range
+alarm, Ctrl+C and resume) runs on both boards in tests/host/dialogue/test_flow_pty.py.
 
 Durations: statics of 10 s (the program warns they are short; the tolerances still hold),
 1 turn (7 s windows), ``--ready-seconds 0``; at ``speed=max`` the emulator runs ≈ 30–40× real
@@ -31,7 +31,7 @@ from host.dialogue.console import ScriptedConsole
 from host.session.directory import read_record
 from host.session.records import STATIC_NAMES, TURN_NAMES
 from host.transports.protocol_emu import HINT_HOLD_S, HINT_SYNC_S, truth_for_url
-from tests.host.dialogue.test_live import Ports, opts, run
+from tests.host.dialogue.test_flow import Ports, opts, run
 
 pytestmark = [
     pytest.mark.emulator,

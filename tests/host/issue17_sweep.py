@@ -11,7 +11,7 @@ one-line reason, or takes longer than its bound.
 
 What needs an emulated board (``emu://?fault=no-drdy|absent|stuck-miso`` under ``--yes``) is in
 tests/emulator/test_emu_faults.py; a full disk needs an injected or a real small file system:
-tests/host/calib/test_report_publication.py and dialogue/test_live_faults.py.
+tests/host/calib/test_report_publication.py and dialogue/test_flow_faults.py.
 """
 
 from __future__ import annotations

@@ -143,31 +143,31 @@ def test_plot_refuses_an_image_file_name(tmp_path: Path) -> None:
 
 
 def test_serial_number_message_states_the_rule_and_the_culprit() -> None:
-    from host.dialogue import live
+    from host.dialogue import options
 
     with pytest.raises(ValueError) as e:
-        live.parse_serial("my unit/1")
+        options.parse_serial("my unit/1")
     msg = str(e.value)
     assert "mandatory" not in msg  # it was given
     assert "' '" in msg and "'/'" in msg and "1 to 12 characters" in msg and "_ or -" in msg
     with pytest.raises(ValueError, match="13 characters"):
-        live.parse_serial("x" * 13)
+        options.parse_serial("x" * 13)
     with pytest.raises(ValueError, match="mandatory"):
-        live.parse_serial("  ")
+        options.parse_serial("  ")
 
 
 def test_yes_without_static_seconds_fails_before_the_board_and_the_warm_up(
     tmp_path: Path,
 ) -> None:
-    from host.dialogue import live
+    from host.dialogue import flow, options
     from host.errors import UserError
 
     opened: list[str] = []
-    o = live.SessionOptions(port="sim://?speed=max", serial="F1", out=tmp_path / "F1",
+    o = options.DialogueOptions(port="sim://?speed=max", serial="F1", out=tmp_path / "F1",
                             yes=True, warmup_s=600.0)  # fmt: skip
     con = ScriptedConsole()
     with pytest.raises(UserError, match=r"--yes needs --static-seconds S, .*e\.g\."):
-        live.run_live_session(o, con, lambda u: opened.append(u))
+        flow.run_dialogue(o, con, lambda u: opened.append(u))
     assert opened == [] and "warm-up" not in con.text
 
 
@@ -176,7 +176,7 @@ def test_ctrl_c_during_the_warm_up_does_not_speak_of_a_measurement(tmp_path: Pat
     import io
 
     from host.board.link import open_port
-    from host.dialogue import live
+    from host.dialogue import flow, options
 
     con = ScriptedConsole()
 
@@ -185,11 +185,11 @@ def test_ctrl_c_during_the_warm_up_does_not_speak_of_a_measurement(tmp_path: Pat
             raise KeyboardInterrupt
 
     con.progress = interrupt_in_warm_up  # type: ignore[method-assign]
-    o = live.SessionOptions(port="sim://?speed=max&effects=linear,noise&earth_rate=0",
+    o = options.DialogueOptions(port="sim://?speed=max&effects=linear,noise&earth_rate=0",
                             serial="W1", out=tmp_path / "W1", static_seconds=2.0, turns=1,
                             warmup_s=30.0, yes=True, ready_s=0.0)  # fmt: skip
     with contextlib.redirect_stdout(io.StringIO()):
-        assert live.run_live_session(o, con, open_port) == 130
+        assert flow.run_dialogue(o, con, open_port) == 130
     assert "Aborted (Ctrl+C) during the warm-up (not recorded)." in con.text
     assert "measurement in progress" not in con.text
 
@@ -198,21 +198,21 @@ def test_ctrl_c_during_the_warm_up_does_not_speak_of_a_measurement(tmp_path: Pat
 def test_the_default_virtual_board_runs_at_full_speed_when_nobody_watches(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, yes: bool, url: str
 ) -> None:
-    from host.dialogue import live
+    from host.dialogue import flow, options
     from host.errors import UserError
 
-    monkeypatch.setattr(live, "default_port", lambda: ("sim://", "NO BOARD FOUND"))
+    monkeypatch.setattr(flow, "default_port", lambda: ("sim://", "NO BOARD FOUND"))
     opened: list[str] = []
 
     def factory(u: str) -> None:
         opened.append(u)
         raise UserError("enough")
 
-    o = live.SessionOptions(serial="F1", out=tmp_path / "F1", static_seconds=2.0, turns=1,
+    o = options.DialogueOptions(serial="F1", out=tmp_path / "F1", static_seconds=2.0, turns=1,
                             warmup_s=0.0, yes=yes)  # fmt: skip
     con = ScriptedConsole()
     with pytest.raises(UserError, match="enough"):
-        live.run_live_session(o, con, factory)  # type: ignore[arg-type]
+        flow.run_dialogue(o, con, factory)  # type: ignore[arg-type]
     assert opened == [url]
     assert ("at full speed with --yes (--port sim:// shows it in real time)" in con.text) is yes
 
@@ -224,17 +224,17 @@ def test_no_pause_before_a_turn_when_nobody_turns_the_cube(tmp_path: Path) -> No
     import io
 
     from host.board.link import open_port
-    from host.dialogue import live
+    from host.dialogue import flow, options
 
     for ready, counts in ((None, False), (0.5, True)):
         con = ScriptedConsole()
         shown: list[str] = []
         con.progress = shown.append  # type: ignore[method-assign]
-        o = live.SessionOptions(port="sim://?speed=max&effects=linear,noise&earth_rate=0",
+        o = options.DialogueOptions(port="sim://?speed=max&effects=linear,noise&earth_rate=0",
                                 serial="R1", out=tmp_path / f"R{ready}", static_seconds=1.0,
                                 turns=1, warmup_s=0.0, yes=True, ready_s=ready)  # fmt: skip
         with contextlib.redirect_stdout(io.StringIO()):
-            assert live.run_live_session(o, con, open_port) in (0, 1)
+            assert flow.run_dialogue(o, con, open_port) in (0, 1)
         assert any("start in" in t for t in shown) is counts
 
 

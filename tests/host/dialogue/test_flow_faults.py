@@ -24,7 +24,7 @@ from host.errors import UserError
 from host.session.directory import read_record
 from host.wire import protocol_gen as gen
 from host.wire.frames import IMU_SAMPLE, StreamDecoder, _envelope, encode_frame
-from tests.host.dialogue.test_live import LINEAR, Ports, opts, run
+from tests.host.dialogue.test_flow import LINEAR, Ports, opts, run
 
 SPI_FAULT = gen.ENUMS["error_code"]["SPI_FAULT"]
 
@@ -199,11 +199,11 @@ def test_disk_full_on_the_session_capture_keeps_what_was_recorded(
     """The raw capture of a live session (SERIAL_session.cap) meets a full disk mid-session:
     one line naming it, the --resume hint; the records accepted before stay whole and the
     capture keeps every read written before (a cut-off last one is reported, not fatal)."""
-    from host.dialogue import live
+    from host.board import driver
     from host.wire import capture
     from host.wire.frames import decode_bulk
 
-    real_start = live.DeferredCapture.start
+    real_start = driver.DeferredCapture.start
 
     written = {}
 
@@ -213,7 +213,7 @@ def test_disk_full_on_the_session_capture_keeps_what_was_recorded(
         written["before"] = self._f.tell()  # the magic and the reads held until now
         self._f = FillingFile(self._f, 60_000)  # ≈ 40 s of the board's stream
 
-    monkeypatch.setattr(live.DeferredCapture, "start", start)
+    monkeypatch.setattr(driver.DeferredCapture, "start", start)
     o = opts(tmp_path, f"sim://?seed=26&{LINEAR}", static_seconds=2.0, turns=1)
     with pytest.raises(UserError) as err:
         run(o, ScriptedConsole(), Ports())

@@ -1,6 +1,5 @@
 """The live calibration program end to end in a pseudo-terminal: a real process
-(``python -m host calibrate ...``, or ``python -m host.session`` until the lead wires the
-live options into ``calibrate``), its screen read from the pty master, keys written to it.
+(``python -m host calibrate ...``), its screen read from the pty master, keys written to it.
 Ctrl+C is the byte 0x03 through the terminal (the tty turns it into SIGINT).
 
 The board is ``sim://`` at ``speed=max`` (or a few times real time where a measurement must
@@ -60,22 +59,7 @@ def board_url(board: str, seed: int, speed: str, operator_fault: str = "") -> st
     return url
 
 
-def _command() -> list[str]:
-    """``-m host calibrate`` once it has the live options, else ``-m host.session``."""
-    from host.__main__ import build_parser
-
-    try:
-        parser, _ = build_parser()
-        sub = parser._subparsers._group_actions[0].choices["calibrate"]  # type: ignore[union-attr]
-        wired = any("--yes" in a.option_strings for a in sub._actions)
-    except Exception:  # noqa: BLE001 - any doubt: use the module's own entry point
-        wired = False
-    if wired:
-        return [sys.executable, "-m", "host", "calibrate"]
-    return [sys.executable, "-m", "host.session"]
-
-
-CMD = _command()
+CMD = [sys.executable, "-m", "host", "calibrate"]
 
 
 class Screen:

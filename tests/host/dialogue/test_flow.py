@@ -1,7 +1,7 @@
-"""The live calibration dialogue (host/session.py) in-process, against the virtual board.
+"""The live calibration dialogue (host/dialogue/flow.py) in-process, against the virtual board.
 
-The operator is a :class:`host.operator.ScriptedConsole` (keys in order; Esc/Ctrl+C are seen
-during a measurement) or ``--yes``. The board is ``sim://`` at ``speed=max`` (simulated time
+The operator is a :class:`host.dialogue.console.ScriptedConsole` (keys in order; Esc/Ctrl+C are
+seen during a measurement) or ``--yes``. The board is ``sim://`` at ``speed=max`` (simulated time
 advances as fast as the host reads). Truth comparisons use ``effects=linear,noise`` and
 ``earth_rate=0``: the other effects (temperature, drift, nonlinearity, lever arm, Earth rate)
 are deliberately outside the linear model of method.md §2 and would bias the comparison.
@@ -22,7 +22,7 @@ import pytest
 
 from host.board import driver
 from host.board.link import open_port
-from host.dialogue import live
+from host.dialogue import flow, options
 from host.dialogue.console import CTRL_C, ESC, ScriptedConsole
 from host.errors import UserError
 from host.session.directory import read_record, read_session
@@ -30,7 +30,7 @@ from host.session.records import STATIC_NAMES, TURN_NAMES
 from host.wire import protocol_gen as gen
 
 #: every record a default session writes, in the order measured: the closing check last
-ALL = (*STATIC_NAMES, *TURN_NAMES, live.CLOSING_NAME)
+ALL = (*STATIC_NAMES, *TURN_NAMES, options.CLOSING_NAME)
 
 LINEAR = "speed=max&effects=linear,noise&earth_rate=0"
 
@@ -52,19 +52,19 @@ class Ports:
         return self.opened[0]
 
 
-def opts(tmp_path: Path, url: str, **kw: Any) -> live.SessionOptions:
+def opts(tmp_path: Path, url: str, **kw: Any) -> options.DialogueOptions:
     base: dict[str, Any] = dict(
         port=url, serial="S1", out=tmp_path / "S1", static_seconds=10.0, turns=2,
         warmup_s=0.0, yes=True, ready_s=0.0,
     )  # fmt: skip
     base.update(kw)
-    return live.SessionOptions(**base)
+    return options.DialogueOptions(**base)
 
 
-def run(o: live.SessionOptions, console: ScriptedConsole, ports: Ports) -> tuple[int, str]:
+def run(o: options.DialogueOptions, console: ScriptedConsole, ports: Ports) -> tuple[int, str]:
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
-        rc = live.run_live_session(o, console, ports)
+        rc = flow.run_dialogue(o, console, ports)
     return rc, out.getvalue()
 
 
@@ -203,7 +203,7 @@ def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> 
     assert len(drift) == 6 and all(c.identifiable for c in drift), [c.reason for c in drift]
     # the closing check repeats the first attitude at the end: what it adds is drift
     # information — without it the gyro drift is less well determined
-    without = load_dataset_without(out, live.CLOSING_NAME)
+    without = load_dataset_without(out, options.CLOSING_NAME)
     c2, _ = evaluate_candidates(without, fit_model(without, parse_model("base")))
     se = {c.label: c.stderr for c in drift}
     se2 = {c.label: c.stderr for c in c2 if c.term == "time_drift"}
@@ -244,12 +244,12 @@ def test_scripted_dialogue_validates_and_repeats(
     assert "give the accumulation time in seconds" in text
     assert "between 1 and 3600" in text
     assert text.count("Measuring x_up:") == 2 and text.count("Measuring x_dn") == 1
-    assert text.count(f"Measuring {live.CLOSING_NAME}:") == 1
+    assert text.count(f"Measuring {options.CLOSING_NAME}:") == 1
     assert "Stage 1 constants" in text
     # the default output directory is ./SERIAL/
     out = tmp_path / "S7"
     assert sorted(p.name for p in out.glob("S7_*.txt")) == sorted(
-        [f"S7_{n}.txt" for n in (*STATIC_NAMES, live.CLOSING_NAME)] + ["S7_result.txt"]
+        [f"S7_{n}.txt" for n in (*STATIC_NAMES, options.CLOSING_NAME)] + ["S7_result.txt"]
     )
     assert "TEST REPORT" in stdout and "serial No. S7" in stdout
     # gyro scale was not measured (no turns): the unit fails, exit status 1
@@ -348,7 +348,7 @@ class DroppingPort:
 
     @property
     def in_waiting(self) -> int:
-        return min(int(self.inner.in_waiting), live.IMU_FRAME_BYTES)
+        return min(int(self.inner.in_waiting), driver.IMU_FRAME_BYTES)
 
     def read(self, n: int = 1) -> bytes:
         data = self.inner.read(n)
@@ -409,7 +409,7 @@ def test_silent_port_at_connect(tmp_path: Path) -> None:
     t0 = time.monotonic()
     o = opts(tmp_path, "/dev/ttyFAKE", hello_timeout_s=1.5)
     with pytest.raises(UserError, match="no HELLO from the board on /dev/ttyFAKE within 1.5 s"):
-        live.run_live_session(o, ScriptedConsole(), lambda url: Silent())  # type: ignore[arg-type,return-value]
+        flow.run_dialogue(o, ScriptedConsole(), lambda url: Silent())  # type: ignore[arg-type,return-value]
     assert time.monotonic() - t0 < 3.0
 
 
@@ -419,7 +419,7 @@ class GoesSilent:
 
     def __init__(self, inner: Any, after: int = 400) -> None:
         self.inner = inner
-        self.after = after * live.IMU_FRAME_BYTES  # bytes
+        self.after = after * driver.IMU_FRAME_BYTES  # bytes
         self.got = 0
         self.silent_since: float | None = None
 
@@ -474,28 +474,9 @@ def test_silent_board_mid_session_is_reported_and_recovered(tmp_path: Path) -> N
 
 def test_yes_needs_serial_and_static_seconds(tmp_path: Path) -> None:
     with pytest.raises(UserError, match="--yes needs --serial"):
-        live.run_live_session(opts(tmp_path, "sim://", serial=None), ScriptedConsole())
+        flow.run_dialogue(opts(tmp_path, "sim://", serial=None), ScriptedConsole())
     with pytest.raises(UserError, match="--yes needs --static-seconds"):
         run(opts(tmp_path, f"sim://?{LINEAR}", static_seconds=None), ScriptedConsole(), Ports())
-
-
-def test_options_from_args() -> None:
-    ns = SimpleNamespace(port="sim://", serial="A-1", out="d", static_seconds=5.0, turns=3,
-                         warmup=0.0, latitude=50.0, height=10.0, yes=True, json=False,
-                         resume=True, capture=None, ready_seconds=1.5)  # fmt: skip
-    o = live.SessionOptions.from_args(ns)  # type: ignore[arg-type]
-    assert (o.out, o.turns, o.warmup_s, o.resume, o.ready_s) == (Path("d"), 3, 0.0, True, 1.5)
-    o.check()
-    for bad in ("", "x" * 13, "a b", "é"):
-        with pytest.raises(ValueError):
-            live.parse_serial(bad)
-
-
-def test_turn_windows() -> None:
-    assert [live.turn_window_s(n) for n in (1, 2, 3, 4, 5)] == [7.0, 12.0, 15.0, 19.0, 23.0]
-    with pytest.raises(ValueError):
-        live.parse_turns("0")
-    assert live.parse_turns("4") == 4
 
 
 def test_default_port() -> None:

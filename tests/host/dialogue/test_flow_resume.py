@@ -1,7 +1,7 @@
 """Resume exactly (issue 18): the printed command carries every option and answer, ``--redo
 NAME`` re-measures one record, a record kept despite a warning is carried into the report with
 it, and a session that cannot use a record names it with the command that re-measures it.
-In-process dialogue against ``sim://`` at ``speed=max`` (see test_session.py)."""
+In-process dialogue against ``sim://`` at ``speed=max`` (see test_flow.py)."""
 
 from __future__ import annotations
 
@@ -15,22 +15,22 @@ from typing import Any
 import numpy as np
 import pytest
 
-from host.dialogue import live
+from host.dialogue import options
 from host.dialogue.console import CTRL_C, ScriptedConsole
 from host.errors import UserError
 from host.session.directory import read_record
 from host.session.records import STATIC_NAMES, TURN_NAMES
-from tests.host.dialogue.test_live import LINEAR, Ports, run
-from tests.host.dialogue.test_live import opts as live_opts
+from tests.host.dialogue.test_flow import LINEAR, Ports, run
+from tests.host.dialogue.test_flow import opts as live_opts
 
 
-def opts(tmp_path: Path, url: str, **kw: Any) -> live.SessionOptions:
-    """test_live's options for unit F1: 2 s statics, one turn each way."""
+def opts(tmp_path: Path, url: str, **kw: Any) -> options.DialogueOptions:
+    """test_flow's options for unit F1: 2 s statics, one turn each way."""
     short: dict[str, Any] = dict(serial="F1", out=tmp_path / "F1", static_seconds=2.0, turns=1)
     return live_opts(tmp_path, url, **{**short, **kw})
 
 
-def options_of(command: str) -> live.SessionOptions:
+def options_of(command: str) -> options.DialogueOptions:
     """The SessionOptions a printed ``python3 -m host calibrate ...`` command line gives, read
     as a POSIX shell would split it."""
     from host.__main__ import build_parser
@@ -38,7 +38,7 @@ def options_of(command: str) -> live.SessionOptions:
     argv = shlex.split(command)
     assert argv[:4] == ["python3", "-m", "host", "calibrate"], command
     parser, _ = build_parser()
-    return live.SessionOptions.from_args(parser.parse_args(argv[3:]))
+    return options.DialogueOptions.from_args(parser.parse_args(argv[3:]))
 
 
 # --------------------------------------------------------------------------- checks first
@@ -74,24 +74,6 @@ def test_an_output_directory_where_nothing_can_be_written_fails_before_the_board
     with pytest.raises(UserError, match=r"output directory /proc/.*/F1: cannot write there"):
         run(opts(Path(), f"sim://?{LINEAR}", out=out), ScriptedConsole(), ports)
     assert ports.opened == []
-
-
-def test_the_latitude_is_checked_before_the_board() -> None:
-    with pytest.raises(UserError, match="latitude"):
-        live.SessionOptions(serial="A", latitude_deg=123.0).check()
-
-
-def test_redo_names_are_checked() -> None:
-    with pytest.raises(UserError, match="--redo x_side: not a record name; use one of x_up"):
-        live.SessionOptions(serial="A", redo=("x_side",)).check()
-
-
-def test_redo_takes_several_names_comma_separated_or_repeated() -> None:
-    from host.__main__ import build_parser
-
-    parser, _ = build_parser()
-    args = parser.parse_args(["calibrate", "--redo", "x_up,y_cw", "--redo", "z_dn"])
-    assert live.SessionOptions.from_args(args).redo == ("x_up", "y_cw", "z_dn")
 
 
 # --------------------------------------------------------------------------- resume exactly

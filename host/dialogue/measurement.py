@@ -1,0 +1,284 @@
+"""One measurement of the dialogue: its acquisition through the board driver, the record it
+becomes with its ``#`` header, and the checks of that one record (method.md §5).
+
+The board — HELLO, commands, clock feeding, acquisition and units — is
+:class:`host.board.driver.Board` (port → :class:`host.board.link.Link`, every byte into an
+IMUCAP01 capture ``SERIAL_session.cap`` beside the records → frames → counts → m/s², °/s, °C).
+
+Acquisition window, on device time: at the start beep the host sends PING; the board's PONG
+gives its ``t_us`` at that moment (``device_t_us_beep``), and the measurement holds exactly the
+samples whose device time lies in ``[beep, beep + duration)`` — whatever is still in flight
+from before the beep is dropped by its time stamp, however the reads are chunked and however
+loaded the host is. Time column: device time, ms: ``t_us`` unwrapped (32-bit wrap) minus the
+``t_us`` of the first sample of the window (the device clock, not an assumed 50 Hz). Every
+sample read also feeds a live minimum-delay clock estimate (:class:`host.timing.clock.LiveClock`,
+restarted when the board resets); the record's ``#`` header (:func:`record_header`) holds the
+device→host mapping: ``device_t_us_start``, ``host_ns_start_beep``, ``host_ns_first_sample``
+(host ``time.monotonic_ns``), and from the live estimate ``clock_host_ns_at_start`` (the first
+sample's mapped host time), ``clock_skew_ppm``, ``clock_points``, ``clock_latency_median_us``,
+``clock_floor_spread_us``. The session's capture file allows the best offline fit later.
+
+Losses: sequence gaps between the frames of a measurement (frames lost on the link) plus
+samples the firmware flagged MISSED are counted, reported ("3 samples lost in x_up") and
+written into the record header; above the dialogue's loss limit
+(:data:`host.dialogue.options.LOSS_LIMIT`) the program proposes to repeat
+(:func:`loss_problems`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import numpy as np
+import serial
+
+from host.board.driver import Acquisition, Board, BoardReset, MeasurementAborted, SensorFault
+from host.board.link import LinkLost, LinkTimeout
+from host.dialogue.console import Questions
+from host.dialogue.screens import measurement_progress
+from host.errors import RecordCheckError, ResumableError, UserError
+from host.session.checks import check_orientation
+from host.session.directory import SIMULATED_BOARD, SIMULATED_SCHEMES, Session
+from host.session.method import record_stats
+from host.session.observations import build_observations
+from host.session.records import Record
+from host.wire.frames import bus_meta
+
+# --------------------------------------------------------------------------- acquisition
+
+
+def acquire(
+    board: Board,
+    op: Questions,
+    name: str,
+    seconds: float,
+    title: str,
+    *,
+    yes: bool,
+    recover: Callable[[Exception], None],
+    resume_hint: Callable[[], str],
+) -> Acquisition | None:
+    """Beep, record ``seconds`` of device time with a progress line, beep. None when the
+    measurement was aborted (Esc) or the board vanished/restarted (``recover(exc)`` waits for
+    it to come back): nothing of it is kept, the caller proposes it again. A sensor fault asks
+    whether to measure again (``--yes``: no): ResumableError with ``resume_hint()`` if not."""
+    assert board.info is not None
+    op.beep()
+    op.say(f"{title} {name}: {seconds:g} s" + ("" if yes else " (Esc aborts)"))
+    tick = measurement_progress(op, name, seconds, board.info)
+    try:
+        acq = board.acquire(seconds, tick=tick, check_escape=op.escape_pressed)
+    except MeasurementAborted:
+        op.end_progress()
+        op.beep()
+        op.say(f"Measurement of {name} aborted (Esc): nothing kept. Again:")
+        return None
+    except (LinkLost, LinkTimeout) as exc:
+        recover(exc)
+        op.say(f"Measuring {name} again.")
+        return None
+    except BoardReset as exc:
+        op.end_progress()
+        op.say(f"!!! {exc}: the measurement of {name} is discarded; measuring it again")
+        return None
+    except SensorFault as exc:
+        op.end_progress()
+        op.beep()
+        op.say(f"!!! {exc}")
+        op.say(f"!!! the measurement of {name} is discarded")
+        if yes or not op.yes_no("Measure again <Y> or stop <N>?", True):
+            raise ResumableError(f"{name}: {exc}; {resume_hint()}") from None
+        return None
+    op.end_progress()
+    op.beep()
+    if len(acq.t_us) < 2:
+        op.say(f"!!! no samples received for {name}; measuring it again")
+        return None
+    return acq
+
+
+def reconnect(
+    board: Board,
+    op: Questions,
+    exc: Exception,
+    *,
+    measuring: bool,
+    yes: bool,
+    limit_s: float | None,
+    resume_hint: Callable[[], str],
+) -> None:
+    """The board vanished or went silent (``exc``): say so, re-open the port every second until
+    it is back. ResumableError (with ``resume_hint()``) after ``limit_s`` s (None: no limit) or
+    when the operator gives up (Esc); UserError when it comes back with the wrong firmware."""
+    op.end_progress()
+    op.beep()
+    op.say(f"!!! {exc}")
+    if measuring:
+        op.say("The measurement in progress is discarded; accepted records are kept.")
+    op.say(
+        "Waiting for the board to come back (trying every second"
+        + ("; Esc gives up, Ctrl+C aborts)" if not yes else ")")
+    )
+    start = time.monotonic()
+    attempt = 0
+    while True:
+        attempt += 1
+        try:
+            info = board.reopen()
+            break
+        except UserError:
+            raise  # wrong firmware after the reconnect: nothing to wait for
+        except (serial.SerialException, OSError, LinkLost, LinkTimeout):
+            pass
+        if limit_s is not None and time.monotonic() - start > limit_s:
+            raise ResumableError(
+                f"the board did not come back within {limit_s:.0f} s; {resume_hint()}"
+            )
+        if op.countdown(1.0, f"  waiting for the board (attempt {attempt})", False):
+            raise ResumableError(f"gave up waiting for the board; {resume_hint()}")
+    op.say(f"The board is back: {info.describe()}")
+
+
+def capture_path(out_dir: Path, serial: str) -> Path:
+    """The session's capture file: ``SERIAL_session.cap``, else the next free
+    ``SERIAL_session_2.cap``, … (a resumed session never overwrites an earlier one)."""
+    path = out_dir / f"{serial}_session.cap"
+    k = 2
+    while path.exists():
+        path = out_dir / f"{serial}_session_{k}.cap"
+        k += 1
+    return path
+
+
+# --------------------------------------------------------------------------- the record
+
+
+def make_record(
+    board: Board,
+    serial: str,
+    name: str,
+    acq: Acquisition,
+    extra: Mapping[str, str],
+    session_start_ns: int,
+) -> Record:
+    """The record of an acquisition: the samples in physical units (m/s², °/s, °C), time in
+    device ms, and its header (:func:`record_header`)."""
+    accel, gyro, temp = board.physical(acq.counts)
+    meta = record_header(board, serial, acq, extra, session_start_ns)
+    return Record(name, acq.t_us / 1000.0, accel, gyro, temp, meta)
+
+
+def record_header(
+    board: Board,
+    serial: str,
+    acq: Acquisition,
+    extra: Mapping[str, str],
+    session_start_ns: int,
+) -> dict[str, str]:
+    """A live record's ``#`` header: the serial, ``extra`` (kind, turns…), the board, the
+    counts of the acquisition, its start times and the device→host clock mapping."""
+    assert board.info is not None
+    meta: dict[str, str] = {"serial": serial, **extra}
+    meta.update(board.info.meta())
+    meta.update(
+        {
+            "start_time": acq.start_time,
+            "samples": str(len(acq.t_us)),
+            "lost_frames": str(acq.lost_frames),
+            "missed_samples": str(acq.missed),
+            "lost_percent": f"{100 * acq.loss_fraction:.3f}",
+            "crc_errors": str(acq.crc_errors),
+            "device_t_us_start": str(acq.start_t_us),
+            "device_t_us_beep": str(acq.beep_t_us),
+            **session_time(board, acq, session_start_ns),
+            "host_ns_start_beep": str(acq.beep_ns),
+            "host_ns_first_sample": str(acq.first_ns),
+            "time_mapping": "device_t_us_start (first sample) at host_ns_start_beep "
+            "(time.monotonic_ns of the start beep); clock_*: live minimum-delay map",
+            **board.clock_meta(acq.start_t_us),
+            **bus_meta(acq.status_flags),
+            "port": board.url,
+            **(
+                {"board": f"{SIMULATED_BOARD} {board.url}"}
+                if board.url.startswith(SIMULATED_SCHEMES)
+                else {}
+            ),
+            "capture": board.capture.path.name,
+            "program": "python -m host calibrate (live)",
+        }
+    )
+    return meta
+
+
+def session_time(board: Board, acq: Acquisition, session_start_ns: int) -> dict[str, str]:
+    """Record start time: ``power_on_s`` (device clock since the board's last reset,
+    unwrapped; the workbench's time since power-on) and ``session_s`` (host monotonic
+    clock since the program started at ``session_start_ns``), both s, as
+    :data:`host.session.records.TIME_KEYS` says."""
+    out = {"session_s": f"{(acq.beep_ns - session_start_ns) / 1e9:.3f}"}
+    p = board.power_on_s(acq.start_t_us)
+    if p is not None:
+        out["power_on_s"] = f"{p:.3f}"
+    return out
+
+
+# --------------------------------------------------------------------------- checks
+
+
+def loss_problems(name: str, acq: Acquisition, limit: float) -> list[str]:
+    """The problem of a measurement that lost more than ``limit`` (a fraction) of its samples."""
+    if acq.lost == 0 or acq.loss_fraction <= limit:
+        return []
+    return [
+        f"{100 * acq.loss_fraction:.1f} % of the samples of {name} were lost "
+        f"(limit {100 * limit:g} %)"
+    ]
+
+
+def static_problems(rec: Record, g: float, serial: str) -> list[str]:
+    """The attitude check of a static record of unit ``serial`` (``g``: local gravity, m/s²)."""
+    try:
+        check_orientation(rec, record_stats(rec), g, f"{serial}_{rec.name}.txt")
+    except UserError as exc:
+        return [str(exc)]
+    return []
+
+
+def over_range(acq: Acquisition, rec: Record, alarm_counts: int) -> tuple[int, float]:
+    """Gyro samples of a turn at or beyond ``alarm_counts`` (any axis), and the peak rate, °/s."""
+    gyro_counts = np.abs(acq.counts[:, 4:7]) if len(acq.counts) else np.zeros((0, 3))
+    over = int(np.count_nonzero(np.any(gyro_counts >= alarm_counts, axis=1)))
+    peak = float(np.abs(rec.gyro).max()) if len(rec) else 0.0
+    return over, peak
+
+
+def turn_problems(
+    rec: Record,
+    g: float,
+    serial: str,
+    statics: Mapping[str, Record],
+    out_dir: Path,
+    turns: int,
+    latitude_deg: float,
+) -> list[str]:
+    """The attitude check of a turn record of unit ``serial``, then, with ``statics``
+    already measured, the engine's angle check with their bias (problems of this record
+    only)."""
+    file_name = f"{serial}_{rec.name}.txt"
+    problems: list[str] = []
+    try:
+        check_orientation(rec, record_stats(rec), g, file_name)
+    except RecordCheckError as exc:
+        problems.append(str(exc))
+    if statics:
+        sess = Session(serial, {**statics, rec.name: rec}, out_dir)
+        try:
+            build_observations(sess, g, turns=turns, latitude_deg=latitude_deg)
+        except RecordCheckError as exc:
+            if exc.file_name == file_name:  # a problem of this record, not of the statics
+                problems.append(str(exc))
+        except UserError:
+            pass
+    return problems

@@ -1,0 +1,50 @@
+"""The dialogue's options (host/dialogue/options.py): read from the ``calibrate`` arguments,
+checked before the board is opened, and the operator's answers parsed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from host.dialogue import options
+from host.errors import UserError
+from host.session.records import turn_window_s
+
+
+def test_options_from_args() -> None:
+    ns = SimpleNamespace(port="sim://", serial="A-1", out="d", static_seconds=5.0, turns=3,
+                         warmup=0.0, latitude=50.0, height=10.0, yes=True, json=False,
+                         resume=True, capture=None, ready_seconds=1.5)  # fmt: skip
+    o = options.DialogueOptions.from_args(ns)  # type: ignore[arg-type]
+    assert (o.out, o.turns, o.warmup_s, o.resume, o.ready_s) == (Path("d"), 3, 0.0, True, 1.5)
+    o.check()
+    for bad in ("", "x" * 13, "a b", "é"):
+        with pytest.raises(ValueError):
+            options.parse_serial(bad)
+
+
+def test_turn_windows() -> None:
+    assert [turn_window_s(n) for n in (1, 2, 3, 4, 5)] == [7.0, 12.0, 15.0, 19.0, 23.0]
+    with pytest.raises(ValueError):
+        options.parse_turns("0")
+    assert options.parse_turns("4") == 4
+
+
+def test_the_latitude_is_checked_before_the_board() -> None:
+    with pytest.raises(UserError, match="latitude"):
+        options.DialogueOptions(serial="A", latitude_deg=123.0).check()
+
+
+def test_redo_names_are_checked() -> None:
+    with pytest.raises(UserError, match="--redo x_side: not a record name; use one of x_up"):
+        options.DialogueOptions(serial="A", redo=("x_side",)).check()
+
+
+def test_redo_takes_several_names_comma_separated_or_repeated() -> None:
+    from host.__main__ import build_parser
+
+    parser, _ = build_parser()
+    args = parser.parse_args(["calibrate", "--redo", "x_up,y_cw", "--redo", "z_dn"])
+    assert options.DialogueOptions.from_args(args).redo == ("x_up", "y_cw", "z_dn")
