@@ -1,4 +1,4 @@
-"""The emulated board through host.link: device timestamps from the real firmware, and the
+"""The emulated board through host.board.link: device timestamps from the real firmware, and the
 committed raw capture ``tests/captures/emu_clean.bin``.
 
 ``emu_clean.bin``: 10 s of the raw bytes the real firmware sends through ``emu://`` for the

@@ -269,7 +269,7 @@ def test_hex_parser(current_hex, tmp_path) -> None:
 
 
 def test_same_avrdude_settings_everywhere() -> None:
-    """The Makefile's flash target and platformio.ini's upload use host.flash's avrdude line."""
+    """The Makefile's flash target and platformio.ini's upload: host.board.flash's avrdude line."""
     cmd = fl.avrdude_command("/dev/ttyXX", "HEX")
     assert cmd[1:] == ["-c", "wiring", "-p", "m2560", "-P", "/dev/ttyXX", "-b", "115200", "-D",
                        "-U", "flash:w:HEX:i"]  # fmt: skip

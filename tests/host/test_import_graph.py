@@ -39,7 +39,7 @@ def imports_of(path: Path, known: set[str]) -> set[str]:
         for name in names:
             while name and name not in known:
                 name = name.rpartition(".")[0]
-            if name and name != "host":  # the package root only holds the old-name map
+            if name and name != "host":  # the package root holds only the version
                 out.add(name)
     return out
 
@@ -137,18 +137,22 @@ def test_every_module_lives_in_a_stage_package() -> None:
     )
 
 
-def test_the_package_never_imports_an_old_module_name() -> None:
-    """Old flat names (host.MOVED) are for users' code; inside host/ they would only warn."""
-    import host
-
-    old = []
+def test_every_import_of_a_host_module_names_one_that_exists() -> None:
+    """No old names: every ``import host.X`` / ``from host.X import ...`` in host/, lazy ones
+    too, names a module or package of the tree (a moved module leaves no alias behind)."""
+    known = set(modules())
+    missing = []
     for m, path in modules().items():
         for node in ast.walk(ast.parse(path.read_text(), str(path))):
-            if isinstance(node, ast.ImportFrom) and node.module:
-                names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                names = [node.module]
             elif isinstance(node, ast.Import):
                 names = [a.name for a in node.names]
             else:
                 continue
-            old += [f"{m}:{node.lineno} {n}" for n in names if n in host.MOVED]
-    assert old == []
+            missing += [
+                f"{m}:{node.lineno} {n}"
+                for n in names
+                if (n == "host" or n.startswith("host.")) and n not in known
+            ]
+    assert missing == []
