@@ -31,7 +31,7 @@ def opts(tmp_path: Path, url: str, **kw: Any) -> options.DialogueOptions:
 
 
 def options_of(command: str) -> options.DialogueOptions:
-    """The SessionOptions a printed ``python3 -m host calibrate ...`` command line gives, read
+    """The DialogueOptions a printed ``python3 -m host calibrate ...`` command line gives, read
     as a POSIX shell would split it."""
     from host.__main__ import build_parser
 
