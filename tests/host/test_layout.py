@@ -6,23 +6,58 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 
-#: above this many lines a module states why it is long (issue 14: "no module is longer than
-#: about 600 lines without a reason stated in its docstring")
-LONG_MODULE_LINES = 600
+#: no module of host/ is longer than this (issue 23), the generated spec table aside
+MAX_MODULE_LINES = 600
+GENERATED = {"host/wire/protocol_gen.py"}
+
+#: modules still over the limit while issue 23 splits them, each with who is splitting it.
+#: The list only shrinks: an entry goes when its split lands, and then the list goes.
+STILL_TOO_LONG: dict[str, str] = {
+    "host/modelling/model.py": "engine",
+    "host/calib/result.py": "workbench",
+    "host/wire/frames.py": "stream",
+    "host/calib/thermal.py": "workbench",
+    "host/bench/sim.py": "stream",
+    "host/bench/emulator.py": "stream",
+    "host/timing/clock.py": "stream",
+    "host/board/driver.py": "stream",
+}
 
 
-def test_every_long_module_states_why_in_its_docstring() -> None:
-    import ast
+def module_lines(path: Path) -> int:
+    """Lines as ``wc -l`` counts them."""
+    return path.read_bytes().count(b"\n")
 
-    unexplained = []
+
+def test_no_module_is_over_600_lines() -> None:
+    too_long = []
     for path in sorted((ROOT / "host").rglob("*.py")):
-        text = path.read_text(encoding="utf-8")
-        if text.count("\n") <= LONG_MODULE_LINES or path.name == "protocol_gen.py":
-            continue
-        doc = ast.get_docstring(ast.parse(text)) or ""
-        if "\nLength (over 600 lines): " not in doc:
-            unexplained.append(f"{path.relative_to(ROOT)} ({text.count(chr(10))} lines)")
-    assert unexplained == [], "split these or say why they are long: " + ", ".join(unexplained)
+        rel = path.relative_to(ROOT).as_posix()
+        n = module_lines(path)
+        if n > MAX_MODULE_LINES and rel not in GENERATED and rel not in STILL_TOO_LONG:
+            too_long.append(f"{rel} ({n} lines)")
+    assert too_long == [], f"split these (at most {MAX_MODULE_LINES} lines): " + ", ".join(
+        too_long
+    )
+
+
+def test_no_module_excuses_its_length() -> None:
+    """The rule is the number: a split module drops the paragraph that said why it was long."""
+    excused = [
+        p.relative_to(ROOT).as_posix()
+        for p in sorted((ROOT / "host").rglob("*.py"))
+        if "Length (over 600 lines)" in p.read_text(encoding="utf-8")
+    ]
+    assert [e for e in excused if e not in STILL_TOO_LONG] == []
+
+
+def test_the_line_count_is_that_of_wc(tmp_path: Path) -> None:
+    """The rule's count: a file of 601 lines is one too many, 600 is allowed."""
+    f = tmp_path / "m.py"
+    f.write_text("x = 1\n" * 601)
+    assert module_lines(f) == 601 > MAX_MODULE_LINES
+    f.write_text("x = 1\n" * 600)
+    assert module_lines(f) == MAX_MODULE_LINES
 
 
 def test_the_layout_table_and_each_package_docstring_name_every_module() -> None:
