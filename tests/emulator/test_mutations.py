@@ -25,7 +25,7 @@ A mutant with ``bus="marginal-bus"`` runs on a marginal SPI bus (``--fault margi
 read and carry on at 1 MHz.
 
 Each test asserts that the named rule catches its mutant; the unmutated firmware breaks none.
-The score (caught / total) is in README.md and checked by :func:`test_readme_states_the_score`.
+The score (caught / total) is in docs/boards.md and checked by :func:`test_docs_state_the_score`.
 """
 
 from __future__ import annotations
@@ -231,9 +231,9 @@ def test_mutant_is_caught_by_its_rule(emu_bin, emu_toolchain, tmp_path, mutant):
     print(f"\n{mutant.name}: {broken[mutant.rule]}")
 
 
-def test_readme_states_the_score():
-    """README.md reports caught / total; every test above passing means all are caught."""
-    text = (ROOT / "README.md").read_text()
+def test_docs_state_the_score():
+    """docs/boards.md reports caught / total; every test above passing means all are caught."""
+    text = (ROOT / "docs" / "boards.md").read_text()
     m = re.search(r"mutation score: \*\*(\d+) / (\d+)\*\*", text)
-    assert m, "README.md has no 'mutation score: **N / N**' line"
+    assert m, "docs/boards.md has no 'mutation score: **N / N**' line"
     assert (int(m.group(1)), int(m.group(2))) == (len(MUTANTS), len(MUTANTS))

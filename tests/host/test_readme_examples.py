@@ -1,6 +1,6 @@
-"""The README's examples, run as written (issue 18: its decode example lost half the frames of
-a file written by ``capture`` and called the result a numpy array; the plot advice named a
-package on no index)."""
+"""The examples of the README and docs/, run as written (issue 18: the decode example lost half
+the frames of a file written by ``capture`` and called the result a numpy array; the plot advice
+named a package on no index)."""
 
 from __future__ import annotations
 
@@ -16,14 +16,35 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def readme_block(after_heading: str, containing: str) -> str:
-    """The first ```python block below ``after_heading`` that contains ``containing``."""
-    text = (ROOT / "README.md").read_text()
-    section = text.split(after_heading, 1)[1]
-    for block in re.findall(r"```python\n(.*?)```", section, flags=re.S):
-        if containing in block:
-            return block
+def doc_pages() -> list[Path]:
+    """Where the examples live: the README and the pages of docs/ it links."""
+    return [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+
+def doc_block(after_heading: str, containing: str) -> tuple[str, str]:
+    """The first ```python block below ``after_heading`` (in the README or a page of docs/)
+    that contains ``containing``, and the page's name."""
+    for page in doc_pages():
+        text = page.read_text(encoding="utf-8")
+        if f"\n{after_heading}\n" not in text:
+            continue
+        section = text.split(f"\n{after_heading}\n", 1)[1]
+        for block in re.findall(r"```python\n(.*?)```", section, flags=re.S):
+            if containing in block:
+                return block, page.relative_to(ROOT).as_posix()
     raise AssertionError(f"no python block with {containing!r} under {after_heading!r}")
+
+
+def test_every_python_example_is_valid_python() -> None:
+    """A user copies these: each ```python block of the README and docs/ parses as written."""
+    import ast
+
+    n = 0
+    for page in doc_pages():
+        for block in re.findall(r"```python\n(.*?)```", page.read_text(encoding="utf-8"), re.S):
+            ast.parse(block, f"{page.name} example")
+            n += 1
+    assert n >= 4  # apply, thermal, decode, a term file
 
 
 def test_the_readmes_decode_example_reads_every_sample_of_a_capture(
@@ -41,10 +62,10 @@ def test_the_readmes_decode_example_reads_every_sample_of_a_capture(
     frames = StreamDecoder().feed(capture.read("session.cap").data)
     n = sum(f.name == "IMU_SAMPLE" for f in frames)
     assert n > 150
-    code = readme_block("## Decoding captures", "decode_bulk(")
+    code, page = doc_block("## Decoding captures", "decode_bulk(")
     names: dict[str, object] = {}
     with contextlib.redirect_stdout(io.StringIO()) as printed:
-        exec(compile(code, "README.md", "exec"), names)  # noqa: S102 - the README's own code
+        exec(compile(code, page, "exec"), names)  # noqa: S102 - the page's own code
     result = names["result"]
     assert isinstance(result, BulkResult)  # what the README says it is
     assert len(result.samples) == n  # none lost to the capture file's headers
