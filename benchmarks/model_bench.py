@@ -1,4 +1,4 @@
-"""Time and score the model workbench (host/modelling/model.py, host/workbench/).
+"""Time and score the model workbench (host/model/, host/workbench/).
 
 Prints: fit times of a 12-record session (6 × 30 s statics + 6 turns) for the smallest, the §2
 and the largest model (budget: well under 1 s); the full diagnosis (all candidates + signal
@@ -21,8 +21,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from host.bench.sim import Plan, SensorTruth, simulate_session
-from host.modelling.model import CATALOGUE, build_dataset, fit_model, load_dataset, parse_model
-from host.modelling.model import session_from_records as as_session
+from host.model.catalogue import CATALOGUE
+from host.model.dataset import build_dataset, load_dataset
+from host.model.dataset import session_from_records as as_session
+from host.model.fit import fit_model
+from host.model.spec import parse_model
 from host.workbench.scenarios import case_dataset, hidden_effect_case, run_case
 from host.workbench.verdict import diagnose
 

@@ -9,7 +9,7 @@ One subpackage per stage of the data's journey (docs/layout.md):
 - :mod:`host.ingest` — foreign data in: column files, imucal sessions, captures -> records
 - :mod:`host.session` — records, the session directory, the method's constants, record checks
 - :mod:`host.calib` — the closed-form calibration and its result, the report, export
-- :mod:`host.modelling` — the model: terms, fit, noise
+- :mod:`host.model` — the engine: terms, dataset, noise model, the fit, statistics
 - :mod:`host.workbench` — the model workbench: candidates, scan, verdict, ladder
 - :mod:`host.bench` — the virtual bench: truth, physics, simulator, link simulator, emulator
 - :mod:`host.transports` — pyserial URL adapters (``sim://``, ``emu://``, ``replay://``)

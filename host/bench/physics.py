@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from host.model.geometry import pose_from_up
+
 #: Earth's sidereal rotation rate, °/s (15.041 °/h)
 EARTH_RATE_DPS = 360.0 / 86164.0905
 _AXES = "xyz"
@@ -64,26 +66,6 @@ def vee(m: np.ndarray) -> np.ndarray:
         [m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]],
         axis=-1,
     )
-
-
-def pose_from_up(up_body: np.ndarray) -> np.ndarray:
-    """Attitude (3, 3) of the cube resting with body vector ``up_body`` pointing up.
-
-    For the six faces the result is a signed permutation; the heading about the vertical is
-    fixed by a deterministic choice of which body axis points east (so the pose of a named
-    orientation is always the same matrix).
-    """
-    u = np.asarray(up_body, dtype=np.float64)
-    u = u / np.linalg.norm(u)
-    # east: the first body axis (x, y, z order) not parallel to up, made orthogonal to it
-    for cand in np.eye(3):
-        e = cand - np.dot(cand, u) * u
-        if np.linalg.norm(e) > 1e-6:
-            break
-    e = e / np.linalg.norm(e)
-    n = np.cross(u, e)
-    # rows of R are the world axes expressed in body coordinates: R^T = [e n u] as columns
-    return np.stack([e, n, u], axis=0)
 
 
 def up_vector(name: str) -> np.ndarray:

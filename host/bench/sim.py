@@ -41,11 +41,11 @@ from host.bench.physics import (
     TurnProfile,
     Wobble,
     body_inputs,
-    pose_from_up,
     static_motion,
     up_vector,
 )
 from host.bench.truth import SensorTruth, gauss_markov, sensor_output
+from host.model.geometry import pose_from_up
 from host.session.directory import record_path, write_record
 from host.session.records import STATIC_NAMES, Record, turn_window_s
 from host.wire import sensor

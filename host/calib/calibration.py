@@ -39,16 +39,13 @@ from host.calib.result import (
 )
 from host.calib.thermal import CHANNELS, ThermalCalibration, corrected_records
 from host.errors import UserError
-from host.modelling.model import (
-    ALPHA_FIT,
-    CATALOGUE,
-    NoiseModel,
-    build_dataset,
-    fit_model,
-    load_term_file,
-    parse_model,
-    short_spec,
-)
+from host.model.catalogue import CATALOGUE
+from host.model.dataset import build_dataset
+from host.model.fit import fit_model
+from host.model.loader import load_term_file
+from host.model.noise import NoiseModel
+from host.model.spec import parse_model, short_spec
+from host.model.stats import ALPHA_FIT
 from host.session.checks import check_orientation, check_range, check_record_lengths, remedy
 from host.session.directory import SIMULATED_BOARD, Session, simulated_ports
 from host.session.method import (

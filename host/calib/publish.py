@@ -23,7 +23,8 @@ from host.calib.report import format_report, write_results
 from host.calib.result import CalibrationResult, verify_directory
 from host.calib.thermal import ThermalCalibration
 from host.errors import UserError
-from host.modelling.model import SENSORS, NoiseModel
+from host.model.noise import NoiseModel
+from host.model.signals import SENSORS
 from host.session.directory import Session
 
 
@@ -59,7 +60,7 @@ def session_noise(session: Session, floor: str | None, noise_file: str | None) -
     nm = parse_floor(floor)
     if not noise_file:
         return nm
-    from host.modelling.noise import load_noise_file, workbench_floor
+    from host.model.recording import load_noise_file, workbench_floor
 
     doc = load_noise_file(noise_file)
     lengths = [r.duration_s for r in session.records.values() if r.kind == "static"]

@@ -35,22 +35,16 @@ from host.calib.thermal import (
     recentred,
 )
 from host.errors import UserError
-from host.modelling.model import (
-    AXES,
-    BASE,
-    CARRIED,
-    CATALOGUE,
-    TEMP_REF_C,
-    NoiseModel,
-    RecordSignals,
-    Term,
-    _residual_tables,
-    build_dataset,
-    chi2_sf,
-    design,
-    load_term_file,
-    parse_model,
-)
+from host.model.catalogue import BASE, CARRIED, CATALOGUE
+from host.model.dataset import build_dataset
+from host.model.design import design
+from host.model.fit import residual_tables
+from host.model.loader import load_term_file
+from host.model.noise import NoiseModel
+from host.model.signals import AXES, TEMP_REF_C, RecordSignals
+from host.model.spec import parse_model
+from host.model.stats import chi2_sf
+from host.model.terms import Term
 from host.session.directory import Session, read_session
 from host.session.method import (
     ACCEL_BIAS_NAMES,
@@ -865,7 +859,7 @@ def verify(
     x, offset, _ = design(ds, model, thetas)
     theta = np.concatenate(per_term) if per_term else np.zeros(0)
     predicted = ds.nominal + offset + x @ theta
-    groups, _ = _residual_tables(ds, predicted, ds.y - predicted, np.zeros((ds.n_rows, 0)))
+    groups, _ = residual_tables(ds, predicted, ds.y - predicted, np.zeros((ds.n_rows, 0)))
     out: list[VerifiedValue] = []
     duration = {s.name: float(s.t_s[-1] - s.t_s[0]) if len(s.t_s) > 1 else 0.0 for s in ds.signals}
     for g in groups:

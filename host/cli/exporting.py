@@ -71,7 +71,7 @@ def _run_kalibr(args: argparse.Namespace) -> int:
     """``export … --to kalibr --noise NOISE.json``: Kalibr's imu.yaml from noise figures."""
     if args.noise is None:
         raise UserError(f"--to kalibr: {exporting.PENDING['kalibr']}")
-    from host.modelling.noise import load_noise_file
+    from host.model.recording import load_noise_file
 
     _emit(args, exporting.export_kalibr(load_noise_file(args.noise)))
     return 0

@@ -22,20 +22,14 @@ import numpy as np
 from host.calib.publish import session_noise
 from host.cli import pyplot
 from host.errors import UserError
-from host.modelling.model import (
-    AXES,
-    CATALOGUE,
-    UNIT,
-    Dataset,
-    Fit,
-    Term,
-    build_dataset,
-    load_term_file,
-    model_spec,
-    parse_model,
-    short_spec,
-    term_columns,
-)
+from host.model.catalogue import CATALOGUE
+from host.model.dataset import Dataset, build_dataset
+from host.model.design import term_columns
+from host.model.fit import Fit
+from host.model.loader import load_term_file
+from host.model.signals import AXES, UNIT
+from host.model.spec import model_spec, parse_model, short_spec
+from host.model.terms import Term
 from host.session.directory import read_session
 from host.workbench.ladder import add_term, ladder
 from host.workbench.scenarios import DEFAULT_EFFECTS, EFFECTS, hidden_effect_case, run_case

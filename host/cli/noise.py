@@ -3,7 +3,7 @@ a recording planner, and the noise file the workbench takes its noise floor from
 
 FILE is a capture (``.cap`` IMUCAP01 or raw bytes, as ``capture`` writes them) or a record file
 (``SERIAL_name.txt``, from the dialogue or from ``import``). The math is in
-:mod:`host.modelling.noise` and :mod:`host.modelling.allan`.
+:mod:`host.model.recording` and :mod:`host.model.allan`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import numpy as np
 
 from host.cli import pyplot
 from host.errors import UserError
-from host.modelling import noise
+from host.model import allan, recording
 from host.session.atomic import write_text_atomic
 
 
@@ -56,7 +56,7 @@ def load_static(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     afs, fs = full_scale_from_hello(result.others)
     phys = samples_to_physical(s, afs, fs, product_id_from_hello(result.others))
     t_s = clock.unwrap(np.asarray(s["t_us"], dtype=np.int64), 32).astype(np.float64) / 1e6
-    data = np.column_stack([phys[c] for c in noise.CHANNELS])
+    data = np.column_stack([phys[c] for c in allan.CHANNELS])
     return t_s, data, phys["temp"], note + ")"
 
 
@@ -64,21 +64,21 @@ def _fmt(v: float) -> str:
     return f"{v:.3g}"
 
 
-def _figure_line(channel: str, q: str, f: noise.Figure) -> str:
+def _figure_line(channel: str, q: str, f: allan.Figure) -> str:
     if f.value is None:
-        up, unit = noise.display_units(channel, q, f.ci[1])
+        up, unit = recording.display_units(channel, q, f.ci[1])
         return f"< {_fmt(up)} {unit} (not resolved)"
-    v, unit = noise.display_units(channel, q, f.value)
-    lo, _ = noise.display_units(channel, q, f.ci[0])
-    hi, _ = noise.display_units(channel, q, f.ci[1])
+    v, unit = recording.display_units(channel, q, f.value)
+    lo, _ = recording.display_units(channel, q, f.ci[0])
+    hi, _ = recording.display_units(channel, q, f.ci[1])
     text = f"{_fmt(v)} [{_fmt(lo)}, {_fmt(hi)}] {unit}"
-    second = noise.secondary_units(channel, q, f.value)
+    second = recording.secondary_units(channel, q, f.value)
     if second:
         text += f" = {_fmt(second[0])} {second[1]}"
     return text
 
 
-def format_text(an: noise.NoiseAnalysis, source: str) -> str:
+def format_text(an: recording.NoiseAnalysis, source: str) -> str:
     """The human summary: per channel the three figures with their intervals."""
     lines = [
         f"{source}: {an.duration_s / 60:.1f} min at {an.rate_hz:.2f} Hz; "
@@ -86,13 +86,13 @@ def format_text(an: noise.NoiseAnalysis, source: str) -> str:
         f"{'':4}{'white noise':>42}{'bias instability':>36}{'rate random walk':>38}",
     ]
     for name, ch in an.channels.items():
-        cells = [_figure_line(name, q, ch.figures[q]) for q in noise.QUANTITIES]
+        cells = [_figure_line(name, q, ch.figures[q]) for q in allan.QUANTITIES]
         widths = (42, 36, 38)
         lines.append(f"{name:4}" + "".join(f"{c:>{w}}" for c, w in zip(cells, widths, strict=True)))
     for name, ch in an.channels.items():
         taus = [
             f"{q.split('_')[0]} at tau={ch.figures[q].tau_s:.3g} s"
-            for q in noise.QUANTITIES
+            for q in allan.QUANTITIES
             if ch.figures[q].tau_s is not None
         ]
         lines.append(f"  {name} read: " + ", ".join(taus))
@@ -125,32 +125,32 @@ def parse_precision(text: str) -> float:
     return v
 
 
-def plot_noise(an: noise.NoiseAnalysis, path: Path, title: str) -> None:
+def plot_noise(an: recording.NoiseAnalysis, path: Path, title: str) -> None:
     """Log–log Allan deviation per channel: data with its confidence band, each fitted term's
     line (labelled with the printed value) and their sum."""
     plt = pyplot()
     fig, axs = plt.subplots(2, 3, figsize=(15, 8), squeeze=False)
     for ax, (name, ch) in zip(axs.ravel(), an.channels.items(), strict=False):
         c = ch.curve
-        unit = noise.UNITS[noise.sensor_of(name)][1]
+        unit = allan.UNITS[allan.sensor_of(name)][1]
         assert c.lo is not None and c.hi is not None
         ax.fill_between(c.tau_s, np.sqrt(c.lo), np.sqrt(c.hi), color="C0", alpha=0.25,
                         label=f"{100 * an.ci:.0f} % interval")  # fmt: skip
         ax.loglog(c.tau_s, c.adev, "o", ms=3, color="C0", label="Allan deviation")
         tau = np.logspace(math.log10(c.tau_s[0]), math.log10(c.tau_s[-1]), 200)
         total = np.zeros_like(tau)
-        for k, q in enumerate(noise.QUANTITIES):
+        for k, q in enumerate(allan.QUANTITIES):
             f = ch.figures[q]
             if f.value is None:
                 continue
-            line = np.sqrt(noise.basis(tau)[:, k] * f.value**2)
+            line = np.sqrt(allan.basis(tau)[:, k] * f.value**2)
             total += line**2
-            v, u = noise.display_units(name, q, f.value)
+            v, u = recording.display_units(name, q, f.value)
             ax.loglog(
                 tau, line, "--", color=f"C{k + 1}", label=f"{q.replace('_', ' ')} {v:.3g} {u}"
             )
             if f.tau_s is not None:
-                ax.plot([f.tau_s], [math.sqrt(noise.basis(np.array([f.tau_s]))[0, k]) * f.value],
+                ax.plot([f.tau_s], [math.sqrt(allan.basis(np.array([f.tau_s]))[0, k]) * f.value],
                         "s", color=f"C{k + 1}", ms=7)  # fmt: skip
         ax.loglog(tau, np.sqrt(total), "-", color="k", lw=1, label="sum of the figures")
         ax.set_title(name)
@@ -172,13 +172,13 @@ def run(args: argparse.Namespace) -> int:
     precision = parse_precision(args.plan) if args.plan else None
     t_s, data, temp, source = load_static(path)
     try:
-        an = noise.analyse(t_s, data, temp, remove_thermal=not args.keep_thermal, ci=args.ci)
+        an = recording.analyse(t_s, data, temp, remove_thermal=not args.keep_thermal, ci=args.ci)
     except ValueError as exc:
         raise UserError(f"{path}: {exc}; record longer") from None
     doc = an.as_dict()
     doc["source"] = str(path)
     if precision is not None:
-        plan = noise.plan(an, precision)
+        plan = recording.plan(an, precision)
         doc["plan"] = {"precision": precision, "duration_s": plan}
     if args.save:
         write_text_atomic(args.save, json.dumps(doc, indent=2) + "\n")
@@ -215,7 +215,7 @@ def cli_noise(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]
         help="how long to record for each figure to this relative precision (e.g. 10%%)",
     )
     p.add_argument(
-        "--ci", type=float, default=noise.CI_LEVEL, help="confidence level (default 0.95)"
+        "--ci", type=float, default=allan.CI_LEVEL, help="confidence level (default 0.95)"
     )
     p.add_argument(
         "--keep-thermal",

@@ -160,7 +160,9 @@ class DialogueOptions:
     def check(self) -> None:
         """Option values and combinations that cannot work -> UserError, before any wait or
         any I/O with the board (the output directory is looked at, not created)."""
-        from host.modelling.model import CATALOGUE, load_term_file, parse_model
+        from host.model.catalogue import CATALOGUE
+        from host.model.loader import load_term_file
+        from host.model.spec import parse_model
 
         cat = dict(CATALOGUE)
         for f in self.term_files:

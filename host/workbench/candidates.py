@@ -20,18 +20,14 @@ from typing import Any
 
 import numpy as np
 
-from host.modelling.model import (
-    AXES,
-    BASE,
-    CATALOGUE,
-    Dataset,
-    Fit,
-    ModelTerm,
-    Term,
-    chi2_sf,
-    residual_sigmas,
-    term_columns,
-)
+from host.model.catalogue import BASE, CATALOGUE
+from host.model.dataset import Dataset
+from host.model.design import term_columns
+from host.model.fit import Fit, residual_sigmas
+from host.model.signals import AXES
+from host.model.spec import ModelTerm
+from host.model.stats import chi2_sf
+from host.model.terms import Term
 
 #: family-wise error rate of each family of tests (candidates; signal scan; overall χ²)
 ALPHA = 0.01

@@ -13,20 +13,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from host.errors import UserError
-from host.modelling.model import (
-    CATALOGUE,
-    Dataset,
-    Fit,
-    ModelTerm,
-    Prediction,
-    Term,
-    chi2_sf,
-    fit_model,
-    leave_one_out,
-    merge_model,
-    model_spec,
-    parse_model,
-)
+from host.model.catalogue import CATALOGUE
+from host.model.dataset import Dataset
+from host.model.fit import Fit, fit_model
+from host.model.loo import Prediction, leave_one_out
+from host.model.spec import ModelTerm, merge_model, model_spec, parse_model
+from host.model.stats import chi2_sf
+from host.model.terms import Term
 from host.workbench.candidates import ALPHA
 
 

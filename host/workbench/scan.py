@@ -16,15 +16,11 @@ from typing import Any
 
 import numpy as np
 
-from host.modelling.model import (
-    AXES,
-    SENSORS,
-    Dataset,
-    Fit,
-    RecordSignals,
-    aggregate,
-    chi2_sf,
-)
+from host.model.dataset import Dataset
+from host.model.design import aggregate
+from host.model.fit import Fit
+from host.model.signals import AXES, SENSORS, RecordSignals
+from host.model.stats import chi2_sf
 from host.workbench.candidates import ALPHA, IDENTIFIABLE_TOL, holm, json_number
 
 #: |correlation| with session time from which a scanned signal is reported as confounded with

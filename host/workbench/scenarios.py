@@ -17,14 +17,10 @@ from typing import Any
 import numpy as np
 
 from host.errors import UserError
-from host.modelling.model import (
-    AXES,
-    Dataset,
-    NoiseModel,
-    build_dataset,
-    parse_model,
-    session_from_records,
-)
+from host.model.dataset import Dataset, build_dataset, session_from_records
+from host.model.noise import NoiseModel
+from host.model.signals import AXES
+from host.model.spec import parse_model
 from host.workbench.ladder import Addition, add_term
 from host.workbench.verdict import Diagnosis, diagnose
 

@@ -12,7 +12,10 @@ import math
 import textwrap
 from collections.abc import Mapping, Sequence
 
-from host.modelling.model import BASE, Fit, GroupResidual, Term, model_spec
+from host.model.catalogue import BASE
+from host.model.fit import Fit, GroupResidual
+from host.model.spec import model_spec
+from host.model.terms import Term
 from host.workbench.candidates import Candidate
 from host.workbench.ladder import Addition, LadderStep
 from host.workbench.scenarios import DemoOutcome, HiddenCase

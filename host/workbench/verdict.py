@@ -23,19 +23,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from host.errors import UserError
-from host.modelling.model import (
-    AXES,
-    CATALOGUE,
-    Dataset,
-    Fit,
-    GroupResidual,
-    ModelTerm,
-    SpanResidual,
-    Term,
-    fit_model,
-    merge_model,
-    model_spec,
-)
+from host.model.catalogue import CATALOGUE
+from host.model.dataset import Dataset
+from host.model.fit import Fit, GroupResidual, SpanResidual, fit_model
+from host.model.signals import AXES
+from host.model.spec import ModelTerm, merge_model, model_spec
+from host.model.terms import Term
 from host.workbench.candidates import ALPHA, Candidate, evaluate_candidates, json_number
 from host.workbench.scan import ScanHit, scan_signals
 

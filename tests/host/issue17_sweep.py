@@ -91,7 +91,7 @@ def _hello_bad_codes(d: Path) -> list[str]:
 def _term(d: Path, name: str, body: str) -> Path:
     f = d / f"{name}_terms.py"
     f.write_text(
-        "import numpy as np\nfrom host.modelling.model import term\n\n"
+        "import numpy as np\nfrom host.model.terms import term\n\n"
         f"@term(sensors=('gyro',))\ndef {name}(sig, sensor, axis):\n"
         f"    '''A user term.'''\n    {body}\n"
     )

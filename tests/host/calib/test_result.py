@@ -235,7 +235,8 @@ def test_verify_predicts_another_session(
 def test_held_out_error_shows_a_term_that_only_fits_noise(
     temperature_session: tuple[Path, str, float],
 ) -> None:
-    from host.modelling.model import load_dataset, parse_model
+    from host.model.dataset import load_dataset
+    from host.model.spec import parse_model
     from host.workbench.ladder import add_term
 
     d, term, _ = temperature_session

@@ -178,11 +178,11 @@ def test_calibrate_from_dir_with_damaged_records_and_any_options(
         st.text(max_size=80),
         st.sampled_from(
             [
-                "from host.modelling.model import term\n@term()\ndef bias(s, n, a):\n  '''b'''\n"
+                "from host.model.terms import term\n@term()\ndef bias(s, n, a):\n  '''b'''\n"
                 "  return s.temp_c\n",
                 "raise SystemExit(0)\n",
                 "import sys; sys.exit(3)\n",
-                "from host.modelling.model import term\n@term()\ndef q(s, n, a):\n  '''q'''\n"
+                "from host.model.terms import term\n@term()\ndef q(s, n, a):\n  '''q'''\n"
                 "  return s.temp_c[:3]\n",
             ]
         ),

@@ -107,7 +107,7 @@ def test_capture_shows_progress_and_runs_until_ctrl_c(tmp_path: Path) -> None:
 def test_model_terms_lists_the_catalogue_with_units_and_physics() -> None:
     import json
 
-    from host.modelling.model import CATALOGUE
+    from host.model.catalogue import CATALOGUE
 
     rc, out, _ = main_output(["model", "terms"])
     assert rc == 0

@@ -61,7 +61,7 @@ def test_term_file_and_plot(temp_dir: tuple[Path, str], tmp_path: Path,
     d, _ = temp_dir
     f = tmp_path / "my_terms.py"
     f.write_text(
-        "from host.modelling.model import term\n\n"
+        "from host.model.terms import term\n\n"
         "@term(sensors=('gyro',), params={'c3': '{u}/°C³'}, needs='several temperatures')\n"
         "def temperature_cubic(sig, sensor, axis):\n"
         "    '''Gyro bias cubic in chip temperature.'''\n"
@@ -117,7 +117,8 @@ def test_plots_follow_measurement_order_with_one_scale(
     """Files come back alphabetically; the plots put the records in the order they were
     measured (time since power-on), and before/after share one z scale."""
     from host.cli.model import measurement_order, write_plots, z_limit
-    from host.modelling.model import load_dataset, parse_model
+    from host.model.dataset import load_dataset
+    from host.model.spec import parse_model
     from host.session.records import STATIC_NAMES
     from host.workbench.ladder import add_term
 

@@ -178,7 +178,7 @@ def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> 
     """Every live record says when it started (records.TIME_KEYS), from the device clock: the
     start matches the simulated board's time of the operator hint that began it, and the
     workbench reads it (time terms see the whole session, not only each record's own span)."""
-    from host.modelling.model import load_dataset
+    from host.model.dataset import load_dataset
 
     out: Path = yes_session["out"]
     hint_t = [t for t, a, _ in yes_session["ports"].sim.hints if a in ("place", "turn")]
@@ -194,7 +194,8 @@ def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> 
     t_end = max(float(s.t_s[-1]) for s in ds.signals)
     assert abs(t_end - (starts[-1] + 10.0)) < 0.5  # the closing check: a 10 s static
     # time_drift on the records alone (no simulator metadata in them): identifiable
-    from host.modelling.model import fit_model, parse_model
+    from host.model.fit import fit_model
+    from host.model.spec import parse_model
     from host.workbench.candidates import evaluate_candidates
 
     assert not any(k.startswith("sim") for k in read_record(out / "S1_x_up.txt").meta)
@@ -214,7 +215,7 @@ def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> 
 
 def load_dataset_without(directory: Path, name: str) -> Any:
     """The dataset of ``directory``'s session without record ``name``."""
-    from host.modelling.model import build_dataset
+    from host.model.dataset import build_dataset
     from host.session.directory import Session
 
     s = read_session(directory)

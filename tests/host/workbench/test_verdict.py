@@ -10,13 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host.modelling.model import (
-    build_dataset,
-    chi2_isf,
-    load_dataset,
-    parse_model,
-    session_from_records,
-)
+from host.model.dataset import build_dataset, load_dataset, session_from_records
+from host.model.spec import parse_model
+from host.model.stats import chi2_isf
 from host.workbench.candidates import holm
 from host.workbench.ladder import add_term, ladder
 from host.workbench.scenarios import case_dataset, hidden_effect_case, run_case
@@ -255,7 +251,7 @@ def test_implausible_coefficient_is_not_recommended_and_named_an_alias() -> None
 def test_repeat_floor_measures_the_wander_of_repeated_attitudes() -> None:
     """Pairs of means of the same attitude whose biases wander by f each: the estimate comes
     back to f; pure white noise gives ≈ 0; no pair gives None."""
-    from host.modelling.model import repeat_floor
+    from host.model.noise import repeat_floor
 
     rng = np.random.default_rng(5)
     k, f, w = 4000, 3e-3, 2e-6
@@ -291,7 +287,7 @@ def _stepped_session(tilt_en: tuple[float, float], seed: int) -> dict:
     """Six static faces (20 s) and a CCW turn about each axis made as four quarter turns with
     1.5 s rests (the way imucal's session was made), on a plate tilted by ``tilt_en`` (east,
     north, rad; the program's placement convention). Biases differ per axis; white noise."""
-    from host.bench.physics import pose_from_up
+    from host.model.geometry import pose_from_up
     from host.session.records import Record
 
     rng = np.random.default_rng(seed)

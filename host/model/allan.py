@@ -23,7 +23,7 @@ random walk, or a bias-instability floor hidden under the other two).
 
 :func:`plan_duration` answers the planner's question under a fitted model: how long must a
 recording be for a figure, read by the same rules, to have a given relative precision.
-:mod:`host.modelling.noise` applies all this to a recording (and keeps temperature drift out).
+:mod:`host.model.recording` applies all this to a recording (and keeps temperature drift out).
 """
 
 from __future__ import annotations

@@ -12,20 +12,13 @@ import pytest
 from host.bench.physics import Environment
 from host.bench.sim import Plan, SensorTruth, simulate_session
 from host.errors import UserError
-from host.modelling.model import (
-    BASE,
-    CATALOGUE,
-    NoiseModel,
-    build_dataset,
-    chi2_isf,
-    chi2_sf,
-    fit_model,
-    integrated_autocorrelation,
-    load_term_file,
-    model_spec,
-    parse_model,
-    session_from_records,
-)
+from host.model.catalogue import BASE, CATALOGUE
+from host.model.dataset import build_dataset, session_from_records
+from host.model.fit import fit_model
+from host.model.loader import load_term_file
+from host.model.noise import NoiseModel, integrated_autocorrelation
+from host.model.spec import model_spec, parse_model
+from host.model.stats import chi2_isf, chi2_sf
 
 
 def _session(seed: int = 3, **plan_kw: object) -> tuple[SensorTruth, object]:
@@ -164,7 +157,7 @@ def test_blocks_give_within_record_rows() -> None:
 
 TERM_FILE = textwrap.dedent(
     '''
-    from host.modelling.model import term
+    from host.model.terms import term
 
     @term(sensors=("gyro",), params={"c3": "{u}/°C³"}, needs="records at several temperatures")
     def temperature_cubic(sig, sensor, axis):
@@ -193,9 +186,7 @@ def test_user_term_file(tmp_path: Path) -> None:
     broken = tmp_path / "broken.py"
     broken.write_text("def (:\n")
     nodoc = tmp_path / "nodoc.py"
-    nodoc.write_text(
-        "from host.modelling.model import term\n@term()\ndef t(s, a, b):\n    return 0\n"
-    )
+    nodoc.write_text("from host.model.terms import term\n@term()\ndef t(s, a, b):\n    return 0\n")
     for bad in (empty, broken, nodoc, tmp_path / "missing.py"):
         with pytest.raises(UserError):
             load_term_file(bad)
@@ -208,7 +199,7 @@ def test_nonlinear_term_is_linearised_and_iterated(tmp_path: Path) -> None:
     f.write_text(
         textwrap.dedent(
             '''
-            from host.modelling.model import nonlinear_term
+            from host.model.terms import nonlinear_term
 
             @nonlinear_term(sensors=("gyro",), params={"c": "(°/s/°C)^(1/3)"}, initial=[0.5])
             def cube_temp(sig, sensor, axis, theta):

@@ -1,6 +1,6 @@
 """The accelerometer while the cube turns: the lever-arm physics, the moving blocks, the hand's
-scatter, and the workbench naming a hidden lever arm (host/modelling/turning.py, the
-``lever_arm`` term of host/modelling/model.py)."""
+scatter, and the workbench naming a hidden lever arm (host/model/turning.py, the
+``lever_arm`` term of host/model/catalogue.py)."""
 
 from __future__ import annotations
 
@@ -11,14 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host.modelling import turning
-from host.modelling.model import (
-    CATALOGUE,
-    build_dataset,
-    fit_model,
-    parse_model,
-    session_from_records,
-)
+from host.model import turning
+from host.model.catalogue import CATALOGUE
+from host.model.dataset import build_dataset, session_from_records
+from host.model.fit import fit_model
+from host.model.spec import parse_model
 from host.session.directory import read_session
 from host.workbench.ladder import add_term
 from host.workbench.scenarios import hidden_effect_case, run_case

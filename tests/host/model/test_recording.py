@@ -1,4 +1,4 @@
-"""Allan deviation, noise figures and the recording planner (host.modelling.noise, .allan and
+"""Allan deviation, noise figures and the recording planner (host.model.recording, .allan and
 the ``noise`` command).
 
 The recordings are simulated with a known white noise, bias instability and rate random walk
@@ -17,7 +17,8 @@ import pytest
 from host.__main__ import main
 from host.bench.noise import NoiseTruth, capture_bytes, static_noise
 from host.bench.physics import Environment
-from host.modelling import noise
+from host.errors import UserError
+from host.model import allan, recording
 from host.session.directory import write_record
 from host.session.records import Record
 from host.wire import sensor
@@ -34,15 +35,15 @@ def true_figures(truth: NoiseTruth, j: int, rate_hz: float = RATE) -> tuple[floa
 
 
 @pytest.fixture(scope="module")
-def long_run() -> noise.NoiseAnalysis:
+def long_run() -> recording.NoiseAnalysis:
     t, x, temp = static_noise(TRUTH, 4 * 3600.0, np.random.default_rng(3))
-    return noise.analyse(t, x, temp)
+    return recording.analyse(t, x, temp)
 
 
 @pytest.mark.timeout(300)  # 4 h of 50 Hz samples, six Allan deviations
-def test_figures_come_back_within_their_intervals(long_run: noise.NoiseAnalysis) -> None:
-    for j, name in enumerate(noise.CHANNELS):
-        for q, truth in zip(noise.QUANTITIES, true_figures(TRUTH, j), strict=True):
+def test_figures_come_back_within_their_intervals(long_run: recording.NoiseAnalysis) -> None:
+    for j, name in enumerate(allan.CHANNELS):
+        for q, truth in zip(allan.QUANTITIES, true_figures(TRUTH, j), strict=True):
             f = long_run.channels[name].figures[q]
             assert f.value is not None, (name, q, f.warning)
             assert f.ci[0] <= truth <= f.ci[1], (name, q, truth, f.value, f.ci)
@@ -54,7 +55,7 @@ def test_figures_come_back_within_their_intervals(long_run: noise.NoiseAnalysis)
 
 def test_a_short_recording_warns_for_what_it_cannot_resolve() -> None:
     t, x, temp = static_noise(TRUTH, 600.0, np.random.default_rng(8))
-    an = noise.analyse(t, x, temp)
+    an = recording.analyse(t, x, temp)
     gx = an.channels["gx"].figures
     rrw = gx["rate_random_walk"]
     assert rrw.value is None and "record longer" in (rrw.warning or "")
@@ -67,25 +68,25 @@ def test_a_short_recording_warns_for_what_it_cannot_resolve() -> None:
 @pytest.mark.timeout(300)  # plans from one simulation and checks on a second, longer one
 def test_planned_length_gives_the_requested_precision() -> None:
     t, x, temp = static_noise(TRUTH, 1800.0, np.random.default_rng(21))
-    first = noise.analyse(t, x, temp, channels=noise.CHANNELS)
+    first = recording.analyse(t, x, temp, channels=allan.CHANNELS)
     precision = 0.25
-    j = noise.CHANNELS.index("gz")
+    j = allan.CHANNELS.index("gz")
     ch = first.channels["gz"]
-    seconds = noise.plan_duration(ch.coef, 1, precision, first.rate_hz)
+    seconds = allan.plan_duration(ch.coef, 1, precision, first.rate_hz)
     assert seconds is not None and 600.0 < seconds < 6 * 3600.0
     # a fresh recording of the advised length, gz only
     t2, x2, temp2 = static_noise(TRUTH, seconds, np.random.default_rng(22))
-    second = noise.analyse(t2, x2[:, [j]], temp2, channels=("gz",))
+    second = recording.analyse(t2, x2[:, [j]], temp2, channels=("gz",))
     f = second.channels["gz"].figures["bias_instability"]
     assert f.value is not None
-    achieved = noise.relative_precision((f.ci[0] / f.value, f.ci[1] / f.value))
+    achieved = allan.relative_precision((f.ci[0] / f.value, f.ci[1] / f.value))
     assert achieved <= precision * 1.15, (achieved, seconds)
     assert f.ci[0] <= TRUTH.flicker[j] <= f.ci[1]
     # and half the advised length does not reach it
     t3, x3, temp3 = static_noise(TRUTH, seconds / 3.0, np.random.default_rng(23))
-    third = noise.analyse(t3, x3[:, [j]], temp3, channels=("gz",))
+    third = recording.analyse(t3, x3[:, [j]], temp3, channels=("gz",))
     g = third.channels["gz"].figures["bias_instability"]
-    assert g.value is None or noise.relative_precision((g.ci[0] / g.value, g.ci[1] / g.value)) > (
+    assert g.value is None or allan.relative_precision((g.ci[0] / g.value, g.ci[1] / g.value)) > (
         precision
     )
 
@@ -100,14 +101,14 @@ def test_temperature_drift_is_reported_not_read_as_rate_random_walk() -> None:
     )
     env = Environment(room_c=22.0, rise_c=12.0, tau_s=900.0, room_amp_c=0.0)
     t, x, temp = static_noise(warm, 3600.0, np.random.default_rng(5), environment=env)
-    an = noise.analyse(t, x, temp)
+    an = recording.analyse(t, x, temp)
     assert an.span_c > 5.0
     flagged = {c for c, d in an.thermal.items() if d.significant}
     assert flagged == {"ay", "gx", "gz"}
     assert an.thermal["gx"].coefficient == pytest.approx(0.03, rel=0.05)
     assert an.thermal["gz"].coefficient == pytest.approx(-0.02, rel=0.05)
     assert any("temperature drift" in w for w in an.warnings)
-    kept = noise.analyse(t, x, temp, remove_thermal=False)
+    kept = recording.analyse(t, x, temp, remove_thermal=False)
     for c in ("gx", "gz"):
         k_kept = kept.channels[c].figures["rate_random_walk"]
         k = an.channels[c].figures["rate_random_walk"]
@@ -124,24 +125,24 @@ def test_command_json_keys_units_and_noise_file(tmp_path, capsys) -> None:
     saved = tmp_path / "S1_noise.json"
     assert main(["noise", str(cap), "--json", "--save", str(saved)]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert set(doc["channels"]) == set(noise.CHANNELS)
+    assert set(doc["channels"]) == set(allan.CHANNELS)
     units = {
         "gx": ("deg/s/sqrt(Hz)", "deg/s", "deg/s^2/sqrt(Hz)"),
         "ax": ("m/s^2/sqrt(Hz)", "m/s^2", "m/s^3/sqrt(Hz)"),
     }
-    for c in noise.CHANNELS:
+    for c in allan.CHANNELS:
         expected = units["gx" if c.startswith("g") else "ax"]
-        for q, unit in zip(noise.QUANTITIES, expected, strict=True):
+        for q, unit in zip(allan.QUANTITIES, expected, strict=True):
             fig = doc["channels"][c][q]
             assert fig["unit"] == unit
             assert len(fig["ci"]) == 2 and fig["ci"][0] <= fig["ci"][1]
     # white noise is resolved in an hour on every channel and matches the truth
-    for j, c in enumerate(noise.CHANNELS):
+    for j, c in enumerate(allan.CHANNELS):
         fig = doc["channels"][c]["white_noise_density"]
         assert fig["ci"][0] <= true_figures(TRUTH, j)[0] <= fig["ci"][1]
     # the noise file gives the workbench its floor: the Allan deviation at the record length
-    floor = noise.record_mean_floor(noise.load_noise_file(saved), 60.0)
-    for j, c in enumerate(noise.CHANNELS):
+    floor = recording.record_mean_floor(recording.load_noise_file(saved), 60.0)
+    for j, c in enumerate(allan.CHANNELS):
         direct = allantools.oadev(x[:, j], rate=RATE, data_type="freq", taus=[60.0])[1][0]
         assert floor[c] == pytest.approx(direct, rel=0.35), c
 
@@ -189,14 +190,14 @@ def test_too_short_a_recording_is_refused(tmp_path, capsys) -> None:
 def test_noise_file_with_a_newer_version_is_refused(tmp_path) -> None:
     p = tmp_path / "n.json"
     p.write_text(json.dumps({"format": "imu-bench noise", "format_version": 99, "channels": {}}))
-    with pytest.raises(noise.UserError, match="update the host software"):
-        noise.load_noise_file(p)
+    with pytest.raises(UserError, match="update the host software"):
+        recording.load_noise_file(p)
 
 
 def test_fast_greenhall_edf_and_local_slopes_equal_the_library_and_polyfit() -> None:
     """The planner's shortcuts (Greenhall's sum split once per (alpha, m); slopes of every
     point at once) give what allantools and np.polyfit give, on every branch of Greenhall."""
-    from host.modelling import allan
+    from host.model import allan
 
     for alpha in (0, -1, -2):
         for m in (1, 2, 7, 33, 34, 80, 400):

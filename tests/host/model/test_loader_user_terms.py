@@ -18,7 +18,7 @@ def records_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 TERM = (
-    "import numpy as np\nfrom host.modelling.model import term, nonlinear_term\n\n"
+    "import numpy as np\nfrom host.model.terms import term, nonlinear_term\n\n"
     "@term(sensors=('gyro',){extra})\n"
     "def {name}(sig, sensor, axis):\n"
     "    '''A user term.'''\n"
@@ -76,7 +76,7 @@ def test_a_nonlinear_term_returning_nan_is_named(
 ) -> None:
     f = tmp_path / "nl.py"
     f.write_text(
-        "import numpy as np\nfrom host.modelling.model import nonlinear_term\n\n"
+        "import numpy as np\nfrom host.model.terms import nonlinear_term\n\n"
         "@nonlinear_term(initial=[1.0], sensors=('gyro',))\n"
         "def sag(sig, sensor, axis, theta):\n"
         "    '''A user term.'''\n"

@@ -2,7 +2,7 @@
 
 :func:`analyse` takes times, the six channels and the chip temperature; it removes a drift that
 follows the temperature (:func:`thermal_drift`: a warm-up inside the recording would otherwise
-read as rate random walk), then reads each channel's figures with :mod:`host.modelling.allan`.
+read as rate random walk), then reads each channel's figures with :mod:`host.model.allan`.
 :func:`plan` turns the fitted model into recording lengths; the noise file
 (:meth:`NoiseAnalysis.as_dict`, :func:`load_noise_file`) carries the figures to the workbench,
 whose noise floor of a record mean is :func:`record_mean_floor`.
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from host.errors import UserError
-from host.modelling.allan import (
+from host.model.allan import (
     CHANNELS,
     CI_LEVEL,
     QUANTITIES,

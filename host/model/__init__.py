@@ -1,0 +1,23 @@
+"""Stage 6, the model engine: the error model as named physical terms, the dataset a session
+gives, the noise model and the one weighted least-squares fit (method.md §2, §4, §8).
+
+Data in: a session's records (:mod:`host.session`). Out: fits, residuals, predictions and noise
+figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imports only
+``host.errors``, ``host.wire`` and ``host.session``.
+
+- ``geometry`` — the placement convention: the cube's pose from its up vector, the plate's axes.
+- ``signals`` — a record's reference signals (force, rate, temperature, time, heading); units.
+- ``terms`` — the :class:`Term` type and the ``@term`` / ``@nonlinear_term`` decorators.
+- ``catalogue`` — the built-in terms (``base`` = method.md §2, and the §8 effects), plausibility.
+- ``loader`` — users' term files joining the catalogue.
+- ``spec`` — the model spec grammar (``base,temperature_bias:gyro:x``) and model terms.
+- ``noise`` — the noise model: block noise, the bias-instability floor, seating and the hand.
+- ``dataset`` — the rows of a session (one builder per kind of row) and their whitening.
+- ``design`` — each term's columns of the design matrix.
+- ``fit`` — the fit, its public result types and the residual tables.
+- ``stats`` — χ² tail probabilities, the uncertainty policy (``stderr_scale``).
+- ``loo`` — leave-one-record-out prediction.
+- ``turning`` — the accelerometer while the cube turns: lever arm, moving blocks, the hand.
+- ``allan`` — Allan deviation and the noise figures read from it.
+- ``recording`` — a recording's noise, the planner and the noise file.
+"""

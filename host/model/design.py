@@ -1,0 +1,163 @@
+"""The design matrix: each model term's columns over the dataset's rows (block means, turn
+integrals, still moments, moving blocks), built from its column function (user code, maybe:
+errors become one line naming the term)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from host.errors import UserError
+from host.model.dataset import Dataset
+from host.model.signals import RecordSignals
+from host.model.spec import ModelTerm
+from host.model.terms import Term, ValueFn
+
+
+# ---- design matrix --------------------------------------------------------------------------
+def aggregate(agg: np.ndarray, per_sample: np.ndarray) -> np.ndarray:
+    """Rows of one record from per-sample values: ``agg`` (B,N) @ ``per_sample`` (N,…), with
+    round-off (below 1e-9 of the largest per-sample value) set to exactly 0."""
+    out = agg @ per_sample
+    scale = float(np.max(np.abs(per_sample))) if per_sample.size else 0.0
+    out[np.abs(out) < 1e-9 * scale] = 0.0
+    return np.asarray(out)
+
+
+def _call_term(t: Term, what: str, sig: RecordSignals, fn: Callable[[], Any]) -> np.ndarray:
+    """Call a term's function (user code, maybe): any exception or a non-finite value becomes
+    one UserError naming the term, the function and the record."""
+    try:
+        x = np.asarray(fn(), dtype=np.float64)
+    except UserError:
+        raise
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - a term's error: one line
+        raise UserError(
+            f"term {t.name}: {what}() raised {type(exc).__name__}: {exc} (record {sig.name})"
+        ) from None
+    if not np.all(np.isfinite(x)):
+        raise UserError(
+            f"term {t.name}: {what}() returned {int(np.count_nonzero(~np.isfinite(x)))} "
+            f"non-finite values (NaN or inf) for record {sig.name}; it must give finite numbers"
+        )
+    return x
+
+
+def _regressors(t: Term, sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    columns = t.columns
+    assert columns is not None
+    x = _call_term(t, "columns", sig, lambda: columns(sig, sensor, axis))
+    if x.ndim == 1:
+        x = x[:, None]
+    if x.shape != (len(sig.t_s), len(t.params)):
+        raise UserError(
+            f"term {t.name}: columns() returned shape {x.shape}, expected "
+            f"({len(sig.t_s)}, {len(t.params)})"
+        )
+    return x
+
+
+def term_columns(
+    ds: Dataset, mt: ModelTerm, theta: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Design columns (n_rows, n_params) of a model term and its offset (n_rows,).
+
+    Linear terms: offset 0. Nonlinear terms: the Jacobian at ``theta`` (parameters in the
+    order axis-major) and offset value(θ) − J·θ, so that value ≈ offset + J·θ'. A shared
+    term (:attr:`Term.shared`, linear only) has one set of k columns: each channel's rows hold
+    that channel's regressors.
+    """
+    k = len(mt.term.params)
+    if mt.term.shared:
+        if mt.term.nonlinear:
+            raise UserError(f"term {mt.term.name}: a shared term must be linear (columns())")
+        cols = np.zeros((ds.n_rows, k))
+        for ax in mt.axes:
+            for ri, sig in enumerate(ds.signals):
+                rows = ds.rows_of.get((ri, mt.sensor, ax))
+                if rows is not None:
+                    cols[rows] = aggregate(
+                        ds.aggregator(ri, mt.sensor, ax), _regressors(mt.term, sig, mt.sensor, ax)
+                    )
+        return cols, np.zeros(ds.n_rows)
+    cols = np.zeros((ds.n_rows, k * len(mt.axes)))
+    offset = np.zeros(ds.n_rows)
+    th = (
+        np.tile(np.array(mt.term.initial), len(mt.axes))
+        if theta is None and mt.term.nonlinear
+        else theta
+    )
+    for j, ax in enumerate(mt.axes):
+        for ri, sig in enumerate(ds.signals):
+            rows = ds.rows_of.get((ri, mt.sensor, ax))
+            if rows is None:
+                continue
+            agg = ds.aggregator(ri, mt.sensor, ax)
+            if not mt.term.nonlinear:
+                cols[rows, j * k : (j + 1) * k] = aggregate(
+                    agg, _regressors(mt.term, sig, mt.sensor, ax)
+                )
+                continue
+            value = mt.term.value
+            assert value is not None and th is not None
+            p = np.asarray(th[j * k : (j + 1) * k], dtype=np.float64)
+
+            def at(
+                pp: np.ndarray,
+                sig: RecordSignals = sig,
+                ax: int = ax,
+                value: ValueFn = value,
+            ) -> np.ndarray:
+                return _call_term(mt.term, "value", sig, lambda: value(sig, mt.sensor, ax, pp))
+
+            v0 = at(p)
+            jac = np.zeros((len(sig.t_s), k))
+            for q in range(k):
+                h = 1e-6 * max(1.0, abs(p[q]))
+                dp = np.zeros(k)
+                dp[q] = h
+                jac[:, q] = (at(p + dp) - at(p - dp)) / (2 * h)
+            cols[rows, j * k : (j + 1) * k] = agg @ jac
+            offset[rows] = agg @ (v0 - jac @ p)
+    return cols, offset
+
+
+def design(ds: Dataset, model: Sequence[ModelTerm], thetas: Sequence[np.ndarray | None] = ()) -> (
+    tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]
+):  # fmt: skip
+    """(X (n_rows, P), offset (n_rows,), per model term (start, stop) columns)."""
+    blocks: list[np.ndarray] = []
+    offset = np.zeros(ds.n_rows)
+    spans: list[tuple[int, int]] = []
+    col = 0
+    for i, mt in enumerate(model):
+        th = thetas[i] if i < len(thetas) else None
+        c, off = term_columns(ds, mt, th)
+        blocks.append(c)
+        offset += off
+        spans.append((col, col + c.shape[1]))
+        col += c.shape[1]
+    x = np.column_stack(blocks) if blocks else np.zeros((ds.n_rows, 0))
+    return x, offset, spans
+
+
+def select_columns(xw: np.ndarray, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+    """Greedy Gram-Schmidt: (mask of columns independent of the earlier ones, orthonormal
+    basis (n, r) of their span)."""
+    n, p = xw.shape
+    q = np.zeros((n, 0))
+    keep = np.zeros(p, dtype=bool)
+    for j in range(p):
+        v = xw[:, j]
+        norm = float(np.linalg.norm(v))
+        if norm == 0.0:
+            continue
+        r = v - q @ (q.T @ v)
+        r = r - q @ (q.T @ r)
+        rn = float(np.linalg.norm(r))
+        if rn > tol * norm and rn > 1e-300:
+            keep[j] = True
+            q = np.column_stack([q, r / rn])
+    return keep, q

@@ -1,0 +1,433 @@
+"""The fit (:func:`fit_model`) is ONE weighted linear least-squares problem over every record of a
+:class:`~host.model.dataset.Dataset`:
+
+* static (and rate-table) records are cut into blocks of ``NoiseModel.block_s`` seconds; each
+  block mean of each channel is a row, so temperature and time terms see within-record variation
+  as well as the differences between records;
+* each turn record gives one row per gyro channel, the trapezoid integral (method.md §4), in °;
+* accelerometer rows of a turn record: one per still moment (gravity at another heading) and, on
+  the horizontal channels, one per moving block (:mod:`host.model.turning`: the lever arm's
+  centripetal and tangential acceleration, with the hand's scatter measured from the blocks).
+
+The rows are whitened exactly (record mean + orthonormal within-record contrasts,
+:mod:`host.model.noise`); χ² is then honest under the null and needs no inflation. Terms
+nonlinear in their parameters are linearised around the current estimate and the fit iterated
+(Gauss-Newton). The results: :class:`Fit` with its :class:`Parameter` values, per-channel
+statistics (:class:`ChannelFit`) and residual tables (:func:`residual_tables`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from host.model.dataset import Dataset
+from host.model.design import design, select_columns
+from host.model.signals import AXES, SENSORS, UNIT
+from host.model.spec import ModelTerm
+from host.model.stats import ALPHA_FIT, chi2_sf, rref, stderr_scale
+
+
+# ---- the fit --------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Parameter:
+    """One fitted parameter: §2-style ``name``, owning model-term label, value, 1-σ std error
+    (NaN value: the records do not determine it), unit; ``sensor``, ``axis`` (x/y/z, the output
+    channel) and ``key`` (the term's own parameter name, e.g. ``per_C``)."""
+
+    name: str
+    term: str
+    value: float
+    stderr: float
+    unit: str
+    sensor: str = ""
+    axis: str = ""
+    key: str = ""
+
+    @property
+    def term_name(self) -> str:
+        """The catalogue name of the owning term ('temperature_bias')."""
+        return self.term.split(":")[0]
+
+
+@dataclass(frozen=True, eq=False)
+class Combination:
+    """A combination of undetermined parameters that the records DO determine:
+    Σ coefficient·parameter = value ± stderr (unit of the first parameter)."""
+
+    terms: tuple[tuple[float, str], ...]  # (coefficient, parameter name)
+    value: float
+    stderr: float
+    unit: str
+
+    def describe(self) -> str:
+        """'A0x + 9.815·Axx = 0.6021 ± 0.0003 m/s²'."""
+        parts: list[str] = []
+        for i, (c, n) in enumerate(self.terms):
+            sign = "−" if c < 0 else "+"
+            mag = abs(c)
+            coef = "" if abs(mag - 1.0) < 1e-9 else f"{mag:.4g}·"
+            parts.append((("−" if c < 0 else "") if i == 0 else f" {sign} ") + coef + n)
+        return f"{''.join(parts)} = {self.value:.6g} ± {self.stderr:.2g} {self.unit}".strip()
+
+
+@dataclass(frozen=True, eq=False)
+class ChannelFit:
+    """Fit statistics of one output channel (the channels are independent problems).
+
+    ``dof`` = rows − determined parameters; ``dof_records`` = record/channel values −
+    parameters (the between-record test: 0 means the model is not tested at all, verdict
+    ``untestable``); ``se_scale``: :func:`stderr_scale`; ``combinations``: what the records
+    determine of the undetermined parameters."""
+
+    sensor: str
+    axis: str
+    chi2: float
+    dof: int
+    dof_records: int
+    se_scale: float
+    combinations: tuple[Combination, ...] = ()
+
+    @property
+    def channel(self) -> str:
+        return f"{self.sensor} {self.axis}"
+
+    @property
+    def testable(self) -> bool:
+        return self.dof_records > 0
+
+
+@dataclass(frozen=True, eq=False)
+class GroupResidual:
+    """Measured vs model for one record and channel (mean over the record, or turn integral).
+
+    ``measured``/``model``/``residual`` in the channel's unit (°/s, m/s²) or ° for turn
+    integrals; ``sigma`` the standard error of the measurement; ``z`` = residual / its own
+    standard deviation under the model (:func:`residual_sigmas`: the measurement's σ less what
+    the fit absorbed), so that z is N(0, 1) when the model is right; NaN when the model fits
+    this value exactly (a parameter of its own: nothing is left to test)."""
+
+    record: str
+    kind: str
+    sensor: str
+    axis: str
+    measured: float
+    model: float
+    residual: float
+    sigma: float
+    z: float
+    unit: str
+
+    @property
+    def channel(self) -> str:
+        return f"{self.sensor} {self.axis}"
+
+
+@dataclass(frozen=True, eq=False)
+class SpanResidual:
+    """A block of a static record that departs from its own record's mean residual."""
+
+    record: str
+    sensor: str
+    axis: str
+    t0_s: float
+    t1_s: float
+    residual: float
+    z: float
+    unit: str
+
+
+@dataclass(frozen=True, eq=False)
+class Fit:
+    """Result of :func:`fit_model` (see :class:`Dataset` for the rows)."""
+
+    model: tuple[ModelTerm, ...]
+    parameters: tuple[Parameter, ...]
+    predicted: np.ndarray  # (n_rows,)
+    residual: np.ndarray  # (n_rows,)
+    white_residual: np.ndarray  # W·residual
+    basis: np.ndarray  # orthonormal basis of the whitened determined columns
+    chi2: float
+    dof: int
+    n_params: int
+    groups: tuple[GroupResidual, ...]
+    spans: tuple[SpanResidual, ...]
+    undetermined: tuple[str, ...]
+    channels: tuple[ChannelFit, ...] = ()
+
+    @property
+    def untestable(self) -> tuple[str, ...]:
+        """Channels whose record values leave no degrees of freedom ('accel x', …)."""
+        return tuple(c.channel for c in self.channels if not c.testable)
+
+    @property
+    def scaled(self) -> tuple[ChannelFit, ...]:
+        """Channels whose standard errors were scaled (:func:`stderr_scale`)."""
+        return tuple(c for c in self.channels if c.se_scale != 1.0)
+
+    def uncertainty_note(self) -> str:
+        """The one sentence saying how the standard errors were treated ('' if unscaled)."""
+        if not self.scaled:
+            return ""
+        parts = ", ".join(f"{c.channel} ×{c.se_scale:.2g}" for c in self.scaled)
+        return (
+            f"poor fit (χ² p < {ALPHA_FIT:g}): standard errors scaled by √(χ²/dof) on {parts}; "
+            "the model does not explain these channels"
+        )
+
+    @property
+    def rms_z(self) -> float:
+        """RMS of the record/channel z values (the compare table; values the model fits
+        exactly are left out): ≈ 1 when the model explains the data to the noise."""
+        z = np.array([g.z for g in self.groups if math.isfinite(g.z)])
+        return float(np.sqrt(np.mean(z**2))) if len(z) else float("nan")
+
+    @property
+    def chi2_p(self) -> float:
+        """P(χ² this large | the model and the noise model are right)."""
+        return chi2_sf(self.chi2, self.dof)
+
+    @property
+    def bic(self) -> float:
+        """χ² + p·ln(n) (known noise variance)."""
+        return self.chi2 + self.n_params * math.log(max(len(self.residual), 2))
+
+    def parameter(self, name: str) -> Parameter:
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+
+def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fit:
+    """Weighted least squares of ``model`` over all rows of ``ds`` (one problem, all channels).
+
+    Parameters the records cannot determine are reported NaN (and listed in ``undetermined``).
+    Nonlinear terms: Gauss-Newton iterations until the parameters settle.
+    """
+    model = tuple(model)
+    thetas: list[np.ndarray | None] = [
+        np.tile(np.array(mt.term.initial), len(mt.axes)) if mt.term.nonlinear else None
+        for mt in model
+    ]
+    w = ds.whiten
+    iters = max_iter if any(mt.term.nonlinear for mt in model) else 1
+    for _ in range(iters):
+        x, offset, spans = design(ds, model, thetas)
+        xw = w @ x
+        yw = w @ (ds.y - ds.nominal - offset)
+        keep, basis = select_columns(xw)
+        theta = np.full(x.shape[1], np.nan)
+        cov = np.zeros((x.shape[1], x.shape[1]))
+        if keep.any():
+            sol, *_ = np.linalg.lstsq(xw[:, keep], yw, rcond=None)
+            theta[keep] = sol
+            cov[np.ix_(keep, keep)] = np.linalg.pinv(xw[:, keep].T @ xw[:, keep])
+        moved = 0.0
+        for i, mt in enumerate(model):
+            if mt.term.nonlinear:
+                a, b = spans[i]
+                old = thetas[i]
+                assert old is not None
+                new = np.where(np.isfinite(theta[a:b]), theta[a:b], old)
+                moved = max(moved, float(np.max(np.abs(new - old) / (1e-12 + np.abs(new)))))
+                thetas[i] = new
+        if moved < 1e-8:
+            break
+    th0 = np.nan_to_num(theta)
+    predicted = ds.nominal + offset + x @ th0
+    resid = ds.y - predicted
+    wres = w @ resid
+    chi2 = float(wres @ wres)
+    n_par = int(keep.sum())
+    # who owns each column: (name, unit, channel, term label, sensor, axis, key)
+    # (axis -1: a shared parameter of all the sensor's channels)
+    owners: list[tuple[str, str, tuple[str, int], str, str]] = []
+    for mt in model:
+        units = dict(zip(mt.term.params, mt.term.param_units(mt.sensor), strict=True))
+        for ax, name, key in mt.slots():
+            owners.append((name, units[key], (mt.sensor, -1 if ax is None else ax), mt.label, key))
+    channels, estimable = _channel_fits(ds, x, xw, wres, th0, cov, owners)
+    scale_of = {(c.sensor, AXES.index(c.axis)): c.se_scale for c in channels}
+    for chf in channels:  # a shared parameter: the largest scale of its sensor's channels
+        scale_of[(chf.sensor, -1)] = max(scale_of.get((chf.sensor, -1), 1.0), chf.se_scale)
+    params: list[Parameter] = []
+    undetermined: list[str] = []
+    for c, (name, unit, ch, label, key) in enumerate(owners):
+        ok = bool(keep[c] and estimable[c])
+        se = math.sqrt(max(float(cov[c, c]), 0.0)) * scale_of.get(ch, 1.0) if ok else math.nan
+        params.append(
+            Parameter(name, label, float(theta[c]) if ok else math.nan, se, unit,
+                      ch[0], AXES[ch[1]] if ch[1] >= 0 else "", key)
+        )  # fmt: skip
+        if not ok:
+            undetermined.append(name)
+    groups, spans_out = residual_tables(ds, predicted, resid, basis)
+    return Fit(
+        model=model, parameters=tuple(params), predicted=predicted, residual=resid,
+        white_residual=wres, basis=basis, chi2=chi2, dof=ds.n_rows - n_par, n_params=n_par,
+        groups=groups, spans=spans_out, undetermined=tuple(undetermined),
+        channels=tuple(channels),
+    )  # fmt: skip
+
+
+def residual_sigmas(ds: Dataset, basis: np.ndarray) -> np.ndarray:
+    """Standard deviation of each group's mean residual (ds.groups order) when the model is
+    right: the measurement's σ less what the fit absorbed. Cov(r) = W⁻¹(I − QQᵀ)W⁻ᵀ with Q the
+    orthonormal basis of the whitened design, so var(aᵀr) = ‖W⁻ᵀa‖² − ‖QᵀW⁻ᵀa‖²; 0 where the
+    model has a parameter for that value alone (it is fitted exactly)."""
+    v = ds.group_means_whitened
+    var = np.sum(v * v, axis=0)
+    if basis.shape[1]:
+        var = var - np.sum((basis.T @ v) ** 2, axis=0)
+    return np.sqrt(np.maximum(var, 0.0))
+
+
+def _channel_fits(
+    ds: Dataset,
+    x: np.ndarray,
+    xw: np.ndarray,
+    wres: np.ndarray,
+    theta: np.ndarray,
+    cov: np.ndarray,
+    owners: Sequence[tuple[str, str, tuple[str, int], str, str]],
+) -> tuple[list[ChannelFit], np.ndarray]:
+    """Per output channel: χ², dof, record-level dof, the standard-error scale, which columns
+    the records determine individually (a parameter is determined when its unit vector lies in
+    the row space of the channel's design) and the combinations they do determine."""
+    estimable = np.zeros(len(owners), dtype=bool)
+    out: list[ChannelFit] = []
+    for s_i, sensor in enumerate(SENSORS):
+        for ax in range(3):
+            rows = np.flatnonzero((ds.row_sensor == s_i) & (ds.row_axis == ax))
+            if not len(rows):
+                continue
+            cols = np.array(
+                [c for c, o in enumerate(owners) if o[2] in ((sensor, ax), (sensor, -1))],
+                dtype=int,
+            )
+            xc = xw[np.ix_(rows, cols)] if len(cols) else np.zeros((len(rows), 0))
+            norms = np.linalg.norm(xc, axis=0)
+            live = norms > 0
+            rank, null = 0, np.zeros((len(cols), 0))
+            if live.any():
+                xn = xc[:, live] / norms[live]
+                _, sv, vt = np.linalg.svd(xn, full_matrices=True)
+                rank = int(np.sum(sv > 1e-9 * sv[0])) if len(sv) else 0
+                null = np.zeros((len(cols), vt.shape[0] - rank))
+                null[live] = vt[rank:].T / norms[live, None]  # back to parameter units
+            for j, c in enumerate(cols):
+                estimable[c] = (
+                    estimable[c]
+                    or bool(live[j])
+                    and (null.shape[1] == 0 or float(np.linalg.norm(null[j] * norms[j])) < 1e-6)
+                )
+            # record-level design: one row per record/channel value (mean of its rows)
+            grs = [g for g in ds.groups if g.sensor == sensor and g.axis == ax]
+            rank_g = 0
+            if len(cols) and grs:
+                xg = np.array([x[np.ix_(g.rows, cols)].mean(axis=0) for g in grs])
+                gn = np.linalg.norm(xg, axis=0)
+                rank_g = int(np.linalg.matrix_rank(xg[:, gn > 0] / gn[gn > 0], tol=1e-9))
+            chi2 = float(wres[rows] @ wres[rows])
+            dof = len(rows) - rank
+            scale = stderr_scale(chi2, dof)
+            combos = (
+                _combinations(cols, estimable, null, norms, theta, cov * scale**2, owners)
+                if null.shape[1]
+                else ()
+            )
+            out.append(ChannelFit(sensor, AXES[ax], chi2, dof, len(grs) - rank_g, scale, combos))
+    if any(o[2][1] < 0 for o in owners):
+        # shared parameters couple the channels: what all rows together determine
+        estimable = _estimable(xw)
+    return out, estimable
+
+
+def _estimable(xw: np.ndarray) -> np.ndarray:
+    """(P,) which columns of the whitened design ``xw`` (n, P) the rows determine: the
+    parameter's unit vector lies in the row space (it has no part in the null space)."""
+    norms = np.linalg.norm(xw, axis=0)
+    live = norms > 0
+    out = np.zeros(xw.shape[1], dtype=bool)
+    if not live.any():
+        return out
+    _, sv, vt = np.linalg.svd(xw[:, live] / norms[live], full_matrices=True)
+    rank = int(np.sum(sv > 1e-9 * sv[0])) if len(sv) else 0
+    null = vt[rank:].T
+    idx = np.flatnonzero(live)
+    for j, c in enumerate(idx):
+        out[c] = null.shape[1] == 0 or float(np.linalg.norm(null[j])) < 1e-6
+    return out
+
+
+def _combinations(
+    cols: np.ndarray,
+    estimable: np.ndarray,
+    null: np.ndarray,
+    norms: np.ndarray,
+    theta: np.ndarray,
+    cov: np.ndarray,
+    owners: Sequence[tuple[str, str, tuple[str, int], str, str]],
+) -> tuple[Combination, ...]:
+    """Combinations c·θ of the undetermined parameters of one channel that the records
+    determine: c supported on them with cᵀ·N = 0 (N the null space of the design)."""
+    und = [j for j, c in enumerate(cols) if not estimable[c] and norms[j] > 0]
+    if not und:
+        return ()
+    # in normalised coordinates (columns of unit norm) for a well-scaled null space
+    ns = null[und] * norms[und, None]
+    _, sv, vt = np.linalg.svd(ns.T, full_matrices=True)
+    r = int(np.sum(sv > 1e-9 * max(float(sv[0]), 1e-300))) if len(sv) else 0
+    basis = vt[r:]
+    if not len(basis):
+        return ()
+    out: list[Combination] = []
+    for row in rref(basis * norms[und][None, :]):
+        coef = row / row[np.flatnonzero(np.abs(row) > 1e-12)[0]]
+        idx = [cols[und[k]] for k in range(len(und))]
+        terms = tuple((float(coef[k]), owners[idx[k]][0]) for k in range(len(und))
+                      if abs(coef[k]) > 1e-9)  # fmt: skip
+        full = np.zeros(len(theta))
+        for k in range(len(und)):
+            full[idx[k]] = coef[k]
+        value = float(full @ theta)
+        se = math.sqrt(max(float(full @ cov @ full), 0.0))
+        unit = owners[idx[next(k for k in range(len(und)) if abs(coef[k]) > 1e-9)]][1]
+        out.append(Combination(terms, value, se, unit))
+    return tuple(out)
+
+
+def residual_tables(
+    ds: Dataset, predicted: np.ndarray, resid: np.ndarray, basis: np.ndarray
+) -> tuple[tuple[GroupResidual, ...], tuple[SpanResidual, ...]]:
+    out: list[GroupResidual] = []
+    spans: list[SpanResidual] = []
+    sd_res = residual_sigmas(ds, basis)
+    for k, gr in enumerate(ds.groups):
+        sig = ds.signals[gr.record]
+        turn = sig.kind == "turn" and gr.sensor == "gyro"  # an integral, °
+        unit = "°" if turn else UNIT[gr.sensor]
+        r = float(np.mean(resid[gr.rows]))
+        sd = float(sd_res[k])
+        out.append(
+            GroupResidual(
+                record=sig.name, kind=sig.kind, sensor=gr.sensor, axis=AXES[gr.axis],
+                measured=float(np.mean(ds.y[gr.rows])), model=float(np.mean(predicted[gr.rows])),
+                residual=r, sigma=gr.sigma, z=r / sd if sd > 1e-3 * gr.sigma else math.nan,
+                unit=unit,
+            )
+        )  # fmt: skip
+        b = len(gr.rows)
+        if b >= 2 and math.isfinite(gr.contrast_var):
+            sd = math.sqrt(gr.contrast_var * (1.0 - 1.0 / b))
+            for row in gr.rows:
+                d = float(resid[row]) - r
+                spans.append(
+                    SpanResidual(sig.name, gr.sensor, AXES[gr.axis], float(ds.span[row, 0]),
+                                 float(ds.span[row, 1]), d, d / sd, unit)
+                )  # fmt: skip
+    return tuple(out), tuple(spans)

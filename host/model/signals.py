@@ -1,0 +1,70 @@
+"""What the terms see of a record: its reference signals (:class:`RecordSignals`: reference
+specific force, reference rate, chip temperature, time since power-on, heading) beside the
+measured outputs, and the names of the sensors, axes and units."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SENSORS = ("accel", "gyro")
+AXES = "xyz"
+#: unit of each sensor's output and of its reference input
+UNIT = {"accel": "m/s²", "gyro": "°/s"}
+#: chip temperature the temperature terms are referred to, °C (the simulator's ``temp_ref_c``)
+TEMP_REF_C = 25.0
+
+
+# ---- reference signals ----------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class RecordSignals:
+    """Per-sample signals of one record, the inputs the terms build their columns from.
+
+    ``t_s`` (N,) s since power-on (meta ``power_on_s`` + sample time; when a record does not
+    say, time from the record's middle), ``temp_c`` (N,) chip °C, ``force`` (N,3) reference
+    specific force m/s² (g along the up direction), ``rate`` (N,3) reference rate °/s (zero for
+    statics; for a turn the measured profile about the up axis scaled to the known ±360·n°),
+    ``accel``/``gyro`` (N,3) the measured outputs. ``g`` m/s². ``temp_mean_c``: mean chip
+    temperature of the whole session, °C. ``heading_deg`` (N,) the angle the cube has turned
+    about its up axis since the record began, ° (positive counter-clockwise seen from above;
+    None: it did not turn, 0).
+    """
+
+    name: str
+    kind: str
+    t_s: np.ndarray
+    temp_c: np.ndarray
+    force: np.ndarray
+    rate: np.ndarray
+    accel: np.ndarray
+    gyro: np.ndarray
+    g: float
+    up: np.ndarray
+    temp_mean_c: float = TEMP_REF_C
+    heading_deg: np.ndarray | None = None
+
+    def reference(self, sensor: str) -> np.ndarray:
+        """(N,3) the true input of ``sensor``: specific force m/s² or rate °/s."""
+        return self.force if sensor == "accel" else self.rate
+
+    def measured(self, sensor: str) -> np.ndarray:
+        """(N,3) the measured output of ``sensor``."""
+        return self.accel if sensor == "accel" else self.gyro
+
+    @property
+    def hours(self) -> np.ndarray:
+        """(N,) hours since power-on."""
+        return self.t_s / 3600.0
+
+    @property
+    def d_temp(self) -> np.ndarray:
+        """(N,) chip temperature − :data:`TEMP_REF_C`, °C."""
+        return self.temp_c - TEMP_REF_C
+
+    @property
+    def heading(self) -> np.ndarray:
+        """(N,) :attr:`heading_deg` in rad (zeros when the record did not turn)."""
+        if self.heading_deg is None:
+            return np.zeros(len(self.t_s))
+        return np.radians(self.heading_deg)

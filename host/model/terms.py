@@ -1,0 +1,139 @@
+"""A sensor model is a list of named physical terms: the :class:`Term` type and the decorators
+that make one from a column function (:func:`term`, :func:`nonlinear_term`).
+
+Each :class:`Term` carries its physics (docstring), the sensor it acts on ("accel"/"gyro"), its
+parameters with units and a function building its columns of the design matrix from the
+records' reference signals (:class:`~host.model.signals.RecordSignals`). Terms nonlinear in
+their parameters (``Term.value``) are linearised around the current estimate (numerical
+Jacobian) and the fit iterated (Gauss-Newton). The built-in terms: :mod:`host.model.catalogue`.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from host.errors import UserError
+from host.model.signals import AXES, SENSORS, UNIT, RecordSignals
+
+# ---- terms ----------------------------------------------------------------------------------
+ColumnFn = Callable[[RecordSignals, str, int], np.ndarray]
+ValueFn = Callable[[RecordSignals, str, int, np.ndarray], np.ndarray]
+CheckFn = Callable[[Sequence[RecordSignals]], "str | None"]
+LabelFn = Callable[[str, int], tuple[str, ...]]
+
+
+@dataclass(frozen=True, eq=False)
+class Term:
+    """One physical effect of the sensor model.
+
+    ``columns(signals, sensor, axis)`` -> (N, k) per-sample regressors of output channel
+    ``axis`` of ``sensor`` (in that channel's unit per unit parameter); the fit aggregates them
+    like the measurements (block means, turn integrals). ``units``: one template per parameter,
+    ``{u}`` = the channel's unit. ``needs``: what data would make the term identifiable;
+    ``check``: returns why the records cannot determine it (or None). A term nonlinear in its
+    parameters gives ``value(signals, sensor, axis, theta)`` -> (N,) instead, and ``initial``.
+    """
+
+    name: str
+    doc: str
+    sensors: tuple[str, ...]
+    params: tuple[str, ...]
+    units: tuple[str, ...]
+    columns: ColumnFn | None = None
+    needs: str = ""
+    check: CheckFn | None = None
+    labels: LabelFn | None = None
+    value: ValueFn | None = None
+    initial: tuple[float, ...] = ()
+    #: largest plausible |parameter| per sensor (in the parameter's unit) and where that
+    #: figure comes from; a fitted value beyond it is not a physical reading of the term
+    plausible: Mapping[str, float] = field(default_factory=dict)
+    plausible_source: str = ""
+    #: one set of parameters for every channel the term acts on (a property of the bench, e.g.
+    #: the plate's tilt, not of one output channel): the channels' columns share them
+    shared: bool = False
+
+    @property
+    def physics(self) -> str:
+        """The one-line physical explanation (first line of the docstring)."""
+        return self.doc.strip().splitlines()[0] if self.doc.strip() else ""
+
+    @property
+    def nonlinear(self) -> bool:
+        return self.value is not None
+
+    def param_labels(self, sensor: str, axis: int) -> tuple[str, ...]:
+        """Names of the parameters on channel ``axis`` of ``sensor`` (§2 names for base terms;
+        a :attr:`shared` term's names do not depend on ``axis``)."""
+        if self.labels is not None:
+            return self.labels(sensor, axis)
+        stem = f"{self.name}.{sensor}" + ("" if self.shared else f".{AXES[axis]}")
+        return tuple(stem if len(self.params) == 1 else f"{stem}.{p}" for p in self.params)
+
+    def param_units(self, sensor: str) -> tuple[str, ...]:
+        """Units of the parameters for ``sensor``."""
+        return tuple(u.replace("{u}", UNIT[sensor]) for u in self.units)
+
+
+def term(
+    *,
+    sensors: Sequence[str] = SENSORS,
+    params: Mapping[str, str] | None = None,
+    needs: str = "",
+    check: CheckFn | None = None,
+    labels: LabelFn | None = None,
+    name: str | None = None,
+) -> Callable[[ColumnFn], Term]:
+    """Decorator turning a column function into a :class:`Term` (see the README's example).
+
+    ``params``: parameter name -> unit template (``{u}`` = the channel's unit); default one
+    parameter in the channel's unit. The function's docstring is the term's physics.
+    """
+    pmap = dict(params) if params is not None else {"c": "{u}"}
+
+    def wrap(fn: ColumnFn) -> Term:
+        doc = inspect.getdoc(fn) or ""
+        if not doc:
+            raise UserError(f"term {fn.__name__}: give it a docstring with the physics")
+        bad = [s for s in sensors if s not in SENSORS]
+        if bad or not pmap:
+            raise UserError(f"term {fn.__name__}: sensors must be accel/gyro, params non-empty")
+        return Term(
+            name=name or fn.__name__, doc=doc, sensors=tuple(sensors), params=tuple(pmap),
+            units=tuple(pmap.values()), columns=fn, needs=needs, check=check, labels=labels,
+        )  # fmt: skip
+
+    return wrap
+
+
+def nonlinear_term(
+    *,
+    initial: Sequence[float],
+    sensors: Sequence[str] = SENSORS,
+    params: Mapping[str, str] | None = None,
+    needs: str = "",
+    check: CheckFn | None = None,
+    name: str | None = None,
+) -> Callable[[ValueFn], Term]:
+    """Decorator for a term nonlinear in its parameters: the function gives the term's
+    per-sample contribution ``value(signals, sensor, axis, theta)`` (N,); the fit linearises it
+    around the current estimate (starting at ``initial``) and iterates."""
+    pmap = dict(params) if params is not None else {"c": "{u}"}
+
+    def wrap(fn: ValueFn) -> Term:
+        doc = inspect.getdoc(fn) or ""
+        if not doc:
+            raise UserError(f"term {fn.__name__}: give it a docstring with the physics")
+        if len(initial) != len(pmap):
+            raise UserError(f"term {fn.__name__}: one initial value per parameter")
+        return Term(
+            name=name or fn.__name__, doc=doc, sensors=tuple(sensors), params=tuple(pmap),
+            units=tuple(pmap.values()), value=fn, needs=needs, check=check,
+            initial=tuple(float(x) for x in initial),
+        )  # fmt: skip
+
+    return wrap
