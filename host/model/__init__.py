@@ -12,7 +12,10 @@ figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imp
 - ``loader`` — users' term files joining the catalogue.
 - ``spec`` — the model spec grammar (``base,temperature_bias:gyro:x``) and model terms.
 - ``noise`` — the noise model: block noise, the bias-instability floor, seating and the hand.
-- ``dataset`` — the rows of a session (one builder per kind of row) and their whitening.
+- ``dataset`` — the dataset of a session: the records' signals, rows, noise and whitening.
+- ``rows`` — one builder per kind of row (block means, turn integrals, still moments, moving
+  blocks) and the turn rows' own noise (seating, the hand).
+- ``whitening`` — the rows' covariance per record and channel, whitened exactly.
 - ``design`` — each term's columns of the design matrix.
 - ``fit`` — the fit, its public result types and the residual tables.
 - ``stats`` — χ² tail probabilities, the uncertainty policy (``stderr_scale``).

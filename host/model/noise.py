@@ -7,21 +7,18 @@ autocorrelation time, at least the quantisation step²/12), ``f`` = the bias-ins
 the slow Gauss-Markov wander of a MEMS bias moves each record's mean by an amount the record
 itself cannot show (:func:`repeat_floor`, :func:`session_floor`). Turn integrals: white noise
 integrated + (floor·T)² + the hand's angle error (``turn_angle_sigma_deg``, as
-:mod:`host.calib.calibration`). The still moments of a turn add the cube's seating
-(:func:`seating_sigma`), its moving blocks the hand (:func:`hand_sigma`,
-:mod:`host.model.turning`).
+:mod:`host.calib.calibration`). The still moments of a turn add the cube's seating, its moving
+blocks the hand (:mod:`host.model.rows`, :mod:`host.model.turning`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Hashable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from host.model import turning
-from host.model.catalogue import plate_tilt
 from host.model.signals import SENSORS, UNIT, RecordSignals
 from host.session.method import (
     TURN_ANGLE_SIGMA_DEG,
@@ -228,106 +225,3 @@ def session_floor(
             else f"{s} 0 (no attitude measured twice: only each record's own noise)"
         )
     return out, "noise floor of a record mean: " + "; ".join(said)
-
-
-def seating_sigma(
-    signals: Sequence[RecordSignals],
-    sensor_aggs: Mapping[tuple[int, str, int], np.ndarray],
-    groups_raw: Sequence[tuple[int, str, int, list[int], np.ndarray, float]],
-    n_still: Mapping[int, int],
-) -> tuple[float, str]:
-    """How far the cube's attitude at a still moment of a hand turn departs from resting flat,
-    as specific force on a horizontal accelerometer, m/s² (and a note; 0 and '' without the
-    data). The hand holds or presses the cube between pushes, so each still moment is a new
-    seating. Measured from the still moments themselves: per turn and horizontal channel a
-    constant (bias, face error, misalignment: all fixed in the body) plus ONE plate tilt for
-    the session, g·(t_e·e(ψ) + t_n·n(ψ)) (:func:`plate_tilt`); the scatter beyond each mean's
-    white noise, Σ(r² − w)/dof, is the seating variance (method.md §8: repeatability;
-    :func:`host.model.turning.excess_scatter`)."""
-    keys: list[tuple[int, int]] = []
-    ys: list[float] = []
-    cols_l: list[np.ndarray] = []
-    ws: list[float] = []
-    for ri, s, ax, _idx, agg, var_tau in groups_raw:
-        sig = signals[ri]
-        if s != "accel" or sig.kind != "turn" or abs(float(sig.up[ax])) > 0.5:
-            continue
-        if (ri, "accel", ax) not in sensor_aggs:
-            continue
-        cols = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
-        assert cols is not None
-        for b in range(n_still.get(ri, 0)):
-            m = float(np.count_nonzero(agg[b]))
-            keys.append((ri, ax))
-            ys.append(float(agg[b] @ sig.accel[:, ax]))
-            cols_l.append(agg[b] @ cols)
-            ws.append(var_tau / m)
-    if not ys or len(ys) <= len(set(keys)) + 2:
-        return 0.0, ""
-    sigma, dof = turning.excess_scatter(np.array(ys), keys, np.array(cols_l), np.array(ws))
-    if dof <= 0:
-        return 0.0, ""
-    return sigma, (
-        f"seating of the cube at the still moments of the turns: {sigma:.2g} m/s² on a "
-        f"horizontal accelerometer ({1000 * sigma / 9.8:.2g} mrad), from {len(ys)} still "
-        f"moments ({dof} dof beyond one plate tilt and a constant per turn and channel)"
-    )
-
-
-def hand_sigma(
-    signals: Sequence[RecordSignals],
-    sensor_aggs: Mapping[tuple[int, str, int], np.ndarray],
-    n_still: Mapping[int, int],
-    white_level: Mapping[tuple[str, int], float],
-) -> tuple[tuple[float, float], str]:
-    """The hand's scatter on a horizontal accelerometer while the cube turns, m/s²: (of a
-    moving block's mean about its turn's level, of that level about the turn's level at rest)
-    and a note ('' without moving blocks): beyond a constant per turn and channel, the lever arm
-    and the plate tilt, and beyond the sensor's white noise (``white_level`` (sensor, axis) ->
-    variance·τ of one sample, from the static records) —
-    :func:`host.model.turning.hand_scatter`, module docstring there."""
-    keys: list[tuple[int, int]] = []
-    ys: list[float] = []
-    cl: list[np.ndarray] = []
-    ws: list[float] = []
-    rest: dict[Hashable, tuple[float, float, np.ndarray]] = {}
-    for ri, sig in enumerate(signals):
-        if sig.kind != "turn":
-            continue
-        lever: np.ndarray | None = None
-        for ax in range(3):
-            agg = sensor_aggs.get((ri, "accel", ax))
-            if agg is None or n_still.get(ri, 0) >= agg.shape[0]:
-                continue
-            moving = agg[n_still[ri] :]
-            counts = np.count_nonzero(moving, axis=1).astype(float)
-            tilt0 = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
-            assert tilt0 is not None
-            if n_still[ri]:
-                # the same turn and channel at rest: the still moments' mean
-                still = agg[: n_still[ri]]
-                m_still = still.mean(axis=0)
-                n_s = float(np.count_nonzero(still))
-                rest[(ri, ax)] = (
-                    float(m_still @ sig.accel[:, ax]),
-                    white_level.get(("accel", ax), 0.0) / n_s,
-                    np.concatenate([np.zeros(3), m_still @ tilt0]),
-                )
-            if lever is None:
-                lever = turning.lever_arm_matrix(sig.t_s, sig.rate)
-            tilt = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
-            assert tilt is not None
-            keys.extend([(ri, ax)] * len(moving))
-            ys.extend((moving @ sig.accel[:, ax]).tolist())
-            cl.extend(moving @ np.column_stack([lever[:, ax, :], tilt]))
-            ws.extend((white_level.get(("accel", ax), 0.0) / counts).tolist())
-    if not ys:
-        return (0.0, 0.0), ""
-    block, level, dof = turning.hand_scatter(np.array(ys), keys, np.array(cl), np.array(ws),
-                                             rest)  # fmt: skip
-    return (block, level), (
-        f"the hand while the cube turns: {block:.2g} m/s² on a horizontal accelerometer's "
-        f"block mean ({turning.BLOCK_S:g} s) about the turn's level, from {len(ys)} moving "
-        f"blocks ({dof} dof beyond a constant per turn and channel, the lever arm and the "
-        f"plate tilt); a turn's level while moving departs from its level at rest by {level:.2g}"
-    )

@@ -1,0 +1,320 @@
+"""The rows of a dataset, one small builder per kind of row (:func:`add_block_means`,
+:func:`add_turn_integrals`, :func:`add_turn_accel`), each with the white noise its record shows:
+
+* a static or rate-table record: each channel's block means (blocks of ``NoiseModel.block_s``);
+* a turn record: each gyro channel's trapezoid integral (method.md §4), in °;
+* a turn record's accelerometer: one row per still moment (gravity at another heading) and, on
+  the horizontal channels, one per moving block (:mod:`host.model.turning`).
+
+The turn records' accelerometer rows have noise of their own beyond the sensor's: the cube's
+seating at the still moments (:func:`seating_sigma`) and the hand while it turns
+(:func:`hand_sigma`), both measured from the rows themselves.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Hashable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from host.model import turning
+from host.model.catalogue import plate_tilt
+from host.model.noise import NoiseModel, integrated_autocorrelation, resolution, still_runs
+from host.model.signals import SENSORS, RecordSignals
+
+
+@dataclass(frozen=True, eq=False)
+class ChannelRows:
+    """The rows of one record and channel as they are built, before the whitening.
+
+    ``rows``: their indices in the dataset; ``aggregator`` (B, N): the weights turning the
+    record's N samples into its B rows; ``white``: variance·τ of one sample of the channel
+    measured from the record's own samples (NaN: not measured there, the static records' level
+    is taken; 0: a turn integral, whose white noise comes from the static records)."""
+
+    record: int
+    sensor: str
+    axis: int
+    rows: list[int]
+    aggregator: np.ndarray
+    white: float
+
+
+@dataclass(eq=False)
+class RowTable:
+    """The rows as the builders add them: per row its record, sensor (0 accel, 1 gyro), axis,
+    whether it is a turn integral, its time span within the record (s), the measured value and
+    the ideal sensor's (``nominal``); per record and channel a :class:`ChannelRows`; and the
+    white-noise levels the static records measured (``static_noise``: (sensor, axis) -> their
+    (variance, τ) in record order; ``record_noise``: (record, sensor, axis) -> (variance, τ))."""
+
+    record: list[int] = field(default_factory=list)
+    sensor: list[int] = field(default_factory=list)
+    axis: list[int] = field(default_factory=list)
+    integral: list[bool] = field(default_factory=list)
+    t0: list[float] = field(default_factory=list)
+    t1: list[float] = field(default_factory=list)
+    y: list[float] = field(default_factory=list)
+    nominal: list[float] = field(default_factory=list)
+    channels: list[ChannelRows] = field(default_factory=list)
+    static_noise: dict[tuple[str, int], list[tuple[float, float]]] = field(default_factory=dict)
+    record_noise: dict[tuple[int, str, int], tuple[float, float]] = field(default_factory=dict)
+
+    def add(
+        self,
+        record: int,
+        sig: RecordSignals,
+        sensor: str,
+        axis: int,
+        agg: np.ndarray,
+        spans: Sequence[tuple[float, float]],
+        integral: bool,
+    ) -> list[int]:
+        """Add the rows ``agg`` (B, N) @ samples of channel ``axis`` of ``sensor``, with their
+        time spans ``spans`` (B, s); returns their indices."""
+        idx = list(range(len(self.y), len(self.y) + agg.shape[0]))
+        self.y.extend((agg @ sig.measured(sensor)[:, axis]).tolist())
+        self.nominal.extend((agg @ sig.reference(sensor)[:, axis]).tolist())
+        for b in range(agg.shape[0]):
+            self.record.append(record)
+            self.sensor.append(SENSORS.index(sensor))
+            self.axis.append(axis)
+            self.integral.append(integral)
+            self.t0.append(spans[b][0])
+            self.t1.append(spans[b][1])
+        return idx
+
+
+def _white(meas: np.ndarray, runs: Sequence[tuple[int, int]], max_lag: int) -> tuple[float, float]:
+    """(variance, integrated autocorrelation time) of one sample of ``meas`` (N,) from its
+    deviations about each run's mean (at least the quantisation step²/12)."""
+    dev = np.concatenate([meas[a:e] - meas[a:e].mean() for a, e in runs])
+    dof = max(len(dev) - len(runs), 1)
+    var = max(float(dev @ dev) / dof, resolution(meas) ** 2 / 12.0)
+    return var, integrated_autocorrelation(dev, max_lag)
+
+
+def block_edges(n: int, duration_s: float, noise: NoiseModel) -> list[tuple[int, int]]:
+    """[start, stop) sample ranges of the blocks a static record of ``n`` samples and
+    ``duration_s`` s is cut into (about ``noise.block_s`` each, at most ``noise.max_blocks``)."""
+    b = int(max(1, min(noise.max_blocks, round(duration_s / noise.block_s))))
+    b = max(1, min(b, n // 8 if n >= 8 else 1))
+    edges = np.linspace(0, n, b + 1).round().astype(int)
+    return [(int(edges[i]), int(edges[i + 1])) for i in range(b)]
+
+
+def means_of(ranges: Sequence[tuple[int, int]], n: int) -> np.ndarray:
+    """(len(ranges), n) weights of the mean over each [start, stop) sample range."""
+    agg = np.zeros((len(ranges), n))
+    for b, (a, e) in enumerate(ranges):
+        agg[b, a:e] = 1.0 / (e - a)
+    return agg
+
+
+def trapezoid_weights(t_ms: np.ndarray) -> np.ndarray:
+    """(1, N) weights of the trapezoid integral over the sample times ``t_ms`` (ms), in s."""
+    w = np.zeros(len(t_ms))
+    dt = np.diff(t_ms) / 1000.0
+    w[1:] += dt / 2
+    w[:-1] += dt / 2
+    return w[None, :]
+
+
+def _runs_of(agg: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) sample ranges of the rows of a still-moment aggregator."""
+    out = []
+    for row in agg:
+        nz = np.flatnonzero(row)
+        out.append((int(nz[0]), int(nz[-1]) + 1))
+    return out
+
+
+def add_block_means(
+    table: RowTable, record: int, sig: RecordSignals, t_rel: np.ndarray, noise: NoiseModel
+) -> np.ndarray:
+    """A static or rate-table record: every channel's block means, their white noise from the
+    record's own samples (``t_rel`` (N,) s since its first sample). Returns its aggregator."""
+    n = len(t_rel)
+    edges = block_edges(n, float(t_rel[-1]) if n else 0.0, noise)
+    agg = means_of(edges, n)
+    spans = [(float(t_rel[a]), float(t_rel[e - 1])) for a, e in edges]
+    for s in SENSORS:
+        meas = sig.measured(s)
+        for ax in range(3):
+            if not agg.shape[0]:
+                continue
+            idx = table.add(record, sig, s, ax, agg, spans, integral=False)
+            var, tau = _white(meas[:, ax], edges, noise.max_lag)
+            table.static_noise.setdefault((s, ax), []).append((var, tau))
+            table.record_noise[(record, s, ax)] = (var, tau)
+            table.channels.append(ChannelRows(record, s, ax, idx, agg, var * tau))
+    return agg
+
+
+def add_turn_integrals(
+    table: RowTable, record: int, sig: RecordSignals, t_ms: np.ndarray, t_rel: np.ndarray
+) -> np.ndarray:
+    """A turn record: each gyro channel's trapezoid integral over the sample times ``t_ms``
+    (ms), in °; its white noise comes from the static records. Returns its aggregator."""
+    agg = trapezoid_weights(t_ms)
+    spans = [(0.0, float(t_rel[-1]))]
+    for ax in range(3):
+        idx = table.add(record, sig, "gyro", ax, agg, spans, integral=True)
+        table.channels.append(ChannelRows(record, "gyro", ax, idx, agg, 0.0))
+    return agg
+
+
+@dataclass(frozen=True, eq=False)
+class TurnAccel:
+    """Where a turn record's accelerometer is read: ``aggregators`` per axis (B, N) — the still
+    moments, then (horizontal axes only) the moving blocks —, their time ``spans`` (s) and how
+    many of the rows are still moments (``n_still``)."""
+
+    aggregators: tuple[np.ndarray, ...]
+    spans: tuple[tuple[float, float], ...]
+    n_still: int
+
+
+def turn_accel_rows(
+    sig: RecordSignals, t_rel: np.ndarray, gyro_sd_dps: float, moving: bool
+) -> TurnAccel | None:
+    """The still moments of a turn record (gravity at several headings) and, with ``moving``,
+    the blocks of its turning parts (the lever arm), found from the reference rate about up
+    and the gyro's per-sample noise ``gyro_sd_dps`` (°/s); None when it has neither."""
+    rate_up = sig.rate @ sig.up
+    runs = still_runs(rate_up, t_rel, gyro_sd_dps)
+    blocks = turning.moving_blocks(rate_up, t_rel, gyro_sd_dps) if moving else []
+    if not (runs or blocks):
+        return None
+    acc_agg = means_of([*runs, *blocks], len(t_rel))
+    # the up channel reads no lever arm, only the hand pressing and tilting the cube
+    # (g·(1 − cos θ), one-signed): its moving blocks are left out
+    aggs = tuple(
+        acc_agg if abs(float(sig.up[ax])) < 0.5 else acc_agg[: len(runs)] for ax in range(3)
+    )
+    spans = tuple((float(t_rel[a]), float(t_rel[e - 1])) for a, e in [*runs, *blocks])
+    return TurnAccel(aggs, spans, len(runs))
+
+
+def add_turn_accel(
+    table: RowTable, record: int, sig: RecordSignals, turn: TurnAccel, noise: NoiseModel
+) -> None:
+    """A turn record's accelerometer rows (:func:`turn_accel_rows`): the white noise of a still
+    moment's mean from the still moments' own samples (NaN without still moments: the static
+    records' level is taken)."""
+    for ax in range(3):
+        agg = turn.aggregators[ax]
+        if not agg.shape[0]:
+            continue
+        idx = table.add(record, sig, "accel", ax, agg, turn.spans, integral=False)
+        if turn.n_still == 0:
+            table.channels.append(ChannelRows(record, "accel", ax, idx, agg, math.nan))
+            continue
+        var, tau = _white(sig.accel[:, ax], _runs_of(agg[: turn.n_still]), noise.max_lag)
+        table.channels.append(ChannelRows(record, "accel", ax, idx, agg, var * tau))
+
+
+def seating_sigma(
+    signals: Sequence[RecordSignals],
+    sensor_aggs: Mapping[tuple[int, str, int], np.ndarray],
+    channels: Sequence[ChannelRows],
+    n_still: Mapping[int, int],
+) -> tuple[float, str]:
+    """How far the cube's attitude at a still moment of a hand turn departs from resting flat,
+    as specific force on a horizontal accelerometer, m/s² (and a note; 0 and '' without the
+    data). The hand holds or presses the cube between pushes, so each still moment is a new
+    seating. Measured from the still moments themselves: per turn and horizontal channel a
+    constant (bias, face error, misalignment: all fixed in the body) plus ONE plate tilt for
+    the session, g·(t_e·e(ψ) + t_n·n(ψ)) (:func:`plate_tilt`); the scatter beyond each mean's
+    white noise, Σ(r² − w)/dof, is the seating variance (method.md §8: repeatability;
+    :func:`host.model.turning.excess_scatter`)."""
+    keys: list[tuple[int, int]] = []
+    ys: list[float] = []
+    cols_l: list[np.ndarray] = []
+    ws: list[float] = []
+    for ch in channels:
+        ri, s, ax, agg, var_tau = ch.record, ch.sensor, ch.axis, ch.aggregator, ch.white
+        sig = signals[ri]
+        if s != "accel" or sig.kind != "turn" or abs(float(sig.up[ax])) > 0.5:
+            continue
+        if (ri, "accel", ax) not in sensor_aggs:
+            continue
+        cols = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
+        assert cols is not None
+        for b in range(n_still.get(ri, 0)):
+            m = float(np.count_nonzero(agg[b]))
+            keys.append((ri, ax))
+            ys.append(float(agg[b] @ sig.accel[:, ax]))
+            cols_l.append(agg[b] @ cols)
+            ws.append(var_tau / m)
+    if not ys or len(ys) <= len(set(keys)) + 2:
+        return 0.0, ""
+    sigma, dof = turning.excess_scatter(np.array(ys), keys, np.array(cols_l), np.array(ws))
+    if dof <= 0:
+        return 0.0, ""
+    return sigma, (
+        f"seating of the cube at the still moments of the turns: {sigma:.2g} m/s² on a "
+        f"horizontal accelerometer ({1000 * sigma / 9.8:.2g} mrad), from {len(ys)} still "
+        f"moments ({dof} dof beyond one plate tilt and a constant per turn and channel)"
+    )
+
+
+def hand_sigma(
+    signals: Sequence[RecordSignals],
+    sensor_aggs: Mapping[tuple[int, str, int], np.ndarray],
+    n_still: Mapping[int, int],
+    white_level: Mapping[tuple[str, int], float],
+) -> tuple[tuple[float, float], str]:
+    """The hand's scatter on a horizontal accelerometer while the cube turns, m/s²: (of a
+    moving block's mean about its turn's level, of that level about the turn's level at rest)
+    and a note ('' without moving blocks): beyond a constant per turn and channel, the lever arm
+    and the plate tilt, and beyond the sensor's white noise (``white_level`` (sensor, axis) ->
+    variance·τ of one sample, from the static records) —
+    :func:`host.model.turning.hand_scatter`, module docstring there."""
+    keys: list[tuple[int, int]] = []
+    ys: list[float] = []
+    cl: list[np.ndarray] = []
+    ws: list[float] = []
+    rest: dict[Hashable, tuple[float, float, np.ndarray]] = {}
+    for ri, sig in enumerate(signals):
+        if sig.kind != "turn":
+            continue
+        lever: np.ndarray | None = None
+        for ax in range(3):
+            agg = sensor_aggs.get((ri, "accel", ax))
+            if agg is None or n_still.get(ri, 0) >= agg.shape[0]:
+                continue
+            moving = agg[n_still[ri] :]
+            counts = np.count_nonzero(moving, axis=1).astype(float)
+            tilt0 = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
+            assert tilt0 is not None
+            if n_still[ri]:
+                # the same turn and channel at rest: the still moments' mean
+                still = agg[: n_still[ri]]
+                m_still = still.mean(axis=0)
+                n_s = float(np.count_nonzero(still))
+                rest[(ri, ax)] = (
+                    float(m_still @ sig.accel[:, ax]),
+                    white_level.get(("accel", ax), 0.0) / n_s,
+                    np.concatenate([np.zeros(3), m_still @ tilt0]),
+                )
+            if lever is None:
+                lever = turning.lever_arm_matrix(sig.t_s, sig.rate)
+            tilt = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
+            assert tilt is not None
+            keys.extend([(ri, ax)] * len(moving))
+            ys.extend((moving @ sig.accel[:, ax]).tolist())
+            cl.extend(moving @ np.column_stack([lever[:, ax, :], tilt]))
+            ws.extend((white_level.get(("accel", ax), 0.0) / counts).tolist())
+    if not ys:
+        return (0.0, 0.0), ""
+    block, level, dof = turning.hand_scatter(np.array(ys), keys, np.array(cl), np.array(ws),
+                                             rest)  # fmt: skip
+    return (block, level), (
+        f"the hand while the cube turns: {block:.2g} m/s² on a horizontal accelerometer's "
+        f"block mean ({turning.BLOCK_S:g} s) about the turn's level, from {len(ys)} moving "
+        f"blocks ({dof} dof beyond a constant per turn and channel, the lever arm and the "
+        f"plate tilt); a turn's level while moving departs from its level at rest by {level:.2g}"
+    )
