@@ -36,9 +36,7 @@ from host.calib.thermal import (
 )
 from host.errors import UserError
 from host.model.catalogue import BASE, CARRIED, CATALOGUE
-from host.model.dataset import build_dataset
-from host.model.design import design
-from host.model.fit import residual_tables
+from host.model.fit import predict_session
 from host.model.loader import load_term_file
 from host.model.noise import NoiseModel
 from host.model.signals import AXES, TEMP_REF_C, RecordSignals
@@ -842,24 +840,12 @@ def verify(
         known = {f.name for f in dataclasses.fields(NoiseModel)}
         nm = dataclasses.replace(nm, **{k: v for k, v in result.noise_model.items() if k in known})
     model = parse_model(result.model, _catalogue_for(result, catalogue))
-    ds = build_dataset(
-        session, noise=nm, latitude_deg=result.latitude_deg, height_m=result.height_m,
-        earth_rate=result.earth_rate,
-    )  # fmt: skip
     values = {(p.term, p.sensor, p.axis, p.key): p.value for p in result.parameters}
-    per_term: list[np.ndarray] = []
-    for mt in model:
-        per_term.append(np.array([
-            values.get((mt.term.name, mt.sensor, AXES[ax], k), 0.0)
-            for ax in mt.axes for k in mt.term.params
-        ]))  # fmt: skip
-    thetas: list[np.ndarray | None] = [
-        th if mt.term.nonlinear else None for mt, th in zip(model, per_term, strict=True)
-    ]
-    x, offset, _ = design(ds, model, thetas)
-    theta = np.concatenate(per_term) if per_term else np.zeros(0)
-    predicted = ds.nominal + offset + x @ theta
-    groups, _ = residual_tables(ds, predicted, ds.y - predicted, np.zeros((ds.n_rows, 0)))
+    held_out = predict_session(
+        session, model, values, noise=nm, latitude_deg=result.latitude_deg,
+        height_m=result.height_m, earth_rate=result.earth_rate,
+    )  # fmt: skip
+    ds, groups = held_out.dataset, held_out.groups
     out: list[VerifiedValue] = []
     duration = {s.name: float(s.t_s[-1] - s.t_s[0]) if len(s.t_s) > 1 else 0.0 for s in ds.signals}
     for g in groups:

@@ -19,16 +19,19 @@ statistics (:class:`ChannelFit`) and residual tables (:func:`residual_tables`).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from host.model.dataset import Dataset
+from host.model.dataset import Dataset, build_dataset
 from host.model.design import design, select_columns
+from host.model.noise import NoiseModel
 from host.model.signals import AXES, SENSORS, UNIT
 from host.model.spec import ModelTerm
 from host.model.stats import ALPHA_FIT, chi2_sf, rref, stderr_scale
+from host.session.directory import Session
+from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
 
 # ---- the fit --------------------------------------------------------------------------------
@@ -404,6 +407,10 @@ def _combinations(
 def residual_tables(
     ds: Dataset, predicted: np.ndarray, resid: np.ndarray, basis: np.ndarray
 ) -> tuple[tuple[GroupResidual, ...], tuple[SpanResidual, ...]]:
+    """Measured vs model per record and channel, and per block of a static record: from the
+    rows' ``predicted`` values and residuals ``resid`` (n_rows,), with ``basis`` the
+    orthonormal basis of the whitened design that was fitted to these rows (n_rows, r; r = 0
+    for rows the model was not fitted to: z against the measurement's σ alone)."""
     out: list[GroupResidual] = []
     spans: list[SpanResidual] = []
     sd_res = residual_sigmas(ds, basis)
@@ -431,3 +438,60 @@ def residual_tables(
                                  float(ds.span[row, 1]), d, d / sd, unit)
                 )  # fmt: skip
     return tuple(out), tuple(spans)
+
+
+#: a parameter's value by (term name, sensor, axis 'x'/'y'/'z' or '' for a shared parameter,
+#: the term's own parameter key), as :class:`Parameter` names them
+Values = Mapping[tuple[str, str, str, str], float]
+
+
+def predict(ds: Dataset, model: Sequence[ModelTerm], values: Values) -> np.ndarray:
+    """(n_rows,) the rows of ``ds`` as ``model`` predicts them with the parameter ``values``
+    (nothing fitted; a parameter not given is 0): the ideal sensor's value plus every term's
+    contribution, in the rows' units."""
+    per_term: list[np.ndarray] = []
+    for mt in model:
+        per_term.append(np.array([
+            values.get((mt.term.name, mt.sensor, "" if ax is None else AXES[ax], key), 0.0)
+            for ax, _, key in mt.slots()
+        ]))  # fmt: skip
+    thetas: list[np.ndarray | None] = [
+        th if mt.term.nonlinear else None for mt, th in zip(model, per_term, strict=True)
+    ]
+    x, offset, _ = design(ds, model, thetas)
+    theta = np.concatenate(per_term) if per_term else np.zeros(0)
+    return np.asarray(ds.nominal + offset + x @ theta)
+
+
+@dataclass(frozen=True, eq=False)
+class Predicted:
+    """Records predicted by a model with given parameter values, none fitted to them
+    (:func:`predict_session`): ``dataset`` their rows, ``predicted`` (n_rows,) the model's
+    values, ``groups`` measured vs predicted per record and channel (z against the
+    measurement's σ alone)."""
+
+    dataset: Dataset
+    predicted: np.ndarray
+    groups: tuple[GroupResidual, ...]
+
+
+def predict_session(
+    session: Session,
+    model: Sequence[ModelTerm],
+    values: Values,
+    *,
+    noise: NoiseModel | None = None,
+    latitude_deg: float = DEFAULT_LATITUDE_DEG,
+    height_m: float = DEFAULT_HEIGHT_M,
+    earth_rate: bool = False,
+) -> Predicted:
+    """Build the dataset of ``session`` (records the model was not fitted to; the same checks
+    and noise model as a fit, :func:`~host.model.dataset.build_dataset`) and predict it with
+    ``model`` and the parameter ``values`` (:func:`predict`)."""
+    ds = build_dataset(
+        session, noise=noise, latitude_deg=latitude_deg, height_m=height_m,
+        earth_rate=earth_rate,
+    )  # fmt: skip
+    predicted = predict(ds, model, values)
+    groups, _ = residual_tables(ds, predicted, ds.y - predicted, np.zeros((ds.n_rows, 0)))
+    return Predicted(ds, predicted, groups)

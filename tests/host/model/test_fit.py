@@ -1,4 +1,4 @@
-"""The model engine (host/model.py): terms, specs, noise model, the one least-squares fit."""
+"""The model engine (host/model/): terms, specs, noise model, the one least-squares fit."""
 
 from __future__ import annotations
 
