@@ -100,3 +100,18 @@ def test_plot_without_matplotlib_names_a_package_that_exists(
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
             assert main(argv) == 2
         assert err.getvalue().strip() == f"error: {NO_MATPLOTLIB}", err.getvalue()
+
+
+def test_the_readmes_command_index_names_every_command_once() -> None:
+    """The README's 'Commands' table has one row per command of ``python -m host``, and every
+    ``python3 -m host WORD`` in the README and docs/ names a command that exists."""
+    from host.__main__ import COMMANDS
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    table = readme.split("\n## Commands\n", 1)[1].split("\n## ", 1)[0]
+    rows = [ln for ln in table.splitlines() if ln.startswith("| `")]
+    firsts = [re.match(r"\| `([\w-]+)", ln).group(1) for ln in rows]  # type: ignore[union-attr]
+    assert sorted(firsts) == sorted(COMMANDS)
+    for page in doc_pages():
+        for word in re.findall(r"python3? -m host ([a-z][\w-]*)", page.read_text(encoding="utf-8")):
+            assert word in COMMANDS, f"{page.name}: python -m host {word}: no such command"
