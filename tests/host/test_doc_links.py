@@ -101,3 +101,70 @@ def test_every_docs_page_is_linked_from_the_readme() -> None:
         p.name for p in sorted((ROOT / "docs").glob("*.md")) if f"docs/{p.name}" not in readme
     ]
     assert orphans == []
+
+
+#: where a path named in the docs starts (relative to the repository root); build output aside
+PATH_ROOTS = ("host/", "tests/", "benchmarks/", "protocol/", "firmware/", ".ci/")
+GENERATED_PATHS = ("firmware/build/",)
+PATH_IN_CODE = re.compile(
+    r"(?<![\w./-])((?:" + "|".join(map(re.escape, PATH_ROOTS)) + r")[\w./-]*\w)"
+)
+
+
+def named_paths(text: str) -> set[str]:
+    """Repository paths named in inline code: ``host/wire/frames.py``, ``tests/…::test_x``."""
+    out = set()
+    for code in re.findall(r"`([^`\n]+)`", FENCE.sub("", text)):
+        for m in PATH_IN_CODE.finditer(code):
+            path = m.group(1).split("::")[0]
+            if not path.startswith(GENERATED_PATHS) and "{" not in code and "*" not in path:
+                out.add(path)
+    return out
+
+
+def named_modules(text: str) -> set[str]:
+    """Dotted names under ``host.`` in inline code: ``host.wire.frames.decode_file``."""
+    out = set()
+    for code in re.findall(r"`([^`\n]+)`", FENCE.sub("", text)):
+        out.update(re.findall(r"(?<![\w.])(host(?:\.\w+)+)", code))
+    return out
+
+
+def missing_names(text: str, root: Path = ROOT) -> list[str]:
+    """The paths and ``host.`` names a page mentions that the tree does not have."""
+    import importlib
+
+    bad = [p for p in sorted(named_paths(text)) if not (root / p).exists()]
+    for name in sorted(named_modules(text)):
+        parts = name.split(".")
+        for k in range(len(parts), 0, -1):
+            base = root.joinpath(*parts[:k])
+            if base.with_suffix(".py").is_file() or (base / "__init__.py").is_file():
+                break
+        rest = parts[k:]
+        if k == 1 and rest:  # not even a package of host/
+            bad.append(name)
+        elif rest and not hasattr(importlib.import_module(".".join(parts[:k])), rest[0]):
+            bad.append(name)
+    return bad
+
+
+def test_the_name_check_sees_a_moved_module_and_a_lost_name() -> None:
+    text = (
+        "see `host/wire/frames.py`, `host/nowhere/x.py`, `host.wire.frames.decode_bulk`, "
+        "`host.wire.frames.no_such_thing`, `host.gone.module`, `tests/host/test_layout.py::t`"
+    )
+    assert missing_names(text) == [
+        "host/nowhere/x.py",
+        "host.gone.module",
+        "host.wire.frames.no_such_thing",
+    ]
+
+
+def test_every_module_and_path_the_docs_name_exists() -> None:
+    """A page that names ``host/timing/clock.py`` or ``host.wire.frames.decode_file`` sends the
+    reader to a file that is there and a name it holds (modules move: the pages follow). The
+    firmware's pages also name files the user makes (a DMP image), so: the README and docs/."""
+    ours = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    bad = [f"{p.relative_to(ROOT)}: {n}" for p in ours for n in missing_names(p.read_text())]
+    assert bad == []

@@ -35,16 +35,27 @@ def doc_block(after_heading: str, containing: str) -> tuple[str, str]:
     raise AssertionError(f"no python block with {containing!r} under {after_heading!r}")
 
 
-def test_every_python_example_is_valid_python() -> None:
-    """A user copies these: each ```python block of the README and docs/ parses as written."""
+def test_every_python_example_is_valid_python_importing_what_exists() -> None:
+    """A user copies these: each ```python block of the README and docs/ parses as written, and
+    every ``from host… import name`` in it names a module and a name that are there."""
     import ast
+    import importlib
 
     n = 0
+    missing = []
     for page in doc_pages():
         for block in re.findall(r"```python\n(.*?)```", page.read_text(encoding="utf-8"), re.S):
-            ast.parse(block, f"{page.name} example")
+            for node in ast.walk(ast.parse(block, f"{page.name} example")):
+                if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("host"):
+                    mod = importlib.import_module(node.module or "")
+                    missing += [
+                        f"{page.name}: {node.module}.{a.name}"
+                        for a in node.names
+                        if not hasattr(mod, a.name)
+                    ]
             n += 1
     assert n >= 4  # apply, thermal, decode, a term file
+    assert missing == []
 
 
 def test_the_readmes_decode_example_reads_every_sample_of_a_capture(
