@@ -126,3 +126,33 @@ def test_the_readmes_command_index_names_every_command_once() -> None:
     for page in doc_pages():
         for word in re.findall(r"python3? -m host ([a-z][\w-]*)", page.read_text(encoding="utf-8")):
             assert word in COMMANDS, f"{page.name}: python -m host {word}: no such command"
+
+
+def test_the_fit_example_gives_the_fit_line_of_model_diagnose(tmp_path: Path) -> None:
+    """docs/python-api.md's fit, run as written on a session directory, gives the numbers the
+    command prints for the same records and model (the example is the engine the command uses,
+    with its defaults)."""
+    import json
+
+    from host.__main__ import main
+    from host.bench.sim import Plan, simulate_session, write_session
+    from host.bench.truth import SensorTruth
+
+    recs = simulate_session(SensorTruth.random(np.random.default_rng(3)), Plan(static_s=3.0,
+                            turns=1), seed=3)  # fmt: skip
+    write_session(tmp_path / "DEMO01", "DEMO01", recs)
+    code, page = doc_block("## Fit a model to a session", "fit_model(")
+    code = code.replace('"DEMO01/"', repr(str(tmp_path / "DEMO01")))
+    names: dict[str, object] = {}
+    with contextlib.redirect_stdout(io.StringIO()) as printed:
+        exec(compile(code, page, "exec"), names)  # noqa: S102 - the page's own code
+    fit = names["fit"]
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(io.StringIO()):
+        main(["model", "diagnose", str(tmp_path / "DEMO01"), "--json",
+              "--model", "base,temperature_bias:gyro:y"])  # fmt: skip
+    cli = json.loads(out.getvalue())["fit"]
+    assert fit.dof == cli["dof"] and fit.n_params == cli["n_params"]  # type: ignore[attr-defined]
+    assert abs(fit.chi2 - cli["chi2"]) <= 1e-9 * cli["chi2"]  # type: ignore[attr-defined]
+    assert f"RMS z {cli['rms_z']:.2f}," in printed.getvalue()
+    assert printed.getvalue().count("±") == len(fit.parameters) > 20  # type: ignore[attr-defined]
