@@ -200,3 +200,17 @@ def test_every_import_of_a_host_module_names_one_that_exists() -> None:
                 if (n == "host" or n.startswith("host.")) and n not in known
             ]
     assert missing == []
+
+
+#: the bottom of the data's flow (issue 23): what the records and the model engine may import.
+#: The calibration and the workbench sit above both and import them, never the other way.
+BELOW: dict[str, set[str]] = {
+    "host.session": {"host.errors"},
+    "host.model": {"host.errors", "host.wire", "host.session"},
+}
+
+
+def test_the_records_and_the_engine_import_only_what_lies_below_them() -> None:
+    pg = package_graph(graph())
+    for pkg, allowed in BELOW.items():
+        assert pg.get(pkg, set()) <= allowed, (pkg, sorted(pg[pkg] - allowed))
