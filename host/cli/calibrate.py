@@ -22,6 +22,7 @@ from host.dialogue.options import DEFAULT_READY_S, WARMUP_DEFAULT_S
 from host.errors import RecordCheckError, UserError
 from host.session.checks import failed_record
 from host.session.directory import Session, read_session
+from host.session.spacing import timing_report
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -124,6 +125,7 @@ def run(args: argparse.Namespace) -> int:
 
         return run_dialogue(args)
     session = read_session(args.from_dir, args.serial)
+    sys.stderr.write(timing_report(session.records))
     out_dir = Path(args.out) if args.out else Path(args.from_dir)
     try:
         result = run_computation(session, args, out_dir)

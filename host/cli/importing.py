@@ -19,9 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from host.errors import UserError
-from host.ingest import importing, labels, segmentation, spacing
+from host.ingest import importing, labels, segmentation
 from host.ingest.reading import Segment
 from host.ingest.stillness import attitude
+from host.session import spacing
 from host.session.atomic import write_text_atomic
 from host.session.directory import record_path, write_record
 from host.session.records import Record
@@ -171,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
     sys.stdout.write(labels.format_table(segments))
     for note in notes:
         print(f"ambiguous: {note}; to take the other, swap their labels in the labels file")
-    sys.stdout.write(segmentation.format_timing(records))
+    sys.stdout.write(spacing.timing_table(records))
     _warn_timing(records)
     labels_path = out / f"{serial}_segments.tsv"
     editable = not args.record and args.labels is None  # found or from imucal's sections
@@ -200,18 +201,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _warn_timing(records: dict[str, Record]) -> None:
-    for name, rec in records.items():
-        tq = spacing.timing_quality(rec.t_ms / 1000.0)
-        if not tq.warning:
-            continue
-        msg = f"warning: {name}: irregular sample times ({tq.describe()})"
-        if rec.meta.get("kind") == "turn":
-            err = spacing.uniform_rate_error_deg(rec.t_ms / 1000.0, rec.gyro)
-            msg += (
-                f"; the turn integral uses the true times (assuming a uniform rate would move "
-                f"it by {err:.2f}°)"
-            )
-        print(msg, file=sys.stderr)
+    for line in spacing.timing_warnings(records):
+        print(line, file=sys.stderr)
 
 
 def cli_import(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:

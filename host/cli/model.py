@@ -31,6 +31,7 @@ from host.model.signals import AXES, UNIT
 from host.model.spec import model_spec, parse_model, short_spec
 from host.model.terms import Term
 from host.session.directory import read_session
+from host.session.spacing import timing_report
 from host.workbench.ladder import add_term, ladder
 from host.workbench.scenarios import DEFAULT_EFFECTS, EFFECTS, hidden_effect_case, run_case
 from host.workbench.text import (
@@ -232,6 +233,7 @@ def _dataset(args: argparse.Namespace) -> Dataset:
     from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
     session = read_session(args.dir, args.serial)
+    sys.stderr.write(timing_report(session.records))
     return build_dataset(
         session,
         noise=session_noise(session, args.floor, getattr(args, "noise", None)),

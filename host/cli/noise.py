@@ -21,6 +21,8 @@ from host.cli import pyplot
 from host.errors import UserError
 from host.model import allan, recording
 from host.session.atomic import write_text_atomic
+from host.session.records import Record
+from host.session.spacing import timing_report
 
 
 def load_static(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
@@ -171,6 +173,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--ci: expected a confidence level between 0.5 and 1, got {args.ci}")
     precision = parse_precision(args.plan) if args.plan else None
     t_s, data, temp, source = load_static(path)
+    sys.stderr.write(timing_report({path.stem: Record(path.stem, t_s * 1000.0, data[:, :3],
+                                                      data[:, 3:], temp)}))  # fmt: skip
     try:
         an = recording.analyse(t_s, data, temp, remove_thermal=not args.keep_thermal, ci=args.ci)
     except ValueError as exc:

@@ -17,6 +17,7 @@ from host.errors import UserError
 from host.session.atomic import write_text_atomic
 from host.session.directory import read_record, read_session, split_file_name
 from host.session.records import WARMUP_NAME, Record, RecordError
+from host.session.spacing import timing_report
 
 
 def format_text(cal: thermal.ThermalCalibration) -> str:
@@ -71,6 +72,7 @@ def unit_records(directory: str, serial: str | None) -> tuple[str, list[Record]]
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host thermal``."""
     serial, records = unit_records(args.dir, args.serial)
+    sys.stderr.write(timing_report({r.name: r for r in records}))
     if args.order is not None and not 0 <= args.order <= 6:
         raise UserError("--order must be between 0 and 6")
     if not 0 <= args.max_order <= 6:

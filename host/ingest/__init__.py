@@ -1,9 +1,9 @@
 """Stage 4b, records from elsewhere: foreign files become the project's records.
 
-Data in: a logger's columns, an imucal session, a capture. Out: record files with timing quality.
+Data in: a logger's columns, an imucal session, a capture. Out: record files with timing quality
+(:mod:`host.session.spacing`).
 
 - ``importing`` — column files, imucal sessions and captures as one stream of SI samples.
-- ``spacing`` — timing quality of sample times and integrals over the true times.
 - ``stillness`` — where the stream rests (noise floors from the data, sample-exact rests) and
   the attitude of a rest.
 - ``reading`` — the session read as a person would: visits to faces, whole turns, the plan's

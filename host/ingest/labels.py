@@ -17,9 +17,9 @@ import numpy as np
 
 from host.ingest.importing import Stream
 from host.ingest.reading import Segment
-from host.ingest.spacing import trapezoid
 from host.ingest.stillness import SegmentationError, attitude, axis_text
 from host.session.records import WARMUP_NAME
+from host.session.spacing import trapezoid
 
 LABELS_HEADER = "# imu-bench segments v1"
 _LABEL_RE = re.compile(r"^(?P<axis>[xyz])_(?P<dir>up|dn|ccw|cw)(?:_(?P<rep>[0-9A-Za-z]+))?$")

@@ -36,9 +36,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host.ingest.spacing import cumulative_trapezoid
 from host.ingest.stillness import Rest, Thresholds, attitude, axis_text, rests
 from host.session.records import STATIC_NAMES, WARMUP_NAME, turn_window_s
+from host.session.spacing import cumulative_trapezoid
 
 FACE_LEAVE_DEG = 45.0  #: gravity this far off a face's axis means the cube left the face
 SMOOTH_S = 0.1  #: the accelerometer is averaged over this long to follow gravity, s

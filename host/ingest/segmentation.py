@@ -3,7 +3,7 @@
 :func:`segment_stream` checks the stream's units (time spacing, gravity at rest), then reads it
 as a person would (:mod:`host.ingest.reading`: rests, visits to faces, turns, the plan's choice
 of statics, the warm-up apart); :func:`build_records` turns the labelled segments into records
-with their timing quality (:mod:`host.ingest.spacing`). The table and the labels file that let
+with their timing quality (:mod:`host.session.spacing`). The table and the labels file that let
 the user correct the cut are :mod:`host.ingest.labels`.
 
 Every integral uses the true sample times (trapezoid rule over ``t``), never a nominal rate.
@@ -17,9 +17,9 @@ import numpy as np
 
 from host.ingest.importing import Stream
 from host.ingest.reading import Segment, read_session
-from host.ingest.spacing import timing_quality, trapezoid
 from host.ingest.stillness import SegmentationError, Thresholds, axis_text
 from host.session.records import STATIC_NAMES, TURN_NAMES, WARMUP_NAME, Record
+from host.session.spacing import timing_quality, trapezoid
 
 MIN_SPACING_S = 20e-6  #: a median sample spacing outside these bounds means a wrong time unit
 MAX_SPACING_S = 2.0
@@ -150,19 +150,6 @@ def build_records(
             meta=meta,
         )
     return out
-
-
-def format_timing(records: dict[str, Record]) -> str:
-    """Per-record timing table: samples, median spacing, worst gap, share of time in gaps."""
-    lines = [f"{'record':<9} {'samples':>7} {'median ms':>9} {'worst gap ms':>12} {'in gaps':>8}"]
-    for name, rec in records.items():
-        q = timing_quality(rec.t_ms / 1000.0)
-        flag = "  irregular" if q.warning else ""
-        lines.append(
-            f"{name:<9} {q.n:>7} {q.median_ms:>9.3g} {q.worst_gap_ms:>12.4g} "
-            f"{100 * q.gap_share:>7.1f}%{flag}"
-        )
-    return "\n".join(lines) + "\n"
 
 
 def plan_summary(records: dict[str, Record]) -> str:

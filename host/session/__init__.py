@@ -9,6 +9,7 @@ Data in: record files (``SERIAL_name.txt``). Out: :class:`~host.session.records.
 - ``directory`` — the session directory: file names, reading and writing record files.
 - ``atomic`` — publishing several files together or not at all.
 - ``method`` — the method's constants, sign layout, local gravity and per-record quantities.
+- ``spacing`` — sample spacing: timing quality, the timing table, integrals over true times.
 - ``checks`` — each record checked against the method (orientation, range, turn angle).
 - ``observations`` — each record's observation of the §2 model (means, turn integrals, σ).
 """

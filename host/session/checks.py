@@ -103,6 +103,40 @@ def check_range(record: Record, file_name: str) -> None:
         )
 
 
+#: a turn record's first and last samples (this long, s) are its opening and closing rests …
+TURN_EDGE_S = 0.06
+#: … where the rate about up (bias removed) stays under this fraction of the turn's peak rate
+TURN_EDGE_FRACTION = 0.1
+#: … and under this many °/s (the bias is known from the statics) or, without statics, twice it
+TURN_EDGE_MIN_DPS = 10.0
+
+
+def check_turn_at_rest(record: Record, file_name: str, bias_dps: np.ndarray | None) -> None:
+    """A turn record must start and end with the cube at rest (method.md §4: the integral is
+    the whole turn only between two rests): RecordCheckError naming it when its first or last
+    ``TURN_EDGE_S`` turn faster than ``max(TURN_EDGE_FRACTION × peak, TURN_EDGE_MIN_DPS)``
+    about up. ``bias_dps`` (3,) the gyro bias on this face from the statics (°/s), or None."""
+    if record.kind != "turn" or len(record) < 4:
+        return
+    t = record.t_ms / 1000.0
+    bias = np.zeros(3) if bias_dps is None else np.asarray(bias_dps, dtype=np.float64)
+    rate = (record.gyro - bias) @ record.up
+    floor = TURN_EDGE_MIN_DPS * (1.0 if bias_dps is not None else 2.0)
+    limit = max(TURN_EDGE_FRACTION * float(np.abs(rate).max()), floor)
+    n = max(2, int(np.searchsorted(t, t[0] + TURN_EDGE_S, "right")))
+    m = max(2, len(t) - int(np.searchsorted(t, t[-1] - TURN_EDGE_S, "left")))
+    for where, edge in (("starts", rate[:n]), ("ends", rate[-m:])):
+        r = float(np.abs(edge).mean())
+        if r > limit:
+            raise RecordCheckError(
+                f"{file_name}: the turn record {where} in motion ({r:.0f} °/s about "
+                f"{axis_label(record.up)} at its {'first' if where == 'starts' else 'last'} "
+                f"samples, {float(np.abs(rate).max()):.0f} °/s at the most): its integral is "
+                f"not the whole turn; {remedy(record)}",
+                file_name=file_name,
+            )
+
+
 def turns_of(record: Record, default: int | None) -> int | None:
     if "turns" in record.meta:
         try:

@@ -22,6 +22,7 @@ import numpy as np
 
 from host.errors import UserError
 from host.session.records import Record
+from host.session.spacing import trapezoid
 
 # ---- constants ----------------------------------------------------------------------------
 #: default site: Moscow (the source documents' bench), latitude in degrees, height in metres
@@ -120,13 +121,7 @@ def local_gravity(
 def trapezoid_integral(t_ms: np.ndarray, values: np.ndarray) -> np.ndarray:
     """∫ values dt over the sample times by the trapezoid rule (§4); t in ms, result in
     (unit of values)·s, e.g. ° for °/s. ``values`` (N,) or (N,k)."""
-    t = np.asarray(t_ms, dtype=np.float64) / 1000.0
-    v = np.asarray(values, dtype=np.float64)
-    if len(t) < 2:
-        return np.zeros(v.shape[1:])
-    dt = np.diff(t)
-    mid = 0.5 * (v[1:] + v[:-1])
-    return np.asarray(np.tensordot(dt, mid, axes=(0, 0)))
+    return trapezoid(np.asarray(t_ms, dtype=np.float64) / 1000.0, values)
 
 
 @dataclass(frozen=True, eq=False)

@@ -16,6 +16,7 @@ from host.session.checks import (
     check_orientation,
     check_range,
     check_record_lengths,
+    check_turn_at_rest,
     remedy,
     turns_of,
 )
@@ -112,6 +113,7 @@ def build_observations(
             assert up is not None
             check_orientation(rec, s, g, fname)
             check_range(rec, fname)
+            check_turn_at_rest(rec, fname, None if pre is None else pre[:3].T @ up + pre[3])
             t = s.duration_s
             drift = np.zeros(3) if pre is None else (pre[:3].T @ up + pre[3]) * t
             along = float(up @ (s.gyro_integral - drift))

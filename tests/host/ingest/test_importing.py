@@ -25,10 +25,10 @@ from host.ingest.importing import (
     parse_units,
 )
 from host.ingest.segmentation import segment_stream
-from host.ingest.spacing import timing_quality, trapezoid, uniform_rate_error_deg
 from host.ingest.stillness import find_still
 from host.session.directory import Session, read_record, read_session
 from host.session.records import STATIC_NAMES, TURN_NAMES, Record
+from host.session.spacing import timing_quality, trapezoid, uniform_rate_error_deg
 from host.wire.capture import CaptureWriter
 from host.wire.frames import encode_imu_samples
 

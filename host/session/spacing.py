@@ -2,15 +2,20 @@
 
 A logger's time stamps are the truth about when each sample was taken; a record with gaps
 (bursty host time stamps, lost samples) is integrated over those times (trapezoid rule,
-method.md §4), never over a nominal rate, and the gaps are reported.
+method.md §4), never over a nominal rate, and the gaps are reported: every command that reads
+records (``import``, ``calibrate --from-dir``, ``model``, ``thermal``, ``noise``) prints the
+same table (:func:`timing_report`) when a record has gaps.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+
+from host.session.records import Record
 
 GAP_MIN_MS = 50.0  #: a spacing above max(GAP_MIN_MS, GAP_FACTOR × median) is a gap
 GAP_FACTOR = 3.0
@@ -95,3 +100,44 @@ def uniform_rate_error_deg(t_s: np.ndarray, gyro_dps: np.ndarray) -> float:
     uniform = np.linspace(t[0], t[-1], t.size)
     diff = trapezoid(uniform, gyro_dps) - trapezoid(t, gyro_dps)
     return float(np.max(np.abs(diff)))
+
+
+def timing_table(records: Mapping[str, Record]) -> str:
+    """Per-record timing table: samples, median spacing, worst gap, share of time in gaps."""
+    lines = [f"{'record':<9} {'samples':>7} {'median ms':>9} {'worst gap ms':>12} {'in gaps':>8}"]
+    for name, rec in records.items():
+        q = timing_quality(rec.t_ms / 1000.0)
+        flag = "  irregular" if q.warning else ""
+        lines.append(
+            f"{name:<9} {q.n:>7} {q.median_ms:>9.3g} {q.worst_gap_ms:>12.4g} "
+            f"{100 * q.gap_share:>7.1f}%{flag}"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def timing_warnings(records: Mapping[str, Record]) -> list[str]:
+    """One line per record with irregular sample times; for a turn also how far assuming a
+    uniform rate would move its integral (it is integrated over the true times)."""
+    out = []
+    for name, rec in records.items():
+        tq = timing_quality(rec.t_ms / 1000.0)
+        if not tq.warning:
+            continue
+        msg = f"warning: {name}: irregular sample times ({tq.describe()})"
+        if rec.kind == "turn":
+            err = uniform_rate_error_deg(rec.t_ms / 1000.0, rec.gyro)
+            msg += (
+                f"; the turn integral uses the true times (assuming a uniform rate would move "
+                f"it by {err:.2f}°)"
+            )
+        out.append(msg)
+    return out
+
+
+def timing_report(records: Mapping[str, Record]) -> str:
+    """The timing table and its warnings when any record has irregular sample times, else ''
+    (what ``calibrate --from-dir``, ``model``, ``thermal`` and ``noise`` print to stderr)."""
+    warnings = timing_warnings(records)
+    if not warnings:
+        return ""
+    return timing_table(records) + "\n".join(warnings) + "\n"
