@@ -1,0 +1,264 @@
+"""One archived calibration: what the archive keeps of a result and the files it came from.
+
+:func:`entry_from_directory` reads what ``calibrate`` wrote — ``SERIAL_result.json`` (through
+:meth:`~host.calib.result.CalibrationResult.load`), the report ``SERIAL_result.txt`` and the
+record files the result names — and returns an :class:`Entry`: the identity of the session
+(serial, bench, operator, lot, firmware and sensor revision, the time of the first record, the
+chip temperatures), the model, every parameter with its σ and the covariance, the fit quality,
+the verdict and the SHA-256 of every file. The result file's own hash is the entry's identity:
+adding the same file twice is the same entry.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from host.calib.records import read_record
+from host.calib.result import CalibrationResult
+from host.errors import UserError
+
+#: environment variables naming the bench and the operator when neither the records' headers
+#: nor the command line do
+BENCH_ENV = "IMU_BENCH_NAME"
+OPERATOR_ENV = "IMU_BENCH_OPERATOR"
+
+#: self-test outcomes as the records' ``self_test`` header line says them ('' = not run)
+SELF_TEST_VALUES = ("", "pass", "fail")
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One fitted parameter as archived: report ``name`` ('A0x', 'temperature_bias.gyro.y'),
+    the term/sensor/axis it belongs to, ``value`` and 1-σ ``stderr`` in ``unit`` (NaN: not
+    determined), the §7 ``tolerance`` and ``passed`` flag where the method has one."""
+
+    name: str
+    term: str
+    sensor: str
+    axis: str
+    unit: str
+    value: float
+    stderr: float
+    tolerance: float | None = None
+    passed: bool | None = None
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One calibration of one unit, as the archive keeps it.
+
+    ``measured_at``: UTC time of the session's first record (ISO 8601, ``Z``);
+    ``temp_*_c``: the chip temperature over the records, °C; ``covariance``: the parameters'
+    covariance in the order of ``parameters`` (``covariance_kind`` 'full' when the result file
+    carries it, 'diagonal' when only the σ were there); ``verdict``: 'pass' or 'fail' (the
+    report's verdict, and a failed self-test fails it); ``self_test``: 'pass', 'fail' or ''
+    (not run); ``result_hash``/``report_hash``/``records_hash``: SHA-256 (hex) of the result
+    file, the report and the records (the hash of the sorted 'name sha256' lines of
+    ``record_hashes``); ``result_json``: the result file's text, kept whole.
+    """
+
+    serial: str
+    measured_at: str
+    model: str
+    parameters: tuple[Parameter, ...]
+    result_hash: str
+    bench: str = ""
+    operator: str = ""
+    lot: str = ""
+    firmware: str = ""
+    sensor_revision: str = ""
+    temp_min_c: float = math.nan
+    temp_mean_c: float = math.nan
+    temp_max_c: float = math.nan
+    covariance: tuple[tuple[float, ...], ...] = ()
+    covariance_kind: str = "diagonal"
+    chi2: float = math.nan
+    dof: int = 0
+    rms_z: float = math.nan
+    p: float = math.nan
+    fit_verdict: str = ""
+    verdict: str = "fail"
+    self_test: str = ""
+    report_hash: str = ""
+    records_hash: str = ""
+    record_hashes: tuple[tuple[str, str], ...] = ()
+    result_json: str = ""
+
+    def parameter(self, name: str) -> Parameter:
+        """The parameter called ``name`` (KeyError if the entry has none)."""
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+
+def sha256_bytes(data: bytes) -> str:
+    """SHA-256 of ``data``, hex."""
+    return hashlib.sha256(data).hexdigest()
+
+
+def records_digest(record_hashes: Sequence[tuple[str, str]]) -> str:
+    """One hash for a set of record files: SHA-256 of the sorted 'name sha256' lines."""
+    lines = "".join(f"{n} {h}\n" for n, h in sorted(record_hashes))
+    return sha256_bytes(lines.encode())
+
+
+def utc_iso(text: str) -> str:
+    """An ISO 8601 time (with an offset; naive = UTC) as UTC ``YYYY-MM-DDTHH:MM:SS.ffffffZ``
+    (sorts as text). UserError for text that is no time."""
+    try:
+        t = datetime.fromisoformat(text.strip().replace("Z", "+00:00"))
+    except ValueError:
+        raise UserError(
+            f"not an ISO 8601 time: {text!r} (e.g. 2026-05-04T09:30:00+02:00)"
+        ) from None
+    if t.tzinfo is None:
+        t = t.replace(tzinfo=UTC)
+    return t.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+def diagonal_covariance(stderr: Sequence[float]) -> tuple[tuple[float, ...], ...]:
+    """The covariance when only the σ are known: diag(σ²) (NaN σ -> NaN)."""
+    s = np.asarray(stderr, dtype=np.float64)
+    return tuple(tuple(float(x) for x in row) for row in np.diag(s * s))
+
+
+def result_covariance(
+    doc: Mapping[str, object], names: Sequence[str]
+) -> tuple[tuple[float, ...], ...] | None:
+    """The full covariance a result file carries (``covariance: {names, matrix}``), reordered
+    to ``names``; None when the file has none or it does not cover every name."""
+    cov = doc.get("covariance")
+    if not isinstance(cov, Mapping):
+        return None
+    cnames = cov.get("names")
+    matrix = cov.get("matrix")
+    if not isinstance(cnames, list) or not isinstance(matrix, list):
+        return None
+    pos = {str(n): i for i, n in enumerate(cnames)}
+    if any(n not in pos for n in names):
+        return None
+    m = np.array([[math.nan if x is None else float(x) for x in row] for row in matrix])
+    if m.shape != (len(cnames), len(cnames)):
+        return None
+    idx = [pos[n] for n in names]
+    sub = m[np.ix_(idx, idx)]
+    return tuple(tuple(float(x) for x in row) for row in sub)
+
+
+def _find_result(directory: Path, serial: str | None) -> Path:
+    if directory.is_file():
+        return directory
+    if not directory.is_dir():
+        raise UserError(f"{directory}: no such directory (give the directory calibrate wrote)")
+    if serial is not None:
+        path = directory / f"{serial}_result.json"
+        if not path.is_file():
+            raise UserError(f"{path}: no such file (run calibrate --from-dir {directory} first)")
+        return path
+    found = sorted(directory.glob("*_result.json"))
+    if not found:
+        raise UserError(f"{directory}: no SERIAL_result.json (run calibrate --from-dir first)")
+    if len(found) > 1:
+        names = ", ".join(p.name for p in found)
+        raise UserError(f"{directory}: several results ({names}); say which with --serial")
+    return found[0]
+
+
+def _first(metas: Sequence[Mapping[str, str]], key: str) -> str:
+    for m in metas:
+        v = m.get(key, "").strip()
+        if v:
+            return v
+    return ""
+
+
+def entry_from_directory(
+    directory: str | os.PathLike[str],
+    *,
+    serial: str | None = None,
+    records_dir: str | os.PathLike[str] | None = None,
+    bench: str | None = None,
+    operator: str | None = None,
+    lot: str | None = None,
+) -> Entry:
+    """The :class:`Entry` of the result in ``directory`` (or the result file itself): the
+    result, its report beside it and its records (in ``records_dir``, default the same
+    directory). ``bench``/``operator``/``lot`` override the records' header lines of those
+    names; bench and operator fall back to $IMU_BENCH_NAME / $IMU_BENCH_OPERATOR. UserError
+    naming the missing or bad file."""
+    path = _find_result(Path(directory), serial)
+    raw = path.read_bytes()
+    result = CalibrationResult.load(path)
+    doc = json.loads(raw)
+    report = path.with_name(f"{result.serial}_result.txt")
+    if not report.is_file():
+        raise UserError(f"{report}: no such file (the report written with {path.name})")
+    rdir = Path(records_dir) if records_dir is not None else path.parent
+    hashes: list[tuple[str, str]] = []
+    metas: list[dict[str, str]] = []
+    temps: list[np.ndarray] = []
+    for name in result.records:
+        rpath = rdir / f"{result.serial}_{name}.txt"
+        if not rpath.is_file():
+            raise UserError(
+                f"{rpath}: no such file — the result was fitted on it; give the records' "
+                "directory with --records"
+            )
+        hashes.append((name, sha256_bytes(rpath.read_bytes())))
+        rec = read_record(rpath)
+        metas.append(rec.meta)
+        temps.append(rec.temp)
+    t = np.concatenate(temps) if temps else np.array([])
+    t = t[np.isfinite(t)]
+    starts = sorted(utc_iso(m["start_time"]) for m in metas if m.get("start_time"))
+    measured_at = starts[0] if starts else utc_iso(result.created)
+    self_test = _first(metas, "self_test").lower()
+    if self_test not in SELF_TEST_VALUES:
+        raise UserError(f"{path}: records say self_test: {self_test!r} (expected pass or fail)")
+    params = tuple(
+        Parameter(
+            p.name, p.term, p.sensor, p.axis, p.unit, p.value, p.stderr, p.tolerance, p.passed
+        )
+        for p in result.parameters
+    )
+    names = [p.name for p in params]
+    full = result_covariance(doc, names)
+    fit = result.fit
+    return Entry(
+        serial=result.serial,
+        measured_at=measured_at,
+        model=result.model,
+        parameters=params,
+        result_hash=sha256_bytes(raw),
+        bench=bench or _first(metas, "bench") or os.environ.get(BENCH_ENV, ""),
+        operator=operator or _first(metas, "operator") or os.environ.get(OPERATOR_ENV, ""),
+        lot=lot or _first(metas, "lot"),
+        firmware=_first(metas, "firmware"),
+        sensor_revision=_first(metas, "sensor_revision"),
+        temp_min_c=float(t.min()) if t.size else math.nan,
+        temp_mean_c=float(t.mean()) if t.size else math.nan,
+        temp_max_c=float(t.max()) if t.size else math.nan,
+        covariance=full if full is not None else diagonal_covariance([p.stderr for p in params]),
+        covariance_kind="full" if full is not None else "diagonal",
+        chi2=fit.chi2 if fit else math.nan,
+        dof=fit.dof if fit else 0,
+        rms_z=fit.rms_z if fit else math.nan,
+        p=fit.p if fit else math.nan,
+        fit_verdict=fit.verdict if fit else "",
+        verdict="pass" if result.all_passed and self_test != "fail" else "fail",
+        self_test=self_test,
+        report_hash=sha256_bytes(report.read_bytes()),
+        records_hash=records_digest(hashes),
+        record_hashes=tuple(hashes),
+        result_json=raw.decode("utf-8"),
+    )

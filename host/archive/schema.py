@@ -1,0 +1,172 @@
+"""The archive's tables (one schema for SQLite and PostgreSQL) and its versioned migrations.
+
+``calibrations`` holds one row per archived result (identity: the result file's SHA-256,
+unique), ``parameters`` one row per fitted parameter of it (value and σ; NaN is stored as
+NULL), ``record_files`` the hash of every record the result was fitted on. Rows are only ever
+inserted: no statement of the archive updates or deletes one.
+
+:data:`MIGRATIONS` is the ordered list of schema versions; ``archive_schema`` records which
+were applied. :func:`migrate` applies the missing ones in one transaction per version, under a
+lock the other processes wait on (PostgreSQL: an advisory lock; SQLite: ``BEGIN IMMEDIATE``),
+so that several processes opening a new archive at once create it once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from datetime import UTC, datetime
+
+from sqlalchemy import (
+    Boolean,
+    Column,
+    Connection,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    MetaData,
+    String,
+    Table,
+    Text,
+    UniqueConstraint,
+    select,
+    text,
+)
+from sqlalchemy.exc import IntegrityError
+
+from host.errors import UserError
+
+metadata = MetaData()
+
+schema_versions = Table(
+    "archive_schema",
+    metadata,
+    Column("version", Integer, primary_key=True, autoincrement=False),
+    Column("description", Text, nullable=False),
+    Column("applied_at", String(32), nullable=False),
+)
+
+calibrations = Table(
+    "calibrations",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("result_hash", String(64), nullable=False),
+    Column("serial", String(200), nullable=False),
+    Column("bench", String(200), nullable=False),
+    Column("operator", String(200), nullable=False),
+    Column("lot", String(200), nullable=False),
+    Column("firmware", String(200), nullable=False),
+    Column("sensor_revision", String(200), nullable=False),
+    Column("measured_at", String(32), nullable=False),
+    Column("archived_at", String(32), nullable=False),
+    Column("temp_min_c", Float),
+    Column("temp_mean_c", Float),
+    Column("temp_max_c", Float),
+    Column("model", Text, nullable=False),
+    Column("chi2", Float),
+    Column("dof", Integer, nullable=False),
+    Column("rms_z", Float),
+    Column("p", Float),
+    Column("fit_verdict", String(40), nullable=False),
+    Column("verdict", String(8), nullable=False),
+    Column("self_test", String(8), nullable=False),
+    Column("report_hash", String(64), nullable=False),
+    Column("records_hash", String(64), nullable=False),
+    Column("covariance_kind", String(16), nullable=False),
+    Column("covariance", Text, nullable=False),
+    Column("result_json", Text, nullable=False),
+    UniqueConstraint("result_hash", name="uq_calibrations_result_hash"),
+    Index("ix_calibrations_serial_time", "serial", "measured_at"),
+    Index("ix_calibrations_bench_time", "bench", "measured_at"),
+    Index("ix_calibrations_records", "records_hash"),
+)
+
+parameters = Table(
+    "parameters",
+    metadata,
+    Column("calibration_id", Integer, ForeignKey("calibrations.id"), primary_key=True),
+    Column("position", Integer, primary_key=True, autoincrement=False),
+    Column("name", String(200), nullable=False),
+    Column("term", String(200), nullable=False),
+    Column("sensor", String(16), nullable=False),
+    Column("axis", String(16), nullable=False),
+    Column("unit", String(40), nullable=False),
+    Column("value", Float),
+    Column("stderr", Float),
+    Column("tolerance", Float),
+    Column("passed", Boolean),
+    Index("ix_parameters_name", "name", "calibration_id"),
+)
+
+record_files = Table(
+    "record_files",
+    metadata,
+    Column("calibration_id", Integer, ForeignKey("calibrations.id"), primary_key=True),
+    Column("name", String(200), primary_key=True),
+    Column("sha256", String(64), nullable=False),
+)
+
+
+def _v1(conn: Connection) -> None:
+    for table in (calibrations, parameters, record_files):
+        table.create(conn, checkfirst=True)
+
+
+#: (version, what it does, the change) in order; a new version appends, none is ever edited
+MIGRATIONS: tuple[tuple[int, str, Callable[[Connection], None]], ...] = (
+    (1, "calibrations, parameters, record_files", _v1),
+)
+SCHEMA_VERSION = MIGRATIONS[-1][0]
+
+#: key of the PostgreSQL advisory lock the migrations take (any constant shared by all)
+_LOCK_KEY = 2029
+
+
+def now_utc() -> str:
+    """The current UTC time as the archive writes it (ISO 8601, microseconds, ``Z``)."""
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+def lock(conn: Connection) -> None:
+    """Take the archive's write lock for the rest of the transaction (PostgreSQL: a
+    transaction-scoped advisory lock; SQLite's ``BEGIN IMMEDIATE`` already holds it)."""
+    if conn.dialect.name == "postgresql":
+        conn.execute(text("SELECT pg_advisory_xact_lock(:k)"), {"k": _LOCK_KEY})
+
+
+def applied_versions(conn: Connection) -> set[int]:
+    """The schema versions applied to the archive ``conn`` is connected to."""
+    if not conn.dialect.has_table(conn, schema_versions.name):
+        return set()
+    return {int(v) for v in conn.execute(select(schema_versions.c.version)).scalars()}
+
+
+def migrate(connect: Callable[[], Connection]) -> int:
+    """Bring the archive to :data:`SCHEMA_VERSION`; returns the number of versions applied.
+    ``connect`` opens a connection (each version commits on its own). UserError when the
+    archive was written by a newer program (a version this one does not know)."""
+    done = 0
+    for version, description, change in MIGRATIONS:
+        with connect() as conn, conn.begin():
+            lock(conn)
+            schema_versions.create(conn, checkfirst=True)
+            have = applied_versions(conn)
+            unknown = sorted(v for v in have if v > SCHEMA_VERSION)
+            if unknown:
+                raise UserError(
+                    f"the archive has schema version {unknown[-1]}, newer than this program's "
+                    f"{SCHEMA_VERSION}: update imu-bench before using it"
+                )
+            if version in have:
+                continue
+            change(conn)
+            try:
+                conn.execute(
+                    schema_versions.insert().values(
+                        version=version, description=description, applied_at=now_utc()
+                    )
+                )
+            except IntegrityError:  # another process applied it meanwhile
+                continue
+            done += 1
+    return done

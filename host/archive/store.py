@@ -1,0 +1,386 @@
+"""The archive store: open by URL, add an entry (idempotent, never an update), read it back.
+
+One code path for both back ends (SQLAlchemy Core): an SQLite file by default — WAL journal,
+every transaction ``BEGIN IMMEDIATE`` and a long busy timeout, so several processes on one
+machine can write at once — or a PostgreSQL server for many benches
+(``postgresql://user@host/db``; the driver is psycopg 3). :func:`archive_url` says which:
+``--archive URL`` or a path, else ``$IMU_BENCH_ARCHIVE``, else ``imu_archive.sqlite`` in the
+current directory.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from sqlalchemy import Connection, Engine, create_engine, event, func, select, true
+from sqlalchemy.exc import ArgumentError, IntegrityError, NoSuchModuleError, OperationalError
+from sqlalchemy.pool import NullPool
+
+from host.archive.entry import Entry, Parameter
+from host.archive.schema import (
+    SCHEMA_VERSION,
+    applied_versions,
+    calibrations,
+    migrate,
+    now_utc,
+    parameters,
+    record_files,
+)
+from host.errors import UserError
+
+ARCHIVE_ENV = "IMU_BENCH_ARCHIVE"
+DEFAULT_FILE = "imu_archive.sqlite"
+
+
+def archive_url(option: str | None = None) -> str:
+    """The SQLAlchemy URL of the archive: ``option`` (a URL, or a path of an SQLite file),
+    else $IMU_BENCH_ARCHIVE, else ``imu_archive.sqlite`` here. ``postgresql://`` and
+    ``postgres://`` use the psycopg 3 driver."""
+    raw = option or os.environ.get(ARCHIVE_ENV) or DEFAULT_FILE
+    for scheme in ("postgresql://", "postgres://"):
+        if raw.startswith(scheme):
+            return "postgresql+psycopg://" + raw[len(scheme) :]
+    if "://" in raw:
+        return raw
+    return f"sqlite:///{Path(raw).expanduser().resolve()}"
+
+
+def _nan(v: Any) -> float:
+    return math.nan if v is None else float(v)
+
+
+def _null(v: float) -> float | None:
+    return None if v is None or not math.isfinite(v) else float(v)
+
+
+def _sqlite_setup(engine: Engine) -> None:
+    @event.listens_for(engine, "connect")
+    def _connect(dbapi_conn: Any, _record: Any) -> None:
+        dbapi_conn.isolation_level = None  # the BEGIN below, not the driver's, opens each
+        cur = dbapi_conn.cursor()
+        cur.execute("PRAGMA busy_timeout = 60000")
+        cur.execute("PRAGMA journal_mode = WAL")
+        cur.execute("PRAGMA synchronous = NORMAL")
+        cur.execute("PRAGMA foreign_keys = ON")
+        cur.close()
+
+    @event.listens_for(engine, "begin")
+    def _begin(conn: Connection) -> None:
+        conn.exec_driver_sql("BEGIN IMMEDIATE")
+
+
+@dataclass(frozen=True)
+class Summary:
+    """One archived calibration without its parameters (a line of ``archive list``)."""
+
+    id: int
+    serial: str
+    bench: str
+    operator: str
+    lot: str
+    measured_at: str
+    archived_at: str
+    model: str
+    verdict: str
+    self_test: str
+    fit_verdict: str
+    rms_z: float
+    firmware: str
+    sensor_revision: str
+    temp_mean_c: float
+    records_hash: str
+    result_hash: str
+
+
+@dataclass(frozen=True)
+class ValueTable:
+    """Parameter values of many calibrations, one row per (calibration, parameter), ordered
+    by serial, time, calibration and parameter: ``id`` (calibration), ``serial``, ``bench``,
+    ``measured_at`` (UTC ISO text), ``self_test``, ``verdict``, ``name``, ``value``, ``stderr``
+    (NaN: not determined), all numpy arrays of one length."""
+
+    id: np.ndarray
+    serial: np.ndarray
+    bench: np.ndarray
+    measured_at: np.ndarray
+    self_test: np.ndarray
+    verdict: np.ndarray
+    name: np.ndarray
+    value: np.ndarray
+    stderr: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.id.shape[0])
+
+    def where(self, mask: np.ndarray) -> ValueTable:
+        """The rows where ``mask`` is true."""
+        return ValueTable(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
+
+
+_SUMMARY_COLUMNS = (
+    "id", "serial", "bench", "operator", "lot", "measured_at", "archived_at", "model", "verdict",
+    "self_test", "fit_verdict", "rms_z", "firmware", "sensor_revision", "temp_mean_c",
+    "records_hash", "result_hash",
+)  # fmt: skip
+
+
+class Archive:
+    """An open archive (:func:`archive_url` says where); creates and migrates its schema on
+    first use. Use as a context manager or call :meth:`close`."""
+
+    def __init__(self, url: str | None = None) -> None:
+        self.url = archive_url(url)
+        try:
+            if self.url.startswith("sqlite"):
+                self.engine = create_engine(self.url, poolclass=NullPool)
+                _sqlite_setup(self.engine)
+            else:
+                self.engine = create_engine(self.url, pool_pre_ping=True)
+        except NoSuchModuleError as exc:
+            raise UserError(f"archive {self.url}: unknown kind of database ({exc})") from None
+        except ModuleNotFoundError as exc:
+            raise UserError(
+                f"archive {self.url}: the driver is missing ({exc.name}): pip install "
+                "'psycopg[binary]'"
+            ) from None
+        except ArgumentError as exc:
+            raise UserError(f"archive: not a database URL: {url!r} ({exc})") from None
+        try:
+            with self.engine.connect() as conn:
+                current = applied_versions(conn)
+            if not current or max(current) != SCHEMA_VERSION:
+                migrate(self.engine.connect)
+        except OperationalError as exc:
+            self.engine.dispose()
+            first = str(exc.orig).strip().splitlines()[0] if exc.orig else str(exc)
+            raise UserError(f"archive {self.display_url}: cannot open it ({first})") from None
+
+    @property
+    def display_url(self) -> str:
+        """The URL without its password, for messages."""
+        return self.engine.url.render_as_string(hide_password=True)
+
+    @property
+    def backend(self) -> str:
+        """'sqlite' or 'postgresql'."""
+        return self.engine.dialect.name
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    def __enter__(self) -> Archive:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+    # ---- writing ---------------------------------------------------------------------------
+    def _id_of(self, conn: Connection, result_hash: str) -> int | None:
+        q = select(calibrations.c.id).where(calibrations.c.result_hash == result_hash)
+        v = conn.execute(q).scalar()
+        return None if v is None else int(v)
+
+    def add(self, entry: Entry) -> tuple[int, bool]:
+        """Archive ``entry``; returns (its id, True) — or (the id it already has, False) when
+        the same result file was archived before: adding twice is a no-op."""
+        try:
+            with self.engine.connect() as conn, conn.begin():
+                have = self._id_of(conn, entry.result_hash)
+                if have is not None:
+                    return have, False
+                new = conn.execute(calibrations.insert().values(**_row_of(entry)))
+                key = new.inserted_primary_key
+                assert key is not None
+                cid = int(key[0])
+                conn.execute(
+                    parameters.insert(),
+                    [_parameter_row(cid, i, p) for i, p in enumerate(entry.parameters)],
+                )
+                if entry.record_hashes:
+                    conn.execute(
+                        record_files.insert(),
+                        [
+                            {"calibration_id": cid, "name": n, "sha256": h}
+                            for n, h in entry.record_hashes
+                        ],
+                    )
+                return cid, True
+        except IntegrityError:  # another process archived the same result meanwhile
+            with self.engine.connect() as conn:
+                have = self._id_of(conn, entry.result_hash)
+            if have is None:
+                raise
+            return have, False
+
+    # ---- reading ---------------------------------------------------------------------------
+    def summaries(
+        self, serial: str | None = None, bench: str | None = None, lot: str | None = None
+    ) -> list[Summary]:
+        """Archived calibrations in time order, of one serial/bench/lot when given."""
+        c = calibrations.c
+        q = select(*(c[n] for n in _SUMMARY_COLUMNS)).order_by(c.measured_at, c.id)
+        for col, v in ((c.serial, serial), (c.bench, bench), (c.lot, lot)):
+            if v is not None:
+                q = q.where(col == v)
+        with self.engine.connect() as conn:
+            rows = conn.execute(q).all()
+        return [
+            Summary(**{**r._asdict(), "rms_z": _nan(r.rms_z), "temp_mean_c": _nan(r.temp_mean_c)})
+            for r in rows
+        ]
+
+    def count(self) -> tuple[int, int]:
+        """(calibrations, parameter rows) in the archive."""
+        with self.engine.connect() as conn:
+            n = conn.execute(select(func.count()).select_from(calibrations)).scalar_one()
+            m = conn.execute(select(func.count()).select_from(parameters)).scalar_one()
+        return int(n), int(m)
+
+    def result_hashes(self) -> list[str]:
+        """The result hash of every archived calibration (one per row, duplicates kept)."""
+        with self.engine.connect() as conn:
+            return [str(h) for h in conn.execute(select(calibrations.c.result_hash)).scalars()]
+
+    def entry(self, key: int | str) -> Entry:
+        """The archived calibration with id ``key`` (int) or whose result hash starts with
+        ``key`` (str, ≥ 8 hex digits); UserError when there is none or the prefix is
+        ambiguous."""
+        c = calibrations.c
+        q = select(calibrations)
+        if isinstance(key, int):
+            q = q.where(c.id == key)
+        else:
+            if len(key) < 8:
+                raise UserError(f"{key!r}: give at least 8 hex digits of the result hash")
+            q = q.where(c.result_hash.like(key.lower() + "%"))
+        with self.engine.connect() as conn:
+            rows = conn.execute(q.limit(2)).all()
+            if len(rows) != 1:
+                what = "no archived calibration" if not rows else "several calibrations"
+                raise UserError(f"{key}: {what} with this id or hash (see 'archive list')")
+            r = rows[0]
+            ps = conn.execute(
+                select(parameters)
+                .where(parameters.c.calibration_id == r.id)
+                .order_by(parameters.c.position)
+            ).all()
+            files = conn.execute(
+                select(record_files.c.name, record_files.c.sha256)
+                .where(record_files.c.calibration_id == r.id)
+                .order_by(record_files.c.name)
+            ).all()
+        params = tuple(
+            Parameter(
+                p.name, p.term, p.sensor, p.axis, p.unit, _nan(p.value), _nan(p.stderr),
+                p.tolerance, p.passed,
+            )
+            for p in ps
+        )  # fmt: skip
+        cov = tuple(tuple(_nan(x) for x in row) for row in json.loads(r.covariance))
+        return Entry(
+            serial=r.serial, measured_at=r.measured_at, model=r.model, parameters=params,
+            result_hash=r.result_hash, bench=r.bench, operator=r.operator, lot=r.lot,
+            firmware=r.firmware, sensor_revision=r.sensor_revision,
+            temp_min_c=_nan(r.temp_min_c), temp_mean_c=_nan(r.temp_mean_c),
+            temp_max_c=_nan(r.temp_max_c), covariance=cov, covariance_kind=r.covariance_kind,
+            chi2=_nan(r.chi2), dof=int(r.dof), rms_z=_nan(r.rms_z), p=_nan(r.p),
+            fit_verdict=r.fit_verdict, verdict=r.verdict, self_test=r.self_test,
+            report_hash=r.report_hash, records_hash=r.records_hash,
+            record_hashes=tuple((f.name, f.sha256) for f in files), result_json=r.result_json,
+        )  # fmt: skip
+
+    def values(
+        self,
+        names: Sequence[str] | None = None,
+        *,
+        serial: str | None = None,
+        bench: str | None = None,
+        lot: str | None = None,
+        latest_per_unit: bool = False,
+    ) -> ValueTable:
+        """The parameter values of the archived sessions (filtered by ``serial``/``bench``/
+        ``lot``, only the parameters ``names`` when given). A session is one set of records:
+        when the same records were archived with several results (recomputed), the latest
+        archived counts. ``latest_per_unit``: only each serial's latest session."""
+        c = calibrations.c
+        per_session = func.row_number().over(partition_by=c.records_hash, order_by=c.id.desc())
+        q = select(
+            c.id, c.serial, c.bench, c.measured_at, c.self_test, c.verdict,
+            per_session.label("rs"),
+        )  # fmt: skip
+        for col, v in ((c.serial, serial), (c.bench, bench), (c.lot, lot)):
+            if v is not None:
+                q = q.where(col == v)
+        sess = q.subquery()
+        per_unit = func.row_number().over(
+            partition_by=sess.c.serial, order_by=(sess.c.measured_at.desc(), sess.c.id.desc())
+        )
+        chosen = (
+            select(*(sess.c[n] for n in ("id", "serial", "bench", "measured_at", "self_test")),
+                   sess.c.verdict, per_unit.label("ru"))
+            .where(sess.c.rs == 1)
+            .subquery()
+        )  # fmt: skip
+        p = parameters.c
+        final = (
+            select(
+                chosen.c.id, chosen.c.serial, chosen.c.bench, chosen.c.measured_at,
+                chosen.c.self_test, chosen.c.verdict, p.name, p.value, p.stderr,
+            )
+            .join(parameters, p.calibration_id == chosen.c.id)
+            .where(chosen.c.ru == 1 if latest_per_unit else true())
+            .order_by(chosen.c.serial, chosen.c.measured_at, chosen.c.id, p.position)
+        )  # fmt: skip
+        if names is not None:
+            final = final.where(p.name.in_(list(names)))
+        with self.engine.connect() as conn:
+            rows = conn.execute(final).all()
+        return _value_table(rows)
+
+
+def _value_table(rows: Sequence[Any]) -> ValueTable:
+    cols = list(zip(*rows, strict=True)) if rows else [()] * 9
+
+    def obj(i: int) -> np.ndarray:
+        a = np.empty(len(cols[i]), dtype=object)
+        a[:] = cols[i]
+        return a
+
+    def num(i: int) -> np.ndarray:
+        return np.array([math.nan if v is None else v for v in cols[i]], dtype=np.float64)
+
+    return ValueTable(
+        id=np.array(cols[0], dtype=np.int64), serial=obj(1), bench=obj(2), measured_at=obj(3),
+        self_test=obj(4), verdict=obj(5), name=obj(6), value=num(7), stderr=num(8),
+    )  # fmt: skip
+
+
+def _row_of(e: Entry) -> dict[str, Any]:
+    cov = [[_null(x) for x in row] for row in e.covariance]
+    return {
+        "result_hash": e.result_hash, "serial": e.serial, "bench": e.bench,
+        "operator": e.operator, "lot": e.lot, "firmware": e.firmware,
+        "sensor_revision": e.sensor_revision, "measured_at": e.measured_at,
+        "archived_at": now_utc(), "temp_min_c": _null(e.temp_min_c),
+        "temp_mean_c": _null(e.temp_mean_c), "temp_max_c": _null(e.temp_max_c),
+        "model": e.model, "chi2": _null(e.chi2), "dof": int(e.dof), "rms_z": _null(e.rms_z),
+        "p": _null(e.p), "fit_verdict": e.fit_verdict, "verdict": e.verdict,
+        "self_test": e.self_test, "report_hash": e.report_hash, "records_hash": e.records_hash,
+        "covariance_kind": e.covariance_kind, "covariance": json.dumps(cov),
+        "result_json": e.result_json,
+    }  # fmt: skip
+
+
+def _parameter_row(cid: int, position: int, p: Parameter) -> dict[str, Any]:
+    return {
+        "calibration_id": cid, "position": position, "name": p.name, "term": p.term,
+        "sensor": p.sensor, "axis": p.axis, "unit": p.unit, "value": _null(p.value),
+        "stderr": _null(p.stderr), "tolerance": p.tolerance, "passed": p.passed,
+    }  # fmt: skip

@@ -1,0 +1,123 @@
+"""An archive entry read from what calibrate wrote (host/archive/entry.py): the hashes are
+those of the files, the identity comes from the records' headers or the options, and a
+missing file is one line naming it."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from host.archive.entry import (
+    BENCH_ENV,
+    entry_from_directory,
+    records_digest,
+    result_covariance,
+    utc_iso,
+)
+from host.calib.publish import ComputeSettings, compute_and_write
+from host.calib.records import read_session
+from host.errors import UserError
+from tests.host.sim_sessions import write_sim_session
+
+
+@pytest.fixture(scope="module")
+def calibrated(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = write_sim_session(tmp_path_factory.mktemp("entry") / "E1", "E1", seed=21)
+    compute_and_write(read_session(d, None), d, ComputeSettings())
+    return d
+
+
+def _copy(src: Path, dst: Path) -> Path:
+    shutil.copytree(src, dst)
+    return dst
+
+
+def _sha(p: Path) -> str:
+    return hashlib.sha256(p.read_bytes()).hexdigest()
+
+
+def test_the_entry_proves_which_files_it_came_from(calibrated: Path) -> None:
+    e = entry_from_directory(calibrated, bench="B2", operator="ana")
+    doc = json.loads((calibrated / "E1_result.json").read_text())
+    assert e.serial == "E1" and (e.bench, e.operator) == ("B2", "ana")
+    assert e.result_hash == _sha(calibrated / "E1_result.json")
+    assert e.report_hash == _sha(calibrated / "E1_result.txt")
+    assert dict(e.record_hashes) == {n: _sha(calibrated / f"E1_{n}.txt") for n in doc["records"]}
+    assert e.records_hash == records_digest(e.record_hashes)
+    assert [p.name for p in e.parameters] == [p["name"] for p in doc["parameters"]]
+    assert [p.value for p in e.parameters] == pytest.approx([p["value"] for p in doc["parameters"]])
+    assert e.verdict == ("pass" if doc["all_passed"] else "fail")
+    assert e.fit_verdict == doc["fit"]["verdict"]
+    # the result file carries σ only: the covariance is their diagonal
+    assert e.covariance_kind == "diagonal"
+    cov = np.array(e.covariance)
+    assert np.allclose(np.sqrt(np.diag(cov)), [p.stderr for p in e.parameters])
+    assert np.count_nonzero(cov - np.diag(np.diag(cov))) == 0
+    assert e.temp_min_c <= e.temp_mean_c <= e.temp_max_c
+
+
+def test_identity_from_the_record_headers_and_the_environment(
+    calibrated: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    d = _copy(calibrated, tmp_path / "E1")
+    rec = d / "E1_x_up.txt"
+    head = (
+        "# start_time: 2026-05-04T09:30:00.250+02:00\n# firmware: imu-bench 0.3\n"
+        "# sensor_revision: C5\n# self_test: fail\n# lot: L42\n"
+    )
+    rec.write_text(head + rec.read_text())
+    monkeypatch.setenv(BENCH_ENV, "bench-7")
+    e = entry_from_directory(d)
+    assert e.measured_at == "2026-05-04T07:30:00.250000Z"
+    assert (e.firmware, e.sensor_revision, e.lot, e.bench) == (
+        "imu-bench 0.3",
+        "C5",
+        "L42",
+        "bench-7",
+    )
+    assert e.self_test == "fail" and e.verdict == "fail"
+    assert dict(e.record_hashes)["x_up"] == _sha(rec)
+
+
+def test_records_elsewhere_and_missing_files(calibrated: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in ("E1_result.json", "E1_result.txt"):
+        shutil.copy(calibrated / name, out / name)
+    with pytest.raises(UserError, match=r"E1_\w+.txt: no such file.*--records"):
+        entry_from_directory(out)
+    assert entry_from_directory(out, records_dir=calibrated).serial == "E1"
+    (out / "E1_result.txt").unlink()
+    with pytest.raises(UserError, match="E1_result.txt: no such file"):
+        entry_from_directory(out, records_dir=calibrated)
+    with pytest.raises(UserError, match="no SERIAL_result.json"):
+        entry_from_directory(tmp_path)
+    with pytest.raises(UserError, match="no such directory"):
+        entry_from_directory(tmp_path / "nope")
+
+
+def test_a_bad_self_test_line_is_refused(calibrated: Path, tmp_path: Path) -> None:
+    d = _copy(calibrated, tmp_path / "E1")
+    rec = d / "E1_y_up.txt"
+    rec.write_text("# self_test: maybe\n" + rec.read_text())
+    with pytest.raises(UserError, match="self_test: 'maybe'"):
+        entry_from_directory(d)
+
+
+def test_a_full_covariance_in_the_result_is_taken_in_the_parameters_order() -> None:
+    doc = {"covariance": {"names": ["b", "a"], "matrix": [[4.0, 1.0], [1.0, 9.0]]}}
+    assert result_covariance(doc, ["a", "b"]) == ((9.0, 1.0), (1.0, 4.0))
+    assert result_covariance(doc, ["a", "c"]) is None
+    assert result_covariance({}, ["a"]) is None
+
+
+def test_times_become_utc() -> None:
+    assert utc_iso("2026-01-02T03:04:05Z") == "2026-01-02T03:04:05.000000Z"
+    assert utc_iso("2026-01-02T03:04:05-05:00") == "2026-01-02T08:04:05.000000Z"
+    with pytest.raises(UserError, match="not an ISO 8601 time"):
+        utc_iso("yesterday")

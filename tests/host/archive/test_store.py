@@ -1,0 +1,147 @@
+"""The archive store (host/archive/store.py, schema.py) on SQLite and on a real PostgreSQL:
+an entry comes back as it went in, adding twice is a no-op, rows are never updated, the schema
+carries its version, and bad URLs get one line."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from sqlalchemy import select, text
+
+from host.archive.entry import Entry
+from host.archive.schema import SCHEMA_VERSION, schema_versions
+from host.archive.store import ARCHIVE_ENV, Archive, archive_url
+from host.errors import UserError
+from tests.host.archive.lot_sim import NAMES, SIGMA, make_entry
+
+
+def _entry(serial: str = "U1", session: int = 0, **kw: object) -> Entry:
+    v = np.arange(len(NAMES), dtype=float) * 0.01 + session
+    return make_entry(serial, "B1", session, v, SIGMA, **kw)  # type: ignore[arg-type]
+
+
+def _same(a: Entry, b: Entry) -> bool:
+    """Field-wise equality with NaN equal to NaN."""
+
+    def norm(x: object) -> object:
+        if isinstance(x, float) and math.isnan(x):
+            return "nan"
+        if isinstance(x, tuple):
+            return tuple(norm(y) for y in x)
+        if dataclasses.is_dataclass(x) and not isinstance(x, type):
+            return norm(dataclasses.astuple(x))
+        return x
+
+    return all(
+        norm(getattr(a, f.name)) == norm(getattr(b, f.name)) for f in dataclasses.fields(Entry)
+    )
+
+
+def test_an_entry_comes_back_whole_and_adding_it_twice_is_a_no_op(archive_url: str) -> None:
+    e = _entry()
+    nan_param = dataclasses.replace(e.parameters[0], value=math.nan, stderr=math.nan)
+    e = dataclasses.replace(e, parameters=(nan_param, *e.parameters[1:]), temp_mean_c=31.5)
+    with Archive(archive_url) as a:
+        cid, added = a.add(e)
+        assert added
+        assert a.add(e) == (cid, False)
+        assert a.count() == (1, len(NAMES))
+        back = a.entry(cid)
+        assert _same(back, e)
+        assert _same(a.entry(e.result_hash[:12]), e)
+        assert math.isnan(back.parameters[0].value) and back.temp_mean_c == 31.5
+
+
+def test_rows_are_only_inserted_a_recomputed_session_is_a_new_row(archive_url: str) -> None:
+    first = _entry()
+    again = dataclasses.replace(first, result_hash="f" * 64, model="base,temperature_bias")
+    with Archive(archive_url) as a:
+        i1, _ = a.add(first)
+        i2, added = a.add(again)
+        assert added and i2 != i1
+        assert a.entry(i1).model == "base"  # the first is untouched
+        # the statistics count the session once: the latest archived result of its records
+        v = a.values(["A0x"])
+        assert list(v.id) == [i2]
+
+
+def test_values_filter_and_take_each_units_latest_session(archive_url: str) -> None:
+    with Archive(archive_url) as a:
+        for serial in ("U1", "U2"):
+            for s in range(3):
+                a.add(_entry(serial, s, day=s))
+        v = a.values(["A0x", "G0z"])
+        assert len(v) == 12
+        assert list(v.name[:2]) == ["A0x", "G0z"]
+        latest = a.values(["A0x"], latest_per_unit=True)
+        assert list(latest.serial) == ["U1", "U2"]
+        assert list(latest.value) == pytest.approx([2.0, 2.0])  # session 2's A0x
+        assert len(a.values(serial="U2")) == 3 * len(NAMES)
+        assert [s.serial for s in a.summaries(serial="U1")] == ["U1"] * 3
+
+
+def test_the_schema_carries_its_version_and_a_newer_archive_is_refused(archive_url: str) -> None:
+    with Archive(archive_url) as a:
+        with a.engine.connect() as conn:
+            assert list(conn.execute(select(schema_versions.c.version)).scalars()) == [
+                SCHEMA_VERSION
+            ]
+        with a.engine.connect() as conn, conn.begin():
+            conn.execute(
+                schema_versions.insert().values(
+                    version=SCHEMA_VERSION + 1, description="future", applied_at="x"
+                )
+            )
+    with pytest.raises(UserError, match="newer than this program"):
+        Archive(archive_url)
+
+
+def test_reopening_does_not_migrate_again(archive_url: str) -> None:
+    with Archive(archive_url) as a:
+        a.add(_entry())
+    with Archive(archive_url) as a:
+        assert a.count() == (1, len(NAMES))
+        with a.engine.connect() as conn:
+            n = conn.execute(text("SELECT count(*) FROM archive_schema")).scalar_one()
+        assert n == 1
+
+
+def test_an_sqlite_archive_uses_the_wal_journal(tmp_path: Path) -> None:
+    with Archive(str(tmp_path / "a.sqlite")) as a:
+        with a.engine.connect() as conn:
+            assert conn.exec_driver_sql("PRAGMA journal_mode").scalar() == "wal"
+
+
+def test_the_url_comes_from_the_option_else_the_environment_else_a_file_here(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv(ARCHIVE_ENV, raising=False)
+    assert archive_url(None) == f"sqlite:///{tmp_path / 'imu_archive.sqlite'}"
+    monkeypatch.setenv(ARCHIVE_ENV, "postgresql://qc@db.lab/archive")
+    assert archive_url(None) == "postgresql+psycopg://qc@db.lab/archive"
+    assert archive_url("x.sqlite") == f"sqlite:///{tmp_path / 'x.sqlite'}"
+    assert archive_url("postgres://h/db") == "postgresql+psycopg://h/db"
+
+
+@pytest.mark.parametrize(
+    "url, words",
+    [
+        ("nosuchdb://x/y", "unknown kind of database"),
+        ("/nonexistent/dir/a.sqlite", "cannot open it"),
+    ],
+)
+def test_a_bad_archive_url_is_one_line(url: str, words: str) -> None:
+    with pytest.raises(UserError, match=words):
+        Archive(url)
+
+
+def test_an_unreachable_server_is_one_line_without_the_password() -> None:
+    url = "postgresql://qc:secret@127.0.0.1:1/archive?connect_timeout=2"
+    with pytest.raises(UserError, match="cannot open it") as info:
+        Archive(url)
+    assert "secret" not in str(info.value)
