@@ -45,6 +45,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "cli_noise",
         "Allan deviation of a static recording: noise figures, plot, recording planner",
     ),
+    "archive": (
+        "host.cli.archive",
+        "cli_archive",
+        "every calibration kept by serial: list, trend, repeat, drift, lot, bench check",
+    ),
     "flash": (
         "host.cli.flash",
         "cli_flash",
@@ -81,6 +86,12 @@ EXAMPLES: dict[str, str] = {
     "model": """examples:
   python3 -m host model diagnose DIR --plot plots/
   python3 -m host model add DIR temperature_bias:gyro:x""",
+    "archive": """examples:
+  python3 -m host archive add U17/                   keep U17's result in imu_archive.sqlite
+  python3 -m host archive repeat U17                 do its calibrations agree within σ?
+  python3 -m host archive drift                      which units moved: recalibrate
+  python3 -m host archive lot --archive postgresql://qc@db/line
+  python3 -m host archive check-bench REF01          compare the benches on a reference unit""",
     "demo": """examples:
   python3 -m host demo hidden-effect --effect temperature""",
 }

@@ -21,7 +21,6 @@ from typing import Any
 import numpy as np
 from sqlalchemy import Connection, Engine, create_engine, event, func, select, true
 from sqlalchemy.exc import ArgumentError, IntegrityError, NoSuchModuleError, OperationalError
-from sqlalchemy.pool import NullPool
 
 from host.archive.entry import Entry, Parameter
 from host.archive.schema import (
@@ -139,7 +138,7 @@ class Archive:
         self.url = archive_url(url)
         try:
             if self.url.startswith("sqlite"):
-                self.engine = create_engine(self.url, poolclass=NullPool)
+                self.engine = create_engine(self.url)
                 _sqlite_setup(self.engine)
             else:
                 self.engine = create_engine(self.url, pool_pre_ping=True)
@@ -195,7 +194,7 @@ class Archive:
                 have = self._id_of(conn, entry.result_hash)
                 if have is not None:
                     return have, False
-                new = conn.execute(calibrations.insert().values(**_row_of(entry)))
+                new = conn.execute(calibrations.insert(), _row_of(entry))
                 key = new.inserted_primary_key
                 assert key is not None
                 cid = int(key[0])

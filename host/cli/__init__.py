@@ -1,5 +1,6 @@
 """The commands of ``python -m host``, one module each (thin: parse, call the library, print).
 
+- ``archive`` — ``archive``: every calibration kept by serial, the lot's statistics.
 - ``calibrate`` — ``calibrate``: live (the dialogue) or ``--from-dir``.
 - ``capture`` — ``capture``: record a port's bytes with host read times.
 - ``decode`` — ``decode``: a capture or raw bytes as samples, CSV/JSON lines, statistics.

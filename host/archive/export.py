@@ -1,0 +1,67 @@
+"""The archive's values for the user's own analysis: one row per (calibration, parameter) as
+CSV, or as Parquet when pyarrow is installed (it is not a dependency: ~40 MB for one format)."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+
+from host.archive.store import ValueTable
+from host.errors import UserError
+
+COLUMNS = (
+    "calibration_id", "serial", "bench", "measured_at", "self_test", "verdict", "parameter",
+    "value", "stderr",
+)  # fmt: skip
+
+
+def _columns(t: ValueTable) -> dict[str, list[object]]:
+    return {
+        "calibration_id": [int(x) for x in t.id], "serial": list(t.serial),
+        "bench": list(t.bench), "measured_at": list(t.measured_at),
+        "self_test": list(t.self_test), "verdict": list(t.verdict), "parameter": list(t.name),
+        "value": [float(x) for x in t.value], "stderr": [float(x) for x in t.stderr],
+    }  # fmt: skip
+
+
+def _cell(v: object) -> object:
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else ""
+    return v
+
+
+def write_csv(t: ValueTable, path: str | os.PathLike[str]) -> int:
+    """Write ``t`` as CSV (header :data:`COLUMNS`; a value not determined is an empty field);
+    returns the number of rows."""
+    cols = _columns(t)
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(COLUMNS)
+        for i in range(len(t)):
+            w.writerow(_cell(cols[c][i]) for c in COLUMNS)
+    return len(t)
+
+
+def write_parquet(t: ValueTable, path: str | os.PathLike[str]) -> int:
+    """Write ``t`` as Parquet (needs pyarrow); returns the number of rows."""
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise UserError(
+            f"{path}: Parquet needs pyarrow (pip install pyarrow), or write .csv instead"
+        ) from None
+    pq.write_table(pa.table(_columns(t)), str(path))
+    return len(t)
+
+
+def write_values(t: ValueTable, path: str | os.PathLike[str]) -> int:
+    """CSV or Parquet by the file's suffix (.csv, .parquet); UserError for another."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".csv":
+        return write_csv(t, path)
+    if suffix in (".parquet", ".pq"):
+        return write_parquet(t, path)
+    raise UserError(f"{path}: write .csv or .parquet")

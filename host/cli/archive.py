@@ -1,0 +1,213 @@
+"""``python -m host archive``: every calibration kept by serial, and the questions of a lab
+and a production line (:mod:`host.archive`). Thin: parse, call the library, print."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Callable
+
+from host.archive import checks, stats, text
+from host.archive.entry import entry_from_directory
+from host.archive.export import write_values
+from host.archive.store import ARCHIVE_ENV, DEFAULT_FILE, Archive
+from host.errors import UserError
+
+
+def _alpha(s: str) -> float:
+    try:
+        v = float(s)
+    except ValueError:
+        v = math.nan
+    if not 0 < v < 1:
+        raise argparse.ArgumentTypeError(f"expected a rate between 0 and 1, got {s!r}")
+    return v
+
+
+def _positive(s: str) -> float:
+    try:
+        v = float(s)
+    except ValueError:
+        v = math.nan
+    if not v > 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {s!r}")
+    return v
+
+
+def parse_tolerances(items: list[str]) -> dict[str, float]:
+    """``--tol A0x=0.02 --tol G0z=0.1`` (or comma-separated) -> {name: tolerance}."""
+    out: dict[str, float] = {}
+    for item in ",".join(items).split(","):
+        if not item.strip():
+            continue
+        name, _, val = item.partition("=")
+        try:
+            v = float(val)
+        except ValueError:
+            v = math.nan
+        if not name.strip() or not v > 0:
+            raise UserError(f"--tol: expected NAME=VALUE (> 0), got {item!r}")
+        out[name.strip()] = v
+    return out
+
+
+def _open(args: argparse.Namespace) -> Archive:
+    return Archive(args.archive)
+
+
+def _add(args: argparse.Namespace) -> int:
+    with _open(args) as a:
+        for d in args.dirs:
+            e = entry_from_directory(
+                d, serial=args.serial, records_dir=args.records, bench=args.bench,
+                operator=args.operator, lot=args.lot,
+            )  # fmt: skip
+            cid, added = a.add(e)
+            what = "archived" if added else "already archived"
+            print(f"{what}: #{cid} {e.serial} {e.measured_at[:19]} {e.verdict.upper()} "
+                  f"result {e.result_hash[:12]} in {a.display_url}")  # fmt: skip
+    return 0
+
+
+def _list(args: argparse.Namespace) -> int:
+    with _open(args) as a:
+        sys.stdout.write(text.summaries(a.summaries(args.serial, args.bench, args.lot)))
+    return 0
+
+
+def _show(args: argparse.Namespace) -> int:
+    with _open(args) as a:
+        if args.id is not None:
+            key: int | str = args.id
+        else:
+            rows = a.summaries(serial=args.serial)
+            if not rows:
+                raise UserError(f"{args.serial}: no calibration of this serial in the archive")
+            sys.stdout.write(text.summaries(rows) + "\n")
+            key = rows[-1].id
+        sys.stdout.write(text.entry(a.entry(key)))
+    return 0
+
+
+def _trend(args: argparse.Namespace) -> int:
+    with _open(args) as a:
+        sys.stdout.write(text.trend(args.serial, checks.trend(a, args.serial, args.param)))
+    return 0
+
+
+def _repeat(args: argparse.Namespace) -> int:
+    with _open(args) as a:
+        rows = checks.repeat(
+            a, args.serial, alpha=args.alpha, across_benches=args.across_benches, lot=args.lot
+        )
+    sys.stdout.write(text.repeat(rows, args.alpha))
+    return 1 if any(r.failed for r in rows) else 0
+
+
+def _drift(args: argparse.Namespace) -> int:
+    tol = parse_tolerances(args.tol)
+    with _open(args) as a:
+        rows, k = checks.drift(
+            a, alpha=args.alpha, k=args.k, tolerances=tol, serial=args.serial, lot=args.lot
+        )
+    sys.stdout.write(text.drift(rows, k, args.alpha))
+    return 1 if any(r.moved for r in rows) else 0
+
+
+def _lot(args: argparse.Namespace) -> int:
+    with _open(args) as a:
+        rep = checks.lot_report(a, args.lot, alpha=args.alpha, names=args.param)
+    sys.stdout.write(text.lot(rep, args.alpha))
+    bad = rep.failing or any(r.outliers or r.summary.within is False for r in rep.rows)
+    return 1 if bad else 0
+
+
+def _control(args: argparse.Namespace) -> int:
+    with _open(args) as a:
+        cs = checks.control_charts(a, serial=args.serial, bench=args.bench, names=args.param)
+    sys.stdout.write(text.charts(cs))
+    return 0
+
+
+def _check_bench(args: argparse.Namespace) -> int:
+    with _open(args) as a:
+        rows, k = checks.check_bench(a, args.reference, alpha=args.alpha)
+    sys.stdout.write(text.benches(rows, k, args.alpha, args.reference))
+    return 1 if any(r.flagged for r in rows) else 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    with _open(args) as a:
+        n = write_values(a.values(args.param, serial=args.serial, lot=args.lot), args.file)
+    print(f"written: {args.file} ({n} rows)", file=sys.stderr)
+    return 0
+
+
+def cli_archive(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+    """Fill in the ``archive`` subparser; returns the runner."""
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument(
+        "--archive", metavar="URL",
+        help=f"the archive: an SQLite file or postgresql://user@host/db (default ${ARCHIVE_ENV}, "
+        f"else {DEFAULT_FILE} here)",
+    )  # fmt: skip
+    alpha = argparse.ArgumentParser(add_help=False)
+    alpha.add_argument(
+        "--alpha", type=_alpha, default=stats.DEFAULT_ALPHA,
+        help="false-alarm rate of one run over a lot with nothing wrong (default 0.01)",
+    )  # fmt: skip
+    sub = p.add_subparsers(dest="archive_command", metavar="ACTION", required=True)
+
+    def action(name: str, run: Callable[[argparse.Namespace], int], help_text: str,
+               *parents: argparse.ArgumentParser) -> argparse.ArgumentParser:  # fmt: skip
+        q = sub.add_parser(name, help=help_text, description=help_text, parents=[common, *parents])
+        q.set_defaults(archive_run=run)
+        return q
+
+    q = action("add", _add, "archive the results calibrate wrote (same result twice: no-op)")
+    q.add_argument("dirs", nargs="+", metavar="DIR", help="directory of SERIAL_result.json")
+    q.add_argument("--serial", help="which result, when DIR holds several")
+    q.add_argument("--records", metavar="DIR", help="the records' directory (default DIR)")
+    q.add_argument("--bench", help="bench name (default: the records' header, $IMU_BENCH_NAME)")
+    q.add_argument("--operator", help="operator (default: the records', $IMU_BENCH_OPERATOR)")
+    q.add_argument("--lot", help="production lot (default: the records' header)")
+    q = action("list", _list, "list archived calibrations")
+    for opt in ("--serial", "--bench", "--lot"):
+        q.add_argument(opt)
+    q = action("show", _show, "a unit's calibrations and the latest (or --id) in full")
+    q.add_argument("serial", nargs="?")
+    q.add_argument("--id", type=int, help="show this calibration (an id from 'archive list')")
+    q = action("trend", _trend, "each parameter of a unit against time, with its σ")
+    q.add_argument("serial")
+    q.add_argument("--param", action="append", metavar="NAME", help="only these parameters")
+    q = action("repeat", _repeat, "between-session scatter against the predicted σ", alpha)
+    q.add_argument("serial", nargs="?", help="one unit (default: every unit)")
+    q.add_argument("--lot")
+    q.add_argument("--across-benches", action="store_true",
+                   help="pool a unit's sessions on all benches (reproducibility)")  # fmt: skip
+    q = action("drift", _drift, "units that moved since their last calibration", alpha)
+    q.add_argument("--k", type=_positive, help="flag beyond k·σ (default: from --alpha)")
+    q.add_argument("--tol", action="append", default=[], metavar="NAME=VALUE",
+                   help="flag a change beyond this, in the parameter's unit")  # fmt: skip
+    q.add_argument("--serial")
+    q.add_argument("--lot")
+    q = action("lot", _lot, "per parameter: mean, spread, 3σ vs the datasheet, outliers", alpha)
+    q.add_argument("lot", nargs="?", help="the lot (default: every unit)")
+    q.add_argument("--param", action="append", metavar="NAME")
+    q = action("control", _control, "control charts per bench and parameter, run rules")
+    q.add_argument("--serial", help="chart this unit only (e.g. the reference unit)")
+    q.add_argument("--bench")
+    q.add_argument("--param", action="append", metavar="NAME")
+    q = action("check-bench", _check_bench, "compare benches on a reference unit (Eₙ)", alpha)
+    q.add_argument("reference", help="serial of the reference unit calibrated on every bench")
+    q = action("export", _export, "values as CSV (or Parquet with pyarrow)")
+    q.add_argument("file", help="FILE.csv or FILE.parquet")
+    q.add_argument("--serial")
+    q.add_argument("--lot")
+    q.add_argument("--param", action="append", metavar="NAME")
+
+    def run(args: argparse.Namespace) -> int:
+        return int(args.archive_run(args))
+
+    return run
