@@ -5,4 +5,11 @@
 - ``schema`` — the tables and the versioned migrations (one schema for SQLite and PostgreSQL).
 - ``store`` — :class:`~host.archive.store.Archive`: open by URL, add (idempotent, never an
   update), list, show, the parameter tables the statistics read.
+- ``stats`` — pure functions over numpy arrays: repeatability (χ² against the predicted σ),
+  drift, lot summary and outliers, control-chart run rules, bench comparison by Eₙ, each with
+  its stated family-wise false-alarm rate.
+- ``checks`` — the questions of ``python -m host archive`` answered from the store with
+  ``stats`` (trend, repeat, drift, lot, control charts, check-bench).
+- ``text`` — the plain-text rendering of those answers.
+- ``export`` — CSV (and Parquet when pyarrow is installed) for the user's own analysis.
 """

@@ -43,7 +43,7 @@ def grid(t: ValueTable, by: Sequence[str]) -> Grid:
     for c in cols[1:]:
         key = key + "\x1f" + c.astype(object)
     gkeys, gi = np.unique(key.astype(str), return_inverse=True)
-    first = {}
+    first: dict[str, int] = {}
     for n in t.name:
         first.setdefault(n, len(first))
     names = list(first)
@@ -84,9 +84,9 @@ class TrendPoint:
     stderr: float
 
 
-def trend(archive: Archive, serial: str, names: Sequence[str] | None = None) -> dict[
-    str, list[TrendPoint]
-]:
+def trend(
+    archive: Archive, serial: str, names: Sequence[str] | None = None
+) -> dict[str, list[TrendPoint]]:
     """Each parameter of ``serial`` against time (every session, in time order)."""
     t = archive.values(names, serial=serial)
     if len(t) == 0:

@@ -169,8 +169,7 @@ def charts(cs: Sequence[Chart]) -> str:
         for i, f in hits[-5:]:
             rules = ",".join(str(x) for x in f)
             out.append(
-                f"    {c.times[i][:19]} {c.serials[i]:<12} {_g(float(c.values[i]), 5)} "
-                f"rule {rules}"
+                f"    {c.times[i][:19]} {c.serials[i]:<12} {_g(float(c.values[i]), 5)} rule {rules}"
             )
     return "\n".join(out) + "\n"
 

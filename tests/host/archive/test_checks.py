@@ -1,0 +1,79 @@
+"""The questions answered from the archive (host/archive/checks.py) on a simulated lot with
+planted problems — 200 units over 4 benches, 3 sessions each, a reference unit on every
+bench, one drifting unit, one biased bench, one unit failing its self-test: repeat, drift,
+lot and check-bench find exactly the planted problems, on SQLite and on PostgreSQL."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from host.archive import checks
+from host.archive.store import Archive
+from host.errors import UserError
+from tests.host.archive.lot_sim import NAMES, simulate_lot
+
+
+@pytest.fixture
+def lot_archive(archive_url: str) -> tuple[Archive, object]:
+    lot = simulate_lot(np.random.default_rng(11))
+    a = Archive(archive_url)
+    for e in lot.entries:
+        a.add(e)
+    return a, lot
+
+
+def test_the_planted_problems_and_only_they_are_found(lot_archive: tuple) -> None:
+    a, lot = lot_archive
+    with a:
+        rep = checks.repeat(a)
+        assert {(r.serial, r.bench) for r in rep if r.failed} == {(lot.drifting, "B4")}
+        assert {r.name for r in rep if r.failed} == {"A0x"}
+        rows, k = checks.drift(a)
+        assert {(r.serial, r.name) for r in rows if r.moved} == {(lot.drifting, "A0x")}
+        assert 4 < k < 5  # family-wise over 201 units × 12 parameters at 1 %
+        lr = checks.lot_report(a)
+        assert lr.units == 201
+        assert lr.failing == ((lot.failing, "self-test failed"),)
+        assert all(not r.outliers for r in lr.rows)
+        assert all(r.summary.within for r in lr.rows)
+        benches, _ = checks.check_bench(a, lot.reference)
+        assert {(b.bench, b.name) for b in benches if b.flagged} == {(lot.biased_bench, "G0z")}
+
+
+def test_a_lot_outlier_and_a_tolerance_drift_are_found(archive_url: str) -> None:
+    from tests.host.archive.lot_sim import SIGMA, make_entry
+
+    rng = np.random.default_rng(12)
+    with Archive(archive_url) as a:
+        for i in range(60):
+            v = rng.normal(0.0, 0.05, len(NAMES))
+            if i == 7:
+                v[NAMES.index("A0y")] = 0.6  # 12 spreads out, and beyond the 0.5 datasheet
+            a.add(make_entry(f"V{i:02d}", "B1", 0, v, SIGMA, day=0))
+            a.add(make_entry(f"V{i:02d}", "B1", 1, v + 0.0001, SIGMA, day=5))
+        lr = checks.lot_report(a)
+        outl = {(r.name, u) for r in lr.rows for u, _ in r.outliers}
+        assert outl == {("A0y", "V07")}
+        # every unit moved by 0.0001: within k·σ, beyond a tolerance of 0.00005 on A0x only
+        rows, _ = checks.drift(a, tolerances={"A0x": 0.00005})
+        assert {r.name for r in rows if r.moved} == {"A0x"}
+        assert len({r.serial for r in rows if r.moved}) == 60
+
+
+def test_trend_and_charts_follow_time(archive_url: str) -> None:
+    lot = simulate_lot(np.random.default_rng(13), units=20)
+    with Archive(archive_url) as a:
+        for e in lot.entries:
+            a.add(e)
+        tr = checks.trend(a, lot.drifting, ["A0x"])
+        pts = tr["A0x"]
+        assert [p.measured_at for p in pts] == sorted(p.measured_at for p in pts)
+        assert pts[-1].value - pts[-2].value > 0.05  # the planted 40 σ = 0.08 move
+        charts = checks.control_charts(a, serial=lot.reference, names=["G0z"])
+        assert [c.bench for c in charts] == list(lot.benches)
+        assert all(len(c.values) == 3 for c in charts)
+        with pytest.raises(UserError, match="no calibration of this serial"):
+            checks.trend(a, "NOPE")
+        with pytest.raises(UserError, match="at least two"):
+            checks.check_bench(a, lot.drifting)

@@ -1,0 +1,94 @@
+"""``python -m host archive`` (host/cli/archive.py): a result calibrate wrote goes in once,
+comes back by serial, the checks answer with their exit codes, bad options are one line."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from host.__main__ import main
+from host.archive.store import Archive
+from host.calib.publish import ComputeSettings, compute_and_write
+from host.calib.records import read_session
+from tests.host.archive.lot_sim import simulate_lot
+from tests.host.sim_sessions import write_sim_session
+
+
+@pytest.fixture(scope="module")
+def calibrated(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = write_sim_session(tmp_path_factory.mktemp("cli") / "C1", "C1", seed=31)
+    compute_and_write(read_session(d, None), d, ComputeSettings())
+    return d
+
+
+def test_add_twice_list_show(
+    calibrated: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    db = str(tmp_path / "a.sqlite")
+    assert main(["archive", "add", str(calibrated), "--archive", db, "--bench", "B9"]) == 0
+    assert "archived: #1 C1" in capsys.readouterr().out
+    assert main(["archive", "add", str(calibrated), "--archive", db]) == 0
+    assert "already archived: #1 C1" in capsys.readouterr().out
+    assert main(["archive", "list", "--archive", db]) == 0
+    out = capsys.readouterr().out
+    assert out.count("C1") == 1 and "B9" in out
+    assert main(["archive", "show", "C1", "--archive", db]) == 0
+    out = capsys.readouterr().out
+    assert "A0x" in out and "records sha256" in out and "bench B9" in out
+
+
+def test_checks_exit_one_when_something_needs_attention(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    db = str(tmp_path / "lot.sqlite")
+    lot = simulate_lot(np.random.default_rng(3), units=24)
+    with Archive(db) as a:
+        for e in lot.entries:
+            a.add(e)
+    assert main(["archive", "drift", "--archive", db]) == 1
+    assert "recalibrate: U0007" in capsys.readouterr().out
+    assert main(["archive", "repeat", "U0003", "--archive", db]) == 0
+    assert "repeatable" in capsys.readouterr().out
+    assert main(["archive", "check-bench", "REF", "--archive", db]) == 1
+    assert "bench bias: B3" in capsys.readouterr().out
+    assert main(["archive", "lot", "--archive", db]) == 1
+    assert "failing: U0011 (self-test failed)" in capsys.readouterr().out
+    assert main(["archive", "control", "--serial", "REF", "--param", "G0z", "--archive", db]) == 0
+    assert capsys.readouterr().out.count("G0z") == 4
+    out_csv = tmp_path / "v.csv"
+    assert main(["archive", "export", str(out_csv), "--serial", "U0001", "--archive", db]) == 0
+    rows = list(csv.DictReader(out_csv.open()))
+    assert len(rows) == 3 * 12 and {r["serial"] for r in rows} == {"U0001"}
+    got = sorted(float(r["value"]) for r in rows if r["parameter"] == "A0x")
+    want = sorted(
+        p.value for e in lot.entries if e.serial == "U0001" for p in e.parameters if p.name == "A0x"
+    )
+    assert got == pytest.approx(want, rel=1e-15)
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["drift", "--tol", "A0x"], "--tol: expected NAME=VALUE"),
+        (["trend", "NOPE"], "NOPE: no calibration of this serial"),
+        (["export", "x.xlsx"], "write .csv or .parquet"),
+        (["show", "--id", "99"], "99: no archived calibration"),
+    ],
+)
+def test_bad_input_is_one_line(
+    argv: list[str], words: str, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    db = str(tmp_path / "e.sqlite")
+    assert main(["archive", *argv, "--archive", db]) == 2
+    err = capsys.readouterr().err
+    assert words in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_a_bad_alpha_is_refused_by_the_parser(capsys: pytest.CaptureFixture) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["archive", "repeat", "--alpha", "2"])
+    assert info.value.code == 2
+    assert "expected a rate between 0 and 1" in capsys.readouterr().err
