@@ -181,42 +181,60 @@ class Archive:
         self.close()
 
     # ---- writing ---------------------------------------------------------------------------
-    def _id_of(self, conn: Connection, result_hash: str) -> int | None:
-        q = select(calibrations.c.id).where(calibrations.c.result_hash == result_hash)
-        v = conn.execute(q).scalar()
-        return None if v is None else int(v)
+    def _ids_of(self, conn: Connection, hashes: Sequence[str]) -> dict[str, int]:
+        out: dict[str, int] = {}
+        c = calibrations.c
+        for i in range(0, len(hashes), 500):
+            q = select(c.result_hash, c.id).where(c.result_hash.in_(list(hashes[i : i + 500])))
+            out.update({str(h): int(k) for h, k in conn.execute(q)})
+        return out
 
     def add(self, entry: Entry) -> tuple[int, bool]:
         """Archive ``entry``; returns (its id, True) — or (the id it already has, False) when
         the same result file was archived before: adding twice is a no-op."""
+        return self.add_many([entry])[0]
+
+    def add_many(self, entries: Sequence[Entry]) -> list[tuple[int, bool]]:
+        """Archive ``entries`` in one transaction (all or none); per entry (its id, whether
+        it was new), as :meth:`add`."""
+        hashes = [e.result_hash for e in entries]
         try:
             with self.engine.connect() as conn, conn.begin():
-                have = self._id_of(conn, entry.result_hash)
-                if have is not None:
-                    return have, False
-                new = conn.execute(calibrations.insert(), _row_of(entry))
-                key = new.inserted_primary_key
-                assert key is not None
-                cid = int(key[0])
-                conn.execute(
-                    parameters.insert(),
-                    [_parameter_row(cid, i, p) for i, p in enumerate(entry.parameters)],
-                )
-                if entry.record_hashes:
+                have = self._ids_of(conn, hashes)
+                new: dict[str, Entry] = {}
+                for e in entries:
+                    if e.result_hash not in have:
+                        new.setdefault(e.result_hash, e)
+                if new:
+                    conn.execute(calibrations.insert(), [_row_of(e) for e in new.values()])
+                    ids = self._ids_of(conn, list(new))
                     conn.execute(
-                        record_files.insert(),
-                        [
-                            {"calibration_id": cid, "name": n, "sha256": h}
-                            for n, h in entry.record_hashes
-                        ],
-                    )
-                return cid, True
-        except IntegrityError:  # another process archived the same result meanwhile
+                        parameters.insert(),
+                        [_parameter_row(ids[h], i, p) for h, e in new.items()
+                         for i, p in enumerate(e.parameters)],
+                    )  # fmt: skip
+                    files = [
+                        {"calibration_id": ids[h], "name": n, "sha256": s}
+                        for h, e in new.items()
+                        for n, s in e.record_hashes
+                    ]
+                    if files:
+                        conn.execute(record_files.insert(), files)
+                    have.update(ids)
+        except IntegrityError:  # another process archived some of them meanwhile
+            if len(entries) > 1:
+                return [self.add(e) for e in entries]
             with self.engine.connect() as conn:
-                have = self._id_of(conn, entry.result_hash)
-            if have is None:
+                again = self._ids_of(conn, hashes)
+            if not again:
                 raise
-            return have, False
+            return [(again[hashes[0]], False)]
+        seen: set[str] = set()
+        out = []
+        for h in hashes:
+            out.append((have[h], h in new and h not in seen))
+            seen.add(h)
+        return out
 
     # ---- reading ---------------------------------------------------------------------------
     def summaries(
@@ -309,22 +327,19 @@ class Archive:
         when the same records were archived with several results (recomputed), the latest
         archived counts. ``latest_per_unit``: only each serial's latest session."""
         c = calibrations.c
-        per_session = func.row_number().over(partition_by=c.records_hash, order_by=c.id.desc())
-        q = select(
-            c.id, c.serial, c.bench, c.measured_at, c.self_test, c.verdict,
-            per_session.label("rs"),
-        )  # fmt: skip
+        # one session per set of records: its latest archived result
+        latest = select(func.max(c.id).label("id")).group_by(c.records_hash)
         for col, v in ((c.serial, serial), (c.bench, bench), (c.lot, lot)):
             if v is not None:
-                q = q.where(col == v)
-        sess = q.subquery()
+                latest = latest.where(col == v)
+        sess = latest.subquery()
         per_unit = func.row_number().over(
-            partition_by=sess.c.serial, order_by=(sess.c.measured_at.desc(), sess.c.id.desc())
+            partition_by=c.serial, order_by=(c.measured_at.desc(), c.id.desc())
         )
         chosen = (
-            select(*(sess.c[n] for n in ("id", "serial", "bench", "measured_at", "self_test")),
-                   sess.c.verdict, per_unit.label("ru"))
-            .where(sess.c.rs == 1)
+            select(c.id, c.serial, c.bench, c.measured_at, c.self_test, c.verdict,
+                   per_unit.label("ru"))
+            .join(sess, sess.c.id == c.id)
             .subquery()
         )  # fmt: skip
         p = parameters.c

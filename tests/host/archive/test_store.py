@@ -56,6 +56,17 @@ def test_an_entry_comes_back_whole_and_adding_it_twice_is_a_no_op(archive_url: s
         assert math.isnan(back.parameters[0].value) and back.temp_mean_c == 31.5
 
 
+def test_a_batch_is_added_at_once_and_knows_what_was_there(archive_url: str) -> None:
+    a1, a2, a3 = _entry("U1"), _entry("U2"), _entry("U3")
+    with Archive(archive_url) as a:
+        i2, _ = a.add(a2)
+        out = a.add_many([a1, a2, a3, a1])
+        assert [added for _, added in out] == [True, False, True, False]
+        assert out[1][0] == i2 and out[0][0] == out[3][0]
+        assert a.count() == (3, 3 * len(NAMES))
+        assert sorted(a.result_hashes()) == sorted(e.result_hash for e in (a1, a2, a3))
+
+
 def test_rows_are_only_inserted_a_recomputed_session_is_a_new_row(archive_url: str) -> None:
     first = _entry()
     again = dataclasses.replace(first, result_hash="f" * 64, model="base,temperature_bias")
