@@ -34,7 +34,7 @@ from host.archive import checks  # noqa: E402
 from host.archive.entry import Entry, entry_from_directory  # noqa: E402
 from host.archive.store import Archive  # noqa: E402
 from host.calib.publish import ComputeSettings, compute_and_write  # noqa: E402
-from host.calib.records import read_session  # noqa: E402
+from host.session.directory import read_session  # noqa: E402
 
 
 def template(tmp: Path) -> Entry:

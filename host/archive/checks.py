@@ -13,8 +13,8 @@ import numpy as np
 
 from host.archive import stats
 from host.archive.store import Archive, ValueTable
-from host.calib.method import TOLERANCES
 from host.errors import UserError
+from host.session.method import TOLERANCES
 
 
 @dataclass(frozen=True)

@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from host.calib.records import read_record
 from host.calib.result import CalibrationResult
 from host.errors import UserError
+from host.session.directory import read_record
 
 #: environment variables naming the bench and the operator when neither the records' headers
 #: nor the command line do

@@ -18,8 +18,7 @@ from tests.host.archive.lot_sim import NAMES, simulate_lot
 def lot_archive(archive_url: str) -> tuple[Archive, object]:
     lot = simulate_lot(np.random.default_rng(11))
     a = Archive(archive_url)
-    for e in lot.entries:
-        a.add(e)
+    a.add_many(lot.entries)
     return a, lot
 
 
@@ -64,8 +63,7 @@ def test_a_lot_outlier_and_a_tolerance_drift_are_found(archive_url: str) -> None
 def test_trend_and_charts_follow_time(archive_url: str) -> None:
     lot = simulate_lot(np.random.default_rng(13), units=20)
     with Archive(archive_url) as a:
-        for e in lot.entries:
-            a.add(e)
+        a.add_many(lot.entries)
         tr = checks.trend(a, lot.drifting, ["A0x"])
         pts = tr["A0x"]
         assert [p.measured_at for p in pts] == sorted(p.measured_at for p in pts)

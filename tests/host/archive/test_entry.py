@@ -20,8 +20,8 @@ from host.archive.entry import (
     utc_iso,
 )
 from host.calib.publish import ComputeSettings, compute_and_write
-from host.calib.records import read_session
 from host.errors import UserError
+from host.session.directory import read_session
 from tests.host.sim_sessions import write_sim_session
 
 

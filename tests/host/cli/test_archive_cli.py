@@ -12,7 +12,7 @@ import pytest
 from host.__main__ import main
 from host.archive.store import Archive
 from host.calib.publish import ComputeSettings, compute_and_write
-from host.calib.records import read_session
+from host.session.directory import read_session
 from tests.host.archive.lot_sim import simulate_lot
 from tests.host.sim_sessions import write_sim_session
 
@@ -46,8 +46,7 @@ def test_checks_exit_one_when_something_needs_attention(
     db = str(tmp_path / "lot.sqlite")
     lot = simulate_lot(np.random.default_rng(3), units=24)
     with Archive(db) as a:
-        for e in lot.entries:
-            a.add(e)
+        a.add_many(lot.entries)
     assert main(["archive", "drift", "--archive", db]) == 1
     assert "recalibrate: U0007" in capsys.readouterr().out
     assert main(["archive", "repeat", "U0003", "--archive", db]) == 0
