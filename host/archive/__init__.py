@@ -11,5 +11,6 @@
 - ``checks`` — the questions of ``python -m host archive`` answered from the store with
   ``stats`` (trend, repeat, drift, lot, control charts, check-bench).
 - ``text`` — the plain-text rendering of those answers.
+- ``page`` — the self-contained HTML page (``archive report --html``), charts as inline SVG.
 - ``export`` — CSV (and Parquet when pyarrow is installed) for the user's own analysis.
 """

@@ -144,6 +144,20 @@ def _export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _report(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from host.archive.page import page_data, render
+    from host.session.atomic import write_text_atomic
+
+    with _open(args) as a:
+        d = page_data(a, reference=args.reference, lot=args.lot, names=args.param,
+                      alpha=args.alpha)  # fmt: skip
+    write_text_atomic(Path(args.html), render(d))
+    print(f"written: {args.html}", file=sys.stderr)
+    return 0
+
+
 def cli_archive(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
     """Fill in the ``archive`` subparser; returns the runner."""
     common = argparse.ArgumentParser(add_help=False)
@@ -201,6 +215,11 @@ def cli_archive(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], in
     q.add_argument("--param", action="append", metavar="NAME")
     q = action("check-bench", _check_bench, "compare benches on a reference unit (Eₙ)", alpha)
     q.add_argument("reference", help="serial of the reference unit calibrated on every bench")
+    q = action("report", _report, "one self-contained HTML page for the QC lead", alpha)
+    q.add_argument("--html", required=True, metavar="FILE", help="the page to write")
+    q.add_argument("--reference", metavar="SERIAL", help="the reference unit (bench check)")
+    q.add_argument("--lot")
+    q.add_argument("--param", action="append", metavar="NAME", help="parameters to chart")
     q = action("export", _export, "values as CSV (or Parquet with pyarrow)")
     q.add_argument("file", help="FILE.csv or FILE.parquet")
     q.add_argument("--serial")
