@@ -22,7 +22,7 @@ import numpy as np
 from sqlalchemy import Connection, Engine, create_engine, event, func, select, true
 from sqlalchemy.exc import ArgumentError, IntegrityError, NoSuchModuleError, OperationalError
 
-from host.archive.entry import Entry, Parameter
+from host.archive.entry import Entry, Parameter, entry_from_directory
 from host.archive.schema import (
     SCHEMA_VERSION,
     applied_versions,
@@ -35,14 +35,23 @@ from host.archive.schema import (
 from host.errors import UserError
 
 ARCHIVE_ENV = "IMU_BENCH_ARCHIVE"
-DEFAULT_FILE = "imu_archive.sqlite"
+DEFAULT_FILE = "$XDG_DATA_HOME/imu-bench/archive.sqlite"
+
+
+def default_file() -> Path:
+    """The user's own archive: ``$XDG_DATA_HOME/imu-bench/archive.sqlite`` (XDG_DATA_HOME
+    defaults to ~/.local/share); its directory is created."""
+    base = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    d = Path(base) / "imu-bench"
+    d.mkdir(parents=True, exist_ok=True)
+    return d / "archive.sqlite"
 
 
 def archive_url(option: str | None = None) -> str:
     """The SQLAlchemy URL of the archive: ``option`` (a URL, or a path of an SQLite file),
-    else $IMU_BENCH_ARCHIVE, else ``imu_archive.sqlite`` here. ``postgresql://`` and
+    else $IMU_BENCH_ARCHIVE, else :func:`default_file`. ``postgresql://`` and
     ``postgres://`` use the psycopg 3 driver."""
-    raw = option or os.environ.get(ARCHIVE_ENV) or DEFAULT_FILE
+    raw = option or os.environ.get(ARCHIVE_ENV) or str(default_file())
     for scheme in ("postgresql://", "postgres://"):
         if raw.startswith(scheme):
             return "postgresql+psycopg://" + raw[len(scheme) :]
@@ -357,6 +366,28 @@ class Archive:
         with self.engine.connect() as conn:
             rows = conn.execute(final).all()
         return _value_table(rows)
+
+
+def archive_directory(
+    directory: str | os.PathLike[str],
+    url: str | None = None,
+    *,
+    serial: str | None = None,
+    records_dir: str | os.PathLike[str] | None = None,
+    bench: str | None = None,
+    operator: str | None = None,
+    lot: str | None = None,
+) -> str:
+    """Archive the result ``calibrate`` wrote into ``directory`` (what every calibration does
+    at its end); returns the line to print. UserError when it cannot."""
+    e = entry_from_directory(
+        directory, serial=serial, records_dir=records_dir, bench=bench, operator=operator,
+        lot=lot,
+    )  # fmt: skip
+    with Archive(url) as a:
+        cid, added = a.add(e)
+        where = a.display_url
+    return f"{'archived' if added else 'already archived'} as #{cid} in {where}"
 
 
 def _value_table(rows: Sequence[Any]) -> ValueTable:

@@ -164,7 +164,7 @@ def cli_archive(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], in
     common.add_argument(
         "--archive", metavar="URL",
         help=f"the archive: an SQLite file or postgresql://user@host/db (default ${ARCHIVE_ENV}, "
-        f"else {DEFAULT_FILE} here)",
+        f"else {DEFAULT_FILE})",
     )  # fmt: skip
     alpha = argparse.ArgumentParser(add_help=False)
     alpha.add_argument(

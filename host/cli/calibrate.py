@@ -84,6 +84,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "for (default: SERIAL_thermal.json in the records' directory if there; 'none': ignore)",
     )
     p.add_argument(
+        "--archive", metavar="URL",
+        help="archive the result here: an SQLite file or postgresql://user@host/db (default "
+        "$IMU_BENCH_ARCHIVE, else ~/.local/share/imu-bench/archive.sqlite)",
+    )  # fmt: skip
+    p.add_argument("--no-archive", action="store_true", help="do not archive the result")
+    p.add_argument("--bench", help="bench name for the archive (default $IMU_BENCH_NAME)")
+    p.add_argument("--operator", help="operator for the archive (default $IMU_BENCH_OPERATOR)")
+    p.add_argument("--lot", help="production lot for the archive")
+    p.add_argument(
         "--term-file",
         action="append",
         default=[],
@@ -115,7 +124,27 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
     if not args.json:
         print(f"written: {pub.report_path} and {pub.json_path}", file=sys.stderr)
     print(verdict_line(pub.result, pub.report_path), file=sys.stderr)
+    if not getattr(args, "no_archive", False):
+        print(archive_line(pub.json_path.parent, session, args), file=sys.stderr)
     return pub.result
+
+
+def archive_line(out_dir: Path, session: Session, args: argparse.Namespace) -> str:
+    """Archive the result just written in ``out_dir`` (:func:`host.archive.store.
+    archive_directory`); the line saying where, or — when it cannot — why, with the command
+    that archives it later (the result files are kept either way)."""
+    from host.archive.store import archive_directory
+
+    records = session.directory if session.directory is not None else out_dir
+    try:
+        return archive_directory(
+            out_dir, getattr(args, "archive", None), serial=session.serial,
+            records_dir=records, bench=getattr(args, "bench", None),
+            operator=getattr(args, "operator", None), lot=getattr(args, "lot", None),
+        )  # fmt: skip
+    except UserError as exc:
+        later = ["python3", "-m", "host", "archive", "add", str(out_dir), "--records", str(records)]
+        return f"not archived: {exc}; later: {' '.join(shlex.quote(a) for a in later)}"
 
 
 def run(args: argparse.Namespace) -> int:

@@ -132,7 +132,9 @@ def test_the_url_comes_from_the_option_else_the_environment_else_a_file_here(
 ) -> None:
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv(ARCHIVE_ENV, raising=False)
-    assert archive_url(None) == f"sqlite:///{tmp_path / 'imu_archive.sqlite'}"
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "share"))
+    own = tmp_path / "share" / "imu-bench" / "archive.sqlite"
+    assert archive_url(None) == f"sqlite:///{own}"
     monkeypatch.setenv(ARCHIVE_ENV, "postgresql://qc@db.lab/archive")
     assert archive_url(None) == "postgresql+psycopg://qc@db.lab/archive"
     assert archive_url("x.sqlite") == f"sqlite:///{tmp_path / 'x.sqlite'}"

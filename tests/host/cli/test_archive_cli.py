@@ -4,6 +4,8 @@ comes back by serial, the checks answer with their exit codes, bad options are o
 from __future__ import annotations
 
 import csv
+import hashlib
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -91,3 +93,32 @@ def test_a_bad_alpha_is_refused_by_the_parser(capsys: pytest.CaptureFixture) -> 
         main(["archive", "repeat", "--alpha", "2"])
     assert info.value.code == 2
     assert "expected a rate between 0 and 1" in capsys.readouterr().err
+
+
+def test_calibrate_from_dir_archives_its_result_unless_told_not_to(
+    calibrated: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    d = tmp_path / "C1"
+    shutil.copytree(calibrated, d)
+    db = str(tmp_path / "cal.sqlite")
+    code = main(["calibrate", "--from-dir", str(d), "--archive", db, "--bench", "B2"])
+    err = capsys.readouterr().err
+    assert "archived as #1 in sqlite:///" in err
+    with Archive(db) as a:
+        (s,) = a.summaries()
+        e = a.entry(s.id)
+    assert (s.serial, s.bench) == ("C1", "B2")
+    assert e.result_hash == hashlib.sha256((d / "C1_result.json").read_bytes()).hexdigest()
+    assert (code == 0) == (e.verdict == "pass")
+    # --no-archive: nothing more in the archive
+    main(["calibrate", "--from-dir", str(d), "--archive", db, "--no-archive"])
+    assert "archived" not in capsys.readouterr().err
+    with Archive(db) as a:
+        assert a.count()[0] == 1
+    # an archive that cannot be opened: the result is still written, the line says how to
+    # archive it later, the exit status is the calibration's
+    (d / "C1_result.json").unlink()
+    again = main(["calibrate", "--from-dir", str(d), "--archive", str(tmp_path / "no/x.db")])
+    err = capsys.readouterr().err
+    assert again == code and (d / "C1_result.json").is_file()
+    assert "not archived:" in err and "archive add" in err
