@@ -147,7 +147,10 @@ def result_covariance(
     pos = {str(n): i for i, n in enumerate(cnames)}
     if any(n not in pos for n in names):
         return None
-    m = np.array([[math.nan if x is None else float(x) for x in row] for row in matrix])
+    try:
+        m = np.array([[math.nan if x is None else float(x) for x in row] for row in matrix])
+    except (TypeError, ValueError):  # not a matrix of numbers
+        return None
     if m.shape != (len(cnames), len(cnames)):
         return None
     idx = [pos[n] for n in names]

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host.archive.entry import (
     BENCH_ENV,
@@ -121,3 +123,28 @@ def test_times_become_utc() -> None:
     assert utc_iso("2026-01-02T03:04:05-05:00") == "2026-01-02T08:04:05.000000Z"
     with pytest.raises(UserError, match="not an ISO 8601 time"):
         utc_iso("yesterday")
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.text(max_size=40))
+def test_any_time_text_is_a_time_or_one_line(text: str) -> None:
+    try:
+        out = utc_iso(text)
+    except UserError as exc:
+        assert "not an ISO 8601 time" in str(exc)
+    else:
+        assert out.endswith("Z") and len(out) == 27
+
+
+cells = st.none() | st.floats() | st.text(max_size=3) | st.lists(st.floats(), max_size=2)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(st.sampled_from(["a", "b", 1, None]), max_size=3),
+    st.lists(st.lists(cells, max_size=3) | cells, max_size=3),
+)
+def test_a_malformed_covariance_is_ignored_not_a_crash(names: list, matrix: list) -> None:
+    doc = {"covariance": {"names": names, "matrix": matrix}}
+    out = result_covariance(doc, ["a"])
+    assert out is None or len(out) == 1

@@ -10,10 +10,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host.__main__ import main
 from host.archive.store import Archive
 from host.calib.publish import ComputeSettings, compute_and_write
+from host.cli.archive import parse_tolerances
+from host.errors import UserError
 from host.session.directory import read_session
 from tests.host.archive.lot_sim import simulate_lot
 from tests.host.sim_sessions import write_sim_session
@@ -122,3 +126,14 @@ def test_calibrate_from_dir_archives_its_result_unless_told_not_to(
     err = capsys.readouterr().err
     assert again == code and (d / "C1_result.json").is_file()
     assert "not archived:" in err and "archive add" in err
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.text(max_size=20), max_size=3))
+def test_any_tolerance_text_is_tolerances_or_one_line(items: list[str]) -> None:
+    try:
+        out = parse_tolerances(items)
+    except UserError as exc:
+        assert str(exc).startswith("--tol: expected NAME=VALUE")
+    else:
+        assert all(v > 0 for v in out.values())
