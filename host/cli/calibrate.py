@@ -123,9 +123,9 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
     show_result(pub.result, args.json)
     if not args.json:
         print(f"written: {pub.report_path} and {pub.json_path}", file=sys.stderr)
-    print(verdict_line(pub.result, pub.report_path), file=sys.stderr)
     if not getattr(args, "no_archive", False):
         print(archive_line(pub.json_path.parent, session, args), file=sys.stderr)
+    print(verdict_line(pub.result, pub.report_path), file=sys.stderr)  # the last line
     return pub.result
 
 
