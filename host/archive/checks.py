@@ -184,17 +184,19 @@ def drift(
     """Every unit's change between its last two sessions; returns the rows and the k used
     (``k`` None: the family-wise k of ``alpha`` over every (unit, parameter) compared)."""
     g = grid(archive.values(serial=serial, lot=lot), ("serial",))
-    n = np.isfinite(g.values).sum(axis=-1)
-    has = n >= 2
+    # the last two sessions that determined each parameter (a session without it is skipped)
+    at = np.where(np.isfinite(g.values), np.arange(g.values.shape[-1]), -1)
+    last = at.max(axis=-1, initial=-1)
+    prev = np.where(at < last[..., None], at, -1).max(axis=-1, initial=-1)
+    has = prev >= 0
     m = int(np.count_nonzero(has))
     kk = stats.family_z(alpha, m) if k is None else k
-    last = np.maximum(n - 1, 0)[..., None]
-    prev = np.maximum(n - 2, 0)[..., None]
-    a = np.take_along_axis(g.values, last, axis=-1)[..., 0]
-    b = np.take_along_axis(g.values, prev, axis=-1)[..., 0]
-    sa = np.take_along_axis(g.sigmas, last, axis=-1)[..., 0]
-    sb = np.take_along_axis(g.sigmas, prev, axis=-1)[..., 0]
-    z = stats.drift_z(b, sb, a, sa)
+
+    def pick(a: np.ndarray, i: np.ndarray) -> np.ndarray:
+        return np.take_along_axis(a, np.maximum(i, 0)[..., None], axis=-1)[..., 0]
+
+    a, b = pick(g.values, last), pick(g.values, prev)
+    z = stats.drift_z(b, pick(g.sigmas, prev), a, pick(g.sigmas, last))
     tol = np.array([(tolerances or {}).get(nm, math.inf) for nm in g.names])
     moved = stats.drifted(z, a - b, kk, tol) & has
     rows = []
@@ -202,12 +204,10 @@ def drift(
         for pi, name in enumerate(g.names):
             if not has[gi, pi]:
                 continue
-            # the sessions' times: the last two sessions of the unit (any parameter)
-            ts = [x for x in g.times[gi] if x]
             rows.append(
-                DriftRow(key[0], name, ts[-2] if len(ts) > 1 else "", ts[-1], float(b[gi, pi]),
-                         float(a[gi, pi]), float(a[gi, pi] - b[gi, pi]), float(z[gi, pi]),
-                         bool(moved[gi, pi]))
+                DriftRow(key[0], name, str(g.times[gi, prev[gi, pi]]),
+                         str(g.times[gi, last[gi, pi]]), float(b[gi, pi]), float(a[gi, pi]),
+                         float(a[gi, pi] - b[gi, pi]), float(z[gi, pi]), bool(moved[gi, pi]))
             )  # fmt: skip
     return rows, kk
 

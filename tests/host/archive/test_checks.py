@@ -75,3 +75,29 @@ def test_trend_and_charts_follow_time(archive_url: str) -> None:
             checks.trend(a, "NOPE")
         with pytest.raises(UserError, match="at least two"):
             checks.check_bench(a, lot.drifting)
+
+
+def test_drift_skips_a_session_without_the_parameter(archive_url: str) -> None:
+    """A unit calibrated with another model in between: drift compares the last two sessions
+    that determined each parameter."""
+    import dataclasses
+
+    from tests.host.archive.lot_sim import SIGMA, make_entry
+
+    v = np.zeros(len(NAMES))
+    first = make_entry("W1", "B1", 0, v, SIGMA, day=0)
+    middle = make_entry("W1", "B1", 1, v, SIGMA, day=3)
+    middle = dataclasses.replace(
+        middle, parameters=tuple(p for p in middle.parameters if p.name != "A0x")
+    )
+    moved = v.copy()
+    moved[NAMES.index("A0x")] = 0.1  # 35 σ from the first session
+    last = make_entry("W1", "B1", 2, moved, SIGMA, day=6)
+    with Archive(archive_url) as a:
+        a.add_many([first, middle, last])
+        rows, _ = checks.drift(a)
+    by = {r.name: r for r in rows}
+    assert by["A0x"].moved and by["A0x"].before_at == first.measured_at
+    assert by["A0x"].delta == pytest.approx(0.1)
+    assert not any(r.moved for r in rows if r.name != "A0x")
+    assert by["G0z"].before_at == middle.measured_at
