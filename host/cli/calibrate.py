@@ -3,7 +3,8 @@
 ``--from-dir DIR`` recomputes from the record files in DIR. Otherwise the live dialogue of
 method.md §5 runs (:func:`host.dialogue.flow.run_dialogue`) on ``--port`` — or, with no port
 given, on the first board found, else the virtual board ``sim://``; it records into a
-directory and then computes like the from-dir mode.
+directory and then computes like the from-dir mode. Either way the result lands in the archive
+(:func:`archive_line`; ``--no-archive`` opts out).
 """
 
 from __future__ import annotations
@@ -152,6 +153,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.from_dir:
         from host.dialogue.flow import run_dialogue
 
+        if not args.no_archive:
+            args.after_publish = lambda out_dir, session: archive_line(out_dir, session, args)
         return run_dialogue(args)
     session = read_session(args.from_dir, args.serial)
     sys.stderr.write(timing_report(session.records))

@@ -526,6 +526,8 @@ class CalibrationDialogue:
             ) from None
         op.say(f"Results: {pub.report_path} and {pub.json_path}")
         show_result(pub.result, self.opts.json)
+        if self.opts.after_publish is not None:  # calibrate archives the result
+            op.say(self.opts.after_publish(self.out_dir, session))
         op.say(verdict_line(pub.result, pub.report_path))  # the last line on screen
         return DialogueResult(
             self.out_dir, list(self.accepted), pub.result, (pub.report_path, pub.json_path)

@@ -17,14 +17,14 @@ import os
 import re
 import shlex
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from host.board.driver import SAMPLE_STALL_S, STALL_S
 from host.errors import UserError
-from host.session.directory import record_path
+from host.session.directory import Session, record_path
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, local_gravity
 from host.session.records import STATIC_NAMES, TURN_NAMES
 
@@ -120,6 +120,9 @@ class DialogueOptions:
     thermal: str | None = None  # --thermal FILE|none (None: SERIAL_thermal.json if beside)
     noise: str | None = None  # --noise NOISE.json (the floor from the unit's noise file)
     closing: bool = True  # measure the first attitude again at the end (CLOSING_NAME)
+    #: called with (output directory, session) once the result files are written; returns the
+    #: line to say (``calibrate`` archives the result there: host.cli.calibrate.archive_line)
+    after_publish: Callable[[Path, Session], str] | None = None
 
     @classmethod
     def from_args(cls, args: argparse.Namespace | DialogueOptions) -> DialogueOptions:
@@ -155,6 +158,7 @@ class DialogueOptions:
             thermal=get("thermal"),
             noise=get("noise"),
             closing=not bool(get("no_closing", False)),
+            after_publish=get("after_publish"),
         )
 
     def check(self) -> None:

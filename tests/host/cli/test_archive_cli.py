@@ -137,3 +137,25 @@ def test_any_tolerance_text_is_tolerances_or_one_line(items: list[str]) -> None:
         assert str(exc).startswith("--tol: expected NAME=VALUE")
     else:
         assert all(v > 0 for v in out.values())
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_a_live_calibration_lands_in_the_archive(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    db = str(tmp_path / "live.sqlite")
+    argv = ["calibrate", "--serial", "L9", "--yes", "--warmup", "0", "--static-seconds", "1",
+            "--turns", "1", "--no-closing", "--out", str(tmp_path / "L9"), "--archive", db,
+            "--bench", "line-2"]  # fmt: skip
+    code = main(argv)
+    out = capsys.readouterr()
+    assert "archived as #1" in out.out + out.err
+    with Archive(db) as a:
+        (s,) = a.summaries()
+        e = a.entry(s.id)
+    assert (s.serial, s.bench) == ("L9", "line-2") and len(e.record_hashes) == 12
+    assert (code == 0) == (e.verdict == "pass")
+    recs = {n: hashlib.sha256((tmp_path / "L9" / f"L9_{n}.txt").read_bytes()).hexdigest()
+            for n, _ in e.record_hashes}  # fmt: skip
+    assert dict(e.record_hashes) == recs
