@@ -6,7 +6,9 @@ Data in: a session (the record files of one sitting, :mod:`host.session`). Out: 
 - ``calibration`` — the calibration through the one fit, the closed form beside it.
 - ``publish`` — compute and write: the one step from records to the published result (live and
   ``--from-dir``).
-- ``result`` — the versioned result object, ``apply`` and held-out ``verify``.
+- ``values`` — the parts of a result: parameters, fit quality, residuals, verified values.
+- ``result`` — the versioned result object and its files (v1, v2).
+- ``applying`` — ``apply`` to raw samples and held-out ``verify``.
 - ``report`` — the test report (method.md §7) and the result files.
 - ``thermal`` — bias against temperature from warm-up, static and chamber records.
 - ``exporting`` — the result as other tools' parameters and files.

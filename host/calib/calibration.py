@@ -1,6 +1,6 @@
 """Calibration of the accelerometer and gyro triads from records (method.md §2-§4, §7).
 
-The linear model of method.md §2 in matrix form: :mod:`host.calib.method`.
+The linear model of method.md §2 in matrix form: :mod:`host.session.method`.
 
 One engine: every number the project reports comes from the workbench's weighted
 least-squares fit (:func:`host.modelling.model.fit_model`, its noise model) of the chosen
@@ -13,8 +13,8 @@ recorded sample times), :func:`stage1`, :func:`stage2` — is computed beside it
 as a check.
 
 The method's constants and sign layout (§2, §7), local gravity (§3) and the per-record
-quantities are in :mod:`host.calib.method`, the record checks in :mod:`host.calib.checks`, the
-result and ``apply`` in :mod:`host.calib.result`; this module offers their names too.
+quantities are in :mod:`host.session.method`, the record checks in :mod:`host.session.checks`,
+the result in :mod:`host.calib.result` and ``apply`` in :mod:`host.calib.applying`.
 """
 
 from __future__ import annotations
@@ -28,16 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from host.calib.result import (
-    CalibrationResult,
-    FitQuality,
-    ParameterResult,
-    RecordResidual,
-    apply,
-    thermal_parameters,
-    within,
-)
+from host.calib.result import CalibrationResult, thermal_parameters
 from host.calib.thermal import CHANNELS, ThermalCalibration, corrected_records
+from host.calib.values import FitQuality, ParameterResult, RecordResidual, within
 from host.errors import UserError
 from host.model.catalogue import CATALOGUE
 from host.model.dataset import build_dataset
@@ -46,57 +39,24 @@ from host.model.loader import load_term_file
 from host.model.noise import NoiseModel
 from host.model.spec import parse_model, short_spec
 from host.model.stats import ALPHA_FIT
-from host.session.checks import check_orientation, check_range, check_record_lengths, remedy
+from host.session.checks import check_record_lengths
 from host.session.directory import SIMULATED_BOARD, Session, simulated_ports
 from host.session.method import (
     ACCEL_BIAS_NAMES,
-    ACCEL_MIS_NAMES,
     ACCEL_NOISE_NAMES,
-    ACCEL_SCALE_NAMES,
-    CONSTANT_NAMES,
     DEFAULT_HEIGHT_M,
     DEFAULT_LATITUDE_DEG,
-    EARTH_RATE_DPS,
-    GROUPS,
     GYRO_BIAS_NAMES,
-    GYRO_GSENS_NAMES,
-    GYRO_MIS_NAMES,
     GYRO_NOISE_NAMES,
-    GYRO_SCALE_NAMES,
-    NOISE_NAMES,
-    ORIENTATION_TOL_DEG,
-    STATIC_MAX_ACCEL_STD,
-    STATIC_MAX_GYRO_STD,
     TOLERANCES,
-    TURN_ANGLE_SIGMA_DEG,
-    TURN_ANGLE_TOL_DEG,
-    UNITS,
     RecordStats,
     gsens_to_names,
     local_gravity,
     matrix_to_names,
-    names_to_gsens,
-    names_to_matrix,
     record_stats,
     trapezoid_integral,
 )
-from host.session.observations import Observation, build_observations
 from host.session.records import STATIC_NAMES, TURN_NAMES, Record
-
-#: names this module has always offered (the constants and checks now live in
-#: host.calib.method and host.calib.checks, the result in host.calib.result)
-__all__ = [
-    "ACCEL_BIAS_NAMES", "ACCEL_MIS_NAMES", "ACCEL_NOISE_NAMES", "ACCEL_SCALE_NAMES",
-    "CONSTANT_NAMES", "DEFAULT_HEIGHT_M", "DEFAULT_LATITUDE_DEG", "EARTH_RATE_DPS", "GROUPS",
-    "GYRO_BIAS_NAMES", "GYRO_GSENS_NAMES", "GYRO_MIS_NAMES", "GYRO_NOISE_NAMES",
-    "GYRO_SCALE_NAMES", "NOISE_NAMES", "ORIENTATION_TOL_DEG", "STATIC_MAX_ACCEL_STD",
-    "STATIC_MAX_GYRO_STD", "TOLERANCES", "TURN_ANGLE_SIGMA_DEG", "TURN_ANGLE_TOL_DEG", "UNITS",
-    "CalibrationResult", "Observation", "RecordResidual", "RecordStats", "Stage1", "apply",
-    "build_observations", "calibrate_from_records", "check_orientation", "check_range",
-    "check_record_lengths",
-    "gsens_to_names", "local_gravity", "matrix_to_names", "names_to_gsens", "names_to_matrix",
-    "record_stats", "remedy", "stage1", "stage2", "trapezoid_integral", "what_would_determine",
-]  # fmt: skip
 
 
 # ---- closed form, method.md §3 and §4 -----------------------------------------------------

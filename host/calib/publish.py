@@ -18,14 +18,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
-from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, calibrate_from_records
+from host.calib.applying import verify_directory
+from host.calib.calibration import calibrate_from_records
 from host.calib.report import format_report, write_results
-from host.calib.result import CalibrationResult, verify_directory
+from host.calib.result import CalibrationResult
 from host.calib.thermal import ThermalCalibration
 from host.errors import UserError
 from host.model.noise import NoiseModel
 from host.model.signals import SENSORS
 from host.session.directory import Session
+from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
 
 def _stderr(text: str) -> None:

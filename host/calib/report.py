@@ -14,7 +14,10 @@ import math
 import os
 from pathlib import Path
 
-from host.calib.calibration import (
+from host.calib.result import CalibrationResult
+from host.session.atomic import write_texts_atomic
+from host.session.directory import SIMULATED_BOARD
+from host.session.method import (
     ACCEL_BIAS_NAMES,
     CONSTANT_NAMES,
     GROUPS,
@@ -22,9 +25,6 @@ from host.calib.calibration import (
     NOISE_NAMES,
     UNITS,
 )
-from host.calib.result import CalibrationResult
-from host.session.atomic import write_texts_atomic
-from host.session.directory import SIMULATED_BOARD
 
 WIDTH = 80
 PLUS, MINUS = "+", "−"

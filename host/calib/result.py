@@ -1,17 +1,16 @@
-"""The calibration result a user ships, and :func:`apply`, which corrects raw samples with it.
+"""The calibration result a user ships, and its files.
 
-A result is the model the user chose (a spec of named terms, :mod:`host.modelling.model`) with every
-parameter of every term: value, 1-σ standard error, unit, and — for the §2 constants that the
-report of method.md §7 tolerances — the tolerance and the pass flag. Format v2
-(``SERIAL_result.json``, ``format_version: 2``) also carries the noise model of the fit and the
-fit quality (χ², dof, RMS z, p, verdict). Format v1 files (the §7 constants only) still load:
-they become the ``base`` model.
+A result is the model the user chose (a spec of named terms, :mod:`host.model.spec`) with every
+parameter of every term (:mod:`host.calib.values`): value, 1-σ standard error, unit, and — for
+the §2 constants that the report of method.md §7 tolerances — the tolerance and the pass flag.
+Format v2 (``SERIAL_result.json``, ``format_version: 2``) also carries the noise model of the fit
+and the fit quality (χ², dof, RMS z, p, verdict). Format v1 files (the §7 constants only) still
+load: they become the ``base`` model. A thermal calibration travels in a result as the term
+``thermal_bias`` (:func:`thermal_parameters`, :func:`carried_thermal`).
 
 A parameter whose value is NaN was **not determined** by the records; ``needs`` says what
-would determine it. :func:`apply` refuses such a result unless asked to take them as nominal.
-
-Length (over 600 lines): one versioned object — its v2 file, loading v1 and v2, ``apply`` and
-held-out ``verify`` — must agree on every parameter's meaning; they change together.
+would determine it. Applying a result to raw samples and verifying it on held-out records:
+:mod:`host.calib.applying`.
 """
 
 from __future__ import annotations
@@ -19,7 +18,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,195 +26,33 @@ from typing import Any, ClassVar
 import numpy as np
 
 from host.calib.thermal import CHANNELS as THERMAL_CHANNELS
-from host.calib.thermal import (
-    ThermalCalibration,
-    ThermalRangeWarning,
-    recentre_poly,
-    recentred,
+from host.calib.thermal import ThermalCalibration, recentre_poly, recentred
+from host.calib.values import (
+    FitQuality,
+    ParameterResult,
+    RecordResidual,
+    Verification,
+    as_float,
+    jsonable,
+    tolerance_of,
+    within,
 )
 from host.errors import UserError
-from host.model.catalogue import BASE, CARRIED, CATALOGUE
-from host.model.fit import predict_session
-from host.model.loader import load_term_file
-from host.model.noise import NoiseModel
-from host.model.signals import AXES, TEMP_REF_C, RecordSignals
+from host.model.catalogue import CARRIED
+from host.model.signals import AXES, TEMP_REF_C
 from host.model.spec import parse_model
-from host.model.stats import chi2_sf
 from host.model.terms import Term
-from host.session.directory import Session, read_session
 from host.session.method import (
     ACCEL_BIAS_NAMES,
     CONSTANT_NAMES,
     GYRO_BIAS_NAMES,
     NOISE_NAMES,
-    TOLERANCES,
     UNITS,
     names_to_gsens,
     names_to_matrix,
 )
 
 FORMAT = "imu-bench calibration result"
-
-
-# ---- small JSON helpers -------------------------------------------------------------------
-def _num(v: Any) -> float:
-    return float("nan") if v is None else float(v)
-
-
-def _jsonable(v: Any) -> Any:
-    if isinstance(v, float | np.floating):
-        f = float(v)
-        return None if not math.isfinite(f) else f
-    if isinstance(v, tuple | list | np.ndarray):
-        return [_jsonable(x) for x in v]
-    if isinstance(v, dict):
-        return {str(k): _jsonable(x) for k, x in v.items()}
-    return v
-
-
-# ---- the parts of a result ----------------------------------------------------------------
-@dataclass(frozen=True)
-class ParameterResult:
-    """One parameter of one term on one output channel.
-
-    ``term`` catalogue name ('temperature_bias'), ``sensor`` accel/gyro, ``axis`` x/y/z (the
-    output channel), ``key`` the term's parameter ('per_C'), ``name`` its report name ('A0x';
-    'temperature_bias.gyro.y' for further terms). ``value``/``stderr`` in ``unit``; NaN value:
-    not determined by the records, ``needs`` says what would determine it. ``tolerance`` and
-    ``passed`` where method.md §7 defines a tolerance (None otherwise).
-    """
-
-    term: str
-    sensor: str
-    axis: str
-    key: str
-    name: str
-    value: float
-    stderr: float
-    unit: str
-    tolerance: float | None = None
-    passed: bool | None = None
-    needs: str = ""
-
-    @property
-    def determined(self) -> bool:
-        return math.isfinite(self.value)
-
-    @property
-    def base(self) -> bool:
-        """A parameter of the linear model of method.md §2 (reported in the §7 layout)."""
-        return self.term in BASE
-
-    def to_dict(self) -> dict[str, Any]:
-        return {f.name: _jsonable(getattr(self, f.name)) for f in dataclasses.fields(self)}
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> ParameterResult:
-        tol = d.get("tolerance")
-        return cls(
-            term=str(d["term"]), sensor=str(d["sensor"]), axis=str(d["axis"]), key=str(d["key"]),
-            name=str(d["name"]), value=_num(d["value"]), stderr=_num(d["stderr"]),
-            unit=str(d["unit"]), tolerance=None if tol is None else float(tol),
-            passed=None if d.get("passed") is None else bool(d["passed"]),
-            needs=str(d.get("needs", "")),
-        )  # fmt: skip
-
-
-@dataclass(frozen=True)
-class FitQuality:
-    """How well the model explains the records: χ² on ``dof`` degrees of freedom, RMS of the
-    record/channel z values, p = P(χ² this large | model right), ``verdict`` adequate /
-    inadequate (p < 0.01: the model misses something) / untestable (some channel has no
-    degrees of freedom: ``untestable`` lists them). ``stderr_note``: how the standard errors
-    were treated (the uncertainty policy, :func:`host.modelling.model.stderr_scale`)."""
-
-    chi2: float
-    dof: int
-    rms_z: float
-    p: float
-    verdict: str
-    untestable: tuple[str, ...] = ()
-    stderr_note: str = ""
-
-    def line(self) -> str:
-        """The report's one fit-quality line."""
-        s = (
-            f"Fit quality: χ² = {self.chi2:.1f} on {self.dof} dof, RMS z = {self.rms_z:.2f}, "
-            f"p = {self.p:.3g}: {self.verdict}"
-        )
-        if self.untestable:
-            s += f" (no degrees of freedom on {', '.join(self.untestable)})"
-        return s
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "chi2": _jsonable(self.chi2), "dof": self.dof, "rms_z": _jsonable(self.rms_z),
-            "p": _jsonable(self.p), "verdict": self.verdict, "untestable": list(self.untestable),
-            "stderr_note": self.stderr_note,
-        }  # fmt: skip
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> FitQuality:
-        return cls(
-            float(_num(d["chi2"])), int(d["dof"]), _num(d["rms_z"]), _num(d["p"]),
-            str(d["verdict"]), tuple(str(x) for x in d.get("untestable", ())),
-            str(d.get("stderr_note", "")),
-        )  # fmt: skip
-
-
-@dataclass(frozen=True, eq=False)
-class RecordResidual:
-    """Residual of one record after the fit.
-
-    static/rate: ``accel_mean``/``gyro_mean`` = mean residual (m/s², °/s), ``*_std`` = std of the
-    samples. turn: ``gyro_mean`` = integral residual / T (°/s equivalent), ``angle_deg`` =
-    integral residual (°), stds NaN.
-    """
-
-    record: str
-    kind: str
-    n: int
-    duration_s: float
-    accel_mean: tuple[float, float, float]
-    accel_std: tuple[float, float, float]
-    gyro_mean: tuple[float, float, float]
-    gyro_std: tuple[float, float, float]
-    angle_deg: tuple[float, float, float] | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (NaN -> None)."""
-        return {f.name: _jsonable(getattr(self, f.name)) for f in dataclasses.fields(self)}
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> RecordResidual:
-        """Inverse of :meth:`to_dict`."""
-
-        def t3(v: Any) -> tuple[float, float, float]:
-            a, b, c = (_num(x) for x in v)
-            return (a, b, c)
-
-        return cls(
-            record=str(d["record"]), kind=str(d["kind"]), n=int(d["n"]),
-            duration_s=float(d["duration_s"]), accel_mean=t3(d["accel_mean"]),
-            accel_std=t3(d["accel_std"]), gyro_mean=t3(d["gyro_mean"]),
-            gyro_std=t3(d["gyro_std"]),
-            angle_deg=None if d.get("angle_deg") is None else t3(d["angle_deg"]),
-        )  # fmt: skip
-
-
-def tolerance_of(name: str) -> float | None:
-    """The §7 tolerance of a report name (None: the method defines none)."""
-    return TOLERANCES.get(name)
-
-
-def within(name: str, value: float) -> bool | None:
-    """§7 pass flag: True within tolerance, False outside or not determined, None no tolerance."""
-    tol = tolerance_of(name)
-    if tol is None:
-        return None
-    if not math.isfinite(value):
-        return False
-    return value <= tol if name in NOISE_NAMES else abs(value) <= tol
 
 
 # ---- the result ---------------------------------------------------------------------------
@@ -356,11 +192,11 @@ class CalibrationResult:
             "term_files": list(self.term_files),
             "parameters": [p.to_dict() for p in self.parameters],
             # the §7 view, for readers: value and pass flag by report name (not read back)
-            "constants": _jsonable(self.constants()),
+            "constants": jsonable(self.constants()),
             "pass": self.passed(),
             "noise_std": {
                 n: {
-                    "value": _jsonable(v),
+                    "value": jsonable(v),
                     "unit": UNITS[n],
                     "tolerance": tolerance_of(n),
                     "passed": within(n, v),
@@ -369,7 +205,7 @@ class CalibrationResult:
             },  # fmt: skip
             "all_passed": self.all_passed,
             "fit": None if self.fit is None else self.fit.to_dict(),
-            "noise_model": _jsonable(dict(self.noise_model)),
+            "noise_model": jsonable(dict(self.noise_model)),
             "g": self.g,
             "g_unit": "m/s²",
             "latitude_deg": self.latitude_deg,
@@ -380,8 +216,8 @@ class CalibrationResult:
             "earth_rate": self.earth_rate,
             "method": self.method,
             "records": list(self.records),
-            "bias_estimates": _jsonable(dict(self.bias_estimates)),
-            "closed_form": _jsonable(dict(self.closed_form)),
+            "bias_estimates": jsonable(dict(self.bias_estimates)),
+            "closed_form": jsonable(dict(self.closed_form)),
             "combinations": list(self.combinations),
             "residuals": [r.to_dict() for r in self.residuals],
             "notes": list(self.notes),
@@ -442,9 +278,10 @@ def _common(d: Mapping[str, Any]) -> dict[str, Any]:
         "method": str(d.get("method", "")),
         "records": tuple(str(x) for x in d.get("records", ())),
         "bias_estimates": {
-            k: (_num(v[0]), _num(v[1]), _num(v[2])) for k, v in d.get("bias_estimates", {}).items()
+            k: (as_float(v[0]), as_float(v[1]), as_float(v[2]))
+            for k, v in d.get("bias_estimates", {}).items()
         },
-        "closed_form": {k: _num(v) for k, v in d.get("closed_form", {}).items()},
+        "closed_form": {k: as_float(v) for k, v in d.get("closed_form", {}).items()},
         "residuals": tuple(RecordResidual.from_dict(r) for r in d.get("residuals", [])),
         "notes": tuple(str(x) for x in d.get("notes", [])),
     }
@@ -460,11 +297,11 @@ def base_parameters(
         units = mt.term.param_units(mt.sensor)
         for ax in mt.axes:
             for q, name in enumerate(mt.term.param_labels(mt.sensor, ax)):
-                v = _num(values[name])
+                v = as_float(values[name])
                 out.append(
                     ParameterResult(
                         mt.term.name, mt.sensor, AXES[ax], mt.term.params[q], name, v,
-                        _num(se.get(name)), units[q], tolerance_of(name), within(name, v),
+                        as_float(se.get(name)), units[q], tolerance_of(name), within(name, v),
                     )
                 )  # fmt: skip
     return tuple(out)
@@ -552,8 +389,8 @@ def carried_thermal(result: CalibrationResult) -> ThermalCalibration | None:
 
 
 def _from_v1(d: Mapping[str, Any]) -> CalibrationResult:
-    consts = {n: _num(d["constants"][n]) for n in CONSTANT_NAMES}
-    params = base_parameters(consts, {k: _num(v) for k, v in d.get("std_errors", {}).items()})
+    consts = {n: as_float(d["constants"][n]) for n in CONSTANT_NAMES}
+    params = base_parameters(consts, {k: as_float(v) for k, v in d.get("std_errors", {}).items()})
     params = tuple(
         dataclasses.replace(p, needs="a turn about that axis (format v1: not measured)")
         if not p.determined
@@ -575,7 +412,7 @@ def _from_v2(d: Mapping[str, Any]) -> CalibrationResult:
     return CalibrationResult(
         model=str(d["model"]),
         parameters=tuple(ParameterResult.from_dict(p) for p in d["parameters"]),
-        noise_std={str(k): _num(v["value"]) for k, v in d["noise_std"].items()},
+        noise_std={str(k): as_float(v["value"]) for k, v in d["noise_std"].items()},
         fit=None if fit is None else FitQuality.from_dict(fit),
         noise_model=dict(d.get("noise_model", {})),
         term_files=tuple(str(x) for x in d.get("term_files", ())),
@@ -591,283 +428,3 @@ def _from_v2(d: Mapping[str, Any]) -> CalibrationResult:
         thermal_source="" if th is None else str(th.get("source", "")),
         **_common(d),
     )
-
-
-# ---- applying a result --------------------------------------------------------------------
-class _MissingInput(Exception):
-    """A term asked for an input that :func:`apply` was not given."""
-
-    def __init__(self, what: str) -> None:
-        super().__init__(what)
-        self.what = what
-
-
-class _Missing:
-    """Stands in for an input not given to :func:`apply`: has a length (so terms can size
-    their columns) but any arithmetic with it raises :class:`_MissingInput`."""
-
-    def __init__(self, what: str, n: int) -> None:
-        self.what = what
-        self.n = n
-
-    def __len__(self) -> int:
-        return self.n
-
-    def _raise(self, *_a: Any, **_k: Any) -> Any:
-        raise _MissingInput(self.what)
-
-    __array__ = __add__ = __radd__ = __sub__ = __rsub__ = __mul__ = __rmul__ = _raise
-    __truediv__ = __rtruediv__ = __pow__ = __neg__ = __getitem__ = __iter__ = _raise
-    __float__ = __lt__ = __gt__ = __le__ = __ge__ = _raise
-
-
-_NEEDS_ARG = {
-    "temp_c": "the chip temperature: pass temp_c=(N,) °C",
-    "t_s": "the time since power-on: pass t_s=(N,) s",
-}
-
-
-def _catalogue_for(result: CalibrationResult, catalogue: Mapping[str, Term] | None) -> dict[
-    str, Term
-]:  # fmt: skip
-    cat = {**CATALOGUE, **CARRIED}
-    for f in result.term_files:
-        if Path(f).is_file():
-            cat = load_term_file(f, cat)
-    if catalogue:
-        cat.update(catalogue)
-    return cat
-
-
-def _per_sample(x: Any, n: int, what: str, unit: str) -> np.ndarray:
-    a = np.asarray(x, dtype=np.float64)
-    if a.ndim == 0:
-        return np.full(n, float(a))
-    if a.shape != (n,):
-        raise UserError(f"apply(): {what} has shape {a.shape}, expected ({n},) in {unit}")
-    return a
-
-
-def apply(
-    result: CalibrationResult,
-    accel: np.ndarray,
-    gyro: np.ndarray,
-    temp_c: np.ndarray | float | None = None,
-    t_s: np.ndarray | float | None = None,
-    *,
-    catalogue: Mapping[str, Term] | None = None,
-    allow_undetermined: bool = False,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Invert the whole model of ``result``: raw outputs -> calibrated specific force and rate.
-
-    ``accel`` m/s² and ``gyro`` °/s, (N,3) or (3,); ``temp_c`` chip temperature °C and ``t_s``
-    time since power-on s, (N,) or scalars — needed only by the terms that use them (a clear
-    UserError names the term and the input otherwise). Returns (specific force m/s², rate °/s)
-    of the same shape as the inputs.
-
-    Every term is evaluated with its own column function (method.md §2 for the base terms,
-    the catalogue's docstrings for the others, custom terms from the result's term files or
-    ``catalogue``); the model output = input + Σ terms is inverted by fixed-point iteration on
-    (I+M)⁻¹ (exact for the linear model: a = (I+Ma)⁻¹(A − A0), ω = (I+Mg)⁻¹(G − G0 − GA·a/g)).
-    Parameters the records did not determine raise UserError unless ``allow_undetermined``
-    (then they are taken as nominal, 0). A result carrying a thermal calibration (bias(T),
-    term ``thermal_bias``) needs ``temp_c`` and warns
-    (:class:`host.calib.thermal.ThermalRangeWarning`) for temperatures outside the range over
-    which it holds, where its polynomial is extrapolated.
-    """
-    a_raw = np.asarray(accel, dtype=np.float64)
-    g_raw = np.asarray(gyro, dtype=np.float64)
-    single = a_raw.ndim == 1
-    a2, g2 = np.atleast_2d(a_raw), np.atleast_2d(g_raw)
-    if a2.shape[1:] != (3,) or g2.shape != a2.shape:
-        raise UserError(
-            f"apply(): accel {a_raw.shape} and gyro {g_raw.shape} must both be (N,3) or (3,)"
-        )
-    n = len(a2)
-    und = [p.name for p in result.undetermined]
-    if und and not allow_undetermined:
-        raise UserError(
-            f"the result of {result.serial} does not determine {', '.join(und)}; recalibrate "
-            "with the records it needs, or pass allow_undetermined=True to take them as 0"
-        )
-    cat = _catalogue_for(result, catalogue)
-    model = parse_model(result.model, cat)
-    theta: dict[tuple[str, str, str], dict[str, float]] = {}
-    for p in result.parameters:
-        v = p.value if p.determined else 0.0
-        theta.setdefault((p.term, p.sensor, p.axis), {})[p.key] = v
-    temp: Any = _Missing("temp_c", n) if temp_c is None else _per_sample(temp_c, n, "temp_c", "°C")
-    time: Any = _Missing("t_s", n) if t_s is None else _per_sample(t_s, n, "t_s", "s")
-    if result.thermal_range_c is not None and temp_c is not None:
-        lo, hi = result.thermal_range_c
-        outside = (temp < lo) | (temp > hi)
-        if np.any(outside):
-            warnings.warn(
-                f"{int(np.count_nonzero(outside))} samples at {float(temp.min()):.1f} to "
-                f"{float(temp.max()):.1f} degC lie outside the thermal calibration's range "
-                f"{lo:.1f} to {hi:.1f} degC: the bias(T) polynomial is extrapolated there",
-                ThermalRangeWarning,
-                stacklevel=2,
-            )
-    inv_a = np.linalg.inv(np.eye(3) + np.nan_to_num(result.accel_m()))
-    inv_g = np.linalg.inv(np.eye(3) + np.nan_to_num(result.gyro_m()))
-
-    def predict(force: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        sig = RecordSignals(
-            name="apply", kind="apply", t_s=time, temp_c=temp, force=force, rate=rate,
-            accel=a2, gyro=g2, g=result.g, up=np.zeros(3), temp_mean_c=result.temp_mean_c,
-        )  # fmt: skip
-        out = {"accel": force.copy(), "gyro": rate.copy()}
-        for mt in model:
-            for ax in mt.axes:
-                vals = theta.get((mt.term.name, mt.sensor, AXES[ax]), {})
-                th = np.array([vals.get(k, 0.0) for k in mt.term.params])
-                try:
-                    if mt.term.value is not None:
-                        c = np.asarray(mt.term.value(sig, mt.sensor, ax, th), dtype=np.float64)
-                    else:
-                        assert mt.term.columns is not None
-                        x = np.asarray(mt.term.columns(sig, mt.sensor, ax), dtype=np.float64)
-                        c = (x.reshape(n, -1) @ th) if th.size else np.zeros(n)
-                except _MissingInput as exc:
-                    raise UserError(
-                        f"term {mt.label} of this result needs {_NEEDS_ARG[exc.what]} to apply()"
-                    ) from None
-                out[mt.sensor][:, ax] += c
-        return out["accel"], out["gyro"]
-
-    force = (a2 - np.nan_to_num(result.accel_bias())) @ inv_a.T
-    rate = np.zeros_like(g2)
-    for _ in range(50):
-        pa, pg = predict(force, rate)
-        da = (a2 - pa) @ inv_a.T
-        dg = (g2 - pg) @ inv_g.T
-        force, rate = force + da, rate + dg
-        if max(float(np.max(np.abs(da), initial=0.0)), float(np.max(np.abs(dg), initial=0.0))) < (
-            1e-12 * max(1.0, float(np.max(np.abs(a2), initial=0.0)))
-        ):
-            break
-    return (force[0], rate[0]) if single else (force, rate)
-
-
-# ---- held-out verification ------------------------------------------------------------------
-#: method.md §8: compensated error on attitudes/rates not used in the fit, ≤ 0.01 g and ≤ 0.5 °/s
-VERIFY_ACCEL_G = 0.01
-VERIFY_GYRO_DPS = 0.5
-
-
-@dataclass(frozen=True)
-class VerifiedValue:
-    """One record and channel of another session, predicted by the result: ``measured``,
-    ``predicted``, ``residual`` (measured − predicted) and ``sigma`` in ``unit`` (the channel's
-    unit; ° for turn integrals), ``z`` = residual/σ, ``limit`` the §8 accuracy limit in the same
-    unit and ``passed`` |residual| ≤ limit."""
-
-    record: str
-    kind: str
-    channel: str
-    measured: float
-    predicted: float
-    residual: float
-    sigma: float
-    z: float
-    unit: str
-    limit: float
-    passed: bool
-
-    def to_dict(self) -> dict[str, Any]:
-        return {f.name: _jsonable(getattr(self, f.name)) for f in dataclasses.fields(self)}
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> VerifiedValue:
-        return cls(
-            str(d["record"]), str(d["kind"]), str(d["channel"]), _num(d["measured"]),
-            _num(d["predicted"]), _num(d["residual"]), _num(d["sigma"]), _num(d["z"]),
-            str(d["unit"]), _num(d["limit"]), bool(d["passed"]),
-        )  # fmt: skip
-
-
-@dataclass(frozen=True)
-class Verification:
-    """Held-out verification: the records of ``source`` (not used in the fit) predicted by the
-    result. ``rms_z`` and ``chi2`` over the values (``p`` = P(χ²_n this large | the result
-    is right)); ``passed``: every value within the §8 accuracy limits."""
-
-    source: str
-    values: tuple[VerifiedValue, ...]
-    rms_z: float
-    chi2: float
-    p: float
-
-    @property
-    def passed(self) -> bool:
-        return all(v.passed for v in self.values)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "source": self.source, "values": [v.to_dict() for v in self.values],
-            "rms_z": _jsonable(self.rms_z), "chi2": _jsonable(self.chi2), "p": _jsonable(self.p),
-            "passed": self.passed,
-        }  # fmt: skip
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> Verification:
-        return cls(
-            str(d["source"]), tuple(VerifiedValue.from_dict(v) for v in d["values"]),
-            _num(d["rms_z"]), _num(d["chi2"]), _num(d["p"]),
-        )  # fmt: skip
-
-
-def verify(
-    result: CalibrationResult,
-    session: Session,
-    *,
-    source: str = "",
-    catalogue: Mapping[str, Term] | None = None,
-) -> Verification:
-    """Predict every record of ``session`` (another session, extra attitudes: records the fit
-    did not use) with the whole model of ``result`` and its noise model; measured − predicted
-    per record and channel (static: record mean; turn: integral), against the accuracy limits
-    of method.md §8 (0.01 g, 0.5 °/s; a turn's limit is 0.5 °/s × its duration, in °).
-    UserError when the result does not determine a parameter the prediction needs."""
-    und = [p.name for p in result.undetermined]
-    if und:
-        raise UserError(
-            f"--verify: the result does not determine {', '.join(und)}: nothing to predict with"
-        )
-    nm = NoiseModel()
-    if result.noise_model:
-        known = {f.name for f in dataclasses.fields(NoiseModel)}
-        nm = dataclasses.replace(nm, **{k: v for k, v in result.noise_model.items() if k in known})
-    model = parse_model(result.model, _catalogue_for(result, catalogue))
-    values = {(p.term, p.sensor, p.axis, p.key): p.value for p in result.parameters}
-    held_out = predict_session(
-        session, model, values, noise=nm, latitude_deg=result.latitude_deg,
-        height_m=result.height_m, earth_rate=result.earth_rate,
-    )  # fmt: skip
-    ds, groups = held_out.dataset, held_out.groups
-    out: list[VerifiedValue] = []
-    duration = {s.name: float(s.t_s[-1] - s.t_s[0]) if len(s.t_s) > 1 else 0.0 for s in ds.signals}
-    for g in groups:
-        if g.sensor == "accel":
-            limit = VERIFY_ACCEL_G * result.g
-        else:
-            limit = VERIFY_GYRO_DPS * (duration[g.record] if g.kind == "turn" else 1.0)
-        out.append(VerifiedValue(
-            g.record, g.kind, g.channel, g.measured, g.model, g.residual, g.sigma, g.z, g.unit,
-            limit, abs(g.residual) <= limit,
-        ))  # fmt: skip
-    z = np.array([v.z for v in out])
-    chi2 = float(z @ z)
-    return Verification(
-        source, tuple(out), float(np.sqrt(np.mean(z**2))) if len(z) else math.nan, chi2,
-        chi2_sf(chi2, len(z)),
-    )  # fmt: skip
-
-
-def verify_directory(result: CalibrationResult, directory: str, serial: str | None = None) -> (
-    CalibrationResult
-):  # fmt: skip
-    """``result`` with :func:`verify` on the records in ``directory`` attached."""
-    session = read_session(directory, serial)
-    return dataclasses.replace(result, verification=verify(result, session, source=directory))

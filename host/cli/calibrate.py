@@ -15,7 +15,6 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.report import verdict_line
 from host.calib.result import CalibrationResult
@@ -23,6 +22,7 @@ from host.dialogue.options import DEFAULT_READY_S, WARMUP_DEFAULT_S
 from host.errors import RecordCheckError, UserError
 from host.session.checks import failed_record
 from host.session.directory import Session, read_session
+from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 from host.session.spacing import timing_report
 
 

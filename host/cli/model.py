@@ -230,7 +230,7 @@ def _catalogue(args: argparse.Namespace) -> dict[str, Term]:
 
 
 def _dataset(args: argparse.Namespace) -> Dataset:
-    from host.calib.calibration import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
+    from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
     session = read_session(args.dir, args.serial)
     sys.stderr.write(timing_report(session.records))

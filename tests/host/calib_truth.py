@@ -10,12 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from host.calib.calibration import (
-    local_gravity,
-    matrix_to_names,
-    names_to_gsens,
-    names_to_matrix,
-)
+from host.session.method import local_gravity, matrix_to_names, names_to_gsens, names_to_matrix
 from host.session.records import DECIMALS, STATIC_NAMES, TURN_NAMES, Record
 
 #: the true constants (names of method.md §7); all different, realistic magnitudes

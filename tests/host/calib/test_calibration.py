@@ -9,7 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host.calib.calibration import (
+from host.calib.applying import apply
+from host.calib.calibration import calibrate_from_records, stage1, stage2
+from host.calib.result import CalibrationResult
+from host.errors import RecordCheckError, UserError
+from host.session.directory import Session, read_session
+from host.session.method import (
     ACCEL_BIAS_NAMES,
     ACCEL_MIS_NAMES,
     ACCEL_SCALE_NAMES,
@@ -19,18 +24,12 @@ from host.calib.calibration import (
     GYRO_MIS_NAMES,
     GYRO_SCALE_NAMES,
     NOISE_NAMES,
-    calibrate_from_records,
     local_gravity,
     matrix_to_names,
     names_to_matrix,
     record_stats,
-    stage1,
-    stage2,
     trapezoid_integral,
 )
-from host.calib.result import CalibrationResult, apply
-from host.errors import RecordCheckError, UserError
-from host.session.directory import Session, read_session
 from host.session.records import STATIC_NAMES, TURN_NAMES, Record
 
 try:

@@ -16,15 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from host.__main__ import main
-from host.calib.calibration import (
-    CONSTANT_NAMES,
-    GYRO_GSENS_NAMES,
-    NOISE_NAMES,
-    local_gravity,
-)
+from host.calib.applying import apply
 from host.calib.exporting import FORMATS, export
-from host.calib.result import CalibrationResult, apply, base_parameters
+from host.calib.result import CalibrationResult, base_parameters
 from host.ingest.importing import parse_axes
+from host.session.method import CONSTANT_NAMES, GYRO_GSENS_NAMES, NOISE_NAMES, local_gravity
 
 try:
     from calib_truth import TRUTH
@@ -305,7 +301,7 @@ def test_thermal_for_a_format_without_it_is_refused(tmp_path: Path, capsys) -> N
 def test_every_format_names_a_further_term_it_cannot_hold() -> None:
     # A result of model base,temperature_bias:gyro:y: no export target has a place for the
     # temperature term, so each must name it with its value, never drop it in silence.
-    from host.calib.result import ParameterResult
+    from host.calib.values import ParameterResult
 
     base = _result()
     extra = ParameterResult(

@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 from host.__main__ import main
-from host.calib.calibration import CONSTANT_NAMES, calibrate_from_records
+from host.calib.calibration import calibrate_from_records
 from host.calib.report import format_report, write_results
 from host.calib.result import CalibrationResult
 from host.session.directory import Session, record_path, write_record
+from host.session.method import CONSTANT_NAMES
 from host.session.records import Record
 
 try:

@@ -13,8 +13,9 @@ import pytest
 
 from host.__main__ import main
 from host.bench.sim import write_session
+from host.calib.applying import apply
 from host.calib.calibration import calibrate_from_records
-from host.calib.result import CalibrationResult, apply
+from host.calib.result import CalibrationResult
 from host.errors import UserError
 from host.session.directory import read_session
 from host.workbench.scenarios import hidden_effect_case

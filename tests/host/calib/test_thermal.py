@@ -188,7 +188,8 @@ def calibrated_with_thermal(ramp, tmp_path_factory) -> tuple:
 def test_calibration_carries_bias_of_temperature_and_apply_removes_it(
     ramp, calibrated_with_thermal, capsys
 ) -> None:
-    from host.calib.result import CalibrationResult, apply
+    from host.calib.applying import apply
+    from host.calib.result import CalibrationResult
 
     d, cal = calibrated_with_thermal
     main(["calibrate", "--from-dir", str(d), "--out", str(d), "--json"])
@@ -350,8 +351,9 @@ def test_scale_against_temperature_is_carried_by_the_result(tmp_path) -> None:
     """The thermal fit of the flip ramp, given to the calibration of the six attitudes and turns
     (chip near 31 °C): apply() returns ±g along z over 22–70 °C in both attitudes."""
     from host.bench.sim import Plan, simulate_session, write_session
+    from host.calib.applying import apply
     from host.calib.calibration import calibrate_from_records
-    from host.calib.result import CalibrationResult, apply
+    from host.calib.result import CalibrationResult
     from host.session.directory import read_session
 
     recs = simulate_thermal(SCALE_TRUTH, CHAMBER, FLIP_PLAN, seed=13)

@@ -452,7 +452,7 @@ def test_a_turn_made_in_four_steps_with_pauses_is_one_turn() -> None:
 
 
 def test_the_calibration_integrates_turns_over_the_true_sample_times() -> None:
-    from host.calib.calibration import record_stats
+    from host.session.method import record_stats
 
     rng = np.random.default_rng(12)
     t = _bursty_times(rng, 9.0)

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from host.calib.applying import verify
 from host.calib.calibration import calibrate_from_records
-from host.calib.result import verify
 from host.model.dataset import build_dataset, session_from_records
 from host.model.fit import fit_model, predict, predict_session
 from host.model.spec import parse_model

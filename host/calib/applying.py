@@ -1,0 +1,244 @@
+"""Use a calibration result: :func:`apply` corrects raw samples with it, :func:`verify`
+predicts held-out records with it (method.md §8).
+
+Both evaluate the whole model of the result (:mod:`host.calib.result`) with each term's own
+column function; custom terms come from the result's term files. :func:`apply` refuses a result
+with undetermined parameters unless asked to take them as nominal.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from host.calib.result import CalibrationResult
+from host.calib.thermal import ThermalRangeWarning
+from host.calib.values import VERIFY_ACCEL_G, VERIFY_GYRO_DPS, Verification, VerifiedValue
+from host.errors import UserError
+from host.model.catalogue import CARRIED, CATALOGUE
+from host.model.fit import predict_session
+from host.model.loader import load_term_file
+from host.model.noise import NoiseModel
+from host.model.signals import AXES, RecordSignals
+from host.model.spec import parse_model
+from host.model.stats import chi2_sf
+from host.model.terms import Term
+from host.session.directory import Session, read_session
+
+
+class _MissingInput(Exception):
+    """A term asked for an input that :func:`apply` was not given."""
+
+    def __init__(self, what: str) -> None:
+        super().__init__(what)
+        self.what = what
+
+
+class _Missing:
+    """Stands in for an input not given to :func:`apply`: has a length (so terms can size
+    their columns) but any arithmetic with it raises :class:`_MissingInput`."""
+
+    def __init__(self, what: str, n: int) -> None:
+        self.what = what
+        self.n = n
+
+    def __len__(self) -> int:
+        return self.n
+
+    def _raise(self, *_a: Any, **_k: Any) -> Any:
+        raise _MissingInput(self.what)
+
+    __array__ = __add__ = __radd__ = __sub__ = __rsub__ = __mul__ = __rmul__ = _raise
+    __truediv__ = __rtruediv__ = __pow__ = __neg__ = __getitem__ = __iter__ = _raise
+    __float__ = __lt__ = __gt__ = __le__ = __ge__ = _raise
+
+
+_NEEDS_ARG = {
+    "temp_c": "the chip temperature: pass temp_c=(N,) °C",
+    "t_s": "the time since power-on: pass t_s=(N,) s",
+}
+
+
+def _catalogue_for(result: CalibrationResult, catalogue: Mapping[str, Term] | None) -> dict[
+    str, Term
+]:  # fmt: skip
+    cat = {**CATALOGUE, **CARRIED}
+    for f in result.term_files:
+        if Path(f).is_file():
+            cat = load_term_file(f, cat)
+    if catalogue:
+        cat.update(catalogue)
+    return cat
+
+
+def _per_sample(x: Any, n: int, what: str, unit: str) -> np.ndarray:
+    a = np.asarray(x, dtype=np.float64)
+    if a.ndim == 0:
+        return np.full(n, float(a))
+    if a.shape != (n,):
+        raise UserError(f"apply(): {what} has shape {a.shape}, expected ({n},) in {unit}")
+    return a
+
+
+def apply(
+    result: CalibrationResult,
+    accel: np.ndarray,
+    gyro: np.ndarray,
+    temp_c: np.ndarray | float | None = None,
+    t_s: np.ndarray | float | None = None,
+    *,
+    catalogue: Mapping[str, Term] | None = None,
+    allow_undetermined: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Invert the whole model of ``result``: raw outputs -> calibrated specific force and rate.
+
+    ``accel`` m/s² and ``gyro`` °/s, (N,3) or (3,); ``temp_c`` chip temperature °C and ``t_s``
+    time since power-on s, (N,) or scalars — needed only by the terms that use them (a clear
+    UserError names the term and the input otherwise). Returns (specific force m/s², rate °/s)
+    of the same shape as the inputs.
+
+    Every term is evaluated with its own column function (method.md §2 for the base terms,
+    the catalogue's docstrings for the others, custom terms from the result's term files or
+    ``catalogue``); the model output = input + Σ terms is inverted by fixed-point iteration on
+    (I+M)⁻¹ (exact for the linear model: a = (I+Ma)⁻¹(A − A0), ω = (I+Mg)⁻¹(G − G0 − GA·a/g)).
+    Parameters the records did not determine raise UserError unless ``allow_undetermined``
+    (then they are taken as nominal, 0). A result carrying a thermal calibration (bias(T),
+    term ``thermal_bias``) needs ``temp_c`` and warns
+    (:class:`host.calib.thermal.ThermalRangeWarning`) for temperatures outside the range over
+    which it holds, where its polynomial is extrapolated.
+    """
+    a_raw = np.asarray(accel, dtype=np.float64)
+    g_raw = np.asarray(gyro, dtype=np.float64)
+    single = a_raw.ndim == 1
+    a2, g2 = np.atleast_2d(a_raw), np.atleast_2d(g_raw)
+    if a2.shape[1:] != (3,) or g2.shape != a2.shape:
+        raise UserError(
+            f"apply(): accel {a_raw.shape} and gyro {g_raw.shape} must both be (N,3) or (3,)"
+        )
+    n = len(a2)
+    und = [p.name for p in result.undetermined]
+    if und and not allow_undetermined:
+        raise UserError(
+            f"the result of {result.serial} does not determine {', '.join(und)}; recalibrate "
+            "with the records it needs, or pass allow_undetermined=True to take them as 0"
+        )
+    cat = _catalogue_for(result, catalogue)
+    model = parse_model(result.model, cat)
+    theta: dict[tuple[str, str, str], dict[str, float]] = {}
+    for p in result.parameters:
+        v = p.value if p.determined else 0.0
+        theta.setdefault((p.term, p.sensor, p.axis), {})[p.key] = v
+    temp: Any = _Missing("temp_c", n) if temp_c is None else _per_sample(temp_c, n, "temp_c", "°C")
+    time: Any = _Missing("t_s", n) if t_s is None else _per_sample(t_s, n, "t_s", "s")
+    if result.thermal_range_c is not None and temp_c is not None:
+        lo, hi = result.thermal_range_c
+        outside = (temp < lo) | (temp > hi)
+        if np.any(outside):
+            warnings.warn(
+                f"{int(np.count_nonzero(outside))} samples at {float(temp.min()):.1f} to "
+                f"{float(temp.max()):.1f} degC lie outside the thermal calibration's range "
+                f"{lo:.1f} to {hi:.1f} degC: the bias(T) polynomial is extrapolated there",
+                ThermalRangeWarning,
+                stacklevel=2,
+            )
+    inv_a = np.linalg.inv(np.eye(3) + np.nan_to_num(result.accel_m()))
+    inv_g = np.linalg.inv(np.eye(3) + np.nan_to_num(result.gyro_m()))
+
+    def predict(force: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        sig = RecordSignals(
+            name="apply", kind="apply", t_s=time, temp_c=temp, force=force, rate=rate,
+            accel=a2, gyro=g2, g=result.g, up=np.zeros(3), temp_mean_c=result.temp_mean_c,
+        )  # fmt: skip
+        out = {"accel": force.copy(), "gyro": rate.copy()}
+        for mt in model:
+            for ax in mt.axes:
+                vals = theta.get((mt.term.name, mt.sensor, AXES[ax]), {})
+                th = np.array([vals.get(k, 0.0) for k in mt.term.params])
+                try:
+                    if mt.term.value is not None:
+                        c = np.asarray(mt.term.value(sig, mt.sensor, ax, th), dtype=np.float64)
+                    else:
+                        assert mt.term.columns is not None
+                        x = np.asarray(mt.term.columns(sig, mt.sensor, ax), dtype=np.float64)
+                        c = (x.reshape(n, -1) @ th) if th.size else np.zeros(n)
+                except _MissingInput as exc:
+                    raise UserError(
+                        f"term {mt.label} of this result needs {_NEEDS_ARG[exc.what]} to apply()"
+                    ) from None
+                out[mt.sensor][:, ax] += c
+        return out["accel"], out["gyro"]
+
+    force = (a2 - np.nan_to_num(result.accel_bias())) @ inv_a.T
+    rate = np.zeros_like(g2)
+    for _ in range(50):
+        pa, pg = predict(force, rate)
+        da = (a2 - pa) @ inv_a.T
+        dg = (g2 - pg) @ inv_g.T
+        force, rate = force + da, rate + dg
+        if max(float(np.max(np.abs(da), initial=0.0)), float(np.max(np.abs(dg), initial=0.0))) < (
+            1e-12 * max(1.0, float(np.max(np.abs(a2), initial=0.0)))
+        ):
+            break
+    return (force[0], rate[0]) if single else (force, rate)
+
+
+# ---- held-out verification ------------------------------------------------------------------
+def verify(
+    result: CalibrationResult,
+    session: Session,
+    *,
+    source: str = "",
+    catalogue: Mapping[str, Term] | None = None,
+) -> Verification:
+    """Predict every record of ``session`` (another session, extra attitudes: records the fit
+    did not use) with the whole model of ``result`` and its noise model; measured − predicted
+    per record and channel (static: record mean; turn: integral), against the accuracy limits
+    of method.md §8 (0.01 g, 0.5 °/s; a turn's limit is 0.5 °/s × its duration, in °).
+    UserError when the result does not determine a parameter the prediction needs."""
+    und = [p.name for p in result.undetermined]
+    if und:
+        raise UserError(
+            f"--verify: the result does not determine {', '.join(und)}: nothing to predict with"
+        )
+    nm = NoiseModel()
+    if result.noise_model:
+        known = {f.name for f in dataclasses.fields(NoiseModel)}
+        nm = dataclasses.replace(nm, **{k: v for k, v in result.noise_model.items() if k in known})
+    model = parse_model(result.model, _catalogue_for(result, catalogue))
+    values = {(p.term, p.sensor, p.axis, p.key): p.value for p in result.parameters}
+    held_out = predict_session(
+        session, model, values, noise=nm, latitude_deg=result.latitude_deg,
+        height_m=result.height_m, earth_rate=result.earth_rate,
+    )  # fmt: skip
+    ds, groups = held_out.dataset, held_out.groups
+    out: list[VerifiedValue] = []
+    duration = {s.name: float(s.t_s[-1] - s.t_s[0]) if len(s.t_s) > 1 else 0.0 for s in ds.signals}
+    for g in groups:
+        if g.sensor == "accel":
+            limit = VERIFY_ACCEL_G * result.g
+        else:
+            limit = VERIFY_GYRO_DPS * (duration[g.record] if g.kind == "turn" else 1.0)
+        out.append(VerifiedValue(
+            g.record, g.kind, g.channel, g.measured, g.model, g.residual, g.sigma, g.z, g.unit,
+            limit, abs(g.residual) <= limit,
+        ))  # fmt: skip
+    z = np.array([v.z for v in out])
+    chi2 = float(z @ z)
+    return Verification(
+        source, tuple(out), float(np.sqrt(np.mean(z**2))) if len(z) else math.nan, chi2,
+        chi2_sf(chi2, len(z)),
+    )  # fmt: skip
+
+
+def verify_directory(result: CalibrationResult, directory: str, serial: str | None = None) -> (
+    CalibrationResult
+):  # fmt: skip
+    """``result`` with :func:`verify` on the records in ``directory`` attached."""
+    session = read_session(directory, serial)
+    return dataclasses.replace(result, verification=verify(result, session, source=directory))
