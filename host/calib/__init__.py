@@ -10,6 +10,7 @@ Data in: a session (the record files of one sitting, :mod:`host.session`). Out: 
 - ``result`` — the versioned result object and its files (v1, v2).
 - ``applying`` — ``apply`` to raw samples and held-out ``verify``.
 - ``report`` — the test report (method.md §7) and the result files.
-- ``thermal`` — bias against temperature from warm-up, static and chamber records.
+- ``thermal`` — bias against temperature: the thermal result, ``apply_thermal``, corrected records.
+- ``thermal_fit`` — the bias(T) fit from warm-up, static and chamber records.
 - ``exporting`` — the result as other tools' parameters and files.
 """

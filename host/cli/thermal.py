@@ -1,5 +1,6 @@
 """``python -m host thermal DIR``: bias against chip temperature from the warm-up, static and
-thermal-ramp records of a unit (:mod:`host.calib.thermal`), written as ``SERIAL_thermal.json``.
+thermal-ramp records of a unit (:mod:`host.calib.thermal_fit`), written as ``SERIAL_thermal.json``
+(:mod:`host.calib.thermal`), and its plot.
 """
 
 from __future__ import annotations
@@ -11,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from host.calib import thermal
+from host.calib import thermal, thermal_fit
+from host.calib.thermal_fit import ThermalPoints
 from host.cli import NO_MATPLOTLIB
 from host.errors import UserError
 from host.session.atomic import write_text_atomic
@@ -47,6 +49,43 @@ def format_text(cal: thermal.ThermalCalibration) -> str:
     return "\n".join(lines) + "\n"
 
 
+def plot_thermal(cal: thermal.ThermalCalibration, pts: ThermalPoints, path: str) -> None:
+    """Each channel's bias against temperature: the window means (less their attitude's
+    offset), the fitted curve and its simultaneous 95 % band, T_ref and the valid range."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axs = plt.subplots(2, 3, figsize=(15, 8), squeeze=False)
+    temps = np.linspace(cal.t_min_c, cal.t_max_c, 200)
+    for j, (ax, name) in enumerate(zip(axs.ravel(), thermal.CHANNELS, strict=True)):
+        ch = cal.channels[name]
+        y = pts.values[:, j]
+        # each attitude's offset: the mean of its points less the curve there
+        resid0 = y - ch.delta(pts.temp_c, cal.t_ref_c)
+        offs = np.array([resid0[pts.group == g].mean() for g in range(len(pts.attitudes))])
+        shown = y - offs[pts.group]
+        ax.plot(pts.temp_c, shown, ".", ms=3, color="C0", label="window means")
+        curve = ch.delta(temps, cal.t_ref_c)
+        band = ch.band(temps, cal.t_ref_c)
+        ax.fill_between(temps, curve - band, curve + band, color="C1", alpha=0.3,
+                        label="95 % band")  # fmt: skip
+        ax.plot(temps, curve, "-", color="C1", label=f"order {ch.order} fit")
+        ax.axvline(cal.t_ref_c, color="k", lw=0.8, ls=":", label=f"T_ref {cal.t_ref_c:.1f} degC")
+        ax.set_title(f"{name}: bias change, order {ch.order}")
+        ax.set_xlabel("chip temperature, degC")
+        ax.set_ylabel(f"bias(T) - bias(T_ref), {ch.unit}")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(
+        f"{cal.serial}: thermal calibration, valid {cal.t_min_c:.1f} to {cal.t_max_c:.1f} degC"
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def unit_records(directory: str, serial: str | None) -> tuple[str, list[Record]]:
     """The serial and the static records of one unit in ``directory``: its warm-up
     (``SERIAL_warmup.txt``) first, then its static and thermal records — or the warm-up alone
@@ -79,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--max-order must be between 0 and 6")
     if not args.window > 0:
         raise UserError("--window must be a positive number of seconds")
-    cal, pts = thermal.fit_thermal(
+    cal, pts = thermal_fit.fit_thermal(
         records, serial, order=args.order, max_order=args.max_order, window_s=args.window,
         scale=True if args.scale else None,
     )  # fmt: skip
@@ -90,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
     write_text_atomic(path, cal.to_json())
     if args.plot:
         try:
-            thermal.plot_thermal(cal, pts, args.plot)
+            plot_thermal(cal, pts, args.plot)
         except ImportError:
             raise UserError(NO_MATPLOTLIB) from None
     sys.stdout.write(cal.to_json() if args.json else format_text(cal))
@@ -104,7 +143,10 @@ def cli_thermal(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], in
     p.add_argument("--serial", help="serial number (default: from the file names)")
     p.add_argument("--order", type=int, help="fix the polynomial order (default: chosen)")
     p.add_argument(
-        "--max-order", type=int, default=thermal.MAX_ORDER, help="highest order tried (default 4)"
+        "--max-order",
+        type=int,
+        default=thermal_fit.MAX_ORDER,
+        help="highest order tried (default 4)",
     )
     p.add_argument(
         "--scale",

@@ -16,7 +16,7 @@ from host.bench.options import parse_chamber
 from host.bench.physics import Environment
 from host.bench.sim import simulate_thermal
 from host.bench.truth import SensorTruth
-from host.calib import thermal
+from host.calib import thermal, thermal_fit
 from host.session.directory import write_record
 
 #: per channel ax ay az gx gy gz: true order 1, 2, 3, 3, 0, 2
@@ -58,7 +58,7 @@ def ramp() -> dict:
 
 
 def test_known_bias_curve_is_recovered_within_its_band_with_the_right_order(ramp) -> None:
-    cal, _ = thermal.fit_thermal(list(ramp.values()), "T1")
+    cal, _ = thermal_fit.fit_thermal(list(ramp.values()), "T1")
     assert cal.t_min_c < 23.0 and cal.t_max_c > 69.0
     temps = np.linspace(cal.t_min_c, cal.t_max_c, 60)
     for j, name in enumerate(thermal.CHANNELS):
@@ -74,7 +74,7 @@ def test_known_bias_curve_is_recovered_within_its_band_with_the_right_order(ramp
 
 
 def test_apply_removes_the_bias_change_and_warns_outside_the_range(ramp) -> None:
-    cal, _ = thermal.fit_thermal(list(ramp.values()), "T1")
+    cal, _ = thermal_fit.fit_thermal(list(ramp.values()), "T1")
     rec = ramp["ramp"]
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -100,10 +100,10 @@ def test_too_small_a_span_is_refused_with_the_span_needed() -> None:
     quiet = dataclasses.replace(CHAMBER, rise_c=2.0, chamber_minutes=0.0)
     recs = simulate_thermal(TRUTH, quiet, [("warmup", "z_up", 900.0)], seed=5)
     with pytest.raises(thermal.UserError, match=r"span 1\.\d degC .* needs at least 4 degC"):
-        thermal.fit_thermal(list(recs.values()), "T2")
+        thermal_fit.fit_thermal(list(recs.values()), "T2")
     big = simulate_thermal(TRUTH, CHAMBER, [("warmup", "z_up", 600.0)], seed=6)
     with pytest.raises(thermal.UserError, match=r"order-3 bias\(T\): it needs at least 12 degC"):
-        thermal.fit_thermal(list(big.values()), "T2", order=3)
+        thermal_fit.fit_thermal(list(big.values()), "T2", order=3)
 
 
 def test_attitudes_at_single_temperatures_are_refused() -> None:
@@ -118,7 +118,7 @@ def test_attitudes_at_single_temperatures_are_refused() -> None:
         seed=8,
     )
     with pytest.raises(thermal.UserError, match="cannot separate gravity from temperature"):
-        thermal.fit_thermal([*cold.values(), *hot.values()], "T3")
+        thermal_fit.fit_thermal([*cold.values(), *hot.values()], "T3")
 
 
 def test_command_writes_a_versioned_result_and_the_plot(ramp, tmp_path, capsys) -> None:
@@ -180,7 +180,7 @@ def calibrated_with_thermal(ramp, tmp_path_factory) -> tuple:
         warmup_s=600.0,
     )
     write_session(d, "T5", simulate_session(TRUTH, plan, seed=9))
-    cal, _ = thermal.fit_thermal(list(ramp.values()), "T5")
+    cal, _ = thermal_fit.fit_thermal(list(ramp.values()), "T5")
     (d / "T5_thermal.json").write_text(cal.to_json())
     return d, cal
 
@@ -268,7 +268,7 @@ def test_bias_wander_does_not_pass_for_a_higher_order() -> None:
             "linear", "noise", "temperature_bias", "bias_instability"
         )
         recs = simulate_thermal(truth, WANDER_CHAMBER, WANDER_PLAN, seed=seed)
-        cal, _ = thermal.fit_thermal(list(recs.values()), "W")
+        cal, _ = thermal_fit.fit_thermal(list(recs.values()), "W")
         temps = np.linspace(cal.t_min_c, cal.t_max_c, 40)
         for j, name in enumerate(thermal.CHANNELS):
             ch = cal.channels[name]
@@ -317,7 +317,7 @@ def test_scale_against_temperature_where_the_attitudes_allow() -> None:
     °C, order 1) beside its cubic bias(T); x and y saw no gravity: no scale fitted, and asking
     for it is refused naming the axis and the records needed."""
     recs = simulate_thermal(SCALE_TRUTH, CHAMBER, FLIP_PLAN, seed=13)
-    cal, _ = thermal.fit_thermal(list(recs.values()), "T7")
+    cal, _ = thermal_fit.fit_thermal(list(recs.values()), "T7")
     az = cal.channels["az"]
     assert az.scale_order == 1 and az.order == 3, (az.scale_bic, az.bic)
     se = math.sqrt(az.scale_cov[0][0])
@@ -328,7 +328,7 @@ def test_scale_against_temperature_where_the_attitudes_allow() -> None:
     with pytest.raises(
         thermal.UserError, match=r"ax: .*scale against temperature.*x up and x down"
     ):
-        thermal.fit_thermal(list(recs.values()), "T7", scale=True)
+        thermal_fit.fit_thermal(list(recs.values()), "T7", scale=True)
     # the z reading, corrected, no longer depends on temperature in either attitude
     for name in ("r1", "r2", "r7", "r8"):
         rec = recs[name]
@@ -357,7 +357,7 @@ def test_scale_against_temperature_is_carried_by_the_result(tmp_path) -> None:
     from host.session.directory import read_session
 
     recs = simulate_thermal(SCALE_TRUTH, CHAMBER, FLIP_PLAN, seed=13)
-    cal, _ = thermal.fit_thermal(list(recs.values()), "T8")
+    cal, _ = thermal_fit.fit_thermal(list(recs.values()), "T8")
     env = Environment(room_c=22.0, rise_c=10.0, tau_s=300.0, room_amp_c=0.0)
     write_session(tmp_path, "T8", simulate_session(SCALE_TRUTH, Plan(environment=env), seed=9))
     session = read_session(tmp_path)
