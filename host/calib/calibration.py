@@ -3,7 +3,7 @@
 The linear model of method.md §2 in matrix form: :mod:`host.session.method`.
 
 One engine: every number the project reports comes from the workbench's weighted
-least-squares fit (:func:`host.modelling.model.fit_model`, its noise model) of the chosen
+least-squares fit (:func:`host.model.fit.fit_model`, its noise model) of the chosen
 model (default ``base`` = the linear model above) — :func:`calibrate_from_records`. It
 accepts other plans: turns without their opposite partner (the bias then comes from the
 statics), extra static attitudes (meta ``up``), several turns per axis, rate-table records
@@ -167,7 +167,7 @@ def what_would_determine(
     turns: int | None = None,
 ) -> dict[str, str]:
     """For each parameter in ``names`` that the records of ``session`` do not determine under
-    ``model`` (model terms of :mod:`host.modelling.model`): which records of the standard plan
+    ``model`` (model terms of :mod:`host.model`): which records of the standard plan
     (method.md §3, §4) would determine it — 'add any one of: x_dn, y_dn' or 'add all of:
     x_ccw, x_cw' — else the term's own ``needs`` text."""
     wanted = list(names)
@@ -236,8 +236,8 @@ def calibrate_from_records(
     thermal_source: str = "",
 ) -> CalibrationResult:
     """Check the records of ``session``, fit ``model`` (default ``base``, method.md §2) with
-    the workbench's weighted least squares (:func:`host.modelling.model.fit_model`, its noise model
-    ``noise``, default :class:`host.modelling.model.NoiseModel`), return every parameter.
+    the workbench's weighted least squares (:func:`host.model.fit.fit_model`, its noise model
+    ``noise``, default :class:`host.model.noise.NoiseModel`), return every parameter.
 
     The closed form of §3/§4 is computed beside it where the plan has it (``closed_form``).
     Parameters the records do not determine are NaN with what would determine them; they make

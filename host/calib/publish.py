@@ -36,7 +36,7 @@ def _stderr(text: str) -> None:
 
 def parse_floor(text: str | None) -> NoiseModel:
     """``--floor accel=A,gyro=G`` (m/s², °/s; either may be left out) -> the fit's
-    :class:`~host.modelling.model.NoiseModel`; no text: the floor is measured from the records."""
+    :class:`~host.model.noise.NoiseModel`; no text: the floor is measured from the records."""
     nm = NoiseModel()
     if not text:
         return nm
@@ -57,7 +57,7 @@ def parse_floor(text: str | None) -> NoiseModel:
 def session_noise(session: Session, floor: str | None, noise_file: str | None) -> NoiseModel:
     """The fit's noise model: ``--floor`` (:func:`parse_floor`) names the sensors it sets;
     the others come from the noise file ``noise_file`` (``noise FILE --save``) when given —
-    :func:`host.modelling.noise.workbench_floor` at the median length of the session's static
+    :func:`host.model.recording.workbench_floor` at the median length of the session's static
     records — and are otherwise measured from the records themselves."""
     nm = parse_floor(floor)
     if not noise_file:
@@ -77,7 +77,7 @@ def session_noise(session: Session, floor: str | None, noise_file: str | None) -
 class ComputeSettings:
     """How to compute a result; units in the names. ``turns``: n for turn records whose
     header does not say it (None: inferred); ``model``: the model spec
-    (:func:`host.modelling.model.parse_model`); ``floor``: the ``--floor`` text (None: measured);
+    (:func:`host.model.spec.parse_model`); ``floor``: the ``--floor`` text (None: measured);
     ``verify``: a directory of held-out records to predict (None: no verification);
     ``thermal``: the ``--thermal`` option (:func:`thermal_of`); ``noise_file``: the
     ``--noise`` file (:func:`session_noise`)."""

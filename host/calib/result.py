@@ -59,7 +59,7 @@ FORMAT = "imu-bench calibration result"
 @dataclass(frozen=True, eq=False)
 class CalibrationResult:
     """One unit's calibration: the model ``model`` (spec,
-    :func:`host.modelling.model.parse_model`) and every parameter of it
+    :func:`host.model.spec.parse_model`) and every parameter of it
     (:class:`ParameterResult`), the §3 noise levels ``noise_std``
     (Astdx … Gstdz: m/s², °/s), local ``g`` m/s² at ``latitude_deg``/``height_m``, ``turns``
     (n of the turn records, None: none or mixed), the noise model and the fit quality.

@@ -93,7 +93,7 @@ class FitQuality:
     record/channel z values, p = P(χ² this large | model right), ``verdict`` adequate /
     inadequate (p < 0.01: the model misses something) / untestable (some channel has no
     degrees of freedom: ``untestable`` lists them). ``stderr_note``: how the standard errors
-    were treated (the uncertainty policy, :func:`host.modelling.model.stderr_scale`)."""
+    were treated (the uncertainty policy, :func:`host.model.stats.stderr_scale`)."""
 
     chi2: float
     dof: int

@@ -1,6 +1,6 @@
 """The model workbench: how well the error model explains the records, and what it misses.
 
-Data in: a fitted model and its dataset (:mod:`host.modelling.model`). Out: candidates, the
+Data in: a fitted model and its dataset (:mod:`host.model`). Out: candidates, the
 residual scan, the verdict, the refits and their words. Never imports the calibration.
 
 - ``candidates`` — every catalogue term not in the model tried on top of the fit, Holm-corrected,
