@@ -465,7 +465,9 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
 
     Times are the device's µs time stamps (unwrapped); if the board was reset during the
     capture the pieces are joined on the host clock when the capture has arrival times, else
-    only the longest piece is kept (with a note in ``meta``)."""
+    only the longest piece is kept (with a note in ``meta``). Without a reset ``meta`` holds
+    ``device_clock_s_at_t0``, the device clock (s since power-on) at t = 0: the records then
+    carry their power-on time as the dialogue's do."""
     from host.timing import clock
     from host.wire import sensor
     from host.wire.frames import (
@@ -492,6 +494,7 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
     sel = slice(0, s.size)
     if len(timeline.segments) == 1:
         t_s = (timeline.device_us - timeline.device_us[0]) / 1e6
+        meta["device_clock_s_at_t0"] = f"{timeline.device_us[0] / 1e6:.6f}"
     elif np.all(np.isfinite(timeline.host_ns)):
         t_s = (timeline.host_ns - timeline.host_ns[0]) / 1e9
         meta["clock"] = f"{len(timeline.segments)} board resets joined on the host clock"

@@ -13,8 +13,8 @@ the records are found in it, in the words of method.md §3-§5.
    (an aborted start that was turned back is left out); steps with pauses in between count as
    one turn (four 90° steps are one turn), and a pause shorter than ``TURN_MERGE_REST_S`` at a
    whole turn with the motion going on the same way is part of a longer turn; rests within
-   ``SAME_STOP_DEG`` of each other around a turn's start or end (a slow hand leaves and reaches
-   its rest in pieces) are one opening or closing rest. A turn record is
+   ``SAME_STOP_DEG`` and ``SAME_STOP_ACCEL`` of each other around a turn's start or end (a slow
+   hand leaves and reaches its rest in pieces) are one opening or closing rest. A turn record is
    cut as the method's beeps would: from ``TURN_LEAD_S`` before the motion (inside the opening
    rest) for the fixed window of method.md §4 (7/12/15 s), at least ``TURN_PAD_S`` past the
    motion, never beyond its closing rest (never the next attitude's rest). Rests inside a turn
@@ -45,11 +45,12 @@ SMOOTH_S = 0.1  #: the accelerometer is averaged over this long to follow gravit
 TURN_HEADING_TOL_DEG = 45.0  #: a rest within this of a whole number of turns ends a turn
 TURN_MERGE_REST_S = 1.5  #: a shorter pause at a whole turn, motion going on the same way: one turn
 SAME_STOP_DEG = 5.0  #: rests this close in heading are one stop of the hand (a slow start or end)
+SAME_STOP_ACCEL = 0.2  #: … and this close in specific force, m/s² (≈ 1°: not the next attitude)
 BACKSTEP_DEG = 20.0  #: a turn may step back this far between its rests (a hand correcting)
 TURN_LEAD_S = 1.0  #: a turn record starts this long before the motion (in its opening rest), s
 TURN_PAD_S = 0.5  #: … and lasts the method's window (7/12/15 s) or this long past the motion, s
 MIN_STATIC_S = 1.0  #: a rest shorter than this is not a static record, s
-WARMUP_RISE_C = 0.5  #: a rise of the temperature this large before the plan: the warm-up, °C
+WARMUP_RISE_C = 0.2  #: a rise of the temperature this large before the plan: the warm-up, °C
 ABORTED_MIN_DEG = 30.0  #: a rotation about up this large that is no whole turn is named, °
 
 
@@ -90,6 +91,7 @@ class _Visit:
     rests: list[Rest]
     yaw: np.ndarray
     offset: int
+    means: list[np.ndarray] = field(default_factory=list)
     turns: list[tuple[int, int, float]] = field(default_factory=list)
     aborted: list[tuple[int, int, float]] = field(default_factory=list)
 
@@ -129,6 +131,7 @@ def _visits(
                 continue
         visits.append(_Visit(label, up, [r], np.zeros(0), r.start))
     for v in visits:
+        v.means = [acc[r.start : r.stop].mean(axis=0) for r in v.rests]
         a, b = v.rests[0].start, v.rests[-1].stop
         v.yaw = cumulative_trapezoid(t[a:b], (gyr[a:b] - bias[a:b]) @ v.up)
     return visits, tilted
@@ -162,7 +165,7 @@ def _find_turns(v: _Visit, t: np.ndarray) -> None:
         if begin is None:
             j += 1
             continue
-        while begin > first and abs(end_yaw[begin] - start_yaw[begin - 1]) < SAME_STOP_DEG:
+        while begin > first and _same_stop(v, begin - 1, begin, start_yaw, end_yaw):
             begin -= 1  # a slow start breaks the opening rest into pieces: its first piece
         end = j
         n = _whole(end_yaw[j] - start_yaw[begin])
@@ -179,7 +182,7 @@ def _find_turns(v: _Visit, t: np.ndarray) -> None:
             if more is None:
                 break
             end, n = more
-        while end < k - 1 and abs(end_yaw[end + 1] - start_yaw[end]) < SAME_STOP_DEG:
+        while end < k - 1 and _same_stop(v, end, end + 1, start_yaw, end_yaw):
             end += 1  # … and a slow end its closing rest: up to its last piece
         if begin > first:
             _aborted(v, first, begin, start_yaw, end_yaw)
@@ -187,6 +190,13 @@ def _find_turns(v: _Visit, t: np.ndarray) -> None:
         first = end
         j = end + 1
     _aborted(v, first, k - 1, start_yaw, end_yaw)
+
+
+def _same_stop(v: _Visit, a: int, b: int, start_yaw: list[float], end_yaw: list[float]) -> bool:
+    """Rests a and b (consecutive) are one stop of the hand: the same heading (within
+    ``SAME_STOP_DEG``) and the same attitude (accelerometer within ``SAME_STOP_ACCEL``)."""
+    same_heading = abs(end_yaw[b] - start_yaw[a]) < SAME_STOP_DEG
+    return same_heading and float(np.max(np.abs(v.means[b] - v.means[a]))) < SAME_STOP_ACCEL
 
 
 def _aborted(v: _Visit, a: int, b: int, start_yaw: list[float], end_yaw: list[float]) -> None:

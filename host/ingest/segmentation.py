@@ -119,7 +119,9 @@ def build_records(
 ) -> dict[str, Record]:
     """Records (method.md §6) for every labelled segment: time since the segment's first sample
     (ms, from the stream's true times), the data, and metadata — source, column map, units,
-    segmentation thresholds, the segment's place in the stream and its timing quality."""
+    segmentation thresholds, the segment's place in the stream and its timing quality; its
+    start as ``session_s`` (s since the stream's start) and, from a capture, ``power_on_s`` (the
+    device clock, as live records have it: the workbench's time terms read it)."""
     out: dict[str, Record] = {}
     for s in segments:
         if s.label == "-":
@@ -128,6 +130,10 @@ def build_records(
         t = stream.t_s[sl]
         tq = timing_quality(t)
         meta = {"serial": serial, **stream.meta}
+        device_t0 = meta.pop("device_clock_s_at_t0", None)
+        if device_t0 is not None:  # a capture: the device clock is the power-on time
+            meta["power_on_s"] = f"{float(device_t0) + float(t[0]):.3f}"
+        meta["session_s"] = f"{float(t[0] - stream.t_s[0]):.3f}"
         turn = s.turns > 0 or s.label[1:].startswith(("_ccw", "_cw"))
         meta["kind"] = "turn" if turn else ("warmup" if s.label == WARMUP_NAME else "static")
         meta["up"] = _up_text(s.up)

@@ -14,7 +14,9 @@
    rest of two samples between the steps of a fast turn is found, and a static ends where the
    cube starts to move. Where record files were joined (the accelerometer steps by
    ``JOIN_STEP`` while the gyro turns slower than ``JOIN_RATE_DPS``) the samples on either side
-   are one-sample rests: a record that ends while the cube still settles ends there.
+   are one-sample rests: a record that ends while the cube still settles ends there. A rest's
+   end samples whose accelerometer is ``ACCEL_DEV_SIGMAS`` noise floors off the samples just
+   inside them are not part of it (the cube starts to tilt before the gyro shows it).
 4. **Attitude** of a rest from gravity: the axis nearest the mean specific force (up = +g on
    that axis, method.md §3), with the angle off it as its quality.
 """
@@ -42,6 +44,7 @@ ACCEL_JUMP_SIGMAS = 10.0  #: an accelerometer step above this many noise floors 
 MIN_ACCEL_JUMP = 0.5  #: … when it is also above this, m/s²
 JOIN_STEP = 3.0  #: m/s²: an accelerometer step this large between two samples …
 JOIN_RATE_DPS = 10.0  #: … turning slower than this (°/s) is a join of record files: a boundary
+ACCEL_DEV_SIGMAS = 6.0  #: a rest's end samples this many accel noise floors off the rest go
 MERGE_GAP_SAMPLES = 2  #: rests this close (samples) are one rest (a single noisy sample)
 AXIS_TOL_DEG = 25.0  #: gravity within this of an axis labels the attitude (else tilted)
 
@@ -190,7 +193,7 @@ def rests(
             j += 1
         while j > i + 1 and not quiet[j - 1]:
             j -= 1
-        out.append(Rest(i, j))
+        out.append(_settled(Rest(i, j), acc, thr))
         i = j
     slow = np.all(np.abs(gyr - bias_t) < JOIN_RATE_DPS, axis=1)
     big = np.zeros(len(acc), dtype=bool)
@@ -204,6 +207,27 @@ def rests(
             out.append(Rest(join, join + 1))
     out.sort(key=lambda r: r.start)
     return out, thr, bias_t
+
+
+def _settled(r: Rest, acc: np.ndarray, thr: Thresholds) -> Rest:
+    """A rest without its end samples whose accelerometer is off the median of the window
+    just inside them by more than ``ACCEL_DEV_SIGMAS`` noise floors (the cube starts to tilt
+    before the gyro shows it); at most one window is cut at each end (a drift over a long
+    warm-up is no tilt)."""
+    w = thr.window
+    if len(r) < 3 * w:
+        return r
+    limit = np.maximum(ACCEL_DEV_SIGMAS * thr.accel_noise, MIN_ACCEL_STD)
+    a, b = r.start, r.stop
+    while b > r.stop - w and np.any(
+        np.abs(acc[b - 1] - np.median(acc[b - 1 - w : b - 1], axis=0)) > limit
+    ):
+        b -= 1
+    while a < r.start + w and np.any(
+        np.abs(acc[a] - np.median(acc[a + 1 : a + 1 + w], axis=0)) > limit
+    ):
+        a += 1
+    return Rest(a, b)
 
 
 def _gap_ok(quiet: np.ndarray, step: np.ndarray, j: int, n: int) -> bool:

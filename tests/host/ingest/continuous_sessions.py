@@ -16,7 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-G = 9.80665
+#: gravity at the calibration's default site (55.75° N, 150 m), Helmert's formula of method.md §3
+G = 9.78030 * (1 + 0.005302 * math.sin(math.radians(55.75)) ** 2
+               - 0.000007 * math.sin(math.radians(111.5)) ** 2) - 0.000003086 * 150  # fmt: skip
 ACCEL_LSB = 4 * 9.81 / 2**16  #: m/s² per count at ±2 g (method.md §1)
 GYRO_LSB = 500 / 2**16  #: °/s per count at ±250 °/s
 TURN_WINDOW_S = {1: 7.0, 2: 12.0, 3: 15.0}  #: method.md §4: the recording window of n turns, s

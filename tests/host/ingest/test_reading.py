@@ -196,6 +196,9 @@ def test_sim_capture_is_cut_into_the_records_the_dialogue_wrote(
         t0 = (int(live.records[name].meta["device_t_us_start"]) - first_us) / 1e6
         a = _span(imported.records[name].meta["segment_s"])[0]
         assert abs(a - t0) < 1.0, (name, a, t0)
+    for name in TURN_NAMES:  # the device clock since power-on, as the live records have it
+        got_s = float(imported.records[name].meta["power_on_s"])
+        assert abs(got_s - float(live.records[name].meta["power_on_s"])) < 0.5, name
     ref = calibrate_from_records(live)
     got_c = calibrate_from_records(imported).constants()
     for k, v in ref.constants().items():
