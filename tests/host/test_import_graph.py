@@ -214,3 +214,31 @@ def test_the_records_and_the_engine_import_only_what_lies_below_them() -> None:
     pg = package_graph(graph())
     for pkg, allowed in BELOW.items():
         assert pg.get(pkg, set()) <= allowed, (pkg, sorted(pg[pkg] - allowed))
+
+
+def documented_order() -> list[str]:
+    """The packages of docs/layout.md's 'Import order' paragraph, bottom first."""
+    import re
+
+    text = (HOST.parent / "docs" / "layout.md").read_text(encoding="utf-8")
+    para = text.split("**Import order.**", 1)[1].split("\n\n", 1)[0]
+    order = para.split("From the bottom:", 1)[1].split(":", 1)[0]
+    return ["host." + name for name in re.findall(r"`(\w+)`", order)]
+
+
+def test_the_documented_import_order_is_the_codes() -> None:
+    """docs/layout.md names every package once, bottom first, and no package imports one named
+    after it (the loops still being removed aside); calib and workbench stay apart."""
+    order = documented_order()
+    pg = package_graph(graph())
+    packages = {p for p in pg if p not in ("host", "host.__main__")}
+    assert sorted(order) == sorted(packages)
+    up = sorted(
+        f"{a} imports {b}"
+        for a, bs in pg.items()
+        if a in order
+        for b in bs
+        if order.index(b) > order.index(a) and (a, b) not in PACKAGE_LOOPS_LEFT
+    )
+    assert up == [], "reorder docs/layout.md or remove the upward import"
+    assert "host.workbench" not in pg["host.calib"] and "host.calib" not in pg["host.workbench"]
