@@ -32,6 +32,7 @@ import argparse
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -48,9 +49,14 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from tests.independent.physics import ACCEL_LSB, FS_HZ, GYRO_LSB  # noqa: E402
 from tests.independent.simulate import SessionSpec, write_session  # noqa: E402
 
 Truth = dict[str, Any]
+
+#: the workbench states its floor only in words: "noise floor of a record mean: accel 0.00075
+#: m/s² from …; gyro 0.0017 °/s from …"
+_FLOOR_RE = re.compile(r"\b(accel|gyro) ([0-9.]+(?:e-?[0-9]+)?) (?:m/s²|°/s)")
 
 
 @dataclass(frozen=True)
@@ -149,6 +155,18 @@ def host_json(args: Sequence[str]) -> dict[str, Any]:
         return {"error": lines[-1] if lines else "no output", "exit": p.returncode}
 
 
+def white_of_mean(spec: SessionSpec) -> dict[str, float]:
+    """Standard deviation of a static record's mean from its white noise and quantisation
+    alone (the truth the floor should not exceed by much), per sensor."""
+    n = spec.static_s * FS_HZ
+    return {
+        "accel": math.hypot(spec.accel_density * math.sqrt(FS_HZ / 2), ACCEL_LSB / 12**0.5)
+        / math.sqrt(n),
+        "gyro": math.hypot(spec.gyro_density * math.sqrt(FS_HZ / 2), GYRO_LSB / 12**0.5)
+        / math.sqrt(n),
+    }
+
+
 def _truth_of(name: str, t: Truth) -> float | None:
     """The truth behind a workbench parameter name (method.md's constants, the catalogue's
     ``term.sensor.axis`` names), or None if the simulator did not set it."""
@@ -204,6 +222,10 @@ def run_session(case: Case, seed: int, workdir: Path) -> dict[str, Any]:
                  for s in diag.get("unexplained_signals", [])[:3]],
         significant=[c["label"] for c in diag.get("candidates", []) if c.get("significant")][:5],
     )  # fmt: skip
+    for note in diag.get("notes", []):
+        if str(note).startswith("noise floor of a record mean:"):
+            row["floor"] = {m[0]: float(m[1]) for m in _FLOOR_RE.findall(str(note))}
+    row["white_mean"] = white_of_mean(spec)
     if diag["recommended"]:
         add = host_json(["model", "add", str(d), diag["recommended"], "--model", "base"])
         row["rms_z_after_rec"] = add.get("after", {}).get("rms_z")
@@ -270,6 +292,10 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
             "flagged_5pc": float(np.mean([x < 0.05 for x in p])) if p else math.nan,
             "ks_p": _ks_uniform(p), "min_p": min(p) if p else math.nan, "verdicts": verdicts,
         }  # fmt: skip
+        for sensor in ("accel", "gyro"):
+            ratio = [r["floor"][sensor] / r["white_mean"][sensor] for r in ok
+                     if sensor in r.get("floor", {}) and "white_mean" in r]  # fmt: skip
+            sm[f"floor_ratio_{sensor}"] = _q(ratio, 0.5)
         if case is not None and case.kind != "control":
             truths = [{"effect": r["effect"], "constants": {}} for r in ok]
             if case.term is not None:
@@ -363,17 +389,22 @@ def tables(summary: dict[str, Any], pull_min_n: int = 1) -> str:
     if ctrl:
         lines.append("== controls (nothing hidden): want median RMS z 0.8–1.25, ~5 % (≤ 10 %) "
                      "flagged, KS p not small")  # fmt: skip
-        lines.append(f"{'case':<16}{'n':>4}{'RMS z med':>10}{'p10–p90':>13}{'χ²/dof':>8}"
-                     f"{'flag5%':>8}{'KS p':>9}{'min p':>8}  a/m/u")  # fmt: skip
+        lines.append("   floor/white = the floor the session adds to a record mean beyond white")
+        lines.append("   noise, over the white noise of a 10 s static mean; ≈ 0 on white data")
+        lines.append(
+            f"{'case':<9}{'n':>4}{'RMS z med':>10}{'p10–p90':>11}{'χ²/dof':>7}{'flag5%':>7}"
+            f"{'KS p':>8}{'min p':>6}{'a/m/u':>9}{'floor/white a, g':>18}"
+        )
         for k in ctrl:
             s = summary[k]
             v = s["verdicts"]
+            vv = f"{v['adequate']}/{v['missing_effect']}/{v['unexplained']}"
+            fl = f"{_f(s.get('floor_ratio_accel'), '.1f')}, {_f(s.get('floor_ratio_gyro'), '.1f')}"
             lines.append(
-                f"{k:<16}{s['n']:>4}{_f(s['rms_z_med']):>10}"
-                f"{_f(s['rms_z_p10']) + '–' + _f(s['rms_z_p90']):>13}{_f(s['chi2_dof_med']):>8}"
-                f"{_f(s['flagged_5pc'], '.0%'):>8}{_f(s['ks_p'], '.2g'):>9}"
-                f"{_f(s['min_p'], '.2g'):>8}"
-                f"  {v['adequate']}/{v['missing_effect']}/{v['unexplained']}"
+                f"{k:<9}{s['n']:>4}{_f(s['rms_z_med']):>10}"
+                f"{_f(s['rms_z_p10']) + '–' + _f(s['rms_z_p90']):>11}{_f(s['chi2_dof_med']):>7}"
+                f"{_f(s['flagged_5pc'], '.0%'):>7}{_f(s['ks_p'], '.2g'):>8}"
+                f"{_f(s['min_p'], '.2g'):>6}{vv:>9}{fl:>18}"
             )
     eff = [k for k in summary if k not in ctrl]
     if eff:
