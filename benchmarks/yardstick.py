@@ -272,6 +272,27 @@ def _recommends(rec: str | None, term: str) -> bool:
     return False
 
 
+def _generic(text: str, e: dict[str, Any]) -> str:
+    """``text`` with the effect's channel axis written i and its source axis j, so that
+    sessions with different axes read alike (e.g. ``face_error:accel:i``)."""
+    ax, src = e.get("axis"), e.get("source")
+    if src:
+        text = re.sub(rf"\b(force|rate) {src}\b", r"\1 j", text)
+    if ax:
+        text = re.sub(rf"(:|\b(?:accel|gyro)[ -]){ax}\b", r"\1i", text)
+    return text
+
+
+def _most(items: Sequence[str]) -> str:
+    if not items:
+        return "—"
+    counts: dict[str, int] = {}
+    for x in items:
+        counts[x] = counts.get(x, 0) + 1
+    best = max(counts, key=lambda k: counts[k])
+    return f"{counts[best]}× {best}"
+
+
 def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """The numbers the tables print, per case (JSON-able)."""
     out: dict[str, Any] = {}
@@ -304,6 +325,13 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                     for r, t in zip(ok, truths, strict=True)
                 )
             sm["rec_any"] = sum(bool(r["recommended"]) for r in ok)
+            sm["rec_most"] = _most(
+                [_generic(r["recommended"], r["effect"]) for r in ok if r["recommended"]]
+            )
+            sm["top_most"] = _most(
+                [_generic(f"{r['signals'][0]['sensor']} {r['signals'][0]['axis']}: "
+                          f"{r['signals'][0]['signal']}", r["effect"]) for r in ok if r["signals"]]
+            )  # fmt: skip
             if case.signal is not None:
                 sm["named_top"] = sum(
                     bool(r["signals"]) and case.signal(r["signals"][0], t)
@@ -425,6 +453,16 @@ def tables(summary: dict[str, Any], pull_min_n: int = 1) -> str:
                 f"{_f(s['rms_z_med']):>8}{_f(s.get('after_rec_med')):>7}"
                 f"{_f(s.get('after_term_med')):>7}{_f(s.get('falls_3x_to_1_5'), 'd'):>6}"
             )
+    if eff:
+        lines.append("")
+        lines.append("== most frequent recommendation and top unexplained signal (i = the effect's")
+        lines.append("   channel axis, j = its source axis; base terms left out of the spec)")
+        for k in eff:
+            s = summary[k]
+            rec = re.sub(r"(bias|scale|misalignment|g_sensitivity):[a-z]+:xyz,?", "",
+                         str(s.get("rec_most", "—")))  # fmt: skip
+            lines.append(f"{k:<17}rec {rec[:78]}")
+            lines.append(f"{'':<17}top {str(s.get('top_most', '—'))[:78]}")
     plate = [k for k in summary if CASES.get(k) is not None and CASES[k].plate]
     if plate:
         lines.append("")
