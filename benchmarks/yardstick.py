@@ -504,8 +504,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     a = ap.parse_args(argv)
     rows: list[dict[str, Any]] = []
     if a.report:
-        for f in a.report:
-            rows += [json.loads(x) for x in f.read_text(encoding="utf-8").splitlines() if x]
+        unique: dict[tuple[str, int], dict[str, Any]] = {}
+        for f in a.report:  # a session measured twice counts once: the later line wins
+            for x in f.read_text(encoding="utf-8").splitlines():
+                if x.strip():
+                    r = json.loads(x)
+                    unique[(r["case"], r["seed"])] = r
+        rows = list(unique.values())
     else:
         names = list(CASES) if a.cases == "all" else a.cases.split(",")
         bad = [n for n in names if n not in CASES]
