@@ -362,10 +362,14 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
             sm["tilt_ratio_p90"] = _q(ratio, 0.9)
             sm["tilt_in10"], sm["tilt_in2s"], sm["tilt_n"] = sum(in10), sum(in2s), len(ratio)
         pulls: dict[str, dict[str, list[float]]] = {}
+        sessions: dict[str, set[int]] = {}
         for r in ok:
             for nm, v, se, t in r.get("coef", []) + r.get("constants", []):
                 pulls.setdefault(pull_group(nm), {}).setdefault(nm, []).append((v - t) / se)
-        sm["pulls"] = {g: _pull_stats(members) for g, members in pulls.items()}
+                sessions.setdefault(pull_group(nm), set()).add(int(r["seed"]))
+        sm["pulls"] = {
+            g: {**_pull_stats(members), "n": len(sessions[g])} for g, members in pulls.items()
+        }
         out[name] = sm
     return out
 
@@ -394,7 +398,8 @@ def pull_group(name: str) -> str:
 
 
 def _pull_stats(members: dict[str, list[float]]) -> dict[str, Any]:
-    """Pooled mean/sd/share beyond 3 of a group's pulls, and the range of its members' sd."""
+    """Pooled mean/sd/share beyond 3 of a group's pulls, the range of its members' sd (members
+    with at least 3 values) and the number of members ``k``."""
     allv = np.concatenate([np.asarray(v, dtype=float) for v in members.values()])
     sds = [float(np.std(v, ddof=1)) for v in members.values() if len(v) > 2]
     return {
@@ -478,7 +483,8 @@ def tables(summary: dict[str, Any], pull_min_n: int = 1) -> str:
             )
     lines.append("")
     lines.append("== pulls (fitted − truth)/σ: want sd 0.7–1.4 over ≥ 50 sessions; n = sessions,")
-    lines.append("   k = coefficients pooled, sd range = smallest–largest sd of one coefficient")
+    lines.append("   k = coefficients pooled (a term's channels), sd range = smallest–largest sd")
+    lines.append("   of one coefficient")
     lines.append(f"{'case':<15}{'coefficients':<27}{'n':>4}{'k':>3}{'mean':>7}{'sd':>7}"
                  f"{'sd range':>13}{'|·|>3':>7}")  # fmt: skip
     for k, s in summary.items():
