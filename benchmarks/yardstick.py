@@ -37,7 +37,7 @@ import subprocess
 import sys
 import tempfile
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -71,7 +71,9 @@ class Case:
     signal: Callable[[dict[str, Any], Truth], bool] | None = None
     calibrate: bool = False
     plate: bool = False
-    extra: dict[str, str] = field(default_factory=dict)
+    #: catalogue terms that, significant on the effect's channel, count as naming it (a step
+    #: or a drift "named as a step or drift": time_drift)
+    names: tuple[str, ...] = ()
 
 
 def _eff(t: Truth) -> dict[str, Any]:
@@ -120,17 +122,19 @@ CASES: dict[str, Case] = {
         Case("face_lean", {"effect": "face_lean"}, "catalogue", term=lambda t: "face_error:accel"),
         Case("lever_arm", {"effect": "lever_arm"}, "catalogue", term=lambda t: "lever_arm:accel"),
         Case("drift_accel", {"effect": "bias_drift_accel"}, "catalogue",
-             term=_on_axis("time_drift"), signal=_DRIFT),
+             term=_on_axis("time_drift"), signal=_DRIFT, names=("time_drift",)),
         Case("drift_gyro", {"effect": "bias_drift_gyro"}, "catalogue",
-             term=_on_axis("time_drift"), signal=_DRIFT),
+             term=_on_axis("time_drift"), signal=_DRIFT, names=("time_drift",)),
         Case("temp_bias", {"effect": "temperature_bias", "warmup_s": 120.0}, "catalogue",
              term=_on_axis("temperature_bias")),
         Case("asym_gyro", {"effect": "scale_asymmetry"}, "catalogue",
              term=_on_axis("scale_asymmetry")),
         Case("nonlin_gyro", {"effect": "scale_nonlinearity"}, "catalogue",
              term=_on_axis("scale_nonlinearity")),
-        Case("step_accel", {"effect": "bias_step_accel"}, "off", signal=_STEP),
-        Case("step_gyro", {"effect": "bias_step_gyro"}, "off", signal=_STEP),
+        Case("step_accel", {"effect": "bias_step_accel"}, "off", signal=_STEP,
+             names=("time_drift",)),
+        Case("step_gyro", {"effect": "bias_step_gyro"}, "off", signal=_STEP,
+             names=("time_drift",)),
         Case("dtdt_gyro", {"effect": "dtdt_bias", "warmup_s": 120.0}, "off", signal=_DTDT),
         Case("cross_g2", {"effect": "cross_g2"}, "off", signal=_SQUARE),
         Case("abs_leak", {"effect": "abs_leak"}, "off", signal=_ABS),
@@ -337,6 +341,12 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                     bool(r["signals"]) and case.signal(r["signals"][0], t)
                     for r, t in zip(ok, truths, strict=True)
                 )
+            if case.names:
+                sm["named_term"] = sum(
+                    any(_recommends(lab, f"{n}:{r['effect']['sensor']}:{r['effect']['axis']}")
+                        for lab in r.get("significant", []) for n in case.names)
+                    for r in ok
+                )  # fmt: skip
             after = [r.get("rms_z_after_rec") for r in ok]
             falls = [
                 a is not None and a <= 1.5 and a * 3 <= r["rms_z"]
@@ -445,9 +455,10 @@ def tables(summary: dict[str, Any], pull_min_n: int = 1) -> str:
         lines.append("== effects: a/m/u = verdicts adequate/missing_effect/unexplained; rec = the")
         lines.append("   expected term recommended; any = some term recommended; top = the right")
         lines.append("   top signal; →rec, →term = RMS z after adding the recommended/expected")
-        lines.append("   term; fall = RMS z falls ≥ 3× to ≤ 1.5 after the recommended term")
+        lines.append("   term; fall = RMS z falls ≥ 3× to ≤ 1.5 after the recommended term;")
+        lines.append("   sig = time_drift significant on the effect's channel (named a drift)")
         lines.append(f"{'case':<17}{'n':>3}{'a/m/u':>9}{'rec':>5}{'any':>5}{'top':>5}"
-                     f"{'RMS z':>8}{'→rec':>7}{'→term':>7}{'fall':>6}")  # fmt: skip
+                     f"{'RMS z':>8}{'→rec':>7}{'→term':>7}{'fall':>6}{'sig':>5}")  # fmt: skip
         for k in eff:
             s = summary[k]
             v = s["verdicts"]
@@ -457,6 +468,7 @@ def tables(summary: dict[str, Any], pull_min_n: int = 1) -> str:
                 f"{_f(s.get('rec_any'), 'd'):>5}{_f(s.get('named_top'), 'd'):>5}"
                 f"{_f(s['rms_z_med']):>8}{_f(s.get('after_rec_med')):>7}"
                 f"{_f(s.get('after_term_med')):>7}{_f(s.get('falls_3x_to_1_5'), 'd'):>6}"
+                f"{_f(s.get('named_term'), 'd'):>5}"
             )
     if eff:
         lines.append("")
