@@ -303,7 +303,9 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     by_case: dict[str, list[dict[str, Any]]] = {}
     for r in rows:
         by_case.setdefault(r["case"], []).append(r)
-    for name, rs in by_case.items():
+    order = [c for c in CASES if c in by_case] + [c for c in by_case if c not in CASES]
+    for name in order:  # the cases in CASES's order, whatever the order of the lines
+        rs = by_case[name]
         case = CASES.get(name)
         ok = [r for r in rs if "error" not in r]
         z = [r["rms_z"] for r in ok]
