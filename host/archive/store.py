@@ -150,7 +150,7 @@ class Archive:
                 self.engine = create_engine(self.url)
                 _sqlite_setup(self.engine)
             else:
-                self.engine = create_engine(self.url, pool_pre_ping=True)
+                self.engine = create_engine(self.url)
         except NoSuchModuleError as exc:
             raise UserError(f"archive {self.url}: unknown kind of database ({exc})") from None
         except ModuleNotFoundError as exc:
@@ -215,8 +215,13 @@ class Archive:
                     if e.result_hash not in have:
                         new.setdefault(e.result_hash, e)
                 if new:
-                    conn.execute(calibrations.insert(), [_row_of(e) for e in new.values()])
-                    ids = self._ids_of(conn, list(new))
+                    back = conn.execute(
+                        calibrations.insert().returning(
+                            calibrations.c.result_hash, calibrations.c.id
+                        ),
+                        [_row_of(e) for e in new.values()],
+                    )
+                    ids = {str(h): int(k) for h, k in back}
                     conn.execute(
                         parameters.insert(),
                         [_parameter_row(ids[h], i, p) for h, e in new.items()
