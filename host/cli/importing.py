@@ -45,7 +45,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--axes", help="our x,y,z from the file's axes with signs, e.g. x,-y,z (default x,y,z)"
     )
     p.add_argument("--rate", type=float, help="sample rate, Hz, when the file has no time column")
-    p.add_argument("--sections", type=Path, help="imucal's section list JSON for its session CSV")
+    p.add_argument(
+        "--sections",
+        type=Path,
+        help="imucal's section list JSON for its session CSV (without one, and none beside the "
+        "CSV, the records are found in the stream)",
+    )
     p.add_argument(
         "--labels", type=Path, help="labels file (SERIAL_segments.tsv, edited) to cut the stream"
     )
