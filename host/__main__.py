@@ -9,10 +9,18 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Callable
 
-from host.errors import UserError
+#: numpy's BLAS starts a thread per core; the fits here are small, and on a shared or loaded
+#: machine those threads fight each other and every other process for the cores (a 2-core
+#: machine under load ran ``model add`` 20x slower). One thread unless the user set a number.
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+for _name in BLAS_THREAD_VARIABLES:
+    os.environ.setdefault(_name, "1")
+
+from host.errors import UserError  # noqa: E402  (after the BLAS setting: numpy reads it once)
 
 #: command -> (module, function adding the arguments and returning the runner, one-line help)
 COMMANDS: dict[str, tuple[str, str, str]] = {

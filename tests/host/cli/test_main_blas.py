@@ -1,0 +1,48 @@
+"""``python -m host`` runs numpy's BLAS on one thread unless the user asks otherwise (issue 31:
+on a loaded 2-core machine a thread per core made ``model add`` 20x slower)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[3]
+
+# what the command's process sees once the command line is loaded (numpy imported with it)
+_PROBE = r"""
+import os, runpy, sys
+sys.argv = ["host", "--version"]
+try:
+    runpy.run_module("host", run_name="__main__")
+except SystemExit:
+    pass
+import numpy  # already imported by the commands' modules
+print(os.environ.get("OPENBLAS_NUM_THREADS"), os.environ.get("OMP_NUM_THREADS"),
+      os.environ.get("MKL_NUM_THREADS"), len(os.listdir("/proc/self/task")), file=sys.stderr)
+"""
+
+
+def _probe(env_extra: dict[str, str]) -> list[str]:
+    env = {k: v for k, v in os.environ.items() if not k.endswith("_NUM_THREADS")}
+    env.update(env_extra)
+    env["PYTHONPATH"] = str(ROOT)
+    run = subprocess.run(
+        [sys.executable, "-c", _PROBE], cwd=ROOT, env=env, capture_output=True, text=True,
+        timeout=120,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    return run.stderr.strip().splitlines()[-1].split()
+
+
+def test_the_command_line_pins_the_blas_to_one_thread() -> None:
+    openblas, omp, mkl, threads = _probe({})
+    assert (openblas, omp, mkl) == ("1", "1", "1")
+    # numpy's OpenBLAS would have started a thread per core beyond the first
+    assert int(threads) == 1
+
+
+def test_a_users_own_thread_count_is_kept() -> None:
+    openblas, omp, mkl, _ = _probe({"OPENBLAS_NUM_THREADS": "2", "OMP_NUM_THREADS": "3"})
+    assert (openblas, omp, mkl) == ("2", "3", "1")
