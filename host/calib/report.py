@@ -250,7 +250,7 @@ def write_results(
     result: CalibrationResult, directory: str | os.PathLike[str]
 ) -> tuple[Path, Path]:
     """Publish the report and the JSON result in ``directory`` together or not at all
-    (:func:`host.records.write_texts_atomic`: the signed report and the file ``apply()``
+    (:func:`host.session.atomic.write_texts_atomic`: the signed report and the file ``apply()``
     reads never disagree); returns the paths. UserError names the file that failed."""
     txt, js = result_paths(directory, result.serial)
     write_texts_atomic({txt: format_report(result), js: result.to_json()})

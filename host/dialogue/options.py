@@ -113,7 +113,7 @@ class DialogueOptions:
     sample_stall_s: float = SAMPLE_STALL_S
     hello_timeout_s: float = 5.0
     reconnect_timeout_s: float | None = None  # None: until Esc/Ctrl+C (--yes: YES_RECONNECT_S)
-    model: str = "base"  # the model to fit and ship (host.modelling.model spec)
+    model: str = "base"  # the model to fit and ship (a host.model.spec model)
     term_files: tuple[str, ...] = ()  # Python files of custom terms for ``model``
     verify: str | None = None  # a directory of records to predict (held-out verification)
     floor: str | None = None  # --floor accel=A,gyro=G (None: measured from the records)

@@ -3,7 +3,7 @@
 Everything here turns a file into a :class:`Stream` — true sample times (s), specific force
 (m/s²), rate (°/s) and temperature (°C) in the project's chip axes — and names the user's file,
 line and column in every message. Cutting the stream into records is
-:mod:`host.segmentation`'s job; nothing here assumes the data came from the bench.
+:mod:`host.ingest.segmentation`'s job; nothing here assumes the data came from the bench.
 
 Options of ``python -m host import`` (spellings fixed by issue 15):
 

@@ -368,6 +368,6 @@ def thermal_scale(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
 
 
 #: terms whose values a result carries from a measurement of their own (not fitted to the
-#: calibration records, not offered by the workbench); :func:`host.calib.result.apply`
+#: calibration records, not offered by the workbench); :func:`host.calib.applying.apply`
 #: evaluates them like every other term
 CARRIED: dict[str, Term] = {t.name: t for t in (thermal_bias, thermal_scale)}

@@ -30,7 +30,7 @@ class Addition:
     before: Fit
     after: Fit
     added: tuple[ModelTerm, ...]
-    #: leave-one-record-out prediction error before and after (:func:`host.model.leave_one_out`)
+    #: leave-one-record-out prediction error before and after (:func:`host.model.loo.leave_one_out`)
     held_out: tuple[Prediction, Prediction] | None = None
 
     @property
@@ -90,7 +90,7 @@ class LadderStep:
     rms_z: float
     bic: float
     p_value: float  # of the addition's LR test (NaN for the start)
-    #: leave-one-record-out prediction RMS z (:func:`host.model.leave_one_out`)
+    #: leave-one-record-out prediction RMS z (:func:`host.model.loo.leave_one_out`)
     held_out_rms_z: float = math.nan
 
 

@@ -72,7 +72,7 @@ def hidden_effect_case(
     """Simulate the session of demo ``effect`` (:data:`EFFECTS`) with ``seed``.
 
     The unit's §2 constants, noise and Gauss-Markov bias instability are drawn from the seed
-    (:meth:`host.sim_truth.SensorTruth.random`); every other effect is off except the hidden
+    (:meth:`host.bench.truth.SensorTruth.random`); every other effect is off except the hidden
     one, on an axis chosen by the seed.
     """
     from host.bench.physics import Environment
@@ -138,7 +138,7 @@ def hidden_effect_case(
 
 
 def case_dataset(case: HiddenCase, noise: NoiseModel | None = None) -> Dataset:
-    """The :class:`~host.model.Dataset` of a hidden-effect case (no files written)."""
+    """The :class:`~host.model.dataset.Dataset` of a hidden-effect case (no files written)."""
     return build_dataset(session_from_records(case.records), noise=noise)
 
 

@@ -1,7 +1,7 @@
 """Minimal truth-based session generator for the calibration tests (method.md §2 model).
 
 Every constant has a different value on every axis, so a swapped axis or sign fails a test.
-Not a physics simulator (that is host/sim.py): statics are gravity along an axis, turns are a
+Not a physics simulator (that is host/bench/sim.py): statics are gravity along an axis, turns are a
 smooth raised-cosine rate profile about the up axis, white noise, rounding to the printed
 precision, a sample period that is not 20 ms and jitters.
 """

@@ -191,7 +191,7 @@ def test_capture_above_the_stated_size_is_refused(tmp_path: Path) -> None:
 def test_decode_hello_with_impossible_full_scale_codes(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], afs: int, fs: int
 ) -> None:
-    """Was ``KeyError: 7`` in host/sensor.py."""
+    """Was ``KeyError: 7`` in host/wire/sensor.py."""
     from host.bench.firmware import hello_fields
     from host.wire.frames import encode_frame
 
@@ -216,7 +216,7 @@ def _imu(seq: int, t_us: int) -> bytes:
 
 @pytest.mark.timeout(20)
 def test_decode_two_samples_61_s_apart(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """Was ``ValueError: need at least one array to stack`` in host/clock.py: no 60 s window
+    """Was ``ValueError: need at least one array to stack`` in host/timing/clock.py: no 60 s window
     held two points."""
     from host.wire.capture import CaptureWriter
 
