@@ -207,8 +207,8 @@ def _common(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="accel=A,gyro=G",
         help="bias-instability floor of a record mean (m/s², °/s), e.g. accel=5e-4,gyro=3e-3; a "
-        "sensor not given comes from --noise, else is measured from the session (repeated "
-        "attitudes)",
+        "sensor not given comes from --noise, else from the records' own samples (the wander of "
+        "their block means beyond white noise)",
     )
     p.add_argument(
         "--noise",

@@ -23,6 +23,7 @@ from host.model.rows import (
     turn_accel_rows,
 )
 from host.model.signals import RecordSignals
+from host.model.variance import Component, TurnClosure, turn_angle_sigma, turn_wobble_sigma
 from host.model.whitening import Group, whiten_rows
 from host.session.directory import Session, read_session
 from host.session.method import (
@@ -69,6 +70,12 @@ class Dataset:
     #: accelerometer of a turn record is read at the still moments (one row per still moment)
     #: and, on the horizontal axes, in the moving blocks (:mod:`host.model.turning`)
     sensor_aggregators: Mapping[tuple[int, str, int], np.ndarray] = field(default_factory=dict)
+    #: the named variance components this dataset's rows carry (:mod:`host.model.variance`)
+    components: tuple[Component, ...] = ()
+    #: the turn-angle σ the turn integrals carry, ° (given, else measured)
+    turn_angle_sigma_deg: float = 0.0
+    #: the hand's wobble on the cross-axis turn integrals, ° (measured)
+    turn_wobble_sigma_deg: float = 0.0
 
     @property
     def n_rows(self) -> int:
@@ -143,6 +150,54 @@ def _record_signals(
     )  # fmt: skip
 
 
+def _static_blocks(
+    table: RowTable, signals: list[RecordSignals]
+) -> dict[str, list[tuple[np.ndarray, np.ndarray]]]:
+    """sensor -> per static record and channel (block means, their white-noise variances): what
+    the records' own samples say about the bias wander (:func:`host.model.noise.wander_floor`)."""
+    y = np.asarray(table.y)
+    out: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
+    for ch in table.channels:
+        if signals[ch.record].kind == "turn" or len(ch.rows) < 2:
+            continue
+        counts = np.count_nonzero(ch.aggregator, axis=1).astype(float)
+        out.setdefault(ch.sensor, []).append((y[ch.rows], ch.white / counts))
+    return out
+
+
+def _turn_closures(
+    table: RowTable, signals: list[RecordSignals], rest: np.ndarray
+) -> list[TurnClosure]:
+    """Per axis turned both ways and gyro channel, the two integrals and what the static records
+    say the gyro reads at rest there (``rest`` (4, 3): the gyro's g-sensitivity per g and bias
+    from the statics): :func:`host.model.variance.turn_angle_sigma`."""
+    statics = [len(sig.t_s) for sig in signals if sig.kind != "turn"]
+    n_static = float(np.median(statics)) if statics else 1.0
+    turns: dict[tuple[int, int], dict[int, tuple[float, float, float, float]]] = {}
+    for ch in table.channels:
+        sig = signals[ch.record]
+        if sig.kind != "turn" or ch.sensor != "gyro":
+            continue
+        k = int(np.argmax(np.abs(sig.up)))
+        w = ch.aggregator[0]
+        turned = float(sig.rate[:, k] @ w)
+        at_rest = float(np.concatenate([sig.up, [1.0]]) @ rest[:, ch.axis])  # force in g
+        got = (table.y[ch.rows[0]], at_rest, float(w.sum()), float(w @ w))
+        turns.setdefault((k, ch.axis), {})[int(np.sign(turned))] = got
+    out = []
+    for (k, ax), by_dir in sorted(turns.items()):
+        if set(by_dir) != {-1, 1}:
+            continue
+        levels = table.static_noise.get(("gyro", ax), [(0.0, 1.0)])
+        v = float(np.mean([a * t for a, t in levels]))
+        (i1, r1, t1, ww1), (i2, _, t2, ww2) = by_dir[1], by_dir[-1]
+        # the white noise of both integrals, and of the rest reading (about one static
+        # record's mean) carried over both durations
+        white = v * (ww1 + ww2) + v / n_static * (t1 + t2) ** 2
+        out.append(TurnClosure(k, ax, (i1, i2), r1, (t1, t2), white))
+    return out
+
+
 def build_dataset(
     session: Session,
     *,
@@ -213,7 +268,7 @@ def build_dataset(
             add_turn_accel(table, ri, sig, turn, nm)
         aggs.append(add_turn_integrals(table, ri, sig, rec.t_ms, t_rel))
 
-    floors, floor_note = session_floor(signals, table.record_noise, nm)
+    floors, floor_note = session_floor(_static_blocks(table, signals), nm)
     notes.append(floor_note)
     seat, seat_note = seating_sigma(signals, sensor_aggs, table.channels, n_still)
     if seat_note:
@@ -224,10 +279,22 @@ def build_dataset(
     hand, hand_note = hand_sigma(signals, sensor_aggs, n_still, white_level)
     if hand_note:
         notes.append(hand_note)
+    closures = _turn_closures(table, signals, pre)
+    wobble = turn_wobble_sigma([c for c in closures if c.axis != c.channel])
+    if nm.turn_angle_sigma_deg is None:
+        angle = turn_angle_sigma([c for c in closures if c.axis == c.channel])
+        components: tuple[Component, ...] = (angle, wobble)
+    else:
+        absorbs = "the hand's angle error (given)"
+        angle = Component("turn angle", float(nm.turn_angle_sigma_deg), 0.0, 0, "°", absorbs)
+        components = (wobble,)
+        notes.append(f"turn angle: {angle.value:g}° per turn (given)")
+    notes.extend("a named variance component: " + c.describe() for c in components)
+    turn_sigma = (angle.value, wobble.value)
     y_arr = np.array(table.y)
     whiten, groups = whiten_rows(
         table.channels, signals, y_arr, floors=floors, static_noise=table.static_noise,
-        white_level=white_level, n_still=n_still, seat=seat, hand=hand, noise=nm,
+        white_level=white_level, n_still=n_still, seat=seat, hand=hand, turn_sigma=turn_sigma,
     )  # fmt: skip
     rows_of: dict[tuple[int, str, int], np.ndarray] = {}
     for gr in groups:
@@ -251,6 +318,9 @@ def build_dataset(
         floor=floors,
         turns_of={o.record: o.turns for o in obs if o.kind == "turn" and o.turns is not None},
         sensor_aggregators=sensor_aggs,
+        components=components,
+        turn_angle_sigma_deg=turn_sigma[0],
+        turn_wobble_sigma_deg=turn_sigma[1],
     )
 
 

@@ -4,11 +4,13 @@ near 0") and the noise levels a session measures of itself.
 The rows of one record and channel share one covariance ``v·I + f²·11ᵀ``: ``v`` = variance of a
 block mean from the record's own samples (pooled within-block variance × integrated
 autocorrelation time, at least the quantisation step²/12), ``f`` = the bias-instability floor:
-the slow Gauss-Markov wander of a MEMS bias moves each record's mean by an amount the record
-itself cannot show (:func:`repeat_floor`, :func:`session_floor`). Turn integrals: white noise
-integrated + (floor·T)² + the hand's angle error (``turn_angle_sigma_deg``, as
-:mod:`host.calib.calibration`). The still moments of a turn add the cube's seating, its moving
-blocks the hand (:mod:`host.model.rows`, :mod:`host.model.turning`).
+the slow wander of a MEMS bias, from the unit's noise file (``--noise``) or ``--floor``, else
+from the records' own samples (:func:`wander_floor`, :func:`session_floor`) — never from the
+misfit, so that a drift or a step between records shows as misfit. Turn integrals: white noise
+integrated + (floor·T)² + the hand's angle error (``turn_angle_sigma_deg``: given by the user,
+else measured from the closure of the turns made both ways, :mod:`host.model.variance`).
+The still moments of a turn add the cube's seating, its moving blocks the hand
+(:mod:`host.model.rows`, :mod:`host.model.turning`).
 """
 
 from __future__ import annotations
@@ -19,10 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host.model.signals import SENSORS, UNIT, RecordSignals
-from host.session.method import (
-    TURN_ANGLE_SIGMA_DEG,
-)
+from host.model.signals import SENSORS, UNIT
 
 
 # ---- noise model ----------------------------------------------------------------------------
@@ -32,16 +31,17 @@ class NoiseModel:
 
     ``block_s``: length of the blocks static records are cut into, s (at most ``max_blocks``);
     ``floor``: bias-instability floor per sensor (m/s², °/s): the std of a record's mean bias
-    wander between records that its own samples cannot show. Not given: measured from the
-    session itself by :func:`repeat_floor` (the same attitude measured again minutes later);
-    ``turn_angle_sigma_deg``: the hand's angle error per turn (method.md §4).
+    wander of a record mean. Not given: from the records' own samples (:func:`wander_floor`);
+    ``turn_angle_sigma_deg``: the hand's angle error per turn (method.md §4), °, as the user
+    knows it; None (default): measured from the closure of the repeated turns
+    (:func:`host.model.variance.turn_angle_sigma`), never assumed.
     """
 
     block_s: float = 5.0
     max_blocks: int = 6
-    #: per sensor; a sensor not given is measured from the records (:func:`repeat_floor`)
+    #: per sensor; a sensor not given is measured from the records (:func:`wander_floor`)
     floor: Mapping[str, float] = field(default_factory=dict)
-    turn_angle_sigma_deg: float = TURN_ANGLE_SIGMA_DEG
+    turn_angle_sigma_deg: float | None = None
     max_lag: int = 30
 
 
@@ -49,10 +49,6 @@ class NoiseModel:
 #: is cut at each end (the hand letting go / taking hold)
 STILL_MIN_S = 0.1
 STILL_TRIM_S = 0.05
-#: the floor (:func:`repeat_floor`) compares still moments with static records: it keeps only
-#: long, settled ones (a hand letting go rocks the cube for a moment)
-FLOOR_MIN_S = 0.2
-FLOOR_TRIM_S = 0.15
 
 
 def still_runs(
@@ -87,50 +83,6 @@ def still_runs(
     return out
 
 
-def repeat_floor(
-    differences: np.ndarray,
-    white_var: np.ndarray,
-    channel: np.ndarray | None = None,
-    explain: np.ndarray | None = None,
-) -> float | None:
-    """Bias-instability floor from repeated attitudes: ``differences`` (K,) between two means
-    of the same channel in the same attitude measured at different times (a still moment of a
-    turn against the static record of that face), ``white_var`` (K,) the variance their white
-    noise alone gives the difference. Each record mean wanders by f around the session's
-    bias, so E[d²] = w + 2·f²: f² = Σ(d² − w)/(2·dof) (≥ 0), in the channel's unit.
-
-    A bias that follows time or temperature is an effect for the model to find, not noise:
-    with ``channel`` (K,) ids and ``explain`` (K, m) the differences of those signals (elapsed
-    time, temperature change), each channel's d is first regressed on them (dof = K − the
-    columns used). None without any difference left (then nothing measures the floor). A
-    floor the differences cannot resolve (f² below its standard error) is given as that
-    bound, not as 0."""
-    d = np.asarray(differences, dtype=np.float64)
-    w = np.asarray(white_var, dtype=np.float64)
-    if d.size == 0:
-        return None
-    ch = np.zeros(d.size, dtype=int) if channel is None else np.asarray(channel)
-    x = np.zeros((d.size, 0)) if explain is None else np.asarray(explain, dtype=np.float64)
-    resid = d.copy()
-    used = 0
-    for c in np.unique(ch):
-        m = ch == c
-        xc = x[m]
-        keep = [j for j in range(xc.shape[1]) if np.ptp(xc[:, j]) > 0 or np.any(xc[:, j])]
-        if keep and m.sum() > len(keep) + 1:
-            beta, _, rank, _ = np.linalg.lstsq(xc[:, keep], d[m], rcond=None)
-            resid[m] = d[m] - xc[:, keep] @ beta
-            used += int(rank)
-    dof = d.size - used
-    if dof <= 0:
-        return None
-    f2 = float(np.sum(resid * resid - w)) / (2.0 * dof)
-    # its standard error with no wander (var d² = 2·w²): a floor below it is not resolved by
-    # these repeats, and 0 would claim a precision the data do not have — take that bound
-    resolved = math.sqrt(float(np.sum(2.0 * w * w))) / (2.0 * dof)
-    return math.sqrt(max(f2, resolved))
-
-
 def resolution(x: np.ndarray) -> float:
     """Smallest step between distinct values of ``x`` (its quantisation), 0 if constant."""
     u = np.unique(x)
@@ -156,59 +108,43 @@ def integrated_autocorrelation(dev: np.ndarray, max_lag: int) -> float:
     return float(min(max(tau, 1.0), 50.0))
 
 
+def wander_floor(blocks: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[float, int, float]:
+    """The bias wander a record's own samples show, from the block means of the static records:
+    ``blocks`` per record and channel (means (B,), their white-noise variances (B,)). A block
+    mean that wanders by f about its record's level scatters by v_b + f², so
+    E[Σ(y_b − ȳ)²] = (1 − 1/B)·Σ(v_b + f²) and f² = Σ[SS − (1 − 1/B)·Σv_b] / Σ(1 − 1/B)·B
+    (the Allan variance at the block length less its white part, pooled over the records).
+    -> (f ≥ 0 in the channel's unit, 0 unless it exceeds two standard errors; dof; the standard
+    error of f² with no wander). A drift or a
+    step between records does not enter: they are effects for the model to find, not noise."""
+    num = 0.0
+    dof = 0
+    var_se = 0.0
+    for y, v in blocks:
+        b = len(y)
+        if b < 2:
+            continue
+        num += float(np.sum((y - y.mean()) ** 2)) - (1.0 - 1.0 / b) * float(np.sum(v))
+        dof += b - 1
+        var_se += 2.0 * (b - 1) * float(np.mean(v)) ** 2
+    if dof == 0:
+        return 0.0, 0, math.nan
+    f2 = num / dof
+    se = math.sqrt(var_se) / dof
+    # a wander the blocks do not resolve (below two standard errors of the white scatter) is
+    # taken as none: a clipped estimate of 0 ± se would always widen the yardstick a little
+    return (math.sqrt(f2) if f2 > 2.0 * se else 0.0), dof, se
+
+
 def session_floor(
-    signals: Sequence[RecordSignals],
-    rec_noise: Mapping[tuple[int, str, int], tuple[float, float]],
-    nm: NoiseModel,
+    blocks: Mapping[str, Sequence[tuple[np.ndarray, np.ndarray]]], nm: NoiseModel
 ) -> tuple[dict[str, float], str]:
-    """The floor per sensor (``nm.floor`` where given, else :func:`repeat_floor` over the still
-    moments of the turn records against the static record of the same face — every gyro
-    channel and the accelerometer on the up axis, whose readings do not depend on the
-    heading — and over static records of the same attitude, e.g. a repeated ``x_up_2``, every
-    channel) and a note saying where it came from. (A slow effect that differs between the
-    two measurements, e.g. a drift, inflates it: a noise file, ``--noise``, does not.)"""
-    diffs: dict[str, tuple[list[float], list[float]]] = {s: ([], []) for s in SENSORS}
-
-    for sig in signals:
-        if sig.kind != "turn":
-            continue
-        match = next(
-            (j for j, o in enumerate(signals) if o.kind == "static" and np.allclose(o.up, sig.up)),
-            None,
-        )
-        if match is None:
-            continue
-        ref = signals[match]
-        up_axis = int(np.argmax(np.abs(sig.up)))
-        sd = math.sqrt(rec_noise[(match, "gyro", up_axis)][0])
-        for a, b in still_runs(sig.rate @ sig.up, sig.t_s, sd, trim_s=FLOOR_TRIM_S,
-                               min_s=FLOOR_MIN_S):  # fmt: skip
-            m = b - a
-            # back at the placement heading (a whole number of turns: the record's start and
-            # end) every accelerometer axis repeats the static attitude; elsewhere only the up
-            # axis does (a plate tilt moves the horizontal ones with the heading)
-            turned = float(np.mean(sig.heading_deg[a:b])) if sig.heading_deg is not None else 0.0
-            home = abs(turned - 360.0 * round(turned / 360.0)) < 5.0
-            for s, axes in (("gyro", (0, 1, 2)), ("accel", (0, 1, 2) if home else (up_axis,))):
-                for ax in axes:
-                    var, tau = rec_noise[(match, s, ax)]
-                    d = float(np.mean(sig.measured(s)[a:b, ax]) - np.mean(ref.measured(s)[:, ax]))
-                    diffs[s][0].append(d)
-                    diffs[s][1].append(var * min(tau, m) / m + var * tau / len(ref.t_s))
-
-    # static records of the same attitude (the closing check): every channel
-    for j, sj in enumerate(signals):
-        for i in range(j):
-            si = signals[i]
-            if not (sj.kind == si.kind == "static" and np.allclose(sj.up, si.up)):
-                continue
-            for s in SENSORS:
-                for ax in range(3):
-                    vi, ti = rec_noise[(i, s, ax)]
-                    vj, tj = rec_noise[(j, s, ax)]
-                    d = float(np.mean(sj.measured(s)[:, ax]) - np.mean(si.measured(s)[:, ax]))
-                    diffs[s][0].append(d)
-                    diffs[s][1].append(vi * ti / len(si.t_s) + vj * tj / len(sj.t_s))
+    """The floor per sensor (m/s², °/s) and a note saying where it came from: ``nm.floor`` where
+    given (``--floor``, ``--noise``: the unit's Allan variance), else from the records' own
+    samples (:func:`wander_floor` over ``blocks``: sensor -> the static records' block means and
+    their white variances). Never from repeated attitudes: a slow effect between two
+    measurements of one attitude (a drift, a step, a temperature bias) is misfit for the model
+    and the workbench to see, not noise to widen the yardstick with."""
     out: dict[str, float] = {}
     said: list[str] = []
     for s in SENSORS:
@@ -216,12 +152,16 @@ def session_floor(
             out[s] = float(nm.floor[s])
             said.append(f"{s} {out[s]:.2g} {UNIT[s]} (given)")
             continue
-        f = repeat_floor(np.array(diffs[s][0]), np.array(diffs[s][1]))
-        out[s] = f if f is not None else 0.0
+        f, dof, se = wander_floor(blocks.get(s, ()))
+        out[s] = f
+        if dof == 0:
+            said.append(f"{s} 0 (no record long enough for two blocks: white noise only)")
+            continue
         said.append(
-            f"{s} {out[s]:.2g} {UNIT[s]} from {len(diffs[s][0])} repeated attitudes (still "
-            "moments of turns and static records against a static record of the same face)"
-            if f is not None
-            else f"{s} 0 (no attitude measured twice: only each record's own noise)"
+            f"{s} {f:.2g} {UNIT[s]} (wander of the static records' block means beyond their "
+            f"white noise, {dof} dof; none resolved below {math.sqrt(2.0 * se):.2g})"
         )
-    return out, "noise floor of a record mean: " + "; ".join(said)
+    return out, (
+        "noise floor of a record mean, from each record's own samples (white noise with its "
+        "serial correlation, plus " + "; ".join(said) + ")"
+    )

@@ -141,7 +141,7 @@ def hand_scatter(
     a constant per key, then -> (σ_block, σ_turn, dof): σ_block² = Σ(r² − w)/dof, the scatter
     of a block about its turn's level; σ_turn² the scatter of a turn's level while moving about
     its level at rest (the constants against ``rest``, beyond their own variance; at least the
-    standard error of that estimate, as :func:`host.model.noise.repeat_floor`; without
+    standard error of that estimate, as a floor the data cannot resolve; without
     ``rest`` σ_block). A wobble has no net tilt: σ_turn is far below σ_block/√n."""
     yv = np.asarray(y, dtype=np.float64)
     w = np.asarray(white_var, dtype=np.float64)

@@ -17,9 +17,9 @@ import numpy as np
 
 from host.errors import UserError
 from host.model import turning
-from host.model.noise import NoiseModel
 from host.model.rows import ChannelRows
 from host.model.signals import RecordSignals
+from host.model.stats import chi2_sf
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,7 +66,7 @@ def _within_record_inflation(
     channels: Sequence[ChannelRows], signals: Sequence[RecordSignals], y: np.ndarray
 ) -> dict[tuple[str, int], float]:
     """Within-record wander per (sensor, axis): the pooled excess scatter of the static
-    records' block means over their white noise (at least 1)."""
+    records' block means over their white noise (1 unless resolved)."""
     excess: dict[tuple[str, int], list[float]] = {}
     for ch in channels:
         idx = ch.rows
@@ -78,7 +78,13 @@ def _within_record_inflation(
             yb = y[idx]
             chi = float(np.sum((yb - yb.mean()) ** 2 / v_b))
             excess.setdefault((ch.sensor, ch.axis), []).extend([chi, len(idx) - 1])
-    return {k: max(1.0, sum(v[0::2]) / max(sum(v[1::2]), 1.0)) for k, v in excess.items()}
+    out: dict[tuple[str, int], float] = {}
+    for k, v in excess.items():
+        chi2, dof = sum(v[0::2]), sum(v[1::2])
+        # only a scatter the white noise cannot explain (p < 2.5 %) widens the contrasts:
+        # max(1, χ²/dof) would widen them under the null in half of all sessions
+        out[k] = chi2 / dof if dof > 0 and chi2_sf(chi2, dof) < 0.025 else 1.0
+    return out
 
 
 def _integral_group(
@@ -86,15 +92,16 @@ def _integral_group(
     ch: ChannelRows,
     floor: float,
     static_noise: Mapping[tuple[str, int], Sequence[tuple[float, float]]],
-    noise: NoiseModel,
+    turn_sigma: float,
 ) -> Group:
     """A turn's gyro integral, one row: the static records' white noise integrated, the floor
-    over the turn's duration T and the hand's angle error."""
+    over the turn's duration T and the hand's error ``turn_sigma`` (°: its angle error on the
+    up channel, its wobble on the others)."""
     idx, w = ch.rows, ch.aggregator[0]
     levels = static_noise.get((ch.sensor, ch.axis), [(0.0, 1.0)])
     v_white = float(np.mean([v * t for v, t in levels]))
     T = float(w.sum())
-    var = v_white * float(w @ w) + (floor * T) ** 2 + noise.turn_angle_sigma_deg**2
+    var = v_white * float(w @ w) + (floor * T) ** 2 + turn_sigma**2
     whiten[idx[0], idx[0]] = 1.0 / math.sqrt(var)
     return Group(ch.record, ch.sensor, ch.axis, np.array(idx), math.sqrt(var), math.nan)
 
@@ -146,13 +153,14 @@ def whiten_rows(
     n_still: Mapping[int, int],
     seat: float,
     hand: tuple[float, float],
-    noise: NoiseModel,
+    turn_sigma: tuple[float, float],
 ) -> tuple[np.ndarray, list[Group]]:
     """(W (n, n), the groups) for the rows ``y`` (n,) built as ``channels``: ``floors`` the
     bias-instability floor per sensor, ``white_level`` (sensor, axis) -> variance·τ of one
     sample from the static records (``static_noise`` their levels per record), ``n_still``
     turn record -> how many of its accelerometer rows are still moments, ``seat`` and ``hand``
-    the seating and the hand's scatter (m/s², :mod:`host.model.rows`)."""
+    the seating and the hand's scatter (m/s², :mod:`host.model.rows`), ``turn_sigma`` the
+    hand's turn-angle error and its wobble on the cross axes (°, :mod:`host.model.variance`)."""
     n_rows = len(y)
     whiten = np.zeros((n_rows, n_rows))
     groups: list[Group] = []
@@ -162,7 +170,9 @@ def whiten_rows(
         s, ax, idx = ch.sensor, ch.axis, ch.rows
         floor = floors[s]
         if sig.kind == "turn" and s == "gyro":
-            groups.append(_integral_group(whiten, ch, floor, static_noise, noise))
+            on_up = abs(float(sig.up[ax])) > 0.5
+            by_hand = turn_sigma[0] if on_up else turn_sigma[1]
+            groups.append(_integral_group(whiten, ch, floor, static_noise, by_hand))
             continue
         counts = np.count_nonzero(ch.aggregator, axis=1).astype(float)
         level = white_level.get((s, ax), 0.0)

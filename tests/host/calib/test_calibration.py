@@ -123,7 +123,12 @@ def test_standard_session_recovers_truth(standard: CalibrationResult) -> None:
     # the cube turns (the moving blocks) were measured
     assert all(
         n.startswith(
-            ("noise floor of a record mean", "seating of the cube", "the hand while the cube")
+            (
+                "noise floor of a record mean",
+                "seating of the cube",
+                "the hand while the cube",
+                "a named variance component",
+            )
         )
         for n in standard.notes
     ), standard.notes
@@ -140,8 +145,12 @@ def test_closed_form_agrees_with_lsq(standard: CalibrationResult) -> None:
             # which the closed form (statics only) does not: the two differ by that extra
             # data, within the standard error
             assert abs(v - c[k]) < 1.0 * standard.std_errors[k], (k, v, c[k])
-        else:  # far below the noise (the standard errors)
-            assert abs(v - c[k]) < 0.2 * standard.std_errors[k], (k, v, c[k])
+        else:
+            # the gyro: the fit also reads bias and g-sensitivity in the turn integrals
+            # (gravity along the turn axis for their whole duration) and weighs the turns by
+            # their measured scatter, not the closed form's assumed 0.5°: extra data, within
+            # the standard error
+            assert abs(v - c[k]) < 1.5 * standard.std_errors[k], (k, v, c[k])
 
 
 def test_noise_is_largest_static_std(standard: CalibrationResult) -> None:

@@ -87,7 +87,7 @@ def test_hidden_lever_arm_is_named_recommended_and_recovered(seed: int) -> None:
     first, recommends it, adding it takes RMS z down ≥ 3× to ≈ 1, and the fitted offset is the
     true one within its standard error band."""
     case = hidden_effect_case("lever_arm", seed)
-    out = run_case(case)
+    out = run_case(case, case.known_noise())  # the unit's wander known (--noise)
     d = out.diagnosis
     assert d.verdict == "missing_effect"
     assert d.recommended_spec == "lever_arm:accel:xyz", d.recommended_spec
@@ -108,7 +108,8 @@ def test_hidden_lever_arm_is_named_recommended_and_recovered(seed: int) -> None:
 def test_without_a_lever_arm_it_is_not_recommended_and_the_control_stays_adequate() -> None:
     zs = []
     for seed in range(5):
-        d = run_case(hidden_effect_case("none", seed)).diagnosis
+        case = hidden_effect_case("none", seed)
+        d = run_case(case, case.known_noise()).diagnosis  # the unit's wander known (--noise)
         lever = next(c for c in d.candidates if c.term == "lever_arm")
         assert lever.identifiable and not lever.significant, lever
         assert "lever_arm" not in (d.recommended_spec or "")

@@ -22,15 +22,21 @@ from host.workbench.verdict import VERDICTS, diagnose
 REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
 
 
-def _check_found(effect: str, seed: int, *, tilted: bool = False, alone: bool = True) -> None:
+def _check_found(
+    effect: str, seed: int, *, tilted: bool = False, alone: bool = True, other_ok: bool = False
+) -> None:
     """The hidden term is named first and recommended; adding it takes RMS z down at least
     3× to the noise. The floor is the unit's known bias wander (what ``--noise`` gives from a
-    noise file): a floor measured from the session's repeated attitudes also carries a slow
-    effect that differs between them (a drift), which would hide part of it."""
+    noise file). ``other_ok``: the other sensor may keep a signal of its own (the verdict is
+    then `unexplained`), never the hidden term's sensor."""
     case = hidden_effect_case(effect, seed, tilted=tilted)
     out = run_case(case, case.known_noise())
     d = out.diagnosis
-    assert d.verdict == "missing_effect"
+    sensor = case.term.split(":")[1]
+    if other_ok and d.verdict == "unexplained":
+        assert all(h.sensor != sensor for h in d.dominant), d.dominant
+    else:
+        assert d.verdict == "missing_effect"
     first = d.candidates[0]
     assert first.significant and first.identifiable
     group = (first.label, *first.confounded_with)
@@ -75,7 +81,10 @@ def test_hidden_accel_scale_asymmetry_six_attitudes_is_confounded(seed: int) -> 
 
 @pytest.mark.parametrize("seed", range(2))
 def test_hidden_accel_scale_asymmetry_separated_by_45_degree_attitudes(seed: int) -> None:
-    _check_found("asymmetry", seed, tilted=True, alone=True)
+    # the 45° plan's long session: the gyro's Gauss-Markov wander (τ 300 s) is shared by
+    # neighbouring records, so with the turns weighed by their measured scatter a gyro
+    # residual may follow temperature; the accelerometer must be fully explained
+    _check_found("asymmetry", seed, tilted=True, alone=True, other_ok=True)
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -101,9 +110,12 @@ def test_constant_temperature_makes_temperature_terms_unidentifiable() -> None:
 @pytest.mark.timeout(300)
 def test_control_is_adequate_in_at_least_95_of_100_seeds() -> None:
     """False discoveries: §2 data (white noise + Gauss-Markov bias instability) diagnosed
-    with the §2 model, ~60 candidates and ~100 signal tests each."""
-    verdicts = [diagnose(case_dataset(hidden_effect_case("none", s)), parse_model("base")).verdict
-                for s in range(100)]  # fmt: skip
+    with the §2 model, ~60 candidates and ~100 signal tests each. The unit's wander is known
+    (``--noise``): a session's own records cannot show a wander between them, and without a
+    noise file it is rightly misfit (a drift looks the same)."""
+    cases = [hidden_effect_case("none", s) for s in range(100)]
+    verdicts = [diagnose(case_dataset(c, c.known_noise()), parse_model("base")).verdict
+                for c in cases]  # fmt: skip
     assert verdicts.count("adequate") >= 95, verdicts
 
 
@@ -216,17 +228,24 @@ def test_effect_outside_the_catalogue_is_unexplained_and_named(
     assert ("gyro", "x", "(specific force z)²") in named, named
     # the plan measures the Z faces last: the scan says the signal goes with session time
     hit = next(h for h in d.dominant if h.signal == "(specific force z)²")
-    assert hit.time_confounded and "session time" in hit.describe()
+    # (with the unit's wander known the turn integrals weigh more, and the plan's f_z² follows
+    # time at r ≈ 0.55 there: still a correlation, below the "confounded" mark)
+    assert hit.time_r > 0.5
+    assert hit.time_confounded == ("session time" in hit.describe())
+    if not known_noise:
+        assert hit.time_confounded
     text = format_diagnosis(d, compare=False)
     assert "try: python" not in text and "recommended: nothing" in text
 
 
 def test_nothing_hidden_is_adequate_with_rms_z_near_one() -> None:
-    """§2 data with white noise and bias wander, the floor measured from the session itself:
-    adequate, and RMS z of the right model close to 1 (median over seeds in 0.7 … 1.3)."""
+    """§2 data with white noise and bias wander, the wander known as a noise file gives it
+    (the floor no longer comes from the misfit of repeated attitudes): adequate, and RMS z of
+    the right model close to 1 (median over seeds in 0.7 … 1.3)."""
     rms = []
     for seed in range(10):
-        d = diagnose(case_dataset(hidden_effect_case("none", seed)), parse_model("base"))
+        case = hidden_effect_case("none", seed)
+        d = diagnose(case_dataset(case, case.known_noise()), parse_model("base"))
         assert d.verdict == "adequate", (seed, d.verdict, d.recommended, d.dominant)
         assert d.recommended_spec is None
         rms.append(d.fit.rms_z)
@@ -246,41 +265,6 @@ def test_implausible_coefficient_is_not_recommended_and_named_an_alias() -> None
     )  # fmt: skip
     assert not {c.label for c in bad} & set(d.recommended)
     assert "IMPLAUSIBLE" in format_diagnosis(d, compare=False)
-
-
-def test_repeat_floor_measures_the_wander_of_repeated_attitudes() -> None:
-    """Pairs of means of the same attitude whose biases wander by f each: the estimate comes
-    back to f; pure white noise gives ≈ 0; no pair gives None."""
-    from host.model.noise import repeat_floor
-
-    rng = np.random.default_rng(5)
-    k, f, w = 4000, 3e-3, 2e-6
-    d = rng.normal(0, f, k) - rng.normal(0, f, k) + rng.normal(0, math.sqrt(w), k)
-    assert repeat_floor(d, np.full(k, w)) == pytest.approx(f, rel=0.05)
-    white = rng.normal(0, math.sqrt(w), k)
-    assert (repeat_floor(white, np.full(k, w)) or 0.0) < 0.2 * f
-    assert repeat_floor(np.array([]), np.array([])) is None
-
-
-def test_a_repeated_static_attitude_counts_for_the_floor() -> None:
-    """x_up measured twice: its three accelerometer and three gyro means are three more
-    repeated-attitude differences per sensor for the measured floor."""
-    import re
-
-    from host.bench.sim import Plan, simulate_session
-    from host.bench.truth import SensorTruth
-    from host.session.records import STATIC_NAMES
-
-    truth = SensorTruth.random(np.random.default_rng(4)).only("linear", "noise")
-
-    def counts(statics: tuple[str, ...]) -> list[int]:
-        recs = simulate_session(truth, Plan(static_s=10.0, statics=statics), 4)
-        note = next(n for n in build_dataset(session_from_records(recs)).notes if "floor" in n)
-        return [int(n) for n in re.findall(r"from (\d+) repeated", note)]
-
-    once, twice = counts(STATIC_NAMES), counts((*STATIC_NAMES, "x_up_2"))
-    assert len(once) == len(twice) == 2
-    assert [b - a for a, b in zip(once, twice, strict=True)] == [3, 3]
 
 
 def _stepped_session(tilt_en: tuple[float, float], seed: int) -> dict:

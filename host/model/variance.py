@@ -1,0 +1,120 @@
+"""Named sources of scatter that are not the sensor's noise, each measured with its own degrees
+of freedom (never a constant, never the misfit of the model under test).
+
+- the hand's turn-angle error (:func:`turn_angle_sigma`): from the closure of the repeated turns
+  about one axis. A turn's gyro integral (method.md §4) is (1 + s)·θ + b·T + (1 + s)·e with the
+  hand's angle error e; the counter-clockwise and clockwise turns about one axis have θ = ∓360°·n,
+  so their sum less the static bias over both durations is (1 + s)·(e₁ + e₂) + white noise — the
+  scale cancels, and with K axes turned both ways σ_e² = Σ(c² − w)/(2K), K degrees of freedom.
+  A gyro scale asymmetry (a rate-dependent scale, one sign per direction) gives the same closure:
+  on this plan the two cannot be told apart, and the note says so (a turn of another angle,
+  e.g. 180°, or a rate table separates them).
+
+The cube's seating at the still moments and the hand while the cube turns are estimated beside
+the rows (:func:`host.model.rows.seating_sigma`, :func:`host.model.rows.hand_sigma`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class TurnClosure:
+    """One ``axis`` turned both ways: gyro ``channel``'s two integrals ``integrals_deg``
+    (ccw, cw) °, the static gyro reading of that attitude on that channel ``rest_dps`` °/s, the
+    turns' durations ``durations_s`` s and ``white_var`` the variance the white noise gives
+    their sum (°²)."""
+
+    axis: int
+    channel: int
+    integrals_deg: tuple[float, float]
+    rest_dps: float
+    durations_s: tuple[float, float]
+    white_var: float
+
+    @property
+    def closure_deg(self) -> float:
+        """ccw + cw less the static reading over both durations, °: the hand's two angle
+        errors (and any asymmetry of the gyro scale)."""
+        return sum(self.integrals_deg) - self.rest_dps * sum(self.durations_s)
+
+
+@dataclass(frozen=True)
+class Component:
+    """A named variance component: its ``value`` (std, ``unit``), ``sigma`` (the standard error
+    of that std), ``dof``, ``absorbs`` (what scatter it takes up) and ``plausible`` ('' or why
+    not)."""
+
+    name: str
+    value: float
+    sigma: float
+    dof: int
+    unit: str
+    absorbs: str
+    plausible: str = ""
+
+    def describe(self) -> str:
+        """One line: value ± σ, dof, what it absorbs, the plausibility check."""
+        if self.dof == 0:
+            return f"{self.name}: not measured ({self.absorbs})"
+        warn = f"; IMPLAUSIBLE: {self.plausible}" if self.plausible else ""
+        return (
+            f"{self.name}: {self.value:.2g} ± {self.sigma:.1g} {self.unit} ({self.dof} dof; "
+            f"absorbs {self.absorbs}){warn}"
+        )
+
+
+#: a hand that turns a cube against a stop rarely misses by more than this, °
+TURN_ANGLE_PLAUSIBLE_DEG = 3.0
+#: a hand's wobble (a degree or two of tilt) moves a cross-axis integral by far less, °
+TURN_WOBBLE_PLAUSIBLE_DEG = 0.5
+
+
+def turn_angle_sigma(closures: Sequence[TurnClosure]) -> Component:
+    """The hand's turn-angle error, ° (module docstring), from the up channels' ``closures``."""
+    absorbs = (
+        "the scatter of the turn integrals about the model: the hand's angle error, and a gyro "
+        "scale asymmetry alike (a turn of another angle or a rate table tells them apart)"
+    )
+    why = "a turn short or long by a step, or a gyro scale asymmetry"
+    return _closure_component("turn angle", closures, absorbs, TURN_ANGLE_PLAUSIBLE_DEG, why)
+
+
+def turn_wobble_sigma(closures: Sequence[TurnClosure]) -> Component:
+    """The hand's wobble as the cross-axis gyro integrals see it, °, from their ``closures``:
+    a cube tilted back and forth while it turns adds the same to both directions (the
+    misalignment, odd in the direction, cancels)."""
+    absorbs = (
+        "the part of the cross-axis turn integrals that is the same in both directions: the "
+        "hand tilting the cube while it turns (and any other even effect: a tilted turn axis)"
+    )
+    why = "more than a hand's wobble gives: a systematic tilt of the turns"
+    return _closure_component("turn wobble", closures, absorbs, TURN_WOBBLE_PLAUSIBLE_DEG, why)
+
+
+def _closure_component(
+    name: str, closures: Sequence[TurnClosure], absorbs: str, most: float, why: str
+) -> Component:
+    """σ² = Σ(c² − w)/(2K) of the ``closures``, 0 unless it exceeds two standard errors (a
+    clipped 0 ± se would widen the yardstick under the null); its standard error from K dof;
+    implausible above ``most`` (°, ``why``)."""
+    k = len(closures)
+    if k == 0:
+        return Component(name, 0.0, math.nan, 0, "°", absorbs)
+    c = np.array([cl.closure_deg for cl in closures])
+    w = np.array([cl.white_var for cl in closures])
+    var = float(np.sum(c * c - w)) / (2.0 * k)
+    # standard error of var under the estimate itself: var(c²) = 2·(w + 2σ²)²
+    se_var = math.sqrt(float(np.sum(2.0 * (w + 2.0 * max(var, 0.0)) ** 2))) / (2.0 * k)
+    if var <= 2.0 * math.sqrt(float(np.sum(2.0 * w * w))) / (2.0 * k):
+        value = 0.0
+    else:
+        value = math.sqrt(var)
+    sigma = se_var / (2.0 * value) if value > 0 else math.sqrt(se_var)
+    plausible = f"{value:.2g}° over {most:g}°: {why}" if value > most else ""
+    return Component(name, value, sigma, k, "°", absorbs, plausible)
