@@ -95,6 +95,24 @@ def _signals(sensor: str) -> dict[str, SignalFn]:
     return out
 
 
+def _steps(ds: Dataset) -> dict[str, SignalFn]:
+    """A bias step between two records taken one after the other: one signal per gap in
+    time (0 before, 1 after), named by the record after which it falls. Each is one more test
+    of the Holm family, so scanning every gap costs the other signals nothing under the null
+    beyond that correction. A drift or a warm-up looks partly like a step: the strongest
+    signal wins, and the candidates (time_drift) are tested beside it."""
+    order = sorted(range(len(ds.signals)), key=lambda i: float(ds.signals[i].t_s[0]))
+    out: dict[str, SignalFn] = {}
+    for before, after in zip(order[:-1], order[1:], strict=False):
+        cut = 0.5 * (float(ds.signals[before].t_s[-1]) + float(ds.signals[after].t_s[0]))
+
+        def fn(s: RecordSignals, sen: str, a: int, cut: float = cut) -> np.ndarray:
+            return (s.t_s > cut).astype(float)
+
+        out[f"a step in time after {ds.signals[before].name}"] = fn
+    return out
+
+
 def _component(k: int, power: int) -> SignalFn:
     """Signal: component ``k`` of the sensor's input; power 1, 2, or 0 for |·|."""
 
@@ -141,8 +159,9 @@ def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
     def hours(s: RecordSignals, sen: str, a: int) -> np.ndarray:
         return s.hours
 
+    steps = _steps(ds) if ds.time_known else {}
     for sensor in SENSORS:
-        for name, fn in _signals(sensor).items():
+        for name, fn in {**_signals(sensor), **steps}.items():
             if not ds.time_known and name.startswith("(time"):
                 continue
             for a in range(3):
