@@ -63,6 +63,9 @@ def format_report(result: CalibrationResult) -> str:
     out.append(f"Model: {r.model}")
     if r.fit is not None:
         out.extend(_wrap(r.fit.line(), "", "  "))
+        story = fit_story(r)
+        if story:
+            out.extend(_wrap(story, "", "  "))
     if r.earth_rate:
         out.append("Earth rate: vertical component included in the reference rates")
     cf = [abs(consts[n] - v) for n, v in r.closed_form.items() if n not in NOISE_NAMES]
@@ -236,14 +239,33 @@ def verdict(result: CalibrationResult) -> str:
     return f"FAIL: {why}"
 
 
+def fit_story(result: CalibrationResult, directory: str | os.PathLike[str] | None = None) -> str:
+    """'' when the model fits; else what an inadequate fit means for the values and the next
+    command (``python -m host model diagnose DIR``, ``directory`` the records' when known)."""
+    q = result.fit
+    if q is None or q.verdict != "inadequate":
+        return ""
+    where = str(directory) if directory is not None else "DIR"
+    return (
+        f"The model does not fit these records (RMS z {q.rms_z:.2f}: residuals {q.rms_z:.1f}x "
+        "their noise): something the model lacks moved them. The standard errors are widened "
+        "where the fit is poor, and PASS/FAIL on the tolerances holds only if that effect does "
+        f"not bias the values. Find it: python -m host model diagnose {where}"
+    )
+
+
 def verdict_line(result: CalibrationResult, report_path: str | os.PathLike[str]) -> str:
     """What a session or ``--from-dir`` ends on: the :func:`verdict` and the report's path as
     the last line, preceded by ``*** SIMULATED BOARD <url>: not a measurement of a unit ***``
     when the records came from a virtual or emulated board (on its own line, so the verdict
-    still fits an 80-column terminal)."""
+    still fits an 80-column terminal), and before that, when the model does not fit, the
+    report's :func:`fit_story` with the next command."""
     line = f"{verdict(result)}; report {report_path}"
     sims = [n for n in result.notes if n.startswith(SIMULATED_BOARD)]
-    return f"*** {sims[0]} ***\n{line}" if sims else line
+    line = f"*** {sims[0]} ***\n{line}" if sims else line
+    story = fit_story(result, Path(report_path).parent)
+    # the report's story on a poor fit, above the mark and the verdict (the last line)
+    return f"{story}\n{line}" if story else line
 
 
 def write_results(
