@@ -11,7 +11,10 @@ figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imp
 - ``catalogue`` — the built-in terms (``base`` = method.md §2, and the §8 effects), plausibility.
 - ``loader`` — users' term files joining the catalogue.
 - ``spec`` — the model spec grammar (``base,temperature_bias:gyro:x``) and model terms.
-- ``noise`` — the noise model: block noise, the bias-instability floor, seating and the hand.
+- ``noise`` — the noise model: block noise, the bias-instability floor from the records' own
+  samples.
+- ``variance`` — named variance components: the turns' angle error and wobble, each measured
+  with its own degrees of freedom.
 - ``dataset`` — the dataset of a session: the records' signals, rows, noise and whitening.
 - ``rows`` — one builder per kind of row (block means, turn integrals, still moments, moving
   blocks) and the turn rows' own noise (seating, the hand).
