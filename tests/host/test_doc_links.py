@@ -168,3 +168,13 @@ def test_every_module_and_path_the_docs_name_exists() -> None:
     ours = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
     bad = [f"{p.relative_to(ROOT)}: {n}" for p in ours for n in missing_names(p.read_text())]
     assert bad == []
+
+
+def test_the_readme_is_a_five_minute_read() -> None:
+    """Issue 23: at most 250 lines, no wall of text (the longest paragraph was 48 lines); the
+    rest lives in docs/."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert text.count("\n") <= 250
+    paragraphs = [p for p in FENCE.sub("", text).split("\n\n") if p.strip()]
+    longest = max(paragraphs, key=lambda p: p.strip().count("\n"))
+    assert longest.strip().count("\n") + 1 <= 16, longest[:200]
