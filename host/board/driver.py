@@ -7,7 +7,7 @@ times, feeds every IMU sample to the live device→host clock estimate
 survives reconnects and records one measurement on device time (:meth:`Board.acquire`). It
 decodes with the spec's codecs (:func:`host.wire.frames.sample_t_us`, ``sample_counts``,
 ``sample_flags``) and counts wraps, resets and losses by the counters' rules of
-:mod:`host.timing.segments`; :meth:`Board.physical` turns counts into m/s², °/s and °C with the
+:mod:`host.wire.segments`; :meth:`Board.physical` turns counts into m/s², °/s and °C with the
 full scales HELLO reported (:mod:`host.wire.sensor`).
 
 The dialogue that asks the operator (:mod:`host.dialogue.flow`) drives a Board; nothing here
@@ -35,7 +35,6 @@ from host.board.hello import check_spec, wait_for_hello
 from host.board.link import DEFAULT_BAUD, Link, LinkTimeout, open_port
 from host.errors import UserError
 from host.timing.clock import LiveClock, serialisation_ns
-from host.timing.segments import seq_step, seq_went_back, t_us_step, t_us_went_back
 from host.wire import protocol_gen as gen
 from host.wire import sensor
 from host.wire.capture import MAGIC, CaptureWriter
@@ -51,6 +50,7 @@ from host.wire.frames import (
     sample_t_us,
     status_text,
 )
+from host.wire.segments import seq_step, seq_went_back, t_us_step, t_us_went_back
 
 #: the spec this host speaks (HELLO.spec_fingerprint must match)
 HOST_SPEC_FINGERPRINT = gen.SPEC_FINGERPRINT

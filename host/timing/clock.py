@@ -33,8 +33,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host.timing.segments import seq_step
 from host.wire.protocol_gen import ENUMS
+from host.wire.segments import seq_step
 
 UART_BITS_PER_BYTE = 10  # 8N1
 #: the sample flag of a sample the firmware skipped (from the spec)
@@ -648,7 +648,7 @@ def build_timeline(
     :class:`TimelineBuilder` fed one chunk).
 
     ``samples`` is :data:`host.wire.frames.SAMPLE_DTYPE` (with ``segment`` and ``lost`` from
-    the decoder, which applies the counters' rules of :mod:`host.timing.segments`),
+    the decoder, which applies the counters' rules of :mod:`host.wire.segments`),
     ``arrival_ns`` the host time of the read that completed each sample's frame.
     """
     b = TimelineBuilder(baud, frame_bytes, period_us, window_s)

@@ -36,10 +36,10 @@ from typing import Protocol
 import numpy as np
 
 from host.errors import UserError
-from host.timing.segments import SegmentTracker, segments
 from host.wire import protocol_gen as gen
 from host.wire import sensor
 from host.wire.capture import CaptureUnwrapper
+from host.wire.segments import SegmentTracker, segments
 
 SYNC = gen.SYNC
 HEADER_LEN = 6
@@ -456,7 +456,7 @@ _WIRE_IMU_PADDED = np.dtype([*_WIRE_IMU_FIELDS, ("pad", "u1")])
 
 #: the decoded samples array: wire values, native byte order, plus the frame's offset in the
 #: stream, its segment (between device resets) and ``lost``: the frames lost on the link since
-#: the previous sample (:func:`host.timing.segments.segments`; 0 where a segment starts)
+#: the previous sample (:func:`host.wire.segments.segments`; 0 where a segment starts)
 SAMPLE_DTYPE = np.dtype(
     [("seq", "u2"), ("t_us", "u4")]
     + [(n, "i2") for n in IMU_FIELDS]

@@ -125,7 +125,7 @@ def test_min_delay_fit_is_exact_on_noise_free_points_and_ignores_late_ones() -> 
 
 
 def test_the_timeline_counts_losses_by_the_decoders_rules() -> None:
-    """Frames lost on the link are counted once, by host.timing.segments (through the decoder's
+    """Frames lost on the link are counted once, by host.wire.segments (through the decoder's
     per-sample ``lost``): STATUS frames between samples are not losses, a lost STATUS frame is."""
     lc = simulate_link(LinkParams(seconds=20, seed=12, status_every_s=1))
     data = bytearray(capture.parse(lc.to_imucap()).data)

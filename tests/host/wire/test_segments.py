@@ -1,4 +1,4 @@
-"""The counters' rules (host/timing/segments.py): wrap, reset, loss; the array twin equals the
+"""The counters' rules (host/wire/segments.py): wrap, reset, loss; the array twin equals the
 frame-by-frame tracker on any sequence of frames."""
 
 from __future__ import annotations
@@ -10,14 +10,9 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host.timing.segments import (
-    SEQ_MOD,
-    T_US_MOD,
-    SegmentTracker,
-    segments,
-)
 from host.wire.frames import IMU_FIELDS, IMU_SAMPLE, TYPES
 from host.wire.protocol_gen import ENUMS
+from host.wire.segments import SEQ_MOD, T_US_MOD, SegmentTracker, segments
 
 SPEC = Path(__file__).resolve().parents[3] / "protocol" / "spec.json"
 
