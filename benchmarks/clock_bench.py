@@ -22,7 +22,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from host.bench.linksim import LinkParams, simulate_link  # noqa: E402
 from host.timing import clock  # noqa: E402
-from host.wire import capture, frames  # noqa: E402
+from host.wire import bulk, capture  # noqa: E402
 
 
 def rms_us(err: np.ndarray) -> float:
@@ -41,7 +41,7 @@ def main() -> None:
         p = LinkParams(seconds=60 * args.minutes, skew_ppm=float(rng.uniform(-100, 100)), seed=seed)
         lc = simulate_link(p)
         cap = capture.parse(lc.to_imucap())
-        r = frames.decode_bulk(cap.data)
+        r = bulk.decode_bulk(cap.data)
         arrivals = cap.arrival_ns_at(r.samples["offset"] + 26)
         t0 = time.perf_counter()
         tl = clock.build_timeline(r.samples, arrivals)

@@ -21,7 +21,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from host.wire.frames import StreamDecoder, decode_bulk, encode_imu_samples  # noqa: E402
+from host.wire.bulk import decode_bulk  # noqa: E402
+from host.wire.frames import encode_imu_samples  # noqa: E402
+from host.wire.stream import StreamDecoder  # noqa: E402
 
 
 def best_of(fn: Callable[[], int], repeat: int) -> tuple[float, int]:

@@ -27,8 +27,9 @@ from host.bench.physics import Bench, Environment, Motion
 from host.bench.sim import Simulator
 from host.bench.truth import SensorTruth
 from host.wire import protocol_gen as gen
-from host.wire.frames import StreamDecoder, encode_frame, encode_imu_samples
+from host.wire.frames import encode_frame, encode_imu_samples
 from host.wire.sensor import DEFAULT_PRODUCT_ID
+from host.wire.stream import StreamDecoder
 
 FW_VERSION = (0, 1, 0)
 BAUD = 115200

@@ -20,12 +20,8 @@ import serial
 
 from host.errors import BadURLError, UserError
 from host.wire.capture import CaptureWriter
-from host.wire.frames import (
-    DecoderStats,
-    Frame,
-    StreamDecoder,
-    encode_frame,
-)
+from host.wire.frames import Frame, encode_frame
+from host.wire.stream import DecoderStats, StreamDecoder
 
 TRANSPORTS_PACKAGE = "host.transports"
 DEFAULT_BAUD = 115200

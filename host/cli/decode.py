@@ -1,6 +1,6 @@
 """``python -m host decode FILE``: a capture's samples as JSONL or CSV, or the decoder counters.
 
-The input streams through in chunks (:class:`host.wire.frames.BulkReader`): a capture of any
+The input streams through in chunks (:class:`host.wire.bulk.BulkReader`): a capture of any
 size, a FIFO or an endless device decodes in bounded memory, and rows are written as they are
 decoded. The device→host clock map of an IMUCAP01 capture is built as the samples stream in
 (:class:`host.timing.clock.TimelineBuilder`: the same map as
@@ -21,18 +21,16 @@ import numpy as np
 
 from host.timing import clock
 from host.wire import capture, sensor
-from host.wire.frames import (
-    IMU_FIELDS,
+from host.wire.bulk import (
     SAMPLE_DTYPE,
     BulkReader,
     BulkResult,
-    Frame,
     baud_from_hello,
     full_scale_from_hello,
     product_id_from_hello,
     samples_to_physical,
-    status_text,
 )
+from host.wire.frames import IMU_FIELDS, Frame, status_text
 
 
 def cli_decode(p: argparse.ArgumentParser) -> Any:
@@ -120,7 +118,7 @@ class _Decode:
 
     def _decide(self) -> None:
         """Scaling and baud from the HELLO frames seen (the first valid one, as
-        :func:`~host.wire.frames.full_scale_from_hello`), then release what was held."""
+        :func:`~host.wire.bulk.full_scale_from_hello`), then release what was held."""
         self.config = (
             (0, 0, None)
             if self.args.stats

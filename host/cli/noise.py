@@ -37,7 +37,7 @@ def load_static(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
         data = np.column_stack([rec.accel, rec.gyro])
         return rec.t_ms / 1000.0, data, rec.temp, f"record {rec.name} ({len(rec)} samples)"
     from host.timing import clock
-    from host.wire.frames import (
+    from host.wire.bulk import (
         decode_file,
         full_scale_from_hello,
         product_id_from_hello,

@@ -470,14 +470,14 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
     carry their power-on time as the dialogue's do."""
     from host.timing import clock
     from host.wire import sensor
-    from host.wire.frames import (
+    from host.wire.bulk import (
         baud_from_hello,
-        bus_meta,
         decode_file,
         full_scale_from_hello,
         product_id_from_hello,
         samples_to_physical,
     )
+    from host.wire.frames import bus_meta
 
     p = Path(path)
     result, arrivals = decode_file(p)

@@ -647,7 +647,7 @@ def build_timeline(
     """Unwrap, split at resets and map every sample of a decoded capture (all at once: a
     :class:`TimelineBuilder` fed one chunk).
 
-    ``samples`` is :data:`host.wire.frames.SAMPLE_DTYPE` (with ``segment`` and ``lost`` from
+    ``samples`` is :data:`host.wire.bulk.SAMPLE_DTYPE` (with ``segment`` and ``lost`` from
     the decoder, which applies the counters' rules of :mod:`host.wire.segments`),
     ``arrival_ns`` the host time of the read that completed each sample's frame.
     """

@@ -22,7 +22,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1]))
 
-from host.wire.frames import StreamDecoder, crc16, encode_frame  # noqa: E402
+from host.wire.frames import crc16, encode_frame  # noqa: E402
+from host.wire.stream import StreamDecoder  # noqa: E402
 
 
 def frames_of(clean: bytes) -> list[bytes]:

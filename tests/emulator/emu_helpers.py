@@ -9,7 +9,8 @@ import numpy as np
 import serial
 
 from host.bench.emulator import EmulatedBoard
-from host.wire.frames import Frame, StreamDecoder
+from host.wire.frames import Frame
+from host.wire.stream import StreamDecoder
 
 BAUD = 115200
 

@@ -20,7 +20,8 @@ import serial
 from host.bench.emulator import write_stimulus
 from host.board.link import Link, LinkLost, open_port
 from host.timing import clock
-from host.wire.frames import IMU_FIELDS, decode_bulk, decode_file
+from host.wire.bulk import decode_bulk, decode_file
+from host.wire.frames import IMU_FIELDS
 
 ROOT = Path(__file__).resolve().parents[2]
 FIXTURE = ROOT / "tests" / "captures" / "emu_clean.bin"

@@ -18,8 +18,8 @@ from host.board import flash as fl
 from host.board.firmware import build_firmware_hex
 from host.board.link import open_port
 from host.errors import UserError
-from host.wire.frames import StreamDecoder
 from host.wire.protocol_gen import SPEC_FINGERPRINT
+from host.wire.stream import StreamDecoder
 
 pytestmark = pytest.mark.emulator
 

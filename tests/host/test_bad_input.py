@@ -94,7 +94,7 @@ def test_decode_streams_a_fifo_fed_by_a_writer_process_and_ends_at_eof(
     import subprocess
     import sys
 
-    from host.wire.frames import decode_bulk
+    from host.wire.bulk import decode_bulk
 
     data = b"".join(_imu(k, 1000 + 20_000 * k) for k in range(3000))
     src = tmp_path / "src.bin"

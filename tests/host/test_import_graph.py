@@ -138,7 +138,7 @@ def test_the_walk_sees_the_known_arrows() -> None:
     g = graph()
     assert "host.wire.frames" in g["host.board.link"]  # top level
     assert "host.wire.protocol_gen" in g["host.wire.frames"]  # from host.wire import X as Y
-    assert "host.wire.capture" in g["host.wire.frames"]  # inside a function
+    assert "host.wire.capture" in g["host.wire.stream"]  # inside a function
     assert "host.bench.emulator" in g["host.transports.protocol_emu"]
 
 

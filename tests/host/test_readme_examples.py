@@ -63,7 +63,8 @@ def test_the_readmes_decode_example_reads_every_sample_of_a_capture(
 ) -> None:
     from host.__main__ import main
     from host.wire import capture
-    from host.wire.frames import BulkResult, StreamDecoder
+    from host.wire.bulk import BulkResult
+    from host.wire.stream import StreamDecoder
 
     monkeypatch.chdir(tmp_path)
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):

@@ -12,7 +12,9 @@ import crcmod.predefined
 import pytest
 
 from host.wire import protocol_gen
-from host.wire.frames import BY_NAME, MESSAGES, StreamDecoder, crc16, decode_bulk, encode_frame
+from host.wire.bulk import decode_bulk
+from host.wire.frames import BY_NAME, MESSAGES, crc16, encode_frame
+from host.wire.stream import StreamDecoder
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "protocol"))

@@ -10,7 +10,8 @@ from host.bench.firmware import RESET_EXTERNAL, VirtualFirmware
 from host.bench.options import parse_sim_options
 from host.bench.physics import static_motion
 from host.wire import protocol_gen as gen
-from host.wire.frames import IMU_SAMPLE, StreamDecoder, crc16, encode_frame
+from host.wire.frames import IMU_SAMPLE, crc16, encode_frame
+from host.wire.stream import StreamDecoder
 
 ACK = gen.ENUMS["ack_status"]
 

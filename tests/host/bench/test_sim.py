@@ -36,7 +36,7 @@ from host.bench.truth import CONSTANT_NAMES, EFFECTS, SensorTruth, gauss_markov
 from host.session.directory import read_session
 from host.session.records import Record
 from host.wire import sensor
-from host.wire.frames import StreamDecoder
+from host.wire.stream import StreamDecoder
 
 #: a quiet room: constant temperature, exact clocks (effects under test are switched on alone)
 QUIET = Environment(rise_c=0.0, room_amp_c=0.0, room_c=25.0)

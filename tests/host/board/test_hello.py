@@ -8,8 +8,9 @@ import pytest
 
 from host.board.hello import SpecMismatch, check_spec, wait_for_hello
 from host.board.link import Link, LinkTimeout
-from host.wire.frames import StreamDecoder, encode_frame
+from host.wire.frames import encode_frame
 from host.wire.protocol_gen import PROTOCOL_VERSION, SPEC_FINGERPRINT
+from host.wire.stream import StreamDecoder
 
 HELLO = encode_frame(
     "HELLO", 0, fw_major=0, fw_minor=3, fw_patch=1, protocol_version=PROTOCOL_VERSION,

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from host.board.link import Link
-from host.wire.frames import decode_bulk
+from host.wire.bulk import decode_bulk
 
 
 @pytest.mark.timeout(60)

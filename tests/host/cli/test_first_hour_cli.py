@@ -81,7 +81,7 @@ def test_capture_shows_progress_and_runs_until_ctrl_c(tmp_path: Path) -> None:
     import sys
     import time
 
-    from host.wire.frames import decode_bulk
+    from host.wire.bulk import decode_bulk
 
     root = Path(__file__).resolve().parents[3]
     cap = tmp_path / "s.cap"

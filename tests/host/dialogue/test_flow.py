@@ -152,7 +152,7 @@ def test_yes_session_recovers_truth(yes_session: dict[str, Any]) -> None:
 
 
 def test_yes_session_capture_decodes_to_the_same_samples(yes_session: dict[str, Any]) -> None:
-    from host.wire.frames import decode_file
+    from host.wire.bulk import decode_file
 
     result, arrivals = decode_file(yes_session["out"] / "S1_session.cap")
     assert arrivals is not None and result.stats.crc_errors == 0
@@ -550,7 +550,7 @@ def test_board_live_clock_maps_the_record_start_to_host_time() -> None:
     """The session's live clock (fed every sample as it is read, across a t_us wrap) gives the
     record metadata the device clock's skew and the first sample's host time."""
     from host.bench.linksim import LinkParams, simulate_link
-    from host.wire.frames import StreamDecoder
+    from host.wire.stream import StreamDecoder
 
     lc = simulate_link(LinkParams(seconds=30, skew_ppm=80, device_t0_us=2**32 - 5_000_000, seed=9))
     board = driver.Board("unused://")

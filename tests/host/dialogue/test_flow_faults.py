@@ -23,7 +23,8 @@ from host.dialogue.console import CTRL_C, ScriptedConsole
 from host.errors import UserError
 from host.session.directory import read_record
 from host.wire import protocol_gen as gen
-from host.wire.frames import IMU_SAMPLE, StreamDecoder, _envelope, encode_frame
+from host.wire.frames import IMU_SAMPLE, _envelope, encode_frame
+from host.wire.stream import StreamDecoder
 from tests.host.dialogue.test_flow import LINEAR, Ports, opts, run
 
 SPI_FAULT = gen.ENUMS["error_code"]["SPI_FAULT"]
@@ -201,7 +202,7 @@ def test_disk_full_on_the_session_capture_keeps_what_was_recorded(
     capture keeps every read written before (a cut-off last one is reported, not fatal)."""
     from host.board import driver
     from host.wire import capture
-    from host.wire.frames import decode_bulk
+    from host.wire.bulk import decode_bulk
 
     real_start = driver.DeferredCapture.start
 

@@ -7,12 +7,12 @@ import pytest
 
 from host.bench.linksim import LinkCapture, LinkParams, simulate_link
 from host.timing import clock
-from host.wire import capture, frames
+from host.wire import bulk, capture, frames, stream
 
 
-def decode(lc: LinkCapture) -> tuple[frames.BulkResult, np.ndarray, clock.Timeline]:
+def decode(lc: LinkCapture) -> tuple[bulk.BulkResult, np.ndarray, clock.Timeline]:
     cap = capture.parse(lc.to_imucap())
-    r = frames.decode_bulk(cap.data)
+    r = bulk.decode_bulk(cap.data)
     arrivals = cap.arrival_ns_at(r.samples["offset"] + 26)
     return r, arrivals, clock.build_timeline(r.samples, arrivals)
 
@@ -80,7 +80,7 @@ def test_lost_frames_and_missed_samples_are_counted_apart() -> None:
     lc = simulate_link(LinkParams(seconds=20, seed=6, status_every_s=100))
     data = bytearray(capture.parse(lc.to_imucap()).data)
     del data[27 * 100 : 27 * 103]  # three frames lost on the link
-    r = frames.decode_bulk(bytes(data))
+    r = bulk.decode_bulk(bytes(data))
     tl = clock.build_timeline(r.samples, None)
     assert tl.lost_frames == 3 and tl.missed_samples == 0
     # the firmware skipped one sample: consecutive seq, t_us jumps by two periods
@@ -93,7 +93,7 @@ def test_lost_frames_and_missed_samples_are_counted_apart() -> None:
 
 def test_live_estimate_is_usable_early_and_accurate_after_ten_seconds() -> None:
     lc = simulate_link(LinkParams(seconds=40, seed=8))
-    dec = frames.StreamDecoder()
+    dec = stream.StreamDecoder()
     live = clock.LiveClock()
     serial_ns = float(clock.serialisation_ns(27, lc.params.baud))
     mapped = np.full(lc.true_host_ns.size, np.nan)
@@ -129,7 +129,7 @@ def test_the_timeline_counts_losses_by_the_decoders_rules() -> None:
     per-sample ``lost``): STATUS frames between samples are not losses, a lost STATUS frame is."""
     lc = simulate_link(LinkParams(seconds=20, seed=12, status_every_s=1))
     data = bytearray(capture.parse(lc.to_imucap()).data)
-    r = frames.decode_bulk(bytes(data))
+    r = bulk.decode_bulk(bytes(data))
     assert len(r.others) >= 15  # STATUS frames between the samples
     assert clock.build_timeline(r.samples, None).lost_frames == 0
     off = r.samples["offset"]
@@ -139,7 +139,7 @@ def test_the_timeline_counts_losses_by_the_decoders_rules() -> None:
     status_at = r.others[5][0]
     assert status_at < a
     del data[status_at : status_at + 8 + frames.BY_NAME["STATUS"].length]  # and one STATUS
-    r = frames.decode_bulk(bytes(data))
+    r = bulk.decode_bulk(bytes(data))
     tl = clock.build_timeline(r.samples, None)
     assert tl.lost_frames == r.stats.lost_frames == 3
     assert int(r.samples["lost"].sum()) == 3

@@ -13,7 +13,8 @@ from host.bench.truth import SensorTruth
 from host.transports.protocol_sim import Serial as SimSerial
 from host.wire import protocol_gen as gen
 from host.wire import sensor
-from host.wire.frames import BY_NAME, Frame, StreamDecoder, encode_frame
+from host.wire.frames import BY_NAME, Frame, encode_frame
+from host.wire.stream import StreamDecoder
 
 if "host.transports" not in serial.protocol_handler_packages:
     serial.protocol_handler_packages.append("host.transports")

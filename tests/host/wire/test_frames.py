@@ -10,15 +10,9 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from host.wire.frames import (
-    IMU_FIELDS,
-    DecoderStats,
-    FrameReader,
-    StreamDecoder,
-    decode_bulk,
-    encode_frame,
-    encode_imu_samples,
-)
+from host.wire.bulk import decode_bulk
+from host.wire.frames import IMU_FIELDS, encode_frame, encode_imu_samples
+from host.wire.stream import DecoderStats, FrameReader, StreamDecoder
 
 
 def make_stream(n: int, seed: int = 0, seq0: int = 0, t0: int = 0, status_every: int = 50) -> bytes:

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from host.wire.frames import StreamDecoder, decode_bulk
+from host.wire.bulk import decode_bulk
+from host.wire.stream import StreamDecoder
 
 CORPUS = Path(__file__).resolve().parents[2] / "captures"
 TABLE = json.loads((CORPUS / "corpus.json").read_text())

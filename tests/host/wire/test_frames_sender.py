@@ -7,7 +7,9 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host.wire.frames import StreamDecoder, _envelope, decode_bulk, encode_frame
+from host.wire.bulk import decode_bulk
+from host.wire.frames import _envelope, encode_frame
+from host.wire.stream import StreamDecoder
 
 SAMPLE = dict(t_us=1000, ax=1, ay=-2, az=3, temp=4, gx=-5, gy=6, gz=-7, flags=0)
 

@@ -21,14 +21,8 @@ from host.ingest.importing import read_capture_stream
 from host.session.records import SENSOR_KEYS
 from host.transports import protocol_emu
 from host.wire import sensor
-from host.wire.frames import (
-    SPI_LOW_CLOCK,
-    StreamDecoder,
-    bus_meta,
-    encode_frame,
-    encode_imu_samples,
-    status_text,
-)
+from host.wire.frames import SPI_LOW_CLOCK, bus_meta, encode_frame, encode_imu_samples, status_text
+from host.wire.stream import StreamDecoder
 
 register_transports()
 ROOT = Path(__file__).resolve().parents[3]

@@ -18,12 +18,12 @@ from hypothesis import strategies as st
 
 from host.bench.linksim import LinkCapture, LinkParams, simulate_link
 from host.timing import clock
-from host.wire import capture, frames
-from host.wire.frames import ChunkedDecoder, decode_bulk
+from host.wire import bulk, capture
+from host.wire.bulk import ChunkedDecoder, decode_bulk
 from tests.host.wire.test_frames import BASE, corrupt, imucap
 
 
-def chunked(data: bytes, sizes: list[int], min_batch: int) -> frames.BulkResult:
+def chunked(data: bytes, sizes: list[int], min_batch: int) -> bulk.BulkResult:
     d = ChunkedDecoder(min_batch=min_batch)
     parts, pos, i = [], 0, 0
     while pos < len(data):
@@ -31,7 +31,7 @@ def chunked(data: bytes, sizes: list[int], min_batch: int) -> frames.BulkResult:
         parts.append(d.feed(data[pos : pos + k]))
         pos, i = pos + k, i + 1
     parts.append(d.flush())
-    return frames.BulkResult(
+    return bulk.BulkResult(
         np.concatenate([p.samples for p in parts]), [x for p in parts for x in p.others], d.stats
     )
 
@@ -154,7 +154,7 @@ def test_a_clock_no_board_has_is_given_up_in_bounded_memory(
     up once the window holds too many (t_host_ns then falls back to the arrivals)."""
     monkeypatch.setattr(clock, "MAX_HELD_SAMPLES", 5000)
     n = 20_000
-    s = np.zeros(n, frames.SAMPLE_DTYPE)
+    s = np.zeros(n, bulk.SAMPLE_DTYPE)
     s["seq"] = np.arange(n) % 65536
     s["t_us"] = np.arange(n)
     s["offset"] = np.arange(n) * 27
@@ -194,7 +194,7 @@ def test_decode_output_does_not_depend_on_the_read_size(
     assert rc == 0 and "warning" not in err
     import host.cli.decode as cli_decode
 
-    monkeypatch.setattr(cli_decode, "BulkReader", partial(frames.BulkReader, chunk=1000))
+    monkeypatch.setattr(cli_decode, "BulkReader", partial(bulk.BulkReader, chunk=1000))
     rc, pieces, _ = run_decode(["decode", fmt, str(path)], capsys)
     assert rc == 0 and pieces == whole
     if fmt == "--stats":

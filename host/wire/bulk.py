@@ -1,0 +1,444 @@
+"""The bulk decoder: a whole capture, or a stream in bounded memory, decoded with numpy.
+
+:func:`decode_bulk` gives exactly the frames and counters the streaming path
+(:class:`host.wire.stream.StreamDecoder` followed by its ``flush``) gives for the same bytes,
+under the same resynchronisation rule (property-tested); :class:`ChunkedDecoder` and
+:class:`BulkReader` do the same in bounded memory, :func:`decode_file` reads a raw or IMUCAP01
+capture. IMU samples come out as one array (:data:`SAMPLE_DTYPE`), other frames as objects;
+the HELLO frame among them gives the full scales, the sensor's revision and the baud rate.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from host.errors import UserError
+from host.wire import sensor
+from host.wire.capture import CaptureUnwrapper
+from host.wire.frames import (
+    CRC_LEN,
+    CRC_TABLE,
+    HEADER_LEN,
+    IMPOSSIBLE,
+    IMU_FIELDS,
+    IMU_FRAME_LEN,
+    IMU_LEN,
+    IMU_SAMPLE,
+    LENGTHS_FROM,
+    MAX_PAYLOAD,
+    SYNC,
+    WIRE_IMU_FIELDS,
+    Frame,
+    crc16_rows,
+)
+from host.wire.segments import segments
+from host.wire.stream import DecoderStats, Readable
+
+#: an IMU_SAMPLE frame with one pad byte, so that rows have an even width (16-bit word views)
+_WIRE_IMU_PADDED = np.dtype([*WIRE_IMU_FIELDS, ("pad", "u1")])
+
+#: the decoded samples array: wire values, native byte order, plus the frame's offset in the
+#: stream, its segment (between device resets) and ``lost``: the frames lost on the link since
+#: the previous sample (:func:`host.wire.segments.segments`; 0 where a segment starts)
+SAMPLE_DTYPE = np.dtype(
+    [("seq", "u2"), ("t_us", "u4")]
+    + [(n, "i2") for n in IMU_FIELDS]
+    + [("flags", "u1"), ("offset", "i8"), ("segment", "i4"), ("lost", "i4")]
+)
+
+
+class _PairCRC:
+    """CRC of fixed-length messages from 16-bit words: one table lookup per two bytes.
+
+    The CRC is affine over GF(2): crc(m) = crc(0…0) ⊕ ⊕_k T_k[word_k], where T_k is the CRC
+    (init 0) of word k followed by zeros. K bytes -> K/2 lookups of 65536-entry tables.
+    """
+
+    def __init__(self, nbytes: int) -> None:
+        self.nbytes = nbytes
+        self.npairs = nbytes // 2
+        single = np.zeros((nbytes, 256), dtype=np.uint16)
+        for i in range(nbytes):
+            c = CRC_TABLE[np.arange(256)]  # register after byte i, starting from 0
+            for _ in range(nbytes - 1 - i):  # followed by zero bytes
+                c = (c << 8) ^ CRC_TABLE[c >> 8]
+            single[i] = c
+        self.pairs = [
+            (single[2 * k][:, None] ^ single[2 * k + 1][None, :]).reshape(-1)
+            for k in range(self.npairs)
+        ]
+        self.last = single[nbytes - 1] if nbytes % 2 else None
+        self.zero = int(crc16_rows(np.zeros((1, nbytes), dtype=np.uint8))[0])
+
+    def rows(self, rows: np.ndarray, start: int) -> np.ndarray:
+        """CRCs of ``rows[:, start : start + nbytes]``; rows (M, W) uint8 C-contiguous, W even,
+        ``start`` even."""
+        words = rows.view(">u2")
+        crc = np.full(rows.shape[0], self.zero, dtype=np.uint16)
+        for k in range(self.npairs):
+            crc ^= self.pairs[k][words[:, start // 2 + k]]
+        if self.last is not None:
+            crc ^= self.last[rows[:, start + self.nbytes - 1]]
+        return crc
+
+
+_IMU_CRC = _PairCRC(4 + IMU_LEN)
+
+
+def _windows(buf: np.ndarray, width: int) -> np.ndarray:
+    """Read-only (n - width + 1, width) view: row i is buf[i : i + width] (no copy)."""
+    return np.lib.stride_tricks.sliding_window_view(buf, width)
+
+
+@dataclass
+class BulkResult:
+    """What :func:`decode_bulk` found: IMU samples as an array, other frames as objects."""
+
+    samples: np.ndarray  # SAMPLE_DTYPE
+    others: list[tuple[int, Frame]]  # (byte offset, frame) for non-IMU frames
+    stats: DecoderStats = field(default_factory=DecoderStats)
+
+
+#: the longest frame on the wire (bytes): a candidate starting this far before the end of the
+#: bytes at hand is complete, so its verdict cannot change with what follows
+MAX_FRAME = HEADER_LEN + MAX_PAYLOAD + CRC_LEN
+
+
+@dataclass
+class _Before:
+    """What the counters' rules remember of the bytes already decoded."""
+
+    last_seq: int | None = None
+    last_t_us: int | None = None  # of the current segment's last IMU sample
+    segment: int = 0  # the current segment's number
+    lost_since_sample: int = 0  # frames lost after the last IMU sample
+
+
+class ChunkedDecoder:
+    """The bulk decoder in bounded memory: :meth:`feed` bytes in chunks of any size, get a
+    :class:`BulkResult` of the frames now final; :meth:`flush` at the end. Concatenated, the
+    results are exactly :func:`decode_bulk` of all the bytes (offsets count from the first
+    byte fed; counters are per call: add them up). Holds at most the bytes of one call plus
+    ``min_batch``."""
+
+    def __init__(self, sender: str = "device", min_batch: int = 1 << 16) -> None:
+        self.sender = sender
+        self.min_batch = max(min_batch, 2 * MAX_FRAME)
+        self._buf = bytearray()
+        self._base = 0  # stream offset of _buf[0]
+        self._before = _Before()
+        self.stats = DecoderStats()  # running totals
+
+    @property
+    def pending(self) -> int:
+        """Bytes held back: a frame may start in them."""
+        return len(self._buf)
+
+    def feed(self, data: bytes | bytearray | memoryview) -> BulkResult:
+        self._buf += data
+        if len(self._buf) < self.min_batch:
+            return BulkResult(np.zeros(0, SAMPLE_DTYPE), [], DecoderStats())
+        return self._decode(len(self._buf) - MAX_FRAME + 1)
+
+    def flush(self) -> BulkResult:
+        """End of input: decode what is held back."""
+        return self._decode(None)
+
+    def _decode(self, limit: int | None) -> BulkResult:
+        result, consumed = _decode_bulk_bytes(self._buf, self.sender, limit, self._before)
+        result.samples["offset"] += self._base
+        result.others = [(off + self._base, f) for off, f in result.others]
+        del self._buf[:consumed]
+        self._base += consumed
+        for k, v in result.stats.as_dict().items():
+            setattr(self.stats, k, getattr(self.stats, k) + v)
+        return result
+
+
+def decode_bulk(data: bytes | bytearray | memoryview, sender: str = "device") -> BulkResult:
+    """Decode a whole capture at once; same frames and counters as streaming + flush
+    (``sender`` as :class:`StreamDecoder`'s).
+
+    ``data``: raw bytes as read from a port, or a whole IMUCAP01 capture file (recognised by
+    its magic; the frames are decoded from the bytes it recorded, ``offset`` counts in those,
+    and a cut-off last record counts as ``bytes_discarded``)."""
+    from host.wire.capture import MAGIC, parse
+
+    cut = 0
+    if bytes(data[: len(MAGIC)]) == MAGIC:
+        cap = parse(bytes(data))
+        data, cut = cap.data, cap.truncated_bytes
+    result, _ = _decode_bulk_bytes(data, sender)
+    result.stats.bytes_discarded += cut
+    return result
+
+
+def _decode_bulk_bytes(
+    data: bytes | bytearray | memoryview,
+    sender: str,
+    limit: int | None = None,
+    before: _Before | None = None,
+) -> tuple[BulkResult, int]:
+    """Decode ``data``; with ``limit``, only the frames starting before it (every such
+    candidate is complete in ``data`` when ``limit <= len(data) - MAX_FRAME + 1``, so they are
+    final whatever follows). ``before``: the counters' state after the preceding bytes.
+    Returns the result (offsets relative to ``data``) and how many bytes it consumed."""
+    lengths = LENGTHS_FROM[sender]
+    buf = np.frombuffer(data, dtype=np.uint8)
+    n = buf.size
+    stats = DecoderStats()
+    if limit is None or limit >= n:
+        limit = n
+    if n < 2:
+        stats.bytes_discarded = limit
+        return BulkResult(np.zeros(0, SAMPLE_DTYPE), [], stats), limit
+    cand = np.flatnonzero((buf[:-1] == SYNC[0]) & (buf[1:] == SYNC[1]))
+    cand = cand[(cand + HEADER_LEN <= n) & (cand < limit)]
+    mtype = buf[cand + 2]
+    length = buf[cand + 3].astype(np.int64)
+    expected = lengths[mtype]
+    ok_len = (length <= MAX_PAYLOAD) & (expected != IMPOSSIBLE)
+    ok_len &= (expected < 0) | (length == expected)
+    end = cand + HEADER_LEN + length + CRC_LEN
+    ok = ok_len & (end <= n)
+    cand, mtype, length, end = cand[ok], mtype[ok], length[ok], end[ok]
+    crc_ok = np.zeros(cand.size, dtype=bool)
+    stored = buf[np.minimum(end - 2, n - 1)].astype(np.uint16) | (
+        buf[np.minimum(end - 1, n - 1)].astype(np.uint16) << 8
+    )
+    # IMU samples, the bulk of any capture: copy each candidate's bytes (plus one pad byte, so
+    # rows have an even width) and check all CRCs from 16-bit words
+    is_imu = (mtype == IMU_SAMPLE) & (length == IMU_LEN)
+    imu_cand = np.flatnonzero(is_imu)
+    imu_rows = np.zeros((0, IMU_FRAME_LEN + 1), dtype=np.uint8)
+    if imu_cand.size:
+        padded = np.zeros(n + 1, dtype=np.uint8)
+        padded[:n] = buf
+        imu_rows = _windows(padded, IMU_FRAME_LEN + 1)[cand[imu_cand]]
+    crc_ok[imu_cand] = _IMU_CRC.rows(imu_rows, 2) == stored[imu_cand]
+    other_cand = np.flatnonzero(~is_imu)
+    for ln in np.unique(length[other_cand]):
+        idx = other_cand[length[other_cand] == ln]
+        rows = _windows(buf, 4 + int(ln))[cand[idx] + 2]
+        crc_ok[idx] = crc16_rows(rows) == stored[idx]
+
+    # choose the frames the sequential scan would consume: a valid frame is taken unless it
+    # starts inside one already taken (rare overlaps are resolved greedily, in order)
+    vs, ve = cand[crc_ok], end[crc_ok]
+    take = np.ones(vs.size, dtype=bool)
+    if vs.size > 1:
+        prev_max_end = np.maximum.accumulate(ve)[:-1]
+        conflict = np.flatnonzero(vs[1:] < prev_max_end) + 1
+        if conflict.size:
+            last_end = 0
+            for i in range(vs.size):  # rare: only when a valid frame sits inside another
+                if vs[i] < last_end:
+                    take[i] = False
+                else:
+                    last_end = int(ve[i])
+    taken = np.flatnonzero(crc_ok)
+    if not take.all():
+        vs, ve, taken = vs[take], ve[take], taken[take]
+    vtype = mtype[taken]
+    # CRC failures are counted only for candidates the scan examines (not inside a taken frame)
+    bad = cand[~crc_ok]
+    if bad.size and not vs.size:
+        stats.crc_errors = int(bad.size)
+    elif bad.size:
+        k = np.searchsorted(vs, bad, side="right") - 1
+        inside = (k >= 0) & (bad < np.where(k >= 0, ve[np.maximum(k, 0)], 0))
+        stats.crc_errors = int(np.count_nonzero(~inside))
+    consumed = max(limit, int(ve[-1])) if ve.size else limit
+    stats.frames = int(vs.size)
+    stats.unknown_types = int(np.count_nonzero(LENGTHS_FROM["any"][vtype] < 0))
+    stats.bytes_discarded = int(consumed - np.sum(ve - vs))
+
+    seq = (buf[vs + 4].astype(np.int64) | (buf[vs + 5].astype(np.int64) << 8)).astype(np.int64)
+    imu_idx = np.flatnonzero(vtype == IMU_SAMPLE)
+    taken_mask = np.zeros(cand.size, dtype=bool)
+    taken_mask[taken] = True
+    imu_taken = taken_mask[imu_cand]
+    wire = (imu_rows if imu_taken.all() else imu_rows[imu_taken]).view(_WIRE_IMU_PADDED)[:, 0]
+    t_us = wire["t_us"].astype(np.int64)
+    segment0 = 0
+    if before is not None and before.last_seq is not None:
+        # the rules see the last frame before these bytes first (as the IMU sample it was
+        # when its segment has a last sample time): its own verdict was counted already
+        prev_imu = before.last_t_us is not None
+        seq = np.concatenate(([before.last_seq], seq))
+        imu_idx = np.concatenate(([0], imu_idx + 1)) if prev_imu else imu_idx + 1
+        if prev_imu:
+            t_us = np.concatenate((np.asarray([before.last_t_us], np.int64), t_us))
+        reset, gaps = segments(seq, imu_idx, t_us)
+        seq, reset, gaps = seq[1:], reset[1:], gaps[1:]
+        imu_idx = imu_idx[1:] - 1 if prev_imu else imu_idx - 1
+        t_us = t_us[1:] if prev_imu else t_us
+    else:
+        reset, gaps = segments(seq, imu_idx, t_us)
+    if before is not None:
+        segment0 = before.segment
+        if seq.size:
+            seg_of = np.cumsum(reset)
+            before.last_seq = int(seq[-1])
+            if imu_idx.size and seg_of[imu_idx[-1]] == seg_of[-1]:
+                before.last_t_us = int(t_us[-1])
+            elif seg_of[-1] > 0:  # a reset after the last sample forgets its time
+                before.last_t_us = None
+            before.segment += int(seg_of[-1])
+    stats.resets = int(np.count_nonzero(reset))
+    stats.lost_frames = int(np.sum(gaps))
+    segment = segment0 + np.cumsum(reset)
+    samples = np.zeros(imu_idx.size, dtype=SAMPLE_DTYPE)
+    for name in ("seq", "t_us", *IMU_FIELDS, "flags"):
+        samples[name] = wire[name]
+    samples["offset"] = vs[imu_idx]
+    samples["segment"] = segment[imu_idx]
+    lost_so_far = np.cumsum(gaps)[imu_idx]
+    samples["lost"] = np.diff(lost_so_far, prepend=0)
+    if before is not None:  # frames lost after the last sample of the bytes before count too
+        after = int(np.sum(gaps)) - (int(lost_so_far[-1]) if imu_idx.size else 0)
+        if imu_idx.size:
+            samples["lost"][0] += before.lost_since_sample
+            before.lost_since_sample = after
+        else:
+            before.lost_since_sample += after
+    others = [
+        (int(vs[i]), Frame(int(vtype[i]), int(seq[i]), bytes(buf[vs[i] + HEADER_LEN : ve[i] - 2])))
+        for i in np.flatnonzero(vtype != IMU_SAMPLE)
+    ]
+    return BulkResult(samples, others, stats), consumed
+
+
+class BulkReader:
+    """Decode a stream of any length in bounded memory at the bulk decoder's speed: iterate
+    to get, per chunk read, the :class:`BulkResult` of the frames now final and each sample's
+    arrival time (ns; None for a raw capture). An IMUCAP01 capture is recognised by its magic
+    and unwrapped (:class:`host.wire.capture.CaptureUnwrapper`). Together the results are
+    :func:`decode_file`'s; :attr:`stats` totals the counters, :attr:`truncated_bytes` is the
+    cut-off last read of a capture (counted in ``bytes_discarded``)."""
+
+    def __init__(self, stream: Readable, chunk: int = 1 << 22, sender: str = "device") -> None:
+        self.stream = stream
+        self.chunk = chunk
+        self.decoder = ChunkedDecoder(sender)
+        self.is_capture = False
+        self.truncated_bytes = 0
+        self._unwrap: CaptureUnwrapper | None = None
+
+    @property
+    def stats(self) -> DecoderStats:
+        return self.decoder.stats
+
+    def __iter__(self) -> Iterator[tuple[BulkResult, np.ndarray | None]]:
+        from host.wire.capture import MAGIC, CaptureUnwrapper
+
+        head = b""
+        while len(head) < len(MAGIC):
+            data = self.stream.read(len(MAGIC) - len(head))
+            if not data:
+                break
+            head += data
+        if head == MAGIC:
+            self.is_capture = True
+            self._unwrap = CaptureUnwrapper(times=True)
+            head = self._unwrap.feed(head)
+        data = head
+        while True:
+            if self._unwrap is not None:
+                data = self._unwrap.feed(data)
+            yield self._result(self.decoder.feed(data))
+            data = self.stream.read(self.chunk)
+            if not data:
+                break
+        if self._unwrap is not None:
+            self.truncated_bytes = self._unwrap.truncated_bytes
+        last = self.decoder.flush()
+        last.stats.bytes_discarded += self.truncated_bytes
+        self.decoder.stats.bytes_discarded += self.truncated_bytes
+        yield self._result(last)
+
+    def _result(self, r: BulkResult) -> tuple[BulkResult, np.ndarray | None]:
+        if self._unwrap is None:
+            return r, None
+        arrivals = self._unwrap.arrival_ns_at(r.samples["offset"] + IMU_FRAME_LEN - 1)
+        self._unwrap.forget_before(self.decoder._base)
+        return r, arrivals
+
+
+# --------------------------------------------------------------------------- physical units
+
+
+def samples_to_physical(
+    samples: np.ndarray, afs_sel: int = 0, fs_sel: int = 0, product_id: int | None = None
+) -> dict:
+    """Raw sample counts -> physical units: ax..az m/s², gx..gz °/s, temp °C (arrays)."""
+    out: dict[str, np.ndarray] = {}
+    for a in ("ax", "ay", "az"):
+        out[a] = sensor.accel_mps2(samples[a], afs_sel, product_id)
+    for g in ("gx", "gy", "gz"):
+        out[g] = sensor.gyro_dps(samples[g], fs_sel)
+    out["temp"] = sensor.temp_c(samples["temp"])
+    return out
+
+
+# --------------------------------------------------------------------------- capture files
+
+
+def full_scale_from_hello(others: list[tuple[int, Frame]]) -> tuple[int, int]:
+    """Full-scale selections from the first HELLO frame whose codes an MPU-6000 has, or the
+    defaults (±2 g, ±250 °/s) without HELLO; UserError when every HELLO is impossible."""
+    bad: tuple[int, int] | None = None
+    for _, f in others:
+        if f.name == "HELLO":
+            afs, fs = f.fields["accel_fs_sel"], f.fields["gyro_fs_sel"]
+            if afs in sensor.ACCEL_LSB_PER_G and fs in sensor.GYRO_LSB_PER_DPS:
+                return afs, fs
+            bad = bad or (afs, fs)
+    if bad is not None:
+        raise UserError(
+            f"the capture's HELLO reports full-scale codes AFS_SEL {bad[0]}, FS_SEL {bad[1]}; "
+            "an MPU-6000 has 0 to 3, so the samples cannot be scaled: the firmware is not "
+            "this project's (decode --stats still counts the frames)"
+        )
+    return 0, 0
+
+
+def product_id_from_hello(others: list[tuple[int, Frame]]) -> int | None:
+    """PRODUCT_ID (the sensor's revision: C4/C5 count half the accelerometer LSB/g) from the
+    first HELLO frame, or None without HELLO (the datasheet's sensitivity then)."""
+    return next((f.fields["product_id"] for _, f in others if f.name == "HELLO"), None)
+
+
+def decode_file(path: Path) -> tuple[BulkResult, np.ndarray | None]:
+    """Decode a raw capture or an IMUCAP01 capture; second value: each sample's arrival ns."""
+    from host.wire import capture
+
+    raw = capture.read_capture_bytes(path)
+    arrivals = None
+    if raw.startswith(capture.MAGIC):
+        cap = capture.parse(raw, source=str(path))
+        if cap.truncated_bytes:
+            print(
+                f"warning: {path}: the last {cap.truncated_bytes} bytes are a cut-off read "
+                "(the recording was interrupted); decoded everything before them",
+                file=sys.stderr,
+            )
+        result = decode_bulk(cap.data)
+        arrivals = cap.arrival_ns_at(result.samples["offset"] + IMU_FRAME_LEN - 1)
+    else:
+        result = decode_bulk(raw)
+    return result, arrivals
+
+
+def baud_from_hello(others: list[tuple[int, Frame]], default: int = 115200) -> int:
+    """The link's baud rate from the first HELLO frame stating one (``others`` as in
+    :attr:`BulkResult.others`), else ``default``, baud."""
+    for _, f in others:
+        if f.name == "HELLO" and f.fields["baud"]:
+            return f.fields["baud"]
+    return default
