@@ -21,7 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from host.bench.linksim import LinkParams, simulate_link  # noqa: E402
-from host.timing import clock  # noqa: E402
+from host.timing import clock, timeline  # noqa: E402
 from host.wire import bulk, capture  # noqa: E402
 
 
@@ -44,7 +44,7 @@ def main() -> None:
         r = bulk.decode_bulk(cap.data)
         arrivals = cap.arrival_ns_at(r.samples["offset"] + 26)
         t0 = time.perf_counter()
-        tl = clock.build_timeline(r.samples, arrivals)
+        tl = timeline.build_timeline(r.samples, arrivals)
         fit_s = time.perf_counter() - t0
         live = clock.LiveClock()
         ser = float(clock.serialisation_ns(27, p.baud))

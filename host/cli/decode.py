@@ -3,8 +3,8 @@
 The input streams through in chunks (:class:`host.wire.bulk.BulkReader`): a capture of any
 size, a FIFO or an endless device decodes in bounded memory, and rows are written as they are
 decoded. The device→host clock map of an IMUCAP01 capture is built as the samples stream in
-(:class:`host.timing.clock.TimelineBuilder`: the same map as
-:func:`host.timing.clock.build_timeline` of the whole file).
+(:class:`host.timing.timeline.TimelineBuilder`: the same map as
+:func:`host.timing.timeline.build_timeline` of the whole file).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from host.timing import clock
+from host.timing import timeline
 from host.wire import capture, sensor
 from host.wire.bulk import (
     SAMPLE_DTYPE,
@@ -47,7 +47,7 @@ def cli_decode(p: argparse.ArgumentParser) -> Any:
     return run_decode
 
 
-def _clock_summary(seg: clock.Segment) -> dict[str, Any]:
+def _clock_summary(seg: timeline.Segment) -> dict[str, Any]:
     """One segment's device-to-host clock map, for --stats."""
     out: dict[str, Any] = {"samples": seg.stop - seg.start, "lost_frames": seg.lost_frames}
     out["missed_samples"] = seg.missed_samples
@@ -90,7 +90,7 @@ class _Decode:
         self.bus_warning: str | None = None
         self.held: list[tuple[np.ndarray, np.ndarray | None]] = []
         self.held_n = 0
-        self.timeline: clock.TimelineBuilder | None = None
+        self.timeline: timeline.TimelineBuilder | None = None
         self.warned_segments = 0
         self.capture = False
         self.writer: Any = None
@@ -125,7 +125,7 @@ class _Decode:
             else (*full_scale_from_hello(self.hellos), product_id_from_hello(self.hellos))
         )
         if self.capture:
-            self.timeline = clock.TimelineBuilder(
+            self.timeline = timeline.TimelineBuilder(
                 baud=baud_from_hello(self.hellos), keep_segments=MAX_LISTED_SEGMENTS
             )
         held, self.held = self.held, []
@@ -190,7 +190,7 @@ class _Decode:
             k = self.timeline.implausible.pop(0)
             print(
                 f"warning: {self.path}: segment {k}: its device times are no board's (more "
-                f"than {clock.MAX_HELD_SAMPLES} samples for one clock window); t_host_ns are "
+                f"than {timeline.MAX_HELD_SAMPLES} samples for one clock window); t_host_ns are "
                 "the arrival times",
                 file=sys.stderr,
             )

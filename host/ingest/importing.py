@@ -468,7 +468,7 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
     only the longest piece is kept (with a note in ``meta``). Without a reset ``meta`` holds
     ``device_clock_s_at_t0``, the device clock (s since power-on) at t = 0: the records then
     carry their power-on time as the dialogue's do."""
-    from host.timing import clock
+    from host.timing.timeline import build_timeline
     from host.wire import sensor
     from host.wire.bulk import (
         baud_from_hello,
@@ -484,7 +484,7 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
     s = result.samples
     if s.size < 2:
         raise ForeignFileError(f"{p}: no IMU samples decoded from this capture")
-    timeline = clock.build_timeline(s, arrivals, baud=baud_from_hello(result.others))
+    timeline = build_timeline(s, arrivals, baud=baud_from_hello(result.others))
     product_id = product_id_from_hello(result.others)
     phys = samples_to_physical(s, *full_scale_from_hello(result.others), product_id)
     meta = {"source": p.name, "importer": "capture", "units": "device counts (HELLO full scale)"}

@@ -19,7 +19,7 @@ import serial
 
 from host.bench.emulator import write_stimulus
 from host.board.link import Link, LinkLost, open_port
-from host.timing import clock
+from host.timing import timeline
 from host.wire.bulk import decode_bulk, decode_file
 from host.wire.frames import IMU_FIELDS
 
@@ -127,7 +127,7 @@ def test_sixty_second_capture_has_an_exact_device_clock(
     result, arrivals = decode_file(cap)
     assert arrivals is not None and result.stats.crc_errors == 0
     s = result.samples
-    tl = clock.build_timeline(s, arrivals)
+    tl = timeline.build_timeline(s, arrivals)
     assert len(tl.segments) == 1
     seg = tl.segments[0]
     assert seg.clock is not None

@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from host.bench.linksim import LinkCapture, LinkParams, simulate_link
-from host.timing import clock
+from host.timing import timeline
 from host.wire import bulk, capture
 from host.wire.bulk import ChunkedDecoder, decode_bulk
 from tests.host.wire.test_frames import BASE, corrupt, imucap
@@ -119,9 +119,9 @@ def test_streaming_timeline_equals_the_whole_capture(
     cap = capture.parse(raw)
     r = decode_bulk(cap.data)
     arr = cap.arrival_ns_at(r.samples["offset"] + 26)
-    whole = clock.build_timeline(r.samples, arr)
+    whole = timeline.build_timeline(r.samples, arr)
     assert len(whole.segments) == 2 and all(s.clock and s.clock.windows > 2 for s in whole.segments)
-    b = clock.TimelineBuilder()
+    b = timeline.TimelineBuilder()
     blocks, i, n, k = [], 0, r.samples.size, 0
     while i < n:
         j = min(n, i + sizes[k % len(sizes)])
@@ -140,7 +140,7 @@ def test_streaming_timeline_is_accurate(two_runs: tuple[LinkCapture, bytes]) -> 
     lc, raw = two_runs
     cap = capture.parse(raw)
     r = decode_bulk(cap.data)
-    tl = clock.build_timeline(r.samples, cap.arrival_ns_at(r.samples["offset"] + 26))
+    tl = timeline.build_timeline(r.samples, cap.arrival_ns_at(r.samples["offset"] + 26))
     for s in tl.segments:
         err = (tl.host_ns - lc.true_host_ns)[s.start : s.stop]
         assert np.sqrt(np.mean((err - err.mean()) ** 2)) < 60_000  # ns
@@ -152,13 +152,13 @@ def test_a_clock_no_board_has_is_given_up_in_bounded_memory(
 ) -> None:
     """Samples 1 µs apart (far denser than any board): the clock of that segment is given
     up once the window holds too many (t_host_ns then falls back to the arrivals)."""
-    monkeypatch.setattr(clock, "MAX_HELD_SAMPLES", 5000)
+    monkeypatch.setattr(timeline, "MAX_HELD_SAMPLES", 5000)
     n = 20_000
     s = np.zeros(n, bulk.SAMPLE_DTYPE)
     s["seq"] = np.arange(n) % 65536
     s["t_us"] = np.arange(n)
     s["offset"] = np.arange(n) * 27
-    b = clock.TimelineBuilder()
+    b = timeline.TimelineBuilder()
     out = []
     for i in range(0, n, 1000):
         out += b.add(s[i : i + 1000], np.arange(i, i + 1000, dtype=np.float64) * 1000)
@@ -203,7 +203,7 @@ def test_decode_output_does_not_depend_on_the_read_size(
         return
     cap = capture.parse(raw)
     r = decode_bulk(cap.data)
-    tl = clock.build_timeline(r.samples, cap.arrival_ns_at(r.samples["offset"] + 26))
+    tl = timeline.build_timeline(r.samples, cap.arrival_ns_at(r.samples["offset"] + 26))
     if fmt == "--csv":
         rows = whole.splitlines()[1:]
         t_host = [int(x.rsplit(",", 1)[1]) for x in rows]
