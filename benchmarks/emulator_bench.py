@@ -25,7 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import serial  # noqa: E402
 
-from host.bench.emulator import EmulatedBoard, build_emulator, build_firmware  # noqa: E402
+from host.bench.build import build_emulator, build_firmware  # noqa: E402
+from host.bench.emulator import EmulatedBoard  # noqa: E402
 from host.errors import UserError  # noqa: E402
 
 PERIOD_CYCLES = 320_000  # 20 ms at 16 MHz

@@ -9,6 +9,10 @@ Beside the stages, not in the data's path: it produces what a real board and ope
   ``sim://`` runs behind its port).
 - ``options`` — the simulator's URL options, one parser for ``sim://`` and ``emu://``.
 - ``linksim`` — USB/UART latency, for the clock estimator.
-- ``emulator`` — the real firmware ELF in simavr against an MPU-6000 model.
+- ``emulator`` — the real firmware ELF in simavr against an MPU-6000 model, and its logs.
+- ``stimulus`` — what the emulated MPU-6000 senses: stimulus files, and the simulator feeding
+  a running emulator.
+- ``build`` — the one firmware build (``make -C firmware``: flashing and the emulator use it)
+  and the emulator's own build, with the toolchain check.
 - ``noise`` — long static recordings with known noise.
 """

@@ -7,6 +7,6 @@ Data in: bytes from a port. Out: timestamped reads and decoded frames, HELLO, me
 - ``hello`` — the one wait for HELLO and the one check of the spec fingerprint.
 - ``driver`` — the board driver (:class:`~host.board.driver.Board`): HELLO, commands, clock
   feeding, acquisition of one measurement on device time, counts to SI units.
-- ``firmware`` — build the firmware hex (make / avr-gcc).
-- ``flash`` — flash it with avrdude through the bootloader and check its HELLO.
+- ``flash`` — flash the firmware (built by :mod:`host.bench.build`) with avrdude through the
+  bootloader, on the port its transport serves, and check its HELLO.
 """

@@ -15,10 +15,11 @@ back); open the port again (the DTR reset: bootloader ≈ 0.8 s, then the firmwa
 HELLO frame: its version must be the one in the hex and its spec fingerprint this host's
 (:data:`host.protocol_gen.SPEC_FINGERPRINT`). Every failure is one line (:class:`UserError`).
 
-For ``emu://`` ports the command starts an emulated board with the bootloader and a persistent
-flash file (``emu://?flash=PATH``, see ``host/transports/protocol_emu.py``), flashes it through
-the emulator's pseudo-terminal with the same avrdude command, checks HELLO and stops it; the
-flash file then holds the new firmware for every later ``emu://?flash=PATH``.
+The port comes from its transport (:func:`host.transports.flashing.flash_port`): a serial
+device as it is; ``emu://?flash=PATH`` serves an emulated board with the bootloader and a
+persistent flash file (``host/transports/protocol_emu.py``) whose pseudo-terminal gets the same
+avrdude command and HELLO check; the flash file then holds the new firmware for every later
+``emu://?flash=PATH``.
 """
 
 from __future__ import annotations
@@ -36,10 +37,11 @@ from typing import Any
 
 import serial
 
-from host.board.firmware import build_firmware_hex
+from host.bench.build import build_firmware_hex
 from host.board.hello import check_spec, wait_for_hello
 from host.board.link import Link, LinkLost, LinkTimeout
 from host.errors import UserError
+from host.transports.flashing import flash_port
 
 DEFAULT_PORT = "/dev/ttyACM0"
 
@@ -370,55 +372,15 @@ def flash(
     what = f"firmware {identity.version}" if identity else "an image without identity block"
     say(f"flashing {path} ({image.nbytes} bytes, {what}) to {port}")
     app_baud = identity.baud if identity else BOOTLOADER_BAUD
-    if port.startswith("emu://"):
-        return _flash_emulated(port, path, image, identity, baud, part, app_baud,
-                               hello_timeout_s, say)  # fmt: skip
-    took = run_avrdude(port, path, baud, part)
-    say(f"written and verified in {took:.2f} s")
-    t0 = time.monotonic()
-    hello = read_hello(port, app_baud, hello_timeout_s)
-    return _finish(path, image, identity, took, time.monotonic() - t0, hello, None, say)
-
-
-def _flash_emulated(
-    url: str,
-    path: Path,
-    image: HexImage,
-    identity: FirmwareIdentity | None,
-    baud: int,
-    part: str,
-    app_baud: int,
-    hello_timeout_s: float,
-    say: Callable[[str], None],
-) -> FlashResult:
-    from host.bench.emulator import EmulatedBoard
-    from host.transports.protocol_emu import parse_url
-
-    try:
-        kw = parse_url(url)
-    except ValueError as exc:
-        raise UserError(str(exc)) from None
-    if not kw.get("flash"):
-        raise UserError(
-            "flashing an emulated board needs a flash file to keep what is flashed: "
-            "--port 'emu://?flash=PATH'"
-        )
-    if shutil.which(AVRDUDE) is None:
+    if shutil.which(AVRDUDE) is None:  # before a transport starts anything
         raise UserError("avrdude not found: apt-get install avrdude")
-    # only the chip matters for flashing: no stimulus, logs or faults from the URL
-    board = EmulatedBoard(flash=kw["flash"], boot=True, workdir=kw.get("workdir"))
-    board.start()
-    try:
-        assert board.port is not None
-        took = run_avrdude(board.port, path, baud, part)
+    with flash_port(port) as target:
+        took = run_avrdude(target.device, path, baud, part)
         say(f"written and verified in {took:.2f} s")
         t0 = time.monotonic()
-        hello = read_hello(board.port, app_baud, hello_timeout_s)
+        hello = read_hello(target.device, app_baud, hello_timeout_s)
         hello_s = time.monotonic() - t0
-    finally:
-        summary = board.stop()
-        board.cleanup()
-    return _finish(path, image, identity, took, hello_s, hello, summary, say)
+    return _finish(path, image, identity, took, hello_s, hello, target.summary, say)
 
 
 def _finish(

@@ -21,7 +21,7 @@ URL grammar (all options optional, ``&``-separated)::
   operator follows the calibration program (``python -m host calibrate --port emu://`` works
   as it does with ``sim://``); ``rest``: at rest, Z up, 25 °C, exactly (no noise, no sensor
   errors; the emulator's own ``noise_*`` options add white noise); a path: a stimulus file
-  (``host.emulator.write_stimulus``).
+  (``host.bench.stimulus.write_stimulus``).
 - ``seed`` (default 0): with ``stimulus=sim`` draws the truth, the room and the noise as in
   ``sim://`` (same seed, same sensor); it also seeds the emulator's ``noise_*``.
 - ``speed`` (``stimulus=sim``): ``max`` (default) — the simulator keeps ahead of the emulator,
@@ -57,24 +57,23 @@ URL grammar (all options optional, ``&``-separated)::
 Opening the port starts the emulator and opens its pseudo-terminal (the open is the DTR reset:
 the AVR starts from reset); closing stops it. After ``close()``, ``port.emulator_summary`` holds
 the emulator's summary (speed, SPI violations, bus conflicts, samples, CPU cycles per sample);
-while open, ``port.board`` is the :class:`host.emulator.EmulatedBoard`.
+while open, ``port.board`` is the :class:`host.bench.emulator.EmulatedBoard`.
 
-Simulator stimulus (``stimulus=sim``): a :class:`host.sim.Simulator` at 1 kHz (the chip's
+Simulator stimulus (``stimulus=sim``): a :class:`host.bench.sim.Simulator` at 1 kHz (the chip's
 internal rate; the emulated chip's samples each take the last record before them) feeds the
-emulator's stimulus pipe through :class:`host.emulator.SimStimulus`, at most ≈ 80 ms of emulated
-time ahead; the emulator waits when the records run dry, so emulated time is gated by what the
-host has fed. ``port.operator_hint("place", name=...)`` / ``("turn", axis=, direction=,
-turns=, window_s=)`` act as in ``sim://`` (:class:`host.sim.CubeOperator`): the motion starts at
-the fed horizon, and the call returns once the emulator has got 30 ms past it — every sample
-sent before the change is then in the port's input, so a measurement that drops what the port
-holds at its start beep sees only the new pose. The emulated time then stands still 35 ms past
-the change until the host next writes to the port or reads from it: in ``--yes`` mode the next
-I/O is the start beep's PING, so the beep, and with it the measurement window, lands at the
-same emulated instant after the hint however slow or loaded the host is (a turn starts
-0.8–1.3 s after the hint: never cut by the window's start); a program that reads the port
-while it waits for a human operator lets the time go on as a real board's would.
-``port.truth`` is the
-:class:`host.sim.SensorTruth`, ``port.sim`` the running simulator, ``port.sim_time`` the
+emulator's stimulus pipe through :class:`host.bench.stimulus.SimStimulus`, at most ≈ 80 ms of
+emulated time ahead; the emulator waits when the records run dry, so emulated time is gated by
+what the host has fed. ``port.operator_hint("place", name=...)`` / ``("turn", axis=, direction=,
+turns=, window_s=)`` act as in ``sim://`` (:class:`host.bench.sim.CubeOperator`): the motion
+starts at the fed horizon, and the call returns once the emulator has got 30 ms past it — every
+sample sent before the change is then in the port's input, so a measurement that drops what the
+port holds at its start beep sees only the new pose. The emulated time then stands still 35 ms
+past the change until the host next writes to the port or reads from it: in ``--yes`` mode the
+next I/O is the start beep's PING, so the beep, and with it the measurement window, lands at the
+same emulated instant after the hint however slow or loaded the host is (a turn starts 0.8–1.3 s
+after the hint: never cut by the window's start); a program that reads the port while it waits
+for a human operator lets the time go on as a real board's would. ``port.truth`` is the
+:class:`host.bench.truth.SensorTruth`, ``port.sim`` the running simulator, ``port.sim_time`` the
 emulated time (s, a lower bound). The clocks are the emulator's: the AVR crystal is exact, the
 MPU sample clock is off by ``clock_ppm``. Re-opening the port (after ``close()``, or when the
 emulator died) starts a new emulator with the same sensor, the cube where it was.
@@ -85,16 +84,17 @@ Needs simavr, libsimavr-dev, gcc-avr and avr-libc; without them ``open()`` raise
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import urllib.parse as urlparse
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from serial.serialposix import Serial as PosixSerial
 from serial.serialutil import SerialException
 
-from host.bench.emulator import FAULTS, STIM_RECORD_HZ, EmulatedBoard, SimStimulus
+from host.bench.emulator import FAULTS, EmulatedBoard
 from host.bench.options import (
     KEYS,
     SAMPLE_CLOCK_MAX,
@@ -104,6 +104,9 @@ from host.bench.options import (
     parse_revision,
 )
 from host.bench.options import parse_sim_options as parse_bench_options
+from host.bench.stimulus import STIM_RECORD_HZ, SimStimulus
+from host.errors import UserError
+from host.transports.flashing import FlashPort
 
 if TYPE_CHECKING:
     from host.bench.physics import Bench, Environment, Motion
@@ -195,6 +198,34 @@ def truth_for_url(url: str) -> SensorTruth | None:
     port is open; None when the stimulus is ``rest`` or a file) — without starting anything."""
     o = parse_sim_options(url)
     return _Bench(o).truth if o is not None else None
+
+
+@contextlib.contextmanager
+def serve_flash(url: str) -> Iterator[FlashPort]:
+    """``emu://?flash=PATH[&workdir=DIR]`` for a flasher (:mod:`host.transports.flashing`): an
+    emulated board booting into its bootloader with the chip's flash kept in PATH; the device
+    is its pseudo-terminal while the ``with`` block runs, then the emulator stops (``summary``:
+    its run) and PATH holds what was flashed. Only the chip matters for flashing: no stimulus,
+    logs or faults from the URL. UserError for a bad URL or no flash file."""
+    try:
+        kw = parse_url(url)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    if not kw.get("flash"):
+        raise UserError(
+            "flashing an emulated board needs a flash file to keep what is flashed: "
+            "--port 'emu://?flash=PATH'"
+        )
+    board = EmulatedBoard(flash=kw["flash"], boot=True, workdir=kw.get("workdir"))
+    board.start()
+    port = FlashPort("")
+    try:
+        assert board.port is not None
+        port.device = board.port
+        yield port
+    finally:
+        port.summary = board.stop()
+        board.cleanup()
 
 
 class _Bench:

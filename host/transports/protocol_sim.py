@@ -50,8 +50,8 @@ turns). Other actions are recorded and ignored. With ``operator=manual`` hints a
 recorded (``port.hints``); drive the cube yourself with ``port.set_motion(...)``.
 ``operator_hint`` returns what the operator did (dict: ``up``, ``fault``, ``start_s``...).
 
-For tests: ``port.truth`` (:class:`host.sim.SensorTruth`), ``port.sim`` (the running
-:class:`host.sim.Simulator`), ``port.sim_time`` (simulated s since the last reset).
+For tests: ``port.truth`` (:class:`host.bench.truth.SensorTruth`), ``port.sim`` (the running
+:class:`host.bench.sim.Simulator`), ``port.sim_time`` (simulated s since the last reset).
 """
 
 from __future__ import annotations

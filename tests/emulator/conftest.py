@@ -10,30 +10,30 @@ from pathlib import Path
 
 import pytest
 
-from host.bench import emulator
+from host.bench import build
 from host.errors import UserError
 
 
 @pytest.fixture(scope="session")
 def emu_toolchain() -> None:
-    problem = emulator.toolchain_problem(need_avr=True)
+    problem = build.toolchain_problem(need_avr=True)
     if problem:
         pytest.skip(problem)
 
 
 @pytest.fixture(scope="session")
 def emu_bin(emu_toolchain) -> Path:
-    return emulator.build_emulator()
+    return build.build_emulator()
 
 
 @pytest.fixture(scope="session")
 def testapp_elfs(emu_toolchain) -> tuple[Path, Path]:
-    return emulator.build_testapp()
+    return build.build_testapp()
 
 
 @pytest.fixture(scope="session")
 def fw_elf(emu_toolchain, tmp_path_factory) -> Path:
     try:
-        return emulator.build_firmware(tmp_path_factory.mktemp("emu-fw"))
+        return build.build_firmware(tmp_path_factory.mktemp("emu-fw"))
     except UserError as exc:
         pytest.fail(f"the real firmware does not build: {exc}")

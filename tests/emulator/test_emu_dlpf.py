@@ -20,7 +20,8 @@ import pytest
 from emu_helpers import collect, of_type
 from test_mutations import MUTANTS, Mutant, build, mutate
 
-from host.bench.emulator import EmulatedBoard, write_stimulus
+from host.bench.emulator import EmulatedBoard
+from host.bench.stimulus import write_stimulus
 from host.wire import sensor
 from host.wire.frames import Frame
 

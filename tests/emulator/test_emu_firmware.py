@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 from emu_helpers import collect, of_type, sample_counts, seq_gaps
 
-from host.bench.emulator import EmulatedBoard, build_firmware, write_stimulus
+from host.bench.build import build_firmware
+from host.bench.emulator import EmulatedBoard
+from host.bench.stimulus import write_stimulus
 from host.wire import sensor
 from host.wire.frames import encode_frame
 from host.wire.protocol_gen import ENUMS

@@ -8,8 +8,9 @@ import pytest
 import serial
 from emu_helpers import collect, of_type, sample_counts, seq_gaps
 
-from host.bench import emulator
-from host.bench.emulator import EmulatedBoard, read_stimulus, write_stimulus
+from host.bench import build
+from host.bench.emulator import EmulatedBoard
+from host.bench.stimulus import read_stimulus, write_stimulus
 from host.errors import UserError
 from host.transports.protocol_emu import parse_url
 from host.wire.frames import encode_frame
@@ -55,9 +56,9 @@ def test_url_grammar():
 
 
 def test_missing_toolchain_is_one_clear_line(monkeypatch):
-    monkeypatch.setattr(emulator, "SIMAVR_HEADER", emulator.Path("/nonexistent/sim_avr.h"))
+    monkeypatch.setattr(build, "SIMAVR_HEADER", build.Path("/nonexistent/sim_avr.h"))
     with pytest.raises(UserError) as err:
-        emulator.build_emulator()
+        build.build_emulator()
     assert str(err.value) == (
         "emu:// needs simavr: apt-get install simavr libsimavr-dev gcc-avr avr-libc"
     )

@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 from emu_helpers import collect, of_type, sample_counts
 
-from host.bench.emulator import EmulatedBoard, write_stimulus
+from host.bench.emulator import EmulatedBoard
+from host.bench.stimulus import write_stimulus
 from host.board.driver import Board
 from host.wire import sensor
 from host.wire.frames import SPI_LOW_CLOCK, bus_meta

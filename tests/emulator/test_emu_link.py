@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import serial
 
-from host.bench.emulator import write_stimulus
+from host.bench.stimulus import write_stimulus
 from host.board.link import Link, LinkLost, open_port
 from host.timing import timeline
 from host.wire.bulk import decode_bulk, decode_file

@@ -1,6 +1,6 @@
 """The live calibration program against the emulated board (the real firmware in simavr), its
 MPU-6000 fed by the physics simulator whose operator follows the program's prompts
-(``emu://``, ``stimulus=sim``: host/transports/protocol_emu.py, host.bench.emulator.SimStimulus).
+(``emu://``, ``stimulus=sim``: host/transports/protocol_emu.py, host.bench.stimulus.SimStimulus).
 
 Truth comparisons use ``effects=linear,noise&earth_rate=0`` as tests/host/dialogue/test_flow.py does
 for ``sim://``: the other effects are outside the linear model of method.md §2. The dialogue

@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 from emu_helpers import collect, of_type, seq_gaps
 
-from host.bench.emulator import EmulatedBoard, build_firmware, write_stimulus
+from host.bench.build import build_firmware
+from host.bench.emulator import EmulatedBoard
+from host.bench.stimulus import write_stimulus
 from host.wire.frames import Frame, encode_frame
 
 pytestmark = pytest.mark.emulator

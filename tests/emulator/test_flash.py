@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from host.bench.emulator import EmulatedBoard, build_firmware
+from host.bench.build import build_firmware, build_firmware_hex
+from host.bench.emulator import EmulatedBoard
 from host.board import flash as fl
-from host.board.firmware import build_firmware_hex
 from host.board.link import open_port
 from host.errors import UserError
 from host.wire.protocol_gen import SPEC_FINGERPRINT

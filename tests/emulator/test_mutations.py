@@ -40,7 +40,8 @@ import numpy as np
 import pytest
 from emu_helpers import collect, of_type, sample_counts
 
-from host.bench.emulator import EmulatedBoard, write_stimulus
+from host.bench.emulator import EmulatedBoard
+from host.bench.stimulus import write_stimulus
 
 ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE = ROOT / "firmware"

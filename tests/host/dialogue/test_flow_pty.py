@@ -32,7 +32,7 @@ LINEAR = "effects=linear,noise&earth_rate=0"
 
 
 def _emu_missing() -> str | None:
-    from host.bench.emulator import toolchain_problem
+    from host.bench.build import toolchain_problem
 
     return toolchain_problem(need_avr=True)
 
