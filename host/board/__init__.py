@@ -6,7 +6,9 @@ Data in: bytes from a port. Out: timestamped reads and decoded frames, HELLO, me
   reads, every byte into a capture, commands out.
 - ``hello`` — the one wait for HELLO and the one check of the spec fingerprint.
 - ``driver`` — the board driver (:class:`~host.board.driver.Board`): HELLO, commands, clock
-  feeding, acquisition of one measurement on device time, counts to SI units.
+  feeding, reconnects, counts to SI units.
+- ``acquisition`` — one measurement on device time: the window cut at the start beep's PONG,
+  losses, resets, a stalled sensor, the operator's Esc.
 - ``flash`` — flash the firmware (built by :mod:`host.bench.build`) with avrdude through the
   bootloader, on the port its transport serves, and check its HELLO.
 """

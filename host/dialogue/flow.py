@@ -48,15 +48,8 @@ from typing import Any
 
 import serial
 
-from host.board.driver import (
-    Acquisition,
-    Board,
-    BoardInfo,
-    BoardReset,
-    MeasurementAborted,
-    SensorFault,
-    default_port,
-)
+from host.board.acquisition import Acquisition, BoardReset, MeasurementAborted, SensorFault
+from host.board.driver import Board, BoardInfo, default_port
 from host.board.link import LinkLost, LinkTimeout
 from host.calib.calibration import stage1
 from host.calib.publish import ComputeSettings, compute_and_write, show_result

@@ -34,7 +34,8 @@ from pathlib import Path
 import numpy as np
 import serial
 
-from host.board.driver import Acquisition, Board, BoardReset, MeasurementAborted, SensorFault
+from host.board.acquisition import Acquisition, BoardReset, MeasurementAborted, SensorFault
+from host.board.driver import Board
 from host.board.link import LinkLost, LinkTimeout
 from host.dialogue.console import Questions
 from host.dialogue.screens import measurement_progress

@@ -22,7 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from host.board.driver import SAMPLE_STALL_S, STALL_S
+from host.board.acquisition import SAMPLE_STALL_S
+from host.board.driver import STALL_S
 from host.errors import UserError
 from host.session.directory import Session, record_path
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, local_gravity

@@ -13,7 +13,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from host.board.driver import Acquisition, BoardInfo
+from host.board.acquisition import Acquisition
+from host.board.driver import BoardInfo
 from host.calib.calibration import Stage1
 from host.dialogue.console import Questions
 from host.session.method import record_stats, trapezoid_integral

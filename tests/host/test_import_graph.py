@@ -85,14 +85,6 @@ def circles(g: dict[str, set[str]]) -> list[list[str]]:
     return out
 
 
-#: package arrows that close a loop today, each with the issue-23 helper removing it; the list
-#: only shrinks (an entry goes when its arrow does, and then the list goes)
-PACKAGE_LOOPS_LEFT: dict[tuple[str, str], str] = {
-    ("host.bench", "host.board"): "stream (the firmware build moves into host.bench)",
-    ("host.wire", "host.timing"): "stream (the counters' wrap rules move down to host.wire)",
-}
-
-
 def package_of(m: str) -> str:
     """``host.calib.result`` -> ``host.calib``; a module of host/ itself is its own package."""
     parts = m.split(".")
@@ -123,10 +115,7 @@ def test_the_package_graph_sees_a_package_loop() -> None:
 
 def test_no_package_imports_a_package_that_imports_it_back() -> None:
     """Packages import downward only: no loop between packages, directly or through others."""
-    pg = package_graph(graph())
-    for a, b in PACKAGE_LOOPS_LEFT:
-        pg.get(a, set()).discard(b)
-    assert circles(pg) == []
+    assert circles(package_graph(graph())) == []
 
 
 def is_command(m: str) -> bool:
@@ -155,18 +144,6 @@ def test_no_import_circles() -> None:
     assert circles(g) == []
 
 
-def package_graph(g: dict[str, set[str]]) -> dict[str, set[str]]:
-    """The module graph folded onto the stage packages (``host.wire.frames`` -> ``host.wire``)."""
-
-    def pkg(m: str) -> str:
-        return ".".join(m.split(".")[:2])
-
-    out: dict[str, set[str]] = {}
-    for m, ts in g.items():
-        out.setdefault(pkg(m), set()).update(pkg(t) for t in ts if pkg(t) != pkg(m))
-    return out
-
-
 #: the port-to-samples packages in their order: each imports only those before it (issue 23)
 PORT_PACKAGES = ("host.wire", "host.timing", "host.bench", "host.transports", "host.board")
 #: upward package arrows still to remove; the set only shrinks
@@ -184,11 +161,6 @@ def test_the_port_packages_import_downward_only() -> None:
         if b in PORT_PACKAGES[i + 1 :]
     )
     assert set(up) == KNOWN_UPWARD
-
-
-def test_package_graph_folds_modules_onto_packages() -> None:
-    g = {"host.a.x": {"host.b.y", "host.a.z"}, "host.a.z": set(), "host.b.y": {"host.errors"}}
-    assert package_graph(g) == {"host.a": {"host.b"}, "host.b": {"host.errors"}}
 
 
 def test_no_arrow_from_a_library_module_to_a_command_module() -> None:

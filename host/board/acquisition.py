@@ -1,0 +1,255 @@
+"""One measurement on device time: the window a board's samples are cut to at the start beep.
+
+At the beep the host sends PING and the board answers PONG with its ``t_us`` at that moment;
+the measurement holds exactly the samples whose device time lies in the window that starts
+there (:func:`acquire`). Frames lost on the link, samples the firmware flagged MISSED, a board
+that restarts (:class:`BoardReset`), a sensor that stops (:class:`SensorFault`) and the
+operator's Esc (:class:`MeasurementAborted`) are told apart. The board it reads from is a
+:class:`host.board.driver.Board` (:class:`FrameSource`: reads, the live clock, warnings).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Protocol
+
+import numpy as np
+
+from host.board.link import Link
+from host.errors import UserError
+from host.wire import protocol_gen as gen
+from host.wire.frames import (
+    IMU_SAMPLE,
+    SENSOR_ERROR_CODES,
+    Frame,
+    error_text,
+    sample_counts,
+    sample_flags,
+    sample_t_us,
+)
+from host.wire.segments import seq_step, seq_went_back, t_us_step, t_us_went_back
+
+#: no IMU sample for this long during a measurement, whatever other frames arrive (STATUS,
+#: ERROR), is a stalled board: the measurement stops (:class:`SensorFault`), s
+SAMPLE_STALL_S = 5.0
+#: how long the start beep waits for the board's PONG (its device time) before cutting the
+#: window at the newest sample instead, s
+PONG_TIMEOUT_S = 1.0
+MISSED = gen.ENUMS["sample_flags"]["MISSED"]
+
+
+class BoardReset(Exception):
+    """The board restarted during a measurement (sequence or device time went back)."""
+
+
+class MeasurementAborted(Exception):
+    """The operator pressed Esc during a measurement."""
+
+
+class SensorFault(UserError):
+    """The board's sensor stopped during a measurement: the board sent a sensor ERROR frame
+    (the message carries its reason), or no IMU sample came for ``sample_stall_s`` while the
+    board kept talking (STATUS, ERROR). Reconnecting does not help; the sensor needs a look."""
+
+
+@dataclass
+class Acquisition:
+    """The samples of one measurement, raw, with its bookkeeping."""
+
+    t_us: np.ndarray  # (N,) int64 µs since the first sample (device clock, unwrapped)
+    counts: np.ndarray  # (N, 7) int counts: ax, ay, az, temp, gx, gy, gz
+    start_t_us: int  # device t_us (raw, 32-bit) of the first sample
+    beep_ns: int  # host monotonic ns of the start beep
+    first_ns: int  # host monotonic ns of the read that brought the first sample
+    start_time: str  # wall clock of the start beep, ISO
+    lost_frames: int  # sequence gaps during the measurement
+    missed: int  # samples flagged MISSED by the firmware
+    crc_errors: int  # CRC failures the decoder saw during the measurement
+    beep_t_us: int = 0  # device t_us (raw, 32-bit) at the start beep: the window's start
+    status_flags: int | None = None  # newest STATUS.flags by the window's end (None: no STATUS)
+
+    @property
+    def lost(self) -> int:
+        return self.lost_frames + self.missed
+
+    @property
+    def loss_fraction(self) -> float:
+        n = len(self.t_us) + self.lost
+        return self.lost / n if n else 0.0
+
+
+class FrameSource(Protocol):
+    """What a measurement reads from: a connected :class:`host.board.driver.Board`."""
+
+    link: Link | None
+    sample_stall_s: float
+    status_flags: int | None  # newest STATUS.flags since HELLO (None: none yet)
+
+    def read_frames(self) -> list[tuple[int, Frame]]:
+        """One read of the port: (host ns of the read, frame) for each frame it completed."""
+        ...
+
+    def report_frame(self, f: Frame) -> None:
+        """A frame that is no sample (ERROR, HELLO): warn, accept a new HELLO."""
+        ...
+
+
+def acquire(
+    board: FrameSource,
+    rate_hz: float,
+    nonce: int,
+    duration_s: float,
+    tick: Callable[[float, np.ndarray, int], None] | None = None,
+    check_escape: Callable[[], bool] | None = None,
+    tick_every_s: float = 0.1,
+) -> Acquisition:
+    """Record ``duration_s`` seconds of device time from now (the start beep) from ``board``
+    (nominal ``rate_hz``, Hz), its PING carrying ``nonce``.
+
+    The window is cut on device time, not on what a read happens to return: at the beep
+    the host sends PING and the board answers PONG with its ``t_us`` at that moment; the
+    measurement holds exactly the samples whose device time lies in
+    ``[PONG t_us, PONG t_us + duration)`` — samples still in flight from before the beep
+    (in the USB/pty buffers, however the reads are chunked and however late the host
+    is) are dropped by their time stamp. A board that does not answer within
+    :data:`PONG_TIMEOUT_S` gets the window from the newest sample seen at that moment.
+    ``tick(elapsed_s, sums_of_counts(7), n)`` is called about every ``tick_every_s``
+    (host time); ``check_escape()`` True -> MeasurementAborted. Raises LinkLost /
+    LinkTimeout / BoardReset; nothing is kept then. A sensor ERROR frame, or no IMU sample
+    for ``sample_stall_s`` (host time) whatever else arrives, raises :class:`SensorFault`:
+    the measurement always ends.
+    """
+    link = board.link
+    assert link is not None
+    beep_ns = time.monotonic_ns()
+    start_time = datetime.now().astimezone().isoformat(timespec="milliseconds")
+    link.send("PING", nonce=nonce)
+    crc0 = link.decoder.stats.crc_errors
+    duration_us = int(round(duration_s * 1e6))
+    period_us = 1e6 / rate_hz
+    t0: int | None = None  # device t_us of the beep (raw, 32-bit)
+    newest_t: int | None = None  # newest sample time seen since the beep (fallback t0)
+    held: list[tuple[int, Frame]] = []  # frames read before t0 was known
+    t_raw: list[int] = []
+    el: list[int] = []
+    rows: list[tuple[int, ...]] = []
+    sums = np.zeros(7, dtype=np.int64)
+    st = {"first_ns": 0, "last_seq": -1, "last_rel": -1, "lost": 0, "missed": 0}
+    next_tick = last_sample = time.monotonic()
+    ping_deadline = next_tick + PONG_TIMEOUT_S
+    last_error: Frame | None = None
+
+    def take(arrival_ns: int, f: Frame) -> bool:
+        """One frame of the window's stream (t0 known); True once the window is over."""
+        assert t0 is not None
+        gap = 0
+        if st["last_seq"] >= 0:
+            d = int(seq_step(st["last_seq"], f.seq))
+            if seq_went_back(d):
+                raise BoardReset("the board restarted during the measurement")
+            gap = d - 1
+        st["last_seq"] = f.seq
+        if f.type != IMU_SAMPLE:
+            board.report_frame(f)
+            if rows:
+                st["lost"] += gap
+            return False
+        p = f.payload
+        t_us = sample_t_us(p)
+        rel = int(t_us_step(t0, t_us))
+        if t_us_went_back(rel):  # sampled before the beep: not part of the measurement
+            if rows:
+                raise BoardReset("the board's clock went back during the measurement")
+            return False
+        if rel >= duration_us:
+            return True
+        if rows:
+            if rel < st["last_rel"]:
+                raise BoardReset("the board's clock went back during the measurement")
+            st["lost"] += gap
+        else:  # frames lost between the beep and the first sample of the window
+            st["first_ns"] = arrival_ns
+            st["lost"] += min(gap, int(rel // period_us))
+        st["last_rel"] = rel
+        counts = sample_counts(p)
+        if sample_flags(p) & MISSED:
+            st["missed"] += 1
+        t_raw.append(t_us)
+        el.append(rel)
+        rows.append(counts)
+        sums[:] += counts
+        return False
+
+    def take_held() -> bool:
+        nonlocal held
+        batch, held = held, []
+        for a_ns, g in batch:
+            if take(a_ns, g):
+                return True
+        return False
+
+    done = False
+    while not done:
+        batch = board.read_frames()
+        if any(f.type == IMU_SAMPLE for _, f in batch):
+            last_sample = time.monotonic()
+        for arrival_ns, f in batch:
+            if f.name == "HELLO":
+                raise BoardReset("the board restarted during the measurement")
+            if f.name == "ERROR" and f.fields["code"] in SENSOR_ERROR_CODES:
+                raise SensorFault(
+                    f"the board reports {error_text(f)}: its sensor stopped; check the "
+                    "IMU and its wiring, then power-cycle the board"
+                )
+            if f.name == "ERROR":
+                last_error = f
+            if t0 is None:
+                if f.name == "PONG" and f.fields["nonce"] == nonce:
+                    t0 = f.fields["t_us"]
+                elif f.type == IMU_SAMPLE:
+                    newest_t = sample_t_us(f.payload)
+                held.append((arrival_ns, f))
+                if t0 is not None and take_held():
+                    done = True
+                    break
+                continue
+            if take(arrival_ns, f):
+                done = True
+                break
+        now = time.monotonic()
+        if t0 is None and now >= ping_deadline and newest_t is not None:
+            # no PONG (an older firmware?): the window starts after the newest sample
+            t0 = int(t_us_step(-1, newest_t))  # the µs after it, modulo the wrap
+            done = take_held()
+        if now - last_sample > board.sample_stall_s and not done:
+            raise SensorFault(
+                f"no samples from the board for {board.sample_stall_s:g} s"
+                + (f" (last: {error_text(last_error)})" if last_error else "")
+                + " although it still answers: the sensor has stalled; check the IMU, "
+                "then power-cycle the board"
+            )
+        if now >= next_tick:
+            next_tick = now + tick_every_s
+            if check_escape is not None and check_escape():
+                raise MeasurementAborted()
+            if tick is not None:
+                tick((el[-1] if el else 0) / 1e6, sums, len(rows))
+    if tick is not None:
+        tick(duration_s, sums, len(rows))
+    first = el[0] if el else 0
+    return Acquisition(
+        t_us=np.asarray(el, dtype=np.int64) - first,
+        counts=np.asarray(rows, dtype=np.int64).reshape(-1, 7),
+        start_t_us=t_raw[0] if t_raw else 0,
+        beep_ns=beep_ns,
+        first_ns=st["first_ns"],
+        start_time=start_time,
+        lost_frames=st["lost"],
+        missed=st["missed"],
+        crc_errors=link.decoder.stats.crc_errors - crc0,
+        beep_t_us=t0 if t0 is not None else 0,
+        status_flags=board.status_flags,
+    )
