@@ -20,7 +20,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from host.bench.sim import Plan, SensorTruth, simulate_session
+from host.bench.plan import Plan, simulate_session
+from host.bench.truth import SensorTruth
 from host.model.catalogue import CATALOGUE
 from host.model.dataset import build_dataset, load_dataset
 from host.model.dataset import session_from_records as as_session

@@ -12,7 +12,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
+from host.bench.plan import Plan, simulate_session, write_session
+from host.bench.truth import SensorTruth
 
 
 def main(repeats: int = 5) -> None:

@@ -4,7 +4,9 @@ Beside the stages, not in the data's path: it produces what a real board and ope
 
 - ``truth`` — every sensor error term, and the sensor model.
 - ``physics`` — the cube, hand turns, gravity, Earth rate, room, clocks.
-- ``sim`` — the simulator: poses, turns, the virtual operator, records, frame streams.
+- ``sim`` — the simulator: a running sensor, hand turns, motion schedules, frame streams.
+- ``operator`` — the virtual operator: carries out the program's hints (place, turn), faults.
+- ``plan`` — simulated sessions: a plan of records, simulated as the program records them.
 - ``firmware`` — the virtual firmware: host command bytes in, device frame bytes out (what
   ``sim://`` runs behind its port).
 - ``options`` — the simulator's URL options, one parser for ``sim://`` and ``emu://``.

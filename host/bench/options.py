@@ -83,7 +83,7 @@ class SimOptions:
     latitude_deg: float = 55.75
     tilt_deg: float = 0.0
     earth_rate: bool = True
-    operator_faults: tuple[tuple[str, float], ...] = ()  # (name, K) for sim.CubeOperator
+    operator_faults: tuple[tuple[str, float], ...] = ()  # (name, K) for operator.CubeOperator
     chamber: tuple[tuple[str, float], ...] = ()  # Environment chamber fields (parse_chamber)
     cable_pull_s: float | None = None  # sim:// only: fault=pull_cable@S
     product_id: int = DEFAULT_PRODUCT_ID  # the chip's PRODUCT_ID (revision=)
@@ -143,7 +143,7 @@ def parse_sim_options(
     ``speed_default``: ``realtime`` or ``max``. ``fault_is_operator``: ``fault=`` is the old
     spelling of ``operator_fault=`` plus the cable fault (``sim://``).
     """
-    from host.bench.sim import OPERATOR_FAULTS
+    from host.bench.operator import OPERATOR_FAULTS
 
     def one(key: str, default: str) -> str:
         return opts.get(key, [default])[-1]

@@ -2,33 +2,31 @@
 
 Layers (all numpy):
 
-- :mod:`host.sim_truth` — :class:`SensorTruth` (every error term, report names) and the model.
-- :mod:`host.sim_physics` — attitude of the cube, hand turns, gravity/Earth rate, room, clocks.
+- :mod:`host.bench.truth` — :class:`SensorTruth` (every error term, report names) and the model.
+- :mod:`host.bench.physics` — attitude of the cube, hand turns, gravity/Earth rate, room, clocks.
 - this module — :class:`Simulator` (a running sensor: samples -> counts, as the board sends
-  them), :class:`Plan` and :func:`simulate_session` (record objects exactly as the calibration
-  program writes them, fast path for tests), :func:`write_session`, frame streams
-  (:func:`imu_frames`) and the truth time series for the emulated board (:func:`truth_series`).
+  them), the hand-turn and rate-table motions, motion schedules (:func:`simulate_scenario`),
+  frame streams (:func:`imu_frames`) and the truth time series for the emulated board
+  (:func:`truth_series`).
+- :mod:`host.bench.operator` — the virtual operator who carries out the program's hints.
+- :mod:`host.bench.plan` — :class:`~host.bench.plan.Plan` and
+  :func:`~host.bench.plan.simulate_session` (record objects exactly as the calibration program
+  writes them, fast path for tests), :func:`~host.bench.plan.write_session`.
 
 Output chain per sample: true specific force / rate (body frame) -> error model -> quantise to
-the LSB via :mod:`host.sensor` (±2 g, ±250 °/s) with saturation at full scale -> int16 counts;
-records hold the counts converted back exactly as the host converts them.
+the LSB via :mod:`host.wire.sensor` (±2 g, ±250 °/s) with saturation at full scale -> int16
+counts; records hold the counts converted back exactly as the host converts them.
 
 Timing: the sensor samples at ``rate_hz·(1 + Environment.sample_clock_error)`` true Hz; the
 device time stamp is the MCU µs timer (``Environment.device_us``). Times ``t_s`` are true
 seconds since the board's reset (device clock zero); the chip's warm-up and drift run on
 ``t_s + Simulator.power_on_s`` (a reset does not cool the chip).
-
-Length (over 600 lines): the simulated sensor, the plan, the virtual operator who carries the plan
-out and the frame stream all run on the plan's one time line; split, each would re-derive it.
 """
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -46,29 +44,8 @@ from host.bench.physics import (
 )
 from host.bench.truth import SensorTruth, gauss_markov, sensor_output
 from host.model.geometry import pose_from_up
-from host.session.directory import record_path, write_record
-from host.session.records import STATIC_NAMES, Record, turn_window_s
 from host.wire import sensor
 from host.wire.protocol_gen import ENUMS
-
-__all__ = [
-    "Bench",
-    "CubeOperator",
-    "Environment",
-    "Plan",
-    "RecordSpec",
-    "SampleBlock",
-    "SensorTruth",
-    "Simulator",
-    "TruthSeries",
-    "imu_frames",
-    "simulate_scenario",
-    "simulate_session",
-    "tilted_45",
-    "truth_series",
-    "turn_motion",
-    "write_session",
-]
 
 #: flag bit of IMU_SAMPLE (spec enum sample_flags)
 CONFIG_CHANGED = ENUMS["sample_flags"]["CONFIG_CHANGED"]
@@ -142,7 +119,7 @@ def quantise(
 class Simulator:
     """A powered sensor on the bench, producing samples in time order.
 
-    The cube's motion is a schedule of :class:`~host.sim_physics.Motion` objects, each in
+    The cube's motion is a schedule of :class:`~host.bench.physics.Motion` objects, each in
     force from its start time (:meth:`set_motion`). :meth:`run_until` returns every sample
     before a time, :meth:`skip_until` advances without output (the bias random process is
     propagated exactly over the gap). Same seed and same calls -> same output.
@@ -328,263 +305,12 @@ def rate_table_motion(up_body: np.ndarray | str, rate_dps: float, t0_s: float) -
     return ConstantRateMotion(attitude, rate_dps=rate_dps, start_s=t0_s)
 
 
-# --------------------------------------------------------------------------- the operator
-#: operator faults a virtual bench can play on purpose (``fault=NAME@K``: the K-th hint)
-OPERATOR_FAULTS = ("wrong_face", "incomplete_turn", "too_fast")
-#: peak rate of a ``too_fast`` turn, °/s (the gyro saturates at ±250 °/s)
-TOO_FAST_PEAK_DPS = 320.0
-#: fraction of the turns asked that an ``incomplete_turn`` makes
-INCOMPLETE_FRACTION = 0.8
-_NEXT_AXIS = {"x": "y", "y": "z", "z": "x"}
-
-
-class CubeOperator:
-    """The virtual operator of a simulated bench: follows the calibration program's hints by
-    scheduling the cube's motion on a :class:`Simulator` (used by ``sim://`` and ``emu://``).
-
-    ``place`` (``name="x_up"`` or ``up=[...]``): the cube rests with that face up from ``now``.
-    ``turn`` (``axis``, ``direction`` ccw|cw, ``turns``, ``window_s``): from ``now`` (the start
-    beep) the cube is ``axis`` up and turned by hand, starting 0.8–1.3 s later and stopping
-    0.8–1.5 s before the window ends (:func:`turn_motion`). Other actions are ignored.
-    ``faults`` maps :data:`OPERATOR_FAULTS` names to K: the K-th ``place`` puts the next axis
-    up (``wrong_face``), the K-th ``turn`` stops at 0.8 of the turns (``incomplete_turn``) or
-    peaks at 320 °/s (``too_fast``). ``rng`` draws the hand motions.
-    """
-
-    def __init__(
-        self,
-        rng: np.random.Generator,
-        bench: Bench | None = None,
-        faults: dict[str, float] | None = None,
-    ) -> None:
-        self.rng = rng
-        self.bench = bench or Bench()
-        self.faults = {k: v for k, v in (faults or {}).items() if k in OPERATOR_FAULTS}
-        self.places = 0
-        self.turns = 0
-
-    def hint(self, sim: Simulator, now: float, action: str, **kw: Any) -> dict[str, Any]:
-        """Act on one hint at simulated time ``now`` (s); -> what the operator did (dict:
-        ``action``, ``done``, ``up``, ``fault``, ``start_s``...)."""
-        if action == "place":
-            return self.place(sim, now, **kw)
-        if action == "turn":
-            return self.turn(sim, now, **kw)
-        return {"action": action, "done": False}
-
-    def place(self, sim: Simulator, now: float, **kw: Any) -> dict[str, Any]:
-        """Put the cube at rest with a face (``name``) or a body vector (``up``) up."""
-        self.places += 1
-        fault = None
-        if "up" in kw:
-            up = np.asarray(kw["up"], dtype=float)
-        else:
-            name = str(kw.get("name", "z_up"))
-            if self.faults.get("wrong_face") == self.places:
-                axis, _, side = name.partition("_")
-                name = f"{_NEXT_AXIS[axis]}_{side}"
-                fault = "wrong_face"
-            up = up_vector(name)
-        sim.set_motion(static_motion(up), now)
-        return {"action": "place", "done": True, "up": up.tolist(), "fault": fault, "start_s": now}
-
-    def turn(self, sim: Simulator, now: float, **kw: Any) -> dict[str, Any]:
-        """Turn the cube by hand about ``axis`` (up) within ``window_s`` from ``now``."""
-        self.turns += 1
-        axis = str(kw.get("axis", "z"))
-        direction = str(kw.get("direction", "ccw")).lower()
-        turns = int(kw.get("turns", 1))
-        window = float(kw.get("window_s", turn_window_s(turns)))
-        fault = None
-        fraction, peak = 1.0, None
-        if self.faults.get("incomplete_turn") == self.turns:
-            fraction, fault = INCOMPLETE_FRACTION, "incomplete_turn"
-        if self.faults.get("too_fast") == self.turns:
-            peak, fault = TOO_FAST_PEAK_DPS, "too_fast"
-        sign = 1 if direction == "ccw" else -1
-        motion = turn_motion(
-            self.rng, f"{axis}_up", now, window, turns, sign, self.bench.wobble_deg, fraction, peak
-        )
-        # after the turn the cube rests where it stopped (a whole turn: back at the ruler)
-        sim.set_motion(motion, now)
-        return {
-            "action": "turn",
-            "done": True,
-            "up": up_vector(f"{axis}_up").tolist(),
-            "fault": fault,
-            "start_s": motion.profile.start,
-            "end_s": motion.profile.end,
-            "angle_deg": motion.profile.angle_deg,
-        }
-
-
+# --------------------------------------------------------------------------- the cube at rest
 def resting_pose(sim: Simulator, t_s: float) -> Motion:
     """The cube's attitude at ``t_s`` as a motion at rest (it stays where it is when the board
     restarts)."""
     r, _ = sim.motion_at(t_s).kinematics(np.array([t_s]))
     return Motion(tuple(tuple(float(x) for x in row) for row in r[0]))
-
-
-# --------------------------------------------------------------------------- sessions
-def tilted_45() -> tuple[tuple[str, tuple[float, float, float]], ...]:
-    """The 12 attitudes with an edge of the cube up (two axes at 45° to the vertical):
-    names ``tilt_45_1`` … ``tilt_45_12`` and body up vectors."""
-    out = []
-    h = float(np.sqrt(0.5))
-    k = 0
-    for a, b in ((0, 1), (0, 2), (1, 2)):
-        for sa in (1, -1):
-            for sb in (1, -1):
-                v = [0.0, 0.0, 0.0]
-                v[a], v[b] = sa * h, sb * h
-                k += 1
-                out.append((f"tilt_45_{k}", (v[0], v[1], v[2])))
-    return tuple(out)
-
-
-@dataclass(frozen=True)
-class RecordSpec:
-    """One record of a plan: what the cube does between the two beeps."""
-
-    name: str
-    kind: str  # "static" | "turn" | "rate"
-    duration_s: float
-    up: tuple[float, float, float]
-    turns: int = 0
-    direction: int = 0  # +1 ccw, -1 cw
-    rate_dps: float = 0.0
-
-
-@dataclass(frozen=True)
-class Plan:
-    """What a simulated session measures.
-
-    Static records of ``static_s`` s for ``statics``; for each of ``turn_axes`` a ccw and a cw
-    record of ``turns`` turns in the fixed window (7/12/15 s); optional ``tilted`` static
-    attitudes (name, body up vector; see :func:`tilted_45`) and ``rate_table`` records
-    (axis, rate °/s) of ``rate_table_s`` s. The first record starts after ``warmup_s`` s of
-    power; ``gap_s`` s of handling between records. ``environment`` None: drawn from the seed.
-    """
-
-    static_s: float = 30.0
-    turns: int = 2
-    statics: tuple[str, ...] = STATIC_NAMES
-    turn_axes: tuple[str, ...] = ("x", "y", "z")
-    tilted: tuple[tuple[str, tuple[float, float, float]], ...] = ()
-    rate_table: tuple[tuple[str, float], ...] = ()
-    rate_table_s: float = 10.0
-    warmup_s: float = 600.0
-    gap_s: float = 20.0
-    window_s: float | None = None
-    bench: Bench = field(default_factory=Bench)
-    environment: Environment | None = None
-    rate_hz: float = 50.0
-
-    def specs(self) -> list[RecordSpec]:
-        """The records in measuring order."""
-        out = []
-        for name in self.statics:
-            out.append(RecordSpec(name, "static", self.static_s, _t3(up_vector(name))))
-        for name, up in self.tilted:
-            out.append(RecordSpec(name, "static", self.static_s, _t3(np.asarray(up))))
-        window = self.window_s or turn_window_s(self.turns)
-        for axis in self.turn_axes:
-            for d, sfx in ((1, "ccw"), (-1, "cw")):
-                up = _t3(up_vector(f"{axis}_up"))
-                out.append(RecordSpec(f"{axis}_{sfx}", "turn", window, up, self.turns, d))
-        for axis, rate in self.rate_table:
-            name = f"rate_{axis}_{'p' if rate >= 0 else 'm'}{abs(rate):g}"
-            up = _t3(up_vector(f"{axis}_up"))
-            out.append(RecordSpec(name, "rate", self.rate_table_s, up, rate_dps=rate))
-        return out
-
-
-def _t3(v: np.ndarray) -> tuple[float, float, float]:
-    v = np.asarray(v, dtype=float)
-    return (float(v[0]), float(v[1]), float(v[2]))
-
-
-def format_up(up: np.ndarray | Sequence[float]) -> str:
-    """Up vector for record meta: '+x' for an axis, else '[0.7071, 0, 0.7071]'."""
-    v = np.asarray(up, dtype=float)
-    k = int(np.argmax(np.abs(v)))
-    if abs(abs(v[k]) - 1.0) < 1e-12:
-        return ("+" if v[k] > 0 else "-") + "xyz"[k]
-    return "[" + ", ".join(f"{x:.6g}" for x in v) + "]"
-
-
-def simulate_session(
-    truth: SensorTruth, plan: Plan | None = None, seed: int = 0
-) -> dict[str, Record]:
-    """Simulate every record of ``plan`` (default: 6 × 30 s statics + 6 turns of 2) as the
-    calibration program would record them: ``t_ms`` ms since the start beep (device clock),
-    accel m/s², gyro °/s, temp °C from the counts; meta ``kind``/``up``/``turns``/… ."""
-    plan = plan or Plan()
-    env_ss, motion_ss, sensor_ss = np.random.SeedSequence(seed).spawn(3)
-    env = plan.environment or Environment.random(np.random.default_rng(env_ss))
-    sim = Simulator(truth, plan.bench, env, sensor_ss, plan.rate_hz)
-    motion_rng = np.random.default_rng(motion_ss)
-    records: dict[str, Record] = {}
-    t = plan.warmup_s
-    for spec in plan.specs():
-        up = np.asarray(spec.up)
-        meta = {
-            "kind": spec.kind,
-            "up": format_up(up),
-            "source": "sim",
-            "sim_seed": str(seed),
-            "power_on_s": f"{t:.3f}",
-            "session_s": f"{t - plan.warmup_s:.3f}",
-        }
-        if spec.kind == "turn":
-            motion: Motion = turn_motion(
-                motion_rng,
-                up,
-                t,
-                spec.duration_s,
-                spec.turns,
-                spec.direction,
-                plan.bench.wobble_deg,
-            )
-            meta.update(
-                turns=str(spec.turns),
-                direction="ccw" if spec.direction > 0 else "cw",
-                window_s=f"{spec.duration_s:g}",
-            )
-        elif spec.kind == "rate":
-            motion = rate_table_motion(up, spec.rate_dps, t)
-            meta.update(rate_dps=f"{spec.rate_dps:g}", rate_axis=format_up(up))
-        else:
-            motion = static_motion(up)
-        sim.skip_until(t)
-        sim.set_motion(motion, t)
-        block = sim.run_until(t + spec.duration_s)
-        beep_us = int(env.device_us(np.array([t]))[0])
-        records[spec.name] = Record(
-            name=spec.name,
-            t_ms=(block.t_us - beep_us) / 1000.0,
-            accel=block.accel,
-            gyro=block.gyro,
-            temp=block.temp,
-            meta=meta,
-        )
-        t += spec.duration_s + plan.gap_s
-    return records
-
-
-def write_session(
-    out_dir: str | os.PathLike[str], serial: str, records: dict[str, Record]
-) -> list[Path]:
-    """Write each record to ``out_dir/SERIAL_name.txt`` exactly as the calibration program
-    does (:func:`host.records.write_record`); -> the paths written."""
-    Path(out_dir).mkdir(parents=True, exist_ok=True)
-    paths = []
-    for name, rec in records.items():
-        p = record_path(out_dir, serial, name)
-        meta = {"serial": serial, **rec.meta}
-        write_record(p, Record(rec.name, rec.t_ms, rec.accel, rec.gyro, rec.temp, meta))
-        paths.append(p)
-    return paths
 
 
 # --------------------------------------------------------------------------- scenarios
@@ -670,30 +396,3 @@ def truth_series(
     if apply_errors and truth is not None:
         f, w = sensor_output(truth, f, w, temp, t, bench.g)
     return TruthSeries(t, f, w, temp)
-
-
-def simulate_thermal(
-    truth: SensorTruth,
-    environment: Environment,
-    segments: Sequence[tuple[str, str, float]],
-    seed: int = 0,
-    bench: Bench | None = None,
-    rate_hz: float = 50.0,
-) -> dict[str, Record]:
-    """A thermal plan: static records one after another from power-on, each
-    ``(name, face, duration_s)`` (e.g. ``("warmup", "z_up", 600)`` then a chamber ramp) — the
-    cube at rest on ``face`` while ``environment`` (its warm-up, a chamber ramp) moves the chip
-    temperature. Meta: ``kind: static``, ``up``, ``power_on_s``."""
-    bench = bench or Bench()
-    sim = Simulator(truth, bench, environment, seed, rate_hz)
-    out: dict[str, Record] = {}
-    t = 0.0
-    for name, face, duration in segments:
-        up = up_vector(face)
-        sim.set_motion(static_motion(face), t)
-        block = sim.run_until(t + duration)
-        meta = {"kind": "static", "up": format_up(up), "source": "sim", "power_on_s": f"{t:.3f}"}
-        t_ms = (block.t_s - block.t_s[0]) * 1000.0
-        out[name] = Record(name, t_ms, block.accel, block.gyro, block.temp, meta)
-        t += duration
-    return out

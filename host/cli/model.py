@@ -378,7 +378,7 @@ def run_demo(args: argparse.Namespace) -> int:
         case = hidden_effect_case(eff, args.seed, tilted=args.tilted, static_s=args.static_s)
         print(format_case(case))
         if args.out:
-            from host.bench.sim import write_session
+            from host.bench.plan import write_session
 
             out = Path(args.out) / eff
             write_session(out, "DEMO", dict(case.records))

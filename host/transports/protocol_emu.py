@@ -109,8 +109,9 @@ from host.errors import UserError
 from host.transports.flashing import FlashPort
 
 if TYPE_CHECKING:
+    from host.bench.operator import CubeOperator
     from host.bench.physics import Bench, Environment, Motion
-    from host.bench.sim import CubeOperator, Simulator
+    from host.bench.sim import Simulator
     from host.bench.truth import SensorTruth
 
 _FLOAT = ("seconds", "fault_at", "noise_accel", "noise_gyro", "clock_ppm")
@@ -233,8 +234,8 @@ class _Bench:
     operator, and where the cube is."""
 
     def __init__(self, o: SimOptions) -> None:
+        from host.bench.operator import CubeOperator
         from host.bench.physics import static_motion
-        from host.bench.sim import CubeOperator
 
         drawn = o.draw()
         self.noise_ss = drawn.noise_ss

@@ -65,6 +65,7 @@ import numpy as np
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, Timeout
 
 from host.bench.firmware import RESET_EXTERNAL, RESET_POWER_ON, VirtualFirmware
+from host.bench.operator import INCOMPLETE_FRACTION, TOO_FAST_PEAK_DPS, CubeOperator
 from host.bench.options import (
     CABLE_FAULT,
     CLOCK_PPM_MAX,
@@ -74,13 +75,7 @@ from host.bench.options import (
     parse_sim_options,
 )
 from host.bench.physics import Environment, Motion, static_motion
-from host.bench.sim import (
-    INCOMPLETE_FRACTION,
-    TOO_FAST_PEAK_DPS,
-    CubeOperator,
-    Simulator,
-    resting_pose,
-)
+from host.bench.sim import Simulator, resting_pose
 from host.bench.truth import SensorTruth
 from host.errors import BadURLError
 from host.wire.sensor import DEFAULT_PRODUCT_ID

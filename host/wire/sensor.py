@@ -71,7 +71,7 @@ def product_id_of(text: str) -> int:
 
 
 def identity_meta(who_am_i: int | None, product_id: int | None) -> dict[str, str]:
-    """Record header lines naming the sensor (``host.calib.records.SENSOR_KEYS``): WHO_AM_I,
+    """Record header lines naming the sensor (``host.session.records.SENSOR_KEYS``): WHO_AM_I,
     PRODUCT_ID and its revision name; a value the board did not report is left out."""
     out: dict[str, str] = {}
     if who_am_i is not None:

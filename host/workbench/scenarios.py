@@ -76,7 +76,7 @@ def hidden_effect_case(
     one, on an axis chosen by the seed.
     """
     from host.bench.physics import Environment
-    from host.bench.sim import Plan, simulate_session, tilted_45
+    from host.bench.plan import Plan, simulate_session, tilted_45
     from host.bench.truth import SensorTruth
 
     if effect not in EFFECTS:

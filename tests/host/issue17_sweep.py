@@ -68,7 +68,8 @@ def _cap(d: Path, reads: list[tuple[int, bytes]], name: str = "x.cap") -> Path:
 
 
 def _session(d: Path, serial: str = "Q1", turns: int = 1) -> Path:
-    from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
+    from host.bench.plan import Plan, simulate_session, write_session
+    from host.bench.truth import SensorTruth
 
     out = d / serial
     truth = SensorTruth.random(np.random.default_rng(4))

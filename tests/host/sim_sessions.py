@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
+from host.bench.plan import Plan, simulate_session, write_session
+from host.bench.truth import SensorTruth
 
 
 def write_sim_session(

@@ -88,7 +88,7 @@ def test_plot_without_matplotlib_names_a_package_that_exists(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from host.__main__ import main
-    from host.bench.sim import Plan, simulate_session, write_session
+    from host.bench.plan import Plan, simulate_session, write_session
     from host.bench.truth import SensorTruth
 
     recs = simulate_session(SensorTruth.random(np.random.default_rng(1)), Plan(static_s=2.0,
@@ -136,7 +136,7 @@ def test_the_fit_example_gives_the_fit_line_of_model_diagnose(tmp_path: Path) ->
     import json
 
     from host.__main__ import main
-    from host.bench.sim import Plan, simulate_session, write_session
+    from host.bench.plan import Plan, simulate_session, write_session
     from host.bench.truth import SensorTruth
 
     recs = simulate_session(SensorTruth.random(np.random.default_rng(3)), Plan(static_s=3.0,

@@ -1,5 +1,5 @@
 """The bench simulator: determinism, kinematics, and every error term moving the data as its
-physics says (host/sim.py, host/sim_physics.py, host/sim_truth.py)."""
+physics says (host/bench/sim.py, plan.py, physics.py, truth.py)."""
 
 from __future__ import annotations
 
@@ -19,18 +19,15 @@ from host.bench.physics import (
     static_motion,
     vee,
 )
+from host.bench.plan import Plan, simulate_session, tilted_45, write_session
 from host.bench.sim import (
-    Plan,
     SampleBlock,
     Simulator,
     imu_frames,
     rate_table_motion,
     simulate_scenario,
-    simulate_session,
-    tilted_45,
     truth_series,
     turn_motion,
-    write_session,
 )
 from host.bench.truth import CONSTANT_NAMES, EFFECTS, SensorTruth, gauss_markov
 from host.session.directory import read_session

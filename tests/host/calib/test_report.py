@@ -171,7 +171,7 @@ def test_cli_errors_one_line(
 def test_only_records_from_a_real_port_make_an_unmarked_report(tmp_path: Path) -> None:
     # The same records, once from /dev/ttyACM0 and once from emu://: only the second report and
     # JSON carry the SIMULATED BOARD mark, and it names the URL.
-    from host.bench.sim import Plan, simulate_session
+    from host.bench.plan import Plan, simulate_session
     from host.bench.truth import SensorTruth
 
     recs = simulate_session(SensorTruth.random(np.random.default_rng(3)), Plan(turns=1), seed=3)

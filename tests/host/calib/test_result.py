@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from host.__main__ import main
-from host.bench.sim import write_session
+from host.bench.plan import write_session
 from host.calib.applying import apply
 from host.calib.calibration import calibrate_from_records
 from host.calib.result import CalibrationResult

@@ -14,7 +14,7 @@ import pytest
 from host.__main__ import main
 from host.bench.options import parse_chamber
 from host.bench.physics import Environment
-from host.bench.sim import simulate_thermal
+from host.bench.plan import simulate_thermal
 from host.bench.truth import SensorTruth
 from host.calib import thermal, thermal_fit
 from host.session.directory import write_record
@@ -172,7 +172,7 @@ def test_sim_and_emu_urls_take_a_chamber_ramp() -> None:
 def calibrated_with_thermal(ramp, tmp_path_factory) -> tuple:
     """The six statics and six turns after the same warm-up (chip near 31 °C), calibrated from
     their directory, which also holds the unit's SERIAL_thermal.json from the ramp."""
-    from host.bench.sim import Plan, simulate_session, write_session
+    from host.bench.plan import Plan, simulate_session, write_session
 
     d = tmp_path_factory.mktemp("thermal_cal")
     plan = Plan(
@@ -350,7 +350,7 @@ def test_scale_against_temperature_where_the_attitudes_allow() -> None:
 def test_scale_against_temperature_is_carried_by_the_result(tmp_path) -> None:
     """The thermal fit of the flip ramp, given to the calibration of the six attitudes and turns
     (chip near 31 °C): apply() returns ±g along z over 22–70 °C in both attitudes."""
-    from host.bench.sim import Plan, simulate_session, write_session
+    from host.bench.plan import Plan, simulate_session, write_session
     from host.calib.applying import apply
     from host.calib.calibration import calibrate_from_records
     from host.calib.result import CalibrationResult

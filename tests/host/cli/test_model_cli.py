@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from host.__main__ import main
-from host.bench.sim import write_session
+from host.bench.plan import write_session
 from host.workbench.scenarios import hidden_effect_case
 
 

@@ -47,7 +47,8 @@ def options_of(command: str) -> options.DialogueOptions:
 def test_yes_with_resume_needs_no_static_seconds_when_the_statics_are_kept(
     tmp_path: Path,
 ) -> None:
-    from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
+    from host.bench.plan import Plan, simulate_session, write_session
+    from host.bench.truth import SensorTruth
 
     recs = simulate_session(SensorTruth.ideal(), Plan(static_s=2.0, turns=1), seed=1)
     write_session(tmp_path / "F1", "F1", {n: r for n, r in recs.items() if n in STATIC_NAMES})
@@ -160,7 +161,8 @@ def test_a_turn_kept_despite_its_warning_ends_with_the_record_to_redo(tmp_path: 
 
 def test_from_dir_names_the_record_to_redo(tmp_path: Path) -> None:
     from host.__main__ import main
-    from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
+    from host.bench.plan import Plan, simulate_session, write_session
+    from host.bench.truth import SensorTruth
 
     recs = simulate_session(SensorTruth.ideal(), Plan(static_s=2.0, turns=1), seed=4)
     bad = recs["y_ccw"]
@@ -178,7 +180,8 @@ def test_from_dir_names_the_record_to_redo(tmp_path: Path) -> None:
 
 def test_a_record_kept_despite_a_warning_is_in_the_report_with_it(tmp_path: Path) -> None:
     from host.__main__ import main
-    from host.bench.sim import Plan, SensorTruth, simulate_session, write_session
+    from host.bench.plan import Plan, simulate_session, write_session
+    from host.bench.truth import SensorTruth
 
     recs = simulate_session(SensorTruth.random(np.random.default_rng(2)), Plan(static_s=2.0,
                             turns=1), seed=2)  # fmt: skip

@@ -11,8 +11,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from host.__main__ import main
-from host.bench.physics import static_motion
-from host.bench.sim import Bench, Environment, SensorTruth, Simulator, turn_motion
+from host.bench.physics import Bench, Environment, static_motion
+from host.bench.sim import Simulator, turn_motion
+from host.bench.truth import SensorTruth
 from host.calib.calibration import calibrate_from_records
 from host.errors import UserError
 from host.ingest.importing import (

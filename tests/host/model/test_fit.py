@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from host.bench.physics import Environment
-from host.bench.sim import Plan, SensorTruth, simulate_session
+from host.bench.plan import Plan, simulate_session
+from host.bench.truth import SensorTruth
 from host.errors import UserError
 from host.model.catalogue import BASE, CATALOGUE
 from host.model.dataset import build_dataset, session_from_records
@@ -243,7 +244,7 @@ def test_noise_free_records_ask_for_a_floor_instead_of_dividing_by_zero(
     by: ZeroDivisionError traceback. Now one line naming the record and channel, and --floor
     makes the same records fit."""
     from host.__main__ import main
-    from host.bench.sim import write_session
+    from host.bench.plan import write_session
 
     write_session(
         tmp_path, "I1", simulate_session(SensorTruth.ideal(), Plan(static_s=2.0, turns=1), seed=2)

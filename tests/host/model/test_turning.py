@@ -123,7 +123,7 @@ def test_turns_about_one_axis_see_only_the_perpendicular_offset() -> None:
     part), so lever_arm.z is not determined while x and y are."""
     import dataclasses
 
-    from host.bench.sim import Plan, simulate_session
+    from host.bench.plan import Plan, simulate_session
     from host.bench.truth import SensorTruth
 
     rng = np.random.default_rng(11)
