@@ -62,7 +62,8 @@ def truth_errors(url: str, got: dict[str, float]) -> dict[str, tuple[float, str]
 
 def test_simulator_options_of_the_url() -> None:
     """Plain emu:// is simulator-driven; stimulus=rest or a file is not (pure Python)."""
-    from host.transports.protocol_emu import SimOptions, parse_sim_options, parse_url
+    from host.bench.options import SimOptions
+    from host.transports.protocol_emu import parse_sim_options, parse_url
 
     assert parse_sim_options("emu://") == SimOptions()
     o = parse_sim_options("emu://?seed=7&speed=4&truth=ideal&effects=linear,noise&earth_rate=0")
