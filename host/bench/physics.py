@@ -1,6 +1,6 @@
 """Physics of the simulated bench: attitude of the cube, hand turns, gravity, Earth rate, room.
 
-Frames and conventions (used by :mod:`host.sim` and the ``sim://`` board):
+Frames and conventions (used by :mod:`host.bench.sim` and the ``sim://`` board):
 
 - **World** frame: x east, y north, z up (ENU). Gravity is ``-g`` along z, so a resting
   accelerometer measures the specific force ``+g`` along the world up direction.

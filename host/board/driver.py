@@ -198,7 +198,7 @@ class DeferredCapture(CaptureWriter):
 class Board:
     """The connected board: opens the port, checks HELLO, reads frames, survives reconnects.
 
-    ``port_factory(url)`` opens the port (default :func:`host.link.open_port`); re-connecting
+    ``port_factory(url)`` opens the port (default :func:`host.board.link.open_port`); re-connecting
     re-opens the *same* port object (``close()`` + ``open()``), which is what a USB serial
     device needs after it re-appears and what ``sim://`` supports after ``pull_cable``.
     """
@@ -328,7 +328,7 @@ class Board:
 
     def _feed_clock(self, arrival_ns: int, t_us: int) -> None:
         """One sample for the live clock map: unwrapped device µs vs arrival minus the time
-        the UART needed to send the frame (host.clock, eq. 1)."""
+        the UART needed to send the frame (host.timing.clock, eq. 1)."""
         if self._clock_last_t is not None:
             d = int(t_us_step(self._clock_last_t, t_us))
             if t_us_went_back(d):  # the board restarted

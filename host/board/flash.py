@@ -13,7 +13,7 @@ identity block (``"IMUB"``, ``firmware/src/telemetry.cpp``) from the hex; run
 ``avrdude -c wiring -p m2560 -P PORT -b 115200 -D -U flash:w:HEX:i`` (it verifies by reading
 back); open the port again (the DTR reset: bootloader ≈ 0.8 s, then the firmware) and decode the
 HELLO frame: its version must be the one in the hex and its spec fingerprint this host's
-(:data:`host.protocol_gen.SPEC_FINGERPRINT`). Every failure is one line (:class:`UserError`).
+(:data:`host.wire.protocol_gen.SPEC_FINGERPRINT`). Every failure is one line (:class:`UserError`).
 
 The port comes from its transport (:func:`host.transports.flashing.flash_port`): a serial
 device as it is; ``emu://?flash=PATH`` serves an emulated board with the bootloader and a

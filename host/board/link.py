@@ -5,7 +5,7 @@ one module per scheme in ``host/transports/`` (``sim://`` the virtual board, ``e
 emulated board running the real firmware, ``replay://`` a capture played back).
 
 Every read is stamped with the host's monotonic clock right after ``read()`` returns and can be
-appended to an IMUCAP01 capture (``host/capture.py``), so that a session can be decoded again
+appended to an IMUCAP01 capture (``host/wire/capture.py``), so that a session can be decoded again
 and its device-to-host time mapping recomputed offline.
 """
 

@@ -64,7 +64,7 @@ internal rate; the emulated chip's samples each take the last record before them
 emulator's stimulus pipe through :class:`host.bench.stimulus.SimStimulus`, at most ≈ 80 ms of
 emulated time ahead; the emulator waits when the records run dry, so emulated time is gated by
 what the host has fed. ``port.operator_hint("place", name=...)`` / ``("turn", axis=, direction=,
-turns=, window_s=)`` act as in ``sim://`` (:class:`host.bench.sim.CubeOperator`): the motion
+turns=, window_s=)`` act as in ``sim://`` (:class:`host.bench.operator.CubeOperator`): the motion
 starts at the fed horizon, and the call returns once the emulator has got 30 ms past it — every
 sample sent before the change is then in the port's input, so a measurement that drops what the
 port holds at its start beep sees only the new pose. The emulated time then stands still 35 ms

@@ -4,8 +4,9 @@ URL grammar::
 
     replay://PATH[?speed=realtime|max|FACTOR][&loop=0|1]
 
-``PATH`` is a raw byte capture or an IMUCAP01 capture (host/capture.py). With ``speed=realtime``
-(the default) each recorded read is released at its recorded host time relative to the open;
+``PATH`` is a raw byte capture or an IMUCAP01 capture (host/wire/capture.py). With
+``speed=realtime`` (the default) each recorded read is released at its recorded host time
+relative to the open;
 ``FACTOR`` plays faster (2 = twice as fast); ``max`` releases everything at once. Writes are
 accepted and ignored (a capture cannot answer commands). At the end of the capture, reads
 return nothing, like a board that stopped sending (or start again with ``loop=1``).
