@@ -123,7 +123,7 @@ def named_paths(text: str) -> set[str]:
 
 
 def named_modules(text: str) -> set[str]:
-    """Dotted names under ``host.`` in inline code: ``host.wire.frames.decode_file``."""
+    """Dotted names under ``host.`` in inline code: ``host.wire.bulk.decode_file``."""
     out = set()
     for code in re.findall(r"`([^`\n]+)`", FENCE.sub("", text)):
         out.update(re.findall(r"(?<![\w.])(host(?:\.\w+)+)", code))
@@ -151,7 +151,7 @@ def missing_names(text: str, root: Path = ROOT) -> list[str]:
 
 def test_the_name_check_sees_a_moved_module_and_a_lost_name() -> None:
     text = (
-        "see `host/wire/frames.py`, `host/nowhere/x.py`, `host.wire.frames.decode_bulk`, "
+        "see `host/wire/frames.py`, `host/nowhere/x.py`, `host.wire.bulk.decode_bulk`, "
         "`host.wire.frames.no_such_thing`, `host.gone.module`, `tests/host/test_layout.py::t`"
     )
     assert missing_names(text) == [
@@ -162,7 +162,7 @@ def test_the_name_check_sees_a_moved_module_and_a_lost_name() -> None:
 
 
 def test_every_module_and_path_the_docs_name_exists() -> None:
-    """A page that names ``host/timing/clock.py`` or ``host.wire.frames.decode_file`` sends the
+    """A page that names ``host/timing/clock.py`` or ``host.wire.bulk.decode_file`` sends the
     reader to a file that is there and a name it holds (modules move: the pages follow). The
     firmware's pages also name files the user makes (a DMP image), so: the README and docs/."""
     ours = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
