@@ -339,6 +339,6 @@ def load_dataset(
 
 
 def session_from_records(records: Mapping[str, object], serial: str = "SIM") -> Session:
-    """A :class:`Session` of in-memory records (e.g. :func:`host.bench.sim.simulate_session`)."""
+    """A :class:`Session` of in-memory records (e.g. :func:`host.bench.plan.simulate_session`)."""
     recs = {k: v for k, v in records.items() if isinstance(v, Record)}
     return Session(serial=serial, records=recs)
