@@ -110,7 +110,7 @@ class EmulatedBoard:
     first after every reset (≈ 0.8 s, in real time), then the application; ``elf`` (an ``.elf``
     or ``.hex``) is then optional. ``flash`` = a persistent flash image file (implies ``boot``):
     loaded at start if it exists, written back after avrdude programs it and at exit; an ``elf``
-    given as well is programmed over it at start. See ``host/flash.py``.
+    given as well is programmed over it at start. See ``host/board/flash.py``.
     """
 
     def __init__(

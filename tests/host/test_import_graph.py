@@ -5,6 +5,9 @@ one way and the library can be used without the command line (issue 14)."""
 from __future__ import annotations
 
 import ast
+import io
+import re
+import tokenize
 from pathlib import Path
 
 HOST = Path(__file__).resolve().parents[2] / "host"
@@ -190,8 +193,9 @@ def test_every_module_lives_in_a_stage_package() -> None:
 
 
 def test_every_import_of_a_host_module_names_one_that_exists() -> None:
-    """No old names: every ``import host.X`` / ``from host.X import ...`` in host/, lazy ones
-    too, names a module or package of the tree (a moved module leaves no alias behind)."""
+    """No old names: every ``import host.<module>`` / ``from host.<module> import ...`` in
+    host/, lazy ones too, names a module or package of the tree (a moved module leaves no alias
+    behind)."""
     known = set(modules())
     missing = []
     for m, path in modules().items():
@@ -250,3 +254,95 @@ def test_the_documented_import_order_is_the_codes() -> None:
     )
     assert up == [], "reorder docs/layout.md or remove the upward import"
     assert "host.workbench" not in pg["host.calib"] and "host.calib" not in pg["host.workbench"]
+
+
+# --------------------------------------------------------------------------- names in the text
+
+#: a dotted module path in prose: ``host.session.records`` or ``host.board.driver.Board``
+DOTTED_REF = re.compile(r"(?<![\w./-])host(?:\.[A-Za-z_]\w*)+")
+#: a file path in prose: ``host/dialogue/flow.py``
+PATH_REF = re.compile(r"(?<![\w./-])host/[\w/]+\.py\b")
+
+
+def top_level_names(path: Path) -> set[str]:
+    """The names a module defines or imports at its top level."""
+    names: set[str] = set()
+    for node in ast.parse(path.read_text(encoding="utf-8")).body:
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            names.add(node.name)
+        elif isinstance(node, ast.Assign | ast.AnnAssign):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            names |= {n.id for t in targets for n in ast.walk(t) if isinstance(n, ast.Name)}
+        elif isinstance(node, ast.Import | ast.ImportFrom):
+            names |= {(a.asname or a.name).split(".")[0] for a in node.names}
+    return names
+
+
+def dotted_ref_exists(ref: str, mods: dict[str, Path]) -> bool:
+    """``ref`` is a module of the tree, or a module followed by a name it defines (the first
+    name after the module is checked; ``Board.physical`` is taken as ``Board``)."""
+    parts = ref.rstrip(".").split(".")
+    for k in range(len(parts), 0, -1):
+        module = ".".join(parts[:k])
+        if module in mods:
+            return k == len(parts) or parts[k] in top_level_names(mods[module])
+    return False
+
+
+def prose_of(path: Path) -> list[tuple[int, str]]:
+    """Every docstring (and other bare string statement) and every comment, with its line."""
+    src = path.read_text(encoding="utf-8")
+    out = [
+        (node.lineno, node.value.value)
+        for node in ast.walk(ast.parse(src, str(path)))
+        if isinstance(node, ast.Expr)
+        and isinstance(node.value, ast.Constant)
+        and isinstance(node.value.value, str)
+    ]
+    tokens = tokenize.generate_tokens(io.StringIO(src).readline)
+    out += [(t.start[0], t.string) for t in tokens if t.type == tokenize.COMMENT]
+    return out
+
+
+def dangling_references(paths: list[Path], mods: dict[str, Path]) -> list[str]:
+    """``file:line name`` for each module path in the prose of ``paths`` that does not exist."""
+    root = HOST.parent
+    bad = []
+    for path in paths:
+        where = path.relative_to(root) if path.is_relative_to(root) else path
+        for line, text in prose_of(path):
+            bad += [
+                f"{where}:{line} {ref}"
+                for ref in DOTTED_REF.findall(text)
+                if not dotted_ref_exists(ref, mods)
+            ]
+            missing = [ref for ref in PATH_REF.findall(text) if not (root / ref).is_file()]
+            bad += [f"{where}:{line} {ref}" for ref in missing]
+    return bad
+
+
+def test_the_reference_check_tells_a_moved_module_from_a_real_one(tmp_path: Path) -> None:
+    mods = modules()
+    assert dotted_ref_exists("host.session.records.Record", mods)
+    assert dotted_ref_exists("host.board.driver", mods)
+    assert dotted_ref_exists("host.dialogue.flow.run_dialogue", mods)
+    assert not dotted_ref_exists("host.calibration", mods)  # an old flat name
+    assert not dotted_ref_exists("host.dialogue.live", mods)  # a module split away
+    assert not dotted_ref_exists("host.dialogue.flow.run_live_session", mods)  # an old alias
+    probe = tmp_path / "probe.py"
+    probe.write_text(
+        '"""Uses :func:`host.records.read_session` and host/dialogue/live.py."""\n'
+        "# see host.dialogue.flow and host/dialogue/flow.py\n"
+    )
+    got = [r.split(" ", 1)[1] for r in dangling_references([probe], mods)]
+    assert got == ["host.records.read_session", "host/dialogue/live.py"]
+    assert dangling_references([HOST / "dialogue" / "flow.py"], mods) == []
+
+
+def test_every_module_named_in_a_docstring_or_comment_exists() -> None:
+    """Docstrings and comments of host/, tests/ and benchmarks/ name modules by their real
+    path (``host.session.records``, ``host/board/driver.py``): a module that moved or split
+    leaves no reference to its old place behind."""
+    root = HOST.parent
+    paths = [p for d in ("host", "tests", "benchmarks") for p in sorted((root / d).rglob("*.py"))]
+    assert dangling_references(paths, modules()) == []
