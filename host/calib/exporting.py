@@ -26,7 +26,8 @@ apply the exported numbers with the target's formula and compare with ``apply()`
 The thermal calibration (:mod:`host.calib.thermal`, bias(T) − bias(T_ref) per channel) goes to
 PX4's thermal compensation ``TC_A0_*``/``TC_G0_*`` (cubic, X0 = 0, clamped to the calibrated
 range). Kalibr's IMU YAML comes from a noise file (``noise --save``), not from the result.
-Not yet: ArduPilot's ``INS_TCAL*``.
+Not yet: ArduPilot's ``INS_TCAL*``. A result whose exported constants are not all determined
+(NaN) is refused with one line naming them: no format here can carry NaN.
 """
 
 from __future__ import annotations
@@ -41,6 +42,13 @@ import numpy as np
 from host.calib.result import CalibrationResult, carried_thermal
 from host.calib.thermal import ThermalCalibration
 from host.errors import UserError
+from host.session.method import (
+    ACCEL_BIAS_NAMES,
+    ACCEL_MIS_NAMES,
+    ACCEL_SCALE_NAMES,
+    GYRO_BIAS_NAMES,
+    GYRO_GSENS_NAMES,
+)
 
 DEG = math.pi / 180.0
 
@@ -82,6 +90,26 @@ def linear_model(result: CalibrationResult, with_thermal: bool = True) -> Linear
         gyro_scale_measured=measured,
         further=further_lines(result, with_thermal),
     )
+
+
+#: the §7 constants every format writes (the gyro's Mg, when not measured, goes out as nominal)
+EXPORTED_NAMES = (
+    ACCEL_SCALE_NAMES + ACCEL_MIS_NAMES + ACCEL_BIAS_NAMES + GYRO_BIAS_NAMES + GYRO_GSENS_NAMES
+)
+
+
+def refuse_undetermined(result: CalibrationResult) -> None:
+    """UserError naming every exported constant that is not a finite number (NaN: not
+    determined, or not in the result's model), and a non-finite g: no format may carry NaN."""
+    consts = result.constants()
+    bad = [n for n in EXPORTED_NAMES if not math.isfinite(consts[n])]
+    if not math.isfinite(float(result.g)):
+        bad.append("g")
+    if bad:
+        raise UserError(
+            f"result of {result.serial}: {', '.join(bad)} not determined (NaN or infinite); "
+            "nothing exported — measure the records the report asks for and calibrate again"
+        )
 
 
 def further_lines(result: CalibrationResult, with_thermal: bool = True) -> tuple[str, ...]:
@@ -247,6 +275,8 @@ def export_px4(model: LinearModel, thermal: ThermalCalibration | None = None) ->
     params = px4_params(model)
     if thermal is not None:
         params.update(px4_thermal_params(thermal, model.axes))
+    if bad := [k for k, v in params.items() if not math.isfinite(v)]:
+        raise UserError(f"px4: {', '.join(bad)} not finite; nothing exported (check the inputs)")
     lines.append("# Vehicle-Id\tComponent-Id\tName\tValue\tType")
     lines += [f"1\t1\t{k}\t{v:.9g}\t{6 if k.endswith('ENABLE') else 9}" for k, v in params.items()]
     return "\n".join(lines) + "\n"
@@ -423,6 +453,7 @@ def export(
         raise UserError(f"--to {fmt}: {PENDING[key]}")
     if key not in FORMATS:
         raise UserError(f"--to {fmt}: unknown format; choose one of {', '.join(FORMATS)}")
+    refuse_undetermined(result)
     if thermal is None and key == "px4":  # the result's own bias(T), if it carries one
         thermal = carried_thermal(result)
     model = linear_model(result, with_thermal=thermal is None)

@@ -246,7 +246,7 @@ class CalibrationResult:
         if not isinstance(d, dict) or "format_version" not in d:
             raise UserError("calibration result: not an imu-bench result (no format_version)")
         version = d["format_version"]
-        if version not in (1, 2):
+        if type(version) is not int or version not in (1, 2):  # JSON true is not v1
             raise UserError(
                 f"calibration result format v{version} but this program reads v1 and "
                 f"v{cls.FORMAT_VERSION}; recompute it with 'python -m host calibrate --from-dir'"

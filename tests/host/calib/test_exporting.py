@@ -14,13 +14,24 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from host.__main__ import main
 from host.calib.applying import apply
 from host.calib.exporting import FORMATS, export
 from host.calib.result import CalibrationResult, base_parameters
+from host.errors import UserError
 from host.ingest.importing import parse_axes
-from host.session.method import CONSTANT_NAMES, GYRO_GSENS_NAMES, NOISE_NAMES, local_gravity
+from host.session.method import (
+    CONSTANT_NAMES,
+    GYRO_GSENS_NAMES,
+    GYRO_MIS_NAMES,
+    GYRO_SCALE_NAMES,
+    NOISE_NAMES,
+    local_gravity,
+)
 
 try:
     from calib_truth import TRUTH
@@ -371,3 +382,50 @@ def test_kalibr_yaml_round_trip_through_kalibrs_discrete_noise(tmp_path: Path, c
     assert main(["export", str(rj), "--to", "px4", "--noise", str(nf)]) == 2
     assert main(["export", "--to", "px4"]) == 2
     assert "give the result" in capsys.readouterr().err
+
+
+# ---- no format ever writes NaN ----------------------------------------------------------------
+#: a number token a target would choke on: nan/NaN/nanf, inf/Infinity
+_NOT_A_NUMBER = re.compile(r"(?<![A-Za-z])(nan|inf(inity)?)f?(?![A-Za-z])", re.IGNORECASE)
+_LINEAR = [n for n in CONSTANT_NAMES if n not in NOISE_NAMES]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    st.dictionaries(
+        st.sampled_from(_LINEAR),
+        st.one_of(
+            st.floats(-0.2, 0.2),
+            st.sampled_from([math.nan, math.inf, -math.inf]),
+        ),
+        max_size=6,
+    ),
+    st.sampled_from(sorted(FORMATS)),
+)
+def test_no_export_writes_nan_or_inf(values: dict[str, float], fmt: str) -> None:
+    """Any constant the exports carry that is NaN or infinite refuses the export, naming it;
+    otherwise the text holds numbers only (the gyro's unmeasured Mg goes out as nominal)."""
+    res = _result(**values)
+    gyro_m = GYRO_SCALE_NAMES + GYRO_MIS_NAMES
+    bad = [n for n, v in values.items() if not math.isfinite(v) and n not in gyro_m]
+    if bad:
+        with pytest.raises(UserError) as exc:
+            export(res, fmt)
+        msg = str(exc.value)
+        assert "\n" not in msg and all(n in msg for n in bad)
+    else:
+        text = export(res, fmt)
+        assert not _NOT_A_NUMBER.search(text), text
+        if fmt == "imucal":
+            json.loads(text, parse_constant=lambda c: pytest.fail(f"imucal JSON holds {c}"))
+
+
+def test_cli_refuses_to_export_an_undetermined_result(tmp_path: Path, capsys) -> None:
+    rj = tmp_path / "EXP1_result.json"
+    rj.write_text(_result(A0y=math.nan, GAxz=math.nan).to_json())
+    for fmt, (_, ext) in FORMATS.items():
+        out = tmp_path / f"cal{ext}"
+        assert main(["export", str(rj), "--to", fmt, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "A0y" in err and "GAxz" in err, err
+        assert not out.exists()

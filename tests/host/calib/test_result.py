@@ -253,3 +253,12 @@ def test_held_out_error_shows_a_term_that_only_fits_noise(
     assert noise_only.after.chi2 < noise_only.before.chi2
     assert noise_only.held_out is not None
     assert noise_only.held_out[1].rms_z > noise_only.held_out[0].rms_z
+
+
+@pytest.mark.parametrize("version", [True, False, 1.0, "1", "2", None, [1]])
+def test_a_version_that_is_not_an_integer_is_refused(version: object) -> None:
+    """JSON ``true`` equals 1 in Python: read as v1 it would silently take v1's layout."""
+    d = json.loads((DATA / "V1FIX_result.json").read_text(encoding="utf-8"))
+    d["format_version"] = version
+    with pytest.raises(UserError, match="format v"):
+        CalibrationResult.from_json(json.dumps(d))
