@@ -65,12 +65,20 @@ REST_DPS = 1.0
 
 def angular_acceleration(t_s: np.ndarray, rate_dps: np.ndarray) -> np.ndarray:
     """(N, 3) ω̇ in rad/s² from the rate ``rate_dps`` (N, 3) °/s at times ``t_s`` (N,) s
-    (central differences; one-sided at the ends; zeros for fewer than two samples)."""
+    (central differences; one-sided at the ends; zeros for fewer than two distinct times).
+    Samples sharing one time stamp (a logger stamping in 0.1 s steps) are averaged and the
+    difference is taken over the distinct times: a zero step would divide by zero."""
     rate = np.radians(np.asarray(rate_dps, dtype=np.float64))
     t = np.asarray(t_s, dtype=np.float64)
-    if len(t) < 2:
+    times, where = np.unique(t, return_inverse=True)
+    if len(times) < 2:
         return np.zeros_like(rate)
-    return np.asarray(np.gradient(rate, t, axis=0))
+    if len(times) == len(t) and np.all(np.diff(t) > 0):
+        return np.asarray(np.gradient(rate, t, axis=0))
+    mean = np.zeros((len(times), rate.shape[1]))
+    np.add.at(mean, where, rate)
+    mean /= np.bincount(where, minlength=len(times))[:, None]
+    return np.asarray(np.gradient(mean, times, axis=0))[where]
 
 
 def lever_arm_matrix(t_s: np.ndarray, rate_dps: np.ndarray) -> np.ndarray:

@@ -165,3 +165,17 @@ def test_real_imucal_lever_arm_is_measured_to_millimetres_and_not_recommended() 
     assert "lever_arm" not in (d.recommended_spec or "")
     a = add_term(ds, parse_model("base"), "face_error:accel,plate_tilt:accel,lever_arm:accel")
     assert a.before.rms_z >= 3.0 * a.after.rms_z
+
+
+@pytest.mark.parametrize("quantum_s", [0.0, 0.03, 0.1])
+def test_angular_acceleration_over_repeated_time_stamps(quantum_s: float) -> None:
+    """A rate ramp of 40 °/s² at 200 Hz with every time stamp repeated (0) or floored to 30 or
+    100 ms quanta: ω̇ is finite and the ramp's slope, not a division by a zero step (within
+    the ±1 sample a floored stamp moves between quanta: 1/6 of a 30 ms quantum)."""
+    t = np.arange(400) / 200.0
+    stamps = np.repeat(t[::2], 2) if quantum_s == 0.0 else np.floor(t / quantum_s) * quantum_s
+    rate = np.column_stack([40.0 * t, -20.0 * t, np.zeros_like(t)])
+    wd = turning.angular_acceleration(stamps, rate)
+    assert np.all(np.isfinite(wd))
+    np.testing.assert_allclose(wd[:, :2], np.radians([[40.0, -20.0]] * len(t)), rtol=0.17)
+    np.testing.assert_allclose(wd[:, :2].mean(axis=0), np.radians([40.0, -20.0]), rtol=0.01)
