@@ -73,6 +73,11 @@ def read_labels(path: str | os.PathLike[str], stream: Stream) -> list[Segment]:
         raise SegmentationError(
             f"{p}: cannot read the labels file ({exc.strerror or exc})"
         ) from exc
+    except UnicodeDecodeError as exc:
+        raise SegmentationError(
+            f"{p}: not a labels file (byte {exc.start} is not UTF-8 text); give the "
+            "SERIAL_segments.tsv the import wrote, edited as text"
+        ) from None
     return parse_labels(text, str(p), stream)
 
 

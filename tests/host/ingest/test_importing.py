@@ -334,6 +334,20 @@ def test_labels_file_corrects_the_cut(tmp_path: Path, capsys) -> None:
     assert "also holds L1_z_cw.txt" in capsys.readouterr().err
 
 
+def test_a_binary_labels_file_is_one_line(tmp_path: Path, capsys) -> None:
+    block, _ = _continuous_session(5)
+    cap = tmp_path / "s.cap"
+    _write_cap(cap, block)
+    labels = tmp_path / "labels.tsv"
+    labels.write_bytes(bytes(range(256)) * 4)
+    out = tmp_path / "o"
+    argv = ["import", str(cap), "--serial", "B1", "--out", str(out), "--labels", str(labels)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not UTF-8" in err and "labels.tsv" in err, err
+    assert not out.exists() or not list(out.glob("B1_*.txt"))  # nothing imported
+
+
 def test_existing_records_are_not_overwritten(tmp_path: Path, capsys) -> None:
     block, _ = _continuous_session(5)
     cap = tmp_path / "s.cap"
