@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from host.__main__ import main
-from host.bench.sim import write_session
+from host.bench.plan import write_session
 from host.session.records import Record
 from host.workbench.scenarios import hidden_effect_case
 
