@@ -57,6 +57,7 @@ from host.calib.report import verdict_line
 from host.dialogue import screens
 from host.dialogue.console import Console, Questions, TerminalConsole
 from host.dialogue.measurement import (
+    PLACED,
     acquire,
     capture_path,
     loss_problems,
@@ -361,7 +362,7 @@ class CalibrationDialogue:
             acq = self._acquire(name, self.static_seconds, "Measuring")
             if acq is None:
                 continue
-            rec = self._record(name, acq, {"kind": "static"})
+            rec = self._record(name, acq, {"kind": "static", **PLACED})
             screens.show_table(op, rec)
             problems = self._loss_problems(name, acq)
             problems += static_problems(rec, self.g, self.serial)
@@ -413,7 +414,7 @@ class CalibrationDialogue:
                 continue
             rec = self._record(
                 name, acq, {"kind": "turn", "turns": str(n), "direction": direction,
-                            "window_s": f"{window:g}"},
+                            "window_s": f"{window:g}", **PLACED},
             )  # fmt: skip
             problems = self._loss_problems(name, acq)
             problems += self._check_turn(rec, acq, n)

@@ -40,12 +40,17 @@ from host.board.link import LinkLost, LinkTimeout
 from host.dialogue.console import Questions
 from host.dialogue.screens import measurement_progress
 from host.errors import RecordCheckError, ResumableError, UserError
+from host.model.geometry import DIALOGUE_HEADING_DEG
 from host.session.checks import check_orientation
 from host.session.directory import SIMULATED_BOARD, SIMULATED_SCHEMES, Session
 from host.session.method import record_stats
 from host.session.observations import build_observations
-from host.session.records import Record
+from host.session.records import HEADING_KEY, Record
 from host.wire.frames import bus_meta
+
+#: the placement every prompt asks for (:func:`host.dialogue.screens.place_prompt`), written in
+#: the header of every static and turn record: the heading the model then reads
+PLACED = {HEADING_KEY: f"{DIALOGUE_HEADING_DEG:g}"}
 
 # --------------------------------------------------------------------------- acquisition
 

@@ -17,6 +17,7 @@ from host.board.acquisition import Acquisition
 from host.board.driver import BoardInfo
 from host.calib.calibration import Stage1
 from host.dialogue.console import Questions
+from host.model.geometry import placement_words
 from host.session.method import record_stats, trapezoid_integral
 from host.session.records import Record
 from host.wire import sensor
@@ -42,15 +43,25 @@ def show_opening(op: Questions, url: str) -> None:
     op.say(f"Opening {url} ...")
 
 
+def _up(axis: str, side: str) -> np.ndarray:
+    return np.eye(3)["xyz".index(axis)] * (1.0 if side == "up" else -1.0)
+
+
 def place_prompt(axis: str, side: str) -> str:
-    """The question before a static measurement: which axis up or down (``side``)."""
+    """The question before a static measurement: which axis up or down (``side``), and how the
+    cube sits against the fence (:data:`host.model.geometry.DIALOGUE_HEADING_DEG`, the heading
+    the record's header carries)."""
     where = "up" if side == "up" else "down"
-    return f"Put the cube on the base with {AXIS_WORDS[axis]} {where}. Press any key."
+    return (
+        f"Put the cube on the base with {AXIS_WORDS[axis]} {where}, "
+        f"{placement_words(_up(axis, side))}. Press any key."
+    )
 
 
 def turn_place_prompt(axis: str) -> str:
-    """The question before a turn: the cube with ``axis`` up, against the ruler."""
-    return f"Put the cube {AXIS_WORDS[axis]} up, against the ruler. Press any key."
+    """The question before a turn: the cube with ``axis`` up, against the fence (the ruler) at
+    the dialogue's placement heading; the turn starts and ends there."""
+    return f"Put the cube {AXIS_WORDS[axis]} up, {placement_words(_up(axis, 'up'))}. Press any key."
 
 
 def get_ready_line(n: int, direction: str, window_s: float) -> str:

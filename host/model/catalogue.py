@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 
 from host.model import turning
-from host.model.geometry import placement
+from host.model.geometry import plate_axes
 from host.model.signals import AXES, RecordSignals
 from host.model.terms import Term, term
 
@@ -204,7 +204,8 @@ def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     north = up × east. The plate does not move, so the angles are shared by every record made
     on it and by all three accelerometer channels (:attr:`Term.shared`). Resting on a face, the
     horizontal accelerometers read g·(tilt_east·e + tilt_north·n), with e, n the plate's axes
-    in body coordinates: at placement the first body axis not along up lies along the ruler.
+    in body coordinates at the record's heading on the plate (its header's
+    ``placement_heading_deg`` plus the angle turned, :func:`host.model.geometry.plate_axes`).
 
     What tells it from a fixture-face error or a bias: the cube turning on the plate. A face
     error is fixed in the body, a plate tilt is fixed in the room: at heading ψ (turned ψ
@@ -215,11 +216,9 @@ def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     accelerometer biases and misalignments (each face is one heading)."""
     cols = np.zeros((len(sig.t_s), 2))
     if sig.kind in ("static", "turn"):
-        e0, n0 = placement(sig.up)
-        psi = sig.heading
-        c, s = np.cos(psi), np.sin(psi)
-        cols[:, 0] = sig.g * (e0[axis] * c - n0[axis] * s)
-        cols[:, 1] = sig.g * (n0[axis] * c + e0[axis] * s)
+        east, north = plate_axes(sig.up, sig.plate_heading)
+        cols[:, 0] = sig.g * east[:, axis]
+        cols[:, 1] = sig.g * north[:, axis]
     return cols
 
 

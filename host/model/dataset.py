@@ -146,7 +146,7 @@ def _record_signals(
     return RecordSignals(
         name=o.record, kind=o.kind, t_s=t0 + t_rel, temp_c=rec.temp.copy(), force=force,
         rate=rate, accel=rec.accel, gyro=rec.gyro, g=g, up=o.up, temp_mean_c=temp_mean_c,
-        heading_deg=heading,
+        heading_deg=heading, placement_deg=rec.placement_heading_deg,
     )  # fmt: skip
 
 

@@ -34,3 +34,47 @@ def placement(up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     up lies along the ruler (east), north = up × east (:func:`pose_from_up`)."""
     r = pose_from_up(up)
     return r[0], r[1]
+
+
+#: the heading at which the live dialogue asks the operator to place the cube, ° (and writes in
+#: every record's header as ``placement_heading_deg``): the reference axis along the fence,
+#: pointing right — :func:`placement`'s plate axes at zero heading
+DIALOGUE_HEADING_DEG = 0.0
+
+#: where the reference axis points at each placement heading, seen by the operator standing
+#: in front of the fence (the fence runs left to right, east = right, north = toward the fence)
+_HEADING_WORDS = {
+    0: "pointing right, along the fence",
+    90: "pointing at the fence",
+    180: "pointing left, along the fence",
+    270: "pointing at you, away from the fence",
+}
+
+
+def reference_axis(up: np.ndarray) -> str:
+    """'+x'|'+y'|'+z': the record's reference axis, the first of +x, +y, +z not along ``up``
+    (the axis whose heading ``placement_heading_deg`` gives)."""
+    k = int(np.argmax(np.abs(np.asarray(up, dtype=np.float64))))
+    return "+" + "xyz"[0 if k != 0 else 1]
+
+
+def placement_words(up: np.ndarray, heading_deg: float = DIALOGUE_HEADING_DEG) -> str:
+    """The operator's instruction for a placement at ``heading_deg`` (a multiple of 90°): which
+    arrow of the cube points where, and the number the record carries."""
+    k = int(round(heading_deg / 90.0)) % 4 * 90
+    if abs((heading_deg - k + 180.0) % 360.0 - 180.0) > 1e-6:
+        raise ValueError(f"a cube against a fence sits at a multiple of 90°, not {heading_deg}")
+    axis = reference_axis(up)
+    return (
+        f"against the fence, its {axis[1].upper()} arrow {_HEADING_WORDS[k]} "
+        f"(placement heading {k}°)"
+    )
+
+
+def plate_axes(up: np.ndarray, heading_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(east, north) (N, 3) each: the plate's axes in body coordinates for a cube resting with
+    body ``up`` up at heading ``heading_rad`` (N,) rad (counter-clockwise seen from above, from
+    the fence to the reference axis). At zero heading they are :func:`placement`'s."""
+    e0, n0 = placement(up)
+    c, s = np.cos(heading_rad)[:, None], np.sin(heading_rad)[:, None]
+    return e0 * c - n0 * s, n0 * c + e0 * s

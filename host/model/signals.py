@@ -28,7 +28,8 @@ class RecordSignals:
     ``accel``/``gyro`` (N,3) the measured outputs. ``g`` m/s². ``temp_mean_c``: mean chip
     temperature of the whole session, °C. ``heading_deg`` (N,) the angle the cube has turned
     about its up axis since the record began, ° (positive counter-clockwise seen from above;
-    None: it did not turn, 0).
+    None: it did not turn, 0). ``placement_deg``: the record's placement heading on the plate
+    at its first sample, ° (its header's ``placement_heading_deg``; None: not recorded).
     """
 
     name: str
@@ -43,6 +44,7 @@ class RecordSignals:
     up: np.ndarray
     temp_mean_c: float = TEMP_REF_C
     heading_deg: np.ndarray | None = None
+    placement_deg: float | None = None
 
     def reference(self, sensor: str) -> np.ndarray:
         """(N,3) the true input of ``sensor``: specific force m/s² or rate °/s."""
@@ -68,3 +70,10 @@ class RecordSignals:
         if self.heading_deg is None:
             return np.zeros(len(self.t_s))
         return np.radians(self.heading_deg)
+
+    @property
+    def plate_heading(self) -> np.ndarray:
+        """(N,) the cube's heading on the plate, rad: the placement heading (zero when the
+        record does not say) plus the angle
+        turned since the first sample."""
+        return self.heading + np.radians(self.placement_deg or 0.0)

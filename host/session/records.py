@@ -53,6 +53,12 @@ def turn_window_s(turns: int) -> float:
 #: terms read it) and ``session_s`` s since the calibration session began
 TIME_KEYS = ("power_on_s", "session_s")
 
+#: how the cube was placed, in its header: degrees, counter-clockwise seen from above, from the
+#: fence (the ruler) to the record's reference axis (the first of +x, +y, +z not along up) at
+#: the record's first sample; a turn's rests follow at this heading + the angle turned. Absent:
+#: the heading is unknown (the model then does not assume one)
+HEADING_KEY = "placement_heading_deg"
+
 #: which sensor a record measured, in its header (live records and imported captures):
 #: :func:`host.wire.sensor.identity_meta` writes them
 SENSOR_KEYS = ("who_am_i", "product_id", "sensor_revision")
@@ -183,6 +189,25 @@ class Record:
         if "rate_axis" not in self.meta:
             raise RecordError(f"record {self.name}: meta 'rate_axis' missing")
         return parse_vector(self.meta["rate_axis"], f"record {self.name}: meta 'rate_axis'")
+
+    @property
+    def placement_heading_deg(self) -> float | None:
+        """The cube's heading on the plate at the first sample, ° (meta :data:`HEADING_KEY`,
+        counter-clockwise seen from above from the fence to the reference axis); None when the
+        record does not say. RecordError when the header's value is not a finite number."""
+        text = self.meta.get(HEADING_KEY)
+        if text is None or not text.strip():
+            return None
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value):
+            raise RecordError(
+                f"record {self.name}: header {HEADING_KEY!r} is {text!r}, not a number of "
+                "degrees (write e.g. '90', or delete the line when the heading is unknown)"
+            )
+        return value % 360.0
 
     def _axis_vector(self) -> np.ndarray:
         if self.kind == "rate":

@@ -30,6 +30,12 @@ pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="needs a POSIX p
 ROOT = Path(__file__).resolve().parents[3]
 LINEAR = "effects=linear,noise&earth_rate=0"
 
+#: the placement every prompt asks for (the dialogue's heading, 0°)
+PLACED = (
+    r", against the fence, its [XYZ] arrow pointing right, along the fence "
+    r"\(placement heading 0°\)\. Press any key\."
+)
+
 
 def _emu_missing() -> str | None:
     from host.bench.build import toolchain_problem
@@ -203,7 +209,7 @@ def test_interactive_session_with_a_repeat(
     for name in STATIC_NAMES:
         axis, side = name.split("_")
         where = "up" if side == "up" else "down"
-        s.expect(rf"Put the cube on the base with {axis.upper()} {where}\. Press any key\.")
+        s.expect(rf"Put the cube on the base with {axis.upper()} {where}{PLACED}")
         s.send(" ")
         s.expect(r"\*\*\* BEEP \*\*\*")
         s.expect(rf"Measuring {name}")
@@ -213,7 +219,7 @@ def test_interactive_session_with_a_repeat(
         if name == "x_up" and "x_up" not in shown:
             shown["x_up_first"] = static_table_mean(s.text[: s.pos])
             s.send("n")
-            s.expect(r"Put the cube on the base with X up\. Press any key\.")
+            s.expect(rf"Put the cube on the base with X up{PLACED}")
             s.send(" ")
             s.expect(r"Measuring x_up")
             s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
@@ -227,7 +233,7 @@ def test_interactive_session_with_a_repeat(
     s.send("1\r")
     for name in TURN_NAMES:
         axis, direction = name.split("_")
-        s.expect(rf"Put the cube {axis.upper()} up, against the ruler\. Press any key\.")
+        s.expect(rf"Put the cube {axis.upper()} up{PLACED}")
         s.send(" ")
         words = "counter-clockwise" if direction == "ccw" else "clockwise"
         s.expect(rf"Get ready to turn 1 turn {words}")
@@ -238,7 +244,7 @@ def test_interactive_session_with_a_repeat(
         s.expect(rf"Saved .*P1_{name}\.txt")
     # the closing check: X up once more, and the drift it shows
     s.expect(r"Closing check: x_up once more")
-    s.expect(r"Put the cube on the base with X up\. Press any key\.")
+    s.expect(rf"Put the cube on the base with X up{PLACED}")
     s.send(" ")
     s.expect(r"Measuring x_up_2")
     s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
@@ -265,14 +271,14 @@ def test_esc_aborts_only_the_measurement(tmp_path: Path, screens: list[Screen], 
               "E1", "--static-seconds", "200", "--warmup", "0")  # fmt: skip
     s.expect(r"Measure the 6 static orientations <Y>")
     s.send("y")
-    s.expect(r"with X up\. Press any key\.")
+    s.expect(rf"with X up{PLACED}")
     s.send(" ")
     s.expect(r"Measuring x_up: 200 s \(Esc aborts\)")
     t0 = time.monotonic()
     s.send("\x1b")
     s.expect(r"Measurement of x_up aborted \(Esc\): nothing kept")
     assert time.monotonic() - t0 < 2.0  # 200 s at max speed would take far longer
-    s.expect(r"Put the cube on the base with X up\. Press any key\.")  # the same one again
+    s.expect(rf"Put the cube on the base with X up{PLACED}")  # the same one again
     s.send("\x03")
     s.expect(r"Aborted \(Ctrl\+C\)")
     assert s.wait() == 130
@@ -289,20 +295,20 @@ def test_range_alarm_offers_to_repeat(tmp_path: Path, screens: list[Screen], boa
     s.send("n")  # straight to the turns
     s.expect(r"Number of turns.*: ")
     s.send("\r")  # the default, 2
-    s.expect(r"Put the cube X up, against the ruler\. Press any key\.")
+    s.expect(rf"Put the cube X up{PLACED}")
     s.send(" ")
     s.expect(r"Turn now! x_ccw: 12 s")
     s.expect(r"RANGE ALARM: \d+ gyro samples at or beyond ±250 °/s \(peak 250\.\d °/s\)")
     s.expect(r"Repeat <Y> or save anyway <N>\? \[Y\]")
     s.send("y")
-    s.expect(r"Put the cube X up, against the ruler\. Press any key\.")
+    s.expect(rf"Put the cube X up{PLACED}")
     s.send(" ")
     s.expect(r"Turn now! x_ccw: 12 s")
     s.expect(r"peak rate \d+\.\d °/s")
     s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
     s.send("y")
     s.expect(r"Saved .*R1_x_ccw\.txt")
-    s.expect(r"Put the cube X up, against the ruler\. Press any key\.")
+    s.expect(rf"Put the cube X up{PLACED}")
     s.send("\x03")
     assert s.wait() == 130
     assert "\a" in s.text.split("RANGE ALARM")[0][-40:]
@@ -329,7 +335,7 @@ def test_ctrl_c_during_a_measurement_then_resume(
         s.expect(r"Save <Y> or repeat <N>\?")
         s.send("y")
         s.expect(rf"Saved .*C1_{name}\.txt")
-    s.expect(r"with Y up\. Press any key\.")
+    s.expect(rf"with Y up{PLACED}")
     s.send(" ")
     s.expect(r"Measuring y_up")
     s.expect(r"y_up \[#*-+\]")  # the progress line is running
