@@ -26,7 +26,7 @@ from host.bench.physics import (
 from host.bench.sim import Simulator, rate_table_motion, turn_motion
 from host.bench.truth import SensorTruth
 from host.session.directory import record_path, write_record
-from host.session.records import STATIC_NAMES, Record, turn_window_s
+from host.session.records import HEADING_KEY, STATIC_NAMES, Record, turn_window_s
 
 
 def tilted_45() -> tuple[tuple[str, tuple[float, float, float]], ...]:
@@ -136,6 +136,7 @@ def simulate_session(
             "up": format_up(up),
             "source": "sim",
             "sim_seed": str(seed),
+            HEADING_KEY: "0",  # pose_from_up: the reference axis along the ruler
             "power_on_s": f"{t:.3f}",
             "session_s": f"{t - plan.warmup_s:.3f}",
         }

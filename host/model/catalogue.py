@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from host.model import turning
+from host.model import plate, turning
 from host.model.geometry import plate_axes
 from host.model.signals import AXES, RecordSignals
 from host.model.terms import Term, term
@@ -168,7 +168,25 @@ _FACE_NEEDS = (
 )
 
 
+def _face_check(signals: Sequence[RecordSignals]) -> str | None:
+    """A face error is not told apart from a tilted plate on static records whose heading is
+    unknown: there the tilt reads as a lean fixed in the body, of up to the plate's tilt."""
+    unknown = [s.name for s in signals if s.kind == "static" and s.placement_deg is None]
+    if not unknown:
+        return None
+    tilt = plate.session_plate(signals)
+    if tilt is None or tilt.p_level >= plate.LEVEL_P:
+        return None
+    return (
+        f"the turns' rests show the plate tilted {1e3 * tilt.size:.1f} mrad and "
+        f"{len(unknown)} static records carry no placement_heading_deg: on them the tilt "
+        f"reads like a face lean of up to {1e3 * tilt.size:.1f} mrad, so a face error cannot "
+        "be separated from it (record the headings, or level the plate below 1 mrad)"
+    )
+
+
 @term(sensors=("accel",), params={"pair_a": "rad", "pair_b": "rad"}, needs=_FACE_NEEDS,
+      check=_face_check,
       labels=lambda s, i: tuple(f"face_error.accel.{AXES[i]}.±{AXES[k]}"
                                 for k in _other_axes(i)))  # fmt: skip
 def face_error(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
@@ -205,7 +223,9 @@ def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     on it and by all three accelerometer channels (:attr:`Term.shared`). Resting on a face, the
     horizontal accelerometers read g·(tilt_east·e + tilt_north·n), with e, n the plate's axes
     in body coordinates at the record's heading on the plate (its header's
-    ``placement_heading_deg`` plus the angle turned, :func:`host.model.geometry.plate_axes`).
+    ``placement_heading_deg`` plus the angle turned, :func:`host.model.geometry.plate_axes`;
+    a turn without one gets it from its rests' circle, :func:`host.model.plate.resolve_placements`;
+    a static without one has no columns: its heading is unknown, never assumed).
 
     What tells it from a fixture-face error or a bias: the cube turning on the plate. A face
     error is fixed in the body, a plate tilt is fixed in the room: at heading ψ (turned ψ
@@ -215,7 +235,7 @@ def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     a bias and a misalignment stay put. On the six static faces alone the two angles act like
     accelerometer biases and misalignments (each face is one heading)."""
     cols = np.zeros((len(sig.t_s), 2))
-    if sig.kind in ("static", "turn"):
+    if sig.kind in ("static", "turn") and sig.placement_deg is not None:
         east, north = plate_axes(sig.up, sig.plate_heading)
         cols[:, 0] = sig.g * east[:, axis]
         cols[:, 1] = sig.g * north[:, axis]

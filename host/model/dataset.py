@@ -13,6 +13,7 @@ import numpy as np
 
 from host.errors import UserError
 from host.model.noise import NoiseModel, session_floor
+from host.model.plate import resolve_placements
 from host.model.rows import (
     RowTable,
     add_block_means,
@@ -268,6 +269,8 @@ def build_dataset(
             add_turn_accel(table, ri, sig, turn, nm)
         aggs.append(add_turn_integrals(table, ri, sig, rec.t_ms, t_rel))
 
+    signals, plate_notes = resolve_placements(signals, g)
+    notes.extend(plate_notes)
     floors, floor_note = session_floor(_static_blocks(table, signals), nm)
     notes.append(floor_note)
     seat, seat_note = seating_sigma(signals, sensor_aggs, table.channels, n_still)

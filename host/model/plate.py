@@ -1,0 +1,247 @@
+"""The plate's tilt read from the rests of the turns (issue 25), and the placement headings the
+records do not carry.
+
+On a level plate gravity stays fixed in body axes while the cube turns about the vertical: a
+face error, a bias or a misalignment reads the same at every rest. A plate tilted by θ toward
+a room azimuth puts g·θ on the horizontal accelerometers *fixed in the room*, so at the rests
+inside a turn record (headings ψ₀ + 0°, 90°, 180°, …) the two horizontal channels draw a
+circle of radius g·θ about their constant part. :func:`turn_circle` fits that circle per turn
+record: centre (the body-fixed part) and the tilt as a 2-vector in the record's own placement
+frame (its reference axis along the fence). Its size needs no heading; its azimuth in the room
+needs the record's ``placement_heading_deg``.
+
+:func:`plate_from_rests` combines the turn records: the tilt's size (weighted mean of the
+circles, σ widened by their scatter when they disagree), its room azimuth from the records
+whose heading is recorded, and — where a record has no heading — the heading that lines its
+circle up with the others, as an estimate with its σ (never a convention). With no heading
+recorded at all, the azimuth is given relative to the first turn's reference axis.
+
+Units: rad for tilts, m/s² for specific force, degrees for headings (counter-clockwise seen
+from above, from the fence to the reference axis).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from host.model.geometry import plate_axes
+from host.model.noise import still_runs
+from host.model.signals import RecordSignals
+from host.model.stats import chi2_sf
+
+#: a rest for the circle: the rate about up below this, °/s (or 4σ of the gyro's noise), kept
+#: after :data:`REST_TRIM_S` s cut at each end — a hand pausing between quarter turns
+REST_RATE_DPS = 2.0
+REST_TRIM_S = 0.03
+#: the rests show a tilt when a level plate would draw such circles with less probability
+LEVEL_P = 1e-3
+
+
+@dataclass(frozen=True)
+class TurnCircle:
+    """The circle one turn record's rests draw. ``tilt`` (2,) rad: gravity's up leaning toward
+    (east, north) as seen in the record's frame at heading 0 (its reference axis along the
+    fence); ``cov`` (2, 2) its covariance, rad², from the rests' own scatter; ``rms`` m/s²
+    the rests' residual about the circle; ``n_rests``; ``placement_deg`` the header's heading
+    (None: not recorded)."""
+
+    record: str
+    tilt: np.ndarray
+    cov: np.ndarray
+    rms: float
+    n_rests: int
+    placement_deg: float | None
+
+    @property
+    def size(self) -> float:
+        """|tilt|, rad."""
+        return float(np.hypot(*self.tilt))
+
+    @property
+    def size_sd(self) -> float:
+        """σ of |tilt|, rad (along the tilt's direction)."""
+        u = self.tilt / max(self.size, 1e-12)
+        return float(math.sqrt(max(float(u @ self.cov @ u), 0.0)))
+
+
+def _rot(deg: float) -> np.ndarray:
+    a = math.radians(deg)
+    return np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+
+
+def turn_circle(
+    sig: RecordSignals, runs: Sequence[tuple[int, int]], min_rests: int = 3
+) -> TurnCircle | None:
+    """The circle of one turn record's rests ``runs`` (sample ranges [a, b) where the cube is
+    still), None with fewer than ``min_rests`` rests or rests that do not span two headings
+    90° apart (the circle is then not determined)."""
+    if sig.kind != "turn" or len(runs) < min_rests:
+        return None
+    up_k = int(np.argmax(np.abs(sig.up)))
+    hor = [k for k in range(3) if k != up_k]
+    ys: list[float] = []
+    rows: list[np.ndarray] = []
+    turned = sig.heading
+    for a, b in runs:
+        mean = sig.accel[a:b].mean(axis=0)
+        psi = np.array([float(np.mean(turned[a:b]))])
+        east, north = plate_axes(sig.up, psi)
+        for c, k in enumerate(hor):
+            centre = np.zeros(2)
+            centre[c] = 1.0
+            ys.append(float(mean[k]))
+            rows.append(np.concatenate([centre, [sig.g * east[0, k], sig.g * north[0, k]]]))
+    x = np.array(rows)
+    y = np.array(ys)
+    if np.linalg.matrix_rank(x) < 4 or len(y) <= 4:
+        return None
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    resid = y - x @ coef
+    dof = len(y) - 4
+    s2 = float(resid @ resid) / dof
+    cov = s2 * np.linalg.inv(x.T @ x)[2:, 2:]
+    return TurnCircle(sig.name, coef[2:], cov, math.sqrt(float(resid @ resid) / len(y)),
+                      len(runs), sig.placement_deg)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PlateTilt:
+    """The plate's tilt from the turns' rests. ``size``/``size_sd`` rad; ``vector`` (2,) rad
+    (east, north) of gravity's up in ``frame`` (the fence when any turn record carries its
+    heading, else the first turn's reference axis); ``vector_cov`` (2, 2); ``headings``: turn
+    record -> (estimated placement heading °, σ °) for those without one in the header;
+    ``circles`` the per-record circles."""
+
+    size: float
+    size_sd: float
+    vector: np.ndarray
+    vector_cov: np.ndarray
+    frame: str
+    circles: tuple[TurnCircle, ...]
+    headings: dict[str, tuple[float, float]] = field(default_factory=dict)
+    #: probability of circles this large on a level plate (χ² of every circle's tilt against
+    #: its covariance, 2 dof per turn)
+    p_level: float = 1.0
+
+    @property
+    def azimuth_deg(self) -> float:
+        """Where the plate leans (gravity's up tilts toward), ° counter-clockwise from the
+        frame's east axis."""
+        return math.degrees(math.atan2(self.vector[1], self.vector[0])) % 360.0
+
+    def lines(self, g: float, unknown_statics: Sequence[str] = ()) -> list[str]:
+        """What a reader is told: the tilt in mrad and degrees with σ, the circles it came from
+        (the check to repeat), the headings estimated, and what an unknown heading costs the
+        static records ``unknown_statics`` (their horizontal readings, m/s²)."""
+        mrad, sd = 1e3 * self.size, 1e3 * self.size_sd
+        out = [
+            f"plate tilt {mrad:.2f} ± {sd:.2f} mrad ({math.degrees(self.size):.3f}°), leaning "
+            f"toward {self.azimuth_deg:.0f}° from {self.frame}, read from the rests of "
+            f"{len(self.circles)} turns: the horizontal accelerometers draw a circle of radius "
+            f"g·tilt = {g * self.size:.4f} m/s² about the turn axis"
+        ]
+        for c in self.circles:
+            out.append(
+                f"  {c.record}: circle radius {g * c.size:.4f} ± {g * c.size_sd:.4f} m/s² "
+                f"({1e3 * c.size:.2f} mrad) from {c.n_rests} rests, residual rms {c.rms:.4f} m/s²"
+            )
+        for name, (deg, dsd) in self.headings.items():
+            out.append(
+                f"  {name}: no placement_heading_deg in its header; its circle puts it at "
+                f"{deg:.0f} ± {dsd:.0f}° (the nearest way a cube sits against a fence: "
+                f"{90 * round(deg / 90) % 360:.0f}°)"
+            )
+        if unknown_statics and self.p_level < LEVEL_P:
+            out.append(
+                f"  {len(unknown_statics)} static records carry no heading: on each, the tilt "
+                f"puts up to {g * self.size:.4f} m/s² on the horizontal accelerometers, "
+                "which the bias and misalignment estimates absorb — level the plate (a tilt "
+                "below 1 mrad) or record placement_heading_deg when a tolerance is that tight"
+            )
+        return out
+
+
+def plate_from_rests(circles: Sequence[TurnCircle]) -> PlateTilt | None:
+    """Combine the turn records' circles (:func:`turn_circle`); None without any."""
+    cs = [c for c in circles if np.all(np.isfinite(c.cov)) and c.size_sd > 0]
+    if not cs:
+        return None
+    w = np.array([1.0 / c.size_sd**2 for c in cs])
+    sizes = np.array([c.size for c in cs])
+    size = float(w @ sizes / w.sum())
+    sd = math.sqrt(1.0 / w.sum())
+    if len(cs) > 1:  # circles that disagree beyond their σ widen it (Birge ratio)
+        chi2 = float(w @ (sizes - size) ** 2) / (len(cs) - 1)
+        sd *= math.sqrt(max(chi2, 1.0))
+    known = [c for c in cs if c.placement_deg is not None]
+    if known:
+        frame = "the fence"
+        ref = [(_rot(float(c.placement_deg or 0.0)) @ c.tilt, c.cov) for c in known]
+    else:
+        frame = f"{cs[0].record}'s reference axis (no turn record carries its heading)"
+        ref = [(cs[0].tilt, cs[0].cov)]
+    info = sum(np.linalg.inv(cv) for _, cv in ref)
+    cov = np.linalg.inv(info)
+    vec = cov @ sum(np.linalg.inv(cv) @ v for v, cv in ref)
+    headings: dict[str, tuple[float, float]] = {}
+    ref_angle = math.degrees(math.atan2(vec[1], vec[0]))
+    for c in cs:
+        if c.placement_deg is None and (known or c is not cs[0]):
+            deg = (ref_angle - math.degrees(math.atan2(c.tilt[1], c.tilt[0]))) % 360.0
+            headings[c.record] = (deg, math.degrees(c.size_sd / max(c.size, 1e-12)))
+    chi2 = sum(float(c.tilt @ np.linalg.solve(c.cov, c.tilt)) for c in cs)
+    p = chi2_sf(chi2, 2.0 * len(cs))
+    return PlateTilt(size, sd, np.asarray(vec), cov, frame, tuple(cs), headings, p)
+
+
+def session_plate(signals: Sequence[RecordSignals]) -> PlateTilt | None:
+    """The plate's tilt from a dataset's records (:attr:`host.model.dataset.Dataset.signals`):
+    each turn record's rests (the reference rate about up within 4σ of the static records'
+    gyro noise, at least :data:`REST_RATE_DPS`: a hand's short pauses between quarter turns
+    count), drawn into :func:`turn_circle`."""
+    statics = [s for s in signals if s.kind == "static"]
+    if not statics:
+        return None
+    gyro_sd = np.median([s.gyro.std(axis=0) for s in statics], axis=0)
+    circles = []
+    for s in signals:
+        if s.kind != "turn":
+            continue
+        up_k = int(np.argmax(np.abs(s.up)))
+        sd = max(float(gyro_sd[up_k]), REST_RATE_DPS / 4.0)
+        runs = still_runs(s.rate @ s.up, s.t_s - s.t_s[0], sd, trim_s=REST_TRIM_S, min_s=0.1)
+        c = turn_circle(s, runs)
+        if c is not None:
+            circles.append(c)
+    return plate_from_rests(circles)
+
+
+def resolve_placements(
+    signals: Sequence[RecordSignals], g: float
+) -> tuple[list[RecordSignals], list[str]]:
+    """The records with the placement headings their turns' circles give where the header
+    gives none (:func:`plate_from_rests`), and the notes that tell the reader the plate's tilt
+    (only when the rests show one: a level plate would draw such circles with probability
+    below :data:`LEVEL_P`). A turn record without a heading gets the one
+    that lines its circle up with the others; with no heading recorded anywhere, the first
+    turn's reference axis is the frame (heading 0: the origin of the azimuth, which no
+    estimate but the azimuth depends on). A static record without a heading keeps none: one
+    heading cannot be read from one rest, and the plate's tilt is then not modelled there."""
+    plate = session_plate(signals)
+    out = list(signals)
+    if plate is None:
+        return out, []
+    est = {name: deg for name, (deg, _) in plate.headings.items()}
+    if not any(c.placement_deg is not None for c in plate.circles):
+        est[plate.circles[0].record] = 0.0
+    for i, s in enumerate(out):
+        if s.kind == "turn" and s.placement_deg is None and s.name in est:
+            out[i] = replace(s, placement_deg=est[s.name])
+    if plate.p_level >= LEVEL_P:
+        return out, []
+    unknown = [s.name for s in signals if s.kind == "static" and s.placement_deg is None]
+    return out, ["; ".join(line.strip() for line in plate.lines(g, unknown))]
