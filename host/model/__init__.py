@@ -5,7 +5,9 @@ Data in: a session's records (:mod:`host.session`). Out: fits, residuals, predic
 figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imports only
 ``host.errors``, ``host.wire`` and ``host.session``.
 
-- ``geometry`` — the placement convention: the cube's pose from its up vector, the plate's axes.
+- ``geometry`` — placement: the cube's pose from its up vector, the plate's axes at a heading, the
+  operator's words for a placement.
+- ``plate`` — the plate's tilt from the circle the turns' rests draw; headings records lack.
 - ``signals`` — a record's reference signals (force, rate, temperature, time, heading); units.
 - ``terms`` — the :class:`Term` type and the ``@term`` / ``@nonlinear_term`` decorators.
 - ``catalogue`` — the built-in terms (``base`` = method.md §2, and the §8 effects), plausibility.
