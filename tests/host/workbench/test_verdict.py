@@ -271,9 +271,10 @@ def test_implausible_coefficient_is_not_recommended_and_named_an_alias() -> None
 def _stepped_session(tilt_en: tuple[float, float], seed: int) -> dict:
     """Six static faces (20 s) and a CCW turn about each axis made as four quarter turns with
     1.5 s rests (the way imucal's session was made), on a plate tilted by ``tilt_en`` (east,
-    north, rad; the program's placement convention). Biases differ per axis; white noise."""
+    north, rad; every record placed at heading 0 and saying so in its header). Biases differ
+    per axis; white noise."""
     from host.model.geometry import pose_from_up
-    from host.session.records import Record
+    from host.session.records import HEADING_KEY, Record
 
     rng = np.random.default_rng(seed)
     g = 9.80665
@@ -296,7 +297,8 @@ def _stepped_session(tilt_en: tuple[float, float], seed: int) -> dict:
             t = np.arange(n) * 20.0
             acc = gravity(up, np.zeros(n)) + bias_a + rng.normal(0, 0.01, (n, 3))
             gyr = bias_g + rng.normal(0, 0.03, (n, 3))
-            out[f"{ax}_{tag}"] = Record(f"{ax}_{tag}", t, acc, gyr, np.full(n, 25.0), {})
+            out[f"{ax}_{tag}"] = Record(f"{ax}_{tag}", t, acc, gyr, np.full(n, 25.0),
+                                        {HEADING_KEY: "0"})  # fmt: skip
         up = np.zeros(3)
         up[k] = 1.0
         # rest 1.5 s, quarter turn in 1 s (raised-cosine rate), four times, rest 1.5 s
@@ -312,7 +314,8 @@ def _stepped_session(tilt_en: tuple[float, float], seed: int) -> dict:
         acc = gravity(up, psi) + bias_a + rng.normal(0, 0.01, (n, 3))
         gyr = rate[:, None] * up[None, :] + bias_g + rng.normal(0, 0.03, (n, 3))
         out[f"{ax}_ccw"] = Record(f"{ax}_ccw", np.arange(n) * dt * 1000, acc, gyr,
-                                  np.full(n, 25.0), {"turns": "1"})  # fmt: skip
+                                  np.full(n, 25.0),
+                                  {"turns": "1", HEADING_KEY: "0"})  # fmt: skip
     return out
 
 
