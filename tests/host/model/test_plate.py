@@ -57,9 +57,12 @@ def test_unrecorded_headings_tilt_within_its_sigma_and_headings_found(
     p = {q.name: q for q in fit.parameters}
     got = math.hypot(p["plate_tilt.east"].value, p["plate_tilt.north"].value)
     assert abs(got - want) < 0.1 * want
-    assert math.sqrt(float(fit.white_residual @ fit.white_residual) / fit.dof) < 1.5
-    # the reader is told, in mrad and degrees
-    assert any(n.startswith("plate tilt") and "mrad" in n and "°" in n for n in ds.notes)
+    # the reader is told, in mrad and degrees, and what the statics' unknown headings cost:
+    # on them the tilt is not modelled (one rest gives no heading), so the fit does not explain
+    # them (RMS z stays well above 1 — recording the headings is what brings it to ≈ 1, see
+    # test_geometry.py)
+    note = next(n for n in ds.notes if n.startswith("plate tilt"))
+    assert "mrad" in note and "°" in note and "static records carry no heading" in note
 
 
 def test_recorded_headings_give_the_azimuth_in_the_room(tmp_path: Path) -> None:
