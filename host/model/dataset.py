@@ -77,6 +77,9 @@ class Dataset:
     turn_angle_sigma_deg: float = 0.0
     #: the hand's wobble on the cross-axis turn integrals, ° (measured)
     turn_wobble_sigma_deg: float = 0.0
+    #: the closures of the turns made both ways the turn-angle σ is measured from (empty when
+    #: it is given): a candidate that moves them is tested against the σ of the others
+    closures: tuple[TurnClosure, ...] = ()
 
     @property
     def n_rows(self) -> int:
@@ -324,6 +327,9 @@ def build_dataset(
         components=components,
         turn_angle_sigma_deg=turn_sigma[0],
         turn_wobble_sigma_deg=turn_sigma[1],
+        closures=tuple(c for c in closures if c.axis == c.channel)
+        if nm.turn_angle_sigma_deg is None
+        else (),
     )
 
 

@@ -23,11 +23,12 @@ import numpy as np
 from host.model.catalogue import BASE, CATALOGUE
 from host.model.dataset import Dataset
 from host.model.design import term_columns
-from host.model.fit import Fit, residual_sigmas
+from host.model.fit import Fit, fit_model, residual_sigmas
 from host.model.signals import AXES
 from host.model.spec import ModelTerm
 from host.model.stats import chi2_sf
 from host.model.terms import Term
+from host.workbench.absorbed import closure_axes, without_turn_angle
 
 #: family-wise error rate of each family of tests (candidates; signal scan; overall χ²)
 ALPHA = 0.01
@@ -119,6 +120,8 @@ def holm(p_values: Sequence[float], alpha: float = ALPHA) -> list[bool]:
 @dataclass(frozen=True, eq=False)
 class _Tried:
     mt: ModelTerm
+    ds: Dataset  # the yardstick it was tested against (:mod:`host.workbench.absorbed`)
+    fit: Fit  # the model fitted on that yardstick
     cw_perp: np.ndarray  # whitened columns, orthogonalised to the model
     r: np.ndarray  # whitened residual to explain (offset of a nonlinear term removed)
     beta: np.ndarray
@@ -155,16 +158,45 @@ def _try(ds: Dataset, fit: Fit, mt: ModelTerm) -> _Tried:
             reason = "its parameters cannot be told apart on these records"
     if reason:
         k = cp.shape[1]
-        return _Tried(mt, cp, r, np.full(k, np.nan), np.full((k, k), np.nan), math.nan, reason)
+        nan_cov = np.full((k, k), np.nan)
+        return _Tried(mt, ds, fit, cp, r, np.full(k, np.nan), nan_cov, math.nan, reason)
     beta, *_ = np.linalg.lstsq(cp, r, rcond=None)
     cov = np.linalg.inv(cp.T @ cp)
     after = r - cp @ beta
     delta = float(fit.white_residual @ fit.white_residual - after @ after)
-    return _Tried(mt, cp, r, beta, cov, delta, "")
+    return _Tried(mt, ds, fit, cp, r, beta, cov, delta, "")
+
+
+def _try_own_yardstick(
+    ds: Dataset, fit: Fit, mt: ModelTerm, cache: dict[frozenset[int], tuple[Dataset, Fit]]
+) -> _Tried:
+    """:func:`_try` against a yardstick without the candidate's own signal: a term that moves
+    the turn closures is tested with the turn-angle σ of the other axes
+    (:mod:`host.workbench.absorbed`); the model refitted on it once per set of axes."""
+    axes = closure_axes(ds, mt)
+    if not axes:
+        return _try(ds, fit, mt)
+    if axes not in cache:
+        ds2 = without_turn_angle(ds, axes)
+        cache[axes] = (ds2, fit if ds2 is ds else fit_model(ds2, fit.model))
+    return _try(*cache[axes], mt)
+
+
+def _same_yardstick(a: _Tried, b: _Tried) -> tuple[_Tried, _Tried]:
+    """``a`` and ``b`` on one yardstick (the one without the turn-angle σ, if either has it)
+    so that one can be tested given the other."""
+    if a.ds is b.ds:
+        return a, b
+    if b.ds.turn_angle_sigma_deg < a.ds.turn_angle_sigma_deg:
+        return _try(b.ds, b.fit, a.mt), b
+    return a, _try(a.ds, a.fit, b.mt)
 
 
 def _conditional_delta(a: _Tried, b: _Tried) -> float:
     """Δχ² of adding ``b`` to the model that already holds ``a`` (both orthogonal to it)."""
+    a, b = _same_yardstick(a, b)
+    if a.reason or b.reason:
+        return 0.0
     qa, _ = np.linalg.qr(a.cw_perp)
     cb = b.cw_perp - qa @ (qa.T @ b.cw_perp)
     ra = a.r - a.cw_perp @ a.beta
@@ -201,7 +233,8 @@ def evaluate_candidates(
     alpha: float = ALPHA,
 ) -> tuple[list[Candidate], list[_Tried]]:
     """Try every candidate on ``fit``; Holm-correct; find confounded groups; sort best first."""
-    tried = [_try(ds, fit, mt) for mt in candidate_terms(fit.model, catalogue)]
+    cache: dict[frozenset[int], tuple[Dataset, Fit]] = {}
+    tried = [_try_own_yardstick(ds, fit, mt, cache) for mt in candidate_terms(fit.model, catalogue)]
     n_rows = len(fit.residual)
     ident = [t for t in tried if not t.reason]
     pvals = [chi2_sf(t.delta, t.mt.n_params) for t in ident]
@@ -232,7 +265,9 @@ def evaluate_candidates(
             elif b_given_a and not a_given_b:
                 explained_by.setdefault(id(a), b.mt.label)
     out: list[tuple[Candidate, _Tried]] = []
-    winv = np.linalg.inv(ds.whiten)
+    winv = {id(ds): np.linalg.inv(ds.whiten)}
+    for d2, _ in cache.values():
+        winv.setdefault(id(d2), np.linalg.inv(d2.whiten))
     for t in tried:
         mt = t.mt
         labels = mt.term.param_labels(mt.sensor, mt.axes[0])
@@ -249,7 +284,7 @@ def evaluate_candidates(
         c0 = coefs.get(name0, (math.nan, math.nan, units[best]))
         after_rms = math.nan
         if not t.reason:
-            after_rms = _rms_z_after(ds, fit, t, winv)
+            after_rms = _rms_z_after(t.ds, t.fit, t, winv[id(t.ds)])
         out.append(
             (
                 Candidate(
