@@ -5,6 +5,8 @@ residual scan, the verdict, the refits and their words. Never imports the calibr
 
 - ``candidates`` — every catalogue term not in the model tried on top of the fit, Holm-corrected,
   confounded and explained-by groups.
+- ``absorbed`` — the yardstick for a candidate whose signal a variance component takes up (a gyro
+  scale asymmetry in the turn angle): the component estimated without it.
 - ``scan`` — the residuals against every signal (temperature, time, inputs, their squares).
 - ``verdict`` — the whole diagnosis: compare, where it fails, what is missing, the verdict.
 - ``ladder`` — add a term (before → after) and the greedy ladder of models.
