@@ -127,7 +127,10 @@ def diagnose(
             f"degrees of freedom ({fit.n_params} parameters determined by as many values): "
             "nothing tests it; diagnose needs more records (at least the six static faces)"
         )
-    cands, _ = evaluate_candidates(ds, fit, catalogue, alpha)
+    cands, tried = evaluate_candidates(ds, fit, catalogue, alpha)
+    #: a candidate tested against its own yardstick (host.workbench.absorbed): the scan is
+    #: weighed against it on that yardstick too
+    own = {c.label: (t.ds, t.fit) for c, t in zip(cands, tried, strict=True) if t.ds is not ds}
     cat = catalogue if catalogue is not None else CATALOGUE
     usable_all = [c for c in cands if c.significant and not c.explained_by and not c.implausible]
     top = max(usable_all, key=lambda c: c.delta_chi2, default=None)
@@ -145,7 +148,13 @@ def diagnose(
     for h in scan_signals(ds, fit, alpha):
         ch = (h.sensor, h.axis)
         cb = best.get(ch)
-        if ch not in dominant and (cb is None or h.delta_chi2 > DOMINANT * cb.delta_chi2):
+        if ch in dominant:
+            continue
+        if cb is not None and cb.label in own:
+            same = [g for g in scan_signals(*own[cb.label], alpha) if (g.sensor, g.axis) == ch]
+            if same and same[0].delta_chi2 > DOMINANT * cb.delta_chi2:
+                dominant[ch] = same[0]
+        elif cb is None or h.delta_chi2 > DOMINANT * cb.delta_chi2:
             dominant[ch] = h
     usable = [c for ch, c in best.items() if ch not in dominant]
     extra = [ModelTerm(cat[c.term], c.sensor, tuple(AXES.index(a) for a in c.axes))
