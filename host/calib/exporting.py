@@ -83,7 +83,7 @@ def linear_model(result: CalibrationResult, with_thermal: bool = True) -> Linear
         serial=result.serial,
         ka=np.eye(3) + result.accel_m(),
         a0=result.accel_bias(),
-        kg=np.eye(3) + np.nan_to_num(mg, nan=0.0),
+        kg=np.eye(3) + np.where(np.isfinite(mg), mg, 0.0),  # NaN or ±inf: not determined
         ga=result.gyro_gsens(),
         g0=result.gyro_bias(),
         g=float(result.g),
