@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host.model.signals import SENSORS, UNIT
+from host.model.signals import SENSORS, UNIT, true_runs
 
 
 # ---- noise model ----------------------------------------------------------------------------
@@ -67,19 +67,11 @@ def still_runs(
     least = STILL_MIN_S if min_s is None else min_s
     still = np.abs(rate_up_dps) < 4.0 * max(sigma_dps, 1e-6)
     out: list[tuple[int, int]] = []
-    i, n = 0, len(still)
-    while i < n:
-        if not still[i]:
-            i += 1
-            continue
-        j = i
-        while j < n and still[j]:
-            j += 1
+    for i, j in true_runs(still):
         a = int(np.searchsorted(t_s, t_s[i] + trim))
         b = int(np.searchsorted(t_s, t_s[j - 1] - trim, side="right"))
         if b - a >= 4 and t_s[b - 1] - t_s[a] >= least:
             out.append((a, b))
-        i = j
     return out
 
 

@@ -77,3 +77,10 @@ class RecordSignals:
         record does not say) plus the angle
         turned since the first sample."""
         return self.heading + np.radians(self.placement_deg or 0.0)
+
+
+def true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges of the runs of True in the boolean ``mask`` (N,)."""
+    m = np.asarray(mask, dtype=bool)
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], m, [False]]).astype(np.int8)))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]

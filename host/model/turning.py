@@ -51,6 +51,8 @@ from collections.abc import Hashable, Mapping, Sequence
 
 import numpy as np
 
+from host.model.signals import true_runs
+
 #: length of a moving block, s: shorter than a push (≈ 1 s) so the tangential term survives
 BLOCK_S = 0.5
 #: a turn whose moving samples' RMS rate is below this, °/s, shows no lever arm: ω²·r at
@@ -110,20 +112,12 @@ def moving_blocks(
     t = np.asarray(t_s, dtype=np.float64)
     moving = np.abs(np.asarray(rate_up_dps, dtype=np.float64)) >= 4.0 * max(sigma_dps, 1e-6)
     out: list[tuple[int, int]] = []
-    i, n = 0, len(moving)
-    while i < n:
-        if not moving[i]:
-            i += 1
-            continue
-        j = i
-        while j < n and moving[j]:
-            j += 1
+    for i, j in true_runs(moving):
         if j - i >= MIN_BLOCK_SAMPLES:
             length = float(t[j - 1] - t[i])
             k = max(1, min(round(length / block_s), (j - i) // MIN_BLOCK_SAMPLES))
             edges = np.linspace(i, j, k + 1).round().astype(int)
             out.extend((int(edges[b]), int(edges[b + 1])) for b in range(k))
-        i = j
     return out
 
 
@@ -133,6 +127,24 @@ def rms_rate_dps(rate_up_dps: np.ndarray, blocks: Sequence[tuple[int, int]]) -> 
         return 0.0
     r = np.concatenate([np.asarray(rate_up_dps)[a:b] for a, b in blocks])
     return float(np.sqrt(np.mean(r * r)))
+
+
+def _constants_fit(
+    y: np.ndarray, keys: Sequence[Hashable], columns: np.ndarray
+) -> tuple[list[Hashable], np.ndarray, np.ndarray, int]:
+    """Least squares of ``y`` (K,) on a constant per key of ``keys`` (K,) plus the shared
+    ``columns`` (K, m): -> (the keys in first-seen order, the coefficients (constants first),
+    the residuals (K,), the degrees of freedom left; 0 without values)."""
+    yv = np.asarray(y, dtype=np.float64)
+    uniq = list(dict.fromkeys(keys))
+    if len(yv) == 0:
+        return uniq, np.zeros(0), yv, 0
+    x = np.zeros((len(yv), len(uniq) + columns.shape[1]))
+    for i, k in enumerate(keys):
+        x[i, uniq.index(k)] = 1.0
+    x[:, len(uniq) :] = columns
+    beta, _, rank, _ = np.linalg.lstsq(x, yv, rcond=None)
+    return uniq, beta, yv - x @ beta, len(yv) - int(rank)
 
 
 def hand_scatter(
@@ -151,20 +163,10 @@ def hand_scatter(
     its level at rest (the constants against ``rest``, beyond their own variance; at least the
     standard error of that estimate, as a floor the data cannot resolve; without
     ``rest`` σ_block). A wobble has no net tilt: σ_turn is far below σ_block/√n."""
-    yv = np.asarray(y, dtype=np.float64)
     w = np.asarray(white_var, dtype=np.float64)
-    uniq = list(dict.fromkeys(keys))
-    if len(yv) == 0:
-        return 0.0, 0.0, 0
-    x = np.zeros((len(yv), len(uniq) + columns.shape[1]))
-    for i, k in enumerate(keys):
-        x[i, uniq.index(k)] = 1.0
-    x[:, len(uniq) :] = columns
-    beta, _, rank, _ = np.linalg.lstsq(x, yv, rcond=None)
-    dof = len(yv) - int(rank)
+    uniq, beta, r, dof = _constants_fit(y, keys, columns)
     if dof <= 0:
         return 0.0, 0.0, 0
-    r = yv - x @ beta
     block2 = max(0.0, float(np.sum(r * r - w)) / dof)
     shared = beta[len(uniq) :]
     d: list[float] = []
@@ -205,18 +207,8 @@ def excess_scatter(
     regressors (e.g. the lever arm, the plate tilt), ``white_var`` (K,) each value's white-noise
     variance. Least squares, then σ² = Σ(r² − w)/dof (≥ 0): -> (σ in y's unit, dof); (0, 0)
     when nothing is left over (dof ≤ 0)."""
-    yv = np.asarray(y, dtype=np.float64)
     w = np.asarray(white_var, dtype=np.float64)
-    uniq = list(dict.fromkeys(keys))
-    if len(yv) == 0:
-        return 0.0, 0
-    x = np.zeros((len(yv), len(uniq) + columns.shape[1]))
-    for i, k in enumerate(keys):
-        x[i, uniq.index(k)] = 1.0
-    x[:, len(uniq) :] = columns
-    beta, _, rank, _ = np.linalg.lstsq(x, yv, rcond=None)
-    dof = len(yv) - int(rank)
+    _, _, r, dof = _constants_fit(y, keys, columns)
     if dof <= 0:
         return 0.0, 0
-    r = yv - x @ beta
     return math.sqrt(max(0.0, float(np.sum(r * r - w)) / dof)), dof
