@@ -15,6 +15,16 @@ class UserError(Exception):
     """A problem the user can fix (bad file, missing port, wrong option): one clear line."""
 
 
+class InputError(UserError, ValueError):
+    """Bad input given to the program or the library (a file, an argument, an option value):
+    a ``ValueError`` too, so a program catches it as it would any bad value."""
+
+
+class TermFileMismatch(InputError):
+    """A term file given to run a result's custom term is not the file (by its SHA-256) the
+    result was calibrated with, or a result's model needs a term file nobody gave."""
+
+
 class RecordCheckError(UserError):
     """A record failed a check of the method (orientation, range, turn angle, length):
     ``file_name`` is the record file the message starts with (e.g. ``'U1_x_up.txt'``)."""

@@ -2,8 +2,10 @@
 predicts held-out records with it (method.md §8).
 
 Both evaluate the whole model of the result (:mod:`host.calib.result`) with each term's own
-column function; custom terms come from the result's term files. :func:`apply` refuses a result
-with undetermined parameters unless asked to take them as nominal.
+column function. A result is data: custom terms come only from the term files the caller
+passes, checked against the SHA-256 the result stored; nothing a result file names is run.
+:func:`apply` refuses a result with undetermined parameters unless asked to take them as
+nominal.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import warnings
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +22,7 @@ import numpy as np
 from host.calib.result import CalibrationResult
 from host.calib.thermal import ThermalRangeWarning
 from host.calib.values import VERIFY_ACCEL_G, VERIFY_GYRO_DPS, Verification, VerifiedValue
-from host.errors import UserError
+from host.errors import TermFileMismatch, UserError
 from host.model.catalogue import CARRIED, CATALOGUE
 from host.model.fit import predict_session
 from host.model.loader import load_term_file
@@ -65,15 +67,29 @@ _NEEDS_ARG = {
 }
 
 
-def _catalogue_for(result: CalibrationResult, catalogue: Mapping[str, Term] | None) -> dict[
-    str, Term
-]:  # fmt: skip
+def _catalogue_for(
+    result: CalibrationResult,
+    term_files: Iterable[str | Path],
+    catalogue: Mapping[str, Term] | None,
+) -> dict[str, Term]:
+    """The terms to evaluate ``result`` with: the built-in ones, the custom terms of the term
+    files the caller passed (each checked against the digests the result stored before it
+    runs) and ``catalogue``. A result is data: the files it names are never run on its word."""
     cat = {**CATALOGUE, **CARRIED}
-    for f in result.term_files:
-        if Path(f).is_file():
-            cat = load_term_file(f, cat)
+    stored = set(result.term_sha256.values())
+    for f in term_files:  # a result without digests (older files): the caller's word alone
+        cat = load_term_file(f, cat, sha256=stored if stored else None)
     if catalogue:
         cat.update(catalogue)
+    known = {"base", *cat}
+    missing = sorted({item.split(":")[0].strip() for item in result.model.split(",")} - known)
+    if missing:
+        named = [f"{f} (sha256 {result.term_sha256.get(f, '?')[:12]}…)" for f in result.term_files]
+        raise TermFileMismatch(
+            f"the model of {result.serial} uses the custom term(s) {', '.join(missing)}; a "
+            "result file's term files are never run on its word: pass the file you trust as "
+            f"term_files=[...] (it was calibrated with {', '.join(named) or 'no term file'})"
+        )
     return cat
 
 
@@ -93,6 +109,7 @@ def apply(
     temp_c: np.ndarray | float | None = None,
     t_s: np.ndarray | float | None = None,
     *,
+    term_files: Iterable[str | Path] = (),
     catalogue: Mapping[str, Term] | None = None,
     allow_undetermined: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -104,9 +121,12 @@ def apply(
     of the same shape as the inputs.
 
     Every term is evaluated with its own column function (method.md §2 for the base terms,
-    the catalogue's docstrings for the others, custom terms from the result's term files or
-    ``catalogue``); the model output = input + Σ terms is inverted by fixed-point iteration on
-    (I+M)⁻¹ (exact for the linear model: a = (I+Ma)⁻¹(A − A0), ω = (I+Mg)⁻¹(G − G0 − GA·a/g)).
+    the catalogue's docstrings for the others, custom terms from ``term_files`` or
+    ``catalogue``). A result is data: the term files it names are never run; a custom term
+    is taken only from a file the caller passes in ``term_files``, and only if its SHA-256 is
+    one the result stored (else :class:`host.errors.TermFileMismatch`). The model output =
+    input + Σ terms is inverted by fixed-point iteration on (I+M)⁻¹ (exact for the linear
+    model: a = (I+Ma)⁻¹(A − A0), ω = (I+Mg)⁻¹(G − G0 − GA·a/g)).
     Parameters the records did not determine raise UserError unless ``allow_undetermined``
     (then they are taken as nominal, 0). A result carrying a thermal calibration (bias(T),
     term ``thermal_bias``) needs ``temp_c`` and warns
@@ -128,7 +148,7 @@ def apply(
             f"the result of {result.serial} does not determine {', '.join(und)}; recalibrate "
             "with the records it needs, or pass allow_undetermined=True to take them as 0"
         )
-    cat = _catalogue_for(result, catalogue)
+    cat = _catalogue_for(result, term_files, catalogue)
     model = parse_model(result.model, cat)
     theta: dict[tuple[str, str, str], dict[str, float]] = {}
     for p in result.parameters:
@@ -194,13 +214,15 @@ def verify(
     session: Session,
     *,
     source: str = "",
+    term_files: Iterable[str | Path] = (),
     catalogue: Mapping[str, Term] | None = None,
 ) -> Verification:
     """Predict every record of ``session`` (another session, extra attitudes: records the fit
     did not use) with the whole model of ``result`` and its noise model; measured − predicted
     per record and channel (static: record mean; turn: integral), against the accuracy limits
     of method.md §8 (0.01 g, 0.5 °/s; a turn's limit is 0.5 °/s × its duration, in °).
-    UserError when the result does not determine a parameter the prediction needs."""
+    UserError when the result does not determine a parameter the prediction needs. Custom
+    terms: from ``term_files`` or ``catalogue`` only, as in :func:`apply`."""
     und = [p.name for p in result.undetermined]
     if und:
         raise UserError(
@@ -210,7 +232,7 @@ def verify(
     if result.noise_model:
         known = {f.name for f in dataclasses.fields(NoiseModel)}
         nm = dataclasses.replace(nm, **{k: v for k, v in result.noise_model.items() if k in known})
-    model = parse_model(result.model, _catalogue_for(result, catalogue))
+    model = parse_model(result.model, _catalogue_for(result, term_files, catalogue))
     values = {(p.term, p.sensor, p.axis, p.key): p.value for p in result.parameters}
     held_out = predict_session(
         session, model, values, noise=nm, latitude_deg=result.latitude_deg,
@@ -236,9 +258,14 @@ def verify(
     )  # fmt: skip
 
 
-def verify_directory(result: CalibrationResult, directory: str, serial: str | None = None) -> (
-    CalibrationResult
-):  # fmt: skip
-    """``result`` with :func:`verify` on the records in ``directory`` attached."""
+def verify_directory(
+    result: CalibrationResult,
+    directory: str,
+    serial: str | None = None,
+    term_files: Iterable[str | Path] = (),
+) -> CalibrationResult:
+    """``result`` with :func:`verify` on the records in ``directory`` attached (custom terms
+    from ``term_files``)."""
     session = read_session(directory, serial)
-    return dataclasses.replace(result, verification=verify(result, session, source=directory))
+    v = verify(result, session, source=directory, term_files=term_files)
+    return dataclasses.replace(result, verification=v)

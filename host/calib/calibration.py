@@ -35,7 +35,7 @@ from host.errors import UserError
 from host.model.catalogue import CATALOGUE
 from host.model.dataset import build_dataset
 from host.model.fit import fit_model
-from host.model.loader import load_term_file
+from host.model.loader import load_term_file, term_file_sha256
 from host.model.noise import NoiseModel
 from host.model.spec import parse_model, short_spec
 from host.model.stats import ALPHA_FIT
@@ -264,9 +264,10 @@ def calibrate_from_records(
             session, records=corrected_records(session.records, thermal, t_guess)
         )
     files = tuple(str(f) for f in term_files)
+    digests = {str(Path(f).resolve()): term_file_sha256(f) for f in files}
     cat = dict(CATALOGUE)
-    for f in files:
-        cat = load_term_file(f, cat)
+    for f in files:  # the bytes hashed are the bytes run
+        cat = load_term_file(f, cat, sha256=(digests[str(Path(f).resolve())],))
     mts = parse_model(model, cat)
     nm = noise if noise is not None else NoiseModel()
     g = local_gravity(latitude_deg, height_m)
@@ -390,7 +391,8 @@ def calibrate_from_records(
         fit=quality,
         noise_model={"block_s": nm.block_s, "max_blocks": nm.max_blocks,
                      "floor": dict(ds.floor), "turn_angle_sigma_deg": nm.turn_angle_sigma_deg},
-        term_files=tuple(str(Path(f).resolve()) for f in files),
+        term_files=tuple(digests),
+        term_sha256=digests,
         temp_mean_c=t_mean,
         time_known=ds.time_known,
         earth_rate=earth_rate,

@@ -146,7 +146,7 @@ def compute_and_write(
         noise=session_noise(session, settings.floor, settings.noise_file),
     )
     if settings.verify:
-        result = verify_directory(result, settings.verify)
+        result = verify_directory(result, settings.verify, term_files=settings.term_files)
     if not out_dir.is_dir():
         raise UserError(f"{out_dir}: no such directory{_why_not_a_directory(out_dir)}")
     txt, js = write_results(result, out_dir)

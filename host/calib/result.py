@@ -67,7 +67,9 @@ class CalibrationResult:
     ``temp_mean_c``: the session's mean chip temperature, °C (the reference of
     ``temperature_bias_quadratic``). ``time_known``: the records carried the time since
     power-on (else time terms were fitted on time within each record). ``term_files``: the
-    Python files of custom terms (needed again by :func:`apply`).
+    Python files of custom terms, ``term_sha256`` each one's SHA-256 (path -> hex): a result
+    is data, :func:`host.calib.applying.apply` never runs a file it names, only the files its
+    caller passes, and only when one of these digests matches.
 
     The §7 constants are attributes too (``result.Axx``, NaN when not determined or not in the
     model), as in format v1.
@@ -87,6 +89,7 @@ class CalibrationResult:
     fit: FitQuality | None = None
     noise_model: Mapping[str, Any] = field(default_factory=dict)
     term_files: tuple[str, ...] = ()
+    term_sha256: Mapping[str, str] = field(default_factory=dict)
     temp_mean_c: float = TEMP_REF_C
     time_known: bool = True
     earth_rate: bool = False
@@ -190,6 +193,7 @@ class CalibrationResult:
             "created": self.created,
             "model": self.model,
             "term_files": list(self.term_files),
+            "term_sha256": dict(self.term_sha256),
             "parameters": [p.to_dict() for p in self.parameters],
             # the §7 view, for readers: value and pass flag by report name (not read back)
             "constants": jsonable(self.constants()),
@@ -416,6 +420,7 @@ def _from_v2(d: Mapping[str, Any]) -> CalibrationResult:
         fit=None if fit is None else FitQuality.from_dict(fit),
         noise_model=dict(d.get("noise_model", {})),
         term_files=tuple(str(x) for x in d.get("term_files", ())),
+        term_sha256={str(k): str(v) for k, v in d.get("term_sha256", {}).items()},
         temp_mean_c=float(d.get("temp_mean_c", TEMP_REF_C)),
         time_known=bool(d.get("time_known", True)),
         combinations=tuple(str(x) for x in d.get("combinations", ())),

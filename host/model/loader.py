@@ -1,34 +1,69 @@
 """Users' own terms: a Python file of :class:`~host.model.terms.Term` objects (made with
-:func:`~host.model.terms.term`) joins the catalogue."""
+:func:`~host.model.terms.term`) joins the catalogue.
+
+A term file is code: it runs only when a user names it (``--term-file``, or ``term_files=`` of
+:func:`host.calib.applying.apply`), never because a result file mentions it. Its SHA-256
+(:func:`term_file_sha256`) travels in the result, so the file given later can be checked to be
+the one the calibration used (``load_term_file(..., sha256=...)``).
+"""
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 import sys
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from pathlib import Path
 
-from host.errors import UserError
+from host.errors import TermFileMismatch, UserError
 from host.model.catalogue import CATALOGUE
 from host.model.terms import Term
 
 
-def load_term_file(
-    path: str | Path, catalogue: Mapping[str, Term] | None = None
-) -> dict[str, Term]:
-    """Import a Python file of user terms (module-level :class:`Term` objects, e.g. made with
-    :func:`term`) and return the catalogue extended by them. UserError on any failure."""
-    p = Path(path)
+def _read(p: Path) -> bytes:
     if not p.is_file():
         raise UserError(f"{p}: no such term file")
-    mod_name = f"_imu_bench_terms_{abs(hash(str(p.resolve())))}"
-    spec = importlib.util.spec_from_file_location(mod_name, p)
-    if spec is None or spec.loader is None:
+    try:
+        return p.read_bytes()
+    except OSError as exc:
+        raise UserError(f"{p}: cannot read the term file ({exc.strerror or exc})") from exc
+
+
+def term_file_sha256(path: str | Path) -> str:
+    """The SHA-256 of a term file's bytes, hex (what a result stores for each term file)."""
+    return hashlib.sha256(_read(Path(path))).hexdigest()
+
+
+def load_term_file(
+    path: str | Path,
+    catalogue: Mapping[str, Term] | None = None,
+    *,
+    sha256: Collection[str] | None = None,
+) -> dict[str, Term]:
+    """Import a Python file of user terms (module-level :class:`Term` objects, e.g. made with
+    :func:`term`) and return the catalogue extended by them. UserError on any failure.
+
+    ``sha256``: the digests (hex) the file may have; a file with another one is refused
+    before any of it runs (:class:`~host.errors.TermFileMismatch`). The bytes checked are the
+    bytes run."""
+    p = Path(path)
+    code = _read(p)
+    digest = hashlib.sha256(code).hexdigest()
+    if sha256 is not None and digest not in sha256:
+        known = ", ".join(d[:12] for d in sha256) or "none"
+        raise TermFileMismatch(
+            f"{p}: this term file (sha256 {digest[:12]}…) is not the one the result was "
+            f"calibrated with (sha256 {known}…); give that file, or recalibrate with this one"
+        )
+    mod_name = f"_imu_bench_terms_{digest[:16]}"
+    spec = importlib.util.spec_from_loader(mod_name, loader=None, origin=str(p))
+    if spec is None:
         raise UserError(f"{p}: cannot load it as Python")
     module = importlib.util.module_from_spec(spec)
+    module.__file__ = str(p)
     sys.modules[mod_name] = module
     try:
-        spec.loader.exec_module(module)
+        exec(compile(code, str(p), "exec"), module.__dict__)  # noqa: S102 - the user named it
     except UserError as exc:
         raise UserError(f"{p}: {exc}") from exc
     except (Exception, SystemExit) as exc:  # noqa: BLE001 - user code: one line for the user
