@@ -48,6 +48,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "cli_thermal",
         "bias against chip temperature from warm-up and thermal-ramp records",
     ),
+    "plan": (
+        "host.cli.plan",
+        "cli_plan",
+        "which record to measure next: ranked by σ/tolerance per minute",
+    ),
     "noise": (
         "host.cli.noise",
         "cli_noise",
@@ -100,6 +105,9 @@ EXAMPLES: dict[str, str] = {
   python3 -m host archive drift                      which units moved: recalibrate
   python3 -m host archive lot --archive postgresql://qc@db/line
   python3 -m host archive check-bench REF01          compare the benches on a reference unit""",
+    "plan": """examples:
+  python3 -m host plan U17/                  the next record that buys the most precision
+  python3 -m host plan U17/ --model base,temperature_bias:gyro --top 5""",
     "demo": """examples:
   python3 -m host demo hidden-effect --effect temperature""",
 }

@@ -9,6 +9,7 @@
 - ``exporting`` — ``export``: the result in another tool's format.
 - ``model`` — ``model`` and ``demo``: the workbench.
 - ``noise`` — ``noise``: Allan deviation and noise figures of a recording.
+- ``plan`` — ``plan``: which record to measure next.
 - ``thermal`` — ``thermal``: bias against temperature.
 
 Shared by the commands: :func:`pyplot` (the one place that says how to get matplotlib).

@@ -11,5 +11,7 @@ residual scan, the verdict, the refits and their words. Never imports the calibr
 - ``verdict`` — the whole diagnosis: compare, where it fails, what is missing, the verdict.
 - ``ladder`` — add a term (before → after) and the greedy ladder of models.
 - ``text`` — the words for people: diagnosis, addition, ladder, the catalogue, a demo's outcome.
+- ``planner`` — the record to measure next: every candidate added as it would be measured, the
+  fit's σ/tolerance it leaves, ranked per minute of the operator's time.
 - ``scenarios`` — simulated sessions each hiding one effect, and what the workbench finds.
 """

@@ -58,6 +58,9 @@ class SessionSpec:
     quantise: bool = True
     latitude_deg: float = 55.75
     height_m: float = 150.0
+    #: records measured after the plan (a face or a turn again: 'y_dn_2', 'z_ccw_2'), each
+    #: as long as its kind's records in the plan
+    extra: tuple[str, ...] = ()
 
 
 @dataclass
@@ -134,7 +137,7 @@ def _record(
     rate_up = acc_up = np.zeros(n)
     turn_deg = 0.0
     if kind == "turn":
-        sign = 1 if name.endswith("_ccw") else -1
+        sign = 1 if name.split("_")[1] == "ccw" else -1
         prof = ph.hand_turn(rng, spec.turns, duration_s, sign)
         psi = psi + np.radians(prof.angle_deg(t_s))
         rate_up, acc_up = prof.rate_dps(t_s), prof.accel_dps2(t_s)
@@ -202,6 +205,7 @@ def simulate(spec: SessionSpec) -> SimSession:
     plan += [(n, window) for n in TURNS]
     if spec.closing:
         plan.append(("x_up_2", spec.static_s))
+    plan += [(n, window if n.split("_")[1] in ("ccw", "cw") else spec.static_s) for n in spec.extra]
     t = spec.warmup_s
     for name, dur in plan:
         heading = 0.0 if spec.headings == "zero" else 90.0 * int(rng.integers(0, 4))

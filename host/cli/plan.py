@@ -1,0 +1,131 @@
+"""``python -m host plan DIR``: which record to measure next, ranked by what it buys.
+
+Every record the operator could add (a face again, a 45° attitude, a pair of turns about an
+axis) is ranked by how much it shrinks the worst standard error relative to its tolerance per
+minute of the operator's time; the math is :mod:`host.workbench.planner`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import textwrap
+from collections.abc import Callable
+from typing import Any
+
+from host.calib.publish import session_noise
+from host.cli.model import _catalogue, _common
+from host.errors import UserError
+from host.model.spec import parse_model
+from host.session.directory import read_session
+from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, UNITS
+from host.session.spacing import timing_report
+from host.workbench.planner import NextPlan, OperatorTime, Ranked, plan_next
+
+
+def _row(i: int, r: Ranked) -> str:
+    c = r.candidate
+    after = "—" if not math.isfinite(r.worst_after) else f"{r.worst_after:.3g} {r.worst_name}"
+    if r.determines:
+        gain = "determines " + ",".join(r.determines)
+        gain = gain if len(gain) <= 22 else gain[:21] + "…"
+    else:
+        gain = f"{r.gain_per_min:.3g}"
+    return f"{i:>2}  {c.label[:24]:<24} {c.operator_s:>5.0f} s  {after:<16} {gain}"
+
+
+def format_plan(p: NextPlan, top: int) -> str:
+    """The ranking for people, every line within 80 columns."""
+    if math.isfinite(p.worst_now):
+        sigma = p.sigma_now.get(p.worst_name, math.nan)
+        unit = UNITS.get(p.worst_name, "")
+        head = f"worst σ/tolerance now: {p.worst_now:.3g} ({p.worst_name}: σ {sigma:.3g} {unit})"
+    else:
+        head = f"worst σ/tolerance now: {p.worst_name} is not determined by these records"
+    lines = [
+        head.replace(" )", ")"),
+        "next records, best first: the worst σ/tolerance each leaves, and how much of",
+        "the worst it removes per minute of the operator's time",
+        " #  record                    time   worst after      gain/min",
+    ]
+    lines += [_row(i + 1, r) for i, r in enumerate(p.ranked[:top])]
+    if len(p.ranked) > top:
+        lines.append(f"    … {len(p.ranked) - top} more (--top {len(p.ranked)})")
+    for n in p.notes:
+        lines += textwrap.wrap(n, 80, initial_indent="note: ", subsequent_indent="      ")
+    return "\n".join(lines)
+
+
+def _json(p: NextPlan) -> dict[str, Any]:
+    def num(v: float) -> float | None:
+        return v if math.isfinite(v) else None
+
+    return {
+        "worst_now": num(p.worst_now),
+        "worst_name": p.worst_name,
+        "ranked": [
+            {
+                "record": r.candidate.label,
+                "records": [x[0] for x in r.candidate.records],
+                "operator_s": r.candidate.operator_s,
+                "worst_after": num(r.worst_after),
+                "worst_name": r.worst_name,
+                "determines": list(r.determines),
+                "gain_per_min": num(r.gain_per_min),
+            }
+            for r in p.ranked
+        ],
+        "notes": list(p.notes),
+    }
+
+
+def run_plan(args: argparse.Namespace) -> int:
+    if args.top < 1:
+        raise UserError(f"--top {args.top}: give how many records to list, 1 or more")
+    session = read_session(args.dir, args.serial)
+    sys.stderr.write(timing_report(session.records))
+    model = parse_model(args.model, _catalogue(args))
+    time = OperatorTime(place=args.place_s, place_tilted=args.place_tilted_s)
+
+    def progress(done: int, total: int, label: str) -> None:
+        if sys.stderr.isatty():
+            end = "\n" if done == total else ""
+            sys.stderr.write(f"\rtrying {done}/{total} {label[:40]:<40}{end}")
+            sys.stderr.flush()
+
+    p = plan_next(
+        session, model, noise=session_noise(session, args.floor, args.noise), time=time,
+        latitude_deg=DEFAULT_LATITUDE_DEG if args.latitude is None else args.latitude,
+        height_m=DEFAULT_HEIGHT_M if args.height is None else args.height, progress=progress,
+    )  # fmt: skip
+    if args.json:
+        print(json.dumps(_json(p), indent=2, ensure_ascii=False))
+    else:
+        print(format_plan(p, args.top))
+    return 0
+
+
+def _seconds(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from exc
+    if not (math.isfinite(v) and v >= 0.0):
+        raise argparse.ArgumentTypeError(f"{text!r}: give 0 or more seconds")
+    return v
+
+
+def cli_plan(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+    _common(p)
+    p.add_argument("--top", type=int, default=10, help="how many records to list (default 10)")
+    p.add_argument(
+        "--place-s", type=_seconds, default=OperatorTime.place, metavar="S",
+        help="seconds to put the cube on a face (default %(default)g)",
+    )  # fmt: skip
+    p.add_argument(
+        "--place-tilted-s", type=_seconds, default=OperatorTime.place_tilted, metavar="S",
+        help="seconds to put it on an edge, 45° (default %(default)g)",
+    )  # fmt: skip
+    return run_plan

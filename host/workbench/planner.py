@@ -1,0 +1,315 @@
+"""Plan the next measurement from the fit's own information.
+
+Given the records measured so far, a model and the method's tolerances (method.md §7), every
+record the operator could measure next — a face again, a 45° attitude (an edge of the cube up),
+a pair of turns about an axis — is added to the session as it would be measured (the sensor as
+fitted so far, its measured noise, the session's sample rate and record length), the model is
+fitted again, and the records are ranked by how much each shrinks the worst standard error
+relative to its tolerance per minute of the operator's time (placing, settling, measuring,
+turning: :class:`OperatorTime`).
+
+Only the information matters, not the values drawn: a record's σ in a weighted least-squares
+fit depends on where it puts the cube and how long, not on its noise's draw. Where a channel's
+fit is poor its standard errors are widened (the Birge ratio of :func:`host.model.stats.
+stderr_scale`) — the ranking keeps the widening the records measured so far show.
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from host.bench.plan import tilted_45
+from host.model.dataset import build_dataset
+from host.model.fit import Fit, fit_model
+from host.model.noise import NoiseModel
+from host.model.spec import ModelTerm
+from host.session.directory import Session
+from host.session.method import (
+    DEFAULT_HEIGHT_M,
+    DEFAULT_LATITUDE_DEG,
+    TOLERANCES,
+    local_gravity,
+    names_to_gsens,
+    names_to_matrix,
+    record_stats,
+)
+from host.session.records import HEADING_KEY, STATIC_NAMES, Record, turn_window_s
+
+
+@dataclass(frozen=True)
+class OperatorTime:
+    """What a record costs the operator, s: ``place`` the cube on a face against the fence,
+    ``place_tilted`` on an edge (a 45° wedge), ``settle`` before the start beep, ``turn_ready``
+    the 'get ready' before each turn and the return against the ruler after it. The record's
+    own length (accumulation time, or the fixed turn window of method.md §4) is added."""
+
+    place: float = 15.0
+    place_tilted: float = 40.0
+    settle: float = 3.0
+    turn_ready: float = 8.0
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One record (or pair of turns) the operator could measure next.
+
+    ``records``: the records it adds (name, up vector in chip axes, kind, seconds, turns,
+    direction +1 ccw / -1 cw); ``operator_s``: what it costs the operator, s."""
+
+    label: str
+    records: tuple[tuple[str, tuple[float, float, float], str, float, int, int], ...]
+    operator_s: float
+
+
+@dataclass(frozen=True)
+class Ranked:
+    """A candidate with what it does: ``worst_after`` the worst σ/tolerance with it added (and
+    the name of the value that is then worst), ``sigma_after`` name -> σ, ``determines`` the
+    values now undetermined that it would determine, ``gain_per_min`` the worst σ/tolerance
+    it removes per minute of operator time (∞ when it determines a value)."""
+
+    candidate: Candidate
+    worst_after: float
+    worst_name: str
+    sigma_after: Mapping[str, float]
+    determines: tuple[str, ...]
+    gain_per_min: float
+
+
+@dataclass(frozen=True)
+class NextPlan:
+    """The planner's answer: the worst σ/tolerance now (and whose), the σ of every value with
+    a tolerance now, and the candidates ranked best first."""
+
+    worst_now: float
+    worst_name: str
+    sigma_now: Mapping[str, float]
+    ranked: tuple[Ranked, ...]
+    notes: tuple[str, ...] = ()
+
+
+def _scales(fit: Fit) -> dict[tuple[str, str], float]:
+    """(sensor, axis letter or '') -> the factor its standard errors were widened by."""
+    out: dict[tuple[str, str], float] = {}
+    for c in fit.channels:
+        out[(c.sensor, c.axis)] = c.se_scale
+        out[(c.sensor, "")] = max(out.get((c.sensor, ""), 1.0), c.se_scale)
+    return out
+
+
+def unscaled_sigmas(fit: Fit, widen: Fit | None = None) -> dict[str, float]:
+    """Parameter name -> its standard error from the noise model alone (σ/σ-widening of
+    ``fit``), times the widening ``widen`` shows (None: none). NaN where undetermined."""
+    own, other = _scales(fit), _scales(widen) if widen is not None else {}
+    out: dict[str, float] = {}
+    for p in fit.parameters:
+        key = (p.sensor, p.axis)
+        out[p.name] = p.stderr / own.get(key, 1.0) * other.get(key, 1.0)
+    return out
+
+
+def worst_ratio(
+    sigmas: Mapping[str, float], tolerances: Mapping[str, float | None] = TOLERANCES
+) -> tuple[float, str]:
+    """The largest σ/tolerance over the values that have a tolerance, and its name (∞ for a
+    value the records do not determine)."""
+    worst, name = 0.0, ""
+    for n, s in sigmas.items():
+        tol = tolerances.get(n)
+        if not tol:
+            continue
+        r = s / tol if math.isfinite(s) else math.inf
+        if r > worst:
+            worst, name = r, n
+    return worst, name
+
+
+def _values(fit: Fit) -> dict[str, float]:
+    """The base model's values as fitted (0 where not in the model or undetermined)."""
+    out = {p.name: p.value for p in fit.parameters if math.isfinite(p.value)}
+    return out
+
+
+def _sensor(
+    values: Mapping[str, float],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Ma, A0, Mg, GA, G0 of method.md §2 from fitted values (0 where absent)."""
+
+    class _Zero(dict):  # type: ignore[type-arg]
+        def __missing__(self, key: str) -> float:
+            return 0.0
+
+    v = _Zero(values)
+    a0 = np.array([v["A0x"], v["A0y"], v["A0z"]])
+    g0 = np.array([v["G0x"], v["G0y"], v["G0z"]])
+    return names_to_matrix("A", v), a0, names_to_matrix("G", v), names_to_gsens(v), g0
+
+
+def synthetic_record(
+    name: str,
+    up: Sequence[float],
+    kind: str,
+    seconds: float,
+    *,
+    g: float,
+    values: Mapping[str, float],
+    accel_sd: np.ndarray,
+    gyro_sd: np.ndarray,
+    dt_s: float,
+    temp_c: float,
+    turns: int = 0,
+    direction: int = 0,
+    meta: Mapping[str, str] | None = None,
+    rng: np.random.Generator | None = None,
+) -> Record:
+    """A record as the sensor fitted so far would measure it (method.md §2 with ``values``):
+    ``kind`` 'static' (``seconds`` of rest with ``up``, a unit vector in chip axes, pointing
+    away from the Earth) or 'turn' (``turns`` whole turns about ``up``, ``direction`` +1 ccw,
+    -1 cw, in a window of ``seconds`` with 1 s of rest at each end); white noise of
+    ``accel_sd`` (m/s²) and ``gyro_sd`` (°/s) per axis, one sample every ``dt_s`` s."""
+    rng = rng or np.random.default_rng(0)
+    u = np.asarray(up, dtype=float)
+    u = u / np.linalg.norm(u)
+    t_s = np.arange(0.0, seconds, dt_s)
+    n = len(t_s)
+    rate = np.zeros(n)
+    if kind == "turn":
+        rest = min(1.0, seconds / 5.0)
+        moving = (t_s >= rest) & (t_s <= seconds - rest)
+        phase = (t_s - rest) / max(seconds - 2 * rest, dt_s)
+        rate = np.where(moving, 1.0 - np.cos(2 * np.pi * phase), 0.0)
+        area = float(np.trapezoid(rate, t_s)) if n > 1 else 1.0
+        rate *= direction * 360.0 * turns / area
+    ma, a0, mg, ga, g0 = _sensor(values)
+    force = np.tile(g * u, (n, 1))
+    omega = rate[:, None] * u[None, :]
+    accel = force @ (np.eye(3) + ma).T + a0 + rng.normal(0.0, 1.0, (n, 3)) * accel_sd
+    gyro = omega @ (np.eye(3) + mg).T + (force / g) @ ga.T + g0
+    gyro = gyro + rng.normal(0.0, 1.0, (n, 3)) * gyro_sd
+    m = {"kind": kind, "up": "[" + ", ".join(f"{x:.6g}" for x in u) + "]"}
+    if kind == "turn":
+        m.update({"turns": str(turns), "direction": "ccw" if direction > 0 else "cw"})
+    m.update(meta or {})
+    return Record(name, t_s * 1000.0, accel, gyro, np.full(n, temp_c), m)
+
+
+def _face_up(name: str) -> tuple[float, float, float]:
+    v = [0.0, 0.0, 0.0]
+    v["xyz".index(name[0])] = -1.0 if name.endswith("_dn") else 1.0
+    return (v[0], v[1], v[2])
+
+
+def candidates(static_s: float, turns: int, time: OperatorTime = OperatorTime()) -> list[Candidate]:
+    """The records the operator could measure next: each face again (``static_s`` s), each
+    45° attitude of :func:`host.bench.plan.tilted_45`, and a pair of turns (ccw and cw,
+    ``turns`` each, the method's window) about each axis."""
+    out: list[Candidate] = []
+    for face in STATIC_NAMES:
+        rec = (f"next_{face}", _face_up(face), "static", static_s, 0, 0)
+        out.append(Candidate(f"{face} again", (rec,), time.place + time.settle + static_s))
+    for name, up in tilted_45():
+        rec = (f"next_{name}", up, "static", static_s, 0, 0)
+        label = f"{name} (up {_format_up(up)})"
+        out.append(Candidate(label, (rec,), time.place_tilted + time.settle + static_s))
+    window = turn_window_s(turns)
+    for ax in "xyz":
+        up = _face_up(f"{ax}_up")
+        pair = tuple(
+            (f"next_{ax}_{d}", up, "turn", window, turns, s) for d, s in (("ccw", 1), ("cw", -1))
+        )
+        cost = 2 * (time.place + time.turn_ready + window)
+        out.append(Candidate(f"{ax} turns, {turns} each way", pair, cost))
+    return out
+
+
+def _format_up(up: Sequence[float]) -> str:
+    parts = []
+    for k, c in zip("xyz", up, strict=True):
+        if abs(c) > 1e-9:
+            parts.append(("+" if c > 0 else "−") + k)
+    return "".join(parts)
+
+
+def plan_next(
+    session: Session,
+    model: Sequence[ModelTerm],
+    *,
+    noise: NoiseModel | None = None,
+    tolerances: Mapping[str, float | None] = TOLERANCES,
+    time: OperatorTime = OperatorTime(),
+    latitude_deg: float = DEFAULT_LATITUDE_DEG,
+    height_m: float = DEFAULT_HEIGHT_M,
+    only: Sequence[Candidate] | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+    seed: int = 0,
+) -> NextPlan:
+    """Rank the records the operator could measure next (:func:`candidates`, or ``only``) by
+    how much each shrinks the worst σ/tolerance of ``model`` per minute of operator time.
+
+    ``progress(done, total, label)`` is called before each candidate is tried. UserError
+    (from the engine) when the session cannot be fitted at all."""
+    nm = noise or NoiseModel()
+    g = local_gravity(latitude_deg, height_m)
+    kw = {"noise": nm, "latitude_deg": latitude_deg, "height_m": height_m}
+    fit = fit_model(build_dataset(session, **kw), model)  # type: ignore[arg-type]
+    sigma_now = unscaled_sigmas(fit, fit)
+    worst_now, worst_name = worst_ratio(sigma_now, tolerances)
+    undetermined_now = {n for n, s in sigma_now.items() if not math.isfinite(s)}
+
+    recs = list(session.records.values())
+    stats = [record_stats(r) for r in recs]
+    statics = [s for s in stats if s.kind == "static"]
+    accel_sd = np.median([s.accel_std for s in statics], axis=0)
+    gyro_sd = np.median([s.gyro_std for s in statics], axis=0)
+    dt_s = float(np.median([s.dt_s for s in stats if s.dt_s > 0]))
+    temp_c = float(np.mean([float(np.mean(r.temp)) for r in recs]))
+    static_s = float(np.median([s.duration_s for s in statics]))
+    ns = [int(r.meta["turns"]) for r in recs if r.meta.get("turns", "").strip().isdigit()]
+    turns = ns[0] if ns else 1
+    extra: dict[str, str] = {}
+    if all("power_on_s" in r.meta for r in recs):
+        end = max(float(r.meta["power_on_s"]) + r.duration_s for r in recs)
+        extra["power_on_s"] = f"{end + 60.0:.3f}"
+    if any(HEADING_KEY in r.meta for r in recs):
+        extra[HEADING_KEY] = "0"
+    values = _values(fit)
+    todo = list(only) if only is not None else candidates(static_s, turns, time)
+    ranked: list[Ranked] = []
+    for i, cand in enumerate(todo):
+        if progress is not None:
+            progress(i, len(todo), cand.label)
+        records = dict(session.records)
+        for name, up, kind, seconds, n_turns, direction in cand.records:
+            records[name] = synthetic_record(
+                name, up, kind, seconds, g=g, values=values, accel_sd=accel_sd,
+                gyro_sd=gyro_sd, dt_s=dt_s, temp_c=temp_c, turns=n_turns,
+                direction=direction, meta=extra,
+                rng=np.random.default_rng([seed, zlib.crc32(name.encode())]),
+            )  # fmt: skip
+        aug = fit_model(build_dataset(Session(session.serial, records), **kw), model)  # type: ignore[arg-type]
+        sigma = unscaled_sigmas(aug, fit)
+        worst, name = worst_ratio(sigma, tolerances)
+        determines = tuple(
+            sorted(n for n in undetermined_now if math.isfinite(sigma.get(n, math.nan)))
+        )
+        minutes = cand.operator_s / 60.0
+        if determines:
+            gain = math.inf
+        elif math.isfinite(worst_now):
+            gain = (worst_now - worst) / minutes
+        else:  # the worst stays undetermined: nothing gained on it
+            gain = 0.0
+        ranked.append(Ranked(cand, worst, name, sigma, determines, gain))
+    if progress is not None:
+        progress(len(todo), len(todo), "")
+    ranked.sort(key=lambda r: (-len(r.determines), -r.gain_per_min, r.candidate.operator_s))
+    notes = (
+        "a sitting at another temperature is not ranked: the planner changes the attitude and "
+        "the length of records, not the chip's temperature",
+    )
+    return NextPlan(worst_now, worst_name, sigma_now, tuple(ranked), notes)

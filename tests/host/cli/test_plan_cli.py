@@ -1,0 +1,75 @@
+"""``python -m host plan DIR`` (host/cli/plan.py): the ranking as a user reads it."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from host.__main__ import build_parser, main
+from tests.independent.simulate import SessionSpec, write_session
+
+
+@pytest.fixture(scope="module")
+def session_without_y_turns(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("plan") / "S"
+    write_session(d, SessionSpec(seed=11, static_s=5.0))
+    for name in ("y_ccw", "y_cw"):
+        (d / f"IND01_{name}.txt").unlink()
+    return d
+
+
+def test_the_table_names_the_record_and_fits_80_columns(
+    session_without_y_turns: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["plan", str(session_without_y_turns), "--top", "4"]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    assert all(len(line) <= 80 for line in lines), max(lines, key=len)
+    assert "Gyy is not determined" in lines[0] or "not determined" in lines[0]
+    first = next(line for line in lines if line.startswith(" 1 "))
+    assert "y turns" in first and "determines" in first
+    assert sum(1 for line in lines if line[:3].strip().isdigit()) == 4
+
+
+def test_json_ranks_every_candidate(
+    session_without_y_turns: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["plan", str(session_without_y_turns), "--json"]) == 0
+    obj = json.loads(capsys.readouterr().out)
+    ranked = obj["ranked"]
+    assert len(ranked) == 6 + 12 + 3  # faces, 45° attitudes, turn pairs
+    assert ranked[0]["records"] == ["next_y_ccw", "next_y_cw"]
+    assert "Gyy" in ranked[0]["determines"]
+    assert obj["worst_now"] is None  # undetermined now: not a number
+
+
+def test_bad_top_is_one_line(
+    session_without_y_turns: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["plan", str(session_without_y_turns), "--top", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--top" in err[0]
+
+
+def test_missing_directory_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["plan", str(tmp_path / "nothing")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "nothing" in err[0]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.text(max_size=12))
+def test_place_seconds_parse_or_refuse(text: str) -> None:
+    """Any text for --place-s is a finite number of seconds ≥ 0, or argparse's exit 2."""
+    parser, _ = build_parser()
+    try:
+        args = parser.parse_args(["plan", "D", "--place-s", text])
+    except SystemExit as exc:
+        assert exc.code == 2
+        return
+    assert math.isfinite(args.place_s) and args.place_s >= 0.0
