@@ -110,6 +110,10 @@ EXAMPLES: dict[str, str] = {
   python3 -m host plan U17/ --model base,temperature_bias:gyro --top 5""",
     "demo": """examples:
   python3 -m host demo hidden-effect --effect temperature""",
+    "export": """examples:
+  python3 -m host export U17/ --to ardupilot --out U17.parm
+  python3 -m host export U17/ --to px4 --axes x,-y,-z       the board's axes
+  python3 -m host export U17/ --to c-header --allow-fail    a FAILED result, marked so""",
 }
 
 

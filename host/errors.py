@@ -20,9 +20,20 @@ class InputError(UserError, ValueError):
     a ``ValueError`` too, so a program catches it as it would any bad value."""
 
 
+class ResultFileError(InputError):
+    """A calibration result file that cannot be read: not JSON, not a result, a format
+    version this program does not read, a missing or bad field."""
+
+
 class TermFileMismatch(InputError):
     """A term file given to run a result's custom term is not the file (by its SHA-256) the
     result was calibrated with, or a result's model needs a term file nobody gave."""
+
+
+class FailedResultError(UserError):
+    """A calibration that failed (values outside tolerance, not determined, held-out records
+    not predicted) was to be used as if it passed (exported): refused, naming what failed and
+    the option that allows it (``--allow-fail``, ``allow_fail=True``)."""
 
 
 class RecordCheckError(UserError):

@@ -1,13 +1,15 @@
 """Stage 5, calibration: records -> checks -> fit -> result -> report.
 
 Data in: a session (the record files of one sitting, :mod:`host.session`). Out: the result
-(JSON, v2) and the signed test report, and the result in other tools' formats.
+(JSON, v3) and the signed test report, and the result in other tools' formats.
 
 - ``calibration`` — the calibration through the one fit, the closed form beside it.
 - ``publish`` — compute and write: the one step from records to the published result (live and
   ``--from-dir``).
 - ``values`` — the parts of a result: parameters, fit quality, residuals, verified values.
-- ``result`` — the versioned result object and its files (v1, v2).
+- ``result`` — the versioned result object and its files (v1, v2, v3).
+- ``provenance`` — where the records came from: simulated or a unit, the equipment, the chip
+  temperatures, the plan, when measured and in how many sittings (from the record headers).
 - ``applying`` — ``apply`` to raw samples and held-out ``verify``.
 - ``report`` — the test report (method.md §7) and the result files.
 - ``thermal`` — bias against temperature: the thermal result, ``apply_thermal``, corrected records.

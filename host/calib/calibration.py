@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from host import __version__
+from host.calib.provenance import provenance_of
 from host.calib.result import CalibrationResult, thermal_parameters
 from host.calib.thermal import CHANNELS, ThermalCalibration, corrected_records
 from host.calib.values import FitQuality, ParameterResult, RecordResidual, within
@@ -40,7 +42,7 @@ from host.model.noise import NoiseModel
 from host.model.spec import parse_model, short_spec
 from host.model.stats import ALPHA_FIT
 from host.session.checks import check_record_lengths
-from host.session.directory import SIMULATED_BOARD, Session, simulated_ports
+from host.session.directory import Session
 from host.session.method import (
     ACCEL_BIAS_NAMES,
     ACCEL_NOISE_NAMES,
@@ -354,9 +356,9 @@ def calibrate_from_records(
     if thermal is not None:
         params, spec = _with_thermal(params, spec, thermal, t_guess, t_mean)
         notes.append(_thermal_note(session, thermal, thermal_source))
-    sims = simulated_ports(session.records)
-    if sims:  # never let a virtual board pass for a unit (first note: the report heads with it)
-        notes.insert(0, f"{SIMULATED_BOARD} {', '.join(sims)}: not a measurement of a unit")
+    prov = provenance_of(session, software=f"imu-bench {__version__}")
+    if prov.simulated:  # never let a virtual board pass for a unit (first note, as in v2 files)
+        notes.insert(0, prov.simulated_line)
     for name, rec in session.records.items():  # kept by the operator despite a warning
         if rec.meta.get("warning"):
             notes.append(f"{name} kept despite a warning: {rec.meta['warning']}")
@@ -404,6 +406,7 @@ def calibrate_from_records(
         notes=tuple(notes),
         thermal_range_c=None if thermal is None else (thermal.t_min_c, thermal.t_max_c),
         thermal_source=thermal_source,
+        provenance=prov,
     )  # fmt: skip
 
 

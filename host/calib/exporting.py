@@ -28,6 +28,12 @@ PX4's thermal compensation ``TC_A0_*``/``TC_G0_*`` (cubic, X0 = 0, clamped to th
 range). Kalibr's IMU YAML comes from a noise file (``noise --save``), not from the result.
 Not yet: ArduPilot's ``INS_TCAL*``. A result whose exported constants are not all determined
 (NaN) is refused with one line naming them: no format here can carry NaN.
+
+An export cannot mislead: every format says, in a comment (or imucal's ``comment`` field),
+when the records came from a simulated board (:attr:`LinearModel.marks`), and a result that
+failed — a value outside tolerance or not determined, held-out records not predicted — is
+refused (:class:`host.errors.FailedResultError`, naming what failed) unless ``allow_fail``,
+and then marked FAILED in the file.
 """
 
 from __future__ import annotations
@@ -41,11 +47,12 @@ import numpy as np
 
 from host.calib.result import CalibrationResult, carried_thermal
 from host.calib.thermal import ThermalCalibration
-from host.errors import UserError
+from host.errors import FailedResultError, UserError
 from host.session.method import (
     ACCEL_BIAS_NAMES,
     ACCEL_MIS_NAMES,
     ACCEL_SCALE_NAMES,
+    CONSTANT_NAMES,
     GYRO_BIAS_NAMES,
     GYRO_GSENS_NAMES,
 )
@@ -72,6 +79,8 @@ class LinearModel:
     frame: str = "x,y,z"
     axes: np.ndarray = field(default_factory=lambda: np.eye(3))
     further: tuple[str, ...] = ()
+    #: what every file says first: SIMULATED BOARD …, FAILED calibration …
+    marks: tuple[str, ...] = ()
 
 
 def linear_model(result: CalibrationResult, with_thermal: bool = True) -> LinearModel:
@@ -89,7 +98,40 @@ def linear_model(result: CalibrationResult, with_thermal: bool = True) -> Linear
         g=float(result.g),
         gyro_scale_measured=measured,
         further=further_lines(result, with_thermal),
+        marks=marks_of(result),
     )
+
+
+def failures(result: CalibrationResult) -> list[str]:
+    """What failed in ``result``, in words ('outside tolerance: Gxx, A0z'); [] when it
+    passed."""
+    passed = result.passed()
+    outside = [n for n in CONSTANT_NAMES if passed[n] is False and n in result.constants()
+               and math.isfinite(result.constants()[n])]  # fmt: skip
+    out = [f"outside tolerance: {', '.join(outside)}"] if outside else []
+    if result.undetermined:
+        out.append(f"not determined: {', '.join(p.name for p in result.undetermined)}")
+    if result.verification is not None and not result.verification.passed:
+        out.append("held-out records not predicted within the limits")
+    return out
+
+
+def marks_of(result: CalibrationResult) -> tuple[str, ...]:
+    """The lines every export of ``result`` starts with: that it is simulated, that it
+    failed."""
+    out = [result.simulated_line] if result.simulated else []
+    if bad := failures(result):
+        out.append(f"FAILED calibration, exported with --allow-fail: {'; '.join(bad)}")
+    return tuple(out)
+
+
+def refuse_failed(result: CalibrationResult) -> None:
+    """:class:`~host.errors.FailedResultError` naming what failed, if anything did."""
+    if bad := failures(result):
+        raise FailedResultError(
+            f"result of {result.serial} FAILED ({'; '.join(bad)}): nothing exported; "
+            "--allow-fail exports it anyway, marked FAILED"
+        )
 
 
 #: the §7 constants every format writes (the gyro's Mg, when not measured, goes out as nominal)
@@ -139,6 +181,7 @@ def in_frame(model: LinearModel, axes: np.ndarray, text: str) -> LinearModel:
         frame=text,
         axes=p,
         further=model.further,
+        marks=model.marks,
     )
 
 
@@ -171,6 +214,7 @@ def _lost_lines(model: LinearModel, *, gyro_scale: bool, gyro_bias: bool = True)
 
 def _header(comment: str, title: str, model: LinearModel, convention: list[str]) -> list[str]:
     lines = [f"{comment} {title} for serial {model.serial} (imu-bench calibration)"]
+    lines += [f"{comment} *** {m} ***" for m in model.marks]
     lines += [f"{comment} {c}" for c in convention]
     lines.append(f"{comment} frame: our chip axes mapped as {model.frame} (target = P · ours)")
     return lines
@@ -294,14 +338,15 @@ def imucal_info(model: LinearModel) -> dict[str, object]:
     K_g R_g = I+Mg, K_ga = GA / g ((°/s)/(m/s²)), b_g = G0 (°/s)."""
     k_a, r_a = _k_r(model.ka)
     k_g, r_g = _k_r(model.kg)
-    return {
+    return {  # the comment first: a simulated or failed result says so at the top
+        "comment": "".join(f"*** {m} *** " for m in model.marks)
+        + f"imu-bench calibration of serial {model.serial}, frame {model.frame}; "
+        "a = R_a^-1 K_a^-1 (u - b_a), w = R_g^-1 K_g^-1 (u_g - K_ga a - b_g)"
+        + "".join(f"; NOT REPRESENTED: further term {x}" for x in model.further),
         "acc_unit": "m/s^2",
         "gyr_unit": "deg/s",
         "from_acc_unit": "m/s^2",
         "from_gyr_unit": "deg/s",
-        "comment": f"imu-bench calibration of serial {model.serial}, frame {model.frame}; "
-        "a = R_a^-1 K_a^-1 (u - b_a), w = R_g^-1 K_g^-1 (u_g - K_ga a - b_g)"
-        + "".join(f"; NOT REPRESENTED: further term {x}" for x in model.further),
         "K_a": k_a.tolist(),
         "R_a": r_a.tolist(),
         "b_a": model.a0.tolist(),
@@ -344,7 +389,9 @@ def export_c_header(model: LinearModel) -> str:
     guard = "IMU_CALIBRATION_" + "".join(c if c.isalnum() else "_" for c in model.serial.upper())
     lines = [
         f"/* IMU calibration of serial {model.serial}, generated by imu-bench (python -m host",
-        " * export). The whole linear model of method.md §2; apply per sample, in this order:",
+        " * export).",
+        *(f" * *** {m} ***" for m in model.marks),
+        " * The whole linear model of method.md §2; apply per sample, in this order:",
         " *",
         " *   a[i] = sum_k ACCEL_M_INV[i][k] * (A[k] - ACCEL_BIAS[k])         A, a in m/s^2",
         " *   c[i] = G[i] - GYRO_BIAS[i] - sum_k GYRO_G_SENS[i][k] * a[k]     G in deg/s",
@@ -442,10 +489,13 @@ def export(
     axes: np.ndarray | None = None,
     axes_text: str = "x,y,z",
     thermal: ThermalCalibration | None = None,
+    *,
+    allow_fail: bool = False,
 ) -> str:
     """The text of ``result`` in format ``fmt`` (see :data:`FORMATS`), optionally in the
     target's axes (signed permutation ``axes``: target = P · ours) and with the thermal
-    calibration ``thermal`` (bias(T); PX4 only)."""
+    calibration ``thermal`` (bias(T); PX4 only). A failed result raises
+    :class:`~host.errors.FailedResultError` unless ``allow_fail`` (then the file says FAILED)."""
     key = fmt.strip().lower()
     if key == "c":
         key = "c-header"
@@ -453,6 +503,8 @@ def export(
         raise UserError(f"--to {fmt}: {PENDING[key]}")
     if key not in FORMATS:
         raise UserError(f"--to {fmt}: unknown format; choose one of {', '.join(FORMATS)}")
+    if not allow_fail:
+        refuse_failed(result)
     refuse_undetermined(result)
     if thermal is None and key == "px4":  # the result's own bias(T), if it carries one
         thermal = carried_thermal(result)

@@ -16,7 +16,6 @@ from pathlib import Path
 
 from host.calib.result import CalibrationResult
 from host.session.atomic import write_texts_atomic
-from host.session.directory import SIMULATED_BOARD
 from host.session.method import (
     ACCEL_BIAS_NAMES,
     CONSTANT_NAMES,
@@ -46,7 +45,8 @@ def format_report(result: CalibrationResult) -> str:
     rule = "-" * WIDTH
     out: list[str] = []
     out.append(f"TEST REPORT, IMU MPU-6000, serial No. {r.serial}")
-    out += [f"*** {n} ***" for n in r.notes if n.startswith(SIMULATED_BOARD)]
+    if r.simulated:
+        out.append(f"*** {r.simulated_line} ***")
     out.append(f"Date and time: {r.created.replace('T', ' ')}")
     out.append(
         f"Local gravity g = {r.g:.5f} m/s² (Helmert formula, latitude {r.latitude_deg:.3f}°, "
@@ -261,8 +261,7 @@ def verdict_line(result: CalibrationResult, report_path: str | os.PathLike[str])
     still fits an 80-column terminal), and before that, when the model does not fit, the
     report's :func:`fit_story` with the next command."""
     line = f"{verdict(result)}; report {report_path}"
-    sims = [n for n in result.notes if n.startswith(SIMULATED_BOARD)]
-    line = f"*** {sims[0]} ***\n{line}" if sims else line
+    line = f"*** {result.simulated_line} ***\n{line}" if result.simulated else line
     story = fit_story(result, Path(report_path).parent)
     # the report's story on a poor fit, above the mark and the verdict (the last line)
     return f"{story}\n{line}" if story else line

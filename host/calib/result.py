@@ -4,9 +4,11 @@ A result is the model the user chose (a spec of named terms, :mod:`host.model.sp
 parameter of every term (:mod:`host.calib.values`): value, 1-σ standard error, unit, and — for
 the §2 constants that the report of method.md §7 tolerances — the tolerance and the pass flag.
 Format v2 (``SERIAL_result.json``, ``format_version: 2``) also carries the noise model of the fit
-and the fit quality (χ², dof, RMS z, p, verdict). Format v1 files (the §7 constants only) still
-load: they become the ``base`` model. A thermal calibration travels in a result as the term
-``thermal_bias`` (:func:`thermal_parameters`, :func:`carried_thermal`).
+and the fit quality (χ², dof, RMS z, p, verdict); format v3 adds where the records came from
+(:class:`host.calib.provenance.Provenance`: ``simulated`` and by what, the equipment, when
+measured). Format v1 and v2 files still load: v1 becomes the ``base`` model, and a v1/v2 file
+is simulated when its notes say ``SIMULATED BOARD``. A thermal calibration travels in a result
+as the term ``thermal_bias`` (:func:`thermal_parameters`, :func:`carried_thermal`).
 
 A parameter whose value is NaN was **not determined** by the records; ``needs`` says what
 would determine it. Applying a result to raw samples and verifying it on held-out records:
@@ -25,6 +27,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from host.calib.provenance import Provenance
 from host.calib.thermal import CHANNELS as THERMAL_CHANNELS
 from host.calib.thermal import ThermalCalibration, recentre_poly, recentred
 from host.calib.values import (
@@ -37,11 +40,12 @@ from host.calib.values import (
     tolerance_of,
     within,
 )
-from host.errors import UserError
+from host.errors import ResultFileError, UserError
 from host.model.catalogue import CARRIED
 from host.model.signals import AXES, TEMP_REF_C
 from host.model.spec import parse_model
 from host.model.terms import Term
+from host.session.directory import SIMULATED_BOARD
 from host.session.method import (
     ACCEL_BIAS_NAMES,
     CONSTANT_NAMES,
@@ -75,7 +79,9 @@ class CalibrationResult:
     model), as in format v1.
     """
 
-    FORMAT_VERSION: ClassVar[int] = 2
+    FORMAT_VERSION: ClassVar[int] = 3
+    #: the format versions :meth:`from_json` reads
+    READS: ClassVar[tuple[int, ...]] = (1, 2, 3)
 
     serial: str
     created: str
@@ -110,10 +116,25 @@ class CalibrationResult:
     thermal_range_c: tuple[float, float] | None = None
     #: where the bias(T) came from (the SERIAL_thermal.json file)
     thermal_source: str = ""
+    #: where the records came from (format v3; None: an older file, or made without records)
+    provenance: Provenance | None = None
     #: format version of the file this was loaded from
-    loaded_version: int = 2
+    loaded_version: int = 3
 
     # ---- views ---------------------------------------------------------------------------
+    @property
+    def simulated(self) -> bool:
+        """The records came from a virtual or emulated board or the simulator, not a unit."""
+        return bool(self.simulated_line)
+
+    @property
+    def simulated_line(self) -> str:
+        """``SIMULATED BOARD <by>: not a measurement of a unit``, or '' for a unit (older
+        files: their note that says so)."""
+        if self.provenance is not None:
+            return self.provenance.simulated_line
+        return next((n for n in self.notes if n.startswith(SIMULATED_BOARD)), "")
+
     def __getattr__(self, name: str) -> float:
         # the §7 constants by name, as in format v1 (result.Axx)
         if name in CONSTANT_NAMES:
@@ -191,6 +212,9 @@ class CalibrationResult:
             "format_version": self.FORMAT_VERSION,
             "serial": self.serial,
             "created": self.created,
+            "simulated": self.simulated,
+            "simulated_by": [] if self.provenance is None else list(self.provenance.simulated_by),
+            "provenance": None if self.provenance is None else self.provenance.to_dict(),
             "model": self.model,
             "term_files": list(self.term_files),
             "term_sha256": dict(self.term_sha256),
@@ -246,19 +270,20 @@ class CalibrationResult:
         try:
             d = json.loads(text)
         except (ValueError, UnicodeDecodeError) as exc:
-            raise UserError(f"calibration result: not valid JSON ({exc})") from exc
+            raise ResultFileError(f"calibration result: not valid JSON ({exc})") from exc
         if not isinstance(d, dict) or "format_version" not in d:
-            raise UserError("calibration result: not an imu-bench result (no format_version)")
+            raise ResultFileError("calibration result: not an imu-bench result (no format_version)")
         version = d["format_version"]
-        if type(version) is not int or version not in (1, 2):  # JSON true is not v1
-            raise UserError(
-                f"calibration result format v{version} but this program reads v1 and "
-                f"v{cls.FORMAT_VERSION}; recompute it with 'python -m host calibrate --from-dir'"
+        if type(version) is not int or version not in cls.READS:  # JSON true is not v1
+            raise ResultFileError(
+                f"calibration result format v{version} but this program reads "
+                f"{', '.join(f'v{v}' for v in cls.READS)}; recompute it with "
+                "'python -m host calibrate --from-dir'"
             )
         try:
-            return _from_v1(d) if version == 1 else _from_v2(d)
+            return _from_v1(d) if version == 1 else _from_v2(d, version)
         except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
-            raise UserError(f"calibration result: missing or bad field ({exc})") from exc
+            raise ResultFileError(f"calibration result: missing or bad field ({exc})") from exc
 
     @classmethod
     def load(cls, path: str | Path) -> CalibrationResult:
@@ -266,7 +291,7 @@ class CalibrationResult:
         try:
             text = Path(path).read_text(encoding="utf-8")
         except OSError as exc:
-            raise UserError(f"{path}: cannot read the result ({exc.strerror})") from exc
+            raise ResultFileError(f"{path}: cannot read the result ({exc.strerror})") from exc
         return cls.from_json(text)
 
 
@@ -410,10 +435,16 @@ def _from_v1(d: Mapping[str, Any]) -> CalibrationResult:
     )
 
 
-def _from_v2(d: Mapping[str, Any]) -> CalibrationResult:
+def _from_v2(d: Mapping[str, Any], version: int) -> CalibrationResult:
+    """Format v2, and v3 with its ``provenance``."""
     fit = d.get("fit")
     th = d.get("thermal")
+    prov = d.get("provenance") if version >= 3 else None
+    if version >= 3 and bool(d.get("simulated")) != bool(prov and prov.get("simulated")):
+        raise ValueError("'simulated' and provenance.simulated disagree")
     return CalibrationResult(
+        loaded_version=version,
+        provenance=None if prov is None else Provenance.from_dict(prov),
         model=str(d["model"]),
         parameters=tuple(ParameterResult.from_dict(p) for p in d["parameters"]),
         noise_std={str(k): as_float(v["value"]) for k, v in d["noise_std"].items()},

@@ -3,7 +3,9 @@
 RESULT is ``SERIAL_result.json`` (or the directory holding one); ``--to kalibr --noise F``
 needs no result, only the noise file of a long static recording (``noise FILE --save F``).
 The text goes to stdout, or to ``--out FILE`` (written atomically). ``--axes`` maps our chip
-axes to the target's, with the same spelling as ``import --axes``. Formats and their
+axes to the target's, with the same spelling as ``import --axes``. A failed result (a value
+outside tolerance or not determined) is not exported: exit status 1 and one line naming what
+failed, unless ``--allow-fail`` (the file then says FAILED). Formats and their
 conventions: :mod:`host.calib.exporting`.
 """
 
@@ -16,7 +18,7 @@ from pathlib import Path
 
 from host.calib import exporting
 from host.calib.result import CalibrationResult
-from host.errors import UserError
+from host.errors import FailedResultError, UserError
 from host.ingest.importing import parse_axes
 from host.session.atomic import write_text_atomic
 
@@ -55,7 +57,14 @@ def run(args: argparse.Namespace) -> int:
         from host.calib.thermal import ThermalCalibration
 
         thermal = ThermalCalibration.load(args.thermal)
-    _emit(args, exporting.export(result, args.to, axes, args.axes or "x,y,z", thermal))
+    try:
+        out = exporting.export(
+            result, args.to, axes, args.axes or "x,y,z", thermal, allow_fail=args.allow_fail
+        )
+    except FailedResultError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    _emit(args, out)
     return 0
 
 
@@ -91,6 +100,11 @@ def cli_export(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int
     p.add_argument("--axes", help="target axes from ours with signs, e.g. x,-y,-z (default x,y,z)")
     p.add_argument(
         "--thermal", type=Path, help="SERIAL_thermal.json (python -m host thermal): bias(T), px4"
+    )
+    p.add_argument(
+        "--allow-fail",
+        action="store_true",
+        help="export a result that failed (outside tolerance, not determined), marked FAILED",
     )
     p.add_argument(
         "--noise", type=Path, help="noise file (python -m host noise FILE --save F): for kalibr"

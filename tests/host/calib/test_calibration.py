@@ -334,7 +334,7 @@ def test_moving_static_is_named() -> None:
 def test_json_round_trip_and_version(standard: CalibrationResult) -> None:
     text = standard.to_json()
     d = json.loads(text)
-    assert d["format_version"] == CalibrationResult.FORMAT_VERSION == 2
+    assert d["format_version"] == CalibrationResult.FORMAT_VERSION == 3
     assert list(d["constants"]) == list(CONSTANT_NAMES)
     par = {p["name"]: p for p in d["parameters"]}
     assert par["G0x"]["unit"] == "°/s" and par["A0z"]["tolerance"] == 0.8
@@ -349,13 +349,13 @@ def test_json_round_trip_and_version(standard: CalibrationResult) -> None:
     back = CalibrationResult.from_json(text)
     assert back.constants() == standard.constants()
     assert back.to_json() == text
-    d["format_version"] = 3
-    with pytest.raises(UserError, match="format v3 but this program reads v1 and v2"):
+    d["format_version"] = 4
+    with pytest.raises(UserError, match="format v4 but this program reads v1, v2, v3"):
         CalibrationResult.from_json(json.dumps(d))
     with pytest.raises(UserError, match="not valid JSON"):
         CalibrationResult.from_json("{")
     del d["parameters"][3]["value"]
-    d["format_version"] = 2
+    d["format_version"] = 3
     with pytest.raises(UserError, match="missing or bad field"):
         CalibrationResult.from_json(json.dumps(d))
 

@@ -1,0 +1,251 @@
+"""Where a result's records came from, read from their headers: the board (simulated or a
+unit), the equipment (firmware, sensor, ranges, rate, filter, bus clock), the chip
+temperatures, the plan and its timing, who measured and when, and in how many sittings.
+
+A result carries this as data (:class:`Provenance`, the ``provenance`` of a result file v3), so
+the report (method.md §7–§8: object, equipment, environment, procedure) and every export can
+say it, and a recomputation from the same records (``calibrate --from-dir``) says the same:
+nothing here is the time or place of the computation except ``software`` and ``computed_at``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from host.session.directory import SIMULATED_BOARD, SIMULATED_SCHEMES, Session
+from host.session.records import Record
+
+#: header keys of the equipment (record header -> words of the report), in report order
+EQUIPMENT_KEYS = {
+    "firmware": "firmware version",
+    "protocol_version": "protocol version",
+    "who_am_i": "WHO_AM_I",
+    "product_id": "product ID",
+    "sensor_revision": "sensor revision",
+    "accel_range_g": "accelerometer range, ±g",
+    "gyro_range_dps": "gyro range, ±°/s",
+    "sample_rate_hz": "sample rate, Hz",
+    "smplrt_div": "sample rate divider",
+    "dlpf_cfg": "digital low-pass filter (DLPF_CFG)",
+    "sensor_spi_clock": "SPI clock",
+}
+
+#: the MPU-6000's WHO_AM_I register value
+MPU6000_WHO_AM_I = "0x68"
+
+UNKNOWN_SENSOR = "unknown sensor"
+
+
+@dataclass(frozen=True)
+class Sitting:
+    """One sitting at the bench (a live run; ``--resume`` and ``--redo`` start another): its
+    capture file (``''``: records that came without one) and its records in measured order."""
+
+    capture: str
+    records: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """What the records say about how they were measured; text as the headers wrote it.
+
+    ``simulated``: the records came from a virtual or emulated board or from the simulator,
+    ``simulated_by`` which (port URLs, or ``source: sim`` records). ``sensor``: the chip named
+    from the data (``MPU-6000 rev D8``) or :data:`UNKNOWN_SENSOR`. ``equipment``: header key ->
+    value (several values joined by ' / '). ``temp_c``: chip temperature low, high, °C (None:
+    not measured). ``static_s``/``turn_s``: shortest and longest record of each kind, s;
+    ``turn_window_s``: the turn windows the plan gave, s. ``measured_from``/``measured_to``:
+    the first and last record's start time (ISO, from the headers; '' when they have none).
+    ``measured_order``: every record, in the order measured. ``software``: this program and
+    its version at the computation.
+    """
+
+    simulated: bool = False
+    simulated_by: tuple[str, ...] = ()
+    sensor: str = UNKNOWN_SENSOR
+    equipment: Mapping[str, str] = field(default_factory=dict)
+    ports: tuple[str, ...] = ()
+    sources: tuple[str, ...] = ()
+    programs: tuple[str, ...] = ()
+    operators: tuple[str, ...] = ()
+    benches: tuple[str, ...] = ()
+    temp_c: tuple[float, float] | None = None
+    static_s: tuple[float, float] | None = None
+    turn_s: tuple[float, float] | None = None
+    turn_window_s: tuple[float, ...] = ()
+    turns: tuple[int, ...] = ()
+    measured_from: str = ""
+    measured_to: str = ""
+    measured_order: tuple[str, ...] = ()
+    sittings: tuple[Sitting, ...] = ()
+    software: str = ""
+
+    @property
+    def simulated_line(self) -> str:
+        """``SIMULATED BOARD <by>: not a measurement of a unit``, or '' for a unit."""
+        if not self.simulated:
+            return ""
+        return f"{SIMULATED_BOARD} {', '.join(self.simulated_by)}: not a measurement of a unit"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (a result file's ``provenance``)."""
+        return {
+            "simulated": self.simulated,
+            "simulated_by": list(self.simulated_by),
+            "sensor": self.sensor,
+            "equipment": dict(self.equipment),
+            "ports": list(self.ports),
+            "sources": list(self.sources),
+            "programs": list(self.programs),
+            "operators": list(self.operators),
+            "benches": list(self.benches),
+            "temp_c": None if self.temp_c is None else list(self.temp_c),
+            "static_s": None if self.static_s is None else list(self.static_s),
+            "turn_s": None if self.turn_s is None else list(self.turn_s),
+            "turn_window_s": list(self.turn_window_s),
+            "turns": list(self.turns),
+            "measured_from": self.measured_from,
+            "measured_to": self.measured_to,
+            "measured_order": list(self.measured_order),
+            "sittings": [{"capture": s.capture, "records": list(s.records)} for s in self.sittings],
+            "software": self.software,
+        }
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> Provenance:
+        """Inverse of :meth:`to_dict` (missing keys: their defaults)."""
+
+        def pair(key: str) -> tuple[float, float] | None:
+            v = d.get(key)
+            return None if v is None else (float(v[0]), float(v[1]))
+
+        def strs(key: str) -> tuple[str, ...]:
+            return tuple(str(x) for x in d.get(key, ()))
+
+        return cls(
+            simulated=bool(d.get("simulated", False)),
+            simulated_by=strs("simulated_by"),
+            sensor=str(d.get("sensor", UNKNOWN_SENSOR)),
+            equipment={str(k): str(v) for k, v in d.get("equipment", {}).items()},
+            ports=strs("ports"),
+            sources=strs("sources"),
+            programs=strs("programs"),
+            operators=strs("operators"),
+            benches=strs("benches"),
+            temp_c=pair("temp_c"),
+            static_s=pair("static_s"),
+            turn_s=pair("turn_s"),
+            turn_window_s=tuple(float(x) for x in d.get("turn_window_s", ())),
+            turns=tuple(int(x) for x in d.get("turns", ())),
+            measured_from=str(d.get("measured_from", "")),
+            measured_to=str(d.get("measured_to", "")),
+            measured_order=strs("measured_order"),
+            sittings=tuple(
+                Sitting(str(s["capture"]), tuple(str(x) for x in s["records"]))
+                for s in d.get("sittings", ())
+            ),
+            software=str(d.get("software", "")),
+        )
+
+
+def _distinct(records: Mapping[str, Record], key: str) -> tuple[str, ...]:
+    """The distinct non-empty values of header ``key``, in first-seen order."""
+    seen: dict[str, None] = {}
+    for r in records.values():
+        v = r.meta.get(key, "").strip()
+        if v:
+            seen.setdefault(v, None)
+    return tuple(seen)
+
+
+def simulated_sources(records: Mapping[str, Record]) -> tuple[str, ...]:
+    """What simulated the records: the ``sim://``/``emu://`` port URLs, and
+    ``simulator (source: sim)`` for records the simulator wrote without a port (``demo``)."""
+    out = [p for p in _distinct(records, "port") if p.startswith(SIMULATED_SCHEMES)]
+    if any(
+        r.meta.get("source", "").strip() == "sim" and not r.meta.get("port")
+        for r in records.values()
+    ):
+        out.append("simulator (source: sim)")
+    return tuple(out)
+
+
+def sensor_name(records: Mapping[str, Record]) -> str:
+    """The chip the records name: ``MPU-6000 rev D8`` from WHO_AM_I 0x68 and the revision,
+    else :data:`UNKNOWN_SENSOR` (imported data, e.g. imucal's 16-bit unit, names none)."""
+    who = _distinct(records, "who_am_i")
+    if not who or any(w.lower() != MPU6000_WHO_AM_I for w in who):
+        return UNKNOWN_SENSOR
+    rev = _distinct(records, "sensor_revision")
+    return "MPU-6000" + (f" rev {' / '.join(rev)}" if rev else "")
+
+
+def _span(values: list[float]) -> tuple[float, float] | None:
+    return (min(values), max(values)) if values else None
+
+
+def _order_key(r: Record, sitting: int) -> tuple[int, float, str]:
+    try:
+        s = float(r.meta.get("session_s", "nan"))
+    except ValueError:
+        s = math.nan
+    return (sitting, s if math.isfinite(s) else math.inf, r.meta.get("start_time", ""))
+
+
+def provenance_of(session: Session, software: str = "") -> Provenance:
+    """The :class:`Provenance` of a session, from its records' headers and samples;
+    ``software``: this program and version (the computation's, not the records')."""
+    recs = session.records
+    captures = _distinct(recs, "capture")
+    sit_of = {n: captures.index(r.meta["capture"].strip()) if r.meta.get("capture", "").strip()
+              else len(captures) for n, r in recs.items()}  # fmt: skip
+    order = tuple(sorted(recs, key=lambda n: (*_order_key(recs[n], sit_of[n]), n)))
+    sittings = tuple(
+        Sitting(cap, tuple(n for n in order if sit_of[n] == i))
+        for i, cap in enumerate((*captures, ""))
+        if any(sit_of[n] == i for n in order)
+    )
+    temps = [r.temp[np.isfinite(r.temp)] for r in recs.values() if len(r.temp)]
+    temp_all = np.concatenate(temps) if temps else np.zeros(0)
+    statics = [r.duration_s for r in recs.values() if r.kind == "static"]
+    turns = [r.duration_s for r in recs.values() if r.kind == "turn"]
+    starts = sorted(_distinct(recs, "start_time"))
+    sims = simulated_sources(recs)
+    equipment = {
+        k: " / ".join(v) for k in EQUIPMENT_KEYS if (v := _distinct(recs, k))
+    }  # fmt: skip
+    windows = sorted({float(w) for w in _distinct(recs, "window_s") if _is_number(w)})
+    n_turns = sorted({int(t) for t in _distinct(recs, "turns") if t.isdigit()})
+    return Provenance(
+        simulated=bool(sims),
+        simulated_by=sims,
+        sensor=sensor_name(recs),
+        equipment=equipment,
+        ports=_distinct(recs, "port"),
+        sources=_distinct(recs, "source"),
+        programs=_distinct(recs, "program"),
+        operators=_distinct(recs, "operator"),
+        benches=_distinct(recs, "bench"),
+        temp_c=(float(temp_all.min()), float(temp_all.max())) if temp_all.size else None,
+        static_s=_span(statics),
+        turn_s=_span(turns),
+        turn_window_s=tuple(windows),
+        turns=tuple(n_turns),
+        measured_from=starts[0] if starts else "",
+        measured_to=starts[-1] if starts else "",
+        measured_order=order,
+        sittings=sittings,
+        software=software,
+    )
+
+
+def _is_number(text: str) -> bool:
+    try:
+        return math.isfinite(float(text))
+    except ValueError:
+        return False

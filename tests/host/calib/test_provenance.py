@@ -1,0 +1,95 @@
+"""Provenance in every file (issue 28): a result of simulated records says so as a field of
+its JSON (format v3), in the report's first lines and in every export format, also after
+``calibrate --from-dir``; older result files still read; a failed result is not exported
+without ``--allow-fail``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from host.__main__ import main
+from host.bench.plan import write_session
+from host.calib.exporting import FORMATS
+from host.calib.result import CalibrationResult
+from host.errors import ResultFileError
+from host.workbench.scenarios import hidden_effect_case
+
+URL = "sim://?speed=max"
+
+
+@pytest.fixture(scope="module")
+def live(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A live session on the virtual board at full speed: its directory."""
+    d = tmp_path_factory.mktemp("live") / "PV1"
+    argv = ["calibrate", "--port", URL, "--serial", "PV1", "--out", str(d), "--yes",
+            "--warmup", "0", "--static-seconds", "3", "--turns", "1", "--no-archive"]  # fmt: skip
+    assert main(argv) in (0, 1)
+    return d
+
+
+def test_live_sim_result_says_simulated_everywhere(
+    live: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    doc = json.loads((live / "PV1_result.json").read_text(encoding="utf-8"))
+    assert doc["format_version"] == 3
+    assert doc["simulated"] is True and doc["simulated_by"] == [URL]
+    assert doc["provenance"]["simulated"] is True and doc["provenance"]["ports"] == [URL]
+    report = (live / "PV1_result.txt").read_text(encoding="utf-8").splitlines()
+    assert report[1] == f"*** SIMULATED BOARD {URL}: not a measurement of a unit ***"
+    capsys.readouterr()
+    for fmt, (_, ext) in FORMATS.items():
+        out = tmp_path / f"PV1{ext}"
+        rc = main(["export", str(live), "--to", fmt, "--out", str(out), "--allow-fail"])
+        assert rc == 0, capsys.readouterr().err
+        text = out.read_text(encoding="utf-8")
+        head = "\n".join(text.splitlines()[:4])  # said at the top, not buried
+        assert f"*** SIMULATED BOARD {URL}: not a measurement of a unit ***" in head, (fmt, head)
+        if fmt == "imucal":
+            assert json.loads(text)["comment"].startswith("*** SIMULATED BOARD sim://")
+
+
+def test_demo_records_recomputed_keep_the_simulated_mark(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``demo hidden-effect`` writes records with ``# source: sim`` and no port: the mark
+    survived only as far as the records (issue 28)."""
+    case = hidden_effect_case("temperature", 4)
+    write_session(tmp_path, "DEMO", dict(case.records))
+    assert "# source: sim" in (tmp_path / "DEMO_x_up.txt").read_text(encoding="utf-8")
+    assert main(["calibrate", "--from-dir", str(tmp_path), "--no-archive"]) in (0, 1)
+    out = capsys.readouterr().out
+    mark = "*** SIMULATED BOARD simulator (source: sim): not a measurement of a unit ***"
+    assert out.splitlines()[1] == mark
+    res = CalibrationResult.load(tmp_path / "DEMO_result.json")
+    assert res.simulated and res.provenance is not None
+    assert res.provenance.simulated_by == ("simulator (source: sim)",)
+    assert mark in (tmp_path / "DEMO_result.txt").read_text(encoding="utf-8")
+
+
+def test_older_files_read_and_an_edited_mark_is_refused(live: Path) -> None:
+    doc = json.loads((live / "PV1_result.json").read_text(encoding="utf-8"))
+    v2 = {k: v for k, v in doc.items() if k not in ("simulated", "simulated_by", "provenance")}
+    v2["format_version"] = 2
+    old = CalibrationResult.from_json(json.dumps(v2))
+    assert old.loaded_version == 2 and old.provenance is None
+    assert old.simulated  # from its note, as v2 files said it
+    v2["notes"] = [n for n in v2["notes"] if not n.startswith("SIMULATED BOARD")]
+    assert not CalibrationResult.from_json(json.dumps(v2)).simulated
+    # a v3 file edited to look like a unit's: the two marks disagree
+    doc["simulated"] = False
+    with pytest.raises(ResultFileError, match="'simulated' and provenance.simulated disagree"):
+        CalibrationResult.from_json(json.dumps(doc))
+
+
+def test_unit_records_carry_no_mark(tmp_path: Path) -> None:
+    from host.calib.calibration import calibrate_from_records
+    from host.session.directory import read_session
+
+    real = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
+    res = calibrate_from_records(read_session(real))
+    assert not res.simulated and res.simulated_line == ""
+    assert res.provenance is not None and res.provenance.sensor == "unknown sensor"
+    assert "SIMULATED" not in json.dumps(res.to_dict())
