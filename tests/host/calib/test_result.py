@@ -40,7 +40,10 @@ def test_v1_result_loads_and_applies_as_before() -> None:
     assert w == pytest.approx(np.array(ref["gyro_cal"]), abs=1e-10)
     # and saving it again writes the current format that reads back the same
     back = CalibrationResult.from_json(res.to_json())
-    assert back.loaded_version == CalibrationResult.FORMAT_VERSION and back.constants() == res.constants()
+    assert (
+        back.loaded_version == CalibrationResult.FORMAT_VERSION
+        and back.constants() == res.constants()
+    )
 
 
 # ---- hidden gyro temperature bias: workbench term -> calibrate -> apply ----------------------
