@@ -25,7 +25,7 @@ from host.model.rows import (
 )
 from host.model.signals import RecordSignals
 from host.model.variance import Component, TurnClosure, turn_angle_sigma, turn_wobble_sigma
-from host.model.whitening import Group, whiten_rows
+from host.model.whitening import Group, Whitener, whiten_rows
 from host.session.directory import Session, read_session
 from host.session.method import (
     DEFAULT_HEIGHT_M,
@@ -44,7 +44,8 @@ class Dataset:
 
     Rows (n): ``y`` measured block mean (unit of the channel) or turn integral (°), ``nominal``
     the ideal sensor's value (the aggregated reference input on the channel), ``span`` (n,2)
-    within-record time span s. ``whiten`` (n,n): W with W·Cov·Wᵀ = I.
+    within-record time span s. ``whiten``: W (n, n) with W·Cov·Wᵀ = I, block-diagonal, one
+    block per group (:class:`~host.model.whitening.Whitener`).
     """
 
     signals: tuple[RecordSignals, ...]
@@ -55,7 +56,7 @@ class Dataset:
     span: np.ndarray
     y: np.ndarray
     nominal: np.ndarray
-    whiten: np.ndarray
+    whiten: Whitener
     groups: tuple[Group, ...]
     aggregators: tuple[np.ndarray, ...]  # per record (B, N): block-mean or trapezoid weights
     rows_of: dict[tuple[int, str, int], np.ndarray]
@@ -87,12 +88,21 @@ class Dataset:
 
     @functools.cached_property
     def group_means_whitened(self) -> np.ndarray:
-        """(n_rows, groups) W⁻ᵀ·a for each group's mean a (:func:`residual_sigmas`), solved
-        once per dataset (W does not change between fits)."""
-        a = np.zeros((self.n_rows, len(self.groups)))
+        """(n_rows,) W⁻ᵀ·a_g for each group's mean a_g, each on its own group's rows (W is
+        block-diagonal by group, so they do not overlap; :func:`residual_sigmas`), solved once
+        per dataset (W does not change between fits)."""
+        a = np.zeros(self.n_rows)
+        for gr in self.groups:
+            a[gr.rows] = 1.0 / len(gr.rows)
+        return self.whiten.solve_t(a)
+
+    @functools.cached_property
+    def row_group(self) -> np.ndarray:
+        """(n_rows,) the index in ``groups`` of each row's group."""
+        out = np.zeros(self.n_rows, dtype=np.intp)
         for k, gr in enumerate(self.groups):
-            a[gr.rows, k] = 1.0 / len(gr.rows)
-        return np.asarray(np.linalg.solve(self.whiten.T, a))
+            out[gr.rows] = k
+        return out
 
     def aggregator(self, record: int, sensor: str, axis: int) -> np.ndarray:
         """(B, N) weights turning record ``record``'s samples into its rows of ``sensor``'s

@@ -220,8 +220,8 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
     iters = max_iter if any(mt.term.nonlinear for mt in model) else 1
     for _ in range(iters):
         x, offset, spans = design(ds, model, thetas)
-        xw = w @ x
-        yw = w @ (ds.y - ds.nominal - offset)
+        xw = w.apply(x)
+        yw = w.apply(ds.y - ds.nominal - offset)
         keep, basis = select_columns(xw)
         theta = np.full(x.shape[1], np.nan)
         cov = np.zeros((x.shape[1], x.shape[1]))
@@ -243,7 +243,7 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
     th0 = np.nan_to_num(theta)
     predicted = ds.nominal + offset + x @ th0
     resid = ds.y - predicted
-    wres = w @ resid
+    wres = w.apply(resid)
     chi2 = float(wres @ wres)
     n_par = int(keep.sum())
     # who owns each column: (name, unit, channel, term label, sensor, axis, key)
@@ -281,11 +281,15 @@ def residual_sigmas(ds: Dataset, basis: np.ndarray) -> np.ndarray:
     """Standard deviation of each group's mean residual (ds.groups order) when the model is
     right: the measurement's σ less what the fit absorbed. Cov(r) = W⁻¹(I − QQᵀ)W⁻ᵀ with Q the
     orthonormal basis of the whitened design, so var(aᵀr) = ‖W⁻ᵀa‖² − ‖QᵀW⁻ᵀa‖²; 0 where the
-    model has a parameter for that value alone (it is fitted exactly)."""
+    model has a parameter for that value alone (it is fitted exactly). W⁻ᵀa lies on the
+    group's own rows: each sum runs over them (memory linear in the rows)."""
     v = ds.group_means_whitened
-    var = np.sum(v * v, axis=0)
+    g = ds.row_group
+    var = np.bincount(g, weights=v * v, minlength=len(ds.groups))
     if basis.shape[1]:
-        var = var - np.sum((basis.T @ v) ** 2, axis=0)
+        qv = np.zeros((len(ds.groups), basis.shape[1]))
+        np.add.at(qv, g, basis * v[:, None])
+        var = var - np.sum(qv**2, axis=1)
     return np.sqrt(np.maximum(var, 0.0))
 
 

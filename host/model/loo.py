@@ -45,15 +45,17 @@ def leave_one_out(ds: Dataset, fit: Fit) -> Prediction:
     this prediction error larger, where χ² always falls (method.md §8: accuracy on attitudes
     not used in the fit)."""
     x, offset, _ = design(ds, fit.model, _thetas_of(fit))
-    w = ds.whiten
+    # W is block-diagonal within records: the others' whitened rows are rows of W·x
+    xw_all = ds.whiten.apply(x)
+    yw_all = ds.whiten.apply(ds.y - ds.nominal - offset)
     y = ds.y - ds.nominal - offset
     zs: list[float] = []
     skipped: list[str] = []
     for ri, sig in enumerate(ds.signals):
         out_rows = ds.row_record == ri
         keep_rows = ~out_rows
-        xw = w[np.ix_(keep_rows, keep_rows)] @ x[keep_rows]
-        yw = w[np.ix_(keep_rows, keep_rows)] @ y[keep_rows]
+        xw = xw_all[keep_rows]
+        yw = yw_all[keep_rows]
         keep, _ = select_columns(xw)
         cols = np.flatnonzero(keep)
         norms = np.linalg.norm(xw, axis=0)

@@ -1,5 +1,7 @@
 """The whitening of a dataset's rows: per record and channel a :class:`Group` and its block of
-W with W·Cov·Wᵀ = I (:func:`whiten_rows`), so that χ² is honest under the null.
+W with W·Cov·Wᵀ = I (:func:`whiten_rows`), so that χ² is honest under the null. W is
+block-diagonal, one block per group, and kept as its blocks (:class:`Whitener`): its memory and
+every product with it grow with the rows, not with their square.
 
 The rows of one record and channel share one covariance ``v·I + f²·11ᵀ`` (:mod:`host.model.noise`)
 and are whitened exactly as their mean and orthonormal (Helmert) contrasts; a turn's gyro
@@ -9,6 +11,7 @@ differ in variance and are correlated (the hand) are whitened through their Chol
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -36,18 +39,94 @@ class Group:
     contrast_var: float
 
 
+@dataclass(frozen=True, eq=False)
+class Whitener:
+    """W (n, n) with W·Cov·Wᵀ = I, block-diagonal: ``blocks`` one (row indices (b,), the
+    block W_b (b, b)) per :class:`Group`, the row sets disjoint and covering the n rows. Every
+    product works block by block (blocks of one size together), in memory and time linear in
+    n; :meth:`dense` builds the whole matrix (tests and tiny sessions only)."""
+
+    n: int
+    blocks: tuple[tuple[np.ndarray, np.ndarray], ...]
+
+    @functools.cached_property
+    def _by_size(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per block size b: (rows (m, b), blocks (m, b, b)) of the m blocks of that size."""
+        sizes: dict[int, list[int]] = {}
+        for k, (rows, _) in enumerate(self.blocks):
+            sizes.setdefault(len(rows), []).append(k)
+        return [
+            (
+                np.array([self.blocks[k][0] for k in ks], dtype=np.intp).reshape(len(ks), b),
+                np.array([self.blocks[k][1] for k in ks], dtype=np.float64).reshape(len(ks), b, b),
+            )
+            for b, ks in sorted(sizes.items())
+        ]
+
+    @functools.cached_property
+    def _index(self) -> dict[int, int]:
+        """First row of a block -> its position in ``blocks``."""
+        return {int(rows[0]): k for k, (rows, _) in enumerate(self.blocks)}
+
+    def _per_block(self, a: np.ndarray, op: str) -> np.ndarray:
+        a = np.asarray(a, dtype=np.float64)
+        if a.shape[0] != self.n:
+            raise ValueError(f"whitener of {self.n} rows applied to {a.shape[0]} rows")
+        flat = a.ndim == 1
+        a2 = a[:, None] if flat else a.reshape(self.n, -1)
+        out = np.zeros_like(a2)
+        for rows, w in self._by_size:
+            part = a2[rows]  # (m, b, k)
+            if op == "apply":
+                out[rows] = w @ part
+            elif op == "solve_t":
+                out[rows] = np.linalg.solve(np.swapaxes(w, 1, 2), part)
+            else:
+                out[rows] = np.linalg.solve(w, part)
+        return out[:, 0] if flat else out.reshape(a.shape)
+
+    def apply(self, a: np.ndarray) -> np.ndarray:
+        """W·a for ``a`` (n,) or (n, k)."""
+        return self._per_block(a, "apply")
+
+    def solve_t(self, a: np.ndarray) -> np.ndarray:
+        """W⁻ᵀ·a for ``a`` (n,) or (n, k)."""
+        return self._per_block(a, "solve_t")
+
+    def inv_apply(self, a: np.ndarray) -> np.ndarray:
+        """W⁻¹·a for ``a`` (n,) or (n, k): whitened values back to the rows."""
+        return self._per_block(a, "inv_apply")
+
+    def with_block(self, rows: np.ndarray, w_block: np.ndarray) -> Whitener:
+        """A copy with the block of the rows ``rows`` (one group's, in its order) replaced by
+        ``w_block`` (b, b)."""
+        rows = np.asarray(rows, dtype=np.intp)
+        k = self._index.get(int(rows[0]), -1) if len(rows) else -1
+        if k < 0 or not np.array_equal(self.blocks[k][0], rows):
+            raise ValueError(f"rows {rows.tolist()} are not one block of this whitener")
+        w_block = np.asarray(w_block, dtype=np.float64).reshape(len(rows), len(rows))
+        blocks = list(self.blocks)
+        blocks[k] = (rows, w_block.copy())
+        return Whitener(self.n, tuple(blocks))
+
+    def dense(self) -> np.ndarray:
+        """The whole W (n, n): for tests and tiny sessions only (memory n²)."""
+        out = np.zeros((self.n, self.n))
+        for rows, w in self.blocks:
+            out[np.ix_(rows, rows)] = w
+        return out
+
+
 def _whiten_exact(
-    whiten: np.ndarray,
     record: int,
     sensor: str,
     axis: int,
     idx: Sequence[int],
     cov: np.ndarray,
-) -> Group:
+) -> tuple[Group, np.ndarray]:
     """Whiten the rows ``idx`` of one record and channel exactly when their variances differ
     or they are correlated (still moments and moving blocks of a turn): ``cov`` their
-    covariance, W = L⁻¹ with L its Cholesky factor, written into ``whiten``; -> the
-    :class:`Group`."""
+    covariance, W = L⁻¹ with L its Cholesky factor; -> (the :class:`Group`, its block of W)."""
     b = len(idx)
     if not np.all(np.diag(cov) > 0.0):
         raise UserError(
@@ -55,11 +134,11 @@ def _whiten_exact(
             "turning (noise-free data): give a floor, e.g. --floor accel=1e-4,gyro=1e-3"
         )
     w = np.linalg.inv(np.linalg.cholesky(cov))
-    whiten[np.ix_(list(idx), list(idx))] = w
     v_mean = float(np.sum(cov)) / b**2
-    return Group(
+    group = Group(
         record, sensor, axis, np.array(idx), math.sqrt(v_mean), float(np.mean(np.diag(cov)))
     )
+    return group, w
 
 
 def _within_record_inflation(
@@ -88,34 +167,33 @@ def _within_record_inflation(
 
 
 def _integral_group(
-    whiten: np.ndarray,
     ch: ChannelRows,
     floor: float,
     static_noise: Mapping[tuple[str, int], Sequence[tuple[float, float]]],
     turn_sigma: float,
-) -> Group:
+) -> tuple[Group, np.ndarray]:
     """A turn's gyro integral, one row: the static records' white noise integrated, the floor
     over the turn's duration T and the hand's error ``turn_sigma`` (°: its angle error on the
-    up channel, its wobble on the others)."""
+    up channel, its wobble on the others); -> (the :class:`Group`, its block of W (1, 1))."""
     idx, w = ch.rows, ch.aggregator[0]
     levels = static_noise.get((ch.sensor, ch.axis), [(0.0, 1.0)])
     v_white = float(np.mean([v * t for v, t in levels]))
     T = float(w.sum())
     var = v_white * float(w @ w) + (floor * T) ** 2 + turn_sigma**2
-    whiten[idx[0], idx[0]] = 1.0 / math.sqrt(var)
-    return Group(ch.record, ch.sensor, ch.axis, np.array(idx), math.sqrt(var), math.nan)
+    group = Group(ch.record, ch.sensor, ch.axis, np.array(idx), math.sqrt(var), math.nan)
+    return group, np.array([[1.0 / math.sqrt(var)]])
 
 
 def _block_group(
-    whiten: np.ndarray,
     ch: ChannelRows,
     sig: RecordSignals,
     v_blocks: np.ndarray,
     floor: float,
     inflate: float,
-) -> Group:
+) -> tuple[Group, np.ndarray]:
     """Block means of a static record, or a turn's still moments (variances ``v_blocks`` of
-    each block mean): their mean and orthonormal Helmert contrasts."""
+    each block mean): their mean and orthonormal Helmert contrasts; -> (the :class:`Group`,
+    its block of W)."""
     idx, s, ax = ch.rows, ch.sensor, ch.axis
     b = len(idx)
     v_mean = float(np.sum(v_blocks)) / b**2 + floor**2
@@ -126,7 +204,8 @@ def _block_group(
             "noise; give a floor, e.g. --floor accel=1e-4,gyro=1e-3 (m/s², °/s), or check "
             "the sensor"
         )
-    whiten[idx[0], idx] = (1.0 / b) / math.sqrt(v_mean)
+    w = np.zeros((b, b))
+    w[0] = (1.0 / b) / math.sqrt(v_mean)
     turn = sig.kind == "turn"  # still moments: their spread is the signal
     v_c = float(np.mean(v_blocks)) * (1.0 if turn else inflate)
     if not v_c > 0.0:  # noise-free samples (with a given floor): the only scale there is
@@ -138,8 +217,8 @@ def _block_group(
             h[:k] = 1.0
             h[k] = -float(k)
             h /= np.linalg.norm(h)
-            whiten[idx[k], idx] = h / math.sqrt(v_c)
-    return Group(ch.record, s, ax, np.array(idx), math.sqrt(v_mean), v_c)
+            w[k] = h / math.sqrt(v_c)
+    return Group(ch.record, s, ax, np.array(idx), math.sqrt(v_mean), v_c), w
 
 
 def whiten_rows(
@@ -154,16 +233,21 @@ def whiten_rows(
     seat: float,
     hand: tuple[float, float],
     turn_sigma: tuple[float, float],
-) -> tuple[np.ndarray, list[Group]]:
-    """(W (n, n), the groups) for the rows ``y`` (n,) built as ``channels``: ``floors`` the
-    bias-instability floor per sensor, ``white_level`` (sensor, axis) -> variance·τ of one
-    sample from the static records (``static_noise`` their levels per record), ``n_still``
-    turn record -> how many of its accelerometer rows are still moments, ``seat`` and ``hand``
-    the seating and the hand's scatter (m/s², :mod:`host.model.rows`), ``turn_sigma`` the
-    hand's turn-angle error and its wobble on the cross axes (°, :mod:`host.model.variance`)."""
-    n_rows = len(y)
-    whiten = np.zeros((n_rows, n_rows))
+) -> tuple[Whitener, list[Group]]:
+    """(W (n, n) as its blocks, the groups) for the rows ``y`` (n,) built as ``channels``:
+    ``floors`` the bias-instability floor per sensor, ``white_level`` (sensor, axis) ->
+    variance·τ of one sample from the static records (``static_noise`` their levels per
+    record), ``n_still`` turn record -> how many of its accelerometer rows are still moments,
+    ``seat`` and ``hand`` the seating and the hand's scatter (m/s², :mod:`host.model.rows`),
+    ``turn_sigma`` the hand's turn-angle error and its wobble on the cross axes (°,
+    :mod:`host.model.variance`)."""
     groups: list[Group] = []
+    blocks: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def add(made: tuple[Group, np.ndarray]) -> None:
+        groups.append(made[0])
+        blocks.append((made[0].rows, made[1]))
+
     inflate = _within_record_inflation(channels, signals, y)
     for ch in channels:
         sig = signals[ch.record]
@@ -172,7 +256,7 @@ def whiten_rows(
         if sig.kind == "turn" and s == "gyro":
             on_up = abs(float(sig.up[ax])) > 0.5
             by_hand = turn_sigma[0] if on_up else turn_sigma[1]
-            groups.append(_integral_group(whiten, ch, floor, static_noise, by_hand))
+            add(_integral_group(ch, floor, static_noise, by_hand))
             continue
         counts = np.count_nonzero(ch.aggregator, axis=1).astype(float)
         level = white_level.get((s, ax), 0.0)
@@ -187,7 +271,7 @@ def whiten_rows(
             v_blocks[ns:] = level / counts[ns:]
             cov = np.diag(v_blocks) + floor**2
             cov[ns:, ns:] += turning.hand_covariance(hand[0], hand[1], len(idx) - ns)
-            groups.append(_whiten_exact(whiten, ch.record, s, ax, idx, cov))
+            add(_whiten_exact(ch.record, s, ax, idx, cov))
             continue
-        groups.append(_block_group(whiten, ch, sig, v_blocks, floor, inflate.get((s, ax), 1.0)))
-    return whiten, groups
+        add(_block_group(ch, sig, v_blocks, floor, inflate.get((s, ax), 1.0)))
+    return Whitener(len(y), tuple(blocks)), groups

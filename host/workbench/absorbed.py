@@ -80,14 +80,14 @@ def without_turn_angle(ds: Dataset, axes: frozenset[int]) -> Dataset:
     new = turn_angle_sigma([c for c in ds.closures if c.axis not in axes]).value
     if math.isclose(new, old):
         return ds
-    whiten = ds.whiten.copy()
+    whiten = ds.whiten
     groups = list(ds.groups)
     for i, gr in enumerate(groups):
         sig = ds.signals[gr.record]
         if sig.kind != "turn" or gr.sensor != "gyro" or abs(float(sig.up[gr.axis])) <= 0.5:
             continue
         var = max(gr.sigma**2 - old**2, 0.0) + new**2
-        whiten[gr.rows[0], gr.rows[0]] = 1.0 / math.sqrt(var)
+        whiten = whiten.with_block(gr.rows, np.array([[1.0 / math.sqrt(var)]]))
         groups[i] = dataclasses.replace(gr, sigma=math.sqrt(var))
     note = (
         f"turn angle for a candidate that moves the closures of the turns about "

@@ -133,14 +133,14 @@ class _Tried:
 def _try(ds: Dataset, fit: Fit, mt: ModelTerm) -> _Tried:
     """Add ``mt`` to the fitted model by orthogonal projection (exact for linear terms)."""
     x, off = term_columns(ds, mt)
-    cw = ds.whiten @ x
+    cw = ds.whiten.apply(x)
     q = fit.basis
 
     def perp(v: np.ndarray) -> np.ndarray:
         return v - q @ (q.T @ v) if q.shape[1] else v
 
     cp = perp(cw)
-    r = fit.white_residual - perp(ds.whiten @ off) if np.any(off) else fit.white_residual
+    r = fit.white_residual - perp(ds.whiten.apply(off)) if np.any(off) else fit.white_residual
     norms = np.linalg.norm(cw, axis=0)
     kept = np.linalg.norm(cp, axis=0)
     reason = ""
@@ -265,9 +265,6 @@ def evaluate_candidates(
             elif b_given_a and not a_given_b:
                 explained_by.setdefault(id(a), b.mt.label)
     out: list[tuple[Candidate, _Tried]] = []
-    winv = {id(ds): np.linalg.inv(ds.whiten)}
-    for d2, _ in cache.values():
-        winv.setdefault(id(d2), np.linalg.inv(d2.whiten))
     for t in tried:
         mt = t.mt
         labels = mt.term.param_labels(mt.sensor, mt.axes[0])
@@ -284,7 +281,7 @@ def evaluate_candidates(
         c0 = coefs.get(name0, (math.nan, math.nan, units[best]))
         after_rms = math.nan
         if not t.reason:
-            after_rms = _rms_z_after(t.ds, t.fit, t, winv[id(t.ds)])
+            after_rms = _rms_z_after(t.ds, t.fit, t)
         out.append(
             (
                 Candidate(
@@ -311,7 +308,10 @@ def evaluate_candidates(
         rank = 0 if usable else 1 if c.significant else 2
         if not c.identifiable:
             rank = 3
-        return (rank, 0, c.delta_bic if math.isfinite(c.delta_bic) else math.inf)
+        # terms that move the rows identically tie up to round-off (the order of a sum may
+        # flip them): to 9 digits they tie, and keep the catalogue's order
+        bic = float(f"{c.delta_bic:.9g}") if math.isfinite(c.delta_bic) else math.inf
+        return (rank, 0, bic)
 
     out.sort(key=key)
     # confounded partners right after the first of their group
@@ -352,10 +352,10 @@ def _implausible(mt: ModelTerm, coefs: Mapping[str, tuple[float, float, str]], f
     return why
 
 
-def _rms_z_after(ds: Dataset, fit: Fit, t: _Tried, winv: np.ndarray) -> float:
+def _rms_z_after(ds: Dataset, fit: Fit, t: _Tried) -> float:
     """RMS of the record/channel z after adding the candidate: the refit's whitened residual
-    is r − C⊥·β; ``winv`` = W⁻¹ brings it back to the rows."""
-    resid_after = winv @ (t.r - t.cw_perp @ t.beta)
+    is r − C⊥·β; W⁻¹ brings it back to the rows."""
+    resid_after = ds.whiten.inv_apply(t.r - t.cw_perp @ t.beta)
     q, _ = np.linalg.qr(t.cw_perp)
     basis = np.column_stack([fit.basis, q]) if fit.basis.shape[1] else q
     sd = residual_sigmas(ds, basis)

@@ -153,7 +153,7 @@ def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
             col[rows] = aggregate(ds.aggregators[ri], np.asarray(fn(rs, sensor, a), float))
         if not any_rows:
             return None
-        cw = ds.whiten @ col
+        cw = ds.whiten.apply(col)
         return cw, (cw - q @ (q.T @ cw) if q.shape[1] else cw)
 
     def hours(s: RecordSignals, sen: str, a: int) -> np.ndarray:

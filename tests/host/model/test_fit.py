@@ -146,14 +146,14 @@ def test_blocks_give_within_record_rows() -> None:
             # the up channel has only the still moments: fewer rows than the horizontal ones
             assert (len(g.rows) < max(others)) if up else (len(g.rows) == max(others))
             # the rows' mean is whitened exactly (still moments and moving blocks differ)
-            w = ds.whiten[np.ix_(g.rows, g.rows)]
+            w = ds.whiten.dense()[np.ix_(g.rows, g.rows)]
             cov = np.linalg.inv(w.T @ w)
             mean = np.full(len(g.rows), 1.0 / len(g.rows))
             assert mean @ cov @ mean == pytest.approx(g.sigma**2, rel=1e-9)
     # W whitens each group exactly: the record mean has variance σ² (white/B + floor²),
     # a block's departure from it the contrast variance
     for g in static_groups:
-        w = ds.whiten[np.ix_(g.rows, g.rows)]
+        w = ds.whiten.dense()[np.ix_(g.rows, g.rows)]
         cov = np.linalg.inv(w.T @ w)
         mean = np.full(2, 0.5)
         assert mean @ cov @ mean == pytest.approx(g.sigma**2, rel=1e-9)
