@@ -75,7 +75,7 @@ EXIT_CODES = """exit status:
   0    done (calibrate: every value within tolerance)
   1    calibrate: some value outside tolerance or not measured
   2    bad input or a problem to fix (one line on stderr says which)
-  130  interrupted (Ctrl+C)"""
+  130  interrupted (Ctrl+C; 143 SIGTERM, 129 SIGHUP)"""
 
 #: command -> examples shown at the end of its --help
 EXAMPLES: dict[str, str] = {

@@ -33,7 +33,7 @@ from host.errors import UserError
 from host.timing.clock import LiveClock, serialisation_ns
 from host.wire import protocol_gen as gen
 from host.wire import sensor
-from host.wire.capture import MAGIC, CaptureWriter
+from host.wire.capture import MAGIC, CaptureWriter, create_capture_file
 from host.wire.frames import (
     IMU_SAMPLE,
     MESSAGES,
@@ -183,8 +183,7 @@ class DeferredCapture(CaptureWriter):
     def start(self, path: Path) -> None:
         """Create ``path`` and write what was held so far."""
         self.path = path
-        path.parent.mkdir(parents=True, exist_ok=True)
-        self._f = open(path, "wb")  # noqa: SIM115 - closed in close()
+        self._f = create_capture_file(path)  # never over an earlier capture
         self._f.write(MAGIC)
         held, self._held = self._held, []
         for t_ns, data in held:

@@ -39,6 +39,11 @@ def run_capture(args: Any) -> int:
             f"--seconds {args.seconds:g}: give a recording time above 0 s (or leave it out to "
             "record until Ctrl+C)"
         )
+    if args.file.exists() or args.file.is_symlink():
+        raise UserError(
+            f"{args.file}: exists; a capture is never overwritten: give a new file name "
+            "(or move that one away)"
+        )
     tty = sys.stderr.isatty()
     until = f"{args.seconds:g} s" if args.seconds is not None else "Ctrl+C stops"
     print(f"recording {args.port} into {args.file} ({until})", file=sys.stderr)
@@ -84,24 +89,28 @@ def run_capture(args: Any) -> int:
 
 
 class _StopOnCtrlC:
-    """While entered, SIGINT sets :attr:`requested` instead of raising KeyboardInterrupt
-    (the previous handler is restored on exit)."""
+    """While entered, SIGINT (Ctrl+C), SIGTERM and SIGHUP set :attr:`requested` instead of
+    ending the program mid-write (the previous handlers are restored on exit)."""
+
+    SIGNALS = tuple(
+        getattr(signal, s) for s in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, s)
+    )
 
     def __init__(self) -> None:
         self.requested = False
-        self._old: Any = None
+        self._old: dict[int, Any] = {}
 
-    def _on_sigint(self, _signum: int, _frame: Any) -> None:
+    def _on_signal(self, _signum: int, _frame: Any) -> None:
         self.requested = True
 
     def __enter__(self) -> _StopOnCtrlC:
         if threading.current_thread() is threading.main_thread():  # signals go to it only
-            self._old = signal.signal(signal.SIGINT, self._on_sigint)
+            self._old = {s: signal.signal(s, self._on_signal) for s in self.SIGNALS}
         return self
 
     def __exit__(self, *_exc: object) -> None:
-        if self._old is not None:
-            signal.signal(signal.SIGINT, self._old)
+        for s, old in self._old.items():
+            signal.signal(s, old)
 
 
 def _status(elapsed_s: float, n_samples: int, link: Link, tty: bool) -> None:

@@ -7,6 +7,8 @@ the results through :mod:`host.calib.publish`.
   resume, redo, reconnect (:func:`host.dialogue.flow.run_dialogue`).
 - ``options`` — the dialogue's options and the operator's answers: parsed, checked before any
   I/O, and written back as the command line that continues a session.
+- ``sitting`` — the sitting's output directory: one process writes it at a time, and the files
+  of an earlier sitting are moved aside, never replaced.
 - ``measurement`` — one measurement: its acquisition through the board driver, the record and
   its header, the checks of that record.
 - ``screens`` — what is shown: prompts, the progress line, the summaries of records and stages.

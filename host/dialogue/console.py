@@ -14,16 +14,20 @@ Two layers:
 Keys are strings: one character, ``ESC`` for a lone Esc, ``"\\r"`` for Enter; escape sequences
 (arrow keys…) come as one string starting with ESC + "[" and count as "any key". Ctrl+C is the
 terminal's SIGINT (cbreak keeps ISIG), i.e. ``KeyboardInterrupt``; a 0x03 byte read in raw mode
-raises it too.
+raises it too. SIGTERM (a service manager, ``kill``) and SIGHUP (the terminal closed) end a
+session the same way, as :class:`EndedBySignal` (:func:`signals_end_like_ctrl_c`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import select
+import signal
 import sys
+import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from typing import Protocol, TextIO, TypeVar
 
 from host.errors import UserError
@@ -67,6 +71,41 @@ class Console(Protocol):
 
 
 # --------------------------------------------------------------------------- real terminal
+
+
+class EndedBySignal(KeyboardInterrupt):
+    """SIGTERM or SIGHUP ended the program: handled as Ctrl+C is. ``name`` ('SIGTERM') and
+    the shell's exit status for it, 128 + the signal number (143, 129)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.name = signal.Signals(signum).name
+        self.exit_status = 128 + signum
+
+
+@contextlib.contextmanager
+def signals_end_like_ctrl_c() -> Iterator[None]:
+    """While inside: the first SIGTERM or SIGHUP raises :class:`EndedBySignal` in the main
+    thread (where Ctrl+C's KeyboardInterrupt is raised); later ones are ignored while the
+    program winds up. The previous handlers are restored on exit."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    fired = False
+
+    def end(signum: int, _frame: object) -> None:
+        nonlocal fired
+        if not fired:
+            fired = True
+            raise EndedBySignal(signum)
+
+    wanted = [s for s in ("SIGTERM", "SIGHUP") if hasattr(signal, s)]
+    old = {s: signal.signal(getattr(signal, s), end) for s in wanted}
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(getattr(signal, s), handler)
 
 
 class TerminalConsole:

@@ -27,10 +27,10 @@ Interruptions (decided here, the method says Ctrl+C "discards everything"):
   :data:`YES_RECONNECT_S`) and the same measurement is proposed again.
 
 ``--resume``: records already in the output directory (and readable, same serial) are not
-measured again. Without it, every measurement of the chosen stages is taken and replaces the
-file of the same name when accepted; the results are computed from all of this serial's
-records in the directory (so stage 2 alone reuses earlier statics, as the method allows).
-``--redo NAME`` keeps the others and measures NAME again.
+measured again; the results are computed from all of this serial's records in the directory.
+``--redo NAME`` keeps the others and measures NAME again. Nothing accepted is replaced, and one
+process at a time writes a directory (:mod:`host.dialogue.sitting`). SIGTERM and SIGHUP end a
+session as Ctrl+C does.
 
 Operator hints: a port with ``operator_hint`` (the ``sim://`` virtual board) is told what the
 human is asked (``place`` before the placement prompt, ``turn`` at the start beep of a turn).
@@ -39,6 +39,7 @@ human is asked (``place`` before the placement prompt, ``turn`` at the start bee
 from __future__ import annotations
 
 import argparse
+import contextlib
 import shlex
 import time
 from collections.abc import Callable, Sequence
@@ -55,7 +56,13 @@ from host.calib.calibration import stage1
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.report import verdict_line
 from host.dialogue import screens
-from host.dialogue.console import Console, Questions, TerminalConsole
+from host.dialogue.console import (
+    Console,
+    EndedBySignal,
+    Questions,
+    TerminalConsole,
+    signals_end_like_ctrl_c,
+)
 from host.dialogue.measurement import (
     PLACED,
     acquire,
@@ -78,18 +85,12 @@ from host.dialogue.options import (
     parse_serial,
     parse_turns,
 )
+from host.dialogue.sitting import SittingDirectory
 from host.errors import RecordCheckError, ResumableError, UserError, write_error
 from host.session.checks import failed_record
-from host.session.directory import read_record, read_session, record_path, write_record
+from host.session.directory import DirectoryBusy, read_session, record_path, write_record
 from host.session.method import local_gravity, record_stats
-from host.session.records import (
-    STATIC_NAMES,
-    TURN_NAMES,
-    WARMUP_NAME,
-    Record,
-    RecordError,
-    turn_window_s,
-)
+from host.session.records import STATIC_NAMES, TURN_NAMES, WARMUP_NAME, Record, turn_window_s
 from host.wire import sensor
 
 #: --yes: a measurement whose default answer is "repeat" is tried at most this many times
@@ -141,6 +142,7 @@ class CalibrationDialogue:
         self._session_start_ns = time.monotonic_ns()
         #: True while the warm-up runs (Ctrl+C there discards no measurement)
         self.in_warm_up = False
+        self.sitting: SittingDirectory | None = None  # the output directory, locked
 
     # ---- plumbing ------------------------------------------------------------------------
     def _warn(self, text: str) -> None:
@@ -209,9 +211,9 @@ class CalibrationDialogue:
         )
         self.out_dir = opts.out_dir_for(self.serial)
         check_out_dir(self.out_dir)
-        self.out_dir.mkdir(parents=True, exist_ok=True)
-        self._start_capture()
+        self.sitting = SittingDirectory(self.out_dir, self.serial, self.command(then=()))
         self._take_stock()
+        self._start_capture()
         self._warm_up()
 
         need_static = [n for n in STATIC_NAMES if n not in self.done]
@@ -251,27 +253,16 @@ class CalibrationDialogue:
         self.op.say(f"Recording the link to {path}")
 
     def _take_stock(self) -> None:
-        """Records of this serial already in the output directory."""
-        existing = self._existing_names()
-        if not existing:
-            return
+        """Records of this serial already in the output directory: kept (--resume, --redo),
+        or moved aside with the rest of their sitting."""
+        assert self.sitting is not None
         if not self.opts.keeps_records:
-            self._warn(
-                f"{self.out_dir} already holds {len(existing)} records of {self.serial}: those "
-                "measured again are replaced; the others are used for the results "
-                "(--resume measures only the missing ones)"
-            )
-        for name in existing:
-            p = record_path(self.out_dir, self.serial, name)
-            try:
-                rec = read_record(p)
-                if rec.meta.get("serial", self.serial) != self.serial:
-                    raise RecordError(f"{p}: header says serial {rec.meta['serial']!r}")
-            except RecordError as exc:
-                self._warn(f"{exc}: it will be measured again")
-                continue
-            if self.opts.keeps_records and name not in self.opts.redo:
-                self.done[name] = rec
+            moved = self.sitting.set_aside_earlier()
+            if moved:
+                self._warn(moved)
+            return
+        names = [n for n in self._existing_names() if n not in self.opts.redo]
+        self.done.update(self.sitting.read_kept(names, self._warn))
         if self.opts.redo:
             self.op.say(f"Measuring again: {', '.join(self.opts.redo)} (--redo)")
         if self.opts.keeps_records:
@@ -319,7 +310,7 @@ class CalibrationDialogue:
         op.end_progress()
         if len(acq.t_us) >= 2:
             rec = self._record(WARMUP_NAME, acq, {"kind": "warmup"})
-            path = record_path(self.out_dir, self.serial, WARMUP_NAME)
+            path = self._keep_earlier(WARMUP_NAME)
             write_record(path, rec)  # not a calibration record: not in self.done
             op.say(f"Warm-up done; recorded {path}")
         else:
@@ -478,11 +469,19 @@ class CalibrationDialogue:
         header (``warning``), and the report lists it with them."""
         if problems:
             rec.meta["warning"] = " ".join("; ".join(problems).split())
-        path = record_path(self.out_dir, self.serial, rec.name)
+        path = self._keep_earlier(rec.name)
         write_record(path, rec)
         self.done[rec.name] = rec
         self.accepted.append(rec.name)
         self.op.say(f"Saved {path}")
+
+    def _keep_earlier(self, name: str) -> Path:
+        """The path of record ``name``; an earlier record there is moved aside first."""
+        assert self.sitting is not None
+        path, moved = self.sitting.keep_earlier(name)
+        if moved:
+            self.op.say(moved[0].upper() + moved[1:])
+        return path
 
     # ---- results -------------------------------------------------------------------------
     def _results(self) -> DialogueResult:
@@ -559,26 +558,29 @@ def run_dialogue(
         term.open()
     session: CalibrationDialogue | None = None
     try:
-        if note:
-            con.say(note)
-        session = CalibrationDialogue(opts, con, port_factory)
-        outcome = session.run()
-        return 0 if outcome.result is not None and outcome.result.all_passed else 1
-    except KeyboardInterrupt:
-        con.end_progress()
-        con.say("")
-        con.say(
-            "Aborted (Ctrl+C) during the warm-up (not recorded)."
-            if session is not None and session.in_warm_up
-            else "Aborted (Ctrl+C): the measurement in progress is discarded."
-        )
-        if session is not None and session.serial:
-            con.say(session._resume_hint())
-        return 130
+        with signals_end_like_ctrl_c():
+            if note:
+                con.say(note)
+            session = CalibrationDialogue(opts, con, port_factory)
+            outcome = session.run()
+            return 0 if outcome.result is not None and outcome.result.all_passed else 1
+    except KeyboardInterrupt as exc:
+        why = exc.name if isinstance(exc, EndedBySignal) else "Ctrl+C"
+        with contextlib.suppress(OSError):  # after SIGHUP the terminal may be gone
+            con.end_progress()
+            con.say("")
+            con.say(
+                f"Aborted ({why}) during the warm-up (not recorded)."
+                if session is not None and session.in_warm_up
+                else f"Aborted ({why}): the measurement in progress is discarded."
+            )
+            if session is not None and session.serial:
+                con.say(session._resume_hint())
+        return exc.exit_status if isinstance(exc, EndedBySignal) else 130
     except (UserError, OSError) as exc:
         # a session ending on an error (disk full, sensor failed, board gone) always says how
         # to continue with the records already accepted
-        told = isinstance(exc, ResumableError)  # the message already says how to continue
+        told = isinstance(exc, (ResumableError, DirectoryBusy))  # it says what to do
         if session is None or not session.serial or told:
             raise
         text = str(exc) if isinstance(exc, UserError) else str(write_error(exc.filename, exc))
@@ -586,5 +588,7 @@ def run_dialogue(
     finally:
         if session is not None:
             session.board.close()
+            if session.sitting is not None:
+                session.sitting.release()
         if term is not None:
             term.close()

@@ -200,6 +200,11 @@ class DialogueOptions:
         local_gravity(self.latitude_deg, self.height_m)  # validates both
         if self.serial is not None:
             check_out_dir(self.out_dir_for(self.serial))
+        if self.capture is not None and (self.capture.exists() or self.capture.is_symlink()):
+            raise UserError(
+                f"--capture {self.capture}: exists; a capture is never overwritten: give a new "
+                "file name, or leave --capture out (the next free SERIAL_session_N.cap)"
+            )
         if self.yes and self.static_seconds is None and self._statics_to_measure():
             raise UserError(
                 "--yes needs --static-seconds S, the accumulation time per static orientation "

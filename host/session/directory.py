@@ -1,14 +1,26 @@
 """The record files of one session on disk: ``SERIAL_name.txt`` in one directory
-(method.md §6), read and written (atomically), and which board measured them."""
+(method.md §6), read and written (atomically), and which board measured them.
+
+Nothing accepted is replaced silently: one process at a time writes a session directory
+(:func:`lock_directory`, a lock a crash does not leave stuck), and the files of an earlier
+sitting are moved aside, bytes unchanged, before anything would replace them
+(:func:`set_aside`, into ``DIR/earlier/``).
+"""
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import os
+import socket
 import stat
+import sys
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from host.errors import UserError, write_error
 from host.session.atomic import write_text_atomic
 from host.session.records import (
     NON_RECORD_NAMES,
@@ -167,3 +179,135 @@ def read_session(directory: str | os.PathLike[str], serial: str | None = None) -
             raise RecordError(f"{p}: header says serial {ms!r}, file name says {serial!r}")
         records[name] = rec
     return Session(serial=serial, records=records, directory=d)
+
+
+# ---- one writer at a time, and nothing replaced --------------------------------------------
+#: the lock file in a session directory (hidden: never read as a record)
+LOCK_NAME = ".imu-bench.lock"
+#: the earlier sittings' files, moved aside: ``DIR/earlier/SERIAL_<UTC time>/``
+EARLIER_DIR = "earlier"
+
+
+class DirectoryBusy(UserError):
+    """Another live process writes this session directory; the message names it (PID)."""
+
+
+class DirectoryLock:
+    """An exclusive ``flock`` on ``DIR/.imu-bench.lock``, which holds the owner's PID, host,
+    start time and command for the message another process shows. The kernel drops the lock
+    when its process ends, however it ends (``kill -9``, a crash, a power cut), so a lock is
+    never left stuck: a file left behind by a dead process is taken over."""
+
+    def __init__(self, directory: Path, fd: int) -> None:
+        self.directory = directory
+        self._fd: int | None = fd
+
+    @property
+    def path(self) -> Path:
+        return self.directory / LOCK_NAME
+
+    def release(self) -> None:
+        """Remove the lock file and drop the lock (idempotent)."""
+        fd, self._fd = self._fd, None
+        if fd is None:
+            return
+        with contextlib.suppress(OSError):
+            os.unlink(self.path)  # while still held: nobody waits on a name we remove
+        os.close(fd)
+
+    def __enter__(self) -> DirectoryLock:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.release()
+
+
+def lock_directory(directory: str | os.PathLike[str], what: str = "") -> DirectoryLock:
+    """Take ``directory``'s lock (the directory must exist) for this process.
+
+    DirectoryBusy when another living process holds it, naming its PID and what it runs
+    (``what``: e.g. ``calibrate --serial U17``), with what to do. A lock file whose process
+    is gone (killed, crashed) holds no lock and is taken over.
+    """
+    d = Path(directory)
+    path = d / LOCK_NAME
+    for _ in range(50):  # only a remove-and-recreate race between other processes loops
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise UserError(f"{d}: cannot lock it ({exc.strerror or exc}); choose --out") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            owner = _lock_owner(fd)
+            os.close(fd)
+            raise DirectoryBusy(
+                f"{d} is in use by another process ({owner}): two sessions writing one "
+                "directory would mix their records; wait for it to end, or choose another --out"
+            ) from None
+        try:  # the name may have been removed (and made anew) after we opened it: retry
+            same = os.fstat(fd).st_ino == os.stat(path).st_ino
+        except FileNotFoundError:
+            same = False
+        if not same:
+            os.close(fd)
+            continue
+        started = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime())
+        command = what or " ".join(os.path.basename(a) for a in sys.argv[:1]) or "python"
+        text = f"pid {os.getpid()}\nhost {socket.gethostname()}\nsince {started}\n"
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{text}command {command}\n".encode(), 0)
+        return DirectoryLock(d, fd)
+    raise DirectoryBusy(f"{d}: its lock file keeps changing; choose another --out")
+
+
+def _lock_owner(fd: int) -> str:
+    """'PID 1234, calibrate --serial U17, since …' from a held lock file's text."""
+    try:
+        text = os.pread(fd, 4096, 0).decode("utf-8", "replace")
+    except OSError:
+        return "its PID unknown"
+    info = dict(ln.split(" ", 1) for ln in text.splitlines() if " " in ln)
+    parts = [f"PID {info.get('pid', '?')}"]
+    if info.get("host") not in (None, socket.gethostname()):
+        parts[0] += f" on {info['host']}"
+    parts += [info[k] for k in ("command",) if info.get(k)]
+    parts += [f"since {info['since']}"] if info.get("since") else []
+    return ", ".join(parts)
+
+
+def sitting_files(directory: str | os.PathLike[str], serial: str) -> list[Path]:
+    """The files of ``serial``'s sitting in ``directory``: its records (the warm-up too),
+    its results and its captures; not the unit's own files (``SERIAL_thermal.json``)."""
+    found = []
+    for p in sorted(Path(directory).glob(f"{serial}_*")):
+        parts = split_file_name(p)
+        if parts is not None and parts[0] == serial and p.is_file():
+            found.append(p)  # records, the warm-up, SERIAL_result.txt
+        elif p.name == f"{serial}_result.json" or (
+            p.suffix == ".cap" and p.stem.startswith(f"{serial}_session")
+        ):
+            found.append(p)
+    return found
+
+
+def set_aside(
+    directory: str | os.PathLike[str], serial: str, files: list[Path], into: Path | None = None
+) -> Path:
+    """Move ``files`` (of ``directory``) into ``into``, by default a new
+    ``directory/earlier/SERIAL_<UTC time>/``, by renaming (the bytes are not touched); returns
+    where they went. UserError naming the file that could not be moved."""
+    aside = into
+    if aside is None:
+        stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+        base = Path(directory) / EARLIER_DIR / f"{serial}_{stamp}"
+        aside, k = base, 2
+        while aside.exists():
+            aside, k = base.with_name(f"{base.name}_{k}"), k + 1
+    try:
+        aside.mkdir(parents=True, exist_ok=True)
+        for p in files:
+            os.rename(p, aside / p.name)
+    except OSError as exc:
+        raise write_error(Path(exc.filename or aside), exc, "nothing was replaced") from None
+    return aside

@@ -222,13 +222,28 @@ class CaptureUnwrapper:
             del self._reads_end[:k]
 
 
+def create_capture_file(path: Path) -> BinaryIO:
+    """A new, empty capture file at ``path`` (its directory made): never an existing file, so
+    a capture is never overwritten (UserError naming it and what to give instead)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return open(path, "xb")  # noqa: SIM115 - the caller closes it
+    except FileExistsError:
+        raise UserError(
+            f"{path}: exists; a capture is never overwritten: give a new file name "
+            "(or move that one away)"
+        ) from None
+    except OSError as exc:
+        raise write_error(path, exc, "nothing was written") from None
+
+
 class CaptureWriter:
-    """Append reads to an IMUCAP01 file as they happen (flushed per read, so a crash keeps them)."""
+    """Append reads to an IMUCAP01 file as they happen (flushed per read, so a crash keeps
+    them); the file must not exist yet (:func:`create_capture_file`)."""
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._f: BinaryIO | None = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+        self._f: BinaryIO | None = create_capture_file(self.path)
         self._f.write(MAGIC)
         self._f.flush()
 
