@@ -143,12 +143,32 @@ def build_parser() -> tuple[
     return parser, runners
 
 
+#: commands whose stdout is data for programs (samples, a parameter file, JSON): not wrapped
+MACHINE_STDOUT = ("decode", "export", "capture")
+
+
 def main(argv: list[str] | None = None) -> int:
+    from host.cli.screen import ScreenWriter
+
+    raw_out, raw_err = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = ScreenWriter(raw_out), ScreenWriter(raw_err)
+    try:
+        return _run(argv, raw_out)
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            stream.flush()
+        sys.stdout, sys.stderr = raw_out, raw_err
+
+
+def _run(argv: list[str] | None, raw_out: object) -> int:
     parser, runners = build_parser()
     args = parser.parse_args(argv)
     if not args.command:
         parser.print_help()
         return 2
+    if args.command in MACHINE_STDOUT or getattr(args, "json", False):
+        sys.stdout.flush()
+        sys.stdout = raw_out  # type: ignore[assignment]
     try:
         return runners[args.command](args)
     except (UserError, OSError) as exc:

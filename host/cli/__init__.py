@@ -12,7 +12,9 @@
 - ``plan`` — ``plan``: which record to measure next.
 - ``thermal`` — ``thermal``: bias against temperature.
 
-Shared by the commands: :func:`pyplot` (the one place that says how to get matplotlib).
+Shared by the commands: :func:`pyplot` (the one place that says how to get matplotlib), and
+``screen`` (``screen.py``): the width rule — text wrapped at words within the terminal, tables
+narrowed, long commands broken so they still run, the progress line of a long wait.
 """
 
 from __future__ import annotations

@@ -21,6 +21,15 @@ import numpy as np
 
 from host.calib.publish import session_noise
 from host.cli import pyplot
+from host.cli.screen import (
+    Column,
+    Progress,
+    command_lines,
+    fit_columns,
+    left_out,
+    table_row,
+    terminal_width,
+)
 from host.errors import UserError
 from host.model.catalogue import CATALOGUE
 from host.model.dataset import Dataset, build_dataset
@@ -32,16 +41,16 @@ from host.model.spec import model_spec, parse_model, short_spec
 from host.model.terms import Term
 from host.session.directory import read_session
 from host.session.spacing import timing_report
-from host.workbench.ladder import add_term, ladder
+from host.workbench.ladder import LadderStep, add_term, ladder
 from host.workbench.scenarios import DEFAULT_EFFECTS, EFFECTS, hidden_effect_case, run_case
 from host.workbench.text import (
     format_addition,
     format_case,
     format_diagnosis,
-    format_ladder,
     format_outcome,
     format_terms,
     physics_paragraph,
+    readable_spec,
 )
 from host.workbench.verdict import diagnose
 
@@ -265,16 +274,19 @@ def run_diagnose(args: argparse.Namespace) -> int:
             obj["plots"] = [str(p) for p in plots]
         _print_json(obj)
     else:
-        print(format_diagnosis(d, compare=not args.brief))
+        try_line = None
+        if d.recommended_spec:
+            cmd = add_command(args, d.recommended_spec, short_spec(d.fit.model))
+            try_line = command_lines(cmd, terminal_width(sys.stdout), lead="  try: ")
+        print(format_diagnosis(d, compare=not args.brief, try_line=try_line))
         for p in plots:
             print(f"plot: {p}")
     return 0
 
 
-def calibrate_command(args: argparse.Namespace, model: str) -> str:
-    """The exact ``calibrate`` command that fits and ships ``model`` on the records the
-    workbench just used (same directory, serial, site, floor and term files)."""
-    cmd = ["python3", "-m", "host", "calibrate", "--from-dir", args.dir, "--model", model]
+def _same_options(args: argparse.Namespace) -> list[str]:
+    """The options that say which records and how (serial, site, floor, term files)."""
+    cmd: list[str] = []
     for f in args.term_file:
         cmd += ["--term-file", f]
     for opt, val in (("--serial", args.serial), ("--latitude", args.latitude),
@@ -282,7 +294,20 @@ def calibrate_command(args: argparse.Namespace, model: str) -> str:
                      ("--noise", getattr(args, "noise", None))):  # fmt: skip
         if val is not None:
             cmd += [opt, str(val)]
-    return shlex.join(cmd)
+    return cmd
+
+
+def calibrate_command(args: argparse.Namespace, model: str) -> str:
+    """The exact ``calibrate`` command that fits and ships ``model`` on the records the
+    workbench just used (same directory, serial, site, floor and term files)."""
+    cmd = ["python3", "-m", "host", "calibrate", "--from-dir", args.dir, "--model", model]
+    return shlex.join(cmd + _same_options(args))
+
+
+def add_command(args: argparse.Namespace, term: str, model: str) -> list[str]:
+    """The ``model add`` command that adds ``term`` to ``model`` on the same records."""
+    cmd = ["python3", "-m", "host", "model", "add", args.dir, term]
+    return cmd + (["--model", model] if model != "base" else []) + _same_options(args)
 
 
 def run_add(args: argparse.Namespace) -> int:
@@ -297,20 +322,79 @@ def run_add(args: argparse.Namespace) -> int:
         _print_json({**a.to_dict(), "calibrate_command": ship})
     else:
         print(format_addition(a))
-        print(f"ship this model: {ship}")
+        print(
+            command_lines(shlex.split(ship), terminal_width(sys.stdout), lead="ship this model: ")
+        )
     return 0
+
+
+def ladder_columns() -> list[Column]:
+    """The ladder's table: what matters most is kept on a narrow terminal."""
+    return [
+        Column("step", size=4),
+        Column("added", align="<", size=31),
+        Column("RMS z", size=7),
+        Column("held-out z", rank=1),
+        Column("ΔBIC", rank=2, size=8),
+        Column("p", rank=3, size=8),
+        Column("params", rank=4),
+        Column("dof", rank=5, size=4),
+        Column("χ²", rank=6, size=10),
+    ]
+
+
+def ladder_cells(i: int, step: LadderStep, before: LadderStep | None, start: str) -> list[str]:
+    """One rung as table cells: the term added without ``:xyz`` (every rung adds all three
+    axes), the start as its short spec."""
+    added = step.added.removesuffix(":xyz") if step.added else f"start: {start}"
+    return [
+        str(i),
+        added,
+        f"{step.rms_z:.2f}",
+        f"{step.held_out_rms_z:.2f}",
+        f"{step.bic - before.bic:+.1f}" if before is not None else "—",
+        f"{step.p_value:.2g}" if math.isfinite(step.p_value) else "—",
+        str(step.n_params),
+        str(step.dof),
+        f"{step.chi2:.1f}",
+    ]
 
 
 def run_ladder(args: argparse.Namespace) -> int:
     cat = _catalogue(args)
     ds = _dataset(args)
-    steps = ladder(ds, args.start, cat)
-    ship = calibrate_command(args, short_spec(parse_model(steps[-1].model, cat)))
+    width = terminal_width(sys.stdout)
+    columns = ladder_columns()
+    shown = fit_columns(columns, width)
+    at = [any(c is s for s in shown) for c in columns]
+    start = short_spec(parse_model(args.start, cat))
+    progress = Progress()
+    rows: list[LadderStep] = []
+
+    def on_step(step: LadderStep) -> None:
+        progress.done()
+        if args.json:
+            return
+        if not rows:
+            print(table_row(shown, [c.header for c in shown]))
+        cells = ladder_cells(len(rows), step, rows[-1] if rows else None, start)
+        print(table_row(shown, [c for c, keep in zip(cells, at, strict=True) if keep]), flush=True)
+        rows.append(step)
+
+    def on_try(rung: int, tried: int, of: int) -> None:
+        progress.show(f"ladder: rung {rung}, trying term {tried + 1} of {of} ...")
+
+    steps = ladder(ds, args.start, cat, on_step=on_step, on_try=on_try)
+    progress.done()
+    final = parse_model(steps[-1].model, cat)
+    ship = calibrate_command(args, short_spec(final))
     if args.json:
         _print_json({"steps": [dataclasses.asdict(s) for s in steps], "calibrate_command": ship})
     else:
-        print(format_ladder(steps))
-        print(f"ship this model: {ship}")
+        for line in left_out(columns, shown, width):
+            print(line)
+        print(f"final model: {readable_spec(final)}")
+        print(command_lines(shlex.split(ship), width, lead="ship this model: "))
     return 0
 
 

@@ -111,6 +111,17 @@ def warm_up_progress(op: Questions, seconds: float) -> Tick:
     return tick
 
 
+def whole_parts(width: int, *parts: str) -> str:
+    """The parts, two spaces apart, as many as fit in ``width`` whole (a progress line is
+    redrawn in place: it must not wrap, and a number cut short would read as another)."""
+    line = parts[0]
+    for part in parts[1:]:
+        if len(line) + 2 + len(part) > width:
+            break
+        line += "  " + part
+    return line
+
+
 def measurement_progress(op: Questions, name: str, seconds: float, info: BoardInfo) -> Tick:
     """The progress line of measurement ``name`` (``seconds`` of device time): a bar, the time,
     and the means so far (m/s², °/s) — or, for a turn, the angle turned so far about the up
@@ -123,8 +134,8 @@ def measurement_progress(op: Questions, name: str, seconds: float, info: BoardIn
 
     def tick(elapsed: float, sums: np.ndarray, k: int) -> None:
         frac = min(1.0, elapsed / seconds) if seconds > 0 else 1.0
-        bar = "#" * int(frac * 10) + "-" * (10 - int(frac * 10))  # means fit 80 columns
-        head = f"{name} [{bar}] {elapsed:6.1f}/{seconds:g} s"
+        bar = "#" * int(frac * 10) + "-" * (10 - int(frac * 10))
+        head = f"{name} [{bar}] {elapsed:5.1f}/{seconds:g} s"
         if k == 0:
             op.progress(head)
             return
@@ -137,12 +148,9 @@ def measurement_progress(op: Questions, name: str, seconds: float, info: BoardIn
             last.update(t=elapsed, k=k, sum=s_up)
             op.progress(f"{head}  turned {last['angle']:+5.0f}° about {name[0].upper()}")
         else:
-            op.progress(
-                f"{head}  A "
-                + " ".join(f"{v * a_scale:+.3f}" for v in m[0:3])
-                + "  G "
-                + " ".join(f"{v * g_scale:+.3f}" for v in m[4:7])
-            )
+            accel = "A " + " ".join(f"{v * a_scale:+.3f}" for v in m[0:3])
+            gyro = "G " + " ".join(f"{v * g_scale:+.3f}" for v in m[4:7])
+            op.progress(whole_parts(op.columns - 1, head, accel, gyro))
 
     return tick
 

@@ -8,7 +8,7 @@ rung the (term, sensor) that lowers BIC most while its LR test stays significant
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -100,16 +100,23 @@ def ladder(
     catalogue: Mapping[str, Term] | None = None,
     alpha: float = ALPHA,
     max_steps: int = 20,
+    on_step: Callable[[LadderStep], None] | None = None,
+    on_try: Callable[[int, int, int], None] | None = None,
 ) -> list[LadderStep]:
     """Greedy forward selection from ``start``: at each rung add the (term, sensor) — all three
     axes — that lowers BIC most, while its LR test is significant after Bonferroni over that
-    rung's candidates; stop otherwise."""
+    rung's candidates; stop otherwise. ``on_step(step)`` hears each rung as it is found,
+    ``on_try(rung, tried, of)`` each candidate fit (a fit takes up to seconds: the waiting
+    user sees it move)."""
+    tell = on_step or (lambda step: None)
+    trying = on_try or (lambda rung, tried, of: None)
     cat = catalogue if catalogue is not None else CATALOGUE
     model = parse_model(start, cat)
     fit = fit_model(ds, model)
     steps = [LadderStep("", model_spec(model), fit.n_params, fit.chi2, fit.dof, fit.rms_z,
                         fit.bic, math.nan, leave_one_out(ds, fit).rms_z)]  # fmt: skip
-    for _ in range(max_steps):
+    tell(steps[0])
+    for rung in range(1, max_steps + 1):
         have = {(mt.term.name, mt.sensor) for mt in model}
         options = [
             ModelTerm(t, s, (0, 1, 2))
@@ -120,7 +127,8 @@ def ladder(
         if not options:
             break
         results = []
-        for mt in options:
+        for i, mt in enumerate(options):
+            trying(rung, i, len(options))
             f = fit_model(ds, merge_model(list(model) + [mt]))
             k = f.n_params - fit.n_params
             if k <= 0:
@@ -135,4 +143,5 @@ def ladder(
         fit = f
         steps.append(LadderStep(mt.label, model_spec(model), f.n_params, f.chi2, f.dof,
                                 f.rms_z, f.bic, p, leave_one_out(ds, f).rms_z))  # fmt: skip
+        tell(steps[-1])
     return steps

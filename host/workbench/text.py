@@ -14,10 +14,10 @@ from collections.abc import Mapping, Sequence
 
 from host.model.catalogue import BASE
 from host.model.fit import Fit, GroupResidual
-from host.model.spec import model_spec
+from host.model.spec import ModelTerm, short_spec
 from host.model.terms import Term
 from host.workbench.candidates import Candidate
-from host.workbench.ladder import Addition, LadderStep
+from host.workbench.ladder import Addition
 from host.workbench.scenarios import DemoOutcome, HiddenCase
 from host.workbench.verdict import Diagnosis
 
@@ -39,10 +39,16 @@ def describe_residual(g: GroupResidual) -> str:
     )
 
 
+def readable_spec(model: Sequence[ModelTerm]) -> str:
+    """The model for reading: its short spec with a space after each comma, so that a long
+    one wraps between terms ('base, temperature_bias:gyro:y'); not for ``--model``."""
+    return ", ".join(short_spec(model).split(","))
+
+
 def format_fit(fit: Fit, compare: bool = True) -> list[str]:
     """The fit's summary (and the compare table)."""
     lines = [
-        f"model: {model_spec(fit.model)}",
+        f"model: {readable_spec(fit.model)}",
         f"fit: RMS z = {fit.rms_z:.2f} over {len(fit.groups)} record/channel values; "
         f"χ² = {fit.chi2:.1f} on {fit.dof} dof (p = {fit.chi2_p:.3g})",
     ]
@@ -74,8 +80,11 @@ def format_candidate(c: Candidate) -> str:
     )
 
 
-def format_diagnosis(d: Diagnosis, compare: bool = True, max_candidates: int = 12) -> str:
-    """The human-readable report of :func:`diagnose`."""
+def format_diagnosis(
+    d: Diagnosis, compare: bool = True, max_candidates: int = 12, try_line: str | None = None
+) -> str:
+    """The human-readable report of :func:`diagnose`; ``try_line`` is the command that adds
+    the recommended term (the caller knows the directory and options; else ``DIR``)."""
     lines = ["== 1. compare: measured vs model"] + format_fit(d.fit, compare)
     lines.append("== 2. where it fails (|z| > 3, worst first)")
     if not d.worst and not d.worst_spans:
@@ -132,8 +141,8 @@ def format_diagnosis(d: Diagnosis, compare: bool = True, max_candidates: int = 1
                 if o is not None:
                     lines.append(f"      {other}: {o.needs}")
     if d.recommended_spec:
-        lines.append(f"  try: python -m host model add DIR {d.recommended_spec} --model "
-                     f"{model_spec(d.fit.model)}")  # fmt: skip
+        lines.append(try_line or f"  try: python3 -m host model add DIR {d.recommended_spec} "
+                     f"--model {short_spec(d.fit.model)}")  # fmt: skip
     elif d.verdict != "adequate":
         lines.append("  recommended: nothing from the catalogue")
     return "\n".join(lines)
@@ -212,20 +221,6 @@ def format_addition(a: Addition) -> str:
     lines.append("  new coefficients:")
     for p in a.new_parameters:
         lines.append(f"    {p.name} = {_fmt(p.value, '')} ± {_fmt(p.stderr, p.unit)}")
-    return "\n".join(lines)
-
-
-def format_ladder(steps: Sequence[LadderStep]) -> str:
-    lines = [f"{'step':>4}  {'added':<34} {'params':>6} {'chi2':>12} {'dof':>5} {'RMS z':>8} "
-             f"{'BIC':>12} {'p':>9} {'held-out z':>10}"]  # fmt: skip
-    for i, s in enumerate(steps):
-        lines.append(
-            f"{i:>4}  {(s.added or 'start: ' + s.model):<34} {s.n_params:>6} {s.chi2:>12.1f} "
-            f"{s.dof:>5} {s.rms_z:>8.2f} {s.bic:>12.1f} "
-            f"{(f'{s.p_value:.2g}' if math.isfinite(s.p_value) else '—'):>9} "
-            f"{s.held_out_rms_z:>10.2f}"
-        )
-    lines.append(f"final model: {steps[-1].model}")
     return "\n".join(lines)
 
 

@@ -73,13 +73,14 @@ class Screen:
 
     def __init__(self, args: list[str], cwd: Path, size: tuple[int, int] | None = None) -> None:
         """``size``: (rows, columns) of the terminal, set on the pty as a terminal window
-        does (TIOCSWINSZ); None leaves the pty unsized and says COLUMNS=120."""
+        does (TIOCSWINSZ); None leaves the pty unsized and says COLUMNS=1000 (no line is
+        wrapped: the prompts are matched whole; the 80-column layout has its own tests)."""
         import fcntl
         import pty
         import struct
         import termios
 
-        env = dict(os.environ, PYTHONPATH=str(ROOT), TERM="xterm", COLUMNS="120")
+        env = dict(os.environ, PYTHONPATH=str(ROOT), TERM="xterm", COLUMNS="1000")
         if size is not None:  # the program must read the terminal, not a stale COLUMNS
             env.update(COLUMNS="200", LINES=str(size[0] + 30))
         self.pid, self.fd = pty.fork()
@@ -394,11 +395,15 @@ def test_an_80x24_terminal_redraws_in_place_and_ends_with_the_verdict(
     means = [seg for seg in redraws if re.search(r" A( [+-]\d+\.\d{3}){3}  G( [+-]\d+\.\d{3}){3}$",
                                                   seg)]  # fmt: skip
     assert len(means) > 6, redraws[:20]
-    mark, last = [ln for ln in s.text.replace("\r", "\n").split("\n") if ln.strip()][-2:]
+    shown = [ln for ln in s.text.replace("\r", "\n").split("\n") if ln.strip()]
+    last = shown[-1]
     assert re.fullmatch(
         r"(PASS: every value within tolerance|FAIL: \d+ value\(s\) .*); report "
         r"DEMO01/DEMO01_result\.txt",
         last.strip(),
     ), last
-    assert mark.startswith("*** SIMULATED BOARD sim://")
-    assert len(last) <= 80  # the verdict is one line, not wrapped (the mark may wrap)
+    # the mark just above it, wrapped at words within the 80 columns
+    assert any(ln.startswith("*** SIMULATED BOARD sim://") for ln in shown[-3:-1]), shown[-3:]
+    assert shown[-2].endswith("not a measurement of a unit ***")
+    assert all(len(ln) <= 80 for ln in shown)
+    assert len(last) <= 80  # the verdict is one line, not wrapped
