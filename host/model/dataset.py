@@ -19,6 +19,7 @@ from host.model.rows import (
     add_block_means,
     add_turn_accel,
     add_turn_integrals,
+    apply_serial_correlation,
     hand_sigma,
     seating_sigma,
     turn_accel_rows,
@@ -282,6 +283,7 @@ def build_dataset(
             add_turn_accel(table, ri, sig, turn, nm)
         aggs.append(add_turn_integrals(table, ri, sig, rec.t_ms, t_rel))
 
+    apply_serial_correlation(table, nm.max_lag)
     signals, plate_notes = resolve_placements(signals, g)
     notes.extend(plate_notes)
     floors, floor_note = session_floor(_static_blocks(table, signals), nm)

@@ -13,6 +13,7 @@ seating at the still moments (:func:`seating_sigma`) and the hand while it turns
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -48,7 +49,10 @@ class RowTable:
     whether it is a turn integral, its time span within the record (s), the measured value and
     the ideal sensor's (``nominal``); per record and channel a :class:`ChannelRows`; and the
     white-noise levels the static records measured (``static_noise``: (sensor, axis) -> their
-    (variance, τ) in record order; ``record_noise``: (record, sensor, axis) -> (variance, τ))."""
+    (variance, τ) in record order; ``record_noise``: (record, sensor, axis) -> (variance, τ)).
+    ``deviations``: (sensor, axis) -> each measured run's samples about its mean, static records
+    first (what the serial correlation is read from, :func:`apply_serial_correlation`); until
+    then every τ is 1."""
 
     record: list[int] = field(default_factory=list)
     sensor: list[int] = field(default_factory=list)
@@ -61,6 +65,8 @@ class RowTable:
     channels: list[ChannelRows] = field(default_factory=list)
     static_noise: dict[tuple[str, int], list[tuple[float, float]]] = field(default_factory=dict)
     record_noise: dict[tuple[int, str, int], tuple[float, float]] = field(default_factory=dict)
+    deviations: dict[tuple[str, int], list[np.ndarray]] = field(default_factory=dict)
+    static_deviations: dict[tuple[str, int], list[np.ndarray]] = field(default_factory=dict)
 
     def add(
         self,
@@ -87,13 +93,35 @@ class RowTable:
         return idx
 
 
-def _white(meas: np.ndarray, runs: Sequence[tuple[int, int]], max_lag: int) -> tuple[float, float]:
-    """(variance, integrated autocorrelation time) of one sample of ``meas`` (N,) from its
-    deviations about each run's mean (at least the quantisation step²/12)."""
-    dev = np.concatenate([meas[a:e] - meas[a:e].mean() for a, e in runs])
+def _white(meas: np.ndarray, runs: Sequence[tuple[int, int]]) -> tuple[float, list[np.ndarray]]:
+    """(variance of one sample of ``meas`` (N,) from its deviations about each run's mean, at
+    least the quantisation step²/12; those deviations per run)."""
+    devs = [meas[a:e] - meas[a:e].mean() for a, e in runs]
+    dev = np.concatenate(devs)
     dof = max(len(dev) - len(runs), 1)
-    var = max(float(dev @ dev) / dof, resolution(meas) ** 2 / 12.0)
-    return var, integrated_autocorrelation(dev, max_lag)
+    return max(float(dev @ dev) / dof, resolution(meas) ** 2 / 12.0), devs
+
+
+def apply_serial_correlation(table: RowTable, max_lag: int) -> dict[tuple[str, int], float]:
+    """Multiply every measured white variance of ``table`` by its channel's integrated
+    autocorrelation time τ (:func:`host.model.noise.integrated_autocorrelation`), read from
+    the static records' deviations of that channel pooled (the sensor's filter is the same in
+    every record; one record's few hundred samples alone would leave τ noisy and biased high),
+    else from every run measured; -> τ per (sensor, axis)."""
+    taus: dict[tuple[str, int], float] = {}
+    for key, devs in table.deviations.items():
+        taus[key] = integrated_autocorrelation(table.static_deviations.get(key) or devs, max_lag)
+    table.channels[:] = [
+        dataclasses.replace(ch, white=ch.white * taus.get((ch.sensor, ch.axis), 1.0))
+        if math.isfinite(ch.white) and ch.white > 0
+        else ch
+        for ch in table.channels
+    ]
+    for key, levels in table.static_noise.items():
+        table.static_noise[key] = [(v, taus.get(key, 1.0)) for v, _ in levels]
+    for (ri, s, ax), (v, _) in list(table.record_noise.items()):
+        table.record_noise[(ri, s, ax)] = (v, taus.get((s, ax), 1.0))
+    return taus
 
 
 def block_edges(n: int, duration_s: float, noise: NoiseModel) -> list[tuple[int, int]]:
@@ -146,10 +174,12 @@ def add_block_means(
             if not agg.shape[0]:
                 continue
             idx = table.add(record, sig, s, ax, agg, spans, integral=False)
-            var, tau = _white(meas[:, ax], edges, noise.max_lag)
-            table.static_noise.setdefault((s, ax), []).append((var, tau))
-            table.record_noise[(record, s, ax)] = (var, tau)
-            table.channels.append(ChannelRows(record, s, ax, idx, agg, var * tau))
+            var, devs = _white(meas[:, ax], edges)
+            table.deviations.setdefault((s, ax), []).extend(devs)
+            table.static_deviations.setdefault((s, ax), []).extend(devs)
+            table.static_noise.setdefault((s, ax), []).append((var, 1.0))
+            table.record_noise[(record, s, ax)] = (var, 1.0)
+            table.channels.append(ChannelRows(record, s, ax, idx, agg, var))
     return agg
 
 
@@ -212,8 +242,9 @@ def add_turn_accel(
         if turn.n_still == 0:
             table.channels.append(ChannelRows(record, "accel", ax, idx, agg, math.nan))
             continue
-        var, tau = _white(sig.accel[:, ax], _runs_of(agg[: turn.n_still]), noise.max_lag)
-        table.channels.append(ChannelRows(record, "accel", ax, idx, agg, var * tau))
+        var, devs = _white(sig.accel[:, ax], _runs_of(agg[: turn.n_still]))
+        table.deviations.setdefault(("accel", ax), []).extend(devs)
+        table.channels.append(ChannelRows(record, "accel", ax, idx, agg, var))
 
 
 def seating_sigma(
@@ -294,10 +325,11 @@ def hand_sigma(
                 # the same turn and channel at rest: the still moments' mean
                 still = agg[: n_still[ri]]
                 m_still = still.mean(axis=0)
-                n_s = float(np.count_nonzero(still))
+                # the average of the still moments' means: Σ w/n_b / B² (not w/Σn_b)
+                inv_n = float(np.sum(1.0 / np.count_nonzero(still, axis=1))) / len(still) ** 2
                 rest[(ri, ax)] = (
                     float(m_still @ sig.accel[:, ax]),
-                    white_level.get(("accel", ax), 0.0) / n_s,
+                    white_level.get(("accel", ax), 0.0) * inv_n,
                     np.concatenate([np.zeros(3), m_still @ tilt0]),
                 )
             if lever is None:

@@ -160,14 +160,16 @@ def hand_scatter(
     turn's still moments, its variance, the shared regressors there (m,)). Least squares with
     a constant per key, then -> (σ_block, σ_turn, dof): σ_block² = Σ(r² − w)/dof, the scatter
     of a block about its turn's level; σ_turn² the scatter of a turn's level while moving about
-    its level at rest (the constants against ``rest``, beyond their own variance; at least the
-    standard error of that estimate, as a floor the data cannot resolve; without
-    ``rest`` σ_block). A wobble has no net tilt: σ_turn is far below σ_block/√n."""
+    its level at rest (the constants against ``rest``, beyond their white noise; without
+    ``rest`` σ_block). A fast wobble has no net tilt (σ_turn far below σ_block/√n), a slow
+    one leaves some over a turn (σ_turn up to σ_block/√n). Each is 0
+    unless it exceeds two standard errors of its estimate under white noise alone
+    (:func:`resolved`)."""
     w = np.asarray(white_var, dtype=np.float64)
     uniq, beta, r, dof = _constants_fit(y, keys, columns)
     if dof <= 0:
         return 0.0, 0.0, 0
-    block2 = max(0.0, float(np.sum(r * r - w)) / dof)
+    block2 = resolved(float(np.sum(r * r - w)) / dof, w, dof)
     shared = beta[len(uniq) :]
     d: list[float] = []
     v: list[float] = []
@@ -179,13 +181,27 @@ def hand_scatter(
         n = sum(1 for q in karr if q == j)
         wk = float(np.mean(w[[i for i, q in enumerate(karr) if q == j]]))
         d.append(float(beta[j]) - (level - float(np.asarray(cols0) @ shared)))
-        v.append(var0 + (block2 + wk) / n)
+        # white noise only: σ_turn² is all the level's variance beyond it, so that the
+        # covariance σ_block²·(I − 11ᵀ/n) + σ_turn²·11ᵀ holds the level's whole scatter
+        # (a slow wobble's blocks do not average to no net tilt over one turn)
+        v.append(var0 + wk / n)
     if not d:
         return math.sqrt(block2), math.sqrt(block2), dof
     dd, vv = np.array(d), np.array(v)
-    turn2 = float(np.sum(dd * dd - vv)) / len(dd)
-    resolved = math.sqrt(float(np.sum(2.0 * vv * vv))) / len(dd)
-    return math.sqrt(block2), math.sqrt(max(turn2, resolved)), dof
+    turn2 = resolved(float(np.sum(dd * dd - vv)) / len(dd), vv, len(dd))
+    return math.sqrt(block2), math.sqrt(turn2), dof
+
+
+def resolved(var: float, white_var: np.ndarray, dof: int) -> float:
+    """``var`` (an excess variance Σ(r² − w)/dof over values of white-noise variances
+    ``white_var``) if it exceeds two standard errors of that estimate when there is no excess,
+    √(2·Σw²)/dof, else 0: a clipped estimate max(0, ·) would be positive in half of all
+    sessions without any excess and widen the yardstick there (χ² under the null runs low)."""
+    if dof <= 0:
+        return 0.0
+    w = np.asarray(white_var, dtype=np.float64)
+    se = math.sqrt(2.0 * float(np.sum(w * w))) / dof
+    return var if var > 2.0 * se else 0.0
 
 
 def hand_covariance(sigma_block: float, sigma_turn: float, n: int) -> np.ndarray:
@@ -205,10 +221,10 @@ def excess_scatter(
     """Scatter of values beyond their white noise and what explains them: ``y`` (K,) values,
     ``keys`` (K,) a constant per key (e.g. per turn and channel), ``columns`` (K, m) shared
     regressors (e.g. the lever arm, the plate tilt), ``white_var`` (K,) each value's white-noise
-    variance. Least squares, then σ² = Σ(r² − w)/dof (≥ 0): -> (σ in y's unit, dof); (0, 0)
-    when nothing is left over (dof ≤ 0)."""
+    variance. Least squares, then σ² = Σ(r² − w)/dof, 0 unless resolved (:func:`resolved`):
+    -> (σ in y's unit, dof); (0, 0) when nothing is left over (dof ≤ 0)."""
     w = np.asarray(white_var, dtype=np.float64)
     _, _, r, dof = _constants_fit(y, keys, columns)
     if dof <= 0:
         return 0.0, 0
-    return math.sqrt(max(0.0, float(np.sum(r * r - w)) / dof)), dof
+    return math.sqrt(resolved(float(np.sum(r * r - w)) / dof, w, dof)), dof

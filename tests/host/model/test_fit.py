@@ -102,6 +102,26 @@ def test_integrated_autocorrelation_white_and_ar1() -> None:
     assert integrated_autocorrelation(ar - ar.mean(), 60) == pytest.approx(9.0, rel=0.15)
 
 
+def test_serial_correlation_of_white_records_is_not_biased_high() -> None:
+    """Seven white records of 500 samples, pooled: τ is 1 in most sessions and ≈ 1 on
+    average (summing ρ_k until it first drops to ≤ 0 gave ≈ 1.05 per record, every record
+    mean's σ too wide); a correlated sensor's τ still comes back from the pooled runs."""
+    rng = np.random.default_rng(1)
+    taus = [
+        integrated_autocorrelation([rng.standard_normal(500) for _ in range(7)], 30)
+        for _ in range(200)
+    ]
+    assert np.mean(np.array(taus) == 1.0) > 0.9 and np.mean(taus) < 1.01
+    runs = []
+    for _ in range(7):
+        ar = np.zeros(500)
+        e = rng.standard_normal(500)
+        for i in range(1, 500):
+            ar[i] = 0.5 * ar[i - 1] + e[i]
+        runs.append(ar - ar.mean())
+    assert integrated_autocorrelation(runs, 30) == pytest.approx(3.0, rel=0.15)
+
+
 def test_noise_model_is_honest_under_the_null() -> None:
     """The §2 model on §2 data with white noise AND Gauss-Markov bias instability, the unit's
     wander known (as its noise file gives it, ``--noise``): χ²/dof about 1 or below (never the

@@ -44,7 +44,9 @@ def _check_found(
     assert case.term in group, (case.term, group)
     if alone:
         assert first.label == case.term and not first.confounded_with
-    assert d.recommended_spec is not None and case.term in d.recommended_spec.split(",")
+    assert d.recommended_spec is not None
+    # confounded terms fit the records equally well: which of them is recommended is a tie
+    assert set(d.recommended_spec.split(",")) & set(group if not alone else (case.term,))
     a = out.addition
     assert a is not None
     assert a.after.rms_z <= 1.5, a.after.rms_z
