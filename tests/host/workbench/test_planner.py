@@ -83,7 +83,9 @@ def test_a_face_again_shrinks_what_it_excites(tmp_path: Path) -> None:
 
 def test_operator_time_enters_the_ranking(tmp_path: Path) -> None:
     write_session(tmp_path / "s", SessionSpec(seed=2))
-    rec = _pick("z_up again")
+    # a record that lowers the worst σ (z_up again leaves this session's worst, GAxy, where
+    # it is: its gain is noise about 0, and ranks by time only when it is positive)
+    rec = _pick("y_dn again")
     slow = Candidate("slow", rec.records, 4 * rec.operator_s)
     fast = Candidate("fast", rec.records, rec.operator_s)
     p = plan_next(read_session(tmp_path / "s"), BASE, only=[slow, fast])
