@@ -180,7 +180,7 @@ def _truth_of(name: str, t: Truth) -> float | None:
     e = _eff(t)
     parts = name.split(".")
     if parts[0] == "plate_tilt" and e["name"] == "plate_tilt":
-        return float(e["up_east_rad" if parts[1] == "east" else "up_north_rad"])
+        return _plate_truth(parts, t)
     if parts[0] == "lever_arm" and e["name"] == "lever_arm":
         return float(e["r_m"]["xyz".index(parts[1])])
     if parts[0] == "face_error" and e["name"] == "face_lean" and len(parts) == 4:
@@ -194,6 +194,26 @@ def _truth_of(name: str, t: Truth) -> float | None:
             return float(e[keys[parts[0]]])
         return 0.0  # the same term on another channel: nothing there
     return None
+
+
+def _plate_truth(parts: Sequence[str], t: Truth) -> float:
+    """The truth of a plate_tilt parameter in the frame the workbench reads it in: the fence
+    when headings are recorded, else the first turn's reference axis (the host's frame when no
+    record carries its heading); a record's own ``seen_ref``/``seen_side`` (its heading not
+    recorded): the tilt turned by −(its heading)."""
+    e = _eff(t)
+    up = np.array([float(e["up_east_rad"]), float(e["up_north_rad"])])
+    heads = t["headings_deg"]
+    if len(parts) == 3:  # plate_tilt.<record>.seen_ref|seen_side
+        psi = float(heads[parts[1]])
+        key = parts[2]
+    else:
+        turns = sorted(n for n in heads if n.endswith(("_cw", "_ccw")))
+        psi = 0.0 if t["spec"].get("record_heading") else float(heads[turns[0]])
+        key = parts[1]
+    a = math.radians(psi)
+    seen = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]]) @ up
+    return float(seen[0 if key in ("east", "seen_ref") else 1])
 
 
 def _pulls(params: Iterable[dict[str, Any]], t: Truth, prefix: str = "") -> list[list[Any]]:
@@ -404,6 +424,8 @@ def pull_group(name: str) -> str:
         sensor = "accel" if c[0] == "A" else "gyro"
         return f"cal {sensor} {kind}"
     parts = name.split(".")
+    if len(parts) == 3 and parts[0] == "plate_tilt":  # a record's own view of the tilt
+        return f"plate_tilt.*.{parts[2]}"
     if len(parts) >= 3 and parts[0] not in ("plate_tilt", "lever_arm"):
         return ".".join(parts[:2]) + ".*"
     return name

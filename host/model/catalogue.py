@@ -225,7 +225,8 @@ def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     in body coordinates at the record's heading on the plate (its header's
     ``placement_heading_deg`` plus the angle turned, :func:`host.model.geometry.plate_axes`;
     a turn without one gets it from its rests' circle, :func:`host.model.plate.resolve_placements`;
-    a static without one has no columns: its heading is unknown, never assumed).
+    a static without one carries the tilt as it sees it as two unknowns of its own, whose
+    direction against the session's tilt is its heading: never assumed).
 
     What tells it from a fixture-face error or a bias: the cube turning on the plate. A face
     error is fixed in the body, a plate tilt is fixed in the room: at heading ψ (turned ψ
@@ -240,6 +241,22 @@ def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
         cols[:, 0] = sig.g * east[:, axis]
         cols[:, 1] = sig.g * north[:, axis]
     return cols
+
+
+def _heading_unknown(sig: RecordSignals) -> bool:
+    """A record on the plate whose placement heading is neither recorded nor read from its
+    rests (:func:`host.model.plate.resolve_placements`): its heading is an unknown."""
+    return sig.kind in ("static", "turn") and sig.placement_deg is None
+
+
+def _plate_tilt_seen(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """The plate's tilt as one record at an unknown heading ψ sees it: gravity's up leaning
+    ``seen_ref`` toward the record's reference axis and ``seen_side`` toward up × reference
+    (rad; the session's tilt turned by −ψ, so of the same size). Resting on a face, the
+    horizontal accelerometers read g·(seen_ref·e + seen_side·n) with e, n the plate's axes at
+    heading 0 turned by the angle turned since the record began."""
+    east, north = plate_axes(sig.up, sig.heading)
+    return sig.g * np.column_stack([east[:, axis], north[:, axis]])
 
 
 @term(sensors=("gyro",), params={"tilt_a": "rad", "tilt_b": "rad"},
@@ -336,6 +353,13 @@ _PLAUSIBLE: dict[str, tuple[dict[str, float], str]] = {
 
 #: catalogue terms whose parameters are properties of the bench, one set for all channels
 _SHARED = ("plate_tilt", "lever_arm")
+
+#: a static (or a turn without rests to read) whose heading is not recorded carries its own
+#: unknown: the plate's tilt as seen at that heading (two angles, whose direction against the
+#: session's tilt is the heading), so the fit never assumes one
+plate_tilt = replace(plate_tilt, record_params=("seen_ref", "seen_side"),
+                     record_units=("rad", "rad"), record_columns=_plate_tilt_seen,
+                     owns=_heading_unknown)  # fmt: skip
 
 #: the built-in terms, in catalogue order
 CATALOGUE: dict[str, Term] = {

@@ -67,9 +67,11 @@ def term_columns(
     Linear terms: offset 0. Nonlinear terms: the Jacobian at ``theta`` (parameters in the
     order axis-major) and offset value(θ) − J·θ, so that value ≈ offset + J·θ'. A shared
     term (:attr:`Term.shared`, linear only) has one set of k columns: each channel's rows hold
-    that channel's regressors.
+    that channel's regressors. The unknowns of records that carry their own follow
+    (:func:`record_columns`).
     """
     k = len(mt.term.params)
+    own = record_columns(ds, mt)
     if mt.term.shared:
         if mt.term.nonlinear:
             raise UserError(f"term {mt.term.name}: a shared term must be linear (columns())")
@@ -81,7 +83,7 @@ def term_columns(
                     cols[rows] = aggregate(
                         ds.aggregator(ri, mt.sensor, ax), _regressors(mt.term, sig, mt.sensor, ax)
                     )
-        return cols, np.zeros(ds.n_rows)
+        return np.column_stack([cols, own]), np.zeros(ds.n_rows)
     cols = np.zeros((ds.n_rows, k * len(mt.axes)))
     offset = np.zeros(ds.n_rows)
     th = (
@@ -121,7 +123,36 @@ def term_columns(
                 jac[:, q] = (at(p + dp) - at(p - dp)) / (2 * h)
             cols[rows, j * k : (j + 1) * k] = agg @ jac
             offset[rows] = agg @ (v0 - jac @ p)
-    return cols, offset
+    return np.column_stack([cols, own]), offset
+
+
+def record_columns(ds: Dataset, mt: ModelTerm) -> np.ndarray:
+    """(n_rows, m·k) the columns of the unknowns of the records that carry their own
+    (:attr:`Term.record_params`, k each; m records, in :meth:`ModelTerm.slots` order): each
+    record's columns are non-zero on its own rows only, on every channel of the term."""
+    t = mt.term
+    owners = t.owners(ds.signals)
+    k = len(t.record_params)
+    out = np.zeros((ds.n_rows, len(owners) * k))
+    if not owners:
+        return out
+    fn = t.record_columns
+    if fn is None or t.nonlinear:
+        raise UserError(f"term {t.name}: a record's own unknowns need record_columns()")
+    for m, ri in enumerate(owners):
+        sig = ds.signals[ri]
+        for ax in mt.axes:
+            rows = ds.rows_of.get((ri, mt.sensor, ax))
+            if rows is None:
+                continue
+            x = _call_term(t, "record_columns", sig, lambda: fn(sig, mt.sensor, ax))  # noqa: B023
+            if x.shape != (len(sig.t_s), k):
+                raise UserError(
+                    f"term {t.name}: record_columns() returned shape {x.shape}, expected "
+                    f"({len(sig.t_s)}, {k})"
+                )
+            out[rows, m * k : (m + 1) * k] = aggregate(ds.aggregator(ri, mt.sensor, ax), x)
+    return out
 
 
 def design(ds: Dataset, model: Sequence[ModelTerm], thetas: Sequence[np.ndarray | None] = ()) -> (

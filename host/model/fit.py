@@ -250,9 +250,9 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
     # (axis -1: a shared parameter of all the sensor's channels)
     owners: list[tuple[str, str, tuple[str, int], str, str]] = []
     for mt in model:
-        units = dict(zip(mt.term.params, mt.term.param_units(mt.sensor), strict=True))
-        for ax, name, key in mt.slots():
-            owners.append((name, units[key], (mt.sensor, -1 if ax is None else ax), mt.label, key))
+        for ax, name, key in mt.slots(ds.signals):
+            ch = (mt.sensor, -1 if ax is None else ax)
+            owners.append((name, mt.unit(key), ch, mt.label, key))
     channels, estimable = _channel_fits(ds, x, xw, wres, th0, cov, owners)
     scale_of = {(c.sensor, AXES.index(c.axis)): c.se_scale for c in channels}
     for chf in channels:  # a shared parameter: the largest scale of its sensor's channels
@@ -457,7 +457,7 @@ def predict(ds: Dataset, model: Sequence[ModelTerm], values: Values) -> np.ndarr
     for mt in model:
         per_term.append(np.array([
             values.get((mt.term.name, mt.sensor, "" if ax is None else AXES[ax], key), 0.0)
-            for ax, _, key in mt.slots()
+            for ax, _, key in mt.slots(ds.signals)
         ]))  # fmt: skip
     thetas: list[np.ndarray | None] = [
         th if mt.term.nonlinear else None for mt, th in zip(model, per_term, strict=True)

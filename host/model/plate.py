@@ -158,8 +158,10 @@ class PlateTilt:
         if unknown_statics and self.p_level < LEVEL_P:
             out.append(
                 f"  {len(unknown_statics)} static records carry no heading: on each, the tilt "
-                f"puts up to {g * self.size:.4f} m/s² on the horizontal accelerometers, "
-                "which the bias and misalignment estimates absorb — level the plate (a tilt "
+                f"puts up to {g * self.size:.4f} m/s² on the horizontal accelerometers; "
+                "without plate_tilt the bias and misalignment estimates absorb it, with it each "
+                "such record carries its heading as an unknown (the tilt as it sees it), so "
+                "its horizontal readings no longer inform the biases — level the plate (a tilt "
                 "below 1 mrad) or record placement_heading_deg when a tolerance is that tight"
             )
         return out
@@ -230,7 +232,8 @@ def resolve_placements(
     that lines its circle up with the others; with no heading recorded anywhere, the first
     turn's reference axis is the frame (heading 0: the origin of the azimuth, which no
     estimate but the azimuth depends on). A static record without a heading keeps none: one
-    heading cannot be read from one rest, and the plate's tilt is then not modelled there."""
+    heading cannot be read from one rest, so the fit carries it as an unknown of that record
+    (:data:`host.model.catalogue.plate_tilt`'s ``seen_ref``/``seen_side``)."""
     plate = session_plate(signals)
     out = list(signals)
     if plate is None:

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from host.errors import UserError
 from host.model.catalogue import BASE, CATALOGUE
-from host.model.signals import AXES, SENSORS
+from host.model.signals import AXES, SENSORS, UNIT, RecordSignals
 from host.model.terms import Term
 
 
@@ -30,17 +30,39 @@ class ModelTerm:
     def n_params(self) -> int:
         return len(self.term.params) * (1 if self.term.shared else len(self.axes))
 
-    def slots(self) -> list[tuple[int | None, str, str]]:
+    def count(self, signals: Sequence[RecordSignals]) -> int:
+        """Parameters on the records ``signals``: :attr:`n_params` and the unknowns of the
+        records that carry their own (:attr:`Term.record_params`)."""
+        return self.n_params + len(self.term.owners(signals)) * len(self.term.record_params)
+
+    def slots(self, signals: Sequence[RecordSignals] = ()) -> list[tuple[int | None, str, str]]:
         """(output axis or None for a shared parameter, name, parameter key) of each of its
-        parameters, in the order of its design columns."""
-        if self.term.shared:
-            names = self.term.param_labels(self.sensor, self.axes[0])
-            return [(None, n, k) for n, k in zip(names, self.term.params, strict=True)]
-        return [
-            (ax, n, self.term.params[q])
-            for ax in self.axes
-            for q, n in enumerate(self.term.param_labels(self.sensor, ax))
-        ]
+        parameters, in the order of its design columns; with ``signals``, the unknowns of the
+        records that carry their own follow (key '{record}.{param}')."""
+        t = self.term
+        if t.shared:
+            names = t.param_labels(self.sensor, self.axes[0])
+            out: list[tuple[int | None, str, str]] = [
+                (None, n, k) for n, k in zip(names, t.params, strict=True)
+            ]
+        else:
+            out = [
+                (ax, n, t.params[q])
+                for ax in self.axes
+                for q, n in enumerate(t.param_labels(self.sensor, ax))
+            ]
+        for i in t.owners(signals):
+            rec = signals[i].name
+            out.extend((None, f"{t.name}.{rec}.{p}", f"{rec}.{p}") for p in t.record_params)
+        return out
+
+    def unit(self, key: str) -> str:
+        """The unit of the parameter with key ``key`` (a :meth:`slots` key)."""
+        t = self.term
+        if key in t.params:
+            return t.param_units(self.sensor)[t.params.index(key)]
+        p = key.rsplit(".", 1)[-1]
+        return t.record_units[t.record_params.index(p)].replace("{u}", UNIT[self.sensor])
 
 
 def parse_model(spec: str, catalogue: Mapping[str, Term] | None = None) -> list[ModelTerm]:

@@ -56,6 +56,15 @@ class Term:
     #: one set of parameters for every channel the term acts on (a property of the bench, e.g.
     #: the plate's tilt, not of one output channel): the channels' columns share them
     shared: bool = False
+    #: unknowns of ONE record (e.g. the plate's tilt seen by a static whose heading on the plate
+    #: is not recorded): every record that ``owns`` selects gets its own parameters
+    #: ``record_params`` (units ``record_units``), shared by the term's channels, named
+    #: '{term}.{record}.{param}', with columns ``record_columns(signals, sensor, axis)`` ->
+    #: (N, len(record_params)) (linear terms only)
+    record_params: tuple[str, ...] = ()
+    record_units: tuple[str, ...] = ()
+    record_columns: ColumnFn | None = None
+    owns: Callable[[RecordSignals], bool] | None = None
 
     @property
     def physics(self) -> str:
@@ -77,6 +86,13 @@ class Term:
     def param_units(self, sensor: str) -> tuple[str, ...]:
         """Units of the parameters for ``sensor``."""
         return tuple(u.replace("{u}", UNIT[sensor]) for u in self.units)
+
+    def owners(self, signals: Sequence[RecordSignals]) -> list[int]:
+        """Indices of the records in ``signals`` that carry unknowns of their own
+        (:attr:`record_params`)."""
+        if not self.record_params or self.owns is None:
+            return []
+        return [i for i, s in enumerate(signals) if self.owns(s)]
 
 
 def term(

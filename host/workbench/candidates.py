@@ -129,6 +129,12 @@ class _Tried:
     delta: float
     reason: str
 
+    @property
+    def n_params(self) -> int:
+        """Its parameters on these records (with the unknowns of records that carry their
+        own, e.g. a static's unknown heading on the plate)."""
+        return self.mt.count(self.ds.signals)
+
 
 def _try(ds: Dataset, fit: Fit, mt: ModelTerm) -> _Tried:
     """Add ``mt`` to the fitted model by orthogonal projection (exact for linear terms)."""
@@ -237,7 +243,7 @@ def evaluate_candidates(
     tried = [_try_own_yardstick(ds, fit, mt, cache) for mt in candidate_terms(fit.model, catalogue)]
     n_rows = len(fit.residual)
     ident = [t for t in tried if not t.reason]
-    pvals = [chi2_sf(t.delta, t.mt.n_params) for t in ident]
+    pvals = [chi2_sf(t.delta, t.n_params) for t in ident]
     sig = dict(zip([id(t) for t in ident], holm(pvals, alpha), strict=True))
     pv = dict(zip([id(t) for t in ident], pvals, strict=True))
     # significant candidates of the same channel against each other
@@ -255,8 +261,8 @@ def evaluate_candidates(
                 continue
             if not (sig[id(a)] or sig[id(b)]):
                 continue
-            b_given_a = chi2_sf(_conditional_delta(a, b), b.mt.n_params) <= alpha / m
-            a_given_b = chi2_sf(_conditional_delta(b, a), a.mt.n_params) <= alpha / m
+            b_given_a = chi2_sf(_conditional_delta(a, b), b.n_params) <= alpha / m
+            a_given_b = chi2_sf(_conditional_delta(b, a), a.n_params) <= alpha / m
             if not b_given_a and not a_given_b:
                 confounded[id(a)].append(b.mt.label)
                 confounded[id(b)].append(a.mt.label)
@@ -276,7 +282,7 @@ def evaluate_candidates(
             coefs = {
                 labels[j]: (float(t.beta[j]), float(se[j]), units[j]) for j in range(len(labels))
             }
-            best = int(np.argmax(np.abs(t.beta) / se))
+            best = int(np.argmax(np.abs(t.beta[: len(labels)]) / se[: len(labels)]))
         name0 = labels[best]
         c0 = coefs.get(name0, (math.nan, math.nan, units[best]))
         after_rms = math.nan
@@ -287,11 +293,11 @@ def evaluate_candidates(
                 Candidate(
                     term=mt.term.name, sensor=mt.sensor,
                     axes="".join(AXES[a] for a in mt.axes),
-                    n_params=mt.n_params, physics=mt.term.physics,
+                    n_params=t.n_params, physics=mt.term.physics,
                     identifiable=not t.reason, reason=t.reason, needs=mt.term.needs,
                     delta_chi2=t.delta, p_value=pv.get(id(t), math.nan),
                     significant=bool(sig.get(id(t), False)),
-                    delta_bic=(-t.delta + mt.n_params * math.log(max(n_rows, 2)))
+                    delta_bic=(-t.delta + t.n_params * math.log(max(n_rows, 2)))
                     if not t.reason else math.nan,
                     rms_z_after=after_rms, coefficient=c0[0], stderr=c0[1], unit=c0[2],
                     coefficients=coefs, confounded_with=tuple(confounded[id(t)]),

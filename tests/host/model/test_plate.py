@@ -50,17 +50,28 @@ def test_unrecorded_headings_tilt_within_its_sigma_and_headings_found(
         assert deg is not None
         true_rel = (placed[name] - placed[ref]) % 360.0
         assert abs((deg - true_rel + 180.0) % 360.0 - 180.0) < 3.0, name
-    # a static's heading is not guessed
+    # a static's heading is not guessed: it is an unknown of the fit
     assert all(s.placement_deg is None for s in ds.signals if s.kind == "static")
-    # the fit with the tilt: unexplained no more, and the tilt's size recovered
+    # the fit with the tilt: the statics carry the tilt as they see it (two unknowns each),
+    # which brings the fit to the noise, and the tilt's size is recovered
     fit = fit_model(ds, parse_model("base,plate_tilt:accel"))
+    assert fit.rms_z <= 1.5, fit.rms_z
     p = {q.name: q for q in fit.parameters}
-    got = math.hypot(p["plate_tilt.east"].value, p["plate_tilt.north"].value)
-    assert abs(got - want) < 0.1 * want
-    # the reader is told, in mrad and degrees, and what the statics' unknown headings cost:
-    # on them the tilt is not modelled (one rest gives no heading), so the fit does not explain
-    # them (RMS z stays well above 1 — recording the headings is what brings it to ≈ 1, see
-    # test_geometry.py)
+    tilt = np.array([p["plate_tilt.east"].value, p["plate_tilt.north"].value])
+    assert abs(float(np.linalg.norm(tilt)) - want) < 0.1 * want
+    # what each static sees is the same tilt turned by its true heading (relative to the
+    # frame's turn): the unknown heading is found by the fit, not assumed
+    statics = [s.name for s in ds.signals if s.kind == "static"]
+    assert len(statics) == 7
+    for name in statics:
+        seen = np.array([p[f"plate_tilt.{name}.seen_ref"].value,
+                         p[f"plate_tilt.{name}.seen_side"].value])  # fmt: skip
+        sd = p[f"plate_tilt.{name}.seen_ref"].stderr
+        assert abs(float(np.linalg.norm(seen)) - want) < 4.0 * sd + 0.05 * want, name
+        psi = math.degrees(math.atan2(tilt[1], tilt[0]) - math.atan2(seen[1], seen[0]))
+        true_rel = (placed[name] - placed[ref]) % 360.0
+        assert abs((psi - true_rel + 180.0) % 360.0 - 180.0) < 10.0, (name, psi, true_rel)
+    # the reader is told, in mrad and degrees, and what the statics' unknown headings cost
     note = next(n for n in ds.notes if n.startswith("plate tilt"))
     assert "mrad" in note and "°" in note and "static records carry no heading" in note
 
