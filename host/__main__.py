@@ -12,6 +12,7 @@ import importlib
 import os
 import sys
 from collections.abc import Callable
+from typing import Any, NoReturn
 
 #: numpy's BLAS starts a thread per core; the fits here are small, and on a shared or loaded
 #: machine those threads fight each other and every other process for the cores (a 2-core
@@ -109,12 +110,65 @@ EXAMPLES: dict[str, str] = {
   python3 -m host plan U17/                  the next record that buys the most precision
   python3 -m host plan U17/ --model base,temperature_bias:gyro --top 5""",
     "demo": """examples:
-  python3 -m host demo hidden-effect --effect temperature""",
+  python3 -m host demo hidden-effect --effect temperature --seed 4 --out /tmp/demo""",
+    "import": """examples:
+  python3 -m host import logger.csv --columns t,temp,ax,ay,az,gx,gy,gz \\
+      --units t=ms,accel=g,gyro=rad/s --axes x,-y,-z --serial LOG1 --out LOG1/
+  python3 -m host import session.cap --serial U17 --out U17/   a capture, cut into records""",
+    "thermal": """examples:
+  python3 -m host thermal U17/ --plot U17_thermal.png   bias(T) from warm-up and statics
+  python3 -m host thermal U17/ --window 5               records of 10 s: 5 s windows""",
+    "noise": """examples:
+  python3 -m host noise U17/U17_x_up.txt --plot allan.png    the figures and their plot
+  python3 -m host noise long.cap --save U17_noise.json       the noise file of the unit
+  python3 -m host noise long.cap --plan 10%                  how long to record""",
+    "flash": """examples:
+  python3 -m host flash --port /dev/ttyACM0           build, flash, check the HELLO
+  python3 -m host flash --port "emu://?flash=build/imu_bench.hex"   the emulated board""",
     "export": """examples:
   python3 -m host export U17/ --to ardupilot --out U17.parm
   python3 -m host export U17/ --to px4 --axes x,-y,-z       the board's axes
   python3 -m host export U17/ --to c-header --allow-fail    a FAILED result, marked so""",
 }
+
+
+class WholeWords(argparse.RawDescriptionHelpFormatter):
+    """Help text wrapped at spaces only ("imu-bench" is not cut at its hyphen); description
+    and examples keep their lines, a line too long for the terminal wrapped under its indent."""
+
+    def _split_lines(self, text: str, width: int) -> list[str]:
+        import textwrap
+
+        return textwrap.wrap(" ".join(text.split()), width, break_on_hyphens=False,
+                             break_long_words=False)  # fmt: skip
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        from host.cli.screen import wrap
+
+        return wrap("\n".join(indent + line for line in text.splitlines()), width + 2)
+
+
+class OneLineErrors(argparse.ArgumentParser):
+    """A parser whose mistakes are one line naming the problem and where the help is (not the
+    usage dump); subcommand parsers are of this class too, and all wrap their help at words."""
+
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        kw["formatter_class"] = WholeWords
+        super().__init__(*args, **kw)
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"error: {message} (see: {self.prog} --help)\n")
+
+
+def leaf_parser(
+    parser: argparse.ArgumentParser, args: argparse.Namespace
+) -> argparse.ArgumentParser:
+    """The parser of the subcommand ``args`` chose (``model ladder``'s for ``model ladder``)."""
+    while True:
+        acts = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        if not acts or getattr(args, acts[0].dest, None) not in acts[0].choices:
+            return parser
+        parser = acts[0].choices[getattr(args, acts[0].dest)]
 
 
 def _version() -> str:
@@ -127,17 +181,19 @@ def _version() -> str:
 def build_parser() -> tuple[
     argparse.ArgumentParser, dict[str, Callable[[argparse.Namespace], int]]
 ]:
-    parser = argparse.ArgumentParser(
-        prog="python -m host", description="IMU calibration bench host (APM 2.6 / MPU-6000)."
-    )
+    parser = OneLineErrors(
+        prog="python -m host", description="IMU calibration bench host (APM 2.6 / MPU-6000).",
+        epilog=EXIT_CODES,
+    )  # fmt: skip
     parser.add_argument("--version", action="version", version=_version())
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     runners: dict[str, Callable[[argparse.Namespace], int]] = {}
     for name, (module, func, help_text) in COMMANDS.items():
-        epilog = "\n\n".join(x for x in (EXAMPLES.get(name, ""), EXIT_CODES) if x)
+        # the exit codes once, at the top and for calibrate (whose 0 and 1 are the verdict)
+        codes = EXIT_CODES if name == "calibrate" else ""
+        epilog = "\n\n".join(x for x in (EXAMPLES.get(name, ""), codes) if x)
         p = sub.add_parser(
             name, help=help_text, description=help_text, epilog=epilog,
-            formatter_class=argparse.RawDescriptionHelpFormatter,
         )  # fmt: skip
         runners[name] = getattr(importlib.import_module(module), func)(p)
     return parser, runners
@@ -162,7 +218,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(argv: list[str] | None, raw_out: object) -> int:
     parser, runners = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # said by the subcommand that does not know them, with its help
+        leaf_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")
     if not args.command:
         parser.print_help()
         return 2

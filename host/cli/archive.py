@@ -158,6 +158,22 @@ def _report(args: argparse.Namespace) -> int:
     return 0
 
 
+#: each action's examples (what follows ``python3 -m host archive ACTION``)
+ARCHIVE_EXAMPLES: dict[str, tuple[str, ...]] = {
+    "add": (" U17/                 keep U17's result", " runs/*/ --bench B2 --lot L7"),
+    "list": ("", " --serial U17"),
+    "show": (" U17", " --id 12"),
+    "trend": (" U17 --param G0x",),
+    "repeat": (" U17                do its calibrations agree within σ?", " --across-benches"),
+    "drift": ("                     which units moved: recalibrate", " --tol G0x=0.05"),
+    "lot": (" L7", " --param Gxx"),
+    "control": (" --serial REF01",),
+    "check-bench": (" REF01",),
+    "report": (" --html qc.html --reference REF01",),
+    "export": (" values.csv --lot L7",),
+}
+
+
 def cli_archive(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
     """Fill in the ``archive`` subparser; returns the runner."""
     common = argparse.ArgumentParser(add_help=False)
@@ -175,7 +191,12 @@ def cli_archive(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], in
 
     def action(name: str, run: Callable[[argparse.Namespace], int], help_text: str,
                *parents: argparse.ArgumentParser) -> argparse.ArgumentParser:  # fmt: skip
-        q = sub.add_parser(name, help=help_text, description=help_text, parents=[common, *parents])
+        q = sub.add_parser(
+            name, help=help_text, description=help_text, parents=[common, *parents],
+            epilog="examples:\n" + "\n".join(f"  python3 -m host archive {name}{e}"
+                                              for e in ARCHIVE_EXAMPLES[name]),
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )  # fmt: skip
         q.set_defaults(archive_run=run)
         return q
 

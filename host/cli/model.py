@@ -362,13 +362,15 @@ def ladder_cells(i: int, step: LadderStep, before: LadderStep | None, start: str
 
 def run_ladder(args: argparse.Namespace) -> int:
     cat = _catalogue(args)
+    progress = Progress()
+    progress.show(f"ladder: reading the records of {args.dir} ...")
     ds = _dataset(args)
+    progress.show("ladder: fitting the start model ...")
     width = terminal_width(sys.stdout)
     columns = ladder_columns()
     shown = fit_columns(columns, width)
     at = [any(c is s for s in shown) for c in columns]
     start = short_spec(parse_model(args.start, cat))
-    progress = Progress()
     rows: list[LadderStep] = []
 
     def on_step(step: LadderStep) -> None:
@@ -424,21 +426,38 @@ def run_terms(args: argparse.Namespace) -> int:
 def cli_model(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
     """``model diagnose|add|ladder|terms``."""
     sub = p.add_subparsers(dest="model_command", metavar="diagnose|add|ladder|terms")
-    t = sub.add_parser("terms", help="list the terms: physics, parameters and units")
+
+    def command(name: str, text: str, examples: str) -> argparse.ArgumentParser:
+        return sub.add_parser(
+            name, help=text, description=text, epilog="examples:\n" + examples,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )  # fmt: skip
+
+    t = command("terms", "list the terms: physics, parameters and units",
+                "  python3 -m host model terms\n"
+                "  python3 -m host model terms --term-file my_terms.py  with your own")  # fmt: skip
     t.add_argument("--term-file", action="append", default=[], metavar="F",
                    help="also list the terms of this Python file (repeatable)")  # fmt: skip
     t.add_argument("--json", action="store_true", help="the list as JSON")
-    d = sub.add_parser("diagnose", help="compare model and records, say what is missing")
+    d = command("diagnose", "compare model and records, say what is missing",
+                "  python3 -m host model diagnose U17/\n"
+                "  python3 -m host model diagnose U17/ --brief --plot plots/")  # fmt: skip
     _common(d)
     d.add_argument("--plot", metavar="DIR", type=plot_dir, default=None,
                    help="write the PNG plots into this directory (made if missing)")  # fmt: skip
     d.add_argument("--brief", action="store_true", help="leave out the compare table")
-    a = sub.add_parser("add", help="refit with a term added: before → after")
+    a = command("add", "refit with a term added: before → after",
+                "  python3 -m host model add U17/ temperature_bias:gyro:x\n"
+                "  python3 -m host model add U17/ lever_arm:accel --plot plots/")  # fmt: skip
     _common(a)
     a.add_argument("term", help="term[:sensor[:axes]] to add, e.g. temperature_bias:gyro:x")
     a.add_argument("--plot", metavar="DIR", type=plot_dir, default=None,
                    help="write the PNG plots into this directory (made if missing)")  # fmt: skip
-    lad = sub.add_parser("ladder", help="greedy path of models from 'bias' upward")
+    lad = command("ladder", "the greedy path of models from 'bias' upward: at each rung the "
+                  "term that lowers BIC most, while significant; ends with the calibrate "
+                  "command that ships the last model",
+                  "  python3 -m host model ladder U17/\n"
+                  "  python3 -m host model ladder U17/ --start base")  # fmt: skip
     _common(lad)
     lad.add_argument("--start", default="bias", help="starting model (default bias)")
     runners = {"diagnose": run_diagnose, "add": run_add, "ladder": run_ladder, "terms": run_terms}
@@ -477,9 +496,15 @@ def run_demo(args: argparse.Namespace) -> int:
 
 def cli_demo(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
     """``demo hidden-effect``."""
-    sub = p.add_subparsers(dest="demo_command", metavar="hidden-effect")
-    h = sub.add_parser("hidden-effect", help="simulate a session with one effect hidden from "
-                       "the fit and let the workbench find it")  # fmt: skip
+    sub = p.add_subparsers(dest="demo_command", metavar="DEMO", title="demos")
+    text = ("simulate a session with one effect hidden from the fit and let the workbench "
+            "find it: what it names, and how close its coefficient comes to the truth")  # fmt: skip
+    h = sub.add_parser(
+        "hidden-effect", help="an effect hidden in a simulated session, found by the workbench",
+        description=text, formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  python3 -m host demo hidden-effect --effect temperature --seed 4\n"
+        "  python3 -m host demo hidden-effect --out /tmp/demo     every effect, records kept",
+    )  # fmt: skip
     h.add_argument("--effect", default="all", help=f"all (default) or one of {', '.join(EFFECTS)}")
     h.add_argument("--seed", type=int, default=1, help="simulation seed (default 1)")
     h.add_argument("--out", default=None, help="also write the records to OUT/EFFECT/")

@@ -232,6 +232,7 @@ class ScreenWriter(io.TextIOBase):
         self._spaces = ""  # spaces written but not shown yet (dropped at a break)
         self._hang = 0
         self.on_terminal = self.isatty()
+        self._out: list[str] = []
 
     # the stream the writer stands for
     @property
@@ -253,14 +254,14 @@ class ScreenWriter(io.TextIOBase):
 
     def flush(self) -> None:
         if self.on_terminal and self._spaces and self._col + len(self._spaces) < self._width():
-            self._emit(self._spaces)
+            self.raw.write(self._spaces)
             self._col += len(self._spaces)
             self._line += self._spaces
             self._spaces = ""
         self.raw.flush()
 
     def _emit(self, s: str) -> None:
-        self.raw.write(s)
+        self._out.append(s)
 
     def write(self, s: str) -> int:  # type: ignore[override]
         if not self.on_terminal:
@@ -299,4 +300,6 @@ class ScreenWriter(io.TextIOBase):
                 self._col += len(self._spaces) + len(tok)
                 self._line += self._spaces + tok
                 self._spaces = ""
+        self.raw.write("".join(self._out))  # one write: a redraw is not torn apart
+        self._out.clear()
         return len(s)

@@ -176,3 +176,59 @@ def test_noise_file_gives_the_floor(
     bad.write_text("{}")
     assert main(["model", "diagnose", str(d), "--noise", str(bad)]) == 2
     assert "not a readable noise file" in capsys.readouterr().err
+
+
+class _Terminal:
+    """stderr as a terminal that notes when each piece was written."""
+
+    def __init__(self) -> None:
+        import time
+
+        self.clock = time.monotonic
+        self.writes: list[tuple[float, str]] = []
+
+    def isatty(self) -> bool:
+        return True
+
+    def write(self, s: str) -> int:
+        self.writes.append((self.clock(), s))
+        return len(s)
+
+    def flush(self) -> None:
+        pass
+
+    def fileno(self) -> int:
+        raise OSError("not a real terminal")
+
+
+def test_a_slow_ladder_shows_progress_at_least_every_two_seconds(
+    temp_dir: tuple[Path, str], monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    """Each fit slowed to 0.25 s (a rung of ~20 candidates then takes 5 s, as on a large
+    session): the screen never stands still for 2 s, and the rows come as they are found."""
+    import sys
+    import time
+
+    import host.workbench.ladder as ladder_module
+
+    real_fit = ladder_module.fit_model
+
+    def slow_fit(*a: object, **kw: object) -> object:
+        time.sleep(0.25)
+        return real_fit(*a, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(ladder_module, "fit_model", slow_fit)
+    term = _Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    d, _ = temp_dir
+    start = time.monotonic()
+    assert main(["model", "ladder", str(d), "--start", "base"]) == 0
+    end = time.monotonic()
+    # from the first line (after Python's start and the imports) to the end
+    assert term.writes and "reading the records" in term.writes[0][1]
+    stamps = [t for t, s in term.writes if s.strip()] + [end]
+    gaps = [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
+    assert end - start > 4.0  # slow enough to need progress
+    assert max(gaps) < 2.0, max(gaps)
+    assert any("trying term" in s for _, s in term.writes)
+    assert "final model:" in capsys.readouterr().out

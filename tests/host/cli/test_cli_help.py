@@ -1,0 +1,113 @@
+"""Every command's help: a description and a runnable example, the exit codes said once;
+mistakes on the command line are one line naming the problem and the help (issue 27)."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from host.__main__ import COMMANDS, build_parser, leaf_parser, main
+
+
+def run(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            rc = main(argv)
+        except SystemExit as exc:
+            rc = int(exc.code or 0)
+    return rc, out.getvalue(), err.getvalue()
+
+
+def every_command() -> list[list[str]]:
+    parser, _ = build_parser()
+    found: list[list[str]] = []
+
+    def walk(p: argparse.ArgumentParser, path: list[str]) -> None:
+        subs = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]
+        if not subs:
+            found.append(path)
+        for name, child in subs[0].choices.items() if subs else ():
+            walk(child, [*path, name])
+
+    walk(parser, [])
+    return [p for p in found if p]
+
+
+@pytest.mark.parametrize("path", every_command(), ids=" ".join)
+def test_every_command_has_a_description_and_a_runnable_example(path: list[str]) -> None:
+    rc, out, _ = run([*path, "--help"])
+    assert rc == 0
+    head, _, rest = out.partition("\n\n")
+    assert head.startswith("usage:")
+    description = rest.split("\n\n")[0]
+    assert len(description.split()) >= 3, out  # words, not the usage again
+    examples = out.split("examples:\n", 1)[-1] if "examples:\n" in out else ""
+    assert f"python3 -m host {' '.join(path)}" in examples, out
+    assert ("exit status:" in out) == (path == ["calibrate"]), out  # said once, at the top
+
+
+def test_help_is_wrapped_at_spaces_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No word cut at its hyphen ("imu-" / "bench") at 80 columns."""
+    monkeypatch.setenv("COLUMNS", "80")
+    _, out, _ = run(["archive", "list", "--help"])
+    assert "imu-bench" in out.replace("\n", " ").replace("  ", " ") and "imu-\n" not in out
+
+
+def test_the_exit_codes_are_in_the_top_help() -> None:
+    rc, out, _ = run(["--help"])
+    assert rc == 0 and "exit status:" in out and "130" in out
+
+
+def test_demo_help_names_its_demo_once() -> None:
+    _, out, _ = run(["demo", "--help"])
+    assert out.count("hidden-effect") == out.count("demo hidden-effect") + 1, out
+
+
+def test_an_option_a_subcommand_lacks_is_answered_by_that_subcommand() -> None:
+    rc, out, err = run(["model", "ladder", "DIR", "--plot", "d"])
+    assert rc == 2 and out == ""
+    assert (
+        err == "error: unrecognized arguments: --plot d (see: python -m host model ladder --help)\n"
+    )
+
+
+def test_import_without_serial_is_one_line() -> None:
+    rc, _, err = run(["import", "x.csv"])
+    assert rc == 2
+    assert err.count("\n") == 1 and "--serial" in err and "import --help" in err
+
+
+def test_leaf_parser_finds_the_subcommand() -> None:
+    parser, _ = build_parser()
+    args, _ = parser.parse_known_args(["archive", "list"])
+    assert leaf_parser(parser, args).prog == "python -m host archive list"
+
+
+tokens = st.sampled_from(
+    ["--plot", "--model", "--serial", "--out", "--seconds", "--floor", "--window", "--order",
+     "--effect", "--seed", "--alpha", "--k", "--top", "--to", "--axes", "--units", "--columns",
+     "--turns", "--latitude", "-x", "--", "", "x", "-1", "nan", "1e999", "a.png", "é", "\x00"]
+)  # fmt: skip
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.sampled_from(sorted(COMMANDS)), st.lists(tokens | st.text(max_size=6), max_size=6))
+def test_any_options_are_parsed_or_refused_in_one_line(command: str, argv: list[str]) -> None:
+    """The parse of any words: a namespace, or exit 2 with one line — never a traceback."""
+    parser, _ = build_parser()
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            args, extra = parser.parse_known_args([command, *argv])
+            if extra:
+                leaf_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")
+        except SystemExit as exc:
+            if exc.code != 0:  # --help exits 0
+                assert exc.code == 2
+                assert err.getvalue().startswith("error: ") and err.getvalue().count("\n") == 1
