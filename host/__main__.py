@@ -157,7 +157,8 @@ class OneLineErrors(argparse.ArgumentParser):
         super().__init__(*args, **kw)
 
     def error(self, message: str) -> NoReturn:
-        self.exit(2, f"error: {message} (see: {self.prog} --help)\n")
+        shown = message.replace("\r", "\\r").replace("\n", "\\n")  # one line, whatever was typed
+        self.exit(2, f"error: {shown} (see: {self.prog} --help)\n")
 
 
 def leaf_parser(
