@@ -2,15 +2,19 @@
 
 The import prints one row per segment (start, duration, what was found, the label it got, its
 quality and the reason for the label) and writes the same rows to ``SERIAL_segments.tsv``. The
-user edits the label column (or the times) and imports again with ``--labels``: the file then
-defines the records. Rows the plan left out keep ``-`` and say why (an alternative for a record
-is named so): relabelling one and setting the chosen row to ``-`` swaps them.
+user edits the label column (or the times, or the ``heading_deg`` column: the cube's placement
+heading on the plate, written into the record as ``placement_heading_deg``) and imports again
+with ``--labels``: the file then defines the records. Rows the plan left out keep ``-`` and say
+why (an alternative for a record is named so): relabelling one and setting the chosen row to
+``-`` swaps them.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +25,9 @@ from host.ingest.stillness import SegmentationError, attitude, axis_text
 from host.session.records import WARMUP_NAME
 from host.session.spacing import trapezoid
 
-LABELS_HEADER = "# imu-bench segments v1"
+LABELS_HEADER = "# imu-bench segments v2"
+#: the column-names line; a file whose names line lacks ``heading_deg`` (v1) carries none
+_COLUMNS = ("row", "start_s", "end_s", "label", "heading_deg", "found", "quality", "reason")
 _LABEL_RE = re.compile(r"^(?P<axis>[xyz])_(?P<dir>up|dn|ccw|cw)(?:_(?P<rep>[0-9A-Za-z]+))?$")
 
 
@@ -47,13 +53,18 @@ def format_labels(segments: list[Segment], source: str) -> str:
         f"{LABELS_HEADER} of {source}",
         "# Edit the label column (x_up … z_dn, x_ccw … z_cw, x_up_2 for a repeat, warmup, '-' "
         "to leave a row out),",
-        "# or the start/end times; add rows for what was missed. Then run the same import with "
+        "# or the start/end times; add rows for what was missed. heading_deg: where the cube's "
+        "reference axis",
+        "# (the first of +x, +y, +z not up) pointed, ° counter-clockwise seen from above from "
+        "the fence",
+        "# (0, 90, 180, 270 against a fence; '-' if not known). Then run the same import with "
         "--labels THIS_FILE.",
-        "# row\tstart_s\tend_s\tlabel\tfound\tquality\treason",
+        "# " + "\t".join(_COLUMNS),
     ]
     for i, s in enumerate(segments, start=1):
+        h = "-" if s.heading_deg is None else f"{s.heading_deg:g}"
         out.append(
-            f"{i}\t{s.t0_s:.3f}\t{s.t1_s:.3f}\t{s.label}\t{s.found}\t{s.quality}\t{s.reason}"
+            f"{i}\t{s.t0_s:.3f}\t{s.t1_s:.3f}\t{s.label}\t{h}\t{s.found}\t{s.quality}\t{s.reason}"
         )
     return "\n".join(out) + "\n"
 
@@ -87,8 +98,13 @@ def parse_labels(text: str, source: str, stream: Stream) -> list[Segment]:
     t = stream.t_s
     segs: list[Segment] = []
     seen: dict[str, int] = {}
+    col_heading: int | None = None
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
+        names = line.lstrip("#").split()
+        if line.startswith("#") and names[:4] == list(_COLUMNS[:4]):
+            col_heading = names.index("heading_deg") if "heading_deg" in names else None
+            continue
         if not line or line.startswith("#"):
             continue
         where = f"{p}:{lineno}"
@@ -121,6 +137,7 @@ def parse_labels(text: str, source: str, stream: Stream) -> list[Segment]:
                 f"{where}: {t0:g}..{t1:g} s holds fewer than 2 samples (the stream spans "
                 f"{t[0]:.3f}..{t[-1]:.3f} s)"
             )
+        heading = _heading(f, col_heading, where)
         if label == WARMUP_NAME:
             up = attitude(stream.accel[start:stop].mean(axis=0))[1]
             segs.append(
@@ -136,15 +153,35 @@ def parse_labels(text: str, source: str, stream: Stream) -> list[Segment]:
             up["xyz".index(axis)] = 1.0 if d == "up" else -1.0
             segs.append(
                 Segment(start, stop, float(t[start]), float(t[stop - 1]), "labelled", label,
-                        "from the labels file", _t3(up))
+                        "from the labels file", _t3(up), heading_deg=heading)
             )  # fmt: skip
             continue
         seg = _turn_from_label(stream, start, stop, label, axis, d, where)
-        segs.append(seg)
+        segs.append(replace(seg, heading_deg=heading))
     if not segs:
         raise SegmentationError(f"{p}: no labelled rows (every label is '-')")
     segs.sort(key=lambda s: s.start)
     return segs
+
+
+def _heading(fields: list[str], col: int | None, where: str) -> float | None:
+    """The row's placement heading, ° in [0, 360) (None: no such column, or '-'/empty)."""
+    if col is None or col >= len(fields):
+        return None
+    txt = fields[col].strip()
+    if txt in ("", "-"):
+        return None
+    try:
+        deg = float(txt)
+    except ValueError:
+        deg = math.nan
+    if not math.isfinite(deg):
+        raise SegmentationError(
+            f"{where}: heading_deg {txt!r} is not a number of degrees (0, 90, 180, 270 against "
+            "a fence; - if not known)"
+        )
+    deg %= 360.0
+    return 0.0 if deg >= 360.0 else deg  # −1e-300 % 360 rounds to 360.0
 
 
 def _turn_from_label(

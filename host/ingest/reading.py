@@ -61,7 +61,8 @@ class Segment:
     ``found``: what the detector saw ("still +x", "turn +720° about +x", "move");
     ``label``: the record it becomes (``x_up``, ``x_ccw``, ``warmup`` … or ``-`` for none);
     ``quality``: a short human note; ``reason``: why this label (the plan's choice);
-    ``up`` the up vector; ``turns``/``direction`` of a turn."""
+    ``up`` the up vector; ``turns``/``direction`` of a turn; ``heading_deg`` the cube's
+    placement heading on the plate, ° (the labels file's column; None: not known)."""
 
     start: int
     stop: int
@@ -74,6 +75,7 @@ class Segment:
     turns: int = 0
     direction: int = 0
     reason: str = ""
+    heading_deg: float | None = None
 
     @property
     def duration_s(self) -> float:

@@ -18,7 +18,7 @@ import numpy as np
 from host.ingest.importing import Stream
 from host.ingest.reading import Segment, read_session
 from host.ingest.stillness import SegmentationError, Thresholds, axis_text
-from host.session.records import STATIC_NAMES, TURN_NAMES, WARMUP_NAME, Record
+from host.session.records import HEADING_KEY, STATIC_NAMES, TURN_NAMES, WARMUP_NAME, Record
 from host.session.spacing import timing_quality, trapezoid
 
 MIN_SPACING_S = 20e-6  #: a median sample spacing outside these bounds means a wrong time unit
@@ -137,6 +137,8 @@ def build_records(
         turn = s.turns > 0 or s.label[1:].startswith(("_ccw", "_cw"))
         meta["kind"] = "turn" if turn else ("warmup" if s.label == WARMUP_NAME else "static")
         meta["up"] = _up_text(s.up)
+        if s.heading_deg is not None:
+            meta[HEADING_KEY] = f"{s.heading_deg:g}"
         if turn:
             meta["turns"] = str(max(1, s.turns))
             meta["direction"] = "ccw" if s.direction > 0 else "cw"

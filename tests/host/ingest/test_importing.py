@@ -314,7 +314,7 @@ def test_labels_file_corrects_the_cut(tmp_path: Path, capsys) -> None:
     done_rest = False
     for r in rows:
         f = r.split("\t")
-        if not r.startswith("#") and f[3] == "-" and "+x" in f[4] and not done_rest:
+        if not r.startswith("#") and f[3] == "-" and "+x" in f[5] and not done_rest:
             f[3], done_rest = "x_up_2", True
         elif not r.startswith("#") and f[3] == "z_cw":
             f[3] = "-"
