@@ -82,6 +82,8 @@ class Provenance:
     measured_from: str = ""
     measured_to: str = ""
     measured_order: tuple[str, ...] = ()
+    #: record -> its start in seconds since its sitting began (``session_s``; absent: unknown)
+    session_s: Mapping[str, float] = field(default_factory=dict)
     sittings: tuple[Sitting, ...] = ()
     software: str = ""
 
@@ -112,6 +114,7 @@ class Provenance:
             "measured_from": self.measured_from,
             "measured_to": self.measured_to,
             "measured_order": list(self.measured_order),
+            "session_s": dict(self.session_s),
             "sittings": [{"capture": s.capture, "records": list(s.records)} for s in self.sittings],
             "software": self.software,
         }
@@ -145,6 +148,7 @@ class Provenance:
             measured_from=str(d.get("measured_from", "")),
             measured_to=str(d.get("measured_to", "")),
             measured_order=strs("measured_order"),
+            session_s={str(k): float(v) for k, v in d.get("session_s", {}).items()},
             sittings=tuple(
                 Sitting(str(s["capture"]), tuple(str(x) for x in s["records"]))
                 for s in d.get("sittings", ())
@@ -201,7 +205,13 @@ def provenance_of(session: Session, software: str = "") -> Provenance:
     """The :class:`Provenance` of a session, from its records' headers and samples;
     ``software``: this program and version (the computation's, not the records')."""
     recs = session.records
-    captures = _distinct(recs, "capture")
+    first_start: dict[str, str] = {}  # capture -> its earliest record start (ISO)
+    for r in recs.values():
+        cap = r.meta.get("capture", "").strip()
+        if cap:
+            t = r.meta.get("start_time", "").strip() or "~"
+            first_start[cap] = min(first_start.get(cap, t), t)
+    captures = tuple(sorted(first_start, key=lambda c: (first_start[c], c)))  # as measured
     sit_of = {n: captures.index(r.meta["capture"].strip()) if r.meta.get("capture", "").strip()
               else len(captures) for n, r in recs.items()}  # fmt: skip
     order = tuple(sorted(recs, key=lambda n: (*_order_key(recs[n], sit_of[n]), n)))
@@ -210,7 +220,7 @@ def provenance_of(session: Session, software: str = "") -> Provenance:
         for i, cap in enumerate((*captures, ""))
         if any(sit_of[n] == i for n in order)
     )
-    temps = [r.temp[np.isfinite(r.temp)] for r in recs.values() if len(r.temp)]
+    temps = [r.temp[np.isfinite(r.temp)] for r in recs.values() if _temp_measured(r)]
     temp_all = np.concatenate(temps) if temps else np.zeros(0)
     statics = [r.duration_s for r in recs.values() if r.kind == "static"]
     turns = [r.duration_s for r in recs.values() if r.kind == "turn"]
@@ -239,9 +249,17 @@ def provenance_of(session: Session, software: str = "") -> Provenance:
         measured_from=starts[0] if starts else "",
         measured_to=starts[-1] if starts else "",
         measured_order=order,
+        session_s={n: t for n in order if math.isfinite(t := _order_key(recs[n], 0)[1])},
         sittings=sittings,
         software=software,
     )
+
+
+def _temp_measured(r: Record) -> bool:
+    """False for records whose temperature column is a filler (``import`` of data without
+    one says ``temperature: not recorded``; older imports said it in ``source``)."""
+    said = (r.meta.get("temperature", "") + " " + r.meta.get("source", "")).lower()
+    return len(r.temp) > 0 and "not recorded" not in said and "temperature not measured" not in said
 
 
 def _is_number(text: str) -> bool:

@@ -80,7 +80,8 @@ class ComputeSettings:
     (:func:`host.model.spec.parse_model`); ``floor``: the ``--floor`` text (None: measured);
     ``verify``: a directory of held-out records to predict (None: no verification);
     ``thermal``: the ``--thermal`` option (:func:`thermal_of`); ``noise_file``: the
-    ``--noise`` file (:func:`session_noise`)."""
+    ``--noise`` file (:func:`session_noise`); ``pdf``: also the PDF report
+    (:mod:`host.calib.report_pdf`)."""
 
     turns: int | None = None
     latitude_deg: float = DEFAULT_LATITUDE_DEG
@@ -91,15 +92,18 @@ class ComputeSettings:
     verify: str | None = None
     thermal: str | None = None
     noise_file: str | None = None
+    #: also write the report as ``SERIAL_result.pdf`` with its residual plots
+    pdf: bool = False
 
 
 @dataclass(frozen=True)
 class Published:
-    """A result and the two files it was written to."""
+    """A result and the files it was written to (``pdf_path``: None when not asked)."""
 
     result: CalibrationResult
     report_path: Path
     json_path: Path
+    pdf_path: Path | None = None
 
 
 def thermal_of(
@@ -150,7 +154,12 @@ def compute_and_write(
     if not out_dir.is_dir():
         raise UserError(f"{out_dir}: no such directory{_why_not_a_directory(out_dir)}")
     txt, js = write_results(result, out_dir)
-    return Published(result, txt, js)
+    pdf = None
+    if settings.pdf:
+        from host.calib.report_pdf import pdf_path, write_report_pdf
+
+        pdf = write_report_pdf(result, pdf_path(txt))
+    return Published(result, txt, js, pdf)
 
 
 def _why_not_a_directory(path: Path) -> str:

@@ -14,7 +14,9 @@ import math
 import os
 from pathlib import Path
 
+from host.calib.provenance import UNKNOWN_SENSOR, Provenance
 from host.calib.result import CalibrationResult
+from host.calib.values import RecordResidual
 from host.session.atomic import write_texts_atomic
 from host.session.method import (
     ACCEL_BIAS_NAMES,
@@ -27,6 +29,8 @@ from host.session.method import (
 
 WIDTH = 80
 PLUS, MINUS = "+", "−"
+#: coverage factor of the expanded uncertainties the report prints (U = K · standard error)
+K = 2.0
 
 
 def _v(x: float, dec: int = 5) -> str:
@@ -44,28 +48,11 @@ def format_report(result: CalibrationResult) -> str:
     consts = r.constants()
     rule = "-" * WIDTH
     out: list[str] = []
-    out.append(f"TEST REPORT, IMU MPU-6000, serial No. {r.serial}")
-    if r.simulated:
-        out.append(f"*** {r.simulated_line} ***")
-    out.append(f"Date and time: {r.created.replace('T', ' ')}")
-    out.append(
-        f"Local gravity g = {r.g:.5f} m/s² (Helmert formula, latitude {r.latitude_deg:.3f}°, "
-        f"height {r.height_m:.0f} m)"
-    )
-    kinds: dict[str, int] = {}
-    for res in r.residuals:
-        kinds[res.kind] = kinds.get(res.kind, 0) + 1
-    plan = ", ".join(f"{n} {k}" for k, n in sorted(kinds.items()))
-    turns = "-" if r.turns is None else str(r.turns)
-    out.append(f"Records: {len(r.residuals)} ({plan}); turns per turn record: {turns}")
-    out.append(f"Method: {r.method}")
-    out.extend(_wrap(f"Verdict: {verdict(r)} (RESULT below)", "", "  "))
-    out.append(f"Model: {r.model}")
-    if r.fit is not None:
-        out.extend(_wrap(r.fit.line(), "", "  "))
-        story = fit_story(r)
-        if story:
-            out.extend(_wrap(story, "", "  "))
+    out.extend(_head(r))
+    out.append(rule)
+    out.extend(_object_and_equipment(r))
+    out.append(rule)
+    out.extend(_procedure(r))
     if r.earth_rate:
         out.append("Earth rate: vertical component included in the reference rates")
     cf = [abs(consts[n] - v) for n, v in r.closed_form.items() if n not in NOISE_NAMES]
@@ -76,7 +63,9 @@ def format_report(result: CalibrationResult) -> str:
             _wrap(f"Closed form (§3, §4) differs from {what} by at most {max(cf):.2e}", "", "  ")
         )
     out.append(rule)
-    out.append(f"  {'value':<7}{'measured':>12}  {'unit':<8}{'tolerance':>11}  mark   std error")
+    out.append("RESULTS: value, tolerance, mark (+ within, − outside), and U: the expanded")
+    out.append("uncertainty, k = 2 (twice the standard error; about 95 % coverage)")
+    out.append(f"  {'value':<7}{'measured':>12}  {'unit':<8}{'tolerance':>11}  mark  U (k = 2)")
     out.append(rule)
     last_title = ""
     std_errors = r.std_errors
@@ -88,7 +77,7 @@ def format_report(result: CalibrationResult) -> str:
         last_title = title
         for n in names:
             se = std_errors.get(n, math.nan)
-            se_s = f"±{se:.5f}" if math.isfinite(se) else ""
+            se_s = f"±{K * se:.5f}" if math.isfinite(se) else ""
             note = ""
             if not math.isfinite(consts[n]):
                 note = "  not determined" if n in in_model else "  not in the model"
@@ -98,10 +87,10 @@ def format_report(result: CalibrationResult) -> str:
             )
     out.append(rule)
     if r.further:
-        out.append("Further terms of the model (value ± std error)")
+        out.append("Further terms of the model (value ± U, k = 2)")
         for p in r.further:
             if p.determined:
-                out.append(f"  {p.name:<34}{_v(p.value, 6):>14} ± {p.stderr:.2g} {p.unit}")
+                out.append(f"  {p.name:<34}{_v(p.value, 6):>14} ± {K * p.stderr:.2g} {p.unit}")
             else:
                 out.append(f"  {p.name:<34}{'not determined':>14}")
         out.append(rule)
@@ -154,14 +143,17 @@ def format_report(result: CalibrationResult) -> str:
     out.append("  gyro  °/s : " + "  ".join(f"{n} {consts[n]:.4f}" for n in NOISE_NAMES[:3]))
     out.append("  accel m/s²: " + "  ".join(f"{n} {consts[n]:.4f}" for n in NOISE_NAMES[3:]))
     out.append(rule)
-    out.append("Residuals per record (measured − model): mean / std of samples;")
-    out.append("turns: integral residual, degrees")
+    out.append("Residuals per record in the order measured (measured − model): mean / std of")
+    out.append("samples; turns: integral residual, degrees; at: start, s into the sitting")
     out.append(
-        f"  {'record':<9}{'N':>6}{'T,s':>6}  {'accel x y z, m/s²':<24}"
+        f"  {'record':<9}{'at,s':>6}{'T,s':>5}  {'accel x y z, m/s²':<24}"
         f"{'gyro x y z, °/s (turns °)':<27}"
     )
-    for res in r.residuals:
-        head = f"  {res.record[:9]:<9}{res.n:>6}{res.duration_s:>6.1f}  "
+    at = r.provenance.session_s if r.provenance is not None else {}
+    for res in measured_order(r):
+        t = at.get(res.record)
+        t_s = f"{t:6.0f}" if t is not None else f"{'-':>6}"
+        head = f"  {res.record[:9]:<9}{t_s}{res.duration_s:>5.1f}  "
         if res.kind == "turn" and res.angle_deg is not None:
             acc = f"{'-':<24}"
             gyr = " ".join(f"{x:+8.3f}" for x in res.angle_deg)
@@ -173,7 +165,7 @@ def format_report(result: CalibrationResult) -> str:
         if res.kind == "static":
             accs = " ".join(f"{x:7.4f}" for x in res.accel_std)
             gyrs = " ".join(f"{x:8.4f}" for x in res.gyro_std)
-            out.append(f"  {'  std':<21}  {accs:<24}{gyrs}")
+            out.append(f"  {'  std':<20}  {accs:<24}{gyrs}")
     if r.verification is not None:
         v = r.verification
         out.append(rule)
@@ -194,6 +186,8 @@ def format_report(result: CalibrationResult) -> str:
         for note in r.notes:
             out.extend(_wrap(note, "  -", "    "))
     out.append(rule)
+    out.extend(_conclusion(r))
+    out.append(rule)
     out.append("")
     for role in ("Customer's representative", "Quality control", "Workshop"):
         out.append(f"{role:<27}_______________________  /________________/")
@@ -201,9 +195,169 @@ def format_report(result: CalibrationResult) -> str:
     return "\n".join(line.rstrip() for line in out) + "\n"
 
 
-def _wrap(text: str, first: str, indent: str) -> list[str]:
+def _head(r: CalibrationResult) -> list[str]:
+    """Title (the sensor named from the data), the simulated mark, when measured and when
+    computed, local gravity, the verdict."""
+    pv = r.provenance
+    sensor = "MPU-6000" if pv is None else pv.sensor
+    out = [f"TEST REPORT, IMU {sensor}, serial No. {r.serial}"]
+    if r.simulated:
+        out.append(f"*** {r.simulated_line} ***")
+    if pv is not None and pv.measured_from:
+        out.extend(_wrap(f"Measured: {_measured(pv)} (the records' start times)", "", "  "))
+    else:
+        out.append("Measured: the records carry no start time")
+    by = f" by {pv.software}" if pv is not None and pv.software else ""
+    out.append(f"Computed: {_time(r.created)}{by}")
+    out.append(
+        f"Local gravity g = {r.g:.5f} m/s² (Helmert formula, latitude {r.latitude_deg:.3f}°, "
+        f"height {r.height_m:.0f} m)"
+    )
+    out.extend(_wrap(f"Verdict: {verdict(r)} (RESULT below)", "", "  "))
+    return out
+
+
+def _time(iso: str) -> str:
+    return iso.replace("T", " ")
+
+
+def _measured(pv: Provenance) -> str:
+    """'2026-11-26 17:48:49 to 17:52:10 UTC+00:00' from the first and last start times."""
+    from datetime import datetime
+
+    try:
+        t0 = datetime.fromisoformat(pv.measured_from)
+        t1 = datetime.fromisoformat(pv.measured_to)
+    except ValueError:
+        return f"{_time(pv.measured_from)} to {_time(pv.measured_to)}"
+    zone = t0.strftime(" UTC%z") if t0.tzinfo is not None else ""
+    zone = zone[:-2] + ":" + zone[-2:] if zone else ""
+    first = t0.strftime("%Y-%m-%d %H:%M:%S")
+    if t1.strftime("%Y-%m-%d %H:%M:%S") == first:
+        return first + zone
+    last = t1.strftime("%H:%M:%S" if t1.date() == t0.date() else "%Y-%m-%d %H:%M:%S")
+    return f"{first} to {last}{zone}"
+
+
+def _object_and_equipment(r: CalibrationResult) -> list[str]:
+    """Object, equipment, environment (method.md §8), from the record headers."""
+    pv = r.provenance
+    out = ["OBJECT, EQUIPMENT AND ENVIRONMENT (from the record headers)"]
+    if pv is None:
+        return [*out, "  not in this result file (format v1/v2): recompute with --from-dir"]
+    eq = pv.equipment
+    names = (("who_am_i", "WHO_AM_I"), ("product_id", "product ID"))
+    ids = ", ".join(f"{w} {eq[k]}" for k, w in names if k in eq)
+    unit = f"serial No. {r.serial}, {pv.sensor}" + (f" ({ids})" if ids else "")
+    if pv.sensor == UNKNOWN_SENSOR:
+        unit += "; the tolerances below are the MPU-6000's (method.md §7)"
+    out.extend(_wrap(f"Unit: {unit}", "  ", "    "))
+    board = []
+    if "firmware" in eq:
+        board.append(f"firmware {eq['firmware']}")
+    if "protocol_version" in eq:
+        board.append(f"protocol {eq['protocol_version']}")
+    if pv.ports:
+        board.append(f"port {', '.join(pv.ports)}")
+    if pv.sources:
+        more = f" and {len(pv.sources) - 1} more" if len(pv.sources) > 1 else ""
+        board.append(f"source {pv.sources[0]}{more}")
+    out.extend(_wrap(f"Board: {'; '.join(board) or 'not recorded'}", "  ", "    "))
+    settings = [
+        form.format(eq[k]) for k, form in (
+            ("accel_range_g", "accelerometer ±{} g"), ("gyro_range_dps", "gyro ±{} °/s"),
+            ("sample_rate_hz", "{} Hz"), ("smplrt_div", "SMPLRT_DIV {}"),
+            ("dlpf_cfg", "DLPF_CFG {}"), ("sensor_spi_clock", "SPI clock {}"),
+        ) if k in eq
+    ]  # fmt: skip
+    out.extend(_wrap(f"Sensor settings: {', '.join(settings) or 'not recorded'}", "  ", "    "))
+    who = ", ".join(pv.operators) or ("simulated" if pv.simulated else "not recorded")
+    where = ", ".join(pv.benches) or "not recorded"
+    out.append(f"  Operator: {who}; bench: {where}")
+    temp = (
+        f"{pv.temp_c[0]:.1f} to {pv.temp_c[1]:.1f} °C" if pv.temp_c is not None
+        else "not measured"
+    )  # fmt: skip
+    out.extend(_wrap(f"Environment: chip temperature {temp}; humidity, pressure, vibration "
+                     "not measured", "  ", "    "))  # fmt: skip
+    return out
+
+
+def _procedure(r: CalibrationResult) -> list[str]:
+    """Plan, timing, sittings, model and algorithm (method.md §8 "procedure")."""
+    pv = r.provenance
+    kinds: dict[str, int] = {}
+    for res in r.residuals:
+        kinds[res.kind] = kinds.get(res.kind, 0) + 1
+    plan = ", ".join(f"{n} {k}" for k, n in sorted(kinds.items()))
+    out = ["PROCEDURE"]
+    sittings = "" if pv is None else f", measured in {_sittings(pv)}"
+    out.extend(_wrap(f"Records: {len(r.residuals)} ({plan}){sittings}", "  ", "    "))
+    timing = []
+    if pv is not None and pv.static_s is not None:
+        timing.append(f"static accumulation time {_span(pv.static_s)} s")
+    if pv is not None and pv.turn_window_s:
+        timing.append(f"turn window {', '.join(f'{w:g}' for w in pv.turn_window_s)} s")
+    if pv is not None and pv.turn_s is not None:
+        timing.append(f"turn records {_span(pv.turn_s)} s")
+    turns = "-" if r.turns is None else str(r.turns)
+    timing.append(f"turns per turn record: {turns}")
+    out.extend(_wrap(f"Timing: {'; '.join(timing)}", "  ", "    "))
+    out.extend(_wrap(f"Algorithm: {r.method}", "  ", "    "))
+    out.extend(_wrap(f"Model: {r.model}", "  ", "    "))
+    if r.fit is not None:
+        out.extend(_wrap(r.fit.line(), "  ", "    "))
+        story = fit_story(r)
+        if story:
+            out.extend(_wrap(story, "  ", "    "))
+    return out
+
+
+def _span(x: tuple[float, float]) -> str:
+    return f"{x[0]:.1f}" if abs(x[1] - x[0]) < 0.05 else f"{x[0]:.1f} to {x[1]:.1f}"
+
+
+def _sittings(pv: Provenance) -> str:
+    """'1 sitting' or '2 sittings (1: U1_session.cap, 12 records; 2: …, x_ccw)'."""
+    n = len(pv.sittings)
+    if n <= 1:
+        return "1 sitting"
+    parts = []
+    for i, st in enumerate(pv.sittings, 1):
+        what = ", ".join(st.records) if len(st.records) <= 3 else f"{len(st.records)} records"
+        parts.append(f"{i}: {st.capture or 'no capture'}, {what}")
+    return f"{n} sittings (--resume/--redo; {'; '.join(parts)})"
+
+
+def measured_order(r: CalibrationResult) -> list[RecordResidual]:
+    """The residuals of ``r`` in the order their records were measured (sitting, then
+    ``session_s``); records of unknown time last, by name."""
+    order = r.provenance.measured_order if r.provenance is not None else ()
+    rank = {name: i for i, name in enumerate(order)}
+    return sorted(r.residuals, key=lambda x: (rank.get(x.record, len(rank)), x.record))
+
+
+def _conclusion(r: CalibrationResult) -> list[str]:
+    """Verdict, what it rests on, and repeatability (method.md §8)."""
+    out = ["CONCLUSION"]
+    out.extend(_wrap(verdict(r), "  ", "    "))
+    if r.fit is not None and r.fit.verdict == "inadequate":
+        out.extend(_wrap("The model does not explain the records down to their noise "
+                         "(fit quality above): the values hold only if the missing effect "
+                         "does not bias them.", "  ", "    "))  # fmt: skip
+    out.extend(_wrap("Repeatability (method.md §8: three calibrations, coefficient of "
+                     f"variation ≤ 1 %): python -m host archive repeat {r.serial}",
+                     "  ", "    ", keep=("≤ 1 %",)))  # fmt: skip
+    return out
+
+
+def _wrap(text: str, first: str, indent: str, keep: tuple[str, ...] = ()) -> list[str]:
+    """``text`` in lines ≤ 80 columns, the first after ``first``, the others after ``indent``;
+    the phrases in ``keep`` are never broken."""
     lines: list[str] = []
     line = first
+    for k in keep:
+        text = text.replace(k, k.replace(" ", "\ue000"))
     for word in text.split():
         if line.strip() and len(line) + 1 + len(word) > WIDTH:
             lines.append(line)
@@ -212,7 +366,7 @@ def _wrap(text: str, first: str, indent: str) -> list[str]:
             line = f"{line} {word}" if line.strip() else line + word
     if line:
         lines.append(line)
-    return lines
+    return [ln.replace("\ue000", " ") for ln in lines]
 
 
 def result_paths(directory: str | os.PathLike[str], serial: str) -> tuple[Path, Path]:

@@ -90,8 +90,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "$IMU_BENCH_ARCHIVE, else ~/.local/share/imu-bench/archive.sqlite)",
     )  # fmt: skip
     p.add_argument("--no-archive", action="store_true", help="do not archive the result")
-    p.add_argument("--bench", help="bench name for the archive (default $IMU_BENCH_NAME)")
-    p.add_argument("--operator", help="operator for the archive (default $IMU_BENCH_OPERATOR)")
+    p.add_argument(
+        "--pdf",
+        action="store_true",
+        help="also write the report as SERIAL_result.pdf, with its residual plots",
+    )
+    p.add_argument(
+        "--bench", help="bench name: the records and the archive (default $IMU_BENCH_NAME)"
+    )
+    p.add_argument(
+        "--operator", help="who measures: the records and the archive ($IMU_BENCH_OPERATOR)"
+    )
     p.add_argument("--lot", help="production lot for the archive")
     p.add_argument(
         "--term-file",
@@ -114,6 +123,7 @@ def compute_settings(args: argparse.Namespace) -> ComputeSettings:
         verify=getattr(args, "verify", None),
         thermal=getattr(args, "thermal", None),
         noise_file=getattr(args, "noise", None),
+        pdf=bool(getattr(args, "pdf", False)),
     )
 
 
@@ -123,7 +133,8 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
     pub = compute_and_write(session, out_dir, compute_settings(args))
     show_result(pub.result, args.json)
     if not args.json:
-        print(f"written: {pub.report_path} and {pub.json_path}", file=sys.stderr)
+        pdf = f" and {pub.pdf_path}" if pub.pdf_path is not None else ""
+        print(f"written: {pub.report_path}, {pub.json_path}{pdf}", file=sys.stderr)
     if not getattr(args, "no_archive", False):
         print(archive_line(pub.json_path.parent, session, args), file=sys.stderr)
     print(verdict_line(pub.result, pub.report_path), file=sys.stderr)  # the last line

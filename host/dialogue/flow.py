@@ -443,6 +443,8 @@ class CalibrationDialogue:
                        resume_hint=self._resume_hint)  # fmt: skip
 
     def _record(self, name: str, acq: Acquisition, extra: dict[str, str]) -> Record:
+        who = {"operator": self.opts.operator, "bench": self.opts.bench}  # the report's
+        extra = {**extra, **{k: " ".join(v.split()) for k, v in who.items() if v and v.strip()}}
         return make_record(self.board, self.serial, name, acq, extra, self._session_start_ns)
 
     def _loss_problems(self, name: str, acq: Acquisition) -> list[str]:
@@ -506,6 +508,7 @@ class CalibrationDialogue:
             verify=self.opts.verify,
             thermal=self.opts.thermal,
             noise_file=self.opts.noise,
+            pdf=self.opts.pdf,
         )
         try:
             pub = compute_and_write(session, self.out_dir, settings, note=op.say)
@@ -517,7 +520,8 @@ class CalibrationDialogue:
                 f"{exc}; measure {name} again (the other records are kept) with: "
                 + self.command(then=("--redo", name))
             ) from None
-        op.say(f"Results: {pub.report_path} and {pub.json_path}")
+        pdf = f", {pub.pdf_path}" if pub.pdf_path is not None else ""
+        op.say(f"Results: {pub.report_path} and {pub.json_path}{pdf}")
         show_result(pub.result, self.opts.json)
         if self.opts.after_publish is not None:  # calibrate archives the result
             op.say(self.opts.after_publish(self.out_dir, session))

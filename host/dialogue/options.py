@@ -121,6 +121,9 @@ class DialogueOptions:
     thermal: str | None = None  # --thermal FILE|none (None: SERIAL_thermal.json if beside)
     noise: str | None = None  # --noise NOISE.json (the floor from the unit's noise file)
     closing: bool = True  # measure the first attitude again at the end (CLOSING_NAME)
+    operator: str | None = None  # --operator: who measures, written in every record's header
+    bench: str | None = None  # --bench: which bench, written in every record's header
+    pdf: bool = False  # --pdf: also the report as SERIAL_result.pdf
     #: called with (output directory, session) once the result files are written; returns the
     #: line to say (``calibrate`` archives the result there: host.cli.calibrate.archive_line)
     after_publish: Callable[[Path, Session], str] | None = None
@@ -158,6 +161,9 @@ class DialogueOptions:
             floor=get("floor"),
             thermal=get("thermal"),
             noise=get("noise"),
+            operator=get("operator"),
+            bench=get("bench"),
+            pdf=bool(get("pdf", False)),
             closing=not bool(get("no_closing", False)),
             after_publish=get("after_publish"),
         )

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from host import __version__
 from host.__main__ import main
 from host.calib.calibration import calibrate_from_records
 from host.calib.report import format_report, write_results
@@ -43,8 +44,10 @@ def _write_session(d: Path, serial: str = "SIM7", seed: int = 13) -> None:
 def test_report_layout(result: CalibrationResult) -> None:
     text = format_report(result)
     lines = text.splitlines()
-    assert lines[0] == "TEST REPORT, IMU MPU-6000, serial No. SIM7"
-    assert lines[1] == "Date and time: 2024-05-06 10:11:12+03:00"
+    # records that do not name their sensor (no who_am_i in the header): not called an MPU-6000
+    assert lines[0] == "TEST REPORT, IMU unknown sensor, serial No. SIM7"
+    assert lines[1] == "Measured: the records carry no start time"
+    assert lines[2] == f"Computed: 2024-05-06 10:11:12+03:00 by imu-bench {__version__}"
     assert max(len(ln) for ln in lines) <= 80
     assert text.encode("utf-8").decode("utf-8") == text and "\t" not in text
     assert "latitude 55.750°, height 150 m" in text and f"g = {result.g:.5f} m/s²" in text
@@ -96,7 +99,7 @@ def test_cli_from_dir(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     rc = main(["calibrate", "--from-dir", str(tmp_path)])
     out = capsys.readouterr().out
     assert rc == 0
-    assert out.startswith("TEST REPORT, IMU MPU-6000, serial No. SIM7")
+    assert out.startswith("TEST REPORT, IMU unknown sensor, serial No. SIM7")
     assert (tmp_path / "SIM7_result.txt").read_text(encoding="utf-8").splitlines()[0] == (
         out.splitlines()[0]
     )
