@@ -249,7 +249,7 @@ def provenance_of(session: Session, software: str = "") -> Provenance:
         measured_from=starts[0] if starts else "",
         measured_to=starts[-1] if starts else "",
         measured_order=order,
-        session_s={n: t for n in order if math.isfinite(t := _order_key(recs[n], 0)[1])},
+        session_s={n: at for n in order if math.isfinite(at := _order_key(recs[n], 0)[1])},
         sittings=sittings,
         software=software,
     )

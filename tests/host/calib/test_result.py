@@ -177,8 +177,12 @@ def test_model_add_prints_the_calibrate_command(
     d, term, _ = temperature_session
     assert main(["model", "add", str(d), term]) == 0
     out = capsys.readouterr().out
-    line = next(ln for ln in out.splitlines() if ln.startswith("ship this model: "))
-    cmd = line.removeprefix("ship this model: ")
+    lines = out.splitlines()
+    i = next(i for i, ln in enumerate(lines) if ln.startswith("ship this model: "))
+    cmd = lines[i].removeprefix("ship this model: ")
+    while cmd.endswith("\\"):  # a long command is broken as a shell would read it
+        i += 1
+        cmd = cmd.removesuffix("\\").rstrip() + " " + lines[i].strip()
     assert cmd == f"python3 -m host calibrate --from-dir {d} --model base,{term}"
     # and that command ships exactly the model the workbench showed
     args = cmd.split()[3:]
