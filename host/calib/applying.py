@@ -162,8 +162,8 @@ def apply(
         if np.any(outside):
             warnings.warn(
                 f"{int(np.count_nonzero(outside))} samples at {float(temp.min()):.1f} to "
-                f"{float(temp.max()):.1f} degC lie outside the thermal calibration's range "
-                f"{lo:.1f} to {hi:.1f} degC: the bias(T) polynomial is extrapolated there",
+                f"{float(temp.max()):.1f} °C lie outside the thermal calibration's range "
+                f"{lo:.1f} to {hi:.1f} °C: the bias(T) polynomial is extrapolated there",
                 ThermalRangeWarning,
                 stacklevel=2,
             )

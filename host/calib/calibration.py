@@ -445,14 +445,14 @@ def _thermal_note(session: Session, thermal: ThermalCalibration, source: str) ->
     )
     note = (
         f"bias(T) from {source or 'a thermal calibration'} (orders {orders}; valid "
-        f"{thermal.t_min_c:.1f} to {thermal.t_max_c:.1f} degC) removed from the records "
+        f"{thermal.t_min_c:.1f} to {thermal.t_max_c:.1f} °C) removed from the records "
         "before the fit, carried as thermal_bias"
     )
     temps = np.concatenate([r.temp for r in session.records.values()])
     lo, hi = float(temps.min()), float(temps.max())
     if lo < thermal.t_min_c or hi > thermal.t_max_c:
         note += (
-            f"; the records ({lo:.1f} to {hi:.1f} degC) reach outside that range, where it is "
+            f"; the records ({lo:.1f} to {hi:.1f} °C) reach outside that range, where it is "
             "extrapolated"
         )
     return note

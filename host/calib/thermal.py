@@ -227,8 +227,8 @@ def apply_thermal(
     if np.any(outside):
         warnings.warn(
             f"{int(np.count_nonzero(outside))} samples at {float(t.min()):.1f} to "
-            f"{float(t.max()):.1f} degC lie outside the thermal calibration's range "
-            f"{cal.t_min_c:.1f} to {cal.t_max_c:.1f} degC: the bias(T) polynomial is "
+            f"{float(t.max()):.1f} °C lie outside the thermal calibration's range "
+            f"{cal.t_min_c:.1f} to {cal.t_max_c:.1f} °C: the bias(T) polynomial is "
             "extrapolated there",
             ThermalRangeWarning,
             stacklevel=2,

@@ -81,9 +81,11 @@ def window_means(records: Iterable[Record], window_s: float = 20.0) -> ThermalPo
     ups: list[np.ndarray] = []
     keys: list[str] = []
     timed = True
+    longest = 0.0  # the longest static record, s (to say why none gave a window)
     for r_i, rec in enumerate(records):
         if rec.kind == "turn" or len(rec) < 2:
             continue
+        longest = max(longest, float(rec.t_ms[-1] - rec.t_ms[0]) / 1000.0)
         key = attitude_key(rec)
         try:
             up = np.asarray(rec.up, dtype=np.float64)
@@ -109,6 +111,12 @@ def window_means(records: Iterable[Record], window_s: float = 20.0) -> ThermalPo
             times.append(start + float(mean[7]))
             runs.append(r_i)
             ups.append(up)
+    if not temps and longest > 0:
+        raise UserError(
+            f"the static records are at most {longest:.1f} s long, shorter than half of the "
+            f"{window_s:g} s averaging window, so none gives a window mean: give "
+            f"--window {max(1, int(longest // 2))} (or the warm-up record)"
+        )
     if not temps:
         raise UserError(
             "no static records to fit bias(T): give the warm-up, static or thermal records"
@@ -461,9 +469,9 @@ def fit_thermal(
     if span < span_needed(asked):
         what = "a linear bias(T)" if asked <= 1 else f"an order-{asked} bias(T)"
         raise UserError(
-            f"temperature span {span:.1f} degC ({lo:.1f} to {hi:.1f} degC) cannot determine "
-            f"{what}: it needs at least {span_needed(asked):.0f} degC "
-            f"({SPAN_PER_ORDER_C:.0f} degC per polynomial order); record the warm-up from a "
+            f"temperature span {span:.1f} °C ({lo:.1f} to {hi:.1f} °C) cannot determine "
+            f"{what}: it needs at least {span_needed(asked):.0f} °C "
+            f"({SPAN_PER_ORDER_C:.0f} °C per polynomial order); record the warm-up from a "
             "cold start, or a chamber ramp (sim://?chamber=FROM:TO:MINUTES)"
         )
     top = min(max_order, int(span // SPAN_PER_ORDER_C)) if order is None else order

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from host.cli import pyplot
+from host.cli.screen import Column, table, terminal_width
 from host.errors import UserError
 from host.model import allan, recording
 from host.session.atomic import write_text_atomic
@@ -33,7 +34,20 @@ def load_static(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     if path.suffix.lower() == ".txt":
         from host.session.directory import read_record
 
+        with open(path, "rb") as fh:
+            head = fh.read(64)
+        if not head.startswith(b"# imu-bench record"):
+            what = "the calibration report" if head.startswith(b"TEST REPORT") else "no record"
+            raise UserError(
+                f"{path}: {what}, not a recording; give a static record (SERIAL_x_up.txt) "
+                "or a capture of the unit at rest (.cap)"
+            )
         rec = read_record(path)
+        if rec.kind == "turn":
+            raise UserError(
+                f"{path}: a turn record (the cube turned by hand), not a recording at rest; give "
+                "a static record (SERIAL_x_up.txt) or a capture of the unit at rest (.cap)"
+            )
         data = np.column_stack([rec.accel, rec.gyro])
         return rec.t_ms / 1000.0, data, rec.temp, f"record {rec.name} ({len(rec)} samples)"
     from host.timing import clock
@@ -66,34 +80,53 @@ def _fmt(v: float) -> str:
     return f"{v:.3g}"
 
 
-def _figure_line(channel: str, q: str, f: allan.Figure) -> str:
+def _figure_cell(channel: str, q: str, f: allan.Figure) -> str:
+    """A figure in its display unit (named in the column's header): value [interval], or
+    '< bound' when the recording does not resolve it."""
     if f.value is None:
-        up, unit = recording.display_units(channel, q, f.ci[1])
-        return f"< {_fmt(up)} {unit} (not resolved)"
-    v, unit = recording.display_units(channel, q, f.value)
+        return f"< {_fmt(recording.display_units(channel, q, f.ci[1])[0])}"
+    v, _ = recording.display_units(channel, q, f.value)
     lo, _ = recording.display_units(channel, q, f.ci[0])
     hi, _ = recording.display_units(channel, q, f.ci[1])
-    text = f"{_fmt(v)} [{_fmt(lo)}, {_fmt(hi)}] {unit}"
-    second = recording.secondary_units(channel, q, f.value)
-    if second:
-        text += f" = {_fmt(second[0])} {second[1]}"
-    return text
+    return f"{_fmt(v)} [{_fmt(lo)}, {_fmt(hi)}]"
 
 
-def format_text(an: recording.NoiseAnalysis, source: str) -> str:
-    """The human summary: per channel the three figures with their intervals."""
+#: the three figures' names in the table's header
+_HEADS = {"white_noise_density": "white noise", "bias_instability": "bias instability",
+          "rate_random_walk": "rate random walk"}  # fmt: skip
+
+
+def format_text(an: recording.NoiseAnalysis, source: str, width: int = 80) -> str:
+    """The human summary: per sensor a table, a row per channel, a column per figure (its
+    unit in the header; a second unit where users quote two, left out first when narrow)."""
     lines = [
         f"{source}: {an.duration_s / 60:.1f} min at {an.rate_hz:.2f} Hz; "
-        f"{100 * an.ci:.0f} % confidence intervals; temperature span {an.span_c:.1f} degC",
-        f"{'':4}{'white noise':>42}{'bias instability':>36}{'rate random walk':>38}",
+        f"{100 * an.ci:.0f} % confidence intervals; temperature span {an.span_c:.1f} °C"
     ]
-    for name, ch in an.channels.items():
-        cells = [_figure_line(name, q, ch.figures[q]) for q in allan.QUANTITIES]
-        widths = (42, 36, 38)
-        lines.append(f"{name:4}" + "".join(f"{c:>{w}}" for c, w in zip(cells, widths, strict=True)))
+    for sensor in ("accel", "gyro"):
+        names = [n for n in an.channels if allan.sensor_of(n) == sensor]
+        if not names:
+            continue
+        cols = [Column(sensor, names, align="<")]
+        for q in allan.QUANTITIES:
+            unit = recording.display_units(names[0], q, 1.0)[1]
+            cells = [_figure_cell(n, q, an.channels[n].figures[q]) for n in names]
+            cols.append(Column(f"{_HEADS[q]}, {unit}", cells, align="<"))
+            if q == "white_noise_density" and sensor == "accel":
+                second = [recording.secondary_units(n, q, an.channels[n].figures[q].value or 0.0)
+                          for n in names]  # fmt: skip
+                if second[0] is not None:
+                    resolved = [an.channels[n].figures[q].value is not None for n in names]
+                    cells2 = [_fmt(x[0]) if x is not None and ok else "—"
+                              for x, ok in zip(second, resolved, strict=True)]  # fmt: skip
+                    cols.append(Column(f"VRW, {second[0][1]}", cells2, align="<", rank=1))
+        lines += [""] + table(cols, width)
+    if any(f.value is None for ch in an.channels.values() for f in ch.figures.values()):
+        lines.append("< bound: not resolved in this recording, an upper bound (warnings below)")
+    lines.append("")
     for name, ch in an.channels.items():
         taus = [
-            f"{q.split('_')[0]} at tau={ch.figures[q].tau_s:.3g} s"
+            f"{q.split('_')[0]} at τ = {ch.figures[q].tau_s:.3g} s"
             for q in allan.QUANTITIES
             if ch.figures[q].tau_s is not None
         ]
@@ -191,7 +224,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
     else:
-        sys.stdout.write(format_text(an, f"{path.name}: {source}"))
+        sys.stdout.write(format_text(an, f"{path.name}: {source}", terminal_width(sys.stdout)))
         if precision is not None:
             print(f"plan: to get each figure to +-{100 * precision:.0f} % "
                   f"({100 * an.ci:.0f} % interval), record at least")  # fmt: skip

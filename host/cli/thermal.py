@@ -21,30 +21,46 @@ from host.session.directory import read_record, read_session, split_file_name
 from host.session.records import WARMUP_NAME, Record, RecordError
 from host.session.spacing import timing_report
 
+#: units as people read them (the JSON file keeps its ASCII spellings)
+_SHOWN = {"m/s^2": "m/s²", "deg/s": "°/s"}
+_POWER = {1: "", 2: "²", 3: "³", 4: "⁴", 5: "⁵", 6: "⁶"}
+
+
+def shown_unit(unit: str) -> str:
+    """'deg/s' -> '°/s', 'm/s^2' -> 'm/s²'."""
+    return _SHOWN.get(unit, unit)
+
 
 def format_text(cal: thermal.ThermalCalibration) -> str:
-    """The human summary: per channel the order chosen and the coefficients."""
+    """The human summary: per channel the order chosen, the coefficients, and on a second line
+    the change over the valid range and the residual (each line within 80 columns)."""
     lines = [
-        f"thermal calibration of {cal.serial}: valid {cal.t_min_c:.1f} to {cal.t_max_c:.1f} "
-        f"degC, bias change relative to T_ref = {cal.t_ref_c:.2f} degC",
+        f"thermal calibration of {cal.serial}: valid {cal.t_min_c:.1f} to {cal.t_max_c:.1f} °C,",
+        f"bias change relative to T_ref = {cal.t_ref_c:.2f} °C",
         f"attitudes: {', '.join(cal.attitudes)}",
     ]
     for name, ch in cal.channels.items():
+        unit = shown_unit(ch.unit)
         terms = (
-            "  ".join(f"c{j}={c:+.4g} {ch.unit}/degC^{j}" for j, c in enumerate(ch.coef, start=1))
+            ", ".join(
+                f"c{j} = {c:+.4g} {unit}/°C{_POWER.get(j, f'^{j}')}"
+                for j, c in enumerate(ch.coef, start=1)
+            )  # fmt: skip
             or "no temperature dependence"
         )
         full = ch.delta(np.array([cal.t_min_c, cal.t_max_c]), cal.t_ref_c)
+        lines.append(f"{name}  order {ch.order}: {terms}")
         lines.append(
-            f"{name}: order {ch.order}  {terms}  (change over the range {full[0]:+.4g} .. "
-            f"{full[1]:+.4g} {ch.unit}; residual rms {ch.rms:.3g})"
+            f"    change over the range {full[0]:+.4g} .. {full[1]:+.4g} {unit}; "
+            f"residual rms {ch.rms:.3g} {unit}"
         )
         if ch.scale_order:
-            sc = "  ".join(f"s{q}={c:+.4g}/degC^{q}" for q, c in enumerate(ch.scale_coef, 1))
+            sc = ", ".join(f"s{q} = {c:+.4g}/°C{_POWER.get(q, f'^{q}')}"
+                           for q, c in enumerate(ch.scale_coef, 1))  # fmt: skip
             ends = ch.scale_delta(np.array([cal.t_min_c, cal.t_max_c]), cal.t_ref_c)
+            lines.append(f"{name}  scale order {ch.scale_order}: {sc}")
             lines.append(
-                f"{name}: scale order {ch.scale_order}  {sc}  (scale change over the range "
-                f"{100 * ends[0]:+.3f} .. {100 * ends[1]:+.3f} %)"
+                f"    scale change over the range {100 * ends[0]:+.3f} .. {100 * ends[1]:+.3f} %"
             )
     return "\n".join(lines) + "\n"
 
@@ -72,14 +88,14 @@ def plot_thermal(cal: thermal.ThermalCalibration, pts: ThermalPoints, path: str)
         ax.fill_between(temps, curve - band, curve + band, color="C1", alpha=0.3,
                         label="95 % band")  # fmt: skip
         ax.plot(temps, curve, "-", color="C1", label=f"order {ch.order} fit")
-        ax.axvline(cal.t_ref_c, color="k", lw=0.8, ls=":", label=f"T_ref {cal.t_ref_c:.1f} degC")
+        ax.axvline(cal.t_ref_c, color="k", lw=0.8, ls=":", label=f"T_ref {cal.t_ref_c:.1f} °C")
         ax.set_title(f"{name}: bias change, order {ch.order}")
-        ax.set_xlabel("chip temperature, degC")
-        ax.set_ylabel(f"bias(T) - bias(T_ref), {ch.unit}")
+        ax.set_xlabel("chip temperature, °C")
+        ax.set_ylabel(f"bias(T) − bias(T_ref), {shown_unit(ch.unit)}")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7)
     fig.suptitle(
-        f"{cal.serial}: thermal calibration, valid {cal.t_min_c:.1f} to {cal.t_max_c:.1f} degC"
+        f"{cal.serial}: bias against temperature, valid {cal.t_min_c:.1f} to {cal.t_max_c:.1f} °C"
     )
     fig.tight_layout()
     fig.savefig(path, dpi=110)

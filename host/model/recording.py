@@ -183,7 +183,7 @@ def analyse(
         if sig:
             what = "removed before the Allan deviation" if remove_thermal else "NOT removed"
             notes.append(
-                f"temperature drift: the chip moved {span:.1f} degC and {', '.join(sig)} "
+                f"temperature drift: the chip moved {span:.1f} °C and {', '.join(sig)} "
                 f"follow it ({what}; it would read as rate random walk)"
             )
             if remove_thermal:
@@ -275,15 +275,15 @@ def display_units(channel: str, q: str, value: float) -> tuple[float, str]:
     is in :func:`secondary_units`)."""
     if sensor_of(channel) == "gyro":
         factor, unit = {
-            "white_noise_density": (60.0, "deg/sqrt(h)"),
-            "bias_instability": (3600.0, "deg/h"),
-            "rate_random_walk": (3600.0 * 60.0, "deg/h/sqrt(h)"),
+            "white_noise_density": (60.0, "°/√h"),
+            "bias_instability": (3600.0, "°/h"),
+            "rate_random_walk": (3600.0 * 60.0, "°/h/√h"),
         }[q]
     else:
         factor, unit = {
-            "white_noise_density": (1e6 / G0, "ug/sqrt(Hz)"),
-            "bias_instability": (1e6 / G0, "ug"),
-            "rate_random_walk": (1e6 / G0, "ug/sqrt(s)"),
+            "white_noise_density": (1e6 / G0, "µg/√Hz"),
+            "bias_instability": (1e6 / G0, "µg"),
+            "rate_random_walk": (1e6 / G0, "µg/√s"),
         }[q]
     return value * factor, unit
 
@@ -292,7 +292,7 @@ def secondary_units(channel: str, q: str, value: float) -> tuple[float, str] | N
     """A second display unit where users quote two: accelerometer white noise as velocity
     random walk in m/s/√h."""
     if sensor_of(channel) == "accel" and q == "white_noise_density":
-        return value * 60.0, "m/s/sqrt(h)"
+        return value * 60.0, "m/s/√h"
     return None
 
 

@@ -99,10 +99,10 @@ def test_apply_removes_the_bias_change_and_warns_outside_the_range(ramp) -> None
 def test_too_small_a_span_is_refused_with_the_span_needed() -> None:
     quiet = dataclasses.replace(CHAMBER, rise_c=2.0, chamber_minutes=0.0)
     recs = simulate_thermal(TRUTH, quiet, [("warmup", "z_up", 900.0)], seed=5)
-    with pytest.raises(thermal.UserError, match=r"span 1\.\d degC .* needs at least 4 degC"):
+    with pytest.raises(thermal.UserError, match=r"span 1\.\d °C .* needs at least 4 °C"):
         thermal_fit.fit_thermal(list(recs.values()), "T2")
     big = simulate_thermal(TRUTH, CHAMBER, [("warmup", "z_up", 600.0)], seed=6)
-    with pytest.raises(thermal.UserError, match=r"order-3 bias\(T\): it needs at least 12 degC"):
+    with pytest.raises(thermal.UserError, match=r"order-3 bias\(T\): it needs at least 12 °C"):
         thermal_fit.fit_thermal(list(big.values()), "T2", order=3)
 
 
@@ -128,7 +128,7 @@ def test_command_writes_a_versioned_result_and_the_plot(ramp, tmp_path, capsys) 
     pytest.importorskip("matplotlib")
     assert main(["thermal", str(tmp_path), "--plot", str(png)]) == 0
     out = capsys.readouterr().out
-    assert "gx: order 3" in out and "valid 22." in out
+    assert "gx  order 3:" in out and "valid 22." in out
     doc = json.loads((tmp_path / "T4_thermal.json").read_text())
     assert doc["format_version"] == 2 and doc["valid_range_c"][1] > 69.0
     cal = thermal.ThermalCalibration.from_dict(doc)

@@ -156,7 +156,7 @@ def test_record_file_plot_and_plan(tmp_path, capsys) -> None:
     assert main(["noise", str(path), "--plot", str(png), "--plan", "30%"]) == 0
     out = capsys.readouterr().out
     assert "record z_up" in out and "plan: to get each figure to +-30 %" in out
-    assert "deg/sqrt(h)" in out and "ug/sqrt(Hz)" in out
+    assert "°/√h" in out and "µg/√Hz" in out and "deg" not in out
     assert png.stat().st_size > 10_000
 
 
