@@ -1,0 +1,69 @@
+"""Wrong input, right words (issue 27): each mistake a lab user made in the first days is
+one line naming what was given and what is needed, exit status 2, no traceback."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from pathlib import Path
+
+import pytest
+
+from host.__main__ import main
+from host.bench.plan import write_session
+from host.workbench.scenarios import hidden_effect_case
+
+
+def run(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            rc = main(argv)
+        except SystemExit as exc:
+            rc = int(exc.code or 0)
+    return rc, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A complete session with 10 s statics (the dialogue's default length)."""
+    d = tmp_path_factory.mktemp("misuse")
+    case = hidden_effect_case("temperature", 3, static_s=10.0)
+    write_session(d, "M1", dict(case.records))
+    (d / "M1_result.txt").write_text("TEST REPORT, IMU MPU-6000, serial No. M1\n")
+    return d
+
+
+def one_error_line(err: str) -> str:
+    lines = [x for x in err.splitlines() if x.startswith("error:")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def test_noise_on_a_turn_record_names_it_and_what_to_give(session: Path) -> None:
+    rc, out, err = run(["noise", str(session / "M1_x_cw.txt")])
+    assert rc == 2 and out == ""
+    line = one_error_line(err)
+    assert "turn record" in line and "static record" in line and ".cap" in line
+
+
+def test_noise_on_the_report_names_it_and_what_to_give(session: Path) -> None:
+    rc, _, err = run(["noise", str(session / "M1_result.txt")])
+    line = one_error_line(err)
+    assert rc == 2 and "calibration report" in line and "static record" in line
+    assert "damaged" not in line
+
+
+def test_thermal_on_short_statics_says_why_and_which_window(session: Path) -> None:
+    rc, _, err = run(["thermal", str(session), "--window", "30"])
+    line = one_error_line(err)
+    assert rc == 2 and "shorter than half of the 30 s" in line and "--window" in line
+    window = int(line.split("--window ")[1].split()[0])
+    _, _, err = run(["thermal", str(session), "--window", str(window)])
+    assert "window" not in err  # the window it names gives window means (what stops it
+    # now, if anything, is the records' temperature span)
+
+
+def test_noise_and_thermal_print_degrees_celsius(session: Path) -> None:
+    rc, out, _ = run(["noise", str(session / "M1_x_up.txt")])
+    assert rc == 0 and "°C" in out and "degC" not in out and "sqrt" not in out
