@@ -35,6 +35,7 @@ from host.calib.thermal import CHANNELS, ThermalCalibration, corrected_records
 from host.calib.values import FitQuality, ParameterResult, RecordResidual, within
 from host.errors import UserError
 from host.model.catalogue import CATALOGUE
+from host.model.components import fit_with_components
 from host.model.dataset import build_dataset
 from host.model.fit import fit_model
 from host.model.loader import load_term_file, term_file_sha256
@@ -277,7 +278,10 @@ def calibrate_from_records(
         session, noise=nm, latitude_deg=latitude_deg, height_m=height_m, turns=turns,
         earth_rate=earth_rate,
     )  # fmt: skip
-    fit = fit_model(ds, mts)
+    # the turn-angle and wobble components estimated jointly with the model: a term that
+    # explains the turn closures (an asymmetry) takes their scatter from the yardstick
+    joint = fit_with_components(ds, mts)
+    fit, ds = joint.fit, joint.dataset
     stats = {n: record_stats(r) for n, r in session.records.items()}
     statics = [s.name for s in ds.signals if s.kind == "static"]
     noise_std: dict[str, float] = {}

@@ -14,6 +14,7 @@ from typing import Any
 
 from host.errors import UserError
 from host.model.catalogue import CATALOGUE
+from host.model.components import fit_with_components
 from host.model.dataset import Dataset
 from host.model.fit import Fit, fit_model
 from host.model.loo import Prediction, leave_one_out
@@ -71,8 +72,10 @@ def add_term(
     have = {(mt.term.name, mt.sensor, a) for mt in model for a in mt.axes}
     if all((mt.term.name, mt.sensor, a) in have for mt in new for a in mt.axes):
         raise UserError(f"{item} is already in the model {model_spec(model)}")
-    before = fit_model(ds, model)
-    after = fit_model(ds, merge_model(list(model) + new))
+    # each with the turn components estimated jointly (host.model.components): the new term
+    # may explain the closures a turn-angle σ measured before it would keep
+    before = fit_with_components(ds, model).fit
+    after = fit_with_components(ds, merge_model(list(model) + new)).fit
     return Addition(
         before, after, tuple(new), (leave_one_out(ds, before), leave_one_out(ds, after))
     )
