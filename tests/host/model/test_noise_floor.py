@@ -88,3 +88,33 @@ def test_a_step_or_drift_between_records_is_misfit_not_floor(tmp_path: Path, eff
             assert ds.floor[s] <= max(2.0 * ctrl.floor[s], 2e-3), (s, ds.floor, ctrl.floor)
         d = diagnose(ds, parse_model("base"))
         assert d.verdict != "adequate" and d.fit.rms_z > 3.0, (d.verdict, d.fit.rms_z)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("effect", "named"),
+    [("bias_step_gyro", "step"), ("bias_step_accel", "step"), ("bias_drift_gyro", "drift"),
+     ("bias_drift_accel", "drift")],
+)  # fmt: skip
+def test_steps_and_drifts_are_named(tmp_path: Path, effect: str, named: str) -> None:
+    """Ten sessions each (≈ 100× a record mean's noise): never `adequate`; a step is the top
+    unexplained signal on its channel ("a step in time after …") in ≥ 8 of 10, a drift gets
+    `time_drift` on its channel recommended in ≥ 9 of 10."""
+    import json
+
+    hits = 0
+    for seed in range(2300, 2310):
+        d = _session(tmp_path, effect, seed)
+        e = json.loads((d / "truth.json").read_text())["effect"]
+        dg = diagnose(load_dataset(d), parse_model("base"))
+        assert dg.verdict != "adequate", (seed, dg.fit.rms_z)
+        if named == "step":
+            top = dg.dominant[0] if dg.dominant else None
+            hits += bool(
+                top and (top.sensor, top.axis) == (e["sensor"], e["axis"])
+                and top.signal.startswith("a step in time")
+            )  # fmt: skip
+        else:
+            want = f"time_drift:{e['sensor']}:{e['axis']}"
+            hits += want in (dg.recommended_spec or "").split(",")
+    assert hits >= (8 if named == "step" else 9), hits
