@@ -2,7 +2,19 @@
 
 Errors are told apart by their type, never by their text: code that must react to one kind of
 problem catches (or tests ``isinstance``) the class below that names it, and the message stays
-free to change.
+free to change. The hierarchy::
+
+    UserError                   a problem the user can fix, one line (disk full, no port, …)
+    ├── InputError              bad input: also a ValueError, as a program expects
+    │   ├── RecordCheckError    a record fails a check of the method
+    │   ├── ResultFileError     a result file that cannot be read
+    │   ├── TermFileMismatch    a term file that is not the result's
+    │   ├── NotDeterminedError  a result that does not determine what is asked of it
+    │   └── FailedResultError   a failed result used as if it passed (exported)
+    └── ResumableError          a live calibration stopped; the message says how to go on
+
+(:class:`host.session.records.RecordError`, a record file that cannot be read, is an
+``InputError`` too.)
 """
 
 from __future__ import annotations
@@ -30,13 +42,18 @@ class TermFileMismatch(InputError):
     result was calibrated with, or a result's model needs a term file nobody gave."""
 
 
-class FailedResultError(UserError):
+class NotDeterminedError(InputError):
+    """The result does not determine a parameter that is asked of it (``apply``, ``verify``):
+    the message names them and what would determine them."""
+
+
+class FailedResultError(InputError):
     """A calibration that failed (values outside tolerance, not determined, held-out records
     not predicted) was to be used as if it passed (exported): refused, naming what failed and
     the option that allows it (``--allow-fail``, ``allow_fail=True``)."""
 
 
-class RecordCheckError(UserError):
+class RecordCheckError(InputError):
     """A record failed a check of the method (orientation, range, turn angle, length):
     ``file_name`` is the record file the message starts with (e.g. ``'U1_x_up.txt'``)."""
 

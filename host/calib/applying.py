@@ -22,7 +22,7 @@ import numpy as np
 from host.calib.result import CalibrationResult
 from host.calib.thermal import ThermalRangeWarning
 from host.calib.values import VERIFY_ACCEL_G, VERIFY_GYRO_DPS, Verification, VerifiedValue
-from host.errors import TermFileMismatch, UserError
+from host.errors import InputError, NotDeterminedError, TermFileMismatch
 from host.model.catalogue import CARRIED, CATALOGUE
 from host.model.fit import predict_session
 from host.model.loader import load_term_file
@@ -98,7 +98,7 @@ def _per_sample(x: Any, n: int, what: str, unit: str) -> np.ndarray:
     if a.ndim == 0:
         return np.full(n, float(a))
     if a.shape != (n,):
-        raise UserError(f"apply(): {what} has shape {a.shape}, expected ({n},) in {unit}")
+        raise InputError(f"apply(): {what} has shape {a.shape}, expected ({n},) in {unit}")
     return a
 
 
@@ -113,38 +113,61 @@ def apply(
     catalogue: Mapping[str, Term] | None = None,
     allow_undetermined: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Invert the whole model of ``result``: raw outputs -> calibrated specific force and rate.
+    """Correct raw samples with a calibration: invert the whole model of ``result``.
 
-    ``accel`` m/s² and ``gyro`` °/s, (N,3) or (3,); ``temp_c`` chip temperature °C and ``t_s``
-    time since power-on s, (N,) or scalars — needed only by the terms that use them (a clear
-    UserError names the term and the input otherwise). Returns (specific force m/s², rate °/s)
-    of the same shape as the inputs.
+    Parameters
+    ----------
+    result : CalibrationResult
+        The calibration (:func:`host.load_result`, :func:`host.calibrate`).
+    accel, gyro : array_like
+        Raw accelerometer m/s² and gyro °/s, (N, 3) or (3,).
+    temp_c, t_s : array_like or float, optional
+        Chip temperature °C and time since power-on s, (N,) or scalars: needed only by the
+        terms that use them (an :class:`~host.errors.InputError` names the term otherwise).
+    term_files : iterable of path-like
+        The Python files of the result's custom terms. A result is data: the files it names
+        are never run; a file passed here is run only if its SHA-256 is one the result stored
+        (else :class:`~host.errors.TermFileMismatch`).
+    catalogue : mapping, optional
+        Further terms by name (:class:`~host.model.terms.Term`), instead of files.
+    allow_undetermined : bool
+        Take parameters the records did not determine as nominal (0); by default they raise
+        :class:`~host.errors.NotDeterminedError`.
 
+    Returns
+    -------
+    tuple of ndarray
+        (specific force m/s², rate °/s), each of the shape of the inputs.
+
+    Notes
+    -----
     Every term is evaluated with its own column function (method.md §2 for the base terms,
-    the catalogue's docstrings for the others, custom terms from ``term_files`` or
-    ``catalogue``). A result is data: the term files it names are never run; a custom term
-    is taken only from a file the caller passes in ``term_files``, and only if its SHA-256 is
-    one the result stored (else :class:`host.errors.TermFileMismatch`). The model output =
-    input + Σ terms is inverted by fixed-point iteration on (I+M)⁻¹ (exact for the linear
-    model: a = (I+Ma)⁻¹(A − A0), ω = (I+Mg)⁻¹(G − G0 − GA·a/g)).
-    Parameters the records did not determine raise UserError unless ``allow_undetermined``
-    (then they are taken as nominal, 0). A result carrying a thermal calibration (bias(T),
-    term ``thermal_bias``) needs ``temp_c`` and warns
-    (:class:`host.calib.thermal.ThermalRangeWarning`) for temperatures outside the range over
-    which it holds, where its polynomial is extrapolated.
+    the catalogue's docstrings for the others); the model output = input + Σ terms is
+    inverted by fixed-point iteration on (I+M)⁻¹ (exact for the linear model:
+    a = (I+Ma)⁻¹(A − A0), ω = (I+Mg)⁻¹(G − G0 − GA·a/g)). A result carrying a thermal
+    calibration (term ``thermal_bias``) needs ``temp_c`` and warns
+    (:class:`host.calib.thermal.ThermalRangeWarning`) outside the range where it holds.
+
+    Examples
+    --------
+    >>> result = host.calibrate(directory)
+    >>> rec = host.read_session(directory).records["x_up"]
+    >>> accel, gyro = host.apply(result, rec.accel, rec.gyro)
+    >>> accel.shape == rec.accel.shape, round(float(accel[:, 0].mean()), 1)  # x up: +1 g on x
+    (True, 9.8)
     """
     a_raw = np.asarray(accel, dtype=np.float64)
     g_raw = np.asarray(gyro, dtype=np.float64)
     single = a_raw.ndim == 1
     a2, g2 = np.atleast_2d(a_raw), np.atleast_2d(g_raw)
     if a2.shape[1:] != (3,) or g2.shape != a2.shape:
-        raise UserError(
+        raise InputError(
             f"apply(): accel {a_raw.shape} and gyro {g_raw.shape} must both be (N,3) or (3,)"
         )
     n = len(a2)
     und = [p.name for p in result.undetermined]
     if und and not allow_undetermined:
-        raise UserError(
+        raise NotDeterminedError(
             f"the result of {result.serial} does not determine {', '.join(und)}; recalibrate "
             "with the records it needs, or pass allow_undetermined=True to take them as 0"
         )
@@ -188,7 +211,7 @@ def apply(
                         x = np.asarray(mt.term.columns(sig, mt.sensor, ax), dtype=np.float64)
                         c = (x.reshape(n, -1) @ th) if th.size else np.zeros(n)
                 except _MissingInput as exc:
-                    raise UserError(
+                    raise InputError(
                         f"term {mt.label} of this result needs {_NEEDS_ARG[exc.what]} to apply()"
                     ) from None
                 out[mt.sensor][:, ax] += c
@@ -225,7 +248,7 @@ def verify(
     terms: from ``term_files`` or ``catalogue`` only, as in :func:`apply`."""
     und = [p.name for p in result.undetermined]
     if und:
-        raise UserError(
+        raise NotDeterminedError(
             f"--verify: the result does not determine {', '.join(und)}: nothing to predict with"
         )
     nm = NoiseModel()

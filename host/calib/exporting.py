@@ -47,7 +47,7 @@ import numpy as np
 
 from host.calib.result import CalibrationResult, carried_thermal
 from host.calib.thermal import ThermalCalibration
-from host.errors import FailedResultError, UserError
+from host.errors import FailedResultError, InputError
 from host.session.method import (
     ACCEL_BIAS_NAMES,
     ACCEL_MIS_NAMES,
@@ -148,7 +148,7 @@ def refuse_undetermined(result: CalibrationResult) -> None:
     if not math.isfinite(float(result.g)):
         bad.append("g")
     if bad:
-        raise UserError(
+        raise InputError(
             f"result of {result.serial}: {', '.join(bad)} not determined (NaN or infinite); "
             "nothing exported — measure the records the report asks for and calibrate again"
         )
@@ -320,7 +320,7 @@ def export_px4(model: LinearModel, thermal: ThermalCalibration | None = None) ->
     if thermal is not None:
         params.update(px4_thermal_params(thermal, model.axes))
     if bad := [k for k, v in params.items() if not math.isfinite(v)]:
-        raise UserError(f"px4: {', '.join(bad)} not finite; nothing exported (check the inputs)")
+        raise InputError(f"px4: {', '.join(bad)} not finite; nothing exported (check the inputs)")
     lines.append("# Vehicle-Id\tComponent-Id\tName\tValue\tType")
     lines += [f"1\t1\t{k}\t{v:.9g}\t{6 if k.endswith('ENABLE') else 9}" for k, v in params.items()]
     return "\n".join(lines) + "\n"
@@ -443,7 +443,7 @@ def kalibr_values(noise: dict[str, object]) -> tuple[dict[str, float], list[str]
     is exported at its upper confidence bound; the second item names each such figure."""
     chans = noise.get("channels")
     if not isinstance(chans, dict):
-        raise UserError("noise file: no 'channels' (write one with: noise FILE --save)")
+        raise InputError("noise file: no 'channels' (write one with: noise FILE --save)")
     out: dict[str, float] = {}
     bounds: list[str] = []
     for key, (names, fig, factor) in KALIBR_KEYS.items():
@@ -457,7 +457,7 @@ def kalibr_values(noise: dict[str, object]) -> tuple[dict[str, float], list[str]
                     bounds.append(f"{key}: {name} {fig} not resolved, its upper bound is used")
                 vals.append(float(v) * factor)
             except (KeyError, TypeError, IndexError, ValueError):
-                raise UserError(f"noise file: channel {name} has no {fig}") from None
+                raise InputError(f"noise file: channel {name} has no {fig}") from None
         out[key] = max(vals)
     return out, bounds
 
@@ -500,9 +500,9 @@ def export(
     if key == "c":
         key = "c-header"
     if key in PENDING:
-        raise UserError(f"--to {fmt}: {PENDING[key]}")
+        raise InputError(f"--to {fmt}: {PENDING[key]}")
     if key not in FORMATS:
-        raise UserError(f"--to {fmt}: unknown format; choose one of {', '.join(FORMATS)}")
+        raise InputError(f"--to {fmt}: unknown format; choose one of {', '.join(FORMATS)}")
     if not allow_fail:
         refuse_failed(result)
     refuse_undetermined(result)
@@ -513,7 +513,7 @@ def export(
         model = in_frame(model, axes, axes_text)
     if thermal is not None:
         if key != "px4":
-            raise UserError(
+            raise InputError(
                 f"--thermal: {key} has no place for bias(T) in this export; px4 writes it "
                 "(TC_A0_*, TC_G0_*)"
             )

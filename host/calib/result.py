@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -120,6 +121,16 @@ class CalibrationResult:
     provenance: Provenance | None = None
     #: format version of the file this was loaded from
     loaded_version: int = 3
+
+    def __repr__(self) -> str:
+        """One line: serial, model, size, verdict, and SIMULATED for simulated records."""
+        verdict = "PASS" if self.all_passed else "FAIL"
+        fit = f", fit {self.fit.verdict}" if self.fit is not None else ""
+        sim = ", SIMULATED" if self.simulated else ""
+        return (
+            f"<CalibrationResult {self.serial}: model {self.model}, "
+            f"{len(self.parameters)} parameters, {verdict}{fit}{sim}>"
+        )
 
     # ---- views ---------------------------------------------------------------------------
     @property
@@ -286,7 +297,7 @@ class CalibrationResult:
             raise ResultFileError(f"calibration result: missing or bad field ({exc})") from exc
 
     @classmethod
-    def load(cls, path: str | Path) -> CalibrationResult:
+    def load(cls, path: str | os.PathLike[str]) -> CalibrationResult:
         """Read ``SERIAL_result.json`` (v1 or v2)."""
         try:
             text = Path(path).read_text(encoding="utf-8")

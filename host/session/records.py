@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host.errors import UserError
+from host.errors import InputError
 
 RECORD_FORMAT_VERSION = 1
 #: fewer data rows than this cannot be calibrated with (no std): such a record is refused
@@ -86,7 +86,7 @@ SUMMARY_DECIMALS = 4
 _MEAN_TOL = (2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 0.06)
 
 
-class RecordError(UserError):
+class RecordError(InputError):
     """A record file that cannot be read (message names the file and line)."""
 
 
