@@ -34,9 +34,23 @@ These are imported when first used, so ``python -m host`` starts light. The comm
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
+
+if TYPE_CHECKING:  # for type checkers and readers; at run time __getattr__ imports them
+    from host.api.functions import (
+        apply,
+        calibrate,
+        diagnose,
+        export,
+        load_result,
+        read_session,
+        write_result,
+    )
+    from host.calib.result import CalibrationResult
+    from host.errors import InputError, UserError
+    from host.session.directory import Session
 
 #: public name -> the module that defines it (imported on first use)
 _API = {
@@ -53,7 +67,20 @@ _API = {
     "InputError": "host.errors",
 }
 
-__all__ = ["__version__", *_API]
+__all__ = [
+    "__version__",
+    "read_session",
+    "calibrate",
+    "write_result",
+    "load_result",
+    "apply",
+    "diagnose",
+    "export",
+    "CalibrationResult",
+    "Session",
+    "UserError",
+    "InputError",
+]
 
 
 def __getattr__(name: str) -> Any:

@@ -141,10 +141,8 @@ def missing_names(text: str, root: Path = ROOT) -> list[str]:
             base = root.joinpath(*parts[:k])
             if base.with_suffix(".py").is_file() or (base / "__init__.py").is_file():
                 break
-        rest = parts[k:]
-        if k == 1 and rest:  # not even a package of host/
-            bad.append(name)
-        elif rest and not hasattr(importlib.import_module(".".join(parts[:k])), rest[0]):
+        rest = parts[k:]  # ``host.apply``: a name the package itself gives (import host)
+        if rest and not hasattr(importlib.import_module(".".join(parts[:k])), rest[0]):
             bad.append(name)
     return bad
 

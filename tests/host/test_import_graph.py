@@ -265,9 +265,17 @@ PATH_REF = re.compile(r"(?<![\w./-])host/[\w/]+\.py\b")
 
 
 def top_level_names(path: Path) -> set[str]:
-    """The names a module defines or imports at its top level."""
+    """The names a module defines or imports at its top level (also those it declares for
+    type checkers under ``if TYPE_CHECKING:``, as host/__init__.py its lazily imported API)."""
     names: set[str] = set()
-    for node in ast.parse(path.read_text(encoding="utf-8")).body:
+    body = ast.parse(path.read_text(encoding="utf-8")).body
+    for node in list(body):
+        if isinstance(node, ast.If) and ast.unparse(node.test) in (
+            "TYPE_CHECKING",
+            "typing.TYPE_CHECKING",
+        ):
+            body += node.body
+    for node in body:
         if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
             names.add(node.name)
         elif isinstance(node, ast.Assign | ast.AnnAssign):

@@ -135,4 +135,4 @@ def test_the_docs_page_runs_as_written(directory: Path, monkeypatch: pytest.Monk
 
 def test_the_functions_module_names_only_the_api() -> None:
     assert sorted(functions.__all__) == sorted(API)
-    assert set(API) <= set(dir(host))
+    assert set(API) <= set(dir(host)) and set(host.__all__) == {"__version__", *host._API}
