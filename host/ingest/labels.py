@@ -36,14 +36,18 @@ def _t3(v: np.ndarray) -> tuple[float, float, float]:
 
 
 def format_table(segments: list[Segment]) -> str:
-    """The printed table: row, start, duration, found, label, quality; the reason under it."""
-    lines = [f"{'#':>3} {'start s':>9} {'dur s':>7}  {'found':<24} {'label':<9} quality"]
+    """The printed table: row, start, duration, found, label; under each row its quality and
+    the reason for the label (indented, so that a narrow terminal wraps them under the row)."""
+    lines = [
+        f"{'#':>3} {'start s':>9} {'dur s':>7}  {'found':<24} label",
+        f"{'':6}quality; ↳ the reason for the label",
+    ]
     for i, s in enumerate(segments, start=1):
-        lines.append(
-            f"{i:>3} {s.t0_s:>9.2f} {s.duration_s:>7.2f}  {s.found:<24} {s.label:<9} {s.quality}"
-        )
+        lines.append(f"{i:>3} {s.t0_s:>9.2f} {s.duration_s:>7.2f}  {s.found:<24} {s.label}")
+        if s.quality:
+            lines.append(f"{'':6}{s.quality}")
         if s.reason:
-            lines.append(f"{'':>47}↳ {s.reason}")
+            lines.append(f"{'':6}↳ {s.reason}")
     return "\n".join(lines) + "\n"
 
 
