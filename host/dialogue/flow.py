@@ -123,14 +123,8 @@ class CalibrationDialogue:
     ) -> None:
         self.opts = opts
         self.op = Questions(console, yes=opts.yes, idle=self._idle)
-        self.board = Board(
-            opts.port or "sim://",
-            port_factory,
-            opts.stall_s,
-            self._warn,
-            opts.hello_timeout_s,
-            opts.sample_stall_s,
-        )
+        self.board = Board(opts.port or "sim://", port_factory, opts.stall_s, self._warn,
+                           opts.hello_timeout_s, opts.sample_stall_s)  # fmt: skip
         self.g = local_gravity(opts.latitude_deg, opts.height_m)
         self.serial = ""
         self.out_dir = Path()
@@ -174,13 +168,8 @@ class CalibrationDialogue:
 
     def command(self, then: Sequence[str] = ("--resume",)) -> str:
         """This session's command line (every option given or answered) plus ``then``."""
-        return self.opts.command(
-            self.serial,
-            static_seconds=self.static_seconds,
-            turns=self.turns,
-            port=self.board.url,
-            then=then,
-        )
+        return self.opts.command(self.serial, static_seconds=self.static_seconds,
+                                 turns=self.turns, port=self.board.url, then=then)  # fmt: skip
 
     def _resume_hint(self) -> str:
         if not self.serial:
@@ -280,13 +269,16 @@ class CalibrationDialogue:
                         f"use --turns {n_kept} or delete the turn records"
                     )
                 self.turns = n_kept
+            static = [r.duration_s for n, r in self.done.items() if n in STATIC_NAMES]
+            if self.static_seconds is None and static:  # asked once, when they were measured
+                self.static_seconds = screens.kept_accumulation(self.op, static)
 
     def _warm_up(self) -> None:
         """The warm-up (method.md §5 step 3), recorded as ``SERIAL_warmup.txt``: one attitude,
         the chip temperature rising — the thermal calibration's first ramp
         (``python -m host thermal``). Any key skips the rest of the wait (nothing recorded)."""
         s = self.opts.warmup_s
-        if s <= 0:
+        if s <= 0 or (self.opts.keeps_records and self.done and screens.no_warm_up(self.op)):
             return
         op = self.op
         op.say(screens.warm_up_line(s, self.opts.yes))

@@ -211,7 +211,8 @@ class DialogueOptions:
                 f"--capture {self.capture}: exists; a capture is never overwritten: give a new "
                 "file name, or leave --capture out (the next free SERIAL_session_N.cap)"
             )
-        if self.yes and self.static_seconds is None and self._statics_to_measure():
+        kept = [n for n in STATIC_NAMES if n not in self._statics_to_measure()]
+        if self.yes and self.static_seconds is None and self._statics_to_measure() and not kept:
             raise UserError(
                 "--yes needs --static-seconds S, the accumulation time per static orientation "
                 "(e.g. --static-seconds 30): nothing is asked with --yes"

@@ -98,6 +98,24 @@ def warm_up_line(seconds: float, yes: bool) -> str:
     )
 
 
+def no_warm_up(op: Questions) -> bool:
+    """--resume/--redo with records kept: the unit warmed up before them (says so; True)."""
+    op.say(
+        "No warm-up: the kept records were measured on a warm unit (if it was off since, "
+        "let it warm up before the next measurement)"
+    )
+    return True
+
+
+def kept_accumulation(op: Questions, durations: list[float]) -> float:
+    """--resume/--redo: the accumulation time of the kept static records (their median
+    length, whole seconds), said, not asked again."""
+    seconds = float(round(float(np.median(durations))))
+    op.say(f"Accumulation time {seconds:g} s per orientation, as the kept records "
+           "(--static-seconds S changes it)")  # fmt: skip
+    return seconds
+
+
 # --------------------------------------------------------------------------- progress lines
 
 

@@ -55,6 +55,8 @@ def test_yes_with_resume_needs_no_static_seconds_when_the_statics_are_kept(
     o = opts(tmp_path, "sim://", static_seconds=None, resume=True)
     o.check()  # nothing static to measure: no question to answer
     o.redo = ("y_dn",)
+    o.check()  # a static measured again takes the kept statics' length (said, not asked)
+    o.redo = STATIC_NAMES  # none kept: nothing says how long
     with pytest.raises(UserError, match="--static-seconds"):
         o.check()
 
@@ -194,3 +196,20 @@ def test_a_record_kept_despite_a_warning_is_in_the_report_with_it(tmp_path: Path
     assert note in text
     assert [n for n in TURN_NAMES + STATIC_NAMES if f"{n} kept despite" in text] == ["y_up"]
     assert note in json.loads((tmp_path / "W1_result.json").read_text())["notes"]
+
+
+def test_redo_asks_neither_the_warm_up_nor_the_accumulation_time_again(tmp_path: Path) -> None:
+    """--redo (and --resume) with records kept: no second warm-up (the kept records were
+    measured on the warm unit), and the accumulation time is that of the kept statics, said,
+    not asked: the operator typed only --redo x_up."""
+    url = f"sim://?seed=12&{LINEAR}"
+    assert run(opts(tmp_path, url, static_seconds=3.0), ScriptedConsole(), Ports())[0] in (0, 1)
+    con = ScriptedConsole()
+    o = opts(tmp_path, url, redo=("x_up",), static_seconds=None, warmup_s=600.0)
+    rc, _ = run(o, con, Ports())
+    assert rc in (0, 1)
+    assert "No warm-up: the kept records were measured on a warm unit" in con.text
+    assert "warm-up; recorded" not in con.text and "Accumulation time per" not in con.text
+    assert "Accumulation time 3 s per orientation, as the kept records" in con.text
+    rec = read_record(tmp_path / "F1" / "F1_x_up.txt")
+    assert abs(rec.duration_s - 3.0) < 0.2
