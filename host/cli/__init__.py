@@ -12,13 +12,15 @@
 - ``plan`` — ``plan``: which record to measure next.
 - ``thermal`` — ``thermal``: bias against temperature.
 
-Shared by the commands: :func:`pyplot` (the one place that says how to get matplotlib), and
+Shared by the commands: :func:`pyplot` (the one place that says how to get matplotlib),
+:func:`out_directory` (an ``--out`` directory made if missing), and
 ``screen`` (``screen.py``): the width rule — text wrapped at words within the terminal, tables
 narrowed, long commands broken so they still run, the progress line of a long wait.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from host.errors import UserError
@@ -40,3 +42,15 @@ def pyplot() -> Any:
     except ImportError as exc:
         raise UserError(NO_MATPLOTLIB) from exc
     return plt
+
+
+def out_directory(path: str | Path) -> Path:
+    """The ``--out`` directory, made (with its parents) when it does not exist yet; a file in
+    the way is a UserError naming it."""
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        blocker = next((p for p in (out, *out.parents) if p.exists() and not p.is_dir()), out)
+        raise UserError(f"--out {out}: {blocker} is a file; give --out a directory") from None
+    return out

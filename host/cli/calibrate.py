@@ -18,6 +18,7 @@ from pathlib import Path
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.report import verdict_line
 from host.calib.result import CalibrationResult
+from host.cli import out_directory
 from host.dialogue.options import DEFAULT_READY_S, WARMUP_DEFAULT_S
 from host.errors import RecordCheckError, UserError
 from host.session.checks import failed_record
@@ -36,7 +37,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "else the virtual board sim://)",
     )
     p.add_argument("--serial", help="serial number (default: from the file names in DIR)")
-    p.add_argument("--out", metavar="DIR", help="where to write the result files (default: DIR)")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="where to write the result files (default: DIR; made if missing)",
+    )
     p.add_argument(
         "--turns", type=int, help="turns per turn record (default: the records' header or inferred)"
     )
@@ -169,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
         return run_dialogue(args)
     session = read_session(args.from_dir, args.serial)
     sys.stderr.write(timing_report(session.records))
-    out_dir = Path(args.out) if args.out else Path(args.from_dir)
+    out_dir = out_directory(args.out) if args.out else Path(args.from_dir)
     try:
         result = run_computation(session, args, out_dir)
     except RecordCheckError as exc:

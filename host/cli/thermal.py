@@ -14,7 +14,7 @@ import numpy as np
 
 from host.calib import thermal, thermal_fit
 from host.calib.thermal_fit import ThermalPoints
-from host.cli import NO_MATPLOTLIB
+from host.cli import NO_MATPLOTLIB, out_directory
 from host.errors import UserError
 from host.session.atomic import write_text_atomic
 from host.session.directory import read_record, read_session, split_file_name
@@ -138,9 +138,7 @@ def run(args: argparse.Namespace) -> int:
         records, serial, order=args.order, max_order=args.max_order, window_s=args.window,
         scale=True if args.scale else None,
     )  # fmt: skip
-    out_dir = Path(args.out) if args.out else Path(args.dir)
-    if not out_dir.is_dir():
-        raise UserError(f"{out_dir}: no such directory")
+    out_dir = out_directory(args.out) if args.out else Path(args.dir)
     path = out_dir / f"{serial}_thermal.json"
     write_text_atomic(path, cal.to_json())
     if args.plot:
@@ -172,7 +170,11 @@ def cli_thermal(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], in
         "the span)",
     )
     p.add_argument("--window", type=float, default=20.0, help="averaging window, s (default 20)")
-    p.add_argument("--out", metavar="DIR", help="where to write SERIAL_thermal.json (default DIR)")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="where to write SERIAL_thermal.json (default DIR; made if missing)",
+    )
     p.add_argument("--plot", metavar="PNG", help="bias against temperature with curve and band")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     return run

@@ -67,3 +67,14 @@ def test_thermal_on_short_statics_says_why_and_which_window(session: Path) -> No
 def test_noise_and_thermal_print_degrees_celsius(session: Path) -> None:
     rc, out, _ = run(["noise", str(session / "M1_x_up.txt")])
     assert rc == 0 and "°C" in out and "degC" not in out and "sqrt" not in out
+
+
+def test_out_to_a_missing_directory_makes_it(session: Path, tmp_path: Path) -> None:
+    out = tmp_path / "results" / "M1"
+    rc, _, err = run(["calibrate", "--from-dir", str(session), "--out", str(out), "--no-archive"])
+    assert rc in (0, 1), err
+    assert (out / "M1_result.json").is_file()
+    (tmp_path / "afile").write_text("x")
+    rc, _, err = run(["calibrate", "--from-dir", str(session), "--out",
+                      str(tmp_path / "afile" / "M1"), "--no-archive"])  # fmt: skip
+    assert rc == 2 and "afile is a file; give --out a directory" in one_error_line(err)
