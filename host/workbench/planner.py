@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import zlib
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +54,10 @@ class OperatorTime:
     turn_ready: float = 8.0
 
 
+#: the operator's times when nobody says otherwise
+OPERATOR_TIME = OperatorTime()
+
+
 @dataclass(frozen=True)
 class Candidate:
     """One record (or pair of turns) the operator could measure next.
@@ -71,7 +75,8 @@ class Ranked:
     """A candidate with what it does: ``worst_after`` the worst σ/tolerance with it added (and
     the name of the value that is then worst), ``sigma_after`` name -> σ, ``determines`` the
     values now undetermined that it would determine, ``gain_per_min`` the worst σ/tolerance
-    it removes per minute of operator time (∞ when it determines a value)."""
+    it removes per minute of operator time (∞ when it determines a value; with a target, the
+    :func:`excess` over the target it removes per minute)."""
 
     candidate: Candidate
     worst_after: float
@@ -111,6 +116,31 @@ def unscaled_sigmas(fit: Fit, widen: Fit | None = None) -> dict[str, float]:
         key = (p.sensor, p.axis)
         out[p.name] = p.stderr / own.get(key, 1.0) * other.get(key, 1.0)
     return out
+
+
+def excess(
+    sigmas: Mapping[str, float],
+    target: float,
+    tolerances: Mapping[str, float | None] = TOLERANCES,
+) -> float:
+    """Σ over the values with a tolerance of how far σ/tolerance lies above ``target`` (0 when
+    every value meets it; ∞ when one is not determined): what an adaptive plan drives to 0."""
+    total = 0.0
+    for n, s in sigmas.items():
+        tol = tolerances.get(n)
+        if tol:
+            total += max(0.0, s / tol - target) if math.isfinite(s) else math.inf
+    return total
+
+
+def unique_name(base: str, taken: Collection[str]) -> str:
+    """``base`` if no record has it, else ``base_2``, ``base_3`` … (a record measured again)."""
+    if base not in taken:
+        return base
+    k = 2
+    while f"{base}_{k}" in taken:
+        k += 1
+    return f"{base}_{k}"
 
 
 def worst_ratio(
@@ -204,23 +234,33 @@ def _face_up(name: str) -> tuple[float, float, float]:
     return (v[0], v[1], v[2])
 
 
-def candidates(static_s: float, turns: int, time: OperatorTime = OperatorTime()) -> list[Candidate]:
-    """The records the operator could measure next: each face again (``static_s`` s), each
-    45° attitude of :func:`host.bench.plan.tilted_45`, and a pair of turns (ccw and cw,
-    ``turns`` each, the method's window) about each axis."""
+def candidates(
+    static_s: float | Sequence[float],
+    turns: int,
+    time: OperatorTime = OPERATOR_TIME,
+    *,
+    tilted: bool = True,
+) -> list[Candidate]:
+    """The records the operator could measure next: each face again (for each length in
+    ``static_s``, s), each 45° attitude of :func:`host.bench.plan.tilted_45` (``tilted``; the
+    first length), and a pair of turns (ccw and cw, ``turns`` each, the method's window)
+    about each axis. Record names are the plan's (``x_up``, ``tilt_45_3``, ``x_ccw``)."""
+    lengths = [float(static_s)] if isinstance(static_s, int | float) else list(static_s)
     out: list[Candidate] = []
-    for face in STATIC_NAMES:
-        rec = (f"next_{face}", _face_up(face), "static", static_s, 0, 0)
-        out.append(Candidate(f"{face} again", (rec,), time.place + time.settle + static_s))
-    for name, up in tilted_45():
-        rec = (f"next_{name}", up, "static", static_s, 0, 0)
+    for seconds in lengths:
+        for face in STATIC_NAMES:
+            rec = (face, _face_up(face), "static", seconds, 0, 0)
+            label = f"{face} again" if len(lengths) == 1 else f"{face} again, {seconds:g} s"
+            out.append(Candidate(label, (rec,), time.place + time.settle + seconds))
+    for name, up in tilted_45() if tilted else ():
+        rec = (name, up, "static", lengths[0], 0, 0)
         label = f"{name} (up {_format_up(up)})"
-        out.append(Candidate(label, (rec,), time.place_tilted + time.settle + static_s))
+        out.append(Candidate(label, (rec,), time.place_tilted + time.settle + lengths[0]))
     window = turn_window_s(turns)
     for ax in "xyz":
         up = _face_up(f"{ax}_up")
         pair = tuple(
-            (f"next_{ax}_{d}", up, "turn", window, turns, s) for d, s in (("ccw", 1), ("cw", -1))
+            (f"{ax}_{d}", up, "turn", window, turns, s) for d, s in (("ccw", 1), ("cw", -1))
         )
         cost = 2 * (time.place + time.turn_ready + window)
         out.append(Candidate(f"{ax} turns, {turns} each way", pair, cost))
@@ -241,15 +281,18 @@ def plan_next(
     *,
     noise: NoiseModel | None = None,
     tolerances: Mapping[str, float | None] = TOLERANCES,
-    time: OperatorTime = OperatorTime(),
+    time: OperatorTime = OPERATOR_TIME,
     latitude_deg: float = DEFAULT_LATITUDE_DEG,
     height_m: float = DEFAULT_HEIGHT_M,
     only: Sequence[Candidate] | None = None,
     progress: Callable[[int, int, str], None] | None = None,
     seed: int = 0,
+    target: float | None = None,
 ) -> NextPlan:
     """Rank the records the operator could measure next (:func:`candidates`, or ``only``) by
-    how much each shrinks the worst σ/tolerance of ``model`` per minute of operator time.
+    how much each shrinks the worst σ/tolerance of ``model`` per minute of operator time —
+    or, with a ``target`` σ/tolerance, the :func:`excess` over it of all values (several
+    values near the worst are then shrunk together, not one at a time).
 
     ``progress(done, total, label)`` is called before each candidate is tried. UserError
     (from the engine) when the session cannot be fitted at all."""
@@ -284,7 +327,8 @@ def plan_next(
         if progress is not None:
             progress(i, len(todo), cand.label)
         records = dict(session.records)
-        for name, up, kind, seconds, n_turns, direction in cand.records:
+        for base, up, kind, seconds, n_turns, direction in cand.records:
+            name = unique_name(base, records)
             records[name] = synthetic_record(
                 name, up, kind, seconds, g=g, values=values, accel_sd=accel_sd,
                 gyro_sd=gyro_sd, dt_s=dt_s, temp_c=temp_c, turns=n_turns,
@@ -300,6 +344,9 @@ def plan_next(
         minutes = cand.operator_s / 60.0
         if determines:
             gain = math.inf
+        elif target is not None:
+            gain = excess(sigma_now, target, tolerances) - excess(sigma, target, tolerances)
+            gain /= minutes
         elif math.isfinite(worst_now):
             gain = (worst_now - worst) / minutes
         else:  # the worst stays undetermined: nothing gained on it

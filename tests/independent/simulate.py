@@ -59,8 +59,9 @@ class SessionSpec:
     latitude_deg: float = 55.75
     height_m: float = 150.0
     #: records measured after the plan (a face or a turn again: 'y_dn_2', 'z_ccw_2'), each
-    #: as long as its kind's records in the plan
-    extra: tuple[str, ...] = ()
+    #: as long as its kind's records in the plan, or (name, seconds) for a static of its own
+    #: length
+    extra: tuple[str | tuple[str, float], ...] = ()
 
 
 @dataclass
@@ -205,7 +206,9 @@ def simulate(spec: SessionSpec) -> SimSession:
     plan += [(n, window) for n in TURNS]
     if spec.closing:
         plan.append(("x_up_2", spec.static_s))
-    plan += [(n, window if n.split("_")[1] in ("ccw", "cw") else spec.static_s) for n in spec.extra]
+    for x in spec.extra:
+        name, seconds = x if isinstance(x, tuple) else (x, spec.static_s)
+        plan.append((name, window if name.split("_")[1] in ("ccw", "cw") else seconds))
     t = spec.warmup_s
     for name, dur in plan:
         heading = 0.0 if spec.headings == "zero" else 90.0 * int(rng.integers(0, 4))

@@ -43,7 +43,7 @@ def test_json_ranks_every_candidate(
     obj = json.loads(capsys.readouterr().out)
     ranked = obj["ranked"]
     assert len(ranked) == 6 + 12 + 3  # faces, 45° attitudes, turn pairs
-    assert ranked[0]["records"] == ["next_y_ccw", "next_y_cw"]
+    assert ranked[0]["records"] == ["y_ccw", "y_cw"]
     assert "Gyy" in ranked[0]["determines"]
     assert obj["worst_now"] is None  # undetermined now: not a number
 
