@@ -227,6 +227,19 @@ def add_live_arguments(p: argparse.ArgumentParser) -> None:
         help="IMUCAP01 capture of the session (default OUT/SERIAL_session.cap)",
     )  # fmt: skip
     p.add_argument(
+        "--plan", choices=("fixed", "adaptive"), default="fixed",
+        help="fixed: the method's records; adaptive: then the records the planner names (a face "
+        "again, a turn pair) until every value's σ/tolerance meets --target (plan DIR ranks them)",
+    )  # fmt: skip
+    p.add_argument(
+        "--target", type=float, default=0.05, metavar="R",
+        help="--plan adaptive: the worst σ/tolerance to reach (default %(default)g)",
+    )  # fmt: skip
+    p.add_argument(
+        "--max-extra", type=int, default=12, metavar="N",
+        help="--plan adaptive: at most N records added (default %(default)d)",
+    )  # fmt: skip
+    p.add_argument(
         "--ready-seconds", type=float, metavar="S",
         help="pause between 'get ready' and the start beep of a turn, s "
         f"(default {DEFAULT_READY_S:g}; none with --yes on the virtual board: nobody turns)",

@@ -56,6 +56,7 @@ from host.calib.calibration import stage1
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.report import verdict_line
 from host.dialogue import screens
+from host.dialogue.adaptive import measure_until_enough
 from host.dialogue.console import (
     Console,
     EndedBySignal,
@@ -226,6 +227,8 @@ class CalibrationDialogue:
             op.say("The six turns are already measured (--resume).")
         if do_turns and need_turn:
             self._stage2(need_turn)
+        if opts.plan == "adaptive" and all(n in self.done for n in STATIC_NAMES + TURN_NAMES):
+            measure_until_enough(self, opts)
         if opts.closing and CLOSING_NAME not in self.done and STATIC_NAMES[0] in self.done:
             self._closing_check()
         return self._results()
@@ -379,7 +382,7 @@ class CalibrationDialogue:
 
     def _measure_turn(self, name: str, n: int, window: float) -> None:
         op = self.op
-        axis, direction = name.split("_")
+        axis, direction = name.split("_")[:2]  # x_ccw_2: the turn x_ccw again
         attempts = 0
         while True:
             attempts += 1

@@ -124,6 +124,11 @@ class DialogueOptions:
     operator: str | None = None  # --operator: who measures, written in every record's header
     bench: str | None = None  # --bench: which bench, written in every record's header
     pdf: bool = False  # --pdf: also the report as SERIAL_result.pdf
+    plan: str = "fixed"  # "adaptive": after the turns, the planner's records until ``target``
+    #: adaptive: the worst σ/tolerance to reach — every value's standard error a twentieth of
+    #: its tolerance (its 95 % interval a tenth) unless --target says otherwise
+    target: float = 0.05
+    max_extra: int = 12  # adaptive: at most this many records added
     #: called with (output directory, session) once the result files are written; returns the
     #: line to say (``calibrate`` archives the result there: host.cli.calibrate.archive_line)
     after_publish: Callable[[Path, Session], str] | None = None
@@ -165,6 +170,9 @@ class DialogueOptions:
             bench=get("bench"),
             pdf=bool(get("pdf", False)),
             closing=not bool(get("no_closing", False)),
+            plan=str(get("plan", "fixed")),
+            target=float(get("target", 0.05)),
+            max_extra=int(get("max_extra", 12)),
             after_publish=get("after_publish"),
         )
 
@@ -179,6 +187,14 @@ class DialogueOptions:
         for f in self.term_files:
             cat = load_term_file(f, cat)
         parse_model(self.model, cat)  # a bad --model fails now, not after the session
+        if self.plan not in ("fixed", "adaptive"):
+            raise UserError(f"--plan {self.plan}: give fixed (the method's plan) or adaptive")
+        if not (math.isfinite(self.target) and self.target > 0.0):
+            raise UserError(
+                f"--target {self.target:g}: give the worst σ/tolerance to reach, e.g. 0.05"
+            )
+        if self.max_extra < 0:
+            raise UserError(f"--max-extra {self.max_extra}: give 0 or more records")
         if self.serial is not None:
             try:
                 self.serial = parse_serial(self.serial)
