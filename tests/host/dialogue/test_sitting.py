@@ -28,8 +28,9 @@ from host.session.directory import (
 )
 
 SHORT = ["--yes", "--warmup", "0", "--static-seconds", "2", "--turns", "1", "--no-archive"]
-#: slow enough to be interrupted mid-session (1 simulated s per 0.5 s of wall time)
-SLOW_PORT = "sim://?speed=2&seed=3"
+#: slow enough to be interrupted mid-session, and to outlast a second process started beside it
+#: on a loaded machine (1 simulated s per 2 s of wall time: the whole session takes minutes)
+SLOW_PORT = "sim://?speed=0.5&seed=3"
 
 
 def env() -> dict[str, str]:
