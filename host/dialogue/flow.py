@@ -55,8 +55,7 @@ from host.board.link import LinkLost, LinkTimeout
 from host.calib.calibration import stage1
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.report import verdict_line
-from host.dialogue import screens
-from host.dialogue.adaptive import measure_until_enough
+from host.dialogue import adaptive, screens
 from host.dialogue.console import (
     Console,
     EndedBySignal,
@@ -228,7 +227,7 @@ class CalibrationDialogue:
         if do_turns and need_turn:
             self._stage2(need_turn)
         if opts.plan == "adaptive" and all(n in self.done for n in STATIC_NAMES + TURN_NAMES):
-            measure_until_enough(self, opts)
+            adaptive.measure_until_enough(self, opts)
         if opts.closing and CLOSING_NAME not in self.done and STATIC_NAMES[0] in self.done:
             self._closing_check()
         return self._results()
