@@ -13,5 +13,7 @@ residual scan, the verdict, the refits and their words. Never imports the calibr
 - ``text`` — the words for people: diagnosis, addition, ladder, the catalogue, a demo's outcome.
 - ``planner`` — the record to measure next: every candidate added as it would be measured, the
   fit's σ/tolerance it leaves, ranked per minute of the operator's time.
+- ``adaptive`` — measure until enough: a first plan, then the planner's next record until every
+  value's σ/tolerance meets a target, through one measuring callable.
 - ``scenarios`` — simulated sessions each hiding one effect, and what the workbench finds.
 """
