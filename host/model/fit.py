@@ -29,7 +29,7 @@ from host.model.design import design, select_columns
 from host.model.noise import NoiseModel
 from host.model.signals import AXES, SENSORS, UNIT
 from host.model.spec import ModelTerm
-from host.model.stats import ALPHA_FIT, chi2_sf, rref, stderr_scale
+from host.model.stats import ALPHA_FIT, chi2_sf, right_singular, rref, stderr_scale
 from host.session.directory import Session
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
@@ -322,7 +322,7 @@ def _channel_fits(
             rank, null = 0, np.zeros((len(cols), 0))
             if live.any():
                 xn = xc[:, live] / norms[live]
-                _, sv, vt = np.linalg.svd(xn, full_matrices=True)
+                sv, vt = right_singular(xn)
                 rank = int(np.sum(sv > 1e-9 * sv[0])) if len(sv) else 0
                 null = np.zeros((len(cols), vt.shape[0] - rank))
                 null[live] = vt[rank:].T / norms[live, None]  # back to parameter units
@@ -362,7 +362,7 @@ def _estimable(xw: np.ndarray) -> np.ndarray:
     out = np.zeros(xw.shape[1], dtype=bool)
     if not live.any():
         return out
-    _, sv, vt = np.linalg.svd(xw[:, live] / norms[live], full_matrices=True)
+    sv, vt = right_singular(xw[:, live] / norms[live])
     rank = int(np.sum(sv > 1e-9 * sv[0])) if len(sv) else 0
     null = vt[rank:].T
     idx = np.flatnonzero(live)

@@ -11,6 +11,7 @@ import numpy as np
 from host.model.dataset import Dataset
 from host.model.design import design, select_columns
 from host.model.fit import Fit
+from host.model.stats import right_singular
 
 
 # ---- held-out prediction ----------------------------------------------------------------------
@@ -65,7 +66,7 @@ def leave_one_out(ds: Dataset, fit: Fit) -> Prediction:
             continue
         sol, *_ = np.linalg.lstsq(xw[:, cols], yw, rcond=None)
         cov = np.linalg.pinv(xw[:, cols].T @ xw[:, cols])
-        _, sv, vt = np.linalg.svd(xw[:, live] / norms[live], full_matrices=True)
+        sv, vt = right_singular(xw[:, live] / norms[live])
         rank = int(np.sum(sv > 1e-9 * sv[0])) if len(sv) else 0
         null = vt[rank:].T  # null space of the others' design, normalised coordinates
         theta = np.zeros(x.shape[1])

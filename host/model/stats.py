@@ -1,5 +1,6 @@
 """Statistics in pure numpy: the χ² tail and its inverse, the project's one uncertainty policy
-(:func:`stderr_scale`) and the row echelon form the fit reads combinations from."""
+(:func:`stderr_scale`), the row echelon form the fit reads combinations from and the right
+singular vectors it reads null spaces from (:func:`right_singular`)."""
 
 from __future__ import annotations
 
@@ -91,3 +92,11 @@ def rref(m: np.ndarray, tol: float = 1e-9) -> np.ndarray:
                 a[i] -= a[i, col] * a[r]
         r += 1
     return a[:r]
+
+
+def right_singular(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(singular values (min(m, P),), all P right singular vectors as rows (P, P)) of ``a``
+    (m, P), the null space's among them; the left ones only as far as they are needed (never
+    m × m: memory linear in the rows)."""
+    _, sv, vt = np.linalg.svd(a, full_matrices=a.shape[0] < a.shape[1])
+    return sv, vt

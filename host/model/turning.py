@@ -131,20 +131,31 @@ def rms_rate_dps(rate_up_dps: np.ndarray, blocks: Sequence[tuple[int, int]]) -> 
 
 def _constants_fit(
     y: np.ndarray, keys: Sequence[Hashable], columns: np.ndarray
-) -> tuple[list[Hashable], np.ndarray, np.ndarray, int]:
+) -> tuple[list[Hashable], np.ndarray, np.ndarray, np.ndarray, int]:
     """Least squares of ``y`` (K,) on a constant per key of ``keys`` (K,) plus the shared
-    ``columns`` (K, m): -> (the keys in first-seen order, the coefficients (constants first),
-    the residuals (K,), the degrees of freedom left; 0 without values)."""
+    ``columns`` (K, m): -> (the keys in first-seen order, each value's position among them
+    (K,), the coefficients (constants first), the residuals (K,), the degrees of freedom left;
+    0 without values). The shared part is fitted to the values less their key's mean (the
+    constants' fit, exactly), so memory and time grow with K, not with K times the keys."""
     yv = np.asarray(y, dtype=np.float64)
-    uniq = list(dict.fromkeys(keys))
+    pos: dict[Hashable, int] = {}
+    idx = np.array([pos.setdefault(k, len(pos)) for k in keys], dtype=np.intp)
+    uniq = list(pos)
     if len(yv) == 0:
-        return uniq, np.zeros(0), yv, 0
-    x = np.zeros((len(yv), len(uniq) + columns.shape[1]))
-    for i, k in enumerate(keys):
-        x[i, uniq.index(k)] = 1.0
-    x[:, len(uniq) :] = columns
-    beta, _, rank, _ = np.linalg.lstsq(x, yv, rcond=None)
-    return uniq, beta, yv - x @ beta, len(yv) - int(rank)
+        return uniq, idx, np.zeros(0), yv, 0
+    cols = np.asarray(columns, dtype=np.float64).reshape(len(yv), -1)
+    n = np.bincount(idx, minlength=len(uniq)).astype(float)
+    y_mean = np.bincount(idx, weights=yv, minlength=len(uniq)) / n
+    c_mean = np.stack(
+        [np.bincount(idx, weights=c, minlength=len(uniq)) / n for c in cols.T], axis=1
+    ) if cols.shape[1] else np.zeros((len(uniq), 0))  # fmt: skip
+    yc = yv - y_mean[idx]
+    xc = cols - c_mean[idx]
+    shared, rank = np.zeros(cols.shape[1]), 0
+    if cols.shape[1]:
+        shared, _, rank, _ = np.linalg.lstsq(xc, yc, rcond=None)
+    beta = np.concatenate([y_mean - c_mean @ shared, shared])
+    return uniq, idx, beta, yc - xc @ shared, len(yv) - len(uniq) - int(rank)
 
 
 def hand_scatter(
@@ -166,25 +177,24 @@ def hand_scatter(
     unless it exceeds two standard errors of its estimate under white noise alone
     (:func:`resolved`)."""
     w = np.asarray(white_var, dtype=np.float64)
-    uniq, beta, r, dof = _constants_fit(y, keys, columns)
+    uniq, idx, beta, r, dof = _constants_fit(y, keys, columns)
     if dof <= 0:
         return 0.0, 0.0, 0
     block2 = resolved(float(np.sum(r * r - w)) / dof, w, dof)
     shared = beta[len(uniq) :]
     d: list[float] = []
     v: list[float] = []
-    karr = [uniq.index(k) for k in keys]
+    n_of = np.bincount(idx, minlength=len(uniq))
+    w_of = np.bincount(idx, weights=w, minlength=len(uniq)) / n_of
     for j, k in enumerate(uniq):
         if k not in rest:
             continue
         level, var0, cols0 = rest[k]
-        n = sum(1 for q in karr if q == j)
-        wk = float(np.mean(w[[i for i, q in enumerate(karr) if q == j]]))
         d.append(float(beta[j]) - (level - float(np.asarray(cols0) @ shared)))
         # white noise only: σ_turn² is all the level's variance beyond it, so that the
         # covariance σ_block²·(I − 11ᵀ/n) + σ_turn²·11ᵀ holds the level's whole scatter
         # (a slow wobble's blocks do not average to no net tilt over one turn)
-        v.append(var0 + wk / n)
+        v.append(var0 + float(w_of[j]) / float(n_of[j]))
     if not d:
         return math.sqrt(block2), math.sqrt(block2), dof
     dd, vv = np.array(d), np.array(v)
@@ -224,7 +234,7 @@ def excess_scatter(
     variance. Least squares, then σ² = Σ(r² − w)/dof, 0 unless resolved (:func:`resolved`):
     -> (σ in y's unit, dof); (0, 0) when nothing is left over (dof ≤ 0)."""
     w = np.asarray(white_var, dtype=np.float64)
-    _, _, r, dof = _constants_fit(y, keys, columns)
+    _, _, _, r, dof = _constants_fit(y, keys, columns)
     if dof <= 0:
         return 0.0, 0
     return math.sqrt(resolved(float(np.sum(r * r - w)) / dof, w, dof)), dof
