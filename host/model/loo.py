@@ -40,23 +40,44 @@ def _thetas_of(fit: Fit) -> list[np.ndarray | None]:
     return out
 
 
+def _stack_r(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The triangular factor R of the rows of ``a`` and ``b`` stacked (k, c), k ≤ c."""
+    both = np.vstack([a, b])
+    return np.linalg.qr(both, mode="r") if len(both) else both
+
+
+def _others_reduced(ds: Dataset, z: np.ndarray) -> list[np.ndarray]:
+    """Per record, the whitened rows of all the other records, reduced to their R factor
+    (≤ c rows): ``z`` (n_rows, c) the unwhitened columns. R keeps every column's length and
+    every angle between columns (R = QᵀZ, Q orthonormal), so the least squares, the column
+    choice and the null space of the others' rows read the same from it. From running R
+    factors over the records before and after each one: memory and time linear in the rows
+    (W is block-diagonal within records, so the others' whitened rows are rows of W·z)."""
+    zw = ds.whiten.apply(z)
+    c = zw.shape[1]
+    own = [zw[ds.row_record == ri] for ri in range(len(ds.signals))]
+    before = [np.zeros((0, c))]
+    for part in own:
+        before.append(_stack_r(before[-1], part))
+    after = [np.zeros((0, c))]
+    for part in reversed(own):
+        after.append(_stack_r(after[-1], part))
+    after.reverse()  # after[ri]: the records from ri on
+    return [_stack_r(before[ri], after[ri + 1]) for ri in range(len(own))]
+
+
 def leave_one_out(ds: Dataset, fit: Fit) -> Prediction:
     """Predict every record from the fit of ``fit.model`` to the other records (the design is
     linearised at ``fit``'s parameters for nonlinear terms). A term that only fits noise makes
     this prediction error larger, where χ² always falls (method.md §8: accuracy on attitudes
     not used in the fit)."""
     x, offset, _ = design(ds, fit.model, _thetas_of(fit))
-    # W is block-diagonal within records: the others' whitened rows are rows of W·x
-    xw_all = ds.whiten.apply(x)
-    yw_all = ds.whiten.apply(ds.y - ds.nominal - offset)
     y = ds.y - ds.nominal - offset
+    others = _others_reduced(ds, np.column_stack([x, y]))
     zs: list[float] = []
     skipped: list[str] = []
     for ri, sig in enumerate(ds.signals):
-        out_rows = ds.row_record == ri
-        keep_rows = ~out_rows
-        xw = xw_all[keep_rows]
-        yw = yw_all[keep_rows]
+        xw, yw = others[ri][:, :-1], others[ri][:, -1]
         keep, _ = select_columns(xw)
         cols = np.flatnonzero(keep)
         norms = np.linalg.norm(xw, axis=0)

@@ -74,6 +74,26 @@ def test_excess_scatter_measures_what_is_beyond_the_white_noise() -> None:
     assert turning.excess_scatter(y0, keys, x, white)[0] < 0.004
 
 
+def test_constants_fit_equals_least_squares_with_a_column_per_key() -> None:
+    """The constants are removed as each key's mean (memory linear in the values): the same
+    coefficients, residuals and degrees of freedom as one least squares with an indicator
+    column per key, keys in any order and of any count (one value alone too)."""
+    rng = np.random.default_rng(11)
+    keys = [("t", int(k)) for k in rng.integers(0, 9, 300)] + [("alone", 0)]
+    cols = rng.normal(size=(len(keys), 3))
+    y = rng.normal(size=len(keys))
+    uniq, idx, beta, r, dof = turning._constants_fit(y, keys, cols)
+    assert uniq == list(dict.fromkeys(keys))
+    x = np.zeros((len(keys), len(uniq) + 3))
+    x[np.arange(len(keys)), [uniq.index(k) for k in keys]] = 1.0
+    x[:, len(uniq) :] = cols
+    want, *_ = np.linalg.lstsq(x, y, rcond=None)
+    np.testing.assert_allclose(beta, want, atol=1e-12)
+    np.testing.assert_allclose(r, y - x @ want, atol=1e-12)
+    assert dof == len(keys) - np.linalg.matrix_rank(x)
+    assert [uniq[i] for i in idx] == keys
+
+
 def test_lever_arm_is_one_shared_term_with_a_plausible_range() -> None:
     t = CATALOGUE["lever_arm"]
     assert t.shared and t.sensors == ("accel",) and t.plausible["accel"] == pytest.approx(0.1)
