@@ -43,7 +43,7 @@ def _thetas_of(fit: Fit) -> list[np.ndarray | None]:
 def _stack_r(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The triangular factor R of the rows of ``a`` and ``b`` stacked (k, c), k ≤ c."""
     both = np.vstack([a, b])
-    return np.linalg.qr(both, mode="r") if len(both) else both
+    return np.asarray(np.linalg.qr(both, mode="r")) if len(both) else both
 
 
 def _others_reduced(ds: Dataset, z: np.ndarray) -> list[np.ndarray]:
