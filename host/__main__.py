@@ -128,7 +128,8 @@ EXAMPLES: dict[str, str] = {
     "export": """examples:
   python3 -m host export U17/ --to ardupilot --out U17.parm
   python3 -m host export U17/ --to px4 --axes x,-y,-z       the board's axes
-  python3 -m host export U17/ --to c-header --allow-fail    a FAILED result, marked so""",
+  python3 -m host export U17/ --to c-header --allow-fail    a FAILED result, marked so
+  python3 -m host export U17/ --to ardupilot --thermal      with INS_TCAL1_* from bias(T)""",
 }
 
 

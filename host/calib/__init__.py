@@ -16,4 +16,5 @@ Data in: a session (the record files of one sitting, :mod:`host.session`). Out: 
 - ``thermal`` — bias against temperature: the thermal result, ``apply_thermal``, corrected records.
 - ``thermal_fit`` — the bias(T) fit from warm-up, static and chamber records.
 - ``exporting`` — the result as other tools' parameters and files.
+- ``kalibr`` — Kalibr's IMU noise configuration from a noise file (not from a result).
 """

@@ -25,9 +25,12 @@ apply the exported numbers with the target's formula and compare with ``apply()`
 
 The thermal calibration (:mod:`host.calib.thermal`, bias(T) − bias(T_ref) per channel) goes to
 PX4's thermal compensation ``TC_A0_*``/``TC_G0_*`` (cubic, X0 = 0, clamped to the calibrated
-range). Kalibr's IMU YAML comes from a noise file (``noise --save``), not from the result.
-Not yet: ArduPilot's ``INS_TCAL*``. A result whose exported constants are not all determined
-(NaN) is refused with one line naming them: no format here can carry NaN.
+range) and to ArduPilot's ``INS_TCAL1_*`` (:func:`ardupilot_thermal_params`: a cubic without
+constant about ArduPilot's fixed 35 °C, its coefficients × 10⁶, clamped to TMIN/TMAX, and
+``INS_ACC1_CALTEMP``/``INS_GYR1_CALTEMP``, the temperature the offsets hold at). Kalibr's IMU
+YAML comes from a noise file (``noise --save``), not from the result
+(:mod:`host.calib.kalibr`). A result whose exported constants are not all determined (NaN) is
+refused with one line naming them: no format here can carry NaN.
 
 An export cannot mislead: every format says, in a comment (or imucal's ``comment`` field),
 when the records came from a simulated board (:attr:`LinearModel.marks`), and a result that
@@ -46,7 +49,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from host.calib.result import CalibrationResult, carried_thermal
-from host.calib.thermal import ThermalCalibration
+from host.calib.thermal import ThermalCalibration, change_from_reference, recentre_poly
 from host.errors import FailedResultError, InputError
 from host.session.method import (
     ACCEL_BIAS_NAMES,
@@ -240,17 +243,81 @@ def ardupilot_params(model: LinearModel) -> dict[str, float]:
     return out
 
 
-def export_ardupilot(model: LinearModel) -> str:
+#: ArduPilot's INS_TCAL polynomials are about this fixed temperature, °C, and stored × 10⁶
+ARDUPILOT_TREF_C = 35.0
+ARDUPILOT_TCAL_SCALE = 1.0e6
+
+
+def ardupilot_thermal_params(
+    model: LinearModel, thermal: ThermalCalibration
+) -> tuple[dict[str, float], dict[str, np.ndarray]]:
+    """ArduPilot's temperature calibration of our bias(T) − bias(T_ref) = q(T), and the shift
+    of the offsets it needs: (parameters, {"ACC": m/s², "GYR": rad/s} per target axis).
+
+    ArduPilot subtracts P(T − 35) − P(CALTEMP − 35) from the sample before its offsets, P a
+    cubic without constant with coefficients INS_TCAL1_ACCk/GYRk × 10⁻⁶, T and CALTEMP
+    clamped to [TMIN, TMAX]. With P the expansion of q about 35 °C (constant dropped) this is
+    q(T) − q(CALTEMP); CALTEMP is T_ref clamped to the range, and the offsets are those at
+    CALTEMP (A0 + q(CALTEMP): T_ref itself when it lies in the range)."""
+    lo, hi = float(thermal.t_min_c), float(thermal.t_max_c)
+    t_cal = min(max(float(thermal.t_ref_c), lo), hi)
+    out: dict[str, float] = {"INS_TCAL1_ENABLE": 1.0, "INS_TCAL1_TMIN": lo, "INS_TCAL1_TMAX": hi}
+    shift: dict[str, np.ndarray] = {}
+    for sensor, names, unit in (("ACC", ("ax", "ay", "az"), 1.0), ("GYR", ("gx", "gy", "gz"), DEG)):
+        coef = np.zeros((3, 3))  # [power - 1, our axis]
+        at_cal = np.zeros(3)
+        for i, name in enumerate(names):
+            ch = thermal.channels[name]
+            c = np.asarray(ch.coef[:3], dtype=np.float64)
+            if c.size:
+                zero = [[0.0] * c.size for _ in range(c.size)]  # covariance: not exported
+                b, _ = recentre_poly(tuple(c), zero, thermal.t_ref_c, ARDUPILOT_TREF_C)
+                coef[: b.size, i] = b * unit
+                at_cal[i] = float(change_from_reference(tuple(c), np.array([t_cal]),
+                                                        thermal.t_ref_c)[0]) * unit  # fmt: skip
+        coef = coef @ np.asarray(model.axes).T  # to the target's axes
+        for k in range(3):
+            for i, ax in enumerate("XYZ"):
+                out[f"INS_TCAL1_{sensor}{k + 1}_{ax}"] = float(coef[k, i] * ARDUPILOT_TCAL_SCALE)
+        shift[sensor] = np.asarray(model.axes) @ at_cal
+    out["INS_ACC1_CALTEMP"] = t_cal
+    out["INS_GYR1_CALTEMP"] = t_cal
+    return out, shift
+
+
+def export_ardupilot(model: LinearModel, thermal: ThermalCalibration | None = None) -> str:
     """An ArduPilot parameter file (``NAME VALUE``, ``#`` comments; MAVProxy ``param load``,
-    Mission Planner "Load from file")."""
+    Mission Planner "Load from file"); with ``thermal`` its temperature calibration too."""
     conv = [
         "ArduPilot corrects in its sensor frame: a = (A - INS_ACCOFFS) * INS_ACCSCAL (per axis,",
         "m/s²); w = G - INS_GYROFFS (rad/s). INS_GYROFFS is re-measured at every boot unless",
-        "INS_GYR_CAL = 0. Temperature calibration (INS_TCAL1_*) is not written: the result has",
-        "no temperature terms.",
+        "INS_GYR_CAL = 0.",
     ]
+    params = ardupilot_params(model)
+    if thermal is None:
+        conv.append("Temperature calibration (INS_TCAL1_*): the result carries no bias(T).")
+    else:
+        conv += [
+            "Temperature calibration: before the offsets it subtracts P(T - 35) - P(CALTEMP - 35),",
+            "P(d) = (ACC1 d + ACC2 d^2 + ACC3 d^3) * 1e-6 (GYRk likewise, rad/s), T and",
+            "CALTEMP clamped to [INS_TCAL1_TMIN, INS_TCAL1_TMAX]; the offsets hold at CALTEMP.",
+        ]
+        tparams, shift = ardupilot_thermal_params(model, thermal)
+        for i, ax in enumerate("XYZ"):
+            params[f"INS_ACCOFFS_{ax}"] += float(shift["ACC"][i])
+            params[f"INS_GYROFFS_{ax}"] += float(shift["GYR"][i])
+        params.update(tparams)
     lines = _preamble("ArduPilot parameters", model, conv, gyro_scale=False)
-    lines += [f"{k} {v:.9g}" for k, v in ardupilot_params(model).items()]
+    if thermal is not None:
+        lines += [f"#   - {x}" for x in _thermal_lost(thermal, 3)]
+        lines += [
+            f"#   - {name} scale(T) (order {ch.scale_order}): ArduPilot has bias(T) only"
+            for name, ch in thermal.channels.items()
+            if ch.scale_order
+        ]
+    if bad := [k for k, v in params.items() if not math.isfinite(v)]:
+        raise InputError(f"ardupilot: {', '.join(bad)} not finite; nothing exported")
+    lines += [f"{k} {v:.9g}" for k, v in params.items()]
     return "\n".join(lines) + "\n"
 
 
@@ -426,63 +493,6 @@ PENDING = {
 }
 
 
-# ---- Kalibr ---------------------------------------------------------------------------------
-#: Kalibr key -> (our channels, our figure, factor from our unit to Kalibr's)
-KALIBR_KEYS = {
-    "accelerometer_noise_density": (("ax", "ay", "az"), "white_noise_density", 1.0),
-    "accelerometer_random_walk": (("ax", "ay", "az"), "rate_random_walk", 1.0),
-    "gyroscope_noise_density": (("gx", "gy", "gz"), "white_noise_density", DEG),
-    "gyroscope_random_walk": (("gx", "gy", "gz"), "rate_random_walk", DEG),
-}
-
-
-def kalibr_values(noise: dict[str, object]) -> tuple[dict[str, float], list[str]]:
-    """Kalibr's four continuous-time noise figures from a noise document (``noise --save``):
-    accelerometer m/s²/√Hz and m/s³/√Hz, gyroscope rad/s/√Hz and rad/s²/√Hz — the worst axis
-    of each sensor (Kalibr has one value per sensor). A figure the recording did not resolve
-    is exported at its upper confidence bound; the second item names each such figure."""
-    chans = noise.get("channels")
-    if not isinstance(chans, dict):
-        raise InputError("noise file: no 'channels' (write one with: noise FILE --save)")
-    out: dict[str, float] = {}
-    bounds: list[str] = []
-    for key, (names, fig, factor) in KALIBR_KEYS.items():
-        vals = []
-        for name in names:
-            try:
-                f = chans[name][fig]
-                v = f["value"]
-                if v is None:
-                    v = f["ci"][1]
-                    bounds.append(f"{key}: {name} {fig} not resolved, its upper bound is used")
-                vals.append(float(v) * factor)
-            except (KeyError, TypeError, IndexError, ValueError):
-                raise InputError(f"noise file: channel {name} has no {fig}") from None
-        out[key] = max(vals)
-    return out, bounds
-
-
-def export_kalibr(noise: dict[str, object], topic: str = "/imu0") -> str:
-    """Kalibr's IMU configuration (imu.yaml) from a noise document: the noise densities are
-    the white-noise Allan coefficients N, the random walks the rate-random-walk coefficients
-    K, both continuous-time as Kalibr wants them, with nothing inflated (Kalibr's advice to
-    inflate them for its discrete-time model is the user's decision, not made here)."""
-    vals, bounds = kalibr_values(noise)
-    rate = float(noise.get("rate_hz", 0.0) or 0.0)  # type: ignore[arg-type]
-    lines = [
-        "# Kalibr IMU noise model from an imu-bench noise file (python -m host noise --save)",
-        "# continuous-time densities; the worst axis of each sensor; no inflation applied",
-        f"# recording: {float(noise.get('duration_s', 0.0) or 0.0):.0f} s at {rate:.2f} Hz",  # type: ignore[arg-type]
-        "# NOT REPRESENTED by this format: bias instability, per-axis figures, and every",
-        "# calibration constant (Kalibr estimates its own intrinsics)",
-    ]
-    lines += [f"# {b}" for b in bounds]
-    lines.append(f"rostopic: {topic}")
-    lines.append(f"update_rate: {rate:.6g}")
-    lines += [f"{k}: {v:.9g}" for k, v in vals.items()]
-    return "\n".join(lines) + "\n"
-
-
 def export(
     result: CalibrationResult,
     fmt: str,
@@ -506,16 +516,18 @@ def export(
     if not allow_fail:
         refuse_failed(result)
     refuse_undetermined(result)
-    if thermal is None and key == "px4":  # the result's own bias(T), if it carries one
+    if thermal is None and key in ("px4", "ardupilot"):  # the result's own bias(T), if any
         thermal = carried_thermal(result)
     model = linear_model(result, with_thermal=thermal is None)
     if axes is not None:
         model = in_frame(model, axes, axes_text)
     if thermal is not None:
+        if key == "ardupilot":
+            return export_ardupilot(model, thermal)
         if key != "px4":
             raise InputError(
                 f"--thermal: {key} has no place for bias(T) in this export; px4 writes it "
-                "(TC_A0_*, TC_G0_*)"
+                "(TC_A0_*, TC_G0_*), ardupilot too (INS_TCAL1_*)"
             )
         return export_px4(model, thermal)
     return FORMATS[key][0](model)

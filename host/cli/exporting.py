@@ -53,10 +53,15 @@ def run(args: argparse.Namespace) -> int:
     result = CalibrationResult.from_json(text)
     axes = parse_axes(args.axes) if args.axes else None
     thermal = None
-    if args.thermal is not None:
+    if args.thermal:  # a file; --thermal alone: the result's own bias(T), which it must carry
         from host.calib.thermal import ThermalCalibration
 
         thermal = ThermalCalibration.load(args.thermal)
+    elif args.thermal is not None and result.thermal_range_c is None:
+        raise UserError(
+            f"--thermal: the result of {result.serial} carries no bias(T); give the file "
+            "(--thermal SERIAL_thermal.json) or calibrate with --thermal"
+        )
     try:
         out = exporting.export(
             result, args.to, axes, args.axes or "x,y,z", thermal, allow_fail=args.allow_fail
@@ -80,9 +85,10 @@ def _run_kalibr(args: argparse.Namespace) -> int:
     """``export … --to kalibr --noise NOISE.json``: Kalibr's imu.yaml from noise figures."""
     if args.noise is None:
         raise UserError(f"--to kalibr: {exporting.PENDING['kalibr']}")
+    from host.calib.kalibr import export_kalibr
     from host.model.recording import load_noise_file
 
-    _emit(args, exporting.export_kalibr(load_noise_file(args.noise)))
+    _emit(args, export_kalibr(load_noise_file(args.noise)))
     return 0
 
 
@@ -99,7 +105,12 @@ def cli_export(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int
     p.add_argument("--out", type=Path, help="write to this file instead of stdout")
     p.add_argument("--axes", help="target axes from ours with signs, e.g. x,-y,-z (default x,y,z)")
     p.add_argument(
-        "--thermal", type=Path, help="SERIAL_thermal.json (python -m host thermal): bias(T), px4"
+        "--thermal",
+        nargs="?",
+        const="",
+        metavar="FILE",
+        help="bias(T) for px4 (TC_*) and ardupilot (INS_TCAL1_*): SERIAL_thermal.json, or "
+        "alone the result's own (calibrate --thermal); the result's own is used by default",
     )
     p.add_argument(
         "--allow-fail",

@@ -438,3 +438,93 @@ def test_cli_refuses_to_export_an_undetermined_result(tmp_path: Path, capsys) ->
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "A0y" in err and "GAxz" in err, err
         assert not out.exists()
+
+
+# ---- thermal (ArduPilot's INS_TCAL) ---------------------------------------------------------
+def _ardupilot_tcal_apply(p: dict[str, float], a: np.ndarray, g: np.ndarray, t: np.ndarray):
+    """ArduPilot's correction as its parameter documentation and AP_InertialSensor describe
+    it, written here on its own: before the offsets subtract P(T − 35) − P(CALTEMP − 35),
+    P(d) = (C1·d + C2·d² + C3·d³)·1e-6 per axis, T and CALTEMP clamped to [TMIN, TMAX];
+    accel m/s², gyro rad/s."""
+    lo, hi = p["INS_TCAL1_TMIN"], p["INS_TCAL1_TMAX"]
+    assert p["INS_TCAL1_ENABLE"] == 1.0
+    out = []
+    for sensor, raw, unit, cal in (("ACC", a, 1.0, "INS_ACC1_CALTEMP"),
+                                   ("GYR", g * DEG, DEG, "INS_GYR1_CALTEMP")):  # fmt: skip
+        c = np.array([[p[f"INS_TCAL1_{sensor}{k}_{x}"] for x in "XYZ"] for k in (1, 2, 3)])
+
+        def poly(d: np.ndarray, c: np.ndarray = c) -> np.ndarray:
+            d = np.asarray(d, dtype=np.float64).reshape(-1, 1)
+            return (d * c[0] + d**2 * c[1] + d**3 * c[2]) * 1e-6
+
+        corr = poly(np.clip(t, lo, hi) - 35.0) - poly(np.clip(p[cal], lo, hi) - 35.0)
+        if sensor == "ACC":
+            off = np.array([p[f"INS_ACCOFFS_{x}"] for x in "XYZ"])
+            scal = np.array([p[f"INS_ACCSCAL_{x}"] for x in "XYZ"])
+            out.append((raw - corr - off) * scal)
+        else:
+            off = np.array([p[f"INS_GYROFFS_{x}"] for x in "XYZ"])
+            out.append((raw - corr - off) / unit)
+    return out[0], out[1]
+
+
+@pytest.mark.parametrize("t_ref", [31.5, 18.0])  # T_ref inside the range, and below it
+def test_ardupilot_thermal_round_trip(t_ref: float) -> None:
+    """The exported INS_TCAL1_*, CALTEMP and offsets, run through ArduPilot's formula, give
+    what apply() gives over the calibrated range, to 1e-6 (a wrong scale, reference or sign
+    misses by far more: the bias(T) changes reach 0.1 m/s² and 0.5 °/s here)."""
+    import dataclasses as dc
+
+    from host.calib.thermal import apply_thermal
+
+    accel, gyro = _samples()
+    temp = np.random.default_rng(6).uniform(22.0, 48.0, len(accel))
+    res = _result(**DIAGONAL, Gxx=0.0, Gyy=0.0, Gzz=0.0)
+    th = dc.replace(_thermal(THERMAL), t_ref_c=t_ref)
+    text = export(res, "ardupilot", thermal=th)
+    p = _params(text)
+    assert p["INS_ACC1_CALTEMP"] == p["INS_GYR1_CALTEMP"] == min(max(t_ref, 22.0), 48.0)
+    assert (p["INS_TCAL1_TMIN"], p["INS_TCAL1_TMAX"]) == (22.0, 48.0)
+    a_t, g_t = _ardupilot_tcal_apply(p, accel, gyro, temp)
+    a_ref, g_ref = apply(res, *apply_thermal(th, accel, gyro, temp))
+    _close(a_t, a_ref)
+    _close(g_t, g_ref)
+    # the thermal part matters at this tolerance: without it the answers differ
+    a_0, _ = _ardupilot_apply(p, accel, gyro)
+    assert np.abs(a_0 - a_ref).max() > 1e3 * RTOL * np.abs(a_ref).max()
+
+
+def test_ardupilot_thermal_from_the_result_itself(tmp_path: Path, capsys) -> None:
+    """A result calibrated with --thermal carries bias(T): export --to ardupilot --thermal
+    writes it, and ArduPilot's formula reproduces apply() with temperatures."""
+    import dataclasses as dc
+
+    from host.calib.result import thermal_parameters
+
+    base = _result(**DIAGONAL, Gxx=0.0, Gyy=0.0, Gzz=0.0)
+    th = _thermal(THERMAL)
+    res = dc.replace(
+        base, model="base,thermal_bias", temp_mean_c=29.0, thermal_range_c=(22.0, 48.0),
+        parameters=(*base.parameters, *thermal_parameters(th, 29.0)),
+    )  # fmt: skip
+    rj = tmp_path / "EXP1_result.json"
+    rj.write_text(res.to_json())
+    assert main(["export", str(rj), "--to", "ardupilot", "--thermal"]) == 0
+    p = _params(capsys.readouterr().out)
+    accel, gyro = _samples()
+    temp = np.random.default_rng(7).uniform(22.0, 48.0, len(accel))
+    a_t, g_t = _ardupilot_tcal_apply(p, accel, gyro, temp)
+    a_ref, g_ref = apply(CalibrationResult.from_json(rj.read_text()), accel, gyro, temp_c=temp)
+    _close(a_t, a_ref)
+    _close(g_t, g_ref)
+    # --thermal alone on a result without bias(T) says what to give
+    rj.write_text(base.to_json())
+    assert main(["export", str(rj), "--to", "ardupilot", "--thermal"]) == 2
+    assert "carries no bias(T)" in capsys.readouterr().err
+
+
+def test_ardupilot_thermal_names_what_it_cannot_hold() -> None:
+    th = _thermal({**THERMAL, "gy": (-0.007, 1e-4, 2e-6, -4e-8)})
+    text = export(_result(), "ardupilot", thermal=th)
+    assert "gy bias(T) terms above order 3 (order 4" in text
+    assert "INS_TCAL1_GYR3_Y" in text
