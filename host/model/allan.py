@@ -1,9 +1,12 @@
 """Noise of a static recording: overlapping Allan deviation, its three slopes, and a planner.
 
-Pure functions over numpy arrays (the command is :mod:`host.cli.noise`). The estimator is
-``allantools.oadev`` (overlapping Allan deviation of rate samples); its confidence intervals
-are chi-squared intervals with Greenhall's equivalent degrees of freedom
-(``allantools.edf_greenhall``), the noise type at each τ taken from the fitted model.
+Pure functions over numpy arrays (the command is :mod:`host.cli.noise`). The estimator is the
+overlapping Allan deviation of rate samples (:func:`oadev`: second differences of their
+cumulative sum, IEEE Std 1139 / NIST SP 1065 eq. 11); its confidence intervals are chi-squared
+intervals with Greenhall's equivalent degrees of freedom (:func:`edf`: C. A. Greenhall and
+W. J. Riley, "Uncertainty of stability variances based on finite differences", 2003), the noise
+type at each τ taken from the fitted model. The ``allantools`` library is the oracle the tests
+compare both with; it is not needed at run time.
 
 The noise model of one channel (IEEE Std 952-1997, Annex C), as Allan variance::
 
@@ -61,12 +64,6 @@ def sensor_of(channel: str) -> str:
     return "accel" if channel.startswith("a") else "gyro"
 
 
-def _allantools() -> Any:
-    import allantools  # noqa: PLC0415 - heavy import only where the estimator runs
-
-    return allantools
-
-
 # --------------------------------------------------------------------------- the curve
 @dataclass(frozen=True)
 class AllanCurve:
@@ -96,18 +93,33 @@ def tau_grid(n: int, points_per_decade: int = 8, max_fraction: float = 1 / 3) ->
     return np.unique(np.rint(np.logspace(0.0, math.log10(top), k)).astype(np.int64))
 
 
+def oadev(x: np.ndarray, rate_hz: float, m: np.ndarray) -> np.ndarray:
+    """(len(m),) overlapping Allan deviation of the rate samples ``x`` (N,) at ``rate_hz`` Hz
+    for the averaging factors ``m`` (integers; τ = m/rate), in x's unit; NaN where fewer than
+    two second differences fit. The phase is the cumulative sum of x less its mean (from 0,
+    N + 1 points); σ²(τ) = Σ (φ[i+2m] − 2φ[i+m] + φ[i])² / (2·(N + 1 − 2m)·τ²)."""
+    x = np.asarray(x, dtype=np.float64)
+    phase = np.concatenate([[0.0], np.cumsum(x - np.mean(x)) / rate_hz])
+    out = np.full(len(m), np.nan)
+    for k, mk in enumerate(np.asarray(m, dtype=np.int64)):
+        n = phase.size - 2 * int(mk)
+        if mk < 1 or n < 2:
+            continue
+        d = phase[2 * mk :] - 2.0 * phase[mk : mk + n] + phase[:n]
+        out[k] = math.sqrt(float(d @ d) / (2.0 * n)) * rate_hz / float(mk)
+    return out
+
+
 def allan_curve(x: np.ndarray, rate_hz: float, points_per_decade: int = 8) -> AllanCurve:
-    """Overlapping Allan deviation (``allantools.oadev``) of the rate samples ``x`` (N,)
-    taken at ``rate_hz`` Hz, on a log-spaced τ grid up to a third of the length."""
+    """Overlapping Allan deviation (:func:`oadev`) of the rate samples ``x`` (N,) taken at
+    ``rate_hz`` Hz, on a log-spaced τ grid up to a third of the length."""
     x = np.asarray(x, dtype=np.float64)
     if x.size < 16:
         raise ValueError(f"{x.size} samples: at least 16 are needed for an Allan deviation")
     m = tau_grid(x.size, points_per_decade)
-    taus, adev, _, _ = _allantools().oadev(x, rate=rate_hz, data_type="freq", taus=m / rate_hz)
-    taus = np.asarray(taus, dtype=np.float64)
-    adev = np.asarray(adev, dtype=np.float64)
+    adev = oadev(x, rate_hz, m)
     ok = np.isfinite(adev) & (adev > 0)
-    return AllanCurve(taus[ok], adev[ok], int(x.size), float(rate_hz))
+    return AllanCurve(m[ok] / float(rate_hz), adev[ok], int(x.size), float(rate_hz))
 
 
 def basis(tau_s: np.ndarray) -> np.ndarray:
@@ -116,8 +128,42 @@ def basis(tau_s: np.ndarray) -> np.ndarray:
     return np.column_stack([1.0 / t, np.full_like(t, FLICKER_AVAR), t / 3.0])
 
 
-#: Greenhall's J_max: above it his EDF takes a closed form (allantools.ci.edf_greenhall)
+#: Greenhall's J_max: above it his EDF takes a closed form or a shortened sum
 _J_MAX = 100
+#: Greenhall & Riley's Table 2, d = 2: (a0, a1) of 1/edf = (a0 − a1/r)/r for the unmodified
+#: overlapping Allan variance when J > J_max and r = M/m > 3, per noise exponent α
+_TABLE2 = {0: (2.0 / 3.0, 1.0 / 3.0), -1: (0.852, 0.375), -2: (1.079, 0.368)}
+
+
+def _sw(t: np.ndarray, alpha: int) -> np.ndarray:
+    """Greenhall's s_w(t) for the noise exponent ``alpha`` (2 … −2)."""
+    a = np.abs(t)
+    if alpha in (1, -1):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out = a ** (3 - alpha) * np.log(a)
+        return np.where(a == 0.0, 0.0, out)
+    return {2: -a, 0: a**3, -2: a**5}[alpha]
+
+
+def _sx(t: np.ndarray, f: float, alpha: int) -> np.ndarray:
+    """Greenhall's s_x(t): the filter of F = ``f`` samples (inf: its limit)."""
+    if math.isinf(f):
+        return _sw(t, alpha + 2)
+    return f * f * (2.0 * _sw(t, alpha) - _sw(t - 1.0 / f, alpha) - _sw(t + 1.0 / f, alpha))
+
+
+def _sz(t: np.ndarray, f: float, alpha: int) -> np.ndarray:
+    """Greenhall's s_z(t) for second differences (d = 2)."""
+    t = np.asarray(t, dtype=np.float64)
+    return (6.0 * _sx(t, f, alpha) - 4.0 * (_sx(t - 1.0, f, alpha) + _sx(t + 1.0, f, alpha))
+            + _sx(t - 2.0, f, alpha) + _sx(t + 2.0, f, alpha))  # fmt: skip
+
+
+def _basic_sum(j_big: int, big_m: float, s: float, f: float, alpha: int) -> float:
+    """Greenhall's BasicSum: s_z(0)² + (1 − J/M)·s_z(J/S)² + 2·Σ_{j<J} (1 − j/M)·s_z(j/S)²."""
+    j = np.arange(1, j_big, dtype=np.float64)
+    z = _sz(np.concatenate([[0.0, j_big / s], j / s]), f, alpha) ** 2
+    return float(z[0] + (1.0 - j_big / big_m) * z[1] + 2.0 * np.sum((1.0 - j / big_m) * z[2:]))
 
 
 def edf(alpha: int, m: int, n: int) -> float:
@@ -128,14 +174,29 @@ def edf(alpha: int, m: int, n: int) -> float:
     Where Greenhall sums J = 3m terms (case 2.1: 3m ≤ J_max, M = n − 2m + 1 ≥ 3m estimator
     terms), his eq. (10) is 1/edf = (A − B/M)/M with A, B depending on (α, m) only: they are
     summed once per (α, m) (:func:`_greenhall_ab`), so the planner's many lengths cost nothing
-    more; elsewhere ``allantools.edf_greenhall`` is called."""
+    more. Elsewhere: his sum over J = M terms (M ≤ J_max), the table's closed form (r = M/m >
+    3) or the sum shortened to J_max terms."""
     if 2 * m + 1 > n:
         return 1.0
+    alpha, m = int(alpha), int(m)
     big_m = n - 2 * m + 1  # Greenhall's M for N = n + 1 phase points, d = 2, F = S = m
     if 3 * m <= _J_MAX and big_m >= 3 * m:
-        a, b = _greenhall_ab(int(alpha), int(m))
+        a, b = _greenhall_ab(alpha, m)
         return 1.0 / ((a - b / big_m) / big_m)
-    return float(_allantools().edf_greenhall(alpha, 2, int(m), int(n) + 1, overlapping=True))
+    j_big = min(big_m, 3 * m)
+    if j_big <= _J_MAX:
+        f = float(m) if 3 * m <= _J_MAX else math.inf
+        return (
+            big_m
+            * float(_sz(np.zeros(1), f, alpha)[0]) ** 2
+            / _basic_sum(j_big, big_m, m, f, alpha)
+        )
+    r = big_m / m
+    if r > 3.0:
+        a0, a1 = _TABLE2[alpha]
+        return 1.0 / ((a0 - a1 / r) / r)
+    z0 = float(_sz(np.zeros(1), math.inf, alpha)[0]) ** 2
+    return _J_MAX * z0 / _basic_sum(_J_MAX, _J_MAX, _J_MAX / r, math.inf, alpha)
 
 
 @functools.lru_cache(maxsize=4096)
@@ -143,12 +204,12 @@ def _greenhall_ab(alpha: int, m: int) -> tuple[float, float]:
     """A, B of 1/edf = (A − B/M)/M for Greenhall's case 2.1 with J = 3m (overlapping Allan
     variance, d = 2, F = S = m): his BasicSum (eq. 10) split into the part independent of M
     (A) and the part proportional to 1/M (B), both over s_z(0)²."""
-    ci = _allantools().ci
     j_big = 3 * m
-    z = [ci.greenhall_sz(j / m, m, alpha, 2) ** 2 for j in range(j_big + 1)]
-    a = z[0] + z[j_big] + 2.0 * sum(z[1:j_big])
-    b = j_big * z[j_big] + 2.0 * sum(j * z[j] for j in range(1, j_big))
-    return a / z[0], b / z[0]
+    j = np.arange(j_big + 1, dtype=np.float64)
+    z = _sz(j / m, float(m), alpha) ** 2
+    a = z[0] + z[j_big] + 2.0 * float(np.sum(z[1:j_big]))
+    b = j_big * z[j_big] + 2.0 * float(np.sum(j[1:j_big] * z[1:j_big]))
+    return float(a / z[0]), float(b / z[0])
 
 
 def chi2_interval(var: np.ndarray, dof: np.ndarray, ci: float = CI_LEVEL) -> tuple:

@@ -194,14 +194,29 @@ def test_noise_file_with_a_newer_version_is_refused(tmp_path) -> None:
         recording.load_noise_file(p)
 
 
-def test_fast_greenhall_edf_and_local_slopes_equal_the_library_and_polyfit() -> None:
-    """The planner's shortcuts (Greenhall's sum split once per (alpha, m); slopes of every
-    point at once) give what allantools and np.polyfit give, on every branch of Greenhall."""
+def test_allan_deviation_equals_the_library_on_every_tau() -> None:
+    """The overlapping Allan deviation from cumulative sums is the library's, at every τ of the
+    grid, on data with a large mean and a random walk (the sum's round-off would show)."""
+    from host.model import allan
+
+    rng = np.random.default_rng(9)
+    x = 40.0 + np.cumsum(rng.normal(size=50_000)) * 1e-3 + rng.normal(size=50_000)
+    curve = allan.allan_curve(x, 200.0)
+    m = allan.tau_grid(x.size)
+    taus, ref, _, _ = allantools.oadev(x, rate=200.0, data_type="freq", taus=m / 200.0)
+    np.testing.assert_allclose(curve.tau_s, taus, rtol=1e-15)
+    np.testing.assert_allclose(curve.adev, ref, rtol=1e-12)
+
+
+def test_greenhall_edf_and_local_slopes_equal_the_library_and_polyfit() -> None:
+    """Greenhall's degrees of freedom (the sum split once per (alpha, m), the full and the
+    shortened sums, the table's closed form) and the slopes of every point at once give what
+    allantools and np.polyfit give, on every branch of Greenhall."""
     from host.model import allan
 
     for alpha in (0, -1, -2):
-        for m in (1, 2, 7, 33, 34, 80, 400):
-            for n in (60, 101, 250, 4_000, 123_457):
+        for m in (1, 2, 7, 33, 34, 80, 400, 1000):
+            for n in (60, 101, 250, 1_000, 2_500, 4_000, 123_457):
                 if 2 * m + 1 > n:
                     continue
                 ref = float(allantools.edf_greenhall(alpha, 2, m, n + 1, overlapping=True))
