@@ -85,7 +85,7 @@ def run_capture(args: Any) -> int:
             f"no samples from the board in {elapsed:.1f} s ({args.file} holds what came); "
             "is it streaming? (python -m host flash checks its HELLO)"
         )
-    return 0
+    return stop.status  # 0 when --seconds ran out; Ctrl+C 130 (the file is whole either way)
 
 
 class _StopOnCtrlC:
@@ -98,10 +98,13 @@ class _StopOnCtrlC:
 
     def __init__(self) -> None:
         self.requested = False
+        #: the exit status the signal asks for (128 + its number: Ctrl+C 130, as every command)
+        self.status = 0
         self._old: dict[int, Any] = {}
 
-    def _on_signal(self, _signum: int, _frame: Any) -> None:
+    def _on_signal(self, signum: int, _frame: Any) -> None:
         self.requested = True
+        self.status = 128 + int(signum)
 
     def __enter__(self) -> _StopOnCtrlC:
         if threading.current_thread() is threading.main_thread():  # signals go to it only

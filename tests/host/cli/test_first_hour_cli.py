@@ -98,7 +98,7 @@ def test_capture_shows_progress_and_runs_until_ctrl_c(tmp_path: Path) -> None:
     time.sleep(0.3)
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=30)
-    assert proc.returncode == 0, err
+    assert proc.returncode == 130, err  # interrupted, as every command says (the file is whole)
     stats = json.loads(out)
     assert stats["samples"] > 40 and "holds" in err
     assert len(decode_bulk(cap.read_bytes()).samples) == stats["samples"]
