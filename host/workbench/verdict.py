@@ -224,6 +224,8 @@ def _after_shared(
     misfit = max(fit.chi2 - fit.dof, 0.0)
     removed = fit.chi2 - inner.fit.chi2
     notes = list(ds.notes)
+    if fit.uncertainty_note():  # the parameters shown are this fit's: say how their σ were made
+        notes.append(fit.uncertainty_note())
     notes.append(
         f"{top.label} (one set of parameters for every channel) explains the most; the "
         f"diagnosis of the model with it: {inner.verdict}"

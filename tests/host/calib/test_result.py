@@ -162,11 +162,13 @@ def test_three_attitudes_one_way_turns(tmp_path: Path, capsys: pytest.CaptureFix
     assert "add any one of: x_dn, y_dn, z_dn" in " ".join(text.split())
     # the workbench never calls it adequate: it names the channels nothing tests, and the
     # accelerometer's rests inside the turns draw the plate's 5 mrad tilt circle, which the
-    # base model does not explain (it used to read that circle as a 4.6 mrad hand "seating"
+    # base model does not explain and plate_tilt does (the statics' unknown headings carried
+    # as unknowns of their own; it used to read that circle as a 4.6 mrad hand "seating"
     # scatter, because the x turn sat 180° from the assumed heading, and said "untestable")
     assert main(["model", "diagnose", str(tmp_path), "--json"]) == 0
     diag = json.loads(capsys.readouterr().out)
-    assert diag["verdict"] == "unexplained"
+    assert diag["verdict"] == "missing_effect"
+    assert diag["recommended"] == "plate_tilt:accel:xyz"
     assert any("no degrees of freedom on gyro x, gyro y, gyro z" in n for n in diag["notes"])
     assert any(n.startswith("plate tilt 5.") for n in diag["notes"])
 
