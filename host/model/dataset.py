@@ -13,7 +13,7 @@ import numpy as np
 
 from host.errors import UserError
 from host.model.noise import NoiseModel, session_floor
-from host.model.plate import resolve_placements
+from host.model.plate import resolve_placements, resolve_turn_axes, session_plate
 from host.model.rows import (
     RowTable,
     add_block_means,
@@ -286,6 +286,14 @@ def build_dataset(
     apply_serial_correlation(table, nm.max_lag)
     signals, plate_notes = resolve_placements(signals, g)
     notes.extend(plate_notes)
+    signals, tilted = resolve_turn_axes(signals, session_plate(signals))
+    notes.extend(a.line() for a in tilted)
+    moved = {i for i, s in enumerate(signals) if s.name in {a.record for a in tilted}}
+    for ch in table.channels:  # the ideal sensor's value of a turn now about its measured axis
+        if ch.record in moved:
+            ref = ch.aggregator @ signals[ch.record].reference(ch.sensor)[:, ch.axis]
+            for row, v in zip(ch.rows, ref, strict=True):
+                table.nominal[row] = float(v)
     floors, floor_note = session_floor(_static_blocks(table, signals), nm)
     notes.append(floor_note)
     seat, seat_note = seating_sigma(signals, sensor_aggs, table.channels, n_still)
