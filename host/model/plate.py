@@ -16,6 +16,11 @@ whose heading is recorded, and — where a record has no heading — the heading
 circle up with the others, as an estimate with its σ (never a convention). With no heading
 recorded at all, the azimuth is given relative to the first turn's reference axis.
 
+:func:`resolve_turn_axes`: the axis each turn was made about, from its circle's centre against
+the static of the same face; a turn made with the cube seated off its face (a few degrees) is
+named, and its reference rate taken along the measured axis so that the gyro cross-axis values
+it would fake are corrected.
+
 Units: rad for tilts, m/s² for specific force, degrees for headings (counter-clockwise seen
 from above, from the fence to the reference axis).
 """
