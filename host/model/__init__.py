@@ -7,8 +7,8 @@ figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imp
 
 - ``geometry`` — placement: the cube's pose from its up vector, the plate's axes at a heading, the
   operator's words for a placement.
-- ``plate`` — the plate's tilt from the circle the turns' rests draw; headings records lack; the axis each
-  turn was made about (a tilted seat named and corrected).
+- ``plate`` — the plate's tilt from the circle the turns' rests draw; headings records lack; the
+  axis each turn was made about (a tilted seat named and corrected).
 - ``signals`` — a record's reference signals (force, rate, temperature, time, heading); units.
 - ``terms`` — the :class:`Term` type and the ``@term`` / ``@nonlinear_term`` decorators.
 - ``catalogue`` — the built-in terms (``base`` = method.md §2, and the §8 effects), plausibility.
