@@ -36,7 +36,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 from host.bench.linksim import LinkParams, simulate_link  # noqa: E402
-from host.wire.capture import MAGIC  # noqa: E402
+from host.wire.capture import MAGIC, MAX_READ  # noqa: E402
 from host.wire.frames import encode_imu_samples  # noqa: E402
 
 BLOCK = 64 << 20
@@ -84,8 +84,9 @@ def write_sparse_cap(path: Path, mib: int) -> None:
         for reads in board_minutes(max(mib * (1 << 20) // BLOCK, 1)):
             for t, b in reads:
                 f.write(struct.pack("<QI", t, len(b)) + b)
-            f.write(struct.pack("<QI", reads[-1][0] + 1000, BLOCK))
-            f.seek(BLOCK, os.SEEK_CUR)  # a 64 MiB read of zeros, not written: sparse
+            for k in range(BLOCK // MAX_READ):  # 64 MiB of zeros in the largest reads there are
+                f.write(struct.pack("<QI", reads[-1][0] + 1000 * (k + 1), MAX_READ))
+                f.seek(MAX_READ, os.SEEK_CUR)  # not written: sparse
         f.truncate()
 
 

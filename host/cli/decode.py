@@ -152,12 +152,8 @@ class _Decode:
             print(f"warning: {self.path}: {self.bus_warning}", file=sys.stderr)
         if self.config is not None and (unknown := sensor.revision_warning(self.config[2])):
             print(f"warning: {self.path}: {unknown}", file=sys.stderr)
-        if reader.truncated_bytes:
-            print(
-                f"warning: {self.path}: the last {reader.truncated_bytes} bytes are a cut-off "
-                "read (the recording was interrupted); decoded everything before them",
-                file=sys.stderr,
-            )
+        if warning := capture.damage_text(self.path, reader.truncated_bytes, reader.skipped):
+            print(warning, file=sys.stderr)
         if self.args.stats:
             stats: dict[str, Any] = reader.stats.as_dict()
             if self.timeline is not None:

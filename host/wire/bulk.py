@@ -328,6 +328,8 @@ class BulkReader:
         self.decoder = ChunkedDecoder(sender)
         self.is_capture = False
         self.truncated_bytes = 0
+        #: damaged places of a capture skipped: (file offset, bytes) each (at the end)
+        self.skipped: tuple[tuple[int, int], ...] = ()
         self._unwrap: CaptureUnwrapper | None = None
 
     @property
@@ -355,8 +357,10 @@ class BulkReader:
             data = self.stream.read(self.chunk)
             if not data:
                 break
-        if self._unwrap is not None:
+        if self._unwrap is not None:  # the last read (held until the end was known)
+            yield self._result(self.decoder.feed(self._unwrap.finish()))
             self.truncated_bytes = self._unwrap.truncated_bytes
+            self.skipped = tuple(self._unwrap.skipped)
         last = self.decoder.flush()
         last.stats.bytes_discarded += self.truncated_bytes
         self.decoder.stats.bytes_discarded += self.truncated_bytes
@@ -422,12 +426,8 @@ def decode_file(path: Path) -> tuple[BulkResult, np.ndarray | None]:
     arrivals = None
     if raw.startswith(capture.MAGIC):
         cap = capture.parse(raw, source=str(path))
-        if cap.truncated_bytes:
-            print(
-                f"warning: {path}: the last {cap.truncated_bytes} bytes are a cut-off read "
-                "(the recording was interrupted); decoded everything before them",
-                file=sys.stderr,
-            )
+        if warning := capture.damage_text(path, cap.truncated_bytes, cap.skipped):
+            print(warning, file=sys.stderr)
         result = decode_bulk(cap.data)
         arrivals = cap.arrival_ns_at(result.samples["offset"] + IMU_FRAME_LEN - 1)
     else:

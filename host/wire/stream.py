@@ -182,6 +182,8 @@ class FrameReader:
                     continue
                 if head:  # shorter than the magic: plain bytes
                     yield from self.decoder.feed_raw(head)
+                if unwrap is not None:  # the last read (held until the end was known)
+                    yield from self.decoder.feed_raw(unwrap.finish())
                 yield from self.decoder.flush()
                 return
             if head is not None:

@@ -77,6 +77,7 @@ def test_capture_unwrapper_with_times_equals_parse(
         k = pieces[i % len(pieces)]
         got += u.feed(raw[pos : pos + k])
         pos, i = pos + k, i + 1
+    got += u.finish()
     assert bytes(got) == want.data
     assert u.truncated_bytes == want.truncated_bytes
     offsets = np.arange(len(got))
@@ -84,14 +85,23 @@ def test_capture_unwrapper_with_times_equals_parse(
         assert np.array_equal(u.arrival_ns_at(offsets), want.arrival_ns_at(offsets))
 
 
-def test_a_read_longer_than_the_hold_streams_through() -> None:
-    """A made-up capture with one 5 MiB read: passed on as it comes, not held whole."""
+def test_a_read_longer_than_any_port_read_is_damage_and_memory_stays_bounded() -> None:
+    """A made-up header claiming a 5 MiB read (no port read is above MAX_READ) in front of
+    5 MiB of zeros and then two real reads: the zeros are skipped as one damaged place, the
+    reads after them come through, and what is held at a time stays a few MAX_READ."""
     body = bytes(5 << 20)
-    raw = capture.MAGIC + struct.pack("<QI", 123, len(body)) + body
-    u = capture.CaptureUnwrapper(times=True, hold=1 << 20)
-    passed = [len(u.feed(raw[i : i + (1 << 19)])) for i in range(0, len(raw), 1 << 19)]
-    assert sum(passed) == len(body) and max(passed) <= (1 << 20) + (1 << 19)
-    assert u.truncated_bytes == 0 and u.arrival_ns_at(np.array([len(body) - 1]))[0] == 123
+    tail = struct.pack("<QI", 200, 3) + b"abc" + struct.pack("<QI", 300, 2) + b"de"
+    raw = capture.MAGIC + struct.pack("<QI", 123, len(body)) + body + tail
+    u = capture.CaptureUnwrapper(times=True)
+    passed, held = [], []
+    for i in range(0, len(raw), 1 << 19):
+        passed.append(u.feed(raw[i : i + (1 << 19)]))
+        held.append(len(u._buf))
+    passed.append(u.finish())
+    assert b"".join(passed) == b"abcde" and u.truncated_bytes == 0
+    assert u.skipped == [(8, 12 + len(body))]
+    assert max(held) <= (capture.RESYNC_CHAIN + 2) * (capture.MAX_READ + 12) + (1 << 19)
+    assert list(u.arrival_ns_at(np.arange(5))) == [200, 200, 200, 300, 300]
 
 
 def link_capture() -> LinkCapture:
