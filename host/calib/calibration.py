@@ -385,6 +385,7 @@ def calibrate_from_records(
         fit.chi2, fit.dof, fit.rms_z, fit.chi2_p, verdict, fit.untestable, fit.uncertainty_note()
     )
     return CalibrationResult(
+        covariance=_covariance(fit.covariance, params),
         serial=session.serial,
         created=created or datetime.now().astimezone().isoformat(timespec="seconds"),
         g=g,
@@ -412,6 +413,23 @@ def calibrate_from_records(
         thermal_source=thermal_source,
         provenance=prov,
     )  # fmt: skip
+
+
+def _covariance(
+    fit_cov: np.ndarray | None, params: tuple[ParameterResult, ...]
+) -> tuple[tuple[float, ...], ...]:
+    """The result's covariance: the fit's over its parameters (the first ones), the carried
+    bias(T) terms after them with their own variances (another fit: no cross terms), NaN
+    for what is not determined."""
+    n = len(params)
+    out = np.diag([p.stderr**2 for p in params]).astype(np.float64)
+    if fit_cov is not None:
+        k = min(len(fit_cov), n)
+        out[:k, :k] = fit_cov[:k, :k]
+    bad = np.array([not math.isfinite(p.stderr) for p in params], dtype=bool)
+    out[bad, :] = np.nan
+    out[:, bad] = np.nan
+    return tuple(tuple(float(x) for x in row) for row in out)
 
 
 def _with_thermal(

@@ -119,6 +119,9 @@ class CalibrationResult:
     thermal_source: str = ""
     #: where the records came from (format v3; None: an older file, or made without records)
     provenance: Provenance | None = None
+    #: the parameters' full covariance, in the order of ``parameters`` (diagonal: stderr²;
+    #: NaN rows for undetermined ones); () when the file carried none (v1, v2)
+    covariance: tuple[tuple[float, ...], ...] = ()
     #: format version of the file this was loaded from
     loaded_version: int = 3
 
@@ -259,6 +262,13 @@ class CalibrationResult:
             "closed_form": jsonable(dict(self.closed_form)),
             "combinations": list(self.combinations),
             "residuals": [r.to_dict() for r in self.residuals],
+            "covariance": None
+            if not self.covariance
+            else {
+                "names": [p.name for p in self.parameters],
+                "matrix": jsonable(self.covariance),
+                "units": "the product of the two parameters' units",
+            },
             "notes": list(self.notes),
             "verification": None if self.verification is None else self.verification.to_dict(),
             "thermal": None
@@ -446,6 +456,19 @@ def _from_v1(d: Mapping[str, Any]) -> CalibrationResult:
     )
 
 
+def _covariance(doc: Any, names: list[str]) -> tuple[tuple[float, ...], ...]:
+    """A file's ``covariance`` ({names, matrix}) in the order of ``names``; () for none.
+    ValueError when it does not cover every parameter or is not a square matrix."""
+    if doc is None:
+        return ()
+    cnames = [str(n) for n in doc["names"]]
+    m = np.array([[as_float(x) for x in row] for row in doc["matrix"]], dtype=np.float64)
+    if m.shape != (len(cnames), len(cnames)) or sorted(cnames) != sorted(names):
+        raise ValueError("covariance: not a square matrix over every parameter")
+    idx = [cnames.index(n) for n in names]
+    return tuple(tuple(float(x) for x in row) for row in m[np.ix_(idx, idx)])
+
+
 def _from_v2(d: Mapping[str, Any], version: int) -> CalibrationResult:
     """Format v2, and v3 with its ``provenance``."""
     fit = d.get("fit")
@@ -456,6 +479,7 @@ def _from_v2(d: Mapping[str, Any], version: int) -> CalibrationResult:
     return CalibrationResult(
         loaded_version=version,
         provenance=None if prov is None else Provenance.from_dict(prov),
+        covariance=_covariance(d.get("covariance"), [str(p["name"]) for p in d["parameters"]]),
         model=str(d["model"]),
         parameters=tuple(ParameterResult.from_dict(p) for p in d["parameters"]),
         noise_std={str(k): as_float(v["value"]) for k, v in d["noise_std"].items()},

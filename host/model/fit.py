@@ -160,6 +160,9 @@ class Fit:
     spans: tuple[SpanResidual, ...]
     undetermined: tuple[str, ...]
     channels: tuple[ChannelFit, ...] = ()
+    #: the parameters' covariance (order of ``parameters``, the standard errors' scaling
+    #: applied, so its diagonal is stderr²); NaN rows and columns for undetermined ones
+    covariance: np.ndarray | None = None
 
     @property
     def untestable(self) -> tuple[str, ...]:
@@ -269,11 +272,16 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
         if not ok:
             undetermined.append(name)
     groups, spans_out = residual_tables(ds, predicted, resid, basis)
+    scale = np.array([scale_of.get(ch, 1.0) for (_, _, ch, _, _) in owners])
+    pcov = cov * np.outer(scale, scale)
+    bad = ~(keep & estimable)
+    pcov[bad, :] = np.nan
+    pcov[:, bad] = np.nan
     return Fit(
         model=model, parameters=tuple(params), predicted=predicted, residual=resid,
         white_residual=wres, basis=basis, chi2=chi2, dof=ds.n_rows - n_par, n_params=n_par,
         groups=groups, spans=spans_out, undetermined=tuple(undetermined),
-        channels=tuple(channels),
+        channels=tuple(channels), covariance=pcov,
     )  # fmt: skip
 
 
