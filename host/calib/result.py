@@ -457,13 +457,14 @@ def _from_v1(d: Mapping[str, Any]) -> CalibrationResult:
 
 
 def _covariance(doc: Any, names: list[str]) -> tuple[tuple[float, ...], ...]:
-    """A file's ``covariance`` ({names, matrix}) in the order of ``names``; () for none.
-    ValueError when it does not cover every parameter or is not a square matrix."""
+    """A file's ``covariance`` ({names, matrix}) over ``names``, in their order (names it has
+    beyond them are left out: their marginal); () for none. ValueError when it does not cover
+    every parameter or is not a square matrix."""
     if doc is None:
         return ()
     cnames = [str(n) for n in doc["names"]]
     m = np.array([[as_float(x) for x in row] for row in doc["matrix"]], dtype=np.float64)
-    if m.shape != (len(cnames), len(cnames)) or sorted(cnames) != sorted(names):
+    if m.shape != (len(cnames), len(cnames)) or not set(names) <= set(cnames):
         raise ValueError("covariance: not a square matrix over every parameter")
     idx = [cnames.index(n) for n in names]
     return tuple(tuple(float(x) for x in row) for row in m[np.ix_(idx, idx)])

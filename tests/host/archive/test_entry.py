@@ -43,7 +43,7 @@ def _sha(p: Path) -> str:
     return hashlib.sha256(p.read_bytes()).hexdigest()
 
 
-def test_the_entry_proves_which_files_it_came_from(calibrated: Path) -> None:
+def test_the_entry_proves_which_files_it_came_from(calibrated: Path, tmp_path: Path) -> None:
     e = entry_from_directory(calibrated, bench="B2", operator="ana")
     doc = json.loads((calibrated / "E1_result.json").read_text())
     assert e.serial == "E1" and (e.bench, e.operator) == ("B2", "ana")
@@ -55,11 +55,19 @@ def test_the_entry_proves_which_files_it_came_from(calibrated: Path) -> None:
     assert [p.value for p in e.parameters] == pytest.approx([p["value"] for p in doc["parameters"]])
     assert e.verdict == ("pass" if doc["all_passed"] else "fail")
     assert e.fit_verdict == doc["fit"]["verdict"]
-    # the result file carries σ only: the covariance is their diagonal
-    assert e.covariance_kind == "diagonal"
+    # the result file carries the full covariance: kept whole, its diagonal the σ²
+    assert e.covariance_kind == "full"
     cov = np.array(e.covariance)
     assert np.allclose(np.sqrt(np.diag(cov)), [p.stderr for p in e.parameters])
-    assert np.count_nonzero(cov - np.diag(np.diag(cov))) == 0
+    assert np.count_nonzero(cov - np.diag(np.diag(cov))) > 0
+    # an older file with the σ only: their diagonal, said so
+    del doc["covariance"]
+    d = _copy(calibrated, tmp_path / "old")
+    (d / "E1_result.json").write_text(json.dumps(doc), encoding="utf-8")
+    old = entry_from_directory(d)
+    assert old.covariance_kind == "diagonal"
+    c0 = np.array(old.covariance)
+    assert np.count_nonzero(c0 - np.diag(np.diag(c0))) == 0
     assert e.temp_min_c <= e.temp_mean_c <= e.temp_max_c
 
 
