@@ -245,6 +245,7 @@ def run_session(case: Case, seed: int, workdir: Path) -> dict[str, Any]:
         signals=[{k: s.get(k) for k in ("sensor", "axis", "signal", "text")}
                  for s in diag.get("unexplained_signals", [])[:3]],
         significant=[c["label"] for c in diag.get("candidates", []) if c.get("significant")][:5],
+        equals=[{"terms": e["terms"], "signals": e["signals"]} for e in diag.get("equals", [])],
     )  # fmt: skip
     for note in diag.get("notes", []):
         if str(note).startswith("noise floor of a record mean:"):
@@ -294,6 +295,12 @@ def _recommends(rec: str | None, term: str) -> bool:
             continue
         return True
     return False
+
+
+def _non_base(spec: str) -> list[str]:
+    """The entries of a model spec that are not base terms."""
+    base = ("bias:", "scale:", "misalignment:", "g_sensitivity:")
+    return [x for x in spec.split(",") if x and not x.startswith(base)]
 
 
 def _generic(text: str, e: dict[str, Any]) -> str:
@@ -350,6 +357,23 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                     _recommends(r["recommended"], case.term(t))
                     for r, t in zip(ok, truths, strict=True)
                 )
+                in_group = [
+                    any(_recommends(",".join(e["terms"]), case.term(t))
+                        for e in r.get("equals", []))
+                    for r, t in zip(ok, truths, strict=True)
+                ]  # fmt: skip
+                sm["eq_hit"] = sum(in_group)
+                # named (recommended, or in a group of equals) and the expected term takes
+                # RMS z down ≥ 3× to ≤ 1.5
+                sm["falls_named"] = sum(
+                    (g or _recommends(r["recommended"], case.term(t)))
+                    and (a := r.get("rms_z_after_term")) is not None
+                    and a <= 1.5 and 3 * a <= r["rms_z"]
+                    for r, t, g in zip(ok, truths, in_group, strict=True)
+                )  # fmt: skip
+            sm["single_term"] = sum(
+                bool(r["recommended"]) and len(_non_base(r["recommended"])) == 1 for r in ok
+            )
             sm["rec_any"] = sum(bool(r["recommended"]) for r in ok)
             sm["rec_most"] = _most(
                 [_generic(r["recommended"], r["effect"]) for r in ok if r["recommended"]]
@@ -359,10 +383,13 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                           f"{r['signals'][0]['signal']}", r["effect"]) for r in ok if r["signals"]]
             )  # fmt: skip
             if case.signal is not None:
+                # the strongest unexplained signal, or (none) a signal in a group of equals
                 sm["named_top"] = sum(
-                    bool(r["signals"]) and case.signal(r["signals"][0], t)
+                    case.signal(r["signals"][0], t) if r["signals"]
+                    else any(case.signal(sg, t) for e in r.get("equals", [])
+                             for sg in e["signals"])
                     for r, t in zip(ok, truths, strict=True)
-                )
+                )  # fmt: skip
             if case.names:
                 sm["named_term"] = sum(
                     any(_recommends(lab, f"{n}:{r['effect']['sensor']}:{r['effect']['axis']}")
@@ -480,9 +507,13 @@ def tables(summary: dict[str, Any], pull_min_n: int = 1) -> str:
         lines.append("   expected term recommended; any = some term recommended; top = the right")
         lines.append("   top signal; →rec, →term = RMS z after adding the recommended/expected")
         lines.append("   term; fall = RMS z falls ≥ 3× to ≤ 1.5 after the recommended term;")
-        lines.append("   sig = time_drift significant on the effect's channel (named a drift)")
+        lines.append("   sig = time_drift significant on the effect's channel (named a drift);")
+        lines.append("   eq = the expected term in a group of equals; one = a single non-base")
+        lines.append("   term recommended; fall* = named (rec or eq) and the expected term")
+        lines.append("   takes RMS z down ≥ 3× to ≤ 1.5")
         lines.append(f"{'case':<17}{'n':>3}{'a/m/u':>9}{'rec':>5}{'any':>5}{'top':>5}"
-                     f"{'RMS z':>8}{'→rec':>7}{'→term':>7}{'fall':>6}{'sig':>5}")  # fmt: skip
+                     f"{'RMS z':>8}{'→rec':>7}{'→term':>7}{'fall':>6}{'sig':>5}"
+                     f"{'eq':>4}{'one':>4}{'fall*':>6}")  # fmt: skip
         for k in eff:
             s = summary[k]
             v = s["verdicts"]
@@ -492,7 +523,8 @@ def tables(summary: dict[str, Any], pull_min_n: int = 1) -> str:
                 f"{_f(s.get('rec_any'), 'd'):>5}{_f(s.get('named_top'), 'd'):>5}"
                 f"{_f(s['rms_z_med']):>8}{_f(s.get('after_rec_med')):>7}"
                 f"{_f(s.get('after_term_med')):>7}{_f(s.get('falls_3x_to_1_5'), 'd'):>6}"
-                f"{_f(s.get('named_term'), 'd'):>5}"
+                f"{_f(s.get('named_term'), 'd'):>5}{_f(s.get('eq_hit'), 'd'):>4}"
+                f"{_f(s.get('single_term'), 'd'):>4}{_f(s.get('falls_named'), 'd'):>6}"
             )
     if eff:
         lines.append("")

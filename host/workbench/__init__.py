@@ -8,6 +8,8 @@ residual scan, the verdict, the refits and their words. Never imports the calibr
 - ``absorbed`` — the yardstick for a candidate whose signal a variance component takes up (a gyro
   scale asymmetry in the turn angle): the component estimated without it.
 - ``scan`` — the residuals against every signal (temperature, time, inputs, their squares).
+- ``equals`` — groups of equals: candidates and signals the records cannot tell apart, and the
+  records that would.
 - ``verdict`` — the whole diagnosis: compare, where it fails, what is missing, the verdict.
 - ``ladder`` — add a term (before → after) and the greedy ladder of models.
 - ``text`` — the words for people: diagnosis, addition, ladder, the catalogue, a demo's outcome.

@@ -118,7 +118,10 @@ def holm(p_values: Sequence[float], alpha: float = ALPHA) -> list[bool]:
 
 # ---- one candidate --------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
-class _Tried:
+class Tried:
+    """A term tried on top of a fit: its whitened columns orthogonal to the model, the
+    residual they explain, the coefficients and the drop of χ² (``reason``: why not)."""
+
     mt: ModelTerm
     ds: Dataset  # the yardstick it was tested against (:mod:`host.workbench.absorbed`)
     fit: Fit  # the model fitted on that yardstick
@@ -136,7 +139,7 @@ class _Tried:
         return self.mt.count(self.ds.signals)
 
 
-def _try(ds: Dataset, fit: Fit, mt: ModelTerm) -> _Tried:
+def try_term(ds: Dataset, fit: Fit, mt: ModelTerm) -> Tried:
     """Add ``mt`` to the fitted model by orthogonal projection (exact for linear terms)."""
     x, off = term_columns(ds, mt)
     cw = ds.whiten.apply(x)
@@ -165,40 +168,40 @@ def _try(ds: Dataset, fit: Fit, mt: ModelTerm) -> _Tried:
     if reason:
         k = cp.shape[1]
         nan_cov = np.full((k, k), np.nan)
-        return _Tried(mt, ds, fit, cp, r, np.full(k, np.nan), nan_cov, math.nan, reason)
+        return Tried(mt, ds, fit, cp, r, np.full(k, np.nan), nan_cov, math.nan, reason)
     beta, *_ = np.linalg.lstsq(cp, r, rcond=None)
     cov = np.linalg.inv(cp.T @ cp)
     after = r - cp @ beta
     delta = float(fit.white_residual @ fit.white_residual - after @ after)
-    return _Tried(mt, ds, fit, cp, r, beta, cov, delta, "")
+    return Tried(mt, ds, fit, cp, r, beta, cov, delta, "")
 
 
 def _try_own_yardstick(
     ds: Dataset, fit: Fit, mt: ModelTerm, cache: dict[frozenset[int], tuple[Dataset, Fit]]
-) -> _Tried:
-    """:func:`_try` against a yardstick without the candidate's own signal: a term that moves
+) -> Tried:
+    """:func:`try_term` against a yardstick without the candidate's own signal: a term that moves
     the turn closures is tested with the turn-angle σ of the other axes
     (:mod:`host.workbench.absorbed`); the model refitted on it once per set of axes."""
     axes = closure_axes(ds, mt)
     if not axes:
-        return _try(ds, fit, mt)
+        return try_term(ds, fit, mt)
     if axes not in cache:
         ds2 = without_turn_angle(ds, axes)
         cache[axes] = (ds2, fit if ds2 is ds else fit_model(ds2, fit.model))
-    return _try(*cache[axes], mt)
+    return try_term(*cache[axes], mt)
 
 
-def _same_yardstick(a: _Tried, b: _Tried) -> tuple[_Tried, _Tried]:
+def _same_yardstick(a: Tried, b: Tried) -> tuple[Tried, Tried]:
     """``a`` and ``b`` on one yardstick (the one without the turn-angle σ, if either has it)
     so that one can be tested given the other."""
     if a.ds is b.ds:
         return a, b
     if b.ds.turn_angle_sigma_deg < a.ds.turn_angle_sigma_deg:
-        return _try(b.ds, b.fit, a.mt), b
-    return a, _try(a.ds, a.fit, b.mt)
+        return try_term(b.ds, b.fit, a.mt), b
+    return a, try_term(a.ds, a.fit, b.mt)
 
 
-def _conditional_delta(a: _Tried, b: _Tried) -> float:
+def conditional_delta(a: Tried, b: Tried) -> float:
     """Δχ² of adding ``b`` to the model that already holds ``a`` (both orthogonal to it)."""
     a, b = _same_yardstick(a, b)
     if a.reason or b.reason:
@@ -206,7 +209,9 @@ def _conditional_delta(a: _Tried, b: _Tried) -> float:
     qa, _ = np.linalg.qr(a.cw_perp)
     cb = b.cw_perp - qa @ (qa.T @ b.cw_perp)
     ra = a.r - a.cw_perp @ a.beta
-    if np.any(np.linalg.norm(cb, axis=0) < IDENTIFIABLE_TOL * np.linalg.norm(b.cw_perp, axis=0)):
+    # a column of b that a already holds adds nothing; b's other columns may still add
+    cb = cb[:, np.linalg.norm(cb, axis=0) >= IDENTIFIABLE_TOL * np.linalg.norm(b.cw_perp, axis=0)]
+    if not cb.shape[1]:
         return 0.0
     beta, *_ = np.linalg.lstsq(cb, ra, rcond=None)
     after = ra - cb @ beta
@@ -237,7 +242,7 @@ def evaluate_candidates(
     fit: Fit,
     catalogue: Mapping[str, Term] | None = None,
     alpha: float = ALPHA,
-) -> tuple[list[Candidate], list[_Tried]]:
+) -> tuple[list[Candidate], list[Tried]]:
     """Try every candidate on ``fit``; Holm-correct; find confounded groups; sort best first."""
     cache: dict[frozenset[int], tuple[Dataset, Fit]] = {}
     tried = [_try_own_yardstick(ds, fit, mt, cache) for mt in candidate_terms(fit.model, catalogue)]
@@ -261,8 +266,8 @@ def evaluate_candidates(
                 continue
             if not (sig[id(a)] or sig[id(b)]):
                 continue
-            b_given_a = chi2_sf(_conditional_delta(a, b), b.n_params) <= alpha / m
-            a_given_b = chi2_sf(_conditional_delta(b, a), a.n_params) <= alpha / m
+            b_given_a = chi2_sf(conditional_delta(a, b), b.n_params) <= alpha / m
+            a_given_b = chi2_sf(conditional_delta(b, a), a.n_params) <= alpha / m
             if not b_given_a and not a_given_b:
                 confounded[id(a)].append(b.mt.label)
                 confounded[id(b)].append(a.mt.label)
@@ -270,7 +275,7 @@ def evaluate_candidates(
                 explained_by.setdefault(id(b), a.mt.label)
             elif b_given_a and not a_given_b:
                 explained_by.setdefault(id(a), b.mt.label)
-    out: list[tuple[Candidate, _Tried]] = []
+    out: list[tuple[Candidate, Tried]] = []
     for t in tried:
         mt = t.mt
         labels = mt.term.param_labels(mt.sensor, mt.axes[0])
@@ -308,7 +313,7 @@ def evaluate_candidates(
             )
         )  # fmt: skip
 
-    def key(item: tuple[Candidate, _Tried]) -> tuple[int, int, float]:
+    def key(item: tuple[Candidate, Tried]) -> tuple[int, int, float]:
         c = item[0]
         usable = c.significant and not c.explained_by and not c.implausible
         rank = 0 if usable else 1 if c.significant else 2
@@ -321,7 +326,7 @@ def evaluate_candidates(
 
     out.sort(key=key)
     # confounded partners right after the first of their group
-    ordered: list[tuple[Candidate, _Tried]] = []
+    ordered: list[tuple[Candidate, Tried]] = []
     placed: set[str] = set()
     by_label = {c.label: (c, t) for c, t in out}
     for c, t in out:
@@ -358,7 +363,7 @@ def _implausible(mt: ModelTerm, coefs: Mapping[str, tuple[float, float, str]], f
     return why
 
 
-def _rms_z_after(ds: Dataset, fit: Fit, t: _Tried) -> float:
+def _rms_z_after(ds: Dataset, fit: Fit, t: Tried) -> float:
     """RMS of the record/channel z after adding the candidate: the refit's whitened residual
     is r − C⊥·β; W⁻¹ brings it back to the rows."""
     resid_after = ds.whiten.inv_apply(t.r - t.cw_perp @ t.beta)

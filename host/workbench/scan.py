@@ -1,7 +1,8 @@
 """Unexplained structure: the residuals scanned against every signal.
 
 The residuals of a fit are correlated, channel by channel, with every signal of the records
-(temperature, time since power-on, each input, its square, its magnitude, rate², …); the drop in
+(temperature, its rate of change dT/dt, time since power-on, a step in time between two records,
+each input, its square, its magnitude, rate², …); the drop in
 χ² each signal would give is tested, Holm-corrected over the family. A signal that explains a
 channel better than any candidate term (:mod:`host.workbench.candidates`) is what the verdict
 calls unexplained.
@@ -84,6 +85,7 @@ def _signals(sensor: str) -> dict[str, SignalFn]:
         "(time since power-on)²": lambda s, sen, a: s.hours**2,
         f"|{inp}|²": lambda s, sen, a: np.sum(s.reference(sen) ** 2, axis=1),
         f"temperature × {inp} on the axis": lambda s, sen, a: s.d_temp * s.reference(sen)[:, a],
+        "dT/dt (the chip warming or cooling)": lambda s, sen, a: _warming(s),
     }
     for k, ax in enumerate(AXES):
         out[f"{inp} {ax}"] = _component(k, 1)
@@ -92,7 +94,26 @@ def _signals(sensor: str) -> dict[str, SignalFn]:
     if sensor == "gyro":
         for k, ax in enumerate(AXES):
             out[f"(specific force {ax})²"] = _force_squared(k)
+            out[f"|specific force {ax}|"] = _force_squared(k, power=1)
     return out
+
+
+def signal_functions(ds: Dataset, sensor: str) -> dict[str, SignalFn]:
+    """Every signal the scan tries on a channel of ``sensor``, by name (the steps in time and
+    the time signals only when the records carry their time since power-on)."""
+    out = {**_signals(sensor), **(_steps(ds) if ds.time_known else {})}
+    if not ds.time_known:
+        out = {k: v for k, v in out.items() if not k.startswith("(time")}
+    return out
+
+
+def _warming(s: RecordSignals) -> np.ndarray:
+    """(N,) the record's rate of change of chip temperature, °C/s: the least-squares slope of
+    its temperature over its time (one value for the record; 0 for a record of one sample)."""
+    t = s.t_s - float(np.mean(s.t_s))
+    tt = float(t @ t)
+    slope = float(t @ (s.temp_c - float(np.mean(s.temp_c)))) / tt if tt > 0 else 0.0
+    return np.full(len(s.t_s), slope)
 
 
 def _steps(ds: Dataset) -> dict[str, SignalFn]:
@@ -123,9 +144,11 @@ def _component(k: int, power: int) -> SignalFn:
     return fn
 
 
-def _force_squared(k: int) -> SignalFn:
+def _force_squared(k: int, power: int = 2) -> SignalFn:
+    """Signal: (f_k/g)², or |f_k|/g for ``power`` 1 (a gyro reading the specific force)."""
+
     def fn(s: RecordSignals, sen: str, a: int) -> np.ndarray:
-        return np.asarray((s.force[:, k] / s.g) ** 2)
+        return np.asarray(np.abs(s.force[:, k] / s.g) ** power)
 
     return fn
 
@@ -159,11 +182,8 @@ def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
     def hours(s: RecordSignals, sen: str, a: int) -> np.ndarray:
         return s.hours
 
-    steps = _steps(ds) if ds.time_known else {}
     for sensor in SENSORS:
-        for name, fn in {**_signals(sensor), **steps}.items():
-            if not ds.time_known and name.startswith("(time"):
-                continue
+        for name, fn in signal_functions(ds, sensor).items():
             for a in range(3):
                 cols = column(fn, sensor, a)
                 if cols is None:

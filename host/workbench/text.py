@@ -17,6 +17,7 @@ from host.model.fit import Fit, GroupResidual
 from host.model.spec import ModelTerm, short_spec
 from host.model.terms import Term
 from host.workbench.candidates import Candidate
+from host.workbench.equals import Equals
 from host.workbench.ladder import Addition
 from host.workbench.scenarios import DemoOutcome, HiddenCase
 from host.workbench.verdict import Diagnosis
@@ -140,12 +141,36 @@ def format_diagnosis(
                 o = by_label.get(other)
                 if o is not None:
                     lines.append(f"      {other}: {o.needs}")
+    for e in d.equals:
+        lines.extend(format_equals(e))
     if d.recommended_spec:
         lines.append(try_line or f"  try: python3 -m host model add DIR {d.recommended_spec} "
                      f"--model {short_spec(d.fit.model)}")  # fmt: skip
+    elif d.equals:
+        lines.append("  recommended alone: none (each group above is one finding)")
     elif d.verdict != "adequate":
         lines.append("  recommended: nothing from the catalogue")
     return "\n".join(lines)
+
+
+def format_equals(e: Equals) -> list[str]:
+    """A group of equals for people (lines of at most 80 characters): its members, that the
+    records cannot tell them apart, the records that would, and how to try one."""
+
+    def wrap(text: str, first: str, rest: str) -> list[str]:
+        return textwrap.wrap(text, 80, initial_indent=first, subsequent_indent=rest)
+
+    out = ["  a group of equals: the records cannot tell these apart (each explains",
+           "  the misfit, none adds to another), so none is recommended alone:"]  # fmt: skip
+    for m, dc in zip(e.members, e.delta_chi2, strict=True):
+        kind = "term" if m in e.terms else "signal (no catalogue term)"
+        out += wrap(f"{m} — {kind}, Δχ² = {dc:.1f}", "    ", "        ")
+    out.append("  what would tell them apart:")
+    for words in e.separate:
+        out += wrap(words, "    - ", "      ")
+    for t in e.terms:
+        out += wrap(f"to see one: python3 -m host model add DIR {t}", "  ", "      ")
+    return out
 
 
 def explain(c: Candidate, g: float) -> list[str]:

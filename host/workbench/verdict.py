@@ -28,8 +28,10 @@ from host.model.dataset import Dataset
 from host.model.fit import Fit, GroupResidual, SpanResidual, fit_model
 from host.model.signals import AXES
 from host.model.spec import ModelTerm, merge_model, model_spec
+from host.model.stats import chi2_sf
 from host.model.terms import Term
 from host.workbench.candidates import ALPHA, Candidate, evaluate_candidates, json_number
+from host.workbench.equals import Equals, EqualsFinder
 from host.workbench.scan import ScanHit, scan_signals
 
 VERDICTS = ("adequate", "missing_effect", "unexplained", "untestable")
@@ -58,6 +60,9 @@ class Diagnosis:
     recommended_spec: str | None = None
     #: local gravity of the dataset, m/s²
     g: float = 9.80665
+    #: groups of explanations the records cannot tell apart (:mod:`host.workbench.equals`):
+    #: none of their members is recommended alone
+    equals: tuple[Equals, ...] = ()
 
     @property
     def worst(self) -> tuple[GroupResidual, ...]:
@@ -96,6 +101,7 @@ class Diagnosis:
             "verdict": self.verdict,
             "recommended": self.recommended_spec,
             "unexplained_signals": [h.to_dict() for h in self.dominant],
+            "equals": [e.to_dict() for e in self.equals],
             "notes": list(self.notes),
         }  # fmt: skip
 
@@ -132,9 +138,11 @@ def diagnose(
     #: weighed against it on that yardstick too
     own = {c.label: (t.ds, t.fit) for c, t in zip(cands, tried, strict=True) if t.ds is not ds}
     cat = catalogue if catalogue is not None else CATALOGUE
+    scanned = scan_signals(ds, fit, alpha)
+    finder = EqualsFinder(ds, fit, cands, tried, scanned, cat, alpha)
     usable_all = [c for c in cands if c.significant and not c.explained_by and not c.implausible]
     top = max(usable_all, key=lambda c: c.delta_chi2, default=None)
-    if top is not None and cat[top.term].shared:
+    if top is not None and cat[top.term].shared and finder.group(top) is None:
         # a property of the bench (one set of parameters for every channel) explains more than
         # any single channel's term: take it first and diagnose what is left after it
         return _after_shared(ds, fit, cands, top, model, cat, alpha)
@@ -145,7 +153,7 @@ def diagnose(
             best.setdefault(c.channel, c)
     # structure in the model's residual that a plain signal explains better than any candidate
     dominant: dict[tuple[str, str], ScanHit] = {}
-    for h in scan_signals(ds, fit, alpha):
+    for h in scanned:
         ch = (h.sensor, h.axis)
         cb = best.get(ch)
         if ch in dominant:
@@ -157,12 +165,22 @@ def diagnose(
         elif cb is None or h.delta_chi2 > DOMINANT * cb.delta_chi2:
             dominant[ch] = h
     usable = [c for ch, c in best.items() if ch not in dominant]
-    extra = [ModelTerm(cat[c.term], c.sensor, tuple(AXES.index(a) for a in c.axes))
-             for c in usable]  # fmt: skip
+    # a candidate the records cannot tell apart from another explanation is not recommended
+    # alone: its group of equals is reported instead (the fit after it still holds it, so
+    # that what is left is scanned)
+    groups = {c.label: g for c in usable if (g := finder.group(c)) is not None}
+    extra = [_model_term(c, cat) for c in usable]
     aug = fit_model(ds, merge_model(list(model) + extra)) if extra else fit
     misfit = max(fit.chi2 - fit.dof, 0.0)
     removed = fit.chi2 - aug.chi2
-    recommended = tuple(c.label for c in usable) if usable and removed >= MOST * misfit else ()
+    alone = [c for c in usable if c.label not in groups]
+    if len(extra) > 1:
+        # each recommended term adds significantly to the others (a term significant only
+        # through a misfit another explains is not what is missing)
+        alone = [c for c in alone if c.label in own
+                 or _adds_to_rest(ds, model, extra, c, cat, finder.level, aug)]  # fmt: skip
+    recommended = tuple(c.label for c in alone) if alone and removed >= MOST * misfit else ()
+    rec_extra = [_model_term(c, cat) for c in alone if c.label in recommended]
     hits = scan_signals(ds, aug, alpha)
     notes = list(ds.notes)
     if fit.undetermined:
@@ -178,9 +196,9 @@ def diagnose(
         )
     if fit.uncertainty_note():
         notes.append(fit.uncertainty_note())
-    if usable and not recommended:
+    if alone and not recommended and not groups:
         notes.append(
-            f"the best candidates ({', '.join(c.label for c in usable)}) remove only "
+            f"the best candidates ({', '.join(c.label for c in alone)}) remove only "
             f"{100 * removed / misfit:.0f} % of the misfit (χ² − dof = {misfit:.1f}): "
             "none of them is what is missing"
         )
@@ -189,7 +207,7 @@ def diagnose(
             notes.append(f"{c.label} is significant but not physical: {c.implausible}")
     if dominant:
         verdict = "unexplained"
-    elif recommended:
+    elif recommended or (groups and (removed >= MOST * misfit or set(groups) & set(own))):
         verdict = "missing_effect"
     elif hits or aug.chi2_p < alpha or any(c.significant for c in cands):
         verdict = "unexplained"
@@ -204,8 +222,30 @@ def diagnose(
         )
     return Diagnosis(
         fit, tuple(cands), tuple(hits), verdict, tuple(notes), recommended,
-        tuple(dominant.values()), model_spec(merge_model(extra)) if recommended else None, ds.g,
+        tuple(dominant.values()), model_spec(merge_model(rec_extra)) if recommended else None,
+        ds.g, tuple(groups.values()),
     )  # fmt: skip
+
+
+def _model_term(c: Candidate, cat: Mapping[str, Term]) -> ModelTerm:
+    return ModelTerm(cat[c.term], c.sensor, tuple(AXES.index(a) for a in c.axes))
+
+
+def _adds_to_rest(
+    ds: Dataset,
+    model: Sequence[ModelTerm],
+    extra: Sequence[ModelTerm],
+    c: Candidate,
+    cat: Mapping[str, Term],
+    level: float,
+    aug: Fit,
+) -> bool:
+    """Does ``c`` lower χ² significantly (at ``level``) when the other ``extra`` terms are
+    already in the model? ``aug``: the model with all of ``extra`` fitted."""
+    mine = _model_term(c, cat)
+    rest = [mt for mt in extra if mt.label != mine.label]
+    without = fit_model(ds, merge_model([*model, *rest]))
+    return chi2_sf(max(without.chi2 - aug.chi2, 0.0), mine.count(ds.signals)) <= level
 
 
 def _after_shared(
@@ -233,10 +273,23 @@ def _after_shared(
     notes.extend(n for n in inner.notes if n not in ds.notes)
     if inner.verdict == "unexplained" or removed < MOST * misfit:
         return Diagnosis(fit, tuple(cands), inner.unexplained, "unexplained", tuple(notes), (),
-                         inner.dominant, None, ds.g)  # fmt: skip
-    recommended = (top.label, *inner.recommended)
-    extra = [shared] + [mt for mt in inner.fit.model if mt.label in inner.recommended]
+                         inner.dominant, None, ds.g, inner.equals)  # fmt: skip
+    by_label = {c.label: c for c in inner.candidates}
+    inner_terms = [_model_term(by_label[x], cat) for x in inner.recommended]
+    others = inner_terms + [_model_term(by_label[e.members[0]], cat) for e in inner.equals]
+    keep = True
+    if others:
+        # the shared term still adds to what the inner diagnosis found (else it was only
+        # taking up part of a misfit that those explain)
+        level = alpha / max(sum(1 for c in cands if c.identifiable), 1)
+        without = fit_model(ds, merge_model([*model, *others]))
+        with_it = fit_model(ds, merge_model([*model, shared, *others]))
+        keep = chi2_sf(max(without.chi2 - with_it.chi2, 0.0), top.n_params) <= level
+        if not keep:
+            notes.append(f"{top.label} adds nothing once the others are in: not recommended")
+    recommended = ((top.label,) if keep else ()) + tuple(inner.recommended)
+    extra = ([shared] if keep else []) + inner_terms
     return Diagnosis(
         fit, tuple(cands), inner.unexplained, "missing_effect", tuple(notes), recommended,
-        (), model_spec(merge_model(extra)), ds.g,
+        (), model_spec(merge_model(extra)) if extra else None, ds.g, inner.equals,
     )  # fmt: skip
