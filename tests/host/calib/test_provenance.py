@@ -30,6 +30,7 @@ def live(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return d
 
 
+@pytest.mark.slow
 def test_live_sim_result_says_simulated_everywhere(
     live: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -69,8 +70,12 @@ def test_demo_records_recomputed_keep_the_simulated_mark(
     assert mark in (tmp_path / "DEMO_result.txt").read_text(encoding="utf-8")
 
 
-def test_older_files_read_and_an_edited_mark_is_refused(live: Path) -> None:
-    doc = json.loads((live / "PV1_result.json").read_text(encoding="utf-8"))
+def test_older_files_read_and_an_edited_mark_is_refused(tmp_path: Path) -> None:
+    from host.calib.calibration import calibrate_from_records
+    from host.session.directory import read_session
+
+    write_session(tmp_path, "DEMO", dict(hidden_effect_case("temperature", 4).records))
+    doc = json.loads(calibrate_from_records(read_session(tmp_path)).to_json())
     v2 = {k: v for k, v in doc.items() if k not in ("simulated", "simulated_by", "provenance")}
     v2["format_version"] = 2
     old = CalibrationResult.from_json(json.dumps(v2))

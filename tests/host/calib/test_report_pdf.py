@@ -37,6 +37,7 @@ def _png(pdf: Path, out: Path) -> list[Path]:
     return sorted(out.glob("page-*.png"))
 
 
+@pytest.mark.slow
 @needs_poppler
 def test_the_pdf_holds_the_report_and_its_residual_plots(published: Path, tmp_path: Path) -> None:
     import matplotlib.image as mpimg
