@@ -19,6 +19,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from host.board.hello import check_spec
 from host.timing import timeline
 from host.wire import capture, sensor
 from host.wire.bulk import (
@@ -87,6 +88,8 @@ class _Decode:
         self.out = out
         self.hellos: list[tuple[int, Frame]] = []
         self.config: tuple[int, int, int | None] | None = None  # AFS_SEL, FS_SEL, PRODUCT_ID
+        #: where the scaling changes: (port byte offset of a HELLO, its config), by offset
+        self.scales: list[tuple[int, tuple[int, int, int | None]]] = []
         self.bus_warning: str | None = None
         self.held: list[tuple[np.ndarray, np.ndarray | None]] = []
         self.held_n = 0
@@ -98,7 +101,18 @@ class _Decode:
 
     def add(self, result: BulkResult, arrivals: np.ndarray | None) -> None:
         self.capture = arrivals is not None
-        self.hellos += [(o, f) for o, f in result.others if f.name == "HELLO"]
+        new = [(o, f) for o, f in result.others if f.name == "HELLO"]
+        for o, f in new if not self.args.stats else ():
+            check_spec(
+                f.fields["spec_fingerprint"],
+                who=f"{self.path}: the firmware whose HELLO is at byte {o}",
+                remedy="its frames cannot be read as this spec's; decode it with the host of "
+                "that firmware's version (decode --stats still counts the frames)",
+                protocol_version=f.fields["protocol_version"],
+            )
+        self.hellos += new
+        if self.config is not None:  # a later HELLO: the samples after it scale by it
+            self.scales += [(o, cfg) for o, f in new if (cfg := _hello_config(f)) is not None]
         for _, f in result.others:  # the board's word on its bus (STATUS.flags), the latest
             if f.name == "STATUS" and (text := status_text(f)):
                 self.bus_warning = text
@@ -124,6 +138,9 @@ class _Decode:
             if self.args.stats
             else (*full_scale_from_hello(self.hellos), product_id_from_hello(self.hellos))
         )
+        # the first valid HELLO scales what came before it; each later one what follows it
+        valid = [(o, cfg) for o, f in self.hellos if (cfg := _hello_config(f)) is not None]
+        self.scales = [(-1, self.config), *valid[1:]]
         if self.capture:
             self.timeline = timeline.TimelineBuilder(
                 baud=baud_from_hello(self.hellos), keep_segments=MAX_LISTED_SEGMENTS
@@ -204,7 +221,7 @@ class _Decode:
                 self.writer = True
         if s.size == 0:
             return
-        phys = samples_to_physical(s, *self.config)
+        phys = self._physical(s)
         raw_cols = [s["seq"], s["t_us"], s["flags"]] + [s[n] for n in IMU_FIELDS]
         phys_cols = [np.round(phys[k], _DIGITS[k]) for k in _PHYS]
         table = [c.tolist() for c in raw_cols + phys_cols]
@@ -224,6 +241,30 @@ class _Decode:
                     for row in zip(*table, strict=True)
                 )
             )
+
+    def _physical(self, s: np.ndarray) -> dict[str, np.ndarray]:
+        """The samples in physical units, each by the HELLO before it (:attr:`scales`)."""
+        assert self.config is not None
+        if len(self.scales) <= 1:
+            return samples_to_physical(s, *self.config)
+        starts = np.asarray([o for o, _ in self.scales])
+        which = np.searchsorted(starts, s["offset"], side="right") - 1
+        out = {k: np.empty(s.size) for k in _PHYS}
+        for k in np.unique(which).tolist():
+            rows = which == k
+            part = samples_to_physical(s[rows], *self.scales[max(k, 0)][1])
+            for name in _PHYS:
+                out[name][rows] = part[name]
+        return out
+
+
+def _hello_config(f: Frame) -> tuple[int, int, int | None] | None:
+    """A HELLO's scaling (AFS_SEL, FS_SEL, PRODUCT_ID), None when an MPU-6000 has no such
+    codes."""
+    afs, fs = f.fields["accel_fs_sel"], f.fields["gyro_fs_sel"]
+    if afs in sensor.ACCEL_LSB_PER_G and fs in sensor.GYRO_LSB_PER_DPS:
+        return afs, fs, f.fields["product_id"]
+    return None
 
 
 def run_decode(args: argparse.Namespace) -> int:

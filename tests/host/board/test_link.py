@@ -14,6 +14,7 @@ from host.__main__ import main
 from host.board.link import Link, LinkTimeout, open_port
 from host.wire import capture
 from host.wire.frames import encode_frame, encode_imu_samples
+from host.wire.protocol_gen import SPEC_FINGERPRINT
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -57,7 +58,8 @@ def test_decode_jsonl_csv_stats(tmp_path: Path) -> None:
     data, counts = sample_bytes(20)
     hello = encode_frame(
         "HELLO", 20, fw_major=0, fw_minor=1, fw_patch=0, protocol_version=1,
-        spec_fingerprint=1, who_am_i=0x68, product_id=0x58, accel_fs_sel=0, gyro_fs_sel=0,
+        spec_fingerprint=SPEC_FINGERPRINT, who_am_i=0x68, product_id=0x58, accel_fs_sel=0,
+        gyro_fs_sel=0,
         dlpf_cfg=4, smplrt_div=19, mode=0, timer_resolution_ns=500, baud=115200, reset_cause=1,
         streaming=1,
     )  # fmt: skip

@@ -22,6 +22,7 @@ from host.session.records import SENSOR_KEYS
 from host.transports import protocol_emu
 from host.wire import sensor
 from host.wire.frames import SPI_LOW_CLOCK, bus_meta, encode_frame, encode_imu_samples, status_text
+from host.wire.protocol_gen import SPEC_FINGERPRINT
 from host.wire.stream import StreamDecoder
 
 register_transports()
@@ -137,7 +138,8 @@ def test_board_warns_once_of_an_unknown_product_id(revision: str, warned: bool) 
 
 def _capture(tmp_path: Path, product_id: int, flags: int) -> Path:
     hello = encode_frame(
-        "HELLO", 0, fw_major=0, fw_minor=1, fw_patch=0, protocol_version=2, spec_fingerprint=1,
+        "HELLO", 0, fw_major=0, fw_minor=1, fw_patch=0, protocol_version=2,
+        spec_fingerprint=SPEC_FINGERPRINT,
         who_am_i=0x68, product_id=product_id, accel_fs_sel=0, gyro_fs_sel=0, dlpf_cfg=4,
         smplrt_div=19, mode=0, timer_resolution_ns=500, baud=115200, reset_cause=1, streaming=1,
     )  # fmt: skip
