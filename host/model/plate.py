@@ -28,7 +28,7 @@ from above, from the fence to the reference axis).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -398,3 +398,53 @@ def resolve_turn_axes(
         out[i] = replace(s, rate=w[:, None] * a.axis[None, :],
                          force=np.tile(s.g * a.axis, (len(s.t_s), 1)))  # fmt: skip
     return out, tilted
+
+
+# ---- what the tilt did to the accelerometer's bias estimates (the report's lines) ------------
+def bias_note(
+    signals: Sequence[RecordSignals], stderr: Mapping[str, float], g: float
+) -> str | None:
+    """The plate's tilt in mrad and degrees and its share of each §3 accelerometer bias
+    estimate (a face pair's mean, where the channel lies horizontal): exact where the statics'
+    headings are recorded in the plate's frame, else the bound g·tilt; and, when that share
+    exceeds 3σ of the fitted bias (``stderr``: A0x … by name), the advice to level the plate
+    or record the headings. None on a plate the rests do not show tilted."""
+    plate = session_plate(signals)
+    if plate is None or plate.p_level >= LEVEL_P:
+        return None
+    parts, limits = [], []
+    for i in range(3):
+        shares = []
+        for j in (k for k in range(3) if k != i):
+            faces = [s for s in signals if s.kind == "static" and abs(abs(s.up[j]) - 1.0) < 1e-6]
+            if not faces:
+                continue
+            if plate.frame == "the fence" and all(s.placement_deg is not None for s in faces):
+                v = []
+                for s in faces:
+                    e, n = plate_axes(s.up, np.array([math.radians(s.placement_deg or 0.0)]))
+                    v.append(g * (plate.vector[0] * e[0, i] + plate.vector[1] * n[0, i]))
+                shares.append((f"{'xyz'[j]} pair {float(np.mean(v)):+.4f}", abs(np.mean(v))))
+            else:
+                shares.append((f"{'xyz'[j]} pair up to ±{g * plate.size:.4f}", g * plate.size))
+        if not shares:
+            continue
+        name = f"A0{'xyz'[i]}"
+        parts.append(f"{name} from the " + ", ".join(t for t, _ in shares))
+        worst = max(x for _, x in shares)
+        sd = stderr.get(name, math.nan)
+        if math.isfinite(sd) and worst > 3.0 * sd:
+            limits.append(f"{name} (±{worst:.4f} against its σ {sd:.4f})")
+    if not parts:
+        return None
+    out = (
+        f"plate tilt {1e3 * plate.size:.2f} ± {1e3 * plate.size_sd:.2f} mrad "
+        f"({math.degrees(plate.size):.3f}°); its share of the accelerometer bias estimates "
+        "(method.md §3, a face pair's mean, m/s²): " + "; ".join(parts)
+    )
+    if limits:
+        out += (
+            f" — the tilt limits {', '.join(limits)}: level the plate (below 1 mrad) or record "
+            "placement_heading_deg in every record"
+        )
+    return out

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +14,7 @@ import pytest
 
 from host.model.dataset import load_dataset
 from host.model.fit import fit_model
-from host.model.plate import session_plate, turn_axes
+from host.model.plate import bias_note, session_plate, turn_axes
 from host.model.spec import parse_model
 from tests.independent.simulate import SessionSpec, write_session
 
@@ -154,3 +155,38 @@ def test_no_turn_is_named_tilted_when_none_was(
     ds = load_dataset(d)
     assert not [a.record for a in turn_axes(ds.signals, session_plate(ds.signals)) if a.tilted]
     assert not [n for n in ds.notes if "turned about an axis" in n]
+
+
+def _pair_mean(d: Path, i: int, j: int) -> float:
+    """§3's bias estimate of accelerometer ``i`` from the face pair ``j``, from the files."""
+    s = load_dataset(d).signals
+    faces = [x for x in s if x.kind == "static" and abs(abs(x.up[j]) - 1.0) < 1e-6
+             and x.name[0] == "xyz"[j]]  # fmt: skip
+    return float(np.mean([x.accel[:, i].mean() for x in faces]))
+
+
+def test_the_tilts_share_of_each_bias_estimate_is_what_the_tilt_moved(tmp_path: Path) -> None:
+    """Headings recorded: the note's share of each §3 bias estimate is the difference the tilt
+    made to it (the same unit, plan and noise without the tilt: the simulator's control)."""
+    d, _ = _session(tmp_path, 41, "plate_tilt", recorded=True)
+    c, _ = _session(tmp_path, 41, "none", recorded=True)
+    ds = load_dataset(d)
+    note = bias_note(ds.signals, {}, ds.g)
+    assert note is not None and "mrad" in note and "°" in note
+    body = note.split("m/s²): ", 1)[1]
+    assert len(re.findall(r"[xyz] pair [+-][0-9.]+", body)) == 6, body
+    for part in body.split("; "):
+        i = "xyz".index(part[2])
+        for j_txt, v in re.findall(r"([xyz]) pair ([+-][0-9.]+)", part):
+            j = "xyz".index(j_txt)
+            moved = _pair_mean(d, i, j) - _pair_mean(c, i, j)
+            assert abs(float(v) - moved) < 0.002 + 0.05 * abs(moved), (part, j_txt, moved)
+    # headings not recorded: the bound g·tilt, and the advice when it exceeds the bias's σ
+    u, _ = _session(tmp_path, 41, "plate_tilt", recorded=False)
+    du = load_dataset(u)
+    note_u = bias_note(du.signals, {"A0x": 1e-4, "A0y": 1e-4, "A0z": 1e-4}, du.g)
+    assert note_u is not None and "up to ±" in note_u
+    assert "level the plate" in note_u and "placement_heading_deg" in note_u
+    # a level plate: nothing to say
+    lv, _ = _session(tmp_path, 42, "none", recorded=False)
+    assert bias_note(load_dataset(lv).signals, {}, 9.81) is None
