@@ -40,6 +40,7 @@ from host.model.dataset import build_dataset
 from host.model.fit import fit_model
 from host.model.loader import load_term_file, term_file_sha256
 from host.model.noise import NoiseModel
+from host.model.plate import bias_note
 from host.model.spec import parse_model, short_spec
 from host.model.stats import ALPHA_FIT
 from host.session.checks import check_record_lengths
@@ -370,6 +371,9 @@ def calibrate_from_records(
         notes.append(f"turn records with different numbers of turns: {sorted(ns)}")
     if fit.uncertainty_note():
         notes.append(fit.uncertainty_note())
+    tilt = bias_note(ds.signals, {p.name: p.stderr for p in fit.parameters}, ds.g)
+    if tilt:
+        notes.append(tilt)
     combos = tuple(c.describe() for ch in fit.channels for c in ch.combinations)
     if fit.undetermined:
         notes.append(
