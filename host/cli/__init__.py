@@ -15,7 +15,8 @@
 Shared by the commands: :func:`pyplot` (the one place that says how to get matplotlib),
 :func:`out_directory` (an ``--out`` directory made if missing), and
 ``screen`` (``screen.py``): the width rule — text wrapped at words within the terminal, tables
-narrowed, long commands broken so they still run, the progress line of a long wait.
+narrowed, long commands broken so they still run, the progress line of a long wait; and
+``figures`` (``figures.py``): the plots of ``model``, ``noise`` and ``thermal``.
 """
 
 from __future__ import annotations

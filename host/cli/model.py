@@ -13,14 +13,12 @@ import json
 import math
 import shlex
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from host.calib.publish import session_noise
-from host.cli import pyplot
+from host.cli.figures import write_plots
 from host.cli.screen import (
     Column,
     Progress,
@@ -33,13 +31,10 @@ from host.cli.screen import (
 from host.errors import UserError
 from host.model.catalogue import CATALOGUE
 from host.model.dataset import Dataset, build_dataset
-from host.model.design import term_columns
-from host.model.fit import Fit
 from host.model.loader import load_term_file
-from host.model.signals import AXES, UNIT
-from host.model.spec import model_spec, parse_model, short_spec
+from host.model.spec import parse_model, short_spec
 from host.model.terms import Term
-from host.session.directory import read_session
+from host.session.directory import Session, read_session
 from host.session.spacing import timing_report
 from host.workbench.ladder import LadderStep, add_term, ladder
 from host.workbench.scenarios import DEFAULT_EFFECTS, EFFECTS, hidden_effect_case, run_case
@@ -79,119 +74,6 @@ class _Renamed(argparse.Action):
     def __call__(self, parser: Any, ns: argparse.Namespace, values: Any, opt: Any = None) -> None:
         print(f"note: {opt} is now {self.new} (the old spelling still works)", file=sys.stderr)
         setattr(ns, self.dest, values)
-
-
-def measurement_order(ds: Dataset) -> list[str]:
-    """Record names in the order they were measured: by time since power-on when the records
-    carry it, else the method's plan order (six statics, then the turns), then the rest."""
-    from host.session.records import STATIC_NAMES, TURN_NAMES
-
-    plan = {n: i for i, n in enumerate((*STATIC_NAMES, *TURN_NAMES))}
-    sigs = list(ds.signals)
-    if ds.time_known:
-        sigs.sort(key=lambda s: float(s.t_s[0]))
-    else:
-        sigs.sort(key=lambda s: (plan.get(s.name, len(plan)), s.name))
-    return [s.name for s in sigs]
-
-
-def z_limit(fits: Sequence[Fit]) -> float:
-    """One symmetric z scale for every panel of every fit (before and after look alike)."""
-    zs = [abs(g.z) for f in fits for g in f.groups if math.isfinite(g.z)]
-    return max(4.0, 1.1 * max(zs, default=0.0))
-
-
-def write_plots(
-    out_dir: str | Path, ds: Dataset, before: Fit, after: Fit | None, suspect: str | None
-) -> list[Path]:
-    """PNG files: record residual / its σ (z) per channel, records in measurement order, the
-    same scale before and after; record residuals (z) against the suspect term's signal."""
-    import textwrap
-
-    plt = pyplot()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths: list[Path] = []
-    fits = [("before", before)] + ([("after", after)] if after is not None else [])
-    order = {n: i for i, n in enumerate(measurement_order(ds))}
-    lim = z_limit([f for _, f in fits])
-    for tag, fit in fits:
-        fig, axs = plt.subplots(2, 3, figsize=(14, 8), squeeze=False)
-        for si, sensor in enumerate(("accel", "gyro")):
-            for a in range(3):
-                ax = axs[si][a]
-                gs = sorted(
-                    (g for g in fit.groups if g.sensor == sensor and g.axis == AXES[a]),
-                    key=lambda g: order.get(g.record, len(order)),
-                )
-                if f"{sensor} {AXES[a]}" in fit.untestable or not gs:
-                    msg = (
-                        "no degrees of freedom:\nthe model passes through\nevery record"
-                        if gs
-                        else "no records"
-                    )
-                    ax.text(0.5, 0.5, msg, ha="center", va="center", transform=ax.transAxes)
-                    ax.set_title(f"{sensor} {AXES[a]}: untestable")
-                    ax.set_xticks([])
-                    ax.set_yticks([])
-                    continue
-                zs = [g.z if math.isfinite(g.z) else 0.0 for g in gs]
-                ax.bar(range(len(gs)), zs, color=["C3" if abs(z) > 3 else "C0" for z in zs])
-                ax.axhline(3, color="k", lw=0.5, ls="--")
-                ax.axhline(-3, color="k", lw=0.5, ls="--")
-                ax.set_ylim(-lim, lim)
-                ax.set_xticks(range(len(gs)))
-                ax.set_xticklabels([g.record for g in gs], rotation=90, fontsize=7)
-                ax.set_xlabel("record, in measurement order", fontsize=8)
-                unit = "m/s²" if sensor == "accel" else "°/s (turns: °)"
-                ax.set_ylabel(f"z = residual / σ  (1; residual in {unit})", fontsize=8)
-                ax.set_title(f"{sensor} {AXES[a]}", fontsize=9)
-        title = f"{tag}: {model_spec(fit.model)}  —  RMS z = {fit.rms_z:.2f}"
-        fig.suptitle("\n".join(textwrap.wrap(title, 150)), fontsize=8)
-        fig.tight_layout()
-        p = out / f"compare_{tag}.png"
-        fig.savefig(p, dpi=90)
-        plt.close(fig)
-        paths.append(p)
-    if suspect:
-        mt = parse_model(suspect)[0]
-        cols, _ = term_columns(ds, mt)
-        x = cols[:, 0]
-        unit = mt.term.param_units(mt.sensor)[0]
-        fig, axs = plt.subplots(1, len(fits), figsize=(6 * len(fits), 4.5), squeeze=False)
-        for k, (tag, fit) in enumerate(fits):
-            ax = axs[0][k]
-            placed: list[tuple[float, float]] = []
-            for gr in ds.groups:
-                if gr.sensor != mt.sensor or gr.axis != mt.axes[0]:
-                    continue
-                xv = float(np.mean(x[gr.rows]))
-                if ds.signals[gr.record].kind == "turn" and gr.sensor == "gyro":
-                    xv /= max(float(ds.aggregators[gr.record].sum()), 1e-9)
-                g = next(g for g in fit.groups if g.record == ds.signals[gr.record].name
-                         and g.sensor == mt.sensor and g.axis == AXES[mt.axes[0]])  # fmt: skip
-                z = g.z if math.isfinite(g.z) else 0.0
-                ax.plot(xv, z, "o", color="C3" if abs(z) > 3 else "C0")
-                # labels of points that fall together are stacked instead of overprinted
-                near = sum(1 for px, pz in placed if abs(px - xv) < 1e-9 and abs(pz - z) < 0.5)
-                placed.append((xv, z))
-                ax.annotate(g.record, (xv, z), xytext=(5, 2 + 8 * near),
-                            textcoords="offset points", fontsize=6)  # fmt: skip
-            ax.axhline(0, color="k", lw=0.5)
-            ax.set_ylim(-lim, lim)
-            ax.set_xlabel(
-                f"{mt.term.name} column ({UNIT[mt.sensor]} per {unit}), {mt.sensor} "
-                f"{AXES[mt.axes[0]]}",
-                fontsize=8,
-            )
-            ax.set_ylabel("z = record residual / σ (1)", fontsize=8)
-            ax.set_title(f"{tag}: RMS z = {fit.rms_z:.2f}", fontsize=9)
-        fig.tight_layout()
-        p = out / "suspect.png"
-        fig.savefig(p, dpi=90)
-        plt.close(fig)
-        paths.append(p)
-    return paths
 
 
 # ---- command line ---------------------------------------------------------------------------
@@ -239,11 +121,21 @@ def _catalogue(args: argparse.Namespace) -> dict[str, Term]:
 
 
 def _dataset(args: argparse.Namespace) -> Dataset:
+    return _session_dataset(args)[1]
+
+
+def start_times(session: Session) -> dict[str, str]:
+    """Each record's start time (wall clock, ISO 8601), where its header has one."""
+    return {n: str(r.meta["start_time"]) for n, r in session.records.items()
+            if r.meta.get("start_time")}  # fmt: skip
+
+
+def _session_dataset(args: argparse.Namespace) -> tuple[Session, Dataset]:
     from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
     session = read_session(args.dir, args.serial)
     sys.stderr.write(timing_report(session.records))
-    return build_dataset(
+    return session, build_dataset(
         session,
         noise=session_noise(session, args.floor, getattr(args, "noise", None)),
         latitude_deg=DEFAULT_LATITUDE_DEG if args.latitude is None else args.latitude,
@@ -258,7 +150,7 @@ def _print_json(obj: Any) -> None:
 def run_diagnose(args: argparse.Namespace) -> int:
     cat = _catalogue(args)
     model = parse_model(args.model, cat)
-    ds = _dataset(args)
+    session, ds = _session_dataset(args)
     d = diagnose(ds, model, cat)
     plots: list[Path] = []
     if args.plot:
@@ -267,7 +159,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
         if d.recommended_spec:
             suspect = d.recommended_spec
             after = add_term(ds, model, suspect, cat).after
-        plots = write_plots(args.plot, ds, d.fit, after, suspect)
+        plots = write_plots(args.plot, ds, d.fit, after, suspect, start_times(session))
     if args.json:
         obj = d.to_dict()
         if plots:
@@ -313,15 +205,19 @@ def add_command(args: argparse.Namespace, term: str, model: str) -> list[str]:
 def run_add(args: argparse.Namespace) -> int:
     cat = _catalogue(args)
     model = parse_model(args.model, cat)
-    ds = _dataset(args)
+    session, ds = _session_dataset(args)
     a = add_term(ds, model, args.term, cat)
+    paths: list[Path] = []
     if args.plot:
-        write_plots(args.plot, ds, a.before, a.after, a.added[0].label)
+        paths = write_plots(args.plot, ds, a.before, a.after, a.added[0].label,
+                            start_times(session))  # fmt: skip
     ship = calibrate_command(args, short_spec(a.after.model))
     if args.json:
         _print_json({**a.to_dict(), "calibrate_command": ship})
     else:
         print(format_addition(a))
+        for p in paths:
+            print(f"plot: {p}")
         print(
             command_lines(shlex.split(ship), terminal_width(sys.stdout), lead="ship this model: ")
         )

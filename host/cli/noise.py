@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from host.cli import pyplot
+from host.cli.figures import DPI, noise_figure
 from host.cli.screen import Column, table, terminal_width
 from host.errors import UserError
 from host.model import allan, recording
@@ -160,45 +161,6 @@ def parse_precision(text: str) -> float:
     return v
 
 
-def plot_noise(an: recording.NoiseAnalysis, path: Path, title: str) -> None:
-    """Log–log Allan deviation per channel: data with its confidence band, each fitted term's
-    line (labelled with the printed value) and their sum."""
-    plt = pyplot()
-    fig, axs = plt.subplots(2, 3, figsize=(15, 8), squeeze=False)
-    for ax, (name, ch) in zip(axs.ravel(), an.channels.items(), strict=False):
-        c = ch.curve
-        unit = allan.UNITS[allan.sensor_of(name)][1]
-        assert c.lo is not None and c.hi is not None
-        ax.fill_between(c.tau_s, np.sqrt(c.lo), np.sqrt(c.hi), color="C0", alpha=0.25,
-                        label=f"{100 * an.ci:.0f} % interval")  # fmt: skip
-        ax.loglog(c.tau_s, c.adev, "o", ms=3, color="C0", label="Allan deviation")
-        tau = np.logspace(math.log10(c.tau_s[0]), math.log10(c.tau_s[-1]), 200)
-        total = np.zeros_like(tau)
-        for k, q in enumerate(allan.QUANTITIES):
-            f = ch.figures[q]
-            if f.value is None:
-                continue
-            line = np.sqrt(allan.basis(tau)[:, k] * f.value**2)
-            total += line**2
-            v, u = recording.display_units(name, q, f.value)
-            ax.loglog(
-                tau, line, "--", color=f"C{k + 1}", label=f"{q.replace('_', ' ')} {v:.3g} {u}"
-            )
-            if f.tau_s is not None:
-                ax.plot([f.tau_s], [math.sqrt(allan.basis(np.array([f.tau_s]))[0, k]) * f.value],
-                        "s", color=f"C{k + 1}", ms=7)  # fmt: skip
-        ax.loglog(tau, np.sqrt(total), "-", color="k", lw=1, label="sum of the figures")
-        ax.set_title(name)
-        ax.set_xlabel("tau, s")
-        ax.set_ylabel(f"Allan deviation, {unit}")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="best")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host noise``."""
     path = Path(args.file)
@@ -220,7 +182,10 @@ def run(args: argparse.Namespace) -> int:
     if args.save:
         write_text_atomic(args.save, json.dumps(doc, indent=2) + "\n")
     if args.plot:
-        plot_noise(an, Path(args.plot), f"{path.name}: {source}")
+        plt = pyplot()
+        fig = noise_figure(an, path.name)
+        fig.savefig(Path(args.plot), dpi=DPI)
+        plt.close(fig)
     if args.json:
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
     else:

@@ -13,22 +13,16 @@ from pathlib import Path
 import numpy as np
 
 from host.calib import thermal, thermal_fit
-from host.calib.thermal_fit import ThermalPoints
-from host.cli import NO_MATPLOTLIB, out_directory
+from host.cli import out_directory, pyplot
+from host.cli.figures import DPI, shown_unit, thermal_figure
 from host.errors import UserError
 from host.session.atomic import write_text_atomic
 from host.session.directory import read_record, read_session, split_file_name
 from host.session.records import WARMUP_NAME, Record, RecordError
 from host.session.spacing import timing_report
 
-#: units as people read them (the JSON file keeps its ASCII spellings)
-_SHOWN = {"m/s^2": "m/s²", "deg/s": "°/s"}
+#: exponents as people write them (°C²)
 _POWER = {1: "", 2: "²", 3: "³", 4: "⁴", 5: "⁵", 6: "⁶"}
-
-
-def shown_unit(unit: str) -> str:
-    """'deg/s' -> '°/s', 'm/s^2' -> 'm/s²'."""
-    return _SHOWN.get(unit, unit)
 
 
 def format_text(cal: thermal.ThermalCalibration) -> str:
@@ -63,43 +57,6 @@ def format_text(cal: thermal.ThermalCalibration) -> str:
                 f"    scale change over the range {100 * ends[0]:+.3f} .. {100 * ends[1]:+.3f} %"
             )
     return "\n".join(lines) + "\n"
-
-
-def plot_thermal(cal: thermal.ThermalCalibration, pts: ThermalPoints, path: str) -> None:
-    """Each channel's bias against temperature: the window means (less their attitude's
-    offset), the fitted curve and its simultaneous 95 % band, T_ref and the valid range."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axs = plt.subplots(2, 3, figsize=(15, 8), squeeze=False)
-    temps = np.linspace(cal.t_min_c, cal.t_max_c, 200)
-    for j, (ax, name) in enumerate(zip(axs.ravel(), thermal.CHANNELS, strict=True)):
-        ch = cal.channels[name]
-        y = pts.values[:, j]
-        # each attitude's offset: the mean of its points less the curve there
-        resid0 = y - ch.delta(pts.temp_c, cal.t_ref_c)
-        offs = np.array([resid0[pts.group == g].mean() for g in range(len(pts.attitudes))])
-        shown = y - offs[pts.group]
-        ax.plot(pts.temp_c, shown, ".", ms=3, color="C0", label="window means")
-        curve = ch.delta(temps, cal.t_ref_c)
-        band = ch.band(temps, cal.t_ref_c)
-        ax.fill_between(temps, curve - band, curve + band, color="C1", alpha=0.3,
-                        label="95 % band")  # fmt: skip
-        ax.plot(temps, curve, "-", color="C1", label=f"order {ch.order} fit")
-        ax.axvline(cal.t_ref_c, color="k", lw=0.8, ls=":", label=f"T_ref {cal.t_ref_c:.1f} °C")
-        ax.set_title(f"{name}: bias change, order {ch.order}")
-        ax.set_xlabel("chip temperature, °C")
-        ax.set_ylabel(f"bias(T) − bias(T_ref), {shown_unit(ch.unit)}")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.suptitle(
-        f"{cal.serial}: bias against temperature, valid {cal.t_min_c:.1f} to {cal.t_max_c:.1f} °C"
-    )
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def unit_records(directory: str, serial: str | None) -> tuple[str, list[Record]]:
@@ -142,10 +99,10 @@ def run(args: argparse.Namespace) -> int:
     path = out_dir / f"{serial}_thermal.json"
     write_text_atomic(path, cal.to_json())
     if args.plot:
-        try:
-            plot_thermal(cal, pts, args.plot)
-        except ImportError:
-            raise UserError(NO_MATPLOTLIB) from None
+        plt = pyplot()
+        fig = thermal_figure(cal, pts)
+        fig.savefig(args.plot, dpi=DPI)
+        plt.close(fig)
     sys.stdout.write(cal.to_json() if args.json else format_text(cal))
     print(f"written: {path}" + (f" and {args.plot}" if args.plot else ""), file=sys.stderr)
     return 0

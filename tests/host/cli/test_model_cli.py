@@ -116,7 +116,7 @@ def test_plots_follow_measurement_order_with_one_scale(
 ) -> None:
     """Files come back alphabetically; the plots put the records in the order they were
     measured (time since power-on), and before/after share one z scale."""
-    from host.cli.model import measurement_order, write_plots, z_limit
+    from host.cli.figures import measurement_order, write_plots, z_limit
     from host.model.dataset import load_dataset
     from host.model.spec import parse_model
     from host.session.records import STATIC_NAMES
