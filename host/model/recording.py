@@ -154,7 +154,7 @@ def analyse(
     channels' units (m/s², °/s), ``temp_c`` (N,) °C or None.
 
     The rate is the median sample spacing; gaps are reported as a warning (the Allan
-    deviation assumes even sampling). A significant temperature drift is removed first when
+    deviation assumes even sampling) and the duration is the samples', without the gaps. A significant temperature drift is removed first when
     ``remove_thermal`` (see :func:`thermal_drift`)."""
     t = np.asarray(t_s, dtype=np.float64)
     x = np.asarray(data, dtype=np.float64).reshape(t.size, len(channels))
@@ -199,9 +199,9 @@ def analyse(
             w = ch.figures[q].warning
             if w:
                 notes.append(f"{name}: {w}")
-    return NoiseAnalysis(
-        out, float(t[-1] - t[0]) + step, rate, span, thermal, remove_thermal, ci, tuple(notes)
-    )
+    # the samples' length, not the span of their times: a gap holds no samples
+    duration = float(t.size) * step
+    return NoiseAnalysis(out, duration, rate, span, thermal, remove_thermal, ci, tuple(notes))
 
 
 def plan(

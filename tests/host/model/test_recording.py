@@ -233,3 +233,16 @@ def test_greenhall_edf_and_local_slopes_equal_the_library_and_polyfit() -> None:
         else:
             want = np.polyfit(lt[sel], np.log10(dev[sel]), 1)[0]
             assert got[i] == pytest.approx(want, abs=1e-12)
+
+
+def test_a_gap_is_not_counted_as_recording_time() -> None:
+    """20 min of samples with a 10-minute gap in the middle: 20 min, and the gap is said."""
+    from host.model.recording import analyse
+
+    rate = 10.0
+    t = np.arange(int(20 * 60 * rate)) / rate
+    t[t.size // 2 :] += 600.0
+    data = np.random.default_rng(3).standard_normal((t.size, 6))
+    an = analyse(t, data)
+    assert an.duration_s == pytest.approx(1200.0, rel=1e-6)
+    assert any("gaps in the sample times" in w for w in an.warnings)
