@@ -154,8 +154,9 @@ def analyse(
     channels' units (m/s², °/s), ``temp_c`` (N,) °C or None.
 
     The rate is the median sample spacing; gaps are reported as a warning (the Allan
-    deviation assumes even sampling) and the duration is the samples', without the gaps. A significant temperature drift is removed first when
-    ``remove_thermal`` (see :func:`thermal_drift`)."""
+    deviation assumes even sampling) and the duration is the samples', without the gaps. A
+    significant temperature drift is removed first when ``remove_thermal`` (see
+    :func:`thermal_drift`)."""
     t = np.asarray(t_s, dtype=np.float64)
     x = np.asarray(data, dtype=np.float64).reshape(t.size, len(channels))
     if t.size < 64:
