@@ -39,6 +39,8 @@ CASES: list[tuple[str, str, int, dict[str, int]]] = [
     ("set_rate", "SET_RATE", 15, dict(smplrt_div=9, dlpf_cfg=3)),
     ("get_config", "GET_CONFIG", 16, {}),
     ("get_status", "GET_STATUS", 17, {}),
+    ("self_test", "SELF_TEST", 18, {}),
+    ("self_test_result", "SELF_TEST_RESULT", 19, dict(status=2, self_test_x=0x4C, self_test_y=0x4D, self_test_z=0x6A, self_test_a=0x56, samples=32, ax_off=-12, ay_off=25, az_off=4101, gx_off=-7, gy_off=9, gz_off=-3, ax_on=1805, ay_on=1843, az_on=6240, gx_on=5370, gy_on=-5620, gz_on=4700, ax_end=-32768, ay_end=32767, az_end=4099, gx_end=-6, gy_end=8, gz_end=-258)),
 ]
 # fmt: on
 

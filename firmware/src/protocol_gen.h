@@ -3,8 +3,8 @@
 #pragma once
 #include <stdint.h>
 
-#define PROTO_VERSION 2u
-#define PROTO_SPEC_FINGERPRINT 0x21D7E678ul
+#define PROTO_VERSION 3u
+#define PROTO_SPEC_FINGERPRINT 0x62C13EFFul
 #define PROTO_SYNC0 0xA5u
 #define PROTO_SYNC1 0x5Au
 #define PROTO_MAX_PAYLOAD 64u
@@ -27,6 +27,10 @@
 #define PROTO_ERROR_CODE_DMP_LOAD 4u
 #define PROTO_ERROR_CODE_BAD_COMMAND 5u
 #define PROTO_ERROR_CODE_DATA_READY_TIMEOUT 6u
+
+#define PROTO_SELF_TEST_STATUS_DONE 0u
+#define PROTO_SELF_TEST_STATUS_NO_DATA 1u
+#define PROTO_SELF_TEST_STATUS_CONFIG_VERIFY 2u
 
 #define PROTO_ACK_STATUS_OK 0u
 #define PROTO_ACK_STATUS_BAD_ARGUMENT 1u
@@ -227,6 +231,78 @@ static inline void proto_put_PONG(uint8_t *p, uint32_t nonce, uint32_t t_us) {
     (p + 4)[3] = (uint8_t)((uint32_t)(t_us) >> 24);
 }
 
+// SELF_TEST_RESULT: The MPU-6000 self-test's raw result, in answer to SELF_TEST (RM p.9-11): the factory trim registers as read, then the mean counts of three windows at the self-test ranges (accelerometer +-8 g, gyroscope +-250 deg/s): self-test off, on (XA/YA/ZA_ST and XG/YG/ZG_ST set), off again. The self-test response is on - off; the host derives the factory trim from the registers and judges the part (and whether it moved: the two off windows differ).
+#define PROTO_TYPE_SELF_TEST_RESULT 0x08u
+#define PROTO_LEN_SELF_TEST_RESULT 42u
+#define PROTO_OFF_SELF_TEST_RESULT_status 0u  // u8  self_test_status enum: DONE; NO_DATA (data-ready stopped: the windows are not valid); CONFIG_VERIFY (a register of the self-test or of the restored configuration read back wrong, named by the ERROR CONFIG_VERIFY that follows). Only DONE has valid windows; otherwise the firmware brings the sensor up again
+#define PROTO_OFF_SELF_TEST_RESULT_self_test_x 1u  // u8  SELF_TEST_X (0x0D): XA_TEST[4:2] in bits 7..5, XG_TEST[4:0] in bits 4..0
+#define PROTO_OFF_SELF_TEST_RESULT_self_test_y 2u  // u8  SELF_TEST_Y (0x0E): YA_TEST[4:2], YG_TEST[4:0]
+#define PROTO_OFF_SELF_TEST_RESULT_self_test_z 3u  // u8  SELF_TEST_Z (0x0F): ZA_TEST[4:2], ZG_TEST[4:0]
+#define PROTO_OFF_SELF_TEST_RESULT_self_test_a 4u  // u8  SELF_TEST_A (0x10): XA_TEST[1:0] in bits 5..4, YA_TEST[1:0] in 3..2, ZA_TEST[1:0] in 1..0
+#define PROTO_OFF_SELF_TEST_RESULT_samples 5u  // u8  samples averaged in each window
+#define PROTO_OFF_SELF_TEST_RESULT_ax_off 6u  // i16le count accel X mean, self-test off, +-8 g
+#define PROTO_OFF_SELF_TEST_RESULT_ay_off 8u  // i16le count accel Y mean, self-test off, +-8 g
+#define PROTO_OFF_SELF_TEST_RESULT_az_off 10u  // i16le count accel Z mean, self-test off, +-8 g
+#define PROTO_OFF_SELF_TEST_RESULT_gx_off 12u  // i16le count gyro X mean, self-test off, +-250 deg/s
+#define PROTO_OFF_SELF_TEST_RESULT_gy_off 14u  // i16le count gyro Y mean, self-test off, +-250 deg/s
+#define PROTO_OFF_SELF_TEST_RESULT_gz_off 16u  // i16le count gyro Z mean, self-test off, +-250 deg/s
+#define PROTO_OFF_SELF_TEST_RESULT_ax_on 18u  // i16le count accel X mean, self-test on
+#define PROTO_OFF_SELF_TEST_RESULT_ay_on 20u  // i16le count accel Y mean, self-test on
+#define PROTO_OFF_SELF_TEST_RESULT_az_on 22u  // i16le count accel Z mean, self-test on
+#define PROTO_OFF_SELF_TEST_RESULT_gx_on 24u  // i16le count gyro X mean, self-test on
+#define PROTO_OFF_SELF_TEST_RESULT_gy_on 26u  // i16le count gyro Y mean, self-test on
+#define PROTO_OFF_SELF_TEST_RESULT_gz_on 28u  // i16le count gyro Z mean, self-test on
+#define PROTO_OFF_SELF_TEST_RESULT_ax_end 30u  // i16le count accel X mean, self-test off again
+#define PROTO_OFF_SELF_TEST_RESULT_ay_end 32u  // i16le count accel Y mean, self-test off again
+#define PROTO_OFF_SELF_TEST_RESULT_az_end 34u  // i16le count accel Z mean, self-test off again
+#define PROTO_OFF_SELF_TEST_RESULT_gx_end 36u  // i16le count gyro X mean, self-test off again
+#define PROTO_OFF_SELF_TEST_RESULT_gy_end 38u  // i16le count gyro Y mean, self-test off again
+#define PROTO_OFF_SELF_TEST_RESULT_gz_end 40u  // i16le count gyro Z mean, self-test off again
+static inline void proto_put_SELF_TEST_RESULT(uint8_t *p, uint8_t status, uint8_t self_test_x, uint8_t self_test_y, uint8_t self_test_z, uint8_t self_test_a, uint8_t samples, int16_t ax_off, int16_t ay_off, int16_t az_off, int16_t gx_off, int16_t gy_off, int16_t gz_off, int16_t ax_on, int16_t ay_on, int16_t az_on, int16_t gx_on, int16_t gy_on, int16_t gz_on, int16_t ax_end, int16_t ay_end, int16_t az_end, int16_t gx_end, int16_t gy_end, int16_t gz_end) {
+    (p + 0)[0] = (uint8_t)(status);
+    (p + 1)[0] = (uint8_t)(self_test_x);
+    (p + 2)[0] = (uint8_t)(self_test_y);
+    (p + 3)[0] = (uint8_t)(self_test_z);
+    (p + 4)[0] = (uint8_t)(self_test_a);
+    (p + 5)[0] = (uint8_t)(samples);
+    (p + 6)[0] = (uint8_t)((uint32_t)(ax_off) >> 0);
+    (p + 6)[1] = (uint8_t)((uint32_t)(ax_off) >> 8);
+    (p + 8)[0] = (uint8_t)((uint32_t)(ay_off) >> 0);
+    (p + 8)[1] = (uint8_t)((uint32_t)(ay_off) >> 8);
+    (p + 10)[0] = (uint8_t)((uint32_t)(az_off) >> 0);
+    (p + 10)[1] = (uint8_t)((uint32_t)(az_off) >> 8);
+    (p + 12)[0] = (uint8_t)((uint32_t)(gx_off) >> 0);
+    (p + 12)[1] = (uint8_t)((uint32_t)(gx_off) >> 8);
+    (p + 14)[0] = (uint8_t)((uint32_t)(gy_off) >> 0);
+    (p + 14)[1] = (uint8_t)((uint32_t)(gy_off) >> 8);
+    (p + 16)[0] = (uint8_t)((uint32_t)(gz_off) >> 0);
+    (p + 16)[1] = (uint8_t)((uint32_t)(gz_off) >> 8);
+    (p + 18)[0] = (uint8_t)((uint32_t)(ax_on) >> 0);
+    (p + 18)[1] = (uint8_t)((uint32_t)(ax_on) >> 8);
+    (p + 20)[0] = (uint8_t)((uint32_t)(ay_on) >> 0);
+    (p + 20)[1] = (uint8_t)((uint32_t)(ay_on) >> 8);
+    (p + 22)[0] = (uint8_t)((uint32_t)(az_on) >> 0);
+    (p + 22)[1] = (uint8_t)((uint32_t)(az_on) >> 8);
+    (p + 24)[0] = (uint8_t)((uint32_t)(gx_on) >> 0);
+    (p + 24)[1] = (uint8_t)((uint32_t)(gx_on) >> 8);
+    (p + 26)[0] = (uint8_t)((uint32_t)(gy_on) >> 0);
+    (p + 26)[1] = (uint8_t)((uint32_t)(gy_on) >> 8);
+    (p + 28)[0] = (uint8_t)((uint32_t)(gz_on) >> 0);
+    (p + 28)[1] = (uint8_t)((uint32_t)(gz_on) >> 8);
+    (p + 30)[0] = (uint8_t)((uint32_t)(ax_end) >> 0);
+    (p + 30)[1] = (uint8_t)((uint32_t)(ax_end) >> 8);
+    (p + 32)[0] = (uint8_t)((uint32_t)(ay_end) >> 0);
+    (p + 32)[1] = (uint8_t)((uint32_t)(ay_end) >> 8);
+    (p + 34)[0] = (uint8_t)((uint32_t)(az_end) >> 0);
+    (p + 34)[1] = (uint8_t)((uint32_t)(az_end) >> 8);
+    (p + 36)[0] = (uint8_t)((uint32_t)(gx_end) >> 0);
+    (p + 36)[1] = (uint8_t)((uint32_t)(gx_end) >> 8);
+    (p + 38)[0] = (uint8_t)((uint32_t)(gy_end) >> 0);
+    (p + 38)[1] = (uint8_t)((uint32_t)(gy_end) >> 8);
+    (p + 40)[0] = (uint8_t)((uint32_t)(gz_end) >> 0);
+    (p + 40)[1] = (uint8_t)((uint32_t)(gz_end) >> 8);
+}
+
 // PING: Liveness and round-trip check; answered by PONG then ACK.
 #define PROTO_TYPE_PING 0x81u
 #define PROTO_LEN_PING 4u
@@ -253,3 +329,7 @@ static inline void proto_put_PONG(uint8_t *p, uint32_t nonce, uint32_t t_us) {
 // GET_STATUS: Ask for a STATUS frame now.
 #define PROTO_TYPE_GET_STATUS 0x86u
 #define PROTO_LEN_GET_STATUS 0u
+
+// SELF_TEST: Run the MPU-6000 self-test: ACK at once (OK: started; BUSY: the sensor is not streaming or a self-test runs; UNSUPPORTED: a DMP build), then SELF_TEST_RESULT about 1.3 s later. No IMU_SAMPLE frames meanwhile; the configuration is restored after it and the next sample carries CONFIG_CHANGED.
+#define PROTO_TYPE_SELF_TEST 0x87u
+#define PROTO_LEN_SELF_TEST 0u

@@ -5,8 +5,8 @@ The frame definitions as plain data; host/wire/frames.py builds its codecs from 
 
 from __future__ import annotations
 
-PROTOCOL_VERSION = 2
-SPEC_FINGERPRINT = 0x21D7E678
+PROTOCOL_VERSION = 3
+SPEC_FINGERPRINT = 0x62C13EFF
 SYNC = bytes([165, 90])
 MAX_PAYLOAD = 64
 CRC_INIT = 0xFFFF
@@ -47,6 +47,11 @@ ENUMS: dict[str, dict[str, int]] = {
         'BAD_COMMAND': 5,
         'DATA_READY_TIMEOUT': 6,
     },
+    'self_test_status': {
+        'DONE': 0,
+        'NO_DATA': 1,
+        'CONFIG_VERIFY': 2,
+    },
     'ack_status': {
         'OK': 0,
         'BAD_ARGUMENT': 1,
@@ -64,10 +69,12 @@ MESSAGES: dict[int, tuple[str, str, int, tuple[tuple[str, str, str], ...]]] = {
     0x05: ('DMP_QUAT', 'device', 20, (('t_us', 'u32le', 'us'), ('q0', 'i32be', 'q30'), ('q1', 'i32be', 'q30'), ('q2', 'i32be', 'q30'), ('q3', 'i32be', 'q30'), )),
     0x06: ('ACK', 'device', 4, (('cmd_type', 'u8', ''), ('cmd_seq', 'u16le', ''), ('status', 'u8', ''), )),
     0x07: ('PONG', 'device', 8, (('nonce', 'u32le', ''), ('t_us', 'u32le', 'us'), )),
+    0x08: ('SELF_TEST_RESULT', 'device', 42, (('status', 'u8', ''), ('self_test_x', 'u8', ''), ('self_test_y', 'u8', ''), ('self_test_z', 'u8', ''), ('self_test_a', 'u8', ''), ('samples', 'u8', ''), ('ax_off', 'i16le', 'count'), ('ay_off', 'i16le', 'count'), ('az_off', 'i16le', 'count'), ('gx_off', 'i16le', 'count'), ('gy_off', 'i16le', 'count'), ('gz_off', 'i16le', 'count'), ('ax_on', 'i16le', 'count'), ('ay_on', 'i16le', 'count'), ('az_on', 'i16le', 'count'), ('gx_on', 'i16le', 'count'), ('gy_on', 'i16le', 'count'), ('gz_on', 'i16le', 'count'), ('ax_end', 'i16le', 'count'), ('ay_end', 'i16le', 'count'), ('az_end', 'i16le', 'count'), ('gx_end', 'i16le', 'count'), ('gy_end', 'i16le', 'count'), ('gz_end', 'i16le', 'count'), )),
     0x81: ('PING', 'host', 4, (('nonce', 'u32le', ''), )),
     0x82: ('START_STREAM', 'host', 0, ()),
     0x83: ('STOP_STREAM', 'host', 0, ()),
     0x84: ('SET_RATE', 'host', 2, (('smplrt_div', 'u8', ''), ('dlpf_cfg', 'u8', ''), )),
     0x85: ('GET_CONFIG', 'host', 0, ()),
     0x86: ('GET_STATUS', 'host', 0, ()),
+    0x87: ('SELF_TEST', 'host', 0, ()),
 }
