@@ -22,6 +22,7 @@ int16_t expected_len(uint8_t type) {
         case PROTO_TYPE_SET_RATE: return PROTO_LEN_SET_RATE;
         case PROTO_TYPE_GET_CONFIG: return PROTO_LEN_GET_CONFIG;
         case PROTO_TYPE_GET_STATUS: return PROTO_LEN_GET_STATUS;
+        case PROTO_TYPE_SELF_TEST: return PROTO_LEN_SELF_TEST;
         default: return -1;
     }
 }
@@ -78,6 +79,19 @@ Result handle(uint8_t type, uint16_t seq, const uint8_t* payload, uint8_t len) {
             break;
         case PROTO_TYPE_GET_STATUS:
             telemetry::send_status();
+            break;
+        case PROTO_TYPE_SELF_TEST:
+            // Runs in mpu6000::poll; SELF_TEST_RESULT follows when it is done (main.cpp).
+            switch (mpu6000::start_self_test()) {
+                case mpu6000::SelfTestStart::kStarted:
+                    break;
+                case mpu6000::SelfTestStart::kBusy:
+                    status = PROTO_ACK_STATUS_BUSY;
+                    break;
+                case mpu6000::SelfTestStart::kUnsupported:
+                    status = PROTO_ACK_STATUS_UNSUPPORTED;
+                    break;
+            }
             break;
         default:
             break;

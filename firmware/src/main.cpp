@@ -4,7 +4,8 @@
 // the physics. Interrupts only timestamp and move bytes; everything else happens here, in one
 // cooperative loop:
 //   1. host commands: UART RX ring -> frame parser (sync/len/CRC) -> commands::handle
-//   2. sensor: mpu6000::poll advances the bring-up state machine / supervises streaming
+//   2. sensor: mpu6000::poll advances the bring-up state machine / supervises streaming / runs
+//      the self-test (SELF_TEST_RESULT when it ends)
 //   3. samples: a pending data-ready -> 14-byte burst read -> IMU_SAMPLE -> UART TX ring
 //   4. STATUS once a second
 //   5. sleep (idle mode) until the next interrupt when there is nothing to do
@@ -79,7 +80,12 @@ int main() {
             hello_sent = true;
             telemetry::send_hello();
         }
-        if (ev.kind == mpu6000::Event::kError) {
+        if (ev.kind == mpu6000::Event::kSelfTestDone) {
+            telemetry::send_self_test(mpu6000::self_test_result());
+            config_changed = ev.code == 0;  // streaming again at the restored configuration
+        }
+        if (ev.kind == mpu6000::Event::kError ||
+            (ev.kind == mpu6000::Event::kSelfTestDone && ev.code != 0)) {
             ++telemetry::g_counters.spi_faults;
             telemetry::send_error(ev.code, ev.detail);
         }

@@ -101,6 +101,11 @@ constexpr uint8_t kConfigCount = sizeof(g_config) / sizeof(g_config[0]);
 constexpr uint8_t kIndexUserCtrl = 1;
 constexpr uint8_t kIndexSmplrtDiv = 2;
 constexpr uint8_t kIndexConfig = 3;
+constexpr uint8_t kIndexGyroConfig = 4;
+constexpr uint8_t kIndexAccelConfig = 5;
+static_assert(kIndexConfig == kIndexSmplrtDiv + 1 && kIndexGyroConfig == kIndexConfig + 1 &&
+                  kIndexAccelConfig == kIndexGyroConfig + 1,
+              "the self-test changes and restores the four entries SMPLRT_DIV..ACCEL_CONFIG");
 
 void write_config(uint8_t first, uint8_t count) {
     for (uint8_t i = first; i < first + count; ++i) {
@@ -160,6 +165,9 @@ enum class State : uint8_t {
     kDmpStart,        // program start address, DMP + FIFO on
 #endif
     kStreaming,
+    kSelfTestStart,   // SELF_TEST accepted: configure the first window
+    kSelfTestSettle,  // self-test window g_st_phase configured: wait for the response to settle
+    kSelfTestWindow,  // ... then average kSelfTestSamples samples
     kFault,           // wait, then start again from kProbe
 };
 
@@ -196,6 +204,41 @@ constexpr uint32_t kDataReadyTimeoutUs = 500000UL;
 constexpr uint32_t kDataReadyRetryUs = 250000UL;
 constexpr uint32_t kCheckPeriodUs = 1000000UL;
 
+// ---------------------------------------------------------------------------------------------
+// Self-test (RM p.9-11): the response is the output with the self-test bits set minus the output
+// without; the gyroscope's is specified at +-250 deg/s (RM p.10), the accelerometer's at +-8 g
+// (RM p.11). Three windows, off / on / off again: the host takes on - off as the response and
+// the difference of the two off windows as how much the unit moved meanwhile. The firmware only
+// averages; the factory trim formula and the limits (PS p.12-13) are the host's.
+struct SelfTestWindow {
+    uint8_t gyro_config;
+    uint8_t accel_config;
+};
+constexpr SelfTestWindow kSelfTestWindows[3] = {
+    {FS_SEL_250_DPS, AFS_SEL_8G},
+    {FS_SEL_250_DPS | XG_ST | YG_ST | ZG_ST, AFS_SEL_8G | XA_ST | YA_ST | ZA_ST},
+    {FS_SEL_250_DPS, AFS_SEL_8G},
+};
+// 100 Hz with DLPF_CFG 2 (94/98 Hz, 3 ms delay, RM p.13): a window does not depend on the
+// streaming rate SET_RATE chose, and 32 samples take 0.32 s. The noise of a 32-sample mean
+// (~1.5 counts) is far below the response (1400-12800 counts, RM p.10-11).
+constexpr uint8_t kSelfTestSmplrtDiv = 9;
+constexpr uint8_t kSelfTestDlpf = DLPF_CFG_94HZ;
+constexpr uint8_t kSelfTestSamples = 32;
+// Neither RM nor PS gives a settling time for the self-test actuation; 100 ms is over thirty
+// times the DLPF's 3 ms delay (RM p.13) and as long as the signal path reset (RM p.41).
+constexpr uint32_t kSelfTestSettleUs = 100000UL;
+
+SelfTestResult g_st;
+uint8_t g_st_phase = 0;   // which window
+uint8_t g_st_count = 0;   // samples in it so far
+int32_t g_st_sum[6];
+
+bool self_testing() {
+    return g_state == State::kSelfTestStart || g_state == State::kSelfTestSettle ||
+           g_state == State::kSelfTestWindow;
+}
+
 inline bool reached(uint32_t now, uint32_t deadline) {
     return static_cast<int32_t>(now - deadline) >= 0;
 }
@@ -212,6 +255,98 @@ Event fault(uint32_t now, uint8_t code, uint8_t detail, uint32_t retry_us = kRet
 }
 
 bool who_am_i_ok(uint8_t value) { return value == kWhoAmI; }
+
+bool take_sample(Sample* out);  // the checked burst read of the pending sample (below)
+
+void forget_pending() {
+    ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
+        g_pending = false;
+        g_missed_flag = false;
+    }
+}
+
+// Write and read back the settings of self-test window g_st_phase, then let it settle.
+// Returns 0, or the address of the register that read back wrong.
+uint8_t self_test_configure(uint32_t now) {
+    const SelfTestWindow& w = kSelfTestWindows[g_st_phase];
+    const RegisterConfig cfg[4] = {
+        {Register::SMPLRT_DIV, kSelfTestSmplrtDiv},
+        {Register::CONFIG, kSelfTestDlpf},
+        {Register::GYRO_CONFIG, w.gyro_config},
+        {Register::ACCEL_CONFIG, w.accel_config},
+    };
+    for (const RegisterConfig& c : cfg) {
+        write_reg(c.reg, c.value);
+    }
+    for (const RegisterConfig& c : cfg) {
+        if (read_reg(c.reg) != c.value) {
+            return static_cast<uint8_t>(c.reg);
+        }
+    }
+    forget_pending();  // a sample taken before the change
+    g_st_count = 0;
+    for (int32_t& sum : g_st_sum) {
+        sum = 0;
+    }
+    wait_then(State::kSelfTestSettle, now, kSelfTestSettleUs);
+    return 0;
+}
+
+// The self-test ends in a fault: the result says why, the ERROR follows, bring-up restarts.
+Event self_test_abort(uint32_t now, uint8_t status, uint8_t code, uint8_t detail,
+                      uint32_t retry_us = kRetryUs) {
+    g_st.status = status;
+    fault(now, code, detail, retry_us);
+    return Event{Event::kSelfTestDone, code, detail};
+}
+
+// All three windows taken: the table's SMPLRT_DIV, CONFIG, GYRO_CONFIG, ACCEL_CONFIG back and
+// read back, and streaming goes on.
+Event self_test_finish(uint32_t now) {
+    write_config(kIndexSmplrtDiv, 4);
+    const uint8_t bad = verify_config(kIndexSmplrtDiv, 4);
+    if (bad) {
+        return self_test_abort(now, PROTO_SELF_TEST_STATUS_CONFIG_VERIFY,
+                               PROTO_ERROR_CODE_CONFIG_VERIFY, bad);
+    }
+    g_st.status = PROTO_SELF_TEST_STATUS_DONE;
+    forget_pending();  // taken at the self-test's settings
+    g_state = State::kStreaming;
+    g_last_sample_us = now;
+    g_next_check_us = now + kCheckPeriodUs;
+    return Event{Event::kSelfTestDone, 0, 0};
+}
+
+int16_t mean_of(int32_t sum, uint8_t n) {
+    const int32_t half = n / 2;
+    return static_cast<int16_t>((sum >= 0 ? sum + half : sum - half) / n);
+}
+
+// One sample of a self-test window: ax ay az gx gy gz into the sums (TEMP_OUT skipped); a full
+// window stores its means and configures the next one, or restores after the last.
+Event self_test_sample(uint32_t now, const Sample& sample) {
+    const Event none{Event::kNone, 0, 0};
+    for (uint8_t i = 0; i < 6; ++i) {
+        const uint8_t k = i < 3 ? 2 * i : 2 * i + 2;
+        g_st_sum[i] += static_cast<int16_t>(static_cast<uint16_t>(sample.raw[k]) << 8 |
+                                            sample.raw[k + 1]);
+    }
+    if (++g_st_count < kSelfTestSamples) {
+        return none;
+    }
+    for (uint8_t i = 0; i < 6; ++i) {
+        g_st.mean[g_st_phase][i] = mean_of(g_st_sum[i], kSelfTestSamples);
+    }
+    if (++g_st_phase >= sizeof kSelfTestWindows / sizeof kSelfTestWindows[0]) {
+        return self_test_finish(now);
+    }
+    const uint8_t bad = self_test_configure(now);
+    if (bad) {
+        return self_test_abort(now, PROTO_SELF_TEST_STATUS_CONFIG_VERIFY,
+                               PROTO_ERROR_CODE_CONFIG_VERIFY, bad);
+    }
+    return none;
+}
 
 }  // namespace
 
@@ -232,6 +367,8 @@ bool idle() {
         case State::kWaitSignalPath:
         case State::kWaitClock:
         case State::kStreaming:
+        case State::kSelfTestSettle:
+        case State::kSelfTestWindow:
         case State::kFault:
             return true;
         default:
@@ -412,6 +549,34 @@ Event poll(uint32_t now) {
             }
             return none;
 
+        case State::kSelfTestStart: {
+            const uint8_t bad = self_test_configure(now);
+            if (bad) {
+                return self_test_abort(now, PROTO_SELF_TEST_STATUS_CONFIG_VERIFY,
+                                       PROTO_ERROR_CODE_CONFIG_VERIFY, bad);
+            }
+            return none;
+        }
+
+        case State::kSelfTestSettle:
+        case State::kSelfTestWindow:
+            if (g_pending) {
+                Sample sample;
+                // samples while the response settles are dropped
+                if (take_sample(&sample) && g_state == State::kSelfTestWindow) {
+                    return self_test_sample(now, sample);
+                }
+            } else if (static_cast<int32_t>(now - g_last_sample_us) >
+                       static_cast<int32_t>(kDataReadyTimeoutUs)) {
+                return self_test_abort(now, PROTO_SELF_TEST_STATUS_NO_DATA,
+                                       PROTO_ERROR_CODE_DATA_READY_TIMEOUT,
+                                       read_reg(Register::INT_STATUS), kDataReadyRetryUs);
+            }
+            if (g_state == State::kSelfTestSettle && reached(now, g_deadline_us)) {
+                g_state = State::kSelfTestWindow;
+            }
+            return none;
+
         case State::kFault:
             if (reached(now, g_deadline_us)) {
                 g_state = State::kProbe;
@@ -428,9 +593,15 @@ Event poll(uint32_t now) {
 }
 
 bool read_sample(Sample* out) {
-    if (!g_pending) {
-        return false;
+    if (!g_pending || g_state != State::kStreaming) {
+        return false;  // (during a self-test poll() takes the samples)
     }
+    return take_sample(out);
+}
+
+namespace {
+
+bool take_sample(Sample* out) {
     ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
         out->t_us = g_drdy_t_us;
         out->missed = g_missed_flag;
@@ -466,6 +637,8 @@ bool read_sample(Sample* out) {
     g_dropped_flag = false;
     return true;
 }
+
+}  // namespace
 
 uint16_t bad_bursts() { return g_bad_bursts; }
 
@@ -515,11 +688,38 @@ void read_config(Readback* out) {
     out->who_am_i = read_reg(Register::WHO_AM_I);
     g_who_am_i = out->who_am_i;
     out->product_id = g_product_id;
-    out->accel_fs_sel = (read_reg(Register::ACCEL_CONFIG) & AFS_SEL_MASK) >> AFS_SEL_SHIFT;
-    out->gyro_fs_sel = (read_reg(Register::GYRO_CONFIG) & FS_SEL_MASK) >> FS_SEL_SHIFT;
-    out->dlpf_cfg = read_reg(Register::CONFIG) & DLPF_CFG_MASK;
-    out->smplrt_div = read_reg(Register::SMPLRT_DIV);
+    // During a self-test the chip holds its settings: report those it returns to.
+    const bool table = self_testing();
+    const auto now_or_table = [table](uint8_t index) {
+        return table ? g_config[index].value : read_reg(g_config[index].reg);
+    };
+    out->accel_fs_sel = (now_or_table(kIndexAccelConfig) & AFS_SEL_MASK) >> AFS_SEL_SHIFT;
+    out->gyro_fs_sel = (now_or_table(kIndexGyroConfig) & FS_SEL_MASK) >> FS_SEL_SHIFT;
+    out->dlpf_cfg = now_or_table(kIndexConfig) & DLPF_CFG_MASK;
+    out->smplrt_div = now_or_table(kIndexSmplrtDiv);
 }
+
+SelfTestStart start_self_test() {
+#if IMU_BENCH_DMP
+    return SelfTestStart::kUnsupported;  // the DMP image needs its own ranges all the time
+#else
+    if (g_state != State::kStreaming) {
+        return SelfTestStart::kBusy;  // bring-up, a fault, or a self-test already running
+    }
+    g_st.trim[0] = read_reg(Register::SELF_TEST_X);
+    g_st.trim[1] = read_reg(Register::SELF_TEST_Y);
+    g_st.trim[2] = read_reg(Register::SELF_TEST_Z);
+    g_st.trim[3] = read_reg(Register::SELF_TEST_A);
+    g_st.samples = kSelfTestSamples;
+    g_st.status = PROTO_SELF_TEST_STATUS_NO_DATA;  // until the windows are taken
+    g_st_phase = 0;
+    g_last_sample_us = timebase::micros();
+    g_state = State::kSelfTestStart;
+    return SelfTestStart::kStarted;
+#endif
+}
+
+const SelfTestResult& self_test_result() { return g_st; }
 
 #if IMU_BENCH_DMP
 bool read_dmp_quat(int32_t q[4], bool* overflow) {

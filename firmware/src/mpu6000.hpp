@@ -19,6 +19,7 @@ struct Event {
         kNone,
         kReady,  // bring-up finished: streaming from now on
         kError,  // a fault (code = PROTO_ERROR_CODE_*, detail): the driver retries in ~1 s
+        kSelfTestDone,  // self_test_result() is ready; code != 0: also a fault (as kError)
     };
     Kind kind;
     uint8_t code;
@@ -41,6 +42,17 @@ struct Readback {
 };
 
 enum class RateResult : uint8_t { kOk, kBadArgument, kBusy, kVerifyFailed };
+
+// The self-test's raw result (SELF_TEST_RESULT): the factory trim registers and the mean counts
+// of three windows at the self-test ranges (+-8 g, +-250 deg/s): off, on, off again.
+struct SelfTestResult {
+    uint8_t status;      // PROTO_SELF_TEST_STATUS_*
+    uint8_t trim[4];     // SELF_TEST_X, _Y, _Z, _A as read
+    uint8_t samples;     // samples averaged per window
+    int16_t mean[3][6];  // [window][ax ay az gx gy gz]
+};
+
+enum class SelfTestStart : uint8_t { kStarted, kBusy, kUnsupported };
 
 // Pins and the INT6 sense; starts the bring-up from scratch.
 void init();
@@ -78,8 +90,15 @@ uint8_t bus_flags();
 // *bad_register says which register read back wrong; the driver restarts its bring-up.
 RateResult set_rate(uint8_t smplrt_div, uint8_t dlpf_cfg, uint8_t* bad_register);
 
-// Current WHO_AM_I and configuration, read from the chip now (for HELLO).
+// Current WHO_AM_I and configuration, read from the chip now (for HELLO); during a self-test
+// the configuration it will return to.
 void read_config(Readback* out);
+
+// SELF_TEST: start the self-test (only while streaming; not in DMP builds). poll() then runs
+// it without blocking and returns kSelfTestDone when self_test_result() holds the outcome and
+// the configuration is restored (or, on a fault, the bring-up starts again).
+SelfTestStart start_self_test();
+const SelfTestResult& self_test_result();
 
 #if IMU_BENCH_DMP
 // One DMP quaternion from the FIFO if a whole packet is there. *overflow is set when the FIFO

@@ -28,6 +28,12 @@ enum class Register : uint8_t {
     // by ArduPilot's and PX4's MPU-6000 drivers. High nibble 0x5 (0x1: engineering sample),
     // low nibble the revision: 4/5 = C4/C5, which have half the accelerometer sensitivity.
     PRODUCT_ID = 0x0C,
+    // Factory trim of the self-test response (RM p.9-11): XA_TEST[4:2] in bits 7..5 and
+    // XG_TEST[4:0] in bits 4..0 of X/Y/Z; SELF_TEST_A holds the accelerometers' low bits.
+    SELF_TEST_X = 0x0D,        // 13  RM p.9
+    SELF_TEST_Y = 0x0E,        // 14  RM p.9
+    SELF_TEST_Z = 0x0F,        // 15  RM p.9
+    SELF_TEST_A = 0x10,        // 16  RM p.9
     SMPLRT_DIV = 0x19,         // 25  RM p.11
     CONFIG = 0x1A,             // 26  RM p.13
     GYRO_CONFIG = 0x1B,        // 27  RM p.14
@@ -63,22 +69,30 @@ static_assert(static_cast<uint8_t>(Register::INT_STATUS) + 1 ==
 enum CONFIG_BIT : uint8_t {
     // DLPF_CFG[2:0]; 4 = accel 21 Hz / gyro 20 Hz bandwidth, ~8.5 ms delay, internal rate 1 kHz.
     DLPF_CFG_MASK = 0x07,
+    DLPF_CFG_94HZ = 2,  // accel 94 Hz / gyro 98 Hz, ~3 ms delay (the self-test's)
     DLPF_CFG_20HZ = 4,
 };
 static constexpr uint8_t kDlpfCfgMax = 6;  // 7 is reserved (RM p.13)
 
-// GYRO_CONFIG (RM p.14): FS_SEL[4:3]
+// GYRO_CONFIG (RM p.14): XG_ST/YG_ST/ZG_ST (self-test), FS_SEL[4:3]
 enum GYRO_CONFIG_BIT : uint8_t {
+    XG_ST = 1 << 7,
+    YG_ST = 1 << 6,
+    ZG_ST = 1 << 5,
     FS_SEL_SHIFT = 3,
     FS_SEL_MASK = 0x18,
     FS_SEL_250_DPS = 0x00,  // FS_SEL = 0: +-250 deg/s, 131 LSB/(deg/s)
 };
 
-// ACCEL_CONFIG (RM p.15): AFS_SEL[4:3]
+// ACCEL_CONFIG (RM p.15): XA_ST/YA_ST/ZA_ST (self-test), AFS_SEL[4:3]
 enum ACCEL_CONFIG_BIT : uint8_t {
+    XA_ST = 1 << 7,
+    YA_ST = 1 << 6,
+    ZA_ST = 1 << 5,
     AFS_SEL_SHIFT = 3,
     AFS_SEL_MASK = 0x18,
     AFS_SEL_2G = 0x00,  // AFS_SEL = 0: +-2 g, 16384 LSB/g
+    AFS_SEL_8G = 0x10,  // AFS_SEL = 2: +-8 g, 4096 LSB/g (the accelerometer self-test's, RM p.11)
 };
 
 // INT_PIN_CFG (RM p.26)

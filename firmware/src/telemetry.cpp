@@ -148,6 +148,15 @@ void send_pong(uint32_t nonce, uint32_t t_us) {
     queue(PROTO_TYPE_PONG, PROTO_LEN_PONG, true);
 }
 
+void send_self_test(const mpu6000::SelfTestResult& r) {
+    const int16_t(&m)[3][6] = r.mean;
+    proto_put_SELF_TEST_RESULT(frame::payload(g_buf), r.status, r.trim[0], r.trim[1], r.trim[2],
+                               r.trim[3], r.samples, m[0][0], m[0][1], m[0][2], m[0][3], m[0][4],
+                               m[0][5], m[1][0], m[1][1], m[1][2], m[1][3], m[1][4], m[1][5],
+                               m[2][0], m[2][1], m[2][2], m[2][3], m[2][4], m[2][5]);
+    queue(PROTO_TYPE_SELF_TEST_RESULT, PROTO_LEN_SELF_TEST_RESULT, true);
+}
+
 bool send_sample(const mpu6000::Sample& sample, uint8_t flags) {
     const uint8_t n = frame::encode_imu_sample(g_buf, g_seq, sample.t_us, sample.raw, flags);
     if (!uart::try_write(g_buf, n)) {

@@ -1,4 +1,4 @@
-// Device -> host frames (HELLO, STATUS, ERROR, ACK, PONG, IMU_SAMPLE, DMP_QUAT) and the
+// Device -> host frames (HELLO, STATUS, ERROR, ACK, PONG, SELF_TEST_RESULT, IMU_SAMPLE, DMP_QUAT) and the
 // counters STATUS reports. Every emitted frame takes the next seq number; a frame that is not
 // queued (a dropped sample) does not, so a gap in seq on the host means bytes lost in transit.
 #pragma once
@@ -33,6 +33,7 @@ void send_status();
 void send_error(uint8_t code, uint8_t detail);  // counts per code for ERROR.count
 void send_ack(uint8_t cmd_type, uint16_t cmd_seq, uint8_t status);
 void send_pong(uint32_t nonce, uint32_t t_us);
+void send_self_test(const mpu6000::SelfTestResult& result);
 
 // Data frames never wait: if the whole frame does not fit, it is dropped and counted.
 bool send_sample(const mpu6000::Sample& sample, uint8_t flags);
