@@ -73,6 +73,7 @@ static struct {
     uint64_t seed;
     unsigned dmp_packet;
     unsigned product_id;               // --product-id: what PRODUCT_ID reads
+    int self_test_fail;                // --self-test fail: the part fails its self-test
     const dmp_image_desc_t *dmp_desc;  // --dmp-image: check the load sequence against it
 
     avr_t *avr;
@@ -831,6 +832,8 @@ static void usage(FILE *f) {
             "                        for the stub packets\n"
             "  --product-id N        what PRODUCT_ID (0x0C) reads (default 0x58 = rev D8; 0x54/0x55\n"
             "                        = C4/C5: half the accelerometer LSB/g)\n"
+            "  --self-test pass|fail the part's self-test response (default pass: within a few %%\n"
+            "                        of its factory trim; fail: accel Y +35 %%, gyro Z -45 %%)\n"
             "  --spi-fixed-timing    keep simavr's 100 us per SPI byte\n"
             "  --quiet               no summary on stdout\n"
             "  --profile FILE        CSV of CPU cycles spent per flash address (awake only)\n");
@@ -885,7 +888,7 @@ static void write_summary(FILE *f, double wall) {
             "\"uart_tx_bytes\": %llu, \"uart_tx_dropped\": %llu, \"uart_rx_bytes\": %llu, "
             "\"uart_rx_dropped\": %llu, \"spi_timing\": \"%s\", \"stimulus_records\": %lu, "
             "\"boot\": %d, \"boot_entries\": %llu, \"flash_saves\": %llu, "
-            "\"product_id\": %u, \"garbled_bytes\": %llu, "
+            "\"product_id\": %u, \"self_test\": \"%s\", \"garbled_bytes\": %llu, "
             "\"regs\": {\"PWR_MGMT_1\": %d, \"SMPLRT_DIV\": %d, \"CONFIG\": %d, "
             "\"GYRO_CONFIG\": %d, \"ACCEL_CONFIG\": %d, \"INT_PIN_CFG\": %d, \"INT_ENABLE\": %d, "
             "\"USER_CTRL\": %d, \"FIFO_EN\": %d, \"PWR_MGMT_2\": %d}}\n",
@@ -904,7 +907,7 @@ static void write_summary(FILE *f, double wall) {
             (unsigned long long)E.tx_dropped, (unsigned long long)E.rx_bytes,
             (unsigned long long)E.rx_dropped, E.spi_fixed_timing ? "fixed-100us" : "8x-divider",
             E.stim.records, E.boot, (unsigned long long)E.boot_entries,
-            (unsigned long long)E.flash_saves, E.product_id,
+            (unsigned long long)E.flash_saves, E.product_id, E.self_test_fail ? "fail" : "pass",
             (unsigned long long)E.garbled_bytes, r[MPU_PWR_MGMT_1], r[MPU_SMPLRT_DIV], r[MPU_CONFIG],
             r[MPU_GYRO_CONFIG], r[MPU_ACCEL_CONFIG], r[MPU_INT_PIN_CFG], r[MPU_INT_ENABLE],
             r[MPU_USER_CTRL], r[MPU_FIFO_EN], r[MPU_PWR_MGMT_2]);
@@ -919,7 +922,7 @@ int main(int argc, char **argv) {
     E.sample_next_exact = -1;
     enum {
         O_ELF = 256, O_STIM, O_SECONDS, O_REALTIME, O_REGLOG, O_SAMPLELOG, O_FAULT, O_FAULT_AT,
-        O_PTYFILE, O_SUMMARY, O_NOWAIT, O_NODTR, O_NACC, O_NGYR, O_SEED, O_PPM, O_DMP, O_DMPIMG, O_PRODUCT, O_SPIFIX,
+        O_PTYFILE, O_SUMMARY, O_NOWAIT, O_NODTR, O_NACC, O_NGYR, O_SEED, O_PPM, O_DMP, O_DMPIMG, O_PRODUCT, O_SELFTEST, O_SPIFIX,
         O_QUIET, O_HELP, O_PROFILE, O_HEX, O_BOOT, O_BOOTLOADER, O_FLASHFILE
     };
     static const struct option opts[] = {
@@ -931,6 +934,7 @@ int main(int argc, char **argv) {
         {"noise-accel", 1, 0, O_NACC}, {"noise-gyro", 1, 0, O_NGYR}, {"seed", 1, 0, O_SEED},
         {"clock-ppm", 1, 0, O_PPM}, {"dmp-packet", 1, 0, O_DMP},
         {"dmp-image", 1, 0, O_DMPIMG}, {"product-id", 1, 0, O_PRODUCT},
+        {"self-test", 1, 0, O_SELFTEST},
         {"spi-fixed-timing", 0, 0, O_SPIFIX}, {"quiet", 0, 0, O_QUIET}, {"help", 0, 0, O_HELP}, {"profile", 1, 0, O_PROFILE},
         {"hex", 1, 0, O_HEX}, {"boot", 0, 0, O_BOOT}, {"bootloader", 1, 0, O_BOOTLOADER},
         {"flash-file", 1, 0, O_FLASHFILE},
@@ -969,6 +973,11 @@ int main(int argc, char **argv) {
                 E.product_id = (unsigned)v;
                 break;
             }
+            case O_SELFTEST:
+                if (!strcmp(optarg, "pass")) E.self_test_fail = 0;
+                else if (!strcmp(optarg, "fail")) E.self_test_fail = 1;
+                else die("--self-test: pass or fail");
+                break;
             case O_DMPIMG:
                 for (unsigned i = 0; i < sizeof DMP_IMAGES / sizeof DMP_IMAGES[0]; i++)
                     if (!strcmp(optarg, DMP_IMAGES[i].name)) E.dmp_desc = &DMP_IMAGES[i];
@@ -1076,6 +1085,7 @@ int main(int argc, char **argv) {
 
     if (E.dmp_desc) E.dmp_packet = E.dmp_desc->packet_size;
     mpu_power_on(&E.mpu, E.dmp_packet, (uint8_t)E.product_id);
+    mpu_self_test(&E.mpu, E.self_test_fail);
     E.mpu.dmp_desc = E.dmp_desc;
     E.mpu.retire = on_retire;
     E.mpu.power_on_until = MPU_POWER_ON_S - STARTUP_HOLD_S;  // power-on reset, in emulated time

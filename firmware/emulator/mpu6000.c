@@ -130,8 +130,11 @@ void mpu_dlpf_delays(mpu6000_t *m, double *accel_s, double *gyro_s) {
 
 void mpu_internal_tick(mpu6000_t *m, const mpu_truth_t *a, const mpu_truth_t *g) {
     for (int i = 0; i < 3; i++) {
-        m->filtered[i] = filter_step(&m->filt_accel, i, a->f[i], m->filt_settle);
-        m->filtered[3 + i] = filter_step(&m->filt_gyro, i, g->w[i], m->filt_settle);
+        uint8_t st = (uint8_t)(0x80 >> i);  // X/Y/Z_ST: bits 7, 6, 5
+        double fa = a->f[i] + ((m->reg[MPU_ACCEL_CONFIG] & st) ? m->st_accel_g[i] * G0 : 0.0);
+        double wg = g->w[i] + ((m->reg[MPU_GYRO_CONFIG] & st) ? m->st_gyro_dps[i] : 0.0);
+        m->filtered[i] = filter_step(&m->filt_accel, i, fa, m->filt_settle);
+        m->filtered[3 + i] = filter_step(&m->filt_gyro, i, wg, m->filt_settle);
     }
     m->filt_settle = 0;
 }
@@ -246,6 +249,29 @@ void mpu_power_on(mpu6000_t *m, unsigned dmp_packet_size, uint8_t product_id) {
     m->product_id = product_id;
     m->dmp_packet_size = dmp_packet_size ? dmp_packet_size : 42;
     reset_registers(m);
+    mpu_self_test(m, 0);
+}
+
+void mpu_self_test(mpu6000_t *m, int fail) {
+    // The factory trim (RM p.10-11) from the 5-bit codes in SELF_TEST_X/Y/Z (XG_TEST bits 4..0,
+    // XA_TEST[4:2] bits 7..5) and SELF_TEST_A (XA/YA/ZA_TEST[1:0] in bits 5..4, 3..2, 1..0):
+    // gyro 25 * 131 LSB * 1.046^(code - 1) at +-250 deg/s (Y negative), accel 4096 LSB *
+    // 0.34 * (0.92 / 0.34)^((code - 1) / 30) at +-8 g; code 0: no trim, no response.
+    static const double healthy_accel[3] = {0.021, -0.034, 0.012};
+    static const double healthy_gyro[3] = {-0.015, 0.026, -0.022};
+    const uint8_t *r = m->reg;
+    for (int i = 0; i < 3; i++) {
+        unsigned g_code = r[MPU_SELF_TEST_X + i] & 0x1F;
+        unsigned a_code = (unsigned)((r[MPU_SELF_TEST_X + i] >> 3) & 0x1C) |
+                          ((r[MPU_SELF_TEST_A] >> (4 - 2 * i)) & 0x3);
+        double g_ft = g_code ? (i == 1 ? -1.0 : 1.0) * 25.0 * pow(1.046, g_code - 1.0) : 0.0;
+        double a_ft = a_code ? 0.34 * pow(0.92 / 0.34, (a_code - 1.0) / 30.0) : 0.0;
+        double a_dev = healthy_accel[i], g_dev = healthy_gyro[i];
+        if (fail && i == 1) a_dev = 0.35;
+        if (fail && i == 2) g_dev = -0.45;
+        m->st_accel_g[i] = a_ft * (1.0 + a_dev);  // 4096 LSB at +-8 g = 1 g
+        m->st_gyro_dps[i] = g_ft * (1.0 + g_dev); // 131 LSB at +-250 deg/s = 1 deg/s
+    }
 }
 
 void mpu_device_reset(mpu6000_t *m) {

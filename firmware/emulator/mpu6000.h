@@ -12,6 +12,9 @@
 // Register addresses (MPU-6000 register map RM-MPU-6000A-00 rev 4.2).
 enum {
     MPU_SELF_TEST_X = 0x0D,
+    MPU_SELF_TEST_Y = 0x0E,
+    MPU_SELF_TEST_Z = 0x0F,
+    MPU_SELF_TEST_A = 0x10,
     MPU_PRODUCT_ID = 0x0C,
     MPU_SMPLRT_DIV = 0x19,
     MPU_CONFIG = 0x1A,
@@ -191,6 +194,12 @@ typedef struct mpu6000 {
     double filtered[6];
     double power_on_until;     // registers unreachable before this time (power-on reset)
 
+    // self-test (RM p.9-11): with XA/YA/ZA_ST (ACCEL_CONFIG bits 7..5) or XG/YG/ZG_ST
+    // (GYRO_CONFIG bits 7..5) set, the actuation adds this to what the axis senses, ahead of the
+    // DLPF like any force or rate (mpu_internal_tick); mpu_self_test sets it
+    double st_accel_g[3];      // accelerometer response, g
+    double st_gyro_dps[3];     // gyroscope response, deg/s
+
     // hardware rules (time: now_s, set by the glue before every call)
     uint64_t rule_count[MPU_RULE_COUNT];
     double rule_first_t[MPU_RULE_COUNT];
@@ -206,6 +215,11 @@ typedef struct mpu6000 {
 void mpu_violate(mpu6000_t *m, int rule, int reg);
 
 void mpu_power_on(mpu6000_t *m, unsigned dmp_packet_size, uint8_t product_id);
+// The part's self-test response: the factory trim its SELF_TEST registers hold (RM p.10-11)
+// times 1 + a small per-axis deviation (a healthy part, within a few %), or, with fail != 0,
+// a part that fails: accelerometer Y responds 35 % above its trim, gyroscope Z 45 % below
+// (the product specification allows +-14 %, PS p.12-13).
+void mpu_self_test(mpu6000_t *m, int fail);
 void mpu_device_reset(mpu6000_t *m);
 
 // Chip select: low != 0 starts a transaction, 0 ends it.

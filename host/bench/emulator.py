@@ -38,6 +38,9 @@ from serial.serialutil import Timeout
 from host.bench.build import build_emulator, build_firmware
 from host.errors import UserError
 
+#: the part's self-test: ``pass`` (a healthy part, each axis within a few % of its factory
+#: trim) or ``fail`` (accelerometer Y 35 % above its trim, gyroscope Z 45 % below)
+SELF_TEST_PARTS = ("pass", "fail")
 #: faults that stop the sensor (a session must end on them)
 SENSOR_FAULTS = ("absent", "stuck-miso", "no-drdy")
 #: ``marginal-bus``: above 1 MHz SCLK every byte the chip sends arrives one bit late; the
@@ -104,7 +107,7 @@ class EmulatedBoard:
     ``workdir``, or a path), ``fault`` (:data:`FAULTS`) from ``fault_at`` s,
     ``noise_accel`` (m/s²) / ``noise_gyro`` (°/s) with ``seed``, ``clock_ppm``, ``product_id``
     (what the chip's PRODUCT_ID reads: its revision; None = the emulator's default, rev D8),
-    ``extra_args``.
+    ``self_test`` (:data:`SELF_TEST_PARTS`: how the part answers its self-test), ``extra_args``.
 
     Boot like the real board (``boot=True``): the stk500v2 bootloader in the boot section runs
     first after every reset (≈ 0.8 s, in real time), then the application; ``elf`` (an ``.elf``
@@ -129,6 +132,7 @@ class EmulatedBoard:
         seed: int | None = None,
         clock_ppm: float = 0.0,
         product_id: int | None = None,
+        self_test: str = "pass",
         wait_open: bool = True,
         dtr_reset: bool = True,
         workdir: str | Path | None = None,
@@ -145,6 +149,9 @@ class EmulatedBoard:
         self.seconds = seconds
         self.realtime = realtime
         self.fault = fault
+        if self_test not in SELF_TEST_PARTS:
+            raise UserError(f"emulator self_test must be pass or fail, not {self_test!r}")
+        self.self_test = self_test
         self.fault_at = fault_at
         self.noise_accel = noise_accel
         self.noise_gyro = noise_gyro
@@ -213,6 +220,8 @@ class EmulatedBoard:
             cmd += ["--clock-ppm", repr(float(self.clock_ppm))]
         if self.product_id is not None:
             cmd += ["--product-id", f"{int(self.product_id):#04x}"]
+        if self.self_test != "pass":
+            cmd += ["--self-test", self.self_test]
         if not self.wait_open:
             cmd.append("--no-wait")
         if not self.dtr_reset:
