@@ -8,8 +8,10 @@ schemes), ``speed`` (``realtime`` | ``N`` | ``max``; the default differs: ``real
 ``sim://``, ``max`` on ``emu://``), ``truth`` (``random`` | ``ideal``), ``effects``,
 ``operator`` (``auto`` | ``manual``), ``latitude``, ``tilt``, ``earth_rate``,
 ``operator_fault=NAME[@K]`` (may repeat: the K-th ``place`` or ``turn`` goes wrong on purpose)
-and ``revision`` (the MPU-6000's PRODUCT_ID: ``D8`` by default, ``C4``/``C5`` count half the
-accelerometer LSB/g; a name or a number such as ``0x55``; :func:`parse_revision`).
+``revision`` (the MPU-6000's PRODUCT_ID: ``D8`` by default, ``C4``/``C5`` count half the
+accelerometer LSB/g; a name or a number such as ``0x55``; :func:`parse_revision`) and
+``self_test`` (``pass`` by default: the part's self-test response is within a few % of its
+factory trim; ``fail``: accelerometer Y 35 % above, gyroscope Z 45 % below it).
 
 ``fault=`` keeps the meaning it always had on each scheme: on ``sim://`` the operator's (and
 ``pull_cable@S``, the cable's) faults — the old spelling of ``operator_fault`` —, on ``emu://``
@@ -41,7 +43,7 @@ SAMPLE_CLOCK_MAX = 0.05
 #: the options read here (a scheme adds its own)
 KEYS = (
     "seed", "speed", "truth", "effects", "operator", "latitude", "tilt", "earth_rate",
-    "operator_fault", "chamber", "revision",
+    "operator_fault", "chamber", "revision", "self_test",
 )  # fmt: skip
 #: ``sim://``'s cable fault (``fault=pull_cable@S``: S simulated s after opening, default 5)
 CABLE_FAULT = "pull_cable"
@@ -87,6 +89,7 @@ class SimOptions:
     chamber: tuple[tuple[str, float], ...] = ()  # Environment chamber fields (parse_chamber)
     cable_pull_s: float | None = None  # sim:// only: fault=pull_cable@S
     product_id: int = DEFAULT_PRODUCT_ID  # the chip's PRODUCT_ID (revision=)
+    self_test_fail: bool = False  # the part fails its self-test (self_test=fail)
 
     def draw(self) -> BenchDraw:
         """The sensor, room and bench of these options, and the seeds of the noise and the
@@ -181,6 +184,8 @@ def parse_sim_options(
         chamber = tuple(parse_chamber(one(key, "")).items()) if key in opts else ()
         key = "revision"
         product_id = parse_revision(one(key, "D8"))
+        key = "self_test"
+        self_test_fail = parse_self_test(one(key, "pass"))
         faults: list[tuple[str, float]] = []
         cable: float | None = None
         sources: list[tuple[str, tuple[str, ...]]] = [("operator_fault", OPERATOR_FAULTS)]
@@ -212,7 +217,16 @@ def parse_sim_options(
         chamber,
         cable,
         product_id,
+        self_test_fail,
     )
+
+
+def parse_self_test(text: str) -> bool:
+    """``self_test=pass|fail`` -> whether the part fails its self-test; ValueError otherwise."""
+    value = text.lower()
+    if value not in ("pass", "fail"):
+        raise ValueError(f"self_test must be pass or fail, not {text!r}")
+    return value == "fail"
 
 
 def parse_revision(text: str) -> int:

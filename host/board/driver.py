@@ -4,6 +4,7 @@
 checks it (:mod:`host.board.hello`: one wait, one spec check), reads frames with host arrival
 times, feeds every IMU sample to the live device→host clock estimate
 (:class:`host.timing.clock.LiveClock`), sends commands (PING, START_STREAM, GET_CONFIG),
+runs the MPU-6000 self-test (:meth:`Board.self_test`, judged by :mod:`host.wire.selftest`),
 survives reconnects and records one measurement on device time (:meth:`Board.acquire`, the
 window cut by :mod:`host.board.acquisition`). It decodes with the spec's codecs
 (:func:`host.wire.frames.sample_t_us`) and unwraps device time by the counters' rules of
@@ -25,6 +26,7 @@ from typing import Any
 
 import numpy as np
 import serial
+from serial.serialutil import Timeout
 
 from host.board.acquisition import SAMPLE_STALL_S, Acquisition, acquire
 from host.board.hello import check_spec, wait_for_hello
@@ -44,6 +46,7 @@ from host.wire.frames import (
     status_text,
 )
 from host.wire.segments import t_us_step, t_us_went_back
+from host.wire.selftest import SelfTest, judge
 
 #: the spec this host speaks (HELLO.spec_fingerprint must match)
 HOST_SPEC_FINGERPRINT = gen.SPEC_FINGERPRINT
@@ -51,6 +54,11 @@ HOST_SPEC_FINGERPRINT = gen.SPEC_FINGERPRINT
 STALL_S = 2.0
 #: bytes of one IMU_SAMPLE frame on the wire (for its serialisation time)
 IMU_FRAME_BYTES = MESSAGES[IMU_SAMPLE].length + OVERHEAD
+#: the self-test takes ≈ 1.3 s on the board; give up on its result after this long, s
+SELF_TEST_TIMEOUT_S = 6.0
+#: a board still bringing its sensor up answers SELF_TEST with BUSY: ask again after this, s
+SELF_TEST_RETRY_S = 0.25
+_ACK_STATUS = gen.ENUMS["ack_status"]
 #: USB vendor ids of boards that look like an APM 2.6 (Arduino Mega 2560 / 16U2, FTDI)
 APM_VIDS = (0x2341, 0x2A03, 0x0403)
 _APM_WORDS = ("arduino mega", "atmega16u2", "apm", "ardupilot", "mega 2560")
@@ -228,6 +236,8 @@ class Board:
         self._clock_last_t: int | None = None  # raw t_us of the last sample fed to the clock
         self._clock_dev_us = 0  # its unwrapped value
         self._ping_nonce = 0
+        #: the last self-test's outcome (None: not run on this board)
+        self.self_test_result: SelfTest | None = None
 
     # ---- connection ----------------------------------------------------------------------
     def connect(self) -> BoardInfo:
@@ -421,6 +431,36 @@ class Board:
         return acquire(
             self, self.info.rate_hz, self._ping_nonce, duration_s, tick, check_escape, tick_every_s
         )
+
+    def self_test(self, timeout_s: float = SELF_TEST_TIMEOUT_S) -> SelfTest:
+        """Run the MPU-6000 self-test: SELF_TEST, its ACK, then SELF_TEST_RESULT judged by
+        :func:`host.wire.selftest.judge` (kept in :attr:`self_test_result`). The board sends
+        no samples meanwhile; keep the unit still. BUSY (the sensor is still coming up) is
+        asked again every :data:`SELF_TEST_RETRY_S`; UNSUPPORTED (a DMP build) or no result
+        within ``timeout_s`` give a self-test without verdict that says why."""
+        assert self.link is not None and self.info is not None
+        timeout = Timeout(timeout_s)
+        seq = self.link.send("SELF_TEST")
+        retry: Timeout | None = None
+        result: SelfTest | None = None
+        while result is None and not timeout.expired():
+            if retry is not None and retry.expired():
+                seq, retry = self.link.send("SELF_TEST"), None
+            for _, f in self.read_frames():
+                if f.name == "SELF_TEST_RESULT" and retry is None:
+                    result = judge(f.fields, self.info.product_id)
+                elif f.name == "ACK" and f.fields["cmd_seq"] == seq:
+                    status = f.fields["status"]
+                    if status == _ACK_STATUS["BUSY"]:
+                        retry = Timeout(SELF_TEST_RETRY_S)
+                    elif status != _ACK_STATUS["OK"]:
+                        result = SelfTest("", "the firmware does not run it (a DMP build?)", (), 0)
+                elif f.type != IMU_SAMPLE:
+                    self.report_frame(f)
+        if result is None:
+            result = SelfTest("", f"no self-test result within {timeout_s:g} s", (), 0)
+        self.self_test_result = result
+        return result
 
     # ---- units ---------------------------------------------------------------------------
     def physical(self, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

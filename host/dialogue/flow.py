@@ -1,8 +1,10 @@
 """The live calibration dialogue (method.md §5): its sequence with the operator on a board.
 
 ``python -m host calibrate --port PORT ...`` calls :func:`run_dialogue`. The dialogue only asks,
-decides and records, in this order: the board's identity, the serial number, the warm-up, the
-six faces (stage 1), the turns (stage 2), the closing check, the results. One measurement — its
+decides and records, in this order: the board's identity, the serial number, the MPU-6000's
+self-test (its outcome goes into every record's header: a failed self-test fails the
+calibration), the warm-up, the six faces (stage 1), the turns (stage 2), the closing check, the
+results. One measurement — its
 acquisition through :class:`host.board.driver.Board`, the record and its header, its checks —
 is :mod:`host.dialogue.measurement`; what is shown is :mod:`host.dialogue.screens`; the options
 are :mod:`host.dialogue.options`. A measurement the operator accepts becomes a
@@ -71,6 +73,7 @@ from host.dialogue.measurement import (
     make_record,
     over_range,
     reconnect,
+    self_test,
     static_problems,
     turn_problems,
 )
@@ -203,6 +206,7 @@ class CalibrationDialogue:
         self.sitting = SittingDirectory(self.out_dir, self.serial, self.command(then=()))
         self._take_stock()
         self._start_capture()
+        self._self_test()
         self._warm_up()
 
         need_static = [n for n in STATIC_NAMES if n not in self.done]
@@ -274,6 +278,11 @@ class CalibrationDialogue:
             static = [r.duration_s for n, r in self.done.items() if n in STATIC_NAMES]
             if self.static_seconds is None and static:  # asked once, when they were measured
                 self.static_seconds = screens.kept_accumulation(self.op, static)
+
+    def _self_test(self) -> None:
+        """The MPU-6000's self-test (:func:`host.dialogue.measurement.self_test`): its outcome
+        goes into the header of every record of this sitting."""
+        self_test(self.board, self.op, YES_MAX_ATTEMPTS, lambda e: self._recover(e, False))
 
     def _warm_up(self) -> None:
         """The warm-up (method.md §5 step 3), recorded as ``SERIAL_warmup.txt``: one attitude,

@@ -23,6 +23,10 @@ samples the firmware flagged MISSED are counted, reported ("3 samples lost in x_
 written into the record header; above the dialogue's loss limit
 (:data:`host.dialogue.options.LOSS_LIMIT`) the program proposes to repeat
 (:func:`loss_problems`).
+
+The MPU-6000's self-test at the start of a sitting (:func:`self_test`) is a measurement too:
+its outcome goes into the header of every record of the sitting (``self_test``,
+``self_test_change_pct``, ``self_test_note``).
 """
 
 from __future__ import annotations
@@ -147,6 +151,33 @@ def reconnect(
     op.say(f"The board is back: {info.describe()}")
 
 
+def self_test(
+    board: Board, op: Questions, attempts: int, recover: Callable[[Exception], None]
+) -> None:
+    """The MPU-6000's self-test (:meth:`host.board.driver.Board.self_test`) with the cube
+    still, shown line by line; a failure is announced (it fails the calibration). Without a
+    verdict because the cube moved, the operator may repeat it, up to ``attempts`` times.
+    ``recover(exc)`` waits for a board that vanished (then the self-test is tried again)."""
+    for attempt in range(1, attempts + 1):
+        op.say("MPU-6000 self-test: keep the cube still (about 2 s)…")
+        try:
+            st = board.self_test()
+        except (LinkLost, LinkTimeout) as exc:
+            op.say(f"!!! the self-test is not recorded: {exc}")
+            recover(exc)
+            continue
+        for line in st.lines():
+            op.say(line)
+        if st.outcome == "fail":
+            op.say("!!! the sensor fails its self-test: this calibration's verdict is FAIL")
+        if st.outcome or "moved" not in st.reason:
+            return
+        if attempt == attempts or not op.yes_no(
+            "Repeat the self-test <Y> or go on without it <N>?", True
+        ):
+            return
+
+
 def capture_path(out_dir: Path, serial: str) -> Path:
     """The session's capture file: ``SERIAL_session.cap``, else the next free
     ``SERIAL_session_2.cap``, … (a resumed session never overwrites an earlier one)."""
@@ -188,6 +219,8 @@ def record_header(
     assert board.info is not None
     meta: dict[str, str] = {"serial": serial, **extra}
     meta.update(board.info.meta())
+    if board.self_test_result is not None:  # the MPU-6000's self-test of this sitting
+        meta.update(board.self_test_result.meta())
     meta.update(
         {
             "start_time": acq.start_time,

@@ -9,6 +9,7 @@ URL grammar (all options optional, ``&``-separated)::
           [&operator=auto|manual][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
           [&operator_fault=wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
           [&chamber=FROM:TO:MINUTES[@START_S]][&revision=D8|C4|C5|...|0xNN]
+          [&self_test=pass|fail]
 
 - ``elf``: firmware to run, an ``.elf`` or ``.hex`` (default: ``make -C firmware`` into
   ``firmware/build/`` first; with ``boot``/``flash``: whatever the flash holds).
@@ -43,6 +44,8 @@ URL grammar (all options optional, ``&``-separated)::
 - ``revision``: what the chip's PRODUCT_ID reads (``host.bench.options.parse_revision``):
   ``D8`` (default), ``C4``/``C5`` (half the accelerometer LSB/g at every AFS_SEL), ``D6`` …
   ``D10``, or a number (``0x55``); with any stimulus.
+- ``self_test``: how the emulated chip answers the self-test, with any stimulus: ``pass``
+  (default) or ``fail`` (accelerometer Y 35 % above its factory trim, gyroscope Z 45 % below).
 - ``noise_accel`` (m/s²), ``noise_gyro`` (°/s), ``seed``: white noise added before quantisation.
 - ``clock_ppm``: MPU-6000 sample clock error against the AVR crystal.
 - ``reglog``, ``samplelog``: write the register-access / produced-sample CSV logs there.
@@ -102,6 +105,7 @@ from host.bench.options import (
     SimOptions,
     bounded,
     parse_revision,
+    parse_self_test,
 )
 from host.bench.options import parse_sim_options as parse_bench_options
 from host.bench.stimulus import STIM_RECORD_HZ, SimStimulus
@@ -117,7 +121,7 @@ if TYPE_CHECKING:
 _FLOAT = ("seconds", "fault_at", "noise_accel", "noise_gyro", "clock_ppm")
 _PATH = ("elf", "stimulus", "reglog", "samplelog", "workdir", "flash")
 #: options of the simulator stimulus (parse_sim_options), not of the EmulatedBoard
-_SIM_KEYS = tuple(k for k in KEYS if k not in ("seed", "revision"))
+_SIM_KEYS = tuple(k for k in KEYS if k not in ("seed", "revision", "self_test"))
 #: after an operator hint, wait until the emulator is this far past the change, s (every
 #: sample taken before it has then been sent to the port)
 HINT_SYNC_S = 0.03
@@ -170,6 +174,8 @@ def parse_url(url: str) -> dict[str, Any]:
                 kw[key] = int(value, 0)
             elif key == "revision":  # the chip's, whatever the stimulus
                 kw["product_id"] = parse_revision(value)
+            elif key == "self_test":  # the chip's too
+                kw["self_test"] = "fail" if parse_self_test(value) else "pass"
             elif key == "fault":
                 if value not in FAULTS:
                     raise ValueError(f"fault must be one of {', '.join(FAULTS)}")

@@ -8,6 +8,7 @@ the options shared with ``emu://`` are read by :mod:`host.bench.options`)::
           [&fault=pull_cable[@SECONDS]|wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
           [&clock_ppm=PPM][&sample_clock=REL][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
           [&effects=NAME,NAME...][&chamber=FROM:TO:MINUTES[@START_S]][&revision=D8|C4|C5|...]
+          [&self_test=pass|fail]
 
 - ``seed`` (default 0): draws the truth, the room/clock and the noise; same seed, same board.
 - ``speed``: ``realtime`` (default) — simulated time follows the wall clock; ``N`` — it runs N×
@@ -22,6 +23,9 @@ the options shared with ``emu://`` are read by :mod:`host.bench.options`)::
   on top (e.g. ``chamber=-10:50:60`` for a thermal calibration).
 - ``revision``: the MPU-6000's PRODUCT_ID, reported in HELLO: ``D8`` (default), ``C4``/``C5``
   (half the accelerometer LSB/g: the counts say so), ``D6`` … ``D10``, or a number (``0x55``).
+- ``self_test``: how the chip answers the MPU-6000 self-test (SELF_TEST): ``pass`` (default,
+  each axis within a few % of its factory trim) or ``fail`` (accelerometer Y 35 % above,
+  gyroscope Z 45 % below it: the part fails, ±14 % is allowed).
 - ``operator_fault`` (as on ``emu://``; ``fault=`` is its older spelling here) and ``fault``:
   the operator or the cable misbehaves on purpose. ``wrong_face@K``: the K-th
   ``place`` hint (default 1st) puts the next axis up (x→y→z→x, same side);
@@ -64,7 +68,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, Timeout
 
-from host.bench.firmware import RESET_EXTERNAL, RESET_POWER_ON, VirtualFirmware
+from host.bench.firmware import RESET_EXTERNAL, RESET_POWER_ON, SelfTestPart, VirtualFirmware
 from host.bench.operator import INCOMPLETE_FRACTION, TOO_FAST_PEAK_DPS, CubeOperator
 from host.bench.options import (
     CABLE_FAULT,
@@ -105,6 +109,8 @@ class Serial(SerialBase):
 
     #: the chip's PRODUCT_ID (``revision=``)
     product_id: int = DEFAULT_PRODUCT_ID
+    #: the part fails its self-test (``self_test=fail``)
+    self_test_fail: bool = False
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self._lock = threading.RLock()
@@ -152,6 +158,7 @@ class Serial(SerialBase):
             o = parse_sim_options(opts, speed_default="realtime", fault_is_operator=True)
             self.seed = o.seed
             self.product_id = o.product_id
+            self.self_test_fail = o.self_test_fail
             self.speed: float | None = o.speed
             self.operator = o.operator
             self.faults: dict[str, float] = dict(o.operator_faults)
@@ -219,6 +226,7 @@ class Serial(SerialBase):
             self._pose,
             RESET_POWER_ON if power_cycle else RESET_EXTERNAL,
             self.product_id,
+            SelfTestPart(self.self_test_fail),
         )
         self._pulled = False
         self._pull_at = (

@@ -11,6 +11,8 @@ the segments between board resets and the frames lost on the link.
   bounded memory too, and capture files decoded with HELLO's full scales and baud.
 - ``capture`` — IMUCAP01 capture files: bytes with host arrival times.
 - ``sensor`` — raw counts <-> SI units (full scales from HELLO).
+- ``selftest`` — the MPU-6000 self-test judged from SELF_TEST_RESULT: the factory trim, the
+  response, ±14 %, a unit that moved.
 - ``segments`` — the one owner of the counters' rules: wrap, reset and loss of ``seq`` and
   ``t_us`` (frame by frame, and a numpy twin proven equal); part of the wire format, so the
   decoders apply them and :mod:`host.timing` builds on them.
