@@ -1,16 +1,14 @@
 """The live calibration dialogue (method.md §5): its sequence with the operator on a board.
 
 ``python -m host calibrate --port PORT ...`` calls :func:`run_dialogue`. The dialogue only asks,
-decides and records, in this order: the board's identity, the serial number, the MPU-6000's
-self-test (its outcome goes into every record's header: a failed self-test fails the
-calibration), the warm-up, the six faces (stage 1), the turns (stage 2), the closing check, the
-results. One measurement — its
-acquisition through :class:`host.board.driver.Board`, the record and its header, its checks —
-is :mod:`host.dialogue.measurement`; what is shown is :mod:`host.dialogue.screens`; the options
-are :mod:`host.dialogue.options`. A measurement the operator accepts becomes a
+decides and records, in this order: the board's identity, the serial number, the self-test, the
+warm-up, the six faces (stage 1), the turns (stage 2), the closing check, the results. One
+measurement — its acquisition through :class:`host.board.driver.Board`, the record and its header,
+its checks — is :mod:`host.dialogue.measurement`; what is shown is :mod:`host.dialogue.screens`; the
+options are :mod:`host.dialogue.options`. A measurement the operator accepts becomes a
 :class:`host.session.records.Record`, written atomically as ``SERIAL_name.txt``; at the end
-:func:`host.calib.publish.compute_and_write` computes and writes the results, exactly as
-``calibrate --from-dir`` does.
+:func:`host.calib.publish.compute_and_write` computes and writes the results, exactly as ``calibrate
+--from-dir`` does.
 
 Interruptions (decided here, the method says Ctrl+C "discards everything"):
 
@@ -280,8 +278,7 @@ class CalibrationDialogue:
                 self.static_seconds = screens.kept_accumulation(self.op, static)
 
     def _self_test(self) -> None:
-        """The MPU-6000's self-test (:func:`host.dialogue.measurement.self_test`): its outcome
-        goes into the header of every record of this sitting."""
+        """The MPU-6000's self-test, into every record's header (measurement.self_test)."""
         self_test(self.board, self.op, YES_MAX_ATTEMPTS, lambda e: self._recover(e, False))
 
     def _warm_up(self) -> None:
