@@ -108,7 +108,9 @@ EXAMPLES: dict[str, str] = {
   python3 -m host archive check-bench REF01          compare the benches on a reference unit""",
     "plan": """examples:
   python3 -m host plan U17/                  the next record that buys the most precision
-  python3 -m host plan U17/ --model base,temperature_bias:gyro --top 5""",
+  python3 -m host plan U17/ --model base,temperature_bias:gyro --top 5
+  python3 -m host plan U17/ --separate scale_asymmetry:gyro:z scale_nonlinearity:gyro:z
+      the record that tells two explanations apart""",
     "demo": """examples:
   python3 -m host demo hidden-effect --effect temperature --seed 4 --out /tmp/demo""",
     "import": """examples:

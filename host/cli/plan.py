@@ -23,6 +23,7 @@ from host.session.directory import read_session
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, UNITS
 from host.session.spacing import timing_report
 from host.workbench.planner import NextPlan, OperatorTime, Ranked, plan_next
+from host.workbench.separate import CLEAR, Separation, separate
 
 
 def _row(i: int, r: Ranked) -> str:
@@ -81,13 +82,43 @@ def _json(p: NextPlan) -> dict[str, Any]:
     }
 
 
+def _num(v: float) -> str:
+    """A Δχ² for people: 0 below round-off."""
+    return "0" if abs(v) < 1e-6 else f"{v:.3g}"
+
+
+def format_separation(s: Separation, top: int) -> str:
+    """The records that tell two explanations apart, for people, within 80 columns."""
+    lines = textwrap.wrap(f"to tell {s.a} from {s.b}: Δχ² between them now {_num(s.lam_now)} "
+                          f"({CLEAR:g} or more: the data choose at 3σ)", 80)  # fmt: skip
+    lines += [" #  record                              time   Δχ² after  per minute"]
+    for i, r in enumerate(s.ranked[:top]):
+        c = r.candidate
+        lines.append(f"{i + 1:>2}  {c.label[:34]:<34} {c.operator_s:>5.0f} s  {_num(r.lam):>9}"
+                     f"  {_num(r.per_min):>10}")  # fmt: skip
+    if s.ranked and s.ranked[0].lam < CLEAR:
+        lines += textwrap.wrap(
+            "none of these records alone separates them at 3σ: measure the first, then ask "
+            "again (or records of another kind: 45° attitudes, turns at another rate, a "
+            "sitting at another temperature)", 80,
+        )  # fmt: skip
+    return "\n".join(lines)
+
+
 def run_plan(args: argparse.Namespace) -> int:
     if args.top < 1:
         raise UserError(f"--top {args.top}: give how many records to list, 1 or more")
     session = read_session(args.dir, args.serial)
     sys.stderr.write(timing_report(session.records))
-    model = parse_model(args.model, _catalogue(args))
+    cat = _catalogue(args)
+    model = parse_model(args.model, cat)
     time = OperatorTime(place=args.place_s, place_tilted=args.place_tilted_s)
+    if args.separate:
+        a, b = (parse_model(x, cat) for x in args.separate)
+        sep = separate(session, model, a, b, noise=session_noise(session, args.floor, args.noise),
+                       time=time)  # fmt: skip
+        print(format_separation(sep, args.top))
+        return 0
 
     def progress(done: int, total: int, label: str) -> None:
         if sys.stderr.isatty():
@@ -127,5 +158,10 @@ def cli_plan(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
     p.add_argument(
         "--place-tilted-s", type=_seconds, default=OperatorTime.place_tilted, metavar="S",
         help="seconds to put it on an edge, 45° (default %(default)g)",
+    )  # fmt: skip
+    p.add_argument(
+        "--separate", nargs=2, metavar=("A", "B"), default=None,
+        help="instead: the records that tell explanation A from B apart (each a model spec "
+        "added to --model, e.g. scale_asymmetry:gyro:z scale_nonlinearity:gyro:z)",
     )  # fmt: skip
     return run_plan

@@ -63,11 +63,13 @@ class Candidate:
     """One record (or pair of turns) the operator could measure next.
 
     ``records``: the records it adds (name, up vector in chip axes, kind, seconds, turns,
-    direction +1 ccw / -1 cw); ``operator_s``: what it costs the operator, s."""
+    direction +1 ccw / -1 cw); ``operator_s``: what it costs the operator, s; ``pace``: turns
+    made this many times as fast as the operator's own (1: the same hand)."""
 
     label: str
     records: tuple[tuple[str, tuple[float, float, float], str, float, int, int], ...]
     operator_s: float
+    pace: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -196,23 +198,29 @@ def synthetic_record(
     direction: int = 0,
     meta: Mapping[str, str] | None = None,
     rng: np.random.Generator | None = None,
+    profile: np.ndarray | None = None,
 ) -> Record:
     """A record as the sensor fitted so far would measure it (method.md §2 with ``values``):
     ``kind`` 'static' (``seconds`` of rest with ``up``, a unit vector in chip axes, pointing
     away from the Earth) or 'turn' (``turns`` whole turns about ``up``, ``direction`` +1 ccw,
-    -1 cw, in a window of ``seconds`` with 1 s of rest at each end); white noise of
-    ``accel_sd`` (m/s²) and ``gyro_sd`` (°/s) per axis, one sample every ``dt_s`` s."""
+    -1 cw, in a window of ``seconds``: the hand's rate ``profile`` (°/s, ≥ 0, one value a
+    sample, e.g. a turn the operator made) scaled to 360°·turns, else a smooth turn with 1 s of
+    rest at each end); white noise of ``accel_sd`` (m/s²) and ``gyro_sd`` (°/s) per axis, one
+    sample every ``dt_s`` s."""
     rng = rng or np.random.default_rng(0)
     u = np.asarray(up, dtype=float)
     u = u / np.linalg.norm(u)
     t_s = np.arange(0.0, seconds, dt_s)
     n = len(t_s)
     rate = np.zeros(n)
-    if kind == "turn":
+    if kind == "turn" and profile is not None and len(profile) > 1:
+        rate = np.interp(t_s, np.arange(len(profile)) * dt_s, np.abs(profile), right=0.0)
+    elif kind == "turn":
         rest = min(1.0, seconds / 5.0)
         moving = (t_s >= rest) & (t_s <= seconds - rest)
         phase = (t_s - rest) / max(seconds - 2 * rest, dt_s)
         rate = np.where(moving, 1.0 - np.cos(2 * np.pi * phase), 0.0)
+    if kind == "turn":
         area = float(np.trapezoid(rate, t_s)) if n > 1 else 1.0
         rate *= direction * 360.0 * turns / area
     ma, a0, mg, ga, g0 = _sensor(values)
@@ -240,11 +248,13 @@ def candidates(
     time: OperatorTime = OPERATOR_TIME,
     *,
     tilted: bool = True,
+    paces: Sequence[float] = (1.0,),
 ) -> list[Candidate]:
     """The records the operator could measure next: each face again (for each length in
     ``static_s``, s), each 45° attitude of :func:`host.bench.plan.tilted_45` (``tilted``; the
     first length), and a pair of turns (ccw and cw, ``turns`` each, the method's window)
-    about each axis. Record names are the plan's (``x_up``, ``tilt_45_3``, ``x_ccw``)."""
+    about each axis at each of ``paces`` (×2: twice as fast as the operator turned). Record
+    names are the plan's (``x_up``, ``tilt_45_3``, ``x_ccw``)."""
     lengths = [float(static_s)] if isinstance(static_s, int | float) else list(static_s)
     out: list[Candidate] = []
     for seconds in lengths:
@@ -263,7 +273,10 @@ def candidates(
             (f"{ax}_{d}", up, "turn", window, turns, s) for d, s in (("ccw", 1), ("cw", -1))
         )
         cost = 2 * (time.place + time.turn_ready + window)
-        out.append(Candidate(f"{ax} turns, {turns} each way", pair, cost))
+        for pace in paces:
+            label = f"{ax} turns, {turns} each way"
+            label += "" if pace == 1.0 else f", {pace:g}× as fast"
+            out.append(Candidate(label, pair, cost, pace))
     return out
 
 
@@ -273,6 +286,71 @@ def _format_up(up: Sequence[float]) -> str:
         if abs(c) > 1e-9:
             parts.append(("+" if c > 0 else "−") + k)
     return "".join(parts)
+
+
+class Augmenter:
+    """The session with a candidate's records added as the sensor fitted so far (``values``,
+    method.md §2) would measure them: the noise measured in its static records, its sample
+    rate, mean chip temperature, power-on time and placement header; the same draw for the
+    same record name and ``seed``. ``static_s``/``turns``: the session's own record length
+    and turns."""
+
+    def __init__(self, session: Session, values: Mapping[str, float], g: float, seed: int = 0):
+        recs = list(session.records.values())
+        stats = [record_stats(r) for r in recs]
+        statics = [s for s in stats if s.kind == "static"]
+        self.session, self.values, self.g, self.seed = session, values, g, seed
+        self.accel_sd = np.median([s.accel_std for s in statics], axis=0)
+        self.gyro_sd = np.median([s.gyro_std for s in statics], axis=0)
+        self.dt_s = float(np.median([s.dt_s for s in stats if s.dt_s > 0]))
+        self.temp_c = float(np.mean([float(np.mean(r.temp)) for r in recs]))
+        self.static_s = float(np.median([s.duration_s for s in statics]))
+        ns = [int(r.meta["turns"]) for r in recs if r.meta.get("turns", "").strip().isdigit()]
+        self.turns = ns[0] if ns else 1
+        self.meta: dict[str, str] = {}
+        if all("power_on_s" in r.meta for r in recs):
+            end = max(float(r.meta["power_on_s"]) + r.duration_s for r in recs)
+            self.meta["power_on_s"] = f"{end + 60.0:.3f}"
+        if any(HEADING_KEY in r.meta for r in recs):
+            self.meta[HEADING_KEY] = "0"
+        #: up axis -> the hand's rate profile of a turn the operator made about it (°/s)
+        self.profiles: dict[int, np.ndarray] = {}
+        for r in recs:
+            if r.kind == "turn" and len(r) > 10:
+                k = int(np.argmax(np.abs(r.up)))
+                rate = r.gyro[:, k] * float(np.sign(r.up[k]))
+                self.profiles.setdefault(k, np.abs(rate - np.median(rate[:5])))
+
+    def _profile(self, axis: int, pace: float) -> np.ndarray | None:
+        """The operator's rate profile about ``axis`` made ``pace`` times as fast (°/s, one
+        value every ``dt_s``), or None (a smooth turn) when no turn about it was measured."""
+        p = self.profiles.get(axis)
+        if p is None or pace == 1.0:
+            return p
+        t = np.arange(len(p)) * self.dt_s
+        return pace * np.interp(pace * t, t, p, right=0.0)
+
+    def fits_range(self, cand: Candidate, limit_dps: float = 240.0) -> bool:
+        """False when the candidate's turns would leave the gyro's range (±250 °/s)."""
+        for _, up, kind, *_ in cand.records:
+            p = self._profile(int(np.argmax(np.abs(up))), cand.pace)
+            if kind == "turn" and p is not None and float(np.max(p)) > limit_dps:
+                return False
+        return True
+
+    def with_candidate(self, cand: Candidate) -> Session:
+        """The session with ``cand``'s records added (each under a name no record has)."""
+        records = dict(self.session.records)
+        for base, up, kind, seconds, n_turns, direction in cand.records:
+            name = unique_name(base, records)
+            records[name] = synthetic_record(
+                name, up, kind, seconds, g=self.g, values=self.values, accel_sd=self.accel_sd,
+                gyro_sd=self.gyro_sd, dt_s=self.dt_s, temp_c=self.temp_c, turns=n_turns,
+                direction=direction, meta=self.meta,
+                rng=np.random.default_rng([self.seed, zlib.crc32(name.encode())]),
+                profile=self._profile(int(np.argmax(np.abs(up))), cand.pace),
+            )  # fmt: skip
+        return Session(self.session.serial, records)
 
 
 def plan_next(
@@ -304,38 +382,13 @@ def plan_next(
     worst_now, worst_name = worst_ratio(sigma_now, tolerances)
     undetermined_now = {n for n, s in sigma_now.items() if not math.isfinite(s)}
 
-    recs = list(session.records.values())
-    stats = [record_stats(r) for r in recs]
-    statics = [s for s in stats if s.kind == "static"]
-    accel_sd = np.median([s.accel_std for s in statics], axis=0)
-    gyro_sd = np.median([s.gyro_std for s in statics], axis=0)
-    dt_s = float(np.median([s.dt_s for s in stats if s.dt_s > 0]))
-    temp_c = float(np.mean([float(np.mean(r.temp)) for r in recs]))
-    static_s = float(np.median([s.duration_s for s in statics]))
-    ns = [int(r.meta["turns"]) for r in recs if r.meta.get("turns", "").strip().isdigit()]
-    turns = ns[0] if ns else 1
-    extra: dict[str, str] = {}
-    if all("power_on_s" in r.meta for r in recs):
-        end = max(float(r.meta["power_on_s"]) + r.duration_s for r in recs)
-        extra["power_on_s"] = f"{end + 60.0:.3f}"
-    if any(HEADING_KEY in r.meta for r in recs):
-        extra[HEADING_KEY] = "0"
-    values = _values(fit)
-    todo = list(only) if only is not None else candidates(static_s, turns, time)
+    hand = Augmenter(session, _values(fit), g, seed)
+    todo = list(only) if only is not None else candidates(hand.static_s, hand.turns, time)
     ranked: list[Ranked] = []
     for i, cand in enumerate(todo):
         if progress is not None:
             progress(i, len(todo), cand.label)
-        records = dict(session.records)
-        for base, up, kind, seconds, n_turns, direction in cand.records:
-            name = unique_name(base, records)
-            records[name] = synthetic_record(
-                name, up, kind, seconds, g=g, values=values, accel_sd=accel_sd,
-                gyro_sd=gyro_sd, dt_s=dt_s, temp_c=temp_c, turns=n_turns,
-                direction=direction, meta=extra,
-                rng=np.random.default_rng([seed, zlib.crc32(name.encode())]),
-            )  # fmt: skip
-        aug = fit_model(build_dataset(Session(session.serial, records), **kw), model)  # type: ignore[arg-type]
+        aug = fit_model(build_dataset(hand.with_candidate(cand), **kw), model)  # type: ignore[arg-type]
         sigma = unscaled_sigmas(aug, fit)
         worst, name = worst_ratio(sigma, tolerances)
         determines = tuple(

@@ -73,3 +73,24 @@ def test_place_seconds_parse_or_refuse(text: str) -> None:
         assert exc.code == 2
         return
     assert math.isfinite(args.place_s) and args.place_s >= 0.0
+
+
+def test_separate_names_a_record_within_80_columns(
+    session_without_y_turns: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    d = str(session_without_y_turns)
+    assert main(["plan", d, "--separate", "time_drift:accel:x", "temperature_bias:accel:x",
+                 "--top", "3"]) == 0  # fmt: skip
+    lines = capsys.readouterr().out.splitlines()
+    assert all(len(line) <= 80 for line in lines), max(lines, key=len)
+    assert lines[0].startswith("to tell time_drift:accel:x from temperature_bias:accel:x")
+    assert sum(1 for line in lines if line[:3].strip().isdigit()) == 3
+
+
+def test_separate_with_an_unknown_term_is_one_line(
+    session_without_y_turns: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    d = str(session_without_y_turns)
+    assert main(["plan", d, "--separate", "no_such_term", "time_drift:accel:x"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no_such_term" in err[0]

@@ -1,0 +1,120 @@
+"""The record that tells two explanations apart.
+
+When the diagnosis holds a group of equals (:mod:`host.workbench.equals`: two terms that fit the
+records equally well, e.g. a face lean and an accelerometer reading (f/g)²), the question for the
+bench is which record to measure so that the data can choose. For two explanations A and B (each
+a list of model terms added to the model), each with the size the records give it, the
+separation a record buys is the noncentrality
+
+    λ = min(χ²(model + B fitted to what model + A predicts), the same with A and B swapped)
+
+on the session with the record added (:class:`host.workbench.planner.Augmenter`): the Δχ² by
+which the true one of the two would beat the other, noise aside. λ ≥ 9 is a 3σ choice. The
+records are ranked by λ per minute of the operator's time.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from host.model.dataset import Dataset, build_dataset
+from host.model.fit import Fit, fit_model, predict
+from host.model.noise import NoiseModel
+from host.model.spec import ModelTerm
+from host.session.directory import Session
+from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, local_gravity
+from host.workbench.planner import OPERATOR_TIME, Augmenter, Candidate, OperatorTime, candidates
+
+#: λ at which the data choose between the two at 3σ
+CLEAR = 9.0
+
+
+@dataclass(frozen=True)
+class Separating:
+    """A record and the separation it buys: ``lam`` (λ with it added), ``per_min`` (λ gained
+    over the session's own per minute of operator time)."""
+
+    candidate: Candidate
+    lam: float
+    per_min: float
+
+
+@dataclass(frozen=True)
+class Separation:
+    """The separation now (``lam_now``) and the records ranked best first."""
+
+    a: str
+    b: str
+    lam_now: float
+    ranked: tuple[Separating, ...]
+
+
+def _values(fit: Fit) -> dict[tuple[str, str, str, str], float]:
+    return {
+        (p.term_name, p.sensor, p.axis, p.key): p.value
+        for p in fit.parameters
+        if math.isfinite(p.value)
+    }
+
+
+def noncentrality(
+    ds: Dataset,
+    model: Sequence[ModelTerm],
+    a: Sequence[ModelTerm],
+    b: Sequence[ModelTerm],
+    va: dict[tuple[str, str, str, str], float],
+    vb: dict[tuple[str, str, str, str], float],
+) -> float:
+    """min over the two directions of χ² of one explanation fitted to the other's noise-free
+    prediction with values ``va``/``vb`` (the whitening of ``ds`` kept)."""
+    ma, mb = (*model, *a), (*model, *b)
+    lam = math.inf
+    for truth, values, other in ((ma, va, mb), (mb, vb, ma)):
+        y = predict(ds, truth, values)
+        lam = min(lam, fit_model(dataclasses.replace(ds, y=y), other).chi2)
+    return lam
+
+
+def separate(
+    session: Session,
+    model: Sequence[ModelTerm],
+    a: Sequence[ModelTerm],
+    b: Sequence[ModelTerm],
+    *,
+    noise: NoiseModel | None = None,
+    time: OperatorTime = OPERATOR_TIME,
+    latitude_deg: float = DEFAULT_LATITUDE_DEG,
+    height_m: float = DEFAULT_HEIGHT_M,
+    only: Sequence[Candidate] | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> Separation:
+    """Rank the records that would tell explanation ``a`` from ``b`` (each a list of terms
+    added to ``model``), each at the size this session's records give it."""
+    kw = {"noise": noise or NoiseModel(), "latitude_deg": latitude_deg, "height_m": height_m}
+    ds = build_dataset(session, **kw)  # type: ignore[arg-type]
+    base = fit_model(ds, model)
+    va = _values(fit_model(ds, (*model, *a)))
+    vb = _values(fit_model(ds, (*model, *b)))
+    lam_now = noncentrality(ds, model, a, b, va, vb)
+    base_values = {p.name: p.value for p in base.parameters if math.isfinite(p.value)}
+    hand = Augmenter(session, base_values, local_gravity(latitude_deg, height_m))
+    if only is None:
+        menu = candidates(hand.static_s, hand.turns, time, paces=(1.0, 0.5, 2.0))
+        todo = [c for c in menu if hand.fits_range(c)]
+    else:
+        todo = list(only)
+    ranked = []
+    for i, cand in enumerate(todo):
+        if progress is not None:
+            progress(i, len(todo), cand.label)
+        aug = build_dataset(hand.with_candidate(cand), **kw)  # type: ignore[arg-type]
+        lam = noncentrality(aug, model, a, b, va, vb)
+        ranked.append(Separating(cand, lam, (lam - lam_now) / (cand.operator_s / 60.0)))
+    if progress is not None:
+        progress(len(todo), len(todo), "")
+    ranked.sort(key=lambda s: (-s.per_min, s.candidate.operator_s))
+    label = ", ".join
+    return Separation(label(m.label for m in a), label(m.label for m in b), lam_now, tuple(ranked))
