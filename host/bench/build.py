@@ -1,26 +1,60 @@
 """The builds: ``make`` with a lock, for the firmware (shared by flashing and the emulator) and
 for the emulator itself.
 
-One build of ``firmware/`` for the whole host: :mod:`host.board.flash` flashes its hex,
-:mod:`host.bench.emulator` runs its ELF. ``firmware/emulator/apm_emu`` (C, on libsimavr) and
-its harness self-test app are built on demand into ``firmware/build/emulator/`` (make rebuilds
-what is older than its sources); :func:`toolchain_problem` says in one line what is missing.
+The sources are found by :func:`find_firmware_dir` (a checkout's ``firmware/``, the copy an
+installed package carries, or ``$IMU_BENCH_FIRMWARE``). One build of them for the whole host:
+:mod:`host.board.flash` flashes its hex, :mod:`host.bench.emulator` runs its ELF.
+``firmware/emulator/apm_emu`` (C, on libsimavr) and its harness self-test app are built on
+demand into ``firmware/build/emulator/`` (for an installed copy: in the user's cache); make
+rebuilds what is older than its sources; :func:`toolchain_problem` says in one line what is
+missing.
 """
 
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import os
 import shutil
+import site
 import subprocess
+import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from host.errors import UserError
 
-ROOT = Path(__file__).resolve().parents[2]
-FIRMWARE_DIR = ROOT / "firmware"
-DEFAULT_BUILD = FIRMWARE_DIR / "build"
+#: a firmware source tree to use instead of the one found (a checkout's, an installed copy's)
+FIRMWARE_ENV = "IMU_BENCH_FIRMWARE"
+
+
+def find_firmware_dir() -> Path:
+    """The firmware sources (``Makefile``, ``src/``, ``emulator/``): ``$IMU_BENCH_FIRMWARE``,
+    else the checkout's ``firmware/`` beside ``host/``, else the copy ``pip install`` puts in
+    ``PREFIX/share/imu-bench/firmware`` (the environment's, then the user's)."""
+    if os.environ.get(FIRMWARE_ENV):
+        return Path(os.environ[FIRMWARE_ENV])
+    checkout = Path(__file__).resolve().parents[2] / "firmware"
+    if (checkout / "Makefile").is_file():
+        return checkout
+    for prefix in (sys.prefix, site.getuserbase()):
+        installed = Path(prefix) / "share" / "imu-bench" / "firmware"
+        if (installed / "Makefile").is_file():
+            return installed
+    return checkout  # missing: make says so, and the error names FIRMWARE_ENV
+
+
+def default_build_dir(firmware: Path) -> Path:
+    """Where builds go: ``firmware/build`` when that is writable (a checkout), else the
+    user's cache (an installed copy): ``$XDG_CACHE_HOME/imu-bench/build``."""
+    if os.access(firmware, os.W_OK):
+        return firmware / "build"
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return cache / "imu-bench" / "build"
+
+
+FIRMWARE_DIR = find_firmware_dir()
+DEFAULT_BUILD = default_build_dir(FIRMWARE_DIR)
 HEX_NAME = "imu_bench.hex"
 EMULATOR_SRC = FIRMWARE_DIR / "emulator"
 DEFAULT_EMU_BUILD = DEFAULT_BUILD / "emulator"
@@ -60,7 +94,11 @@ def build_firmware_hex(build_dir: str | Path | None = None, make_args: Sequence[
         )  # fmt: skip
     if r.returncode != 0:
         tail = (r.stdout + r.stderr).strip().splitlines()[-1:] or ["?"]
-        raise UserError(f"building the firmware failed (make -C firmware): {tail[0]}")
+        where = "" if (FIRMWARE_DIR / "Makefile").is_file() else (
+            f"; no firmware sources in {FIRMWARE_DIR}: set {FIRMWARE_ENV} to a firmware/ "
+            "directory (or give a ready --hex FILE)"
+        )  # fmt: skip
+        raise UserError(f"building the firmware failed (make -C firmware): {tail[0]}{where}")
     hex_path = out / HEX_NAME
     if not hex_path.exists():
         raise UserError(f"building the firmware did not produce {hex_path}")
