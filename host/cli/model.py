@@ -373,19 +373,31 @@ def run_demo(args: argparse.Namespace) -> int:
     for eff in effects:
         if eff not in EFFECTS:
             raise UserError(f"unknown effect {eff!r}; known: all, {', '.join(EFFECTS)}")
+    width = terminal_width(sys.stdout)
     for eff in effects:
         case = hidden_effect_case(eff, args.seed, tilted=args.tilted, static_s=args.static_s)
         print(format_case(case))
+        # the unit's noise known, as from a noise file (--noise): the floor does not carry
+        # the hidden effect the way the session's repeated attitudes would. The commands below
+        # give that floor, so that they print the figures printed here.
+        floor = ",".join(f"{s}={v:.6g}" for s, v in sorted(case.known_floor.items()))
+        print(f"noise floor of a record mean: {floor.replace(',', ', ')} (the unit's, known: "
+              "as a noise file gives it; --floor below gives the same)")  # fmt: skip
+        outcome = run_case(case, case.known_noise())
+        try_line = None
         if args.out:
             from host.bench.plan import write_session
 
             out = Path(args.out) / eff
             write_session(out, "DEMO", dict(case.records))
-            try_cmd = shlex.join(["python3", "-m", "host", "model", "diagnose", str(out)])
-            print(f"records written to {out} (try: {try_cmd})")
-        # the unit's noise known, as from a noise file (--noise): the floor does not carry
-        # the hidden effect the way the session's repeated attitudes would
-        print(format_outcome(run_case(case, case.known_noise())))
+            cmd = ["python3", "-m", "host", "model", "diagnose", str(out), "--floor", floor]
+            print(f"records written to {out}; the same diagnosis:")
+            print(command_lines(cmd, width, lead="  "))
+            spec = outcome.diagnosis.recommended_spec
+            if spec:
+                add = ["python3", "-m", "host", "model", "add", str(out), spec, "--floor", floor]
+                try_line = command_lines(add, width, lead="  try: ")
+        print(format_outcome(outcome, try_line=try_line))
         print()
     return 0
 

@@ -289,11 +289,12 @@ def format_case(case: HiddenCase) -> str:
     return "\n".join(lines)
 
 
-def format_outcome(o: DemoOutcome) -> str:
-    """What the workbench made of a hidden-effect case: the diagnosis, the addition, and
+def format_outcome(o: DemoOutcome, try_line: str | None = None) -> str:
+    """What the workbench made of a hidden-effect case: the diagnosis (``try_line``: the
+    command adding the recommended term, see :func:`format_diagnosis`), the addition, and
     whether it named the hidden term (and how close its coefficient came to the truth)."""
     case = o.case
-    lines = [format_diagnosis(o.diagnosis, compare=False, max_candidates=6)]
+    lines = [format_diagnosis(o.diagnosis, compare=False, max_candidates=6, try_line=try_line)]
     if o.addition is not None:
         what = "the hidden term" if case.term else "the top candidate"
         lines.append(f"-- adding {what}")

@@ -232,3 +232,24 @@ def test_a_slow_ladder_shows_progress_at_least_every_two_seconds(
     assert max(gaps) < 2.0, max(gaps)
     assert any("trying term" in s for _, s in term.writes)
     assert "final model:" in capsys.readouterr().out
+
+
+def test_the_demo_and_the_command_it_prints_give_one_figure(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The demo's before → after and that of the `model add` command it prints for its records
+    are the same numbers (the command carries the noise floor the demo used)."""
+    import re
+    import shlex
+
+    assert main(["demo", "hidden-effect", "--effect", "temperature", "--seed", "4",
+                 "--out", str(tmp_path)]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    demo_rms = re.findall(r"RMS z +([\d.]+) → ([\d.]+)", out)
+    assert demo_rms, out
+    try_cmd = out.split("try: ", 1)[1].split("\n-- adding", 1)[0]
+    argv = shlex.split(try_cmd.replace("\\\n", ""))
+    assert argv[:4] == ["python3", "-m", "host", "model"] and "--floor" in argv
+    assert main(argv[3:]) == 0
+    add_rms = re.findall(r"RMS z +([\d.]+) → ([\d.]+)", capsys.readouterr().out)
+    assert add_rms[0] == demo_rms[0]
