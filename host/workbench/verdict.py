@@ -168,12 +168,22 @@ def diagnose(
     # a candidate the records cannot tell apart from another explanation is not recommended
     # alone: its group of equals is reported instead (the fit after it still holds it, so
     # that what is left is scanned)
-    groups = {c.label: g for c in usable if (g := finder.group(c)) is not None}
+    groups: dict[str, Equals] = {}  # one entry per group, by its strongest anchor
+    grouped: set[str] = set()  # the usable candidates in some group
+    for c in sorted(usable, key=lambda c: -c.delta_chi2):
+        g = finder.group(c)
+        if g is None:
+            continue
+        grouped.add(c.label)
+        # two channels' bests can be each other's equals (a face lean and a plate tilt on
+        # unknown headings): one group, not two
+        if not any(c.label in h.members for h in groups.values()):
+            groups[c.label] = g
     extra = [_model_term(c, cat) for c in usable]
     aug = fit_model(ds, merge_model(list(model) + extra)) if extra else fit
     misfit = max(fit.chi2 - fit.dof, 0.0)
     removed = fit.chi2 - aug.chi2
-    alone = [c for c in usable if c.label not in groups]
+    alone = [c for c in usable if c.label not in grouped]
     if len(extra) > 1:
         # each recommended term adds significantly to the others (a term significant only
         # through a misfit another explains is not what is missing)
@@ -207,7 +217,7 @@ def diagnose(
             notes.append(f"{c.label} is significant but not physical: {c.implausible}")
     if dominant:
         verdict = "unexplained"
-    elif recommended or (groups and (removed >= MOST * misfit or set(groups) & set(own))):
+    elif recommended or (groups and (removed >= MOST * misfit or grouped & set(own))):
         verdict = "missing_effect"
     elif hits or aug.chi2_p < alpha or any(c.significant for c in cands):
         verdict = "unexplained"
