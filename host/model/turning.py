@@ -116,7 +116,9 @@ def moving_blocks(
         if j - i >= MIN_BLOCK_SAMPLES:
             length = float(t[j - 1] - t[i])
             k = max(1, min(round(length / block_s), (j - i) // MIN_BLOCK_SAMPLES))
-            edges = np.linspace(i, j, k + 1).round().astype(int)
+            # from the run's own start: a tie (x.5) rounds the same wherever the record's
+            # window begins (rounding i + x.5 to even flips with the parity of i)
+            edges = i + np.linspace(0, j - i, k + 1).round().astype(int)
             out.extend((int(edges[b]), int(edges[b + 1])) for b in range(k))
     return out
 

@@ -58,6 +58,21 @@ def test_moving_blocks_cover_the_turning_part_in_half_second_blocks() -> None:
     assert turning.moving_blocks(np.zeros(100), t[:100], 0.05) == []
 
 
+def test_moving_blocks_do_not_depend_on_where_the_record_window_begins() -> None:
+    """A turn record's window that begins a few samples later at rest cuts the same samples into
+    the same blocks (issue 26: a block edge on a half sample rounded with the parity of its
+    index, so one sample changed block when the window moved by one, and with it the hand's
+    scatter and the weight of every turn)."""
+    t = np.arange(300) * 0.02
+    rate = np.zeros(300)
+    rate[50:151] = 100.0  # 101 samples, 2 s: four blocks, the middle edge on a half sample
+    ref = turning.moving_blocks(rate, t, sigma_dps=0.05)
+    assert len(ref) == 4
+    for shift in range(1, 6):
+        got = turning.moving_blocks(rate[shift:], t[shift:], sigma_dps=0.05)
+        assert [(a + shift, b + shift) for a, b in got] == ref, shift
+
+
 def test_excess_scatter_measures_what_is_beyond_the_white_noise() -> None:
     rng = np.random.default_rng(3)
     n = 4000
