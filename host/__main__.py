@@ -228,6 +228,12 @@ def _run(argv: list[str] | None, raw_out: object) -> int:
     if not args.command:
         parser.print_help()
         return 2
+    if getattr(args, "term_timeout", None) is not None:  # the bound on term files' code
+        from host.model import loader
+
+        if not args.term_timeout > 0:
+            leaf_parser(parser, args).error("--term-timeout: give a number of seconds above 0")
+        loader.TIME_LIMIT_S = args.term_timeout
     if args.command in MACHINE_STDOUT or getattr(args, "json", False):
         sys.stdout.flush()
         sys.stdout = raw_out  # type: ignore[assignment]

@@ -114,6 +114,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="F",
         help="Python file defining extra terms for --model (repeatable)",
     )
+    p.add_argument(
+        "--term-timeout", type=float, metavar="S",
+        help="how long the term files' code may run, s (default 120; a progress line every 5 s)",
+    )  # fmt: skip
 
 
 def compute_settings(args: argparse.Namespace) -> ComputeSettings:

@@ -92,6 +92,10 @@ def _common(p: argparse.ArgumentParser) -> None:
         metavar="F",
         help="Python file defining extra terms (repeatable)",
     )
+    p.add_argument(
+        "--term-timeout", type=float, metavar="S",
+        help="how long the term files' code may run, s (default 120; a progress line every 5 s)",
+    )  # fmt: skip
     p.add_argument("--serial", default=None, help="serial whose records to use")
     p.add_argument(
         "--floor",

@@ -1,6 +1,11 @@
 """Users' own terms: a Python file of :class:`~host.model.terms.Term` objects (made with
 :func:`~host.model.terms.term`) joins the catalogue.
 
+A term file's code runs under a time bound (:data:`TIME_LIMIT_S`, ``--term-timeout``): past
+:data:`PROGRESS_S` a line on stderr says which term file is running and for how long, and past
+the bound it stops with one line naming the file and the option that raises it (an endless
+loop no longer hangs the program).
+
 A term file is code: it runs only when a user names it (``--term-file``, or ``term_files=`` of
 :func:`host.calib.applying.apply`), never because a result file mentions it. Its SHA-256
 (:func:`term_file_sha256`) travels in the result, so the file given later can be checked to be
@@ -9,15 +14,80 @@ the one the calibration used (``load_term_file(..., sha256=...)``).
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
+import functools
 import hashlib
 import importlib.util
+import signal
 import sys
-from collections.abc import Collection, Mapping
+import threading
+import time
+from collections.abc import Callable, Collection, Iterator, Mapping
 from pathlib import Path
+from typing import Any
 
 from host.errors import TermFileMismatch, UserError
 from host.model.catalogue import CATALOGUE
 from host.model.terms import Term
+
+#: the time a term file's code may run in one command, s (``--term-timeout`` sets it)
+TIME_LIMIT_S = 120.0
+#: after this long in a term file's code, a progress line every as long, s
+PROGRESS_S = 5.0
+_spent: dict[str, float] = {}  # term file -> seconds its code has run so far
+_active: list[str] = []  # the term file whose code runs now (bounded once, not nested)
+
+
+class TermFileTimeout(UserError):
+    """A term file's code ran past :data:`TIME_LIMIT_S`."""
+
+
+@contextlib.contextmanager
+def _bounded(path: str, what: str) -> Iterator[None]:
+    """Run user code from ``path`` with progress lines and the time bound (main thread only:
+    elsewhere it runs unbounded)."""
+    main = threading.current_thread() is threading.main_thread()
+    if not main or not hasattr(signal, "setitimer") or _active:
+        yield  # elsewhere, or inside user code already bounded: runs as it is
+        return
+    _active.append(path)
+    start = time.monotonic()
+    before = _spent.get(path, 0.0)
+
+    def tick(_signum: int, _frame: object) -> None:
+        ran = before + time.monotonic() - start
+        if ran > TIME_LIMIT_S:
+            raise TermFileTimeout(
+                f"{path}: {what} has run {ran:.0f} s (an endless loop?); stopped at the "
+                f"bound of {TIME_LIMIT_S:g} s: fix the term, or give --term-timeout S"
+            )
+        print(f"{path}: {what} running for {ran:.0f} s (bound {TIME_LIMIT_S:g} s, "
+              "--term-timeout)", file=sys.stderr, flush=True)  # fmt: skip
+
+    first = max(0.01, min(PROGRESS_S, TIME_LIMIT_S - before))
+    old = signal.signal(signal.SIGALRM, tick)
+    signal.setitimer(signal.ITIMER_REAL, first, min(PROGRESS_S, max(TIME_LIMIT_S, 0.01)))
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+        _spent[path] = before + time.monotonic() - start
+        _active.clear()
+
+
+def _guarded(path: str, what: str, fn: Callable[..., Any] | None) -> Callable[..., Any] | None:
+    """``fn`` (a term's user function) run under :func:`_bounded`."""
+    if fn is None:
+        return None
+
+    @functools.wraps(fn)
+    def run(*args: Any, **kwargs: Any) -> Any:
+        with _bounded(path, what):
+            return fn(*args, **kwargs)
+
+    return run
 
 
 def _read(p: Path) -> bytes:
@@ -63,7 +133,10 @@ def load_term_file(
     module.__file__ = str(p)
     sys.modules[mod_name] = module
     try:
-        exec(compile(code, str(p), "exec"), module.__dict__)  # noqa: S102 - the user named it
+        with _bounded(str(p), "loading it"):
+            exec(compile(code, str(p), "exec"), module.__dict__)  # noqa: S102 - the user named it
+    except TermFileTimeout:
+        raise
     except UserError as exc:
         raise UserError(f"{p}: {exc}") from exc
     except (Exception, SystemExit) as exc:  # noqa: BLE001 - user code: one line for the user
@@ -78,5 +151,12 @@ def load_term_file(
                 f"{p}: term {t.name!r} has the name of a built-in term; give yours another "
                 f"name (@term(name=...)); taken: base, {', '.join(out)}"
             )
-        out[t.name] = t
+        code_of: dict[str, Any] = {
+            f: _guarded(str(p), f"term {t.name}", getattr(t, f)) for f in _USER_CODE
+        }
+        out[t.name] = dataclasses.replace(t, **code_of)
     return out
+
+
+#: the Term fields that hold the user's code
+_USER_CODE = ("columns", "check", "labels", "value", "record_columns")

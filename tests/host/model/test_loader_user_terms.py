@@ -108,3 +108,36 @@ def test_diagnose_on_one_record_is_no_verdict(
     assert "1 record leaves the model no degrees of freedom" in err
     rc, out, _ = run(["model", "diagnose", str(records_dir), "--json"], capsys)
     assert rc in (0, 1) and '"verdict"' in out
+
+
+@pytest.mark.timeout(60)
+def test_an_endless_term_shows_progress_and_stops_at_the_bound_the_user_raises(
+    records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    """A term whose columns() never return, and a term file whose loading never ends: a
+    progress line every PROGRESS_S, then one line at --term-timeout naming the file and the
+    option (before, the command ran with no output until killed)."""
+    import time
+
+    from host.model import loader
+
+    monkeypatch.setattr(loader, "PROGRESS_S", 0.3)
+    monkeypatch.setattr(loader, "TIME_LIMIT_S", loader.TIME_LIMIT_S)  # restored afterwards
+    monkeypatch.setattr(loader, "_spent", {})
+    f = term_file(tmp_path, "spin", "while True: pass")
+    argv = ["model", "add", str(records_dir), "spin:gyro", "--term-file", str(f)]
+    t0 = time.monotonic()
+    rc, out, err = run([*argv, "--term-timeout", "1.5"], capsys)
+    took = time.monotonic() - t0
+    assert rc == 2 and out == ""
+    assert "term spin running for" in err and "--term-timeout" in err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith(f"error: {f}: term spin has run") and "give --term-timeout S" in last
+    assert took < 20
+    endless = tmp_path / "endless.py"
+    endless.write_text("while True:\n    pass\n")
+    monkeypatch.setattr(loader, "TIME_LIMIT_S", 1.0)
+    with pytest.raises(loader.TermFileTimeout, match=r"loading it has run \d+ s"):
+        loader.load_term_file(endless)
+    assert "loading it running for" in capsys.readouterr().err
