@@ -19,6 +19,7 @@ from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.report import verdict_line
 from host.calib.result import CalibrationResult
 from host.cli import out_directory
+from host.cli.screen import working
 from host.dialogue.options import DEFAULT_READY_S, WARMUP_DEFAULT_S
 from host.errors import RecordCheckError, UserError
 from host.session.checks import failed_record
@@ -139,7 +140,8 @@ def compute_settings(args: argparse.Namespace) -> ComputeSettings:
 def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -> CalibrationResult:
     """Compute from ``session``, write both result files into ``out_dir``, print the report
     (or the JSON with ``--json``) on stdout (:func:`host.calib.publish.compute_and_write`)."""
-    pub = compute_and_write(session, out_dir, compute_settings(args))
+    with working("calibrate: checking the records and fitting the model"):
+        pub = compute_and_write(session, out_dir, compute_settings(args))
     show_result(pub.result, args.json)
     if not args.json:
         pdf = f" and {pub.pdf_path}" if pub.pdf_path is not None else ""

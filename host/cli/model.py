@@ -27,6 +27,7 @@ from host.cli.screen import (
     left_out,
     table_row,
     terminal_width,
+    working,
 )
 from host.errors import UserError
 from host.model.catalogue import CATALOGUE
@@ -154,16 +155,17 @@ def _print_json(obj: Any) -> None:
 def run_diagnose(args: argparse.Namespace) -> int:
     cat = _catalogue(args)
     model = parse_model(args.model, cat)
-    session, ds = _session_dataset(args)
-    d = diagnose(ds, model, cat)
-    plots: list[Path] = []
-    if args.plot:
-        after = None
-        suspect = None
-        if d.recommended_spec:
-            suspect = d.recommended_spec
-            after = add_term(ds, model, suspect, cat).after
-        plots = write_plots(args.plot, ds, d.fit, after, suspect, start_times(session))
+    with working("diagnose: reading the records, fitting the model and every candidate"):
+        session, ds = _session_dataset(args)
+        d = diagnose(ds, model, cat)
+        plots: list[Path] = []
+        if args.plot:
+            after = None
+            suspect = None
+            if d.recommended_spec:
+                suspect = d.recommended_spec
+                after = add_term(ds, model, suspect, cat).after
+            plots = write_plots(args.plot, ds, d.fit, after, suspect, start_times(session))
     if args.json:
         obj = d.to_dict()
         if plots:
@@ -209,12 +211,13 @@ def add_command(args: argparse.Namespace, term: str, model: str) -> list[str]:
 def run_add(args: argparse.Namespace) -> int:
     cat = _catalogue(args)
     model = parse_model(args.model, cat)
-    session, ds = _session_dataset(args)
-    a = add_term(ds, model, args.term, cat)
     paths: list[Path] = []
-    if args.plot:
-        paths = write_plots(args.plot, ds, a.before, a.after, a.added[0].label,
-                            start_times(session))  # fmt: skip
+    with working(f"add: reading the records, fitting with and without {args.term}"):
+        session, ds = _session_dataset(args)
+        a = add_term(ds, model, args.term, cat)
+        if args.plot:
+            paths = write_plots(args.plot, ds, a.before, a.after, a.added[0].label,
+                                start_times(session))  # fmt: skip
     ship = calibrate_command(args, short_spec(a.after.model))
     if args.json:
         _print_json({**a.to_dict(), "calibrate_command": ship})
@@ -387,7 +390,8 @@ def run_demo(args: argparse.Namespace) -> int:
         floor = ",".join(f"{s}={v:.6g}" for s, v in sorted(case.known_floor.items()))
         print(f"noise floor of a record mean: {floor.replace(',', ', ')} (the unit's, known: "
               "as a noise file gives it; --floor below gives the same)")  # fmt: skip
-        outcome = run_case(case, case.known_noise())
+        with working(f"demo {eff}: diagnosing the simulated session"):
+            outcome = run_case(case, case.known_noise())
         try_line = None
         if args.out:
             from host.bench.plan import write_session

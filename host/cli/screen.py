@@ -8,7 +8,8 @@ words, never cut mid-word by the terminal.
   ``\\`` continuations, so that it still runs when pasted.
 - :func:`table` — columns side by side; when they do not fit, the least needed columns are left
   out (and named in a last line), a table row is never wrapped.
-- :class:`Progress` — the line that shows a long wait moving.
+- :class:`Progress` — the line that shows a long wait moving; :func:`working` — that line
+  for a step that cannot say how far it is: its name and the seconds it has taken.
 - :class:`ScreenWriter` — a text stream that wraps what passes through it at words as it is
   written (prompts without a newline too), when it goes to a terminal; ``python -m host`` puts
   its stdout and stderr through it (``\\r`` redraws and terminal escapes pass unchanged and
@@ -20,13 +21,14 @@ wraps prose, so a table row that is still too wide shows up in the 80-column tes
 
 from __future__ import annotations
 
+import contextlib
 import io
 import math
 import os
 import re
 import shlex
 import textwrap
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import TextIO
 
@@ -212,6 +214,36 @@ class Progress:
             self.stream.write("\r\x1b[K")
             self.stream.flush()
             self._shown = False
+
+
+@contextlib.contextmanager
+def working(label: str, stream: TextIO | None = None, after_s: float = 1.0) -> Iterator[None]:
+    """While the body runs: after ``after_s`` s, the progress line ``label … N s``, redrawn
+    every half second (a step that cannot count its parts still shows it is alive); cleared
+    at the end. The body must not print meanwhile (its text and the line would mix)."""
+    import threading
+    import time
+
+    progress = Progress(stream)
+    stop = threading.Event()
+    start = time.monotonic()
+
+    def beat() -> None:
+        if stop.wait(after_s):
+            return
+        while True:
+            progress.show(f"{label} … {time.monotonic() - start:.0f} s")
+            if stop.wait(0.5):
+                return
+
+    thread = threading.Thread(target=beat, name="progress", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+        progress.done()
 
 
 class ScreenWriter(io.TextIOBase):

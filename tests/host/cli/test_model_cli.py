@@ -253,3 +253,37 @@ def test_the_demo_and_the_command_it_prints_give_one_figure(
     assert main(argv[3:]) == 0
     add_rms = re.findall(r"RMS z +([\d.]+) → ([\d.]+)", capsys.readouterr().out)
     assert add_rms[0] == demo_rms[0]
+
+
+@pytest.mark.parametrize("command", ["diagnose", "add"])
+def test_a_slow_diagnosis_or_addition_shows_it_is_working(
+    command: str, temp_dir: tuple[Path, str], monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture,
+) -> None:  # fmt: skip
+    """A step that cannot count its parts (a diagnosis, a refit) slowed to 3 s: the progress
+    line names it and its seconds, never standing still for 2 s, and is gone before the text."""
+    import sys
+    import time
+
+    import host.cli.model as model_cli
+
+    real = {"diagnose": model_cli.diagnose, "add": model_cli.add_term}[command]
+
+    def slow(*a: object, **kw: object) -> object:
+        time.sleep(3.0)
+        return real(*a, **kw)  # type: ignore[operator]
+
+    monkeypatch.setattr(model_cli, "diagnose" if command == "diagnose" else "add_term", slow)
+    term = _Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    d, spec = temp_dir
+    argv = ["model", command, str(d), *([spec] if command == "add" else [])]
+    start = time.monotonic()
+    assert main(argv) == 0
+    end = time.monotonic()
+    shown = [(t, s) for t, s in term.writes if f"{command}:" in s]
+    assert shown and shown[0][0] - start < 2.0
+    stamps = [t for t, _ in shown] + [end]
+    assert max(b - a for a, b in zip(stamps, stamps[1:], strict=False)) < 2.0
+    assert term.writes[-1][1] == "\r\x1b[K"  # the line cleared before the result is printed
+    assert capsys.readouterr().out
