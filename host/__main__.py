@@ -126,7 +126,7 @@ EXAMPLES: dict[str, str] = {
   python3 -m host noise long.cap --plan 10%                  how long to record""",
     "flash": """examples:
   python3 -m host flash --port /dev/ttyACM0           build, flash, check the HELLO
-  python3 -m host flash --port "emu://?flash=build/imu_bench.hex"   the emulated board""",
+  python3 -m host flash --port 'emu://?flash=board.flash'    the emulated board, no hardware""",
     "export": """examples:
   python3 -m host export U17/ --to ardupilot --out U17.parm
   python3 -m host export U17/ --to px4 --axes x,-y,-z       the board's axes
