@@ -5,8 +5,9 @@ noise (:mod:`host.model.noise`) and the whitening (:mod:`host.model.whitening`).
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -322,6 +323,14 @@ def build_dataset(
         table.channels, signals, y_arr, floors=floors, static_noise=table.static_noise,
         white_level=white_level, n_still=n_still, seat=seat, hand=hand, turn_sigma=turn_sigma,
     )  # fmt: skip
+    for a in tilted:  # a corrected turn's cross-axis integrals carry its measured axis's σ
+        ri = next(i for i, s in enumerate(signals) if s.name == a.record)
+        turned = abs(float(signals[ri].heading[-1]))  # rad
+        for k, gr in enumerate(groups):
+            if gr.record == ri and gr.sensor == "gyro" and abs(float(a.up[gr.axis])) < 0.5:
+                sd = math.hypot(gr.sigma, math.degrees(a.sd * turned))
+                whiten = whiten.with_block(gr.rows, np.array([[1.0 / sd]]))
+                groups[k] = replace(gr, sigma=sd)
     rows_of: dict[tuple[int, str, int], np.ndarray] = {}
     for gr in groups:
         rows_of[(gr.record, gr.sensor, gr.axis)] = gr.rows

@@ -312,9 +312,9 @@ class TurnAxis:
             f"gravity that far from where {' and '.join(self.statics)} has it (the cube was not "
             f"seated flat while it turned). A tilted turn puts part of its rate on the other "
             f"gyros ({fake}), which a fit would take for cross-axis sensitivity: the turn's "
-            "reference rate is taken along the measured axis instead, so those cross-axis "
-            f"values are as good as that measurement: ± {1e3 * self.sd:.2f} mrad, not the "
-            "gyro's own σ"
+            "reference rate is taken along the measured axis instead, and the turn's "
+            f"cross-axis integrals carry that measurement's σ (± {1e3 * self.sd:.2f} mrad of "
+            "the rate), so the fitted cross-axis values' σ include the geometry"
         )
         if self.bound > 0:
             out += (
