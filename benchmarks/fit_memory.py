@@ -8,8 +8,8 @@ One simulated session (6 statics of 30 s and 6 turns: 12 records) is the 1× bas
 such sessions of the same unit (other seeds) in one directory, the repeats named ``x_up_2``, ….
 Each size runs the whole command in a fresh process; its peak resident set size is read with
 ``resource.getrusage(RUSAGE_CHILDREN).ru_maxrss`` by a wrapper that waits for it. Prints the
-records, peak RSS and wall time, each also as a ratio to the 1× run of the same invocation
-(linear: the time and the memory above the interpreter's own grow like the records).
+records, peak RSS and CPU time, each also as a ratio to the 1× run of the same invocation
+(linear: the CPU time and the memory above the interpreter's own grow like the records).
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -33,23 +32,23 @@ from host.bench.truth import SensorTruth  # noqa: E402
 WRAPPER = (
     "import resource, subprocess, sys\n"
     "rc = subprocess.call(sys.argv[1:], stdout=subprocess.DEVNULL)\n"
-    "kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss\n"
-    "print(rc, kb)\n"
+    "ru = resource.getrusage(resource.RUSAGE_CHILDREN)\n"
+    "print(rc, ru.ru_maxrss, ru.ru_utime + ru.ru_stime)\n"
 )
 #: the interpreter with numpy and the package imported, no records: what does not grow
 IDLE = [sys.executable, "-c", "import host.calib.publish, host.model.fit"]
 
 
 def peak_rss(cmd: list[str]) -> tuple[int, float, float]:
-    """Run ``cmd``; its exit code, peak RSS in MiB and wall time in s."""
+    """Run ``cmd``; its exit code, peak RSS in MiB and CPU time in s (user + system: on a
+    shared machine the wall time mostly measures the others' load)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    t0 = time.perf_counter()
     r = subprocess.run(
         [sys.executable, "-c", WRAPPER, *cmd],
         capture_output=True, text=True, cwd=ROOT, check=True, env=env,
     )  # fmt: skip
-    rc, kb = r.stdout.split()
-    return int(rc), int(kb) / 1024, time.perf_counter() - t0
+    rc, kb, cpu = r.stdout.split()
+    return int(rc), int(kb) / 1024, float(cpu)
 
 
 def write_sessions(out: Path, copies: int) -> int:
@@ -75,7 +74,7 @@ def main() -> None:
     _, idle, _ = peak_rss(IDLE)
     print(f"interpreter with the package imported: {idle:.0f} MiB")
     print(f"{'size':>5} {'records':>8} {'peak MiB':>9} {'× 1×':>6} {'above idle':>11} "
-          f"{'× 1×':>6} {'time s':>7} {'× 1×':>6}")  # fmt: skip
+          f"{'× 1×':>6} {'CPU s':>7} {'× 1×':>6}")  # fmt: skip
     first: tuple[float, float, float] | None = None
     for k in sizes:
         d = base / f"x{k}"
