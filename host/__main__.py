@@ -182,9 +182,12 @@ def _version() -> str:
     return f"imu-bench {__version__} (protocol {PROTOCOL_VERSION}, spec {SPEC_FINGERPRINT:#010x})"
 
 
-def build_parser() -> tuple[
+def build_parser(only: str | None = None) -> tuple[
     argparse.ArgumentParser, dict[str, Callable[[argparse.Namespace], int]]
 ]:
+    """The parser and the runners of every command; with ``only``, the arguments and runner
+    of that command alone (the others are listed, their modules not imported: start-up
+    imports what the command needs)."""
     parser = OneLineErrors(
         prog="python -m host", description="IMU calibration bench host (APM 2.6 / MPU-6000).",
         epilog=EXIT_CODES,
@@ -199,7 +202,8 @@ def build_parser() -> tuple[
         p = sub.add_parser(
             name, help=help_text, description=help_text, epilog=epilog,
         )  # fmt: skip
-        runners[name] = getattr(importlib.import_module(module), func)(p)
+        if only is None or name == only:
+            runners[name] = getattr(importlib.import_module(module), func)(p)
     return parser, runners
 
 
@@ -221,7 +225,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(argv: list[str] | None, raw_out: object) -> int:
-    parser, runners = build_parser()
+    words = sys.argv[1:] if argv is None else argv
+    command = next((w for w in words if not w.startswith("-")), None)
+    parser, runners = build_parser(command or "")  # no command: no command's module
     args, extra = parser.parse_known_args(argv)
     if extra:  # said by the subcommand that does not know them, with its help
         leaf_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")

@@ -18,7 +18,7 @@ try:
     runpy.run_module("host", run_name="__main__")
 except SystemExit:
     pass
-import numpy  # already imported by the commands' modules
+import numpy  # as a command's module imports it, after the command line set the variables
 print(os.environ.get("OPENBLAS_NUM_THREADS"), os.environ.get("OMP_NUM_THREADS"),
       os.environ.get("MKL_NUM_THREADS"), len(os.listdir("/proc/self/task")), file=sys.stderr)
 """
@@ -46,3 +46,23 @@ def test_the_command_line_pins_the_blas_to_one_thread() -> None:
 def test_a_users_own_thread_count_is_kept() -> None:
     openblas, omp, mkl, _ = _probe({"OPENBLAS_NUM_THREADS": "2", "OMP_NUM_THREADS": "3"})
     assert (openblas, omp, mkl) == ("2", "3", "1")
+
+
+def test_start_up_imports_only_what_the_command_needs(tmp_path: Path) -> None:
+    """``decode`` and ``capture`` load neither the fit, the archive nor scipy (they did: every
+    command's module was imported to build the parser, 1 090 modules for ``capture``)."""
+    code = (
+        "import sys\nfrom host.__main__ import main\n"
+        "for argv in (['decode', sys.argv[1]], ['capture', '--port', 'sim://', sys.argv[1]]):\n"
+        "    try:\n        main(argv)\n    except SystemExit:\n        pass\n"
+        "heavy = ('scipy', 'sqlalchemy', 'host.archive', 'host.calib', 'host.workbench')\n"
+        "print(sorted({m for m in sys.modules if m.startswith(heavy)}))\n"
+    )
+    cap = tmp_path / "exists.cap"
+    cap.write_bytes(b"")
+    root = Path(__file__).resolve().parents[2]
+    done = subprocess.run(
+        [sys.executable, "-c", code, str(cap)], capture_output=True, text=True, cwd=root,
+        timeout=120,
+    )  # fmt: skip
+    assert done.stdout.strip().splitlines()[-1] == "[]", done.stdout + done.stderr
