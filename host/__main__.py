@@ -182,9 +182,9 @@ def _version() -> str:
     return f"imu-bench {__version__} (protocol {PROTOCOL_VERSION}, spec {SPEC_FINGERPRINT:#010x})"
 
 
-def build_parser(only: str | None = None) -> tuple[
-    argparse.ArgumentParser, dict[str, Callable[[argparse.Namespace], int]]
-]:
+def build_parser(
+    only: str | None = None,
+) -> tuple[argparse.ArgumentParser, dict[str, Callable[[argparse.Namespace], int]]]:
     """The parser and the runners of every command; with ``only``, the arguments and runner
     of that command alone (the others are listed, their modules not imported: start-up
     imports what the command needs)."""
