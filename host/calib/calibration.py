@@ -362,6 +362,7 @@ def calibrate_from_records(
         params, spec = _with_thermal(params, spec, thermal, t_guess, t_mean)
         notes.append(_thermal_note(session, thermal, thermal_source))
     prov = provenance_of(session, software=f"imu-bench {__version__}")
+    metas = [rec.meta for rec in session.records.values()]
     if prov.simulated:  # never let a virtual board pass for a unit (first note, as in v2 files)
         notes.insert(0, prov.simulated_line)
     for name, rec in session.records.items():  # kept by the operator despite a warning
@@ -416,6 +417,7 @@ def calibrate_from_records(
         thermal_range_c=None if thermal is None else (thermal.t_min_c, thermal.t_max_c),
         thermal_source=thermal_source,
         provenance=prov,
+        self_test=next((m["self_test"] for m in metas if m.get("self_test")), ""),
     )  # fmt: skip
 
 

@@ -106,6 +106,8 @@ def format_report(result: CalibrationResult) -> str:
         out.append(line.rstrip())
     else:
         out.append("RESULT: all values within tolerance")
+    if r.self_test == "fail":
+        out.append("RESULT: FAIL — the sensor failed its MPU-6000 self-test")
     out.append(rule)
     if r.undetermined:
         out.append("Not determined by these records, and what would determine them:")
@@ -263,6 +265,8 @@ def _object_and_equipment(r: CalibrationResult) -> list[str]:
         more = f" and {len(pv.sources) - 1} more" if len(pv.sources) > 1 else ""
         board.append(f"source {pv.sources[0]}{more}")
     out.extend(_wrap(f"Board: {'; '.join(board) or 'not recorded'}", "  ", "    "))
+    st = {"pass": "PASS", "fail": "FAIL (the calibration fails)"}.get(r.self_test, "not run")
+    out.append(f"  MPU-6000 self-test: {st}")
     settings = [
         form.format(eq[k]) for k, form in (
             ("accel_range_g", "accelerometer ±{} g"), ("gyro_range_dps", "gyro ±{} °/s"),
@@ -390,6 +394,8 @@ def verdict(result: CalibrationResult) -> str:
     why = f"{len(bad)} value(s) outside tolerance or not determined" if bad else ""
     if result.verification is not None and not result.verification.passed:
         why = (why + "; " if why else "") + "held-out records not predicted within the limits"
+    if result.self_test == "fail":
+        why = (why + "; " if why else "") + "the sensor failed its self-test"
     return f"FAIL: {why}"
 
 

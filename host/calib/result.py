@@ -122,6 +122,9 @@ class CalibrationResult:
     #: the parameters' full covariance, in the order of ``parameters`` (diagonal: stderr²;
     #: NaN rows for undetermined ones); () when the file carried none (v1, v2)
     covariance: tuple[tuple[float, ...], ...] = ()
+    #: the MPU-6000's self-test of the sitting, from the records' ``self_test`` header:
+    #: 'pass', 'fail' (the calibration fails) or '' (not run, or an older file)
+    self_test: str = ""
     #: format version of the file this was loaded from
     loaded_version: int = 3
 
@@ -191,9 +194,11 @@ class CalibrationResult:
 
     @property
     def all_passed(self) -> bool:
-        """Every toleranced value within tolerance, every parameter determined, and the
-        held-out records (if verified) predicted within the §8 accuracy."""
+        """Every toleranced value within tolerance, every parameter determined, the
+        held-out records (if verified) predicted within the §8 accuracy, and no failed
+        self-test of the sensor."""
         ok = all(p is not False for p in self.passed().values()) and not self.undetermined
+        ok = ok and self.self_test != "fail"
         return ok and (self.verification is None or self.verification.passed)
 
     def accel_m(self) -> np.ndarray:
@@ -229,6 +234,7 @@ class CalibrationResult:
             "simulated": self.simulated,
             "simulated_by": [] if self.provenance is None else list(self.provenance.simulated_by),
             "provenance": None if self.provenance is None else self.provenance.to_dict(),
+            "self_test": self.self_test,
             "model": self.model,
             "term_files": list(self.term_files),
             "term_sha256": dict(self.term_sha256),
@@ -334,6 +340,7 @@ def _common(d: Mapping[str, Any]) -> dict[str, Any]:
         "closed_form": {k: as_float(v) for k, v in d.get("closed_form", {}).items()},
         "residuals": tuple(RecordResidual.from_dict(r) for r in d.get("residuals", [])),
         "notes": tuple(str(x) for x in d.get("notes", [])),
+        "self_test": str(d.get("self_test", "")),
     }
 
 
