@@ -128,6 +128,7 @@ def test_yes_session_records_are_readable_with_metadata(yes_session: dict[str, A
         # which sensor: HELLO's identity (the virtual board is a rev D8 unless told otherwise)
         assert (m["who_am_i"], m["product_id"], m["sensor_revision"]) == ("0x68", "0x58", "D8")
         assert m["lost_frames"] == "0" and m["missed_samples"] == "0"
+        assert m["self_test"] == "pass" and len(m["self_test_change_pct"].split()) == 6
         assert int(m["host_ns_start_beep"]) <= int(m["host_ns_first_sample"])
         assert 0 <= int(m["device_t_us_start"]) < 2**32
         assert rec.t_ms[0] == 0.0

@@ -1,0 +1,41 @@
+"""The self-test in a live calibration (host/dialogue/flow.py, measurement.self_test): a part
+that fails it is calibrated, but its records say so, its result and its archived calibration
+fail, and the screen names the failing axes. The judge itself: tests/host/wire/test_selftest.py;
+on the real firmware: tests/emulator/test_emu_selftest.py."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from host.__main__ import main
+from host.archive.store import Archive
+from host.calib.result import CalibrationResult
+from host.session.directory import read_record
+from host.session.records import STATIC_NAMES
+
+
+@pytest.mark.slow  # a whole --yes session on the virtual board (~20 s)
+def test_a_part_failing_its_self_test_fails_its_calibration_and_its_archive_entry(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out, db = tmp_path / "F1", str(tmp_path / "a.sqlite")
+    url = "sim://?speed=max&effects=linear,noise&earth_rate=0&self_test=fail"
+    args = ["--yes", "--serial", "F1", "--out", str(out), "--static-seconds", "10", "--turns", "1"]
+    code = main(["calibrate", "--port", url, *args, "--warmup", "0", "--archive", db])
+    screen = capsys.readouterr()
+    said = screen.out + screen.err
+    assert code == 1  # the values may all pass: the self-test fails the calibration
+    assert "MPU-6000 self-test: FAIL — ay, gz outside ±14 % of the factory trim" in said
+    for name in STATIC_NAMES:
+        meta = read_record(out / f"F1_{name}.txt").meta
+        assert meta["self_test"] == "fail" and "ay, gz" in meta["self_test_note"]
+    result = CalibrationResult.load(out / "F1_result.json")
+    assert result.self_test == "fail" and not result.all_passed
+    verdicts = [ln for ln in said.splitlines() if ln.startswith("FAIL")]  # the last screen line
+    assert verdicts and "the sensor failed its self-test" in verdicts[-1]
+    with Archive(db) as a:
+        (s,) = a.summaries()
+        e = a.entry(s.id)
+    assert (e.self_test, e.verdict) == ("fail", "fail")
