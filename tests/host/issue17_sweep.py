@@ -1,7 +1,7 @@
-"""The bad inputs of issue 17's sweep, as a user types them: each case builds its files in a
-fresh directory and names the command, the exit codes it may give and the words its message
-must hold. ``tests/host/test_issue17_sweep.py`` runs them in-process on every CI run; run them
-as real processes (what a user sees, Python's own tracebacks included) with::
+"""The bad inputs of issue 17's sweep and issue 31's, as a user types them: each case builds
+its files in a fresh directory and names the command, the exit codes it may give and the words
+its message must hold. ``tests/host/test_issue17_sweep.py`` runs them in-process on every CI
+run; run them as real processes (what a user sees, Python's own tracebacks included) with::
 
     python3 -m tests.host.issue17_sweep [--only NAME]
 
@@ -175,6 +175,42 @@ def _truncated_capture(d: Path) -> list[str]:
     return ["decode", "--stats", str(p)]
 
 
+def _existing_capture(d: Path) -> list[str]:
+    (d / "old.cap").write_bytes(b"IMUCAP01 an earlier recording")
+    return ["capture", "--port", "sim://?speed=max", "--seconds", "0.5", str(d / "old.cap")]
+
+
+def _resume_over_a_capture(d: Path) -> list[str]:
+    (d / "old.cap").write_bytes(b"IMUCAP01 an earlier recording")
+    return ["calibrate", "--serial", "Q1", "--out", str(d / "Q1"), "--yes", "--resume",
+            "--static-seconds", "2", "--warmup", "0", "--capture", str(d / "old.cap")]  # fmt: skip
+
+
+def _flipped_length(d: Path) -> list[str]:
+    reads = [(10**12 + k * 20_000_000, _imu(k, 1000 + 20_000 * k)) for k in range(200)]
+    p = _cap(d, reads)
+    raw = bytearray(p.read_bytes())
+    raw[8 + 60 * (12 + len(reads[0][1])) + 11] ^= 0x40  # read 60's length: 1 GiB
+    p.write_bytes(bytes(raw))
+    return ["decode", "--stats", str(p)]
+
+
+def _foreign_hello(d: Path) -> list[str]:
+    from host.bench.firmware import hello_fields
+    from host.wire.frames import encode_frame
+
+    fields = hello_fields() | {"spec_fingerprint": 0x1234}
+    p = d / "foreign.bin"
+    p.write_bytes(encode_frame("HELLO", 0, **fields) + _imu(1, 1000))
+    return ["decode", str(p)]
+
+
+def _endless_term(d: Path) -> list[str]:
+    s = _session(d)
+    f = _term(d, "spin", "while True: pass")
+    return ["model", "add", str(s), "spin:gyro", "--term-file", str(f), "--term-timeout", "2"]
+
+
 CASES: tuple[Case, ...] = (
     Case("sim-speed-inf", "sim://?speed=inf spins at 100 % CPU",
          lambda d: ["capture", "--port", "sim://?speed=inf", "--seconds", "1", str(d / "o.cap")],
@@ -230,7 +266,18 @@ CASES: tuple[Case, ...] = (
     Case("emu-not-an-elf", "emu://?elf=<not an ELF> says the board disconnected",
          _not_an_elf, (2,), "not an ELF or Intel HEX file"),
     Case("results-under-a-file", "results written where a file blocks the directory",
-         _results_under_a_file, (2,), "afile is a file); give --out a directory"),
+         _results_under_a_file, (2,), "afile is a file; give --out a directory"),
+    # issue 31
+    Case("capture-over-a-file", "capture FILE overwrites an earlier capture",
+         _existing_capture, (2,), "never overwritten"),
+    Case("resume-over-a-capture", "--resume --capture FILE overwrites an earlier capture",
+         _resume_over_a_capture, (2,), "never overwritten"),
+    Case("capture-flipped-length", "one flipped bit in a read's length loses the rest",
+         _flipped_length, (0,), "1 damaged place(s) in the file", out_words='"frames": 199'),
+    Case("hello-of-another-spec", "a HELLO of another spec is dropped, default scales used",
+         _foreign_hello, (2,), "spec 0x00001234)"),
+    Case("endless-term", "a term file with an endless loop runs with no output, no bound",
+         _endless_term, (2,), "give --term-timeout S", bound_s=30.0),
 )  # fmt: skip
 
 
