@@ -192,7 +192,21 @@ class EqualsFinder:
     def _adds(self, given: _Explanation, extra: _Explanation) -> bool:
         """Does ``extra`` add significantly to a model that holds ``given``?"""
         d = conditional_delta(given.tried, extra.tried)
-        return chi2_sf(d, extra.tried.n_params) <= self.level
+        return chi2_sf(d, extra.tried.cw_perp.shape[1]) <= self.level
+
+    def _per_channel(self, anchor: _Explanation) -> list[_Explanation]:
+        """For a term shared by several channels (a plate tilt): the strongest other term on
+        each of those channels, when at least two have one (together they may explain what
+        the shared term does, though none does alone)."""
+        if len(anchor.axes) < 2:
+            return []
+        out = []
+        for ax in anchor.axes:
+            on = [e for e in self._pool if e.signal is None and e.sensor == anchor.sensor
+                  and e.axes == ax and e.tried.ds is anchor.tried.ds]  # fmt: skip
+            if on:
+                out.append(max(on, key=lambda e: e.delta))
+        return out if len(out) > 1 else []
 
     def group(self, candidate: Candidate) -> Equals | None:
         """The group of equals of ``candidate`` (it first, then the others strongest first),
@@ -212,23 +226,72 @@ class EqualsFinder:
         equal = [
             e for e in [*self._pool, *others]
             if e is not anchor and _overlap(anchor, e) and math.isfinite(e.delta)
-            and chi2_sf(e.delta, e.tried.n_params) <= NEAR_FACTOR * self.level
+            and chi2_sf(e.delta, e.tried.cw_perp.shape[1]) <= NEAR_FACTOR * self.level
             and not self._adds(anchor, e) and not self._adds(e, anchor)
         ]  # fmt: skip
-        if not equal:
+        parts = [e for e in self._per_channel(anchor) if e not in equal]
+        if parts:
+            both = _Explanation(" + ".join(e.label for e in parts), anchor.sensor, anchor.axes,
+                                math.nan, _combined([e.tried for e in parts]), "")  # fmt: skip
+            if not self._adds(anchor, both) and not self._adds(both, anchor):
+                equal += parts
+        return _make(anchor, equal)
+
+    def signal_group(self, hit: ScanHit) -> Equals | None:
+        """The group of equals of a signal the scan found and no term explains (temperature²,
+        dT/dt and time when the plan measured them together), None when it has no equal. The
+        other signals of its own input (its square, another step) are variants of it."""
+        signals = self._channel_signals(hit.sensor, hit.axis)
+        anchor = next((e for e in signals if e.signal == (hit.sensor, hit.axis, hit.signal)),
+                      None)  # fmt: skip
+        if anchor is None or anchor.signal is None:
             return None
-        members = [anchor, *sorted(equal, key=lambda e: -e.delta)]
-        separate: list[str] = []
-        for e in members:
-            if e.separate not in separate:
-                separate.append(e.separate)
-        return Equals(
-            tuple(e.label for e in members),
-            tuple(e.label for e in members if e.signal is None),
-            tuple(e.delta for e in members),
-            tuple(separate),
-            tuple(e.signal for e in members if e.signal is not None),
-        )
+        mine = family(anchor.signal[2])
+        others = [e for e in signals if e.signal and family(e.signal[2]) != mine]
+        equal = [
+            e for e in [*self._pool, *others]
+            if e is not anchor and _overlap(anchor, e) and math.isfinite(e.delta)
+            and chi2_sf(e.delta, e.tried.cw_perp.shape[1]) <= NEAR_FACTOR * self.level
+            and not self._adds(anchor, e) and not self._adds(e, anchor)
+        ]  # fmt: skip
+        return _make(anchor, equal)
+
+
+def _make(anchor: _Explanation, equal: Sequence[_Explanation]) -> Equals | None:
+    """The group of ``anchor`` and its ``equal`` explanations (None when there are none)."""
+    if not equal:
+        return None
+    members = [anchor]
+    seen = {family(anchor.signal[2])} if anchor.signal else set()
+    for e in sorted(equal, key=lambda e: -e.delta):
+        if e.signal is not None:  # one signal of each input: its strongest form
+            if family(e.signal[2]) in seen:
+                continue
+            seen.add(family(e.signal[2]))
+        members.append(e)
+    separate: list[str] = []
+    for e in members:
+        if e.separate not in separate:
+            separate.append(e.separate)
+    return Equals(
+        tuple(e.label for e in members),
+        tuple(e.label for e in members if e.signal is None),
+        tuple(e.delta for e in members),
+        tuple(separate),
+        tuple(e.signal for e in members if e.signal is not None),
+    )
+
+
+def _combined(parts: Sequence[Tried]) -> Tried:
+    """Several terms tried together on one fit (the same yardstick): their columns side by
+    side, fitted jointly."""
+    cw = np.column_stack([t.cw_perp for t in parts])
+    r = parts[0].r
+    beta, *_ = np.linalg.lstsq(cw, r, rcond=None)
+    after = r - cw @ beta
+    cov = np.full((cw.shape[1], cw.shape[1]), np.nan)
+    delta = float(r @ r - after @ after)
+    return Tried(parts[0].mt, parts[0].ds, parts[0].fit, cw, r, beta, cov, delta, "")
 
 
 #: |cos| between two one-column explanations from which they are the same shape

@@ -171,19 +171,26 @@ def diagnose(
     groups: dict[str, Equals] = {}  # one entry per group, by its strongest anchor
     grouped: set[str] = set()  # the usable candidates in some group
     for c in sorted(usable, key=lambda c: -c.delta_chi2):
-        g = finder.group(c)
-        if g is None:
-            continue
-        grouped.add(c.label)
         # two channels' bests can be each other's equals (a face lean and a plate tilt on
         # unknown headings): one group, not two
-        if not any(c.label in h.members for h in groups.values()):
+        if any(c.label in h.members for h in groups.values()):
+            grouped.add(c.label)
+            continue
+        g = finder.group(c)
+        if g is not None:
+            grouped.add(c.label)
             groups[c.label] = g
     extra = [_model_term(c, cat) for c in usable]
     aug = fit_model(ds, merge_model(list(model) + extra)) if extra else fit
     misfit = max(fit.chi2 - fit.dof, 0.0)
     removed = fit.chi2 - aug.chi2
     alone = [c for c in usable if c.label not in grouped]
+    # a signal no term explains may have equals too (temperature², dT/dt and time measured
+    # together): the group is reported beside it
+    for h in dominant.values():
+        g = finder.signal_group(h)
+        if g is not None and not any(g.members[0] in k.members for k in groups.values()):
+            groups[g.members[0]] = g
     if len(extra) > 1:
         # each recommended term adds significantly to the others (a term significant only
         # through a misfit another explains is not what is missing)

@@ -80,3 +80,15 @@ def test_family_is_the_input_whatever_its_power() -> None:
     assert family("(specific force z)² / |specific force z|") == "specific force z"
     assert family("a step in time after y_dn") == "step"
     assert family("dT/dt (the chip warming or cooling)") != family("temperature")
+
+
+def test_a_plate_tilt_equal_to_face_leans_on_all_channels_together(tmp_path: Path) -> None:
+    """Every face leaning, statics without a recorded heading: a plate tilt with a heading
+    unknown per static fits the leans of all three channels, as do the three channels' face
+    errors together, though no one channel's does. One group holds them all; none alone."""
+    ds, _ = _session(tmp_path, 1000, "face_lean")
+    d = diagnose(ds, parse_model("base"))
+    g = next(g for g in d.equals if "plate_tilt:accel:xyz" in g.terms)
+    assert {f"face_error:accel:{a}" for a in "xyz"} <= set(g.terms), g.members
+    assert not set(g.terms) & set(d.recommended)
+    assert len([h for h in d.equals if "plate_tilt:accel:xyz" in h.members]) == 1
