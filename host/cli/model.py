@@ -13,7 +13,7 @@ import json
 import math
 import shlex
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,12 +28,13 @@ from host.cli.screen import (
     table_row,
     terminal_width,
     working,
+    wrap,
 )
 from host.errors import UserError
 from host.model.catalogue import CATALOGUE
 from host.model.dataset import Dataset, build_dataset
 from host.model.loader import load_term_file
-from host.model.spec import parse_model, short_spec
+from host.model.spec import ModelTerm, parse_model, short_spec
 from host.model.terms import Term
 from host.session.directory import Session, read_session
 from host.session.spacing import timing_report
@@ -48,7 +49,7 @@ from host.workbench.text import (
     physics_paragraph,
     readable_spec,
 )
-from host.workbench.verdict import diagnose
+from host.workbench.verdict import Diagnosis, diagnose
 
 # ---- plots ----------------------------------------------------------------------------------
 _FILE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
@@ -177,9 +178,41 @@ def run_diagnose(args: argparse.Namespace) -> int:
             cmd = add_command(args, d.recommended_spec, short_spec(d.fit.model))
             try_line = command_lines(cmd, terminal_width(sys.stdout), lead="  try: ")
         print(format_diagnosis(d, compare=not args.brief, try_line=try_line))
+        for line in next_record_lines(args, session, model, d):
+            print(line)
         for p in plots:
             print(f"plot: {p}")
     return 0
+
+
+def next_record_lines(
+    args: argparse.Namespace, session: Session, model: Sequence[ModelTerm], d: Diagnosis
+) -> list[str]:
+    """The planner's first line (host.workbench.planner) and, for each group of equals with two
+    terms, the command that finds the record telling them apart; [] when the planner cannot
+    fit the session."""
+    from host.workbench.planner import plan_next
+
+    width = terminal_width(sys.stdout)
+    out: list[str] = []
+    try:
+        p = plan_next(session, model, noise=session_noise(session, args.floor, args.noise))
+    except UserError:
+        return out
+    if p.ranked:
+        r = p.ranked[0]
+        gain = (f"determines {', '.join(r.determines)}" if r.determines
+                else f"worst σ/tolerance {p.worst_now:.3g} → {r.worst_after:.3g}")  # fmt: skip
+        out.append(wrap(f"next record: {r.candidate.label} ({r.candidate.operator_s:.0f} s of "
+                        f"the operator's time): {gain}", width))  # fmt: skip
+        out.append(command_lines(["python3", "-m", "host", "plan", str(args.dir)], width,
+                                 lead="  the ranking: "))  # fmt: skip
+    for e in d.equals:
+        if len(e.terms) >= 2:
+            out.append(wrap(f"to tell {e.terms[0]} from {e.terms[1]} apart:", width))
+            cmd = ["python3", "-m", "host", "plan", str(args.dir), "--separate", *e.terms[:2]]
+            out.append(command_lines(cmd, width, lead="  "))
+    return out
 
 
 def _same_options(args: argparse.Namespace) -> list[str]:

@@ -94,3 +94,26 @@ def test_separate_with_an_unknown_term_is_one_line(
     assert main(["plan", d, "--separate", "no_such_term", "time_drift:accel:x"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no_such_term" in err[0]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_diagnose_leads_to_the_record_that_separates_its_equals(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """diagnose names the planner's next record and, for its group of equals (a gyro scale
+    asymmetry and a quadratic scale), the plan command that separates them; that command, run
+    as printed, puts the turns at another pace first."""
+    d = tmp_path / "S"
+    write_session(d, SessionSpec(seed=3, effect="scale_asymmetry"))
+    assert main(["model", "diagnose", str(d), "--brief"]) == 0
+    # commands are broken between words with " \\" and a 4-space indent: pasted, they run
+    text = capsys.readouterr().out.replace(" \\\n    ", " ").replace("\\\n", "")
+    assert "next record: " in text and f"python3 -m host plan {d}" in text
+    cmd = next(line for line in text.splitlines() if "--separate" in line).split()
+    assert cmd[:4] == ["python3", "-m", "host", "plan"]
+    a, b = cmd[cmd.index("--separate") + 1 :][:2]
+    assert {a.split(":")[0], b.split(":")[0]} == {"scale_asymmetry", "scale_nonlinearity"}
+    assert main(cmd[3:] + ["--top", "2"]) == 0
+    first = next(line for line in capsys.readouterr().out.splitlines() if line.startswith(" 1 "))
+    assert "as fast" in first
