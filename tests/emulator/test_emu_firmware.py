@@ -216,8 +216,18 @@ def test_dmp_mode_loads_the_described_image_and_streams_quaternions(
     write_stimulus(stim, [0.0, 3.0], [[0, 0, 9.80665]] * 2, [[0, 0, 90.0]] * 2, 25.0)
     board = EmulatedBoard(elf, emulator=emu_bin, stimulus=stim, reglog=True, workdir=tmp_path,
                           extra_args=["--dmp-image", kind])  # fmt: skip
+    sent = []
+
+    def self_test_once(ser, frames):  # the image needs its ranges: no self-test in DMP mode
+        if not sent and of_type(frames, "DMP_QUAT"):
+            ser.write(encode_frame("SELF_TEST", 77))
+            sent.append(True)
+
     with board:
-        frames = collect(board, max_wall_s=60)
+        frames = collect(board, max_wall_s=60, on_frames=self_test_once)
+    acks = [(a.fields["cmd_seq"], a.fields["status"]) for a in of_type(frames, "ACK")]
+    assert acks == [(77, ENUMS["ack_status"]["UNSUPPORTED"])]
+    assert not of_type(frames, "SELF_TEST_RESULT")
     s = board.summary
     assert s["spi_violations"] == 0
     assert not s["rules_broken"], "\n".join(s["rules_broken"])
