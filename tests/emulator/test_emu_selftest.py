@@ -17,7 +17,9 @@ import serial
 from emu_helpers import collect, of_type, sample_counts
 
 from host.bench.emulator import EmulatedBoard
+from host.bench.physics import static_motion
 from host.bench.stimulus import write_stimulus
+from host.board.driver import Board
 from host.wire import protocol_gen as gen
 from host.wire import sensor
 from host.wire.frames import Frame, encode_frame
@@ -133,3 +135,30 @@ def test_self_test_without_a_streaming_sensor_is_busy(
     acks = of_type(frames, "ACK")
     assert [(a.fields["cmd_type"], a.fields["status"]) for a in acks] == [(SELF_TEST, ACK["BUSY"])]
     assert not of_type(frames, "SELF_TEST_RESULT")
+
+
+@pytest.mark.timeout(120)  # one short emulated session
+def test_a_unit_moved_during_the_self_test_gets_no_verdict(fw_elf: Path) -> None:
+    """The cube tilts by 10° in the middle of the self-test (the simulator's operator is
+    manual): the two self-test-off windows differ, so the host gives no verdict (a tilt moves
+    the accelerometers as much as the self-test does) and asks for a still repeat."""
+    board = Board(f"emu://?operator=manual&seed=3&elf={fw_elf}")
+    board.connect()
+    try:
+        port = board.port
+        while port.sim_time < 1.0:  # streaming
+            board.pump()
+        board.link.send("SELF_TEST")
+        tilt = np.radians(10.0)
+        port.set_motion(static_motion(np.array([0.0, np.sin(tilt), np.cos(tilt)])),
+                        port.sim_time + 0.5)  # fmt: skip
+        result = None
+        while result is None:
+            result = next((f for _, f in board.read_frames() if f.name == "SELF_TEST_RESULT"),
+                          None)  # fmt: skip
+        st = judge(result.fields, board.info.product_id if board.info else None)
+        assert result.fields["status"] == 0
+        assert st.outcome == "" and "moved" in st.reason and "ay" in st.reason
+        assert "self_test" not in st.meta()
+    finally:
+        board.close()
