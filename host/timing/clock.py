@@ -66,11 +66,12 @@ def unwrap(
 def lower_hull(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Indices of the lower convex hull of points sorted by x (Andrew's monotone chain)."""
     hull: list[int] = []
-    for i in range(x.size):
+    xs, ys = np.asarray(x, dtype=np.float64).tolist(), np.asarray(y, dtype=np.float64).tolist()
+    for i, (xi, yi) in enumerate(zip(xs, ys, strict=True)):  # Python floats: 10x numpy scalars
         while len(hull) >= 2:
             o, a = hull[-2], hull[-1]
             # drop a if it lies on or above the segment o -> i
-            if (x[a] - x[o]) * (y[i] - y[o]) - (y[a] - y[o]) * (x[i] - x[o]) <= 0:
+            if (xs[a] - xs[o]) * (yi - ys[o]) - (ys[a] - ys[o]) * (xi - xs[o]) <= 0:
                 hull.pop()
             else:
                 break
