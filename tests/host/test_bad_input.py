@@ -247,7 +247,9 @@ def test_decode_warns_about_nonsense_arrival_times(
     assert rc == 0
     assert json.loads(out)["clock"][0]["skew_ppm"] < -900_000
     assert f"warning: {path}: segment 0: the device clock runs -1000000 ppm" in err
-    # a plausible clock (here 120 ppm fast against the host) gets no warning
+    # a plausible clock (here 120 ppm fast against the host) gets no warning (a capture of its
+    # own: a capture file is never overwritten)
+    path = tmp_path / "plausible.cap"
     with CaptureWriter(path) as w:
         for k in range(200):
             w.write(10**9 + int(20_000_000 * k * (1 - 120e-6)), _imu(k, 1000 + 20_000 * k))
@@ -279,12 +281,15 @@ def test_capture_on_a_board_whose_sensor_failed_exits_2(
     assert json.loads(stdout)["samples"] == 0  # the counters are still printed
     assert "the board's sensor failed: it reports ERROR DATA_READY_TIMEOUT" in err
     assert out.stat().st_size > 8  # what came is kept
-    # a board that sends nothing usable at all: also not a success
+    # a board that sends nothing usable at all: also not a success (each capture to a new file:
+    # an existing capture is never overwritten)
     board.write_bytes(b"\x00" * 100)
+    out = tmp_path / "nothing.cap"
     rc, _, err = cli(
         ["capture", "--port", f"replay://{board}?speed=max", "--seconds", "0.3", str(out)], capsys
     )
     assert rc == 2 and "no samples from the board in 0.3 s" in err
+    out = tmp_path / "nan.cap"
     rc, _, err = cli(["capture", "--port", "sim://", "--seconds", "nan", str(out)], capsys)
     assert rc == 2 and "--seconds nan" in err
 
