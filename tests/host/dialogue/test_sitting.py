@@ -216,3 +216,18 @@ def test_a_second_process_on_the_same_directory_is_refused_with_the_first_ones_p
         first.send_signal(signal.SIGTERM)
         first.communicate(timeout=60)
     assert first.returncode == 128 + signal.SIGTERM
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_sighup_ends_a_session_like_ctrl_c(tmp_path: Path) -> None:
+    """The terminal closed: the accepted records stay, bytes unchanged, and the session says
+    how to continue (to a log, when stderr still goes somewhere)."""
+    out = tmp_path / "S1"
+    proc = started(out)
+    kept = hashes(out)
+    proc.send_signal(signal.SIGHUP)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGHUP, err
+    assert "Aborted (SIGHUP)" in err and err.rstrip().endswith("--resume")
+    assert {k: hashes(out)[k] for k in kept} == kept and not (out / ".imu-bench.lock").exists()
