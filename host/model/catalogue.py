@@ -307,10 +307,11 @@ def lever_arm(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     and the tangential ω̇·(e_k × r) to the horizontal accelerometers, with ω the calibrated rate
     of the turn (the reference rate: the gyro about up scaled to ±360°·n, method.md §4) in
     rad/s. Read from the moving blocks of the turn records; zero at rest (static records, the
-    still moments). 0.12 m/s² at 90 °/s and r = 5 cm."""
+    still moments). The accelerometer reads that force through its scale and misalignment
+    (measured on the static records before the fit). 0.12 m/s² at 90 °/s and r = 5 cm."""
     if sig.kind != "turn":
         return np.zeros((len(sig.t_s), 3))
-    return turning.lever_arm_matrix(sig.t_s, sig.rate)[:, axis, :]
+    return turning.sensed_lever_matrix(sig.t_s, sig.rate, sig.accel_matrix)[:, axis, :]
 
 
 #: plausible magnitude of each catalogue term's parameters per sensor, from the InvenSense

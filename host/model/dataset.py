@@ -144,6 +144,7 @@ def _record_signals(
     t_rel: np.ndarray,
     gyro_bias: np.ndarray,
     temp_mean_c: float,
+    accel_matrix: np.ndarray | None = None,
 ) -> RecordSignals:
     """The reference signals of one record (observation ``o``): gravity ``g`` m/s² along its up
     direction, the reference rate (a turn: its measured rate about up less the static
@@ -163,7 +164,23 @@ def _record_signals(
         name=o.record, kind=o.kind, t_s=t0 + t_rel, temp_c=rec.temp.copy(), force=force,
         rate=rate, accel=rec.accel, gyro=rec.gyro, g=g, up=o.up, temp_mean_c=temp_mean_c,
         heading_deg=heading, placement_deg=rec.placement_heading_deg,
+        accel_matrix=accel_matrix if o.kind == "turn" else None,
     )  # fmt: skip
+
+
+def _preliminary_accel_matrix(
+    xs: np.ndarray, accel_means: np.ndarray, g: float
+) -> np.ndarray | None:
+    """(3, 3) how the accelerometer reads a specific force, from the static records before
+    the fit: least squares of their means ``accel_means`` (S, 3) m/s² on ``xs`` (S, 4) (each
+    one's reference force in units of the local gravity ``g`` m/s², and 1) — scale and
+    misalignment to about 1e-3 on six faces; None unless the forces span all three axes. It
+    carries the turning force into the lever arm's columns
+    (:func:`host.model.turning.sensed_lever_matrix`)."""
+    if len(xs) < 4 or np.linalg.matrix_rank(xs[:, :3], tol=0.1) < 3:
+        return None
+    sol, *_ = np.linalg.lstsq(xs, accel_means, rcond=None)
+    return np.asarray(sol[:3].T) / g
 
 
 def _static_blocks(
@@ -254,6 +271,9 @@ def build_dataset(
     xs = np.array([np.concatenate([obs_of[n].force, [1.0]]) for n in statics])
     ys = np.array([stats[n].gyro_mean - obs_of[n].rate for n in statics])
     pre, *_ = np.linalg.lstsq(xs, ys, rcond=None)
+    accel_matrix = _preliminary_accel_matrix(
+        xs, np.array([stats[n].accel_mean for n in statics]), g
+    )
     # per-sample gyro noise (°/s) per axis: finds the still moments inside the turns
     gyro_sd = np.median([stats[n].gyro_std for n in statics], axis=0)
 
@@ -270,7 +290,7 @@ def build_dataset(
         t_rel = (rec.t_ms - rec.t_ms[0]) / 1000.0
         # without power-on times only the variation within a record is known: centre it
         t0 = float(rec.meta.get("power_on_s", "0") or 0.0) if has_power else -float(t_rel.mean())
-        sig = _record_signals(rec, o, g, t0, t_rel, pre, temp_mean)
+        sig = _record_signals(rec, o, g, t0, t_rel, pre, temp_mean, accel_matrix)
         signals.append(sig)
         if o.kind != "turn":
             aggs.append(add_block_means(table, ri, sig, t_rel, nm))

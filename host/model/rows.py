@@ -333,7 +333,7 @@ def hand_sigma(
                     np.concatenate([np.zeros(3), m_still @ tilt0]),
                 )
             if lever is None:
-                lever = turning.lever_arm_matrix(sig.t_s, sig.rate)
+                lever = turning.sensed_lever_matrix(sig.t_s, sig.rate, sig.accel_matrix)
             tilt = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
             assert tilt is not None
             keys.extend([(ri, ax)] * len(moving))

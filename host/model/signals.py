@@ -30,6 +30,9 @@ class RecordSignals:
     about its up axis since the record began, ° (positive counter-clockwise seen from above;
     None: it did not turn, 0). ``placement_deg``: the record's placement heading on the plate
     at its first sample, ° (its header's ``placement_heading_deg``; None: not recorded).
+    ``accel_matrix`` (3, 3): how the accelerometer reads a specific force (scale and
+    misalignment, from the static records before the fit; None: as the identity) — what the
+    turning force ω̇×r + ω×(ω×r) passes through (:func:`host.model.turning.sensed_lever_matrix`).
     """
 
     name: str
@@ -45,6 +48,7 @@ class RecordSignals:
     temp_mean_c: float = TEMP_REF_C
     heading_deg: np.ndarray | None = None
     placement_deg: float | None = None
+    accel_matrix: np.ndarray | None = None
 
     def reference(self, sensor: str) -> np.ndarray:
         """(N,3) the true input of ``sensor``: specific force m/s² or rate °/s."""
