@@ -76,18 +76,13 @@ def test_moving_blocks_do_not_depend_on_where_the_record_window_begins() -> None
         assert [(a + shift, b + shift) for a, b in got] == ref, shift
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 26, open: the turn level's scatter σ_turn switches on at 2 SE of its "
-    "estimate (turning.resolved); here two samples fewer at rest take it from 2.05 SE to 1.75 "
-    "SE, to 0, and every moving level then weighs like a static record's mean: A0x moves "
-    "4.7σ. A ramp instead of the cut is still steep (1.7σ), a floor at 1 SE widens the "
-    "controls (p not uniform); reading σ_turn against the fit, not the rest levels, is left",
-)
 def test_a_turn_window_moved_at_rest_moves_no_constant() -> None:
     """The dialogue's beep may fall a few samples earlier or later: a turn record whose window
     ends a few samples earlier at rest gives the same constants to far less than their
-    standard error (the noise of a few samples, not a step)."""
+    standard error (the noise of a few samples, not a step). The turn level's scatter here
+    was the accelerometer's scale and misalignment acting on the turning force, left out of the
+    model, at 2 SE of its estimate; the switch at 2 SE (turning.resolved) stays a cliff
+    (issue 26)."""
     from dataclasses import replace
 
     from host.bench.plan import Plan, simulate_session
