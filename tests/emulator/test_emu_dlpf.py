@@ -126,6 +126,7 @@ def sine_gain(samples: list[Frame], field: str, freq_hz: float, ampl: float, sca
     return float(np.hypot(coef[0], coef[1]) / ampl)
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)  # one short emulator run per DLPF_CFG
 @pytest.mark.parametrize("cfg", sorted(DLPF_TABLE))
 def test_time_stamp_minus_the_datasheet_delay_is_the_physical_instant(

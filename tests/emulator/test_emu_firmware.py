@@ -36,6 +36,7 @@ def moving_stimulus(path, seconds: float) -> None:
     write_stimulus(path, t, f, w, 30.0 + 3.0 * np.sin(2 * np.pi * 0.05 * t))
 
 
+@pytest.mark.slow
 def test_bringup_and_60s_stream(emu_bin, fw_elf, tmp_path):
     seconds = 62.0
     stim = tmp_path / "stim.bin"
@@ -201,6 +202,7 @@ def dmp_build(tmp_path, kind: str, size: int):
     return build_firmware(tmp_path / f"fw-{kind}", [f"DMP_IMAGE={image}", f"DMP_KIND={kind}"])
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)  # two builds' worth of work on a loaded machine
 @pytest.mark.parametrize("kind", sorted(DMP_KINDS))
 def test_dmp_mode_loads_the_described_image_and_streams_quaternions(

@@ -102,6 +102,7 @@ def test_emu_clean_fixture_is_what_the_firmware_sends(
 # --------------------------------------------------------------------------- device time
 
 
+@pytest.mark.slow
 @pytest.mark.emulator
 def test_sixty_second_capture_has_an_exact_device_clock(
     emu_toolchain: None, fw_elf: Path, tmp_path: Path

@@ -83,6 +83,7 @@ def test_simulator_options_of_the_url() -> None:
 # --------------------------------------------------------------------------- the CLI, --yes
 
 
+@pytest.mark.slow
 def test_full_calibration_recovers_the_simulator_truth(tmp_path: Path, fw_elf: Path) -> None:
     """``python -m host calibrate --port emu://... --yes``: the real firmware measures the
     simulated cube through the whole dialogue, and the constants are the simulator's."""
@@ -122,6 +123,7 @@ def test_full_calibration_recovers_the_simulator_truth(tmp_path: Path, fw_elf: P
 # --------------------------------------------------------------------------- a slow host
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)  # one emulator run through the board driver
 def test_the_start_beep_lands_at_the_same_emulated_instant_however_slow_the_host(
     fw_elf: Path,
@@ -169,6 +171,7 @@ def test_the_start_beep_lands_at_the_same_emulated_instant_however_slow_the_host
 # --------------------------------------------------------------------------- port trouble
 
 
+@pytest.mark.slow
 def test_emulator_killed_and_paused_mid_measurement(tmp_path: Path, fw_elf: Path) -> None:
     """The emulator process is killed during y_up (the port vanishes: LinkLost) and paused
     with SIGSTOP during z_up (a stalled device: LinkTimeout). Each time the session says so,

@@ -70,6 +70,7 @@ def after_rate_change(frames: list[Frame]) -> list[Frame]:
     return samples[first:]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("baud", "div"), [(1_000_000, 0), (115_200, 4)])
 def test_highest_claimed_rate_loses_and_duplicates_nothing(emu_bin, tmp_path, baud, div):
     period_us = 1000 * (1 + div)
@@ -87,6 +88,7 @@ def test_highest_claimed_rate_loses_and_duplicates_nothing(emu_bin, tmp_path, ba
     assert all(f.fields["flags"] & 1 == 0 for f in samples)  # no MISSED flag either
 
 
+@pytest.mark.slow
 def test_back_pressure_drops_whole_samples_and_counts_them(emu_bin, tmp_path):
     """1 kHz over 115200 baud: the UART carries ~40 % of it."""
     frames = run_at_rate(emu_bin, tmp_path, 115_200, 0, seconds=6.0)

@@ -106,6 +106,7 @@ def assert_one_line_error(r: subprocess.CompletedProcess[str], *words: str) -> s
 # --------------------------------------------------------------------------- the acceptance
 
 
+@pytest.mark.slow
 def test_flash_new_firmware_over_old_then_stream(board_flash, current_hex) -> None:
     new = fl.find_identity(fl.parse_ihex(current_hex))
     assert new is not None and new.version != OLD_VERSION

@@ -215,6 +215,7 @@ def judge(emu_bin: Path, elf: Path, workdir: Path, bus: str | None = None) -> di
     return broken
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(MUTANT_TIMEOUT_S)  # one build and two short runs, even on a busy machine
 def test_unmutated_firmware_breaks_no_rule(emu_bin, emu_toolchain, tmp_path):
     elf = build(mutate(tmp_path / "fw", None))
@@ -223,6 +224,7 @@ def test_unmutated_firmware_breaks_no_rule(emu_bin, emu_toolchain, tmp_path):
     assert judge(emu_bin, elf, tmp_path / "marginal", bus="marginal-bus") == {}
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(MUTANT_TIMEOUT_S)  # one build and one short run, even on a busy machine
 @pytest.mark.parametrize("mutant", MUTANTS, ids=[m.name for m in MUTANTS])
 def test_mutant_is_caught_by_its_rule(emu_bin, emu_toolchain, tmp_path, mutant):

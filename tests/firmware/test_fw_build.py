@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 
+import pytest
 from fwbuild import FIRMWARE, GENERATE, Build, make, spec_fingerprint
 
 REQUIRED_FLAGS = (
@@ -75,6 +76,7 @@ def test_fingerprint_bytes_in_flash_image(default_build: Build) -> None:
     assert fp in text + data
 
 
+@pytest.mark.slow
 def test_version_and_baud_overrides(avr_toolchain, tmp_path) -> None:
     build = make(tmp_path / "old", "FW_VERSION=0.9.3", "BAUD=500000")
     assert build.ok, build.output
@@ -88,6 +90,7 @@ def test_version_and_baud_overrides(avr_toolchain, tmp_path) -> None:
     assert (ident["major"], ident["minor"], ident["patch"], ident["baud"]) == (2, 0, 1, 115200)
 
 
+@pytest.mark.slow
 def test_bad_settings_are_refused(avr_toolchain, tmp_path) -> None:
     # 300 baud needs UBRR 6666 > 4095 with U2X: a static_assert must stop the build.
     assert not make(tmp_path / "slow", "BAUD=300").ok

@@ -10,6 +10,8 @@ import re
 import tokenize
 from pathlib import Path
 
+import pytest
+
 HOST = Path(__file__).resolve().parents[2] / "host"
 
 #: arrows still to remove, each with the reason it is here; the list only shrinks
@@ -347,6 +349,7 @@ def test_the_reference_check_tells_a_moved_module_from_a_real_one(tmp_path: Path
     assert dangling_references([HOST / "dialogue" / "flow.py"], mods) == []
 
 
+@pytest.mark.slow
 def test_every_module_named_in_a_docstring_or_comment_exists() -> None:
     """Docstrings and comments of host/, tests/ and benchmarks/ name modules by their real
     path (``host.session.records``, ``host/board/driver.py``): a module that moved or split

@@ -58,6 +58,7 @@ def test_every_python_example_is_valid_python_importing_what_exists() -> None:
     assert missing == []
 
 
+@pytest.mark.slow
 def test_the_readmes_decode_example_reads_every_sample_of_a_capture(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

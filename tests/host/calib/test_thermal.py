@@ -121,6 +121,7 @@ def test_attitudes_at_single_temperatures_are_refused() -> None:
         thermal_fit.fit_thermal([*cold.values(), *hot.values()], "T3")
 
 
+@pytest.mark.slow
 def test_command_writes_a_versioned_result_and_the_plot(ramp, tmp_path, capsys) -> None:
     for name, rec in ramp.items():
         write_record(tmp_path / f"T4_{name}.txt", rec)
@@ -256,6 +257,7 @@ WANDER_PLAN = [
 ]  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(240)  # eight simulated 85-minute ramps at 50 Hz: ~20 s alone, more loaded
 def test_bias_wander_does_not_pass_for_a_higher_order() -> None:
     """Bias instability (a Gauss-Markov wander of minutes) along a ramp is smooth in temperature

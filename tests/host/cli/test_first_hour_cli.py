@@ -217,6 +217,7 @@ def test_the_default_virtual_board_runs_at_full_speed_when_nobody_watches(
     assert ("at full speed with --yes (--port sim:// shows it in real time)" in con.text) is yes
 
 
+@pytest.mark.slow
 def test_no_pause_before_a_turn_when_nobody_turns_the_cube(tmp_path: Path) -> None:
     """--yes on the virtual board: no 'start in' countdown (nobody is getting ready); a given
     --ready-seconds still counts down."""

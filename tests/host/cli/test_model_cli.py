@@ -111,6 +111,7 @@ def test_demo_hidden_effect(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert "verdict adequate" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_plots_follow_measurement_order_with_one_scale(
     temp_dir: tuple[Path, str], tmp_path: Path
 ) -> None:
@@ -201,6 +202,7 @@ class _Terminal:
         raise OSError("not a real terminal")
 
 
+@pytest.mark.slow
 def test_a_slow_ladder_shows_progress_at_least_every_two_seconds(
     temp_dir: tuple[Path, str], monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
 ) -> None:
@@ -255,6 +257,7 @@ def test_the_demo_and_the_command_it_prints_give_one_figure(
     assert add_rms[0] == demo_rms[0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", ["diagnose", "add"])
 def test_a_slow_diagnosis_or_addition_shows_it_is_working(
     command: str, temp_dir: tuple[Path, str], monkeypatch: pytest.MonkeyPatch,

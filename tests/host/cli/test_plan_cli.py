@@ -62,6 +62,7 @@ def test_missing_directory_is_one_line(tmp_path: Path, capsys: pytest.CaptureFix
     assert len(err) == 1 and "nothing" in err[0]
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(st.text(max_size=12))
 def test_place_seconds_parse_or_refuse(text: str) -> None:
@@ -75,6 +76,7 @@ def test_place_seconds_parse_or_refuse(text: str) -> None:
     assert math.isfinite(args.place_s) and args.place_s >= 0.0
 
 
+@pytest.mark.slow
 def test_separate_names_a_record_within_80_columns(
     session_without_y_turns: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

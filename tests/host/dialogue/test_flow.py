@@ -522,6 +522,7 @@ def _emu_available() -> bool:
 @pytest.mark.skipif(
     not _emu_available(), reason="emu:// (host/transports/protocol_emu.py) or simavr missing"
 )
+@pytest.mark.slow
 def test_emulated_board(tmp_path: Path) -> None:
     """The real firmware in simavr: HELLO passes the spec check and a measurement has the
     firmware's rate and no losses; with a virtual operator, a whole --yes session."""

@@ -101,6 +101,7 @@ def test_sensor_error_frame_stops_the_measurement_with_its_reason(tmp_path: Path
     assert "the measurement of x_dn is discarded" in con.text
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(60)
 def test_bad_command_error_is_not_a_sensor_fault(tmp_path: Path) -> None:
     """ERROR BAD_COMMAND answers a command: reported, but samples flowing is what counts."""

@@ -189,6 +189,7 @@ def static_table_mean(text: str) -> float:
 # --------------------------------------------------------------------------- tests
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("board", BOARDS)
 def test_interactive_session_with_a_repeat(
     tmp_path: Path, screens: list[Screen], board: str
@@ -319,6 +320,7 @@ def test_range_alarm_offers_to_repeat(tmp_path: Path, screens: list[Screen], boa
     assert 700 < rec.gyro[:, 0].sum() * 0.02 < 760  # about two turns, the second attempt
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("board", BOARDS)
 def test_ctrl_c_during_a_measurement_then_resume(
     tmp_path: Path, screens: list[Screen], board: str
@@ -376,6 +378,7 @@ def test_ctrl_c_during_a_measurement_then_resume(
     assert leftovers(out) == []
 
 
+@pytest.mark.slow
 def test_an_80x24_terminal_redraws_in_place_and_ends_with_the_verdict(
     tmp_path: Path, screens: list[Screen]
 ) -> None:

@@ -147,6 +147,7 @@ def test_command_json_keys_units_and_noise_file(tmp_path, capsys) -> None:
         assert floor[c] == pytest.approx(direct, rel=0.35), c
 
 
+@pytest.mark.slow
 def test_record_file_plot_and_plan(tmp_path, capsys) -> None:
     t, x, temp = static_noise(TRUTH, 900.0, np.random.default_rng(12))
     path = tmp_path / "S2_z_up.txt"

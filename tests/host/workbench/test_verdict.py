@@ -118,6 +118,7 @@ def test_constant_temperature_makes_temperature_terms_unidentifiable() -> None:
 
 
 # 100 full diagnoses: about 25 s on a quiet machine, 70 s on a loaded one.
+@pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_control_is_adequate_in_at_least_95_of_100_seeds() -> None:
     """False discoveries: §2 data (white noise + Gauss-Markov bias instability) diagnosed
@@ -136,6 +137,7 @@ def test_holm() -> None:
     assert holm([], alpha=0.05) == []
 
 
+@pytest.mark.slow
 def test_json_shape_and_add_and_ladder() -> None:
     ds = case_dataset(hidden_effect_case("temperature", 1))
     d = diagnose(ds, parse_model("base"))
@@ -251,6 +253,7 @@ def test_effect_outside_the_catalogue_is_unexplained_and_named(
     assert "recommended: nothing" in text or "recommended alone: none" in text
 
 
+@pytest.mark.slow
 def test_nothing_hidden_is_adequate_with_rms_z_near_one() -> None:
     """§2 data with white noise and bias wander, the wander known as a noise file gives it
     (the floor no longer comes from the misfit of repeated attitudes): adequate, and RMS z of
