@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from host.calib.publish import session_noise
+from host.cli import pyplot
 from host.cli.figures import write_plots
 from host.cli.screen import (
     Column,
@@ -156,6 +157,8 @@ def _print_json(obj: Any) -> None:
 def run_diagnose(args: argparse.Namespace) -> int:
     cat = _catalogue(args)
     model = parse_model(args.model, cat)
+    if args.plot:
+        pyplot()  # no matplotlib: say so now, not after the fits
     with working("diagnose: reading the records, fitting the model and every candidate"):
         session, ds = _session_dataset(args)
         d = diagnose(ds, model, cat)
@@ -196,7 +199,8 @@ def next_record_lines(
     width = terminal_width(sys.stdout)
     out: list[str] = []
     try:
-        p = plan_next(session, model, noise=session_noise(session, args.floor, args.noise))
+        with working("diagnose: ranking the records to measure next"):
+            p = plan_next(session, model, noise=session_noise(session, args.floor, args.noise))
     except UserError:
         return out
     if p.ranked:
@@ -244,6 +248,8 @@ def add_command(args: argparse.Namespace, term: str, model: str) -> list[str]:
 def run_add(args: argparse.Namespace) -> int:
     cat = _catalogue(args)
     model = parse_model(args.model, cat)
+    if args.plot:
+        pyplot()  # no matplotlib: say so now, not after the fits
     paths: list[Path] = []
     with working(f"add: reading the records, fitting with and without {args.term}"):
         session, ds = _session_dataset(args)
