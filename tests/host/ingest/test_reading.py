@@ -19,6 +19,7 @@ from host.ingest.stillness import attitude
 from host.session.directory import Session, read_record, read_session
 from host.session.method import TOLERANCES
 from host.session.records import STATIC_NAMES, TURN_NAMES
+from host.wire.bulk import decode_file
 from tests.host.ingest.continuous_sessions import OPERATORS, Operator, make_session
 
 REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
@@ -186,10 +187,11 @@ def test_sim_capture_is_cut_into_the_records_the_dialogue_wrote(
     assert (
         set(imported.records) | ({"warmup"} if (out / "S1_warmup.txt").exists() else set()) == names
     ), printed
-    first_us = min(int(r.meta["device_t_us_start"]) for r in live.records.values())
+    # the imported segment times count from the capture's first sample: the sitting's self-test
+    # comes before the first record (and before the warm-up)
+    first_us = int(decode_file(cap)[0].samples["t_us"][0])
     warm = read_record(rec / "S1_warmup.txt") if warmup != "0" else None
     if warm is not None:
-        first_us = min(first_us, int(warm.meta["device_t_us_start"]))
         got = read_record(out / "S1_warmup.txt")
         assert got.meta["kind"] == "warmup"
     for name in STATIC_NAMES:
