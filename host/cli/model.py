@@ -170,6 +170,8 @@ def run_diagnose(args: argparse.Namespace) -> int:
                 suspect = d.recommended_spec
                 after = add_term(ds, model, suspect, cat).after
             plots = write_plots(args.plot, ds, d.fit, after, suspect, start_times(session))
+        # the planner fits too: inside the wait that shows progress, not after it
+        planned = [] if args.json else next_record_lines(args, session, model, d)
     if args.json:
         obj = d.to_dict()
         if plots:
@@ -181,7 +183,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
             cmd = add_command(args, d.recommended_spec, short_spec(d.fit.model))
             try_line = command_lines(cmd, terminal_width(sys.stdout), lead="  try: ")
         print(format_diagnosis(d, compare=not args.brief, try_line=try_line))
-        for line in next_record_lines(args, session, model, d):
+        for line in planned:
             print(line)
         for p in plots:
             print(f"plot: {p}")
