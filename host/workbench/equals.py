@@ -223,12 +223,7 @@ class EqualsFinder:
         signals = [e for ax in anchor.axes for e in self._channel_signals(anchor.sensor, ax)]
         own = {family(e.signal[2]) for e in signals if e.signal and _same_shape(anchor, e)}
         others = [e for e in signals if e.signal and family(e.signal[2]) not in own]
-        equal = [
-            e for e in [*self._pool, *others]
-            if e is not anchor and _overlap(anchor, e) and math.isfinite(e.delta)
-            and chi2_sf(e.delta, e.tried.cw_perp.shape[1]) <= NEAR_FACTOR * self.level
-            and not self._adds(anchor, e) and not self._adds(e, anchor)
-        ]  # fmt: skip
+        equal = self._equals_of(anchor, [*self._pool, *others])
         parts = [e for e in self._per_channel(anchor) if e not in equal]
         if parts:
             both = _Explanation(" + ".join(e.label for e in parts), anchor.sensor, anchor.axes,
@@ -236,6 +231,16 @@ class EqualsFinder:
             if not self._adds(anchor, both) and not self._adds(both, anchor):
                 equal += parts
         return _make(anchor, equal)
+
+    def _equals_of(self, anchor: _Explanation, pool: Sequence[_Explanation]) -> list[_Explanation]:
+        """The explanations of ``pool`` that overlap ``anchor``, explain the misfit about as well
+        (Δχ² within the level) and neither adds significantly to the other."""
+        return [
+            e for e in pool
+            if e is not anchor and _overlap(anchor, e) and math.isfinite(e.delta)
+            and chi2_sf(e.delta, e.tried.cw_perp.shape[1]) <= NEAR_FACTOR * self.level
+            and not self._adds(anchor, e) and not self._adds(e, anchor)
+        ]  # fmt: skip
 
     def signal_group(self, hit: ScanHit) -> Equals | None:
         """The group of equals of a signal the scan found and no term explains (temperature²,
@@ -248,12 +253,7 @@ class EqualsFinder:
             return None
         mine = family(anchor.signal[2])
         others = [e for e in signals if e.signal and family(e.signal[2]) != mine]
-        equal = [
-            e for e in [*self._pool, *others]
-            if e is not anchor and _overlap(anchor, e) and math.isfinite(e.delta)
-            and chi2_sf(e.delta, e.tried.cw_perp.shape[1]) <= NEAR_FACTOR * self.level
-            and not self._adds(anchor, e) and not self._adds(e, anchor)
-        ]  # fmt: skip
+        equal = self._equals_of(anchor, [*self._pool, *others])
         return _make(anchor, equal)
 
 

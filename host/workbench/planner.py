@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import zlib
+from collections import defaultdict
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -172,11 +173,7 @@ def _sensor(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Ma, A0, Mg, GA, G0 of method.md §2 from fitted values (0 where absent)."""
 
-    class _Zero(dict):  # type: ignore[type-arg]
-        def __missing__(self, key: str) -> float:
-            return 0.0
-
-    v = _Zero(values)
+    v = defaultdict(float, values)
     a0 = np.array([v["A0x"], v["A0y"], v["A0z"]])
     g0 = np.array([v["G0x"], v["G0y"], v["G0z"]])
     return names_to_matrix("A", v), a0, names_to_matrix("G", v), names_to_gsens(v), g0

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from host.dialogue.console import ScriptedConsole
+from tests.host.cli.cli_run import run
 
 
 def test_esc_at_press_any_key_does_not_start_the_measurement() -> None:
@@ -45,31 +46,19 @@ def test_records_and_results_get_the_usual_permissions(
     assert (tmp_path / "F1_result.txt").stat().st_mode & 0o777 == mode
 
 
-def main_output(argv: list[str]) -> tuple[int, str, str]:
-    from host.__main__ import main
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            rc = main(argv)
-        except SystemExit as exc:
-            rc = int(exc.code or 0)
-    return rc, out.getvalue(), err.getvalue()
-
-
 def test_version() -> None:
     from host import __version__
     from host.wire.protocol_gen import PROTOCOL_VERSION
 
-    rc, out, _ = main_output(["--version"])
+    rc, out, _ = run(["--version"])
     assert rc == 0 and out.startswith(f"imu-bench {__version__} (protocol {PROTOCOL_VERSION}")
 
 
 def test_help_texts_give_examples_and_exit_codes() -> None:
-    rc, out, _ = main_output(["calibrate", "--help"])
+    rc, out, _ = run(["calibrate", "--help"])
     assert rc == 0 and "examples:" in out and "--resume" in out
     assert "exit status:" in out and "130  interrupted" in out
-    rc, out, _ = main_output(["capture", "--help"])
+    rc, out, _ = run(["capture", "--help"])
     assert "until Ctrl+C" in out
 
 
@@ -109,7 +98,7 @@ def test_model_terms_lists_the_catalogue_with_units_and_physics() -> None:
 
     from host.model.catalogue import CATALOGUE
 
-    rc, out, _ = main_output(["model", "terms"])
+    rc, out, _ = run(["model", "terms"])
     assert rc == 0
     for name, t in CATALOGUE.items():
         assert f"\n{name}" in f"\n{out}", name
@@ -118,7 +107,7 @@ def test_model_terms_lists_the_catalogue_with_units_and_physics() -> None:
                 assert f"{p} [{u}]" in out, (name, p, u)
     assert "per_C [°/s/°C]" in out and "(base model, method.md §2)" in out
     assert max(len(line) for line in out.splitlines()) <= 80
-    rc, out, _ = main_output(["model", "terms", "--json"])
+    rc, out, _ = run(["model", "terms", "--json"])
     listed = json.loads(out)
     assert [d["name"] for d in listed] == list(CATALOGUE)
     assert all(d["physics"] and d["parameters"] for d in listed)
@@ -137,7 +126,7 @@ def test_demo_takes_static_seconds_and_still_the_old_spelling() -> None:
 
 
 def test_plot_refuses_an_image_file_name(tmp_path: Path) -> None:
-    rc, _, err = main_output(["model", "diagnose", str(tmp_path), "--plot", "OUT.png"])
+    rc, _, err = run(["model", "diagnose", str(tmp_path), "--plot", "OUT.png"])
     assert rc == 2 and "--plot takes a directory" in err and "--plot OUT/" in err
     assert not Path("OUT.png").exists()
 

@@ -11,17 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host.__main__ import COMMANDS, build_parser, leaf_parser, main
-
-
-def run(argv: list[str]) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            rc = main(argv)
-        except SystemExit as exc:
-            rc = int(exc.code or 0)
-    return rc, out.getvalue(), err.getvalue()
+from host.__main__ import COMMANDS, build_parser, leaf_parser
+from tests.host.cli.cli_run import run
 
 
 def every_command() -> list[list[str]]:

@@ -3,25 +3,13 @@ one line naming what was given and what is needed, exit status 2, no traceback."
 
 from __future__ import annotations
 
-import contextlib
-import io
 from pathlib import Path
 
 import pytest
 
-from host.__main__ import main
 from host.bench.plan import write_session
 from host.workbench.scenarios import hidden_effect_case
-
-
-def run(argv: list[str]) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            rc = main(argv)
-        except SystemExit as exc:
-            rc = int(exc.code or 0)
-    return rc, out.getvalue(), err.getvalue()
+from tests.host.cli.cli_run import run
 
 
 @pytest.fixture(scope="module")
