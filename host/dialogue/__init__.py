@@ -5,6 +5,8 @@ the results through :mod:`host.calib.publish`.
 
 - ``flow`` — the dialogue's sequence: the faces, the turns, the closing check, the results;
   resume, redo, reconnect (:func:`host.dialogue.flow.run_dialogue`).
+- ``recorder`` — the faces, the closing check and the turns: each record's prompt, acquisition,
+  checks and Save/repeat, and waiting for a board that vanished.
 - ``options`` — the dialogue's options and the operator's answers: parsed, checked before any
   I/O, and written back as the command line that continues a session.
 - ``sitting`` — the sitting's output directory: one process writes it at a time, and the files

@@ -25,8 +25,8 @@ from host.workbench.planner import candidates, plan_next, unique_name
 
 
 class Measuring(Protocol):
-    """What the adaptive phase needs of the dialogue (:class:`host.dialogue.flow.
-    CalibrationDialogue`)."""
+    """What the adaptive phase needs of the dialogue (:class:`host.dialogue.recorder.
+    Recorder`)."""
 
     op: Questions
     serial: str

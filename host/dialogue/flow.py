@@ -2,13 +2,14 @@
 
 ``python -m host calibrate --port PORT ...`` calls :func:`run_dialogue`. The dialogue only asks,
 decides and records, in this order: the board's identity, the serial number, the self-test, the
-warm-up, the six faces (stage 1), the turns (stage 2), the closing check, the results. One
-measurement — its acquisition through :class:`host.board.driver.Board`, the record and its header,
-its checks — is :mod:`host.dialogue.measurement`; what is shown is :mod:`host.dialogue.screens`; the
-options are :mod:`host.dialogue.options`. A measurement the operator accepts becomes a
-:class:`host.session.records.Record`, written atomically as ``SERIAL_name.txt``; at the end
-:func:`host.calib.publish.compute_and_write` computes and writes the results, exactly as ``calibrate
---from-dir`` does.
+warm-up, the six faces (stage 1), the turns (stage 2), the closing check, the results. The faces,
+the turns and the closing check, each until it is saved, are :mod:`host.dialogue.recorder`; one
+measurement — its acquisition through :class:`host.board.driver.Board`, the record and its
+header, its checks — is :mod:`host.dialogue.measurement`; what is shown is
+:mod:`host.dialogue.screens`; the options are :mod:`host.dialogue.options`. A measurement the
+operator accepts becomes a :class:`host.session.records.Record`, written atomically as
+``SERIAL_name.txt``; at the end :func:`host.calib.publish.compute_and_write` computes and writes
+the results, exactly as ``calibrate --from-dir`` does.
 
 Interruptions (decided here, the method says Ctrl+C "discards everything"):
 
@@ -24,7 +25,7 @@ Interruptions (decided here, the method says Ctrl+C "discards everything"):
 * **The board vanishes** (cable pulled: LinkLost) or **goes silent** for 2 s (LinkTimeout):
   the message appears at once, the measurement in progress is discarded, accepted records are
   kept; the port is re-opened every second (Esc/Ctrl+C give up; ``--yes`` gives up after
-  :data:`YES_RECONNECT_S`) and the same measurement is proposed again.
+  :data:`host.dialogue.recorder.YES_RECONNECT_S`) and the same measurement is proposed again.
 
 ``--resume``: records already in the output directory (and readable, same serial) are not
 measured again; the results are computed from all of this serial's records in the directory.
@@ -40,65 +41,42 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import shlex
-import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import serial
 
-from host.board.acquisition import Acquisition, BoardReset, MeasurementAborted, SensorFault
-from host.board.driver import Board, BoardInfo, default_port
+from host.board.acquisition import BoardReset, MeasurementAborted, SensorFault
+from host.board.driver import BoardInfo, default_port
 from host.board.link import LinkLost, LinkTimeout
-from host.calib.calibration import stage1
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.report import verdict_line
 from host.dialogue import adaptive, screens
 from host.dialogue.console import (
     Console,
     EndedBySignal,
-    Questions,
     TerminalConsole,
     signals_end_like_ctrl_c,
 )
 from host.dialogue.measurement import (
-    PLACED,
-    acquire,
     capture_path,
-    loss_problems,
-    make_record,
-    over_range,
-    reconnect,
     self_test,
-    static_problems,
-    turn_problems,
 )
 from host.dialogue.options import (
     CLOSING_NAME,
-    DEFAULT_READY_S,
-    DEFAULT_TURNS,
-    MAX_RECOMMENDED_TURNS,
     DialogueOptions,
     check_out_dir,
-    parse_seconds,
     parse_serial,
-    parse_turns,
 )
+from host.dialogue.recorder import YES_MAX_ATTEMPTS, Recorder
 from host.dialogue.sitting import SittingDirectory
 from host.errors import RecordCheckError, ResumableError, UserError, write_error
 from host.session.checks import failed_record
 from host.session.directory import DirectoryBusy, read_session, record_path, write_record
-from host.session.method import local_gravity, record_stats
-from host.session.records import STATIC_NAMES, TURN_NAMES, WARMUP_NAME, Record, turn_window_s
+from host.session.records import STATIC_NAMES, TURN_NAMES, WARMUP_NAME
 from host.wire import sensor
-
-#: --yes: a measurement whose default answer is "repeat" is tried at most this many times
-YES_MAX_ATTEMPTS = 3
-#: --yes: give up waiting for a vanished board after this many seconds
-YES_RECONNECT_S = 60.0
-
 
 # --------------------------------------------------------------------------- the dialogue
 
@@ -113,77 +91,9 @@ class DialogueResult:
     files: tuple[Path, ...] = ()
 
 
-class CalibrationDialogue:
-    """The §5 dialogue. ``op`` asks, ``board`` measures; files go to ``opts.out``."""
-
-    def __init__(
-        self,
-        opts: DialogueOptions,
-        console: Console,
-        port_factory: Callable[[str], serial.SerialBase] | None = None,
-    ) -> None:
-        self.opts = opts
-        self.op = Questions(console, yes=opts.yes, idle=self._idle)
-        self.board = Board(opts.port or "sim://", port_factory, opts.stall_s, self._warn,
-                           opts.hello_timeout_s, opts.sample_stall_s)  # fmt: skip
-        self.g = local_gravity(opts.latitude_deg, opts.height_m)
-        self.serial = ""
-        self.out_dir = Path()
-        self.done: dict[str, Record] = {}
-        self.accepted: list[str] = []
-        self.turns: int | None = opts.turns
-        self.static_seconds: float | None = opts.static_seconds
-        self._in_idle = False
-        self._session_start_ns = time.monotonic_ns()
-        #: True while the warm-up runs (Ctrl+C there discards no measurement)
-        self.in_warm_up = False
-        self.sitting: SittingDirectory | None = None  # the output directory, locked
-
-    # ---- plumbing ------------------------------------------------------------------------
-    def _warn(self, text: str) -> None:
-        self.op.say(f"!!! {text}")
-
-    def _idle(self) -> None:
-        """While waiting for the operator: keep reading the board; recover if it vanished."""
-        if self._in_idle or self.board.link is None:
-            return
-        self._in_idle = True
-        try:
-            self.board.pump()
-        except (LinkLost, LinkTimeout) as exc:
-            self._recover(exc, measuring=False)
-        finally:
-            self._in_idle = False
-
-    def _recover(self, exc: Exception, measuring: bool) -> None:
-        """The board vanished or went silent: wait for it (no pumping of the dead link)."""
-        limit = self.opts.reconnect_timeout_s
-        if limit is None and self.opts.yes:
-            limit = YES_RECONNECT_S
-        self._in_idle = True
-        try:
-            reconnect(self.board, self.op, exc, measuring=measuring, yes=self.opts.yes,
-                      limit_s=limit, resume_hint=self._resume_hint)  # fmt: skip
-        finally:
-            self._in_idle = False
-
-    def command(self, then: Sequence[str] = ("--resume",)) -> str:
-        """This session's command line (every option given or answered) plus ``then``."""
-        return self.opts.command(self.serial, static_seconds=self.static_seconds,
-                                 turns=self.turns, port=self.board.url, then=then)  # fmt: skip
-
-    def _resume_hint(self) -> str:
-        if not self.serial:
-            cmd = f"python3 -m host calibrate --port {shlex.quote(self.board.url)}"
-            return f"nothing was saved; start again with: {cmd}"
-        n = len(self._existing_names())
-        return f"{n} accepted records are kept in {self.out_dir}; continue with: {self.command()}"
-
-    def _existing_names(self) -> list[str]:
-        return [
-            n for n in (*STATIC_NAMES, *TURN_NAMES, CLOSING_NAME)
-            if record_path(self.out_dir, self.serial, n).exists()
-        ]  # fmt: skip
+class CalibrationDialogue(Recorder):
+    """The §5 dialogue: the sitting's sequence around its records (:class:`host.dialogue.
+    recorder.Recorder`)."""
 
     # ---- the program ---------------------------------------------------------------------
     def run(self) -> DialogueResult:
@@ -315,175 +225,6 @@ class CalibrationDialogue:
             op.say(f"Warm-up done; recorded {path}")
         else:
             op.say("Warm-up done.")
-
-    # ---- stage 1 -------------------------------------------------------------------------
-    def _stage1(self, names: list[str]) -> None:
-        if self.static_seconds is None:
-            self.static_seconds = self.op.ask(
-                "Accumulation time per orientation, seconds (typically 10 to a few hundred)",
-                parse_seconds,
-                option="--static-seconds",
-            )
-        if self.static_seconds < 10:
-            self._warn(f"{self.static_seconds:g} s per orientation is short: noise averages less")
-        for name in names:
-            self._measure_static(name)
-
-    def _closing_check(self) -> None:
-        """The first attitude measured again (:data:`CLOSING_NAME`): the fit takes it as one
-        more static record; its difference from the opening measurement is the drift over the
-        session, shown here in the channels' units."""
-        first = STATIC_NAMES[0]
-        op = self.op
-        op.say(screens.closing_line(first))
-        if self.static_seconds is None:
-            self.static_seconds = float(self.done[first].duration_s)
-        self._measure_static(CLOSING_NAME)
-        op.say(screens.closing_difference(self.done[first], self.done[CLOSING_NAME]))
-
-    def _measure_static(self, name: str) -> None:
-        op = self.op
-        axis, side = name.split("_")[:2]  # x_up_2: the attitude x_up again
-        assert self.static_seconds is not None
-        attempts = 0
-        while True:
-            attempts += 1
-            self.board.hint("place", name=f"{axis}_{side}")
-            op.any_key(screens.place_prompt(axis, side))
-            acq = self._acquire(name, self.static_seconds, "Measuring")
-            if acq is None:
-                continue
-            rec = self._record(name, acq, {"kind": "static", **PLACED})
-            screens.show_table(op, rec)
-            problems = self._loss_problems(name, acq)
-            problems += static_problems(rec, self.g, self.serial)
-            if self._decide(name, problems, attempts):
-                self._save(rec, problems)
-                return
-
-    def _show_stage1(self) -> None:
-        stats = {n: record_stats(self.done[n]) for n in STATIC_NAMES}
-        screens.show_stage1(self.op, stage1(stats, self.g), self.g)
-
-    # ---- stage 2 -------------------------------------------------------------------------
-    def _stage2(self, names: list[str]) -> None:
-        op = self.op
-        if self.turns is None:
-            self.turns = op.ask(
-                "Number of turns per rotation (1-3; more twists the USB cable)",
-                parse_turns,
-                default=str(DEFAULT_TURNS),
-            )
-        n = self.turns
-        window = turn_window_s(n)
-        if n > MAX_RECOMMENDED_TURNS:
-            self._warn(
-                f"{n} turns: more than {MAX_RECOMMENDED_TURNS} twist the USB cable; the recording "
-                f"window is 15 + 4·({n}−3) = {window:g} s"
-            )
-        op.say(screens.turn_window_line(window))
-        for name in names:
-            self._measure_turn(name, n, window)
-
-    def _measure_turn(self, name: str, n: int, window: float) -> None:
-        op = self.op
-        axis, direction = name.split("_")[:2]  # x_ccw_2: the turn x_ccw again
-        attempts = 0
-        while True:
-            attempts += 1
-            op.any_key(screens.turn_place_prompt(axis))
-            op.say(screens.get_ready_line(n, direction, window))
-            ready = self.opts.ready_s
-            if ready is None:  # no pause when nobody turns the cube (--yes, virtual board)
-                ready = 0.0 if self.opts.yes and self.board.has_operator else DEFAULT_READY_S
-            if ready > 0 and op.countdown(ready, "  start in", False):
-                op.say("Aborted (Esc): nothing recorded.")
-                continue
-            self.board.hint("turn", axis=axis, direction=direction, turns=n, window_s=window)
-            acq = self._acquire(name, window, "Turn now!")
-            if acq is None:
-                continue
-            rec = self._record(
-                name, acq, {"kind": "turn", "turns": str(n), "direction": direction,
-                            "window_s": f"{window:g}", **PLACED},
-            )  # fmt: skip
-            problems = self._loss_problems(name, acq)
-            problems += self._check_turn(rec, acq, n)
-            if self._decide(name, problems, attempts):
-                self._save(rec, problems)
-                return
-
-    def _check_turn(self, rec: Record, acq: Acquisition, n: int) -> list[str]:
-        """Show the six integrals and the range check; return the problems found."""
-        info = self.board.info
-        assert info is not None
-        op = self.op
-        problems: list[str] = []
-        screens.show_integrals(op, rec)
-        over, peak = over_range(acq, rec, info.gyro_alarm_counts)
-        if over:
-            op.beep()
-            op.beep()
-            # shown once, with the question (_decide)
-            problems.append(screens.range_alarm(over, peak, info.gyro_range_dps))
-        else:
-            op.say(screens.peak_rate_line(peak, info.gyro_range_dps))
-        # the engine's angle check needs the statics' bias, and a turn within the range
-        statics = {k: v for k, v in self.done.items() if k in STATIC_NAMES} if not over else {}
-        problems += turn_problems(
-            rec, self.g, self.serial, statics, self.out_dir, n, self.opts.latitude_deg
-        )
-        return problems
-
-    # ---- one measurement -----------------------------------------------------------------
-    def _acquire(self, name: str, seconds: float, title: str) -> Acquisition | None:
-        """One acquisition (:func:`host.dialogue.measurement.acquire`); None: propose again."""
-        return acquire(self.board, self.op, name, seconds, title, yes=self.opts.yes,
-                       recover=lambda exc: self._recover(exc, measuring=True),
-                       resume_hint=self._resume_hint)  # fmt: skip
-
-    def _record(self, name: str, acq: Acquisition, extra: dict[str, str]) -> Record:
-        who = {"operator": self.opts.operator, "bench": self.opts.bench}  # the report's
-        extra = {**extra, **{k: " ".join(v.split()) for k, v in who.items() if v and v.strip()}}
-        return make_record(self.board, self.serial, name, acq, extra, self._session_start_ns)
-
-    def _loss_problems(self, name: str, acq: Acquisition) -> list[str]:
-        if acq.lost:
-            self.op.say(screens.loss_line(name, acq))
-        return loss_problems(name, acq, self.opts.loss_limit)
-
-    def _decide(self, name: str, problems: list[str], attempts: int) -> bool:
-        """Save (True) or repeat (False). With problems the default is to repeat."""
-        op = self.op
-        if not problems:
-            return op.yes_no("Save <Y> or repeat <N>?", True)
-        for p in problems:
-            op.say(f"!!! {p}")
-        if self.opts.yes and attempts >= YES_MAX_ATTEMPTS:
-            raise ResumableError(
-                f"{name}: still wrong after {attempts} attempts ({problems[0]}); "
-                + self._resume_hint()
-            )
-        return not op.yes_no("Repeat <Y> or save anyway <N>?", True)
-
-    def _save(self, rec: Record, problems: Sequence[str] = ()) -> None:
-        """Write the accepted record; one kept despite ``problems`` carries them in its
-        header (``warning``), and the report lists it with them."""
-        if problems:
-            rec.meta["warning"] = " ".join("; ".join(problems).split())
-        path = self._keep_earlier(rec.name)
-        write_record(path, rec)
-        self.done[rec.name] = rec
-        self.accepted.append(rec.name)
-        self.op.say(f"Saved {path}")
-
-    def _keep_earlier(self, name: str) -> Path:
-        """The path of record ``name``; an earlier record there is moved aside first."""
-        assert self.sitting is not None
-        path, moved = self.sitting.keep_earlier(name)
-        if moved:
-            self.op.say(moved[0].upper() + moved[1:])
-        return path
 
     # ---- results -------------------------------------------------------------------------
     def _results(self) -> DialogueResult:
