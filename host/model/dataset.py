@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -145,6 +145,7 @@ def _record_signals(
     gyro_bias: np.ndarray,
     temp_mean_c: float,
     accel_matrix: np.ndarray | None = None,
+    gyro_scale: np.ndarray | None = None,
 ) -> RecordSignals:
     """The reference signals of one record (observation ``o``): gravity ``g`` m/s² along its up
     direction, the reference rate (a turn: its measured rate about up less the static
@@ -164,8 +165,28 @@ def _record_signals(
         name=o.record, kind=o.kind, t_s=t0 + t_rel, temp_c=rec.temp.copy(), force=force,
         rate=rate, accel=rec.accel, gyro=rec.gyro, g=g, up=o.up, temp_mean_c=temp_mean_c,
         heading_deg=heading, placement_deg=rec.placement_heading_deg,
-        accel_matrix=accel_matrix if o.kind == "turn" else None,
+        accel_matrix=accel_matrix if o.kind in ("turn", "static") else None,
+        gyro_scale=gyro_scale if o.kind in ("turn", "static") else None,
     )  # fmt: skip
+
+
+def _preliminary_gyro_scale(
+    turns: Sequence[tuple[Record, Observation]], gyro_bias: np.ndarray
+) -> np.ndarray | None:
+    """(3,) 1 + each gyro's scale on its own axis from the turn records before the fit: the
+    measured integral about up (static ``gyro_bias`` (4, 3) removed) over the known turn, the
+    mean of the turns about each axis (1 for an axis without turns); None without turns. It
+    carries a face's lean into the gyro's columns (:data:`host.model.catalogue.face_error`)."""
+    per: dict[int, list[float]] = {0: [], 1: [], 2: []}
+    for rec, o in turns:
+        want = float(o.rate @ o.up)
+        bias = gyro_bias[:3].T @ o.up + gyro_bias[3]
+        total = float(trapezoid_integral(rec.t_ms, (rec.gyro - bias) @ o.up))
+        if abs(want) > 1e-6 and abs(total) > 1e-6:
+            per[int(np.argmax(np.abs(o.up)))].append(total / want)
+    if not any(per.values()):
+        return None
+    return np.array([float(np.mean(v)) if v else 1.0 for v in per.values()])
 
 
 def _preliminary_accel_matrix(
@@ -274,6 +295,9 @@ def build_dataset(
     accel_matrix = _preliminary_accel_matrix(
         xs, np.array([stats[n].accel_mean for n in statics]), g
     )
+    gyro_scale = _preliminary_gyro_scale(
+        [(session.records[n], obs_of[n]) for n in names if obs_of[n].kind == "turn"], pre
+    )
     # per-sample gyro noise (°/s) per axis: finds the still moments inside the turns
     gyro_sd = np.median([stats[n].gyro_std for n in statics], axis=0)
 
@@ -290,7 +314,7 @@ def build_dataset(
         t_rel = (rec.t_ms - rec.t_ms[0]) / 1000.0
         # without power-on times only the variation within a record is known: centre it
         t0 = float(rec.meta.get("power_on_s", "0") or 0.0) if has_power else -float(t_rel.mean())
-        sig = _record_signals(rec, o, g, t0, t_rel, pre, temp_mean, accel_matrix)
+        sig = _record_signals(rec, o, g, t0, t_rel, pre, temp_mean, accel_matrix, gyro_scale)
         signals.append(sig)
         if o.kind != "turn":
             aggs.append(add_block_means(table, ri, sig, t_rel, nm))

@@ -45,15 +45,18 @@ def _call_term(t: Term, what: str, sig: RecordSignals, fn: Callable[[], Any]) ->
     return x
 
 
-def _regressors(t: Term, sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
-    columns = t.columns
+def _regressors(
+    t: Term, sig: RecordSignals, sensor: str, axis: int, twin: bool = False
+) -> np.ndarray:
+    columns = t.twin_columns if twin else t.columns
     assert columns is not None
-    x = _call_term(t, "columns", sig, lambda: columns(sig, sensor, axis))
+    what = "twin_columns" if twin else "columns"
+    x = _call_term(t, what, sig, lambda: columns(sig, sensor, axis))
     if x.ndim == 1:
         x = x[:, None]
     if x.shape != (len(sig.t_s), len(t.params)):
         raise UserError(
-            f"term {t.name}: columns() returned shape {x.shape}, expected "
+            f"term {t.name}: {what}() returned shape {x.shape}, expected "
             f"({len(sig.t_s)}, {len(t.params)})"
         )
     return x
@@ -67,8 +70,9 @@ def term_columns(
     Linear terms: offset 0. Nonlinear terms: the Jacobian at ``theta`` (parameters in the
     order axis-major) and offset value(θ) − J·θ, so that value ≈ offset + J·θ'. A shared
     term (:attr:`Term.shared`, linear only) has one set of k columns: each channel's rows hold
-    that channel's regressors. The unknowns of records that carry their own follow
-    (:func:`record_columns`).
+    that channel's regressors. A term with a twin (:attr:`Term.twin_columns`) puts the same
+    parameters on the twin sensor's rows of the same axis. The unknowns of records that carry
+    their own follow (:func:`record_columns`).
     """
     k = len(mt.term.params)
     own = record_columns(ds, mt)
@@ -123,6 +127,15 @@ def term_columns(
                 jac[:, q] = (at(p + dp) - at(p - dp)) / (2 * h)
             cols[rows, j * k : (j + 1) * k] = agg @ jac
             offset[rows] = agg @ (v0 - jac @ p)
+    if mt.term.twin_columns is not None and not mt.term.nonlinear:
+        twin = mt.term.twin_sensor
+        for j, ax in enumerate(mt.axes):
+            for ri, sig in enumerate(ds.signals):
+                rows = ds.rows_of.get((ri, twin, ax))
+                if rows is not None:
+                    cols[rows, j * k : (j + 1) * k] = aggregate(
+                        ds.aggregator(ri, twin, ax), _regressors(mt.term, sig, twin, ax, True)
+                    )
     return np.column_stack([cols, own]), offset
 
 

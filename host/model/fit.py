@@ -257,6 +257,9 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
             ch = (mt.sensor, -1 if ax is None else ax)
             owners.append((name, mt.unit(key), ch, mt.label, key))
     channels, estimable = _channel_fits(ds, x, xw, wres, th0, cov, owners)
+    if any(mt.term.twin_columns is not None for mt in model):
+        # a term read by both sensors couples their channels: what all rows determine
+        estimable = _estimable(xw)
     scale_of = {(c.sensor, AXES.index(c.axis)): c.se_scale for c in channels}
     for chf in channels:  # a shared parameter: the largest scale of its sensor's channels
         scale_of[(chf.sensor, -1)] = max(scale_of.get((chf.sensor, -1), 1.0), chf.se_scale)

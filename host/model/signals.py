@@ -32,7 +32,9 @@ class RecordSignals:
     at its first sample, ° (its header's ``placement_heading_deg``; None: not recorded).
     ``accel_matrix`` (3, 3): how the accelerometer reads a specific force (scale and
     misalignment, from the static records before the fit; None: as the identity) — what the
-    turning force ω̇×r + ω×(ω×r) passes through (:func:`host.model.turning.sensed_lever_matrix`).
+    turning force ω̇×r + ω×(ω×r) passes through (:func:`host.model.turning.sensed_lever_matrix`)
+    and a face's lean g·θ. ``gyro_scale`` (3,): how each gyro reads a rate along its own axis,
+    1 + scale, from the turns before the fit (None: 1) — what a face's lean θ·ω passes through.
     """
 
     name: str
@@ -49,6 +51,7 @@ class RecordSignals:
     heading_deg: np.ndarray | None = None
     placement_deg: float | None = None
     accel_matrix: np.ndarray | None = None
+    gyro_scale: np.ndarray | None = None
 
     def reference(self, sensor: str) -> np.ndarray:
         """(N,3) the true input of ``sensor``: specific force m/s² or rate °/s."""

@@ -65,6 +65,12 @@ class Term:
     record_units: tuple[str, ...] = ()
     record_columns: ColumnFn | None = None
     owns: Callable[[RecordSignals], bool] | None = None
+    #: the same parameters seen by another sensor (one geometry read by two sensors, e.g. a
+    #: face's lean: gravity leaned on the accelerometer, the turn axis leaned on the gyro):
+    #: ``twin_columns(signals, twin_sensor, axis)`` -> (N, len(params)) fill ``twin_sensor``'s
+    #: rows of the same axis with the same parameters (linear per-channel terms only)
+    twin_sensor: str = ""
+    twin_columns: ColumnFn | None = None
 
     @property
     def physics(self) -> str:
