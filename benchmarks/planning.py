@@ -8,6 +8,10 @@ axis, the closing X up. The adaptive plan measures the six faces for ``--min-sta
 turn each way about each axis, then asks :func:`host.workbench.adaptive.adaptive_run` for the
 planner's next record (a face again, short or long, or a turn pair) until its worst
 σ/tolerance is at least as good as the fixed plan's on the same unit (or ``--target``).
+Its first records stop when they have enough (:mod:`host.workbench.stopping`; ``--no-stopping``:
+they last ``--min-static`` s and one pair a axis): each face measured up to ``--max-static`` s
+and cut where the σ of its mean met the target, looked at once a second; turn pairs about an
+axis until its gyro scale meets the target.
 Operator time counts every placement, settling, record and turn
 (:class:`host.workbench.planner.OperatorTime`).
 
@@ -39,14 +43,22 @@ from host.model.dataset import build_dataset  # noqa: E402
 from host.model.fit import fit_model  # noqa: E402
 from host.model.spec import parse_model  # noqa: E402
 from host.session.directory import Session  # noqa: E402
-from host.session.records import Record  # noqa: E402
+from host.session.method import local_gravity  # noqa: E402
+from host.session.records import STOPPED_KEY, Record  # noqa: E402
 from host.workbench.adaptive import adaptive_run, minimal_plan  # noqa: E402
 from host.workbench.planner import (  # noqa: E402
     OPERATOR_TIME,
     Candidate,
     candidates,
+    unique_name,
     unscaled_sigmas,
     worst_ratio,
+)
+from host.workbench.stopping import (  # noqa: E402
+    StaticRule,
+    stop_index,
+    turn_scale_ratio,
+    turns_stop,
 )
 from tests.independent.hand import IndependentHand  # noqa: E402
 from tests.independent.simulate import SessionSpec, SimRecord, simulate  # noqa: E402
@@ -74,6 +86,38 @@ def fixed_plan(spec: SessionSpec) -> tuple[float, str, float]:
     return worst, name, operator
 
 
+def stopping_first(
+    hand: IndependentHand, target: float, min_s: float, max_s: float
+) -> tuple[dict[str, Record], float]:
+    """The six faces (each up to ``max_s`` s, cut where it had enough), then turn pairs about
+    each axis until its gyro scale meets ``target``: (the records, the operator's time s)."""
+    t = OPERATOR_TIME
+    rule = StaticRule.for_target(target, local_gravity(), min_s=min_s, max_s=max_s)
+    menu = candidates(max_s, 1, tilted=False)
+    records: dict[str, Record] = {}
+    spent = 0.0
+    for c in menu:
+        if c.records[0][2] != "static":
+            continue
+        name = c.records[0][0]
+        r = as_record(hand(c, [name])[name])
+        t_s = r.t_ms / 1000.0
+        n, why = stop_index(rule, t_s, r.accel, r.gyro)
+        meta = {**r.meta, STOPPED_KEY: why}
+        records[name] = Record(name, r.t_ms[:n], r.accel[:n], r.gyro[:n], r.temp[:n], meta)
+        spent += t.place + t.settle + float(t_s[n - 1] - t_s[0]) + float(t_s[1] - t_s[0])
+    for ax in "xyz":
+        pair = next(c for c in menu if c.label.startswith(f"{ax} turns"))
+        for pairs in range(1, 100):
+            names = [unique_name(base, records) for base, *_ in pair.records]
+            records.update({k: as_record(v) for k, v in hand(pair, names).items()})
+            spent += pair.operator_s
+            ratio = turn_scale_ratio(Session("ADAPT", dict(records)), BASE, ax)
+            if turns_stop(ratio, target, pairs) is not None:
+                break
+    return records, spent
+
+
 def one(seed: int, args: argparse.Namespace) -> dict[str, float | str | bool]:
     rng = np.random.default_rng([seed, 30])
     noise = {
@@ -82,7 +126,8 @@ def one(seed: int, args: argparse.Namespace) -> dict[str, float | str | bool]:
     }
     fixed = SessionSpec(seed=seed, static_s=args.fixed_static, turns=2, **noise)  # type: ignore[arg-type]
     w_fixed, n_fixed, t_fixed = fixed_plan(fixed)
-    minimal = SessionSpec(seed=seed, static_s=args.min_static, turns=1, closing=False, **noise)  # type: ignore[arg-type]
+    first_s = args.max_static if args.stopping else args.min_static
+    minimal = SessionSpec(seed=seed, static_s=first_s, turns=1, closing=False, **noise)  # type: ignore[arg-type]
     menu = candidates((args.min_static, 3 * args.min_static), 1, tilted=False)
     target = w_fixed if args.target is None else args.target
     hand = IndependentHand(minimal)
@@ -90,9 +135,14 @@ def one(seed: int, args: argparse.Namespace) -> dict[str, float | str | bool]:
     def measure(c: Candidate, names: Sequence[str]) -> dict[str, Record]:
         return {n: as_record(r) for n, r in hand(c, names).items()}
 
+    if args.stopping:
+        measured, measured_s = stopping_first(hand, target, args.min_static, args.max_static)
+        first: list[Candidate] = []
+    else:
+        measured, measured_s, first = {}, 0.0, minimal_plan(args.min_static, 1)
     run = adaptive_run(
-        measure, BASE, target=target, first=minimal_plan(args.min_static, 1), menu=menu,
-        max_operator_s=3 * t_fixed,
+        measure, BASE, target=target, first=first, menu=menu, max_operator_s=3 * t_fixed,
+        measured=measured, measured_s=measured_s,
     )  # fmt: skip
     return {
         "seed": seed,
@@ -113,6 +163,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed0", type=int, default=0)
     ap.add_argument("--fixed-static", type=float, default=60.0, help="s per face, fixed plan")
     ap.add_argument("--min-static", type=float, default=10.0, help="s per face, minimal plan")
+    ap.add_argument("--max-static", type=float, default=120.0, help="s per face at most")
+    ap.add_argument(
+        "--no-stopping", dest="stopping", action="store_false",
+        help="the first faces last --min-static s and one turn pair an axis (no stopping rule)",
+    )  # fmt: skip
     ap.add_argument(
         "--target", type=float, default=None,
         help="worst σ/tolerance the adaptive plan stops at (default: the fixed plan's own, on "

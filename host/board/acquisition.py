@@ -105,6 +105,7 @@ def acquire(
     tick: Callable[[float, np.ndarray, int], None] | None = None,
     check_escape: Callable[[], bool] | None = None,
     tick_every_s: float = 0.1,
+    enough: Callable[[np.ndarray, float], bool] | None = None,
 ) -> Acquisition:
     """Record ``duration_s`` seconds of device time from now (the start beep) from ``board``
     (nominal ``rate_hz``, Hz), its PING carrying ``nonce``.
@@ -120,7 +121,8 @@ def acquire(
     (host time); ``check_escape()`` True -> MeasurementAborted. Raises LinkLost /
     LinkTimeout / BoardReset; nothing is kept then. A sensor ERROR frame, or no IMU sample
     for ``sample_stall_s`` (host time) whatever else arrives, raises :class:`SensorFault`:
-    the measurement always ends.
+    the measurement always ends. ``enough(counts (N, 7), elapsed_s)`` True ends the window
+    early, after its latest sample; it is asked once a second of device time.
     """
     link = board.link
     assert link is not None
@@ -130,6 +132,7 @@ def acquire(
     crc0 = link.decoder.stats.crc_errors
     duration_us = int(round(duration_s * 1e6))
     period_us = 1e6 / rate_hz
+    every = max(1, round(rate_hz))  # samples in a second: how often ``enough`` is asked
     t0: int | None = None  # device t_us of the beep (raw, 32-bit)
     newest_t: int | None = None  # newest sample time seen since the beep (fallback t0)
     held: list[tuple[int, Frame]] = []  # frames read before t0 was known
@@ -181,6 +184,8 @@ def acquire(
         el.append(rel)
         rows.append(counts)
         sums[:] += counts
+        if enough is not None and len(rows) % every == 0:
+            return enough(np.asarray(rows), (rel + period_us) / 1e6)
         return False
 
     def take_held() -> bool:

@@ -422,15 +422,17 @@ class Board:
         tick: Callable[[float, np.ndarray, int], None] | None = None,
         check_escape: Callable[[], bool] | None = None,
         tick_every_s: float = 0.1,
+        enough: Callable[[np.ndarray, float], bool] | None = None,
     ) -> Acquisition:
         """Record ``duration_s`` seconds of device time from now (the start beep): the window
         cut on device time by :func:`host.board.acquisition.acquire` (its PONG, losses, resets
-        and stalls), ``tick`` and ``check_escape`` as there."""
+        and stalls), ``tick``, ``check_escape`` and ``enough`` (an early end) as there."""
         assert self.link is not None and self.info is not None
         self._ping_nonce = (self._ping_nonce + 1) & 0xFFFFFFFF
         return acquire(
-            self, self.info.rate_hz, self._ping_nonce, duration_s, tick, check_escape, tick_every_s
-        )
+            self, self.info.rate_hz, self._ping_nonce, duration_s, tick, check_escape,
+            tick_every_s, enough,
+        )  # fmt: skip
 
     def self_test(self, timeout_s: float = SELF_TEST_TIMEOUT_S) -> SelfTest:
         """Run the MPU-6000 self-test: SELF_TEST, its ACK, then SELF_TEST_RESULT judged by

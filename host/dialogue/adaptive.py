@@ -18,10 +18,11 @@ from host.dialogue.console import Questions
 from host.dialogue.options import CLOSING_NAME, DialogueOptions
 from host.model.catalogue import CATALOGUE
 from host.model.loader import load_term_file
-from host.model.spec import parse_model
+from host.model.spec import ModelTerm, parse_model
 from host.session.directory import Session
 from host.session.records import Record, turn_window_s
 from host.workbench.planner import candidates, plan_next, unique_name
+from host.workbench.stopping import StaticRule
 
 
 class Measuring(Protocol):
@@ -33,20 +34,26 @@ class Measuring(Protocol):
     done: dict[str, Record]
     static_seconds: float | None
     turns: int | None
+    static_rule: StaticRule | None
 
     def _measure_static(self, name: str) -> None: ...
 
     def _measure_turn(self, name: str, n: int, window: float) -> None: ...
 
 
+def model_of(opts: DialogueOptions) -> list[ModelTerm]:
+    """The model the dialogue fits (``--model``, its ``--terms`` files)."""
+    cat = dict(CATALOGUE)
+    for f in opts.term_files:
+        cat = load_term_file(f, cat)
+    return parse_model(opts.model, cat)
+
+
 def measure_until_enough(dlg: Measuring, opts: DialogueOptions) -> list[str]:
     """The adaptive phase with ``opts.target``, ``opts.model`` (its ``term_files``) and
     ``opts.max_extra``; never names the closing record. Returns the names it added, in order."""
     target, max_extra = opts.target, opts.max_extra
-    cat = dict(CATALOGUE)
-    for f in opts.term_files:
-        cat = load_term_file(f, cat)
-    mts = parse_model(opts.model, cat)
+    mts = model_of(opts)
     static_s = float(dlg.static_seconds or 10.0)
     turns = int(dlg.turns or 1)
     menu = candidates((static_s, 3 * static_s), turns, tilted=False)
@@ -73,12 +80,13 @@ def measure_until_enough(dlg: Measuring, opts: DialogueOptions) -> list[str]:
         )
         for base, _, kind, seconds, n, _ in best.candidate.records:
             name = unique_name(base, [*dlg.done, CLOSING_NAME])
-            if kind == "static":
+            if kind == "static":  # as long as the planner said: its gain assumed that
                 keep, dlg.static_seconds = dlg.static_seconds, seconds
+                rule, dlg.static_rule = dlg.static_rule, None
                 try:
                     dlg._measure_static(name)
                 finally:
-                    dlg.static_seconds = keep
+                    dlg.static_seconds, dlg.static_rule = keep, rule
             else:
                 dlg._measure_turn(name, n, turn_window_s(n))
             added.append(name)

@@ -69,17 +69,20 @@ def acquire(
     yes: bool,
     recover: Callable[[Exception], None],
     resume_hint: Callable[[], str],
+    enough: Callable[[np.ndarray, float], bool] | None = None,
 ) -> Acquisition | None:
-    """Beep, record ``seconds`` of device time with a progress line, beep. None when the
-    measurement was aborted (Esc) or the board vanished/restarted (``recover(exc)`` waits for
-    it to come back): nothing of it is kept, the caller proposes it again. A sensor fault asks
-    whether to measure again (``--yes``: no): ResumableError with ``resume_hint()`` if not."""
+    """Beep, record ``seconds`` of device time with a progress line (or less, when
+    ``enough(counts, elapsed_s)`` says so: :meth:`host.board.driver.Board.acquire`), beep. None
+    when the measurement was aborted (Esc) or the board vanished/restarted (``recover(exc)``
+    waits for it to come back): nothing of it is kept, the caller proposes it again. A sensor
+    fault asks whether to measure again (``--yes``: no): ResumableError with ``resume_hint()``
+    if not."""
     assert board.info is not None
     op.beep()
     op.say(f"{title} {name}: {seconds:g} s" + ("" if yes else " (Esc aborts)"))
     tick = measurement_progress(op, name, seconds, board.info)
     try:
-        acq = board.acquire(seconds, tick=tick, check_escape=op.escape_pressed)
+        acq = board.acquire(seconds, tick=tick, check_escape=op.escape_pressed, enough=enough)
     except MeasurementAborted:
         op.end_progress()
         op.beep()

@@ -14,6 +14,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import numpy as np
 import serial
 
 from host.board.acquisition import Acquisition
@@ -21,6 +22,7 @@ from host.board.driver import Board
 from host.board.link import LinkLost, LinkTimeout
 from host.calib.calibration import stage1
 from host.dialogue import screens
+from host.dialogue.adaptive import model_of
 from host.dialogue.console import Console, Questions
 from host.dialogue.measurement import (
     PLACED,
@@ -42,10 +44,17 @@ from host.dialogue.options import (
     parse_turns,
 )
 from host.dialogue.sitting import SittingDirectory
-from host.errors import ResumableError
-from host.session.directory import record_path, write_record
+from host.errors import ResumableError, UserError
+from host.session.directory import Session, record_path, write_record
 from host.session.method import local_gravity, record_stats
-from host.session.records import STATIC_NAMES, TURN_NAMES, Record, turn_window_s
+from host.session.records import STATIC_NAMES, STOPPED_KEY, TURN_NAMES, Record, turn_window_s
+from host.workbench.planner import unique_name
+from host.workbench.stopping import (
+    STATIC_MIN_S,
+    StaticRule,
+    turn_scale_ratio,
+    turns_stop,
+)
 
 #: --yes: a measurement whose default answer is "repeat" is tried at most this many times
 YES_MAX_ATTEMPTS = 3
@@ -78,6 +87,11 @@ class Recorder:
         #: True while the warm-up runs (Ctrl+C there discards no measurement)
         self.in_warm_up = False
         self.sitting: SittingDirectory | None = None  # the output directory, locked
+        #: --plan adaptive: a static ends when its mean's σ meets the target (None: it lasts
+        #: ``static_seconds``); turns continue about an axis until its gyro scale meets it
+        self.static_rule: StaticRule | None = None
+        self.turn_target: float | None = None
+        self._more_turns: dict[str, bool] = {}  # axis -> another pair is needed
 
     # ---- plumbing ------------------------------------------------------------------------
     def _warn(self, text: str) -> None:
@@ -135,6 +149,12 @@ class Recorder:
             )
         if self.static_seconds < 10:
             self._warn(f"{self.static_seconds:g} s per orientation is short: noise averages less")
+        if self.opts.plan == "adaptive":
+            s = self.static_seconds
+            self.static_rule = StaticRule.for_target(
+                self.opts.target, self.g, min_s=min(STATIC_MIN_S, s), max_s=s
+            )
+            self.op.say(screens.stops_when_enough_line(self.static_rule))
         for name in names:
             self._measure_static(name)
 
@@ -154,15 +174,29 @@ class Recorder:
         op = self.op
         axis, side = name.split("_")[:2]  # x_up_2: the attitude x_up again
         assert self.static_seconds is not None
+        rule = self.static_rule
         attempts = 0
         while True:
             attempts += 1
             self.board.hint("place", name=f"{axis}_{side}")
             op.any_key(screens.place_prompt(axis, side))
-            acq = self._acquire(name, self.static_seconds, "Measuring")
+            why: list[str] = []
+
+            def enough(counts: np.ndarray, elapsed_s: float, why: list[str] = why) -> bool:
+                assert rule is not None
+                accel, gyro, _ = self.board.physical(counts)
+                why.extend(w for w in [rule.stop(accel, gyro, elapsed_s)] if w)
+                return bool(why)
+
+            seconds = self.static_seconds if rule is None else rule.max_s
+            acq = self._acquire(name, seconds, "Measuring", None if rule is None else enough)
             if acq is None:
                 continue
             rec = self._record(name, acq, {"kind": "static", **PLACED})
+            if rule is not None:
+                why = why or [rule.stop(rec.accel, rec.gyro, rule.max_s) or ""]
+                rec.meta[STOPPED_KEY] = why[0]
+                op.say(f"{name}: stopped, {why[0].split(':')[0]}")
             screens.show_table(op, rec)
             problems = self._loss_problems(name, acq)
             problems += static_problems(rec, self.g, self.serial)
@@ -191,8 +225,36 @@ class Recorder:
                 f"window is 15 + 4·({n}−3) = {window:g} s"
             )
         op.say(screens.turn_window_line(window))
+        if self.opts.plan == "adaptive":
+            self.turn_target = self.opts.target
         for name in names:
             self._measure_turn(name, n, window)
+        for ax in "xyz":  # --plan adaptive: pairs until the gyro scale meets its target
+            while self._more_turns.get(ax):
+                for d in ("ccw", "cw"):
+                    self._measure_turn(unique_name(f"{ax}_{d}", self.done), n, window)
+
+    def _turns_decision(self, rec: Record, axis: str) -> str:
+        """After the cw turn of a pair about ``axis`` (not yet saved): why the turns about it
+        stop, or why another pair follows (the fit of the records so far with ``rec``)."""
+        assert self.turn_target is not None
+        pairs = 1 + sum(1 for k in self.done if k == f"{axis}_cw" or k.startswith(f"{axis}_cw_"))
+        session = Session(self.serial, {**self.done, rec.name: rec})
+        try:
+            ratio = turn_scale_ratio(session, model_of(self.opts), axis,
+                                     latitude_deg=self.opts.latitude_deg,
+                                     height_m=self.opts.height_m)  # fmt: skip
+        except UserError as exc:
+            self._more_turns[axis] = False
+            return f"not decided after {pairs} pair(s): the records do not fit yet ({exc})"
+        why = turns_stop(ratio, self.turn_target, pairs)
+        self._more_turns[axis] = why is None
+        if why is None:
+            why = (
+                f"another pair follows: gyro scale σ/tolerance {ratio:.3g} above the target "
+                f"{self.turn_target:g} after {pairs} pair(s)"
+            )
+        return why
 
     def _measure_turn(self, name: str, n: int, window: float) -> None:
         op = self.op
@@ -218,6 +280,9 @@ class Recorder:
             )  # fmt: skip
             problems = self._loss_problems(name, acq)
             problems += self._check_turn(rec, acq, n)
+            if self.turn_target is not None and direction == "cw" and not problems:
+                rec.meta[STOPPED_KEY] = self._turns_decision(rec, axis)
+                op.say(f"{axis} turns: {rec.meta[STOPPED_KEY].split(':')[0]}")
             if self._decide(name, problems, attempts):
                 self._save(rec, problems)
                 return
@@ -245,11 +310,17 @@ class Recorder:
         return problems
 
     # ---- one measurement -----------------------------------------------------------------
-    def _acquire(self, name: str, seconds: float, title: str) -> Acquisition | None:
+    def _acquire(
+        self,
+        name: str,
+        seconds: float,
+        title: str,
+        enough: Callable[[np.ndarray, float], bool] | None = None,
+    ) -> Acquisition | None:
         """One acquisition (:func:`host.dialogue.measurement.acquire`); None: propose again."""
         return acquire(self.board, self.op, name, seconds, title, yes=self.opts.yes,
                        recover=lambda exc: self._recover(exc, measuring=True),
-                       resume_hint=self._resume_hint)  # fmt: skip
+                       resume_hint=self._resume_hint, enough=enough)  # fmt: skip
 
     def _record(self, name: str, acq: Acquisition, extra: dict[str, str]) -> Record:
         who = {"operator": self.opts.operator, "bench": self.opts.bench}  # the report's

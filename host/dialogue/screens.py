@@ -21,6 +21,7 @@ from host.model.geometry import placement_words
 from host.session.method import record_stats, trapezoid_integral
 from host.session.records import Record
 from host.wire import sensor
+from host.workbench.stopping import StaticRule
 
 AXIS_WORDS = {"x": "X", "y": "Y", "z": "Z"}
 CHANNELS = ("Ax", "Ay", "Az", "Gx", "Gy", "Gz", "temp")
@@ -78,6 +79,15 @@ def turn_window_line(window_s: float) -> str:
     return (
         f"Each turn is recorded for {window_s:g} s between two beeps, the same for both "
         "directions. Turn by hand about the vertical and bring the cube back to the ruler."
+    )
+
+
+def stops_when_enough_line(rule: StaticRule) -> str:
+    """--plan adaptive: how long a face is measured (the rule of
+    :class:`host.workbench.stopping.StaticRule`)."""
+    return (
+        f"Each face ends when its mean is precise enough (gyro σ ≤ {rule.gyro_sigma:.2g} °/s, "
+        f"accel σ ≤ {rule.accel_sigma:.2g} m/s²): {rule.min_s:g} to {rule.max_s:g} s."
     )
 
 

@@ -59,6 +59,10 @@ TIME_KEYS = ("power_on_s", "session_s")
 #: the heading is unknown (the model then does not assume one)
 HEADING_KEY = "placement_heading_deg"
 
+#: why a record that stops when it has enough stopped (``calibrate --plan adaptive``,
+#: :mod:`host.workbench.stopping`): a static's σ of its mean, or the turns about an axis
+STOPPED_KEY = "stopped"
+
 #: which sensor a record measured, in its header (live records and imported captures):
 #: :func:`host.wire.sensor.identity_meta` writes them
 SENSOR_KEYS = ("who_am_i", "product_id", "sensor_revision")

@@ -17,6 +17,8 @@ residual scan, the verdict, the refits and their words. Never imports the calibr
   fit's σ/tolerance it leaves, ranked per minute of the operator's time.
 - ``adaptive`` — measure until enough: a first plan, then the planner's next record until every
   value's σ/tolerance meets a target, through one measuring callable.
+- ``stopping`` — records that stop when they have enough: a face when the σ of its mean (serial
+  correlation counted) meets a target, turn pairs when the gyro scale does.
 - ``separate`` — the record that tells two explanations apart: the Δχ² (noncentrality) it buys
   between them per minute of the operator's time.
 - ``scenarios`` — simulated sessions each hiding one effect, and what the workbench finds.

@@ -84,14 +84,18 @@ def adaptive_run(
     tolerances: Mapping[str, float | None] = TOLERANCES,
     max_operator_s: float = 3600.0,
     on_step: Callable[[Step], None] | None = None,
+    measured: Mapping[str, Record] | None = None,
+    measured_s: float = 0.0,
 ) -> AdaptiveRun:
-    """Measure ``first`` (e.g. :func:`minimal_plan`), then, while the worst σ/tolerance of
+    """Measure ``first`` (e.g. :func:`minimal_plan`) after the records ``measured`` already
+    (they cost the operator ``measured_s`` s: e.g. records that stopped when they had enough,
+    :mod:`host.workbench.stopping`), then, while the worst σ/tolerance of
     ``model`` is above ``target`` and the operator's time is below ``max_operator_s`` (s),
     the candidate of ``menu`` that :func:`plan_next` ranks first. ``on_step`` is called after
     each record is fitted (a progress line)."""
-    records: dict[str, Record] = {}
+    records: dict[str, Record] = dict(measured or {})
     steps: list[Step] = []
-    spent = 0.0
+    spent = float(measured_s)
 
     def take(c: Candidate) -> None:
         nonlocal spent

@@ -15,6 +15,7 @@ from host.dialogue.console import ScriptedConsole
 from host.session.directory import read_session
 from host.session.records import STATIC_NAMES, TURN_NAMES
 from host.workbench.planner import candidates
+from host.workbench.stopping import TURN_PAIRS_MAX
 
 
 def _run(tmp: Path, **kw: object) -> tuple[str, Path, int]:
@@ -33,8 +34,11 @@ def test_it_measures_what_the_planner_names_until_the_limit(tmp_path: Path) -> N
     text, out, rc = _run(tmp_path, target=1e-6, max_extra=2)
     assert rc in (0, 1)
     names = set(read_session(out).records)
-    extra = names - set(STATIC_NAMES) - set(TURN_NAMES) - {"x_up_2"}
-    # two records (a face or one turn of a pair each) beyond the method's and the closing one
+    # the turn pairs added until the gyro scale met the target (here: the maximum)
+    more = {f"{n}_{k}" for n in TURN_NAMES for k in range(2, TURN_PAIRS_MAX + 1)}
+    assert more <= names
+    extra = names - set(STATIC_NAMES) - set(TURN_NAMES) - {"x_up_2"} - more
+    # two records (a face or one turn of a pair each) beyond those and the closing one
     assert len(extra) == 2, names
     menu = {base for c in candidates((2.0, 6.0), 1, tilted=False) for base, *_ in c.records}
     assert all(re.fullmatch(r"[xyz]_(up|dn|ccw|cw)_\d+", n) for n in extra)

@@ -1,0 +1,61 @@
+"""``calibrate --plan adaptive`` on the virtual board: a face ends when the σ of its mean meets
+the target (at least the method's 10 s, at most ``--static-seconds``), turn pairs about an axis
+continue until its gyro scale meets it, and every such record says why it stopped."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import re
+from pathlib import Path
+
+import pytest
+
+from host.dialogue import flow, options
+from host.dialogue.console import ScriptedConsole
+from host.session.directory import read_session
+from host.session.records import STATIC_NAMES, STOPPED_KEY
+from host.workbench.stopping import TURN_PAIRS_MAX
+
+
+def _run(tmp: Path, **kw: object) -> tuple[str, Path]:
+    o = options.DialogueOptions(
+        port="sim://?seed=4&speed=max", serial="ST1", out=tmp / "ST1", turns=1, warmup_s=0.0,
+        yes=True, ready_s=0.0, plan="adaptive", max_extra=0, closing=False, **kw,  # type: ignore[arg-type]
+    )  # fmt: skip
+    con = ScriptedConsole()
+    with contextlib.redirect_stdout(io.StringIO()):
+        flow.run_dialogue(o, con, None)
+    return con.text, tmp / "ST1"
+
+
+@pytest.mark.slow
+def test_faces_stop_when_their_mean_is_precise_enough(tmp_path: Path) -> None:
+    text, out = _run(tmp_path, static_seconds=40.0, target=0.5)
+    recs = read_session(out).records
+    for name in STATIC_NAMES:
+        r = recs[name]
+        assert 9.9 <= r.duration_s <= 12.0, (name, r.duration_s)  # the minimum, far below 40 s
+        assert r.meta[STOPPED_KEY].startswith("σ of the mean met its target at 1"), r.meta
+    # a loose target: one pair about each axis, and the cw turn of it says so
+    assert {n for n in recs if "_c" in n} == {f"{a}_{d}" for a in "xyz" for d in ("ccw", "cw")}
+    for a in "xyz":
+        assert re.match(
+            r"gyro scale σ/tolerance \S+ met the target 0.5", recs[f"{a}_cw"].meta[STOPPED_KEY]
+        )
+    assert "Each face ends when its mean is precise enough" in text
+
+
+@pytest.mark.slow
+def test_a_target_out_of_reach_measures_the_maximum_and_says_so(tmp_path: Path) -> None:
+    _, out = _run(tmp_path, static_seconds=11.0, target=1e-4)
+    recs = read_session(out).records
+    for name in STATIC_NAMES:
+        assert recs[name].duration_s == pytest.approx(11.0, abs=0.1)
+        assert "the maximum, target not met" in recs[name].meta[STOPPED_KEY]
+    for a in "xyz":
+        cws = sorted(n for n in recs if n.startswith(f"{a}_cw"))
+        assert len(cws) == TURN_PAIRS_MAX
+        assert sum(n.startswith(f"{a}_ccw") for n in recs) == TURN_PAIRS_MAX
+        assert "another pair follows" in recs[f"{a}_cw"].meta[STOPPED_KEY]
+        assert f"the maximum of {TURN_PAIRS_MAX} pairs" in recs[cws[-1]].meta[STOPPED_KEY]
