@@ -201,6 +201,40 @@ class CalibrationResult:
         ok = ok and self.self_test != "fail"
         return ok and (self.verification is None or self.verification.passed)
 
+    @property
+    def conditional(self) -> bool:
+        """A PASS that rests on a model that does not fit these records (the fit's verdict is
+        ``inadequate``): every value is within tolerance as fitted, but it holds only if the
+        effect the model lacks does not bias the values. It does not change
+        :attr:`all_passed` (nor the exit status 0)."""
+        return self.all_passed and self.fit is not None and self.fit.verdict == "inadequate"
+
+    def failed_values(self) -> list[str]:
+        """Names of the §7 values outside tolerance, then of the parameters not determined."""
+        bad = [n for n, ok in self.passed().items() if ok is False]
+        return bad + [p.name for p in self.undetermined if p.name not in bad]
+
+    def verdict(self) -> str:
+        """PASS or FAIL and why, in one line: the report's header and conclusion, the last
+        line on screen and the result file's ``verdict`` say it alike. ``PASS (conditional:
+        the model does not fit, RMS z 8.35)`` when :attr:`conditional`; a FAIL on a model
+        that does not fit says so as its last reason."""
+        fit = self.fit
+        misfit = fit is not None and fit.verdict == "inadequate"
+        if self.all_passed and fit is not None and misfit:
+            return f"PASS (conditional: the model does not fit, RMS z {fit.rms_z:.2f})"
+        if self.all_passed:
+            return "PASS: every value within tolerance"
+        bad = self.failed_values()
+        why = [f"{len(bad)} value(s) outside tolerance or not determined"] if bad else []
+        if self.verification is not None and not self.verification.passed:
+            why.append("held-out records not predicted within the limits")
+        if self.self_test == "fail":
+            why.append("the sensor failed its self-test")
+        if misfit:
+            why.append("the model does not fit")
+        return f"FAIL: {'; '.join(why)}"
+
     def accel_m(self) -> np.ndarray:
         """Ma (3×3, method.md §2), NaN where not determined."""
         return names_to_matrix("A", self.constants())
@@ -252,6 +286,10 @@ class CalibrationResult:
                 for n, v in self.noise_std.items()
             },  # fmt: skip
             "all_passed": self.all_passed,
+            # derived, not read back: the verdict line the report and the screen print, and
+            # whether a PASS rests on a model that does not fit (exit status 0 either way)
+            "verdict": self.verdict(),
+            "conditional": self.conditional,
             "fit": None if self.fit is None else self.fit.to_dict(),
             "noise_model": jsonable(dict(self.noise_model)),
             "g": self.g,

@@ -9,7 +9,7 @@ import json
 import pytest
 
 from host.calib.calibration import calibrate_from_records
-from host.calib.report import format_report, verdict
+from host.calib.report import format_report
 from host.calib.result import CalibrationResult
 from host.session.directory import Session
 
@@ -40,7 +40,7 @@ def test_the_self_test_is_in_the_result_and_a_failure_fails_it(
     text = format_report(r)
     assert f"MPU-6000 self-test: {line}" in text
     if not passed:
-        assert verdict(r) == "FAIL: the sensor failed its self-test"
+        assert r.verdict() == "FAIL: the sensor failed its self-test"
         assert "RESULT: FAIL — the sensor failed its MPU-6000 self-test" in text
         assert "RESULT: all values within tolerance" in text  # the values themselves pass
     back = CalibrationResult.from_json(r.to_json())
