@@ -98,12 +98,15 @@ class ComputeSettings:
 
 @dataclass(frozen=True)
 class Published:
-    """A result and the files it was written to (``pdf_path``: None when not asked)."""
+    """A result and the files it was written to (``pdf_path``: None when not asked);
+    ``records_dir``: the directory its records were read from (the report's next command
+    names it; None: not known)."""
 
     result: CalibrationResult
     report_path: Path
     json_path: Path
     pdf_path: Path | None = None
+    records_dir: Path | None = None
 
 
 def thermal_of(
@@ -153,13 +156,14 @@ def compute_and_write(
         result = verify_directory(result, settings.verify, term_files=settings.term_files)
     if not out_dir.is_dir():
         raise UserError(f"{out_dir}: no such directory{_why_not_a_directory(out_dir)}")
-    txt, js = write_results(result, out_dir)
+    records_dir = Path(session.directory) if session.directory is not None else out_dir
+    txt, js = write_results(result, out_dir, records_dir)
     pdf = None
     if settings.pdf:
         from host.calib.report_pdf import pdf_path, write_report_pdf
 
-        pdf = write_report_pdf(result, pdf_path(txt))
-    return Published(result, txt, js, pdf)
+        pdf = write_report_pdf(result, pdf_path(txt), records_dir)
+    return Published(result, txt, js, pdf, records_dir)
 
 
 def _why_not_a_directory(path: Path) -> str:
@@ -170,8 +174,10 @@ def _why_not_a_directory(path: Path) -> str:
     return "; create it or give --out an existing directory"
 
 
-def show_result(result: CalibrationResult, as_json: bool, out: TextIO | None = None) -> None:
-    """Print the report (method.md §7) or, ``as_json``, the JSON result on ``out`` (stdout)."""
+def show_result(pub: Published, as_json: bool, out: TextIO | None = None) -> None:
+    """Print the published report (method.md §7, as written) or, ``as_json``, the JSON
+    result on ``out`` (stdout)."""
     stream = out if out is not None else sys.stdout
-    stream.write(result.to_json() if as_json else format_report(result))
+    result = pub.result
+    stream.write(result.to_json() if as_json else format_report(result, pub.records_dir))
     stream.flush()

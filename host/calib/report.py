@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import os
+import shlex
 from pathlib import Path
 
 from host.calib.provenance import UNKNOWN_SENSOR, Provenance
@@ -20,7 +21,6 @@ from host.calib.values import RecordResidual
 from host.session.atomic import write_texts_atomic
 from host.session.method import (
     ACCEL_BIAS_NAMES,
-    CONSTANT_NAMES,
     GROUPS,
     GYRO_BIAS_NAMES,
     NOISE_NAMES,
@@ -41,18 +41,23 @@ def _mark(ok: bool | None) -> str:
     return " " if ok is None else (PLUS if ok else MINUS)
 
 
-def format_report(result: CalibrationResult) -> str:
-    """The text of ``SERIAL_result.txt`` (lines ≤ 80 characters, ends with a newline)."""
+def format_report(
+    result: CalibrationResult, records_dir: str | os.PathLike[str] | None = None
+) -> str:
+    """The text of ``SERIAL_result.txt`` (lines ≤ 80 characters, ends with a newline);
+    ``records_dir``: the directory of the records, for the next command a poor fit names
+    (:func:`next_command`; None: ``DIR``)."""
     r = result
     passed = r.passed()
     consts = r.constants()
     rule = "-" * WIDTH
     out: list[str] = []
-    out.extend(_head(r))
+    nxt = next_command(r, records_dir)
+    out.extend(_head(r, nxt))
     out.append(rule)
     out.extend(_object_and_equipment(r))
     out.append(rule)
-    out.extend(_procedure(r))
+    out.extend(_procedure(r, nxt))
     if r.earth_rate:
         out.append("Earth rate: vertical component included in the reference rates")
     cf = [abs(consts[n] - v) for n, v in r.closed_form.items() if n not in NOISE_NAMES]
@@ -94,7 +99,7 @@ def format_report(result: CalibrationResult) -> str:
             else:
                 out.append(f"  {p.name:<34}{'not determined':>14}")
         out.append(rule)
-    bad = failed_values(r)
+    bad = r.failed_values()
     if bad:
         out.append(f"RESULT: {len(bad)} value(s) outside tolerance or not determined:")
         line = "  "
@@ -146,16 +151,19 @@ def format_report(result: CalibrationResult) -> str:
     out.append("  accel m/s²: " + "  ".join(f"{n} {consts[n]:.4f}" for n in NOISE_NAMES[3:]))
     out.append(rule)
     out.append("Residuals per record in the order measured (measured − model): mean / std of")
-    out.append("samples; turns: integral residual, degrees; at: start, s into the sitting")
+    out.append("samples; turns: integral residual, degrees; sit: the sitting it was measured in")
+    out.append("(PROCEDURE above); at: its start, s into that sitting")
     out.append(
-        f"  {'record':<9}{'at,s':>6}{'T,s':>5}  {'accel x y z, m/s²':<24}"
-        f"{'gyro x y z, °/s (turns °)':<27}"
+        f"  {'record':<9}{'sit':>4}{'at,s':>6}{'T,s':>5}  {'accel x y z, m/s²':<24}"
+        f"{'gyro x y z, °/s (turns °)':<26}"
     )
     at = r.provenance.session_s if r.provenance is not None else {}
+    sitting = sitting_of(r)
     for res in measured_order(r):
         t = at.get(res.record)
         t_s = f"{t:6.0f}" if t is not None else f"{'-':>6}"
-        head = f"  {res.record[:9]:<9}{t_s}{res.duration_s:>5.1f}  "
+        sit = str(sitting.get(res.record, "-"))
+        head = f"  {res.record[:9]:<9}{sit:>4}{t_s}{res.duration_s:>5.1f}  "
         if res.kind == "turn" and res.angle_deg is not None:
             acc = f"{'-':<24}"
             gyr = " ".join(f"{x:+8.3f}" for x in res.angle_deg)
@@ -167,7 +175,7 @@ def format_report(result: CalibrationResult) -> str:
         if res.kind == "static":
             accs = " ".join(f"{x:7.4f}" for x in res.accel_std)
             gyrs = " ".join(f"{x:8.4f}" for x in res.gyro_std)
-            out.append(f"  {'  std':<20}  {accs:<24}{gyrs}")
+            out.append(f"  {'  std':<24}  {accs:<24}{gyrs}")
     if r.verification is not None:
         v = r.verification
         out.append(rule)
@@ -188,7 +196,7 @@ def format_report(result: CalibrationResult) -> str:
         for note in r.notes:
             out.extend(_wrap(note, "  -", "    "))
     out.append(rule)
-    out.extend(_conclusion(r))
+    out.extend(_conclusion(r, nxt))
     out.append(rule)
     out.append("")
     for role in ("Customer's representative", "Quality control", "Workshop"):
@@ -197,9 +205,9 @@ def format_report(result: CalibrationResult) -> str:
     return "\n".join(line.rstrip() for line in out) + "\n"
 
 
-def _head(r: CalibrationResult) -> list[str]:
+def _head(r: CalibrationResult, nxt: str) -> list[str]:
     """Title (the sensor named from the data), the simulated mark, when measured and when
-    computed, local gravity, the verdict."""
+    computed, local gravity, the verdict and, on a poor fit, the next command ``nxt``."""
     pv = r.provenance
     sensor = "MPU-6000" if pv is None else pv.sensor
     out = [f"TEST REPORT, IMU {sensor}, serial No. {r.serial}"]
@@ -215,7 +223,9 @@ def _head(r: CalibrationResult) -> list[str]:
         f"Local gravity g = {r.g:.5f} m/s² (Helmert formula, latitude {r.latitude_deg:.3f}°, "
         f"height {r.height_m:.0f} m)"
     )
-    out.extend(_wrap(f"Verdict: {verdict(r)} (RESULT below)", "", "  "))
+    out.extend(_wrap(f"Verdict: {r.verdict()} (RESULT below)", "", "  "))
+    if nxt:
+        out.extend(_wrap(f"Next: {nxt} (what the model lacks)", "", "  ", (f"Next: {nxt}",)))
     return out
 
 
@@ -287,7 +297,7 @@ def _object_and_equipment(r: CalibrationResult) -> list[str]:
     return out
 
 
-def _procedure(r: CalibrationResult) -> list[str]:
+def _procedure(r: CalibrationResult, nxt: str) -> list[str]:
     """Plan, timing, sittings, model and algorithm (method.md §8 "procedure")."""
     pv = r.provenance
     kinds: dict[str, int] = {}
@@ -313,7 +323,7 @@ def _procedure(r: CalibrationResult) -> list[str]:
         out.extend(_wrap(r.fit.line(), "  ", "    "))
         story = fit_story(r)
         if story:
-            out.extend(_wrap(story, "  ", "    "))
+            out.extend(_wrap(f"{story} Find it: {nxt}", "  ", "    ", keep=(nxt,)))
     return out
 
 
@@ -333,6 +343,15 @@ def _sittings(pv: Provenance) -> str:
     return f"{n} sittings (--resume/--redo; {'; '.join(parts)})"
 
 
+def sitting_of(r: CalibrationResult) -> dict[str, int]:
+    """record -> the number of the sitting it was measured in (1, 2, … as the report's
+    PROCEDURE counts them: ``--resume`` and ``--redo`` each start one); empty when the result
+    does not say (format v1/v2)."""
+    if r.provenance is None:
+        return {}
+    return {n: i for i, st in enumerate(r.provenance.sittings, 1) for n in st.records}
+
+
 def measured_order(r: CalibrationResult) -> list[RecordResidual]:
     """The residuals of ``r`` in the order their records were measured (sitting, then
     ``session_s``); records of unknown time last, by name."""
@@ -341,14 +360,17 @@ def measured_order(r: CalibrationResult) -> list[RecordResidual]:
     return sorted(r.residuals, key=lambda x: (rank.get(x.record, len(rank)), x.record))
 
 
-def _conclusion(r: CalibrationResult) -> list[str]:
-    """Verdict, what it rests on, and repeatability (method.md §8)."""
+def _conclusion(r: CalibrationResult, nxt: str) -> list[str]:
+    """Verdict, what it rests on, the next command ``nxt`` on a poor fit, and
+    repeatability (method.md §8)."""
     out = ["CONCLUSION"]
-    out.extend(_wrap(verdict(r), "  ", "    "))
-    if r.fit is not None and r.fit.verdict == "inadequate":
-        out.extend(_wrap("The model does not explain the records down to their noise "
-                         "(fit quality above): the values hold only if the missing effect "
+    out.extend(_wrap(r.verdict(), "  ", "    "))
+    if nxt:
+        within = "Every value is within tolerance as fitted, but the" if r.all_passed else "The"
+        out.extend(_wrap(f"{within} model does not explain the records down to their noise "
+                         "(fit quality above): the values hold only if the effect it lacks "
                          "does not bias them.", "  ", "    "))  # fmt: skip
+        out.extend(_wrap(f"Next: {nxt} (what the model lacks)", "  ", "    ", (f"Next: {nxt}",)))
     out.extend(_wrap("Repeatability (method.md §8: three calibrations, coefficient of "
                      f"variation ≤ 1 %): python -m host archive repeat {r.serial}",
                      "  ", "    ", keep=("≤ 1 %",)))  # fmt: skip
@@ -379,60 +401,69 @@ def result_paths(directory: str | os.PathLike[str], serial: str) -> tuple[Path, 
     return d / f"{serial}_result.txt", d / f"{serial}_result.json"
 
 
-def failed_values(result: CalibrationResult) -> list[str]:
-    """Names of the §7 values outside tolerance, then of the parameters not determined."""
-    passed = result.passed()
-    bad = [n for n in CONSTANT_NAMES if passed[n] is False]
-    return bad + [p.name for p in result.undetermined if p.name not in bad]
-
-
-def verdict(result: CalibrationResult) -> str:
-    """PASS or FAIL and why, in one line (the report's header and the last line on screen)."""
-    if result.all_passed:
-        return "PASS: every value within tolerance"
-    bad = failed_values(result)
-    why = f"{len(bad)} value(s) outside tolerance or not determined" if bad else ""
-    if result.verification is not None and not result.verification.passed:
-        why = (why + "; " if why else "") + "held-out records not predicted within the limits"
-    if result.self_test == "fail":
-        why = (why + "; " if why else "") + "the sensor failed its self-test"
-    return f"FAIL: {why}"
-
-
-def fit_story(result: CalibrationResult, directory: str | os.PathLike[str] | None = None) -> str:
-    """'' when the model fits; else what an inadequate fit means for the values and the next
-    command (``python -m host model diagnose DIR``, ``directory`` the records' when known)."""
+def fit_story(result: CalibrationResult) -> str:
+    """'' when the model fits; else what an inadequate fit means for the values (the report
+    under its fit line and the screen above the verdict say it; :func:`next_command` is what
+    to run next)."""
     q = result.fit
     if q is None or q.verdict != "inadequate":
         return ""
-    where = str(directory) if directory is not None else "DIR"
     return (
         f"The model does not fit these records (RMS z {q.rms_z:.2f}: residuals {q.rms_z:.1f}x "
         "their noise): something the model lacks moved them. The standard errors are widened "
-        "where the fit is poor, and PASS/FAIL on the tolerances holds only if that effect does "
-        f"not bias the values. Find it: python -m host model diagnose {where}"
+        "where the fit is poor, and the verdict on the tolerances is conditional: it holds only "
+        "if that effect does not bias the values."
     )
 
 
-def verdict_line(result: CalibrationResult, report_path: str | os.PathLike[str]) -> str:
-    """What a session or ``--from-dir`` ends on: the :func:`verdict` and the report's path as
-    the last line, preceded by ``*** SIMULATED BOARD <url>: not a measurement of a unit ***``
-    when the records came from a virtual or emulated board (on its own line, so the verdict
-    still fits an 80-column terminal), and before that, when the model does not fit, the
-    report's :func:`fit_story` with the next command."""
-    line = f"{verdict(result)}; report {report_path}"
-    line = f"*** {result.simulated_line} ***\n{line}" if result.simulated else line
-    story = fit_story(result, Path(report_path).parent)
-    # the report's story on a poor fit, above the mark and the verdict (the last line)
-    return f"{story}\n{line}" if story else line
+def next_command(
+    result: CalibrationResult, records_dir: str | os.PathLike[str] | None = None
+) -> str:
+    """'' when the model fits; else the command that finds what it lacks: ``python -m host
+    model diagnose DIR`` on the records' directory ``records_dir`` (quoted for a shell when it
+    needs it; None: the word ``DIR``) with the result's model and term files."""
+    if not fit_story(result):
+        return ""
+    words = ["DIR" if records_dir is None else shlex.quote(str(records_dir))]
+    if result.model != "base":
+        words += ["--model", shlex.quote(result.model)]
+    for f in result.term_files:
+        words += ["--term-file", shlex.quote(f)]
+    return "python -m host model diagnose " + " ".join(words)
+
+
+def verdict_line(
+    result: CalibrationResult,
+    report_path: str | os.PathLike[str],
+    records_dir: str | os.PathLike[str] | None = None,
+) -> str:
+    """What a session or ``--from-dir`` ends on (lines ≤ 80 columns when the paths allow):
+    when the model does not fit, the report's :func:`fit_story`; ``Report: PATH``; then the
+    :func:`next_command` on the records' directory ``records_dir`` (None: the report's);
+    ``*** SIMULATED BOARD <url>: not a measurement of a unit ***`` when the records came
+    from a virtual or emulated board; and last the verdict, the same line as the report's
+    and the result file's (:meth:`~host.calib.result.CalibrationResult.verdict`)."""
+    out = _wrap(fit_story(result), "", "  ")
+    out.append(f"Report: {report_path}")
+    nxt = next_command(result, Path(report_path).parent if records_dir is None else records_dir)
+    if nxt:
+        out.append(f"Next: {nxt}")  # one line: a command to copy, whatever its length
+    if result.simulated:
+        out.append(f"*** {result.simulated_line} ***")
+    out.extend(_wrap(result.verdict(), "", "  "))  # one line but for a FAIL of many reasons
+    return "\n".join(out)
 
 
 def write_results(
-    result: CalibrationResult, directory: str | os.PathLike[str]
+    result: CalibrationResult,
+    directory: str | os.PathLike[str],
+    records_dir: str | os.PathLike[str] | None = None,
 ) -> tuple[Path, Path]:
     """Publish the report and the JSON result in ``directory`` together or not at all
     (:func:`host.session.atomic.write_texts_atomic`: the signed report and the file ``apply()``
-    reads never disagree); returns the paths. UserError names the file that failed."""
+    reads never disagree); returns the paths. ``records_dir``: where the records are, for the
+    report's next command (None: ``directory``). UserError names the file that failed."""
     txt, js = result_paths(directory, result.serial)
-    write_texts_atomic({txt: format_report(result), js: result.to_json()})
+    where = directory if records_dir is None else records_dir
+    write_texts_atomic({txt: format_report(result, where), js: result.to_json()})
     return txt, js

@@ -46,10 +46,14 @@ def pdf_path(txt_path: str | os.PathLike[str]) -> Path:
     return Path(txt_path).with_suffix(".pdf")
 
 
-def write_report_pdf(result: CalibrationResult, path: str | os.PathLike[str]) -> Path:
+def write_report_pdf(
+    result: CalibrationResult,
+    path: str | os.PathLike[str],
+    records_dir: str | os.PathLike[str] | None = None,
+) -> Path:
     """Write the report of ``result`` as a PDF to ``path`` (atomically: a reader never sees
-    half a file); returns the path. UserError when matplotlib is missing or the file cannot
-    be written."""
+    half a file; ``records_dir`` as in :func:`host.calib.report.format_report`); returns the
+    path. UserError when matplotlib is missing or the file cannot be written."""
     try:
         from matplotlib.backends.backend_pdf import PdfPages
     except ImportError:
@@ -58,7 +62,7 @@ def write_report_pdf(result: CalibrationResult, path: str | os.PathLike[str]) ->
         ) from None
     out = Path(path)
     tmp = out.with_name(f".{out.name}.tmp")
-    lines = format_report(result).splitlines()
+    lines = format_report(result, records_dir).splitlines()
     title = f"Test report, serial No. {result.serial}"
     if result.simulated:
         title = f"{title} ({result.simulated_line})"

@@ -142,13 +142,13 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
     (or the JSON with ``--json``) on stdout (:func:`host.calib.publish.compute_and_write`)."""
     with working("calibrate: checking the records and fitting the model"):
         pub = compute_and_write(session, out_dir, compute_settings(args))
-    show_result(pub.result, args.json)
+    show_result(pub, args.json)
     if not args.json:
         pdf = f" and {pub.pdf_path}" if pub.pdf_path is not None else ""
         print(f"written: {pub.report_path}, {pub.json_path}{pdf}", file=sys.stderr)
     if not getattr(args, "no_archive", False):
         print(archive_line(pub.json_path.parent, session, args), file=sys.stderr)
-    print(verdict_line(pub.result, pub.report_path), file=sys.stderr)  # the last line
+    print(verdict_line(pub.result, pub.report_path, pub.records_dir), file=sys.stderr)  # last
     return pub.result
 
 

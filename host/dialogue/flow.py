@@ -263,10 +263,10 @@ class CalibrationDialogue(Recorder):
             ) from None
         pdf = f", {pub.pdf_path}" if pub.pdf_path is not None else ""
         op.say(f"Results: {pub.report_path} and {pub.json_path}{pdf}")
-        show_result(pub.result, self.opts.json)
+        show_result(pub, self.opts.json)
         if self.opts.after_publish is not None:  # calibrate archives the result
             op.say(self.opts.after_publish(self.out_dir, session))
-        op.say(verdict_line(pub.result, pub.report_path))  # the last line on screen
+        op.say(verdict_line(pub.result, pub.report_path, pub.records_dir))  # the last lines
         return DialogueResult(
             self.out_dir, list(self.accepted), pub.result, (pub.report_path, pub.json_path)
         )

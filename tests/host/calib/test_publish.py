@@ -40,10 +40,10 @@ def test_both_files_are_written_with_the_settings(records_dir: Path, tmp_path: P
     assert (doc["latitude_deg"], doc["height_m"]) == (-41.5, 820.0)
     assert "serial No. Q7" in pub.report_path.read_text()
     out = io.StringIO()
-    show_result(pub.result, as_json=True, out=out)
+    show_result(pub, as_json=True, out=out)
     assert json.loads(out.getvalue()) == doc
     out = io.StringIO()
-    show_result(pub.result, as_json=False, out=out)
+    show_result(pub, as_json=False, out=out)
     assert out.getvalue() == pub.report_path.read_text()
 
 

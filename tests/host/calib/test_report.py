@@ -199,6 +199,12 @@ def test_from_dir_ends_on_the_verdict_and_the_report(tmp_path: Path, capsys) -> 
         rc = main(["calibrate", "--from-dir", str(REAL), "--out", str(out), *extra])
         err = capsys.readouterr().err.rstrip("\n").splitlines()
         assert rc == 1 and err[-1].startswith("FAIL: ") and "outside tolerance" in err[-1]
-        assert err[-1].endswith(f"report {out / 'REAL_result.txt'}")  # real data: no mark
+        # the model does not fit imucal's session either: a reason of the FAIL, and the next
+        # command names the records' directory (not --out); real data: no SIMULATED mark
+        assert err[-1].endswith("; the model does not fit") and len(err[-1]) <= 80
+        assert err[-3:-1] == [
+            f"Report: {out / 'REAL_result.txt'}",
+            f"Next: python -m host model diagnose {REAL}",
+        ]
         head = (out / "REAL_result.txt").read_text().splitlines()[:10]
-        assert any(ln.startswith("Verdict: FAIL: ") for ln in head)
+        assert f"Verdict: {err[-1]} (RESULT below)" in " ".join(ln.strip() for ln in head)

@@ -232,6 +232,7 @@ def test_no_pause_before_a_turn_when_nobody_turns_the_cube(tmp_path: Path) -> No
 def test_the_readmes_first_command_gives_a_whole_session(tmp_path: Path) -> None:
     """The command under 'Run a calibration' in README.md, as written (after ``pip install``),
     with no board: the virtual board at full speed, announced, a report, the verdict last."""
+    import json
     import os
     import shlex
     import subprocess
@@ -252,8 +253,12 @@ def test_the_readmes_first_command_gives_a_whole_session(tmp_path: Path) -> None
     assert (tmp_path / serial / f"{serial}_result.txt").exists()
     rec = (tmp_path / serial / f"{serial}_x_up.txt").read_text()
     assert "SIMULATED BOARD sim://?speed=max" in rec
-    mark, last = proc.stderr.rstrip("\n").splitlines()[-2:]
-    assert last.startswith(("PASS: ", "FAIL: ")) and last.endswith(f"{serial}_result.txt")
+    shown = proc.stderr.rstrip("\n").splitlines()
+    report = [ln for ln in shown if ln.startswith("Report: ")][-1]
+    mark, last = shown[-2:]
+    verdict = json.loads((tmp_path / serial / f"{serial}_result.json").read_text())["verdict"]
+    assert last == verdict and last.startswith(("PASS", "FAIL"))
+    assert report == f"Report: {serial}/{serial}_result.txt"
     assert mark == "*** SIMULATED BOARD sim://?speed=max: not a measurement of a unit ***"
 
 
