@@ -3,8 +3,12 @@ counters' unwrap, against a simulated link with known true sample times."""
 
 from __future__ import annotations
 
+from unittest import mock
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host.bench.linksim import LinkParams, simulate_link
 from host.timing import clock
@@ -56,3 +60,65 @@ def test_min_delay_fit_is_exact_on_noise_free_points_and_ignores_late_ones() -> 
     m = clock.fit_min_delay(x, late)
     assert m.skew_ppm == pytest.approx(-50, abs=1e-6)
     assert np.max(np.abs(m.to_host_ns(x) - y)) < 1.0
+
+
+def _walked_hull(x: list[float], y: list[float]) -> list[int]:
+    """The lower hull walked point by point (Andrew's monotone chain, the textbook loop): the
+    reference the vectorised hull must reproduce."""
+    hull: list[int] = []
+    for i in range(len(x)):
+        while len(hull) >= 2:
+            o, a = hull[-2], hull[-1]
+            if (x[a] - x[o]) * (y[i] - y[o]) - (y[a] - y[o]) * (x[i] - x[o]) <= 0:
+                hull.pop()
+            else:
+                break
+        hull.append(i)
+    return hull
+
+
+_small_points = st.lists(
+    st.tuples(st.integers(0, 40), st.integers(0, 25)), min_size=65, max_size=300
+)  # integer coordinates: exact cross products, many ties and repeats; over 64 points, so
+# the vectorised passes run before the walk
+
+
+@settings(max_examples=150, deadline=None)
+@given(points=_small_points)
+def test_lower_hull_is_the_walked_hull_and_lies_under_every_point(
+    points: list[tuple[int, int]],
+) -> None:
+    pts = sorted(points)  # by x, then y
+    x = np.asarray([p[0] for p in pts], dtype=float)
+    y = np.asarray([p[1] for p in pts], dtype=float)
+    h = clock.lower_hull(x, y)
+    assert h.tolist() == _walked_hull(x.tolist(), y.tolist())
+    if len(pts) >= 2:
+        assert h[0] == 0 and h[-1] == len(pts) - 1
+    for i, j in zip(h[:-1], h[1:], strict=True):  # no point strictly under an edge's line
+        if x[j] > x[i]:
+            below = (x[j] - x[i]) * (y - y[i]) - (y[j] - y[i]) * (x - x[i])
+            between = (x >= x[i]) & (x <= x[j])
+            assert np.all(below[between] >= 0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    n=st.integers(2, 4000),
+    skew_ppm=st.floats(-200, 200),
+    latency_ms=st.floats(0.01, 30),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_min_delay_fit_with_the_vectorised_hull_is_the_walked_hulls_fit(
+    n: int, skew_ppm: float, latency_ms: float, seed: int
+) -> None:
+    rng = np.random.default_rng(seed)
+    x = np.cumsum(rng.integers(1, 40_000, n)).astype(float)  # µs, increasing
+    y = 5e11 + (1000 + skew_ppm / 1000) * x + rng.exponential(latency_ms * 1e6, n)
+    fast = clock.fit_min_delay(x, y)
+    walk = lambda a, b: np.asarray(_walked_hull(a.tolist(), b.tolist()), dtype=np.int64)  # noqa: E731
+    with mock.patch.object(clock, "lower_hull", walk):
+        walked = clock.fit_min_delay(x, y)
+    assert fast.b == pytest.approx(walked.b, rel=1e-12, abs=1e-12)
+    assert fast.offset_ns == pytest.approx(walked.offset_ns, rel=1e-12, abs=1e-3)
+    assert fast.latency_median_us == pytest.approx(walked.latency_median_us, abs=1e-6)
