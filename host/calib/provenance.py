@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from host.session.directory import SIMULATED_BOARD, SIMULATED_SCHEMES, Session
-from host.session.records import Record
+from host.session.records import STOPPED_KEY, Record
 
 #: header keys of the equipment (record header -> words of the report), in report order
 EQUIPMENT_KEYS = {
@@ -62,7 +62,8 @@ class Provenance:
     ``turn_window_s``: the turn windows the plan gave, s. ``measured_from``/``measured_to``:
     the first and last record's start time (ISO, from the headers; '' when they have none).
     ``measured_order``: every record, in the order measured. ``software``: this program and
-    its version at the computation.
+    its version at the computation. ``stopped``: record -> why it stopped (its header's
+    ``stopped``: records that stop when they have enough, ``calibrate --plan adaptive``).
     """
 
     simulated: bool = False
@@ -86,6 +87,7 @@ class Provenance:
     session_s: Mapping[str, float] = field(default_factory=dict)
     sittings: tuple[Sitting, ...] = ()
     software: str = ""
+    stopped: Mapping[str, str] = field(default_factory=dict)
 
     @property
     def simulated_line(self) -> str:
@@ -117,6 +119,7 @@ class Provenance:
             "session_s": dict(self.session_s),
             "sittings": [{"capture": s.capture, "records": list(s.records)} for s in self.sittings],
             "software": self.software,
+            "stopped": dict(self.stopped),
         }
 
     @classmethod
@@ -154,6 +157,7 @@ class Provenance:
                 for s in d.get("sittings", ())
             ),
             software=str(d.get("software", "")),
+            stopped={str(k): str(v) for k, v in d.get("stopped", {}).items()},
         )
 
 
@@ -252,6 +256,7 @@ def provenance_of(session: Session, software: str = "") -> Provenance:
         session_s={n: at for n in order if math.isfinite(at := _order_key(recs[n], 0)[1])},
         sittings=sittings,
         software=software,
+        stopped={n: w for n in order if (w := recs[n].meta.get(STOPPED_KEY, "").strip())},
     )
 
 
