@@ -317,6 +317,10 @@ def _procedure(r: CalibrationResult, nxt: str) -> list[str]:
     turns = "-" if r.turns is None else str(r.turns)
     timing.append(f"turns per turn record: {turns}")
     out.extend(_wrap(f"Timing: {'; '.join(timing)}", "  ", "    "))
+    if pv is not None and pv.stopped:
+        out.append("  Stopped when they had enough (--plan adaptive):")
+        for name, why in pv.stopped.items():
+            out.extend(_wrap(f"{name}: {why}", "    ", "      "))
     out.extend(_wrap(f"Algorithm: {r.method}", "  ", "    "))
     out.extend(_wrap(f"Model: {r.model}", "  ", "    "))
     if r.fit is not None:

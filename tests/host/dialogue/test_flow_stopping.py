@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import re
 from pathlib import Path
 
 import pytest
 
+from host.calib.provenance import Provenance
 from host.dialogue import flow, options
 from host.dialogue.console import ScriptedConsole
 from host.session.directory import read_session
@@ -44,6 +46,14 @@ def test_faces_stop_when_their_mean_is_precise_enough(tmp_path: Path) -> None:
             r"gyro scale σ/tolerance \S+ met the target 0.5", recs[f"{a}_cw"].meta[STOPPED_KEY]
         )
     assert "Each face ends when its mean is precise enough" in text
+    # the report's procedure says why each stopped; the result file keeps it
+    report = (out / "ST1_result.txt").read_text()
+    assert "Stopped when they had enough (--plan adaptive):" in report
+    assert re.search(r"\n    z_dn: σ of the mean met its target at 1\d s", report)
+    doc = json.loads((out / "ST1_result.json").read_text())
+    assert Provenance.from_dict(doc["provenance"]).stopped == {
+        n: r.meta[STOPPED_KEY] for n, r in recs.items() if STOPPED_KEY in r.meta
+    }
 
 
 @pytest.mark.slow
