@@ -179,10 +179,13 @@ def run_diagnose(args: argparse.Namespace) -> int:
         _print_json(obj)
     else:
         try_line = None
+        width, now = terminal_width(sys.stdout), short_spec(d.fit.model)
         if d.recommended_spec:
-            cmd = add_command(args, d.recommended_spec, short_spec(d.fit.model))
-            try_line = command_lines(cmd, terminal_width(sys.stdout), lead="  try: ")
-        print(format_diagnosis(d, compare=not args.brief, try_line=try_line))
+            cmd = add_command(args, d.recommended_spec, now)
+            try_line = command_lines(cmd, width, lead="  try: ")
+        see_one = {t: command_lines(add_command(args, t, now), width, lead="  to see one: ")
+                   for e in d.equals for t in e.terms}  # fmt: skip
+        print(format_diagnosis(d, compare=not args.brief, try_line=try_line, see_one=see_one))
         for line in planned:
             print(line)
         for p in plots:

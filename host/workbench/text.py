@@ -82,10 +82,15 @@ def format_candidate(c: Candidate) -> str:
 
 
 def format_diagnosis(
-    d: Diagnosis, compare: bool = True, max_candidates: int = 12, try_line: str | None = None
+    d: Diagnosis,
+    compare: bool = True,
+    max_candidates: int = 12,
+    try_line: str | None = None,
+    see_one: Mapping[str, str] | None = None,
 ) -> str:
     """The human-readable report of :func:`diagnose`; ``try_line`` is the command that adds
-    the recommended term (the caller knows the directory and options; else ``DIR``)."""
+    the recommended term, ``see_one`` term -> the lines of the command that adds a member of a
+    group of equals (the caller knows the directory and options; else ``DIR``)."""
     lines = ["== 1. compare: measured vs model"] + format_fit(d.fit, compare)
     lines.append("== 2. where it fails (|z| > 3, worst first)")
     if not d.worst and not d.worst_spans:
@@ -142,7 +147,7 @@ def format_diagnosis(
                 if o is not None:
                     lines.append(f"      {other}: {o.needs}")
     for e in d.equals:
-        lines.extend(format_equals(e))
+        lines.extend(format_equals(e, see_one))
     if d.recommended_spec:
         lines.append(try_line or f"  try: python3 -m host model add DIR {d.recommended_spec} "
                      f"--model {short_spec(d.fit.model)}")  # fmt: skip
@@ -153,9 +158,10 @@ def format_diagnosis(
     return "\n".join(lines)
 
 
-def format_equals(e: Equals) -> list[str]:
+def format_equals(e: Equals, see_one: Mapping[str, str] | None = None) -> list[str]:
     """A group of equals for people (lines of at most 80 characters): its members, that the
-    records cannot tell them apart, the records that would, and how to try one."""
+    records cannot tell them apart, the records that would, and how to try one (``see_one``:
+    term -> the command's lines, as :func:`format_diagnosis` takes them)."""
 
     def wrap(text: str, first: str, rest: str) -> list[str]:
         return textwrap.wrap(text, 80, initial_indent=first, subsequent_indent=rest)
@@ -169,7 +175,10 @@ def format_equals(e: Equals) -> list[str]:
     for words in e.separate:
         out += wrap(words, "    - ", "      ")
     for t in e.terms:
-        out += wrap(f"to see one: python3 -m host model add DIR {t}", "  ", "      ")
+        if see_one and t in see_one:
+            out.append(see_one[t])
+        else:
+            out += wrap(f"to see one: python3 -m host model add DIR {t}", "  ", "      ")
     return out
 
 

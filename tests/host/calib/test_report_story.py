@@ -129,6 +129,10 @@ def test_the_next_command_runs_and_finds_the_same_misfit(
     rc, out, _ = run(argv[3:] + ["--brief"])
     doc = json.loads((d / "DEMO01_result.json").read_text(encoding="utf-8"))
     assert rc == 0 and f"fit: RMS z = {doc['fit']['rms_z']:.2f} " in out
+    # and its own next commands name the same directory, not a placeholder
+    said = [ln.strip() for ln in out.splitlines()]
+    tries = [ln for ln in said if ln.startswith(("to see one:", "try:"))]
+    assert tries and all("python3 -m host model add DEMO01 " in t for t in tries), tries
 
 
 def test_a_model_that_fits_gives_a_plain_verdict_and_no_next_command(tmp_path: Path) -> None:
