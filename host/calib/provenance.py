@@ -11,14 +11,22 @@ nothing here is the time or place of the computation except ``software`` and ``c
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from host.session.directory import SIMULATED_BOARD, SIMULATED_SCHEMES, Session
-from host.session.records import STOPPED_KEY, Record
+from host.session.directory import (
+    EARLIER_DIR,
+    SIMULATED_BOARD,
+    SIMULATED_SCHEMES,
+    Session,
+    split_file_name,
+)
+from host.session.records import NON_RECORD_NAMES, STOPPED_KEY, Record
 
 #: header keys of the equipment (record header -> words of the report), in report order
 EQUIPMENT_KEYS = {
@@ -47,6 +55,17 @@ class Sitting:
     capture file (``''``: records that came without one) and its records in measured order."""
 
     capture: str
+    records: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class SetAside:
+    """Records of the unit kept aside, not in the result: ``folder``, under the records'
+    directory (``earlier/SERIAL_<UTC time>``), and the records in it — a record measured
+    again (``--redo``, a record repeated) or an earlier sitting's, moved when a new sitting
+    began (:func:`host.session.directory.set_aside`)."""
+
+    folder: str
     records: tuple[str, ...]
 
 
@@ -88,6 +107,8 @@ class Provenance:
     sittings: tuple[Sitting, ...] = ()
     software: str = ""
     stopped: Mapping[str, str] = field(default_factory=dict)
+    #: records of the unit kept aside in ``earlier/``, oldest folder first (not in the result)
+    set_aside: tuple[SetAside, ...] = ()
 
     @property
     def simulated_line(self) -> str:
@@ -120,6 +141,7 @@ class Provenance:
             "sittings": [{"capture": s.capture, "records": list(s.records)} for s in self.sittings],
             "software": self.software,
             "stopped": dict(self.stopped),
+            "set_aside": [{"folder": s.folder, "records": list(s.records)} for s in self.set_aside],
         }
 
     @classmethod
@@ -158,6 +180,10 @@ class Provenance:
             ),
             software=str(d.get("software", "")),
             stopped={str(k): str(v) for k, v in d.get("stopped", {}).items()},
+            set_aside=tuple(
+                SetAside(str(s["folder"]), tuple(str(x) for x in s["records"]))
+                for s in d.get("set_aside", ())
+            ),
         )
 
 
@@ -257,7 +283,29 @@ def provenance_of(session: Session, software: str = "") -> Provenance:
         sittings=sittings,
         software=software,
         stopped={n: w for n in order if (w := recs[n].meta.get(STOPPED_KEY, "").strip())},
-    )
+        set_aside=() if session.directory is None else set_aside_records(session.directory,
+                                                                          session.serial),
+    )  # fmt: skip
+
+
+def set_aside_records(directory: str | os.PathLike[str], serial: str) -> tuple[SetAside, ...]:
+    """The records of ``serial`` kept aside under ``directory/earlier/``, one
+    :class:`SetAside` per folder, oldest first (the folders are named by UTC time)."""
+    root = Path(directory) / EARLIER_DIR
+    if not root.is_dir():
+        return ()
+    out = []
+    for sub in sorted(p for p in root.iterdir() if p.name.startswith(f"{serial}_")):
+        if not sub.is_dir():
+            continue
+        names = [
+            parts[1] for p in sorted(sub.iterdir())
+            if (parts := split_file_name(p)) is not None and parts[0] == serial
+            and parts[1] not in NON_RECORD_NAMES and p.is_file()
+        ]  # fmt: skip
+        if names:
+            out.append(SetAside(f"{EARLIER_DIR}/{sub.name}", tuple(names)))
+    return tuple(out)
 
 
 def _temp_measured(r: Record) -> bool:

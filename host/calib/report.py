@@ -307,6 +307,10 @@ def _procedure(r: CalibrationResult, nxt: str) -> list[str]:
     out = ["PROCEDURE"]
     sittings = "" if pv is None else f", measured in {_sittings(pv)}"
     out.extend(_wrap(f"Records: {len(r.residuals)} ({plan}){sittings}", "  ", "    "))
+    if pv is not None and pv.set_aside:
+        kept = "; ".join(f"{s.folder}: {_names(s.records)}" for s in pv.set_aside)
+        out.extend(_wrap(f"Kept aside, not in this result (measured again, or an earlier "
+                         f"sitting's): {kept}", "  ", "    "))  # fmt: skip
     timing = []
     if pv is not None and pv.static_s is not None:
         timing.append(f"static accumulation time {_span(pv.static_s)} s")
@@ -342,7 +346,7 @@ def _sittings(pv: Provenance) -> str:
         return "1 sitting"
     parts = []
     for i, st in enumerate(pv.sittings, 1):
-        what = ", ".join(st.records) if len(st.records) <= 3 else f"{len(st.records)} records"
+        what = _names(st.records)
         parts.append(f"{i}: {st.capture or 'no capture'}, {what}")
     return f"{n} sittings (--resume/--redo; {'; '.join(parts)})"
 
@@ -354,6 +358,11 @@ def sitting_of(r: CalibrationResult) -> dict[str, int]:
     if r.provenance is None:
         return {}
     return {n: i for i, st in enumerate(r.provenance.sittings, 1) for n in st.records}
+
+
+def _names(records: tuple[str, ...]) -> str:
+    """'x_ccw, x_cw' for up to three records, else '12 records'."""
+    return ", ".join(records) if len(records) <= 3 else f"{len(records)} records"
 
 
 def measured_order(r: CalibrationResult) -> list[RecordResidual]:
