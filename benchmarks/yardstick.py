@@ -180,7 +180,8 @@ def _truth_of(name: str, t: Truth) -> float | None:
     e = _eff(t)
     parts = name.split(".")
     if parts[0] == "plate_tilt" and e["name"] == "plate_tilt":
-        return _plate_truth(parts, t)
+        # a turn's heading correction: its truth is the circle's error, not written down
+        return None if parts[-1] == "heading" else _plate_truth(parts, t)
     if parts[0] == "lever_arm" and e["name"] == "lever_arm":
         return float(e["r_m"]["xyz".index(parts[1])])
     if parts[0] == "face_error" and e["name"] == "face_lean" and len(parts) == 4:

@@ -252,7 +252,9 @@ def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     horizontal accelerometers read g·(tilt_east·e + tilt_north·n), with e, n the plate's axes
     in body coordinates at the record's heading on the plate (its header's
     ``placement_heading_deg`` plus the angle turned, :func:`host.model.geometry.plate_axes`;
-    a turn without one gets it from its rests' circle, :func:`host.model.plate.resolve_placements`;
+    a turn without one gets it from its rests' circle, :func:`host.model.plate.resolve_placements`,
+    and carries that heading's correction as an unknown of its own (``heading``, rad, the fit
+    linearised at the circles' tilt), so the tilt's azimuth σ counts the circles' scatter;
     a static without one carries the tilt as it sees it as two unknowns of its own, whose
     direction against the session's tilt is its heading: never assumed).
 
@@ -272,9 +274,17 @@ def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
 
 
 def _heading_unknown(sig: RecordSignals) -> bool:
-    """A record on the plate whose placement heading is neither recorded nor read from its
-    rests (:func:`host.model.plate.resolve_placements`): its heading is an unknown."""
-    return sig.kind in ("static", "turn") and sig.placement_deg is None
+    """A record on the plate whose placement heading is not recorded: neither recorded nor
+    read from its rests (:func:`host.model.plate.resolve_placements`; two unknowns, the tilt
+    as it sees it), or read from its rests' circle (one unknown, that heading's correction)."""
+    return sig.kind in ("static", "turn") and (
+        sig.placement_deg is None or sig.heading_tilt is not None
+    )
+
+
+def _heading_params(sig: RecordSignals) -> tuple[str, ...]:
+    """The unknowns of a record whose heading is not recorded (:func:`_heading_unknown`)."""
+    return ("heading",) if sig.placement_deg is not None else ("seen_ref", "seen_side")
 
 
 def _plate_tilt_seen(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
@@ -283,6 +293,12 @@ def _plate_tilt_seen(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     (rad; the session's tilt turned by −ψ, so of the same size). Resting on a face, the
     horizontal accelerometers read g·(seen_ref·e + seen_side·n) with e, n the plate's axes at
     heading 0 turned by the angle turned since the record began."""
+    if sig.placement_deg is not None and sig.heading_tilt is not None:
+        # a heading read from the rests' circle, ψ₀: its correction dψ (rad) moves the tilt's
+        # reading by ∂/∂ψ g·(t_e·e(ψ) + t_n·n(ψ)) = g·(t_n·e − t_e·n) at the circles' tilt
+        east, north = plate_axes(sig.up, sig.plate_heading)
+        te, tn = (float(v) for v in sig.heading_tilt)
+        return sig.g * (tn * east[:, axis] - te * north[:, axis])[:, None]
     east, north = plate_axes(sig.up, sig.heading)
     return sig.g * np.column_stack([east[:, axis], north[:, axis]])
 
@@ -364,11 +380,12 @@ face_error = replace(face_error, twin_sensor="gyro", twin_columns=_face_turn)
 _SHARED = ("plate_tilt", "lever_arm")
 
 #: a static (or a turn without rests to read) whose heading is not recorded carries its own
-#: unknown: the plate's tilt as seen at that heading (two angles, whose direction against the
-#: session's tilt is the heading), so the fit never assumes one
-plate_tilt = replace(plate_tilt, record_params=("seen_ref", "seen_side"),
-                     record_units=("rad", "rad"), record_columns=_plate_tilt_seen,
-                     owns=_heading_unknown)  # fmt: skip
+#: unknowns: the plate's tilt as seen at that heading (two angles, whose direction against the
+#: session's tilt is the heading), so the fit never assumes one; a turn whose heading was read
+#: from its rests' circle carries one, the correction of that heading (rad)
+plate_tilt = replace(plate_tilt, record_params=("seen_ref", "seen_side", "heading"),
+                     record_units=("rad", "rad", "rad"), record_columns=_plate_tilt_seen,
+                     owns=_heading_unknown, record_params_of=_heading_params)  # fmt: skip
 
 #: the built-in terms, in catalogue order
 CATALOGUE: dict[str, Term] = {

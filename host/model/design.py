@@ -140,20 +140,22 @@ def term_columns(
 
 
 def record_columns(ds: Dataset, mt: ModelTerm) -> np.ndarray:
-    """(n_rows, m·k) the columns of the unknowns of the records that carry their own
-    (:attr:`Term.record_params`, k each; m records, in :meth:`ModelTerm.slots` order): each
+    """(n_rows, Σk) the columns of the unknowns of the records that carry their own
+    (:meth:`Term.own_params`, k of each record, in :meth:`ModelTerm.slots` order): each
     record's columns are non-zero on its own rows only, on every channel of the term."""
     t = mt.term
     owners = t.owners(ds.signals)
-    k = len(t.record_params)
-    out = np.zeros((ds.n_rows, len(owners) * k))
+    widths = [len(t.own_params(ds.signals[ri])) for ri in owners]
+    out = np.zeros((ds.n_rows, sum(widths)))
     if not owners:
         return out
     fn = t.record_columns
     if fn is None or t.nonlinear:
         raise UserError(f"term {t.name}: a record's own unknowns need record_columns()")
-    for m, ri in enumerate(owners):
+    start = 0
+    for ri, k in zip(owners, widths, strict=True):
         sig = ds.signals[ri]
+        start += k
         for ax in mt.axes:
             rows = ds.rows_of.get((ri, mt.sensor, ax))
             if rows is None:
@@ -164,7 +166,7 @@ def record_columns(ds: Dataset, mt: ModelTerm) -> np.ndarray:
                     f"term {t.name}: record_columns() returned shape {x.shape}, expected "
                     f"({len(sig.t_s)}, {k})"
                 )
-            out[rows, m * k : (m + 1) * k] = aggregate(ds.aggregator(ri, mt.sensor, ax), x)
+            out[rows, start - k : start] = aggregate(ds.aggregator(ri, mt.sensor, ax), x)
     return out
 
 

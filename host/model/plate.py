@@ -238,7 +238,9 @@ def resolve_placements(
     gives none (:func:`plate_from_rests`), and the notes that tell the reader the plate's tilt
     (only when the rests show one: a level plate would draw such circles with probability
     below :data:`LEVEL_P`). A turn record without a heading gets the one
-    that lines its circle up with the others; with no heading recorded anywhere, the first
+    that lines its circle up with the others, and the fit carries a correction of it as an
+    unknown of that record (:attr:`RecordSignals.heading_tilt`: its σ is not the circle's
+    alone, and the tilt's azimuth σ counts it); with no heading recorded anywhere, the first
     turn's reference axis is the frame (heading 0: the origin of the azimuth, which no
     estimate but the azimuth depends on). A static record without a heading keeps none: one
     heading cannot be read from one rest, so the fit carries it as an unknown of that record
@@ -252,7 +254,9 @@ def resolve_placements(
         est[plate.circles[0].record] = 0.0
     for i, s in enumerate(out):
         if s.kind == "turn" and s.placement_deg is None and s.name in est:
-            out[i] = replace(s, placement_deg=est[s.name])
+            read = s.name in plate.headings  # read from its circle: an unknown of the fit
+            out[i] = replace(s, placement_deg=est[s.name],
+                             heading_tilt=np.array(plate.vector) if read else None)  # fmt: skip
     if plate.p_level >= LEVEL_P:
         return out, []
     unknown = [s.name for s in signals if s.kind == "static" and s.placement_deg is None]

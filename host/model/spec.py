@@ -33,7 +33,8 @@ class ModelTerm:
     def count(self, signals: Sequence[RecordSignals]) -> int:
         """Parameters on the records ``signals``: :attr:`n_params` and the unknowns of the
         records that carry their own (:attr:`Term.record_params`)."""
-        return self.n_params + len(self.term.owners(signals)) * len(self.term.record_params)
+        t = self.term
+        return self.n_params + sum(len(t.own_params(signals[i])) for i in t.owners(signals))
 
     def slots(self, signals: Sequence[RecordSignals] = ()) -> list[tuple[int | None, str, str]]:
         """(output axis or None for a shared parameter, name, parameter key) of each of its
@@ -53,7 +54,9 @@ class ModelTerm:
             ]
         for i in t.owners(signals):
             rec = signals[i].name
-            out.extend((None, f"{t.name}.{rec}.{p}", f"{rec}.{p}") for p in t.record_params)
+            out.extend(
+                (None, f"{t.name}.{rec}.{p}", f"{rec}.{p}") for p in t.own_params(signals[i])
+            )
         return out
 
     def unit(self, key: str) -> str:

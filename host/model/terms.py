@@ -60,11 +60,13 @@ class Term:
     #: is not recorded): every record that ``owns`` selects gets its own parameters
     #: ``record_params`` (units ``record_units``), shared by the term's channels, named
     #: '{term}.{record}.{param}', with columns ``record_columns(signals, sensor, axis)`` ->
-    #: (N, len(record_params)) (linear terms only)
+    #: (N, len(record_params)) (linear terms only); ``record_params_of(signals)`` names the
+    #: subset one record carries when records differ (e.g. one heading where the rest is known)
     record_params: tuple[str, ...] = ()
     record_units: tuple[str, ...] = ()
     record_columns: ColumnFn | None = None
     owns: Callable[[RecordSignals], bool] | None = None
+    record_params_of: Callable[[RecordSignals], tuple[str, ...]] | None = None
     #: the same parameters seen by another sensor (one geometry read by two sensors, e.g. a
     #: face's lean: gravity leaned on the accelerometer, the turn axis leaned on the gyro):
     #: ``twin_columns(signals, twin_sensor, axis)`` -> (N, len(params)) fill ``twin_sensor``'s
@@ -92,6 +94,10 @@ class Term:
     def param_units(self, sensor: str) -> tuple[str, ...]:
         """Units of the parameters for ``sensor``."""
         return tuple(u.replace("{u}", UNIT[sensor]) for u in self.units)
+
+    def own_params(self, sig: RecordSignals) -> tuple[str, ...]:
+        """The unknowns record ``sig`` carries of its own (of :attr:`record_params`)."""
+        return self.record_params if self.record_params_of is None else self.record_params_of(sig)
 
     def owners(self, signals: Sequence[RecordSignals]) -> list[int]:
         """Indices of the records in ``signals`` that carry unknowns of their own
