@@ -7,8 +7,8 @@ count n, the n bytes as read). A plain byte file without the magic is a raw capt
 A capture whose last record is cut short (the program was killed mid-write) keeps every
 complete record and reports the cut; nothing already written is lost. A damaged read header (a
 flipped bit, a byte inserted or lost) loses the read it hit, not the rest: the reader
-resynchronises on the next plausible pair of headers and says what it skipped
-(:class:`CaptureUnwrapper`, :func:`damage_text`).
+resynchronises on its own read headers and says what it skipped (:class:`CaptureUnwrapper`,
+:func:`damage_text`).
 """
 
 from __future__ import annotations
@@ -162,15 +162,16 @@ class CaptureUnwrapper:
     then :meth:`finish` at the end of the file; each returns the recorded port bytes it
     completes.
 
-    Damage is contained to the read it hits: a read header is taken only when it is plausible
-    (its length 1 to :data:`MAX_READ` — the writer never writes an empty read —, its time not
-    before the previous read's) and the
-    next header, where its length says, is plausible too and not earlier nor more than
-    :data:`MAX_GAP_NS` later. Otherwise the bytes are searched for the next such pair of
-    headers: a flipped bit or a byte inserted or deleted loses the read it hit (its bytes are
-    kept when its own header checks and ends before the next good one), and :attr:`skipped`
-    lists each place (file offset, bytes skipped). A read is held until the header after it
-    has come, so memory stays below about 5 × :data:`MAX_READ` beyond what is fed.
+    Damage is contained to the read it hits, for reads of any length: a read header is taken
+    when it is plausible (its length 1 to :data:`MAX_READ` — the writer never writes an empty
+    read —, its time not before the previous read's nor more than :data:`MAX_GAP_NS` after)
+    and :data:`RESYNC_CHAIN` more headers chain on from it, each where the one before ends.
+    Where the chain breaks, the bytes there are parsed the way that keeps the most reads less
+    what its damaged places cost (:func:`_best_path`): a flipped bit or a byte inserted or
+    deleted loses the read it hit (its bytes are kept when its own header checks), and
+    :attr:`skipped` lists each place (file offset, bytes skipped; 0 where a read was cut
+    short). A read is held until the headers after it have come, so memory stays below about
+    5 × :data:`MAX_READ` beyond what is fed.
 
     With ``times=True`` it also keeps each read's host time and where its bytes end in the
     port bytes (:meth:`arrival_ns_at`; :meth:`forget_before` drops what is no longer asked for).
@@ -183,6 +184,7 @@ class CaptureUnwrapper:
         self._base = len(MAGIC)  # file offset of _buf[0]
         self._prev_t: int | None = None
         self._cut = 0  # at the end: bytes of a cut-off last read
+        self._retry_at = 0  # after damage: weigh it again once the file is this long
         self.total = 0  # port bytes passed on so far
         self.skipped: list[tuple[int, int]] = []
         self._reads_ns: list[int] = []
@@ -201,132 +203,135 @@ class CaptureUnwrapper:
         """At the end of the file: the port bytes of the reads held back so far."""
         return self._run(final=True)
 
-    # ---- the checks ----------------------------------------------------------------------
-    def _next_ok(self, buf: bytearray, end: int, t: int, final: bool) -> bool | None:
-        """Is the header at ``end`` (after a read of time ``t``) plausible? None: not yet
-        known (more bytes are needed). The end of the file is, and a header cut off there."""
-        if end + _REC.size <= len(buf):
-            t2, n2 = _REC.unpack_from(buf, end)
-            return 0 < n2 <= MAX_READ and t <= t2 <= t + MAX_GAP_NS
-        if not final:
-            return None
-        return end <= len(buf)
-
-    def _chain(self, buf: bytearray, q: int, final: bool) -> tuple[int, str]:
-        """Follow the headers from a plausible one at ``q``: how many plausible headers come
-        after it (up to :data:`RESYNC_CHAIN`), and how the chain stops: 'long' (that many),
-        'end' (exactly at the end of the file), 'broken', or 'more' (bytes still to come)."""
-        t, n = _REC.unpack_from(buf, q)
-        for steps in range(RESYNC_CHAIN):
-            end = q + _REC.size + n
-            if end + _REC.size > len(buf):
-                if not final:
-                    return steps, "more"
-                return steps, "end" if end == len(buf) else "broken"
-            t2, n2 = _REC.unpack_from(buf, end)
-            if not (0 < n2 <= MAX_READ and t <= t2 <= t + MAX_GAP_NS):
-                return steps, "broken"
-            q, t, n = end, t2, n2
-        return RESYNC_CHAIN, "long"
-
-    def _find(self, buf: bytearray, start: int, final: bool) -> tuple[int, bool]:
-        """The first position from ``start`` where a plausible header starts a chain of
-        :data:`RESYNC_CHAIN` more (one that ends exactly at the end of the file if none
-        does; len(buf) if none at all), and True; or the first position that more bytes must
-        decide, and False (every position before it is no header)."""
-        n_buf = len(buf)
-        arr = np.frombuffer(buf, dtype=np.uint8)
-        lo = start
-        at_end: int | None = None
-        while lo + _REC.size <= n_buf:
-            hi = min(n_buf - _REC.size + 1, lo + (1 << 16))
-            idx = np.arange(lo, hi)
-            n = np.zeros(idx.size, np.uint64)
-            for b in range(4):
-                n |= arr[idx + 8 + b].astype(np.uint64) << np.uint64(8 * b)
-            ok = (n > 0) & (n <= MAX_READ)
-            if self._prev_t is not None:
-                t = np.zeros(idx.size, np.uint64)
-                for b in range(8):
-                    t |= arr[idx + b].astype(np.uint64) << np.uint64(8 * b)
-                prev = np.uint64(self._prev_t)
-                ok &= (t >= prev) & (t <= prev + np.uint64(MAX_GAP_NS))
-            for q in idx[ok].tolist():
-                _, how = self._chain(buf, q, final)
-                if how == "more":
-                    return q, False
-                if how == "long":
-                    return q, True
-                if how == "end" and at_end is None:
-                    at_end = q
-            lo = hi
-        if not final:
-            return max(start, n_buf - _REC.size + 1), False
-        return (at_end if at_end is not None else n_buf), True
-
     # ---- the walk ------------------------------------------------------------------------
+    def _plausible(self, t: int, n: int) -> bool:
+        """A read header's own check: its length 1 to :data:`MAX_READ`, its time not before
+        the previous read's nor more than :data:`MAX_GAP_NS` after it."""
+        if not 0 < n <= MAX_READ:
+            return False
+        return self._prev_t is None or self._prev_t <= t <= self._prev_t + MAX_GAP_NS
+
+    def _bridges(self, buf: bytearray, q: int, t: int, n: int) -> bool:
+        """Does the read at ``q`` (time ``t``, length ``n``) hold, where one bit cleared in
+        its length would end it, a chain of headers that ends where it ends, their times
+        between its and the next one's? (A flipped bit in the length made it swallow the
+        reads after it.)"""
+        end = q + _REC.size + n
+        t_next = _REC.unpack_from(buf, end)[0]
+        bit = 16  # the header found must leave a read of at least one byte
+        while bit <= n:
+            if n & bit:
+                c, t_c = end - bit, t
+                while c < end - _REC.size:
+                    t2, n2 = _REC.unpack_from(buf, c)
+                    if not (0 < n2 <= MAX_READ and t_c <= t2 <= t_next):
+                        break
+                    c, t_c = c + _REC.size + n2, t2
+                if c == end:
+                    return True
+            bit <<= 1
+        return False
+
     def _run(self, final: bool) -> bytes:
         buf = self._buf
         out: list[bytes] = []
         pos = 0
-        while pos + _REC.size <= len(buf):
-            t, n = _REC.unpack_from(buf, pos)
-            end = pos + _REC.size + n
-            own = 0 < n <= MAX_READ and (self._prev_t is None or t >= self._prev_t)
-            if own:
-                verdict = self._next_ok(buf, end, t, final)
-                if verdict is None:
-                    break
-                at_end = final and end + _REC.size > len(buf)
-                if verdict and not (at_end and self._swallows(buf, pos)):
-                    out.append(self._take(buf, t, pos + _REC.size, end))
-                    pos = end
-                    continue
-                if final and end > len(buf) and self._find(buf, pos + 1, final)[0] == len(buf):
-                    break  # a cut-off last read, not damage
-            q, decided = self._find(buf, pos + 1, final)
-            if not decided and len(buf) - pos <= (RESYNC_CHAIN + 2) * (MAX_READ + _REC.size):
-                break  # more bytes will tell (bounded: past that, q is far enough)
-            # the read's own header checks and it ends before the next good header's bytes
-            # (or inside them: a byte lost in that header shifts it back, and garbles its
-            # time, which the next turn then refuses): kept
-            t_q = _REC.unpack_from(buf, q)[0] if q + _REC.size <= len(buf) else t
-            if own and end <= min(q + _REC.size, len(buf)):
-                if t <= t_q or q < end or (q == end and not self._own_time_bad(buf, t, q)):
-                    out.append(self._take(buf, t, pos + _REC.size, end))
-                    if q < end:  # the next header overlaps it: noted, nothing skipped
-                        self._skip(q, 0)
-                    pos = end
-            if q > pos:
-                self._skip(pos, q - pos)
-            pos = q
-            if not decided:
+        # the headers from ``pos`` on checked so far: the last one's position, time and
+        # length, and how many links lead to it (each header where the one before ends,
+        # its length plausible, its time not before nor a week after the one before)
+        chk, depth, t_chk, n_chk = 0, -1, 0, 0
+        while pos < len(buf):
+            if pos + _REC.size <= len(buf):
+                if depth < 0:
+                    t_chk, n_chk = _REC.unpack_from(buf, pos)
+                    chk, depth = pos, 0 if self._plausible(t_chk, n_chk) else -2
+                while 0 <= depth < RESYNC_CHAIN:
+                    end = chk + _REC.size + n_chk
+                    if end + _REC.size > len(buf):
+                        break
+                    t2, n2 = _REC.unpack_from(buf, end)
+                    if not (0 < n2 <= MAX_READ and t_chk <= t2 <= t_chk + MAX_GAP_NS):
+                        depth = -2  # broken
+                        break
+                    chk, depth, t_chk, n_chk = end, depth + 1, t2, n2
+                if depth >= RESYNC_CHAIN:
+                    t, n = _REC.unpack_from(buf, pos)
+                    if not self._bridges(buf, pos, t, n):
+                        out.append(self._take(buf, t, pos + _REC.size, pos + _REC.size + n))
+                        pos += _REC.size + n
+                        depth -= 1
+                        continue
+                elif depth >= 0 and not final:
+                    break  # the headers to come decide
+            elif not final:
                 break
+            depth = -1
+            if not final and self._base + len(buf) < self._retry_at:
+                break  # too few new bytes since the last try to change its answer
+            moved = self._repair(buf, pos, final, out)
+            if moved is None:
+                # try again when the bytes after ``pos`` have grown by a quarter
+                self._retry_at = self._base + len(buf) + max(_REC.size, (len(buf) - pos) // 4)
+                break
+            self._retry_at = 0
+            if moved == pos:
+                break
+            pos = moved
         if final:
             self._cut = len(buf) - pos
         del buf[:pos]
         self._base += pos
         return b"".join(out)
 
-    def _swallows(self, buf: bytearray, pos: int) -> bool:
-        """The last read (at ``pos``) ends at the end of the file: do its bytes hold a chain
-        of headers to that end (its length damaged, the reads after it inside it)?"""
-        return self._find(buf, pos + _REC.size, True)[0] < len(buf)
-
-    def _own_time_bad(self, buf: bytearray, t: int, q: int) -> bool:
-        """A read of time ``t`` ends exactly where the next good header (at ``q``, of an
-        earlier time) starts: the lengths agree, one of the two times is damaged. Is it
-        ``t``? Judged by which one bit flip puts back in order with its neighbours (the read
-        before, the read after ``q``'s); when both or neither could, by the read before."""
-        t_q, n_q = _REC.unpack_from(buf, q)
-        lo = self._prev_t if self._prev_t is not None else 0
-        nxt = q + _REC.size + n_q
-        hi = _REC.unpack_from(buf, nxt)[0] if nxt + _REC.size <= len(buf) else 1 << 64
-        mine = any(lo <= t ^ (1 << b) <= t_q for b in range(64))
-        theirs = any(t <= t_q ^ (1 << b) <= hi for b in range(64))
-        if mine != theirs:
-            return mine
-        return self._prev_t is not None and t_q >= self._prev_t
+    def _repair(self, buf: bytearray, pos: int, final: bool, out: list[bytes]) -> int | None:
+        """Where the chain of headers breaks at or after ``pos``: the parse of the bytes from
+        ``pos`` that keeps the most reads less what its damaged places cost (:func:`_best_path`;
+        a chain of headers shifted by a lost byte wins over a false header that swallows it);
+        its reads are passed on up to :data:`RESYNC_CHAIN` before the end of the bytes at hand
+        (the rest is read again). Returns the position reading goes on from, or None when
+        more bytes must decide."""
+        n_buf = len(buf)
+        lookahead = (RESYNC_CHAIN + 2) * (MAX_READ + _REC.size)
+        limit = min(n_buf, pos + lookahead)
+        p, t, n = _candidates(buf, pos, limit, self._prev_t)
+        forced = n_buf >= pos + lookahead
+        if p.size > _MAX_CANDIDATES:
+            p, t, n = p[:_MAX_CANDIDATES], t[:_MAX_CANDIDATES], n[:_MAX_CANDIDATES]
+            limit, forced = int(p[-1]), True
+        at_eof = final and limit == n_buf
+        path, tail_links = _best_path(p, t, n, pos, limit, at_eof, self._prev_t)
+        if not (at_eof or forced) and tail_links < RESYNC_CHAIN:
+            return None  # the reads to come decide
+        keep = path if at_eof else path[: max(len(path) - max(tail_links, 1), 0)]
+        if not keep and not at_eof:
+            keep = path[:1]
+            if not keep:  # nothing plausible in the whole window: skip it
+                self._skip(pos, limit - _REC.size - pos)
+                return limit - _REC.size
+        here = pos
+        for k, i in enumerate(keep):
+            q = int(p[i])
+            if q > here:
+                self._skip(here, q - here)
+            end = q + _REC.size + int(n[i])
+            nxt = int(p[path[k + 1]]) if k + 1 < len(path) else None
+            if nxt is not None and nxt < end:
+                # the next header starts inside it: cut there, unless by one byte (the read
+                # lost one, or the header its first: the same bytes; passed on whole, they
+                # are right in the second case, and the next read's time is in both)
+                cut = end if end - nxt == 1 else nxt
+                out.append(self._take(buf, int(t[i]), q + _REC.size, cut))
+                self._skip(nxt, 0)
+                here = nxt
+            elif end > n_buf:  # a cut-off last read (final): not passed on
+                return q
+            else:
+                out.append(self._take(buf, int(t[i]), q + _REC.size, end))
+                here = end
+        if at_eof and n_buf - here >= _REC.size:
+            self._skip(here, n_buf - here)  # no read in what is left
+            return n_buf
+        return here
 
     def _skip(self, pos: int, length: int) -> None:
         """Note ``length`` bytes skipped at ``pos`` of the buffer (one place with the last
@@ -372,6 +377,111 @@ class CaptureUnwrapper:
         if k > 0:
             del self._reads_ns[:k]
             del self._reads_end[:k]
+
+
+#: what a damaged place costs, in reads, when the reader weighs parses. Bytes skipped cost more
+#: than a read: a lone plausible header among damaged bytes (one more read, one more skip)
+#: never wins. A read cut short where one damage explains it (a flipped bit of its length,
+#: a byte lost) costs less than a read: the read whose length swallowed the next one, its
+#: header chaining on, is cut there and both kept. A chance header inside a read, where its
+#: length would have to be one bit off, must then chain on exactly to win: a coincidence
+#: of 50 bits or more.
+_SKIP = 1.25
+_CUT = 0.75
+#: the most header candidates weighed at once after damage (bounds the work on hostile bytes)
+_MAX_CANDIDATES = 2048
+
+
+def _candidates(
+    buf: bytearray, lo: int, hi: int, prev_t: int | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions in buf[lo:hi] where a plausible header starts (length 1 to :data:`MAX_READ`,
+    time not before ``prev_t``), with their times (ns) and lengths."""
+    if hi - lo < _REC.size:
+        z = np.zeros(0, np.int64)
+        return z, z.astype(np.uint64), z
+    arr = np.frombuffer(buf, dtype=np.uint8, count=hi, offset=0)[lo:]
+    m = arr.size - _REC.size + 1
+    n = np.zeros(m, np.uint64)
+    for b in range(4):
+        n |= arr[8 + b : 8 + b + m].astype(np.uint64) << np.uint64(8 * b)
+    ok = (n > 0) & (n <= MAX_READ)
+    idx = np.flatnonzero(ok)
+    t = np.zeros(idx.size, np.uint64)
+    for b in range(8):
+        t |= arr[idx + b].astype(np.uint64) << np.uint64(8 * b)
+    if prev_t is not None:
+        keep = t >= np.uint64(prev_t)
+        idx, t = idx[keep], t[keep]
+    return (idx + lo).astype(np.int64), t, n[idx].astype(np.int64)
+
+
+def _best_path(
+    p: np.ndarray,
+    t: np.ndarray,
+    n: np.ndarray,
+    pos: int,
+    limit: int,
+    at_eof: bool,
+    prev_t: int | None,
+) -> tuple[list[int], int]:
+    """The parse of the bytes pos..limit into reads at the candidate headers (positions
+    ``p``, times ``t``, lengths ``n``) that keeps the most reads less :data:`_SKIP` per
+    place skipped and :data:`_CUT` per read cut short (bytes before the first read count
+    as skipped);
+    times never fall nor jump more than :data:`MAX_GAP_NS`. ``at_eof``: limit is the end of
+    the file (a read cut off there is a cut, not damage); else reads may run past it. Returns
+    the candidates' indices in order and how many links without damage end it (the first read
+    comes at most :data:`MAX_GAP_NS` after ``prev_t``)."""
+    m = p.size
+    if m == 0:
+        return [], 0
+    ends = p + _REC.size + n.astype(np.int64)
+    score = np.empty(m)
+    back = np.full(m, -1, np.int64)
+    gap = np.uint64(MAX_GAP_NS)
+    for c in range(m):
+        best = -np.inf
+        if prev_t is None or int(t[c]) - prev_t <= MAX_GAP_NS:
+            best = 1.0 if p[c] == pos else 1.0 - _SKIP
+        if c:
+            # a read ends where the next starts, or before it (bytes skipped), or inside it
+            # where one damage explains it: a byte lost (in its data or the next header), or
+            # one bit of its length flipped (never to a read of no bytes: none is written)
+            cut = p[c] - p[:c] - _REC.size
+            flip = n[:c] ^ np.maximum(cut, 0)
+            fits = (
+                (ends[:c] <= p[c])
+                | ((ends[:c] - p[c] == 1) & (cut >= 0))
+                | ((cut > 0) & ((flip & (flip - 1)) == 0))
+            )
+            ok = fits & (t[:c] <= t[c]) & (t[c] - t[:c] <= gap)
+            if ok.any():
+                cost = np.where(ends[:c] == p[c], 0.0, np.where(cut >= n[:c], _SKIP, _CUT))
+                s = np.where(ok, score[:c] + 1.0 - cost, -np.inf)
+                b = int(np.argmax(s))
+                if s[b] > best:
+                    best, back[c] = float(s[b]), b
+        score[c] = best
+    if at_eof:
+        # the last read: ends at the end (0); runs past it (a cut: not passed on, -1); leaves
+        # less than a header (a cut-off header, 0); leaves more (damage)
+        term = np.where(ends > limit, -1.0, np.where(limit - ends < _REC.size, 0.0, -_SKIP))
+    else:
+        term = np.where(ends + _REC.size > limit, 0.0, -_SKIP)
+    total = score + term
+    c = int(np.argmax(total))
+    if total[c] < (0.0 if at_eof and limit - pos < _REC.size else -_SKIP):
+        return [], 0
+    path = [c]
+    while back[path[-1]] >= 0:
+        path.append(int(back[path[-1]]))
+    path.reverse()
+    links = 0
+    k = len(path) - 1
+    while term[c] >= 0 and k > 0 and ends[path[k - 1]] == p[path[k]]:
+        links, k = links + 1, k - 1
+    return path, links
 
 
 def create_capture_file(path: Path) -> BinaryIO:
