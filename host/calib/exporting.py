@@ -121,8 +121,10 @@ def failures(result: CalibrationResult) -> list[str]:
 
 def marks_of(result: CalibrationResult) -> tuple[str, ...]:
     """The lines every export of ``result`` starts with: that it is simulated, that it
-    failed."""
+    failed, that its PASS is conditional (the model does not fit its records)."""
     out = [result.simulated_line] if result.simulated else []
+    if result.conditional:  # the report says what it means
+        out.append(result.verdict())
     if bad := failures(result):
         out.append(f"FAILED calibration, exported with --allow-fail: {'; '.join(bad)}")
     return tuple(out)

@@ -113,6 +113,9 @@ def test_the_quick_start_ends_on_one_conditional_verdict(quick_start: dict) -> N
     assert f"Report: {Path('DEMO01') / 'DEMO01_result.txt'}" in ending
     assert all(len(ln) <= 80 for ln in ending), ending
     assert all(len(ln) <= 80 for ln in report.splitlines())
+    # what leaves the bench says it too: an export carries the verdict among its marks
+    rc, parm, _ = run(["export", str(d / "DEMO01_result.json"), "--to", "ardupilot"])
+    assert rc == 0 and f"# *** {verdict} ***" in parm.splitlines()[:4]
 
 
 @pytest.mark.slow
@@ -149,6 +152,8 @@ def test_a_model_that_fits_gives_a_plain_verdict_and_no_next_command(tmp_path: P
     assert story["head"] == f"Verdict: {doc['verdict']} (RESULT below)"
     assert story["conclusion"] == doc["verdict"]
     assert story["head_next"] == story["conclusion_next"] == ""
+    rc, parm, _ = run(["export", str(d / "IND01_result.json"), "--to", "ardupilot"])
+    assert rc == 0 and "PASS" not in parm and "conditional" not in parm
 
 
 def test_a_hidden_step_names_the_records_directory_not_the_output(tmp_path: Path) -> None:
