@@ -45,7 +45,7 @@ def test_the_pdf_holds_the_report_and_its_residual_plots(published: Path, tmp_pa
     pdf = published / "PDF1_result.pdf"
     assert pdf.is_file() and pdf.read_bytes()[:5] == b"%PDF-"
     res = CalibrationResult.load(published / "PDF1_result.json")
-    report = format_report(res)
+    report = format_report(res, published)  # the next command names the records
     assert report == (published / "PDF1_result.txt").read_text(encoding="utf-8").replace(
         res.created.replace("T", " "), res.created.replace("T", " ")
     )
