@@ -4,8 +4,9 @@ One code path for both back ends (SQLAlchemy Core): an SQLite file by default �
 every transaction ``BEGIN IMMEDIATE`` and a long busy timeout, so several processes on one
 machine can write at once — or a PostgreSQL server for many benches
 (``postgresql://user@host/db``; the driver is psycopg 3). :func:`archive_url` says which:
-``--archive URL`` or a path, else ``$IMU_BENCH_ARCHIVE``, else ``imu_archive.sqlite`` in the
-current directory.
+``--archive URL`` or a path, else ``$IMU_BENCH_ARCHIVE``, else the user's own file
+(:func:`default_file`). The one place the back ends part is how a calibration's parameter
+and record rows go in (PostgreSQL: one COPY stream; SQLite: one executemany).
 """
 
 from __future__ import annotations
@@ -19,8 +20,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from sqlalchemy import Connection, Engine, create_engine, event, func, select, true
-from sqlalchemy.exc import ArgumentError, IntegrityError, NoSuchModuleError, OperationalError
+from sqlalchemy import Connection, Engine, Table, create_engine, event, func, select, true
+from sqlalchemy.dialects.postgresql import insert as pg_insert
+from sqlalchemy.dialects.sqlite import insert as sqlite_insert
+from sqlalchemy.exc import ArgumentError, NoSuchModuleError, OperationalError
 
 from host.archive.entry import Entry, Parameter, entry_from_directory
 from host.archive.schema import (
@@ -205,48 +208,36 @@ class Archive:
 
     def add_many(self, entries: Sequence[Entry]) -> list[tuple[int, bool]]:
         """Archive ``entries`` in one transaction (all or none); per entry (its id, whether
-        it was new), as :meth:`add`."""
-        hashes = [e.result_hash for e in entries]
-        try:
-            with self.engine.connect() as conn, conn.begin():
-                have = self._ids_of(conn, hashes)
-                new: dict[str, Entry] = {}
-                for e in entries:
-                    if e.result_hash not in have:
-                        new.setdefault(e.result_hash, e)
-                if new:
-                    back = conn.execute(
-                        calibrations.insert().returning(
-                            calibrations.c.result_hash, calibrations.c.id
-                        ),
-                        [_row_of(e) for e in new.values()],
-                    )
-                    ids = {str(h): int(k) for h, k in back}
-                    conn.execute(
-                        parameters.insert(),
-                        [_parameter_row(ids[h], i, p) for h, e in new.items()
-                         for i, p in enumerate(e.parameters)],
-                    )  # fmt: skip
-                    files = [
-                        {"calibration_id": ids[h], "name": n, "sha256": s}
-                        for h, e in new.items()
-                        for n, s in e.record_hashes
-                    ]
-                    if files:
-                        conn.execute(record_files.insert(), files)
-                    have.update(ids)
-        except IntegrityError:  # another process archived some of them meanwhile
-            if len(entries) > 1:
-                return [self.add(e) for e in entries]
-            with self.engine.connect() as conn:
-                again = self._ids_of(conn, hashes)
-            if not again:
-                raise
-            return [(again[hashes[0]], False)]
+        it was new), as :meth:`add`.
+
+        Three statements per batch, whatever its size: the calibrations (a result already
+        there is skipped by its unique hash, not looked up first; a process adding the same
+        result at the same moment waits for the other's transaction and then skips it), then
+        all their parameters and all their record hashes (:func:`_insert_rows`)."""
+        # one row per result, in hash order: concurrent batches take the rows' locks in the
+        # same order, so two of them never wait on each other
+        unique = sorted({e.result_hash: e for e in reversed(entries)}.items())
+        with self.engine.connect() as conn, conn.begin():
+            ids: dict[str, int] = {}
+            if unique:
+                back = conn.execute(_insert_new(conn), [_row_of(e) for _, e in unique])
+                ids = {str(h): int(k) for h, k in back}
+            new = [(ids[h], e) for h, e in unique if h in ids]
+            _insert_rows(
+                conn, parameters,
+                [_parameter_row(cid, i, p) for cid, e in new for i, p in enumerate(e.parameters)],
+            )  # fmt: skip
+            _insert_rows(
+                conn, record_files,
+                [{"calibration_id": cid, "name": n, "sha256": s}
+                 for cid, e in new for n, s in e.record_hashes],
+            )  # fmt: skip
+            have = {**self._ids_of(conn, [h for h, _ in unique if h not in ids]), **ids}
         seen: set[str] = set()
         out = []
-        for h in hashes:
-            out.append((have[h], h in new and h not in seen))
+        for e in entries:
+            h = e.result_hash
+            out.append((have[h], h in ids and h not in seen))
             seen.add(h)
         return out
 
@@ -341,21 +332,25 @@ class Archive:
         when the same records were archived with several results (recomputed), the latest
         archived counts. ``latest_per_unit``: only each serial's latest session."""
         c = calibrations.c
-        # one session per set of records: its latest archived result
-        latest = select(func.max(c.id).label("id")).group_by(c.records_hash)
-        for col, v in ((c.serial, serial), (c.bench, bench), (c.lot, lot)):
-            if v is not None:
-                latest = latest.where(col == v)
-        sess = latest.subquery()
-        per_unit = func.row_number().over(
-            partition_by=c.serial, order_by=(c.measured_at.desc(), c.id.desc())
-        )
-        chosen = (
-            select(c.id, c.serial, c.bench, c.measured_at, c.self_test, c.verdict,
-                   per_unit.label("ru"))
-            .join(sess, sess.c.id == c.id)
-            .subquery()
+        later = calibrations.alias("later")
+        # one session per set of records: its latest archived result (no later one with the
+        # same records); each condition is answered from an index, no calibration row is read
+        sessions = select(
+            c.id, c.serial, c.bench, c.measured_at, c.self_test, c.verdict,
+            func.row_number()
+            .over(partition_by=c.serial, order_by=(c.measured_at.desc(), c.id.desc()))
+            .label("ru"),
         )  # fmt: skip
+        newer = select(later.c.id).where(later.c.records_hash == c.records_hash, later.c.id > c.id)
+        for col, lcol, v in (
+            (c.serial, later.c.serial, serial),
+            (c.bench, later.c.bench, bench),
+            (c.lot, later.c.lot, lot),
+        ):
+            if v is not None:
+                sessions = sessions.where(col == v)
+                newer = newer.where(lcol == v)
+        chosen = sessions.where(~newer.exists()).subquery()
         p = parameters.c
         final = (
             select(
@@ -412,8 +407,15 @@ def _value_table(rows: Sequence[Any]) -> ValueTable:
     )  # fmt: skip
 
 
+def _covariance_text(cov: Sequence[Sequence[float]]) -> str:
+    """The covariance as JSON (a list of rows; NaN and ±inf as null)."""
+    m = np.asarray(cov, dtype=np.float64)
+    out = m.astype(object)
+    out[~np.isfinite(m)] = None
+    return json.dumps(out.tolist())
+
+
 def _row_of(e: Entry) -> dict[str, Any]:
-    cov = [[_null(x) for x in row] for row in e.covariance]
     return {
         "result_hash": e.result_hash, "serial": e.serial, "bench": e.bench,
         "operator": e.operator, "lot": e.lot, "firmware": e.firmware,
@@ -423,9 +425,36 @@ def _row_of(e: Entry) -> dict[str, Any]:
         "model": e.model, "chi2": _null(e.chi2), "dof": int(e.dof), "rms_z": _null(e.rms_z),
         "p": _null(e.p), "fit_verdict": e.fit_verdict, "verdict": e.verdict,
         "self_test": e.self_test, "report_hash": e.report_hash, "records_hash": e.records_hash,
-        "covariance_kind": e.covariance_kind, "covariance": json.dumps(cov),
+        "covariance_kind": e.covariance_kind, "covariance": _covariance_text(e.covariance),
         "result_json": e.result_json,
     }  # fmt: skip
+
+
+def _insert_new(conn: Connection) -> Any:
+    """INSERT of calibration rows that skips a result hash already archived (ON CONFLICT DO
+    NOTHING: nothing is updated) and returns (result_hash, id) of the rows it inserted."""
+    make = pg_insert if conn.dialect.name == "postgresql" else sqlite_insert
+    return (
+        make(calibrations)
+        .on_conflict_do_nothing(index_elements=["result_hash"])
+        .returning(calibrations.c.result_hash, calibrations.c.id)
+    )
+
+
+def _insert_rows(conn: Connection, table: Table, rows: list[dict[str, Any]]) -> None:
+    """Insert ``rows`` (dicts with the same keys) into ``table`` in this transaction:
+    PostgreSQL takes them as one COPY stream (a round trip and a parse per row cost more than
+    the rows), SQLite as one executemany in this process."""
+    if not rows:
+        return
+    if conn.dialect.name != "postgresql":
+        conn.execute(table.insert(), rows)
+        return
+    cols = list(rows[0])
+    with conn.connection.driver_connection.cursor() as cur:  # type: ignore[union-attr]
+        with cur.copy(f"COPY {table.name} ({', '.join(cols)}) FROM STDIN") as copy:
+            for r in rows:
+                copy.write_row([r[k] for k in cols])
 
 
 def _parameter_row(cid: int, position: int, p: Parameter) -> dict[str, Any]:

@@ -98,9 +98,8 @@ def test_values_filter_and_take_each_units_latest_session(archive_url: str) -> N
 def test_the_schema_carries_its_version_and_a_newer_archive_is_refused(archive_url: str) -> None:
     with Archive(archive_url) as a:
         with a.engine.connect() as conn:
-            assert list(conn.execute(select(schema_versions.c.version)).scalars()) == [
-                SCHEMA_VERSION
-            ]
+            versions = conn.execute(select(schema_versions.c.version)).scalars()
+            assert sorted(versions) == list(range(1, SCHEMA_VERSION + 1))
         with a.engine.connect() as conn, conn.begin():
             conn.execute(
                 schema_versions.insert().values(
@@ -118,7 +117,97 @@ def test_reopening_does_not_migrate_again(archive_url: str) -> None:
         assert a.count() == (1, len(NAMES))
         with a.engine.connect() as conn:
             n = conn.execute(text("SELECT count(*) FROM archive_schema")).scalar_one()
-        assert n == 1
+        assert n == SCHEMA_VERSION
+
+
+def _reference_values(entries: list[Entry], latest_per_unit: bool, **where: str) -> list:
+    """The rule of Archive.values written out in Python: of the entries matching ``where``,
+    per set of records the latest archived (the last added), per unit the latest by
+    (time, order added) when asked; (serial, time, name, value) in the store's order."""
+    kept = [
+        (i, e) for i, e in enumerate(entries) if all(getattr(e, k) == v for k, v in where.items())
+    ]
+    last = {e.records_hash: i for i, e in kept}
+    sessions = [(i, e) for i, e in kept if last[e.records_hash] == i]
+    if latest_per_unit:
+        best: dict[str, tuple[str, int]] = {}
+        for i, e in sessions:
+            best[e.serial] = max(best.get(e.serial, ("", -1)), (e.measured_at, i))
+        sessions = [(i, e) for i, e in sessions if best[e.serial][1] == i]
+    sessions.sort(key=lambda ie: (ie[1].serial, ie[1].measured_at, ie[0]))
+    return [(e.serial, e.measured_at, p.name, p.value) for _, e in sessions for p in e.parameters]
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_values_choose_the_sessions_by_the_documented_rule(archive_url: str, seed: int) -> None:
+    """Units with several sessions on two benches and two lots, some sessions archived again
+    with a new result (recomputed, sometimes under another bench or lot name): every filter,
+    with and without latest_per_unit, against the rule written out in Python."""
+    rng = np.random.default_rng(seed)
+    entries: list[Entry] = []
+    for u in range(5):
+        for s in range(int(rng.integers(1, 4))):
+            bench, lot = f"B{rng.integers(1, 3)}", f"L{rng.integers(1, 3)}"
+            e = make_entry(f"U{u}", bench, s, rng.normal(size=len(NAMES)), SIGMA,
+                           day=int(rng.integers(0, 3)), lot=lot)  # fmt: skip
+            entries.append(e)
+            if rng.random() < 0.5:  # recomputed: same records, a new result
+                entries.append(dataclasses.replace(
+                    e, result_hash=e.result_hash[::-1], bench=f"B{rng.integers(1, 3)}",
+                    parameters=tuple(dataclasses.replace(p, value=p.value + 1)
+                                     for p in e.parameters),
+                ))  # fmt: skip
+    with Archive(archive_url) as a:
+        for e in entries:
+            a.add(e)
+        for where in ({}, {"serial": "U1"}, {"bench": "B1"}, {"lot": "L2"}):
+            for latest in (False, True):
+                v = a.values(latest_per_unit=latest, **where)
+                got = list(zip(v.serial, v.measured_at, v.name, v.value, strict=True))
+                assert got == _reference_values(entries, latest, **where), (where, latest)
+
+
+def test_an_archive_of_version_1_is_migrated_and_keeps_its_rows(
+    archive_url: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from sqlalchemy import create_engine, inspect
+
+    from host.archive import schema, store
+
+    entries = [_entry("U1", s, day=s) for s in range(3)] + [_entry("U2", 0)]
+    engine = create_engine(store.archive_url(archive_url))
+    with monkeypatch.context() as m:
+        m.setattr(schema, "MIGRATIONS", schema.MIGRATIONS[:1])
+        m.setattr(schema, "SCHEMA_VERSION", 1)
+        assert schema.migrate(engine.connect) == 1
+    with engine.begin() as conn:  # rows written by the version-1 program
+        for e in entries:
+            cid = conn.execute(
+                schema.calibrations.insert().returning(schema.calibrations.c.id),
+                store._row_of(e),
+            ).scalar_one()
+            conn.execute(
+                schema.parameters.insert(),
+                [store._parameter_row(cid, i, p) for i, p in enumerate(e.parameters)],
+            )
+    engine.dispose()
+    with Archive(archive_url) as a:
+        assert a.count() == (4, 4 * len(NAMES))
+        latest = a.values(["A0x"], latest_per_unit=True)
+        assert list(latest.serial) == ["U1", "U2"] and list(latest.value) == [2.0, 0.0]
+        assert _same(
+            a.entry(entries[1].result_hash), dataclasses.replace(entries[1], record_hashes=())
+        )
+        with a.engine.connect() as conn:
+            names = {ix["name"] for ix in inspect(conn).get_indexes("calibrations")}
+            assert "ix_calibrations_unit_sessions" in names
+            assert "ix_calibrations_serial_time" not in names
+            if a.backend == "postgresql":  # the large columns compressed with lz4
+                kinds = conn.execute(text(
+                    "SELECT attname, attcompression FROM pg_attribute WHERE attrelid = "
+                    "'calibrations'::regclass AND attname IN ('result_json', 'covariance')"
+                )).all()  # fmt: skip
+                assert {k for _, k in kinds} == {"l"}
 
 
 def test_an_sqlite_archive_uses_the_wal_journal(tmp_path: Path) -> None:
