@@ -185,6 +185,21 @@ def _first(metas: Sequence[Mapping[str, str]], key: str) -> str:
     return ""
 
 
+def self_test_outcome(metas: Sequence[Mapping[str, str]], where: object) -> str:
+    """The session's self-test as its records' headers say it (``self_test`` line, written by
+    :meth:`host.wire.selftest.SelfTest.meta`): 'pass', 'fail' or '' (not run, or no verdict).
+    UserError naming ``where`` for any other text."""
+    outcome = _first(metas, "self_test").lower()
+    if outcome not in SELF_TEST_VALUES:
+        raise UserError(f"{where}: records say self_test: {outcome!r} (expected pass or fail)")
+    return outcome
+
+
+def archived_verdict(all_passed: bool, self_test: str) -> str:
+    """'pass' or 'fail' as archived: the report's verdict, failed by a failed self-test."""
+    return "pass" if all_passed and self_test != "fail" else "fail"
+
+
 def entry_from_directory(
     directory: str | os.PathLike[str],
     *,
@@ -225,9 +240,7 @@ def entry_from_directory(
     t = t[np.isfinite(t)]
     starts = sorted(utc_iso(m["start_time"]) for m in metas if m.get("start_time"))
     measured_at = starts[0] if starts else utc_iso(result.created)
-    self_test = _first(metas, "self_test").lower()
-    if self_test not in SELF_TEST_VALUES:
-        raise UserError(f"{path}: records say self_test: {self_test!r} (expected pass or fail)")
+    self_test = self_test_outcome(metas, path)
     params = tuple(
         Parameter(
             p.name, p.term, p.sensor, p.axis, p.unit, p.value, p.stderr, p.tolerance, p.passed
@@ -258,7 +271,7 @@ def entry_from_directory(
         rms_z=fit.rms_z if fit else math.nan,
         p=fit.p if fit else math.nan,
         fit_verdict=fit.verdict if fit else "",
-        verdict="pass" if result.all_passed and self_test != "fail" else "fail",
+        verdict=archived_verdict(result.all_passed, self_test),
         self_test=self_test,
         report_hash=sha256_bytes(report.read_bytes()),
         records_hash=records_digest(hashes),
