@@ -5,6 +5,7 @@ one way and the library can be used without the command line (issue 14)."""
 from __future__ import annotations
 
 import ast
+import functools
 import io
 import re
 import tokenize
@@ -30,22 +31,34 @@ def modules() -> dict[str, Path]:
     return {module_name(p): p for p in sorted(HOST.rglob("*.py"))}
 
 
+@functools.cache
+def parsed(path: Path) -> ast.Module:
+    """A source file's tree, parsed once per run (the tests only read it)."""
+    return ast.parse(path.read_text(encoding="utf-8"), str(path))
+
+
+@functools.cache
+def imported_names(path: Path) -> tuple[str, ...]:
+    """Every dotted name ``path`` imports, at any depth of the code (lazy imports count);
+    ``from host.wire import frames`` gives host.wire.frames and host.wire. Walked once per
+    run: the tree walk is what the graph tests spend their time on."""
+    out: list[str] = []
+    for node in ast.walk(parsed(path)):
+        if isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out += [f"{node.module}.{a.name}" for a in node.names] + [node.module]
+    return tuple(out)
+
+
 def imports_of(path: Path, known: set[str]) -> set[str]:
     """Every host module ``path`` imports, at any depth of the code (lazy imports count)."""
     out: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
-        if isinstance(node, ast.Import):
-            names = [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            # ``from host.wire import frames`` imports host.wire.frames
-            names = [f"{node.module}.{a.name}" for a in node.names] + [node.module]
-        else:
-            continue
-        for name in names:
-            while name and name not in known:
-                name = name.rpartition(".")[0]
-            if name and name != "host":  # the package root holds only the version
-                out.add(name)
+    for name in imported_names(path):
+        while name and name not in known:
+            name = name.rpartition(".")[0]
+        if name and name != "host":  # the package root holds only the version
+            out.add(name)
     return out
 
 
@@ -201,7 +214,7 @@ def test_every_import_of_a_host_module_names_one_that_exists() -> None:
     known = set(modules())
     missing = []
     for m, path in modules().items():
-        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        for node in ast.walk(parsed(path)):
             if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
                 names = [node.module]
             elif isinstance(node, ast.Import):
@@ -270,7 +283,7 @@ def top_level_names(path: Path) -> set[str]:
     """The names a module defines or imports at its top level (also those it declares for
     type checkers under ``if TYPE_CHECKING:``, as host/__init__.py its lazily imported API)."""
     names: set[str] = set()
-    body = ast.parse(path.read_text(encoding="utf-8")).body
+    body = list(parsed(path).body)  # a copy: the shared tree stays as parsed
     for node in list(body):
         if isinstance(node, ast.If) and ast.unparse(node.test) in (
             "TYPE_CHECKING",
