@@ -71,21 +71,23 @@ def lower_hull(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Indices of the lower convex hull of points sorted by x (among equal x, by y), from the
     first point to the last, collinear points left out: Andrew's monotone chain.
 
-    Vectorised: a point strictly above the segment between its two neighbours is above the
-    hull, so all such points are dropped at once, and again among what is left, until a pass
-    drops few (a few passes: each about halves random points); the candidates left are walked
-    by the monotone chain (the same cross products, so the same hull as walking them all).
-    Points on a neighbours' segment stay for the walk: of two equal points each is on the
-    segment through the other, and dropping both would lose a vertex.
+    Vectorised: a point on or above the segment between its two neighbours is no vertex, so
+    all such points are dropped at once, and again among what is left, until a pass drops few
+    (a few passes: each about halves random points, and the samples of one read, which share
+    its arrival time, go in one); the candidates left are walked by the monotone chain (the
+    same cross products, so the same hull as walking them all). A point equal to a neighbour
+    stays for the walk: of two equal points each is on the segment through the other, and
+    dropping both would lose a vertex.
     """
     xs, ys = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
     idx = np.arange(xs.size)
     while idx.size > _HULL_WALK:
         cx, cy = xs[idx], ys[idx]
-        ox, oy = cx[:-2], cy[:-2]
-        cross = (cx[1:-1] - ox) * (cy[2:] - oy) - (cy[1:-1] - oy) * (cx[2:] - ox)
+        ox, oy, px, py, qx, qy = cx[:-2], cy[:-2], cx[1:-1], cy[1:-1], cx[2:], cy[2:]
+        cross = (px - ox) * (qy - oy) - (py - oy) * (qx - ox)
+        repeat = ((px == ox) & (py == oy)) | ((px == qx) & (py == qy))
         keep = np.ones(idx.size, dtype=bool)
-        keep[1:-1] = ~(cross < 0)  # a nan keeps its point for the walk
+        keep[1:-1] = ~((cross < 0) | ((cross == 0) & ~repeat))  # a nan keeps its point
         left = int(np.count_nonzero(keep))
         idx = idx[keep]
         if 8 * left > 7 * keep.size:  # under 1/8 dropped: the walk is cheaper now
@@ -179,7 +181,7 @@ def _refine_on_bin_floors(
     x: np.ndarray, y: np.ndarray, a: float, b: float, bin_us: float = 1e6
 ) -> tuple[float, float]:
     """Refine the hull line: the floor (lowest point) of each ``bin_us`` bin of the detrended
-    points, then a robust least-squares line through the floors.
+    points (sorted by x), then a robust least-squares line through the floors.
 
     The hull edge at the mean is exact for the points it touches but can be short, so its
     slope is noisy; the floors of many bins pin the slope down. The line is then lowered to
@@ -189,10 +191,16 @@ def _refine_on_bin_floors(
         return a, b
     r = y - (a + b * x)
     bins = ((x - x[0]) // bin_us).astype(np.int64)
-    order = np.lexsort((r, bins))
-    first = np.flatnonzero(np.diff(bins[order], prepend=-1))
-    counts = np.diff(np.append(first, order.size))
-    pick = order[first[counts >= 5]]
+    if np.all(np.isfinite(r)):  # x is sorted: a bin is a run, its floor its first lowest point
+        first = np.flatnonzero(np.diff(bins, prepend=-1))
+        counts = np.diff(np.append(first, r.size))
+        at = np.flatnonzero(r == np.repeat(np.minimum.reduceat(r, first), counts))
+        pick = at[np.flatnonzero(np.diff(bins[at], prepend=-1))][counts >= 5]
+    else:
+        order = np.lexsort((r, bins))
+        first = np.flatnonzero(np.diff(bins[order], prepend=-1))
+        counts = np.diff(np.append(first, order.size))
+        pick = order[first[counts >= 5]]
     if pick.size < 4:
         return a, b
     fx, fr = x[pick], r[pick]

@@ -97,8 +97,8 @@ class _WindowFitter:
     def held(self) -> int:
         return int(self.px.size)
 
-    def _fit(self, sel: np.ndarray, centre: float) -> tuple[float, ClockMap] | None:
-        x, y = self.px[sel], self.py[sel]
+    def _fit(self, stop: int, centre: float) -> tuple[float, ClockMap] | None:
+        x, y = self.px[:stop], self.py[:stop]
         if x.size < 2 or not x[-1] > x[0]:
             return None
         m = fit_min_delay(x, y)
@@ -134,12 +134,13 @@ class _WindowFitter:
                     break
             elif not self.px[-1] > end:
                 break
-            fitted = self._fit(self.px <= end, start + self.h)
+            # the points are in device-time order: a window is a slice (a view, no copy)
+            fitted = self._fit(int(np.searchsorted(self.px, end, side="right")), start + self.h)
             if fitted is not None:
                 out.append(fitted)
             self.k += 1
-            keep = self.px >= x0 + self.k * self.h
-            self.px, self.py = self.px[keep], self.py[keep]
+            first = int(np.searchsorted(self.px, x0 + self.k * self.h, side="left"))
+            self.px, self.py = self.px[first:], self.py[first:]
             if self.px.size and self.px[0] > x0 + self.k * self.h + self.w:
                 # skip the empty windows of a gap: to the first window holding the next point
                 self.k = int(np.ceil((self.px[0] - x0 - self.w) / self.h))
@@ -420,8 +421,9 @@ def build_timeline(
 def fit_offline(
     device_us: np.ndarray, floor_ns: np.ndarray, window_s: float = 60.0
 ) -> PiecewiseClockMap:
-    """Best map over a whole capture: minimum-delay lines in half-overlapping windows (the
-    windows of :class:`TimelineBuilder`, which fits them as the points stream in)."""
+    """Best map over a whole capture (points in device-time order): minimum-delay lines in
+    half-overlapping windows (the windows of :class:`TimelineBuilder`, which fits them as the
+    points stream in)."""
     x = np.asarray(device_us, dtype=np.float64)
     y = np.asarray(floor_ns, dtype=np.float64)
     fitter = _WindowFitter(window_s, None if x.size == 0 else float(x[0]))

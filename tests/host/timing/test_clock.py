@@ -107,14 +107,17 @@ def test_lower_hull_is_the_walked_hull_and_lies_under_every_point(
     n=st.integers(2, 4000),
     skew_ppm=st.floats(-200, 200),
     latency_ms=st.floats(0.01, 30),
+    per_read=st.integers(1, 200),
     seed=st.integers(0, 2**32 - 1),
 )
 def test_min_delay_fit_with_the_vectorised_hull_is_the_walked_hulls_fit(
-    n: int, skew_ppm: float, latency_ms: float, seed: int
+    n: int, skew_ppm: float, latency_ms: float, per_read: int, seed: int
 ) -> None:
     rng = np.random.default_rng(seed)
     x = np.cumsum(rng.integers(1, 40_000, n)).astype(float)  # µs, increasing
     y = 5e11 + (1000 + skew_ppm / 1000) * x + rng.exponential(latency_ms * 1e6, n)
+    last = np.minimum((np.arange(n) // per_read + 1) * per_read, n) - 1
+    y = np.maximum.accumulate(y)[last]  # the samples of one read share its arrival
     fast = clock.fit_min_delay(x, y)
     walk = lambda a, b: np.asarray(_walked_hull(a.tolist(), b.tolist()), dtype=np.int64)  # noqa: E731
     with mock.patch.object(clock, "lower_hull", walk):
