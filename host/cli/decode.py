@@ -19,7 +19,6 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from host.board.hello import check_spec
 from host.timing import timeline
 from host.wire import capture, sensor
 from host.wire.bulk import (
@@ -102,14 +101,17 @@ class _Decode:
     def add(self, result: BulkResult, arrivals: np.ndarray | None) -> None:
         self.capture = arrivals is not None
         new = [(o, f) for o, f in result.others if f.name == "HELLO"]
-        for o, f in new if not self.args.stats else ():
-            check_spec(
-                f.fields["spec_fingerprint"],
-                who=f"{self.path}: the firmware whose HELLO is at byte {o}",
-                remedy="its frames cannot be read as this spec's; decode it with the host of "
-                "that firmware's version (decode --stats still counts the frames)",
-                protocol_version=f.fields["protocol_version"],
-            )
+        if new and not self.args.stats:
+            from host.board.hello import check_spec  # (imports the link, pyserial: when needed)
+
+            for o, f in new:
+                check_spec(
+                    f.fields["spec_fingerprint"],
+                    who=f"{self.path}: the firmware whose HELLO is at byte {o}",
+                    remedy="its frames cannot be read as this spec's; decode it with the host "
+                    "of that firmware's version (decode --stats still counts the frames)",
+                    protocol_version=f.fields["protocol_version"],
+                )
         self.hellos += new
         if self.config is not None:  # a later HELLO: the samples after it scale by it
             self.scales += [(o, cfg) for o, f in new if (cfg := _hello_config(f)) is not None]
