@@ -46,13 +46,16 @@ from host.session.records import HEADING_KEY, STATIC_NAMES, Record, turn_window_
 class OperatorTime:
     """What a record costs the operator, s: ``place`` the cube on a face against the fence,
     ``place_tilted`` on an edge (a 45° wedge), ``settle`` before the start beep, ``turn_ready``
-    the 'get ready' before each turn and the return against the ruler after it. The record's
-    own length (accumulation time, or the fixed turn window of method.md §4) is added."""
+    the 'get ready' before each turn and the return against the ruler after it, ``soak`` the
+    wait until the chip has settled at another temperature (another room, a warm box) and its
+    warm-up. The record's own length (accumulation time, or the fixed turn window of method.md
+    §4) is added."""
 
     place: float = 15.0
     place_tilted: float = 40.0
     settle: float = 3.0
     turn_ready: float = 8.0
+    soak: float = 1800.0
 
 
 #: the operator's times when nobody says otherwise
@@ -65,12 +68,15 @@ class Candidate:
 
     ``records``: the records it adds (name, up vector in chip axes, kind, seconds, turns,
     direction +1 ccw / -1 cw); ``operator_s``: what it costs the operator, s; ``pace``: turns
-    made this many times as fast as the operator's own (1: the same hand)."""
+    made this many times as fast as the operator's own (1: the same hand);
+    ``temp_offset_c``: its records at this many °C from the session's mean chip temperature
+    (a sitting at another temperature)."""
 
     label: str
     records: tuple[tuple[str, tuple[float, float, float], str, float, int, int], ...]
     operator_s: float
     pace: float = 1.0
+    temp_offset_c: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -246,12 +252,15 @@ def candidates(
     *,
     tilted: bool = True,
     paces: Sequence[float] = (1.0,),
+    temperatures: Sequence[float] = (),
 ) -> list[Candidate]:
     """The records the operator could measure next: each face again (for each length in
     ``static_s``, s), each 45° attitude of :func:`host.bench.plan.tilted_45` (``tilted``; the
-    first length), and a pair of turns (ccw and cw, ``turns`` each, the method's window)
-    about each axis at each of ``paces`` (×2: twice as fast as the operator turned). Record
-    names are the plan's (``x_up``, ``tilt_45_3``, ``x_ccw``)."""
+    first length), a pair of turns (ccw and cw, ``turns`` each, the method's window)
+    about each axis at each of ``paces`` (×2: twice as fast as the operator turned), and for
+    each of ``temperatures`` (°C from the session's mean chip temperature) a sitting there:
+    the six faces again after ``time.soak``. Record names are the plan's (``x_up``,
+    ``tilt_45_3``, ``x_ccw``)."""
     lengths = [float(static_s)] if isinstance(static_s, int | float) else list(static_s)
     out: list[Candidate] = []
     for seconds in lengths:
@@ -274,7 +283,23 @@ def candidates(
             label = f"{ax} turns, {turns} each way"
             label += "" if pace == 1.0 else f", {pace:g}× as fast"
             out.append(Candidate(label, pair, cost, pace))
+    seconds = lengths[0]
+    faces = tuple((f, _face_up(f), "static", seconds, 0, 0) for f in STATIC_NAMES)
+    for dt in temperatures:
+        label = f"6 faces at {dt:+g} °C, {seconds:g} s"  # a sitting at another temperature
+        cost = time.soak + len(faces) * (time.place + time.settle + seconds)
+        out.append(Candidate(label, faces, cost, temp_offset_c=float(dt)))
     return out
+
+
+#: a sitting at another temperature: this far from the session's, °C (a room or a warm box)
+OTHER_TEMPERATURE_C = 15.0
+
+
+def has_temperature_term(model: Sequence[ModelTerm]) -> bool:
+    """Whether ``model`` has a term of the chip temperature (only a sitting at another
+    temperature determines it well)."""
+    return any("temperature" in mt.term.name for mt in model)
 
 
 def _format_up(up: Sequence[float]) -> str:
@@ -342,7 +367,8 @@ class Augmenter:
             name = unique_name(base, records)
             records[name] = synthetic_record(
                 name, up, kind, seconds, g=self.g, values=self.values, accel_sd=self.accel_sd,
-                gyro_sd=self.gyro_sd, dt_s=self.dt_s, temp_c=self.temp_c, turns=n_turns,
+                gyro_sd=self.gyro_sd, dt_s=self.dt_s, temp_c=self.temp_c + cand.temp_offset_c,
+                turns=n_turns,
                 direction=direction, meta=self.meta,
                 rng=np.random.default_rng([self.seed, zlib.crc32(name.encode())]),
                 profile=self._profile(int(np.argmax(np.abs(up))), cand.pace),
@@ -363,8 +389,11 @@ def plan_next(
     progress: Callable[[int, int, str], None] | None = None,
     seed: int = 0,
     target: float | None = None,
+    temperature: bool | None = None,
 ) -> NextPlan:
-    """Rank the records the operator could measure next (:func:`candidates`, or ``only``) by
+    """Rank the records the operator could measure next (:func:`candidates`, with a sitting
+    at another temperature when ``temperature`` — None: when the model has a temperature term
+    (:func:`has_temperature_term`) — or ``only``) by
     how much each shrinks the worst σ/tolerance of ``model`` per minute of operator time —
     or, with a ``target`` σ/tolerance, the :func:`excess` over it of all values (several
     values near the worst are then shrunk together, not one at a time).
@@ -380,7 +409,13 @@ def plan_next(
     undetermined_now = {n for n, s in sigma_now.items() if not math.isfinite(s)}
 
     hand = Augmenter(session, _values(fit), g, seed)
-    todo = list(only) if only is not None else candidates(hand.static_s, hand.turns, time)
+    if temperature is None:
+        temperature = has_temperature_term(model)
+    temps = (OTHER_TEMPERATURE_C,) if temperature else ()
+    todo = (
+        list(only) if only is not None
+        else candidates(hand.static_s, hand.turns, time, temperatures=temps)
+    )  # fmt: skip
     ranked: list[Ranked] = []
     for i, cand in enumerate(todo):
         if progress is not None:
@@ -405,8 +440,8 @@ def plan_next(
     if progress is not None:
         progress(len(todo), len(todo), "")
     ranked.sort(key=lambda r: (-len(r.determines), -r.gain_per_min, r.candidate.operator_s))
-    notes = (
-        "a sitting at another temperature is not ranked: the planner changes the attitude and "
-        "the length of records, not the chip's temperature",
-    )
+    notes = () if any(c.temp_offset_c for c in todo) else (
+        "a sitting at another temperature is ranked only for a model with a temperature term "
+        "(or plan --separate with one)",
+    )  # fmt: skip
     return NextPlan(worst_now, worst_name, sigma_now, tuple(ranked), notes)

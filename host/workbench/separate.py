@@ -26,7 +26,15 @@ from host.model.noise import NoiseModel
 from host.model.spec import ModelTerm
 from host.session.directory import Session
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, local_gravity
-from host.workbench.planner import OPERATOR_TIME, Augmenter, Candidate, OperatorTime, candidates
+from host.workbench.planner import (
+    OPERATOR_TIME,
+    OTHER_TEMPERATURE_C,
+    Augmenter,
+    Candidate,
+    OperatorTime,
+    candidates,
+    has_temperature_term,
+)
 
 #: λ at which the data choose between the two at 3σ
 CLEAR = 9.0
@@ -102,7 +110,9 @@ def separate(
     base_values = {p.name: p.value for p in base.parameters if math.isfinite(p.value)}
     hand = Augmenter(session, base_values, local_gravity(latitude_deg, height_m))
     if only is None:
-        menu = candidates(hand.static_s, hand.turns, time, paces=(1.0, 0.5, 2.0))
+        temps = (OTHER_TEMPERATURE_C,) if has_temperature_term([*a, *b]) else ()
+        menu = candidates(hand.static_s, hand.turns, time, paces=(1.0, 0.5, 2.0),
+                          temperatures=temps)  # fmt: skip
         todo = [c for c in menu if hand.fits_range(c)]
     else:
         todo = list(only)
