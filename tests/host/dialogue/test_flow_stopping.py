@@ -69,3 +69,39 @@ def test_a_target_out_of_reach_measures_the_maximum_and_says_so(tmp_path: Path) 
         assert sum(n.startswith(f"{a}_ccw") for n in recs) == TURN_PAIRS_MAX
         assert "another pair follows" in recs[f"{a}_cw"].meta[STOPPED_KEY]
         assert f"the maximum of {TURN_PAIRS_MAX} pairs" in recs[cws[-1]].meta[STOPPED_KEY]
+
+
+def _emu_missing() -> str | None:
+    import importlib.util
+    import shutil
+
+    if shutil.which("simavr") is None:
+        return "simavr missing"
+    if importlib.util.find_spec("host.transports.protocol_emu") is None:
+        return "emu:// missing"
+    return None
+
+
+@pytest.mark.emulator
+@pytest.mark.slow
+@pytest.mark.skipif(_emu_missing() is not None, reason=str(_emu_missing()))
+def test_the_adaptive_dialogue_runs_end_to_end_on_the_real_firmware(tmp_path: Path) -> None:
+    """``emu://``: the firmware in the emulator, its virtual operator placing and turning."""
+    o = options.DialogueOptions(
+        port="emu://", serial="EM1", out=tmp_path / "EM1", turns=1, warmup_s=0.0, yes=True,
+        ready_s=0.0, plan="adaptive", target=10.0, max_extra=1, static_seconds=3.0,
+        hello_timeout_s=30.0,
+    )  # fmt: skip
+    con = ScriptedConsole()
+    with contextlib.redirect_stdout(io.StringIO()):
+        rc = flow.run_dialogue(o, con, None)
+    assert rc in (0, 1), con.text[-2000:]
+    recs = read_session(tmp_path / "EM1").records
+    assert set(STATIC_NAMES) <= set(recs)
+    for name in STATIC_NAMES:  # 3 s is the maximum (and the minimum: shorter than 10 s)
+        assert recs[name].duration_s == pytest.approx(3.0, abs=0.1)
+        assert recs[name].meta[STOPPED_KEY].startswith("σ of the mean met its target at 3 s")
+    for a in "xyz":
+        assert "met the target 10" in recs[f"{a}_cw"].meta[STOPPED_KEY]
+    assert re.search(r"Adaptive plan: worst σ/tolerance \S+ \(\w+\): target 10 met", con.text)
+    assert "Results:" in con.text
