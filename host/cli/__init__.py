@@ -8,7 +8,8 @@
 - ``importing`` — ``import``: foreign data into records.
 - ``exporting`` — ``export``: the result in another tool's format.
 - ``model`` — ``model`` and ``demo``: the workbench.
-- ``noise`` — ``noise``: Allan deviation and noise figures of a recording.
+- ``noise`` — ``noise``: Allan deviation and noise figures of a recording; ``noise_source`` —
+  the capture it streams, in bounded memory at any length.
 - ``plan`` — ``plan``: which record to measure next.
 - ``thermal`` — ``thermal``: bias against temperature.
 

@@ -1,7 +1,8 @@
 """``python -m host noise FILE``: Allan deviation of a static recording, its noise figures,
 a recording planner, and the noise file the workbench takes its noise floor from.
 
-FILE is a capture (``.cap`` IMUCAP01 or raw bytes, as ``capture`` writes them) or a record file
+FILE is a capture (``.cap`` IMUCAP01 or raw bytes, as ``capture`` writes them; streamed, in
+bounded memory at any length: :mod:`host.cli.noise_source`) or a record file
 (``SERIAL_name.txt``, from the dialogue or from ``import``). The math is in
 :mod:`host.model.recording` and :mod:`host.model.allan`.
 """
@@ -12,6 +13,7 @@ import argparse
 import json
 import math
 import sys
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -24,57 +26,59 @@ from host.errors import UserError
 from host.model import allan, recording
 from host.session.atomic import write_text_atomic
 from host.session.records import Record
-from host.session.spacing import timing_report
+from host.session.spacing import quality_report, timing_report
 
 
-def load_static(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
-    """Times (N,) s, channels (N, 6) ax..gz in m/s² and °/s, temperature (N,) °C of a record
-    file or a capture, and a one-line description of what was read."""
+def load_record(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """Times (N,) s, channels (N, 6) ax..gz in m/s² and °/s, temperature (N,) °C of a static
+    record file, and a one-line description of what was read."""
+    from host.session.directory import read_record
+
+    with open(path, "rb") as fh:
+        head = fh.read(64)
+    if not head.startswith(b"# imu-bench record"):
+        what = "the calibration report" if head.startswith(b"TEST REPORT") else "no record"
+        raise UserError(
+            f"{path}: {what}, not a recording; give a static record (SERIAL_x_up.txt) "
+            "or a capture of the unit at rest (.cap)"
+        )
+    rec = read_record(path)
+    if rec.kind == "turn":
+        raise UserError(
+            f"{path}: a turn record (the cube turned by hand), not a recording at rest; give "
+            "a static record (SERIAL_x_up.txt) or a capture of the unit at rest (.cap)"
+        )
+    data = np.column_stack([rec.accel, rec.gyro])
+    return rec.t_ms / 1000.0, data, rec.temp, f"record {rec.name} ({len(rec)} samples)"
+
+
+def analyse_file(
+    path: Path, remove_thermal: bool, ci: float
+) -> tuple[recording.NoiseAnalysis, str]:
+    """The noise of a static record file (read whole) or capture (streamed: bounded memory at
+    any length, :mod:`host.cli.noise_source`), its timing table on stderr when irregular; and
+    a one-line description of what was read."""
     if not path.exists():
         raise UserError(f"{path}: no such file; give a capture (.cap) or a record (.txt)")
-    if path.suffix.lower() == ".txt":
-        from host.session.directory import read_record
+    try:
+        if path.suffix.lower() == ".txt":
+            t_s, data, temp, source = load_record(path)
+            rec = Record(path.stem, t_s * 1000.0, data[:, :3], data[:, 3:], temp)
+            sys.stderr.write(timing_report({path.stem: rec}))
+            an = recording.analyse(t_s, data, temp, remove_thermal=remove_thermal, ci=ci)
+            return an, source
+        from host.cli.noise_source import CaptureSamples, FilePhases
 
-        with open(path, "rb") as fh:
-            head = fh.read(64)
-        if not head.startswith(b"# imu-bench record"):
-            what = "the calibration report" if head.startswith(b"TEST REPORT") else "no record"
-            raise UserError(
-                f"{path}: {what}, not a recording; give a static record (SERIAL_x_up.txt) "
-                "or a capture of the unit at rest (.cap)"
+        with tempfile.TemporaryDirectory(prefix="imu-bench-noise-") as tmp:
+            work = Path(tmp)
+            samples = CaptureSamples(path, work)
+            sys.stderr.write(quality_report(path.stem, samples.timing()))
+            an = recording.analyse_blocks(
+                samples, remove_thermal=remove_thermal, ci=ci, phases=lambda: FilePhases(work)
             )
-        rec = read_record(path)
-        if rec.kind == "turn":
-            raise UserError(
-                f"{path}: a turn record (the cube turned by hand), not a recording at rest; give "
-                "a static record (SERIAL_x_up.txt) or a capture of the unit at rest (.cap)"
-            )
-        data = np.column_stack([rec.accel, rec.gyro])
-        return rec.t_ms / 1000.0, data, rec.temp, f"record {rec.name} ({len(rec)} samples)"
-    from host.timing import clock
-    from host.wire.bulk import (
-        decode_file,
-        full_scale_from_hello,
-        product_id_from_hello,
-        samples_to_physical,
-    )
-
-    result, _ = decode_file(path)
-    s = result.samples
-    if s.size == 0:
-        raise UserError(f"{path}: no IMU samples in this capture; is it a capture of the board?")
-    seg = np.asarray(s["segment"])
-    ids, counts = np.unique(seg, return_counts=True)
-    keep = seg == ids[int(np.argmax(counts))]
-    s = s[keep]
-    note = f"capture ({s.size} samples"
-    if ids.size > 1:
-        note += f", the longest of {ids.size} segments between board resets"
-    afs, fs = full_scale_from_hello(result.others)
-    phys = samples_to_physical(s, afs, fs, product_id_from_hello(result.others))
-    t_s = clock.unwrap(np.asarray(s["t_us"], dtype=np.int64), 32).astype(np.float64) / 1e6
-    data = np.column_stack([phys[c] for c in allan.CHANNELS])
-    return t_s, data, phys["temp"], note + ")"
+            return an, samples.note
+    except ValueError as exc:
+        raise UserError(f"{path}: {exc}; record longer") from None
 
 
 def _fmt(v: float) -> str:
@@ -167,13 +171,7 @@ def run(args: argparse.Namespace) -> int:
     if not 0.5 <= args.ci < 1:
         raise UserError(f"--ci: expected a confidence level between 0.5 and 1, got {args.ci}")
     precision = parse_precision(args.plan) if args.plan else None
-    t_s, data, temp, source = load_static(path)
-    sys.stderr.write(timing_report({path.stem: Record(path.stem, t_s * 1000.0, data[:, :3],
-                                                      data[:, 3:], temp)}))  # fmt: skip
-    try:
-        an = recording.analyse(t_s, data, temp, remove_thermal=not args.keep_thermal, ci=args.ci)
-    except ValueError as exc:
-        raise UserError(f"{path}: {exc}; record longer") from None
+    an, source = analyse_file(path, not args.keep_thermal, args.ci)
     doc = an.as_dict()
     doc["source"] = str(path)
     if precision is not None:

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -93,20 +93,61 @@ def tau_grid(n: int, points_per_decade: int = 8, max_fraction: float = 1 / 3) ->
     return np.unique(np.rint(np.logspace(0.0, math.log10(top), k)).astype(np.int64))
 
 
+#: phase points worked on at once by :func:`oadev_of_phase` (8 MiB of float64)
+PHASE_BLOCK = 1 << 20
+
+
+def phase_of(x: np.ndarray, rate_hz: float) -> np.ndarray:
+    """(N + 1,) the phase of the rate samples ``x`` (N,) at ``rate_hz`` Hz: the cumulative sum
+    of x less its mean, divided by the rate, from 0 (x's unit × s)."""
+    x = np.asarray(x, dtype=np.float64)
+    return np.concatenate([[0.0], np.cumsum(x - np.mean(x)) / rate_hz])
+
+
 def oadev(x: np.ndarray, rate_hz: float, m: np.ndarray) -> np.ndarray:
     """(len(m),) overlapping Allan deviation of the rate samples ``x`` (N,) at ``rate_hz`` Hz
     for the averaging factors ``m`` (integers; τ = m/rate), in x's unit; NaN where fewer than
-    two second differences fit. The phase is the cumulative sum of x less its mean (from 0,
-    N + 1 points); σ²(τ) = Σ (φ[i+2m] − 2φ[i+m] + φ[i])² / (2·(N + 1 − 2m)·τ²)."""
-    x = np.asarray(x, dtype=np.float64)
-    phase = np.concatenate([[0.0], np.cumsum(x - np.mean(x)) / rate_hz])
-    out = np.full(len(m), np.nan)
-    for k, mk in enumerate(np.asarray(m, dtype=np.int64)):
-        n = phase.size - 2 * int(mk)
-        if mk < 1 or n < 2:
-            continue
-        d = phase[2 * mk :] - 2.0 * phase[mk : mk + n] + phase[:n]
-        out[k] = math.sqrt(float(d @ d) / (2.0 * n)) * rate_hz / float(mk)
+    two second differences fit. The phase φ is :func:`phase_of` (N + 1 points);
+    σ²(τ) = Σ (φ[i+2m] − 2φ[i+m] + φ[i])² / (2·(N + 1 − 2m)·τ²)."""
+    phase = phase_of(x, rate_hz)
+    return oadev_of_phase(lambda a, b: phase[a:b], phase.size, rate_hz, m, block=phase.size)
+
+
+def oadev_of_phase(
+    window: Callable[[int, int], np.ndarray],
+    size: int,
+    rate_hz: float,
+    m: np.ndarray,
+    block: int = PHASE_BLOCK,
+) -> np.ndarray:
+    """:func:`oadev` from a phase of ``size`` points that ``window(a, b)`` gives piece by piece
+    (φ[a:b], float64), ``block`` points of second differences at a time: one pass over the
+    phase serves every m up to block/2, each larger m takes its own. Memory: about three
+    blocks, whatever the length."""
+    m = np.asarray(m, dtype=np.int64)
+    count = size - 2 * m
+    valid = (m >= 1) & (count >= 2)
+    acc = np.zeros(m.size)
+    small = np.flatnonzero(valid & (2 * m <= block))
+    if small.size:
+        reach = 2 * int(m[small].max())
+        for i0 in range(0, int(count[small].max()), block):
+            w = window(i0, min(size, i0 + block + reach))
+            for k in small:
+                mk, n = int(m[k]), min(block, int(count[k]) - i0)
+                if n > 0:
+                    d = w[2 * mk : 2 * mk + n] - 2.0 * w[mk : mk + n] + w[:n]
+                    acc[k] += float(d @ d)
+    for k in np.flatnonzero(valid & (2 * m > block)):
+        mk = int(m[k])
+        for i0 in range(0, int(count[k]), block):
+            n = min(block, int(count[k]) - i0)
+            d = window(i0 + 2 * mk, i0 + 2 * mk + n) - 2.0 * window(i0 + mk, i0 + mk + n)
+            d += window(i0, i0 + n)
+            acc[k] += float(d @ d)
+    out = np.full(m.size, np.nan)
+    for k in np.flatnonzero(valid):
+        out[k] = math.sqrt(acc[k] / (2.0 * int(count[k]))) * rate_hz / float(m[k])
     return out
 
 
@@ -114,12 +155,26 @@ def allan_curve(x: np.ndarray, rate_hz: float, points_per_decade: int = 8) -> Al
     """Overlapping Allan deviation (:func:`oadev`) of the rate samples ``x`` (N,) taken at
     ``rate_hz`` Hz, on a log-spaced τ grid up to a third of the length."""
     x = np.asarray(x, dtype=np.float64)
-    if x.size < 16:
-        raise ValueError(f"{x.size} samples: at least 16 are needed for an Allan deviation")
-    m = tau_grid(x.size, points_per_decade)
-    adev = oadev(x, rate_hz, m)
+    phase = phase_of(x, rate_hz)
+    window = lambda a, b: phase[a:b]  # noqa: E731
+    return allan_curve_of_phase(window, x.size, rate_hz, points_per_decade, block=phase.size)
+
+
+def allan_curve_of_phase(
+    window: Callable[[int, int], np.ndarray],
+    n: int,
+    rate_hz: float,
+    points_per_decade: int = 8,
+    block: int = PHASE_BLOCK,
+) -> AllanCurve:
+    """:func:`allan_curve` of ``n`` samples from their phase (``n`` + 1 points, read through
+    ``window`` as :func:`oadev_of_phase` does): a recording too long to hold."""
+    if n < 16:
+        raise ValueError(f"{n} samples: at least 16 are needed for an Allan deviation")
+    m = tau_grid(n, points_per_decade)
+    adev = oadev_of_phase(window, n + 1, rate_hz, m, block)
     ok = np.isfinite(adev) & (adev > 0)
-    return AllanCurve(m[ok] / float(rate_hz), adev[ok], int(x.size), float(rate_hz))
+    return AllanCurve(m[ok] / float(rate_hz), adev[ok], int(n), float(rate_hz))
 
 
 def basis(tau_s: np.ndarray) -> np.ndarray:

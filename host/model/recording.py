@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -23,17 +23,19 @@ from host.errors import UserError
 from host.model.allan import (
     CHANNELS,
     CI_LEVEL,
+    PHASE_BLOCK,
     QUANTITIES,
     UNITS,
     ChannelNoise,
     Figure,
-    allan_curve,
+    allan_curve_of_phase,
     basis,
     fit_noise,
     plan_duration,
     relative_precision,
     sensor_of,
 )
+from host.session.spacing import ValueCounts
 from host.wire.sensor import G0
 
 __all__ = [
@@ -78,21 +80,103 @@ def thermal_drift(
     slow wander of what is left (the standard deviation of the residual's means over 16 equal
     blocks): a chance correlation of slow noise with the temperature stays below that."""
     t = np.asarray(temp_c, dtype=np.float64)
+    x = np.asarray(x, dtype=np.float64).reshape(t.size, -1)
     if t.size < 16 or not np.all(np.isfinite(t)):
         return 0.0, {}
-    span = float(np.percentile(t, 99) - np.percentile(t, 1))
+    temps = ValueCounts()
+    temps.add(t)
+    span = temps.percentile(99) - temps.percentile(1)
     if span < min_span_c:
         return span, {}
+    source = ArrayBlocks(np.zeros(t.size), x, t)
+    return span, _drifts(source, x.mean(axis=0), float(t.mean()), span)
+
+
+def _drifts(source: Blocks, xbar: np.ndarray, tbar: float, span: float) -> dict[int, ThermalDrift]:
+    """:func:`thermal_drift`'s lines, one pass over ``source`` (its means known)."""
+    n, k = source.size, xbar.size
+    per = n // 16
+    sdd, sdc = 0.0, np.zeros(k)
+    bx, bt = np.zeros((16, k)), np.zeros(16)
+    i = 0
+    for _, x, tc in source.blocks():
+        assert tc is not None
+        d = tc - tbar
+        sdd += float(d @ d)
+        sdc += d @ (x - xbar)
+        blk = np.arange(i, i + d.size) // per
+        keep = blk < 16
+        bt += np.bincount(blk[keep], weights=tc[keep], minlength=16)
+        for j in range(k):
+            bx[:, j] += np.bincount(blk[keep], weights=x[keep, j], minlength=16)
+        i += d.size
     out: dict[int, ThermalDrift] = {}
-    d = t - t.mean()
-    for j in range(x.shape[1]):
-        col = x[:, j] - x[:, j].mean()
-        c = float(np.dot(d, col) / np.dot(d, d))
-        resid = col - c * d
-        blocks = resid[: resid.size // 16 * 16].reshape(16, -1).mean(axis=1)
+    for j in range(k):
+        c = float(sdc[j] / sdd)
+        blocks = (bx[:, j] / per - xbar[j]) - c * (bt / per - tbar)
         limit = 5.0 * float(blocks.std(ddof=1))
         out[j] = ThermalDrift(c, c * span, abs(c * span) > limit)
-    return span, out
+    return out
+
+
+# --------------------------------------------------------------------------- in blocks
+#: samples per block when a recording held in memory is read in passes
+BLOCK = 1 << 18
+
+
+class Blocks(Protocol):
+    """A static recording read in blocks, as many times as asked: ``size`` samples;
+    :meth:`blocks` yields (times (b,) s, channels (b, k), temperature (b,) °C or None) in
+    order."""
+
+    @property
+    def size(self) -> int: ...
+
+    def blocks(self) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray | None]]: ...
+
+
+@dataclass(frozen=True)
+class ArrayBlocks:
+    """:class:`Blocks` of arrays held in memory (times s, channels (N, k), temperature °C)."""
+
+    t_s: np.ndarray
+    data: np.ndarray
+    temp_c: np.ndarray | None
+    block: int = BLOCK
+
+    @property
+    def size(self) -> int:
+        return int(np.shape(self.t_s)[0])
+
+    def blocks(self) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
+        for a in range(0, self.size, self.block):
+            b = a + self.block
+            tc = None if self.temp_c is None else self.temp_c[a:b]
+            yield self.t_s[a:b], self.data[a:b], tc
+
+
+class PhaseStore(Protocol):
+    """Where a channel's phase (:func:`host.model.allan.phase_of`) is kept while its Allan
+    deviation is worked out: appended in pieces, read back by windows."""
+
+    def append(self, values: np.ndarray) -> None: ...
+
+    def window(self, a: int, b: int) -> np.ndarray: ...
+
+
+class MemoryPhases:
+    """A :class:`PhaseStore` in memory."""
+
+    def __init__(self) -> None:
+        self._parts: list[np.ndarray] = []
+
+    def append(self, values: np.ndarray) -> None:
+        self._parts.append(np.asarray(values, dtype=np.float64))
+
+    def window(self, a: int, b: int) -> np.ndarray:
+        if len(self._parts) != 1:
+            self._parts = [np.concatenate(self._parts)]
+        return self._parts[0][a:b]
 
 
 # --------------------------------------------------------------------------- the analysis
@@ -151,57 +235,105 @@ def analyse(
     ci: float = CI_LEVEL,
 ) -> NoiseAnalysis:
     """The noise of a static recording: sample times ``t_s`` (N,) s, ``data`` (N, k) in the
-    channels' units (m/s², °/s), ``temp_c`` (N,) °C or None.
+    channels' units (m/s², °/s), ``temp_c`` (N,) °C or None (:func:`analyse_blocks`)."""
+    t = np.asarray(t_s, dtype=np.float64)
+    x = np.asarray(data, dtype=np.float64).reshape(t.size, len(channels))
+    tc = None if temp_c is None else np.asarray(temp_c, dtype=np.float64)
+    source = ArrayBlocks(t, x, tc, block=max(t.size, 1))
+    return analyse_blocks(source, channels, remove_thermal, ci, phase_block=t.size + 1)
+
+
+def analyse_blocks(
+    source: Blocks,
+    channels: Sequence[str] = CHANNELS,
+    remove_thermal: bool = True,
+    ci: float = CI_LEVEL,
+    phases: Callable[[], PhaseStore] = MemoryPhases,
+    phase_block: int = PHASE_BLOCK,
+) -> NoiseAnalysis:
+    """:func:`analyse` of a recording read in blocks, in three passes (spacing and means; the
+    temperature lines; the phases, kept in a store from ``phases``): memory bounded by the
+    blocks and the stores, whatever the length.
 
     The rate is the median sample spacing; gaps are reported as a warning (the Allan
     deviation assumes even sampling) and the duration is the samples', without the gaps. A
     significant temperature drift is removed first when ``remove_thermal`` (see
     :func:`thermal_drift`)."""
-    t = np.asarray(t_s, dtype=np.float64)
-    x = np.asarray(data, dtype=np.float64).reshape(t.size, len(channels))
-    if t.size < 64:
-        raise ValueError(f"{t.size} samples: an Allan deviation needs at least 64")
-    dt = np.diff(t)
-    step = float(np.median(dt))
+    k = len(channels)
+    n, t_first, t_last = 0, 0.0, 0.0
+    spacing, temps = ValueCounts(), ValueCounts()
+    sx, st, temp_ok = np.zeros(k), 0.0, True
+    for t, x, tc in source.blocks():
+        if t.size == 0:
+            continue
+        spacing.add(np.diff(t) if n == 0 else np.diff(np.concatenate([[t_last], t])))
+        t_first, t_last = (float(t[0]) if n == 0 else t_first), float(t[-1])
+        n += t.size
+        sx += x.sum(axis=0)
+        if tc is None or not np.all(np.isfinite(tc)):
+            temp_ok = False
+        else:
+            temps.add(tc)
+            st += float(tc.sum())
+    if n < 64:
+        raise ValueError(f"{n} samples: an Allan deviation needs at least 64")
+    step = spacing.median()
     if not step > 0:
         raise ValueError("the sample times do not increase")
     rate = 1.0 / step
     notes: list[str] = []
-    gaps = dt > 1.5 * step
+    gaps = spacing.values > 1.5 * step
     if np.any(gaps):
-        lost = float(np.sum(dt[gaps] - step))
-        share = lost / float(t[-1] - t[0])
+        lost = float(np.sum((spacing.values[gaps] - step) * spacing.counts[gaps]))
+        share = lost / (t_last - t_first)
         if share > 0.001:
             notes.append(
-                f"{int(np.count_nonzero(gaps))} gaps in the sample times ({100 * share:.1f} % "
-                "of the recording): the Allan deviation treats the samples as evenly spaced"
+                f"{int(spacing.counts[gaps].sum())} gaps in the sample times "
+                f"({100 * share:.1f} % of the recording): the Allan deviation treats the "
+                "samples as evenly spaced"
             )
-    span, drifts = (0.0, {}) if temp_c is None else thermal_drift(x, temp_c, rate)
+    xbar, tbar = sx / n, st / n
+    span, drifts = 0.0, {}
+    if temp_ok and n >= 16:
+        span = temps.percentile(99) - temps.percentile(1)
+        if span >= 0.5:
+            drifts = _drifts(source, xbar, tbar, span)
     thermal = {channels[j]: d for j, d in drifts.items()}
-    if temp_c is not None and drifts:
-        tc = np.asarray(temp_c, dtype=np.float64)
-        sig = [channels[j] for j, d in drifts.items() if d.significant]
-        if sig:
-            what = "removed before the Allan deviation" if remove_thermal else "NOT removed"
-            notes.append(
-                f"temperature drift: the chip moved {span:.1f} °C and {', '.join(sig)} "
-                f"follow it ({what}; it would read as rate random walk)"
-            )
-            if remove_thermal:
-                x = x.copy()
-                for j, d in drifts.items():
-                    if d.significant:
-                        x[:, j] -= d.coefficient * (tc - tc.mean())
+    coef = np.zeros(k)
+    sig = [channels[j] for j, d in drifts.items() if d.significant]
+    if sig:
+        what = "removed before the Allan deviation" if remove_thermal else "NOT removed"
+        notes.append(
+            f"temperature drift: the chip moved {span:.1f} °C and {', '.join(sig)} "
+            f"follow it ({what}; it would read as rate random walk)"
+        )
+        if remove_thermal:
+            coef = np.array([drifts[j].coefficient if drifts[j].significant else 0.0
+                             for j in range(k)])  # fmt: skip
+    # the phase of each channel less its temperature line: cumulative sums carried across
+    # the blocks (the sum of the line's term over the recording is 0)
+    stores = [phases() for _ in range(k)]
+    carry = np.zeros(k)
+    for s in stores:
+        s.append(np.zeros(1))
+    for _, x, tc in source.blocks():
+        for j in range(k):
+            col = x[:, j] - coef[j] * (tc - tbar) if coef[j] and tc is not None else x[:, j]
+            cs = np.cumsum(np.concatenate([[carry[j]], col - xbar[j]]))[1:]
+            carry[j] = cs[-1] if cs.size else carry[j]
+            stores[j].append(cs / rate)
     out: dict[str, ChannelNoise] = {}
     for j, name in enumerate(channels):
-        out[name] = fit_noise(name, allan_curve(x[:, j], rate), ci)
+        curve = allan_curve_of_phase(stores[j].window, n, rate, block=phase_block)
+        stores[j] = MemoryPhases()  # let it go
+        out[name] = fit_noise(name, curve, ci)
     for name, ch in out.items():
         for q in QUANTITIES:
             w = ch.figures[q].warning
             if w:
                 notes.append(f"{name}: {w}")
     # the samples' length, not the span of their times: a gap holds no samples
-    duration = float(t.size) * step
+    duration = float(n) * step
     return NoiseAnalysis(out, duration, rate, span, thermal, remove_thermal, ci, tuple(notes))
 
 

@@ -60,14 +60,64 @@ def timing_quality(t_s: np.ndarray) -> TimingQuality:
     t = np.asarray(t_s, dtype=np.float64)
     if t.size < 2:
         return TimingQuality(int(t.size), math.nan, math.nan, 0.0, GAP_MIN_MS, False)
-    dt_ms = np.diff(t) * 1000.0
-    median = float(np.median(dt_ms))
-    worst = float(dt_ms.max())
+    counts = ValueCounts()
+    counts.add(np.diff(t) * 1000.0)
+    return spacing_quality(counts)
+
+
+def spacing_quality(spacings_ms: ValueCounts) -> TimingQuality:
+    """:class:`TimingQuality` of the sample spacings (ms) counted in ``spacings_ms`` (a
+    recording read in blocks counts them block by block)."""
+    v, c = spacings_ms.values, spacings_ms.counts
+    if spacings_ms.n == 0:
+        return TimingQuality(1, math.nan, math.nan, 0.0, GAP_MIN_MS, False)
+    median = spacings_ms.median()
+    worst = float(v[-1])
     limit = max(GAP_MIN_MS, GAP_FACTOR * median)
-    total = float(dt_ms.sum())
-    share = float(dt_ms[dt_ms > limit].sum() / total) if total > 0 else 0.0
+    total = float(np.sum(v * c))
+    share = float(np.sum((v * c)[v > limit]) / total) if total > 0 else 0.0
     warn = share > WARN_GAP_SHARE or (median > 0 and worst > WARN_WORST_FACTOR * median)
-    return TimingQuality(int(t.size), median, worst, share, limit, bool(warn))
+    return TimingQuality(spacings_ms.n + 1, median, worst, share, limit, bool(warn))
+
+
+class ValueCounts:
+    """The exact distribution of values met piece by piece (sample spacings, temperatures: a
+    few distinct values each), for medians and percentiles without holding every value."""
+
+    def __init__(self) -> None:
+        self.values = np.zeros(0)
+        self.counts = np.zeros(0, np.int64)
+
+    def add(self, v: np.ndarray) -> None:
+        """Count the values ``v``."""
+        u, c = np.unique(np.asarray(v, dtype=np.float64), return_counts=True)
+        u2, inv = np.unique(np.concatenate([self.values, u]), return_inverse=True)
+        self.values = u2
+        weights = np.concatenate([self.counts, c]).astype(np.float64)
+        self.counts = np.rint(np.bincount(inv, weights=weights)).astype(np.int64)
+
+    @property
+    def n(self) -> int:
+        """How many values were counted."""
+        return int(self.counts.sum())
+
+    def _at(self, k: int) -> float:
+        """The k-th smallest value (from 0)."""
+        return float(self.values[int(np.searchsorted(np.cumsum(self.counts), k, side="right"))])
+
+    def median(self) -> float:
+        """As numpy's median: the middle value, or the mean of the two."""
+        n = self.n
+        if n % 2:
+            return self._at(n // 2)
+        return (self._at(n // 2 - 1) + self._at(n // 2)) / 2.0
+
+    def percentile(self, q: float) -> float:
+        """As numpy's percentile ``q`` (%; linear between the two nearest values)."""
+        h = (self.n - 1) * q / 100.0
+        lo = int(np.floor(h))
+        a, b, w = self._at(lo), self._at(min(lo + 1, self.n - 1)), h - lo
+        return b - (b - a) * (1.0 - w) if w >= 0.5 else a + (b - a) * w
 
 
 def trapezoid(t_s: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -104,15 +154,26 @@ def uniform_rate_error_deg(t_s: np.ndarray, gyro_dps: np.ndarray) -> float:
 
 def timing_table(records: Mapping[str, Record]) -> str:
     """Per-record timing table: samples, median spacing, worst gap, share of time in gaps."""
+    return _table({name: timing_quality(rec.t_ms / 1000.0) for name, rec in records.items()})
+
+
+def _table(qualities: Mapping[str, TimingQuality]) -> str:
     lines = [f"{'record':<9} {'samples':>7} {'median ms':>9} {'worst gap ms':>12} {'in gaps':>8}"]
-    for name, rec in records.items():
-        q = timing_quality(rec.t_ms / 1000.0)
+    for name, q in qualities.items():
         flag = "  irregular" if q.warning else ""
         lines.append(
             f"{name:<9} {q.n:>7} {q.median_ms:>9.3g} {q.worst_gap_ms:>12.4g} "
             f"{100 * q.gap_share:>7.1f}%{flag}"
         )
     return "\n".join(lines) + "\n"
+
+
+def quality_report(name: str, q: TimingQuality) -> str:
+    """:func:`timing_report` of one static recording from its :class:`TimingQuality` (a
+    recording read in blocks, never held whole)."""
+    if not q.warning:
+        return ""
+    return _table({name: q}) + f"warning: {name}: irregular sample times ({q.describe()})\n"
 
 
 def timing_warnings(records: Mapping[str, Record]) -> list[str]:

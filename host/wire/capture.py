@@ -93,7 +93,7 @@ def damage_text(path: object, truncated: int, skipped: tuple[tuple[int, int], ..
     return f"warning: {path}: " + "; ".join(parts) if parts else ""
 
 
-#: captures above this size are refused where a capture is read whole (import, noise, replay://;
+#: captures above this size are refused where a capture is read whole (import, replay://;
 #: ``decode`` streams instead): 512 MiB is ≈ 90 hours of the board's 50 Hz stream
 MAX_CAPTURE_BYTES = 512 << 20
 
