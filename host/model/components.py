@@ -15,10 +15,11 @@ residual, w_i the row's variance without the component (white noise integrated, 
 h_i its leverage in the whitened fit: E[r_i²] = (w_i + σ²)·(1 − h_i). Its degrees of freedom are
 Σ(1 − h_i), what the model leaves to it (3 for the turn angle under ``base`` with three axes
 turned both ways; 0 once an asymmetry per axis takes every closure: the component is then not
-measured and the rows carry their white noise only). A component counts only when it exceeds
-two standard errors of that estimate without one (√(2·Σ(w_i·(1 − h_i))²)/Σ(1 − h_i)): a
-clipped 0 ± se would widen the yardstick under the null. A turn angle given by the user
-(``NoiseModel.turn_angle_sigma_deg``) is kept as given.
+measured and the rows carry their white noise only). A component counts only when the
+rows' Σr_i² is beyond what their white variance gives (mean Σw_i·(1 − h_i), variance
+2·Σ(w_i·(1 − h_i))², :func:`host.model.stats.beyond_white`): a clipped 0 ± se would widen the
+yardstick under the null, and one resolved by chance widens it in that session. A turn angle
+given by the user (``NoiseModel.turn_angle_sigma_deg``) is kept as given.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ import numpy as np
 from host.model.dataset import Dataset
 from host.model.fit import Fit, fit_model
 from host.model.spec import ModelTerm
+from host.model.stats import beyond_white
 from host.model.variance import (
     TURN_ANGLE_PLAUSIBLE_DEG,
     TURN_WOBBLE_PLAUSIBLE_DEG,
@@ -112,8 +114,7 @@ def _estimate(spec: _Spec, fit: Fit) -> tuple[float, float, float]:
     r = fit.residual[spec.rows]
     wf = spec.white * free
     var = float(np.sum(r * r - wf)) / dof
-    se0 = math.sqrt(2.0 * float(np.sum(wf * wf))) / dof
-    resolved = var if var > 2.0 * se0 else 0.0
+    resolved = var if beyond_white(float(r @ r), float(np.sum(wf)), 2.0 * float(wf @ wf)) else 0.0
     se = math.sqrt(2.0 * float(np.sum((wf + max(var, 0.0) * free) ** 2))) / dof
     return resolved, se, dof
 

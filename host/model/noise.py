@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from host.model.signals import SENSORS, UNIT, true_runs
+from host.model.stats import beyond_white, least_beyond_white
 
 
 # ---- noise model ----------------------------------------------------------------------------
@@ -117,26 +118,30 @@ def wander_floor(blocks: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[float
     mean that wanders by f about its record's level scatters by v_b + f², so
     E[Σ(y_b − ȳ)²] = (1 − 1/B)·Σ(v_b + f²) and f² = Σ[SS − (1 − 1/B)·Σv_b] / Σ(1 − 1/B)·B
     (the Allan variance at the block length less its white part, pooled over the records).
-    -> (f ≥ 0 in the channel's unit, 0 unless it exceeds two standard errors; dof; the standard
-    error of f² with no wander). A drift or a
+    -> (f ≥ 0 in the channel's unit, 0 unless the scatter is beyond the white noise at
+    p < :data:`~host.model.stats.ALPHA_COMPONENT`; dof; the smallest f it would resolve, in
+    the channel's unit). A drift or a
     step between records does not enter: they are effects for the model to find, not noise."""
-    num = 0.0
+    ss = 0.0
+    white = 0.0
     dof = 0
     var_se = 0.0
     for y, v in blocks:
         b = len(y)
         if b < 2:
             continue
-        num += float(np.sum((y - y.mean()) ** 2)) - (1.0 - 1.0 / b) * float(np.sum(v))
+        ss += float(np.sum((y - y.mean()) ** 2))
+        white += (1.0 - 1.0 / b) * float(np.sum(v))
         dof += b - 1
         var_se += 2.0 * (b - 1) * float(np.mean(v)) ** 2
     if dof == 0:
         return 0.0, 0, math.nan
-    f2 = num / dof
-    se = math.sqrt(var_se) / dof
-    # a wander the blocks do not resolve (below two standard errors of the white scatter) is
-    # taken as none: a clipped estimate of 0 ± se would always widen the yardstick a little
-    return (math.sqrt(f2) if f2 > 2.0 * se else 0.0), dof, se
+    f2 = (ss - white) / dof
+    least = math.sqrt(max(least_beyond_white(white, var_se) - white, 0.0) / dof)
+    # a wander the blocks do not resolve (:func:`host.model.stats.beyond_white`) is taken as
+    # none: a clipped estimate of 0 ± se would always widen the yardstick a little, and one
+    # resolved by chance widens it in that session
+    return (math.sqrt(f2) if beyond_white(ss, white, var_se) else 0.0), dof, least
 
 
 def session_floor(
@@ -155,14 +160,14 @@ def session_floor(
             out[s] = float(nm.floor[s])
             said.append(f"{s} {out[s]:.2g} {UNIT[s]} (given)")
             continue
-        f, dof, se = wander_floor(blocks.get(s, ()))
+        f, dof, least = wander_floor(blocks.get(s, ()))
         out[s] = f
         if dof == 0:
             said.append(f"{s} 0 (no record long enough for two blocks: white noise only)")
             continue
         said.append(
             f"{s} {f:.2g} {UNIT[s]} (wander of the static records' block means beyond their "
-            f"white noise, {dof} dof; none resolved below {math.sqrt(2.0 * se):.2g})"
+            f"white noise, {dof} dof; none resolved below {least:.2g})"
         )
     return out, (
         "noise floor of a record mean, from each record's own samples (white noise with its "

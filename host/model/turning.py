@@ -53,6 +53,7 @@ from collections.abc import Hashable, Mapping, Sequence
 import numpy as np
 
 from host.model.signals import true_runs
+from host.model.stats import beyond_white
 
 #: length of a moving block, s: shorter than a push (≈ 1 s) so the tangential term survives
 BLOCK_S = 0.5
@@ -229,9 +230,8 @@ def hand_scatter(
     of a block about its turn's level; σ_turn² the scatter of a turn's level while moving about
     its level at rest (the constants against ``rest``, beyond their white noise; without
     ``rest`` σ_block). A fast wobble has no net tilt (σ_turn far below σ_block/√n), a slow
-    one leaves some over a turn (σ_turn up to σ_block/√n). Each is 0
-    unless it exceeds two standard errors of its estimate under white noise alone
-    (:func:`resolved`)."""
+    one leaves some over a turn (σ_turn up to σ_block/√n). Each is 0 unless its scatter is
+    beyond the white noise (:func:`resolved`)."""
     w = np.asarray(white_var, dtype=np.float64)
     uniq, idx, beta, r, dof = _constants_fit(y, keys, columns)
     if dof <= 0:
@@ -260,14 +260,15 @@ def hand_scatter(
 
 def resolved(var: float, white_var: np.ndarray, dof: int) -> float:
     """``var`` (an excess variance Σ(r² − w)/dof over values of white-noise variances
-    ``white_var``) if it exceeds two standard errors of that estimate when there is no excess,
-    √(2·Σw²)/dof, else 0: a clipped estimate max(0, ·) would be positive in half of all
-    sessions without any excess and widen the yardstick there (χ² under the null runs low)."""
+    ``white_var``) if that scatter is beyond the white noise
+    (:func:`host.model.stats.beyond_white`: Σr² against Σw ± √(2·Σw²)), else 0: a clipped
+    estimate max(0, ·) would be positive in half of all sessions without any excess and widen
+    the yardstick there (χ² under the null runs low)."""
     if dof <= 0:
         return 0.0
     w = np.asarray(white_var, dtype=np.float64)
-    se = math.sqrt(2.0 * float(np.sum(w * w))) / dof
-    return var if var > 2.0 * se else 0.0
+    white = float(np.sum(w))
+    return var if beyond_white(var * dof + white, white, 2.0 * float(np.sum(w * w))) else 0.0
 
 
 def hand_covariance(sigma_block: float, sigma_turn: float, n: int) -> np.ndarray:

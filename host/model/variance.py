@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from host.model.stats import beyond_white
+
 
 @dataclass(frozen=True)
 class TurnClosure:
@@ -100,8 +102,9 @@ def turn_wobble_sigma(closures: Sequence[TurnClosure]) -> Component:
 def _closure_component(
     name: str, closures: Sequence[TurnClosure], absorbs: str, most: float, why: str
 ) -> Component:
-    """σ² = Σ(c² − w)/(2K) of the ``closures``, 0 unless it exceeds two standard errors (a
-    clipped 0 ± se would widen the yardstick under the null); its standard error from K dof;
+    """σ² = Σ(c² − w)/(2K) of the ``closures``, 0 unless their scatter is beyond the white
+    noise (:func:`host.model.stats.beyond_white`; a clipped 0 ± se would widen the yardstick
+    under the null); its standard error from K dof;
     implausible above ``most`` (°, ``why``)."""
     k = len(closures)
     if k == 0:
@@ -111,10 +114,10 @@ def _closure_component(
     var = float(np.sum(c * c - w)) / (2.0 * k)
     # standard error of var under the estimate itself: var(c²) = 2·(w + 2σ²)²
     se_var = math.sqrt(float(np.sum(2.0 * (w + 2.0 * max(var, 0.0)) ** 2))) / (2.0 * k)
-    if var <= 2.0 * math.sqrt(float(np.sum(2.0 * w * w))) / (2.0 * k):
-        value = 0.0
-    else:
+    if beyond_white(float(c @ c), float(np.sum(w)), 2.0 * float(w @ w)):
         value = math.sqrt(var)
+    else:
+        value = 0.0
     sigma = se_var / (2.0 * value) if value > 0 else math.sqrt(se_var)
     plausible = f"{value:.2g}° over {most:g}°: {why}" if value > most else ""
     return Component(name, value, sigma, k, "°", absorbs, plausible)

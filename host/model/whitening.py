@@ -22,7 +22,7 @@ from host.errors import UserError
 from host.model import turning
 from host.model.rows import ChannelRows
 from host.model.signals import RecordSignals
-from host.model.stats import chi2_sf
+from host.model.stats import ALPHA_COMPONENT, chi2_sf
 
 
 @dataclass(frozen=True, eq=False)
@@ -160,9 +160,9 @@ def _within_record_inflation(
     out: dict[tuple[str, int], float] = {}
     for k, v in excess.items():
         chi2, dof = sum(v[0::2]), sum(v[1::2])
-        # only a scatter the white noise cannot explain (p < 2.5 %) widens the contrasts:
-        # max(1, χ²/dof) would widen them under the null in half of all sessions
-        out[k] = chi2 / dof if dof > 0 and chi2_sf(chi2, dof) < 0.025 else 1.0
+        # only a scatter the white noise cannot explain (ALPHA_COMPONENT) widens the
+        # contrasts: max(1, χ²/dof) would widen them under the null in half of all sessions
+        out[k] = chi2 / dof if dof > 0 and chi2_sf(chi2, dof) < ALPHA_COMPONENT else 1.0
     return out
 
 
