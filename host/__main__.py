@@ -89,6 +89,8 @@ EXAMPLES: dict[str, str] = {
       continue an interrupted session (Ctrl+C prints this command, with every option)
   python3 -m host calibrate --port /dev/ttyACM0 --serial U17 --out U17 --redo x_ccw
       measure one record again, keep the others
+  python3 -m host calibrate --port /dev/ttyACM0 --serial U17 --no-self-test
+      skip the sensor's self-test (recorded as not run; the verdict says so)
   python3 -m host calibrate --from-dir U17/
       recompute the report from saved records""",
     "capture": """examples:

@@ -25,14 +25,12 @@ import numpy as np
 from host.calib.result import CalibrationResult
 from host.errors import UserError
 from host.session.directory import read_record
+from host.wire.selftest import OUTCOMES
 
 #: environment variables naming the bench and the operator when neither the records' headers
 #: nor the command line do
 BENCH_ENV = "IMU_BENCH_NAME"
 OPERATOR_ENV = "IMU_BENCH_OPERATOR"
-
-#: self-test outcomes as the records' ``self_test`` header line says them ('' = not run)
-SELF_TEST_VALUES = ("", "pass", "fail")
 
 
 @dataclass(frozen=True)
@@ -60,10 +58,11 @@ class Entry:
     ``temp_*_c``: the chip temperature over the records, °C; ``covariance``: the parameters'
     covariance in the order of ``parameters`` (``covariance_kind`` 'full' when the result file
     carries it, 'diagonal' when only the σ were there); ``verdict``: 'pass' or 'fail' (the
-    report's verdict, and a failed self-test fails it); ``self_test``: 'pass', 'fail' or ''
-    (not run); ``result_hash``/``report_hash``/``records_hash``: SHA-256 (hex) of the result
-    file, the report and the records (the hash of the sorted 'name sha256' lines of
-    ``record_hashes``); ``result_json``: the result file's text, kept whole.
+    report's verdict, and a failed self-test fails it); ``self_test``: 'pass', 'fail',
+    'not run' (``--no-self-test``) or '' (no verdict, or records without a self-test);
+    ``result_hash``/``report_hash``/``records_hash``: SHA-256 (hex) of the result file, the
+    report and the records (the hash of the sorted 'name sha256' lines of ``record_hashes``);
+    ``result_json``: the result file's text, kept whole.
     """
 
     serial: str
@@ -187,11 +186,13 @@ def _first(metas: Sequence[Mapping[str, str]], key: str) -> str:
 
 def self_test_outcome(metas: Sequence[Mapping[str, str]], where: object) -> str:
     """The session's self-test as its records' headers say it (``self_test`` line, written by
-    :meth:`host.wire.selftest.SelfTest.meta`): 'pass', 'fail' or '' (not run, or no verdict).
+    :meth:`host.wire.selftest.SelfTest.meta`): 'pass', 'fail', 'not run' or '' (no verdict).
     UserError naming ``where`` for any other text."""
     outcome = _first(metas, "self_test").lower()
-    if outcome not in SELF_TEST_VALUES:
-        raise UserError(f"{where}: records say self_test: {outcome!r} (expected pass or fail)")
+    if outcome not in OUTCOMES:
+        raise UserError(
+            f"{where}: records say self_test: {outcome!r} (expected pass, fail or not run)"
+        )
     return outcome
 
 

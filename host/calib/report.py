@@ -275,7 +275,8 @@ def _object_and_equipment(r: CalibrationResult) -> list[str]:
         more = f" and {len(pv.sources) - 1} more" if len(pv.sources) > 1 else ""
         board.append(f"source {pv.sources[0]}{more}")
     out.extend(_wrap(f"Board: {'; '.join(board) or 'not recorded'}", "  ", "    "))
-    st = {"pass": "PASS", "fail": "FAIL (the calibration fails)"}.get(r.self_test, "not run")
+    st = {"pass": "PASS", "fail": "FAIL (the calibration fails)",
+          "not run": "not run (--no-self-test)"}.get(r.self_test, "not run")  # fmt: skip
     out.append(f"  MPU-6000 self-test: {st}")
     settings = [
         form.format(eq[k]) for k, form in (

@@ -123,7 +123,8 @@ class CalibrationResult:
     #: NaN rows for undetermined ones); () when the file carried none (v1, v2)
     covariance: tuple[tuple[float, ...], ...] = ()
     #: the MPU-6000's self-test of the sitting, from the records' ``self_test`` header:
-    #: 'pass', 'fail' (the calibration fails) or '' (not run, or an older file)
+    #: 'pass', 'fail' (the calibration fails), 'not run' (``--no-self-test``: the verdict
+    #: says so) or '' (no verdict, or an older file)
     self_test: str = ""
     #: format version of the file this was loaded from
     loaded_version: int = 3
@@ -221,10 +222,11 @@ class CalibrationResult:
         that does not fit says so as its last reason."""
         fit = self.fit
         misfit = fit is not None and fit.verdict == "inadequate"
+        skipped = " — self-test not run" if self.self_test == "not run" else ""
         if self.all_passed and fit is not None and misfit:
-            return f"PASS (conditional: the model does not fit, RMS z {fit.rms_z:.2f})"
+            return f"PASS (conditional: the model does not fit, RMS z {fit.rms_z:.2f}){skipped}"
         if self.all_passed:
-            return "PASS: every value within tolerance"
+            return "PASS: every value within tolerance" + skipped
         bad = self.failed_values()
         why = [f"{len(bad)} value(s) outside tolerance or not determined"] if bad else []
         if self.verification is not None and not self.verification.passed:
@@ -233,7 +235,7 @@ class CalibrationResult:
             why.append("the sensor failed its self-test")
         if misfit:
             why.append("the model does not fit")
-        return f"FAIL: {'; '.join(why)}"
+        return f"FAIL: {'; '.join(why)}{skipped}"
 
     def accel_m(self) -> np.ndarray:
         """Ma (3×3, method.md §2), NaN where not determined."""

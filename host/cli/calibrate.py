@@ -172,6 +172,11 @@ def archive_line(out_dir: Path, session: Session, args: argparse.Namespace) -> s
 
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host calibrate``."""
+    if args.from_dir and getattr(args, "no_self_test", False):
+        raise UserError(
+            f"--no-self-test is for a live calibration: the records in {args.from_dir} say "
+            "whether the self-test ran"
+        )
     if not args.from_dir:
         from host.dialogue.flow import run_dialogue
 
@@ -213,6 +218,11 @@ def add_live_arguments(p: argparse.ArgumentParser) -> None:
         help="leave out the closing check (by default the session ends by measuring the first "
         "attitude again, SERIAL_x_up_2.txt: its difference from the first shows the drift, "
         "and the fit takes it as one more static record)",
+    )  # fmt: skip
+    p.add_argument(
+        "--no-self-test", action="store_true",
+        help="do not run the MPU-6000's self-test at the start (e.g. a firmware without it); "
+        "the records, the report and the archive say 'not run', and so does the verdict",
     )  # fmt: skip
     p.add_argument(
         "--yes", action="store_true",

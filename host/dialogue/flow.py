@@ -189,7 +189,8 @@ class CalibrationDialogue(Recorder):
 
     def _self_test(self) -> None:
         """The MPU-6000's self-test, into every record's header (measurement.self_test)."""
-        self_test(self.board, self.op, YES_MAX_ATTEMPTS, lambda e: self._recover(e, False))
+        run = self.opts.self_test
+        self_test(self.board, self.op, YES_MAX_ATTEMPTS, lambda e: self._recover(e, False), run)
 
     def _warm_up(self) -> None:
         """The warm-up (method.md §5 step 3), recorded as ``SERIAL_warmup.txt``: one attitude,

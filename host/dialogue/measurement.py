@@ -51,6 +51,7 @@ from host.session.method import record_stats
 from host.session.observations import build_observations
 from host.session.records import HEADING_KEY, Record
 from host.wire.frames import bus_meta
+from host.wire.selftest import NOT_RUN, SelfTest
 
 #: the placement every prompt asks for (:func:`host.dialogue.screens.place_prompt`), written in
 #: the header of every static and turn record: the heading the model then reads
@@ -155,12 +156,21 @@ def reconnect(
 
 
 def self_test(
-    board: Board, op: Questions, attempts: int, recover: Callable[[Exception], None]
+    board: Board,
+    op: Questions,
+    attempts: int,
+    recover: Callable[[Exception], None],
+    run: bool = True,
 ) -> None:
     """The MPU-6000's self-test (:meth:`host.board.driver.Board.self_test`) with the cube
     still, shown line by line; a failure is announced (it fails the calibration). Without a
     verdict because the cube moved, the operator may repeat it, up to ``attempts`` times.
-    ``recover(exc)`` waits for a board that vanished (then the self-test is tried again)."""
+    ``recover(exc)`` waits for a board that vanished (then the self-test is tried again).
+    ``run`` False (``--no-self-test``): not run, and every record's header says so."""
+    if not run:
+        board.self_test_result = SelfTest(NOT_RUN, "skipped with --no-self-test", (), 0)
+        op.say(board.self_test_result.lines()[0])
+        return
     for attempt in range(1, attempts + 1):
         op.say("MPU-6000 self-test: keep the cube still (about 2 s)…")
         try:

@@ -121,6 +121,7 @@ class DialogueOptions:
     thermal: str | None = None  # --thermal FILE|none (None: SERIAL_thermal.json if beside)
     noise: str | None = None  # --noise NOISE.json (the floor from the unit's noise file)
     closing: bool = True  # measure the first attitude again at the end (CLOSING_NAME)
+    self_test: bool = True  # the MPU-6000 self-test first (--no-self-test: recorded not run)
     operator: str | None = None  # --operator: who measures, written in every record's header
     bench: str | None = None  # --bench: which bench, written in every record's header
     pdf: bool = False  # --pdf: also the report as SERIAL_result.pdf
@@ -170,6 +171,7 @@ class DialogueOptions:
             bench=get("bench"),
             pdf=bool(get("pdf", False)),
             closing=not bool(get("no_closing", False)),
+            self_test=not bool(get("no_self_test", False)),
             plan=str(get("plan", "fixed")),
             target=float(get("target", 0.05)),
             max_extra=int(get("max_extra", 12)),
@@ -290,6 +292,8 @@ class DialogueOptions:
                 args += [opt, val]
         if not self.closing:
             args += ["--no-closing"]
+        if not self.self_test:
+            args += ["--no-self-test"]
         args += [a for a, on in (("--yes", self.yes), ("--json", self.json)) if on]
         return " ".join(shlex.quote(a) for a in [*args, *then])
 

@@ -36,8 +36,11 @@ MOVED_FRACTION = 0.05
 #: AFS_SEL of the accelerometer self-test (±8 g, RM p.11) and FS_SEL of the gyroscope's (±250 °/s)
 ACCEL_FS_SEL = 2
 GYRO_FS_SEL = 0
-#: the self-test's outcomes as records and the archive write them ('' = not run or no verdict)
-OUTCOMES = ("pass", "fail", "")
+#: the outcome of a self-test the operator chose not to run (``calibrate --no-self-test``)
+NOT_RUN = "not run"
+#: the self-test's outcomes as records and the archive write them ('' = no verdict, or records
+#: from before the self-test)
+OUTCOMES = ("pass", "fail", NOT_RUN, "")
 AXES = ("ax", "ay", "az", "gx", "gy", "gz")
 _DONE = gen.ENUMS["self_test_status"]["DONE"]
 _STATUS_NAMES = {v: k for k, v in gen.ENUMS["self_test_status"].items()}
@@ -92,8 +95,8 @@ class AxisCheck:
 
 @dataclass(frozen=True)
 class SelfTest:
-    """The judged self-test: ``outcome`` 'pass', 'fail' or '' (no verdict), ``reason`` why
-    when it is not 'pass', the six :class:`AxisCheck` (ax ay az gx gy gz)."""
+    """The judged self-test: ``outcome`` 'pass', 'fail', :data:`NOT_RUN` or '' (no verdict),
+    ``reason`` why when it is not 'pass', the six :class:`AxisCheck` (ax ay az gx gy gz)."""
 
     outcome: str
     reason: str
@@ -115,7 +118,7 @@ class SelfTest:
 
     def lines(self) -> list[str]:
         """What to show: the verdict, then one line per axis (≤ 80 columns)."""
-        head = {"pass": "PASS", "fail": "FAIL", "": "NO VERDICT"}[self.outcome]
+        head = {"pass": "PASS", "fail": "FAIL", NOT_RUN: "NOT RUN", "": "NO VERDICT"}[self.outcome]
         out = [f"MPU-6000 self-test: {head}" + (f" — {self.reason}" if self.reason else "")]
         for a in self.axes:
             unit = "g" if a.name.startswith("a") else "°/s"

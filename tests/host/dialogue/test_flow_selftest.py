@@ -39,3 +39,45 @@ def test_a_part_failing_its_self_test_fails_its_calibration_and_its_archive_entr
         (s,) = a.summaries()
         e = a.entry(s.id)
     assert (e.self_test, e.verdict) == ("fail", "fail")
+
+
+@pytest.mark.slow  # a whole --yes session on the virtual board (~20 s)
+def test_a_calibration_without_the_self_test_says_not_run_everywhere(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--no-self-test on a chip that would fail it: it is not run (so it cannot fail the
+    calibration), and the records, the result, the report, its verdict and the archive say
+    'not run'."""
+    out, db = tmp_path / "N1", str(tmp_path / "a.sqlite")
+    url = "sim://?speed=max&effects=linear,noise&earth_rate=0&self_test=fail"
+    args = ["--yes", "--serial", "N1", "--out", str(out), "--static-seconds", "10", "--turns", "1"]
+    main(["calibrate", "--port", url, *args, "--warmup", "0", "--archive", db, "--no-self-test"])
+    screen = capsys.readouterr()
+    said = screen.out + screen.err
+    assert "MPU-6000 self-test: NOT RUN — skipped with --no-self-test" in said
+    assert "keep the cube still" not in said and "OUT OF ±14 %" not in said
+    for name in STATIC_NAMES:
+        assert read_record(out / f"N1_{name}.txt").meta["self_test"] == "not run"
+    result = CalibrationResult.load(out / "N1_result.json")
+    assert result.self_test == "not run"
+    assert result.verdict().endswith("— self-test not run")
+    report = (out / "N1_result.txt").read_text()
+    assert "MPU-6000 self-test: not run (--no-self-test)" in report
+    assert "the sensor failed its self-test" not in report
+    with Archive(db) as a:
+        (s,) = a.summaries()
+    assert s.self_test == "not run" and s.verdict == ("pass" if result.all_passed else "fail")
+
+
+def test_no_self_test_is_kept_by_the_resume_command_and_refused_with_from_dir(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from host.dialogue.options import DialogueOptions
+
+    skip = DialogueOptions(port="sim://", self_test=False)
+    assert "--no-self-test" in skip.command("N2", static_seconds=5.0, turns=1, port="sim://")
+    run = DialogueOptions(port="sim://")
+    assert "--no-self-test" not in run.command("N2", static_seconds=5.0, turns=1, port="sim://")
+    assert main(["calibrate", "--from-dir", str(tmp_path), "--no-self-test"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--no-self-test is for a live calibration" in err[0]
