@@ -47,7 +47,7 @@ def entry(e: Entry) -> str:
         f"model {e.model}",
         f"fit: χ² = {_g(e.chi2)} on {e.dof} dof, RMS z = {_g(e.rms_z, 3)}, p = {_g(e.p, 3)}: "
         f"{e.fit_verdict or '-'}",
-        f"verdict {e.verdict.upper()}   self-test {e.self_test or 'not run'}",
+        f"verdict {e.verdict.upper()}   self-test {e.self_test or 'not recorded'}",
         f"result  sha256 {e.result_hash}",
         f"report  sha256 {e.report_hash}",
         f"records sha256 {e.records_hash} ({len(e.record_hashes)} files)",
