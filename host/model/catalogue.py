@@ -249,7 +249,8 @@ def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     up direction leans ``tilt_east`` toward the ruler (east) and ``tilt_north`` toward
     north = up × east. The plate does not move, so the angles are shared by every record made
     on it and by all three accelerometer channels (:attr:`Term.shared`). Resting on a face, the
-    horizontal accelerometers read g·(tilt_east·e + tilt_north·n), with e, n the plate's axes
+    horizontal accelerometers read g·(tilt_east·e + tilt_north·n) (through the accelerometer's
+    matrix, :func:`_sensed`), with e, n the plate's axes
     in body coordinates at the record's heading on the plate (its header's
     ``placement_heading_deg`` plus the angle turned, :func:`host.model.geometry.plate_axes`;
     a turn without one gets it from its rests' circle, :func:`host.model.plate.resolve_placements`,
@@ -267,10 +268,22 @@ def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     accelerometer biases and misalignments (each face is one heading)."""
     cols = np.zeros((len(sig.t_s), 2))
     if sig.kind in ("static", "turn") and sig.placement_deg is not None:
-        east, north = plate_axes(sig.up, sig.plate_heading)
+        east, north = _sensed(sig, *plate_axes(sig.up, sig.plate_heading))
         cols[:, 0] = sig.g * east[:, axis]
         cols[:, 1] = sig.g * north[:, axis]
     return cols
+
+
+def _sensed(sig: RecordSignals, *vectors: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Body vectors (N, 3) as the accelerometer reads them: through its scale and misalignment
+    (:attr:`RecordSignals.tilt_matrix`: 1.5 % of a 1° tilt is 0.26 mrad, 10 mrad of it 0.17,
+    both beyond the tilt's σ), or its scales alone where the statics' headings are not
+    recorded (the diagonal of :attr:`RecordSignals.accel_matrix`: its misalignments hold the
+    tilt there, and that error times the tilt is larger than what they would add)."""
+    if sig.tilt_matrix is not None:
+        return tuple(v @ np.asarray(sig.tilt_matrix).T for v in vectors)
+    a = sig.accel_matrix
+    return tuple(v if a is None else v * np.diag(np.asarray(a)) for v in vectors)
 
 
 def _heading_unknown(sig: RecordSignals) -> bool:
@@ -296,10 +309,10 @@ def _plate_tilt_seen(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     if sig.placement_deg is not None and sig.heading_tilt is not None:
         # a heading read from the rests' circle, ψ₀: its correction dψ (rad) moves the tilt's
         # reading by ∂/∂ψ g·(t_e·e(ψ) + t_n·n(ψ)) = g·(t_n·e − t_e·n) at the circles' tilt
-        east, north = plate_axes(sig.up, sig.plate_heading)
+        east, north = _sensed(sig, *plate_axes(sig.up, sig.plate_heading))
         te, tn = (float(v) for v in sig.heading_tilt)
         return sig.g * (tn * east[:, axis] - te * north[:, axis])[:, None]
-    east, north = plate_axes(sig.up, sig.heading)
+    east, north = _sensed(sig, *plate_axes(sig.up, sig.heading))
     return sig.g * np.column_stack([east[:, axis], north[:, axis]])
 
 

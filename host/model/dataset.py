@@ -14,7 +14,12 @@ import numpy as np
 
 from host.errors import UserError
 from host.model.noise import NoiseModel, session_floor
-from host.model.plate import resolve_placements, resolve_turn_axes, session_plate
+from host.model.plate import (
+    resolve_placements,
+    resolve_turn_axes,
+    session_plate,
+    tilt_matrices,
+)
 from host.model.rows import (
     RowTable,
     add_block_means,
@@ -331,6 +336,7 @@ def build_dataset(
     apply_serial_correlation(table, nm.max_lag)
     signals, plate_notes = resolve_placements(signals, g)
     notes.extend(plate_notes)
+    signals = tilt_matrices(signals, session_plate(signals))
     signals, tilted = resolve_turn_axes(signals, session_plate(signals))
     notes.extend(a.line() for a in tilted)
     moved = {i for i, s in enumerate(signals) if s.name in {a.record for a in tilted}}

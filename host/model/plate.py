@@ -263,6 +263,30 @@ def resolve_placements(
     return out, ["; ".join(line.strip() for line in plate.lines(g, unknown))]
 
 
+def tilt_matrices(signals: Sequence[RecordSignals], plate: PlateTilt | None) -> list[RecordSignals]:
+    """The records with :attr:`RecordSignals.tilt_matrix` set when every static record's
+    heading is in the plate's frame: the accelerometer's matrix from the statics' means with
+    the plate's tilt at each one's heading taken out (f = b + C·g·(up + tilt), least squares);
+    unchanged otherwise, or on a plate the rests do not show tilted."""
+    st = [s for s in signals if s.kind == "static"]
+    if (
+        plate is None or plate.p_level >= LEVEL_P or plate.frame != "the fence" or len(st) < 4
+        or any(s.placement_deg is None for s in st)
+    ):  # fmt: skip
+        return list(signals)
+    a = np.array([np.concatenate([s.g * s.up, [1.0]]) for s in st])
+    if np.linalg.matrix_rank(a) < 4:
+        return list(signals)
+    ys = []
+    for s in st:
+        east, north = plate_axes(s.up, np.array([math.radians(s.placement_deg or 0.0)]))
+        tilt = s.g * (plate.vector[0] * east[0] + plate.vector[1] * north[0])
+        ys.append(s.accel.mean(axis=0) - tilt)
+    coef, *_ = np.linalg.lstsq(a, np.array(ys), rcond=None)
+    c = np.asarray(coef[:3].T)
+    return [replace(s, tilt_matrix=c) if s.kind in ("static", "turn") else s for s in signals]
+
+
 # ---- the turn axis: where gravity sits in the body while the cube turns ---------------------
 #: a turn whose axis sits further than this from the static seat on the same face is named
 #: tilted (and beyond what the plate's tilt and the noise allow), rad: 5 mrad (0.3°), above a
