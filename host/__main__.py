@@ -103,7 +103,7 @@ EXAMPLES: dict[str, str] = {
   python3 -m host model diagnose DIR --plot plots/
   python3 -m host model add DIR temperature_bias:gyro:x""",
     "archive": """examples:
-  python3 -m host archive add U17/                   keep U17's result in imu_archive.sqlite
+  python3 -m host archive add U17/                   keep U17's result in your archive
   python3 -m host archive repeat U17                 do its calibrations agree within σ?
   python3 -m host archive drift                      which units moved: recalibrate
   python3 -m host archive lot --archive postgresql://qc@db/line

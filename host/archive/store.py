@@ -175,8 +175,9 @@ class Archive:
 
     @property
     def display_url(self) -> str:
-        """The URL without its password, for messages."""
-        return self.engine.url.render_as_string(hide_password=True)
+        """The URL without its password (and without the driver's name), for messages."""
+        url = self.engine.url.render_as_string(hide_password=True)
+        return url.replace("postgresql+psycopg://", "postgresql://", 1)
 
     @property
     def backend(self) -> str:

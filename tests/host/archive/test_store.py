@@ -247,3 +247,5 @@ def test_an_unreachable_server_is_one_line_without_the_password() -> None:
     with pytest.raises(UserError, match="cannot open it") as info:
         Archive(url)
     assert "secret" not in str(info.value)
+    # the URL as the user gave it, without the driver the program chose
+    assert "archive postgresql://qc:***@127.0.0.1:1/archive" in str(info.value)
