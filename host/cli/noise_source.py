@@ -17,7 +17,6 @@ import numpy as np
 
 from host.errors import UserError
 from host.model import allan
-from host.model.recording import BLOCK
 from host.session.spacing import TimingQuality, ValueCounts, spacing_quality
 from host.wire.frames import Frame
 
@@ -29,9 +28,10 @@ _ROW = np.dtype([("t_us", "<u4"), ("segment", "<i4")] + [(c, "<i2") for c in _FI
 class CaptureSamples:
     """The samples of a capture file (raw or IMUCAP01), as :class:`host.model.recording.Blocks`
     of times (s, device clock), channels ax..gz (m/s², °/s) and temperature (°C). Decoding
-    writes them to ``work`` (a directory the caller removes); ``note`` says what was read."""
+    writes them to ``work`` (a directory the caller removes); ``note`` says what was read;
+    ``block`` samples at a time are read back (a few MiB of arrays)."""
 
-    def __init__(self, path: Path, work: Path, block: int = BLOCK) -> None:
+    def __init__(self, path: Path, work: Path, block: int = 1 << 16) -> None:
         from host.wire.bulk import BulkReader
         from host.wire.capture import damage_text, open_stream
 

@@ -128,6 +128,18 @@ def oadev_of_phase(
     count = size - 2 * m
     valid = (m >= 1) & (count >= 2)
     acc = np.zeros(m.size)
+    # two working buffers, reused: d = φ[i+2m] − 2φ[i+m] + φ[i] (no temporaries per m)
+    width = min(block, int(count.max(initial=0)))
+    d_buf, twice = np.empty(max(width, 0)), np.empty(max(width, 0))
+
+    def second_difference(far: np.ndarray, mid: np.ndarray, near: np.ndarray) -> float:
+        n = far.size
+        d, t = d_buf[:n], twice[:n]
+        np.multiply(mid, 2.0, out=t)
+        np.subtract(far, t, out=d)
+        d += near
+        return float(d @ d)
+
     small = np.flatnonzero(valid & (2 * m <= block))
     if small.size:
         reach = 2 * int(m[small].max())
@@ -136,15 +148,13 @@ def oadev_of_phase(
             for k in small:
                 mk, n = int(m[k]), min(block, int(count[k]) - i0)
                 if n > 0:
-                    d = w[2 * mk : 2 * mk + n] - 2.0 * w[mk : mk + n] + w[:n]
-                    acc[k] += float(d @ d)
+                    acc[k] += second_difference(w[2 * mk : 2 * mk + n], w[mk : mk + n], w[:n])
     for k in np.flatnonzero(valid & (2 * m > block)):
         mk = int(m[k])
         for i0 in range(0, int(count[k]), block):
             n = min(block, int(count[k]) - i0)
-            d = window(i0 + 2 * mk, i0 + 2 * mk + n) - 2.0 * window(i0 + mk, i0 + mk + n)
-            d += window(i0, i0 + n)
-            acc[k] += float(d @ d)
+            far, mid = window(i0 + 2 * mk, i0 + 2 * mk + n), window(i0 + mk, i0 + mk + n)
+            acc[k] += second_difference(far, mid, window(i0, i0 + n))
     out = np.full(m.size, np.nan)
     for k in np.flatnonzero(valid):
         out[k] = math.sqrt(acc[k] / (2.0 * int(count[k]))) * rate_hz / float(m[k])
