@@ -168,6 +168,8 @@ def simulate_lot(
     *,
     plant: bool = True,
     reference_sessions: int = 3,
+    lot_name: str = "L1",
+    prefix: str = "",
 ) -> Lot:
     """``units`` units, unit i calibrated ``sessions`` times on bench i mod ``benches``, and a
     reference unit 'REF' calibrated ``reference_sessions`` times on every bench. With
@@ -175,12 +177,12 @@ def simulate_lot(
     8 σ high (bias; every unit on it too), unit U0011 fails its self-test."""
     names = tuple(f"B{b + 1}" for b in range(benches))
     bias = {n: np.zeros(len(NAMES)) for n in names}
-    lot = Lot([], benches=names)
+    lot = Lot([], benches=names, reference=f"{prefix}REF")
     if plant:
-        lot.drifting, lot.biased_bench, lot.failing = "U0007", "B3", "U0011"
+        lot.drifting, lot.biased_bench, lot.failing = f"{prefix}U0007", "B3", f"{prefix}U0011"
         bias["B3"][NAMES.index("G0z")] = 8 * SIGMA[NAMES.index("G0z")]
     for i in range(units):
-        serial = f"U{i:04d}"
+        serial = f"{prefix}U{i:04d}"
         bench = names[i % benches]
         truth = rng.normal(0.0, SPREAD)
         lot.truth[serial] = truth
@@ -191,7 +193,9 @@ def simulate_lot(
             if serial == lot.drifting and s == sessions - 1:
                 v[NAMES.index("A0x")] += 40 * SIGMA[NAMES.index("A0x")]
             header = failing[s] if failing else decoded_self_test(self_test_fields(rng, part), s)
-            lot.entries.append(make_entry(serial, bench, s, v, SIGMA, day=7 * s, header=header))
+            lot.entries.append(
+                make_entry(serial, bench, s, v, SIGMA, day=7 * s, header=header, lot=lot_name)
+            )
     truth = rng.normal(0.0, SPREAD)
     lot.truth[lot.reference] = truth
     part = rng.normal(0.0, SELF_TEST_SPREAD, len(AXES))
@@ -200,6 +204,8 @@ def simulate_lot(
             v = truth + bias[bench] + rng.normal(0.0, SIGMA)
             header = decoded_self_test(self_test_fields(rng, part), s)
             lot.entries.append(
-                make_entry(lot.reference, bench, s, v, SIGMA, day=b * 3 + s, header=header)
+                make_entry(
+                    lot.reference, bench, s, v, SIGMA, day=b * 3 + s, header=header, lot=lot_name
+                )  # fmt: skip
             )
     return lot

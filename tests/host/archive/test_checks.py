@@ -6,6 +6,8 @@ check-bench find exactly the planted problems, on SQLite and on PostgreSQL."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -127,3 +129,33 @@ def test_drift_skips_a_session_without_the_parameter(archive_url: str) -> None:
     assert by["A0x"].delta == pytest.approx(0.1)
     assert not any(r.moved for r in rows if r.name != "A0x")
     assert by["G0z"].before_at == middle.measured_at
+
+
+@pytest.mark.slow  # 100 lots archived and checked (~15 s)
+def test_false_alarms_at_the_stated_rate_over_null_lots(tmp_path: Path) -> None:
+    """100 lots with nothing planted (24 units over 4 benches, 3 sessions each, a reference
+    unit on every bench), archived together and checked one lot at a time at a family-wise
+    false-alarm rate of 20 % (large enough to count): each check flags at most the stated
+    fraction of lots, within three binomial standard deviations (≤ 32 of 100), and not none of
+    them (≥ 5: a check that never fires passes the upper bound too). Bonferroni over the units
+    × parameters makes each a little conservative (≈ 18 % for independent tests)."""
+    n, alpha = 100, 0.2
+    rng = np.random.default_rng(2029)
+    lots = [
+        simulate_lot(rng, units=24, plant=False, lot_name=f"N{j:02d}", prefix=f"N{j:02d}-")
+        for j in range(n)
+    ]
+    flagged = dict.fromkeys(("repeat", "drift", "lot", "check-bench"), 0)
+    with Archive(str(tmp_path / "null.sqlite")) as a:
+        a.add_many([e for lot in lots for e in lot.entries])
+        for j, lot in enumerate(lots):
+            name = f"N{j:02d}"
+            flagged["repeat"] += any(r.failed for r in checks.repeat(a, lot=name, alpha=alpha))
+            rows, _ = checks.drift(a, lot=name, alpha=alpha)
+            flagged["drift"] += any(r.moved for r in rows)
+            lr = checks.lot_report(a, name, alpha=alpha)
+            flagged["lot"] += any(r.outliers for r in lr.rows) or bool(lr.failing)
+            benches, _ = checks.check_bench(a, lot.reference, alpha=alpha)
+            flagged["check-bench"] += any(b.flagged for b in benches)
+    limit = alpha * n + 3 * (n * alpha * (1 - alpha)) ** 0.5
+    assert all(5 <= f <= limit for f in flagged.values()), flagged
