@@ -276,10 +276,11 @@ def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
 
 def _sensed(sig: RecordSignals, *vectors: np.ndarray) -> tuple[np.ndarray, ...]:
     """Body vectors (N, 3) as the accelerometer reads them: through its scale and misalignment
-    (:attr:`RecordSignals.tilt_matrix`: 1.5 % of a 1° tilt is 0.26 mrad, 10 mrad of it 0.17,
-    both beyond the tilt's σ), or its scales alone where the statics' headings are not
-    recorded (the diagonal of :attr:`RecordSignals.accel_matrix`: its misalignments hold the
-    tilt there, and that error times the tilt is larger than what they would add)."""
+    (:attr:`RecordSignals.tilt_matrix`, free of the tilt: 1.5 % of a 1° tilt is 0.26 mrad,
+    10 mrad of it 0.17, both beyond the tilt's σ), or its scales alone where that matrix is
+    not known (the diagonal of :attr:`RecordSignals.accel_matrix`: the statics' misalignments
+    hold a tilt at unknown headings, and that error times the tilt is larger than what they
+    would add)."""
     if sig.tilt_matrix is not None:
         return tuple(v @ np.asarray(sig.tilt_matrix).T for v in vectors)
     a = sig.accel_matrix

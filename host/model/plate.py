@@ -267,13 +267,17 @@ def tilt_matrices(signals: Sequence[RecordSignals], plate: PlateTilt | None) -> 
     """The records with :attr:`RecordSignals.tilt_matrix` set when every static record's
     heading is in the plate's frame: the accelerometer's matrix from the statics' means with
     the plate's tilt at each one's heading taken out (f = b + C·g·(up + tilt), least squares);
-    unchanged otherwise, or on a plate the rests do not show tilted."""
+    Where they are not, the statics' horizontal readings hold the tilt, so the matrix's
+    columns come from the turns' circle centres instead (:func:`_matrix_from_centres`).
+    Unchanged on a plate the rests do not show tilted."""
     st = [s for s in signals if s.kind == "static"]
-    if (
-        plate is None or plate.p_level >= LEVEL_P or plate.frame != "the fence" or len(st) < 4
-        or any(s.placement_deg is None for s in st)
-    ):  # fmt: skip
+    if plate is None or plate.p_level >= LEVEL_P or len(st) < 4:
         return list(signals)
+    if plate.frame != "the fence" or any(s.placement_deg is None for s in st):
+        m = _matrix_from_centres(signals, plate)
+        if m is None:
+            return list(signals)
+        return [replace(s, tilt_matrix=m) if s.kind in ("static", "turn") else s for s in signals]
     a = np.array([np.concatenate([s.g * s.up, [1.0]]) for s in st])
     if np.linalg.matrix_rank(a) < 4:
         return list(signals)
@@ -285,6 +289,39 @@ def tilt_matrices(signals: Sequence[RecordSignals], plate: PlateTilt | None) -> 
     coef, *_ = np.linalg.lstsq(a, np.array(ys), rcond=None)
     c = np.asarray(coef[:3].T)
     return [replace(s, tilt_matrix=c) if s.kind in ("static", "turn") else s for s in signals]
+
+
+def _matrix_from_centres(signals: Sequence[RecordSignals], plate: PlateTilt) -> np.ndarray | None:
+    """The accelerometer's matrix (3, 3) free of the tilt without the statics' headings: the
+    diagonal and the biases from each axis's pair of static faces (gravity along the axis: the
+    tilt enters as its square), the column of a turn's axis k from its circle's centre (the
+    horizontal channels less their biases, over ±g: the tilt draws the circle about it; the
+    mean of the turns about k). None unless both faces of every axis and a turn about every
+    axis are there."""
+    c = np.eye(3)
+    bias = np.zeros(3)
+    for k in range(3):
+        pair = [s for s in signals if s.kind == "static" and abs(abs(float(s.up[k])) - 1) < 1e-6]
+        plus = [float(s.accel[:, k].mean()) for s in pair if s.up[k] > 0]
+        minus = [float(s.accel[:, k].mean()) for s in pair if s.up[k] < 0]
+        if not plus or not minus:
+            return None
+        bias[k] = 0.5 * (float(np.mean(plus)) + float(np.mean(minus)))
+        c[k, k] = 0.5 * (float(np.mean(plus)) - float(np.mean(minus))) / pair[0].g
+    cols: dict[int, list[np.ndarray]] = {0: [], 1: [], 2: []}
+    for circle in plate.circles:
+        turn = next(s for s in signals if s.name == circle.record)
+        k = int(np.argmax(np.abs(turn.up)))
+        hor = [i for i in range(3) if i != k]
+        col = np.zeros(3)
+        col[hor] = (circle.centre - bias[hor]) / (turn.g * float(turn.up[k]))
+        cols[k].append(col)
+    if not all(cols.values()):
+        return None
+    for k, v in cols.items():
+        m = np.mean(v, axis=0)
+        c[[i for i in range(3) if i != k], k] = m[[i for i in range(3) if i != k]]
+    return c
 
 
 # ---- the turn axis: where gravity sits in the body while the cube turns ---------------------

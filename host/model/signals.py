@@ -36,9 +36,10 @@ class RecordSignals:
     and a face's lean g·θ. ``gyro_scale`` (3,): how each gyro reads a rate along its own axis,
     1 + scale, from the turns before the fit (None: 1) — what a face's lean θ·ω passes through.
     ``tilt_matrix`` (3, 3): how the accelerometer reads the plate's tilt of gravity: the
-    static records' matrix with the plate's tilt at their recorded headings taken out first
-    (None: only its diagonal, the scales, is known that well — a tilt at unknown headings
-    reads as misalignment in the statics' matrix).
+    static records' matrix with the plate's tilt at their recorded headings taken out first,
+    or without them its columns from the turns' circle centres
+    (:func:`host.model.plate.tilt_matrices`; None: only its diagonal, the scales, is known
+    that well — a tilt at unknown headings reads as misalignment in the statics' matrix).
     ``heading_tilt`` (2,) rad: on a turn record whose ``placement_deg`` was read from its
     rests' circle (not recorded), the plate's tilt (east, north) the circles show — the fit
     carries a correction of that heading as an unknown of the record, linearised there (None:
