@@ -389,14 +389,18 @@ class CaptureUnwrapper:
 _SKIP = 1.25
 _CUT = 0.75
 #: the most header candidates weighed at once after damage (bounds the work on hostile bytes)
-_MAX_CANDIDATES = 2048
+_MAX_CANDIDATES = 512
+#: how far after the last read kept a header weighed after damage may be, ns (a year: a
+#: capture is not paused longer inside one damaged place)
+_MAX_SPAN_NS = 52 * MAX_GAP_NS
 
 
 def _candidates(
     buf: bytearray, lo: int, hi: int, prev_t: int | None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions in buf[lo:hi] where a plausible header starts (length 1 to :data:`MAX_READ`,
-    time not before ``prev_t``), with their times (ns) and lengths."""
+    time not before ``prev_t`` nor :data:`_MAX_SPAN_NS` after it), with their times (ns) and
+    lengths."""
     if hi - lo < _REC.size:
         z = np.zeros(0, np.int64)
         return z, z.astype(np.uint64), z
@@ -411,7 +415,8 @@ def _candidates(
     for b in range(8):
         t |= arr[idx + b].astype(np.uint64) << np.uint64(8 * b)
     if prev_t is not None:
-        keep = t >= np.uint64(prev_t)
+        # no later than the window's reads could carry it (a week each, a year at most)
+        keep = (t >= np.uint64(prev_t)) & (t - np.uint64(prev_t) <= np.uint64(_MAX_SPAN_NS))
         idx, t = idx[keep], t[keep]
     return (idx + lo).astype(np.int64), t, n[idx].astype(np.int64)
 
