@@ -79,6 +79,11 @@ def analyse_file(
             return an, samples.note
     except ValueError as exc:
         raise UserError(f"{path}: {exc}; record longer") from None
+    except OSError as exc:  # the temporary files (about 70 bytes a sample)
+        raise UserError(
+            f"{path}: cannot write the temporary files a capture is streamed through in "
+            f"{tempfile.gettempdir()} ({exc.strerror or exc}); free space there or set TMPDIR"
+        ) from None
 
 
 def _fmt(v: float) -> str:

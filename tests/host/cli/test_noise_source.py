@@ -103,3 +103,24 @@ def test_the_phase_files_are_removed_with_the_store(tmp_path: Path) -> None:
     assert store.window(3, 7).tolist() == [3.0, 4.0, 5.0, 6.0]
     del store
     assert list(tmp_path.iterdir()) == []
+
+
+def test_no_room_for_the_temporary_files_is_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A full disk where the capture is streamed through: one line naming the place and the
+    fix, exit 2, no traceback."""
+    from host.__main__ import main
+
+    path = tmp_path / "static.cap"
+    write_capture(path)
+
+    def full(self: FilePhases, values: np.ndarray) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(FilePhases, "append", full)
+    rc = main(["noise", str(path)])
+    err = capsys.readouterr().err
+    assert rc == 2 and "Traceback" not in err
+    assert "No space left on device" in err and "TMPDIR" in err
+    assert len([line for line in err.splitlines() if line.startswith("error:")]) == 1
