@@ -20,7 +20,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from sqlalchemy import Connection, Engine, Table, create_engine, event, func, select, true
+from sqlalchemy import (
+    Connection,
+    Engine,
+    Table,
+    create_engine,
+    event,
+    func,
+    make_url,
+    select,
+    true,
+)
 from sqlalchemy.dialects.postgresql import insert as pg_insert
 from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 from sqlalchemy.exc import ArgumentError, NoSuchModuleError, OperationalError
@@ -61,6 +71,15 @@ def archive_url(option: str | None = None) -> str:
     if "://" in raw:
         return raw
     return f"sqlite:///{Path(raw).expanduser().resolve()}"
+
+
+def _without_password(url: str) -> str:
+    """``url`` for a message: its password as ***, the user's scheme (postgresql://)."""
+    try:
+        shown = make_url(url).render_as_string(hide_password=True)
+    except ArgumentError:  # not a URL at all: only its scheme
+        shown = url.split("://", 1)[0] + "://…"
+    return shown.replace("postgresql+psycopg://", "postgresql://", 1)
 
 
 def _nan(v: Any) -> float:
@@ -148,6 +167,11 @@ class Archive:
 
     def __init__(self, url: str | None = None) -> None:
         self.url = archive_url(url)
+        if self.url.split("://", 1)[0].split("+", 1)[0] not in ("sqlite", "postgresql"):
+            raise UserError(
+                f"archive {_without_password(self.url)}: not an SQLite file nor a "
+                "postgresql:// server, the two kinds of database the archive runs on"
+            )
         try:
             if self.url.startswith("sqlite"):
                 self.engine = create_engine(self.url)
@@ -155,11 +179,13 @@ class Archive:
             else:
                 self.engine = create_engine(self.url)
         except NoSuchModuleError as exc:
-            raise UserError(f"archive {self.url}: unknown kind of database ({exc})") from None
+            raise UserError(
+                f"archive {_without_password(self.url)}: unknown kind of database ({exc})"
+            ) from None
         except ModuleNotFoundError as exc:
             raise UserError(
-                f"archive {self.url}: the driver is missing ({exc.name}): pip install "
-                "'psycopg[binary]'"
+                f"archive {_without_password(self.url)}: the driver is missing ({exc.name}): "
+                "pip install 'psycopg[binary]'"
             ) from None
         except ArgumentError as exc:
             raise UserError(f"archive: not a database URL: {url!r} ({exc})") from None
@@ -176,8 +202,7 @@ class Archive:
     @property
     def display_url(self) -> str:
         """The URL without its password (and without the driver's name), for messages."""
-        url = self.engine.url.render_as_string(hide_password=True)
-        return url.replace("postgresql+psycopg://", "postgresql://", 1)
+        return _without_password(self.engine.url.render_as_string(hide_password=False))
 
     @property
     def backend(self) -> str:

@@ -233,7 +233,8 @@ def test_the_url_comes_from_the_option_else_the_environment_else_a_file_here(
 @pytest.mark.parametrize(
     "url, words",
     [
-        ("nosuchdb://x/y", "unknown kind of database"),
+        ("nosuchdb://x/y", "not an SQLite file nor a postgresql:// server"),
+        ("mysql://qc:secret@db/line", "archive mysql://qc:\\*\\*\\*@db/line: not an SQLite"),
         ("/nonexistent/dir/a.sqlite", "cannot open it"),
     ],
 )
