@@ -120,6 +120,7 @@ def test_decode_streams_a_fifo_fed_by_a_writer_process_and_ends_at_eof(
     assert [int(r.split(",")[1]) for r in rows[1:]] == expected["t_us"].tolist()
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(240)  # waits on bytes read, not wall time: ~15 s idle, slower under load
 def test_decode_dev_zero_streams_in_bounded_memory_until_ctrl_c(tmp_path: Path) -> None:
     """Was: unbounded read, MemoryError (then: refused). Now an endless device is read in

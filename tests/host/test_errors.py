@@ -54,6 +54,7 @@ def test_the_scanner_finds_a_text_filter() -> None:
     assert _text_filters(ast.parse(src)) == [4, 4]
 
 
+@pytest.mark.slow
 def test_no_module_filters_errors_by_their_message() -> None:
     found = {}
     for path in sorted(HOST.rglob("*.py")):

@@ -44,6 +44,7 @@ def run_in_process(case: Case, d: Path) -> tuple[int, str, float, str]:
     return rc, err.getvalue(), time.monotonic() - t0, out.getvalue()
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(90)
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
 def test_bad_input_of_the_sweep(case: Case, tmp_path: Path) -> None:

@@ -134,6 +134,7 @@ def test_the_readmes_command_index_names_every_command_once() -> None:
             assert word in COMMANDS, f"{page.name}: python -m host {word}: no such command"
 
 
+@pytest.mark.slow
 def test_the_fit_example_gives_the_fit_line_of_model_diagnose(tmp_path: Path) -> None:
     """docs/python-api.md's fit, run as written on a session directory, gives the numbers the
     command prints for the same records and model (the example is the engine the command uses,

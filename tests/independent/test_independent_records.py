@@ -69,6 +69,7 @@ def test_heading_is_only_written_when_asked(tmp_path: Path) -> None:
     assert HEADING_KEY not in meta
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effect", ["none", "lever_arm"])
 def test_host_reads_the_session(tmp_path: Path, effect: str) -> None:
     write_session(tmp_path, SessionSpec(seed=3, effect=effect))

@@ -20,6 +20,7 @@ def temp_dir(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     return d, case.term
 
 
+@pytest.mark.slow
 def test_diagnose_text_and_json(
     temp_dir: tuple[Path, str], capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -48,6 +49,7 @@ def test_add_shows_the_error_falling(
     assert obj["after"]["rms_z"] < obj["before"]["rms_z"] / 2
 
 
+@pytest.mark.slow
 def test_ladder(temp_dir: tuple[Path, str], capsys: pytest.CaptureFixture[str]) -> None:
     d, term = temp_dir
     assert main(["model", "ladder", str(d)]) == 0
@@ -55,6 +57,7 @@ def test_ladder(temp_dir: tuple[Path, str], capsys: pytest.CaptureFixture[str]) 
     assert "start: bias" in out and "temperature_bias:gyro" in out and "final model" in out
 
 
+@pytest.mark.slow
 def test_term_file_and_plot(temp_dir: tuple[Path, str], tmp_path: Path,
                             capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
     pytest.importorskip("matplotlib")
@@ -99,6 +102,7 @@ def test_bad_input_is_one_line(argv: list[str], temp_dir: tuple[Path, str], tmp_
     assert err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_demo_hidden_effect(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "hidden-effect", "--effect", "asymmetry", "--seed", "3",
                  "--out", str(tmp_path)]) == 0  # fmt: skip

@@ -28,6 +28,7 @@ def quantised(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathF
     return d
 
 
+@pytest.mark.slow
 def test_calibrate_and_diagnose_quantised_time_stamps(
     quantised: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -317,6 +317,7 @@ def test_resume_refuses_other_turns(tmp_path: Path) -> None:
 # --------------------------------------------------------------------------- link trouble
 
 
+@pytest.mark.slow
 def test_board_vanishing_mid_measurement(tmp_path: Path) -> None:
     ports = Ports()
     con = ScriptedConsole()
@@ -449,6 +450,7 @@ class GoesSilent:
         return getattr(self.inner, name)
 
 
+@pytest.mark.slow
 def test_silent_board_mid_session_is_reported_and_recovered(tmp_path: Path) -> None:
     seen: list[float] = []
     wrapped: list[GoesSilent] = []
@@ -576,6 +578,7 @@ def test_board_live_clock_maps_the_record_start_to_host_time() -> None:
     assert int(meta["clock_points"]) > 1000
 
 
+@pytest.mark.slow
 def test_the_warm_up_is_recorded_as_a_record_of_its_own(tmp_path: Path) -> None:
     ports = Ports()
     rc, stdout = run(
@@ -626,6 +629,7 @@ class LaggingPort:
         return int(self._port.write(data))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("chunk", [1, 27, 200, 4096])
 def test_measurement_is_cut_on_device_time_not_on_reads(chunk: int) -> None:
     """Samples of the previous pose still in flight at the start beep (20 samples' worth of

@@ -288,6 +288,7 @@ def test_esc_aborts_only_the_measurement(tmp_path: Path, screens: list[Screen], 
     assert sorted(p.name for p in out.iterdir()) == ["E1_session.cap"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("board", BOARDS)
 def test_range_alarm_offers_to_repeat(tmp_path: Path, screens: list[Screen], board: str) -> None:
     url = board_url(board, 23, "max", "too_fast@1")

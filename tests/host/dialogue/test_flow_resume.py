@@ -107,6 +107,7 @@ def test_ctrl_c_prints_a_command_with_every_option_and_the_answers(tmp_path: Pat
     assert again.model == "base,temperature_bias" and not again.yes
 
 
+@pytest.mark.slow
 def test_redo_measures_one_record_again_and_keeps_the_others(tmp_path: Path) -> None:
     url = f"sim://?seed=11&{LINEAR}"
     assert run(opts(tmp_path, url), ScriptedConsole(), Ports())[0] in (0, 1)
@@ -127,6 +128,7 @@ def test_redo_measures_one_record_again_and_keeps_the_others(tmp_path: Path) -> 
     }
 
 
+@pytest.mark.slow
 def test_a_turn_kept_despite_its_warning_ends_with_the_record_to_redo(tmp_path: Path) -> None:
     """'Save anyway' on an incomplete turn: the record keeps the warning in its header; the
     results cannot use it, and the session says which record to redo and the exact command;
@@ -198,6 +200,7 @@ def test_a_record_kept_despite_a_warning_is_in_the_report_with_it(tmp_path: Path
     assert note in json.loads((tmp_path / "W1_result.json").read_text())["notes"]
 
 
+@pytest.mark.slow
 def test_redo_asks_neither_the_warm_up_nor_the_accumulation_time_again(tmp_path: Path) -> None:
     """--redo (and --resume) with records kept: no second warm-up (the kept records were
     measured on the warm unit), and the accumulation time is that of the kept statics, said,

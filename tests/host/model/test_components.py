@@ -47,6 +47,7 @@ def test_a_term_that_explains_the_closures_takes_them_from_the_turn_angle(
     assert any(n.startswith("a named variance component: turn angle") for n in joint.dataset.notes)
 
 
+@pytest.mark.slow
 def test_on_a_control_the_joint_fit_is_the_plain_fit(tmp_path: Path) -> None:
     """Nothing hidden, exact turns: no component is resolved in most sessions, and then the
     joint fit weighs every row as the dataset does (the same χ²)."""

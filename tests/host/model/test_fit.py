@@ -122,6 +122,7 @@ def test_serial_correlation_of_white_records_is_not_biased_high() -> None:
     assert integrated_autocorrelation(runs, 30) == pytest.approx(3.0, rel=0.15)
 
 
+@pytest.mark.slow
 def test_noise_model_is_honest_under_the_null() -> None:
     """The §2 model on §2 data with white noise AND Gauss-Markov bias instability, the unit's
     wander known (as its noise file gives it, ``--noise``): χ²/dof about 1 or below (never the

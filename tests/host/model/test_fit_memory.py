@@ -8,6 +8,7 @@ import tracemalloc
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from host.bench.plan import Plan, simulate_session
 from host.bench.truth import SensorTruth
@@ -39,6 +40,7 @@ def _peak_bytes(ds: Dataset) -> int:
         tracemalloc.stop()
 
 
+@pytest.mark.slow
 def test_fit_and_held_out_prediction_memory_grows_linearly_with_the_records() -> None:
     small, large = _dataset(1), _dataset(8)
     assert large.n_rows >= 7 * small.n_rows

@@ -166,6 +166,7 @@ def _pair_mean(d: Path, i: int, j: int) -> float:
     return float(np.mean([x.accel[:, i].mean() for x in faces]))
 
 
+@pytest.mark.slow
 def test_the_tilts_share_of_each_bias_estimate_is_what_the_tilt_moved(tmp_path: Path) -> None:
     """Headings recorded: the note's share of each §3 bias estimate is the difference the tilt
     made to it (the same unit, plan and noise without the tilt: the simulator's control)."""

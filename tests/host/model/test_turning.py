@@ -146,6 +146,7 @@ def test_lever_arm_is_one_shared_term_with_a_plausible_range() -> None:
     assert t.param_units("accel") == ("m", "m", "m")
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(300)  # two simulated sessions, each diagnosed twice (~15 s each idle)
 @pytest.mark.parametrize("seed", range(2))
 def test_hidden_lever_arm_is_named_recommended_and_recovered(seed: int) -> None:
@@ -170,6 +171,7 @@ def test_hidden_lever_arm_is_named_recommended_and_recovered(seed: int) -> None:
     assert "centripetal" in format_diagnosis(d, compare=False)
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(300)  # five simulated sessions diagnosed
 def test_without_a_lever_arm_it_is_not_recommended_and_the_control_stays_adequate() -> None:
     zs = []
@@ -217,6 +219,7 @@ def test_the_moving_blocks_are_rows_of_their_own_and_can_be_left_out() -> None:
     assert not any("the hand while the cube turns" in n for n in without.notes)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not REAL.is_dir(), reason="shared real data not present")
 def test_real_imucal_lever_arm_is_measured_to_millimetres_and_not_recommended() -> None:
     """imucal's real session (fast one-way turns, ~450 °/s peaks): the lever arm is determined

@@ -36,6 +36,7 @@ def chunked(data: bytes, sizes: list[int], min_batch: int) -> bulk.BulkResult:
     )
 
 
+@pytest.mark.slow
 @settings(max_examples=80, deadline=None)
 @given(
     st.integers(0, 2**32 - 1),
@@ -119,6 +120,7 @@ def two_runs() -> tuple[LinkCapture, bytes]:
     return lc, lc.to_imucap()
 
 
+@pytest.mark.slow
 @settings(max_examples=8, deadline=None)
 @given(st.lists(st.integers(1, 30_000), min_size=1, max_size=5))
 def test_streaming_timeline_equals_the_whole_capture(

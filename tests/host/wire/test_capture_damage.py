@@ -14,6 +14,7 @@ import struct
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
@@ -75,6 +76,7 @@ def _zeros(*sizes: int) -> list[tuple[int, bytes]]:
 # first byte of a time deleted (the read before and the header after share a byte); a bit
 # flipped in a length so that the read ends exactly at the end of the file, or exactly at the
 # header after the next two (it swallowed them, their headers chaining on)
+@pytest.mark.slow
 @example(reads=_zeros(1, 1, 7, 7, 1, 1), damage=("flip", 72, 5), pieces=1)
 @example(reads=_zeros(*[1] * 16, 3, 3, 4, 5, 5, 5, 5, 5, 6, 8, 9, 10, 18, 1),
          damage=("insert", 165, 0), pieces=1)  # fmt: skip

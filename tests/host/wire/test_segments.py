@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -73,6 +74,7 @@ _t_steps = st.one_of(
 )  # fmt: skip
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(
     st.integers(0, SEQ_MOD - 1),
@@ -93,6 +95,7 @@ def test_the_array_twin_equals_the_tracker(seq0: int, t0: int, steps: list) -> N
     assert run_twin(seq, t_us) == run_tracker(seq, t_us)
 
 
+@pytest.mark.slow
 def test_flag_bits_come_from_the_spec() -> None:
     """No ``flags & 1`` in host/: a flag bit is a name from spec.json's sample_flags."""
     import ast

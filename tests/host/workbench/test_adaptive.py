@@ -62,6 +62,7 @@ def test_it_measures_until_the_target_and_counts_the_operators_time() -> None:
     assert run.worst == pytest.approx(_worst(dict(run.records)), rel=1e-9)
 
 
+@pytest.mark.slow
 def test_it_stops_at_the_time_limit_when_the_target_is_out_of_reach() -> None:
     spec = SessionSpec(seed=22, static_s=5.0, turns=1, closing=False)
     first = minimal_plan(5.0, 1)

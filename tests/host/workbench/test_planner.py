@@ -32,6 +32,7 @@ def _pick(label: str, turns: int = 2) -> Candidate:
     return c
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("label", "extra", "names"),
     [
@@ -55,6 +56,7 @@ def test_predicted_sigma_is_the_sigma_once_measured(
             assert p.sigma_now[n] > 1.05 * predicted, n  # the record matters for n
 
 
+@pytest.mark.slow
 def test_missing_turns_are_ranked_first_and_named(tmp_path: Path) -> None:
     """Without the turns about x the gyro's x scale and the misalignments about x are not
     determined: the pair of x turns is ranked first and says what it determines."""

@@ -90,6 +90,7 @@ def test_hidden_accel_scale_asymmetry_six_attitudes_is_a_group_of_equals(seed: i
     assert a is not None and a.after.rms_z <= 1.5 and a.before.rms_z >= 3.0 * a.after.rms_z
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(2))
 def test_hidden_accel_scale_asymmetry_separated_by_45_degree_attitudes(seed: int) -> None:
     # the 45° plan's long session: the gyro's Gauss-Markov wander (τ 300 s) is shared by
@@ -98,6 +99,7 @@ def test_hidden_accel_scale_asymmetry_separated_by_45_degree_attitudes(seed: int
     _check_found("asymmetry", seed, tilted=True, alone=True, other_ok=True)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(3))
 def test_monotonic_warmup_confounds_temperature_and_time(seed: int) -> None:
     case = hidden_effect_case("warmup", seed)
@@ -268,6 +270,7 @@ def test_nothing_hidden_is_adequate_with_rms_z_near_one() -> None:
     assert 0.7 <= float(np.median(rms)) <= 1.3, rms
 
 
+@pytest.mark.slow
 def test_implausible_coefficient_is_not_recommended_and_named_an_alias() -> None:
     """Without the scale term, a gyro temperature-scale takes its place on a session whose
     temperature varies: beyond the datasheet's range, called an alias, never recommended."""
