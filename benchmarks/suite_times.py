@@ -20,6 +20,7 @@ import importlib.util
 import os
 import re
 import resource
+import signal
 import subprocess
 import sys
 import time
@@ -29,7 +30,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def run_suite(marker: str | None, workers: int) -> tuple[float, float, str]:
-    """Wall time (s), CPU time (s) and pytest's summary line of one run of the suite."""
+    """Wall time (s), CPU time (s) and pytest's summary line (and its FAILED lines) of one
+    run of the suite."""
     cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"]
     if marker:
         cmd += ["-m", marker]
@@ -41,12 +43,20 @@ def run_suite(marker: str | None, workers: int) -> tuple[float, float, str]:
     env.setdefault("PYTHONPATH", str(ROOT))
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    r = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
+    # Ctrl+C as a terminal has it: a background job starts with SIGINT ignored, and the tests
+    # of Ctrl+C then fail (Python installs its handler only where SIGINT is not ignored)
+    r = subprocess.run(
+        cmd, cwd=ROOT, env=env, capture_output=True, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )  # fmt: skip
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    lines = [ln for ln in r.stdout.splitlines() if re.search(r"\d+ (passed|failed)", ln)]
-    return wall, cpu, (lines[-1].strip("= ") if lines else f"exit {r.returncode}")
+    out = r.stdout.splitlines()
+    lines = [ln for ln in out if re.search(r"\d+ (passed|failed)", ln)]
+    summary = lines[-1].strip("= ") if lines else f"exit {r.returncode}"
+    failed = [ln for ln in out if ln.startswith(("FAILED ", "ERROR "))]
+    return wall, cpu, "\n  ".join([summary, *failed])
 
 
 def main() -> None:
