@@ -166,15 +166,22 @@ def fit_min_delay(device_us: np.ndarray, floor_ns: np.ndarray) -> ClockMap:
     a = ys[i] - b * xs[i]
     a, b = _refine_on_bin_floors(xs, ys, a, b)
     gaps_us = (y - (a + b * x)) / 1000.0
-    return ClockMap(
-        x0,
-        y0,
-        a,
-        b,
-        int(x.size),
-        float(np.median(gaps_us)),
-        float(np.percentile(gaps_us, 5)),
-    )
+    median, p5 = _percentiles(gaps_us, (50.0, 5.0))
+    return ClockMap(x0, y0, a, b, int(x.size), median, p5)
+
+
+def _percentiles(a: np.ndarray, qs: tuple[float, ...]) -> list[float]:
+    """numpy's (linear) percentiles ``qs`` of ``a`` from one partial sort (np.percentile and
+    np.median sort once each, and cost more than the sort itself on a clock window)."""
+    if not np.all(np.isfinite(a)):
+        return [float(np.percentile(a, q)) for q in qs]
+    pos = [(a.size - 1) * q / 100.0 for q in qs]
+    lo = [int(p) for p in pos]
+    hi = [min(k + 1, a.size - 1) for k in lo]
+    part = np.partition(a, sorted(set(lo + hi)))
+    return [
+        float(part[k] + (part[m] - part[k]) * (p - k)) for p, k, m in zip(pos, lo, hi, strict=True)
+    ]
 
 
 def _refine_on_bin_floors(
@@ -206,7 +213,7 @@ def _refine_on_bin_floors(
     fx, fr = x[pick], r[pick]
     keep = np.ones(fx.size, dtype=bool)
     for _ in range(3):
-        c1, c0 = np.polyfit(fx[keep], fr[keep], 1)
+        c1, c0 = _line(fx[keep], fr[keep])
         res = fr - (c0 + c1 * fx)
         mad = float(np.median(np.abs(res[keep] - np.median(res[keep])))) or 1.0
         new_keep = np.abs(res) <= 4 * 1.4826 * mad
@@ -217,6 +224,16 @@ def _refine_on_bin_floors(
         return a, b
     c0 += float(np.percentile(fr[keep] - (c0 + c1 * fx[keep]), 2))
     return a + c0, b + c1
+
+
+def _line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Least-squares line y = c0 + c1·x: (c1, c0), from the centred sums (a few µs; a
+    general polynomial fit costs ten times that, once per clock window and iteration)."""
+    xm, ym = float(x.mean()), float(y.mean())
+    dx = x - xm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c1 = float(np.dot(dx, y - ym) / np.dot(dx, dx))
+    return c1, ym - c1 * xm
 
 
 @dataclass(frozen=True)

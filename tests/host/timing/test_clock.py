@@ -125,3 +125,24 @@ def test_min_delay_fit_with_the_vectorised_hull_is_the_walked_hulls_fit(
     assert fast.b == pytest.approx(walked.b, rel=1e-12, abs=1e-12)
     assert fast.offset_ns == pytest.approx(walked.offset_ns, rel=1e-12, abs=1e-3)
     assert fast.latency_median_us == pytest.approx(walked.latency_median_us, abs=1e-6)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    values=st.lists(st.floats(-1e9, 1e9), min_size=1, max_size=300),
+    q=st.floats(0, 100),
+)
+def test_the_clocks_percentiles_and_line_are_numpys(values: list[float], q: float) -> None:
+    """The window fit's own percentiles (one partial sort) and least-squares line (centred
+    sums) give numpy's percentile, median and polyfit to rounding."""
+    a = np.asarray(values)
+    got = clock._percentiles(a, (q, 50.0))
+    scale = 1 + float(np.max(np.abs(a)))
+    assert got[0] == pytest.approx(np.percentile(a, q), abs=1e-12 * scale)
+    assert got[1] == pytest.approx(np.median(a), abs=1e-12 * scale)
+    x = np.arange(a.size, dtype=float) * 1e6
+    if a.size >= 2:
+        c1, c0 = clock._line(x, a)
+        p1, p0 = np.polyfit(x, a, 1)
+        assert c1 == pytest.approx(p1, rel=1e-9, abs=1e-9 * scale / 1e6 / a.size)
+        assert c0 == pytest.approx(p0, rel=1e-9, abs=1e-6 * scale)
