@@ -9,6 +9,8 @@ figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imp
   operator's words for a placement.
 - ``plate`` — the plate's tilt from the circle the turns' rests draw; headings records lack; the
   axis each turn was made about (a tilted seat named and corrected).
+- ``remeasured`` — a face measured twice: the accelerometer's bias change between the two, and
+  whether the turns' leans are that change rather than tilted turn axes.
 - ``signals`` — a record's reference signals (force, rate, temperature, time, heading); units.
 - ``terms`` — the :class:`Term` type and the ``@term`` / ``@nonlinear_term`` decorators.
 - ``catalogue`` — the built-in terms (``base`` = method.md §2, and the §8 effects), plausibility.

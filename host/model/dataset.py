@@ -20,6 +20,7 @@ from host.model.plate import (
     session_plate,
     tilt_matrices,
 )
+from host.model.remeasured import leans_are_a_bias_change
 from host.model.rows import (
     RowTable,
     add_block_means,
@@ -337,8 +338,12 @@ def build_dataset(
     signals, plate_notes = resolve_placements(signals, g)
     notes.extend(plate_notes)
     signals = tilt_matrices(signals, session_plate(signals))
-    signals, tilted = resolve_turn_axes(signals, session_plate(signals))
+    plate = session_plate(signals)
+    changed = leans_are_a_bias_change(signals, plate)
+    signals, tilted = resolve_turn_axes(signals, None if changed else plate)
     notes.extend(a.line() for a in tilted)
+    if changed:
+        notes.append(changed.line(g))
     moved = {i for i, s in enumerate(signals) if s.name in {a.record for a in tilted}}
     for ch in table.channels:  # the ideal sensor's value of a turn now about its measured axis
         if ch.record in moved:
