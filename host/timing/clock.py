@@ -215,14 +215,15 @@ def _refine_on_bin_floors(
     for _ in range(3):
         c1, c0 = _line(fx[keep], fr[keep])
         res = fr - (c0 + c1 * fx)
-        mad = float(np.median(np.abs(res[keep] - np.median(res[keep])))) or 1.0
+        kept = res[keep]
+        mad = _percentiles(np.abs(kept - _percentiles(kept, (50.0,))[0]), (50.0,))[0] or 1.0
         new_keep = np.abs(res) <= 4 * 1.4826 * mad
         if np.array_equal(new_keep, keep) or np.count_nonzero(new_keep) < 4:
             break
         keep = new_keep
     if not (np.isfinite(c0) and np.isfinite(c1)):
         return a, b
-    c0 += float(np.percentile(fr[keep] - (c0 + c1 * fx[keep]), 2))
+    c0 += _percentiles(fr[keep] - (c0 + c1 * fx[keep]), (2.0,))[0]
     return a + c0, b + c1
 
 
