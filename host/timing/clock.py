@@ -153,8 +153,11 @@ def fit_min_delay(device_us: np.ndarray, floor_ns: np.ndarray) -> ClockMap:
     y0 = float(floor_ns[0])
     x = np.asarray(device_us, dtype=np.float64) - x0
     y = np.asarray(floor_ns, dtype=np.float64) - y0
-    order = np.lexsort((y, x))  # by device time, the lowest first among equal times
-    xs, ys = x[order], y[order]
+    if np.all(x[1:] > x[:-1]):  # in order already (a capture's samples): no sort
+        xs, ys = x, y
+    else:
+        order = np.lexsort((y, x))  # by device time, the lowest first among equal times
+        xs, ys = x[order], y[order]
     h = lower_hull(xs, ys)
     if h.size < 2:
         raise ValueError("need two points with different device times")
