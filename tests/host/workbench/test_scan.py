@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from host.model.dataset import load_dataset
@@ -40,3 +41,43 @@ def test_a_gyro_bias_step_is_named_a_step_on_its_channel(tmp_path: Path) -> None
         at = truth["at_session_s"] + spec.warmup_s
         assert float(before.t_s[0]) <= at + 30.0 and float(after.t_s[-1]) >= at - 30.0, (
             name, after.name, at)  # fmt: skip
+
+
+def test_warming_is_read_from_the_bend_of_the_session_s_temperature() -> None:
+    """The chip's dT/dt at each sample: a room swing (±0.4 °C, 7 min) seen through 10 s
+    records 35 s apart with 0.02 °C of noise. The derivative follows the truth within each
+    record (within a tenth of the swing's rate; its change over a record, which one slope per
+    record set to 0, within 40 %), and a record without neighbours in time gets its own slope."""
+    from types import SimpleNamespace
+
+    from host.model.signals import RecordSignals
+    from host.workbench.scan import warming_rates
+
+    rng = np.random.default_rng(2)
+    w = 2.0 * np.pi / 420.0
+
+    def record(name: str, t0: float) -> RecordSignals:
+        t = t0 + np.arange(500) * 0.02
+        temp = 30.0 + 0.4 * np.sin(w * t) + rng.normal(0.0, 0.02, len(t))
+        z = np.zeros((len(t), 3))
+        return RecordSignals(
+            name=name, kind="static", t_s=t, temp_c=temp, force=z, rate=z, accel=z, gyro=z,
+            g=9.8, up=np.array([0.0, 0.0, 1.0]),
+        )  # fmt: skip
+
+    recs = [record(f"r{i}", 35.0 * i) for i in range(12)]
+    got = warming_rates(SimpleNamespace(signals=tuple(recs), time_known=True))
+    bends = 0
+    for r in recs[2:-2]:
+        truth = 0.4 * w * np.cos(w * r.t_s)
+        assert np.max(np.abs(got[r.name] - truth)) < 0.1 * 0.4 * w, r.name
+        change, want = got[r.name][-1] - got[r.name][0], truth[-1] - truth[0]
+        if abs(want) > 0.5 * 0.4 * w * w * 10.0:  # a record where the rate bends
+            bends += 1
+            assert abs(change - want) < 0.4 * abs(want), (r.name, change, want)
+    assert bends >= 3
+    alone = warming_rates(SimpleNamespace(signals=(recs[3],), time_known=True))["r3"]
+    assert (
+        np.ptp(alone) == 0.0
+        and abs(alone[0] - 0.4 * w * np.cos(w * recs[3].t_s.mean())) < 0.1 * 0.4 * w
+    )
