@@ -106,6 +106,25 @@ def turn_axis_tilt(rng: np.random.Generator) -> Effect:
     return Effect("turn_axis_tilt", params, geometry=geo)
 
 
+def one_turn_axis_tilt(rng: np.random.Generator) -> Effect:
+    """One turn record alone is made with the cube seated 3°–4° off its face (the other turn
+    about the same axis, and every static, seated flat): a hand that pressed one edge."""
+    k = _pick(rng)[0]
+    record = f"{AXES[k]}_{('ccw', 'cw')[int(rng.integers(0, 2))]}"
+    size = math.radians(rng.uniform(3.0, 4.0))
+    phi = rng.uniform(0, 2 * math.pi)
+    others = [i for i in range(3) if i != k]
+    lean = np.zeros(3)
+    lean[others[0]], lean[others[1]] = size * math.cos(phi), size * math.sin(phi)
+
+    def geo(g: Geometry) -> None:
+        g.record_lean[record] = lean
+
+    params = {"axis": AXES[k], "record": record, "lean_rad": lean.tolist(),
+              "tilt_deg": math.degrees(size)}  # fmt: skip
+    return Effect("one_turn_axis_tilt", params, geometry=geo)
+
+
 def face_lean(rng: np.random.Generator) -> Effect:
     """Every face of the fixture leans 1–5 mrad (either sign) toward both other axes."""
     leans: dict[str, np.ndarray] = {}
@@ -264,6 +283,7 @@ EFFECTS: dict[str, Callable[[np.random.Generator], Effect]] = {
     "none": none,
     "plate_tilt": plate_tilt,
     "turn_axis_tilt": turn_axis_tilt,
+    "one_turn_axis_tilt": one_turn_axis_tilt,
     "face_lean": face_lean,
     "lever_arm": lever_arm,
     "bias_step_accel": bias_step("accel"),

@@ -104,6 +104,7 @@ class SimSession:
                 "plate_azimuth_rad": geo.plate_azimuth_rad,
                 "face_lean_rad": {k: v.tolist() for k, v in geo.face_lean.items()},
                 "turn_lean_rad": {k: v.tolist() for k, v in geo.turn_lean.items()},
+                "record_lean_rad": {k: v.tolist() for k, v in geo.record_lean.items()},
                 "lever_arm_m": geo.lever_arm_m.tolist(),
             },
             "temperature": asdict(self.temp),
@@ -131,7 +132,7 @@ def _record(
     n = int(round(duration_s * ph.FS_HZ))
     t_s = rng.uniform(0.0, 1.0 / ph.FS_HZ) + np.arange(n) / ph.FS_HZ
     up = ph.axis_vector(face)
-    r0 = ph.placement(ph.seat_direction(up, geo.lean(face, kind)), ph.reference_axis(up), 0.0)
+    r0 = ph.placement(ph.seat_direction(up, geo.lean(face, kind, name)), ph.reference_axis(up), 0.0)
     normal_b = r0.T @ np.array([0.0, 0.0, 1.0])  # the turn axis in body axes
     up_plate = ph.plate_to_room(geo.plate_tilt_rad, geo.plate_azimuth_rad).T @ [0.0, 0.0, 1.0]
     psi = np.full(n, math.radians(heading_deg))

@@ -90,12 +90,16 @@ class Geometry:
     face_lean: dict[str, np.ndarray] = field(default_factory=dict)
     #: per up axis ('x'|'y'|'z'): (3,) lean of the seat during that axis's turn records only
     turn_lean: dict[str, np.ndarray] = field(default_factory=dict)
+    #: per turn record ('y_ccw' …): (3,) lean of the seat during that one record only
+    record_lean: dict[str, np.ndarray] = field(default_factory=dict)
     #: sensor offset from the cube's centre (the turn's pivot), body axes, m
     lever_arm_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
-    def lean(self, face: str, kind: str) -> np.ndarray:
-        """Lean of the seat of ``face`` in a record of ``kind`` ('static'|'turn'), rad."""
+    def lean(self, face: str, kind: str, record: str = "") -> np.ndarray:
+        """Lean of the seat of ``face`` in a record of ``kind`` ('static'|'turn') named
+        ``record``, rad."""
         out = np.array(self.face_lean.get(face, np.zeros(3)), dtype=float)
         if kind == "turn":
             out = out + np.array(self.turn_lean.get(face[-1], np.zeros(3)), dtype=float)
+            out = out + np.array(self.record_lean.get(record, np.zeros(3)), dtype=float)
         return out

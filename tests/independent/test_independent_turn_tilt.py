@@ -1,0 +1,63 @@
+"""One turn made with the cube seated 3°–4° off its face (issue 25, "a tilted turn axis is
+named"), written by the independent simulator and read through the commands a user runs:
+``calibrate`` must not print the cross-axis rate the tilt puts on the other gyros (θ·ω, about
+0.06 of the rate: three times the datasheet's ±2 %) as the sensor's misalignment, and both
+``calibrate`` and ``model diagnose`` must name the tilted turn with its size."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from host.__main__ import main
+from tests.independent.simulate import SessionSpec, write_session
+
+#: the datasheet's cross-axis sensitivity (method.md §7), as a fraction of the rate
+CROSS_AXIS = 0.02
+ROW = re.compile(r"^  (G[xyz][xyz]) +([+-][0-9.]+)  rad +±([0-9.]+) +([+−])", re.M)
+NAMED = re.compile(r"(\w+): turned about an axis ([0-9.]+) mrad \(([0-9.]+)°\) off ([+-][xyz])")
+
+
+def _run(argv: list[str]) -> tuple[int, str]:
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(io.StringIO()):
+        rc = main(argv)
+    return rc, out.getvalue()
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_one_tilted_turn_is_named_and_its_cross_axis_never_printed_as_the_sensors(
+    tmp_path: Path, seed: int
+) -> None:
+    d = tmp_path / "s"
+    write_session(d, SessionSpec(seed=seed, effect="one_turn_axis_tilt"))
+    truth = json.loads((d / "truth.json").read_text())
+    record, lean = truth["effect"]["record"], np.array(truth["effect"]["lean_rad"])
+    size = float(np.linalg.norm(lean))
+    # the fake cross-axis the tilt puts on the other gyros is far beyond the datasheet's
+    assert size > 2.5 * CROSS_AXIS
+    rc, text = _run(["calibrate", "--from-dir", str(d), "--no-archive"])
+    assert rc in (0, 1), text
+    report = (d / "IND01_result.txt").read_text(encoding="utf-8")
+    rows = ROW.findall(report)
+    assert len(rows) == 6, report
+    for name, value, _u, mark in rows:
+        # no cross-axis value outside the datasheet's ±2 % is printed as the sensor's error;
+        # each is the simulated unit's own, within a small part of the tilt it was freed of
+        assert abs(float(value)) <= CROSS_AXIS and mark == "+", (name, value, mark)
+        assert abs(float(value) - truth["constants"][name]) < 0.02 * size, name
+    _rc, diagnosis = _run(["model", "diagnose", str(d)])
+    for said in (text, diagnosis):
+        named = {m[0]: m for m in NAMED.findall(said.replace("\n    ", " "))}
+        # the tilted turn, and only it, is named, with its size in mrad and degrees
+        assert list(named) == [record], said
+        _, mrad, deg, axis = named[record]
+        assert abs(float(mrad) - 1e3 * size) < 0.05 * 1e3 * size
+        assert abs(float(deg) - np.degrees(size)) < 0.05 * np.degrees(size)
+        assert axis == "+" + truth["effect"]["axis"]
