@@ -1,11 +1,13 @@
 """The placement the dialogue asks for is the placement the model assumes and the placement the
 simulated operator makes (issue 25, "placement is data").
 
-One short ``--yes`` session on ``sim://``: every prompt is read as the operator reads it (which
-arrow of the cube points where, and the heading number), and compared with three things
-written apart from the prompt's own code: the heading in the record's header, the plate's axes
-the model derives from that header (:func:`host.model.geometry.plate_axes`), and the attitude
-the virtual bench put the cube in (:func:`host.bench.physics.pose`).
+One short ``--yes`` session on ``sim://``, and one on ``emu://`` (the real firmware in the
+emulator, the same virtual operator placing the cube): every prompt is read as the operator
+reads it (which arrow of the cube points where, and the heading number), and compared with
+things written apart from the prompt's own code: the heading in the record's header, the plate's
+axes the model derives from that header (:func:`host.model.geometry.plate_axes`), the face the
+accelerometer measured gravity on, and the attitude the virtual bench put the cube in
+(:func:`host.bench.physics.pose`).
 """
 
 from __future__ import annotations
@@ -40,29 +42,27 @@ PROMPT = re.compile(
 )
 
 
-@pytest.fixture(scope="module")
-def session(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
-    tmp = tmp_path_factory.mktemp("placed")
+def _dialogue(port: str, out: Path, serial: str) -> str:
+    """A whole ``--yes`` session on ``port`` into ``out``; what the operator was shown."""
     o = options.DialogueOptions(
-        port="sim://?seed=5&speed=max", serial="P1", out=tmp / "P1", static_seconds=2.0,
-        turns=1, warmup_s=0.0, yes=True, ready_s=0.0,
+        port=port, serial=serial, out=out, static_seconds=2.0, turns=1, warmup_s=0.0,
+        yes=True, ready_s=0.0, hello_timeout_s=30.0,
     )  # fmt: skip
     con = ScriptedConsole()
     with contextlib.redirect_stdout(io.StringIO()):
         rc = flow.run_dialogue(o, con, None)
-    assert rc in (0, 1)
-    return con.text, tmp / "P1"
+    assert rc in (0, 1), con.text[-2000:]
+    return con.text
 
 
-def test_every_prompt_names_the_placement_the_record_and_the_model_carry(
-    session: tuple[str, Path],
-) -> None:
-    text, out = session
+def _assert_prompts_match_records_model_and_bench(text: str, out: Path, serial: str) -> None:
+    """Each prompt, read as the operator reads it, against the record's header, the model's
+    plate axes from that header, and the attitude the virtual bench put the cube in."""
     prompts = [m for m in PROMPT.finditer(text)]
     names = [*STATIC_NAMES, *TURN_NAMES, options.CLOSING_NAME]
     assert len(prompts) == len(names), text
     for name, m in zip(names, prompts, strict=True):
-        rec = read_record(out / f"P1_{name}.txt")
+        rec = read_record(out / f"{serial}_{name}.txt")
         axis = name[0]
         assert m["face"].lower() == axis
         assert (m["side"] == "down") == name.endswith("_dn")
@@ -75,9 +75,42 @@ def test_every_prompt_names_the_placement_the_record_and_the_model_carry(
         east, north = plate_axes(rec.up, np.radians([rec.placement_heading_deg]))
         got = np.array([east[0] @ arrow, north[0] @ arrow])
         np.testing.assert_allclose(got, want, atol=1e-12, err_msg=name)
+        # the measurement: gravity lies along the face the prompt named
+        acc = rec.accel.mean(axis=0)
+        assert acc @ rec.up > 0.99 * np.linalg.norm(acc), (name, acc)
         # the simulated operator: the bench's attitude (rows = east, north, up in body axes)
         r = pose(f"{axis}_{'up' if name in TURN_NAMES else name.split('_')[1]}")
         np.testing.assert_allclose([r[0] @ arrow, r[1] @ arrow], want, atol=1e-12, err_msg=name)
+
+
+def test_every_prompt_names_the_placement_the_record_and_the_model_carry(
+    tmp_path: Path,
+) -> None:
+    text = _dialogue("sim://?seed=5&speed=max", tmp_path / "P1", "P1")
+    _assert_prompts_match_records_model_and_bench(text, tmp_path / "P1", "P1")
+
+
+def _emu_missing() -> str | None:
+    import importlib.util
+    import shutil
+
+    if shutil.which("simavr") is None:
+        return "simavr missing"
+    if importlib.util.find_spec("host.transports.protocol_emu") is None:
+        return "emu:// missing"
+    return None
+
+
+@pytest.mark.emulator
+@pytest.mark.slow
+@pytest.mark.skipif(_emu_missing() is not None, reason=str(_emu_missing()))
+def test_on_the_real_firmware_every_prompt_names_the_placement_the_record_carries(
+    tmp_path: Path,
+) -> None:
+    """``emu://``: the firmware measures, the host's dialogue prompts and writes the headers;
+    the same virtual operator places the cube as told."""
+    text = _dialogue("emu://", tmp_path / "E1", "E1")
+    _assert_prompts_match_records_model_and_bench(text, tmp_path / "E1", "E1")
 
 
 def test_a_header_heading_is_read_and_a_bad_one_refused(tmp_path: Path) -> None:
