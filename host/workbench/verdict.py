@@ -4,7 +4,10 @@ method.md §8: "large or trending residuals mean the model misses an effect (cro
 temperature …)"; §3: "the three bias estimates disagreeing is itself a sign the linear model is
 missing something". :func:`diagnose` turns that into a test:
 
-1. compare — per record and channel measured vs model, residual and z (the engine's ``Fit``);
+1. compare — per record and channel measured vs model, residual and z (the engine's ``Fit``),
+   the turns' angle error and wobble estimated jointly with the model
+   (:func:`host.model.components.fit_with_components`): the components diagnose prints, the
+   yardstick of its fit and of every candidate are the same;
 2. where it fails — |z| > 3, worst first, and within-record time spans that depart;
 3. what is missing — the candidates of :mod:`host.workbench.candidates`;
 4. unexplained structure — the residuals of the model plus the best candidate per channel are
@@ -24,6 +27,7 @@ from typing import Any
 
 from host.errors import UserError
 from host.model.catalogue import CATALOGUE
+from host.model.components import fit_with_components
 from host.model.dataset import Dataset
 from host.model.fit import Fit, GroupResidual, SpanResidual, fit_model
 from host.model.signals import AXES
@@ -125,7 +129,8 @@ def diagnose(
     """Fit ``model`` to ``ds`` and run the whole diagnosis (module docstring). UserError when
     the records leave the fit no degrees of freedom: then nothing tests the model, and any
     verdict (one record gave ``adequate``) would be a claim without evidence."""
-    fit = fit_model(ds, model)
+    joint = fit_with_components(ds, model)
+    ds, fit = joint.dataset, joint.fit
     if fit.dof <= 0:
         n = len(ds.signals)
         raise UserError(

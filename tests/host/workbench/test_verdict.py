@@ -249,9 +249,11 @@ def test_effect_outside_the_catalogue_is_unexplained_and_named(
     assert ("gyro", "x", "(specific force z)²") in named, named
     # the plan measures the Z faces last: the scan says the signal goes with session time
     hit = next(h for h in d.dominant if h.signal.startswith("(specific force z)²"))
-    # (with the unit's wander known the turn integrals weigh more, and the plan's f_z² follows
-    # time at r ≈ 0.55 there: still a correlation, below the "confounded" mark)
-    assert hit.time_r > 0.5
+    # (with the unit's wander known the turn integrals weigh more: the turn angle estimated
+    # jointly with base has 1-2 dof left there and is not resolved in seeds 1 and 2 (0.07-0.11°
+    # from the closures before the fit); the plan's f_z² follows time at r ≈ 0.38 then (0.55
+    # with the angle measured before the fit): still a correlation, below the "confounded" mark)
+    assert hit.time_r > (0.3 if known_noise else 0.5)
     assert hit.time_confounded == ("session time" in hit.describe())
     if not known_noise:
         assert hit.time_confounded
@@ -360,3 +362,19 @@ def test_plate_tilt_is_one_pair_of_angles_read_from_the_still_moments_of_turns(s
     assert north.value == pytest.approx(tilt[1], abs=4 * north.stderr + 1e-4)
     assert a.after.chi2_p > 0.001
     assert a.before.rms_z > 3 * a.after.rms_z
+
+
+def test_diagnose_prints_the_components_its_fit_used(tmp_path: Path) -> None:
+    """A model with a gyro scale asymmetry takes the turns' closures: the turn angle is then
+    not measured (its rows carry white noise only), as the joint fit says. Diagnose read a
+    turn angle measured before the fit (1.2°, the asymmetry's own closure), printed it and
+    weighed the turns with it, so the asymmetry's stated σ came out 70× its scatter (0.0023
+    for a value 0.004 recovered to 0.00003)."""
+    from tests.independent.simulate import SessionSpec, write_session
+
+    write_session(tmp_path, SessionSpec(seed=4000, effect="scale_asymmetry"))
+    d = diagnose(load_dataset(tmp_path), parse_model("base,scale_asymmetry:gyro"))
+    angle = [n for n in d.notes if n.startswith("a named variance component: turn angle")]
+    assert len(angle) == 1 and "not measured" in angle[0], angle
+    p = d.fit.parameter("scale_asymmetry.gyro.x")
+    assert p.stderr < 1e-4 and abs(p.value - 0.004) < 4.0 * p.stderr, (p.value, p.stderr)
