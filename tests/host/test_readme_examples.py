@@ -148,7 +148,7 @@ def test_the_fit_example_gives_the_fit_line_of_model_diagnose(tmp_path: Path) ->
     recs = simulate_session(SensorTruth.random(np.random.default_rng(3)), Plan(static_s=3.0,
                             turns=1), seed=3)  # fmt: skip
     write_session(tmp_path / "DEMO01", "DEMO01", recs)
-    code, page = doc_block("## Fit a model to a session", "fit_model(")
+    code, page = doc_block("## Fit a model to a session", "fit_with_components(")
     code = code.replace('"DEMO01/"', repr(str(tmp_path / "DEMO01")))
     names: dict[str, object] = {}
     with contextlib.redirect_stdout(io.StringIO()) as printed:
