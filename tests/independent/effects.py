@@ -125,6 +125,22 @@ def one_turn_axis_tilt(rng: np.random.Generator) -> Effect:
     return Effect("one_turn_axis_tilt", params, geometry=geo)
 
 
+def one_turn_axis_tilt_tilted_plate(rng: np.random.Generator) -> Effect:
+    """:func:`one_turn_axis_tilt` on a plate tilted 1° toward a random azimuth (with headings
+    unrecorded, the plate's tilt then bounds where each turn's axis sits)."""
+    e = one_turn_axis_tilt(rng)
+    tilt, az = math.radians(1.0), float(rng.uniform(0, 2 * math.pi))
+    seat = e.geometry
+    assert seat is not None
+
+    def geo(g: Geometry) -> None:
+        seat(g)
+        g.plate_tilt_rad, g.plate_azimuth_rad = tilt, az
+
+    params = {**e.params, "plate_tilt_rad": tilt, "plate_azimuth_rad": az}
+    return Effect("one_turn_axis_tilt_tilted_plate", params, geometry=geo)
+
+
 def face_lean(rng: np.random.Generator) -> Effect:
     """Every face of the fixture leans 1–5 mrad (either sign) toward both other axes."""
     leans: dict[str, np.ndarray] = {}
@@ -284,6 +300,7 @@ EFFECTS: dict[str, Callable[[np.random.Generator], Effect]] = {
     "plate_tilt": plate_tilt,
     "turn_axis_tilt": turn_axis_tilt,
     "one_turn_axis_tilt": one_turn_axis_tilt,
+    "one_turn_axis_tilt_tilted_plate": one_turn_axis_tilt_tilted_plate,
     "face_lean": face_lean,
     "lever_arm": lever_arm,
     "bias_step_accel": bias_step("accel"),

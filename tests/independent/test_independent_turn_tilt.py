@@ -20,7 +20,8 @@ from tests.independent.simulate import SessionSpec, write_session
 
 #: the datasheet's cross-axis sensitivity (method.md §7), as a fraction of the rate
 CROSS_AXIS = 0.02
-ROW = re.compile(r"^  (G[xyz][xyz]) +([+-][0-9.]+)  rad +±([0-9.]+) +([+−])", re.M)
+#: a gyro cross-axis row: name, value, tolerance, mark, U (k = 2)
+ROW = re.compile(r"^  (G[xyz][xyz]) +([+-][0-9.]+)  rad +±([0-9.]+) +([+−]) +±([0-9.]+)$", re.M)
 NAMED = re.compile(r"(\w+): turned about an axis ([0-9.]+) mrad \(([0-9.]+)°\) off ([+-][xyz])")
 
 
@@ -47,7 +48,7 @@ def test_one_tilted_turn_is_named_and_its_cross_axis_never_printed_as_the_sensor
     report = (d / "IND01_result.txt").read_text(encoding="utf-8")
     rows = ROW.findall(report)
     assert len(rows) == 6, report
-    for name, value, _u, mark in rows:
+    for name, value, _tol, mark, _u in rows:
         # no cross-axis value outside the datasheet's ±2 % is printed as the sensor's error;
         # each is the simulated unit's own, within a small part of the tilt it was freed of
         assert abs(float(value)) <= CROSS_AXIS and mark == "+", (name, value, mark)
@@ -61,3 +62,30 @@ def test_one_tilted_turn_is_named_and_its_cross_axis_never_printed_as_the_sensor
         assert abs(float(mrad) - 1e3 * size) < 0.05 * 1e3 * size
         assert abs(float(deg) - np.degrees(size)) < 0.05 * np.degrees(size)
         assert axis == "+" + truth["effect"]["axis"]
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 25: one tilted turn on a plate tilted 1° with headings unrecorded: the note "
+    "says the axis is uncertain by up to ~17.5 mrad, yet in 7 of 30 sessions (seeds 2-31) a "
+    "printed cross-axis value is 5-11 σ from the unit's own (the U ignores that bound)",
+)
+def test_a_tilted_turn_on_a_tilted_plate_prints_no_cross_axis_value_beyond_its_sigma(
+    tmp_path: Path,
+) -> None:
+    worst = []
+    for seed in range(2, 22):
+        d = tmp_path / f"p{seed}"
+        write_session(d, SessionSpec(seed=seed, effect="one_turn_axis_tilt_tilted_plate",
+                                     headings="random"))  # fmt: skip
+        truth = json.loads((d / "truth.json").read_text())
+        rc, text = _run(["calibrate", "--from-dir", str(d), "--no-archive"])
+        assert rc in (0, 1), text
+        assert truth["effect"]["record"] in text
+        rows = ROW.findall((d / "IND01_result.txt").read_text(encoding="utf-8"))
+        assert len(rows) == 6
+        worst.append(max(abs(float(v) - truth["constants"][n]) / (0.5 * float(u))
+                         for n, v, _t, _m, u in rows))  # fmt: skip
+    # the printed U (k = 2) holds the unit's own value to within 4 σ in every session
+    assert max(worst) < 4.0, [round(w, 1) for w in worst]
