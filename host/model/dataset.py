@@ -378,12 +378,18 @@ def build_dataset(
         table.channels, signals, y_arr, floors=floors, static_noise=table.static_noise,
         white_level=white_level, n_still=n_still, seat=seat, hand=hand, turn_sigma=turn_sigma,
     )  # fmt: skip
-    for a in tilted:  # a corrected turn's cross-axis integrals carry its measured axis's σ
+    for a in tilted:  # a corrected turn's integrals carry its measured axis's σ
         ri = next(i for i, s in enumerate(signals) if s.name == a.record)
         turned = abs(float(signals[ri].heading[-1]))  # rad
+        # per component: the accelerometer's σ, and the plate's tilt at the statics' unknown
+        # heading (up to ``bound`` in any direction: RMS bound/√2 per component)
+        axis_sd = math.hypot(a.sd, a.bound / math.sqrt(2.0))
         for k, gr in enumerate(groups):
-            if gr.record == ri and gr.sensor == "gyro" and abs(float(a.up[gr.axis])) < 0.5:
-                sd = math.hypot(gr.sigma, math.degrees(a.sd * turned))
+            if gr.record == ri and gr.sensor == "gyro":
+                # across the axis the error moves the rate directly; along it by lean·δ
+                across = abs(float(a.up[gr.axis])) < 0.5
+                sd_rad = axis_sd if across else a.size * axis_sd
+                sd = math.hypot(gr.sigma, math.degrees(sd_rad * turned))
                 whiten = whiten.with_block(gr.rows, np.array([[1.0 / sd]]))
                 groups[k] = replace(gr, sigma=sd)
     rows_of: dict[tuple[int, str, int], np.ndarray] = {}

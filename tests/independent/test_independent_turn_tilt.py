@@ -65,16 +65,12 @@ def test_one_tilted_turn_is_named_and_its_cross_axis_never_printed_as_the_sensor
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 25: one tilted turn on a plate tilted 1° with headings unrecorded: the note "
-    "says the axis is uncertain by up to ~17.5 mrad, yet in 7 of 30 sessions (seeds 2-31) a "
-    "printed cross-axis value is 5-11 σ from the unit's own (the U ignores that bound)",
-)
 def test_a_tilted_turn_on_a_tilted_plate_prints_no_cross_axis_value_beyond_its_sigma(
     tmp_path: Path,
 ) -> None:
-    worst = []
+    """One turn seated 3°–4° off its face on a plate tilted 1°, headings unrecorded: the plate's
+    tilt bounds where the turn's axis is (about 17.5 mrad), and the printed U carries it."""
+    pulls = []
     for seed in range(2, 22):
         d = tmp_path / f"p{seed}"
         write_session(d, SessionSpec(seed=seed, effect="one_turn_axis_tilt_tilted_plate",
@@ -85,7 +81,9 @@ def test_a_tilted_turn_on_a_tilted_plate_prints_no_cross_axis_value_beyond_its_s
         assert truth["effect"]["record"] in text
         rows = ROW.findall((d / "IND01_result.txt").read_text(encoding="utf-8"))
         assert len(rows) == 6
-        worst.append(max(abs(float(v) - truth["constants"][n]) / (0.5 * float(u))
-                         for n, v, _t, _m, u in rows))  # fmt: skip
-    # the printed U (k = 2) holds the unit's own value to within 4 σ in every session
-    assert max(worst) < 4.0, [round(w, 1) for w in worst]
+        pulls += [(float(v) - truth["constants"][n]) / (0.5 * float(u)) for n, v, _t, _m, u in rows]
+    z = np.array(pulls)
+    # the printed U (k = 2) holds the unit's own value within 4 σ in every session, and is
+    # not widened past use (the pulls' RMS near 1)
+    assert np.max(np.abs(z)) < 4.0, np.round(z, 1)
+    assert 0.7 < float(np.sqrt(np.mean(z**2))) < 1.5, np.round(z, 1)
