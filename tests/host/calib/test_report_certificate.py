@@ -50,7 +50,10 @@ def test_every_item_of_the_certificate_from_a_live_session(live: Path) -> None:
     res = CalibrationResult.load(live / "C1_result.json")
     recs = read_session(live).records
     meta = recs["x_up"].meta
-    assert max(len(ln) for ln in text.splitlines()) <= 80
+    # 80 columns, except a command, which is never broken (it is copied whole); its length
+    # follows the directory's path, and a test's temporary path can be long
+    wide = [ln for ln in text.splitlines() if len(ln) > 80]
+    assert all("python -m host " in ln and str(live) in ln for ln in wide), wide
 
     # object: the sensor named from the data, and the simulated mark
     lines = text.splitlines()
@@ -99,9 +102,11 @@ def test_every_item_of_the_certificate_from_a_live_session(live: Path) -> None:
     # when: measured (the records' start times) and computed (by which software)
     starts = sorted(r.meta["start_time"] for r in recs.values())
     measured = _line(text, "Measured:")
-    assert measured.startswith(
-        f"Measured: {starts[0][:10]} {starts[0][11:19]} to {starts[-1][11:19]}"
-    )
+    first = f"Measured: {starts[0][:10]} {starts[0][11:19]}"
+    # a fast session can start its first and last record within one second: one time then
+    same = starts[0][:19] == starts[-1][:19]
+    assert measured.startswith(first if same else f"{first} to {starts[-1][11:19]}")
+    assert (" to " in measured.split("(")[0]) != same
     computed = _line(text, "Computed:")
     assert computed == f"Computed: {res.created.replace('T', ' ')} by imu-bench {__version__}"
 
