@@ -27,6 +27,7 @@ of a capture, whole or streaming.
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -149,28 +150,40 @@ def fit_min_delay(device_us: np.ndarray, floor_ns: np.ndarray) -> ClockMap:
 
     Needs at least two points with distinct device times.
     """
-    x0 = float(device_us[0])
-    y0 = float(floor_ns[0])
-    x = np.asarray(device_us, dtype=np.float64) - x0
-    y = np.asarray(floor_ns, dtype=np.float64) - y0
-    if np.all(x[1:] > x[:-1]):  # in order already (a capture's samples): no sort
-        xs, ys = x, y
-    else:
-        order = np.lexsort((y, x))  # by device time, the lowest first among equal times
-        xs, ys = x[order], y[order]
-    h = lower_hull(xs, ys)
-    if h.size < 2:
-        raise ValueError("need two points with different device times")
-    xm = float(x.mean())
-    k = int(np.searchsorted(xs[h], xm, side="right")) - 1
-    k = min(max(k, 0), h.size - 2)
-    i, j = h[k], h[k + 1]
-    b = (ys[j] - ys[i]) / (xs[j] - xs[i])
-    a = ys[i] - b * xs[i]
-    a, b = _refine_on_bin_floors(xs, ys, a, b)
-    gaps_us = (y - (a + b * x)) / 1000.0
-    median, p5 = _percentiles(gaps_us, (50.0, 5.0))
-    return ClockMap(x0, y0, a, b, int(x.size), median, p5)
+    return fit_min_delay_many([(device_us, floor_ns)])[0]
+
+
+def fit_min_delay_many(windows: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[ClockMap]:
+    """:func:`fit_min_delay` of each window (device µs, floor ns), the windows' line
+    refinements done together (one set of array operations for all windows: at 50 Hz a
+    window's own refinement is mostly numpy's per-call overhead)."""
+    pre = []
+    for device_us, floor_ns in windows:
+        x0 = float(device_us[0])
+        y0 = float(floor_ns[0])
+        x = np.asarray(device_us, dtype=np.float64) - x0
+        y = np.asarray(floor_ns, dtype=np.float64) - y0
+        if np.all(x[1:] > x[:-1]):  # in order already (a capture's samples): no sort
+            xs, ys = x, y
+        else:
+            order = np.lexsort((y, x))  # by device time, the lowest first among equal times
+            xs, ys = x[order], y[order]
+        h = lower_hull(xs, ys)
+        if h.size < 2:
+            raise ValueError("need two points with different device times")
+        xm = float(x.mean())
+        k = int(np.searchsorted(xs[h], xm, side="right")) - 1
+        k = min(max(k, 0), h.size - 2)
+        i, j = h[k], h[k + 1]
+        b = (ys[j] - ys[i]) / (xs[j] - xs[i])
+        pre.append((x0, y0, x, y, xs, ys, ys[i] - b * xs[i], b))
+    lines = _refine_many([(xs, ys, a, b) for _, _, _, _, xs, ys, a, b in pre])
+    out = []
+    for (x0, y0, x, y, _, _, _, _), (a, b) in zip(pre, lines, strict=True):
+        gaps_us = (y - (a + b * x)) / 1000.0
+        median, p5 = _percentiles(gaps_us, (50.0, 5.0))
+        out.append(ClockMap(x0, y0, a, b, int(x.size), median, p5))
+    return out
 
 
 def _percentiles(a: np.ndarray, qs: tuple[float, ...]) -> list[float]:
@@ -228,6 +241,105 @@ def _refine_on_bin_floors(
         return a, b
     c0 += _percentiles(fr[keep] - (c0 + c1 * fx[keep]), (2.0,))[0]
     return a + c0, b + c1
+
+
+def _refine_many(
+    windows: Sequence[tuple[np.ndarray, np.ndarray, float, float]], bin_us: float = 1e6
+) -> list[tuple[float, float]]:
+    """:func:`_refine_on_bin_floors` of each window (x sorted, y, a, b), the windows with
+    finite residuals done together: their points joined end to end with a window id, the bin
+    floors found by segment reductions, the robust line iterated on (window × floor) arrays
+    with each window stopping when it would alone."""
+    out = [(float(a), float(b)) for _, _, a, b in windows]
+    rs, xs_, ids = [], [], []
+    for w, (x, y, a, b) in enumerate(windows):
+        if x[-1] - x[0] < 4 * bin_us:
+            continue
+        r = y - (a + b * x)
+        if not np.all(np.isfinite(r)):
+            out[w] = _refine_on_bin_floors(x, y, a, b, bin_us)
+            continue
+        rs.append(r)
+        xs_.append(x)
+        ids.append(w)
+    if not ids:
+        return out
+    n = np.array([r.size for r in rs])
+    win = np.repeat(np.arange(len(ids)), n)
+    x, r = np.concatenate(xs_), np.concatenate(rs)
+    first_x = np.repeat([v[0] for v in xs_], n)
+    bins = ((x - first_x) // bin_us).astype(np.int64)
+    new = np.ones(r.size, dtype=bool)
+    new[1:] = (bins[1:] != bins[:-1]) | (win[1:] != win[:-1])
+    first = np.flatnonzero(new)
+    seg = np.cumsum(new) - 1
+    counts = np.diff(np.append(first, r.size))
+    at = np.flatnonzero(r == np.repeat(np.minimum.reduceat(r, first), counts))
+    pick = at[np.flatnonzero(np.diff(seg[at], prepend=-1))][counts >= 5]
+    fw = win[pick]
+    m = np.bincount(fw, minlength=len(ids))
+    rows = np.flatnonzero(m >= 4)
+    if rows.size == 0:
+        return out
+    sel = m[fw] >= 4
+    pick, fw = pick[sel], fw[sel]
+    row_of = np.full(len(ids), -1)
+    row_of[rows] = np.arange(rows.size)
+    starts = np.concatenate(([0], np.cumsum(m[rows])[:-1]))
+    fr_row = row_of[fw]
+    col = np.arange(pick.size) - starts[fr_row]
+    width = int(m[rows].max())
+    fx = np.zeros((rows.size, width))
+    fr = np.zeros((rows.size, width))
+    valid = np.zeros((rows.size, width), dtype=bool)
+    fx[fr_row, col], fr[fr_row, col], valid[fr_row, col] = x[pick], r[pick], True
+    keep = valid.copy()
+    active = np.ones(rows.size, dtype=bool)
+    c0 = np.zeros(rows.size)
+    c1 = np.zeros(rows.size)
+    for _ in range(3):
+        k1, k0 = _lines(fx, fr, keep)
+        c1 = np.where(active, k1, c1)
+        c0 = np.where(active, k0, c0)
+        res = fr - (c0[:, None] + c1[:, None] * fx)
+        med = _row_percentiles(res, keep, 50.0)
+        mad = _row_percentiles(np.abs(res - med[:, None]), keep, 50.0)
+        mad = np.where(mad == 0, 1.0, mad)
+        new_keep = valid & (np.abs(res) <= 4 * 1.4826 * mad[:, None])
+        stop = np.all(new_keep == keep, axis=1) | (np.count_nonzero(new_keep, axis=1) < 4)
+        go = active & ~stop
+        keep[go] = new_keep[go]
+        active = go
+        if not active.any():
+            break
+    floor = _row_percentiles(fr - (c0[:, None] + c1[:, None] * fx), keep, 2.0)
+    for row, w in enumerate(np.asarray(ids)[rows]):
+        if np.isfinite(c0[row]) and np.isfinite(c1[row]):
+            a, b = out[w]
+            out[w] = (a + float(c0[row] + floor[row]), b + float(c1[row]))
+    return out
+
+
+def _lines(x: np.ndarray, y: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_line` of each row's masked points: (c1, c0) per row."""
+    n = np.count_nonzero(mask, axis=1)
+    xm = np.where(mask, x, 0.0).sum(axis=1) / n
+    ym = np.where(mask, y, 0.0).sum(axis=1) / n
+    dx = np.where(mask, x - xm[:, None], 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c1 = (dx * (y - ym[:, None])).sum(axis=1) / (dx * dx).sum(axis=1)
+    return c1, ym - c1 * xm
+
+
+def _row_percentiles(a: np.ndarray, mask: np.ndarray, q: float) -> np.ndarray:
+    """numpy's (linear) percentile ``q`` of each row's masked values (at least one a row)."""
+    s = np.sort(np.where(mask, a, np.inf), axis=1)
+    pos = (np.count_nonzero(mask, axis=1) - 1) * q / 100.0
+    lo = pos.astype(np.int64)
+    hi = np.minimum(lo + 1, np.count_nonzero(mask, axis=1) - 1)
+    vlo = np.take_along_axis(s, lo[:, None], axis=1)[:, 0]
+    vhi = np.take_along_axis(s, hi[:, None], axis=1)[:, 0]
+    return vlo + (vhi - vlo) * (pos - lo)
 
 
 def _line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:

@@ -14,7 +14,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host.timing.clock import ClockMap, PiecewiseClockMap, fit_min_delay, serialisation_ns, unwrap
+from host.timing.clock import (
+    ClockMap,
+    PiecewiseClockMap,
+    fit_min_delay,
+    fit_min_delay_many,
+    serialisation_ns,
+    unwrap,
+)
 from host.wire.protocol_gen import ENUMS
 from host.wire.segments import seq_step
 
@@ -97,19 +104,23 @@ class _WindowFitter:
     def held(self) -> int:
         return int(self.px.size)
 
-    def _fit(self, stop: int, centre: float) -> tuple[float, ClockMap] | None:
-        x, y = self.px[:stop], self.py[:stop]
-        if x.size < 2 or not x[-1] > x[0]:
-            return None
-        m = fit_min_delay(x, y)
-        if self.windows % self.stride == 0:
-            self.maps.append(m)
-            self.centres.append(centre)
-            if len(self.maps) > MAX_KEPT_MAPS:
-                self.maps, self.centres = self.maps[::2], self.centres[::2]
-                self.stride *= 2
-        self.windows += 1
-        return centre, m
+    def _fit(
+        self, windows: list[tuple[np.ndarray, np.ndarray, float]]
+    ) -> list[tuple[float, ClockMap]]:
+        """Fit the completed windows (points, centre) together; keep every ``stride``-th map."""
+        fittable = [(x, y, c) for x, y, c in windows if x.size >= 2 and x[-1] > x[0]]
+        maps = fit_min_delay_many([(x, y) for x, y, _ in fittable])
+        out = []
+        for (_, _, centre), m in zip(fittable, maps, strict=True):
+            if self.windows % self.stride == 0:
+                self.maps.append(m)
+                self.centres.append(centre)
+                if len(self.maps) > MAX_KEPT_MAPS:
+                    self.maps, self.centres = self.maps[::2], self.centres[::2]
+                    self.stride *= 2
+            self.windows += 1
+            out.append((centre, m))
+        return out
 
     def add(self, x: np.ndarray, y: np.ndarray) -> list[tuple[float, ClockMap]]:
         """Points in device-time order (µs, floor ns); returns the windows they completed."""
@@ -123,7 +134,7 @@ class _WindowFitter:
         return self._advance(final=False)
 
     def _advance(self, final: bool) -> list[tuple[float, ClockMap]]:
-        out: list[tuple[float, ClockMap]] = []
+        done: list[tuple[np.ndarray, np.ndarray, float]] = []
         assert self.x0 is not None or self.px.size == 0
         while self.px.size:
             x0 = float(self.x0)  # type: ignore[arg-type]
@@ -135,16 +146,15 @@ class _WindowFitter:
             elif not self.px[-1] > end:
                 break
             # the points are in device-time order: a window is a slice (a view, no copy)
-            fitted = self._fit(int(np.searchsorted(self.px, end, side="right")), start + self.h)
-            if fitted is not None:
-                out.append(fitted)
+            stop = int(np.searchsorted(self.px, end, side="right"))
+            done.append((self.px[:stop], self.py[:stop], start + self.h))
             self.k += 1
             first = int(np.searchsorted(self.px, x0 + self.k * self.h, side="left"))
             self.px, self.py = self.px[first:], self.py[first:]
             if self.px.size and self.px[0] > x0 + self.k * self.h + self.w:
                 # skip the empty windows of a gap: to the first window holding the next point
                 self.k = int(np.ceil((self.px[0] - x0 - self.w) / self.h))
-        return out
+        return self._fit(done)
 
     def finish(self, x: np.ndarray, y: np.ndarray) -> list[tuple[float, ClockMap]]:
         """End of the segment: fit the windows left; ``x``, ``y`` all the segment's points

@@ -146,3 +146,46 @@ def test_the_clocks_percentiles_and_line_are_numpys(values: list[float], q: floa
         p1, p0 = np.polyfit(x, a, 1)
         assert c1 == pytest.approx(p1, rel=1e-9, abs=1e-9 * scale / 1e6 / a.size)
         assert c0 == pytest.approx(p0, rel=1e-9, abs=1e-6 * scale)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    sizes=st.lists(st.integers(2, 3000), min_size=1, max_size=6),
+    skew_ppm=st.floats(-200, 200),
+    latency_ms=st.floats(0.01, 30),
+    per_read=st.integers(1, 200),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_windows_refined_together_get_each_windows_own_line(
+    sizes: list[int], skew_ppm: float, latency_ms: float, per_read: int, seed: int
+) -> None:
+    """Several clock windows' lines refined in one batch are the lines each window's own
+    refinement gives (bin floors, robust iterations stopping per window, 2 % lowering)."""
+    rng = np.random.default_rng(seed)
+    windows = []
+    for n in sizes:
+        x = np.cumsum(rng.integers(1, 40_000, n)).astype(float)
+        y = 5e11 + (1000 + skew_ppm / 1000) * x + rng.exponential(latency_ms * 1e6, n)
+        last = np.minimum((np.arange(n) // per_read + 1) * per_read, n) - 1
+        y = np.maximum.accumulate(y)[last]
+        x, y = x - x[0], y - y[0]
+        b = 1000 + float(rng.normal(0, 0.1))
+        windows.append((x, y, float(np.min(y - b * x)), b))
+    together = clock._refine_many(windows)
+    for (x, y, a, b), (a2, b2) in zip(windows, together, strict=True):
+        a1, b1 = clock._refine_on_bin_floors(x, y, a, b)
+        assert b2 == pytest.approx(b1, rel=1e-12, abs=1e-12)
+        assert a2 == pytest.approx(a1, abs=1e-3)  # ns
+
+
+def test_a_capture_fitted_window_by_window_and_in_batches_has_the_same_maps() -> None:
+    """fit_min_delay_many over a capture's windows gives fit_min_delay of each."""
+    rng = np.random.default_rng(7)
+    x = np.arange(20_000) * 20_000.0 + rng.integers(0, 50, 20_000)
+    y = 3e12 + 1000.01 * x + rng.exponential(2e6, x.size)
+    windows = [(x[k : k + 3000], y[k : k + 3000]) for k in range(0, 17_000, 1500)]
+    for (wx, wy), m in zip(windows, clock.fit_min_delay_many(windows), strict=True):
+        one = clock.fit_min_delay(wx, wy)
+        assert m.b == pytest.approx(one.b, rel=1e-12)
+        assert m.offset_ns == pytest.approx(one.offset_ns, abs=1e-3)
+        assert m.latency_median_us == pytest.approx(one.latency_median_us, abs=1e-6)
