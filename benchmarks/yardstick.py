@@ -255,6 +255,9 @@ def run_session(case: Case, seed: int, workdir: Path) -> dict[str, Any]:
     if diag["recommended"]:
         add = host_json(["model", "add", str(d), diag["recommended"], "--model", "base"])
         row["rms_z_after_rec"] = add.get("after", {}).get("rms_z")
+        # before on the yardstick the term was tested on (a term that moves the turn closures:
+        # without the turn angle of its axes), as `model add` prints it
+        row["rms_z_before_rec"] = add.get("before", {}).get("rms_z")
     if case.term is not None:
         term = case.term(truth)
         row["term"] = term
@@ -263,6 +266,7 @@ def run_session(case: Case, seed: int, workdir: Path) -> dict[str, Any]:
             row["term_error"] = add["error"]
         else:
             row["rms_z_after_term"] = add["after"]["rms_z"]
+            row["rms_z_before_term"] = add["before"]["rms_z"]
             row["coef"] = _pulls(add["new_parameters"], truth)
     if case.calibrate:
         cal = host_json(["calibrate", "--from-dir", str(d)])
@@ -369,7 +373,7 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                 sm["falls_named"] = sum(
                     (g or _recommends(r["recommended"], case.term(t)))
                     and (a := r.get("rms_z_after_term")) is not None
-                    and a <= 1.5 and 3 * a <= r["rms_z"]
+                    and a <= 1.5 and 3 * a <= r.get("rms_z_before_term", r["rms_z"])
                     for r, t, g in zip(ok, truths, in_group, strict=True)
                 )  # fmt: skip
             sm["single_term"] = sum(
@@ -399,7 +403,7 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                 )  # fmt: skip
             after = [r.get("rms_z_after_rec") for r in ok]
             falls = [
-                a is not None and a <= 1.5 and a * 3 <= r["rms_z"]
+                a is not None and a <= 1.5 and a * 3 <= r.get("rms_z_before_rec", r["rms_z"])
                 for r, a in zip(ok, after, strict=True)
             ]
             sm["falls_3x_to_1_5"] = sum(falls) if case.kind == "catalogue" else None
@@ -511,7 +515,8 @@ def tables(summary: dict[str, Any], pull_min_n: int = 1) -> str:
         lines.append("   sig = time_drift significant on the effect's channel (named a drift);")
         lines.append("   eq = the expected term in a group of equals; one = a single non-base")
         lines.append("   term recommended; fall* = named (rec or eq) and the expected term")
-        lines.append("   takes RMS z down ≥ 3× to ≤ 1.5")
+        lines.append("   takes RMS z down ≥ 3× to ≤ 1.5 (before on the yardstick it is tested")
+        lines.append("   on: `model add`'s, without the turn angle of the axes it closes)")
         lines.append(f"{'case':<17}{'n':>3}{'a/m/u':>9}{'rec':>5}{'any':>5}{'top':>5}"
                      f"{'RMS z':>8}{'→rec':>7}{'→term':>7}{'fall':>6}{'sig':>5}"
                      f"{'eq':>4}{'one':>4}{'fall*':>6}")  # fmt: skip

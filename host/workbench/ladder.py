@@ -21,6 +21,7 @@ from host.model.loo import Prediction, leave_one_out
 from host.model.spec import ModelTerm, merge_model, model_spec, parse_model
 from host.model.stats import chi2_sf
 from host.model.terms import Term
+from host.workbench.absorbed import closure_axes, without_turn_angle
 from host.workbench.candidates import ALPHA
 
 
@@ -33,6 +34,9 @@ class Addition:
     added: tuple[ModelTerm, ...]
     #: leave-one-record-out prediction error before and after (:func:`host.model.loo.leave_one_out`)
     held_out: tuple[Prediction, Prediction] | None = None
+    #: how the yardstick of ``before`` differs from the model's own ("" when it does not): a term
+    #: that moves the turn closures is measured without the turn angle of its axes
+    yardstick: str = ""
 
     @property
     def new_parameters(self) -> list[Any]:
@@ -53,6 +57,7 @@ class Addition:
             if self.held_out is None
             else {"before": self.held_out[0].rms_z, "after": self.held_out[1].rms_z},
             "before": fit_d(self.before),
+            "before_yardstick": self.yardstick,
             "after": fit_d(self.after),
             "new_parameters": [
                 {"name": p.name, "value": p.value, "stderr": p.stderr, "unit": p.unit}
@@ -73,12 +78,22 @@ def add_term(
     if all((mt.term.name, mt.sensor, a) in have for mt in new for a in mt.axes):
         raise UserError(f"{item} is already in the model {model_spec(model)}")
     # each with the turn components estimated jointly (host.model.components): the new term
-    # may explain the closures a turn-angle σ measured before it would keep
-    before = fit_with_components(ds, model).fit
+    # may explain the closures a turn-angle σ measured before it would keep. The model before
+    # is measured on the yardstick the term was tested on (host.workbench.absorbed): without
+    # the turn angle of the axes whose closures it moves, or that σ would hide the very misfit
+    # the term takes away and before → after would not show it. Only while some other axis's
+    # closure is left to measure the hand's angle error: with none, that yardstick would call
+    # the hand's error the term's, and before stays the model's own
+    joint = fit_with_components(ds, model)
+    axes = frozenset().union(*(closure_axes(joint.dataset, mt) for mt in new))
+    others = [c for c in joint.dataset.closures if c.axis not in axes]
+    ds_before = without_turn_angle(joint.dataset, axes) if axes and others else joint.dataset
+    before = joint.fit if ds_before is joint.dataset else fit_model(ds_before, model)
     after = fit_with_components(ds, merge_model(list(model) + new)).fit
-    return Addition(
-        before, after, tuple(new), (leave_one_out(ds, before), leave_one_out(ds, after))
-    )
+    own = ds_before is not joint.dataset
+    held_out = (leave_one_out(ds_before if own else ds, before), leave_one_out(ds, after))
+    note = ds_before.notes[-1] if own else ""
+    return Addition(before, after, tuple(new), held_out, note)
 
 
 @dataclass(frozen=True)

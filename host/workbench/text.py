@@ -243,6 +243,16 @@ def format_addition(a: Addition) -> str:
             if a.held_out is not None
             else []
         ),  # fmt: skip
+        *(
+            textwrap.wrap(
+                f"before on the yardstick the term is tested on: {a.yardstick}",
+                78,
+                initial_indent="  ",
+                subsequent_indent="    ",
+            )
+            if a.yardstick
+            else []
+        ),  # fmt: skip
         "  worst residuals before → after:",
     ]
     after_of = {(g.record, g.sensor, g.axis): g for g in f.groups}
