@@ -26,6 +26,7 @@ from host.dialogue.console import ScriptedConsole
 from host.model.geometry import plate_axes
 from host.session.directory import read_record
 from host.session.records import HEADING_KEY, STATIC_NAMES, TURN_NAMES
+from tests.host.dialogue.test_flow_pty import emu_missing
 
 #: the operator's words -> the room direction (east, north) of the arrow, with the fence
 #: running left to right in front of the operator (east = right, north = toward the fence)
@@ -90,20 +91,9 @@ def test_every_prompt_names_the_placement_the_record_and_the_model_carry(
     _assert_prompts_match_records_model_and_bench(text, tmp_path / "P1", "P1")
 
 
-def _emu_missing() -> str | None:
-    import importlib.util
-    import shutil
-
-    if shutil.which("simavr") is None:
-        return "simavr missing"
-    if importlib.util.find_spec("host.transports.protocol_emu") is None:
-        return "emu:// missing"
-    return None
-
-
 @pytest.mark.emulator
 @pytest.mark.slow
-@pytest.mark.skipif(_emu_missing() is not None, reason=str(_emu_missing()))
+@pytest.mark.skipif(emu_missing() is not None, reason=str(emu_missing()))
 def test_on_the_real_firmware_every_prompt_names_the_placement_the_record_carries(
     tmp_path: Path,
 ) -> None:

@@ -37,7 +37,8 @@ PLACED = (
 )
 
 
-def _emu_missing() -> str | None:
+def emu_missing() -> str | None:
+    """Why the real firmware cannot run in the emulator here (no toolchain), or None."""
     from host.bench.build import toolchain_problem
 
     return toolchain_problem(need_avr=True)
@@ -51,7 +52,7 @@ BOARDS = [
         id="emu",
         marks=[
             pytest.mark.emulator,
-            pytest.mark.skipif(_emu_missing() is not None, reason=str(_emu_missing())),
+            pytest.mark.skipif(emu_missing() is not None, reason=str(emu_missing())),
         ],
     ),
 ]

@@ -18,6 +18,7 @@ from host.dialogue.console import ScriptedConsole
 from host.session.directory import read_session
 from host.session.records import STATIC_NAMES, STOPPED_KEY
 from host.workbench.stopping import TURN_PAIRS_MAX
+from tests.host.dialogue.test_flow_pty import emu_missing
 
 
 def _run(tmp: Path, **kw: object) -> tuple[str, Path]:
@@ -71,20 +72,9 @@ def test_a_target_out_of_reach_measures_the_maximum_and_says_so(tmp_path: Path) 
         assert f"the maximum of {TURN_PAIRS_MAX} pairs" in recs[cws[-1]].meta[STOPPED_KEY]
 
 
-def _emu_missing() -> str | None:
-    import importlib.util
-    import shutil
-
-    if shutil.which("simavr") is None:
-        return "simavr missing"
-    if importlib.util.find_spec("host.transports.protocol_emu") is None:
-        return "emu:// missing"
-    return None
-
-
 @pytest.mark.emulator
 @pytest.mark.slow
-@pytest.mark.skipif(_emu_missing() is not None, reason=str(_emu_missing()))
+@pytest.mark.skipif(emu_missing() is not None, reason=str(emu_missing()))
 def test_the_adaptive_dialogue_runs_end_to_end_on_the_real_firmware(tmp_path: Path) -> None:
     """``emu://``: the firmware in the emulator, its virtual operator placing and turning."""
     o = options.DialogueOptions(
