@@ -89,15 +89,21 @@ def plate_tilt(rng: np.random.Generator) -> Effect:
     return Effect("plate_tilt", params, geometry=geo)
 
 
+def _lean_off(k: int, size: float, phi: float) -> np.ndarray:
+    """A tilt of ``size`` rad off body axis ``k``, toward azimuth ``phi`` rad in the plane of the
+    other two axes (the body vector the turn axis leans by)."""
+    others = [i for i in range(3) if i != k]
+    lean = np.zeros(3)
+    lean[others[0]], lean[others[1]] = size * math.cos(phi), size * math.sin(phi)
+    return lean
+
+
 def turn_axis_tilt(rng: np.random.Generator) -> Effect:
     """The turns about one axis (both ways) are made with the cube seated 2°–5° off its face:
     the turn axis (vertical) and gravity both lean from the nominal up axis in the body."""
     k = _pick(rng)[0]
     size = math.radians(rng.uniform(2.0, 5.0))
-    phi = rng.uniform(0, 2 * math.pi)
-    others = [i for i in range(3) if i != k]
-    lean = np.zeros(3)
-    lean[others[0]], lean[others[1]] = size * math.cos(phi), size * math.sin(phi)
+    lean = _lean_off(k, size, rng.uniform(0, 2 * math.pi))
 
     def geo(g: Geometry) -> None:
         g.turn_lean[AXES[k]] = lean
@@ -112,10 +118,7 @@ def one_turn_axis_tilt(rng: np.random.Generator) -> Effect:
     k = _pick(rng)[0]
     record = f"{AXES[k]}_{('ccw', 'cw')[int(rng.integers(0, 2))]}"
     size = math.radians(rng.uniform(3.0, 4.0))
-    phi = rng.uniform(0, 2 * math.pi)
-    others = [i for i in range(3) if i != k]
-    lean = np.zeros(3)
-    lean[others[0]], lean[others[1]] = size * math.cos(phi), size * math.sin(phi)
+    lean = _lean_off(k, size, rng.uniform(0, 2 * math.pi))
 
     def geo(g: Geometry) -> None:
         g.record_lean[record] = lean
