@@ -93,7 +93,9 @@ class RowTable:
         return idx
 
 
-def _white(meas: np.ndarray, runs: Sequence[tuple[int, int]]) -> tuple[float, list[np.ndarray]]:
+def white_variance(
+    meas: np.ndarray, runs: Sequence[tuple[int, int]]
+) -> tuple[float, list[np.ndarray]]:
     """(variance of one sample of ``meas`` (N,) from its deviations about each run's mean, at
     least the quantisation step²/12; those deviations per run)."""
     devs = [meas[a:e] - meas[a:e].mean() for a, e in runs]
@@ -174,7 +176,7 @@ def add_block_means(
             if not agg.shape[0]:
                 continue
             idx = table.add(record, sig, s, ax, agg, spans, integral=False)
-            var, devs = _white(meas[:, ax], edges)
+            var, devs = white_variance(meas[:, ax], edges)
             table.deviations.setdefault((s, ax), []).extend(devs)
             table.static_deviations.setdefault((s, ax), []).extend(devs)
             table.static_noise.setdefault((s, ax), []).append((var, 1.0))
@@ -242,7 +244,7 @@ def add_turn_accel(
         if turn.n_still == 0:
             table.channels.append(ChannelRows(record, "accel", ax, idx, agg, math.nan))
             continue
-        var, devs = _white(sig.accel[:, ax], _runs_of(agg[: turn.n_still]))
+        var, devs = white_variance(sig.accel[:, ax], _runs_of(agg[: turn.n_still]))
         table.deviations.setdefault(("accel", ax), []).extend(devs)
         table.channels.append(ChannelRows(record, "accel", ax, idx, agg, var))
 

@@ -26,7 +26,8 @@ import numpy as np
 
 from host.model.dataset import build_dataset
 from host.model.fit import fit_model
-from host.model.noise import NoiseModel, integrated_autocorrelation, resolution
+from host.model.noise import NoiseModel, integrated_autocorrelation
+from host.model.rows import white_variance
 from host.model.spec import ModelTerm
 from host.session.directory import Session
 from host.session.method import (
@@ -61,8 +62,7 @@ def mean_sigma(x: np.ndarray, max_lag: int = NoiseModel().max_lag) -> np.ndarray
     if n < 4:
         return out
     for k in range(x.shape[1]):
-        dev = x[:, k] - x[:, k].mean()
-        var = max(float(dev @ dev) / (n - 1), resolution(x[:, k]) ** 2 / 12.0)
+        var, (dev,) = white_variance(x[:, k], [(0, n)])
         out[k] = math.sqrt(var * integrated_autocorrelation(dev, max_lag) / n)
     return out
 
