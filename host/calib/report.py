@@ -19,6 +19,7 @@ from host.calib.provenance import UNKNOWN_SENSOR, Provenance
 from host.calib.result import CalibrationResult
 from host.calib.values import RecordResidual
 from host.session.atomic import write_texts_atomic
+from host.session.directory import SIMULATED_BOARD
 from host.session.method import (
     ACCEL_BIAS_NAMES,
     GROUPS,
@@ -211,8 +212,7 @@ def _head(r: CalibrationResult, nxt: str) -> list[str]:
     pv = r.provenance
     sensor = "MPU-6000" if pv is None else pv.sensor
     out = [f"TEST REPORT, IMU {sensor}, serial No. {r.serial}"]
-    if r.simulated:
-        out.append(f"*** {r.simulated_line} ***")
+    out.extend(simulated_banner(r))
     if pv is not None and pv.measured_from:
         out.extend(_wrap(f"Measured: {_measured(pv)} (the records' start times)", "", "  "))
     else:
@@ -409,6 +409,22 @@ def _wrap(text: str, first: str, indent: str, keep: tuple[str, ...] = ()) -> lis
     return [ln.replace("\ue000", " ") for ln in lines]
 
 
+def simulated_banner(result: CalibrationResult) -> list[str]:
+    """The mark of records from a virtual or emulated board (none for a unit):
+    ``*** SIMULATED BOARD <url>: not a measurement of a unit ***`` on one line when it fits in
+    80 columns; else the mark on its line and the board's URLs below it, each whole (a URL
+    longer than a line is not broken: it is copied)."""
+    line = result.simulated_line
+    if not line:
+        return []
+    one = f"*** {line} ***"
+    if len(one) <= WIDTH:
+        return [one]
+    tail = ": not a measurement of a unit"
+    by = line.removeprefix(SIMULATED_BOARD).removesuffix(tail).strip()
+    return [f"*** {SIMULATED_BOARD}{tail} ***", *_wrap(by, "    ", "    ")]
+
+
 def result_paths(directory: str | os.PathLike[str], serial: str) -> tuple[Path, Path]:
     """(``DIR/SERIAL_result.txt``, ``DIR/SERIAL_result.json``)."""
     d = Path(directory)
@@ -454,16 +470,15 @@ def verdict_line(
     """What a session or ``--from-dir`` ends on (lines ≤ 80 columns when the paths allow):
     when the model does not fit, the report's :func:`fit_story`; ``Report: PATH``; then the
     :func:`next_command` on the records' directory ``records_dir`` (None: the report's);
-    ``*** SIMULATED BOARD <url>: not a measurement of a unit ***`` when the records came
-    from a virtual or emulated board; and last the verdict, the same line as the report's
+    the :func:`simulated_banner` when the records came from a virtual or emulated board;
+    and last the verdict, the same line as the report's
     and the result file's (:meth:`~host.calib.result.CalibrationResult.verdict`)."""
     out = _wrap(fit_story(result), "", "  ")
     out.append(f"Report: {report_path}")
     nxt = next_command(result, Path(report_path).parent if records_dir is None else records_dir)
     if nxt:
         out.append(f"Next: {nxt}")  # one line: a command to copy, whatever its length
-    if result.simulated:
-        out.append(f"*** {result.simulated_line} ***")
+    out.extend(simulated_banner(result))
     out.extend(_wrap(result.verdict(), "", "  "))  # one line but for a FAIL of many reasons
     return "\n".join(out)
 

@@ -190,6 +190,36 @@ def test_only_records_from_a_real_port_make_an_unmarked_report(tmp_path: Path) -
         assert any(n.startswith("SIMULATED BOARD emu://?seed=3") for n in notes) is marked
 
 
+def test_a_long_board_url_is_shown_whole_within_80_columns(result: CalibrationResult) -> None:
+    """A virtual board's URL with its options runs past the mark's line: the mark keeps its
+    line and the URL follows whole on its own (one that is longer than a line stays whole:
+    it is copied, not read), in the report and in the lines a session ends on."""
+    import dataclasses
+
+    from host.calib.provenance import Provenance
+    from host.calib.report import verdict_line
+
+    short = "sim://?speed=max"
+    long_ = "emu://?seed=3&speed=max&operator=auto&operator_fault=drop_turn&stimulus=warm.csv"
+    longer = "sim://?" + "&".join(f"option{i}=value{i}" for i in range(9))
+    for by in ((short,), (long_,), (longer,), (short, long_)):
+        sim = dataclasses.replace(result, provenance=Provenance(simulated=True, simulated_by=by))
+        report = format_report(sim).splitlines()
+        ending = verdict_line(sim, "out/SIM7_result.txt").splitlines()
+        for lines in (report, ending):
+            text = "\n".join(lines)
+            assert all(len(ln) <= 80 or ln.strip() in by for ln in lines), by
+            assert text.count("*** SIMULATED BOARD") == 1
+            for url in by:  # each URL whole on one line
+                assert any(url in ln.split() or f"{url}," in ln.split() for ln in lines) or (
+                    f"SIMULATED BOARD {url}:" in text
+                ), url
+        assert report[1].startswith("*** SIMULATED BOARD")
+        assert ending[-1] == sim.verdict()
+        one_line = len(f"*** {sim.simulated_line} ***") <= 80
+        assert (report[1] == f"*** {sim.simulated_line} ***") is one_line
+
+
 def test_from_dir_ends_on_the_verdict_and_the_report(tmp_path: Path, capsys) -> None:
     # The real imucal session: one-way turns, so it fails (values out of tolerance); the last
     # line on the terminal says so and where the report is, also with --json on stdout.
