@@ -105,6 +105,27 @@ def format_separation(s: Separation, top: int) -> str:
     return "\n".join(lines)
 
 
+def separation_json(s: Separation) -> dict[str, Any]:
+    """The separation for a script: every record ranked, with what the hand must do (each
+    record's name, up vector in chip axes, kind, seconds, turns, direction; the pace of its
+    turns)."""
+
+    def num(v: float) -> float | None:
+        return v if math.isfinite(v) else None
+
+    return {
+        "a": s.a, "b": s.b, "lam_now": num(s.lam_now), "clear": CLEAR,
+        "chi2_a": num(s.chi2_a), "chi2_b": num(s.chi2_b),
+        "ranked": [
+            {"record": r.candidate.label, "operator_s": r.candidate.operator_s,
+             "pace": r.candidate.pace, "lam": num(r.lam), "per_min": num(r.per_min),
+             "records": [{"name": n, "up": list(up), "kind": k, "seconds": sec, "turns": t,
+                          "direction": d} for n, up, k, sec, t, d in r.candidate.records]}
+            for r in s.ranked
+        ],
+    }  # fmt: skip
+
+
 def run_plan(args: argparse.Namespace) -> int:
     if args.top < 1:
         raise UserError(f"--top {args.top}: give how many records to list, 1 or more")
@@ -117,7 +138,10 @@ def run_plan(args: argparse.Namespace) -> int:
         a, b = (parse_model(x, cat) for x in args.separate)
         sep = separate(session, model, a, b, noise=session_noise(session, args.floor, args.noise),
                        time=time)  # fmt: skip
-        print(format_separation(sep, args.top))
+        if args.json:
+            print(json.dumps(separation_json(sep), indent=2, ensure_ascii=False))
+        else:
+            print(format_separation(sep, args.top))
         return 0
 
     def progress(done: int, total: int, label: str) -> None:

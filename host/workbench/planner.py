@@ -257,7 +257,8 @@ def candidates(
     """The records the operator could measure next: each face again (for each length in
     ``static_s``, s), each 45° attitude of :func:`host.bench.plan.tilted_45` (``tilted``; the
     first length), a pair of turns (ccw and cw, ``turns`` each, the method's window)
-    about each axis at each of ``paces`` (×2: twice as fast as the operator turned), and for
+    about each axis at each of ``paces`` (×2: twice as fast as the operator turned; a slower
+    pace in a longer window, :func:`paced_window_s`), and for
     each of ``temperatures`` (°C from the session's mean chip temperature) a sitting there:
     the six faces again after ``time.soak``. Record names are the plan's (``x_up``,
     ``tilt_45_3``, ``x_ccw``)."""
@@ -272,14 +273,14 @@ def candidates(
         rec = (name, up, "static", lengths[0], 0, 0)
         label = f"{name} (up {_format_up(up)})"
         out.append(Candidate(label, (rec,), time.place_tilted + time.settle + lengths[0]))
-    window = turn_window_s(turns)
     for ax in "xyz":
         up = _face_up(f"{ax}_up")
-        pair = tuple(
-            (f"{ax}_{d}", up, "turn", window, turns, s) for d, s in (("ccw", 1), ("cw", -1))
-        )
-        cost = 2 * (time.place + time.turn_ready + window)
         for pace in paces:
+            window = paced_window_s(turns, pace)
+            pair = tuple(
+                (f"{ax}_{d}", up, "turn", window, turns, s) for d, s in (("ccw", 1), ("cw", -1))
+            )
+            cost = 2 * (time.place + time.turn_ready + window)
             label = f"{ax} turns, {turns} each way"
             label += "" if pace == 1.0 else f", {pace:g}× as fast"
             out.append(Candidate(label, pair, cost, pace))
@@ -290,6 +291,14 @@ def candidates(
         cost = time.soak + len(faces) * (time.place + time.settle + seconds)
         out.append(Candidate(label, faces, cost, temp_offset_c=float(dt)))
     return out
+
+
+def paced_window_s(turns: int, pace: float) -> float:
+    """The recording window of ``turns`` whole turns made ``pace`` times as fast as the
+    operator's own, s: the method's window (method.md §4), ``1/pace`` times as long for a
+    slower turn (the same turns at half the rate take twice as long; a faster one fits the
+    method's window)."""
+    return turn_window_s(turns) / min(pace, 1.0)
 
 
 #: a sitting at another temperature: this far from the session's, °C (a room or a warm box)
@@ -350,7 +359,8 @@ class Augmenter:
         if p is None or pace == 1.0:
             return p
         t = np.arange(len(p)) * self.dt_s
-        return pace * np.interp(pace * t, t, p, right=0.0)
+        t_new = np.arange(math.ceil(len(p) / pace)) * self.dt_s  # all of it, slower or faster
+        return pace * np.interp(pace * t_new, t, p, right=0.0)
 
     def fits_range(self, cand: Candidate, limit_dps: float = 240.0) -> bool:
         """False when the candidate's turns would leave the gyro's range (±250 °/s)."""

@@ -10,7 +10,9 @@ separation a record buys is the noncentrality
 
 on the session with the record added (:class:`host.workbench.planner.Augmenter`): the Δχ² by
 which the true one of the two would beat the other, noise aside. λ ≥ 9 is a 3σ choice. The
-records are ranked by λ per minute of the operator's time.
+records are ranked by λ per minute of the operator's time. Both are weighed on the yardstick
+the diagnosis tests them on (:func:`yardstick`: a gyro scale asymmetry or quadratic scale
+without the turn-angle σ of its axis, which would otherwise take its signal for the hand's).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from host.model.noise import NoiseModel
 from host.model.spec import ModelTerm
 from host.session.directory import Session
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, local_gravity
+from host.workbench.absorbed import closure_axes, without_turn_angle
 from host.workbench.planner import (
     OPERATOR_TIME,
     OTHER_TEMPERATURE_C,
@@ -52,12 +55,16 @@ class Separating:
 
 @dataclass(frozen=True)
 class Separation:
-    """The separation now (``lam_now``) and the records ranked best first."""
+    """The separation now (``lam_now``), the records ranked best first, and what the data
+    say now: ``chi2_a``/``chi2_b`` the χ² of the model with ``a``/``b`` fitted to the records
+    (``chi2_b − chi2_a`` > 0: the records prefer ``a``)."""
 
     a: str
     b: str
     lam_now: float
     ranked: tuple[Separating, ...]
+    chi2_a: float = math.nan
+    chi2_b: float = math.nan
 
 
 def _values(fit: Fit) -> dict[tuple[str, str, str, str], float]:
@@ -86,6 +93,14 @@ def noncentrality(
     return lam
 
 
+def yardstick(ds: Dataset, terms: Sequence[ModelTerm]) -> Dataset:
+    """The yardstick the two explanations are weighed on: ``ds`` without the turn-angle σ of
+    the axes whose turn closures one of ``terms`` moves (:mod:`host.workbench.absorbed`, as
+    the diagnosis tests them), so that neither explanation's signal is taken for the hand's."""
+    axes = frozenset().union(*(closure_axes(ds, mt) for mt in terms))
+    return without_turn_angle(ds, axes) if axes else ds
+
+
 def separate(
     session: Session,
     model: Sequence[ModelTerm],
@@ -102,10 +117,10 @@ def separate(
     """Rank the records that would tell explanation ``a`` from ``b`` (each a list of terms
     added to ``model``), each at the size this session's records give it."""
     kw = {"noise": noise or NoiseModel(), "latitude_deg": latitude_deg, "height_m": height_m}
-    ds = build_dataset(session, **kw)  # type: ignore[arg-type]
+    ds = yardstick(build_dataset(session, **kw), [*a, *b])  # type: ignore[arg-type]
     base = fit_model(ds, model)
-    va = _values(fit_model(ds, (*model, *a)))
-    vb = _values(fit_model(ds, (*model, *b)))
+    fa, fb = fit_model(ds, (*model, *a)), fit_model(ds, (*model, *b))
+    va, vb = _values(fa), _values(fb)
     lam_now = noncentrality(ds, model, a, b, va, vb)
     base_values = {p.name: p.value for p in base.parameters if math.isfinite(p.value)}
     hand = Augmenter(session, base_values, local_gravity(latitude_deg, height_m))
@@ -120,11 +135,12 @@ def separate(
     for i, cand in enumerate(todo):
         if progress is not None:
             progress(i, len(todo), cand.label)
-        aug = build_dataset(hand.with_candidate(cand), **kw)  # type: ignore[arg-type]
+        aug = yardstick(build_dataset(hand.with_candidate(cand), **kw), [*a, *b])  # type: ignore[arg-type]
         lam = noncentrality(aug, model, a, b, va, vb)
         ranked.append(Separating(cand, lam, (lam - lam_now) / (cand.operator_s / 60.0)))
     if progress is not None:
         progress(len(todo), len(todo), "")
     ranked.sort(key=lambda s: (-s.per_min, s.candidate.operator_s))
     label = ", ".join
-    return Separation(label(m.label for m in a), label(m.label for m in b), lam_now, tuple(ranked))
+    return Separation(label(m.label for m in a), label(m.label for m in b), lam_now,
+                      tuple(ranked), fa.chi2, fb.chi2)  # fmt: skip

@@ -60,8 +60,26 @@ class SessionSpec:
     height_m: float = 150.0
     #: records measured after the plan (a face or a turn again: 'y_dn_2', 'z_ccw_2'), each
     #: as long as its kind's records in the plan, or (name, seconds) for a static of its own
-    #: length
-    extra: tuple[str | tuple[str, float], ...] = ()
+    #: length, or an :class:`Extra` (an attitude off the faces, turns at another pace)
+    extra: tuple[str | tuple[str, float] | Extra, ...] = ()
+
+
+@dataclass(frozen=True)
+class Extra:
+    """A record measured after the plan, of a kind the plan does not hold.
+
+    ``name``: its name ('tilt_45_3', 'y_ccw_2'); ``kind``: 'static' or 'turn'; ``up``: the body
+    direction held up (a unit vector; a 45° attitude rests on a wedge whose seat is square: no
+    face lean), None for the face its name says; ``seconds``: a static's length (0: the plan's
+    ``static_s``); ``pace``: a turn made this many times as fast as the hand turns in the plan
+    (its quarter turns last ``1/pace`` times as long; a slower turn gets a window ``1/pace``
+    times as long, so that the same whole turns fit)."""
+
+    name: str
+    kind: str = "static"
+    up: tuple[float, float, float] | None = None
+    seconds: float = 0.0
+    pace: float = 1.0
 
 
 @dataclass
@@ -125,14 +143,22 @@ def _record(
     start_s: float,
     duration_s: float,
     heading_deg: float,
+    extra: Extra | None = None,
 ) -> SimRecord:
     spec, geo, base = s.spec, s.geometry, s.base
-    face = _face(name)
-    kind = "turn" if name.split("_")[1] in ("ccw", "cw") else "static"
+    if extra is not None and extra.up is not None:
+        face = "[" + ", ".join(f"{c:.6g}" for c in extra.up) + "]"
+        kind, up = extra.kind, np.asarray(extra.up, dtype=float) / np.linalg.norm(extra.up)
+        seat = up  # on a square wedge: no face lean
+    else:
+        face = _face(name)
+        kind = "turn" if name.split("_")[1] in ("ccw", "cw") else "static"
+        up = ph.axis_vector(face)
+        seat = ph.seat_direction(up, geo.lean(face, kind, name))
+    pace = extra.pace if extra is not None else 1.0
     n = int(round(duration_s * ph.FS_HZ))
     t_s = rng.uniform(0.0, 1.0 / ph.FS_HZ) + np.arange(n) / ph.FS_HZ
-    up = ph.axis_vector(face)
-    r0 = ph.placement(ph.seat_direction(up, geo.lean(face, kind, name)), ph.reference_axis(up), 0.0)
+    r0 = ph.placement(seat, ph.reference_axis(up), 0.0)
     normal_b = r0.T @ np.array([0.0, 0.0, 1.0])  # the turn axis in body axes
     up_plate = ph.plate_to_room(geo.plate_tilt_rad, geo.plate_azimuth_rad).T @ [0.0, 0.0, 1.0]
     psi = np.full(n, math.radians(heading_deg))
@@ -140,7 +166,7 @@ def _record(
     turn_deg = 0.0
     if kind == "turn":
         sign = 1 if name.split("_")[1] == "ccw" else -1
-        prof = ph.hand_turn(rng, spec.turns, duration_s, sign)
+        prof = ph.hand_turn(rng, spec.turns, duration_s, sign, quarter_s=0.95 / pace)
         psi = psi + np.radians(prof.angle_deg(t_s))
         rate_up, acc_up = prof.rate_dps(t_s), prof.accel_dps2(t_s)
         turn_deg = 360.0 * spec.turns * sign
@@ -207,13 +233,19 @@ def simulate(spec: SessionSpec) -> SimSession:
     plan += [(n, window) for n in TURNS]
     if spec.closing:
         plan.append(("x_up_2", spec.static_s))
+    extras: dict[str, Extra] = {}
     for x in spec.extra:
+        if isinstance(x, Extra):
+            extras[x.name] = x
+            turn = x.kind == "turn" or x.name.split("_")[1] in ("ccw", "cw")
+            plan.append((x.name, window / min(x.pace, 1.0) if turn else x.seconds or spec.static_s))
+            continue
         name, seconds = x if isinstance(x, tuple) else (x, spec.static_s)
         plan.append((name, window if name.split("_")[1] in ("ccw", "cw") else seconds))
     t = spec.warmup_s
     for name, dur in plan:
         heading = 0.0 if spec.headings == "zero" else 90.0 * int(rng.integers(0, 4))
-        s.records.append(_record(rng, s, name, t, dur, heading))
+        s.records.append(_record(rng, s, name, t, dur, heading, extras.get(name)))
         t += dur + rng.uniform(15.0, 25.0)
     return s
 

@@ -3,6 +3,7 @@ host reads it: through the command line, which does not move when the modules do
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -12,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.independent.simulate import HEADING_KEY, SessionSpec, write_session
+from tests.independent.hand import extra_record
+from tests.independent.simulate import HEADING_KEY, Extra, SessionSpec, simulate, write_session
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -84,3 +86,36 @@ def test_host_reads_the_session(tmp_path: Path, effect: str) -> None:
     names |= {f"{a}_{d}" for a in "xyz" for d in ("ccw", "cw")}
     assert set(result["records"]) == names
     assert result["turns"] == 2
+
+
+def test_records_off_the_plan_attitudes_and_paces() -> None:
+    """A 45° attitude rests on a square wedge (gravity along the up asked for, no face lean
+    even on a unit whose faces lean), and turns at half the pace turn the same whole turns at
+    half the rate in a window twice as long."""
+    up = (0.0, 0.5**0.5, -(0.5**0.5))
+    spec = SessionSpec(seed=4, effect="face_lean", extra=(
+        Extra("tilt_45_10", "static", up), Extra("z_ccw_2", "turn", pace=0.5),
+    ))  # fmt: skip
+    s = simulate(spec)
+    recs = {r.name: r for r in s.records}
+    tilt = recs["tilt_45_10"]
+    np.testing.assert_allclose(tilt.true_force / s.g, np.tile(up, (len(tilt.t_ms), 1)), atol=1e-9)
+    assert tilt.meta["up"].startswith("[") and tilt.meta["kind"] == "static"
+    own, slow = recs["z_ccw"], recs["z_ccw_2"]
+    assert float(slow.meta["window_s"]) == 2 * float(own.meta["window_s"])
+    for r in (own, slow):
+        assert np.sum(r.true_rate[:, 2]) / 50.0 == pytest.approx(720.0, abs=3.0)
+    ratio = np.max(slow.true_rate[:, 2]) / np.max(own.true_rate[:, 2])
+    assert 0.4 < ratio < 0.6
+    # the plan's records are the same with the extra ones appended
+    plain = {r.name: r for r in simulate(dataclasses.replace(spec, extra=())).records}
+    np.testing.assert_array_equal(plain["z_cw"].gyro, recs["z_cw"].gyro)
+
+
+def test_the_hand_asks_for_what_a_candidate_names() -> None:
+    assert extra_record("y_dn_2", (0, -1, 0), "static", 20.0) == ("y_dn_2", 20.0)
+    assert extra_record("x_ccw_2", (1, 0, 0), "turn", 12.0) == "x_ccw_2"
+    slow = extra_record("x_ccw_2", (1, 0, 0), "turn", 24.0, pace=0.5)
+    assert isinstance(slow, Extra) and slow.pace == 0.5 and slow.up is None
+    tilt = extra_record("tilt_45_1", (0.7071, 0.7071, 0), "static", 10.0)
+    assert isinstance(tilt, Extra) and tilt.up == (0.7071, 0.7071, 0.0)

@@ -5,12 +5,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from host.model.catalogue import CATALOGUE
 from host.model.spec import parse_model
 from host.session.directory import read_session
-from host.workbench.planner import candidates
+from host.session.records import turn_window_s
+from host.workbench.planner import Augmenter, candidates
 from host.workbench.separate import CLEAR, separate
 from tests.independent.simulate import SessionSpec, write_session
 
@@ -56,3 +58,26 @@ def test_one_explanation_against_itself_is_never_separated(asymmetric: Path) -> 
     s = separate(read_session(asymmetric), BASE, a, a, only=candidates(10.0, 2)[:3])
     assert s.lam_now == pytest.approx(0.0, abs=1e-6)
     assert all(r.lam == pytest.approx(0.0, abs=1e-6) for r in s.ranked)
+
+
+def test_turns_at_half_the_pace_are_half_the_rate_in_twice_the_window(asymmetric: Path) -> None:
+    """The operator's own turn made at half the pace: the same whole turns, at half the rate,
+    in a window twice as long (and the operator's time to match); twice the pace: the
+    method's window. Cut to the method's window and scaled back to the whole turns, a slower
+    turn would be the operator's pace again."""
+    session = read_session(asymmetric)
+    hand = Augmenter(session, {}, 9.81)
+    menu = {c.label: c for c in candidates(10.0, 2, tilted=False, paces=(1.0, 0.5, 2.0))}
+    own, slow, fast = (menu[f"y turns, 2 each way{x}"] for x in ("", ", 0.5× as fast",
+                                                                 ", 2× as fast"))  # fmt: skip
+    assert slow.records[0][3] == 2 * own.records[0][3] == 2 * turn_window_s(2)
+    assert fast.records[0][3] == own.records[0][3]
+    assert slow.operator_s - own.operator_s == pytest.approx(2 * turn_window_s(2))
+    peaks = {}
+    for c in (own, slow, fast):
+        new = hand.with_candidate(c).records["y_ccw_2"]
+        rate = new.gyro[:, 1]
+        assert float(np.sum(rate)) * hand.dt_s == pytest.approx(720.0, rel=0.01)
+        peaks[c.pace] = float(np.max(rate))
+    assert peaks[0.5] / peaks[1.0] == pytest.approx(0.5, rel=0.05)
+    assert peaks[2.0] / peaks[1.0] == pytest.approx(2.0, rel=0.05)
