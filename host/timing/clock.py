@@ -200,83 +200,53 @@ def _percentiles(a: np.ndarray, qs: tuple[float, ...]) -> list[float]:
     ]
 
 
-def _refine_on_bin_floors(
-    x: np.ndarray, y: np.ndarray, a: float, b: float, bin_us: float = 1e6
-) -> tuple[float, float]:
-    """Refine the hull line: the floor (lowest point) of each ``bin_us`` bin of the detrended
-    points (sorted by x), then a robust least-squares line through the floors.
-
-    The hull edge at the mean is exact for the points it touches but can be short, so its
-    slope is noisy; the floors of many bins pin the slope down. The line is then lowered to
-    pass under all floors but the lowest 2 %, so its offset stays a minimum-delay offset.
-    """
-    if x[-1] - x[0] < 4 * bin_us:
-        return a, b
-    r = y - (a + b * x)
-    bins = ((x - x[0]) // bin_us).astype(np.int64)
-    if np.all(np.isfinite(r)):  # x is sorted: a bin is a run, its floor its first lowest point
-        first = np.flatnonzero(np.diff(bins, prepend=-1))
-        counts = np.diff(np.append(first, r.size))
-        at = np.flatnonzero(r == np.repeat(np.minimum.reduceat(r, first), counts))
-        pick = at[np.flatnonzero(np.diff(bins[at], prepend=-1))][counts >= 5]
-    else:
-        order = np.lexsort((r, bins))
-        first = np.flatnonzero(np.diff(bins[order], prepend=-1))
-        counts = np.diff(np.append(first, order.size))
-        pick = order[first[counts >= 5]]
-    if pick.size < 4:
-        return a, b
-    fx, fr = x[pick], r[pick]
-    keep = np.ones(fx.size, dtype=bool)
-    for _ in range(3):
-        c1, c0 = _line(fx[keep], fr[keep])
-        res = fr - (c0 + c1 * fx)
-        kept = res[keep]
-        mad = _percentiles(np.abs(kept - _percentiles(kept, (50.0,))[0]), (50.0,))[0] or 1.0
-        new_keep = np.abs(res) <= 4 * 1.4826 * mad
-        if np.array_equal(new_keep, keep) or np.count_nonzero(new_keep) < 4:
-            break
-        keep = new_keep
-    if not (np.isfinite(c0) and np.isfinite(c1)):
-        return a, b
-    c0 += _percentiles(fr[keep] - (c0 + c1 * fx[keep]), (2.0,))[0]
-    return a + c0, b + c1
-
-
 def _refine_many(
     windows: Sequence[tuple[np.ndarray, np.ndarray, float, float]], bin_us: float = 1e6
 ) -> list[tuple[float, float]]:
-    """:func:`_refine_on_bin_floors` of each window (x sorted, y, a, b), the windows with
-    finite residuals done together: their points joined end to end with a window id, the bin
-    floors found by segment reductions, the robust line iterated on (window × floor) arrays
-    with each window stopping when it would alone."""
+    """Refine each window's hull line (x sorted, y, a, b), all windows together: the floor
+    (first lowest point) of each ``bin_us`` bin of the detrended points that holds at least
+    5, then a robust least-squares line through the floors, lowered to pass under all floors
+    but the lowest 2 %, so its offset stays a minimum-delay offset.
+
+    The hull edge at the mean is exact for the points it touches but can be short, so its
+    slope is noisy; the floors of many bins pin the slope down. A window shorter than four
+    bins, with fewer than four floors, or whose floors are not all finite keeps its hull
+    line. The windows' points are joined end to end, the floors found by segment reductions,
+    and the robust line iterated on (window × floor) arrays, each window stopping when it
+    would alone."""
     out = [(float(a), float(b)) for _, _, a, b in windows]
-    rs, xs_, ids = [], [], []
-    for w, (x, y, a, b) in enumerate(windows):
-        if x[-1] - x[0] < 4 * bin_us:
-            continue
-        r = y - (a + b * x)
-        if not np.all(np.isfinite(r)):
-            out[w] = _refine_on_bin_floors(x, y, a, b, bin_us)
-            continue
-        rs.append(r)
-        xs_.append(x)
-        ids.append(w)
+    ids = [w for w, (x, _, _, _) in enumerate(windows) if x[-1] - x[0] >= 4 * bin_us]
     if not ids:
         return out
-    n = np.array([r.size for r in rs])
-    win = np.repeat(np.arange(len(ids)), n)
-    x, r = np.concatenate(xs_), np.concatenate(rs)
-    first_x = np.repeat([v[0] for v in xs_], n)
-    bins = ((x - first_x) // bin_us).astype(np.int64)
-    new = np.ones(r.size, dtype=bool)
-    new[1:] = (bins[1:] != bins[:-1]) | (win[1:] != win[:-1])
-    first = np.flatnonzero(new)
-    seg = np.cumsum(new) - 1
-    counts = np.diff(np.append(first, r.size))
-    at = np.flatnonzero(r == np.repeat(np.minimum.reduceat(r, first), counts))
-    pick = at[np.flatnonzero(np.diff(seg[at], prepend=-1))][counts >= 5]
-    fw = win[pick]
+    at = np.cumsum([0] + [windows[w][0].size for w in ids])
+    r = np.empty(at[-1])  # the windows' residuals end to end
+    firsts = []
+    edges: np.ndarray = np.zeros(0)
+    for k, w in enumerate(ids):
+        x, y, a, b = windows[w]
+        seg = r[at[k] : at[k + 1]]
+        np.subtract(y, np.add(np.multiply(x, b, out=seg), a, out=seg), out=seg)
+        # bin j: the points with j·bin_us <= x − x[0] < (j + 1)·bin_us, found by bisection
+        # (the same as ``(x − x[0]) // bin_us``: a float floor division costs 30 times more)
+        nb = int((x[-1] - x[0]) // bin_us) + 1
+        if edges.size < nb:
+            edges = bin_us * np.arange(2 * nb)
+        firsts.append(np.searchsorted(x - x[0] if x[0] else x, edges[:nb], side="left"))
+    first = np.concatenate(firsts) + np.repeat(at[:-1], [f.size for f in firsts])
+    nonempty = np.flatnonzero(np.diff(first, append=r.size))
+    first = first[nonempty]
+    counts = np.diff(first, append=r.size)
+    bin_win = np.repeat(np.arange(len(ids)), [f.size for f in firsts])[nonempty]
+    # each bin's first lowest point (nan counts as the highest: a bin's floor is not finite
+    # only when none of its points is, and then its window keeps the hull line)
+    low = np.minimum.reduceat(r, first)
+    r_low = r if np.all(np.isfinite(low)) else np.where(np.isnan(r), np.inf, r)
+    if r_low is not r:
+        low = np.minimum.reduceat(r_low, first)
+    lowest = np.flatnonzero(r_low == np.repeat(low, counts))
+    lowest_bin = np.searchsorted(first, lowest, side="right") - 1
+    pick = lowest[np.flatnonzero(np.diff(lowest_bin, prepend=-1))][counts >= 5]
+    fw = bin_win[counts >= 5]
     m = np.bincount(fw, minlength=len(ids))
     rows = np.flatnonzero(m >= 4)
     if rows.size == 0:
@@ -292,7 +262,9 @@ def _refine_many(
     fx = np.zeros((rows.size, width))
     fr = np.zeros((rows.size, width))
     valid = np.zeros((rows.size, width), dtype=bool)
-    fx[fr_row, col], fr[fr_row, col], valid[fr_row, col] = x[pick], r[pick], True
+    cut = np.searchsorted(pick, at[1:-1])  # each window's floors: its own points' x
+    px = [windows[ids[k]][0][p - at[k]] for k, p in enumerate(np.split(pick, cut))]
+    fx[fr_row, col], fr[fr_row, col], valid[fr_row, col] = np.concatenate(px), r[pick], True
     keep = valid.copy()
     active = np.ones(rows.size, dtype=bool)
     c0 = np.zeros(rows.size)
@@ -321,7 +293,8 @@ def _refine_many(
 
 
 def _lines(x: np.ndarray, y: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_line` of each row's masked points: (c1, c0) per row."""
+    """Least-squares line y = c0 + c1·x through each row's masked points, from the centred
+    sums (a general polynomial fit costs ten times that): (c1, c0) per row."""
     n = np.count_nonzero(mask, axis=1)
     xm = np.where(mask, x, 0.0).sum(axis=1) / n
     ym = np.where(mask, y, 0.0).sum(axis=1) / n
@@ -340,16 +313,6 @@ def _row_percentiles(a: np.ndarray, mask: np.ndarray, q: float) -> np.ndarray:
     vlo = np.take_along_axis(s, lo[:, None], axis=1)[:, 0]
     vhi = np.take_along_axis(s, hi[:, None], axis=1)[:, 0]
     return vlo + (vhi - vlo) * (pos - lo)
-
-
-def _line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
-    """Least-squares line y = c0 + c1·x: (c1, c0), from the centred sums (a few µs; a
-    general polynomial fit costs ten times that, once per clock window and iteration)."""
-    xm, ym = float(x.mean()), float(y.mean())
-    dx = x - xm
-    with np.errstate(divide="ignore", invalid="ignore"):
-        c1 = float(np.dot(dx, y - ym) / np.dot(dx, dx))
-    return c1, ym - c1 * xm
 
 
 @dataclass(frozen=True)
