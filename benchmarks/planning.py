@@ -46,6 +46,12 @@ from host.session.directory import Session  # noqa: E402
 from host.session.method import local_gravity  # noqa: E402
 from host.session.records import STOPPED_KEY, Record  # noqa: E402
 from host.workbench.adaptive import adaptive_run, minimal_plan  # noqa: E402
+from host.workbench.least_time import (  # noqa: E402
+    balanced_plan_s,
+    least_operator_s,
+    least_rest_s,
+    rest_information,
+)
 from host.workbench.planner import (  # noqa: E402
     OPERATOR_TIME,
     Candidate,
@@ -71,19 +77,20 @@ def as_record(r: SimRecord) -> Record:
     return Record(r.name, r.t_ms, r.accel, r.gyro, r.temp_c, r.meta)
 
 
-def fixed_plan(spec: SessionSpec) -> tuple[float, str, float]:
-    """(worst σ/tolerance, its name, operator time s) of the method's fixed plan."""
+def fixed_plan(spec: SessionSpec) -> tuple[float, str, float, np.ndarray]:
+    """(worst σ/tolerance, its name, operator time s, information per second of rest on each
+    gyro channel (:func:`host.workbench.least_time.rest_information`)) of the method's fixed
+    plan."""
     s = simulate(spec)
-    fit = fit_model(
-        build_dataset(Session(spec.serial, {r.name: as_record(r) for r in s.records})), BASE
-    )
+    ds = build_dataset(Session(spec.serial, {r.name: as_record(r) for r in s.records}))
+    fit = fit_model(ds, BASE)
     worst, name = worst_ratio(unscaled_sigmas(fit, fit))
     t = OPERATOR_TIME
     window = {1: 7.0, 2: 12.0, 3: 15.0}[spec.turns]
     statics = 7 if spec.closing else 6
     operator = statics * (t.place + t.settle + spec.static_s)
     operator += 6 * (t.place + t.turn_ready + window)
-    return worst, name, operator
+    return worst, name, operator, rest_information(ds, fit, BASE)
 
 
 def stopping_first(
@@ -125,11 +132,12 @@ def one(seed: int, args: argparse.Namespace) -> dict[str, float | str | bool]:
         "gyro_density": 0.0050 * float(rng.uniform(0.5, 2.0)),
     }
     fixed = SessionSpec(seed=seed, static_s=args.fixed_static, turns=2, **noise)  # type: ignore[arg-type]
-    w_fixed, n_fixed, t_fixed = fixed_plan(fixed)
+    w_fixed, n_fixed, t_fixed, rho = fixed_plan(fixed)
     first_s = args.max_static if args.stopping else args.min_static
     minimal = SessionSpec(seed=seed, static_s=first_s, turns=1, closing=False, **noise)  # type: ignore[arg-type]
     menu = candidates((args.min_static, 3 * args.min_static), 1, tilted=False)
     target = w_fixed if args.target is None else args.target
+    rest = least_rest_s(rho, target)
     hand = IndependentHand(minimal)
 
     def measure(c: Candidate, names: Sequence[str]) -> dict[str, Record]:
@@ -154,6 +162,8 @@ def one(seed: int, args: argparse.Namespace) -> dict[str, float | str | bool]:
         "adaptive_name": run.worst_name,
         "reached": run.reached,
         "records": len(run.records),
+        "bound_s": least_operator_s(rest),
+        "balanced_s": balanced_plan_s(rest),
     }
 
 
@@ -176,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     rows = []
     t0 = wall.monotonic()
-    print("seed  fixed s  worst (name)        adaptive s  worst (name)    records  ratio")
+    print("seed  fixed s  worst (name)        adaptive s  worst (name)    records  ratio  bound s")
     for seed in range(args.seed0, args.seed0 + args.sessions):
         r = one(seed, args)
         rows.append(r)
@@ -184,7 +194,8 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"{seed:>4}  {r['fixed_s']:>7.0f}  {r['fixed_worst']:.4f} ({r['fixed_name']:<5})   "
             f"{r['adaptive_s']:>10.0f}  {r['adaptive_worst']:.4f} ({r['adaptive_name']:<5})"
-            f"{r['records']:>5}  {ratio:5.2f}{'' if r['reached'] else '  not reached'}",
+            f"{r['records']:>5}  {ratio:5.2f}  {r['bound_s']:>7.0f}"
+            f"{'' if r['reached'] else '  not reached'}",
             flush=True,
         )
     ratios = [float(r["fixed_s"]) / float(r["adaptive_s"]) for r in rows]
@@ -193,6 +204,17 @@ def main(argv: list[str] | None = None) -> int:
         f" adaptive {statistics.median(float(r['adaptive_s']) for r in rows):.0f} s; "
         f"median ratio fixed/adaptive {statistics.median(ratios):.2f}; target reached in "
         f"{sum(bool(r['reached']) for r in rows)}/{len(rows)} ({wall.monotonic() - t0:.0f} s)"
+    )
+    fixed_s = [float(r["fixed_s"]) for r in rows]
+    bound = [float(r["bound_s"]) for r in rows]
+    balanced = [float(r["balanced_s"]) for r in rows]
+    what = "the fixed plan's precision" if args.target is None else f"σ/tolerance {args.target:g}"
+    print(
+        f"no plan of these records reaches {what} in less than "
+        f"{statistics.median(bound):.0f} s (median; ratio fixed/bound "
+        f"{statistics.median(f / b for f, b in zip(fixed_s, bound, strict=True)):.2f}); six "
+        f"balanced faces, a pair after each up face: {statistics.median(balanced):.0f} s (ratio "
+        f"{statistics.median(f / b for f, b in zip(fixed_s, balanced, strict=True)):.2f})"
     )
     return 0
 

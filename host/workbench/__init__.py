@@ -19,6 +19,8 @@ residual scan, the verdict, the refits and their words. Never imports the calibr
   value's σ/tolerance meets a target, through one measuring callable.
 - ``stopping`` — records that stop when they have enough: a face when the σ of its mean (serial
   correlation counted) meets a target, turn pairs when the gyro scale does.
+- ``least_time`` — the least operator time any plan of faces, 45° attitudes and turns needs for
+  a precision: the rest the g-sensitivities need, from the fit's own information.
 - ``separate`` — the record that tells two explanations apart: the Δχ² (noncentrality) it buys
   between them per minute of the operator's time.
 - ``scenarios`` — simulated sessions each hiding one effect, and what the workbench finds.
