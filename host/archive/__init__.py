@@ -9,8 +9,8 @@
   drift, lot summary and outliers, control-chart run rules, bench comparison by Eₙ, each with
   its stated family-wise false-alarm rate.
 - ``checks`` — the questions of ``python -m host archive`` answered from the store with
-  ``stats`` (trend, repeat, drift, lot, control charts, check-bench).
-- ``text`` — the plain-text rendering of those answers.
+  ``stats`` (trend, repeat, drift, lot, control charts, check-bench); their text on the
+  command line is the command's (:mod:`host.cli.archive_text`).
 - ``page`` — the self-contained HTML page (``archive report --html``), charts as inline SVG.
 - ``export`` — CSV (and Parquet when pyarrow is installed) for the user's own analysis.
 """

@@ -1,6 +1,7 @@
 """The commands of ``python -m host``, one module each (thin: parse, call the library, print).
 
-- ``archive`` — ``archive``: every calibration kept by serial, the lot's statistics.
+- ``archive`` — ``archive``: every calibration kept by serial, the lot's statistics;
+  ``archive_text`` — its answers as text within the terminal's width.
 - ``calibrate`` — ``calibrate``: live (the dialogue) or ``--from-dir``.
 - ``capture`` — ``capture``: record a port's bytes with host read times.
 - ``decode`` — ``decode``: a capture or raw bytes as samples, CSV/JSON lines, statistics.

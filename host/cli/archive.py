@@ -8,10 +8,12 @@ import math
 import sys
 from collections.abc import Callable
 
-from host.archive import checks, stats, text
+from host.archive import checks, stats
 from host.archive.entry import entry_from_directory
 from host.archive.export import write_values
 from host.archive.store import ARCHIVE_ENV, DEFAULT_FILE, Archive
+from host.cli import archive_text as text
+from host.cli.screen import terminal_width
 from host.errors import UserError
 
 
@@ -65,8 +67,9 @@ def _add(args: argparse.Namespace) -> int:
             )  # fmt: skip
             cid, added = a.add(e)
             what = "archived" if added else "already archived"
-            print(f"{what}: #{cid} {e.serial} {e.measured_at[:19]} {e.verdict.upper()} "
-                  f"result {e.result_hash[:12]} in {a.display_url}")  # fmt: skip
+            said = (f"{what}: #{cid} {e.serial} {e.measured_at[:19]} {e.verdict.upper()} "
+                    f"result {e.result_hash[:12]} in {a.display_url}")  # fmt: skip
+            print("\n".join(text.prose(said, terminal_width())))
     return 0
 
 

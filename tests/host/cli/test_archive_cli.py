@@ -33,9 +33,14 @@ def calibrated(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_add_twice_list_show(
     calibrated: Path, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    db = str(tmp_path / "a.sqlite")
+    db = str(tmp_path / " ".join(["a deep folder of the line archives"] * 2) / "a.sqlite")
+    Path(db).parent.mkdir()
     assert main(["archive", "add", str(calibrated), "--archive", db, "--bench", "B9"]) == 0
-    assert "archived: #1 C1" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert said.startswith("archived: #1 C1")
+    # within 80 columns, the archive's path (its words) whole across the lines
+    assert all(len(ln) <= 80 for ln in said.splitlines()) and len(said.splitlines()) > 1
+    assert db in " ".join(ln.strip() for ln in said.splitlines())
     assert main(["archive", "add", str(calibrated), "--archive", db]) == 0
     assert "already archived: #1 C1" in capsys.readouterr().out
     assert main(["archive", "list", "--archive", db]) == 0
@@ -159,3 +164,68 @@ def test_a_live_calibration_lands_in_the_archive(
     recs = {n: hashlib.sha256((tmp_path / "L9" / f"L9_{n}.txt").read_bytes()).hexdigest()
             for n, _ in e.record_hashes}  # fmt: skip
     assert dict(e.record_hashes) == recs
+
+
+# ---- the answers within 80 columns ------------------------------------------------------------
+PREFIX = "LINE7-IMU-2026-"  # serials as a production line writes them, not the tests' "U0001"
+
+
+@pytest.fixture(scope="module")
+def line_archive(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, object]:
+    db = str(tmp_path_factory.mktemp("line") / "line.sqlite")
+    lot = simulate_lot(np.random.default_rng(3), units=24, prefix=PREFIX)
+    with Archive(db) as a:
+        a.add_many(lot.entries)
+    return db, lot
+
+
+QUESTIONS = [["list"], ["show", f"{PREFIX}U0007"], ["trend", f"{PREFIX}U0001"],
+             ["repeat", f"{PREFIX}U0003"], ["repeat"], ["drift"], ["lot"], ["control"],
+             ["control", "--serial", f"{PREFIX}REF"], ["check-bench", f"{PREFIX}REF"]]  # fmt: skip
+
+
+@pytest.mark.parametrize("argv", QUESTIONS, ids=" ".join)
+def test_every_answer_fits_80_columns(
+    line_archive: tuple[str, object], argv: list[str], capsys: pytest.CaptureFixture,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    """Into a pipe or a file (80 columns): every line of every question's answer fits, on a
+    lot whose serials are as long as a production line's; the planted problems are still
+    named whole."""
+    monkeypatch.delenv("COLUMNS", raising=False)
+    db, lot = line_archive
+    rc = main(["archive", *argv, "--archive", db])
+    out = capsys.readouterr().out
+    assert rc in (0, 1)
+    assert [ln for ln in out.splitlines() if len(ln) > 80] == []
+    named = {"drift": lot.drifting, "check-bench": "bench bias: B3", "lot": lot.failing}  # type: ignore[attr-defined]
+    if argv == ["repeat"] or argv[0] in named:
+        assert (named.get(argv[0]) or lot.drifting) in out  # type: ignore[attr-defined]
+
+
+def test_the_lot_table_carries_every_value_of_the_lot_report(
+    line_archive: tuple[str, object], capsys: pytest.CaptureFixture,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    """The narrowed lot table still says, in its columns, what the lot report computed: each
+    parameter's n, mean, spread, band, limit and datasheet verdict, in its own row."""
+    from host.archive import checks
+
+    monkeypatch.delenv("COLUMNS", raising=False)
+    db, _ = line_archive
+    assert main(["archive", "lot", "--archive", db]) == 1
+    lines = capsys.readouterr().out.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.split()[:1] == ["parameter"])
+    headers = lines[head].split()
+    assert headers == ["parameter", "n", "mean", "spread", "mean−3σ", "mean+3σ", "limit",
+                       "datasheet"]  # fmt: skip
+    with Archive(db) as a:
+        rep = checks.lot_report(a)
+    rows = {ln.split()[0]: ln.split() for ln in lines[head + 1 : head + 1 + len(rep.rows)]}
+    assert set(rows) == {r.name for r in rep.rows}
+    for r in rep.rows:
+        s, cells = r.summary, rows[r.name]
+        assert int(cells[1]) == s.n
+        got = [float(c) for c in cells[2:7]]
+        assert got == pytest.approx([s.mean, s.spread, s.low, s.high, s.limit], rel=2e-3)
+        assert cells[7] == {True: "within", False: "OUTSIDE"}[bool(s.within)]
