@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from host.archive import stats
+from host.archive.entry import conditional_pass
 from host.archive.store import Archive, ValueTable
 from host.errors import UserError
 from host.session.method import TOLERANCES
@@ -228,6 +229,9 @@ class LotReport:
     rows: list[LotRow]
     units: int
     failing: tuple[tuple[str, str], ...]  # (serial, why) of units whose latest session failed
+    #: (serial, RMS z) of units whose latest session is a conditional PASS: every value within
+    #: tolerance, on a model that does not fit (not a clean pass)
+    conditional: tuple[tuple[str, float], ...] = ()
 
 
 def lot_report(
@@ -240,7 +244,8 @@ def lot_report(
 ) -> LotReport:
     """Per parameter over each unit's latest session: mean, spread, mean ± 3·spread against
     the datasheet limit (``limits``, default the method's §7 tolerances), and the outlier
-    units (Grubbs at alpha / number of parameters)."""
+    units (Grubbs at alpha / number of parameters); the units whose latest session failed,
+    and those whose PASS is conditional (the model does not fit their records)."""
     t = archive.values(names, lot=lot, latest_per_unit=True)
     lim = TOLERANCES if limits is None else limits
     g = grid(t, ("serial",))
@@ -257,13 +262,19 @@ def lot_report(
             )
         )  # fmt: skip
     failing: dict[str, str] = {}
+    conditional: dict[str, float] = {}
     for i in range(len(t)):
         s = str(t.serial[i])
         if t.self_test[i] == "fail":
             failing[s] = "self-test failed"
         elif t.verdict[i] != "pass":
             failing.setdefault(s, "FAIL in its report")
-    return LotReport(rows, len(g.groups), tuple(sorted(failing.items())))
+        elif conditional_pass(str(t.verdict[i]), str(t.fit_verdict[i])):
+            conditional[s] = float(t.rms_z[i])
+    return LotReport(
+        rows, len(g.groups), tuple(sorted(failing.items())),
+        tuple(sorted((s, z) for s, z in conditional.items() if s not in failing)),
+    )  # fmt: skip
 
 
 # ---- control charts --------------------------------------------------------------------------

@@ -201,6 +201,13 @@ def archived_verdict(all_passed: bool, self_test: str) -> str:
     return "pass" if all_passed and self_test != "fail" else "fail"
 
 
+def conditional_pass(verdict: str, fit_verdict: str) -> bool:
+    """An archived 'pass' whose fit's verdict is 'inadequate': the result's conditional PASS
+    (every value within tolerance as fitted, on a model that does not fit the records), not a
+    clean pass."""
+    return verdict == "pass" and fit_verdict == "inadequate"
+
+
 def entry_from_directory(
     directory: str | os.PathLike[str],
     *,

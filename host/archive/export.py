@@ -12,8 +12,8 @@ from host.archive.store import ValueTable
 from host.errors import UserError
 
 COLUMNS = (
-    "calibration_id", "serial", "bench", "measured_at", "self_test", "verdict", "parameter",
-    "value", "stderr",
+    "calibration_id", "serial", "bench", "measured_at", "self_test", "verdict", "fit_verdict",
+    "parameter", "value", "stderr",
 )  # fmt: skip
 
 
@@ -21,7 +21,8 @@ def _columns(t: ValueTable) -> dict[str, list[object]]:
     return {
         "calibration_id": [int(x) for x in t.id], "serial": list(t.serial),
         "bench": list(t.bench), "measured_at": list(t.measured_at),
-        "self_test": list(t.self_test), "verdict": list(t.verdict), "parameter": list(t.name),
+        "self_test": list(t.self_test), "verdict": list(t.verdict),
+        "fit_verdict": list(t.fit_verdict), "parameter": list(t.name),
         "value": [float(x) for x in t.value], "stderr": [float(x) for x in t.stderr],
     }  # fmt: skip
 

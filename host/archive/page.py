@@ -128,6 +128,9 @@ def _attention(d: PageData) -> str:
     items: list[str] = []
     for serial, why in d.lot.failing:
         items.append(f"<li><b>{_e(serial)}</b>: {_e(why)}</li>")
+    for serial, rms_z in d.lot.conditional:
+        items.append(f"<li><b>{_e(serial)}</b>: conditional PASS, the model does not fit its "
+                     f"records (RMS z {_e(_g(rms_z, 3))})</li>")  # fmt: skip
     for row in d.lot.rows:
         for serial, v in row.outliers:
             items.append(f"<li><b>{_e(serial)}</b>: {_e(row.name)} = {_e(_g(v, 5))} is an "

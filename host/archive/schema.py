@@ -147,10 +147,24 @@ def _v2(conn: Connection) -> None:
             )
 
 
+def _v3(conn: Connection) -> None:
+    """The sessions' covering index (v2) with the fit's verdict and RMS z: a PASS on a model
+    that does not fit is a conditional PASS, which the lot check names, still from the index
+    alone."""
+    for ddl in (
+        "CREATE INDEX ix_calibrations_unit_verdicts ON calibrations "
+        "(serial, measured_at, id, records_hash, bench, lot, self_test, verdict, fit_verdict, "
+        "rms_z)",
+        "DROP INDEX ix_calibrations_unit_sessions",
+    ):
+        conn.execute(text(ddl))
+
+
 #: (version, what it does, the change) in order; a new version appends, none is ever edited
 MIGRATIONS: tuple[tuple[int, str, Callable[[Connection], None]], ...] = (
     (1, "calibrations, parameters, record_files", _v1),
     (2, "covering indexes for the lot and trend queries; lz4 for the large columns", _v2),
+    (3, "the fit's verdict and RMS z in the sessions' covering index", _v3),
 )
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 

@@ -133,8 +133,9 @@ class Summary:
 class ValueTable:
     """Parameter values of many calibrations, one row per (calibration, parameter), ordered
     by serial, time, calibration and parameter: ``id`` (calibration), ``serial``, ``bench``,
-    ``measured_at`` (UTC ISO text), ``self_test``, ``verdict``, ``name``, ``value``, ``stderr``
-    (NaN: not determined), all numpy arrays of one length."""
+    ``measured_at`` (UTC ISO text), ``self_test``, ``verdict``, ``fit_verdict`` (the fit's:
+    'inadequate' beside a 'pass' is a conditional PASS), ``rms_z`` (the fit's), ``name``,
+    ``value``, ``stderr`` (NaN: not determined), all numpy arrays of one length."""
 
     id: np.ndarray
     serial: np.ndarray
@@ -142,6 +143,8 @@ class ValueTable:
     measured_at: np.ndarray
     self_test: np.ndarray
     verdict: np.ndarray
+    fit_verdict: np.ndarray
+    rms_z: np.ndarray
     name: np.ndarray
     value: np.ndarray
     stderr: np.ndarray
@@ -362,8 +365,8 @@ class Archive:
         # one session per set of records: its latest archived result (no later one with the
         # same records); each condition is answered from an index, no calibration row is read
         sessions = select(
-            c.id, c.serial, c.bench, c.measured_at, c.self_test, c.verdict,
-            func.row_number()
+            c.id, c.serial, c.bench, c.measured_at, c.self_test, c.verdict, c.fit_verdict,
+            c.rms_z, func.row_number()
             .over(partition_by=c.serial, order_by=(c.measured_at.desc(), c.id.desc()))
             .label("ru"),
         )  # fmt: skip
@@ -381,7 +384,8 @@ class Archive:
         final = (
             select(
                 chosen.c.id, chosen.c.serial, chosen.c.bench, chosen.c.measured_at,
-                chosen.c.self_test, chosen.c.verdict, p.name, p.value, p.stderr,
+                chosen.c.self_test, chosen.c.verdict, chosen.c.fit_verdict, chosen.c.rms_z,
+                p.name, p.value, p.stderr,
             )
             .join(parameters, p.calibration_id == chosen.c.id)
             .where(chosen.c.ru == 1 if latest_per_unit else true())
@@ -417,7 +421,7 @@ def archive_directory(
 
 
 def _value_table(rows: Sequence[Any]) -> ValueTable:
-    cols = list(zip(*rows, strict=True)) if rows else [()] * 9
+    cols = list(zip(*rows, strict=True)) if rows else [()] * 11
 
     def obj(i: int) -> np.ndarray:
         a = np.empty(len(cols[i]), dtype=object)
@@ -429,7 +433,8 @@ def _value_table(rows: Sequence[Any]) -> ValueTable:
 
     return ValueTable(
         id=np.array(cols[0], dtype=np.int64), serial=obj(1), bench=obj(2), measured_at=obj(3),
-        self_test=obj(4), verdict=obj(5), name=obj(6), value=num(7), stderr=num(8),
+        self_test=obj(4), verdict=obj(5), fit_verdict=obj(6), rms_z=num(7), name=obj(8),
+        value=num(9), stderr=num(10),
     )  # fmt: skip
 
 

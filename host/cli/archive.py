@@ -122,7 +122,8 @@ def _lot(args: argparse.Namespace) -> int:
     with _open(args) as a:
         rep = checks.lot_report(a, args.lot, alpha=args.alpha, names=args.param)
     sys.stdout.write(text.lot(rep, args.alpha))
-    bad = rep.failing or any(r.outliers or r.summary.within is False for r in rep.rows)
+    odd = any(r.outliers or r.summary.within is False for r in rep.rows)
+    bad = bool(rep.failing or rep.conditional) or odd
     return 1 if bad else 0
 
 

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 from host.archive import stats
 from host.archive.checks import BenchRow, Chart, DriftRow, LotReport, RepeatRow, TrendPoint
-from host.archive.entry import Entry
+from host.archive.entry import Entry, conditional_pass
 from host.archive.store import Summary
 from host.cli.screen import Column, table, terminal_width
 
@@ -31,6 +31,19 @@ def prose(text: str, width: int) -> list[str]:
                          break_on_hyphens=False) or [""]  # fmt: skip
 
 
+#: the verdict of a conditional PASS in the archive's tables, and what the star means
+CONDITIONAL = "PASS*"
+FOOTNOTE = (
+    "* conditional PASS: every value within tolerance as fitted, on a model that does not fit "
+    "the records (not a clean pass; python -m host model diagnose DIR on its records)"
+)
+
+
+def verdict_of(verdict: str, fit_verdict: str) -> str:
+    """PASS, FAIL, or :data:`CONDITIONAL` for a PASS on a model that does not fit."""
+    return CONDITIONAL if conditional_pass(verdict, fit_verdict) else verdict.upper()
+
+
 def _text(lines: Sequence[str]) -> str:
     return "\n".join(lines) + "\n"
 
@@ -44,12 +57,14 @@ def summaries(rows: Sequence[Summary], width: int | None = None) -> str:
         Column("serial", [r.serial for r in rows], "<"),
         Column("bench", [r.bench or "-" for r in rows], "<", rank=3),
         Column("measured (UTC)", [r.measured_at[:16].replace("T", " ") for r in rows], "<"),
-        Column("verdict", [r.verdict.upper() for r in rows], "<"),
+        Column("verdict", [verdict_of(r.verdict, r.fit_verdict) for r in rows], "<"),
         Column("self-test", [r.self_test or "-" for r in rows], "<", rank=2),
         Column("fit", [r.fit_verdict or "-" for r in rows], "<", rank=1),
         Column("result", [r.result_hash[:8] for r in rows], "<", rank=4),
     ]
-    return _text(table(cols, width or terminal_width()))
+    w = width or terminal_width()
+    star = any(conditional_pass(r.verdict, r.fit_verdict) for r in rows)
+    return _text(table(cols, w) + (prose(FOOTNOTE, w) if star else []))
 
 
 def entry(e: Entry, width: int | None = None) -> str:
@@ -65,7 +80,7 @@ def entry(e: Entry, width: int | None = None) -> str:
         *prose(f"model {e.model}", w),
         *prose(f"fit: χ² = {_g(e.chi2)} on {e.dof} dof, RMS z = {_g(e.rms_z, 3)}, "
                 f"p = {_g(e.p, 3)}: {e.fit_verdict or '-'}", w),
-        f"verdict {e.verdict.upper()}   self-test {e.self_test or 'not recorded'}",
+        *prose(f"verdict {_verdict_words(e)}   self-test {e.self_test or 'not recorded'}", w),
         f"{len(e.record_hashes)} record files; covariance: {e.covariance_kind}",
         f"result  sha256 {e.result_hash}",
         f"report  sha256 {e.report_hash}",
@@ -83,6 +98,12 @@ def entry(e: Entry, width: int | None = None) -> str:
         w,
     )
     return _text(lines)
+
+
+def _verdict_words(e: Entry) -> str:
+    if conditional_pass(e.verdict, e.fit_verdict):
+        return f"{CONDITIONAL} (conditional: the model does not fit, RMS z {_g(e.rms_z, 3)})"
+    return e.verdict.upper()
 
 
 def trend(serial: str, points: dict[str, list[TrendPoint]], width: int | None = None) -> str:
@@ -209,8 +230,17 @@ def lot(rep: LotReport, alpha: float, width: int | None = None) -> str:
         out.append(f"outlier: {u} {name} = {_g(v, 5)}")
     for serial, why in rep.failing:
         out += prose(f"failing: {serial} ({why})", w)
-    if not outliers and not rep.failing:
-        out.append("no outlier, no failing unit")
+    for serial, rms_z in rep.conditional:
+        out += prose(f"conditional: {serial} ({CONDITIONAL}: the model does not fit its "
+                     f"records, RMS z {_g(rms_z, 3)})", w)  # fmt: skip
+    clean = rep.units - len(rep.failing) - len(rep.conditional)
+    counts = ((clean, "PASS"), (len(rep.conditional), CONDITIONAL), (len(rep.failing), "FAIL"))
+    said = ", ".join(f"{n} {v}" for n, v in counts if n)
+    out += prose(f"latest verdicts: {said}", w) if said else []
+    if rep.conditional:
+        out += prose(FOOTNOTE, w)
+    if not outliers and not rep.failing and not rep.conditional:
+        out.append("no outlier, no failing unit, no conditional pass")
     return _text(out)
 
 

@@ -26,7 +26,9 @@ def _table() -> ValueTable:
     return ValueTable(
         id=np.array([1, 1]), serial=obj("U,1", "U,1"), bench=obj("B1", "B1"),
         measured_at=obj("2026-01-01T00:00:00.000000Z", "2026-01-01T00:00:00.000000Z"),
-        self_test=obj("", ""), verdict=obj("pass", "pass"), name=obj("A0x", "Gzz"),
+        self_test=obj("", ""), verdict=obj("pass", "pass"),
+        fit_verdict=obj("inadequate", "inadequate"), rms_z=np.array([8.35, 8.35]),
+        name=obj("A0x", "Gzz"),
         value=np.array([0.1 + 0.2, math.nan]), stderr=np.array([1e-17, math.nan]),
     )  # fmt: skip
 
@@ -37,6 +39,8 @@ def test_csv_reads_back_exactly(tmp_path: Path) -> None:
     rows = list(csv.DictReader(p.open(encoding="utf-8")))
     assert tuple(rows[0]) == COLUMNS
     assert rows[0]["serial"] == "U,1"  # quoted, not split
+    # a conditional PASS stays one: the fit's verdict beside the archived verdict
+    assert (rows[0]["verdict"], rows[0]["fit_verdict"]) == ("pass", "inadequate")
     assert float(rows[0]["value"]) == 0.1 + 0.2 and float(rows[0]["stderr"]) == 1e-17
     assert rows[1]["value"] == "" and rows[1]["stderr"] == ""
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -200,14 +201,34 @@ def test_an_archive_of_version_1_is_migrated_and_keeps_its_rows(
         )
         with a.engine.connect() as conn:
             names = {ix["name"] for ix in inspect(conn).get_indexes("calibrations")}
-            assert "ix_calibrations_unit_sessions" in names
-            assert "ix_calibrations_serial_time" not in names
+            assert "ix_calibrations_unit_verdicts" in names
+            assert not names & {"ix_calibrations_serial_time", "ix_calibrations_unit_sessions"}
             if a.backend == "postgresql":  # the large columns compressed with lz4
                 kinds = conn.execute(text(
                     "SELECT attname, attcompression FROM pg_attribute WHERE attrelid = "
                     "'calibrations'::regclass AND attname IN ('result_json', 'covariance')"
                 )).all()  # fmt: skip
                 assert {k for _, k in kinds} == {"l"}
+
+
+def test_the_lot_query_reads_only_indexes_with_the_fit_verdict(tmp_path: Path) -> None:
+    """The lot check reads each session's fit verdict (a conditional PASS) and still never a
+    calibration's row (~90 KB each): SQLite's plan touches the table only through covering
+    indexes."""
+    from sqlalchemy import event
+
+    with Archive(str(tmp_path / "a.sqlite")) as a:
+        a.add_many([_entry("U1", s, day=s) for s in range(3)] + [_entry("U2", 0)])
+        said: list[tuple[str, object]] = []
+        event.listen(a.engine, "before_cursor_execute",
+                     lambda _c, _k, stmt, params, _x, _m: said.append((stmt, params)))  # fmt: skip
+        t = a.values(["A0x"], latest_per_unit=True)
+        assert list(t.serial) == ["U1", "U2"] and len(t.fit_verdict) == len(t.rms_z) == 2
+        stmt, params = said[-1]
+        with a.engine.connect() as conn:
+            plan = [row[-1] for row in conn.exec_driver_sql("EXPLAIN QUERY PLAN " + stmt, params)]
+    touches = [step for step in plan if re.search(r"\b(calibrations|later|parameters)\b", step)]
+    assert touches and all("COVERING INDEX" in step for step in touches), plan
 
 
 def test_an_sqlite_archive_uses_the_wal_journal(tmp_path: Path) -> None:

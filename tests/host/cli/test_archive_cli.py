@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import hashlib
+import json
 import shutil
 from pathlib import Path
 
@@ -229,3 +230,75 @@ def test_the_lot_table_carries_every_value_of_the_lot_report(
         got = [float(c) for c in cells[2:7]]
         assert got == pytest.approx([s.mean, s.spread, s.low, s.high, s.limit], rel=2e-3)
         assert cells[7] == {True: "within", False: "OUTSIDE"}[bool(s.within)]
+
+
+# ---- a conditional PASS is not a clean pass ---------------------------------------------------
+@pytest.fixture(scope="module")
+def misfit_lot(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, dict[str, dict]]:
+    """Two units of the independent simulator calibrated into one archive: one whose records
+    hold a gyro bias step the base model lacks (a PASS on a model that does not fit), in lot
+    L1 with nothing else, and one with nothing hidden, in lot L2."""
+    from tests.independent.simulate import SessionSpec, write_session
+
+    tmp = tmp_path_factory.mktemp("misfit")
+    db = str(tmp / "a.sqlite")
+    docs = {}
+    for serial, effect, lot_name in (("STEP1", "bias_step_gyro", "L1"), ("CLEAN1", "none", "L2")):
+        d = tmp / serial
+        write_session(d, SessionSpec(seed=7, effect=effect, serial=serial))
+        rc = main(["calibrate", "--from-dir", str(d), "--archive", db, "--lot", lot_name])
+        docs[serial] = json.loads((d / f"{serial}_result.json").read_text(encoding="utf-8"))
+        assert rc == 0  # both pass their tolerances: the exit status of calibrate is 0
+    assert docs["STEP1"]["conditional"] and not docs["CLEAN1"]["conditional"]
+    return db, docs
+
+
+def test_a_conditional_pass_is_shown_as_such(
+    misfit_lot: tuple[str, dict[str, dict]], capsys: pytest.CaptureFixture,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    monkeypatch.delenv("COLUMNS", raising=False)
+    db, docs = misfit_lot
+    rms_z = docs["STEP1"]["fit"]["rms_z"]
+    capsys.readouterr()
+    # the lot check names it, counts it apart from the clean passes and asks for attention
+    assert main(["archive", "lot", "--archive", db]) == 1
+    out = capsys.readouterr().out
+    said = " ".join(ln.strip() for ln in out.splitlines())
+    assert (
+        f"conditional: STEP1 (PASS*: the model does not fit its records, RMS z {rms_z:.3g})" in said
+    )
+    assert "latest verdicts: 1 PASS, 1 PASS*" in said and "CLEAN1" not in said
+    assert "* conditional PASS:" in said
+    # a lot of clean passes only is not flagged
+    assert main(["archive", "lot", "L2", "--archive", db]) == 0
+    out = capsys.readouterr().out
+    assert "latest verdicts: 1 PASS\n" in out and "no conditional pass" in out
+    assert "PASS*" not in out
+    assert main(["archive", "lot", "L1", "--archive", db]) == 1
+    assert "conditional: STEP1" in capsys.readouterr().out
+    # the list marks it, with the star's meaning below the table
+    assert main(["archive", "list", "--archive", db]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    verdicts = {ln.split()[1]: ln.split()[5] for ln in lines[1:3]}
+    assert verdicts == {"STEP1": "PASS*", "CLEAN1": "PASS"}, lines
+    assert lines[3].startswith("* conditional PASS")
+    assert all(len(ln) <= 80 for ln in lines)
+    # show says the whole verdict
+    assert main(["archive", "show", "STEP1", "--archive", db]) == 0
+    out = capsys.readouterr().out
+    assert f"verdict PASS* (conditional: the model does not fit, RMS z {rms_z:.3g})" in out
+    # the QC lead's page lists it among the units that need attention
+    page = Path(db).parent / "qc.html"
+    assert main(["archive", "report", "--html", str(page), "--archive", db]) == 0
+    attention = page.read_text(encoding="utf-8").split('id="attention"')[1].split("</ul>")[0]
+    assert "<b>STEP1</b>: conditional PASS" in attention and "CLEAN1" not in attention
+    # and what leaves for the line's own counting carries the fit's verdict
+    out_csv = Path(db).parent / "v.csv"
+    assert main(["archive", "export", str(out_csv), "--archive", db]) == 0
+    rows = list(csv.DictReader(out_csv.open(encoding="utf-8")))
+    fits = {(r["serial"], r["verdict"], r["fit_verdict"]) for r in rows}
+    assert fits == {
+        ("STEP1", "pass", "inadequate"),
+        ("CLEAN1", "pass", docs["CLEAN1"]["fit"]["verdict"]),
+    }
