@@ -64,36 +64,66 @@ def unwrap(
     return v[0] + np.concatenate(([0], np.cumsum(d)))
 
 
-#: below this many candidates the hull's last points are walked one by one
+#: below this many candidates a run's last hull points are walked one by one
 _HULL_WALK = 64
 
 
 def lower_hull(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Indices of the lower convex hull of points sorted by x (among equal x, by y), from the
-    first point to the last, collinear points left out: Andrew's monotone chain.
+    first point to the last, collinear points left out: Andrew's monotone chain
+    (:func:`lower_hulls` of one run)."""
+    return lower_hulls(x, y, [0, np.size(x)])[0]
+
+
+def lower_hulls(
+    x: np.ndarray, y: np.ndarray, bounds: Sequence[int] | np.ndarray
+) -> list[np.ndarray]:
+    """:func:`lower_hull` of each run of points ``x[bounds[k] : bounds[k + 1]]`` (bounds
+    increasing), as indices into ``x``; all runs at once.
 
     Vectorised: a point on or above the segment between its two neighbours is no vertex, so
-    all such points are dropped at once, and again among what is left, until a pass drops few
-    (a few passes: each about halves random points, and the samples of one read, which share
-    its arrival time, go in one); the candidates left are walked by the monotone chain (the
-    same cross products, so the same hull as walking them all). A point equal to a neighbour
-    stays for the walk: of two equal points each is on the segment through the other, and
-    dropping both would lose a vertex.
+    all such points are dropped at once (a run's first and last point stay), and again among
+    what is left, until a pass drops few (a few passes: each about halves random points, and
+    the samples of one read, which share its arrival time, go in one); a run whose candidates
+    left still turn somewhere the wrong way is walked by the monotone chain (the same cross
+    products, so the same hull as walking them all). A point equal to a neighbour stays for
+    the walk: of two equal points each is on the segment through the other, and dropping both
+    would lose a vertex.
     """
     xs, ys = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
-    idx = np.arange(xs.size)
+    b = np.asarray(bounds, dtype=np.int64)
+    ends = np.zeros(xs.size + 1, dtype=bool)  # a run's first or last point: never dropped
+    ends[b[:-1]] = ends[b[1:] - 1] = True
+    idx = np.arange(b[0], b[-1])
     while idx.size > _HULL_WALK:
-        cx, cy = xs[idx], ys[idx]
-        ox, oy, px, py, qx, qy = cx[:-2], cy[:-2], cx[1:-1], cy[1:-1], cx[2:], cy[2:]
-        cross = (px - ox) * (qy - oy) - (py - oy) * (qx - ox)
-        repeat = ((px == ox) & (py == oy)) | ((px == qx) & (py == qy))
+        cross, repeat = _turns(xs[idx], ys[idx])
         keep = np.ones(idx.size, dtype=bool)
-        keep[1:-1] = ~((cross < 0) | ((cross == 0) & ~repeat))  # a nan keeps its point
+        keep[1:-1] = ~((cross < 0) | ((cross == 0) & ~repeat)) | ends[idx[1:-1]]  # nan: kept
         left = int(np.count_nonzero(keep))
         idx = idx[keep]
         if 8 * left > 7 * keep.size:  # under 1/8 dropped: the walk is cheaper now
             break
-    return idx[_monotone_chain(xs[idx].tolist(), ys[idx].tolist())]
+    at = np.searchsorted(idx, b)
+    # a run whose candidates all turn left is its hull (the walk would keep every one)
+    cross, _ = _turns(xs[idx], ys[idx])
+    bent = (idx[1:-1])[~(cross > 0) & ~ends[idx[1:-1]]]  # a nan is walked too
+    walk = np.zeros(b.size, dtype=bool)
+    walk[np.searchsorted(b, bent, side="right") - 1] = True
+    out = []
+    for k in range(b.size - 1):
+        c = idx[at[k] : at[k + 1]]
+        out.append(c[_monotone_chain(xs[c].tolist(), ys[c].tolist())] if walk[k] else c)
+    return out
+
+
+def _turns(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """At each inner point of a chain: the cross product of (it − the one before) and (the
+    one after − the one before) (> 0: the chain turns left there), and whether it equals a
+    neighbour."""
+    ox, oy, px, py, qx, qy = x[:-2], y[:-2], x[1:-1], y[1:-1], x[2:], y[2:]
+    cross = (px - ox) * (qy - oy) - (py - oy) * (qx - ox)
+    repeat = ((px == ox) & (py == oy)) | ((px == qx) & (py == qy))
+    return cross, repeat
 
 
 def _monotone_chain(xs: list[float], ys: list[float]) -> list[int]:
@@ -154,10 +184,10 @@ def fit_min_delay(device_us: np.ndarray, floor_ns: np.ndarray) -> ClockMap:
 
 
 def fit_min_delay_many(windows: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[ClockMap]:
-    """:func:`fit_min_delay` of each window (device µs, floor ns), the windows' line
+    """:func:`fit_min_delay` of each window (device µs, floor ns), the windows' hulls and line
     refinements done together (one set of array operations for all windows: at 50 Hz a
     window's own refinement is mostly numpy's per-call overhead)."""
-    pre = []
+    rel = []
     for device_us, floor_ns in windows:
         x0 = float(device_us[0])
         y0 = float(floor_ns[0])
@@ -168,18 +198,69 @@ def fit_min_delay_many(windows: Sequence[tuple[np.ndarray, np.ndarray]]) -> list
         else:
             order = np.lexsort((y, x))  # by device time, the lowest first among equal times
             xs, ys = x[order], y[order]
-        h = lower_hull(xs, ys)
-        if h.size < 2:
+        rel.append((x0, y0, x, y, xs, ys))
+    at = np.cumsum([0] + [w[4].size for w in rel])
+    cx = np.concatenate([w[4] for w in rel]) if rel else np.zeros(0)
+    cy = np.concatenate([w[5] for w in rel]) if rel else np.zeros(0)
+    hulls = [h - at[k] for k, h in enumerate(lower_hulls(cx, cy, at))]
+    return _fit_lines([(*w, w[4][h], w[5][h]) for w, h in zip(rel, hulls, strict=True)])
+
+
+def fit_min_delay_spans(
+    device_us: np.ndarray, floor_ns: np.ndarray, spans: Sequence[tuple[int, int]]
+) -> list[ClockMap]:
+    """:func:`fit_min_delay` of each window ``device_us[i:j]``, ``floor_ns[i:j]`` for
+    (i, j) in ``spans``: the windows of one run of points, overlapping (a capture's
+    half-overlapping clock windows).
+
+    Points in device-time order: the stretches between the windows' ends are hulled once
+    each (:func:`lower_hulls`), and a window's hull is the hull of its stretches' hulls (a
+    point under no stretch's hull is under the window's; the cross products are the same in
+    any origin, the coordinates being differences of exact values), so each point is hulled
+    once, not once per window it is in. Out of order: each window alone."""
+    x = np.asarray(device_us, dtype=np.float64)
+    y = np.asarray(floor_ns, dtype=np.float64)
+    if not spans:
+        return []
+    lo, hi = min(i for i, _ in spans), max(j for _, j in spans)
+    if not np.all(x[lo + 1 : hi] > x[lo : hi - 1]):
+        return fit_min_delay_many([(x[i:j], y[i:j]) for i, j in spans])
+    cuts = np.unique(np.asarray(spans, dtype=np.int64))
+    stretch = lower_hulls(x, y, cuts)
+    cand, bounds = [], [0]
+    for i, j in spans:
+        c = np.concatenate(stretch[np.searchsorted(cuts, i) : np.searchsorted(cuts, j)])
+        cand.append(c)
+        bounds.append(bounds[-1] + c.size)
+    c_all = np.concatenate(cand)
+    hulls = [c_all[h] for h in lower_hulls(x[c_all], y[c_all], bounds)]
+    pre = []
+    for (i, j), h in zip(spans, hulls, strict=True):
+        x0, y0 = float(x[i]), float(y[i])
+        xw, yw = x[i:j] - x0, y[i:j] - y0
+        pre.append((x0, y0, xw, yw, xw, yw, x[h] - x0, y[h] - y0))
+    return _fit_lines(pre)
+
+
+def _fit_lines(
+    windows: Sequence[tuple[float, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                            np.ndarray, np.ndarray]],
+) -> list[ClockMap]:  # fmt: skip
+    """Each window's map from its hull: (x0, y0, x, y, the same sorted, the hull's x and y;
+    all but x0, y0 relative to them): the hull edge at the mean device time, refined
+    together (:func:`_refine_many`), and its gaps' median and 5th percentile."""
+    pre = []
+    for _, _, x, _, xs, ys, hx, hy in windows:
+        if hx.size < 2:
             raise ValueError("need two points with different device times")
         xm = float(x.mean())
-        k = int(np.searchsorted(xs[h], xm, side="right")) - 1
-        k = min(max(k, 0), h.size - 2)
-        i, j = h[k], h[k + 1]
-        b = (ys[j] - ys[i]) / (xs[j] - xs[i])
-        pre.append((x0, y0, x, y, xs, ys, ys[i] - b * xs[i], b))
-    lines = _refine_many([(xs, ys, a, b) for _, _, _, _, xs, ys, a, b in pre])
+        k = int(np.searchsorted(hx, xm, side="right")) - 1
+        k = min(max(k, 0), hx.size - 2)
+        b = (hy[k + 1] - hy[k]) / (hx[k + 1] - hx[k])
+        pre.append((xs, ys, hy[k] - b * hx[k], b))
+    lines = _refine_many(pre)
     out = []
-    for (x0, y0, x, y, _, _, _, _), (a, b) in zip(pre, lines, strict=True):
+    for (x0, y0, x, y, _, _, _, _), (a, b) in zip(windows, lines, strict=True):
         gaps_us = (y - (a + b * x)) / 1000.0
         median, p5 = _percentiles(gaps_us, (50.0, 5.0))
         out.append(ClockMap(x0, y0, a, b, int(x.size), median, p5))

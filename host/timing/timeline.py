@@ -18,7 +18,7 @@ from host.timing.clock import (
     ClockMap,
     PiecewiseClockMap,
     fit_min_delay,
-    fit_min_delay_many,
+    fit_min_delay_spans,
     serialisation_ns,
     unwrap,
 )
@@ -105,11 +105,12 @@ class _WindowFitter:
         return int(self.px.size)
 
     def _fit(
-        self, windows: list[tuple[np.ndarray, np.ndarray, float]]
+        self, x: np.ndarray, y: np.ndarray, windows: list[tuple[int, int, float]]
     ) -> list[tuple[float, ClockMap]]:
-        """Fit the completed windows (points, centre) together; keep every ``stride``-th map."""
-        fittable = [(x, y, c) for x, y, c in windows if x.size >= 2 and x[-1] > x[0]]
-        maps = fit_min_delay_many([(x, y) for x, y, _ in fittable])
+        """Fit the completed windows (x[i:j], y[i:j], centre) together; keep every
+        ``stride``-th map."""
+        fittable = [(i, j, c) for i, j, c in windows if j - i >= 2 and x[j - 1] > x[i]]
+        maps = fit_min_delay_spans(x, y, [(i, j) for i, j, _ in fittable])
         out = []
         for (_, _, centre), m in zip(fittable, maps, strict=True):
             if self.windows % self.stride == 0:
@@ -134,27 +135,28 @@ class _WindowFitter:
         return self._advance(final=False)
 
     def _advance(self, final: bool) -> list[tuple[float, ClockMap]]:
-        done: list[tuple[np.ndarray, np.ndarray, float]] = []
+        done: list[tuple[int, int, float]] = []
         assert self.x0 is not None or self.px.size == 0
-        while self.px.size:
+        px, py = self.px, self.py
+        at = 0  # the open window's first point in px
+        while at < px.size:
             x0 = float(self.x0)  # type: ignore[arg-type]
             start = x0 + self.k * self.h
             end = start + self.w
             if final:
                 if not start + self.h < self.last_x:
                     break
-            elif not self.px[-1] > end:
+            elif not px[-1] > end:
                 break
-            # the points are in device-time order: a window is a slice (a view, no copy)
-            stop = int(np.searchsorted(self.px, end, side="right"))
-            done.append((self.px[:stop], self.py[:stop], start + self.h))
+            # the points are in device-time order: a window is a slice
+            done.append((at, int(np.searchsorted(px, end, side="right")), start + self.h))
             self.k += 1
-            first = int(np.searchsorted(self.px, x0 + self.k * self.h, side="left"))
-            self.px, self.py = self.px[first:], self.py[first:]
-            if self.px.size and self.px[0] > x0 + self.k * self.h + self.w:
+            at = int(np.searchsorted(px, x0 + self.k * self.h, side="left"))
+            if at < px.size and px[at] > x0 + self.k * self.h + self.w:
                 # skip the empty windows of a gap: to the first window holding the next point
-                self.k = int(np.ceil((self.px[0] - x0 - self.w) / self.h))
-        return self._fit(done)
+                self.k = int(np.ceil((px[at] - x0 - self.w) / self.h))
+        self.px, self.py = px[at:], py[at:]
+        return self._fit(px, py, done)
 
     def finish(self, x: np.ndarray, y: np.ndarray) -> list[tuple[float, ClockMap]]:
         """End of the segment: fit the windows left; ``x``, ``y`` all the segment's points

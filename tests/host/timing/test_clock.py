@@ -236,3 +236,66 @@ def test_a_capture_fitted_window_by_window_and_in_batches_has_the_same_maps() ->
         assert m.b == pytest.approx(one.b, rel=1e-12)
         assert m.offset_ns == pytest.approx(one.offset_ns, abs=1e-3)
         assert m.latency_median_us == pytest.approx(one.latency_median_us, abs=1e-6)
+
+
+@settings(max_examples=50, deadline=None)
+@given(runs=st.lists(_small_points, min_size=1, max_size=5))
+def test_the_hulls_of_several_runs_at_once_are_each_runs_walked_hull(
+    runs: list[list[tuple[int, int]]],
+) -> None:
+    """lower_hulls over runs of points laid end to end (each sorted by x, then y; the runs'
+    coordinates unrelated, so a run's neighbours must not matter) gives each run's walked
+    hull."""
+    pts = [sorted(r) for r in runs]
+    x = np.asarray([p[0] for r in pts for p in r], dtype=float)
+    y = np.asarray([p[1] for r in pts for p in r], dtype=float)
+    bounds = np.cumsum([0] + [len(r) for r in pts])
+    for k, h in enumerate(clock.lower_hulls(x, y, bounds)):
+        a, b = bounds[k], bounds[k + 1]
+        assert (h - a).tolist() == _walked_hull(x[a:b].tolist(), y[a:b].tolist())
+
+
+def _min_delay_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """The minimum-delay line by brute force: of the lines through two points that no point
+    lies under, the highest at the points' mean x (offset at the mean, slope)."""
+    x0, y0 = x[0], y[0]
+    x, y = x - x0, y - y0
+    xm = float(x.mean())
+    i, j = np.triu_indices(x.size, 1)
+    i, j = i[x[j] > x[i]], j[x[j] > x[i]]
+    b = (y[j] - y[i]) / (x[j] - x[i])
+    under = y[None, :] - (y[i][:, None] + b[:, None] * (x[None, :] - x[i][:, None]))
+    ok = np.all(under >= -1e-3, axis=1)  # ns
+    at_mean = y[i] + b * (xm - x[i])
+    best = np.flatnonzero(ok)[np.argmax(at_mean[ok])]
+    return float(y0 + at_mean[best]), float(b[best])
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    n=st.integers(6, 90),
+    per_read=st.integers(1, 5),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_overlapping_windows_of_one_run_get_each_windows_min_delay_line(
+    n: int, per_read: int, seed: int
+) -> None:
+    """fit_min_delay_spans over half-overlapping windows of a run of points (their hulls
+    merged from the stretches between window ends) gives each window the line under its
+    points that is highest at their mean, found by brute force (windows under 4 s: the
+    line of the hull alone), and the gaps' numpy median and 5th percentile."""
+    rng = np.random.default_rng(seed)
+    x = 7e9 + np.cumsum(rng.integers(1, 40_000, n)).astype(float)  # µs
+    y = 3e12 + 1000.05 * x + rng.exponential(2e6, n)  # ns
+    last = np.minimum((np.arange(n) // per_read + 1) * per_read, n) - 1
+    y = np.rint(np.maximum.accumulate(y)[last])
+    half = max(n // 4, 1)
+    spans = [(i, min(i + 2 * half + 1, n)) for i in range(0, n - 1, half)]
+    for (i, j), m in zip(spans, clock.fit_min_delay_spans(x, y, spans), strict=True):
+        wx, wy = x[i:j], y[i:j]
+        at_mean, b = _min_delay_line(wx, wy)
+        assert m.b == pytest.approx(b, rel=1e-9)
+        assert float(m.to_host_ns(wx.mean())) == pytest.approx(at_mean, abs=0.01)  # ns
+        gaps = (wy - m.to_host_ns(wx)) / 1000.0
+        assert m.latency_median_us == pytest.approx(np.median(gaps), abs=1e-4)
+        assert m.floor_spread_us == pytest.approx(np.percentile(gaps, 5), abs=1e-4)
