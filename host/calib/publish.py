@@ -152,6 +152,8 @@ def compute_and_write(
         term_files=settings.term_files,
         noise=session_noise(session, settings.floor, settings.noise_file),
     )
+    given = {"noise": settings.noise_file, "floor": settings.floor}
+    result = dataclasses.replace(result, floor_source={k: v for k, v in given.items() if v})
     if settings.verify:
         result = verify_directory(result, settings.verify, term_files=settings.term_files)
     if not out_dir.is_dir():

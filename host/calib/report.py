@@ -16,7 +16,7 @@ import shlex
 from pathlib import Path
 
 from host.calib.provenance import UNKNOWN_SENSOR, Provenance
-from host.calib.result import CalibrationResult
+from host.calib.result import FLOOR_SOURCES, CalibrationResult
 from host.calib.values import RecordResidual
 from host.session.atomic import write_texts_atomic
 from host.session.directory import SIMULATED_BOARD
@@ -451,7 +451,8 @@ def next_command(
 ) -> str:
     """'' when the model fits; else the command that finds what it lacks: ``python -m host
     model diagnose DIR`` on the records' directory ``records_dir`` (quoted for a shell when it
-    needs it; None: the word ``DIR``) with the result's model and term files."""
+    needs it; None: the word ``DIR``) with the result's model and term files, and the
+    ``--noise``/``--floor`` its floor came from (the yardstick its fit was judged on)."""
     if not fit_story(result):
         return ""
     words = ["DIR" if records_dir is None else shlex.quote(str(records_dir))]
@@ -459,6 +460,9 @@ def next_command(
         words += ["--model", shlex.quote(result.model)]
     for f in result.term_files:
         words += ["--term-file", shlex.quote(f)]
+    for key in FLOOR_SOURCES:  # the same yardstick: the floor the fit was judged on
+        if result.floor_source.get(key):
+            words += [f"--{key}", shlex.quote(result.floor_source[key])]
     return "python -m host model diagnose " + " ".join(words)
 
 

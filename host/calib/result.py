@@ -6,9 +6,11 @@ the §2 constants that the report of method.md §7 tolerances — the tolerance 
 Format v2 (``SERIAL_result.json``, ``format_version: 2``) also carries the noise model of the fit
 and the fit quality (χ², dof, RMS z, p, verdict); format v3 adds where the records came from
 (:class:`host.calib.provenance.Provenance`: ``simulated`` and by what, the equipment, when
-measured). Format v1 and v2 files still load: v1 becomes the ``base`` model, and a v1/v2 file
-is simulated when its notes say ``SIMULATED BOARD``. A thermal calibration travels in a result
-as the term ``thermal_bias`` (:func:`thermal_parameters`, :func:`carried_thermal`).
+measured) and, later, where the floor of a record mean came from (``floor_source``: the
+``--noise``/``--floor`` to repeat; absent in files written before it, which load as measured).
+Format v1 and v2 files still load: v1 becomes the ``base`` model, and a v1/v2 file is
+simulated when its notes say ``SIMULATED BOARD``. A thermal calibration travels in a result as
+the term ``thermal_bias`` (:func:`thermal_parameters`, :func:`carried_thermal`).
 
 A parameter whose value is NaN was **not determined** by the records; ``needs`` says what
 would determine it. Applying a result to raw samples and verifying it on held-out records:
@@ -126,6 +128,10 @@ class CalibrationResult:
     #: 'pass', 'fail' (the calibration fails), 'not run' (``--no-self-test``: the verdict
     #: says so) or '' (no verdict, or an older file)
     self_test: str = ""
+    #: where the fit's floor of a record mean came from, as the options that give the same
+    #: yardstick again: ``noise`` the ``--noise`` file, ``floor`` the ``--floor`` text, each as
+    #: the user gave it; {} when it was measured from the records (or an older file)
+    floor_source: Mapping[str, str] = field(default_factory=dict)
     #: format version of the file this was loaded from
     loaded_version: int = 3
 
@@ -294,6 +300,7 @@ class CalibrationResult:
             "conditional": self.conditional,
             "fit": None if self.fit is None else self.fit.to_dict(),
             "noise_model": jsonable(dict(self.noise_model)),
+            "floor_source": dict(self.floor_source),
             "g": self.g,
             "g_unit": "m/s²",
             "latitude_deg": self.latitude_deg,
@@ -517,6 +524,20 @@ def _covariance(doc: Any, names: list[str]) -> tuple[tuple[float, ...], ...]:
     return tuple(tuple(float(x) for x in row) for row in m[np.ix_(idx, idx)])
 
 
+#: the keys of a result's ``floor_source``: the options whose values it keeps
+FLOOR_SOURCES = ("noise", "floor")
+
+
+def _floor_source(doc: Any) -> dict[str, str]:
+    """A file's ``floor_source``: text values under the known keys only (it is data that a
+    command line repeats, quoted; nothing in it is run). ValueError for anything else."""
+    if not isinstance(doc, dict) or not set(doc) <= set(FLOOR_SOURCES):
+        raise ValueError(f"floor_source: expected keys among {', '.join(FLOOR_SOURCES)}")
+    if not all(isinstance(v, str) and v for v in doc.values()):
+        raise ValueError("floor_source: each value is the text of an option")
+    return {k: doc[k] for k in FLOOR_SOURCES if k in doc}
+
+
 def _from_v2(d: Mapping[str, Any], version: int) -> CalibrationResult:
     """Format v2, and v3 with its ``provenance``."""
     fit = d.get("fit")
@@ -533,6 +554,7 @@ def _from_v2(d: Mapping[str, Any], version: int) -> CalibrationResult:
         noise_std={str(k): as_float(v["value"]) for k, v in d["noise_std"].items()},
         fit=None if fit is None else FitQuality.from_dict(fit),
         noise_model=dict(d.get("noise_model", {})),
+        floor_source=_floor_source(d.get("floor_source", {})),
         term_files=tuple(str(x) for x in d.get("term_files", ())),
         term_sha256={str(k): str(v) for k, v in d.get("term_sha256", {}).items()},
         temp_mean_c=float(d.get("temp_mean_c", TEMP_REF_C)),

@@ -209,3 +209,79 @@ def test_any_directory_name_comes_back_whole_from_the_next_command(
     custom = dataclasses.replace(r, model="base,lever_arm:accel", term_files=("my terms.py",))
     words = shlex.split(next_command(custom, name))
     assert words[5:] == [name, "--model", "base,lever_arm:accel", "--term-file", "my terms.py"]
+
+
+def _noise_file(path: Path) -> Path:
+    """A noise file (format of ``noise --save``): white noise and a bias instability on each
+    axis, larger than the independent simulator's records carry."""
+    chans = {
+        c: {
+            "white_noise_density": {"value": 0.01, "ci": [0.009, 0.011], "unit": "u"},
+            "bias_instability": {"value": b, "ci": [0.9 * b, 1.1 * b], "unit": "u"},
+            "rate_random_walk": {"value": 0.0, "ci": [0.0, 0.0], "unit": "u"},
+        }
+        for c, b in zip(("ax", "ay", "az", "gx", "gy", "gz"), (4e-4,) * 3 + (6e-3,) * 3,
+                        strict=True)
+    }  # fmt: skip
+    path.write_text(json.dumps({"format": "imu-bench noise", "format_version": 1,
+                                "channels": chans}), encoding="utf-8")  # fmt: skip
+    return path
+
+
+def _misfit_with(tmp: Path, given: list[str]) -> tuple[dict, list[str], Path]:
+    """A gyro bias step (independent simulator) calibrated with the floor options ``given``:
+    the result file, the words of the screen's next command and the records' directory."""
+    rec = tmp / "step records"
+    if not rec.is_dir():
+        write_session(rec, SessionSpec(seed=7, effect="bias_step_gyro"))
+    for f in rec.glob("IND01_result.*"):
+        f.unlink()
+    rc, _, err = run(["calibrate", "--from-dir", str(rec), "--no-archive", *given])
+    doc = json.loads((rec / "IND01_result.json").read_text(encoding="utf-8"))
+    assert doc["fit"]["verdict"] == "inadequate", err
+    nxt = next(ln for ln in _ending(err) if ln.startswith("Next: "))
+    report = _story_of((rec / "IND01_result.txt").read_text(encoding="utf-8"))
+    assert report["head_next"] == f"{nxt} (what the model lacks)"
+    return doc, shlex.split(nxt.removeprefix("Next: ")), rec
+
+
+FLOORS = [["--floor", "accel=5e-4,gyro=3e-3"], ["--noise", "unit noise.json"],
+          ["--noise", "unit noise.json", "--floor", "gyro=0.02"]]  # fmt: skip
+
+
+@pytest.mark.parametrize("given", FLOORS, ids=" ".join)
+def test_the_next_command_repeats_the_floor_the_fit_was_judged_on(
+    tmp_path: Path, given: list[str]
+) -> None:
+    """Calibrated with --floor or --noise, the result file says where its floor came from and
+    the next command (screen and report) repeats those options, quoted, so the workbench
+    judges the fit on the same yardstick; without them it names none."""
+    import os
+
+    _noise_file(tmp_path / "unit noise.json")
+    cwd = os.getcwd()
+    os.chdir(tmp_path)  # the noise file as a user names it, relative to where they are
+    try:
+        doc, words, rec = _misfit_with(tmp_path, given)
+        plain, plain_words, _ = _misfit_with(tmp_path, [])
+    finally:
+        os.chdir(cwd)
+    opts = dict(zip(given[::2], given[1::2], strict=True))
+    assert doc["floor_source"] == {k.removeprefix("--"): v for k, v in opts.items()}
+    assert words[:6] == ["python", "-m", "host", "model", "diagnose", str(rec)]
+    assert words[6:] == [w for k in ("--noise", "--floor") if k in opts for w in (k, opts[k])]
+    assert plain["floor_source"] == {} and plain_words[6:] == []
+    # the floor it names is the one the fit used: another yardstick, another RMS z
+    assert doc["fit"]["rms_z"] != pytest.approx(plain["fit"]["rms_z"], rel=0.05)
+
+
+@pytest.mark.slow
+def test_the_repeated_floor_gives_the_workbench_the_same_rms_z(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The next command, run as printed, reads the RMS z the verdict quotes."""
+    _noise_file(tmp_path / "unit noise.json")
+    monkeypatch.chdir(tmp_path)
+    doc, words, _ = _misfit_with(tmp_path, FLOORS[2])
+    rc, out, _ = run(words[3:] + ["--brief"])
+    assert rc == 0 and f"fit: RMS z = {doc['fit']['rms_z']:.2f} " in out

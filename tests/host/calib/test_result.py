@@ -275,3 +275,27 @@ def test_a_version_that_is_not_an_integer_is_refused(version: object) -> None:
     d["format_version"] = version
     with pytest.raises(UserError, match="format v"):
         CalibrationResult.from_json(json.dumps(d))
+
+
+def test_the_floor_source_is_kept_and_checked_on_load() -> None:
+    """``floor_source`` (the --noise/--floor a result's floor came from) comes back as written;
+    a file written before it loads as measured from the records; anything but text under the
+    two known keys is refused in one line (it is data a command line repeats, never run)."""
+    import dataclasses
+
+    from host.calib.calibration import calibrate_from_records
+    from host.session.directory import Session
+    from tests.host.calib_truth import make_records
+
+    res = calibrate_from_records(Session("FS1", make_records(seed=5)))
+    given = {"noise": "my unit/noise.json", "floor": "gyro=0.02"}
+    back = CalibrationResult.from_json(dataclasses.replace(res, floor_source=given).to_json())
+    assert dict(back.floor_source) == given
+    d = json.loads(res.to_json())
+    assert d.pop("floor_source") == {}
+    assert dict(CalibrationResult.from_json(json.dumps(d)).floor_source) == {}
+    for bad in ({"command": "rm -rf ~"}, {"floor": 3}, {"noise": ""}, ["--floor", "x"], "x"):
+        d["floor_source"] = bad
+        with pytest.raises(UserError, match="floor_source") as info:
+            CalibrationResult.from_json(json.dumps(d))
+        assert "\n" not in str(info.value)
