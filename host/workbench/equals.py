@@ -115,7 +115,7 @@ def signal_label(h: ScanHit) -> str:
     return f"{h.sensor} {h.axis} follows {h.signal}"
 
 
-def _signal_term(name: str, sensor: str, ds: Dataset) -> Term | None:
+def signal_term(name: str, sensor: str, ds: Dataset) -> Term | None:
     """The scan's signal ``name`` as a one-parameter term (its columns aggregated like any
     term's); None when the scan has no such signal."""
     fn = signal_functions(ds, sensor).get(name.split(" / ")[0])
@@ -176,7 +176,7 @@ class EqualsFinder:
             for h in self._hits:
                 if (h.sensor, h.axis) != key:
                     continue
-                term = _signal_term(h.signal, h.sensor, self._ds)
+                term = signal_term(h.signal, h.sensor, self._ds)
                 if term is None:
                     continue
                 mt = ModelTerm(term, h.sensor, (AXES.index(h.axis),))
