@@ -34,6 +34,7 @@ from host.model.signals import AXES
 from host.model.spec import ModelTerm, merge_model, model_spec
 from host.model.stats import chi2_sf
 from host.model.terms import Term
+from host.workbench.absorbed import closure_axes, without_turn_angle
 from host.workbench.candidates import ALPHA, Candidate, evaluate_candidates, json_number
 from host.workbench.equals import Equals, EqualsFinder
 from host.workbench.scan import ScanHit, scan_signals
@@ -187,8 +188,7 @@ def diagnose(
             groups[c.label] = g
     extra = [_model_term(c, cat) for c in usable]
     aug = fit_model(ds, merge_model(list(model) + extra)) if extra else fit
-    misfit = max(fit.chi2 - fit.dof, 0.0)
-    removed = fit.chi2 - aug.chi2
+    misfit, removed = _misfit_removed(ds, fit, model, extra, aug)
     alone = [c for c in usable if c.label not in grouped]
     # a signal no term explains may have equals too (temperature², dT/dt and time measured
     # together): the group is reported beside it
@@ -247,6 +247,21 @@ def diagnose(
         tuple(dominant.values()), model_spec(merge_model(rec_extra)) if recommended else None,
         ds.g, tuple(groups.values()),
     )  # fmt: skip
+
+
+def _misfit_removed(
+    ds: Dataset, fit: Fit, model: Sequence[ModelTerm], extra: Sequence[ModelTerm], aug: Fit
+) -> tuple[float, float]:
+    """The misfit (χ² − dof) and how much of it the ``extra`` terms remove, on the yardstick
+    they are tested on (:mod:`host.workbench.absorbed`): a term that moves the closure of the
+    turns about an axis (a gyro scale asymmetry, a quadratic scale) is weighed without the
+    turn-angle σ of that axis, which would otherwise hold its misfit as the hand's angle error
+    and leave it nothing to remove. ``aug``: the model with ``extra`` fitted on ``ds``."""
+    axes = frozenset().union(*(closure_axes(ds, mt) for mt in extra))
+    yard = without_turn_angle(ds, axes) if axes else ds
+    if yard is not ds:
+        fit, aug = fit_model(yard, model), fit_model(yard, merge_model([*model, *extra]))
+    return max(fit.chi2 - fit.dof, 0.0), fit.chi2 - aug.chi2
 
 
 def _model_term(c: Candidate, cat: Mapping[str, Term]) -> ModelTerm:
