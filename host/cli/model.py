@@ -196,9 +196,9 @@ def run_diagnose(args: argparse.Namespace) -> int:
 def next_record_lines(
     args: argparse.Namespace, session: Session, model: Sequence[ModelTerm], d: Diagnosis
 ) -> list[str]:
-    """The planner's first line (host.workbench.planner) and, for each group of equals with two
-    terms, the command that finds the record telling them apart; [] when the planner cannot
-    fit the session."""
+    """The planner's first line (host.workbench.planner) and, for each group of equals that
+    holds a term, the command that finds the record telling its first two members apart (two
+    terms, or a term and a signal of the scan); [] when the planner cannot fit the session."""
     from host.workbench.planner import plan_next
 
     width = terminal_width(sys.stdout)
@@ -217,9 +217,9 @@ def next_record_lines(
         out.append(command_lines(["python3", "-m", "host", "plan", str(args.dir)], width,
                                  lead="  the ranking: "))  # fmt: skip
     for e in d.equals:
-        if len(e.terms) >= 2:
-            out.append(wrap(f"to tell {e.terms[0]} from {e.terms[1]} apart:", width))
-            cmd = ["python3", "-m", "host", "plan", str(args.dir), "--separate", *e.terms[:2]]
+        if e.terms and len(e.members) >= 2:  # a term and another term or a signal of the scan
+            out.append(wrap(f"to tell {e.members[0]} from {e.members[1]} apart:", width))
+            cmd = ["python3", "-m", "host", "plan", str(args.dir), "--separate", *e.members[:2]]
             out.append(command_lines(cmd, width, lead="  "))
     return out
 

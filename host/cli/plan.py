@@ -23,7 +23,7 @@ from host.session.directory import read_session
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, UNITS
 from host.session.spacing import timing_report
 from host.workbench.planner import NextPlan, OperatorTime, Ranked, plan_next
-from host.workbench.separate import CLEAR, Separation, separate
+from host.workbench.separate import CLEAR, Separation, explanation, separate
 
 
 def _row(i: int, r: Ranked) -> str:
@@ -135,7 +135,7 @@ def run_plan(args: argparse.Namespace) -> int:
     model = parse_model(args.model, cat)
     time = OperatorTime(place=args.place_s, place_tilted=args.place_tilted_s)
     if args.separate:
-        a, b = (parse_model(x, cat) for x in args.separate)
+        a, b = (explanation(x, cat) for x in args.separate)
         sep = separate(session, model, a, b, noise=session_noise(session, args.floor, args.noise),
                        time=time)  # fmt: skip
         if args.json:
@@ -186,6 +186,8 @@ def cli_plan(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
     p.add_argument(
         "--separate", nargs=2, metavar=("A", "B"), default=None,
         help="instead: the records that tell explanation A from B apart (each a model spec "
-        "added to --model, e.g. scale_asymmetry:gyro:z scale_nonlinearity:gyro:z)",
+        "added to --model, e.g. scale_asymmetry:gyro:z scale_nonlinearity:gyro:z, or a signal "
+        "as model diagnose names it, e.g. face_error:accel:y 'accel y follows (specific force "
+        "z)²')",
     )  # fmt: skip
     return run_plan

@@ -19,16 +19,21 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+import re
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
+from host.errors import UserError
 from host.model.dataset import Dataset, build_dataset
 from host.model.fit import Fit, fit_model, predict
 from host.model.noise import NoiseModel
-from host.model.spec import ModelTerm
+from host.model.signals import AXES
+from host.model.spec import ModelTerm, parse_model
+from host.model.terms import Term
 from host.session.directory import Session
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, local_gravity
 from host.workbench.absorbed import closure_axes, without_turn_angle
+from host.workbench.equals import signal_term
 from host.workbench.planner import (
     OPERATOR_TIME,
     OTHER_TEMPERATURE_C,
@@ -75,6 +80,42 @@ def _values(fit: Fit) -> dict[tuple[str, str, str, str], float]:
     }
 
 
+#: a signal of the scan as a group of equals names it (:func:`host.workbench.equals.signal_label`)
+_SIGNAL_RE = re.compile(r"^(accel|gyro) ([xyz]) follows (.+)$")
+
+
+@dataclass(frozen=True)
+class Explanation:
+    """One of the two explanations: model ``terms`` (catalogue or term file), or a ``signal``
+    of the scan (sensor, axis letter, signal name: an off-catalogue shape such as '(specific
+    force z)²'), whose term is built on each dataset it is weighed on (a signal such as dT/dt
+    is read from the session's records around each one)."""
+
+    label: str
+    terms: tuple[ModelTerm, ...] = ()
+    signal: tuple[str, str, str] | None = None
+
+    def on(self, ds: Dataset) -> tuple[ModelTerm, ...]:
+        """The explanation's terms on ``ds``."""
+        if self.signal is None:
+            return self.terms
+        sensor, axis, name = self.signal
+        term = signal_term(name, sensor, ds)
+        if term is None:
+            raise UserError(f"{self.label!r}: the scan has no signal {name!r} on {sensor} "
+                            "(give it as model diagnose names it)")  # fmt: skip
+        return (ModelTerm(term, sensor, (AXES.index(axis),)),)
+
+
+def explanation(text: str, catalogue: Mapping[str, Term]) -> Explanation:
+    """``text`` as ``plan --separate`` takes it: a model spec (``scale_asymmetry:gyro:z``) or
+    a signal as a group of equals names it (``accel y follows (specific force z)²``)."""
+    m = _SIGNAL_RE.match(text.strip())
+    if m:
+        return Explanation(text.strip(), signal=(m.group(1), m.group(2), m.group(3)))
+    return Explanation(text.strip(), tuple(parse_model(text, catalogue)))
+
+
 def noncentrality(
     ds: Dataset,
     model: Sequence[ModelTerm],
@@ -104,8 +145,8 @@ def yardstick(ds: Dataset, terms: Sequence[ModelTerm]) -> Dataset:
 def separate(
     session: Session,
     model: Sequence[ModelTerm],
-    a: Sequence[ModelTerm],
-    b: Sequence[ModelTerm],
+    a: Sequence[ModelTerm] | Explanation,
+    b: Sequence[ModelTerm] | Explanation,
     *,
     noise: NoiseModel | None = None,
     time: OperatorTime = OPERATOR_TIME,
@@ -115,17 +156,30 @@ def separate(
     progress: Callable[[int, int, str], None] | None = None,
 ) -> Separation:
     """Rank the records that would tell explanation ``a`` from ``b`` (each a list of terms
-    added to ``model``), each at the size this session's records give it."""
+    added to ``model``, or an :class:`Explanation`), each at the size this session's records
+    give it."""
+    ea = a if isinstance(a, Explanation) else Explanation(_label(a), tuple(a))
+    eb = b if isinstance(b, Explanation) else Explanation(_label(b), tuple(b))
     kw = {"noise": noise or NoiseModel(), "latitude_deg": latitude_deg, "height_m": height_m}
-    ds = yardstick(build_dataset(session, **kw), [*a, *b])  # type: ignore[arg-type]
+
+    def weighed(s: Session) -> tuple[Dataset, tuple[ModelTerm, ...], tuple[ModelTerm, ...]]:
+        raw = build_dataset(s, **kw)  # type: ignore[arg-type]
+        ta, tb = ea.on(raw), eb.on(raw)
+        ds = yardstick(raw, [*ta, *tb])
+        return ds, ea.on(ds), eb.on(ds)
+
+    ds, ta, tb = weighed(session)
     base = fit_model(ds, model)
-    fa, fb = fit_model(ds, (*model, *a)), fit_model(ds, (*model, *b))
+    fa, fb = fit_model(ds, (*model, *ta)), fit_model(ds, (*model, *tb))
     va, vb = _values(fa), _values(fb)
-    lam_now = noncentrality(ds, model, a, b, va, vb)
+    lam_now = noncentrality(ds, model, ta, tb, va, vb)
     base_values = {p.name: p.value for p in base.parameters if math.isfinite(p.value)}
     hand = Augmenter(session, base_values, local_gravity(latitude_deg, height_m))
     if only is None:
-        temps = (OTHER_TEMPERATURE_C,) if has_temperature_term([*a, *b]) else ()
+        temp = has_temperature_term([*ta, *tb]) or any(
+            "temperature" in e.signal[2] for e in (ea, eb) if e.signal
+        )
+        temps = (OTHER_TEMPERATURE_C,) if temp else ()
         menu = candidates(hand.static_s, hand.turns, time, paces=(1.0, 0.5, 2.0),
                           temperatures=temps)  # fmt: skip
         todo = [c for c in menu if hand.fits_range(c)]
@@ -135,12 +189,14 @@ def separate(
     for i, cand in enumerate(todo):
         if progress is not None:
             progress(i, len(todo), cand.label)
-        aug = yardstick(build_dataset(hand.with_candidate(cand), **kw), [*a, *b])  # type: ignore[arg-type]
-        lam = noncentrality(aug, model, a, b, va, vb)
+        aug, ta, tb = weighed(hand.with_candidate(cand))
+        lam = noncentrality(aug, model, ta, tb, va, vb)
         ranked.append(Separating(cand, lam, (lam - lam_now) / (cand.operator_s / 60.0)))
     if progress is not None:
         progress(len(todo), len(todo), "")
     ranked.sort(key=lambda s: (-s.per_min, s.candidate.operator_s))
-    label = ", ".join
-    return Separation(label(m.label for m in a), label(m.label for m in b), lam_now,
-                      tuple(ranked), fa.chi2, fb.chi2)  # fmt: skip
+    return Separation(ea.label, eb.label, lam_now, tuple(ranked), fa.chi2, fb.chi2)
+
+
+def _label(terms: Sequence[ModelTerm]) -> str:
+    return ", ".join(m.label for m in terms)

@@ -3,18 +3,22 @@ the independent simulator (tests/independent)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from host.errors import UserError
 from host.model.catalogue import CATALOGUE
+from host.model.dataset import load_dataset
 from host.model.spec import parse_model
 from host.session.directory import read_session
 from host.session.records import turn_window_s
 from host.workbench.planner import Augmenter, candidates
-from host.workbench.separate import CLEAR, separate
-from tests.independent.simulate import SessionSpec, write_session
+from host.workbench.separate import CLEAR, explanation, separate
+from host.workbench.verdict import diagnose
+from tests.independent.simulate import Extra, SessionSpec, write_session
 
 BASE = parse_model("base", CATALOGUE)
 
@@ -81,3 +85,46 @@ def test_turns_at_half_the_pace_are_half_the_rate_in_twice_the_window(asymmetric
         peaks[c.pace] = float(np.max(rate))
     assert peaks[0.5] / peaks[1.0] == pytest.approx(0.5, rel=0.05)
     assert peaks[2.0] / peaks[1.0] == pytest.approx(2.0, rel=0.05)
+
+
+@pytest.mark.parametrize("effect", ["scale_asymmetry", "scale_nonlinearity"])
+def test_after_turns_at_half_the_pace_the_scale_term_is_recommended(
+    tmp_path: Path, effect: str
+) -> None:
+    """Once turns at half the pace are measured the two are no longer equals, and the true one
+    is recommended: the base fit's yardstick holds the closure as the hand's angle error
+    (RMS z near 1), so how much of the misfit the term removes is weighed on the yardstick it
+    is tested on (without the turn-angle σ of its axis), not on that one (seed 3000: the
+    diagnosis said `unexplained` and recommended nothing)."""
+    slow = (Extra("y_ccw_2", "turn", pace=0.5), Extra("y_cw_2", "turn", pace=0.5))
+    sim = write_session(tmp_path, SessionSpec(seed=3000, effect=effect, extra=slow))
+    assert sim.effect.params["axis"] == "y"
+    d = diagnose(load_dataset(tmp_path), BASE, CATALOGUE)
+    assert d.fit.rms_z < 1.5  # the yardstick of the base fit holds the closure
+    assert d.verdict == "missing_effect" and d.equals == ()
+    assert d.recommended_spec == f"{effect}:gyro:y"
+
+
+def test_a_signal_of_the_scan_is_weighed_against_a_term(tmp_path: Path) -> None:
+    """A signal as the diagnosis names it ('accel y follows (specific force z)² / …') is an
+    explanation like a term: on the six faces it is a face lean's equal (λ 0); a 45° attitude
+    with z up or down separates them at far beyond 3σ; the same face again does not."""
+    write_session(tmp_path, SessionSpec(seed=3000, effect="cross_g2", record_heading=True))
+    truth = json.loads((tmp_path / "truth.json").read_text(encoding="utf-8"))["effect"]
+    ax, src = truth["axis"], truth["source"]
+    signal = explanation(f"accel {ax} follows (specific force {src})² / |specific force {src}|",
+                         CATALOGUE)  # fmt: skip
+    assert signal.signal == ("accel", ax, f"(specific force {src})² / |specific force {src}|")
+    menu = candidates(10.0, 2)
+    tilt = next(c for c in menu if c.label.startswith("tilt_45")
+                and abs(c.records[0][1]["xyz".index(src)]) > 0.5)  # fmt: skip
+    face = next(c for c in menu if c.label == f"{src}_up again")
+    s = separate(read_session(tmp_path), BASE, explanation(f"face_error:accel:{ax}", CATALOGUE),
+                 signal, only=[tilt, face])  # fmt: skip
+    assert s.lam_now < 1.0
+    lam = {r.candidate.label: r.lam for r in s.ranked}
+    assert lam[tilt.label] > 10 * CLEAR
+    assert lam[face.label] < CLEAR
+    with pytest.raises(UserError, match="no signal"):
+        separate(read_session(tmp_path), BASE, signal,
+                 explanation("accel x follows no such thing", CATALOGUE), only=[face])  # fmt: skip
