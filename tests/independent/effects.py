@@ -163,6 +163,26 @@ def face_lean(rng: np.random.Generator) -> Effect:
     )
 
 
+def face_pair_lean(rng: np.random.Generator) -> Effect:
+    """One pair of opposite fixture faces, ±j, both lean 2–5 mrad the same way toward axis i
+    (a fixture sheared along one axis): resting on either, accelerometer i reads +g·lean. On
+    the six faces this is what accelerometer i reading c·(f_j/g)² puts there too."""
+    i, j = _pick(rng, 2)
+    size = _sign(rng) * rng.uniform(2e-3, 5e-3)
+    leans = {}
+    for s in "+-":
+        v = np.zeros(3)
+        v[i] = size
+        leans[s + AXES[j]] = v
+
+    def geo(g: Geometry) -> None:
+        g.face_lean.update(leans)
+
+    p = {"axis": AXES[i], "source": AXES[j], "lean": size,
+         "lean_rad": {f: v.tolist() for f, v in leans.items()}}  # fmt: skip
+    return Effect("face_pair_lean", p, geometry=geo)
+
+
 def lever_arm(rng: np.random.Generator) -> Effect:
     """The sensor sits 2–6 cm off the cube's centre along every axis (either sign)."""
     r = np.array([_sign(rng) * rng.uniform(0.02, 0.06) for _ in range(3)])
@@ -305,6 +325,7 @@ EFFECTS: dict[str, Callable[[np.random.Generator], Effect]] = {
     "one_turn_axis_tilt": one_turn_axis_tilt,
     "one_turn_axis_tilt_tilted_plate": one_turn_axis_tilt_tilted_plate,
     "face_lean": face_lean,
+    "face_pair_lean": face_pair_lean,
     "lever_arm": lever_arm,
     "bias_step_accel": bias_step("accel"),
     "bias_step_gyro": bias_step("gyro"),
