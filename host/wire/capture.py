@@ -218,23 +218,23 @@ class CaptureUnwrapper:
         reads after it.)"""
         end = q + _REC.size + n
         t_next = _REC.unpack_from(buf, end)[0]
-        bit = 16  # the header found must leave a read of at least one byte
-        while bit <= n:
-            if n & bit:
-                c, t_c = end - bit, t
-                while c < end - _REC.size:
-                    t2, n2 = _REC.unpack_from(buf, c)
-                    if not (0 < n2 <= MAX_READ and t_c <= t2 <= t_next):
-                        break
-                    c, t_c = c + _REC.size + n2, t2
-                if c == end:
-                    return True
-            bit <<= 1
+        bits = n & ~15  # the header found must leave a read of at least one byte
+        while bits:
+            bit = bits & -bits  # each bit set, the lowest first
+            bits ^= bit
+            c, t_c = end - bit, t
+            while c < end - _REC.size:
+                t2, n2 = _REC.unpack_from(buf, c)
+                if not (0 < n2 <= MAX_READ and t_c <= t2 <= t_next):
+                    break
+                c, t_c = c + _REC.size + n2, t2
+            if c == end:
+                return True
         return False
 
     def _run(self, final: bool) -> bytes:
         buf = self._buf
-        out: list[bytes] = []
+        out: list[np.ndarray] = []  # the reads passed on: (start, end) rows in buf
         pos = 0
         # the headers from ``pos`` on checked so far: the last one's position, time and
         # length, and how many links lead to it (each header where the one before ends,
@@ -242,6 +242,9 @@ class CaptureUnwrapper:
         chk, depth, t_chk, n_chk = 0, -1, 0, 0
         while pos < len(buf):
             if pos + _REC.size <= len(buf):
+                if (clean := self._take_clean(buf, pos, out)) != pos:
+                    pos, depth = clean, -1
+                    continue
                 if depth < 0:
                     t_chk, n_chk = _REC.unpack_from(buf, pos)
                     chk, depth = pos, 0 if self._plausible(t_chk, n_chk) else -2
@@ -279,11 +282,58 @@ class CaptureUnwrapper:
             pos = moved
         if final:
             self._cut = len(buf) - pos
+        data = _gather(buf, out)
         del buf[:pos]
         self._base += pos
-        return b"".join(out)
+        return data
 
-    def _repair(self, buf: bytearray, pos: int, final: bool, out: list[bytes]) -> int | None:
+    def _take_clean(self, buf: bytearray, pos: int, out: list[np.ndarray]) -> int:
+        """Take the reads from ``pos`` on that :meth:`_run` takes one by one, all at once
+        where the headers chain on undamaged: each plausible after the one before,
+        :data:`RESYNC_CHAIN` more after it, and none of the headers that a bridge
+        (:meth:`_bridges`) would start with; returns where reading goes on."""
+        size, unpack, rec = len(buf), _REC.unpack_from, _REC.size
+        at: list[int] = []
+        times: list[int] = []
+        lengths: list[int] = []
+        p, prev = pos, self._prev_t
+        while p + rec <= size:
+            t, n = unpack(buf, p)
+            if not (0 < n <= MAX_READ and (prev is None or prev <= t <= prev + MAX_GAP_NS)):
+                break
+            at.append(p)
+            times.append(t)
+            lengths.append(n)
+            p, prev = p + rec + n, t
+        k = len(at) - RESYNC_CHAIN  # the reads with a chain of headers after them
+        if k <= 0:
+            return pos
+        n_ = np.asarray(lengths[:k], dtype=np.int64)
+        t_ = np.asarray(times[: k + 1], dtype=np.uint64)
+        end = np.asarray(at[:k], dtype=np.int64) + rec + n_
+        # a bridge starts, for a bit (16 or more) set in a read's length, with a plausible
+        # header that many bytes before its end: the reads before the first such are clean
+        read, bit = np.nonzero((n_[:, None] >> _BITS) & 1)
+        if read.size:
+            c = end[read] - (np.int64(1) << _BITS[bit])
+            head = np.frombuffer(buf, np.uint8, count=size)[c[:, None] + np.arange(rec)]
+            t2 = head[:, :8].copy().view("<u8")[:, 0]
+            n2 = head[:, 8:].copy().view("<u4")[:, 0]
+            maybe = (n2 > 0) & (n2 <= MAX_READ) & (t2 >= t_[read]) & (t2 <= t_[read + 1])
+            del head
+            if maybe.any():
+                k = int(read[np.argmax(maybe)])
+                if k == 0:
+                    return pos
+        out.append(np.stack((end[:k] - n_[:k], end[:k]), axis=1))
+        self._prev_t = times[k - 1]
+        if self._times:
+            self._reads_ns += times[:k]
+            self._reads_end += (self.total + np.cumsum(n_[:k])).tolist()
+        self.total += int(np.sum(n_[:k]))
+        return at[k - 1] + rec + lengths[k - 1]
+
+    def _repair(self, buf: bytearray, pos: int, final: bool, out: list[np.ndarray]) -> int | None:
         """Where the chain of headers breaks at or after ``pos``: the parse of the bytes from
         ``pos`` that keeps the most reads less what its damaged places cost (:func:`_best_path`;
         a chain of headers shifted by a lost byte wins over a false header that swallows it);
@@ -342,16 +392,16 @@ class CaptureUnwrapper:
         else:
             self.skipped.append((at, length))
 
-    def _take(self, buf: bytearray, t: int, start: int, end: int) -> bytes:
-        """Accept the read buf[start:end] of host time ``t``."""
+    def _take(self, buf: bytearray, t: int, start: int, end: int) -> np.ndarray:
+        """Accept the read buf[start:end] of host time ``t`` (its bytes are copied out once,
+        with the others', at the end of :meth:`_run`)."""
         self._prev_t = t
-        if start == end:
-            return b""
-        self.total += end - start
-        if self._times:
-            self._reads_ns.append(t)
-            self._reads_end.append(self.total)
-        return bytes(buf[start:end])
+        if start != end:
+            self.total += end - start
+            if self._times:
+                self._reads_ns.append(t)
+                self._reads_end.append(self.total)
+        return np.array([(start, end)], dtype=np.int64)
 
     @property
     def truncated_bytes(self) -> int:
@@ -377,6 +427,32 @@ class CaptureUnwrapper:
         if k > 0:
             del self._reads_ns[:k]
             del self._reads_end[:k]
+
+
+#: the bits of a read's length that a bridge may have flipped (16 up to :data:`MAX_READ`)
+_BITS = np.arange(4, MAX_READ.bit_length(), dtype=np.int64)
+
+
+def _gather(buf: bytearray, spans: list[np.ndarray]) -> bytes:
+    """The bytes of ``buf`` in each (start, end) row of ``spans`` (in order, apart), joined:
+    long reads by slices of a view, many short ones through one mask (a slice costs as much
+    as copying a few hundred bytes)."""
+    s = np.concatenate(spans) if spans else np.zeros((0, 2), np.int64)
+    s = s[s[:, 1] > s[:, 0]]
+    if s.size == 0:
+        return b""
+    if s[-1, 1] - s[0, 0] >= 256 * len(s):
+        with memoryview(buf) as view:
+            return b"".join([view[a:b] for a, b in s.tolist()])
+    lo, hi = int(s[0, 0]), int(s[-1, 1])
+    edge = np.zeros(hi - lo + 1, np.int8)  # +1 where a read starts, -1 where it ends
+    edge[s[:, 0] - lo] = 1
+    edge[s[:, 1] - lo] -= 1
+    keep = np.cumsum(edge[:-1], dtype=np.int8).view(bool)
+    arr = np.frombuffer(buf, np.uint8, count=hi - lo, offset=lo)
+    data = arr[keep].tobytes()
+    del arr
+    return data
 
 
 #: what a damaged place costs, in reads, when the reader weighs parses. Bytes skipped cost more
