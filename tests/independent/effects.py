@@ -194,13 +194,18 @@ def lever_arm(rng: np.random.Generator) -> Effect:
 
 
 # ---- sensor ------------------------------------------------------------------------------
-def bias_step(sensor: str) -> Callable[[np.random.Generator], Effect]:
-    """A bias step half-way through the session (100× the white noise of a record mean)."""
+def bias_step(
+    sensor: str, when: tuple[float, float] = (0.4, 0.6)
+) -> Callable[[np.random.Generator], Effect]:
+    """A bias step (100× the white noise of a record mean, either sign) at a time drawn
+    uniformly in ``when`` × 420 s of the session: half-way through by default (the turns), or
+    early (0.05–0.35: among the static faces) or late (0.62–0.85: the last turns and the gap
+    before the closing x_up_2). It falls inside a record as often as between two."""
 
     def make(rng: np.random.Generator) -> Effect:
         i = _pick(rng)[0]
         size = _sign(rng) * (0.05 if sensor == "accel" else 0.12)
-        at = rng.uniform(0.4, 0.6) * 420.0  # the session lasts about 420 s
+        at = rng.uniform(*when) * 420.0  # the session lasts about 380 s
 
         def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
             return _channel(sensor, i, np.where(s.session_s >= at, size, 0.0))
@@ -329,6 +334,10 @@ EFFECTS: dict[str, Callable[[np.random.Generator], Effect]] = {
     "lever_arm": lever_arm,
     "bias_step_accel": bias_step("accel"),
     "bias_step_gyro": bias_step("gyro"),
+    "bias_step_accel_early": bias_step("accel", (0.05, 0.35)),
+    "bias_step_gyro_early": bias_step("gyro", (0.05, 0.35)),
+    "bias_step_accel_late": bias_step("accel", (0.62, 0.85)),
+    "bias_step_gyro_late": bias_step("gyro", (0.62, 0.85)),
     "bias_drift_accel": bias_drift("accel"),
     "bias_drift_gyro": bias_drift("gyro"),
     "temperature_bias": temperature_bias,
