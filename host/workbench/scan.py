@@ -11,7 +11,7 @@ calls unexplained.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -111,6 +111,8 @@ def signal_functions(ds: Dataset, sensor: str) -> dict[str, SignalFn]:
     return out
 
 
+#: how the name of every step in time begins
+STEP = "a step in time"
 #: the scan's name of the chip's rate of change of temperature
 WARMING = "dT/dt (the chip warming or cooling)"
 #: half the span of the session's temperature samples a record's dT/dt is read from, s: a
@@ -153,22 +155,69 @@ def warming_rates(ds: Dataset) -> dict[str, np.ndarray]:
     return out
 
 
+def step_cuts(ds: Dataset) -> list[tuple[float, str]]:
+    """Every time a bias step is tried at, s (the records' own clock), with its name: the
+    middle of each gap between two records taken one after the other ("a step in time after
+    x_cw"), and each boundary between the rows of one record ("a step in time during x_cw,
+    4.3 s in": between a static's blocks, a turn's still moments and moving blocks). A step
+    is read to the resolution the rows give: inside a record it moves only the rows after it
+    (a turn's integral by the part of the turn after it), which no step in a gap can fit."""
+    order = sorted(range(len(ds.signals)), key=lambda i: float(ds.signals[i].t_s[0]))
+    out: list[tuple[float, str]] = []
+    for k, ri in enumerate(order):
+        s = ds.signals[ri]
+        seen = set()
+        for e in _row_edges(ds, ri):
+            cut = 0.5 * (float(s.t_s[e - 1]) + float(s.t_s[e]))
+            name = f"{STEP} during {s.name}, {cut - float(s.t_s[0]):.1f} s in"
+            if name not in seen:  # edges a sample apart: one step
+                seen.add(name)
+                out.append((cut, name))
+        if k + 1 < len(order):
+            after = ds.signals[order[k + 1]]
+            cut = 0.5 * (float(s.t_s[-1]) + float(after.t_s[0]))
+            out.append((cut, f"{STEP} after {s.name}"))
+    return out
+
+
+def _row_edges(ds: Dataset, record: int) -> list[int]:
+    """The sample indices (0 < i < N) at which one of ``record``'s rows, on any channel,
+    begins or ends."""
+    n = len(ds.signals[record].t_s)
+    edges: set[int] = set()
+    for r, sensor, a in ds.rows_of:
+        if r != record:
+            continue
+        on = ds.aggregator(record, sensor, a) != 0
+        edges.update(int(i) for i in on.argmax(axis=1))
+        edges.update(int(n - i) for i in on[:, ::-1].argmax(axis=1))
+    return sorted(e for e in edges if 0 < e < n)
+
+
 def _steps(ds: Dataset) -> dict[str, SignalFn]:
-    """A bias step between two records taken one after the other: one signal per gap in
-    time (0 before, 1 after), named by the record after which it falls. Each is one more test
-    of the Holm family, so scanning every gap costs the other signals nothing under the null
+    """A bias step at each of :func:`step_cuts` (0 before, 1 after). Each is one more test of
+    the Holm family, so scanning every cut costs the other signals nothing under the null
     beyond that correction. A drift or a warm-up looks partly like a step: the strongest
     signal wins, and the candidates (time_drift) are tested beside it."""
-    order = sorted(range(len(ds.signals)), key=lambda i: float(ds.signals[i].t_s[0]))
     out: dict[str, SignalFn] = {}
-    for before, after in zip(order[:-1], order[1:], strict=False):
-        cut = 0.5 * (float(ds.signals[before].t_s[-1]) + float(ds.signals[after].t_s[0]))
+    for cut, name in step_cuts(ds):
 
         def fn(s: RecordSignals, sen: str, a: int, cut: float = cut) -> np.ndarray:
             return (s.t_s > cut).astype(float)
 
-        out[f"a step in time after {ds.signals[before].name}"] = fn
+        out[name] = fn
     return out
+
+
+def _joined(names: Sequence[str]) -> str:
+    """One finding's name from the signals that move the records identically, the strongest
+    form first: a run of steps (a step anywhere between two rows that carry this channel) is
+    written by its first and last place."""
+    steps = [n for n in names if n.startswith(STEP)]
+    others = [n for n in names if not n.startswith(STEP)]
+    if len(steps) > 2:
+        steps = [steps[0], "…", steps[-1]]
+    return " / ".join(steps + others if names[0].startswith(STEP) else others + steps)
 
 
 def _component(k: int, power: int) -> SignalFn:
@@ -190,6 +239,31 @@ def _force_squared(k: int, power: int = 2) -> SignalFn:
     return fn
 
 
+def _columns(
+    ds: Dataset, sensor: str, a: int, fns: Sequence[SignalFn], cuts: Sequence[float]
+) -> np.ndarray | None:
+    """(n_rows, len(fns) + len(cuts)) the signals ``fns`` and then a step at each of ``cuts``
+    (s), aggregated onto the rows of channel ``a`` of ``sensor`` like a term's columns (a
+    turn's accelerometer at its still moments and moving blocks: the rows' own weights, not
+    the record's trapezoid); None when the channel has no rows."""
+    out = np.zeros((ds.n_rows, len(fns) + len(cuts)))
+    any_rows = False
+    at = np.asarray(cuts, dtype=float)
+    for ri, rs in enumerate(ds.signals):
+        rows = ds.rows_of.get((ri, sensor, a))
+        if rows is None:
+            continue
+        any_rows = True
+        agg = ds.aggregator(ri, sensor, a)
+        for k, fn in enumerate(fns):
+            out[rows, k] = aggregate(agg, np.asarray(fn(rs, sensor, a), float))
+        if len(at):
+            out[np.ix_(rows, np.arange(len(fns), out.shape[1]))] = aggregate(
+                agg, (rs.t_s[:, None] > at[None, :]).astype(float)
+            )
+    return out if any_rows else None
+
+
 def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
     """Residuals of ``fit`` against every signal on every channel, Holm-corrected; -> the
     significant hits, strongest first."""
@@ -198,44 +272,45 @@ def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
     q = fit.basis
     r = fit.white_residual
     rr = float(r @ r)
-
-    def column(fn: SignalFn, sensor: str, a: int) -> tuple[np.ndarray, np.ndarray] | None:
-        col = np.zeros(ds.n_rows)
-        any_rows = False
-        for ri, rs in enumerate(ds.signals):
-            rows = ds.rows_of.get((ri, sensor, a))
-            if rows is None:
-                continue
-            any_rows = True
-            # the rows' own weights: a turn's accelerometer is read at its still moments and
-            # moving blocks (the record's trapezoid weights would scale every signal by its T)
-            agg = ds.aggregator(ri, sensor, a)
-            col[rows] = aggregate(agg, np.asarray(fn(rs, sensor, a), float))
-        if not any_rows:
-            return None
-        cw = ds.whiten.apply(col)
-        return cw, (cw - q @ (q.T @ cw) if q.shape[1] else cw)
+    cuts = step_cuts(ds) if ds.time_known else []
+    steps = {name for _, name in cuts}
 
     def hours(s: RecordSignals, sen: str, a: int) -> np.ndarray:
         return s.hours
 
     for sensor in SENSORS:
-        for name, fn in signal_functions(ds, sensor).items():
+        named = [(k, fn) for k, fn in signal_functions(ds, sensor).items() if k not in steps]
+        names = [k for k, _ in named] + [name for _, name in cuts]
+        # per channel: every signal's whitened column and its part the model does not fit
+        chans: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray | None]] = {}
+        for a in range(3):
+            fns = [fn for _, fn in named] + ([hours] if ds.time_known else [])
+            x = _columns(ds, sensor, a, fns, [c for c, _ in cuts])
+            if x is None:
+                continue
+            cw = ds.whiten.apply(x)
+            cp = cw - q @ (q.T @ cw) if q.shape[1] else cw
+            if ds.time_known:
+                tcol = cp[:, len(named)]
+                keep = np.r_[0 : len(named), len(named) + 1 : cw.shape[1]]
+                cw, cp = cw[:, keep], cp[:, keep]
+                chans[a] = (cw, cp, tcol if float(np.linalg.norm(tcol)) > 0 else None)
+            else:
+                chans[a] = (cw, cp, None)
+        for j, name in enumerate(names):
             for a in range(3):
-                cols = column(fn, sensor, a)
-                if cols is None:
+                if a not in chans:
                     continue
-                cw, cp = cols
-                n0 = float(np.linalg.norm(cw))
-                n1 = float(np.linalg.norm(cp))
+                cw_all, cp_all, tcol = chans[a]
+                n0 = float(np.linalg.norm(cw_all[:, j]))
+                n1 = float(np.linalg.norm(cp_all[:, j]))
                 if n0 == 0 or n1 < IDENTIFIABLE_TOL * n0 or rr == 0:
                     continue
-                proj = float(cp @ r) / n1
+                proj = float(cp_all[:, j] @ r) / n1
                 hits.append((sensor, a, name, proj / math.sqrt(rr), proj * proj))
                 tr = math.nan
-                tcols = column(hours, sensor, a) if ds.time_known else None
-                if tcols is not None and float(np.linalg.norm(tcols[1])) > 0:
-                    tr = float(cp @ tcols[1]) / (n1 * float(np.linalg.norm(tcols[1])))
+                if tcol is not None:
+                    tr = float(cp_all[:, j] @ tcol) / (n1 * float(np.linalg.norm(tcol)))
                 time_r.append(tr)
     pvals = [chi2_sf(h[4], 1) for h in hits]
     is_sig = holm(pvals, alpha)
@@ -245,8 +320,18 @@ def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
         if is_sig[i]:
             merged.setdefault((h[0], h[1], round(h[4], 6)), []).append(i)
     out = [
-        ScanHit(hits[ix[0]][0], AXES[hits[ix[0]][1]], " / ".join(hits[i][2] for i in ix),
+        ScanHit(hits[ix[0]][0], AXES[hits[ix[0]][1]], _joined([hits[i][2] for i in ix]),
                 hits[ix[0]][3], hits[ix[0]][4], pvals[ix[0]], True, time_r[ix[0]])
         for ix in merged.values()
     ]  # fmt: skip
-    return sorted(out, key=lambda h: -h.delta_chi2)
+    # a step at the times either side of the strongest one is the same finding, less well
+    # placed: one step per channel is reported
+    kept: list[ScanHit] = []
+    stepped: set[tuple[str, str]] = set()
+    for hit in sorted(out, key=lambda x: -x.delta_chi2):
+        if hit.signal.startswith(STEP):
+            if (hit.sensor, hit.axis) in stepped:
+                continue
+            stepped.add((hit.sensor, hit.axis))
+        kept.append(hit)
+    return kept

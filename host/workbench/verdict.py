@@ -21,7 +21,7 @@ The words for people are :mod:`host.workbench.text`.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -148,9 +148,12 @@ def diagnose(
     finder = EqualsFinder(ds, fit, cands, tried, scanned, cat, alpha)
     usable_all = [c for c in cands if c.significant and not c.explained_by and not c.implausible]
     top = max(usable_all, key=lambda c: c.delta_chi2, default=None)
-    if top is not None and cat[top.term].shared and finder.group(top) is None:
+    if (top is not None and cat[top.term].shared and finder.group(top) is None
+            and not _beaten(top, scanned)):  # fmt: skip
         # a property of the bench (one set of parameters for every channel) explains more than
-        # any single channel's term: take it first and diagnose what is left after it
+        # any single channel's term or signal: take it first and diagnose what is left after
+        # it (an accelerometer's bias step inside the turns moves their still moments as a
+        # tilted plate does: the step, one parameter, explains more than the tilt)
         return _after_shared(ds, fit, cands, top, model, cat, alpha)
     # the best usable candidate of each channel (significant, plausible, not made redundant)
     best: dict[tuple[str, str], Candidate] = {}
@@ -170,7 +173,8 @@ def diagnose(
                 dominant[ch] = same[0]
         elif cb is None or h.delta_chi2 > DOMINANT * cb.delta_chi2:
             dominant[ch] = h
-    usable = [c for ch, c in best.items() if ch not in dominant]
+    usable = [c for ch, c in best.items()
+              if ch not in dominant and not _beaten(c, dominant.values())]  # fmt: skip
     # a candidate the records cannot tell apart from another explanation is not recommended
     # alone: its group of equals is reported instead (the fit after it still holds it, so
     # that what is left is scanned)
@@ -262,6 +266,13 @@ def _misfit_removed(
     if yard is not ds:
         fit, aug = fit_model(yard, model), fit_model(yard, merge_model([*model, *extra]))
     return max(fit.chi2 - fit.dof, 0.0), fit.chi2 - aug.chi2
+
+
+def _beaten(c: Candidate, hits: Iterable[ScanHit]) -> bool:
+    """Does a plain signal on one of ``c``'s channels explain more than ``c`` does on all of
+    them (Δχ² beyond :data:`DOMINANT` times its)?"""
+    return any(h.sensor == c.sensor and h.axis in c.axes
+               and h.delta_chi2 > DOMINANT * c.delta_chi2 for h in hits)  # fmt: skip
 
 
 def _model_term(c: Candidate, cat: Mapping[str, Term]) -> ModelTerm:
