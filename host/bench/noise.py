@@ -90,8 +90,9 @@ def capture_bytes(t_s: np.ndarray, data: np.ndarray, temp_c: np.ndarray) -> byte
     """An IMUCAP01 capture of IMU_SAMPLE frames carrying the recording of
     :func:`static_noise` (times s, channels ax..gz m/s² and °/s, temperature °C), one read per
     second of samples with host times equal to the device times."""
-    from host.wire.capture import _REC, MAGIC
+    from host.wire.capture import MAGIC
     from host.wire.frames import encode_imu_samples
+    from host.wire.resync import REC
 
     counts = np.column_stack(
         [
@@ -105,7 +106,7 @@ def capture_bytes(t_s: np.ndarray, data: np.ndarray, temp_c: np.ndarray) -> byte
     parts = [MAGIC]
     for s in range(0, t_us.size, rate):
         chunk = encode_imu_samples(s & 0xFFFF, t_us[s : s + rate], counts[s : s + rate])
-        parts.append(_REC.pack(int(t_us[min(s + rate, t_us.size) - 1]) * 1000, len(chunk)))
+        parts.append(REC.pack(int(t_us[min(s + rate, t_us.size) - 1]) * 1000, len(chunk)))
         parts.append(chunk)
     return b"".join(parts)
 

@@ -10,6 +10,8 @@ the segments between board resets and the frames lost on the link.
 - ``bulk`` — the bulk decoder (numpy; exactly the streaming decoder's frames and counters), in
   bounded memory too, and capture files decoded with HELLO's full scales and baud.
 - ``capture`` — IMUCAP01 capture files: bytes with host arrival times.
+- ``resync`` — where a damaged capture's reads are: a read header's checks and the parse
+  that keeps the most reads where the chain of headers breaks.
 - ``sensor`` — raw counts <-> SI units (full scales from HELLO).
 - ``selftest`` — the MPU-6000 self-test judged from SELF_TEST_RESULT: the factory trim, the
   response, ±14 %, a unit that moved.

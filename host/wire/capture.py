@@ -16,7 +16,6 @@ from __future__ import annotations
 import bisect
 import os
 import stat
-import struct
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -24,20 +23,17 @@ from typing import BinaryIO
 import numpy as np
 
 from host.errors import UserError, write_error
+from host.wire.resync import (
+    MAX_CANDIDATES,
+    MAX_GAP_NS,
+    MAX_READ,
+    REC,
+    RESYNC_CHAIN,
+    best_parse,
+    header_candidates,
+)
 
 MAGIC = b"IMUCAP01"
-_REC = struct.Struct("<QI")
-
-
-#: a read's plausible length, bytes: a port read is at most the port's buffer (a few KiB); a
-#: length above this is damage (a flipped bit), not a read
-MAX_READ = 1 << 20
-#: after damage, reading resumes at a header followed by this many plausible ones (or by the
-#: end of the file)
-RESYNC_CHAIN = 3
-#: a read's plausible host time: the next read comes at most this long after it, ns (a week:
-#: a session that waits for a board to come back waits minutes, not days)
-MAX_GAP_NS = 7 * 24 * 3600 * 10**9
 
 
 @dataclass(frozen=True)
@@ -167,10 +163,10 @@ class CaptureUnwrapper:
     read —, its time not before the previous read's nor more than :data:`MAX_GAP_NS` after)
     and :data:`RESYNC_CHAIN` more headers chain on from it, each where the one before ends.
     Where the chain breaks, the bytes there are parsed the way that keeps the most reads less
-    what its damaged places cost (:func:`_best_path`): a flipped bit or a byte inserted or
-    deleted loses the read it hit (its bytes are kept when its own header checks), and
-    :attr:`skipped` lists each place (file offset, bytes skipped; 0 where a read was cut
-    short). A read is held until the headers after it have come, so memory stays below about
+    what its damaged places cost (:func:`host.wire.resync.best_parse`): a flipped bit or a
+    byte inserted or deleted loses the read it hit (its bytes are kept when its own header
+    checks), and :attr:`skipped` lists each place (file offset, bytes skipped; 0 where a read
+    was cut short). A read is held until the headers after it have come, so memory stays below about
     5 × :data:`MAX_READ` beyond what is fed.
 
     With ``times=True`` it also keeps each read's host time and where its bytes end in the
@@ -216,18 +212,18 @@ class CaptureUnwrapper:
         its length would end it, a chain of headers that ends where it ends, their times
         between its and the next one's? (A flipped bit in the length made it swallow the
         reads after it.)"""
-        end = q + _REC.size + n
-        t_next = _REC.unpack_from(buf, end)[0]
+        end = q + REC.size + n
+        t_next = REC.unpack_from(buf, end)[0]
         bits = n & ~15  # the header found must leave a read of at least one byte
         while bits:
             bit = bits & -bits  # each bit set, the lowest first
             bits ^= bit
             c, t_c = end - bit, t
-            while c < end - _REC.size:
-                t2, n2 = _REC.unpack_from(buf, c)
+            while c < end - REC.size:
+                t2, n2 = REC.unpack_from(buf, c)
                 if not (0 < n2 <= MAX_READ and t_c <= t2 <= t_next):
                     break
-                c, t_c = c + _REC.size + n2, t2
+                c, t_c = c + REC.size + n2, t2
             if c == end:
                 return True
         return False
@@ -241,27 +237,27 @@ class CaptureUnwrapper:
         # its length plausible, its time not before nor a week after the one before)
         chk, depth, t_chk, n_chk = 0, -1, 0, 0
         while pos < len(buf):
-            if pos + _REC.size <= len(buf):
+            if pos + REC.size <= len(buf):
                 if (clean := self._take_clean(buf, pos, out)) != pos:
                     pos, depth = clean, -1
                     continue
                 if depth < 0:
-                    t_chk, n_chk = _REC.unpack_from(buf, pos)
+                    t_chk, n_chk = REC.unpack_from(buf, pos)
                     chk, depth = pos, 0 if self._plausible(t_chk, n_chk) else -2
                 while 0 <= depth < RESYNC_CHAIN:
-                    end = chk + _REC.size + n_chk
-                    if end + _REC.size > len(buf):
+                    end = chk + REC.size + n_chk
+                    if end + REC.size > len(buf):
                         break
-                    t2, n2 = _REC.unpack_from(buf, end)
+                    t2, n2 = REC.unpack_from(buf, end)
                     if not (0 < n2 <= MAX_READ and t_chk <= t2 <= t_chk + MAX_GAP_NS):
                         depth = -2  # broken
                         break
                     chk, depth, t_chk, n_chk = end, depth + 1, t2, n2
                 if depth >= RESYNC_CHAIN:
-                    t, n = _REC.unpack_from(buf, pos)
+                    t, n = REC.unpack_from(buf, pos)
                     if not self._bridges(buf, pos, t, n):
-                        out.append(self._take(buf, t, pos + _REC.size, pos + _REC.size + n))
-                        pos += _REC.size + n
+                        out.append(self._take(buf, t, pos + REC.size, pos + REC.size + n))
+                        pos += REC.size + n
                         depth -= 1
                         continue
                 elif depth >= 0 and not final:
@@ -274,7 +270,7 @@ class CaptureUnwrapper:
             moved = self._repair(buf, pos, final, out)
             if moved is None:
                 # try again when the bytes after ``pos`` have grown by a quarter
-                self._retry_at = self._base + len(buf) + max(_REC.size, (len(buf) - pos) // 4)
+                self._retry_at = self._base + len(buf) + max(REC.size, (len(buf) - pos) // 4)
                 break
             self._retry_at = 0
             if moved == pos:
@@ -292,7 +288,7 @@ class CaptureUnwrapper:
         where the headers chain on undamaged: each plausible after the one before,
         :data:`RESYNC_CHAIN` more after it, and none of the headers that a bridge
         (:meth:`_bridges`) would start with; returns where reading goes on."""
-        size, unpack, rec = len(buf), _REC.unpack_from, _REC.size
+        size, unpack, rec = len(buf), REC.unpack_from, REC.size
         at: list[int] = []
         times: list[int] = []
         lengths: list[int] = []
@@ -335,50 +331,50 @@ class CaptureUnwrapper:
 
     def _repair(self, buf: bytearray, pos: int, final: bool, out: list[np.ndarray]) -> int | None:
         """Where the chain of headers breaks at or after ``pos``: the parse of the bytes from
-        ``pos`` that keeps the most reads less what its damaged places cost (:func:`_best_path`;
-        a chain of headers shifted by a lost byte wins over a false header that swallows it);
-        its reads are passed on up to :data:`RESYNC_CHAIN` before the end of the bytes at hand
-        (the rest is read again). Returns the position reading goes on from, or None when
-        more bytes must decide."""
+        ``pos`` that keeps the most reads less what its damaged places cost
+        (:func:`host.wire.resync.best_parse`; a chain of headers shifted by a lost byte wins
+        over a false header that swallows it); its reads are passed on up to
+        :data:`RESYNC_CHAIN` before the end of the bytes at hand (the rest is read again).
+        Returns the position reading goes on from, or None when more bytes must decide."""
         n_buf = len(buf)
-        lookahead = (RESYNC_CHAIN + 2) * (MAX_READ + _REC.size)
+        lookahead = (RESYNC_CHAIN + 2) * (MAX_READ + REC.size)
         limit = min(n_buf, pos + lookahead)
-        p, t, n = _candidates(buf, pos, limit, self._prev_t)
+        p, t, n = header_candidates(buf, pos, limit, self._prev_t)
         forced = n_buf >= pos + lookahead
-        if p.size > _MAX_CANDIDATES:
-            p, t, n = p[:_MAX_CANDIDATES], t[:_MAX_CANDIDATES], n[:_MAX_CANDIDATES]
+        if p.size > MAX_CANDIDATES:
+            p, t, n = p[:MAX_CANDIDATES], t[:MAX_CANDIDATES], n[:MAX_CANDIDATES]
             limit, forced = int(p[-1]), True
         at_eof = final and limit == n_buf
-        path, tail_links = _best_path(p, t, n, pos, limit, at_eof, self._prev_t)
+        path, tail_links = best_parse(p, t, n, pos, limit, at_eof, self._prev_t)
         if not (at_eof or forced) and tail_links < RESYNC_CHAIN:
             return None  # the reads to come decide
         keep = path if at_eof else path[: max(len(path) - max(tail_links, 1), 0)]
         if not keep and not at_eof:
             keep = path[:1]
             if not keep:  # nothing plausible in the whole window: skip it
-                self._skip(pos, limit - _REC.size - pos)
-                return limit - _REC.size
+                self._skip(pos, limit - REC.size - pos)
+                return limit - REC.size
         here = pos
         for k, i in enumerate(keep):
             q = int(p[i])
             if q > here:
                 self._skip(here, q - here)
-            end = q + _REC.size + int(n[i])
+            end = q + REC.size + int(n[i])
             nxt = int(p[path[k + 1]]) if k + 1 < len(path) else None
             if nxt is not None and nxt < end:
                 # the next header starts inside it: cut there, unless by one byte (the read
                 # lost one, or the header its first: the same bytes; passed on whole, they
                 # are right in the second case, and the next read's time is in both)
                 cut = end if end - nxt == 1 else nxt
-                out.append(self._take(buf, int(t[i]), q + _REC.size, cut))
+                out.append(self._take(buf, int(t[i]), q + REC.size, cut))
                 self._skip(nxt, 0)
                 here = nxt
             elif end > n_buf:  # a cut-off last read (final): not passed on
                 return q
             else:
-                out.append(self._take(buf, int(t[i]), q + _REC.size, end))
+                out.append(self._take(buf, int(t[i]), q + REC.size, end))
                 here = end
-        if at_eof and n_buf - here >= _REC.size:
+        if at_eof and n_buf - here >= REC.size:
             self._skip(here, n_buf - here)  # no read in what is left
             return n_buf
         return here
@@ -455,116 +451,6 @@ def _gather(buf: bytearray, spans: list[np.ndarray]) -> bytes:
     return data
 
 
-#: what a damaged place costs, in reads, when the reader weighs parses. Bytes skipped cost more
-#: than a read: a lone plausible header among damaged bytes (one more read, one more skip)
-#: never wins. A read cut short where one damage explains it (a flipped bit of its length,
-#: a byte lost) costs less than a read: the read whose length swallowed the next one, its
-#: header chaining on, is cut there and both kept. A chance header inside a read, where its
-#: length would have to be one bit off, must then chain on exactly to win: a coincidence
-#: of 50 bits or more.
-_SKIP = 1.25
-_CUT = 0.75
-#: the most header candidates weighed at once after damage (bounds the work on hostile bytes)
-_MAX_CANDIDATES = 512
-#: how far after the last read kept a header weighed after damage may be, ns (a year: a
-#: capture is not paused longer inside one damaged place)
-_MAX_SPAN_NS = 52 * MAX_GAP_NS
-
-
-def _candidates(
-    buf: bytearray, lo: int, hi: int, prev_t: int | None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Positions in buf[lo:hi] where a plausible header starts (length 1 to :data:`MAX_READ`,
-    time not before ``prev_t`` nor :data:`_MAX_SPAN_NS` after it), with their times (ns) and
-    lengths."""
-    if hi - lo < _REC.size:
-        z = np.zeros(0, np.int64)
-        return z, z.astype(np.uint64), z
-    arr = np.frombuffer(buf, dtype=np.uint8, count=hi, offset=0)[lo:]
-    m = arr.size - _REC.size + 1
-    n = np.zeros(m, np.uint64)
-    for b in range(4):
-        n |= arr[8 + b : 8 + b + m].astype(np.uint64) << np.uint64(8 * b)
-    ok = (n > 0) & (n <= MAX_READ)
-    idx = np.flatnonzero(ok)
-    t = np.zeros(idx.size, np.uint64)
-    for b in range(8):
-        t |= arr[idx + b].astype(np.uint64) << np.uint64(8 * b)
-    if prev_t is not None:
-        # no later than the window's reads could carry it (a week each, a year at most)
-        keep = (t >= np.uint64(prev_t)) & (t - np.uint64(prev_t) <= np.uint64(_MAX_SPAN_NS))
-        idx, t = idx[keep], t[keep]
-    return (idx + lo).astype(np.int64), t, n[idx].astype(np.int64)
-
-
-def _best_path(
-    p: np.ndarray,
-    t: np.ndarray,
-    n: np.ndarray,
-    pos: int,
-    limit: int,
-    at_eof: bool,
-    prev_t: int | None,
-) -> tuple[list[int], int]:
-    """The parse of the bytes pos..limit into reads at the candidate headers (positions
-    ``p``, times ``t``, lengths ``n``) that keeps the most reads less :data:`_SKIP` per
-    place skipped and :data:`_CUT` per read cut short (bytes before the first read count
-    as skipped);
-    times never fall nor jump more than :data:`MAX_GAP_NS`. ``at_eof``: limit is the end of
-    the file (a read cut off there is a cut, not damage); else reads may run past it. Returns
-    the candidates' indices in order and how many links without damage end it (the first read
-    comes at most :data:`MAX_GAP_NS` after ``prev_t``)."""
-    m = p.size
-    if m == 0:
-        return [], 0
-    ends = p + _REC.size + n.astype(np.int64)
-    score = np.empty(m)
-    back = np.full(m, -1, np.int64)
-    gap = np.uint64(MAX_GAP_NS)
-    for c in range(m):
-        best = -np.inf
-        if prev_t is None or int(t[c]) - prev_t <= MAX_GAP_NS:
-            best = 1.0 if p[c] == pos else 1.0 - _SKIP
-        if c:
-            # a read ends where the next starts, or before it (bytes skipped), or inside it
-            # where one damage explains it: a byte lost (in its data or the next header), or
-            # one bit of its length flipped (never to a read of no bytes: none is written)
-            cut = p[c] - p[:c] - _REC.size
-            flip = n[:c] ^ np.maximum(cut, 0)
-            fits = (
-                (ends[:c] <= p[c])
-                | ((ends[:c] - p[c] == 1) & (cut >= 0))
-                | ((cut > 0) & ((flip & (flip - 1)) == 0))
-            )
-            ok = fits & (t[:c] <= t[c]) & (t[c] - t[:c] <= gap)
-            if ok.any():
-                cost = np.where(ends[:c] == p[c], 0.0, np.where(cut >= n[:c], _SKIP, _CUT))
-                s = np.where(ok, score[:c] + 1.0 - cost, -np.inf)
-                b = int(np.argmax(s))
-                if s[b] > best:
-                    best, back[c] = float(s[b]), b
-        score[c] = best
-    if at_eof:
-        # the last read: ends at the end (0); runs past it (a cut: not passed on, -1); leaves
-        # less than a header (a cut-off header, 0); leaves more (damage)
-        term = np.where(ends > limit, -1.0, np.where(limit - ends < _REC.size, 0.0, -_SKIP))
-    else:
-        term = np.where(ends + _REC.size > limit, 0.0, -_SKIP)
-    total = score + term
-    c = int(np.argmax(total))
-    if total[c] < (0.0 if at_eof and limit - pos < _REC.size else -_SKIP):
-        return [], 0
-    path = [c]
-    while back[path[-1]] >= 0:
-        path.append(int(back[path[-1]]))
-    path.reverse()
-    links = 0
-    k = len(path) - 1
-    while term[c] >= 0 and k > 0 and ends[path[k - 1]] == p[path[k]]:
-        links, k = links + 1, k - 1
-    return path, links
-
-
 def create_capture_file(path: Path) -> BinaryIO:
     """A new, empty capture file at ``path`` (its directory made): never an existing file, so
     a capture is never overwritten (UserError naming it and what to give instead)."""
@@ -595,7 +481,7 @@ class CaptureWriter:
         if self._f is None or not data:
             return
         try:
-            self._f.write(_REC.pack(t_ns, len(data)) + data)
+            self._f.write(REC.pack(t_ns, len(data)) + data)
             self._f.flush()
         except OSError as exc:
             self.failed = True

@@ -1,0 +1,133 @@
+"""Where a damaged capture's reads are: the checks of an IMUCAP01 read header and, where the
+chain of headers breaks, the parse of the bytes that keeps the most reads
+(:class:`host.wire.capture.CaptureUnwrapper` walks the file with them)."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+
+#: a read's header: uint64 LE host time (ns), uint32 LE byte count
+REC = struct.Struct("<QI")
+
+
+#: a read's plausible length, bytes: a port read is at most the port's buffer (a few KiB); a
+#: length above this is damage (a flipped bit), not a read
+MAX_READ = 1 << 20
+#: after damage, reading resumes at a header followed by this many plausible ones (or by the
+#: end of the file)
+RESYNC_CHAIN = 3
+#: a read's plausible host time: the next read comes at most this long after it, ns (a week:
+#: a session that waits for a board to come back waits minutes, not days)
+MAX_GAP_NS = 7 * 24 * 3600 * 10**9
+
+
+#: what a damaged place costs, in reads, when the reader weighs parses. Bytes skipped cost more
+#: than a read: a lone plausible header among damaged bytes (one more read, one more skip)
+#: never wins. A read cut short where one damage explains it (a flipped bit of its length,
+#: a byte lost) costs less than a read: the read whose length swallowed the next one, its
+#: header chaining on, is cut there and both kept. A chance header inside a read, where its
+#: length would have to be one bit off, must then chain on exactly to win: a coincidence
+#: of 50 bits or more.
+_SKIP = 1.25
+_CUT = 0.75
+#: the most header candidates weighed at once after damage (bounds the work on hostile bytes)
+MAX_CANDIDATES = 512
+#: how far after the last read kept a header weighed after damage may be, ns (a year: a
+#: capture is not paused longer inside one damaged place)
+_MAX_SPAN_NS = 52 * MAX_GAP_NS
+
+
+def header_candidates(
+    buf: bytearray, lo: int, hi: int, prev_t: int | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions in buf[lo:hi] where a plausible header starts (length 1 to :data:`MAX_READ`,
+    time not before ``prev_t`` nor :data:`_MAX_SPAN_NS` after it), with their times (ns) and
+    lengths."""
+    if hi - lo < REC.size:
+        z = np.zeros(0, np.int64)
+        return z, z.astype(np.uint64), z
+    arr = np.frombuffer(buf, dtype=np.uint8, count=hi, offset=0)[lo:]
+    m = arr.size - REC.size + 1
+    n = np.zeros(m, np.uint64)
+    for b in range(4):
+        n |= arr[8 + b : 8 + b + m].astype(np.uint64) << np.uint64(8 * b)
+    ok = (n > 0) & (n <= MAX_READ)
+    idx = np.flatnonzero(ok)
+    t = np.zeros(idx.size, np.uint64)
+    for b in range(8):
+        t |= arr[idx + b].astype(np.uint64) << np.uint64(8 * b)
+    if prev_t is not None:
+        # no later than the window's reads could carry it (a week each, a year at most)
+        keep = (t >= np.uint64(prev_t)) & (t - np.uint64(prev_t) <= np.uint64(_MAX_SPAN_NS))
+        idx, t = idx[keep], t[keep]
+    return (idx + lo).astype(np.int64), t, n[idx].astype(np.int64)
+
+
+def best_parse(
+    p: np.ndarray,
+    t: np.ndarray,
+    n: np.ndarray,
+    pos: int,
+    limit: int,
+    at_eof: bool,
+    prev_t: int | None,
+) -> tuple[list[int], int]:
+    """The parse of the bytes pos..limit into reads at the candidate headers (positions
+    ``p``, times ``t``, lengths ``n``) that keeps the most reads less :data:`_SKIP` per
+    place skipped and :data:`_CUT` per read cut short (bytes before the first read count
+    as skipped);
+    times never fall nor jump more than :data:`MAX_GAP_NS`. ``at_eof``: limit is the end of
+    the file (a read cut off there is a cut, not damage); else reads may run past it. Returns
+    the candidates' indices in order and how many links without damage end it (the first read
+    comes at most :data:`MAX_GAP_NS` after ``prev_t``)."""
+    m = p.size
+    if m == 0:
+        return [], 0
+    ends = p + REC.size + n.astype(np.int64)
+    score = np.empty(m)
+    back = np.full(m, -1, np.int64)
+    gap = np.uint64(MAX_GAP_NS)
+    for c in range(m):
+        best = -np.inf
+        if prev_t is None or int(t[c]) - prev_t <= MAX_GAP_NS:
+            best = 1.0 if p[c] == pos else 1.0 - _SKIP
+        if c:
+            # a read ends where the next starts, or before it (bytes skipped), or inside it
+            # where one damage explains it: a byte lost (in its data or the next header), or
+            # one bit of its length flipped (never to a read of no bytes: none is written)
+            cut = p[c] - p[:c] - REC.size
+            flip = n[:c] ^ np.maximum(cut, 0)
+            fits = (
+                (ends[:c] <= p[c])
+                | ((ends[:c] - p[c] == 1) & (cut >= 0))
+                | ((cut > 0) & ((flip & (flip - 1)) == 0))
+            )
+            ok = fits & (t[:c] <= t[c]) & (t[c] - t[:c] <= gap)
+            if ok.any():
+                cost = np.where(ends[:c] == p[c], 0.0, np.where(cut >= n[:c], _SKIP, _CUT))
+                s = np.where(ok, score[:c] + 1.0 - cost, -np.inf)
+                b = int(np.argmax(s))
+                if s[b] > best:
+                    best, back[c] = float(s[b]), b
+        score[c] = best
+    if at_eof:
+        # the last read: ends at the end (0); runs past it (a cut: not passed on, -1); leaves
+        # less than a header (a cut-off header, 0); leaves more (damage)
+        term = np.where(ends > limit, -1.0, np.where(limit - ends < REC.size, 0.0, -_SKIP))
+    else:
+        term = np.where(ends + REC.size > limit, 0.0, -_SKIP)
+    total = score + term
+    c = int(np.argmax(total))
+    if total[c] < (0.0 if at_eof and limit - pos < REC.size else -_SKIP):
+        return [], 0
+    path = [c]
+    while back[path[-1]] >= 0:
+        path.append(int(back[path[-1]]))
+    path.reverse()
+    links = 0
+    k = len(path) - 1
+    while term[c] >= 0 and k > 0 and ends[path[k - 1]] == p[path[k]]:
+        links, k = links + 1, k - 1
+    return path, links
