@@ -12,6 +12,7 @@ Data in: a session (the record files of one sitting, :mod:`host.session`). Out: 
   temperatures, the plan, when measured and in how many sittings (from the record headers).
 - ``applying`` — ``apply`` to raw samples and held-out ``verify``.
 - ``report`` — the test report (method.md §7) and the result files.
+- ``commands`` — the shell commands a report or a screen names, laid out to be pasted.
 - ``report_pdf`` — the test report as a PDF with its residual plots (``calibrate --pdf``).
 - ``thermal`` — bias against temperature: the thermal result, ``apply_thermal``, corrected records.
 - ``thermal_fit`` — the bias(T) fit from warm-up, static and chamber records.

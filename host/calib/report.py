@@ -13,8 +13,10 @@ from __future__ import annotations
 import math
 import os
 import shlex
+from collections.abc import Sequence
 from pathlib import Path
 
+from host.calib.commands import command_lines
 from host.calib.provenance import UNKNOWN_SENSOR, Provenance
 from host.calib.result import FLOOR_SOURCES, CalibrationResult
 from host.calib.values import RecordResidual
@@ -53,7 +55,7 @@ def format_report(
     consts = r.constants()
     rule = "-" * WIDTH
     out: list[str] = []
-    nxt = next_command(r, records_dir)
+    nxt = next_words(r, records_dir)
     out.extend(_head(r, nxt))
     out.append(rule)
     out.extend(_object_and_equipment(r))
@@ -206,7 +208,7 @@ def format_report(
     return "\n".join(line.rstrip() for line in out) + "\n"
 
 
-def _head(r: CalibrationResult, nxt: str) -> list[str]:
+def _head(r: CalibrationResult, nxt: list[str]) -> list[str]:
     """Title (the sensor named from the data), the simulated mark, when measured and when
     computed, local gravity, the verdict and, on a poor fit, the next command ``nxt``."""
     pv = r.provenance
@@ -225,7 +227,7 @@ def _head(r: CalibrationResult, nxt: str) -> list[str]:
     )
     out.extend(_wrap(f"Verdict: {r.verdict()} (RESULT below)", "", "  "))
     if nxt:
-        out.extend(_wrap(f"Next: {nxt} (what the model lacks)", "", "  ", (f"Next: {nxt}",)))
+        out.extend(_command(nxt, "Next: ", "  ", "(what the model lacks)"))
     return out
 
 
@@ -298,7 +300,7 @@ def _object_and_equipment(r: CalibrationResult) -> list[str]:
     return out
 
 
-def _procedure(r: CalibrationResult, nxt: str) -> list[str]:
+def _procedure(r: CalibrationResult, nxt: list[str]) -> list[str]:
     """Plan, timing, sittings, model and algorithm (method.md §8 "procedure")."""
     pv = r.provenance
     kinds: dict[str, int] = {}
@@ -332,7 +334,8 @@ def _procedure(r: CalibrationResult, nxt: str) -> list[str]:
         out.extend(_wrap(r.fit.line(), "  ", "    "))
         story = fit_story(r)
         if story:
-            out.extend(_wrap(f"{story} Find it: {nxt}", "  ", "    ", keep=(nxt,)))
+            out.extend(_wrap(f"{story} Find it:", "  ", "    "))
+            out.extend(_command(nxt, "    ", "    "))
     return out
 
 
@@ -374,7 +377,7 @@ def measured_order(r: CalibrationResult) -> list[RecordResidual]:
     return sorted(r.residuals, key=lambda x: (rank.get(x.record, len(rank)), x.record))
 
 
-def _conclusion(r: CalibrationResult, nxt: str) -> list[str]:
+def _conclusion(r: CalibrationResult, nxt: list[str]) -> list[str]:
     """Verdict, what it rests on, the next command ``nxt`` on a poor fit, and
     repeatability (method.md §8)."""
     out = ["CONCLUSION"]
@@ -384,7 +387,7 @@ def _conclusion(r: CalibrationResult, nxt: str) -> list[str]:
         out.extend(_wrap(f"{within} model does not explain the records down to their noise "
                          "(fit quality above): the values hold only if the effect it lacks "
                          "does not bias them.", "  ", "    "))  # fmt: skip
-        out.extend(_wrap(f"Next: {nxt} (what the model lacks)", "  ", "    ", (f"Next: {nxt}",)))
+        out.extend(_command(nxt, "  Next: ", "    ", "(what the model lacks)"))
     out.extend(_wrap("Repeatability (method.md §8: three calibrations, coefficient of "
                      f"variation ≤ 1 %): python -m host archive repeat {r.serial}",
                      "  ", "    ", keep=("≤ 1 %",)))  # fmt: skip
@@ -446,24 +449,58 @@ def fit_story(result: CalibrationResult) -> str:
     )
 
 
+def next_words(
+    result: CalibrationResult, records_dir: str | os.PathLike[str] | None = None
+) -> list[str]:
+    """[] when the model fits; else the words of the command that finds what it lacks:
+    ``python -m host model diagnose DIR`` on the records' directory ``records_dir`` (None: the
+    word ``DIR``) with the result's model and term files, and the ``--noise``/``--floor`` its
+    floor came from (the yardstick its fit was judged on)."""
+    if not fit_story(result):
+        return []
+    words = ["python", "-m", "host", "model", "diagnose"]
+    words.append("DIR" if records_dir is None else str(records_dir))
+    if result.model != "base":
+        words += ["--model", result.model]
+    for f in result.term_files:
+        words += ["--term-file", f]
+    for key in FLOOR_SOURCES:  # the same yardstick: the floor the fit was judged on
+        if result.floor_source.get(key):
+            words += [f"--{key}", result.floor_source[key]]
+    return words
+
+
 def next_command(
     result: CalibrationResult, records_dir: str | os.PathLike[str] | None = None
 ) -> str:
-    """'' when the model fits; else the command that finds what it lacks: ``python -m host
-    model diagnose DIR`` on the records' directory ``records_dir`` (quoted for a shell when it
-    needs it; None: the word ``DIR``) with the result's model and term files, and the
-    ``--noise``/``--floor`` its floor came from (the yardstick its fit was judged on)."""
-    if not fit_story(result):
-        return ""
-    words = ["DIR" if records_dir is None else shlex.quote(str(records_dir))]
-    if result.model != "base":
-        words += ["--model", shlex.quote(result.model)]
-    for f in result.term_files:
-        words += ["--term-file", shlex.quote(f)]
-    for key in FLOOR_SOURCES:  # the same yardstick: the floor the fit was judged on
-        if result.floor_source.get(key):
-            words += [f"--{key}", shlex.quote(result.floor_source[key])]
-    return "python -m host model diagnose " + " ".join(words)
+    """The :func:`next_words` as one line for a shell (each word quoted when it needs it);
+    '' when the model fits."""
+    return shlex.join(next_words(result, records_dir))
+
+
+def _command(words: list[str], lead: str, indent: str, after: str = "") -> list[str]:
+    """The command ``words`` after ``lead``, then ``after``: one line when it fits in 80
+    columns, else ``after`` on the next line; a command too long for a line broken between
+    its words with ``\\`` continuations (:func:`host.calib.commands.command_lines`), so that
+    only a single word longer than a line (a path) can pass 80 columns, and it still runs when
+    pasted."""
+    cmd = shlex.join(words)
+    if len(lead) + len(cmd) <= WIDTH:
+        head = lead.strip()
+        return _wrap(f"{head} {cmd} {after}", lead[: len(lead) - len(lead.lstrip())], indent,
+                     (f"{head} {cmd}".strip(), after))  # fmt: skip
+    lines = command_lines(words, WIDTH, lead=lead).split("\n")
+    return lines + ([indent + after] if after else [])
+
+
+def path_lines(label: str, paths: Sequence[str | os.PathLike[str]]) -> list[str]:
+    """``label`` and the ``paths`` on one line (``A, B``) when it fits in 80 columns; else the
+    label alone and each path whole on a line of its own, quoted for a shell when it needs it
+    (a path with a space is then still one word to copy)."""
+    one = f"{label} {', '.join(str(p) for p in paths)}"
+    if len(one) <= WIDTH:
+        return [one]
+    return [label, *(f"  {shlex.quote(str(p))}" for p in paths)]
 
 
 def verdict_line(
@@ -471,17 +508,18 @@ def verdict_line(
     report_path: str | os.PathLike[str],
     records_dir: str | os.PathLike[str] | None = None,
 ) -> str:
-    """What a session or ``--from-dir`` ends on (lines ≤ 80 columns when the paths allow):
+    """What a session or ``--from-dir`` ends on (lines ≤ 80 columns but for a word longer
+    than a line, such as a path):
     when the model does not fit, the report's :func:`fit_story`; ``Report: PATH``; then the
     :func:`next_command` on the records' directory ``records_dir`` (None: the report's);
     the :func:`simulated_banner` when the records came from a virtual or emulated board;
     and last the verdict, the same line as the report's
     and the result file's (:meth:`~host.calib.result.CalibrationResult.verdict`)."""
     out = _wrap(fit_story(result), "", "  ")
-    out.append(f"Report: {report_path}")
-    nxt = next_command(result, Path(report_path).parent if records_dir is None else records_dir)
+    out.extend(path_lines("Report:", [report_path]))
+    nxt = next_words(result, Path(report_path).parent if records_dir is None else records_dir)
     if nxt:
-        out.append(f"Next: {nxt}")  # one line: a command to copy, whatever its length
+        out.extend(_command(nxt, "Next: ", "  "))  # broken with \\: it runs when pasted
     out.extend(simulated_banner(result))
     out.extend(_wrap(result.verdict(), "", "  "))  # one line but for a FAIL of many reasons
     return "\n".join(out)

@@ -15,11 +15,12 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from host.calib.commands import command_lines
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
-from host.calib.report import verdict_line
+from host.calib.report import path_lines, verdict_line
 from host.calib.result import CalibrationResult
 from host.cli import out_directory
-from host.cli.screen import working
+from host.cli.screen import terminal_width, working, wrap
 from host.dialogue.options import DEFAULT_READY_S, WARMUP_DEFAULT_S
 from host.errors import RecordCheckError, UserError
 from host.session.checks import failed_record
@@ -144,8 +145,9 @@ def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -
         pub = compute_and_write(session, out_dir, compute_settings(args))
     show_result(pub, args.json)
     if not args.json:
-        pdf = f" and {pub.pdf_path}" if pub.pdf_path is not None else ""
-        print(f"written: {pub.report_path}, {pub.json_path}{pdf}", file=sys.stderr)
+        pdf = [] if pub.pdf_path is None else [pub.pdf_path]
+        written = path_lines("written:", [pub.report_path, pub.json_path, *pdf])
+        print("\n".join(written), file=sys.stderr)
     if not getattr(args, "no_archive", False):
         print(archive_line(pub.json_path.parent, session, args), file=sys.stderr)
     print(verdict_line(pub.result, pub.report_path, pub.records_dir), file=sys.stderr)  # last
@@ -160,14 +162,19 @@ def archive_line(out_dir: Path, session: Session, args: argparse.Namespace) -> s
 
     records = session.directory if session.directory is not None else out_dir
     try:
-        return archive_directory(
+        return wrap(archive_directory(
             out_dir, getattr(args, "archive", None), serial=session.serial,
             records_dir=records, bench=getattr(args, "bench", None),
             operator=getattr(args, "operator", None), lot=getattr(args, "lot", None),
-        )  # fmt: skip
+        ))  # fmt: skip
     except UserError as exc:
         later = ["python3", "-m", "host", "archive", "add", str(out_dir), "--records", str(records)]
-        return f"not archived: {exc}; later: {' '.join(shlex.quote(a) for a in later)}"
+        width = terminal_width()
+        return (
+            wrap(f"not archived: {exc}; later:", width)
+            + "\n"
+            + command_lines(later, width, lead="  ")
+        )
 
 
 def run(args: argparse.Namespace) -> int:

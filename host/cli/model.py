@@ -17,13 +17,13 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from host.calib.commands import command_lines
 from host.calib.publish import session_noise
 from host.cli import pyplot
 from host.cli.figures import write_plots
 from host.cli.screen import (
     Column,
     Progress,
-    command_lines,
     fit_columns,
     left_out,
     table_row,

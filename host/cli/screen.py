@@ -4,8 +4,8 @@ words, never cut mid-word by the terminal.
 - :func:`terminal_width` — the terminal's columns now (the terminal, else ``COLUMNS``, else 80).
 - :func:`wrap` — text wrapped at words; a continuation keeps the line's indent (a bullet's text
   indent), so tables and lists stay readable.
-- :func:`command_lines` — a shell command too long for one line, broken between its words with
-  ``\\`` continuations, so that it still runs when pasted.
+- a shell command too long for one line: :func:`host.calib.commands.command_lines` (the
+  report names commands too, below the command line).
 - :func:`table` — columns side by side; when they do not fit, the least needed columns are left
   out (and named in a last line), a table row is never wrapped.
 - :class:`Progress` — the line that shows a long wait moving; :func:`working` — that line
@@ -26,7 +26,6 @@ import io
 import math
 import os
 import re
-import shlex
 import textwrap
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -86,42 +85,6 @@ def wrap(text: str, width: int | None = None) -> str:
             or [line]
         )
     return "\n".join(out)
-
-
-def _split_word(word: str, room: int) -> list[str]:
-    """A shell word longer than ``room`` cut after commas into pieces of at most ``room``
-    (joined by a backslash-newline with no indent, the shell reads them as one word)."""
-    pieces: list[str] = []
-    cur = ""
-    for part in re.findall(r"[^,]*,|[^,]+", word):
-        if cur and len(cur) + len(part) > room:
-            pieces.append(cur)
-            cur = ""
-        cur += part
-    return pieces + [cur]
-
-
-def command_lines(cmd: Sequence[str], width: int | None = None, lead: str = "") -> str:
-    """The shell command ``cmd`` (its words) after ``lead``, on one line when it fits, else
-    broken between words with `` \\`` and a 4-space indent (a word too long for a line, such
-    as a model spec, after its commas with ``\\`` and no indent): pasted, it runs unchanged."""
-    w = width or terminal_width()
-    words = [shlex.quote(a) for a in cmd]
-    lines: list[str] = []
-    cur = lead + (words[0] if words else "")
-    for word in words[1:]:
-        if len(cur) + 1 + len(word) + 2 <= w:
-            cur += " " + word
-            continue
-        lines.append(cur + " \\")
-        cur = "    " + word
-        if len(cur) + 2 > w and "," in word and word == shlex.quote(word.strip("'")):
-            pieces = _split_word(word, w - 6)
-            lines.append("    " + pieces[0] + "\\")
-            lines += [p + "\\" for p in pieces[1:-1]]
-            cur = pieces[-1]
-    lines.append(cur)
-    return "\n".join(lines)
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from host.calib.calibration import calibrate_from_records
 from host.calib.report import next_command
 from host.calib.result import CalibrationResult
 from host.session.directory import read_session
-from tests.host.cli.cli_run import run
+from tests.host.cli.cli_run import command_from, run, too_wide
 from tests.independent.simulate import SessionSpec, write_session
 
 QUICK_START = ["calibrate", "--port", "sim://?speed=max", "--serial", "DEMO01", "--yes",
@@ -58,7 +58,7 @@ def _ending(err: str) -> list[str]:
     lines = err.rstrip("\n").splitlines()
     start = next(
         (i for i, ln in enumerate(lines) if ln.startswith("The model does not fit")),
-        next(i for i, ln in enumerate(lines) if ln.startswith("Report: ")),
+        next(i for i, ln in enumerate(lines) if ln.startswith("Report:")),
     )
     return lines[start:]
 
@@ -125,8 +125,7 @@ def test_the_next_command_runs_and_finds_the_same_misfit(
     """The command the screen names runs as given, from where the quick start ran, and the
     workbench reads the same RMS z the verdict quotes."""
     d: Path = quick_start["dir"]
-    nxt = next(ln for ln in _ending(str(quick_start["err"])) if ln.startswith("Next: "))
-    argv = shlex.split(nxt.removeprefix("Next: "))
+    argv = command_from(_ending(str(quick_start["err"])))
     assert argv[:4] == ["python", "-m", "host", "model"]
     monkeypatch.chdir(d.parent)
     rc, out, _ = run(argv[3:] + ["--brief"])
@@ -148,7 +147,9 @@ def test_a_model_that_fits_gives_a_plain_verdict_and_no_next_command(tmp_path: P
     assert doc["fit"]["verdict"] != "inadequate" and doc["conditional"] is False
     assert rc == 0 and doc["verdict"] == "PASS: every value within tolerance"
     story = _story_of((d / "IND01_result.txt").read_text(encoding="utf-8"))
-    assert _ending(err) == [f"Report: {d / 'IND01_result.txt'}", doc["verdict"]]
+    ending = _ending(err)  # a path too long for its label's line follows on its own
+    assert ending[-1] == doc["verdict"]
+    assert " ".join(ln.strip() for ln in ending[:-1]) == f"Report: {d / 'IND01_result.txt'}"
     assert story["head"] == f"Verdict: {doc['verdict']} (RESULT below)"
     assert story["conclusion"] == doc["verdict"]
     assert story["head_next"] == story["conclusion_next"] == ""
@@ -169,10 +170,12 @@ def test_a_hidden_step_names_the_records_directory_not_the_output(tmp_path: Path
     doc = json.loads((out / "IND01_result.json").read_text(encoding="utf-8"))
     assert doc["fit"]["verdict"] == "inadequate"
     ending = _ending(err)
-    nxt = next(ln for ln in ending if ln.startswith("Next: "))
-    assert shlex.split(nxt)[-1] == str(rec)
-    story = _story_of((out / "IND01_result.txt").read_text(encoding="utf-8"))
-    assert story["head_next"] == f"{nxt} (what the model lacks)"
+    words = command_from(ending)
+    assert words == ["python", "-m", "host", "model", "diagnose", str(rec)]
+    text = (out / "IND01_result.txt").read_text(encoding="utf-8")
+    story = _story_of(text)
+    concl = text.splitlines()[text.splitlines().index("CONCLUSION") :]
+    assert command_from(text.splitlines()) == command_from(concl) == words
     assert ending[-1] == doc["verdict"] == story["conclusion"]
     assert rc == (0 if doc["all_passed"] else 1)
 
@@ -239,10 +242,10 @@ def _misfit_with(tmp: Path, given: list[str]) -> tuple[dict, list[str], Path]:
     rc, _, err = run(["calibrate", "--from-dir", str(rec), "--no-archive", *given])
     doc = json.loads((rec / "IND01_result.json").read_text(encoding="utf-8"))
     assert doc["fit"]["verdict"] == "inadequate", err
-    nxt = next(ln for ln in _ending(err) if ln.startswith("Next: "))
-    report = _story_of((rec / "IND01_result.txt").read_text(encoding="utf-8"))
-    assert report["head_next"] == f"{nxt} (what the model lacks)"
-    return doc, shlex.split(nxt.removeprefix("Next: ")), rec
+    words = command_from(_ending(err))
+    report = (rec / "IND01_result.txt").read_text(encoding="utf-8").splitlines()
+    assert command_from(report) == words  # the report's head names the same command
+    return doc, words, rec
 
 
 FLOORS = [["--floor", "accel=5e-4,gyro=3e-3"], ["--noise", "unit noise.json"],
@@ -285,3 +288,29 @@ def test_the_repeated_floor_gives_the_workbench_the_same_rms_z(
     doc, words, _ = _misfit_with(tmp_path, FLOORS[2])
     rc, out, _ = run(words[3:] + ["--brief"])
     assert rc == 0 and f"fit: RMS z = {doc['fit']['rms_z']:.2f} " in out
+
+
+def test_a_long_path_leaves_only_itself_past_80_columns(tmp_path: Path) -> None:
+    """Records in a directory whose path is longer than a line (and has a space): the screen's
+    last lines and the report break every line but the path itself within 80 columns; the
+    next command, broken with \\, runs as printed with the same words."""
+    rec = tmp_path / ("the records of unit seven from " + "the second bench " * 5).strip()
+    write_session(rec, SessionSpec(seed=7, effect="bias_step_gyro"))
+    _noise_file(tmp_path / "noise.json")
+    rc, out, err = run(["calibrate", "--from-dir", str(rec), "--no-archive",
+                        "--noise", str(tmp_path / "noise.json")])  # fmt: skip
+    report = (rec / "IND01_result.txt").read_text(encoding="utf-8")
+    assert len(str(rec)) > 80 and rc == 0
+    assert too_wide(err) == [] and too_wide(report) == [] and too_wide(out) == []
+    want = ["python", "-m", "host", "model", "diagnose", str(rec), "--noise",
+            str(tmp_path / "noise.json")]  # fmt: skip
+    lines = report.splitlines()
+    concl = lines[lines.index("CONCLUSION") :]
+    for said in (err.splitlines(), lines, concl):
+        assert command_from(said) == want
+    find = next(i for i, ln in enumerate(lines) if ln.endswith(" Find it:"))
+    assert command_from(lines[find + 1 :], "") == want
+    # the report's path whole on its own line, after its label
+    ending = _ending(err)
+    i = ending.index("Report:")
+    assert shlex.split(ending[i + 1]) == [str(rec / "IND01_result.txt")]

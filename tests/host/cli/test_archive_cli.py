@@ -21,6 +21,7 @@ from host.cli.archive import parse_tolerances
 from host.errors import UserError
 from host.session.directory import read_session
 from tests.host.archive.lot_sim import simulate_lot
+from tests.host.cli.cli_run import pasted, too_wide
 from tests.host.sim_sessions import write_sim_session
 
 
@@ -113,7 +114,8 @@ def test_calibrate_from_dir_archives_its_result_unless_told_not_to(
     db = str(tmp_path / "cal.sqlite")
     code = main(["calibrate", "--from-dir", str(d), "--archive", db, "--bench", "B2"])
     err = capsys.readouterr().err
-    assert "archived as #1 in sqlite:///" in err
+    assert "archived as #1 in sqlite:///" in " ".join(err.split())
+    assert too_wide(err) == []
     with Archive(db) as a:
         (s,) = a.summaries()
         e = a.entry(s.id)
@@ -132,6 +134,13 @@ def test_calibrate_from_dir_archives_its_result_unless_told_not_to(
     err = capsys.readouterr().err
     assert again == code and (d / "C1_result.json").is_file()
     assert "not archived:" in err and "archive add" in err
+    # within 80 columns, and the command to archive it later runs as printed
+    assert too_wide(err) == []
+    lines = err.splitlines()
+    i = next(i for i, ln in enumerate(lines) if ln.strip().startswith("python3 -m host archive"))
+    n = next(j for j in range(i, len(lines)) if not lines[j].endswith("\\")) + 1
+    assert pasted(lines[i:n]) == ["python3", "-m", "host", "archive", "add", str(d),
+                                  "--records", str(d)]  # fmt: skip
 
 
 @settings(max_examples=200, deadline=None)

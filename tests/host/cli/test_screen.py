@@ -10,7 +10,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from host.cli.screen import ScreenWriter, command_lines, terminal_width, wrap
+from host.calib.commands import command_lines
+from host.cli.screen import ScreenWriter, terminal_width, wrap
 
 
 class FakeTerminal(io.StringIO):
@@ -103,3 +104,16 @@ def test_the_width_is_the_terminal_else_columns_else_80(monkeypatch: pytest.Monk
     assert terminal_width(io.StringIO()) == 123  # not a terminal: COLUMNS
     monkeypatch.delenv("COLUMNS")
     assert terminal_width(io.StringIO()) == 80  # not a terminal: 80
+
+
+def test_the_width_rule_lets_through_only_a_word_that_cannot_break() -> None:
+    """The tests' 80-column rule (``too_wide``): a sentence or a command over 80 columns
+    fails it; a path longer than a line, alone or before a ``\\``, quoted or not, passes."""
+    from tests.host.cli.cli_run import too_wide
+
+    path = "/tmp/" + "deep/" * 18 + "records"
+    assert too_wide("The model does not fit these records " * 3)
+    assert too_wide(f"Next: python -m host model diagnose {path}")
+    assert too_wide(f"Report: {path}")
+    assert not too_wide(f"{path}\n    {path} \\\n  '{path}/with a space' \\")
+    assert not too_wide("a" * 80 + "\n" + "short line")
