@@ -187,9 +187,14 @@ def _truth_of(name: str, t: Truth) -> float | None:
     if parts[0] == "lever_arm" and e["name"] == "lever_arm":
         return float(e["r_m"]["xyz".index(parts[1])])
     if parts[0] == "face_error" and e["name"] == "face_lean" and len(parts) == 4:
+        # the pair's mean lean as the accelerometer reads it: [C_A·θ̄]_i / C_A,ii (its
+        # misalignment puts the lean toward the third axis on channel i too; the fit states
+        # the lean in the accelerometer's frame, tests/independent/test_independent_geometry)
         i, j = "xyz".index(parts[2]), parts[3][-1]
         lean = e["lean_rad"]
-        return 0.5 * (lean["+" + j][i] + lean["-" + j][i])
+        mean = 0.5 * (np.asarray(lean["+" + j]) + np.asarray(lean["-" + j]))
+        ca = _accel_matrix(c)
+        return float((ca @ mean)[i] / ca[i, i])
     keys = {"time_drift": "per_h", "temperature_bias": "per_C", "scale_asymmetry": "asym",
             "scale_nonlinearity": "k2"}  # fmt: skip
     if len(parts) == 3 and parts[0] in keys and keys[parts[0]] in e:
@@ -197,6 +202,16 @@ def _truth_of(name: str, t: Truth) -> float | None:
             return float(e[keys[parts[0]]])
         return 0.0  # the same term on another channel: nothing there
     return None
+
+
+def _accel_matrix(c: dict[str, Any]) -> np.ndarray:
+    """The accelerometer's I + M from method.md's constants (the signs of §2: x row (1+Sxx,
+    Sxz, −Sxy), y row (−Syz, 1+Syy, Syx), z row (Szy, −Szx, 1+Szz))."""
+    return np.array([
+        [1 + c["Axx"], c["Axz"], -c["Axy"]],
+        [-c["Ayz"], 1 + c["Ayy"], c["Ayx"]],
+        [c["Azy"], -c["Azx"], 1 + c["Azz"]],
+    ])  # fmt: skip
 
 
 def _plate_truth(parts: Sequence[str], t: Truth) -> float:

@@ -28,10 +28,16 @@ def test_truth_of_maps_workbench_names_to_the_simulator() -> None:
     assert ys._truth_of("lever_arm.x", t) is None
     lev = _truth("lever_arm")
     assert ys._truth_of("lever_arm.y", lev) == lev["effect"]["r_m"][1]  # type: ignore[index]
-    face = _truth("face_lean")
-    lean = face["effect"]["lean_rad"]  # type: ignore[index]
-    want = 0.5 * (lean["+z"][0] + lean["-z"][0])
-    assert ys._truth_of("face_error.accel.x.±z", face) == pytest.approx(want)
+    sim = simulate(SessionSpec(seed=5, effect="face_lean"))
+    face = sim.truth()
+    lean = face["effect"]["lean_rad"]
+    mean = 0.5 * (np.asarray(lean["+z"]) + np.asarray(lean["-z"]))
+    # the lean as the accelerometer reads it: its matrix (the simulator's own) puts the lean
+    # toward y on channel x too
+    ca = sim.base.accel_matrix
+    want = float((ca @ mean)[0] / ca[0, 0])
+    assert ys._truth_of("face_error.accel.x.±z", face) == pytest.approx(want, rel=1e-12)
+    assert abs(want - mean[0]) > 1e-7  # the misalignment's share is not nothing
 
 
 def test_recommends_matches_term_sensor_and_axis() -> None:
