@@ -377,6 +377,8 @@ def build_dataset(
     whiten, groups = whiten_rows(
         table.channels, signals, y_arr, floors=floors, static_noise=table.static_noise,
         white_level=white_level, n_still=n_still, seat=seat, hand=hand, turn_sigma=turn_sigma,
+        free_levels={(ri, ax) for ri in moved for ax in range(3)
+                     if abs(float(signals[ri].up[ax])) < 0.5}, g=g,
     )  # fmt: skip
     for a in tilted:  # a corrected turn's integrals carry its measured axis's σ
         ri = next(i for i, s in enumerate(signals) if s.name == a.record)

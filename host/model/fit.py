@@ -30,6 +30,7 @@ from host.model.noise import NoiseModel
 from host.model.signals import AXES, SENSORS, UNIT
 from host.model.spec import ModelTerm
 from host.model.stats import ALPHA_FIT, chi2_sf, right_singular, rref, stderr_scale
+from host.model.whitening import Group
 from host.session.directory import Session
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
@@ -282,7 +283,8 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
     pcov[:, bad] = np.nan
     return Fit(
         model=model, parameters=tuple(params), predicted=predicted, residual=resid,
-        white_residual=wres, basis=basis, chi2=chi2, dof=ds.n_rows - n_par, n_params=n_par,
+        white_residual=wres, basis=basis, chi2=chi2, dof=ds.n_rows - n_par - _free(ds.groups),
+        n_params=n_par,
         groups=groups, spans=spans_out, undetermined=tuple(undetermined),
         channels=tuple(channels), covariance=pcov,
     )  # fmt: skip
@@ -292,8 +294,9 @@ def residual_sigmas(ds: Dataset, basis: np.ndarray) -> np.ndarray:
     """Standard deviation of each group's mean residual (ds.groups order) when the model is
     right: the measurement's σ less what the fit absorbed. Cov(r) = W⁻¹(I − QQᵀ)W⁻ᵀ with Q the
     orthonormal basis of the whitened design, so var(aᵀr) = ‖W⁻ᵀa‖² − ‖QᵀW⁻ᵀa‖²; 0 where the
-    model has a parameter for that value alone (it is fitted exactly). W⁻ᵀa lies on the
-    group's own rows: each sum runs over them (memory linear in the rows)."""
+    model has a parameter for that value alone (it is fitted exactly), and where the group's
+    level is an unknown of its own (:attr:`~host.model.whitening.Group.free_level`). W⁻ᵀa lies
+    on the group's own rows: each sum runs over them (memory linear in the rows)."""
     v = ds.group_means_whitened
     g = ds.row_group
     var = np.bincount(g, weights=v * v, minlength=len(ds.groups))
@@ -301,6 +304,7 @@ def residual_sigmas(ds: Dataset, basis: np.ndarray) -> np.ndarray:
         qv = np.zeros((len(ds.groups), basis.shape[1]))
         np.add.at(qv, g, basis * v[:, None])
         var = var - np.sum(qv**2, axis=1)
+    var[[k for k, gr in enumerate(ds.groups) if gr.free_level]] = 0.0
     return np.sqrt(np.maximum(var, 0.0))
 
 
@@ -321,6 +325,7 @@ def _channel_fits(
     for s_i, sensor in enumerate(SENSORS):
         for ax in range(3):
             rows = np.flatnonzero((ds.row_sensor == s_i) & (ds.row_axis == ax))
+            grs = [g for g in ds.groups if g.sensor == sensor and g.axis == ax]
             if not len(rows):
                 continue
             cols = np.array(
@@ -343,26 +348,34 @@ def _channel_fits(
                     or bool(live[j])
                     and (null.shape[1] == 0 or float(np.linalg.norm(null[j] * norms[j])) < 1e-6)
                 )
-            # record-level design: one row per record/channel value (mean of its rows)
-            grs = [g for g in ds.groups if g.sensor == sensor and g.axis == ax]
+            # record-level design: one row per record/channel value (mean of its rows; not a
+            # free level's, which is a value of its own)
+            tested = [g for g in grs if not g.free_level]
             rank_g = 0
-            if len(cols) and grs:
-                xg = np.array([x[np.ix_(g.rows, cols)].mean(axis=0) for g in grs])
+            if len(cols) and tested:
+                xg = np.array([x[np.ix_(g.rows, cols)].mean(axis=0) for g in tested])
                 gn = np.linalg.norm(xg, axis=0)
                 rank_g = int(np.linalg.matrix_rank(xg[:, gn > 0] / gn[gn > 0], tol=1e-9))
             chi2 = float(wres[rows] @ wres[rows])
-            dof = len(rows) - rank
+            dof = len(rows) - rank - _free(grs)
             scale = stderr_scale(chi2, dof)
             combos = (
                 _combinations(cols, estimable, null, norms, theta, cov * scale**2, owners)
                 if null.shape[1]
                 else ()
             )
-            out.append(ChannelFit(sensor, AXES[ax], chi2, dof, len(grs) - rank_g, scale, combos))
+            out.append(ChannelFit(sensor, AXES[ax], chi2, dof, len(tested) - rank_g, scale, combos))
     if any(o[2][1] < 0 for o in owners):
         # shared parameters couple the channels: what all rows together determine
         estimable = _estimable(xw)
     return out, estimable
+
+
+def _free(groups: Sequence[Group]) -> int:
+    """How many of ``groups`` have a level of their own (each takes one degree of freedom as
+    a parameter would: its rows' mean is weighed out,
+    :data:`host.model.whitening.FREE_LEVEL_RAD`)."""
+    return sum(gr.free_level for gr in groups)
 
 
 def _estimable(xw: np.ndarray) -> np.ndarray:

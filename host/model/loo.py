@@ -94,8 +94,8 @@ def leave_one_out(ds: Dataset, fit: Fit) -> Prediction:
         theta[cols] = sol
         rows_z: list[float] = []
         for gr in ds.groups:
-            if gr.record != ri:
-                continue
+            if gr.record != ri or gr.free_level:
+                continue  # (a free level predicts nothing: it is a value of its own)
             a = x[gr.rows].mean(axis=0)
             an = a[live] / norms[live]
             if np.any(a[~live] != 0.0) or float(np.linalg.norm(an @ null)) > 1e-6 * max(

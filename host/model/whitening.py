@@ -11,9 +11,10 @@ differ in variance and are correlated (the hand) are whitened through their Chol
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,7 +30,9 @@ from host.model.stats import ALPHA_COMPONENT, chi2_sf
 class Group:
     """The rows of one record and channel: ``rows`` indices; ``sigma`` = std of their mean
     (static: block-mean average; turn: the integral); ``contrast_sigma`` = std of a block's
-    deviation from the record's mean (NaN for one row)."""
+    deviation from the record's mean (NaN for one row); ``free_level``: their common level is
+    an unknown of its own (:data:`FREE_LEVEL_RAD`), only their differences are measured, and
+    ``sigma`` is their mean's noise without it."""
 
     record: int
     sensor: str
@@ -37,6 +40,17 @@ class Group:
     rows: np.ndarray
     sigma: float
     contrast_var: float
+    free_level: bool = False
+
+
+#: a turn made about an axis off its face's seat (:func:`host.model.plate.resolve_turn_axes`)
+#: has its lean measured from its own accelerometer rows against the statics of that face, so
+#: its horizontal accelerometer rows' level is that lean, not a second reading of the sensor:
+#: weighed as a reading, it would count those statics' noise twice (the accelerometer's bias
+#: and misalignment pulls had sd 1.27 and 1.73 over 50 independent sessions). Their level is
+#: left free as a common-mode variance (g·this)² over the rows: a lean of 0.1 rad (6°) is past
+#: any seat a hand makes, and leaves the level a weight below 1e-6 of its noise's
+FREE_LEVEL_RAD = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -233,6 +247,8 @@ def whiten_rows(
     seat: float,
     hand: tuple[float, float],
     turn_sigma: tuple[float, float],
+    free_levels: Collection[tuple[int, int]] = (),
+    g: float = 9.80665,
 ) -> tuple[Whitener, list[Group]]:
     """(W (n, n) as its blocks, the groups) for the rows ``y`` (n,) built as ``channels``:
     ``floors`` the bias-instability floor per sensor, ``white_level`` (sensor, axis) ->
@@ -240,7 +256,8 @@ def whiten_rows(
     record), ``n_still`` turn record -> how many of its accelerometer rows are still moments,
     ``seat`` and ``hand`` the seating and the hand's scatter (m/s², :mod:`host.model.rows`),
     ``turn_sigma`` the hand's turn-angle error and its wobble on the cross axes (°,
-    :mod:`host.model.variance`)."""
+    :mod:`host.model.variance`); ``free_levels`` (record, axis) of the accelerometer channels
+    whose rows' common level is an unknown of its own (:data:`FREE_LEVEL_RAD`, ``g`` m/s²)."""
     groups: list[Group] = []
     blocks: list[tuple[np.ndarray, np.ndarray]] = []
 
@@ -266,12 +283,18 @@ def whiten_rows(
         ns = n_still.get(ch.record, len(idx)) if sig.kind == "turn" else len(idx)
         if sig.kind == "turn" and horizontal:
             v_blocks[:ns] = v_blocks[:ns] + seat**2  # a horizontal channel at a still moment
-        if ns < len(idx):
+        free = s == "accel" and (ch.record, ax) in free_levels
+        if ns < len(idx) or free:
             # moving blocks: the sensor's white noise (the static records' level) + the hand
             v_blocks[ns:] = level / counts[ns:]
             cov = np.diag(v_blocks) + floor**2
             cov[ns:, ns:] += turning.hand_covariance(hand[0], hand[1], len(idx) - ns)
-            add(_whiten_exact(ch.record, s, ax, idx, cov))
+            if not free:
+                add(_whiten_exact(ch.record, s, ax, idx, cov))
+                continue
+            own, _ = _whiten_exact(ch.record, s, ax, idx, cov)
+            _, w = _whiten_exact(ch.record, s, ax, idx, cov + (g * FREE_LEVEL_RAD) ** 2)
+            add((dataclasses.replace(own, free_level=True), w))
             continue
         add(_block_group(ch, sig, v_blocks, floor, inflate.get((s, ax), 1.0)))
     return Whitener(len(y), tuple(blocks)), groups
