@@ -68,8 +68,10 @@ class _PairCRC:
             for _ in range(nbytes - 1 - i):  # followed by zero bytes
                 c = (c << 8) ^ CRC_TABLE[c >> 8]
             single[i] = c
+        # indexed by the pair read as one little-endian word (second byte high): a view of
+        # the rows in the machine's order on the usual hosts, so no byte swap per lookup
         self.pairs = [
-            (single[2 * k][:, None] ^ single[2 * k + 1][None, :]).reshape(-1)
+            (single[2 * k][None, :] ^ single[2 * k + 1][:, None]).reshape(-1)
             for k in range(self.npairs)
         ]
         self.last = single[nbytes - 1] if nbytes % 2 else None
@@ -78,16 +80,28 @@ class _PairCRC:
     def rows(self, rows: np.ndarray, start: int) -> np.ndarray:
         """CRCs of ``rows[:, start : start + nbytes]``; rows (M, W) uint8 C-contiguous, W even,
         ``start`` even."""
-        words = rows.view(">u2")
+        # each word's column made contiguous once: a table lookup by a contiguous index is
+        # numpy's fast gather
+        words = np.ascontiguousarray(rows[:, start : start + 2 * self.npairs].view("<u2").T)
         crc = np.full(rows.shape[0], self.zero, dtype=np.uint16)
         for k in range(self.npairs):
-            crc ^= self.pairs[k][words[:, start // 2 + k]]
+            crc ^= self.pairs[k].take(words[k])
         if self.last is not None:
             crc ^= self.last[rows[:, start + self.nbytes - 1]]
         return crc
 
 
 _IMU_CRC = _PairCRC(4 + IMU_LEN)
+
+
+def _frames_at(buf: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray:
+    """(len(starts), width) uint8: row i is buf[starts[i] : starts[i] + width], zeros past the
+    end of ``buf`` (starts increasing). Each row is copied as one item (a 2-D gather copies
+    byte by byte)."""
+    whole = starts[-1] + width <= buf.size  # else the last rows run past the end
+    src = buf if whole else np.concatenate((buf, np.zeros(width, np.uint8)))
+    items = np.ndarray((src.size - width + 1,), np.dtype((np.void, width)), src, 0, (1,))
+    return items[starts].view(np.uint8).reshape(starts.size, width)
 
 
 def _windows(buf: np.ndarray, width: int) -> np.ndarray:
@@ -217,9 +231,7 @@ def _decode_bulk_bytes(
     imu_cand = np.flatnonzero(is_imu)
     imu_rows = np.zeros((0, IMU_FRAME_LEN + 1), dtype=np.uint8)
     if imu_cand.size:
-        padded = np.zeros(n + 1, dtype=np.uint8)
-        padded[:n] = buf
-        imu_rows = _windows(padded, IMU_FRAME_LEN + 1)[cand[imu_cand]]
+        imu_rows = _frames_at(buf, cand[imu_cand], IMU_FRAME_LEN + 1)
     crc_ok[imu_cand] = _IMU_CRC.rows(imu_rows, 2) == stored[imu_cand]
     other_cand = np.flatnonzero(~is_imu)
     # (the lengths present by counting: np.unique would import numpy.ma, 20 ms of start-up)
@@ -294,7 +306,7 @@ def _decode_bulk_bytes(
     stats.resets = int(np.count_nonzero(reset))
     stats.lost_frames = int(np.sum(gaps))
     segment = segment0 + np.cumsum(reset)
-    samples = np.zeros(imu_idx.size, dtype=SAMPLE_DTYPE)
+    samples = np.empty(imu_idx.size, dtype=SAMPLE_DTYPE)  # every field is written below
     for name in ("seq", "t_us", *IMU_FIELDS, "flags"):
         samples[name] = wire[name]
     samples["offset"] = vs[imu_idx]
