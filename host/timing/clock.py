@@ -56,7 +56,7 @@ def unwrap(
     if v.size == 0:
         return v
     mod = 1 << bits
-    d = np.diff(v) % mod
+    d = np.diff(v) & (mod - 1)  # modulo 2^bits (two's complement: a bitwise and)
     if host_ns is not None and ticks_per_ns is not None:
         dh = np.diff(np.asarray(host_ns, dtype=np.float64)) * ticks_per_ns
         wraps = np.maximum(np.rint((dh - d) / mod), 0).astype(np.int64)
@@ -225,7 +225,7 @@ def fit_min_delay_spans(
     lo, hi = min(i for i, _ in spans), max(j for _, j in spans)
     if not np.all(x[lo + 1 : hi] > x[lo : hi - 1]):
         return fit_min_delay_many([(x[i:j], y[i:j]) for i, j in spans])
-    cuts = np.unique(np.asarray(spans, dtype=np.int64))
+    cuts = np.asarray(sorted({k for span in spans for k in span}), dtype=np.int64)
     stretch = lower_hulls(x, y, cuts)
     cand, bounds = [], [0]
     for i, j in spans:

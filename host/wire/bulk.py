@@ -222,9 +222,6 @@ def _decode_bulk_bytes(
     ok = ok_len & (end <= n)
     cand, mtype, length, end = cand[ok], mtype[ok], length[ok], end[ok]
     crc_ok = np.zeros(cand.size, dtype=bool)
-    stored = buf[np.minimum(end - 2, n - 1)].astype(np.uint16) | (
-        buf[np.minimum(end - 1, n - 1)].astype(np.uint16) << 8
-    )
     # IMU samples, the bulk of any capture: copy each candidate's bytes (plus one pad byte, so
     # rows have an even width) and check all CRCs from 16-bit words
     is_imu = (mtype == IMU_SAMPLE) & (length == IMU_LEN)
@@ -232,19 +229,24 @@ def _decode_bulk_bytes(
     imu_rows = np.zeros((0, IMU_FRAME_LEN + 1), dtype=np.uint8)
     if imu_cand.size:
         imu_rows = _frames_at(buf, cand[imu_cand], IMU_FRAME_LEN + 1)
-    crc_ok[imu_cand] = _IMU_CRC.rows(imu_rows, 2) == stored[imu_cand]
+    stored = imu_rows[:, IMU_FRAME_LEN - 2].astype(np.uint16)
+    stored |= imu_rows[:, IMU_FRAME_LEN - 1].astype(np.uint16) << 8
+    crc_ok[imu_cand] = _IMU_CRC.rows(imu_rows, 2) == stored
     other_cand = np.flatnonzero(~is_imu)
     # (the lengths present by counting: np.unique would import numpy.ma, 20 ms of start-up)
     for ln in np.flatnonzero(np.bincount(length[other_cand])):
         idx = other_cand[length[other_cand] == ln]
         rows = _windows(buf, 4 + int(ln))[cand[idx] + 2]
-        crc_ok[idx] = crc16_rows(rows) == stored[idx]
+        e = end[idx]
+        stored = buf[e - 2].astype(np.uint16) | (buf[e - 1].astype(np.uint16) << 8)
+        crc_ok[idx] = crc16_rows(rows) == stored
 
     # choose the frames the sequential scan would consume: a valid frame is taken unless it
-    # starts inside one already taken (rare overlaps are resolved greedily, in order)
+    # starts inside one already taken (rare overlaps are resolved greedily, in order; none
+    # where each frame ends before the next starts)
     vs, ve = cand[crc_ok], end[crc_ok]
     take = np.ones(vs.size, dtype=bool)
-    if vs.size > 1:
+    if vs.size > 1 and np.any(vs[1:] < ve[:-1]):
         prev_max_end = np.maximum.accumulate(ve)[:-1]
         conflict = np.flatnonzero(vs[1:] < prev_max_end) + 1
         if conflict.size:
@@ -271,12 +273,15 @@ def _decode_bulk_bytes(
     stats.unknown_types = int(np.count_nonzero(LENGTHS_FROM["any"][vtype] < 0))
     stats.bytes_discarded = int(consumed - np.sum(ve - vs))
 
-    seq = (buf[vs + 4].astype(np.int64) | (buf[vs + 5].astype(np.int64) << 8)).astype(np.int64)
     imu_idx = np.flatnonzero(vtype == IMU_SAMPLE)
     taken_mask = np.zeros(cand.size, dtype=bool)
     taken_mask[taken] = True
     imu_taken = taken_mask[imu_cand]
     wire = (imu_rows if imu_taken.all() else imu_rows[imu_taken]).view(_WIRE_IMU_PADDED)[:, 0]
+    seq = np.empty(vs.size, dtype=np.int64)  # the IMU samples' from their rows, the others'
+    seq[imu_idx] = wire["seq"]
+    other = np.flatnonzero(vtype != IMU_SAMPLE)
+    seq[other] = buf[vs[other] + 4].astype(np.int64) | (buf[vs[other] + 5].astype(np.int64) << 8)
     t_us = wire["t_us"].astype(np.int64)
     segment0 = 0
     if before is not None and before.last_seq is not None:

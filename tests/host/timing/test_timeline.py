@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host.bench.linksim import LinkCapture, LinkParams, simulate_link
 from host.timing import timeline
@@ -98,3 +100,11 @@ def test_the_timeline_counts_losses_by_the_decoders_rules() -> None:
     tl = timeline.build_timeline(r.samples, None)
     assert tl.lost_frames == r.stats.lost_frames == 3
     assert int(r.samples["lost"].sum()) == 3
+
+
+@settings(max_examples=100, deadline=None)
+@given(values=st.lists(st.floats(-1e12, 1e12), min_size=1, max_size=200))
+def test_the_sample_periods_median_is_numpys(values: list[float]) -> None:
+    """The median the timeline takes its sample period from is np.median's, to the bit."""
+    a = np.asarray(values)
+    assert timeline._median(a) == float(np.median(a))

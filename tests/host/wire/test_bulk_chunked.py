@@ -223,3 +223,20 @@ def test_decode_output_does_not_depend_on_the_read_size(
         t_host = [json.loads(x)["t_host_ns"] for x in whole.splitlines()]
     assert t_host == np.rint(tl.host_ns).astype(np.int64).tolist()
     assert len(t_host) == lc.true_host_ns.size
+
+
+@settings(max_examples=100, deadline=None)
+@given(data=st.binary(min_size=1, max_size=300), picks=st.lists(st.integers(0, 10**6), min_size=1))
+def test_the_frame_rows_are_the_bytes_at_each_start_zero_padded(
+    data: bytes, picks: list[int]
+) -> None:
+    """The bulk decoder's rows of frame bytes: row i is the ``width`` bytes from starts[i],
+    zeros past the end of the buffer."""
+    from host.wire.bulk import _frames_at
+
+    buf = np.frombuffer(data, np.uint8)
+    width = 28
+    starts = np.unique(np.asarray(picks) % buf.size)
+    rows = _frames_at(buf, starts, width)
+    padded = data + bytes(width)
+    assert [bytes(r) for r in rows] == [padded[k : k + width] for k in starts.tolist()]
