@@ -408,8 +408,11 @@ def test_an_80x24_terminal_redraws_in_place_and_ends_with_the_verdict(
         last.strip(),
     ), last
     assert "Report: DEMO01/DEMO01_result.txt" in [ln.strip() for ln in shown[-5:]], shown[-5:]
-    # the mark just above it, wrapped at words within the 80 columns
-    assert any(ln.startswith("*** SIMULATED BOARD sim://") for ln in shown[-3:-1]), shown[-3:]
-    assert shown[-2].endswith("not a measurement of a unit ***")
+    # the mark just above it: on one line when it fits, else the mark and the board's URL
+    # whole below it (this URL, with its options, does not fit beside the mark)
+    mark = "*** SIMULATED BOARD: not a measurement of a unit ***"
+    assert mark in shown[-4:-1], shown[-4:]
+    url = shown[shown.index(mark, len(shown) - 4) + 1].strip()
+    assert url.startswith("sim://?seed=") and url.endswith("earth_rate=0"), url
     assert all(len(ln) <= 80 for ln in shown)
     assert len(last) <= 80  # the verdict is one line, not wrapped
