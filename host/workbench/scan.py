@@ -48,14 +48,18 @@ class ScanHit:
 
     @property
     def time_confounded(self) -> bool:
-        return math.isfinite(self.time_r) and abs(self.time_r) >= TIME_CONFOUNDED_R
+        """The signal moves with time since power-on in this plan, though it is not itself a
+        function of time (a step in time or a drift is time: whether the two are told apart
+        is the groups of equals' question, :mod:`host.workbench.equals`)."""
+        of_time = self.signal.startswith(STEP) or "time since power-on" in self.signal
+        return math.isfinite(self.time_r) and abs(self.time_r) >= TIME_CONFOUNDED_R and not of_time
 
     def describe(self) -> str:
         text = (
             f"{self.sensor}-{self.axis} residual correlates with {self.signal} "
             f"(r = {self.r:+.2f}, Δχ² = {self.delta_chi2:.1f})"
         )
-        if self.time_confounded and "time" not in self.signal:
+        if self.time_confounded:
             text += (
                 f"; CONFOUNDED with session time in this plan (r = {self.time_r:+.2f} with time "
                 "since power-on: the records were measured in this order) — a drift or a bias "

@@ -12,7 +12,7 @@ import pytest
 
 from host.model.dataset import load_dataset
 from host.model.spec import parse_model
-from host.workbench.scan import STEP, step_cuts
+from host.workbench.scan import STEP, ScanHit, _joined, step_cuts
 from host.workbench.verdict import diagnose
 from tests.independent.simulate import SessionSpec, write_session
 
@@ -77,4 +77,47 @@ def test_warming_is_read_from_the_bend_of_the_session_s_temperature() -> None:
     assert (
         np.ptp(alone) == 0.0
         and abs(alone[0] - 0.4 * w * np.cos(w * recs[3].t_s.mean())) < 0.1 * 0.4 * w
+    )
+
+
+def test_a_step_is_tried_in_every_gap_and_between_the_rows_of_a_record(tmp_path: Path) -> None:
+    """One step per gap between records, named by the record before it and placed in the gap;
+    inside a record one between each of its rows (a static's two 5 s blocks: its middle; a
+    turn's still moments and moving blocks: many), each inside the record's span."""
+    d = tmp_path / "s"
+    write_session(d, SessionSpec(seed=7))
+    ds = load_dataset(d)
+    cuts = step_cuts(ds)
+    assert [t for t, _ in cuts] == sorted(t for t, _ in cuts)
+    assert len({n for _, n in cuts}) == len(cuts)
+    order = sorted(ds.signals, key=lambda s: float(s.t_s[0]))
+    for before, after in zip(order[:-1], order[1:], strict=True):
+        at = {n: t for t, n in cuts}[f"{STEP} after {before.name}"]
+        assert before.t_s[-1] < at < after.t_s[0]
+    for s in ds.signals:
+        inside = [t for t, n in cuts if n.startswith(f"{STEP} during {s.name},")]
+        assert all(s.t_s[0] < t < s.t_s[-1] for t in inside)
+        if s.kind == "static":
+            assert inside == [pytest.approx(float(s.t_s[0]) + 5.0, abs=0.03)], (s.name, inside)
+        else:
+            assert len(inside) >= 8, (s.name, len(inside))
+
+
+def test_a_step_goes_with_time_without_being_confounded_with_it() -> None:
+    """A step or a drift correlated with time since power-on is time itself (told apart from
+    each other by the groups of equals); another signal as correlated is confounded."""
+    step = ScanHit("accel", "z", f"{STEP} during x_cw, 7.9 s in", 1.0, 1e4, 0.0, True, 0.88)
+    drift = ScanHit("accel", "z", "time since power-on", 0.9, 1e4, 0.0, True, 1.0)
+    warm = ScanHit("accel", "z", "temperature", 0.6, 7e3, 0.0, True, 0.83)
+    assert not step.time_confounded and not drift.time_confounded
+    assert warm.time_confounded and "CONFOUNDED with session time" in warm.describe()
+    assert "CONFOUNDED" not in step.describe()
+
+
+def test_a_run_of_equal_steps_is_written_by_its_first_and_last_place() -> None:
+    steps = [f"{STEP} after {n}" for n in ("z_up", "z_dn", "x_ccw", "x_cw")]
+    assert _joined(steps) == f"{steps[0]} / … / {steps[-1]}"
+    assert _joined(steps[:2]) == " / ".join(steps[:2])
+    assert _joined(["(specific force z)²", "|specific force z|"]) == (
+        "(specific force z)² / |specific force z|"
     )
