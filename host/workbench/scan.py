@@ -185,17 +185,22 @@ def step_cuts(ds: Dataset) -> list[tuple[float, str]]:
 
 
 def _row_edges(ds: Dataset, record: int) -> list[int]:
-    """The sample indices (0 < i < N) at which one of ``record``'s rows, on any channel,
-    begins or ends."""
+    """The sample indices (0 < i < N) between two rows of ``record``: where one of its rows,
+    on any channel, begins or ends, with some row ending at or before it and some beginning at
+    or after it (a cut before its first row or after its last is its gap's step)."""
     n = len(ds.signals[record].t_s)
-    edges: set[int] = set()
+    starts: set[int] = set()
+    ends: set[int] = set()
     for r, sensor, a in ds.rows_of:
         if r != record:
             continue
         on = ds.aggregator(record, sensor, a) != 0
-        edges.update(int(i) for i in on.argmax(axis=1))
-        edges.update(int(n - i) for i in on[:, ::-1].argmax(axis=1))
-    return sorted(e for e in edges if 0 < e < n)
+        starts.update(int(i) for i in on.argmax(axis=1))
+        ends.update(int(n - i) for i in on[:, ::-1].argmax(axis=1))
+    if not starts:
+        return []
+    first_end, last_start = min(ends), max(starts)
+    return sorted(e for e in starts | ends if 0 < e < n and first_end <= e <= last_start)
 
 
 def _steps(ds: Dataset) -> dict[str, SignalFn]:
