@@ -49,9 +49,19 @@ class Capture:
 
     def arrival_ns_at(self, offsets: np.ndarray) -> np.ndarray:
         """Host time (ns) of the read that delivered the byte at each offset of ``data``."""
-        k = np.searchsorted(self.chunk_end, np.asarray(offsets), side="right")
-        k = np.minimum(k, self.chunk_ns.size - 1)
+        k = np.minimum(_read_of(self.chunk_end, offsets), self.chunk_ns.size - 1)
         return self.chunk_ns[k]
+
+
+def _read_of(ends: np.ndarray, offsets: np.ndarray | int) -> np.ndarray:
+    """For each offset, the number of reads that end at or before it (``ends`` increasing):
+    the index of the read holding that byte. Offsets in order (a chunk's samples) are
+    counted off the ends, a bisection per read rather than per sample."""
+    at = np.asarray(offsets)
+    if at.ndim != 1 or at.size < 2 * ends.size or np.any(at[1:] < at[:-1]):
+        return np.searchsorted(ends, at, side="right")
+    first = np.searchsorted(at, ends, side="left")  # the first offset past each read's end
+    return np.repeat(np.arange(ends.size + 1), np.diff(first, prepend=0, append=at.size))
 
 
 def parse(raw: bytes, source: str = "capture") -> Capture:
@@ -409,8 +419,7 @@ class CaptureUnwrapper:
         """Host time (ns) of the read that delivered the port byte at each offset (counted
         from the first port byte; offsets at or after :meth:`forget_before`'s)."""
         ends = np.asarray(self._reads_end, dtype=np.int64)
-        k = np.searchsorted(ends, np.asarray(offsets), side="right")
-        k = np.minimum(k, max(ends.size - 1, 0))
+        k = np.minimum(_read_of(ends, offsets), max(ends.size - 1, 0))
         return (
             np.asarray(self._reads_ns, dtype=np.uint64)[k]
             if ends.size

@@ -240,3 +240,22 @@ def test_the_frame_rows_are_the_bytes_at_each_start_zero_padded(
     rows = _frames_at(buf, starts, width)
     padded = data + bytes(width)
     assert [bytes(r) for r in rows] == [padded[k : k + width] for k in starts.tolist()]
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    ends=st.lists(st.integers(1, 500), max_size=30, unique=True),
+    offsets=st.lists(st.integers(0, 520), max_size=120),
+    in_order=st.booleans(),
+)
+def test_each_bytes_read_is_the_count_of_reads_ended_before_it(
+    ends: list[int], offsets: list[int], in_order: bool
+) -> None:
+    """The read holding each byte (the arrival-time lookup): how many reads end at or before
+    its offset, counted one by one; offsets in order or not."""
+    from host.wire.capture import _read_of
+
+    e = np.asarray(sorted(ends), dtype=np.int64)
+    at = sorted(offsets) if in_order else offsets
+    got = _read_of(e, np.asarray(at, dtype=np.int64)).tolist()
+    assert got == [sum(1 for x in sorted(ends) if x <= o) for o in at]
