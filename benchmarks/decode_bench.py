@@ -13,9 +13,10 @@ IMUCAP01 capture (the clock map too) of ``--process-samples`` frames, and its st
 (issue 31: >= 3 M frames/s and >= 30x pymavlink as a whole process), in wall time and in CPU
 time (on a loaded machine only the CPU time means anything).
 
-Measured (``--process --repeat 9``, one BLAS thread, a shared 2-core machine at load ≈ 7,
-CPU time): raw capture 4.2-4.4 M frames/s (45-50x pymavlink), IMUCAP01 capture 2.5-2.6 M
-frames/s (28x), start-up alone 0.12-0.15 s. Before issue 31's work on it (main 0b0ec99, wall
+Measured (``--process --repeat 9``, one BLAS thread, four runs on a shared 2-core machine at
+load 5-7, CPU time): raw capture 4.1-4.8 M frames/s (45-55x pymavlink), IMUCAP01 capture
+2.5-2.8 M frames/s (28-33x; best run at load 5: 2.84 M/s CPU, 2.79 wall), start-up alone
+0.12-0.16 s. Before issue 31's work on it (main 0b0ec99, wall
 time at a lighter load): 4.12 and 2.13 M frames/s (21.9x).
 """
 
