@@ -3,6 +3,7 @@ with none, confounded and unidentifiable cases, and the real imucal data."""
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
@@ -124,7 +125,17 @@ def test_constant_temperature_makes_temperature_terms_unidentifiable() -> None:
     assert all(not c.significant and math.isnan(c.delta_chi2) for c in temp)
 
 
-# 100 full diagnoses: about 25 s on a quiet machine, 70 s on a loaded one.
+@functools.cache
+def _control(seed: int) -> tuple[str, str | None, tuple, float]:
+    """The control of ``seed`` (§2 data, nothing hidden, the unit's wander known) diagnosed
+    with the §2 model: verdict, recommended spec, dominant findings and RMS z. Diagnosed once
+    per run: the 100-seed control and the RMS z test read the same sessions."""
+    case = hidden_effect_case("none", seed)
+    d = diagnose(case_dataset(case, case.known_noise()), parse_model("base"))
+    return d.verdict, d.recommended_spec, tuple(d.dominant), d.fit.rms_z
+
+
+# 100 full diagnoses: about 30 s of CPU (3 of the 100 are not adequate, seeds 37, 51, 65)
 @pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_control_is_adequate_in_at_least_95_of_100_seeds() -> None:
@@ -132,9 +143,7 @@ def test_control_is_adequate_in_at_least_95_of_100_seeds() -> None:
     with the §2 model, ~60 candidates and ~100 signal tests each. The unit's wander is known
     (``--noise``): a session's own records cannot show a wander between them, and without a
     noise file it is rightly misfit (a drift looks the same)."""
-    cases = [hidden_effect_case("none", s) for s in range(100)]
-    verdicts = [diagnose(case_dataset(c, c.known_noise()), parse_model("base")).verdict
-                for c in cases]  # fmt: skip
+    verdicts = [_control(s)[0] for s in range(100)]
     assert verdicts.count("adequate") >= 95, verdicts
 
 
@@ -268,12 +277,11 @@ def test_nothing_hidden_is_adequate_with_rms_z_near_one() -> None:
     (the floor no longer comes from the misfit of repeated attitudes): adequate, and RMS z of
     the right model close to 1 (median over seeds in 0.7 … 1.3)."""
     rms = []
-    for seed in range(10):
-        case = hidden_effect_case("none", seed)
-        d = diagnose(case_dataset(case, case.known_noise()), parse_model("base"))
-        assert d.verdict == "adequate", (seed, d.verdict, d.recommended, d.dominant)
-        assert d.recommended_spec is None
-        rms.append(d.fit.rms_z)
+    for seed in range(10):  # the first ten controls of the 100-seed test: diagnosed once
+        verdict, recommended_spec, dominant, rms_z = _control(seed)
+        assert verdict == "adequate", (seed, verdict, dominant)
+        assert recommended_spec is None
+        rms.append(rms_z)
     assert 0.7 <= float(np.median(rms)) <= 1.3, rms
 
 
