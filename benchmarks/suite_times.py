@@ -4,7 +4,7 @@ whole suite (issue 31, item 8: quick loop under 2 minutes on 2 cores, full suite
 an idle 2-core machine).
 
     python benchmarks/suite_times.py [--full | --only-full] [--workers 1,2] [--top N]
-                                     [--marker EXPR] [PATH ...]
+                                     [--marker EXPR] [--save FILE] [PATH ...]
 
 Each run is ``python3 -m pytest -q`` in a fresh process, as CI runs it, over PATH (default: the
 whole ``tests`` tree); ``--workers 1,2`` runs the same tests once per worker count, one after
@@ -91,6 +91,7 @@ def main() -> None:
              "process; CI runs 2)",
     )  # fmt: skip
     ap.add_argument("--top", type=int, default=0, help="print the N tests of most CPU time")
+    ap.add_argument("--save", help="append each test's times to this file (JSON lines)")
     args = ap.parse_args()
     try:
         workers = [int(w) for w in args.workers.split(",")]
@@ -116,6 +117,9 @@ def main() -> None:
                 f"sum of tests' CPU {per_test / 60:5.2f} min  load {load0:4.1f} -> "
                 f"{load1:4.1f}\n  {summary}"
             )
+            if args.save:
+                with open(args.save, "a") as f:
+                    f.writelines(json.dumps({**t, "workers": n}) + "\n" for t in tests)
             for t in sorted(tests, key=lambda t: -t["cpu"])[: args.top]:
                 print(f"  {t['cpu']:6.1f} s CPU {t['wall']:6.1f} s wall  {t['test']}")
 
