@@ -85,11 +85,28 @@ class TrendPoint:
     stderr: float
 
 
+def nothing_selected(archive: Archive, selection: str, names: Sequence[str] | None) -> UserError:
+    """The one-line error of a question whose selection holds no calibration: the parameter
+    names the archive does not know (and those it does), else the ``selection`` in words."""
+    if names:
+        known = sorted(set(archive.values().name.tolist()))  # on the error's path only
+        unknown = [n for n in names if n not in known]
+        if unknown:
+            return UserError(
+                f"--param {', '.join(unknown)}: no such parameter in the archive (it has "
+                f"{', '.join(known) or 'none'})"
+            )
+    what = f"the archive has no calibration {selection}".rstrip()
+    return UserError(f"{what} (python -m host archive list shows what it holds)")
+
+
 def trend(
     archive: Archive, serial: str, names: Sequence[str] | None = None
 ) -> dict[str, list[TrendPoint]]:
     """Each parameter of ``serial`` against time (every session, in time order)."""
     t = archive.values(names, serial=serial)
+    if len(t) == 0 and names and len(archive.values(None, serial=serial)):
+        raise nothing_selected(archive, f"of {serial}", names)
     if len(t) == 0:
         raise UserError(f"{serial}: no calibration of this serial in the archive")
     out: dict[str, list[TrendPoint]] = {}

@@ -4,12 +4,14 @@ CSV, or as Parquet when pyarrow is installed (it is not a dependency: ~40 MB for
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 from pathlib import Path
 
 from host.archive.store import ValueTable
 from host.errors import UserError
+from host.session.atomic import write_text_atomic
 
 COLUMNS = (
     "calibration_id", "serial", "bench", "measured_at", "self_test", "verdict", "fit_verdict",
@@ -37,11 +39,12 @@ def write_csv(t: ValueTable, path: str | os.PathLike[str]) -> int:
     """Write ``t`` as CSV (header :data:`COLUMNS`; a value not determined is an empty field);
     returns the number of rows."""
     cols = _columns(t)
-    with open(path, "w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
-        w.writerow(COLUMNS)
-        for i in range(len(t)):
-            w.writerow(_cell(cols[c][i]) for c in COLUMNS)
+    f = io.StringIO(newline="")
+    w = csv.writer(f)
+    w.writerow(COLUMNS)
+    for i in range(len(t)):
+        w.writerow(_cell(cols[c][i]) for c in COLUMNS)
+    write_text_atomic(path, f.getvalue())  # a file that cannot be written: one line
     return len(t)
 
 

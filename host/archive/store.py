@@ -33,7 +33,7 @@ from sqlalchemy import (
 )
 from sqlalchemy.dialects.postgresql import insert as pg_insert
 from sqlalchemy.dialects.sqlite import insert as sqlite_insert
-from sqlalchemy.exc import ArgumentError, NoSuchModuleError, OperationalError
+from sqlalchemy.exc import ArgumentError, DatabaseError, NoSuchModuleError
 
 from host.archive.entry import Entry, Parameter, entry_from_directory
 from host.archive.schema import (
@@ -197,7 +197,7 @@ class Archive:
                 current = applied_versions(conn)
             if not current or max(current) != SCHEMA_VERSION:
                 migrate(self.engine.connect)
-        except OperationalError as exc:
+        except DatabaseError as exc:  # cannot connect, or a file that is no database
             self.engine.dispose()
             first = str(exc.orig).strip().splitlines()[0] if exc.orig else str(exc)
             raise UserError(f"archive {self.display_url}: cannot open it ({first})") from None

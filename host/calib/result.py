@@ -366,6 +366,11 @@ class CalibrationResult:
             text = Path(path).read_text(encoding="utf-8")
         except OSError as exc:
             raise ResultFileError(f"{path}: cannot read the result ({exc.strerror})") from exc
+        except UnicodeDecodeError:
+            raise ResultFileError(
+                f"{path}: not a calibration result (not UTF-8 text); give the "
+                "SERIAL_result.json that calibrate wrote"
+            ) from None
         return cls.from_json(text)
 
 

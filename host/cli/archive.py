@@ -99,8 +99,17 @@ def _trend(args: argparse.Namespace) -> int:
     return 0
 
 
+def _selected(a: Archive, serial: str | None, lot: str | None) -> None:
+    """A UserError when no calibration is of ``serial`` in ``lot`` (a check of a unit or a
+    lot that is not there must not read as one that passed)."""
+    if (serial or lot) and not a.summaries(serial, None, lot):
+        sel = [f"of {serial}" if serial else "", f"in lot {lot}" if lot else ""]
+        raise checks.nothing_selected(a, " ".join(w for w in sel if w), None)
+
+
 def _repeat(args: argparse.Namespace) -> int:
     with _open(args) as a:
+        _selected(a, args.serial, args.lot)
         rows = checks.repeat(
             a, args.serial, alpha=args.alpha, across_benches=args.across_benches, lot=args.lot
         )
@@ -111,6 +120,7 @@ def _repeat(args: argparse.Namespace) -> int:
 def _drift(args: argparse.Namespace) -> int:
     tol = parse_tolerances(args.tol)
     with _open(args) as a:
+        _selected(a, args.serial, args.lot)
         rows, k = checks.drift(
             a, alpha=args.alpha, k=args.k, tolerances=tol, serial=args.serial, lot=args.lot
         )
@@ -121,6 +131,9 @@ def _drift(args: argparse.Namespace) -> int:
 def _lot(args: argparse.Namespace) -> int:
     with _open(args) as a:
         rep = checks.lot_report(a, args.lot, alpha=args.alpha, names=args.param)
+        if not rep.units:  # a lot that is not there is not a lot that passed
+            lot = f"in lot {args.lot}" if args.lot else "with these parameters"
+            raise checks.nothing_selected(a, lot, args.param)
     sys.stdout.write(text.lot(rep, args.alpha))
     odd = any(r.outliers or r.summary.within is False for r in rep.rows)
     bad = bool(rep.failing or rep.conditional) or odd
@@ -130,6 +143,10 @@ def _lot(args: argparse.Namespace) -> int:
 def _control(args: argparse.Namespace) -> int:
     with _open(args) as a:
         cs = checks.control_charts(a, serial=args.serial, bench=args.bench, names=args.param)
+        if not cs:
+            sel = [f"of {args.serial}" if args.serial else "", f"on {args.bench}" if args.bench
+                   else ""]  # fmt: skip
+            raise checks.nothing_selected(a, " ".join(w for w in sel if w), args.param)
     sys.stdout.write(text.charts(cs))
     return 0
 

@@ -211,6 +211,20 @@ def _endless_term(d: Path) -> list[str]:
     return ["model", "add", str(s), "spin:gyro", "--term-file", str(f), "--term-timeout", "2"]
 
 
+def _not_a_database(d: Path) -> list[str]:
+    (d / "notes.db").write_text("the bench's notes, not an archive\n")
+    return ["archive", "list", "--archive", str(d / "notes.db")]
+
+
+def _binary_result(d: Path) -> list[str]:
+    (d / "S_result.json").write_bytes(bytes(range(256)) * 4)
+    return ["archive", "add", str(d / "S_result.json"), "--archive", str(d / "a.sqlite")]
+
+
+def _lot_not_there(d: Path) -> list[str]:
+    return ["archive", "lot", "L7-TYPO", "--archive", str(d / "a.sqlite")]
+
+
 CASES: tuple[Case, ...] = (
     Case("sim-speed-inf", "sim://?speed=inf spins at 100 % CPU",
          lambda d: ["capture", "--port", "sim://?speed=inf", "--seconds", "1", str(d / "o.cap")],
@@ -278,6 +292,12 @@ CASES: tuple[Case, ...] = (
          _foreign_hello, (2,), "spec 0x00001234)"),
     Case("endless-term", "a term file with an endless loop runs with no output, no bound",
          _endless_term, (2,), "give --term-timeout S", bound_s=30.0),
+    Case("archive-not-a-database", "a text file as --archive: sqlite3.DatabaseError traceback",
+         _not_a_database, (2,), "file is not a database"),
+    Case("archive-binary-result", "archive add of a binary file: UnicodeDecodeError traceback",
+         _binary_result, (2,), "not UTF-8 text"),
+    Case("archive-lot-not-there", "archive lot of a lot not in the archive exits 0 (passed)",
+         _lot_not_there, (2,), "no calibration in lot L7-TYPO"),
 )  # fmt: skip
 
 

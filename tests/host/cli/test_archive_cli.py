@@ -88,6 +88,13 @@ def test_checks_exit_one_when_something_needs_attention(
         (["trend", "NOPE"], "NOPE: no calibration of this serial"),
         (["export", "x.xlsx"], "write .csv or .parquet"),
         (["show", "--id", "99"], "99: no archived calibration"),
+        # a check of a lot, unit or bench that is not there is not one that passed
+        (["lot", "NOLOT"], "no calibration in lot NOLOT"),
+        (["lot", "--param", "NOPE"], "--param NOPE: no such parameter in the archive"),
+        (["control", "--bench", "B9"], "no calibration on B9"),
+        (["drift", "--serial", "NOPE"], "no calibration of NOPE"),
+        (["repeat", "--lot", "L9"], "no calibration in lot L9"),
+        (["export", "/nonexistent/dir/v.csv"], "cannot write /nonexistent/dir/v.csv"),
     ],
 )
 def test_bad_input_is_one_line(
@@ -311,3 +318,25 @@ def test_a_conditional_pass_is_shown_as_such(
         ("STEP1", "pass", "inadequate"),
         ("CLEAN1", "pass", docs["CLEAN1"]["fit"]["verdict"]),
     }
+
+
+def test_a_file_that_is_no_archive_or_no_result_is_one_line(
+    tmp_path: Path, line_archive: tuple[str, object], capsys: pytest.CaptureFixture
+) -> None:
+    """A text or binary file given as the archive, a binary file given as a result, a
+    parameter the lot does not have: one line each, exit 2, the file unchanged."""
+    text, binary = tmp_path / "notes.db", tmp_path / "noise.bin"
+    text.write_text("not a database\n")
+    binary.write_bytes(bytes(range(256)) * 8)
+    for argv, words in (
+        (["list", "--archive", str(text)], "cannot open it (file is not a database)"),
+        (["list", "--archive", str(binary)], "cannot open it (file is not a database)"),
+        (["add", str(binary), "--archive", str(tmp_path / "a.sqlite")], "not UTF-8 text"),
+        (["trend", f"{PREFIX}U0001", "--param", "A0w", "--archive", line_archive[0]],
+         "--param A0w: no such parameter in the archive (it has A0x, A0y"),
+    ):  # fmt: skip
+        assert main(["archive", *argv]) == 2, argv
+        err = capsys.readouterr().err
+        assert words in err and err.count("\n") == 1 and "Traceback" not in err, err
+    assert text.read_text() == "not a database\n"
+    assert binary.read_bytes() == bytes(range(256)) * 8
