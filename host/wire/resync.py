@@ -104,6 +104,13 @@ def best_parse(
                 | ((ends[:c] - p[c] == 1) & (cut >= 0))
                 | ((cut > 0) & ((flip & (flip - 1)) == 0))
             )
+            # nor is a read cut at this header when a header inside it chains on exactly to
+            # this one: that is the read before this one (the damage hit the cut read's
+            # header or data), and the cut would lose it too
+            inner = np.flatnonzero((ends[:c] == p[c]) & (t[:c] <= t[c]))
+            if inner.size:
+                holds = (p[inner] >= p[:c, None] + REC.size) & (t[inner] >= t[:c, None])
+                fits &= (ends[:c] <= p[c]) | ~holds.any(axis=1)
             ok = fits & (t[:c] <= t[c]) & (t[c] - t[:c] <= gap)
             if ok.any():
                 cost = np.where(ends[:c] == p[c], 0.0, np.where(cut >= n[:c], _SKIP, _CUT))

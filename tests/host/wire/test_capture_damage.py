@@ -75,8 +75,11 @@ def _zeros(*sizes: int) -> list[tuple[int, bytes]]:
 # length (the shifted headers' times, ×256, still rise: a false read swallowed the rest); the
 # first byte of a time deleted (the read before and the header after share a byte); a bit
 # flipped in a length so that the read ends exactly at the end of the file, or exactly at the
-# header after the next two (it swallowed them, their headers chaining on)
+# header after the next two (it swallowed them, their headers chaining on); a byte inserted in a
+# length, read as one flipped bit that swallowed the next read whose header chained on exactly
 @pytest.mark.slow
+@example(reads=_zeros(1, 1, 3, 3, 4, 5, 6, 13, 13, 17, 1, 8, 1), damage=("insert", 181, 22),
+         pieces=1)  # fmt: skip
 @example(reads=_zeros(1, 1, 7, 7, 1, 1), damage=("flip", 72, 5), pieces=1)
 @example(reads=_zeros(*[1] * 16, 3, 3, 4, 5, 5, 5, 5, 5, 6, 8, 9, 10, 18, 1),
          damage=("insert", 165, 0), pieces=1)  # fmt: skip
