@@ -9,13 +9,20 @@ turn each way about each axis, then asks :func:`host.workbench.adaptive.adaptive
 planner's next record (a face again, short or long, or a turn pair) until its worst
 σ/tolerance is at least as good as the fixed plan's on the same unit (or ``--target``).
 Its first records stop when they have enough (:mod:`host.workbench.stopping`; ``--no-stopping``:
-they last ``--min-static`` s and one pair a axis): each face measured up to ``--max-static`` s
-and cut where the σ of its mean met the target, looked at once a second; turn pairs about an
-axis until its gyro scale meets the target.
+they last ``--min-static`` s and one pair a axis), axis by axis (``--method-order``: six faces,
+then the turns): the down face measured up to ``--max-static`` s and cut where the σ of its
+mean met the target, looked at once a second; the up face where the face pair's g-sensitivity
+meets it with the rest its turns will add (``--faces-alone``: its own mean); then turn pairs
+about the axis, right after the up face without placing the cube again, until its gyro scale
+meets the target.
 Operator time counts every placement, settling, record and turn
-(:class:`host.workbench.planner.OperatorTime`).
+(:class:`host.workbench.planner.OperatorTime`; a record on the face the cube already rests on
+is not placed again, :func:`host.workbench.adaptive.cost_after`, for both plans).
 
-Prints per session and then the medians and the ratio fixed/adaptive::
+Prints per session and then the medians and the ratio fixed/adaptive; the least time any
+plan of these records needs for the same precision (:mod:`host.workbench.least_time`); and,
+for the record each adaptive plan planned last, the σ predicted before measuring against the
+scatter of (fitted − truth) over the sessions::
 
     OPENBLAS_NUM_THREADS=1 python3 benchmarks/planning.py --sessions 20
 """
@@ -23,12 +30,14 @@ Prints per session and then the medians and the ratio fixed/adaptive::
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import statistics
 import sys
 import time as wall
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")  # before numpy loads: one BLAS thread
@@ -43,9 +52,16 @@ from host.model.dataset import build_dataset  # noqa: E402
 from host.model.fit import fit_model  # noqa: E402
 from host.model.spec import parse_model  # noqa: E402
 from host.session.directory import Session  # noqa: E402
-from host.session.method import local_gravity  # noqa: E402
-from host.session.records import STOPPED_KEY, Record  # noqa: E402
-from host.workbench.adaptive import adaptive_run, minimal_plan  # noqa: E402
+from host.session.method import GROUPS, TOLERANCES, local_gravity  # noqa: E402
+from host.session.records import STATIC_NAMES, STOPPED_KEY, Record  # noqa: E402
+from host.workbench.adaptive import (  # noqa: E402
+    AdaptiveRun,
+    Measure,
+    adaptive_run,
+    cost_after,
+    last_up,
+    minimal_plan,
+)
 from host.workbench.least_time import (  # noqa: E402
     balanced_plan_s,
     least_operator_s,
@@ -53,7 +69,6 @@ from host.workbench.least_time import (  # noqa: E402
     rest_information,
 )
 from host.workbench.planner import (  # noqa: E402
-    OPERATOR_TIME,
     Candidate,
     candidates,
     unique_name,
@@ -62,6 +77,7 @@ from host.workbench.planner import (  # noqa: E402
 )
 from host.workbench.stopping import (  # noqa: E402
     StaticRule,
+    mean_sigma,
     stop_index,
     turn_scale_ratio,
     turns_stop,
@@ -80,52 +96,121 @@ def as_record(r: SimRecord) -> Record:
 def fixed_plan(spec: SessionSpec) -> tuple[float, str, float, np.ndarray]:
     """(worst σ/tolerance, its name, operator time s, information per second of rest on each
     gyro channel (:func:`host.workbench.least_time.rest_information`)) of the method's fixed
-    plan."""
+    plan, its records in the method's order (the six faces, the turn pairs, the closing X up)
+    counted as the adaptive plan's are (:func:`host.workbench.adaptive.cost_after`)."""
     s = simulate(spec)
     ds = build_dataset(Session(spec.serial, {r.name: as_record(r) for r in s.records}))
     fit = fit_model(ds, BASE)
     worst, name = worst_ratio(unscaled_sigmas(fit, fit))
-    t = OPERATOR_TIME
-    window = {1: 7.0, 2: 12.0, 3: 15.0}[spec.turns]
-    statics = 7 if spec.closing else 6
-    operator = statics * (t.place + t.settle + spec.static_s)
-    operator += 6 * (t.place + t.turn_ready + window)
+    menu = {c.label: c for c in candidates(spec.static_s, spec.turns, tilted=False)}
+    order = [f"{f} again" for f in STATIC_NAMES]
+    order += [f"{ax} turns, {spec.turns} each way" for ax in "xyz"]
+    order += ["x_up again"] if spec.closing else []
+    operator, up = 0.0, None
+    for label in order:
+        operator += cost_after(menu[label], up)
+        up = np.asarray(menu[label].records[-1][1], dtype=float)
     return worst, name, operator, rest_information(ds, fit, BASE)
 
 
 def stopping_first(
-    hand: IndependentHand, target: float, min_s: float, max_s: float
+    hand: IndependentHand,
+    target: float,
+    min_s: float,
+    max_s: float,
+    *,
+    by_axis: bool = True,
+    pair_rule: bool = True,
 ) -> tuple[dict[str, Record], float]:
-    """The six faces (each up to ``max_s`` s, cut where it had enough), then turn pairs about
-    each axis until its gyro scale meets ``target``: (the records, the operator's time s)."""
-    t = OPERATOR_TIME
+    """The six faces, each up to ``max_s`` s and cut where it had enough, and turn pairs about
+    each axis until its gyro scale meets ``target``: (the records, the operator's time s).
+
+    ``by_axis``: axis by axis — the down face, the up face, then the pairs about that axis
+    made without placing the cube again (else the method's order: six faces, then the turns).
+    ``pair_rule``: the second face of an axis stops when the face pair's g-sensitivity meets
+    the target, counting the rest its turns will add to the up face
+    (:meth:`host.workbench.stopping.StaticRule.gyro_pair_sigma`), else on its own mean."""
     rule = StaticRule.for_target(target, local_gravity(), min_s=min_s, max_s=max_s)
     menu = candidates(max_s, 1, tilted=False)
+    faces = {c.records[0][0]: c for c in menu if c.records[0][2] == "static"}
+    pairs = {c.records[0][0][0]: c for c in menu if c.records[0][2] == "turn"}
+    window = 2.0 * pairs["x"].records[0][3]  # rest a pair adds on its up face, s
     records: dict[str, Record] = {}
     spent = 0.0
-    for c in menu:
-        if c.records[0][2] != "static":
-            continue
-        name = c.records[0][0]
+    gyro_sigma: dict[str, tuple[np.ndarray, float]] = {}  # face -> (σ of its mean, s)
+
+    def face(name: str) -> None:
+        nonlocal spent
+        c = faces[name]
+        spent += cost_after(c, last_up(records)) - c.records[0][3]  # placing and settling
         r = as_record(hand(c, [name])[name])
         t_s = r.t_ms / 1000.0
-        n, why = stop_index(rule, t_s, r.accel, r.gyro)
+        other = gyro_sigma.get(name[0] + ("_dn" if name.endswith("_up") else "_up"))
+        if not pair_rule or other is None:  # the first face of its axis: its own mean
+            n, why = stop_index(rule, t_s, r.accel, r.gyro)
+        elif name.endswith("_up"):  # the turns to come rest on this face
+            n, why = stop_index(rule, t_s, r.accel, r.gyro, opposite=other[0], extra_rest_s=window)
+        else:  # on the opposite face, measured already: its σ as it will be after them
+            shrunk = other[0] * math.sqrt(other[1] / (other[1] + window))
+            n, why = stop_index(rule, t_s, r.accel, r.gyro, opposite=shrunk)
         meta = {**r.meta, STOPPED_KEY: why}
         records[name] = Record(name, r.t_ms[:n], r.accel[:n], r.gyro[:n], r.temp[:n], meta)
-        spent += t.place + t.settle + float(t_s[n - 1] - t_s[0]) + float(t_s[1] - t_s[0])
-    for ax in "xyz":
-        pair = next(c for c in menu if c.label.startswith(f"{ax} turns"))
-        for pairs in range(1, 100):
+        gyro_sigma[name] = (mean_sigma(r.gyro[:n]), float(t_s[n - 1] - t_s[0]))
+        spent += float(t_s[n - 1] - t_s[0]) + float(t_s[1] - t_s[0])
+
+    def turns(ax: str) -> None:
+        nonlocal spent
+        pair = pairs[ax]
+        for k in range(1, 100):
             names = [unique_name(base, records) for base, *_ in pair.records]
-            records.update({k: as_record(v) for k, v in hand(pair, names).items()})
-            spent += pair.operator_s
+            spent += cost_after(pair, last_up(records))
+            records.update({n: as_record(v) for n, v in hand(pair, names).items()})
             ratio = turn_scale_ratio(Session("ADAPT", dict(records)), BASE, ax)
-            if turns_stop(ratio, target, pairs) is not None:
+            if turns_stop(ratio, target, k) is not None:
                 break
+
+    if by_axis:
+        for ax in "xyz":
+            face(f"{ax}_dn")
+            face(f"{ax}_up")
+            turns(ax)
+    else:
+        for name in STATIC_NAMES:
+            face(name)
+        for ax in "xyz":
+            turns(ax)
     return records, spent
 
 
-def one(seed: int, args: argparse.Namespace) -> dict[str, float | str | bool]:
+def planned_pulls(
+    run: AdaptiveRun, hand: IndependentHand, measure: Measure
+) -> tuple[str, dict[str, float]]:
+    """The record the adaptive plan planned last — its last step taken from the planner, or
+    when it took none the record the planner would take next, measured now — and for every
+    value with a tolerance its pull: (fitted − truth) / the σ the planner predicted for it
+    before it was measured. -> (the record's label, name -> pull)."""
+    records = dict(run.records)
+    if len(run.steps) > 1:
+        label, predicted = run.steps[-1].label, run.steps[-1].predicted
+    elif run.next is not None:
+        label, predicted = run.next.candidate.label, run.next.sigma_after
+        names: list[str] = []
+        for base, *_ in run.next.candidate.records:
+            names.append(unique_name(base, list(records) + names))
+        records.update(measure(run.next.candidate, names))
+    else:
+        return "", {}
+    fit = fit_model(build_dataset(Session("ADAPT", records)), BASE)
+    truth = simulate(hand.spec).truth()["constants"]
+    pulls = {}
+    for p in fit.parameters:
+        sigma = predicted.get(p.name, math.nan)
+        if TOLERANCES.get(p.name) and p.name in truth and math.isfinite(sigma) and sigma > 0:
+            pulls[p.name] = (p.value - float(truth[p.name])) / sigma
+    return label, pulls
+
+
+def one(seed: int, args: argparse.Namespace) -> dict[str, Any]:
     rng = np.random.default_rng([seed, 30])
     noise = {
         "accel_density": 0.0020 * float(rng.uniform(0.5, 2.0)),
@@ -144,7 +229,10 @@ def one(seed: int, args: argparse.Namespace) -> dict[str, float | str | bool]:
         return {n: as_record(r) for n, r in hand(c, names).items()}
 
     if args.stopping:
-        measured, measured_s = stopping_first(hand, target, args.min_static, args.max_static)
+        measured, measured_s = stopping_first(
+            hand, target, args.min_static, args.max_static,
+            by_axis=args.by_axis, pair_rule=args.pair_rule,
+        )  # fmt: skip
         first: list[Candidate] = []
     else:
         measured, measured_s, first = {}, 0.0, minimal_plan(args.min_static, 1)
@@ -152,7 +240,10 @@ def one(seed: int, args: argparse.Namespace) -> dict[str, float | str | bool]:
         measure, BASE, target=target, first=first, menu=menu, max_operator_s=3 * t_fixed,
         measured=measured, measured_s=measured_s,
     )  # fmt: skip
+    label, pulls = planned_pulls(run, hand, measure)
     return {
+        "planned": label,
+        "pulls": pulls,  # type: ignore[dict-item]
         "seed": seed,
         "fixed_s": t_fixed,
         "fixed_worst": w_fixed,
@@ -162,9 +253,41 @@ def one(seed: int, args: argparse.Namespace) -> dict[str, float | str | bool]:
         "adaptive_name": run.worst_name,
         "reached": run.reached,
         "records": len(run.records),
+        "took": len(run.steps) > 1,
         "bound_s": least_operator_s(rest),
         "balanced_s": balanced_plan_s(rest),
     }
+
+
+def print_pulls(rows: Sequence[dict[str, Any]]) -> None:
+    """Per value group of method.md §7, the RMS over the sessions of the pulls of the record
+    each adaptive plan planned last (:func:`planned_pulls`): 1 when the σ predicted before
+    measuring is the scatter of (fitted − truth); the item's ±15 %."""
+    taken = sum(1 for r in rows if r["took"])
+    print(
+        f"σ predicted for the record planned last (a planner's step in {taken} sessions,\n"
+        f"  the record it would plan next in {len(rows) - taken}), before measuring, against "
+        f"the scatter\n  of (fitted − truth): RMS of the pulls, 1 when σ is the scatter"
+    )
+    print("  value group                  pulls   RMS  within ±15 %")
+    pooled: list[float] = []
+    by_title: dict[str, list[float]] = {}
+    for title, names, _, tol in GROUPS:
+        if tol is None:
+            continue
+        for r in rows:
+            by_title.setdefault(title, []).extend(r["pulls"][n] for n in names if n in r["pulls"])
+    for title, pulls in by_title.items():
+        if not pulls:
+            continue
+        rms = float(np.sqrt(np.mean(np.square(pulls))))
+        pooled.extend(pulls)
+        ok = "yes" if 0.85 <= rms <= 1.15 else "NO"
+        print(f"  {title:<27}{len(pulls):>6}  {rms:>5.2f}  {ok}")
+    if pooled:
+        rms = float(np.sqrt(np.mean(np.square(pooled))))
+        ok = "yes" if 0.85 <= rms <= 1.15 else "NO"
+        print(f"  {'all':<27}{len(pooled):>6}  {rms:>5.2f}  {ok}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -183,39 +306,55 @@ def main(argv: list[str] | None = None) -> int:
         help="worst σ/tolerance the adaptive plan stops at (default: the fixed plan's own, on "
         "the same unit)",
     )  # fmt: skip
+    ap.add_argument(
+        "--method-order", dest="by_axis", action="store_false",
+        help="the first records in the method's order (six faces, then the turns), not axis "
+        "by axis with each pair right after its up face; each face then stops on its own "
+        "mean (the pair rule asks the up face measured second)",
+    )  # fmt: skip
+    ap.add_argument(
+        "--faces-alone", dest="pair_rule", action="store_false",
+        help="each face stops on its own mean, not the face pair's g-sensitivity with the "
+        "rest its turns add",
+    )  # fmt: skip
     args = ap.parse_args(argv)
     rows = []
     t0 = wall.monotonic()
-    print("seed  fixed s  worst (name)        adaptive s  worst (name)    records  ratio  bound s")
+    print("seed fixed s worst (name)     adaptive s worst (name)   records ratio bound s")
     for seed in range(args.seed0, args.seed0 + args.sessions):
         r = one(seed, args)
         rows.append(r)
         ratio = float(r["fixed_s"]) / float(r["adaptive_s"])
         print(
-            f"{seed:>4}  {r['fixed_s']:>7.0f}  {r['fixed_worst']:.4f} ({r['fixed_name']:<5})   "
-            f"{r['adaptive_s']:>10.0f}  {r['adaptive_worst']:.4f} ({r['adaptive_name']:<5})"
-            f"{r['records']:>5}  {ratio:5.2f}  {r['bound_s']:>7.0f}"
-            f"{'' if r['reached'] else '  not reached'}",
+            f"{seed:>4} {r['fixed_s']:>7.0f} {r['fixed_worst']:.4f} ({r['fixed_name']:<5})  "
+            f"{r['adaptive_s']:>10.0f} {r['adaptive_worst']:.4f} ({r['adaptive_name']:<5})"
+            f"{r['records']:>5} {ratio:5.2f} {r['bound_s']:>7.0f}"
+            f"{'' if r['reached'] else ' not reached'}",
             flush=True,
         )
-    ratios = [float(r["fixed_s"]) / float(r["adaptive_s"]) for r in rows]
-    print(
-        f"median operator time: fixed {statistics.median(float(r['fixed_s']) for r in rows):.0f} s,"
-        f" adaptive {statistics.median(float(r['adaptive_s']) for r in rows):.0f} s; "
-        f"median ratio fixed/adaptive {statistics.median(ratios):.2f}; target reached in "
-        f"{sum(bool(r['reached']) for r in rows)}/{len(rows)} ({wall.monotonic() - t0:.0f} s)"
-    )
     fixed_s = [float(r["fixed_s"]) for r in rows]
+    adaptive_s = [float(r["adaptive_s"]) for r in rows]
     bound = [float(r["bound_s"]) for r in rows]
     balanced = [float(r["balanced_s"]) for r in rows]
+
+    def ratio_of(a: list[float], b: list[float]) -> float:
+        return statistics.median(x / y for x, y in zip(a, b, strict=True))
+
+    print(
+        f"median operator time: fixed {statistics.median(fixed_s):.0f} s, adaptive "
+        f"{statistics.median(adaptive_s):.0f} s, ratio fixed/adaptive "
+        f"{ratio_of(fixed_s, adaptive_s):.2f}\n  (target reached in "
+        f"{sum(bool(r['reached']) for r in rows)}/{len(rows)}; {wall.monotonic() - t0:.0f} s)"
+    )
     what = "the fixed plan's precision" if args.target is None else f"σ/tolerance {args.target:g}"
     print(
-        f"no plan of these records reaches {what} in less than "
-        f"{statistics.median(bound):.0f} s (median; ratio fixed/bound "
-        f"{statistics.median(f / b for f, b in zip(fixed_s, bound, strict=True)):.2f}); six "
-        f"balanced faces, a pair after each up face: {statistics.median(balanced):.0f} s (ratio "
-        f"{statistics.median(f / b for f, b in zip(fixed_s, balanced, strict=True)):.2f})"
+        f"no plan of these records reaches {what} in less than\n"
+        f"  {statistics.median(bound):.0f} s (median; ratio fixed/bound "
+        f"{ratio_of(fixed_s, bound):.2f}); six balanced faces, a pair after\n"
+        f"  each up face: {statistics.median(balanced):.0f} s (ratio "
+        f"{ratio_of(fixed_s, balanced):.2f})"
     )
+    print_pulls(rows)
     return 0
 
 

@@ -61,7 +61,9 @@ def rest_information(ds: Dataset, fit: Fit, model: Sequence[ModelTerm]) -> np.nd
     return out
 
 
-def least_rest_s(rho: Sequence[float], worst: float, tolerance: float = GSENS_TOLERANCE) -> float:
+def least_rest_s(
+    rho: Sequence[float] | np.ndarray, worst: float, tolerance: float = GSENS_TOLERANCE
+) -> float:
     """3·κ (s): the rest no plan can do without for every GA to reach σ ≤ ``worst``·
     ``tolerance``, on the channel with the least information ``rho`` (per s, (°/s)⁻²/s)."""
     least = min(float(r) for r in rho)

@@ -7,7 +7,10 @@ of σ gives them σ/√2 (per g for a scale). The σ of a mean counts the sample
 correlation as the fit's noise model does (:func:`host.model.noise.integrated_autocorrelation`,
 at least the quantisation step²/12 a sample): σ² = s²·τ/N. It is looked at once a second of
 device time, never before the method's minimum (:data:`STATIC_MIN_S`) and never after the
-record's maximum.
+record's maximum. The second face of an axis may ask the face pair instead of itself: its
+g-sensitivities from both faces, counting the rest the turns made on it will add
+(:meth:`StaticRule.gyro_pair_sigma`) — the faces then balance, as the least-time plan does
+(:mod:`host.workbench.least_time`).
 
 Turns continue, a pair (one each way) at a time about an axis, until the σ of that axis's gyro
 scale in the fit of the records so far meets its target (:func:`turn_scale_ratio`), at most
@@ -109,34 +112,72 @@ class StaticRule:
         (N, 3) °/s."""
         return float(np.max(mean_sigma(accel))), float(np.max(mean_sigma(gyro)))
 
-    def stop(self, accel: np.ndarray, gyro: np.ndarray, elapsed_s: float) -> str | None:
+    def gyro_pair_sigma(
+        self, gyro: np.ndarray, elapsed_s: float, opposite: np.ndarray, extra_rest_s: float
+    ) -> float:
+        """σ (°/s) a face's gyro mean would need to have alone for its g-sensitivities to be
+        as well known as the rule asks of a face pair, with the opposite face measured
+        already (σ of its mean per gyro axis ``opposite``, °/s, as it will be once the rest
+        still to come on it is counted) and ``extra_rest_s`` s of rest on this face still to
+        come (the windows of the turns made on it: a turn about the
+        vertical keeps the face up), the largest over the axes: GA = (up − down)/2 has
+        σ² = (σ_up² + σ_down²)/4, σ_up² shrunk by T/(T + extra) for the rest to come."""
+        own = mean_sigma(gyro) ** 2 * elapsed_s / max(elapsed_s + extra_rest_s, 1e-9)
+        pair = own + np.asarray(opposite, dtype=float) ** 2
+        return float(np.sqrt(np.max(pair) / 2.0))
+
+    def stop(
+        self,
+        accel: np.ndarray,
+        gyro: np.ndarray,
+        elapsed_s: float,
+        *,
+        opposite: np.ndarray | None = None,
+        extra_rest_s: float = 0.0,
+    ) -> str | None:
         """Why the record stops now (its header's ``stopped``), or None: go on.
-        ``elapsed_s``: device time since its first sample, s."""
+        ``elapsed_s``: device time since its first sample, s. With ``opposite`` (σ of the
+        opposite face's mean per gyro axis, °/s) the gyro asks the face pair's g-sensitivity,
+        counting ``extra_rest_s`` s of rest still to come on this face
+        (:meth:`gyro_pair_sigma`), not this face alone."""
         if elapsed_s < self.min_s - 1e-9:
             return None
         sa, sg = self.sigmas(accel, gyro)
+        if opposite is not None:
+            sg = self.gyro_pair_sigma(gyro, elapsed_s, opposite, extra_rest_s)
         met = sa <= self.accel_sigma and sg <= self.gyro_sigma
         if not met and elapsed_s < self.max_s - 1e-9:
             return None
         what = "σ of the mean met its target" if met else "the maximum, target not met"
+        pair = (
+            "" if opposite is None
+            else f" with the opposite face and {extra_rest_s:g} s of turns to come"
+        )  # fmt: skip
         return (
-            f"{what} at {elapsed_s:.0f} s: gyro {sg:.2g} °/s (target {self.gyro_sigma:.2g}), "
-            f"accel {sa:.2g} m/s² (target {self.accel_sigma:.2g}); "
+            f"{what} at {elapsed_s:.0f} s: gyro {sg:.2g} °/s{pair} (target "
+            f"{self.gyro_sigma:.2g}), accel {sa:.2g} m/s² (target {self.accel_sigma:.2g}); "
             f"bounds {self.min_s:g}-{self.max_s:g} s"
         )
 
 
 def stop_index(
-    rule: StaticRule, t_s: np.ndarray, accel: np.ndarray, gyro: np.ndarray
+    rule: StaticRule,
+    t_s: np.ndarray,
+    accel: np.ndarray,
+    gyro: np.ndarray,
+    *,
+    opposite: np.ndarray | None = None,
+    extra_rest_s: float = 0.0,
 ) -> tuple[int, str]:
     """Where a static record of samples at ``t_s`` (N,) s would stop under ``rule``, looked at
     once every :data:`CHECK_EVERY_S` s, as the live measurement does: (number of samples kept,
-    the reason). The record's end when it never says stop."""
+    the reason). The record's end when it never says stop. ``opposite``, ``extra_rest_s``:
+    as :meth:`StaticRule.stop`."""
     t = np.asarray(t_s, dtype=float) - float(t_s[0])
     rate = (len(t) - 1) / t[-1] if len(t) > 1 and t[-1] > 0 else 1.0
     every = max(1, round(rate * CHECK_EVERY_S))
     for n in range(every, len(t) + 1, every):
-        why = rule.stop(accel[:n], gyro[:n], n / rate)
+        why = rule.stop(accel[:n], gyro[:n], n / rate, opposite=opposite, extra_rest_s=extra_rest_s)
         if why is not None:
             return n, why
     return len(t), f"the record ended at {len(t) / rate:.0f} s"

@@ -92,3 +92,28 @@ def test_turn_pairs_go_on_until_the_scale_meets_the_target_or_the_maximum() -> N
     why = turns_stop(0.06, 0.05, TURN_PAIRS_MAX)
     assert why is not None and "maximum" in why
     assert turns_stop(math.inf, 0.05, 1) is None
+
+
+def test_the_second_face_stops_when_the_pair_has_enough_with_the_turns_to_come() -> None:
+    """Target σ/tolerance 0.01: a face alone needs its gyro mean at 0.01·√2·0.1 °/s. With the
+    opposite face at 0.001 °/s the pair's g-sensitivity σ² = (σ_up² + 0.001²)/4 ≤ (0.001)²
+    asks σ_up² ≤ 3e-6; white noise of 0.05 °/s at 50 Hz gives σ_up² = 5e-5/T, and 4 s of turns
+    to come on the face shrink it to 5e-5/(T + 4): the face alone stops at 25 s, the pair at
+    16.7 s, with the turns at 12.7 s (hand-derived; looked at once a second)."""
+    rng = np.random.default_rng(12)
+    rate, sd = 50.0, 0.05
+    t = np.arange(0.0, 60.0, 1.0 / rate)
+    gyro = rng.normal(0.0, sd, (len(t), 3))
+    accel = rng.normal(9.8, 1e-4, (len(t), 3))
+    rule = StaticRule(accel_sigma=1.0, gyro_sigma=0.01 * math.sqrt(2.0) * 0.1, max_s=60.0)
+    opposite = np.full(3, 0.001)
+    alone, _ = stop_index(rule, t, accel, gyro)
+    pair, _ = stop_index(rule, t, accel, gyro, opposite=opposite)
+    turns, why = stop_index(rule, t, accel, gyro, opposite=opposite, extra_rest_s=4.0)
+    assert 23.0 <= alone / rate <= 27.0
+    assert 15.0 <= pair / rate <= 19.0
+    assert 11.0 <= turns / rate <= 15.0
+    assert "opposite face and 4 s of turns" in why
+    # an opposite face alone past the pair's target (0.0021² > 2·0.001414²): to the maximum
+    n, why = stop_index(rule, t, accel, gyro, opposite=np.full(3, 0.0021))
+    assert n == len(t) and "target not met" in why
