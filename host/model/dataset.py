@@ -225,36 +225,57 @@ def _static_blocks(
     return out
 
 
+def turn_pairs(signals: Sequence[RecordSignals], timed: bool) -> list[tuple[int, int, int]]:
+    """(up axis, ccw record, cw record) for each pair of turns made both ways about an axis:
+    its ccw turns paired with its cw turns in the order measured (the first with the first, the
+    second with the second, …; by first sample time when ``timed``, else as the records are
+    listed); a turn without a partner is left out."""
+    by_dir: dict[tuple[int, int], list[tuple[float, int]]] = {}
+    for r, sig in enumerate(signals):
+        if sig.kind != "turn":
+            continue
+        k = int(np.argmax(np.abs(sig.up)))
+        turned = float(np.sum(sig.rate[:, k]))
+        if turned != 0.0:
+            start = float(sig.t_s[0]) if timed and len(sig.t_s) else 0.0
+            by_dir.setdefault((k, int(np.sign(turned))), []).append((start, r))
+    out: list[tuple[int, int, int]] = []
+    for k in range(3):
+        ccw = [r for _, r in sorted(by_dir.get((k, 1), []))]
+        cw = [r for _, r in sorted(by_dir.get((k, -1), []))]
+        out.extend((k, a, b) for a, b in zip(ccw, cw, strict=False))
+    return out
+
+
 def _turn_closures(
-    table: RowTable, signals: list[RecordSignals], rest: np.ndarray
+    table: RowTable, signals: list[RecordSignals], rest: np.ndarray, timed: bool
 ) -> list[TurnClosure]:
-    """Per axis turned both ways and gyro channel, the two integrals and what the static records
-    say the gyro reads at rest there (``rest`` (4, 3): the gyro's g-sensitivity per g and bias
-    from the statics): :func:`host.model.variance.turn_angle_sigma`."""
+    """Per pair of turns made both ways about an axis (:func:`turn_pairs`) and gyro channel,
+    the two integrals and what the static records say the gyro reads at rest there (``rest``
+    (4, 3): the gyro's g-sensitivity per g and bias from the statics), each with its own white
+    noise: :func:`host.model.variance.turn_angle_sigma`."""
     statics = [len(sig.t_s) for sig in signals if sig.kind != "turn"]
     n_static = float(np.median(statics)) if statics else 1.0
-    turns: dict[tuple[int, int], dict[int, tuple[float, float, float, float]]] = {}
+    got: dict[tuple[int, int], tuple[float, float, float, float]] = {}
     for ch in table.channels:
         sig = signals[ch.record]
         if sig.kind != "turn" or ch.sensor != "gyro":
             continue
-        k = int(np.argmax(np.abs(sig.up)))
         w = ch.aggregator[0]
-        turned = float(sig.rate[:, k] @ w)
         at_rest = float(np.concatenate([sig.up, [1.0]]) @ rest[:, ch.axis])  # force in g
-        got = (table.y[ch.rows[0]], at_rest, float(w.sum()), float(w @ w))
-        turns.setdefault((k, ch.axis), {})[int(np.sign(turned))] = got
+        got[(ch.record, ch.axis)] = (table.y[ch.rows[0]], at_rest, float(w.sum()), float(w @ w))
     out = []
-    for (k, ax), by_dir in sorted(turns.items()):
-        if set(by_dir) != {-1, 1}:
-            continue
-        levels = table.static_noise.get(("gyro", ax), [(0.0, 1.0)])
-        v = float(np.mean([a * t for a, t in levels]))
-        (i1, r1, t1, ww1), (i2, _, t2, ww2) = by_dir[1], by_dir[-1]
-        # the white noise of both integrals, and of the rest reading (about one static
-        # record's mean) carried over both durations
-        white = v * (ww1 + ww2) + v / n_static * (t1 + t2) ** 2
-        out.append(TurnClosure(k, ax, (i1, i2), r1, (t1, t2), white))
+    for k, ccw, cw in turn_pairs(signals, timed):
+        for ax in range(3):
+            if (ccw, ax) not in got or (cw, ax) not in got:
+                continue
+            levels = table.static_noise.get(("gyro", ax), [(0.0, 1.0)])
+            v = float(np.mean([a * t for a, t in levels]))
+            (i1, r1, t1, ww1), (i2, _, t2, ww2) = got[(ccw, ax)], got[(cw, ax)]
+            # the white noise of both integrals, and of the rest reading (about one static
+            # record's mean) carried over both durations
+            white = v * (ww1 + ww2) + v / n_static * (t1 + t2) ** 2
+            out.append(TurnClosure(k, ax, (i1, i2), r1, (t1, t2), white))
     return out
 
 
@@ -361,7 +382,7 @@ def build_dataset(
     hand, hand_note = hand_sigma(signals, sensor_aggs, n_still, white_level)
     if hand_note:
         notes.append(hand_note)
-    closures = _turn_closures(table, signals, pre)
+    closures = _turn_closures(table, signals, pre, has_power)
     wobble = turn_wobble_sigma([c for c in closures if c.axis != c.channel])
     if nm.turn_angle_sigma_deg is None:
         angle = turn_angle_sigma([c for c in closures if c.axis == c.channel])

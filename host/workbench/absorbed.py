@@ -1,7 +1,8 @@
 """A yardstick that does not contain the candidate's own signal (issue 24).
 
 The turn-angle variance component (:func:`host.model.variance.turn_angle_sigma`) is measured
-from the closure of the turns made both ways about an axis (ccw + cw less the static reading).
+from the closures of the turns made both ways about an axis (each ccw + cw pair less the static
+reading).
 A term that is nothing at rest and even in the turn's direction (a gyro scale asymmetry,
 ½·asym·|ω|; a quadratic scale, k2·ω²) moves that closure exactly as a hand's angle error does,
 so a yardstick measured with it absorbs the very signal the term would explain, and the
@@ -17,7 +18,7 @@ import math
 
 import numpy as np
 
-from host.model.dataset import Dataset
+from host.model.dataset import Dataset, turn_pairs
 from host.model.design import term_columns
 from host.model.spec import ModelTerm
 from host.model.variance import turn_angle_sigma
@@ -27,21 +28,16 @@ from host.model.variance import turn_angle_sigma
 EVEN_TOL = 1e-6
 
 
-def _turn_pairs(ds: Dataset) -> dict[int, tuple[int, int]]:
-    """Up axis -> (row of the ccw turn's integral on that axis, row of the cw one), for the
-    axes turned both ways."""
-    by_axis: dict[int, dict[int, int]] = {}
-    for r, sig in enumerate(ds.signals):
-        if sig.kind != "turn":
-            continue
-        k = int(np.argmax(np.abs(sig.up)))
-        rows = ds.rows_of.get((r, "gyro", k))
-        if rows is None or len(rows) != 1:
-            continue
-        turned = float(np.sum(sig.rate[:, k]))
-        if turned != 0.0:
-            by_axis.setdefault(k, {})[int(np.sign(turned))] = int(rows[0])
-    return {k: (d[1], d[-1]) for k, d in by_axis.items() if set(d) == {-1, 1}}
+def _turn_pairs(ds: Dataset) -> list[tuple[int, int, int]]:
+    """(up axis, row of the ccw turn's integral on that axis, row of the cw one) for each pair
+    of turns made both ways about an axis, paired as the closures are
+    (:func:`host.model.dataset.turn_pairs`)."""
+    out: list[tuple[int, int, int]] = []
+    for k, ccw, cw in turn_pairs(ds.signals, ds.time_known):
+        a, b = ds.rows_of.get((ccw, "gyro", k)), ds.rows_of.get((cw, "gyro", k))
+        if a is not None and b is not None and len(a) == len(b) == 1:
+            out.append((k, int(a[0]), int(b[0])))
+    return out
 
 
 def closure_axes(ds: Dataset, mt: ModelTerm) -> frozenset[int]:
@@ -53,7 +49,7 @@ def closure_axes(ds: Dataset, mt: ModelTerm) -> frozenset[int]:
         return frozenset()
     x, _ = term_columns(ds, mt)
     out = set()
-    for k, (ccw, cw) in _turn_pairs(ds).items():
+    for k, ccw, cw in _turn_pairs(ds):
         ends = np.abs(x[[ccw, cw]]).max()
         if not ends > 0:
             continue

@@ -97,11 +97,14 @@ class TurnProfile:
     """A hand turn of ``n`` whole turns as quarter turns with rests: the rate about the plate's
     normal is A_k·sin²(π·τ/T_k) within quarter k (each exactly 90°), zero at the rests.
 
-    ``starts`` (4n,) s from the record's start, ``durations`` (4n,) s, ``sign`` +1 ccw, −1 cw."""
+    ``starts`` (4n,) s from the record's start, ``durations`` (4n,) s, ``sign`` +1 ccw, −1 cw;
+    ``scale``: the hand turns every quarter this many times 90° (1: exact; 1 + e/(360·n): a
+    turn e° long)."""
 
     starts: np.ndarray
     durations: np.ndarray
     sign: int
+    scale: float = 1.0
 
     def angle_deg(self, t: np.ndarray) -> np.ndarray:
         """Turned angle (signed, °) at record times ``t`` (s)."""
@@ -109,7 +112,7 @@ class TurnProfile:
         for t0, d in zip(self.starts, self.durations, strict=True):
             tau = np.clip(t - t0, 0.0, d)
             out += 90.0 * (tau / d - np.sin(2 * math.pi * tau / d) / (2 * math.pi))
-        return self.sign * out
+        return self.sign * self.scale * out
 
     def rate_dps(self, t: np.ndarray) -> np.ndarray:
         """Rate about the plate's normal, °/s."""
@@ -117,7 +120,7 @@ class TurnProfile:
         for t0, d in zip(self.starts, self.durations, strict=True):
             inside = (t >= t0) & (t <= t0 + d)
             out[inside] += (180.0 / d) * np.sin(math.pi * (t[inside] - t0) / d) ** 2
-        return self.sign * out
+        return self.sign * self.scale * out
 
     def accel_dps2(self, t: np.ndarray) -> np.ndarray:
         """Angular acceleration about the plate's normal, °/s²."""
@@ -125,7 +128,7 @@ class TurnProfile:
         for t0, d in zip(self.starts, self.durations, strict=True):
             inside = (t >= t0) & (t <= t0 + d)
             out[inside] += (180.0 / d) * (math.pi / d) * np.sin(2 * math.pi * (t[inside] - t0) / d)
-        return self.sign * out
+        return self.sign * self.scale * out
 
 
 def hand_turn(

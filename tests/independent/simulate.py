@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +57,9 @@ class SessionSpec:
     temp_noise_c: float = 0.02
     quantise: bool = True
     latitude_deg: float = 55.75
+    #: the hand's turn-angle error: each turn record is long by a normal draw of this std, °
+    #: (0: every turn exactly 360°·n)
+    turn_angle_sd_deg: float = 0.0
     height_m: float = 150.0
     #: records measured after the plan (a face or a turn again: 'y_dn_2', 'z_ccw_2'), each
     #: as long as its kind's records in the plan, or (name, seconds) for a static of its own
@@ -167,9 +170,12 @@ def _record(
     if kind == "turn":
         sign = 1 if name.split("_")[1] == "ccw" else -1
         prof = ph.hand_turn(rng, spec.turns, duration_s, sign, quarter_s=0.95 / pace)
+        if spec.turn_angle_sd_deg > 0:  # drawn only then: the other sessions keep their stream
+            err = float(rng.normal(0.0, spec.turn_angle_sd_deg))
+            prof = replace(prof, scale=1.0 + err / (360.0 * spec.turns))
         psi = psi + np.radians(prof.angle_deg(t_s))
         rate_up, acc_up = prof.rate_dps(t_s), prof.accel_dps2(t_s)
-        turn_deg = 360.0 * spec.turns * sign
+        turn_deg = 360.0 * spec.turns * sign * prof.scale
     # gravity's up in the plate frame, seen from the turned cube: rotate by −ψ about the normal
     c, sn = np.cos(psi), np.sin(psi)
     w = np.column_stack(
