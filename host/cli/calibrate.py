@@ -10,12 +10,11 @@ directory and then computes like the from-dir mode. Either way the result lands 
 from __future__ import annotations
 
 import argparse
-import shlex
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from host.calib.commands import command_lines
+from host.calib.commands import command_lines, said_with_command
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.report import path_lines, verdict_line
 from host.calib.result import CalibrationResult
@@ -200,12 +199,11 @@ def run(args: argparse.Namespace) -> int:
         rec = session.records.get(name) if name is not None else None
         if name is None or rec is None or "importer" in rec.meta:  # imported: nothing to redo
             raise
-        cmd = " ".join(
-            shlex.quote(a)
-            for a in ("python3", "-m", "host", "calibrate", "--serial", session.serial,
-                      "--out", str(args.from_dir), "--redo", name)
-        )  # fmt: skip
-        raise UserError(f"{exc}; measure {name} again (the others are kept) with: {cmd}") from None
+        cmd = ["python3", "-m", "host", "calibrate", "--serial", session.serial,
+               "--out", str(args.from_dir), "--redo", name]  # fmt: skip
+        raise UserError(
+            said_with_command(f"{exc}; measure {name} again (the others are kept) with:", cmd)
+        ) from None
     return 0 if result.all_passed else 1
 
 

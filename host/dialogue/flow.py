@@ -51,6 +51,7 @@ import serial
 from host.board.acquisition import BoardReset, MeasurementAborted, SensorFault
 from host.board.driver import BoardInfo, default_port
 from host.board.link import LinkLost, LinkTimeout
+from host.calib.commands import said_with_command
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.report import verdict_line
 from host.dialogue import adaptive, screens
@@ -237,8 +238,9 @@ class CalibrationDialogue(Recorder):
         ]
         if missing:
             raise ResumableError(
-                f"the results need the six static records; missing {', '.join(missing)}; "
-                + self._resume_hint()
+                self._resume_hint(
+                    f"the results need the six static records; missing {', '.join(missing)}"
+                )
             )
         session = read_session(self.out_dir, self.serial)
         settings = ComputeSettings(
@@ -259,8 +261,10 @@ class CalibrationDialogue(Recorder):
             if name is None:
                 raise
             raise ResumableError(
-                f"{exc}; measure {name} again (the other records are kept) with: "
-                + self.command(then=("--redo", name))
+                said_with_command(
+                    f"{exc}; measure {name} again (the other records are kept) with:",
+                    self.command_words(then=("--redo", name)),
+                )
             ) from None
         pdf = f", {pub.pdf_path}" if pub.pdf_path is not None else ""
         op.say(f"Results: {pub.report_path} and {pub.json_path}{pdf}")
@@ -321,7 +325,7 @@ def run_dialogue(
                 else f"Aborted ({why}): the measurement in progress is discarded."
             )
             if session is not None and session.serial:
-                con.say(session._resume_hint())
+                con.say(session._resume_hint(first=0))
         return exc.exit_status if isinstance(exc, EndedBySignal) else 130
     except (UserError, OSError) as exc:
         # a session ending on an error (disk full, sensor failed, board gone) always says how
@@ -330,7 +334,7 @@ def run_dialogue(
         if session is None or not session.serial or told:
             raise
         text = str(exc) if isinstance(exc, UserError) else str(write_error(exc.filename, exc))
-        raise UserError(f"{text}; {session._resume_hint()}") from None
+        raise UserError(session._resume_hint(text)) from None
     finally:
         if session is not None:
             session.board.close()

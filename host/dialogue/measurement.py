@@ -69,7 +69,7 @@ def acquire(
     *,
     yes: bool,
     recover: Callable[[Exception], None],
-    resume_hint: Callable[[], str],
+    resume_hint: Callable[[str], str],
     enough: Callable[[np.ndarray, float], bool] | None = None,
 ) -> Acquisition | None:
     """Beep, record ``seconds`` of device time with a progress line (or less, when
@@ -103,7 +103,7 @@ def acquire(
         op.say(f"!!! {exc}")
         op.say(f"!!! the measurement of {name} is discarded")
         if yes or not op.yes_no("Measure again <Y> or stop <N>?", True):
-            raise ResumableError(f"{name}: {exc}; {resume_hint()}") from None
+            raise ResumableError(resume_hint(f"{name}: {exc}")) from None
         return None
     op.end_progress()
     op.beep()
@@ -121,7 +121,7 @@ def reconnect(
     measuring: bool,
     yes: bool,
     limit_s: float | None,
-    resume_hint: Callable[[], str],
+    resume_hint: Callable[[str], str],
 ) -> None:
     """The board vanished or went silent (``exc``): say so, re-open the port every second until
     it is back. ResumableError (with ``resume_hint()``) after ``limit_s`` s (None: no limit) or
@@ -147,11 +147,9 @@ def reconnect(
         except (serial.SerialException, OSError, LinkLost, LinkTimeout):
             pass
         if limit_s is not None and time.monotonic() - start > limit_s:
-            raise ResumableError(
-                f"the board did not come back within {limit_s:.0f} s; {resume_hint()}"
-            )
+            raise ResumableError(resume_hint(f"the board did not come back within {limit_s:.0f} s"))
         if op.countdown(1.0, f"  waiting for the board (attempt {attempt})", False):
-            raise ResumableError(f"gave up waiting for the board; {resume_hint()}")
+            raise ResumableError(resume_hint("gave up waiting for the board"))
     op.say(f"The board is back: {info.describe()}")
 
 

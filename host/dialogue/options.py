@@ -133,6 +133,11 @@ class DialogueOptions:
     #: called with (output directory, session) once the result files are written; returns the
     #: line to say (``calibrate`` archives the result there: host.cli.calibrate.archive_line)
     after_publish: Callable[[Path, Session], str] | None = None
+    #: where ``calibrate`` archives the result (``after_publish``): repeated in the command
+    #: that continues the session, so a resumed session is archived where the first was
+    archive: str | None = None
+    lot: str | None = None
+    no_archive: bool = False
 
     @classmethod
     def from_args(cls, args: argparse.Namespace | DialogueOptions) -> DialogueOptions:
@@ -176,6 +181,9 @@ class DialogueOptions:
             target=float(get("target", 0.05)),
             max_extra=int(get("max_extra", 12)),
             after_publish=get("after_publish"),
+            archive=get("archive"),
+            lot=get("lot"),
+            no_archive=bool(get("no_archive", False)),
         )
 
     def check(self) -> None:
@@ -267,6 +275,20 @@ class DialogueOptions:
         """The ``calibrate`` command line that repeats this session's options (those given
         and those answered at the prompts) followed by ``then`` (e.g. ``--resume``); every
         word quoted for a POSIX shell (:func:`shlex.quote`), so it pastes back as it was."""
+        words = self.command_words(serial, static_seconds=static_seconds, turns=turns,
+                                   port=port, then=then)  # fmt: skip
+        return " ".join(shlex.quote(a) for a in words)
+
+    def command_words(
+        self,
+        serial: str,
+        *,
+        static_seconds: float | None,
+        turns: int | None,
+        port: str,
+        then: Sequence[str] = ("--resume",),
+    ) -> list[str]:
+        """The words of :meth:`command` (unquoted: what the shell passes the program)."""
         args = ["python3", "-m", "host", "calibrate", "--port", port, "--serial", serial,
                 "--out", str(self.out_dir_for(serial))]  # fmt: skip
         if static_seconds is not None:
@@ -290,12 +312,17 @@ class DialogueOptions:
                          ("--noise", self.noise)):  # fmt: skip
             if val:
                 args += [opt, val]
-        if not self.closing:
-            args += ["--no-closing"]
-        if not self.self_test:
-            args += ["--no-self-test"]
-        args += [a for a, on in (("--yes", self.yes), ("--json", self.json)) if on]
-        return " ".join(shlex.quote(a) for a in [*args, *then])
+        for opt, val in (("--operator", self.operator), ("--bench", self.bench),
+                         ("--archive", self.archive), ("--lot", self.lot)):  # fmt: skip
+            if val:
+                args += [opt, val]
+        if self.plan != "fixed":  # the resumed session plans as this one did
+            args += ["--plan", self.plan, "--target", _number(self.target),
+                     "--max-extra", str(self.max_extra)]  # fmt: skip
+        flags = (("--no-closing", not self.closing), ("--no-self-test", not self.self_test),
+                 ("--pdf", self.pdf), ("--no-archive", self.no_archive), ("--yes", self.yes),
+                 ("--json", self.json))  # fmt: skip
+        return [*args, *(a for a, on in flags if on), *then]
 
 
 def _number(x: float) -> str:

@@ -21,6 +21,7 @@ from host.board.acquisition import Acquisition
 from host.board.driver import Board
 from host.board.link import LinkLost, LinkTimeout
 from host.calib.calibration import stage1
+from host.calib.commands import ERROR_LEAD, said_with_command
 from host.dialogue import screens
 from host.dialogue.adaptive import model_of
 from host.dialogue.console import Console, Questions
@@ -123,15 +124,27 @@ class Recorder:
 
     def command(self, then: Sequence[str] = ("--resume",)) -> str:
         """This session's command line (every option given or answered) plus ``then``."""
-        return self.opts.command(self.serial, static_seconds=self.static_seconds,
-                                 turns=self.turns, port=self.board.url, then=then)  # fmt: skip
+        return shlex.join(self.command_words(then))
 
-    def _resume_hint(self) -> str:
+    def command_words(self, then: Sequence[str] = ("--resume",)) -> list[str]:
+        """The words of :meth:`command` (unquoted)."""
+        o = self.opts
+        return o.command_words(self.serial, static_seconds=self.static_seconds,
+                               turns=self.turns, port=self.board.url, then=then)  # fmt: skip
+
+    def _resume_hint(self, before: str = "", first: int = ERROR_LEAD) -> str:
+        """``before`` (what stopped the session), what is kept and the command that continues
+        it, on lines of its own (:func:`host.calib.commands.said_with_command`: within 80
+        columns but for a long path, and it runs as printed); ``first``: the columns before
+        the first line (an error's ``error: ``)."""
+        lead = f"{before}; " if before else ""
         if not self.serial:
-            cmd = f"python3 -m host calibrate --port {shlex.quote(self.board.url)}"
-            return f"nothing was saved; start again with: {cmd}"
+            cmd = ["python3", "-m", "host", "calibrate", "--port", self.board.url]
+            return said_with_command(f"{lead}nothing was saved; start again with:", cmd,
+                                     first=first)  # fmt: skip
         n = len(self._existing_names())
-        return f"{n} accepted records are kept in {self.out_dir}; continue with: {self.command()}"
+        text = f"{lead}{n} accepted records are kept in {self.out_dir}; continue with:"
+        return said_with_command(text, self.command_words(), first=first)
 
     def _existing_names(self) -> list[str]:
         return [
@@ -341,8 +354,7 @@ class Recorder:
             op.say(f"!!! {p}")
         if self.opts.yes and attempts >= YES_MAX_ATTEMPTS:
             raise ResumableError(
-                f"{name}: still wrong after {attempts} attempts ({problems[0]}); "
-                + self._resume_hint()
+                self._resume_hint(f"{name}: still wrong after {attempts} attempts ({problems[0]})")
             )
         return not op.yes_no("Repeat <Y> or save anyway <N>?", True)
 

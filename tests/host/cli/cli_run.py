@@ -57,3 +57,13 @@ def command_from(lines: list[str], lead: str = "Next: ") -> list[str]:
     body = [lines[i].strip().removeprefix(lead), *lines[i + 1 : n]]
     body[-1] = body[-1].removesuffix("(what the model lacks)")
     return pasted(body)
+
+
+def command_after(text: str, said: str = "with:") -> list[str]:
+    """The words of the command printed on the lines after the last line of ``text`` that ends
+    with ``said`` (a resume hint's ``continue with:``, its last word alone on a line when the
+    sentence is wrapped), over its ``\\`` continuations, as a shell reads it pasted."""
+    lines = text.splitlines()
+    i = max(k for k, ln in enumerate(lines) if ln.rstrip().endswith(said)) + 1
+    n = next(j for j in range(i, len(lines)) if not lines[j].rstrip().endswith("\\")) + 1
+    return pasted(lines[i:n])

@@ -25,6 +25,7 @@ from host.session.directory import read_record
 from host.wire import protocol_gen as gen
 from host.wire.frames import IMU_SAMPLE, _envelope, encode_frame
 from host.wire.stream import StreamDecoder
+from tests.host.cli.cli_run import command_after, too_wide
 from tests.host.dialogue.test_flow import LINEAR, Ports, opts, run
 
 SPI_FAULT = gen.ENUMS["error_code"]["SPI_FAULT"]
@@ -81,7 +82,7 @@ def test_yes_stalled_board_ends_with_resume_hint(tmp_path: Path) -> None:
         run(o, ScriptedConsole(), ports)
     msg = str(err.value)
     assert "no samples from the board for 1.5 s" in msg
-    assert "--resume" in msg and "--serial S1" in msg
+    assert command_after(msg)[-1] == "--resume" and "S1" in command_after(msg)
     assert time.monotonic() - t0 < 30
     # the first static (3 s of sim time before the sensor died at 5 s) is kept, whole
     kept = sorted(p.name for p in (tmp_path / "S1").glob("S1_*_*.txt"))
@@ -130,7 +131,7 @@ def test_interactive_sensor_fault_offers_again_or_stop(tmp_path: Path) -> None:
              sample_stall_s=1.0)  # fmt: skip
     # serial given; keys: stage 1 Y, place x_up, save Y, place x_dn (the sensor dies), stop N
     con = ScriptedConsole(["y", " ", "y", " ", "n", CTRL_C])
-    with pytest.raises(UserError, match=r"x_dn: no samples .* continue with: .*--resume"):
+    with pytest.raises(UserError, match=r"(?s)x_dn: no samples .*\swith:\n.*--resume"):
         run(o, con, dies(after_s=5.0))
     assert "Measure again <Y> or stop <N>?" in con.text
     assert (tmp_path / "S1" / "S1_x_up.txt").exists()
@@ -157,11 +158,12 @@ def test_disk_full_in_a_live_session_names_the_record_and_prints_the_resume_hint
     o = opts(tmp_path, f"sim://?seed=25&{LINEAR}", static_seconds=2.0)
     with pytest.raises(UserError) as err:
         run(o, ScriptedConsole(), Ports())
-    msg = str(err.value)
+    msg = " ".join(str(err.value).split())  # the sentence, wrapped at words
     out = tmp_path / "S1"
     assert f"cannot write {out / 'S1_x_dn.txt'}: the disk is full" in msg
     assert ".tmp" not in msg
-    assert f"1 accepted records are kept in {out}; continue with:" in msg and "--resume" in msg
+    assert f"1 accepted records are kept in {out}; continue with:" in " ".join(msg.split())
+    assert command_after(str(err.value))[-1] == "--resume"
     assert sorted(p.name for p in out.glob("S1_*_*.txt")) == ["S1_x_up.txt"]
 
 
@@ -219,11 +221,13 @@ def test_disk_full_on_the_session_capture_keeps_what_was_recorded(
     o = opts(tmp_path, f"sim://?seed=26&{LINEAR}", static_seconds=2.0, turns=1)
     with pytest.raises(UserError) as err:
         run(o, ScriptedConsole(), Ports())
-    msg = str(err.value)
+    said = str(err.value)
+    msg = " ".join(said.split())  # the sentence, wrapped at words
     out = tmp_path / "S1"
     cap = out / "S1_session.cap"
     assert f"cannot write {cap}: the disk is full; what was read before is in it" in msg
-    assert "\n" not in msg and "--resume" in msg and "accepted records are kept" in msg
+    assert too_wide(said) == [] and command_after(said)[-1] == "--resume"
+    assert "accepted records are kept" in msg
     kept = session_records(out)
     assert kept and all(n >= 2 for n in kept.values())  # each whole, as accepted
     assert f"{len(kept)} accepted records are kept" in msg
@@ -259,9 +263,10 @@ def test_a_really_full_disk_in_a_live_session_then_resume(tmp_path: Path) -> Non
         err = io.StringIO()
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
             rc = main(argv)
-        lines = [x for x in err.getvalue().splitlines() if x.startswith("error:")]
-        assert rc == 2 and len(lines) == 1, err.getvalue()[-1500:]
-        assert "the disk is full" in lines[0] and "--resume" in lines[0]
+        said = err.getvalue()[err.getvalue().index("error:") :]
+        assert rc == 2 and said.count("error:") == 1, err.getvalue()[-1500:]
+        assert "the disk is full" in " ".join(said.split()) and too_wide(said) == []
+        assert command_after(said)[-1] == "--resume"
         assert "Traceback" not in err.getvalue()
         kept = session_records(out)  # every record on the disk reads whole
         assert 0 < len(kept) < 10

@@ -346,8 +346,10 @@ def test_ctrl_c_during_a_measurement_then_resume(
     s.expect(r"y_up \[#*-+\]")  # the progress line is running
     s.send("\x03")
     s.expect(r"Aborted \(Ctrl\+C\): the measurement in progress is discarded")
-    m = s.expect(r"continue with: (.*--serial C1 --out C1 --static-seconds 3 --warmup 0 --resume)")
-    printed = shlex.split(m.group(1))
+    m = s.expect(r"continue with:\s*\n((?:.*\\\s*\n)*.*--resume)")
+    printed = shlex.split(m.group(1).replace("\r", "").replace("\\\n", ""))
+    assert printed[4:] == ["--port", printed[5], "--serial", "C1", "--out", "C1",
+                           "--static-seconds", "3", "--warmup", "0", "--resume"]  # fmt: skip
     assert s.wait() == 130
     assert "Save <Y> or repeat <N>?" not in s.text.split("Measuring y_up")[1]
     out = tmp_path / "C1"

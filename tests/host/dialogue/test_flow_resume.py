@@ -20,6 +20,7 @@ from host.dialogue.console import CTRL_C, ScriptedConsole
 from host.errors import UserError
 from host.session.directory import read_record
 from host.session.records import STATIC_NAMES, TURN_NAMES
+from tests.host.cli.cli_run import command_after, too_wide
 from tests.host.dialogue.test_flow import LINEAR, Ports, run
 from tests.host.dialogue.test_flow import opts as live_opts
 
@@ -96,8 +97,7 @@ def test_ctrl_c_prints_a_command_with_every_option_and_the_answers(tmp_path: Pat
     rc, _ = run(o, con, Ports())
     assert rc == 130
     assert "Aborted (Ctrl+C): the measurement in progress is discarded." in con.text
-    line = [ln for ln in con.text.splitlines() if "continue with: " in ln][-1]
-    again = options_of(line.split("continue with: ", 1)[1])
+    again = options_of(shlex.join(command_after(con.text)))
     assert again.resume and again.port == url and again.serial == "F1"
     assert again.out == out
     assert (again.static_seconds, again.turns, again.warmup_s, again.ready_s) == (
@@ -128,6 +128,31 @@ def test_redo_measures_one_record_again_and_keeps_the_others(tmp_path: Path) -> 
     }
 
 
+def test_a_resume_hint_keeps_to_80_columns_and_pastes_back_whatever_the_path(
+    tmp_path: Path,
+) -> None:
+    """Was: '… continue with: python3 -m host calibrate … --out DIR …' as one line of 200
+    columns when --out was long, and the command left out the adaptive plan, the operator,
+    the bench and the archive (a resumed session planned and archived otherwise). Now the
+    command is on lines of its own, only the path passes 80 columns, and a shell reads back
+    every option, the path with its spaces and commas too."""
+    out = tmp_path / ("a long directory, with spaces and a comma, " * 2) / "F1"
+    url = f"sim://?seed=6&{LINEAR}"
+    o = opts(tmp_path, url, out=out, yes=False, plan="adaptive", target=0.08, max_extra=3,
+             operator="Ann Lee", bench="B2", lot="L7", archive=str(tmp_path / "a.sqlite"),
+             pdf=True)  # fmt: skip
+    con = ScriptedConsole(["y", " ", "y", " ", CTRL_C])  # statics, x_up saved, Ctrl+C in x_dn
+    rc, _ = run(o, con, Ports())
+    assert rc == 130 and (out / "F1_x_up.txt").exists()
+    hint = con.text.split("Aborted (Ctrl+C)", 1)[1]  # the prose before: wrapped on screen
+    assert too_wide(hint) == [], hint
+    again = options_of(shlex.join(command_after(con.text)))
+    assert again.out == out and again.resume and again.port == url
+    assert (again.plan, again.target, again.max_extra) == ("adaptive", 0.08, 3)
+    assert (again.operator, again.bench, again.lot, again.pdf) == ("Ann Lee", "B2", "L7", True)
+    assert again.archive == str(tmp_path / "a.sqlite")
+
+
 @pytest.mark.slow
 def test_a_turn_kept_despite_its_warning_ends_with_the_record_to_redo(tmp_path: Path) -> None:
     """'Save anyway' on an incomplete turn: the record keeps the warning in its header; the
@@ -143,18 +168,20 @@ def test_a_turn_kept_despite_its_warning_ends_with_the_record_to_redo(tmp_path: 
     with pytest.raises(UserError) as e:
         run(opts(tmp_path, url, yes=False, out=tmp_path / "a b" / "F1"), con, Ports())
     msg = str(e.value)
-    assert "F1_x_ccw.txt" in msg and "measure x_ccw again" in msg
+    assert "F1_x_ccw.txt" in msg and "measure x_ccw again" in " ".join(msg.split())
     assert "--resume" not in msg  # one command, the one that helps
     header = read_record(tmp_path / "a b" / "F1" / "F1_x_ccw.txt").meta
     assert "turn" in header["warning"]
-    again = options_of(msg.split(" with: ", 1)[1])
+    said = command_after(msg, "with:")
+    again = options_of(shlex.join(said))
     assert again.redo == ("x_ccw",) and again.static_seconds == 2.0 and again.turns == 1
     # --resume (everything measured) does not stop on the bare error either: it names the redo
-    resumed = options_of(msg.split(" with: ", 1)[1].replace("--redo x_ccw", "--resume"))
+    resumed = options_of(shlex.join([*said[:-2], "--resume"]))
     resumed.yes = True
     with pytest.raises(UserError) as e2:
         run(resumed, ScriptedConsole(), Ports())
-    assert "measure x_ccw again" in str(e2.value) and str(e2.value).endswith("--redo x_ccw")
+    assert "measure x_ccw again" in " ".join(str(e2.value).split())
+    assert command_after(str(e2.value), "with:")[-2:] == ["--redo", "x_ccw"]
     assert again.out == tmp_path / "a b" / "F1"
     again.yes = True
     again.port = f"sim://?seed=12&{LINEAR}"  # the same bench, without the operator's fault
@@ -171,14 +198,15 @@ def test_from_dir_names_the_record_to_redo(tmp_path: Path) -> None:
     recs = simulate_session(SensorTruth.ideal(), Plan(static_s=2.0, turns=1), seed=4)
     bad = recs["y_ccw"]
     recs["y_ccw"] = type(bad)(bad.name, bad.t_ms, bad.accel, bad.gyro * 0.8, bad.temp, bad.meta)
-    d = tmp_path / "x y"
+    d = tmp_path / ("a directory name long enough to pass 80 columns, " * 2) / "x y"
     write_session(d, "R1", recs)
     err = io.StringIO()
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
         assert main(["calibrate", "--from-dir", str(d)]) == 2
     msg = err.getvalue()
-    assert "R1_y_ccw.txt" in msg and "measure y_ccw again" in msg
-    argv = shlex.split(msg.split(" with: ", 1)[1].strip())
+    assert "R1_y_ccw.txt" in msg and "measure y_ccw again" in " ".join(msg.split())
+    assert too_wide(msg) == []  # only the path may pass 80 columns, on a line of its own
+    argv = command_after(msg, "with:")
     assert argv[argv.index("--out") + 1] == str(d) and argv[-2:] == ["--redo", "y_ccw"]
 
 

@@ -26,6 +26,7 @@ from host.session.directory import (
     set_aside,
     sitting_files,
 )
+from tests.host.cli.cli_run import command_after
 
 SHORT = ["--yes", "--warmup", "0", "--static-seconds", "2", "--turns", "1", "--no-archive"]
 #: slow enough to be interrupted mid-session, and to outlast a second process started beside it
@@ -176,8 +177,7 @@ def test_sigterm_ends_like_ctrl_c_and_kill_9_keeps_every_accepted_record(
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 128 + signal.SIGTERM, err
     assert "Aborted (SIGTERM): the measurement in progress is discarded." in err
-    resume = [ln for ln in err.splitlines() if "continue with:" in ln]
-    assert resume and resume[-1].rstrip().endswith("--resume") and "Traceback" not in err
+    assert command_after(err)[-1] == "--resume" and "Traceback" not in err
     assert set(hashes(out)) >= set(kept) and {k: hashes(out)[k] for k in kept} == kept
     # resumed, then killed with -9 after one more record: nothing accepted is lost, no stuck lock
     proc = started(out, "--resume")
