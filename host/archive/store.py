@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -64,6 +65,11 @@ def archive_url(option: str | None = None) -> str:
     """The SQLAlchemy URL of the archive: ``option`` (a URL, or a path of an SQLite file),
     else $IMU_BENCH_ARCHIVE, else :func:`default_file`. ``postgresql://`` and
     ``postgres://`` use the psycopg 3 driver."""
+    if option is not None and not option.strip():  # e.g. --archive "$UNSET": not the default
+        raise UserError(
+            "--archive '': give an SQLite file or postgresql://user@host/db (or leave "
+            f"--archive out: ${ARCHIVE_ENV}, else {DEFAULT_FILE})"
+        )
     raw = option or os.environ.get(ARCHIVE_ENV) or str(default_file())
     for scheme in ("postgresql://", "postgres://"):
         if raw.startswith(scheme):
@@ -77,9 +83,34 @@ def _without_password(url: str) -> str:
     """``url`` for a message: its password as ***, the user's scheme (postgresql://)."""
     try:
         shown = make_url(url).render_as_string(hide_password=True)
-    except ArgumentError:  # not a URL at all: only its scheme
-        shown = url.split("://", 1)[0] + "://…"
+    except (ArgumentError, ValueError):  # not a URL (a port that is no number): as typed
+        shown = re.sub(r"(://[^:/@]*:)[^@/]*@", r"\1***@", url)
     return shown.replace("postgresql+psycopg://", "postgresql://", 1)
+
+
+def _sqlite_file(url: str, create: bool) -> None:
+    """UserError, naming the fix, when the SQLite file of ``url`` cannot be the archive: a
+    directory, not a file, in no directory; with ``create`` False, a file not there (a
+    question to an archive that does not exist is not answered from a new empty one)."""
+    path = Path(url.split(":///", 1)[1]) if ":///" in url else None
+    if path is None or not str(path) or str(path) == ":memory:":
+        return
+    if path.is_dir():
+        raise UserError(
+            f"archive {path}: is a directory; give the archive's file, e.g. "
+            f"--archive {path / 'archive.sqlite'}"
+        )
+    if path.exists() and not path.is_file():
+        raise UserError(f"archive {path}: not a file; give an SQLite file or postgresql://…")
+    if not path.parent.is_dir():
+        raise UserError(
+            f"archive {path}: no directory {path.parent}; create it or give another --archive"
+        )
+    if not create and not path.exists():
+        raise UserError(
+            f"archive {path}: no such file; 'archive add DIR' or calibrate creates it (or "
+            "give the archive that holds the calibrations with --archive)"
+        )
 
 
 def _nan(v: Any) -> float:
@@ -166,9 +197,10 @@ _SUMMARY_COLUMNS = (
 
 class Archive:
     """An open archive (:func:`archive_url` says where); creates and migrates its schema on
-    first use. Use as a context manager or call :meth:`close`."""
+    first use (``create=False``: an SQLite file that is not there is a UserError, for the
+    questions that only read). Use as a context manager or call :meth:`close`."""
 
-    def __init__(self, url: str | None = None) -> None:
+    def __init__(self, url: str | None = None, *, create: bool = True) -> None:
         self.url = archive_url(url)
         if self.url.split("://", 1)[0].split("+", 1)[0] not in ("sqlite", "postgresql"):
             raise UserError(
@@ -177,6 +209,7 @@ class Archive:
             )
         try:
             if self.url.startswith("sqlite"):
+                _sqlite_file(self.url, create)
                 self.engine = create_engine(self.url)
                 _sqlite_setup(self.engine)
             else:
@@ -192,6 +225,11 @@ class Archive:
             ) from None
         except ArgumentError as exc:
             raise UserError(f"archive: not a database URL: {url!r} ({exc})") from None
+        except ValueError:  # the URL's parser: a port that is no number, an unclosed [
+            raise UserError(
+                f"archive {_without_password(self.url)}: not a database URL (a port that is "
+                "no number, a bracket not closed?); write postgresql://user@host:port/db"
+            ) from None
         try:
             with self.engine.connect() as conn:
                 current = applied_versions(conn)

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from host.archive import checks, stats
 from host.archive.entry import entry_from_directory
@@ -14,7 +16,7 @@ from host.archive.export import write_values
 from host.archive.store import ARCHIVE_ENV, DEFAULT_FILE, Archive
 from host.cli import archive_text as text
 from host.cli.screen import terminal_width
-from host.errors import UserError
+from host.errors import UserError, write_error
 
 
 def _alpha(s: str) -> float:
@@ -54,12 +56,14 @@ def parse_tolerances(items: list[str]) -> dict[str, float]:
     return out
 
 
-def _open(args: argparse.Namespace) -> Archive:
-    return Archive(args.archive)
+def _open(args: argparse.Namespace, create: bool = False) -> Archive:
+    """The archive of ``--archive``; only ``add`` creates one (a question to an archive that
+    is not there, a typo in its path, is not answered from a new empty one)."""
+    return Archive(args.archive, create=create)
 
 
 def _add(args: argparse.Namespace) -> int:
-    with _open(args) as a:
+    with _open(args, create=True) as a:
         for d in args.dirs:
             e = entry_from_directory(
                 d, serial=args.serial, records_dir=args.records, bench=args.bench,
@@ -99,12 +103,28 @@ def _trend(args: argparse.Namespace) -> int:
     return 0
 
 
-def _selected(a: Archive, serial: str | None, lot: str | None) -> None:
-    """A UserError when no calibration is of ``serial`` in ``lot`` (a check of a unit or a
-    lot that is not there must not read as one that passed)."""
-    if (serial or lot) and not a.summaries(serial, None, lot):
+def _selected(
+    a: Archive,
+    serial: str | None,
+    lot: str | None,
+    names: Sequence[str] | None = None,
+    option: str = "--param",
+) -> None:
+    """A UserError when no calibration is of ``serial`` in ``lot`` — or none at all — or a
+    parameter of ``names`` (given with ``option``) is in none of them: a check of a unit, a
+    lot or a parameter that is not there must not read as one that passed."""
+    if not a.summaries(serial, None, lot):
         sel = [f"of {serial}" if serial else "", f"in lot {lot}" if lot else ""]
         raise checks.nothing_selected(a, " ".join(w for w in sel if w), None)
+    if names:
+        found = set(a.values(list(names), serial=serial, lot=lot).name.tolist())
+        unknown = [n for n in names if n not in found]
+        if unknown:
+            known = sorted(set(a.values(serial=serial, lot=lot).name.tolist()))
+            raise UserError(
+                f"{option} {', '.join(unknown)}: no such parameter in these calibrations "
+                f"(they have {', '.join(known)})"
+            )
 
 
 def _repeat(args: argparse.Namespace) -> int:
@@ -120,7 +140,7 @@ def _repeat(args: argparse.Namespace) -> int:
 def _drift(args: argparse.Namespace) -> int:
     tol = parse_tolerances(args.tol)
     with _open(args) as a:
-        _selected(a, args.serial, args.lot)
+        _selected(a, args.serial, args.lot, list(tol), "--tol")  # a parameter not there
         rows, k = checks.drift(
             a, alpha=args.alpha, k=args.k, tolerances=tol, serial=args.serial, lot=args.lot
         )
@@ -159,23 +179,49 @@ def _check_bench(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
+    if Path(args.file).is_dir():
+        raise UserError(
+            f"{args.file}: is a directory; give a file name, e.g. {Path(args.file) / 'values.csv'}"
+        )
+    if Path(args.file).suffix.lower() not in (".csv", ".parquet", ".pq"):
+        raise UserError(f"{args.file}: write .csv or .parquet")  # before asking the archive
     with _open(args) as a:
+        _selected(a, args.serial, args.lot, args.param)  # never an empty file, exit 0
         n = write_values(a.values(args.param, serial=args.serial, lot=args.lot), args.file)
     print(f"written: {args.file} ({n} rows)", file=sys.stderr)
     return 0
 
 
-def _report(args: argparse.Namespace) -> int:
-    from pathlib import Path
+#: the page's name in a directory given to ``archive report --html``
+PAGE_NAME = "qc.html"
 
+
+def page_path(html: str) -> Path:
+    """Where ``archive report --html HTML`` writes: the file HTML, or ``HTML/qc.html`` when
+    HTML is a directory — one that exists, or one written with a trailing ``/`` (made here;
+    its parent must exist). An empty name is a UserError naming what to give."""
+    if not html.strip():
+        raise UserError(f"--html '': give the page's file name, e.g. --html {PAGE_NAME}")
+    path = Path(html).expanduser()
+    if html.endswith(("/", os.sep)) and not path.exists():
+        try:
+            path.mkdir()
+        except OSError as exc:
+            raise write_error(path, exc, "nothing was written") from None
+    return path / PAGE_NAME if path.is_dir() else path
+
+
+def _report(args: argparse.Namespace) -> int:
     from host.archive.page import page_data, render
     from host.session.atomic import write_text_atomic
 
     with _open(args) as a:
+        _selected(a, None, args.lot, args.param)  # a lot or parameter that is not there
         d = page_data(a, reference=args.reference, lot=args.lot, names=args.param,
                       alpha=args.alpha)  # fmt: skip
-    write_text_atomic(Path(args.html), render(d))
-    print(f"written: {args.html}", file=sys.stderr)
+    path = page_path(args.html)
+    write_text_atomic(path, render(d))
+    print(f"written: {path}", file=sys.stderr)
     return 0
 
 
@@ -258,7 +304,8 @@ def cli_archive(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], in
     q = action("check-bench", _check_bench, "compare benches on a reference unit (Eₙ)", alpha)
     q.add_argument("reference", help="serial of the reference unit calibrated on every bench")
     q = action("report", _report, "one self-contained HTML page for the QC lead", alpha)
-    q.add_argument("--html", required=True, metavar="FILE", help="the page to write")
+    q.add_argument("--html", required=True, metavar="FILE",
+                   help=f"the page to write (a directory: {PAGE_NAME} in it)")  # fmt: skip
     q.add_argument("--reference", metavar="SERIAL", help="the reference unit (bench check)")
     q.add_argument("--lot")
     q.add_argument("--param", action="append", metavar="NAME", help="parameters to chart")

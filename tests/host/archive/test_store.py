@@ -256,12 +256,35 @@ def test_the_url_comes_from_the_option_else_the_environment_else_a_file_here(
     [
         ("nosuchdb://x/y", "not an SQLite file nor a postgresql:// server"),
         ("mysql://qc:secret@db/line", "archive mysql://qc:\\*\\*\\*@db/line: not an SQLite"),
-        ("/nonexistent/dir/a.sqlite", "cannot open it"),
+        ("/nonexistent/dir/a.sqlite", "no directory /nonexistent/dir; create it or give"),
+        # the URL's own parser raised ValueError: a traceback
+        ("postgresql://qc:secret@db:notaport/x", "not a database URL .* postgresql://user@host"),
+        ("postgresql://qc@[::1/x", "not a database URL"),
+        ("/dev/null", "not a file"),
+        ("", "--archive '': give an SQLite file or postgresql://"),
     ],
 )
 def test_a_bad_archive_url_is_one_line(url: str, words: str) -> None:
-    with pytest.raises(UserError, match=words):
+    with pytest.raises(UserError, match=words) as info:
         Archive(url)
+    assert "secret" not in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_directory_as_the_archive_names_a_file_in_it(tmp_path: Path) -> None:
+    with pytest.raises(UserError, match="is a directory; give the archive's file, e.g.") as e:
+        Archive(str(tmp_path))
+    assert str(tmp_path / "archive.sqlite") in str(e.value)
+
+
+def test_only_a_writer_creates_an_archive(tmp_path: Path) -> None:
+    """Was: a question to an archive path with a typo made a new empty archive there and
+    answered from it ('no unit moved', exit 0)."""
+    db = tmp_path / "typo.sqlite"
+    with pytest.raises(UserError, match="no such file; 'archive add DIR' or calibrate creates"):
+        Archive(str(db), create=False)
+    assert not db.exists()
+    Archive(str(db)).close()  # a writer creates it
+    Archive(str(db), create=False).close()  # then a reader opens it
 
 
 def test_an_unreachable_server_is_one_line_without_the_password() -> None:

@@ -95,13 +95,18 @@ def test_checks_exit_one_when_something_needs_attention(
         (["control", "--bench", "B9"], "no calibration on B9"),
         (["drift", "--serial", "NOPE"], "no calibration of NOPE"),
         (["repeat", "--lot", "L9"], "no calibration in lot L9"),
-        (["export", "/nonexistent/dir/v.csv"], "cannot write /nonexistent/dir/v.csv"),
+        # an archive with nothing in it: questions to it are not answered as passed
+        (["export", "v.csv"], "the archive has no calibration"),
+        (["drift"], "the archive has no calibration"),
+        (["repeat"], "the archive has no calibration"),
+        (["report", "--html", "qc.html"], "the archive has no calibration"),
     ],
 )
 def test_bad_input_is_one_line(
     argv: list[str], words: str, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
     db = str(tmp_path / "e.sqlite")
+    Archive(db).close()  # an archive, empty
     assert main(["archive", *argv, "--archive", db]) == 2
     err = capsys.readouterr().err
     assert words in err and err.count("\n") == 1 and "Traceback" not in err
@@ -341,3 +346,58 @@ def test_a_file_that_is_no_archive_or_no_result_is_one_line(
         assert words in err and err.count("\n") == 1 and "Traceback" not in err, err
     assert text.read_text() == "not a database\n"
     assert binary.read_bytes() == bytes(range(256)) * 8
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        # a lot, a parameter or a tolerance that is not there: was a page, a file or
+        # "no unit moved" with exit 0
+        (["report", "--html", "p.html", "--lot", "NOLOT"], "no calibration in lot NOLOT"),
+        (["report", "--html", "p.html", "--param", "NOPE"], "--param NOPE: no such parameter"),
+        (["drift", "--tol", "NOPE=0.1"], "--tol NOPE: no such parameter in these calibrations"),
+        (["export", "v.csv", "--serial", "NOPE"], "no calibration of NOPE"),
+        (["export", "v.csv", "--param", "NOPE"], "--param NOPE: no such parameter"),
+        (["report", "--html", ""], "--html '': give the page's file name, e.g. --html qc.html"),
+        (["report", "--html", "/nonexistent/dir/p.html"], "cannot write /nonexistent/dir/p.html"),
+        (["list", "--archive", "postgresql://qc@db:5432x/line"], "not a database URL"),
+        (["list", "--archive", ""], "--archive '': give an SQLite file"),
+    ],
+)
+def test_what_is_not_there_is_one_line_and_writes_nothing(
+    calibrated: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    monkeypatch: pytest.MonkeyPatch,
+    argv: list[str],
+    words: str,
+) -> None:
+    db = str(tmp_path / "a.sqlite")
+    assert main(["archive", "add", str(calibrated), "--archive", db]) == 0
+    capsys.readouterr()
+    monkeypatch.chdir(tmp_path)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    given = argv if "--archive" in argv else [*argv, "--archive", db]
+    assert main(["archive", *given]) == 2
+    err = capsys.readouterr().err
+    assert words in err and err.count("\n") == 1 and "Traceback" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before  # no file left behind
+
+
+def test_report_into_a_directory_writes_qc_html_in_it(
+    calibrated: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Was: 'cannot write DIR: permission denied' for a directory that exists, and a file
+    named DIR for 'DIR/' that did not. A directory means the page in it, named qc.html."""
+    db = str(tmp_path / "a.sqlite")
+    assert main(["archive", "add", str(calibrated), "--archive", db]) == 0
+    capsys.readouterr()
+    (tmp_path / "pages").mkdir()
+    for html, page in ((tmp_path / "pages", tmp_path / "pages" / "qc.html"),
+                       (f"{tmp_path / 'new'}/", tmp_path / "new" / "qc.html")):  # fmt: skip
+        assert main(["archive", "report", "--html", str(html), "--archive", db]) == 0
+        assert capsys.readouterr().err == f"written: {page}\n"
+        assert page.read_text(encoding="utf-8").lstrip().lower().startswith("<!doctype html")
+    (tmp_path / "pages" / "qc.html").write_text("the earlier page")
+    assert main(["archive", "report", "--html", str(tmp_path / "pages"), "--archive", db]) == 0
+    assert "C1" in (tmp_path / "pages" / "qc.html").read_text(encoding="utf-8")  # a new page
