@@ -8,7 +8,8 @@ axis, the closing X up. The adaptive plan measures the six faces for ``--min-sta
 turn each way about each axis, then asks :func:`host.workbench.adaptive.adaptive_run` for the
 planner's next record (a face again, short or long, or a turn pair) until its worst
 σ/tolerance is at least as good as the fixed plan's on the same unit (or ``--target``).
-Its first records stop when they have enough (:mod:`host.workbench.stopping`; ``--no-stopping``:
+Its first records stop when they have enough, asked of the engine the operator's dialogue asks
+(:class:`host.workbench.adaptive.AdaptivePlan`, ``calibrate --plan adaptive``; ``--no-stopping``:
 they last ``--min-static`` s and one pair a axis), axis by axis (``--method-order``: six faces,
 then the turns): the down face measured up to ``--max-static`` s and cut where the σ of its
 mean met the target, looked at once a second; the up face where the face pair's g-sensitivity
@@ -53,13 +54,13 @@ from host.model.fit import fit_model  # noqa: E402
 from host.model.spec import parse_model  # noqa: E402
 from host.session.directory import Session  # noqa: E402
 from host.session.method import GROUPS, TOLERANCES, local_gravity  # noqa: E402
-from host.session.records import STATIC_NAMES, STOPPED_KEY, Record  # noqa: E402
+from host.session.records import STATIC_NAMES, Record  # noqa: E402
 from host.workbench.adaptive import (  # noqa: E402
     AdaptiveRun,
     Measure,
+    Stopping,
     adaptive_run,
     cost_after,
-    last_up,
     minimal_plan,
 )
 from host.workbench.least_time import (  # noqa: E402
@@ -75,13 +76,7 @@ from host.workbench.planner import (  # noqa: E402
     unscaled_sigmas,
     worst_ratio,
 )
-from host.workbench.stopping import (  # noqa: E402
-    StaticRule,
-    mean_sigma,
-    stop_index,
-    turn_scale_ratio,
-    turns_stop,
-)
+from host.workbench.stopping import StaticRule  # noqa: E402
 from tests.independent.hand import IndependentHand  # noqa: E402
 from tests.independent.simulate import SessionSpec, SimRecord, simulate  # noqa: E402
 
@@ -111,75 +106,6 @@ def fixed_plan(spec: SessionSpec) -> tuple[float, str, float, np.ndarray]:
         operator += cost_after(menu[label], up)
         up = np.asarray(menu[label].records[-1][1], dtype=float)
     return worst, name, operator, rest_information(ds, fit, BASE)
-
-
-def stopping_first(
-    hand: IndependentHand,
-    target: float,
-    min_s: float,
-    max_s: float,
-    *,
-    by_axis: bool = True,
-    pair_rule: bool = True,
-) -> tuple[dict[str, Record], float]:
-    """The six faces, each up to ``max_s`` s and cut where it had enough, and turn pairs about
-    each axis until its gyro scale meets ``target``: (the records, the operator's time s).
-
-    ``by_axis``: axis by axis — the down face, the up face, then the pairs about that axis
-    made without placing the cube again (else the method's order: six faces, then the turns).
-    ``pair_rule``: the second face of an axis stops when the face pair's g-sensitivity meets
-    the target, counting the rest its turns will add to the up face
-    (:meth:`host.workbench.stopping.StaticRule.gyro_pair_sigma`), else on its own mean."""
-    rule = StaticRule.for_target(target, local_gravity(), min_s=min_s, max_s=max_s)
-    menu = candidates(max_s, 1, tilted=False)
-    faces = {c.records[0][0]: c for c in menu if c.records[0][2] == "static"}
-    pairs = {c.records[0][0][0]: c for c in menu if c.records[0][2] == "turn"}
-    window = 2.0 * pairs["x"].records[0][3]  # rest a pair adds on its up face, s
-    records: dict[str, Record] = {}
-    spent = 0.0
-    gyro_sigma: dict[str, tuple[np.ndarray, float]] = {}  # face -> (σ of its mean, s)
-
-    def face(name: str) -> None:
-        nonlocal spent
-        c = faces[name]
-        spent += cost_after(c, last_up(records)) - c.records[0][3]  # placing and settling
-        r = as_record(hand(c, [name])[name])
-        t_s = r.t_ms / 1000.0
-        other = gyro_sigma.get(name[0] + ("_dn" if name.endswith("_up") else "_up"))
-        if not pair_rule or other is None:  # the first face of its axis: its own mean
-            n, why = stop_index(rule, t_s, r.accel, r.gyro)
-        elif name.endswith("_up"):  # the turns to come rest on this face
-            n, why = stop_index(rule, t_s, r.accel, r.gyro, opposite=other[0], extra_rest_s=window)
-        else:  # on the opposite face, measured already: its σ as it will be after them
-            shrunk = other[0] * math.sqrt(other[1] / (other[1] + window))
-            n, why = stop_index(rule, t_s, r.accel, r.gyro, opposite=shrunk)
-        meta = {**r.meta, STOPPED_KEY: why}
-        records[name] = Record(name, r.t_ms[:n], r.accel[:n], r.gyro[:n], r.temp[:n], meta)
-        gyro_sigma[name] = (mean_sigma(r.gyro[:n]), float(t_s[n - 1] - t_s[0]))
-        spent += float(t_s[n - 1] - t_s[0]) + float(t_s[1] - t_s[0])
-
-    def turns(ax: str) -> None:
-        nonlocal spent
-        pair = pairs[ax]
-        for k in range(1, 100):
-            names = [unique_name(base, records) for base, *_ in pair.records]
-            spent += cost_after(pair, last_up(records))
-            records.update({n: as_record(v) for n, v in hand(pair, names).items()})
-            ratio = turn_scale_ratio(Session("ADAPT", dict(records)), BASE, ax)
-            if turns_stop(ratio, target, k) is not None:
-                break
-
-    if by_axis:
-        for ax in "xyz":
-            face(f"{ax}_dn")
-            face(f"{ax}_up")
-            turns(ax)
-    else:
-        for name in STATIC_NAMES:
-            face(name)
-        for ax in "xyz":
-            turns(ax)
-    return records, spent
 
 
 def planned_pulls(
@@ -228,17 +154,16 @@ def one(seed: int, args: argparse.Namespace) -> dict[str, Any]:
     def measure(c: Candidate, names: Sequence[str]) -> dict[str, Record]:
         return {n: as_record(r) for n, r in hand(c, names).items()}
 
+    stopping, first = None, minimal_plan(args.min_static, 1)
     if args.stopping:
-        measured, measured_s = stopping_first(
-            hand, target, args.min_static, args.max_static,
-            by_axis=args.by_axis, pair_rule=args.pair_rule,
-        )  # fmt: skip
-        first: list[Candidate] = []
-    else:
-        measured, measured_s, first = {}, 0.0, minimal_plan(args.min_static, 1)
+        rule = StaticRule.for_target(
+            target, local_gravity(), min_s=args.min_static, max_s=args.max_static
+        )
+        stopping = Stopping(rule, 1, by_axis=args.by_axis, pair_rule=args.pair_rule)
+        first = []
     run = adaptive_run(
-        measure, BASE, target=target, first=first, menu=menu, max_operator_s=3 * t_fixed,
-        measured=measured, measured_s=measured_s,
+        measure, BASE, target=target, first=first, menu=menu, stopping=stopping,
+        max_operator_s=3 * t_fixed,
     )  # fmt: skip
     label, pulls = planned_pulls(run, hand, measure)
     return {

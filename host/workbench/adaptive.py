@@ -1,36 +1,46 @@
-"""Measure until enough: the minimal plan, then the planner's next record until every value's
-σ meets its target.
+"""Measure until enough: the first records, then the planner's next record until every
+value's σ meets its target.
 
-:func:`adaptive_run` drives any measuring hand — the virtual bench, an independent simulator in
-a benchmark, the operator in the dialogue — through one callable, ``measure(candidate, names)``,
-that measures the candidate's records and returns them under the given names. The ranking is
-:func:`host.workbench.planner.plan_next` with a target: every step takes the record that removes
-the most σ/tolerance above the target per minute of the operator's time.
+:class:`AdaptivePlan` is the one engine of an adaptive run: what to measure next, when a record
+has enough, what it cost the operator. Its first records (:class:`Stopping`) go axis by axis —
+the down face until the σ of its mean meets the target, the up face until the face pair's
+g-sensitivity does with the rest its turns will add, then turn pairs about that axis right after
+the up face until its gyro scale meets the target (:mod:`host.workbench.stopping`); then the
+planner's records (:func:`host.workbench.planner.plan_next` with a target: every step takes the
+record that removes the most σ/tolerance above the target per minute of the operator's time).
+
+Two hands ask it: :func:`adaptive_run` drives one callable, ``measure(candidate, names)``, that
+measures the candidate's records and returns them under the given names (the virtual bench, an
+independent simulator in a benchmark); the operator's dialogue (``calibrate --plan adaptive``,
+:mod:`host.dialogue.adaptive`) asks it the same questions between its prompts.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from host.errors import UserError
 from host.model.noise import NoiseModel
 from host.model.spec import ModelTerm
 from host.session.directory import Session
-from host.session.method import TOLERANCES
-from host.session.records import STATIC_NAMES, Record
+from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, TOLERANCES
+from host.session.records import STATIC_NAMES, STOPPED_KEY, Record, turn_window_s
 from host.workbench.planner import (
     OPERATOR_TIME,
     Candidate,
+    NextPlan,
     OperatorTime,
     Ranked,
     candidates,
     plan_next,
     unique_name,
 )
+from host.workbench.stopping import StaticRule, mean_sigma, stop_index, turn_scale_ratio, turns_stop
 
 #: measure(candidate, names) -> the candidate's records, measured, under ``names`` (one name per
 #: record of the candidate, in order)
@@ -110,6 +120,229 @@ def minimal_plan(
     ]
 
 
+@dataclass(frozen=True)
+class Stopping:
+    """How the first records of an adaptive run stop: a face under ``rule`` (the σ of its
+    mean, at least ``rule.min_s`` and at most ``rule.max_s`` s), turn pairs of ``turns`` turns
+    each way about an axis until its gyro scale meets the target (at most
+    :data:`host.workbench.stopping.TURN_PAIRS_MAX` pairs). ``by_axis``: axis by axis — the
+    down face, the up face, then the pairs about that axis made without placing the cube
+    again (False: the method's order, six faces then the turns). ``pair_rule``: the second
+    face of an axis stops when the face pair's g-sensitivity meets the target, counting the
+    rest its turns will add to the up face (:meth:`StaticRule.gyro_pair_sigma`; False: on its
+    own mean)."""
+
+    rule: StaticRule
+    turns: int = 1
+    by_axis: bool = True
+    pair_rule: bool = True
+
+    def faces(self) -> tuple[str, ...]:
+        """The six faces in the order they are measured."""
+        if self.by_axis:
+            return tuple(f"{ax}_{side}" for ax in "xyz" for side in ("dn", "up"))
+        return STATIC_NAMES
+
+    def rest_of_turns_s(self) -> float:
+        """The rest a turn pair adds on its up face, s: its two turn windows (a turn about
+        the vertical keeps the face up)."""
+        return 2.0 * turn_window_s(self.turns)
+
+
+@dataclass(frozen=True)
+class Ask:
+    """What an adaptive plan asks for next: ``candidate`` (a face, a turn pair, or the
+    planner's record), the names its records get, ``first``: one of the first records (a
+    face that stops when it has enough, or a turn pair about an axis until its gyro scale
+    does), else the planner's ``ranked`` line (the σ it predicts) on its answer ``plan``."""
+
+    candidate: Candidate
+    names: tuple[str, ...]
+    first: bool
+    ranked: Ranked | None = None
+    plan: NextPlan | None = None
+
+    @property
+    def static(self) -> bool:
+        """A static record (a face), not a turn pair."""
+        return self.candidate.records[0][2] == "static"
+
+
+@dataclass(frozen=True)
+class AdaptivePlan:
+    """The engine of an adaptive run: towards every value's σ/tolerance ≤ ``target`` for
+    ``model``, first the records of ``stopping`` (None: none), then the candidate of ``menu``
+    the planner ranks first, while the operator's time is below ``max_operator_s`` (s).
+    :meth:`next` says what to measure next, :meth:`static_stop` (live) or :meth:`cut` (a record
+    measured to its maximum) when a face has enough, :meth:`turns_decision` whether another
+    turn pair follows, :meth:`cost` what a record cost the operator (``time``)."""
+
+    model: Sequence[ModelTerm]
+    target: float
+    menu: Sequence[Candidate]
+    stopping: Stopping | None = None
+    serial: str = "ADAPT"
+    noise: NoiseModel | None = None
+    tolerances: Mapping[str, float | None] = dataclasses.field(default_factory=lambda: TOLERANCES)
+    latitude_deg: float = DEFAULT_LATITUDE_DEG
+    height_m: float = DEFAULT_HEIGHT_M
+    time: OperatorTime = OPERATOR_TIME
+    max_operator_s: float = 3600.0
+    #: (axis, the records' names) -> turns_decision's answer: one fit per decision
+    _decided: dict[tuple[str, tuple[str, ...]], tuple[bool, str]] = dataclasses.field(
+        default_factory=dict, compare=False, repr=False
+    )
+
+    # ---- the first records ----------------------------------------------------------------
+    def next_first(self, records: Mapping[str, Record], taken: Collection[str] = ()) -> Ask | None:
+        """The first record still to measure after ``records`` (None: the first records are
+        done): a face not yet measured, or another turn pair about an axis whose faces are
+        (its first pair, or one more while :meth:`turns_decision` says so). Names avoid
+        ``records`` and ``taken``."""
+        st = self.stopping
+        if st is None:
+            return None
+        menu = candidates(st.rule.max_s, st.turns, self.time, tilted=False)
+        faces = {c.records[0][0]: c for c in menu if c.records[0][2] == "static"}
+        pairs = {c.records[0][0][0]: c for c in menu if c.records[0][2] == "turn"}
+
+        def face(name: str) -> Ask:
+            c = faces[name]
+            return Ask(Candidate(name, c.records, c.operator_s), (name,), True)
+
+        def pair(ax: str) -> Ask:
+            names: list[str] = []
+            for base, *_ in pairs[ax].records:
+                names.append(unique_name(base, [*records, *taken, *names]))
+            return Ask(pairs[ax], tuple(names), True)
+
+        order = st.faces()
+        for ax in "xyz":
+            for name in order if not st.by_axis else (f"{ax}_dn", f"{ax}_up"):
+                if name not in records:
+                    return face(name)
+            if not _pairs_about(records, ax) or self.turns_decision(records, ax)[0]:
+                return pair(ax)
+        return None
+
+    def _pair_need(
+        self, name: str, records: Mapping[str, Record]
+    ) -> tuple[np.ndarray | None, float]:
+        """For :meth:`StaticRule.stop`: (σ of the opposite face's gyro mean, °/s, as it will
+        be once the rest still to come on it is counted; the rest still to come on this
+        face, s) — (None, 0) when ``name`` stops on its own mean."""
+        st = self.stopping
+        if st is None or not st.pair_rule or name not in STATIC_NAMES:
+            return None, 0.0
+        other = records.get(name[0] + ("_dn" if name.endswith("_up") else "_up"))
+        if other is None:  # the first face of its axis
+            return None, 0.0
+        window = st.rest_of_turns_s()
+        sigma = mean_sigma(other.gyro)
+        if name.endswith("_up"):  # the turns to come rest on this face
+            return sigma, window
+        t_s = other.t_ms / 1000.0  # the opposite (up) face: its σ after its turns' rest
+        span = float(t_s[-1] - t_s[0])
+        return sigma * math.sqrt(span / (span + window)), 0.0
+
+    def static_stop(
+        self,
+        name: str,
+        records: Mapping[str, Record],
+        accel: np.ndarray,
+        gyro: np.ndarray,
+        elapsed_s: float,
+    ) -> str | None:
+        """Why face ``name`` stops now with these samples (accel m/s², gyro °/s, (N, 3);
+        ``elapsed_s`` s of device time), the records before it ``records`` — its header's
+        ``stopped`` — or None: go on (:meth:`StaticRule.stop`, the pair rule as
+        :class:`Stopping` says; a record that is not one of the six faces on its own mean)."""
+        assert self.stopping is not None
+        opposite, extra = self._pair_need(name, records)
+        return self.stopping.rule.stop(
+            accel, gyro, elapsed_s, opposite=opposite, extra_rest_s=extra
+        )
+
+    def cut(self, name: str, records: Mapping[str, Record], rec: Record) -> Record:
+        """``rec``, face ``name`` measured to its maximum, cut where it had enough, looked at
+        once a second as the live measurement does (:func:`host.workbench.stopping.
+        stop_index`); its header says why."""
+        assert self.stopping is not None
+        opposite, extra = self._pair_need(name, records)
+        n, why = stop_index(self.stopping.rule, rec.t_ms / 1000.0, rec.accel, rec.gyro,
+                            opposite=opposite, extra_rest_s=extra)  # fmt: skip
+        meta = {**rec.meta, STOPPED_KEY: why}
+        return Record(name, rec.t_ms[:n], rec.accel[:n], rec.gyro[:n], rec.temp[:n], meta)
+
+    def turns_decision(self, records: Mapping[str, Record], axis: str) -> tuple[bool, str]:
+        """After a turn pair about ``axis`` (the last of ``records``, or earlier): (another
+        pair follows, why — the cw turn's header's ``stopped``), from the σ/tolerance of
+        the axis's gyro scale in the fit of ``records``
+        (:func:`host.workbench.stopping.turns_stop`)."""
+        key = (axis, tuple(records))
+        if key in self._decided:
+            return self._decided[key]
+        pairs = _pairs_about(records, axis)
+        try:
+            ratio = turn_scale_ratio(
+                Session(self.serial, dict(records)), self.model, axis, noise=self.noise,
+                tolerances=self.tolerances, latitude_deg=self.latitude_deg,
+                height_m=self.height_m,
+            )  # fmt: skip
+        except UserError as exc:
+            out = (False, f"not decided after {pairs} pair(s): the records do not fit yet ({exc})")
+        else:
+            why = turns_stop(ratio, self.target, pairs)
+            out = (
+                (False, why) if why is not None
+                else (True, f"another pair follows: gyro scale σ/tolerance {ratio:.3g} above "
+                            f"the target {self.target:g} after {pairs} pair(s)")
+            )  # fmt: skip
+        self._decided[key] = out
+        return out
+
+    # ---- the planner's records --------------------------------------------------------------
+    def planned(
+        self, records: Mapping[str, Record], spent_s: float, taken: Collection[str] = ()
+    ) -> tuple[NextPlan, Ask | None, str]:
+        """The planner's answer on ``records`` and the record to measure next, or None and why
+        not: the target is met, the operator's time (``spent_s`` s so far) reached
+        ``max_operator_s``, or no record of the menu brings any value closer to the target."""
+        p = plan_next(
+            Session(self.serial, dict(records)), self.model, noise=self.noise,
+            tolerances=self.tolerances, time=self.time, latitude_deg=self.latitude_deg,
+            height_m=self.height_m, only=self.menu, target=self.target,
+        )  # fmt: skip
+        if p.worst_now <= self.target:
+            return p, None, f"target {self.target:g} met"
+        if spent_s >= self.max_operator_s:
+            return p, None, f"the operator's time reached {self.max_operator_s:g} s"
+        if not p.ranked or p.ranked[0].gain_per_min <= 0.0:
+            return p, None, "no record brings it closer"
+        best = p.ranked[0]
+        names: list[str] = []
+        for base, *_ in best.candidate.records:
+            names.append(unique_name(base, [*records, *taken, *names]))
+        return p, Ask(best.candidate, tuple(names), False, best, p), ""
+
+    def cost(self, ask: Ask, before: Mapping[str, Record], measured: Mapping[str, Record]) -> float:
+        """What ``ask`` cost the operator once measured (``measured``, after ``before``), s:
+        :func:`cost_after` — a first face counted with the length it had when it stopped
+        (its span and one sample), not its maximum."""
+        c = ask.candidate
+        spent = cost_after(c, last_up(before), self.time)
+        if ask.first and ask.static:
+            t_s = measured[ask.names[0]].t_ms / 1000.0
+            spent += float(t_s[-1] - t_s[0]) + float(t_s[1] - t_s[0]) - c.records[0][3]
+        return spent
+
+
+def _pairs_about(records: Mapping[str, Record], axis: str) -> int:
+    """The turn pairs about ``axis`` among ``records`` (its cw turns: x_cw, x_cw_2, …)."""
+    cw = f"{axis}_cw"
+    return sum(1 for n in records if n == cw or n.startswith(cw + "_"))
+
+
 def adaptive_run(
     measure: Measure,
     model: Sequence[ModelTerm],
@@ -117,6 +350,7 @@ def adaptive_run(
     target: float,
     first: Sequence[Candidate],
     menu: Sequence[Candidate],
+    stopping: Stopping | None = None,
     serial: str = "ADAPT",
     noise: NoiseModel | None = None,
     tolerances: Mapping[str, float | None] = TOLERANCES,
@@ -126,46 +360,50 @@ def adaptive_run(
     measured_s: float = 0.0,
     time: OperatorTime = OPERATOR_TIME,
 ) -> AdaptiveRun:
-    """Measure ``first`` (e.g. :func:`minimal_plan`) after the records ``measured`` already
-    (they cost the operator ``measured_s`` s: e.g. records that stopped when they had enough,
-    :mod:`host.workbench.stopping`), then, while the worst σ/tolerance of
-    ``model`` is above ``target`` and the operator's time is below ``max_operator_s`` (s),
-    the candidate of ``menu`` that :func:`plan_next` ranks first. ``on_step`` is called after
-    each record is fitted (a progress line). A record on the face the cube already rests on
-    costs one placement less (:func:`cost_after`, ``time``)."""
+    """Measure the first records of ``stopping`` (each face measured to its maximum and cut
+    where it had enough, :meth:`AdaptivePlan.cut`; turn pairs until the axis's gyro scale
+    meets ``target``), then ``first`` (e.g. :func:`minimal_plan`), after the records
+    ``measured`` already (they cost the operator ``measured_s`` s), then, while the worst
+    σ/tolerance of ``model`` is above ``target`` and the operator's time is below
+    ``max_operator_s`` (s), the candidate of ``menu`` that :func:`plan_next` ranks first — the
+    questions of one :class:`AdaptivePlan`. ``on_step`` is called after each record is fitted
+    (a progress line). A record on the face the cube already rests on costs one placement
+    less (:func:`cost_after`, ``time``)."""
+    plan = AdaptivePlan(model, target, menu, stopping, serial, noise, tolerances,
+                        time=time, max_operator_s=max_operator_s)  # fmt: skip
     records: dict[str, Record] = dict(measured or {})
     steps: list[Step] = []
     spent = float(measured_s)
 
-    def take(c: Candidate) -> None:
+    def take(ask: Ask) -> None:
         nonlocal spent
+        new = dict(measure(ask.candidate, ask.names))
+        if ask.first and ask.static:
+            new = {n: plan.cut(n, records, r) for n, r in new.items()}
+        spent += plan.cost(ask, records, new)
+        records.update(new)
+
+    while (ask := plan.next_first(records)) is not None:
+        take(ask)
+    for c in first:
         names: list[str] = []
         for base, *_ in c.records:
             names.append(unique_name(base, list(records) + names))
-        spent += cost_after(c, last_up(records), time)
-        records.update(measure(c, names))
-
-    for c in first:
-        take(c)
+        take(Ask(c, tuple(names), False))
     pending = Step("first records", tuple(records), spent, math.nan, "")
     while True:
-        p = plan_next(
-            Session(serial, dict(records)), model, noise=noise, tolerances=tolerances,
-            only=menu, target=target,
-        )  # fmt: skip
+        p, ask, _ = plan.planned(records, spent)
         done = dataclasses.replace(pending, worst=p.worst_now, worst_name=p.worst_name)
         steps.append(done)
         if on_step is not None:
             on_step(done)
-        if p.worst_now <= target or spent >= max_operator_s or not p.ranked:
+        if ask is None:
             break
-        best = p.ranked[0]
-        if best.gain_per_min <= 0.0:
-            break  # nothing on the menu brings any value closer to the target
         before = set(records)
-        take(best.candidate)
+        take(ask)
         added = tuple(n for n in records if n not in before)
-        pending = Step(best.candidate.label, added, spent, math.nan, "", best.sigma_after)
+        assert ask.ranked is not None
+        pending = Step(ask.candidate.label, added, spent, math.nan, "", ask.ranked.sigma_after)
     last = steps[-1]
     return AdaptiveRun(
         dict(records), tuple(steps), spent, last.worst, last.worst_name, last.worst <= target,
