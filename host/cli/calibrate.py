@@ -249,8 +249,9 @@ def add_live_arguments(p: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     p.add_argument(
         "--plan", choices=("fixed", "adaptive"), default="fixed",
-        help="fixed: the method's records; adaptive: each face ends when its mean is precise "
-        "enough for --target (10 s to --static-seconds), turn pairs go on until the gyro scale "
+        help="fixed: the method's records; adaptive: axis by axis, each face ends when its mean "
+        "(the up face: the face pair) is precise enough for --target (10 s to "
+        "--static-seconds), turn pairs after the up face go on until the gyro scale "
         "meets it (3 pairs at most), then the records the planner names (a face again, a turn "
         "pair) until every value's σ/tolerance meets --target (plan DIR ranks them)",
     )  # fmt: skip

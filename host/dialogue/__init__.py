@@ -13,7 +13,8 @@ the results through :mod:`host.calib.publish`.
   of an earlier sitting are moved aside, never replaced.
 - ``measurement`` — one measurement: its acquisition through the board driver, the record and
   its header, the checks of that record.
-- ``adaptive`` — ``--plan adaptive``: after the turns, the records the planner names until every
+- ``adaptive`` — ``--plan adaptive``: the records the workbench's adaptive engine asks for
+  (faces and turn pairs axis by axis, each until it has enough, then the planner's) until every
   value's σ/tolerance meets the target.
 - ``screens`` — what is shown: prompts, the progress line, the summaries of records and stages.
 - ``console`` — the terminal the operator answers at (and a scripted one for tests), and the

@@ -1,44 +1,65 @@
-"""``calibrate --plan adaptive``: after the six faces and the turns, the records the planner
-names, one at a time, until every value's σ meets its target (σ/tolerance ≤ ``--target``).
+"""``calibrate --plan adaptive``: the records the adaptive plan's engine asks for, one at a time,
+until every value's σ meets its target (σ/tolerance ≤ ``--target``).
 
-Each step the planner (:func:`host.workbench.planner.plan_next`) ranks a face again (the
-accumulation time asked, or three times it) and a turn pair about each axis by the σ/tolerance
-above the target each removes per minute of the operator's time; the dialogue says what it
-asks for and why, measures it as any record (the same prompts, checks and Save/repeat), and
-fits again. It stops when the target is met, when nothing on the list helps any more, or after
-``--max-extra`` records.
+The dialogue asks :class:`host.workbench.adaptive.AdaptivePlan` — the engine the benchmark's
+adaptive run asks (``benchmarks/planning.py``) — what to measure next and when a record has
+enough. First, axis by axis: the down face until the σ of its mean meets the target, the up
+face until the face pair's g-sensitivity does with the rest its turns will add, then turn pairs
+about that axis, right after the up face, until its gyro scale meets the target (each record
+says why it stopped in its header). Then the planner's records (a face again, the accumulation
+time or three times it, or a turn pair about an axis, ranked by the σ/tolerance above the target
+each removes per minute of the operator's time): the dialogue says what it asks for and why,
+measures it as any record (the same prompts, checks and Save/repeat), and fits again. It stops
+when the target is met, when nothing on the list helps any more, or after ``--max-extra``
+records, and says the operator's time the records cost (placing, settling, measuring, turning;
+:meth:`host.workbench.adaptive.AdaptivePlan.cost`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from typing import Protocol
 
+import numpy as np
+
+from host.dialogue import screens
 from host.dialogue.console import Questions
 from host.dialogue.options import CLOSING_NAME, DialogueOptions
 from host.model.catalogue import CATALOGUE
 from host.model.loader import load_term_file
 from host.model.spec import ModelTerm, parse_model
-from host.session.directory import Session
-from host.session.records import Record, turn_window_s
-from host.workbench.planner import candidates, plan_next, unique_name
-from host.workbench.stopping import StaticRule
+from host.session.records import STATIC_NAMES, Record, turn_window_s
+from host.workbench.adaptive import MAX_EXTRA_REACHED, AdaptivePlan, Ask, Stopping
+from host.workbench.planner import candidates
+from host.workbench.stopping import STATIC_MIN_S, StaticRule
+
+#: when a static record has enough (:data:`host.dialogue.recorder.StaticStop`)
+Stop = Callable[[np.ndarray, np.ndarray, float], str | None]
 
 
 class Measuring(Protocol):
-    """What the adaptive phase needs of the dialogue (:class:`host.dialogue.recorder.
+    """What the adaptive plan needs of the dialogue (:class:`host.dialogue.recorder.
     Recorder`)."""
 
     op: Questions
     serial: str
+    g: float
     done: dict[str, Record]
-    static_seconds: float | None
-    turns: int | None
-    static_rule: StaticRule | None
 
-    def _measure_static(self, name: str) -> None: ...
+    def _ask_static_seconds(self) -> float: ...
 
-    def _measure_turn(self, name: str, n: int, window: float) -> None: ...
+    def _ask_turns(self) -> tuple[int, float]: ...
+
+    def _measure_static(
+        self, name: str, seconds: float | None = None, stop: Stop | None = None
+    ) -> None: ...
+
+    def _measure_turn(
+        self, name: str, n: int, window: float, decide: Callable[[Record], str] | None = None
+    ) -> None: ...
+
+    def _show_stage1(self) -> None: ...
 
 
 def model_of(opts: DialogueOptions) -> list[ModelTerm]:
@@ -49,47 +70,90 @@ def model_of(opts: DialogueOptions) -> list[ModelTerm]:
     return parse_model(opts.model, cat)
 
 
-def measure_until_enough(dlg: Measuring, opts: DialogueOptions) -> list[str]:
-    """The adaptive phase with ``opts.target``, ``opts.model`` (its ``term_files``) and
-    ``opts.max_extra``; never names the closing record. Returns the names it added, in order."""
-    target, max_extra = opts.target, opts.max_extra
-    mts = model_of(opts)
-    static_s = float(dlg.static_seconds or 10.0)
-    turns = int(dlg.turns or 1)
+def adaptive_plan(
+    opts: DialogueOptions, serial: str, g: float, static_s: float, turns: int
+) -> AdaptivePlan:
+    """The engine of ``--plan adaptive`` for this dialogue: ``--target``, ``--model``,
+    ``--max-extra``; a face measured at least the method's 10 s (or ``static_s`` when
+    shorter) and at most ``static_s`` s (``--static-seconds``), turn pairs of ``turns`` turns
+    each way; the planner's records a face again of ``static_s`` or three times it, or a turn
+    pair. ``g``: local gravity, m/s²."""
+    rule = StaticRule.for_target(opts.target, g, min_s=min(STATIC_MIN_S, static_s), max_s=static_s)
     menu = candidates((static_s, 3 * static_s), turns, tilted=False)
-    op, added = dlg.op, list[str]()
+    return AdaptivePlan(
+        model_of(opts), opts.target, menu, Stopping(rule, turns), serial,
+        latitude_deg=opts.latitude_deg, height_m=opts.height_m, max_operator_s=math.inf,
+        max_extra=opts.max_extra,
+    )  # fmt: skip
+
+
+def measure_adaptive(dlg: Measuring, opts: DialogueOptions) -> AdaptivePlan:
+    """The records of ``--plan adaptive`` (those in ``dlg.done`` already are kept): the first
+    records, then the planner's; says the operator's time they cost. Returns the engine (the
+    closing check stops as it says)."""
+    static_s = dlg._ask_static_seconds()
+    turns, _ = dlg._ask_turns()
+    plan = adaptive_plan(opts, dlg.serial, dlg.g, static_s, turns)
+    assert plan.stopping is not None
+    dlg.op.say(screens.stops_when_enough_line(plan.stopping.rule))
+    spent = 0.0
+    taken = (CLOSING_NAME,)
+    while (ask := plan.next_first(dlg.done, taken)) is not None:
+        spent += _measure(dlg, plan, ask)
+    if all(n in dlg.done for n in STATIC_NAMES):
+        dlg._show_stage1()
+    added = 0
     while True:
-        p = plan_next(Session(dlg.serial, dict(dlg.done)), mts, only=menu, target=target)
+        p, ask, why = plan.planned(dlg.done, spent, taken, added)
         now = _ratio(p.worst_now)
-        if p.worst_now <= target:
-            op.say(
-                f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}): target {target:g} met."
+        if ask is None and p.worst_now <= plan.target:
+            dlg.op.say(
+                f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}): target "
+                f"{plan.target:g} met."
             )
-            return added
-        best = p.ranked[0] if p.ranked else None
-        if best is None or best.gain_per_min <= 0.0 or len(added) >= max_extra:
-            limit = best is not None and best.gain_per_min > 0
-            why = f"--max-extra {max_extra} reached" if limit else "no record brings it closer"
-            op.say(f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}), above {target:g}:")
-            op.say(f"  stopped, {why}.")
-            return added
-        op.say(f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}), target {target:g}.")
-        op.say(
-            f"Next: {best.candidate.label} (about {best.candidate.operator_s:.0f} s of your "
-            f"time); the worst then {_ratio(best.worst_after)}."
+            break
+        if ask is None:
+            why = f"--max-extra {opts.max_extra} reached" if why == MAX_EXTRA_REACHED else why
+            dlg.op.say(
+                f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}), above {plan.target:g}:"
+            )
+            dlg.op.say(f"  stopped, {why}.")
+            break
+        assert ask.ranked is not None
+        dlg.op.say(
+            f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}), target {plan.target:g}."
         )
-        for base, _, kind, seconds, n, _ in best.candidate.records:
-            name = unique_name(base, [*dlg.done, CLOSING_NAME])
-            if kind == "static":  # as long as the planner said: its gain assumed that
-                keep, dlg.static_seconds = dlg.static_seconds, seconds
-                rule, dlg.static_rule = dlg.static_rule, None
-                try:
-                    dlg._measure_static(name)
-                finally:
-                    dlg.static_seconds, dlg.static_rule = keep, rule
-            else:
-                dlg._measure_turn(name, n, turn_window_s(n))
-            added.append(name)
+        dlg.op.say(
+            f"Next: {ask.candidate.label} (about {ask.candidate.operator_s:.0f} s of your "
+            f"time); the worst then {_ratio(ask.ranked.worst_after)}."
+        )
+        spent += _measure(dlg, plan, ask)
+        added += len(ask.names)
+    dlg.op.say(screens.operator_time_line(spent))
+    return plan
+
+
+def _measure(dlg: Measuring, plan: AdaptivePlan, ask: Ask) -> float:
+    """Measure what ``ask`` names through the dialogue; returns what it cost the operator, s."""
+    before: Mapping[str, Record] = dict(dlg.done)
+    for name, (_, _, kind, seconds, n, _) in zip(ask.names, ask.candidate.records, strict=True):
+        if kind == "static" and ask.first:  # until it has enough, at most ``seconds``
+
+            def stop(a: np.ndarray, g: np.ndarray, t: float, name: str = name) -> str | None:
+                return plan.static_stop(name, before, a, g, t)
+
+            dlg._measure_static(name, seconds, stop)
+        elif kind == "static":  # as long as the planner said: its gain assumed that
+            dlg._measure_static(name, seconds)
+        elif ask.first and name == ask.names[-1]:  # the turn that ends a pair
+
+            def decide(rec: Record, axis: str = name[0]) -> str:
+                return plan.turns_decision({**dlg.done, rec.name: rec}, axis)[1]
+
+            dlg._measure_turn(name, n, turn_window_s(n), decide)
+        else:
+            dlg._measure_turn(name, n, turn_window_s(n))
+    return plan.cost(ask, before, dlg.done)
 
 
 def _ratio(r: float) -> str:

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import serial
 
 from host.board.acquisition import BoardReset, MeasurementAborted, SensorFault
@@ -118,6 +119,15 @@ class CalibrationDialogue(Recorder):
         self._self_test()
         self._warm_up()
 
+        if opts.plan == "adaptive":  # the engine's order and stopping rule
+            plan = adaptive.measure_adaptive(self, opts)
+            if opts.closing and CLOSING_NAME not in self.done and STATIC_NAMES[0] in self.done:
+
+                def stop(a: np.ndarray, g: np.ndarray, t: float) -> str | None:
+                    return plan.static_stop(CLOSING_NAME, self.done, a, g, t)
+
+                self._closing_check(stop)
+            return self._results()
         need_static = [n for n in STATIC_NAMES if n not in self.done]
         need_turn = [n for n in TURN_NAMES if n not in self.done]
         do_static = bool(need_static)
@@ -139,8 +149,6 @@ class CalibrationDialogue(Recorder):
             op.say("The six turns are already measured (--resume).")
         if do_turns and need_turn:
             self._stage2(need_turn)
-        if opts.plan == "adaptive" and all(n in self.done for n in STATIC_NAMES + TURN_NAMES):
-            adaptive.measure_until_enough(self, opts)
         if opts.closing and CLOSING_NAME not in self.done and STATIC_NAMES[0] in self.done:
             self._closing_check()
         return self._results()

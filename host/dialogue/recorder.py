@@ -23,7 +23,6 @@ from host.board.link import LinkLost, LinkTimeout
 from host.calib.calibration import stage1
 from host.calib.commands import ERROR_LEAD, said_with_command
 from host.dialogue import screens
-from host.dialogue.adaptive import model_of
 from host.dialogue.console import Console, Questions
 from host.dialogue.measurement import (
     PLACED,
@@ -45,17 +44,14 @@ from host.dialogue.options import (
     parse_turns,
 )
 from host.dialogue.sitting import SittingDirectory
-from host.errors import ResumableError, UserError
-from host.session.directory import Session, record_path, write_record
+from host.errors import ResumableError
+from host.session.directory import record_path, write_record
 from host.session.method import local_gravity, record_stats
 from host.session.records import STATIC_NAMES, STOPPED_KEY, TURN_NAMES, Record, turn_window_s
-from host.workbench.planner import unique_name
-from host.workbench.stopping import (
-    STATIC_MIN_S,
-    StaticRule,
-    turn_scale_ratio,
-    turns_stop,
-)
+
+#: when a static record has enough: stop(accel (N, 3) m/s², gyro (N, 3) °/s, elapsed s) -> why
+#: it stops now (its header's ``stopped``), or None: go on
+StaticStop = Callable[[np.ndarray, np.ndarray, float], str | None]
 
 #: --yes: a measurement whose default answer is "repeat" is tried at most this many times
 YES_MAX_ATTEMPTS = 3
@@ -88,11 +84,6 @@ class Recorder:
         #: True while the warm-up runs (Ctrl+C there discards no measurement)
         self.in_warm_up = False
         self.sitting: SittingDirectory | None = None  # the output directory, locked
-        #: --plan adaptive: a static ends when its mean's σ meets the target (None: it lasts
-        #: ``static_seconds``); turns continue about an axis until its gyro scale meets it
-        self.static_rule: StaticRule | None = None
-        self.turn_target: float | None = None
-        self._more_turns: dict[str, bool] = {}  # axis -> another pair is needed
 
     # ---- plumbing ------------------------------------------------------------------------
     def _warn(self, text: str) -> None:
@@ -153,7 +144,8 @@ class Recorder:
         ]  # fmt: skip
 
     # ---- stage 1 -------------------------------------------------------------------------
-    def _stage1(self, names: list[str]) -> None:
+    def _ask_static_seconds(self) -> float:
+        """The accumulation time per orientation (``--static-seconds``, else asked), s."""
         if self.static_seconds is None:
             self.static_seconds = self.op.ask(
                 "Accumulation time per orientation, seconds (typically 10 to a few hundred)",
@@ -162,32 +154,36 @@ class Recorder:
             )
         if self.static_seconds < 10:
             self._warn(f"{self.static_seconds:g} s per orientation is short: noise averages less")
-        if self.opts.plan == "adaptive":
-            s = self.static_seconds
-            self.static_rule = StaticRule.for_target(
-                self.opts.target, self.g, min_s=min(STATIC_MIN_S, s), max_s=s
-            )
-            self.op.say(screens.stops_when_enough_line(self.static_rule))
+        return self.static_seconds
+
+    def _stage1(self, names: list[str]) -> None:
+        self._ask_static_seconds()
         for name in names:
             self._measure_static(name)
 
-    def _closing_check(self) -> None:
+    def _closing_check(self, stop: StaticStop | None = None) -> None:
         """The first attitude measured again (:data:`CLOSING_NAME`): the fit takes it as one
         more static record; its difference from the opening measurement is the drift over the
-        session, shown here in the channels' units."""
+        session, shown here in the channels' units. ``stop``: it ends when it has enough
+        (``--plan adaptive``), at most the accumulation time."""
         first = STATIC_NAMES[0]
         op = self.op
         op.say(screens.closing_line(first))
         if self.static_seconds is None:
             self.static_seconds = float(self.done[first].duration_s)
-        self._measure_static(CLOSING_NAME)
+        self._measure_static(CLOSING_NAME, stop=stop)
         op.say(screens.closing_difference(self.done[first], self.done[CLOSING_NAME]))
 
-    def _measure_static(self, name: str) -> None:
+    def _measure_static(
+        self, name: str, seconds: float | None = None, stop: StaticStop | None = None
+    ) -> None:
+        """Measure static record ``name`` for ``seconds`` s (None: the accumulation time),
+        or with ``stop`` until it says the record has enough (at most ``seconds``), then
+        Save/repeat; its header then says why it stopped."""
         op = self.op
         axis, side = name.split("_")[:2]  # x_up_2: the attitude x_up again
         assert self.static_seconds is not None
-        rule = self.static_rule
+        length = self.static_seconds if seconds is None else seconds
         attempts = 0
         while True:
             attempts += 1
@@ -196,18 +192,17 @@ class Recorder:
             why: list[str] = []
 
             def enough(counts: np.ndarray, elapsed_s: float, why: list[str] = why) -> bool:
-                assert rule is not None
+                assert stop is not None
                 accel, gyro, _ = self.board.physical(counts)
-                why.extend(w for w in [rule.stop(accel, gyro, elapsed_s)] if w)
+                why.extend(w for w in [stop(accel, gyro, elapsed_s)] if w)
                 return bool(why)
 
-            seconds = self.static_seconds if rule is None else rule.max_s
-            acq = self._acquire(name, seconds, "Measuring", None if rule is None else enough)
+            acq = self._acquire(name, length, "Measuring", None if stop is None else enough)
             if acq is None:
                 continue
             rec = self._record(name, acq, {"kind": "static", **PLACED})
-            if rule is not None:
-                why = why or [rule.stop(rec.accel, rec.gyro, rule.max_s) or ""]
+            if stop is not None:
+                why = why or [stop(rec.accel, rec.gyro, length) or ""]
                 rec.meta[STOPPED_KEY] = why[0]
                 op.say(f"{name}: stopped, {why[0].split(':')[0]}")
             screens.show_table(op, rec)
@@ -222,7 +217,8 @@ class Recorder:
         screens.show_stage1(self.op, stage1(stats, self.g), self.g)
 
     # ---- stage 2 -------------------------------------------------------------------------
-    def _stage2(self, names: list[str]) -> None:
+    def _ask_turns(self) -> tuple[int, float]:
+        """The turns per turn record (``--turns``, else asked) and their window, s."""
         op = self.op
         if self.turns is None:
             self.turns = op.ask(
@@ -238,38 +234,19 @@ class Recorder:
                 f"window is 15 + 4·({n}−3) = {window:g} s"
             )
         op.say(screens.turn_window_line(window))
-        if self.opts.plan == "adaptive":
-            self.turn_target = self.opts.target
+        return n, window
+
+    def _stage2(self, names: list[str]) -> None:
+        n, window = self._ask_turns()
         for name in names:
             self._measure_turn(name, n, window)
-        for ax in "xyz":  # --plan adaptive: pairs until the gyro scale meets its target
-            while self._more_turns.get(ax):
-                for d in ("ccw", "cw"):
-                    self._measure_turn(unique_name(f"{ax}_{d}", self.done), n, window)
 
-    def _turns_decision(self, rec: Record, axis: str) -> str:
-        """After the cw turn of a pair about ``axis`` (not yet saved): why the turns about it
-        stop, or why another pair follows (the fit of the records so far with ``rec``)."""
-        assert self.turn_target is not None
-        pairs = 1 + sum(1 for k in self.done if k == f"{axis}_cw" or k.startswith(f"{axis}_cw_"))
-        session = Session(self.serial, {**self.done, rec.name: rec})
-        try:
-            ratio = turn_scale_ratio(session, model_of(self.opts), axis,
-                                     latitude_deg=self.opts.latitude_deg,
-                                     height_m=self.opts.height_m)  # fmt: skip
-        except UserError as exc:
-            self._more_turns[axis] = False
-            return f"not decided after {pairs} pair(s): the records do not fit yet ({exc})"
-        why = turns_stop(ratio, self.turn_target, pairs)
-        self._more_turns[axis] = why is None
-        if why is None:
-            why = (
-                f"another pair follows: gyro scale σ/tolerance {ratio:.3g} above the target "
-                f"{self.turn_target:g} after {pairs} pair(s)"
-            )
-        return why
-
-    def _measure_turn(self, name: str, n: int, window: float) -> None:
+    def _measure_turn(
+        self, name: str, n: int, window: float, decide: Callable[[Record], str] | None = None
+    ) -> None:
+        """Measure turn record ``name`` (``n`` turns in ``window`` s), then Save/repeat.
+        ``decide(record)``: a turn that ends a pair says, in its header, whether another pair
+        follows and why (``--plan adaptive``)."""
         op = self.op
         axis, direction = name.split("_")[:2]  # x_ccw_2: the turn x_ccw again
         attempts = 0
@@ -293,8 +270,8 @@ class Recorder:
             )  # fmt: skip
             problems = self._loss_problems(name, acq)
             problems += self._check_turn(rec, acq, n)
-            if self.turn_target is not None and direction == "cw" and not problems:
-                rec.meta[STOPPED_KEY] = self._turns_decision(rec, axis)
+            if decide is not None and not problems:
+                rec.meta[STOPPED_KEY] = decide(rec)
                 op.say(f"{axis} turns: {rec.meta[STOPPED_KEY].split(':')[0]}")
             if self._decide(name, problems, attempts):
                 self._save(rec, problems)

@@ -91,6 +91,12 @@ def stops_when_enough_line(rule: StaticRule) -> str:
     )
 
 
+def operator_time_line(spent_s: float) -> str:
+    """--plan adaptive: the operator's time its records cost (placing, settling, measuring,
+    turning: :meth:`host.workbench.adaptive.AdaptivePlan.cost`), s."""
+    return f"Adaptive plan: about {spent_s:.0f} s of your time on its records this sitting."
+
+
 def closing_line(first: str) -> str:
     """The closing check's announcement: the first attitude (``first``) once more."""
     return (

@@ -168,12 +168,18 @@ class Ask:
         return self.candidate.records[0][2] == "static"
 
 
+#: why the planner asks for nothing more: it added as many records as it may
+MAX_EXTRA_REACHED = "the most records the planner may add were added"
+
+
 @dataclass(frozen=True)
 class AdaptivePlan:
     """The engine of an adaptive run: towards every value's σ/tolerance ≤ ``target`` for
     ``model``, first the records of ``stopping`` (None: none), then the candidate of ``menu``
     the planner ranks first, while the operator's time is below ``max_operator_s`` (s).
-    :meth:`next` says what to measure next, :meth:`static_stop` (live) or :meth:`cut` (a record
+    :meth:`next_first` and :meth:`planned` say what to measure next (the planner's records
+    while its operator's time is below ``max_operator_s`` and it added fewer than
+    ``max_extra``), :meth:`static_stop` (live) or :meth:`cut` (a record
     measured to its maximum) when a face has enough, :meth:`turns_decision` whether another
     turn pair follows, :meth:`cost` what a record cost the operator (``time``)."""
 
@@ -188,9 +194,12 @@ class AdaptivePlan:
     height_m: float = DEFAULT_HEIGHT_M
     time: OperatorTime = OPERATOR_TIME
     max_operator_s: float = 3600.0
-    #: (axis, the records' names) -> turns_decision's answer: one fit per decision
-    _decided: dict[tuple[str, tuple[str, ...]], tuple[bool, str]] = dataclasses.field(
-        default_factory=dict, compare=False, repr=False
+    #: records the planner may add at most (a turn pair is two)
+    max_extra: float = math.inf
+    #: (axis, the records (name, samples, first time)) -> turns_decision's answer: one fit
+    #: per decision (a turn measured again is another record)
+    _decided: dict[tuple[str, tuple[tuple[str, int, float], ...]], tuple[bool, str]] = (
+        dataclasses.field(default_factory=dict, compare=False, repr=False)
     )
 
     # ---- the first records ----------------------------------------------------------------
@@ -279,7 +288,8 @@ class AdaptivePlan:
         pair follows, why — the cw turn's header's ``stopped``), from the σ/tolerance of
         the axis's gyro scale in the fit of ``records``
         (:func:`host.workbench.stopping.turns_stop`)."""
-        key = (axis, tuple(records))
+        key = (axis, tuple((n, len(r), float(r.t_ms[0]) if len(r) else 0.0)
+                           for n, r in records.items()))  # fmt: skip
         if key in self._decided:
             return self._decided[key]
         pairs = _pairs_about(records, axis)
@@ -303,11 +313,17 @@ class AdaptivePlan:
 
     # ---- the planner's records --------------------------------------------------------------
     def planned(
-        self, records: Mapping[str, Record], spent_s: float, taken: Collection[str] = ()
+        self,
+        records: Mapping[str, Record],
+        spent_s: float,
+        taken: Collection[str] = (),
+        added: int = 0,
     ) -> tuple[NextPlan, Ask | None, str]:
         """The planner's answer on ``records`` and the record to measure next, or None and why
         not: the target is met, the operator's time (``spent_s`` s so far) reached
-        ``max_operator_s``, or no record of the menu brings any value closer to the target."""
+        ``max_operator_s``, no record of the menu brings any value closer to the target, or
+        the planner added ``max_extra`` records already (``added``: :data:`MAX_EXTRA_REACHED`).
+        Names avoid ``records`` and ``taken``."""
         p = plan_next(
             Session(self.serial, dict(records)), self.model, noise=self.noise,
             tolerances=self.tolerances, time=self.time, latitude_deg=self.latitude_deg,
@@ -319,6 +335,8 @@ class AdaptivePlan:
             return p, None, f"the operator's time reached {self.max_operator_s:g} s"
         if not p.ranked or p.ranked[0].gain_per_min <= 0.0:
             return p, None, "no record brings it closer"
+        if added >= self.max_extra:
+            return p, None, MAX_EXTRA_REACHED
         best = p.ranked[0]
         names: list[str] = []
         for base, *_ in best.candidate.records:
@@ -355,6 +373,7 @@ def adaptive_run(
     noise: NoiseModel | None = None,
     tolerances: Mapping[str, float | None] = TOLERANCES,
     max_operator_s: float = 3600.0,
+    max_extra: float = math.inf,
     on_step: Callable[[Step], None] | None = None,
     measured: Mapping[str, Record] | None = None,
     measured_s: float = 0.0,
@@ -365,12 +384,13 @@ def adaptive_run(
     meets ``target``), then ``first`` (e.g. :func:`minimal_plan`), after the records
     ``measured`` already (they cost the operator ``measured_s`` s), then, while the worst
     σ/tolerance of ``model`` is above ``target`` and the operator's time is below
-    ``max_operator_s`` (s), the candidate of ``menu`` that :func:`plan_next` ranks first — the
+    ``max_operator_s`` (s) and it added fewer than ``max_extra`` records, the candidate of
+    ``menu`` that :func:`plan_next` ranks first — the
     questions of one :class:`AdaptivePlan`. ``on_step`` is called after each record is fitted
     (a progress line). A record on the face the cube already rests on costs one placement
     less (:func:`cost_after`, ``time``)."""
-    plan = AdaptivePlan(model, target, menu, stopping, serial, noise, tolerances,
-                        time=time, max_operator_s=max_operator_s)  # fmt: skip
+    plan = AdaptivePlan(model, target, menu, stopping, serial, noise, tolerances, time=time,
+                        max_operator_s=max_operator_s, max_extra=max_extra)  # fmt: skip
     records: dict[str, Record] = dict(measured or {})
     steps: list[Step] = []
     spent = float(measured_s)
@@ -391,8 +411,9 @@ def adaptive_run(
             names.append(unique_name(base, list(records) + names))
         take(Ask(c, tuple(names), False))
     pending = Step("first records", tuple(records), spent, math.nan, "")
+    added = 0
     while True:
-        p, ask, _ = plan.planned(records, spent)
+        p, ask, _ = plan.planned(records, spent, added=added)
         done = dataclasses.replace(pending, worst=p.worst_now, worst_name=p.worst_name)
         steps.append(done)
         if on_step is not None:
@@ -401,9 +422,10 @@ def adaptive_run(
             break
         before = set(records)
         take(ask)
-        added = tuple(n for n in records if n not in before)
+        new = tuple(n for n in records if n not in before)
+        added += len(new)
         assert ask.ranked is not None
-        pending = Step(ask.candidate.label, added, spent, math.nan, "", ask.ranked.sigma_after)
+        pending = Step(ask.candidate.label, new, spent, math.nan, "", ask.ranked.sigma_after)
     last = steps[-1]
     return AdaptiveRun(
         dict(records), tuple(steps), spent, last.worst, last.worst_name, last.worst <= target,

@@ -5,17 +5,23 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 import re
+from collections.abc import Sequence
 from pathlib import Path
 
 import pytest
 
 from host.dialogue import flow, options
 from host.dialogue.console import ScriptedConsole
+from host.model.catalogue import CATALOGUE
+from host.model.spec import parse_model
 from host.session.directory import read_session
-from host.session.records import STATIC_NAMES, TURN_NAMES
-from host.workbench.planner import candidates
-from host.workbench.stopping import TURN_PAIRS_MAX
+from host.session.method import local_gravity
+from host.session.records import STATIC_NAMES, STOPPED_KEY, TURN_NAMES, Record
+from host.workbench.adaptive import Stopping, adaptive_run
+from host.workbench.planner import Candidate, candidates
+from host.workbench.stopping import TURN_PAIRS_MAX, StaticRule
 
 
 def _run(tmp: Path, **kw: object) -> tuple[str, Path, int]:
@@ -63,3 +69,65 @@ def test_bad_plan_options_are_refused_before_the_board() -> None:
         o = options.DialogueOptions(serial="AD1", **kw)  # type: ignore[arg-type]
         with pytest.raises(options.UserError, match=word):
             o.check()
+
+
+@pytest.mark.slow
+def test_the_dialogue_measures_what_the_benchmarks_adaptive_run_plans(tmp_path: Path) -> None:
+    """On a seeded virtual unit (its linear terms and noise only, so that the target is a
+    matter of noise) the dialogue measures axis by axis — the down face, the up face, turn
+    pairs about that axis — each face stopping as the pair rule says, and the benchmark's
+    :func:`host.workbench.adaptive.adaptive_run`, handed the dialogue's records, asks for the
+    same records in the same order and counts the same operator time."""
+    target, static_s = 0.005, 60.0
+    o = options.DialogueOptions(
+        port="sim://?seed=9&speed=max&effects=linear,noise", serial="PR1", out=tmp_path / "PR1",
+        static_seconds=static_s, turns=1, warmup_s=0.0, yes=True, ready_s=0.0, plan="adaptive",
+        target=target, max_extra=2, closing=False,
+    )  # fmt: skip
+    con = ScriptedConsole()
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert flow.run_dialogue(o, con, None) in (0, 1), con.text[-2000:]
+    saved = re.findall(r"Saved \S+/PR1_(\w+)\.txt", con.text)
+    recs = read_session(tmp_path / "PR1").records
+    assert sorted(saved) == sorted(recs)
+
+    # the order: axis by axis, each turn pair right after its up face; then the planner's
+    pairs = r"(?:{a}_ccw(?:_\d)? {a}_cw(?:_\d)? )+"
+    first = "".join(f"{a}_dn {a}_up " + pairs.format(a=a) for a in "xyz")
+    assert re.fullmatch(first + r"(?:[xyz]_(?:up|dn|ccw|cw)_\d+ ?){1,2}", " ".join(saved)), saved
+    # why each stopped: the down face on its own mean, the up face on the pair's
+    # g-sensitivity with the rest its two 7 s turn windows add; the cw turn of each pair
+    for a in "xyz":
+        down, up = recs[f"{a}_dn"].meta[STOPPED_KEY], recs[f"{a}_up"].meta[STOPPED_KEY]
+        assert re.match(r"σ of the mean met its target at \d+ s: gyro \S+ °/s \(", down), down
+        assert "with the opposite face and 14 s of turns to come" in up, up
+        # the turns to come carry the up face: it needs less rest than its down face
+        assert recs[f"{a}_up"].duration_s < recs[f"{a}_dn"].duration_s - 5.0
+        cws = [n for n in saved if re.fullmatch(rf"{a}_cw(_\d)?", n)]
+        cws = cws[: sum(1 for n in cws if STOPPED_KEY in recs[n].meta)]
+        for n in cws[:-1]:
+            assert recs[n].meta[STOPPED_KEY].startswith("another pair follows"), n
+        assert re.match(rf"gyro scale σ/tolerance \S+ met the target {target:g}|the maximum",
+                        recs[cws[-1]].meta[STOPPED_KEY])  # fmt: skip
+    assert re.search(r"stopped, --max-extra 2 reached", con.text)
+
+    # the benchmark's run on the same unit: the dialogue's records are its measuring hand
+    asked: list[str] = []
+
+    def measure(c: Candidate, names: Sequence[str]) -> dict[str, Record]:
+        asked.extend(names)
+        return {n: recs[n] for n in names}
+
+    rule = StaticRule.for_target(target, local_gravity(), max_s=static_s)
+    run = adaptive_run(
+        measure, parse_model("base", CATALOGUE), target=target, first=[],
+        menu=candidates((static_s, 3 * static_s), 1, tilted=False), stopping=Stopping(rule, 1),
+        max_operator_s=math.inf, max_extra=2,
+    )  # fmt: skip
+    assert asked == saved
+    for n in saved:  # each face cut where the dialogue stopped it
+        assert len(run.records[n]) == len(recs[n]), n
+    told = re.search(r"Adaptive plan: about (\d+) s of your time", con.text)
+    assert told is not None
+    # within 1 s: the dialogue says whole seconds
+    assert abs(float(told.group(1)) - run.operator_s) <= 1.0, (told.group(0), run.operator_s)
