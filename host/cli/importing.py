@@ -145,6 +145,9 @@ def run(args: argparse.Namespace) -> int:
         serial = parse_serial(args.serial)
     except ValueError as exc:
         raise UserError(f"--serial: {exc}") from None
+    if args.record and args.labels is not None:  # was: --labels silently left unused
+        raise UserError("--record and --labels: give one (the whole file as one record, or "
+                        "the labels file's rows)")  # fmt: skip
     stream, segments = _read_stream(args)
     thresholds = None
     notes: list[str] = []

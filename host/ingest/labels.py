@@ -28,7 +28,14 @@ from host.session.spacing import trapezoid
 LABELS_HEADER = "# imu-bench segments v2"
 #: the column-names line; a file whose names line lacks ``heading_deg`` (v1) carries none
 _COLUMNS = ("row", "start_s", "end_s", "label", "heading_deg", "found", "quality", "reason")
-_LABEL_RE = re.compile(r"^(?P<axis>[xyz])_(?P<dir>up|dn|ccw|cw)(?:_(?P<rep>[0-9A-Za-z]+))?$")
+#: a repeat's suffix: up to 8 letters or digits (a longer one made a file name the disk refused)
+_LABEL_RE = re.compile(r"^(?P<axis>[xyz])_(?P<dir>up|dn|ccw|cw)(?:_(?P<rep>[0-9A-Za-z]{1,8}))?$")
+#: the versions of the labels file this program reads (v1: no heading_deg column)
+_VERSIONS = ("v1", "v2")
+#: how far a row's times may reach past the stream's first and last sample, s (hand-edited)
+_SLACK_S = 0.5
+#: a turn record turns at least this far about its axis, ° (a rest labelled as a turn: not)
+_MIN_TURN_DEG = 180.0
 
 
 def _t3(v: np.ndarray) -> tuple[float, float, float]:
@@ -83,7 +90,7 @@ def read_labels(path: str | os.PathLike[str], stream: Stream) -> list[Segment]:
     times (s) and label; turns are measured from the stream (angle about the label's axis)."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")  # an editor's byte-order mark is no text
     except OSError as exc:
         raise SegmentationError(
             f"{p}: cannot read the labels file ({exc.strerror or exc})"
@@ -106,6 +113,12 @@ def parse_labels(text: str, source: str, stream: Stream) -> list[Segment]:
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         names = line.lstrip("#").split()
+        version = line.removeprefix(LABELS_HEADER[:-2]).split(" ", 1)[0]
+        if line.startswith(LABELS_HEADER[:-2]) and version not in _VERSIONS:
+            raise SegmentationError(
+                f"{p}:{lineno}: labels file {version}; this program reads "
+                f"{' and '.join(_VERSIONS)}: write it again with this program's import"
+            )
         if line.startswith("#") and names[:4] == list(_COLUMNS[:4]):
             col_heading = names.index("heading_deg") if "heading_deg" in names else None
             continue
@@ -134,6 +147,11 @@ def parse_labels(text: str, source: str, stream: Stream) -> list[Segment]:
         seen[label] = lineno
         if not t1 > t0:
             raise SegmentationError(f"{where}: end_s must be after start_s")
+        if t0 < t[0] - _SLACK_S or t1 > t[-1] + _SLACK_S:
+            raise SegmentationError(
+                f"{where}: {t0:g}..{t1:g} s reaches past the stream, which spans "
+                f"{t[0]:.3f}..{t[-1]:.3f} s: give times within it"
+            )
         start = int(np.searchsorted(t, t0, side="left"))
         stop = int(np.searchsorted(t, t1, side="right"))
         if stop - start < 2:
@@ -155,6 +173,13 @@ def parse_labels(text: str, source: str, stream: Stream) -> list[Segment]:
         up = np.zeros(3)
         if d in ("up", "dn"):
             up["xyz".index(axis)] = 1.0 if d == "up" else -1.0
+            found, _, off = attitude(stream.accel[start:stop].mean(axis=0))
+            if found != f"{axis}_{d}":
+                raise SegmentationError(
+                    f"{where}: {label} on {t0:g}..{t1:g} s, but there gravity is along "
+                    + (f"{found} ({off:.0f}° off)" if found != "tilted" else "no face's axis")
+                    + ": correct the label or the times"
+                )
             segs.append(
                 Segment(start, stop, float(t[start]), float(t[stop - 1]), "labelled", label,
                         "from the labels file", _t3(up), heading_deg=heading)
@@ -165,7 +190,23 @@ def parse_labels(text: str, source: str, stream: Stream) -> list[Segment]:
     if not segs:
         raise SegmentationError(f"{p}: no labelled rows (every label is '-')")
     segs.sort(key=lambda s: s.start)
+    # two statics, or two turns, on one sample (a turn's window reaches into the rests
+    # around it by design; the warm-up is kept apart)
+    for kind in (("up", "dn"), ("ccw", "cw")):
+        same = [s for s in segs if s.label != WARMUP_NAME and s.label.split("_")[1] in kind]
+        _no_overlap(same, p)
     return segs
+
+
+def _no_overlap(segs: list[Segment], source: str) -> None:
+    """SegmentationError naming the first two of ``segs`` (sorted by start) that overlap."""
+    for a, b in zip(segs, segs[1:], strict=False):
+        if b.start < a.stop:
+            raise SegmentationError(
+                f"{source}: {a.label} ({a.t0_s:.3f}..{a.t1_s:.3f} s) and {b.label} "
+                f"({b.t0_s:.3f}..{b.t1_s:.3f} s) overlap: a sample belongs to one record; "
+                "correct the times"
+            )
 
 
 def _heading(fields: list[str], col: int | None, where: str) -> float | None:
@@ -199,6 +240,11 @@ def _turn_from_label(
     angle = float(trapezoid(t[start:stop], gyr[start:stop]) @ up)
     n = max(1, round(abs(angle) / 360.0))
     direction = 1 if d == "ccw" else -1
+    if abs(angle) < _MIN_TURN_DEG:
+        raise SegmentationError(
+            f"{where}: {label} turned {angle:+.0f}° about {axis_text(up)}: no turn; correct "
+            "the times, or label the row - (a rest) or a face"
+        )
     if angle * direction < 0:
         raise SegmentationError(
             f"{where}: {label} turned {angle:+.0f}° about {axis_text(up)}, the other way: "

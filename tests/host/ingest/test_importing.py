@@ -355,7 +355,8 @@ def test_existing_records_are_not_overwritten(tmp_path: Path, capsys) -> None:
     out = tmp_path / "o"
     assert main(["import", str(cap), "--serial", "E1", "--out", str(out)]) == 0
     before = (out / "E1_x_up.txt").read_bytes()
-    assert main(["import", str(cap), "--serial", "E1", "--out", str(out), "--record", "x_up"]) == 2
+    labels = str(out / "E1_segments.tsv")
+    assert main(["import", str(cap), "--serial", "E1", "--out", str(out), "--labels", labels]) == 2
     assert "already exists" in capsys.readouterr().err
     assert (out / "E1_x_up.txt").read_bytes() == before
 
@@ -525,3 +526,13 @@ def test_text_in_a_skipped_column_is_not_a_header() -> None:
     assert s.t_s.tolist() == [0.0, 0.02] and s.gyro[1].tolist() == [4.0, 5.0, 7.0]
     s = parse_column_text(text.split("\n", 1)[1], "d.txt", cols)
     assert len(s) == 2 and "header" not in s.meta
+
+
+def test_record_and_labels_together_are_one_line(tmp_path: Path, capsys) -> None:
+    """Was: --labels silently unused beside --record (the whole file became the record)."""
+    argv = ["import", str(tmp_path / "s.csv"), "--serial", "R1", "--out", str(tmp_path / "o"),
+            "--record", "x_up", "--labels", str(tmp_path / "l.tsv")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--record and --labels: give one" in err
+    assert not (tmp_path / "o").exists()

@@ -4,6 +4,7 @@ read into every record's ``placement_heading_deg``; files without the column (v1
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -99,3 +100,65 @@ def test_written_and_read_back_the_heading_survives(x: float | None, y: float | 
         if got is not None and h is not None:
             assert math.isclose(math.cos(math.radians(got)), math.cos(math.radians(h)),
                                 abs_tol=1e-3)  # fmt: skip
+
+
+def _rows(*rows: str, version: str = "v2") -> str:
+    return (
+        f"# imu-bench segments {version} of s.csv\n"
+        "# row\tstart_s\tend_s\tlabel\theading_deg\tfound\tquality\treason\n"
+        + "".join(f"{i}\t{r}\t-\t-\t-\t-\n" for i, r in enumerate(rows, start=1))
+    )
+
+
+def _turning_stream() -> Stream:
+    """30 s at 50 Hz, x up: still 10 s, two turns ccw about x in 10 s, still 10 s."""
+    t = np.arange(1500) / 50.0
+    accel = np.zeros((1500, 3))
+    accel[:, 0] = G
+    gyro = np.zeros((1500, 3))
+    gyro[500:1000, 0] = 72.0  # °/s for 10 s: 720°
+    return Stream(t, accel, gyro, np.full(1500, 25.0), {"source": "s.csv"})
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        # times past the stream: was a 20 s x_up over both faces, exit 0
+        (_rows("1.0\t1e9\tx_up"), "reaches past the stream, which spans 0.000..19.980 s"),
+        (_rows("-50\t9.0\tx_up"), "-50..9 s reaches past the stream"),
+        (_rows("1.0\tinf\tx_up"), "reaches past the stream"),
+        # a face where gravity is along another axis, or none: was a record of the wrong face
+        (_rows("11.0\t19.0\tx_up"), "x_up on 11..19 s, but there gravity is along y_up"),
+        (_rows("5.0\t15.0\tz_dn"), "gravity is along no face's axis"),
+        # two statics on one sample: was two records sharing samples, exit 0
+        (_rows("1.0\t9.0\tx_up", "2.0\t8.0\tx_up_2"), "x_up (1.000..9.000 s) and x_up_2"),
+        # a file of a version this program does not know: was read as if v2
+        (_rows("1.0\t9.0\tx_up", version="v9"), "labels file v9; this program reads v1 and v2"),
+        # a repeat suffix the disk refuses as a file name: was an OSError 'File name too long'
+        (_rows("1.0\t9.0\tx_up_" + "a" * 300), "is not a record name"),
+    ],
+)
+def test_a_row_that_cannot_be_a_record_is_one_line(text: str, words: str) -> None:
+    with pytest.raises(SegmentationError, match=words.replace("(", r"\(").replace(")", r"\)")):
+        parse_labels(text, "l.tsv", _stream())
+
+
+def test_a_rest_labelled_as_a_turn_is_refused_and_a_turn_is_read() -> None:
+    """Was: a rest labelled x_ccw became a turn record of one turn (n = max(1, …))."""
+    s = _turning_stream()
+    with pytest.raises(SegmentationError, match=r"x_ccw turned \+0° about \+x: no turn"):
+        parse_labels(_rows("1.0\t9.0\tx_ccw"), "l.tsv", s)
+    (seg,) = parse_labels(_rows("9.0\t21.0\tx_ccw"), "l.tsv", s)
+    assert (seg.turns, seg.direction) == (2, 1)
+    # a turn's window may reach into the rests around it (the import's own cut does)
+    segs = parse_labels(_rows("1.0\t9.5\tx_up", "9.0\t21.0\tx_ccw"), "l.tsv", s)
+    assert [x.label for x in segs] == ["x_up", "x_ccw"]
+
+
+def test_an_editors_byte_order_mark_is_not_text(tmp_path: Path) -> None:
+    """Was: 'line 1: start_s and end_s must be numbers' for a file saved with a BOM."""
+    from host.ingest.labels import read_labels
+
+    p = tmp_path / "l.tsv"
+    p.write_bytes(b"\xef\xbb\xbf" + _v2("90", "-").replace("\n", "\r\n").encode())
+    assert [s.label for s in read_labels(p, _stream())] == ["x_up", "y_up"]
