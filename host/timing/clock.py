@@ -59,8 +59,11 @@ def unwrap(
     d = np.diff(v) & (mod - 1)  # modulo 2^bits (two's complement: a bitwise and)
     if host_ns is not None and ticks_per_ns is not None:
         dh = np.diff(np.asarray(host_ns, dtype=np.float64)) * ticks_per_ns
-        wraps = np.maximum(np.rint((dh - d) / mod), 0).astype(np.int64)
-        d = d + wraps * mod
+        # under half a period of host time between every two (the usual case) rounds to no
+        # whole wrap anywhere, the counter's step being >= 0
+        if not (dh.size == 0 or float(dh.max()) < mod / 2):
+            wraps = np.maximum(np.rint((dh - d) / mod), 0).astype(np.int64)
+            d = d + wraps * mod
     return v[0] + np.concatenate(([0], np.cumsum(d)))
 
 

@@ -53,45 +53,53 @@ SAMPLE_DTYPE = np.dtype(
 
 
 class _PairCRC:
-    """CRC of fixed-length messages from 16-bit words: one table lookup per two bytes.
+    """The CRC check of fixed-length frames from 16-bit words: one table lookup per two bytes.
 
-    The CRC is affine over GF(2): crc(m) = crc(0…0) ⊕ ⊕_k T_k[word_k], where T_k is the CRC
-    (init 0) of word k followed by zeros. K bytes -> K/2 lookups of 65536-entry tables.
+    The CRC is affine over GF(2): crc(m) = crc(0…0) ⊕ ⊕_k T_k[word_k], T_k the CRC (init 0)
+    of word k followed by zeros, and so is crc(m) ⊕ the stored CRC. A frame's ``nbytes``
+    checked bytes start with the known ``prefix`` (type and length: folded into the constant)
+    and are followed by the stored CRC (little-endian) and, when that leaves an odd count, one
+    pad byte (ignored); the frame checks when the XOR of its words' entries is crc(prefix,
+    0…0). An IMU_SAMPLE (seq, 19-byte payload, CRC, pad): 12 lookups of 65536-entry tables,
+    no separate read of the stored CRC.
     """
 
-    def __init__(self, nbytes: int) -> None:
-        self.nbytes = nbytes
-        self.npairs = nbytes // 2
-        single = np.zeros((nbytes, 256), dtype=np.uint16)
-        for i in range(nbytes):
-            c = CRC_TABLE[np.arange(256)]  # register after byte i, starting from 0
-            for _ in range(nbytes - 1 - i):  # followed by zero bytes
-                c = (c << 8) ^ CRC_TABLE[c >> 8]
-            single[i] = c
+    def __init__(self, prefix: bytes, nbytes: int) -> None:
+        self.prefix = len(prefix)
+        rest = nbytes - len(prefix)
+        self.nwords = (rest + 2 + 1) // 2  # the rest, the stored CRC, a pad byte when odd
+        # per byte position: the register from 0 after that byte and the zeros after it
+        single = []
+        c = CRC_TABLE.copy()  # the last byte's
+        for _ in range(rest):
+            single.append(c)
+            c = (c << 8) ^ CRC_TABLE[c >> 8]  # one zero byte more after it
+        byte = single[::-1]
+        byte += [np.arange(256, dtype=np.uint16), np.arange(256, dtype=np.uint16) << 8]
+        byte += [np.zeros(256, np.uint16)] * (2 * self.nwords - len(byte))
         # indexed by the pair read as one little-endian word (second byte high): a view of
         # the rows in the machine's order on the usual hosts, so no byte swap per lookup
-        self.pairs = [
-            (single[2 * k][None, :] ^ single[2 * k + 1][:, None]).reshape(-1)
-            for k in range(self.npairs)
+        self.tables = [
+            (byte[2 * k][None, :] ^ byte[2 * k + 1][:, None]).reshape(-1)
+            for k in range(self.nwords)
         ]
-        self.last = single[nbytes - 1] if nbytes % 2 else None
-        self.zero = int(crc16_rows(np.zeros((1, nbytes), dtype=np.uint8))[0])
+        self.zero = crc16_rows(np.frombuffer(prefix + bytes(rest), np.uint8)[None, :])[0]
 
-    def rows(self, rows: np.ndarray, start: int) -> np.ndarray:
-        """CRCs of ``rows[:, start : start + nbytes]``; rows (M, W) uint8 C-contiguous, W even,
-        ``start`` even."""
+    def check(self, rows: np.ndarray, start: int) -> np.ndarray:
+        """Does each frame's stored CRC match, its checked bytes at ``rows[:, start:]`` (the
+        prefix's bytes there); rows (M, W) uint8 C-contiguous, W even, ``start`` even and
+        ``start + nbytes + 3 <= W``."""
+        at = start + self.prefix
         # each word's column made contiguous once: a table lookup by a contiguous index is
         # numpy's fast gather
-        words = np.ascontiguousarray(rows[:, start : start + 2 * self.npairs].view("<u2").T)
-        crc = np.full(rows.shape[0], self.zero, dtype=np.uint16)
-        for k in range(self.npairs):
-            crc ^= self.pairs[k].take(words[k])
-        if self.last is not None:
-            crc ^= self.last[rows[:, start + self.nbytes - 1]]
-        return crc
+        words = np.ascontiguousarray(rows[:, at : at + 2 * self.nwords].view("<u2").T)
+        acc = self.tables[0].take(words[0])
+        for k in range(1, self.nwords):
+            acc ^= self.tables[k].take(words[k])
+        return acc == self.zero
 
 
-_IMU_CRC = _PairCRC(4 + IMU_LEN)
+_IMU_CRC = _PairCRC(bytes([IMU_SAMPLE, IMU_LEN]), 4 + IMU_LEN)
 
 
 def _frames_at(buf: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray:
@@ -212,7 +220,7 @@ def _decode_bulk_bytes(
         stats.bytes_discarded = limit
         return BulkResult(np.zeros(0, SAMPLE_DTYPE), [], stats), limit
     cand = np.flatnonzero((buf[:-1] == SYNC[0]) & (buf[1:] == SYNC[1]))
-    cand = cand[(cand + HEADER_LEN <= n) & (cand < limit)]
+    cand = cand[: np.searchsorted(cand, min(n - HEADER_LEN, limit - 1), side="right")]
     mtype = buf[cand + 2]
     length = buf[cand + 3].astype(np.int64)
     expected = lengths[mtype]
@@ -229,9 +237,7 @@ def _decode_bulk_bytes(
     imu_rows = np.zeros((0, IMU_FRAME_LEN + 1), dtype=np.uint8)
     if imu_cand.size:
         imu_rows = _frames_at(buf, cand[imu_cand], IMU_FRAME_LEN + 1)
-    stored = imu_rows[:, IMU_FRAME_LEN - 2].astype(np.uint16)
-    stored |= imu_rows[:, IMU_FRAME_LEN - 1].astype(np.uint16) << 8
-    crc_ok[imu_cand] = _IMU_CRC.rows(imu_rows, 2) == stored
+    crc_ok[imu_cand] = _IMU_CRC.check(imu_rows, 2)
     other_cand = np.flatnonzero(~is_imu)
     # (the lengths present by counting: np.unique would import numpy.ma, 20 ms of start-up)
     for ln in np.flatnonzero(np.bincount(length[other_cand])):
@@ -298,28 +304,33 @@ def _decode_bulk_bytes(
         t_us = t_us[1:] if prev_imu else t_us
     else:
         reset, gaps = segments(seq, imu_idx, t_us)
+    stats.resets = int(np.count_nonzero(reset))
+    stats.lost_frames = int(np.sum(gaps))
     if before is not None:
         segment0 = before.segment
         if seq.size:
-            seg_of = np.cumsum(reset)
+            seg_of = np.cumsum(reset) if stats.resets else None  # None: all in segment0
             before.last_seq = int(seq[-1])
-            if imu_idx.size and seg_of[imu_idx[-1]] == seg_of[-1]:
+            if imu_idx.size and (seg_of is None or seg_of[imu_idx[-1]] == seg_of[-1]):
                 before.last_t_us = int(t_us[-1])
-            elif seg_of[-1] > 0:  # a reset after the last sample forgets its time
+            elif stats.resets:  # a reset after the last sample forgets its time
                 before.last_t_us = None
-            before.segment += int(seg_of[-1])
-    stats.resets = int(np.count_nonzero(reset))
-    stats.lost_frames = int(np.sum(gaps))
-    segment = segment0 + np.cumsum(reset)
+            before.segment += stats.resets
     samples = np.empty(imu_idx.size, dtype=SAMPLE_DTYPE)  # every field is written below
     for name in ("seq", "t_us", *IMU_FIELDS, "flags"):
         samples[name] = wire[name]
     samples["offset"] = vs[imu_idx]
-    samples["segment"] = segment[imu_idx]
-    lost_so_far = np.cumsum(gaps)[imu_idx]
-    samples["lost"] = np.diff(lost_so_far, prepend=0)
+    # (no reset, no frame lost: the usual chunk, a constant segment and no losses to place)
+    samples["segment"] = (segment0 + np.cumsum(reset))[imu_idx] if stats.resets else segment0
+    lost_by_last = 0  # frames lost up to the last sample
+    if stats.lost_frames:
+        lost_so_far = np.cumsum(gaps)[imu_idx]
+        samples["lost"] = np.diff(lost_so_far, prepend=0)
+        lost_by_last = int(lost_so_far[-1]) if imu_idx.size else 0
+    else:
+        samples["lost"] = 0
     if before is not None:  # frames lost after the last sample of the bytes before count too
-        after = int(np.sum(gaps)) - (int(lost_so_far[-1]) if imu_idx.size else 0)
+        after = stats.lost_frames - lost_by_last
         if imu_idx.size:
             samples["lost"][0] += before.lost_since_sample
             before.lost_since_sample = after

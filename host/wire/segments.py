@@ -93,21 +93,25 @@ def segments(
     seq = np.asarray(seq, dtype=np.int64)
     t_us = np.asarray(t_us, dtype=np.int64)
     m = seq.size
-    reset = np.zeros(m, dtype=bool)
     gaps = np.zeros(m, dtype=np.int64)
     if m == 0:
-        return reset, gaps
+        return np.zeros(m, dtype=bool), gaps
     d = seq_step(seq[:-1], seq[1:])
-    seq_back = np.zeros(m, dtype=bool)
-    seq_back[1:] = seq_went_back(d)
-    gaps[1:] = np.where(seq_back[1:], 0, d - 1)
-    reset |= seq_back
+    reset = np.zeros(m, dtype=bool)  # a seq going back first
+    reset[1:] = seq_went_back(d)
+    seq_back = bool(reset.any())  # none (the usual case): one sequence, no masks needed
+    gaps[1:] = np.where(reset[1:], 0, d - 1) if seq_back else d - 1
+    any_reset = seq_back
     if imu_idx.size > 1:
         # an IMU sample's time going back, compared with the previous IMU sample of the same
         # sequence segment (a seq reset forgets the previous time, as the tracker does)
-        segs = np.cumsum(seq_back)
-        same = segs[imu_idx[1:]] == segs[imu_idx[:-1]]
-        t_back = t_us_went_back(t_us_step(t_us[:-1], t_us[1:]))
-        reset[imu_idx[1:][same & t_back]] = True
-    gaps[reset] = 0
+        t_back = np.asarray(t_us_went_back(t_us_step(t_us[:-1], t_us[1:])))
+        if seq_back:
+            segs = np.cumsum(reset)
+            t_back &= segs[imu_idx[1:]] == segs[imu_idx[:-1]]
+        if t_back.any():
+            reset[imu_idx[1:][t_back]] = True
+            any_reset = True
+    if any_reset:
+        gaps[reset] = 0
     return reset, gaps

@@ -299,3 +299,34 @@ def test_overlapping_windows_of_one_run_get_each_windows_min_delay_line(
         gaps = (wy - m.to_host_ns(wx)) / 1000.0
         assert m.latency_median_us == pytest.approx(np.median(gaps), abs=1e-4)
         assert m.floor_spread_us == pytest.approx(np.percentile(gaps, 5), abs=1e-4)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    steps=st.lists(
+        st.tuples(
+            st.one_of(st.integers(0, 3000), st.integers(0, 2**16 - 1)),
+            st.one_of(st.integers(0, 3000), st.integers(0, 2**18)),
+        ),
+        max_size=40,
+    ),
+    v0=st.integers(0, 2**16 - 1),
+)
+def test_unwrap_with_host_time_is_the_step_by_step_rule(
+    steps: list[tuple[int, int]], v0: int
+) -> None:
+    """A 16-bit counter at 1 tick/µs unwrapped with host times: each step is the counter's
+    step modulo 2^16 plus the whole wraps that best explain the host time elapsed (none when
+    that is under half a period), step by step."""
+    ticks = [v0]
+    host = [0.0]
+    for dv, dh_us in steps:
+        ticks.append((ticks[-1] + dv) % 2**16)
+        host.append(host[-1] + dh_us * 1000.0)
+    got = clock.unwrap(np.asarray(ticks), 16, np.asarray(host), 1e-3).tolist()
+    want = [v0]
+    for k in range(1, len(ticks)):
+        d = (ticks[k] - ticks[k - 1]) % 2**16
+        dh = (host[k] - host[k - 1]) * 1e-3
+        want.append(want[-1] + d + max(round((dh - d) / 2**16), 0) * 2**16)
+    assert got == want

@@ -259,3 +259,36 @@ def test_each_bytes_read_is_the_count_of_reads_ended_before_it(
     at = sorted(offsets) if in_order else offsets
     got = _read_of(e, np.asarray(at, dtype=np.int64)).tolist()
     assert got == [sum(1 for x in sorted(ends) if x <= o) for o in at]
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    frames=st.lists(
+        st.tuples(
+            st.binary(min_size=19, max_size=19), st.integers(-1, 8 * 23 - 1), st.integers(0, 255)
+        ),
+        min_size=1,
+        max_size=40,
+    )
+)
+def test_the_imu_crc_check_from_words_is_the_crc_of_each_frame(
+    frames: list[tuple[bytes, int, int]],
+) -> None:
+    """The bulk decoder's CRC check of IMU_SAMPLE frames (table lookups by 16-bit words, the
+    type and length folded in, the stored CRC among the words) says what CRC-16 of each
+    frame's bytes says, with a bit flipped anywhere after the header's length (or none) and
+    any byte after the frame."""
+    from host.wire.bulk import _IMU_CRC
+    from host.wire.frames import IMU_FRAME_LEN, IMU_SAMPLE, SYNC, crc16
+
+    rows, want = [], []
+    for payload, flip, after in frames:
+        body = bytearray(bytes([IMU_SAMPLE, len(payload)]) + bytes(2) + payload)
+        frame = bytearray(SYNC + body + crc16(body).to_bytes(2, "little") + bytes([after]))
+        if flip >= 0:
+            frame[4 + flip // 8] ^= 1 << (flip % 8)  # seq, payload or the stored CRC
+        rows.append(bytes(frame))
+        stored = int.from_bytes(frame[IMU_FRAME_LEN - 2 : IMU_FRAME_LEN], "little")
+        want.append(crc16(bytes(frame[2 : IMU_FRAME_LEN - 2])) == stored)
+    got = _IMU_CRC.check(np.frombuffer(b"".join(rows), np.uint8).reshape(len(rows), -1), 2)
+    assert got.tolist() == want
