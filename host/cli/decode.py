@@ -145,7 +145,9 @@ class _Decode:
         self.scales = [(-1, self.config), *valid[1:]]
         if self.capture:
             self.timeline = timeline.TimelineBuilder(
-                baud=baud_from_hello(self.hellos), keep_segments=MAX_LISTED_SEGMENTS
+                baud=baud_from_hello(self.hellos),
+                keep_segments=MAX_LISTED_SEGMENTS,
+                map_samples=not self.args.stats,  # --stats prints the maps, no sample
             )
         held, self.held = self.held, []
         for s, a in held:

@@ -232,7 +232,9 @@ class TimelineBuilder:
     end. The blocks concatenated are the same whatever the chunking (the clock is eq. (1) per
     window, blended between window centres). Holds one window and a half of samples
     (≈ 90 s, bounded by :data:`MAX_HELD_SAMPLES`); ``keep_segments`` bounds the closed
-    segments kept (None: all; :attr:`segments_dropped` counts the others).
+    segments kept (None: all; :attr:`segments_dropped` counts the others). With
+    ``map_samples`` False the segments and their clock maps are the same, and no block is
+    handed back (no sample's host time computed: for counters and maps alone).
     """
 
     def __init__(
@@ -242,8 +244,10 @@ class TimelineBuilder:
         period_us: float | None = None,
         window_s: float = 60.0,
         keep_segments: int | None = None,
+        map_samples: bool = True,
     ) -> None:
         self.floor_shift_ns = float(serialisation_ns(frame_bytes, baud))
+        self.map_samples = map_samples
         self.period_us = period_us
         self.window_s = window_s
         self.keep_segments = keep_segments
@@ -307,7 +311,9 @@ class TimelineBuilder:
         dev = d.astype(np.float64)
         self._count_missed(g, dev, seq, final=False)
         if arr is None:
-            return [TimelineBlock(s, dev, np.full(s.size, np.nan), None)]
+            return (
+                [TimelineBlock(s, dev, np.full(s.size, np.nan), None)] if self.map_samples else []
+            )
         g.pending.append((s, dev, arr, arr - self.floor_shift_ns))
         g.pending_n += s.size
         if g.gave_up:
@@ -360,7 +366,7 @@ class TimelineBuilder:
         while g.pending:
             s, dev, arr, _ = g.pending[0]
             if upto is None and not everything:
-                host = np.full(s.size, np.nan)
+                host = np.full(s.size, np.nan) if self.map_samples else None
                 k = s.size
             else:
                 if upto is not None:
@@ -371,13 +377,17 @@ class TimelineBuilder:
                     centre, m = g.prev_map  # type: ignore[misc]
                 if k == 0:
                     break
-                x = dev[:k]
-                host = m.to_host_ns(x)
-                if upto is not None and g.prev_map is not None:
-                    c0, m0 = g.prev_map
-                    wgt = np.clip((x - c0) / (centre - c0), 0.0, 1.0)
-                    host = (1 - wgt) * m0.to_host_ns(x) + wgt * host
-            out.append(TimelineBlock(s[:k], dev[:k], host, arr[:k] if arr is not None else None))
+                host = None
+                if self.map_samples:
+                    x = dev[:k]
+                    host = m.to_host_ns(x)
+                    if upto is not None and g.prev_map is not None:
+                        c0, m0 = g.prev_map
+                        wgt = np.clip((x - c0) / (centre - c0), 0.0, 1.0)
+                        host = (1 - wgt) * m0.to_host_ns(x) + wgt * host
+            if host is not None:
+                a = arr[:k] if arr is not None else None
+                out.append(TimelineBlock(s[:k], dev[:k], host, a))
             if k == s.size:
                 g.pending.pop(0)
             else:

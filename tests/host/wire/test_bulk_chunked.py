@@ -148,6 +148,32 @@ def test_streaming_timeline_equals_the_whole_capture(
         for s in whole.segments]  # fmt: skip
 
 
+def test_a_timeline_that_maps_no_sample_has_the_same_segments_and_maps(
+    two_runs: tuple[LinkCapture, bytes],
+) -> None:
+    """decode --stats's timeline (map_samples False): every segment, loss count and window
+    map as the timeline that maps each sample, and no block handed back."""
+    _, raw = two_runs
+    cap = capture.parse(raw)
+    r = decode_bulk(cap.data)
+    arr = cap.arrival_ns_at(r.samples["offset"] + 26)
+    full, bare = timeline.TimelineBuilder(), timeline.TimelineBuilder(map_samples=False)
+    blocks = []
+    for i in range(0, r.samples.size, 7000):
+        full.add(r.samples[i : i + 7000], arr[i : i + 7000])
+        blocks += bare.add(r.samples[i : i + 7000], arr[i : i + 7000])
+    full.finish()
+    blocks += bare.finish()
+    assert blocks == []
+    assert len(full.segments) == 2
+    for a, b in zip(full.segments, bare.segments, strict=True):
+        assert (a.start, a.stop, a.lost_frames, a.missed_samples) == (
+            b.start, b.stop, b.lost_frames, b.missed_samples)  # fmt: skip
+        assert a.clock is not None and b.clock is not None and a.clock.windows > 2
+        assert a.clock.maps == b.clock.maps
+        assert np.array_equal(a.clock.centres_us, b.clock.centres_us)
+
+
 def test_streaming_timeline_is_accurate(two_runs: tuple[LinkCapture, bytes]) -> None:
     lc, raw = two_runs
     cap = capture.parse(raw)
