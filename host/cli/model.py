@@ -263,15 +263,24 @@ def run_add(args: argparse.Namespace) -> int:
             paths = write_plots(args.plot, ds, a.before, a.after, a.added[0].label,
                                 start_times(session))  # fmt: skip
     ship = calibrate_command(args, short_spec(a.after.model))
+    # a term these records do not determine is not a model to ship: calibrate would end on
+    # "not determined" (exit 1); was "— ± —" and the ship command
+    lost = [p.name for p in a.new_parameters if not math.isfinite(p.value)]
     if args.json:
-        _print_json({**a.to_dict(), "calibrate_command": ship})
+        _print_json({**a.to_dict(), "calibrate_command": None if lost else ship,
+                     "not_determined": lost})  # fmt: skip
     else:
         print(format_addition(a))
         for p in paths:
             print(f"plot: {p}")
-        print(
-            command_lines(shlex.split(ship), terminal_width(sys.stdout), lead="ship this model: ")
-        )
+        width = terminal_width(sys.stdout)
+        if lost:
+            print(wrap(f"not shipped: these records do not determine {', '.join(lost)} (no "
+                       "variation of the term's input, or it acts like terms already in the "
+                       f"model); leave {args.term} out, or measure what determines it: "
+                       f"python3 -m host plan {args.dir}", width))  # fmt: skip
+        else:
+            print(command_lines(shlex.split(ship), width, lead="ship this model: "))
     return 0
 
 

@@ -12,18 +12,18 @@ import json
 import math
 import sys
 import textwrap
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from host.calib.publish import session_noise
 from host.cli.model import _catalogue, _common
 from host.errors import UserError
-from host.model.spec import parse_model
+from host.model.spec import ModelTerm, parse_model, short_spec
 from host.session.directory import read_session
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, UNITS
 from host.session.spacing import timing_report
 from host.workbench.planner import NextPlan, OperatorTime, Ranked, plan_next
-from host.workbench.separate import CLEAR, Separation, explanation, separate
+from host.workbench.separate import CLEAR, Explanation, Separation, explanation, separate
 
 
 def _row(i: int, r: Ranked) -> str:
@@ -136,6 +136,7 @@ def run_plan(args: argparse.Namespace) -> int:
     time = OperatorTime(place=args.place_s, place_tilted=args.place_tilted_s)
     if args.separate:
         a, b = (explanation(x, cat) for x in args.separate)
+        _two_explanations(a, b, model)
         sep = separate(session, model, a, b, noise=session_noise(session, args.floor, args.noise),
                        time=time)  # fmt: skip
         if args.json:
@@ -162,13 +163,38 @@ def run_plan(args: argparse.Namespace) -> int:
     return 0
 
 
+def _two_explanations(a: Explanation, b: Explanation, model: Sequence[ModelTerm]) -> None:
+    """UserError unless ``a`` and ``b`` are two explanations the model lacks (was: a ranking
+    of records that all separate them by 0, for the same one twice or one the model has)."""
+
+    def channels(e: Explanation) -> frozenset[tuple[str, str, int]]:
+        return frozenset((mt.term.name, mt.sensor, k) for mt in e.terms for k in mt.axes)
+
+    if a.signal == b.signal and channels(a) == channels(b):
+        raise UserError(
+            f"--separate {a.label} {b.label}: the same explanation twice; give two that differ "
+            "(model diagnose names the groups of equals)"
+        )
+    have = frozenset((mt.term.name, mt.sensor, k) for mt in model for k in mt.axes)
+    for e in (a, b):
+        if e.signal is None and channels(e) <= have:
+            raise UserError(
+                f"--separate {e.label}: already in the model {short_spec(model)}; give an "
+                "explanation the model lacks (or --model without it)"
+            )
+
+
+#: the longest a placement may take, s: an hour (1e300 s made the table unreadable)
+MAX_PLACE_S = 3600.0
+
+
 def _seconds(text: str) -> float:
     try:
         v = float(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from exc
-    if not (math.isfinite(v) and v >= 0.0):
-        raise argparse.ArgumentTypeError(f"{text!r}: give 0 or more seconds")
+    if not (math.isfinite(v) and 0.0 <= v <= MAX_PLACE_S):
+        raise argparse.ArgumentTypeError(f"{text!r}: give 0 to {MAX_PLACE_S:g} seconds")
     return v
 
 

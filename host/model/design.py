@@ -15,6 +15,10 @@ from host.model.signals import RecordSignals
 from host.model.spec import ModelTerm
 from host.model.terms import Term, ValueFn
 
+#: the largest magnitude a term's column may take: its square, summed over the rows, stays
+#: far inside float64 (a column of 1e150 made the fit's SVD fail)
+MAX_COLUMN = 1e100
+
 
 # ---- design matrix --------------------------------------------------------------------------
 def aggregate(agg: np.ndarray, per_sample: np.ndarray) -> np.ndarray:
@@ -30,7 +34,13 @@ def _call_term(t: Term, what: str, sig: RecordSignals, fn: Callable[[], Any]) ->
     """Call a term's function (user code, maybe): any exception or a non-finite value becomes
     one UserError naming the term, the function and the record."""
     try:
-        x = np.asarray(fn(), dtype=np.float64)
+        raw = fn()
+        if np.iscomplexobj(raw):  # its real part alone would be taken, with a warning
+            raise UserError(
+                f"term {t.name}: {what}() returned complex numbers for record {sig.name}; it "
+                "must give real ones"
+            )
+        x = np.asarray(raw, dtype=np.float64)
     except UserError:
         raise
     except (Exception, SystemExit) as exc:  # noqa: BLE001 - a term's error: one line
@@ -41,6 +51,12 @@ def _call_term(t: Term, what: str, sig: RecordSignals, fn: Callable[[], Any]) ->
         raise UserError(
             f"term {t.name}: {what}() returned {int(np.count_nonzero(~np.isfinite(x)))} "
             f"non-finite values (NaN or inf) for record {sig.name}; it must give finite numbers"
+        )
+    big = float(np.max(np.abs(x))) if x.size else 0.0
+    if big > MAX_COLUMN:  # the fit's squares overflow: 'SVD did not converge', a traceback
+        raise UserError(
+            f"term {t.name}: {what}() returned values up to {big:.3g} for record {sig.name}, "
+            f"beyond the fit's range (±{MAX_COLUMN:g}); scale the term to the records' units"
         )
     return x
 

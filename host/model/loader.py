@@ -92,7 +92,14 @@ def _guarded(path: str, what: str, fn: Callable[..., Any] | None) -> Callable[..
 
 def _read(p: Path) -> bytes:
     if not p.is_file():
-        raise UserError(f"{p}: no such term file")
+        what = (
+            "is a directory; give the Python file (my_terms.py) in it"
+            if p.is_dir()
+            else "is not a file; give a Python file"
+            if p.exists()
+            else "no such term file"
+        )
+        raise UserError(f"{p}: {what}")
     try:
         return p.read_bytes()
     except OSError as exc:

@@ -73,7 +73,7 @@ def test_place_seconds_parse_or_refuse(text: str) -> None:
     except SystemExit as exc:
         assert exc.code == 2
         return
-    assert math.isfinite(args.place_s) and args.place_s >= 0.0
+    assert math.isfinite(args.place_s) and 0.0 <= args.place_s <= 3600.0  # 1e300 s: refused
 
 
 @pytest.mark.slow
@@ -87,6 +87,22 @@ def test_separate_names_a_record_within_80_columns(
     assert all(len(line) <= 80 for line in lines), max(lines, key=len)
     assert lines[0].startswith("to tell time_drift:accel:x from temperature_bias:accel:x")
     assert sum(1 for line in lines if line[:3].strip().isdigit()) == 3
+
+
+@pytest.mark.parametrize(
+    "a, b, words",
+    [
+        # was: ten records ranked, each separating them by Δχ² 0
+        ("scale_asymmetry:gyro:z", "scale_asymmetry:gyro:z", "the same explanation twice"),
+        ("time_drift:accel:x", "bias:gyro:z", "--separate bias:gyro:z: already in the model base"),
+    ],
+)
+def test_separate_needs_two_explanations_the_model_lacks(
+    session_without_y_turns: Path, capsys: pytest.CaptureFixture[str], a: str, b: str, words: str
+) -> None:
+    assert main(["plan", str(session_without_y_turns), "--separate", a, b]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err, err
 
 
 def test_separate_with_an_unknown_term_is_one_line(

@@ -56,6 +56,15 @@ def test_a_term_named_like_a_built_in_is_refused(
         ("return np.full(len(sig.t_s), np.inf)", r"columns\(\) returned \d+ non-finite values"),
         ("return 1 / 0", r"columns\(\) raised ZeroDivisionError: division by zero \(record "),
         ("raise RuntimeError('my bug')", r"columns\(\) raised RuntimeError: my bug"),
+        # was: numpy.linalg.LinAlgError 'SVD did not converge', a traceback
+        (
+            "return np.full(len(sig.t_s), 1e300)",
+            r"columns\(\) returned values up to 1e\+300 "
+            r"for record \w+, beyond the fit's range",
+        ),
+        ("return sig.t_s * 1e150", r"columns\(\) returned values up to [0-9.]+e\+15\d"),
+        # was: the real part taken with a ComplexWarning, exit 0
+        ("return np.ones(len(sig.t_s)) * 1j", r"columns\(\) returned complex numbers"),
     ],
 )
 def test_a_term_that_fails_is_one_line_naming_it(
@@ -141,3 +150,52 @@ def test_an_endless_term_shows_progress_and_stops_at_the_bound_the_user_raises(
     with pytest.raises(loader.TermFileTimeout, match=r"loading it has run \d+ s"):
         loader.load_term_file(endless)
     assert "loading it running for" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("body", ["return np.zeros(len(sig.t_s))", "return np.ones(len(sig.t_s))"])
+def test_a_term_the_records_do_not_determine_is_not_shipped(
+    records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], body: str
+) -> None:
+    """Was: '— ± —' for every new coefficient and 'ship this model: …', a model whose
+    calibration ends on 'not determined'. A zero column, or a constant (a copy of the bias)."""
+    import json
+
+    f = term_file(tmp_path, "flat", body)
+    argv = ["model", "add", str(records_dir), "flat:gyro", "--term-file", str(f)]
+    rc, out, _ = run(argv, capsys)
+    assert rc == 0 and "ship this model" not in out
+    said = " ".join(out.split())
+    assert (
+        "not shipped: these records do not determine flat.gyro.x, flat.gyro.y, flat.gyro.z" in said
+    )
+    rc, out, _ = run([*argv, "--json"], capsys)
+    d = json.loads(out)
+    assert d["calibrate_command"] is None and len(d["not_determined"]) == 3
+
+
+def test_a_sound_term_is_still_shipped_as_json(
+    records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import json
+
+    f = term_file(tmp_path, "warm", "return sig.temp_c - sig.temp_mean_c")
+    rc, out, _ = run(["model", "add", str(records_dir), "warm:gyro", "--term-file", str(f),
+                      "--json"], capsys)  # fmt: skip
+    d = json.loads(out)
+    assert rc == 0 and d["not_determined"] == [] and "--model" in d["calibrate_command"]
+
+
+@pytest.mark.parametrize(
+    "given, words",
+    [
+        ("{dir}", "is a directory; give the Python file"),
+        ("/dev/null", "is not a file; give a Python file"),
+    ],
+)
+def test_a_term_file_that_is_no_file_says_what_it_is(
+    records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], given: str, words: str
+) -> None:
+    """Was: 'no such term file' for a directory or a device that is there."""
+    f = given.format(dir=tmp_path)
+    rc, _, err = run(["model", "diagnose", str(records_dir), "--term-file", f], capsys)
+    assert rc == 2 and f"error: {f}: {words}" in err and err.count("\n") == 1
