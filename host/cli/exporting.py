@@ -2,7 +2,8 @@
 
 RESULT is ``SERIAL_result.json`` (or the directory holding one); ``--to kalibr --noise F``
 needs no result, only the noise file of a long static recording (``noise FILE --save F``).
-The text goes to stdout, or to ``--out FILE`` (written atomically). ``--axes`` maps our chip
+The text goes to stdout, or to ``--out FILE`` (written atomically; an earlier export there is
+replaced, any other file refused and kept). ``--axes`` maps our chip
 axes to the target's, with the same spelling as ``import --axes``. A failed result (a value
 outside tolerance or not determined) is not exported: exit status 1 and one line naming what
 failed, unless ``--allow-fail`` (the file then says FAILED). Formats and their
@@ -37,8 +38,40 @@ def _result_path(path: Path) -> Path:
     return path
 
 
+#: a file name for each format, for the message that asks for one
+_FILE_NAMES = {"ardupilot": "U17.parm", "px4": "U17.params", "imucal": "U17_imucal.json",
+               "c-header": "imu_calibration.h", "kalibr": "imu.yaml"}  # fmt: skip
+#: the words every export of this program carries near its top (an earlier one is replaced)
+_OURS = b"imu-bench"
+
+
+def check_out(out: Path | None, to: str) -> None:
+    """UserError, before anything is computed, when ``--out`` cannot take the export: a
+    directory (was 'permission denied'), or a file that is not an earlier export of this
+    program — a vehicle's whole parameter file given by mistake is kept, not replaced."""
+    if out is None:
+        return
+    name = _FILE_NAMES.get(to.strip().lower(), "calibration.txt")
+    if out.is_dir():
+        raise UserError(f"--out {out}: is a directory; give a file name, e.g. {out / name}")
+    if out.exists():
+        try:
+            with out.open("rb") as f:
+                head = f.read(4096)
+        except OSError as exc:
+            raise UserError(f"--out {out}: cannot read it ({exc.strerror or exc})") from None
+        if _OURS not in head:
+            raise UserError(
+                f"--out {out}: exists and is no export of this program; it is kept: give "
+                "another --out, or move it away first"
+            )
+
+
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host export``."""
+    if args.axes is not None and not args.axes.strip():  # e.g. --axes "$UNSET"
+        raise UserError("--axes '': give three axes, e.g. x,-y,-z (or leave --axes out: x,y,z)")
+    check_out(args.out, args.to)
     if args.to.strip().lower() == "kalibr":
         return _run_kalibr(args)
     if args.noise is not None:
@@ -75,8 +108,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _emit(args: argparse.Namespace, out: str) -> None:
     if args.out:
+        again = args.out.exists()  # an earlier export (check_out refused anything else)
         write_text_atomic(args.out, out)
-        print(f"written: {args.out}", file=sys.stderr)
+        print(f"written: {args.out}" + (" (the earlier export replaced)" if again else ""),
+              file=sys.stderr)  # fmt: skip
     else:
         sys.stdout.write(out)
 
@@ -102,8 +137,16 @@ def cli_export(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int
         required=True,
         help=f"format: {', '.join(exporting.FORMATS)}, kalibr (with --noise)",
     )
-    p.add_argument("--out", type=Path, help="write to this file instead of stdout")
-    p.add_argument("--axes", help="target axes from ours with signs, e.g. x,-y,-z (default x,y,z)")
+    p.add_argument(
+        "--out", type=Path,
+        help="write to this file instead of stdout (an earlier export is replaced, any other "
+        "file kept)",
+    )  # fmt: skip
+    p.add_argument(
+        "--axes",
+        help="target axes from ours with signs, e.g. x,-y,-z (default x,y,z; starting with a "
+        "minus: --axes=-x,-y,z)",
+    )  # fmt: skip
     p.add_argument(
         "--thermal",
         nargs="?",

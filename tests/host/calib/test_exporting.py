@@ -7,7 +7,9 @@ relative for the part of the model the target can represent (and visibly not for
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import io
 import json
 import math
 import re
@@ -226,6 +228,42 @@ def test_cli_writes_each_format_and_refuses_unknown_ones(tmp_path: Path, capsys)
     err = capsys.readouterr().err
     assert "unknown format" in err and err.count("\n") == 1
     assert main(["export", str(tmp_path / "nope.json"), "--to", "px4"]) == 2
+
+
+def test_an_earlier_export_is_replaced_and_any_other_file_kept(tmp_path: Path, capsys) -> None:
+    """Was: --out over a vehicle's parameter file replaced it whole, silently; --out DIR said
+    'permission denied'; --axes '' (an unset variable) exported in our axes."""
+    (tmp_path / "EXP1_result.json").write_text(_result().to_json())
+    for fmt, (_, ext) in FORMATS.items():
+        out = tmp_path / f"cal{ext}"
+        for again in (False, True):
+            assert main(["export", str(tmp_path), "--to", fmt, "--out", str(out)]) == 0
+            said = capsys.readouterr().err
+            assert said.startswith(f"written: {out}") and ("replaced" in said) == again
+    vehicle = tmp_path / "vehicle.parm"
+    vehicle.write_text("INS_ACCOFFS_X 0.1\nSERIAL0_BAUD 115\n")
+    for argv, words in (
+        (["--out", str(vehicle)], "exists and is no export of this program; it is kept"),
+        (["--out", str(tmp_path)], f"is a directory; give a file name, e.g. {tmp_path}/U17.parm"),
+        (["--axes", ""], "--axes '': give three axes"),
+    ):
+        assert main(["export", str(tmp_path), "--to", "ardupilot", *argv]) == 2
+        err = capsys.readouterr().err
+        assert words in err and err.count("\n") == 1, err
+    assert vehicle.read_text() == "INS_ACCOFFS_X 0.1\nSERIAL0_BAUD 115\n"
+
+
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(st.binary(max_size=200).filter(lambda b: b"imu-bench" not in b))
+def test_no_other_file_is_ever_replaced(tmp_path: Path, body: bytes) -> None:
+    (tmp_path / "EXP1_result.json").write_text(_result().to_json())
+    out = tmp_path / "any.params"
+    out.write_bytes(body)
+    with contextlib.redirect_stderr(io.StringIO()) as err:
+        assert main(["export", str(tmp_path), "--to", "px4", "--out", str(out)]) == 2
+    assert out.read_bytes() == body and "it is kept" in err.getvalue()
 
 
 REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
