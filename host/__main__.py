@@ -163,6 +163,11 @@ class OneLineErrors(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         shown = message.replace("\r", "\\r").replace("\n", "\\n")  # one line, whatever was typed
+        import re
+
+        m = re.match(r"argument (--[\w-]+).*: expected one argument", shown)
+        if m:  # its value starts with '-' (--axes -x,y,z): argparse took it for an option
+            shown += f"; a value starting with '-' goes as {m.group(1)}=VALUE"
         self.exit(2, f"error: {shown} (see: {self.prog} --help)\n")
 
 

@@ -66,3 +66,14 @@ def test_start_up_imports_only_what_the_command_needs(tmp_path: Path) -> None:
         timeout=120,
     )  # fmt: skip
     assert done.stdout.strip().splitlines()[-1] == "[]", done.stdout + done.stderr
+
+
+def test_a_value_starting_with_a_minus_names_the_equals_form() -> None:
+    """Was: 'argument --axes: expected one argument' for --axes -x,-y,z, with no way out."""
+    from tests.host.cli.cli_run import run
+
+    rc, _, err = run(["export", "R", "--to", "px4", "--axes", "-x,-y,z"])
+    assert rc == 2 and err.count("\n") == 1
+    assert "a value starting with '-' goes as --axes=VALUE" in err
+    rc, _, err = run(["plan", "D", "--top"])  # a value left out: the same words are true
+    assert rc == 2 and "--top=VALUE" in err
