@@ -20,7 +20,7 @@ from host.calib.report import path_lines, verdict_line
 from host.calib.result import CalibrationResult
 from host.cli import out_directory
 from host.cli.screen import terminal_width, working, wrap
-from host.dialogue.options import DEFAULT_READY_S, WARMUP_DEFAULT_S
+from host.dialogue.options import DEFAULT_READY_S, MAX_EXTRA, WARMUP_DEFAULT_S
 from host.errors import RecordCheckError, UserError
 from host.session.checks import failed_record
 from host.session.directory import Session, read_session
@@ -176,8 +176,26 @@ def archive_line(out_dir: Path, session: Session, args: argparse.Namespace) -> s
         )
 
 
+def adaptive_options(args: argparse.Namespace) -> None:
+    """UserError for the adaptive plan's options where nothing reads them (was: silently
+    ignored, a fixed session measured or a directory recomputed as if they were not given)."""
+    values = (("--target", getattr(args, "target", None)),
+              ("--max-extra", getattr(args, "max_extra", None)))  # fmt: skip
+    given = [o for o, v in values if v is not None]
+    plan = getattr(args, "plan", "fixed")
+    if args.from_dir and (plan != "fixed" or given):
+        what = "--plan adaptive" if plan != "fixed" else given[0]
+        raise UserError(
+            f"{what} is for a live calibration: the records in {args.from_dir} are measured "
+            f"(python3 -m host plan {args.from_dir} names the next record worth measuring)"
+        )
+    if given and plan != "adaptive":
+        raise UserError(f"{given[0]}: only --plan adaptive reads it; add --plan adaptive")
+
+
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host calibrate``."""
+    adaptive_options(args)
     if args.from_dir and getattr(args, "no_self_test", False):
         raise UserError(
             f"--no-self-test is for a live calibration: the records in {args.from_dir} say "
@@ -255,13 +273,13 @@ def add_live_arguments(p: argparse.ArgumentParser) -> None:
         "meets it (3 pairs at most), then the records the planner names (a face again, a turn "
         "pair) until every value's σ/tolerance meets --target (plan DIR ranks them)",
     )  # fmt: skip
-    p.add_argument(
-        "--target", type=float, default=0.05, metavar="R",
-        help="--plan adaptive: the worst σ/tolerance to reach (default %(default)g)",
+    p.add_argument(  # None when not given: given without --plan adaptive, it is refused
+        "--target", type=float, metavar="R",
+        help="--plan adaptive: the worst σ/tolerance to reach (default 0.05)",
     )  # fmt: skip
     p.add_argument(
-        "--max-extra", type=int, default=12, metavar="N",
-        help="--plan adaptive: at most N records added (default %(default)d)",
+        "--max-extra", type=int, metavar="N",
+        help=f"--plan adaptive: at most N records added (default 12, at most {MAX_EXTRA})",
     )  # fmt: skip
     p.add_argument(
         "--ready-seconds", type=float, metavar="S",

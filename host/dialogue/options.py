@@ -41,6 +41,8 @@ MAX_TURNS = 10
 LOSS_LIMIT = 0.01
 #: pause between "get ready to turn" and the start beep, s
 DEFAULT_READY_S = 2.0
+#: the most records the adaptive plan may add (a million ran on with no end in sight)
+MAX_EXTRA = 60
 SERIAL_RE = re.compile(r"^[A-Za-z0-9_-]{1,12}$")
 
 # --------------------------------------------------------------------------- answers
@@ -203,8 +205,11 @@ class DialogueOptions:
             raise UserError(
                 f"--target {self.target:g}: give the worst σ/tolerance to reach, e.g. 0.05"
             )
-        if self.max_extra < 0:
-            raise UserError(f"--max-extra {self.max_extra}: give 0 or more records")
+        if not 0 <= self.max_extra <= MAX_EXTRA:
+            raise UserError(
+                f"--max-extra {self.max_extra}: give 0 to {MAX_EXTRA} records ({MAX_EXTRA} is "
+                "about an hour of the operator's time)"
+            )
         if self.serial is not None:
             try:
                 self.serial = parse_serial(self.serial)

@@ -6,6 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host.bench.plan import write_session
 from host.workbench.scenarios import hidden_effect_case
@@ -66,3 +68,41 @@ def test_out_to_a_missing_directory_makes_it(session: Path, tmp_path: Path) -> N
     rc, _, err = run(["calibrate", "--from-dir", str(session), "--out",
                       str(tmp_path / "afile" / "M1"), "--no-archive"])  # fmt: skip
     assert rc == 2 and "afile is a file; give --out a directory" in one_error_line(err)
+
+
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        # was: read by nothing, a fixed session measured as if they were not given
+        (["--target", "0.01"], "--target: only --plan adaptive reads it; add --plan adaptive"),
+        (["--max-extra", "3"], "--max-extra: only --plan adaptive reads it"),
+        # was: a recomputation that ignored them
+        (["--from-dir", "{dir}", "--plan", "adaptive"], "--plan adaptive is for a live calibra"),
+        (["--from-dir", "{dir}", "--target", "0.1"], "--target is for a live calibration"),
+    ],
+)
+def test_the_adaptive_plans_options_where_nothing_reads_them(
+    session: Path, tmp_path: Path, extra: list[str], words: str
+) -> None:
+    argv = ["calibrate", "--serial", "M1", "--yes", "--static-seconds", "2", "--warmup", "0",
+            "--no-archive", "--out", str(tmp_path / "o")]  # fmt: skip
+    if "--from-dir" in extra:
+        argv = ["calibrate", "--no-archive", "--out", str(tmp_path / "o")]
+    rc, _, err = run([*argv, *(x.format(dir=session) for x in extra)])
+    assert rc == 2 and words in one_error_line(err)
+    assert not (tmp_path / "o").exists()  # refused before anything was measured or written
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(min_value=-(10**12), max_value=10**12))
+def test_max_extra_is_a_bound_an_operator_can_keep_or_one_line(n: int) -> None:
+    """Was: --max-extra 1000000 with a target the records cannot meet ran with no end."""
+    from host.dialogue.options import MAX_EXTRA, DialogueOptions
+    from host.errors import UserError
+
+    o = DialogueOptions(serial="M1", plan="adaptive", max_extra=n)
+    if 0 <= n <= MAX_EXTRA:
+        o.check()
+    else:
+        with pytest.raises(UserError, match=f"--max-extra {n}: give 0 to {MAX_EXTRA} records"):
+            o.check()
