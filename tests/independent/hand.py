@@ -12,14 +12,18 @@ from typing import Any
 from tests.independent.simulate import Extra, SessionSpec, SimRecord, simulate
 
 
-def extra_record(name: str, up: Sequence[float], kind: str, seconds: float, pace: float = 1.0
-                 ) -> str | tuple[str, float] | Extra:  # fmt: skip
+def extra_record(name: str, up: Sequence[float], kind: str, seconds: float, pace: float = 1.0,
+                 heading_deg: float | None = None) -> str | tuple[str, float] | Extra:  # fmt: skip
     """How the simulator's plan names a record asked for by ``name``, ``up`` (body unit
-    vector), ``kind`` ('static'|'turn'), ``seconds`` and ``pace`` (turns this many times as
-    fast as the hand's own): a face or a turn at the hand's pace as before, an attitude off
-    the faces or a turn at another pace as an :class:`Extra`."""
+    vector), ``kind`` ('static'|'turn'), ``seconds``, ``pace`` (turns this many times as
+    fast as the hand's own) and ``heading_deg`` (placed at this heading and noted; None: as
+    the plan's): a face or a turn at the hand's pace as before, an attitude off the faces, a
+    turn at another pace or a noted heading as an :class:`Extra`."""
     u = [float(c) for c in up]
     on_face = sorted(abs(c) for c in u) == [0.0, 0.0, 1.0]
+    if heading_deg is not None:
+        return Extra(name, kind, None if on_face else (u[0], u[1], u[2]), float(seconds), pace,
+                     float(heading_deg))  # fmt: skip
     if kind == "turn":
         return (
             name

@@ -76,13 +76,15 @@ class Extra:
     face lean), None for the face its name says; ``seconds``: a static's length (0: the plan's
     ``static_s``); ``pace``: a turn made this many times as fast as the hand turns in the plan
     (its quarter turns last ``1/pace`` times as long; a slower turn gets a window ``1/pace``
-    times as long, so that the same whole turns fit)."""
+    times as long, so that the same whole turns fit); ``heading_deg``: the operator places it
+    at this heading and writes it in its header (None: as the plan's records)."""
 
     name: str
     kind: str = "static"
     up: tuple[float, float, float] | None = None
     seconds: float = 0.0
     pace: float = 1.0
+    heading_deg: float | None = None
 
 
 @dataclass
@@ -212,7 +214,7 @@ def _record(
     }
     if kind == "turn":
         meta.update(turns=str(spec.turns), direction=name.split("_")[1], window_s=f"{duration_s:g}")
-    if spec.record_heading:
+    if spec.record_heading or (extra is not None and extra.heading_deg is not None):
         meta[HEADING_KEY] = f"{heading_deg:g}"
     return SimRecord(
         name, meta, t_s * 1000.0, accel, gyro, temp_meas, force, rate, heading_deg, turn_deg
@@ -251,6 +253,8 @@ def simulate(spec: SessionSpec) -> SimSession:
     t = spec.warmup_s
     for name, dur in plan:
         heading = 0.0 if spec.headings == "zero" else 90.0 * int(rng.integers(0, 4))
+        noted = extras[name].heading_deg if name in extras else None
+        heading = heading if noted is None else noted  # drawn all the same: the same stream
         s.records.append(_record(rng, s, name, t, dur, heading, extras.get(name)))
         t += dur + rng.uniform(15.0, 25.0)
     return s

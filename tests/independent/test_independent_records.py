@@ -119,3 +119,25 @@ def test_the_hand_asks_for_what_a_candidate_names() -> None:
     assert isinstance(slow, Extra) and slow.pace == 0.5 and slow.up is None
     tilt = extra_record("tilt_45_1", (0.7071, 0.7071, 0), "static", 10.0)
     assert isinstance(tilt, Extra) and tilt.up == (0.7071, 0.7071, 0.0)
+    noted = extra_record("tilt_45_3", (-0.7071, 0.7071, 0), "static", 10.0, heading_deg=0.0)
+    assert isinstance(noted, Extra) and noted.heading_deg == 0.0 and noted.up is not None
+    face = extra_record("x_dn_2", (-1, 0, 0), "static", 10.0, heading_deg=90.0)
+    assert isinstance(face, Extra) and face.up is None and face.heading_deg == 90.0
+
+
+def test_a_noted_heading_is_where_the_cube_is_placed_and_in_its_header() -> None:
+    """A record the operator places at a heading and notes: its header carries the heading
+    (the plan's records, unrecorded, do not), and on a tilted plate the tilt seen by the cube
+    turned 90° counter-clockwise on the same face is the first one turned by −90°."""
+    spec = SessionSpec(seed=4, effect="plate_tilt", extra=(
+        Extra("z_up_2", heading_deg=0.0), Extra("z_up_3", heading_deg=90.0),
+    ))  # fmt: skip
+    recs = {r.name: r for r in simulate(spec).records}
+    assert HEADING_KEY not in recs["z_up"].meta
+    assert (recs["z_up_2"].meta[HEADING_KEY], recs["z_up_3"].meta[HEADING_KEY]) == ("0", "90")
+    f0, f90 = (recs[n].true_force.mean(axis=0) for n in ("z_up_2", "z_up_3"))
+    assert np.hypot(f0[0], f0[1]) > 0.01  # the plate leans at least 0.1°
+    np.testing.assert_allclose([f90[0], f90[1]], [f0[1], -f0[0]], atol=1e-9)
+    # the plan's records are the same with the noted ones appended
+    plain = {r.name: r for r in simulate(dataclasses.replace(spec, extra=())).records}
+    np.testing.assert_array_equal(plain["z_cw"].accel, recs["z_cw"].accel)
