@@ -70,13 +70,16 @@ class Candidate:
     direction +1 ccw / -1 cw); ``operator_s``: what it costs the operator, s; ``pace``: turns
     made this many times as fast as the operator's own (1: the same hand);
     ``temp_offset_c``: its records at this many °C from the session's mean chip temperature
-    (a sitting at another temperature)."""
+    (a sitting at another temperature); ``headings``: the placement heading the operator
+    records for each record, ° (:data:`HEADING_KEY`; empty or None: as the session's records
+    carry it)."""
 
     label: str
     records: tuple[tuple[str, tuple[float, float, float], str, float, int, int], ...]
     operator_s: float
     pace: float = 1.0
     temp_offset_c: float = 0.0
+    headings: tuple[float | None, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -373,13 +376,15 @@ class Augmenter:
     def with_candidate(self, cand: Candidate) -> Session:
         """The session with ``cand``'s records added (each under a name no record has)."""
         records = dict(self.session.records)
-        for base, up, kind, seconds, n_turns, direction in cand.records:
+        for i, (base, up, kind, seconds, n_turns, direction) in enumerate(cand.records):
             name = unique_name(base, records)
+            heading = cand.headings[i] if i < len(cand.headings) else None
+            meta = self.meta if heading is None else {**self.meta, HEADING_KEY: f"{heading:g}"}
             records[name] = synthetic_record(
                 name, up, kind, seconds, g=self.g, values=self.values, accel_sd=self.accel_sd,
                 gyro_sd=self.gyro_sd, dt_s=self.dt_s, temp_c=self.temp_c + cand.temp_offset_c,
                 turns=n_turns,
-                direction=direction, meta=self.meta,
+                direction=direction, meta=meta,
                 rng=np.random.default_rng([self.seed, zlib.crc32(name.encode())]),
                 profile=self._profile(int(np.argmax(np.abs(up))), cand.pace),
             )  # fmt: skip
