@@ -89,7 +89,9 @@ def _num(v: float) -> str:
 
 def format_separation(s: Separation, top: int) -> str:
     """The records that tell two explanations apart, for people, within 80 columns."""
-    lines = textwrap.wrap(f"to tell {s.a} from {s.b}: Δχ² between them now {_num(s.lam_now)} "
+    names = f"{s.a} from {s.b}" + "".join(f" and from {o}" for o in s.others)
+    pairs = "between them" if not s.others else "between the closest two"
+    lines = textwrap.wrap(f"to tell {names}: Δχ² {pairs} now {_num(s.lam_now)} "
                           f"({CLEAR:g} or more: the data choose at 3σ)", 80)  # fmt: skip
     lines += [" #  record                              time   Δχ² after  per minute"]
     for i, r in enumerate(s.ranked[:top]):
@@ -114,16 +116,23 @@ def separation_json(s: Separation) -> dict[str, Any]:
         return v if math.isfinite(v) else None
 
     return {
-        "a": s.a, "b": s.b, "lam_now": num(s.lam_now), "clear": CLEAR,
+        "a": s.a, "b": s.b, "others": list(s.others), "lam_now": num(s.lam_now), "clear": CLEAR,
         "chi2_a": num(s.chi2_a), "chi2_b": num(s.chi2_b),
         "ranked": [
             {"record": r.candidate.label, "operator_s": r.candidate.operator_s,
              "pace": r.candidate.pace, "lam": num(r.lam), "per_min": num(r.per_min),
+             "pairs": [[i, j, num(v)] for i, j, v in r.pairs],
              "records": [{"name": n, "up": list(up), "kind": k, "seconds": sec, "turns": t,
-                          "direction": d} for n, up, k, sec, t, d in r.candidate.records]}
+                          "direction": d, "heading_deg": _noted(r.candidate.headings, i)}
+                         for i, (n, up, k, sec, t, d) in enumerate(r.candidate.records)]}
             for r in s.ranked
         ],
     }  # fmt: skip
+
+
+def _noted(headings: tuple[float | None, ...], i: int) -> float | None:
+    """The heading the operator notes for a candidate's ``i``-th record, ° (None: none)."""
+    return headings[i] if i < len(headings) else None
 
 
 def run_plan(args: argparse.Namespace) -> int:
@@ -135,10 +144,15 @@ def run_plan(args: argparse.Namespace) -> int:
     model = parse_model(args.model, cat)
     time = OperatorTime(place=args.place_s, place_tilted=args.place_tilted_s)
     if args.separate:
-        a, b = (explanation(x, cat) for x in args.separate)
-        _two_explanations(a, b, model)
-        sep = separate(session, model, a, b, noise=session_noise(session, args.floor, args.noise),
-                       time=time)  # fmt: skip
+        if len(args.separate) < 2:
+            raise UserError("--separate needs two explanations or more (the members of a "
+                            "group of equals as model diagnose names them)")  # fmt: skip
+        a, b, *others = exps = [explanation(x, cat) for x in args.separate]
+        for i, x in enumerate(exps):
+            for y in exps[i + 1 :]:
+                _two_explanations(x, y, model)
+        sep = separate(session, model, a, b, others=others, time=time,
+                       noise=session_noise(session, args.floor, args.noise))  # fmt: skip
         if args.json:
             print(json.dumps(separation_json(sep), indent=2, ensure_ascii=False))
         else:
@@ -210,10 +224,10 @@ def cli_plan(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
         help="seconds to put it on an edge, 45° (default %(default)g)",
     )  # fmt: skip
     p.add_argument(
-        "--separate", nargs=2, metavar=("A", "B"), default=None,
-        help="instead: the records that tell explanation A from B apart (each a model spec "
-        "added to --model, e.g. scale_asymmetry:gyro:z scale_nonlinearity:gyro:z, or a signal "
-        "as model diagnose names it, e.g. face_error:accel:y 'accel y follows (specific force "
-        "z)²')",
+        "--separate", nargs="+", metavar="A", default=None,
+        help="instead: the records that tell explanation A from B (and from C …) apart, each "
+        "a model spec added to --model, e.g. scale_asymmetry:gyro:z scale_nonlinearity:gyro:z, "
+        "or a signal as model diagnose names it, e.g. face_error:accel:y 'accel y follows "
+        "(specific force z)²' plate_tilt:accel:xyz",
     )  # fmt: skip
     return run_plan

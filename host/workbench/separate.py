@@ -13,6 +13,18 @@ which the true one of the two would beat the other, noise aside. λ ≥ 9 is a 3
 records are ranked by λ per minute of the operator's time. Both are weighed on the yardstick
 the diagnosis tests them on (:func:`yardstick`: a gyro scale asymmetry or quadratic scale
 without the turn-angle σ of its axis, which would otherwise take its signal for the hand's).
+A group of three or more (``others``) is separated when every pair is: λ is the smallest over
+the pairs.
+
+Where static records carry no placement heading, the plate's tilt joins such a group (each
+static then carries the tilt as it sees it as two unknowns of its own,
+:func:`host.model.catalogue.plate_tilt`, which hold the static's horizontal readings whatever
+they are). A record at an unknown heading is held the same way, so the menu then adds the
+records whose heading the operator records (:func:`heading_candidates`): a 45° attitude placed
+at the dialogue's heading and noted, and a face again at two noted headings 90° apart (the
+cube turned on the face). A plate's tilt is fixed in the room, a face lean in the cube, an
+(f/g)² effect in the sensor: at a noted heading the tilt the turns' rests measured is known
+there, and only the 45° attitude puts (f/g)² at ½ where a face lean, on a square wedge, is 0.
 """
 
 from __future__ import annotations
@@ -23,15 +35,18 @@ import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
+from host.bench.plan import tilted_45
 from host.errors import UserError
 from host.model.dataset import Dataset, build_dataset
 from host.model.fit import Fit, fit_model, predict
+from host.model.geometry import DIALOGUE_HEADING_DEG
 from host.model.noise import NoiseModel
 from host.model.signals import AXES
 from host.model.spec import ModelTerm, parse_model
 from host.model.terms import Term
 from host.session.directory import Session
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, local_gravity
+from host.session.records import HEADING_KEY, STATIC_NAMES
 from host.workbench.absorbed import closure_axes, without_turn_angle
 from host.workbench.equals import signal_term
 from host.workbench.planner import (
@@ -40,6 +55,8 @@ from host.workbench.planner import (
     Augmenter,
     Candidate,
     OperatorTime,
+    _face_up,
+    _format_up,
     candidates,
     has_temperature_term,
 )
@@ -51,18 +68,21 @@ CLEAR = 9.0
 @dataclass(frozen=True)
 class Separating:
     """A record and the separation it buys: ``lam`` (λ with it added), ``per_min`` (λ gained
-    over the session's own per minute of operator time)."""
+    over the session's own per minute of operator time); ``pairs`` λ of each pair of
+    explanations (i, j, λ; indices into a, b, others…), ``lam`` their smallest."""
 
     candidate: Candidate
     lam: float
     per_min: float
+    pairs: tuple[tuple[int, int, float], ...] = ()
 
 
 @dataclass(frozen=True)
 class Separation:
     """The separation now (``lam_now``), the records ranked best first, and what the data
     say now: ``chi2_a``/``chi2_b`` the χ² of the model with ``a``/``b`` fitted to the records
-    (``chi2_b − chi2_a`` > 0: the records prefer ``a``)."""
+    (``chi2_b − chi2_a`` > 0: the records prefer ``a``); ``others`` the further members of
+    the group (λ the smallest over every pair)."""
 
     a: str
     b: str
@@ -70,6 +90,7 @@ class Separation:
     ranked: tuple[Separating, ...]
     chi2_a: float = math.nan
     chi2_b: float = math.nan
+    others: tuple[str, ...] = ()
 
 
 def _values(fit: Fit) -> dict[tuple[str, str, str, str], float]:
@@ -148,6 +169,7 @@ def separate(
     a: Sequence[ModelTerm] | Explanation,
     b: Sequence[ModelTerm] | Explanation,
     *,
+    others: Sequence[Sequence[ModelTerm] | Explanation] = (),
     noise: NoiseModel | None = None,
     time: OperatorTime = OPERATOR_TIME,
     latitude_deg: float = DEFAULT_LATITUDE_DEG,
@@ -155,33 +177,40 @@ def separate(
     only: Sequence[Candidate] | None = None,
     progress: Callable[[int, int, str], None] | None = None,
 ) -> Separation:
-    """Rank the records that would tell explanation ``a`` from ``b`` (each a list of terms
-    added to ``model``, or an :class:`Explanation`), each at the size this session's records
-    give it."""
-    ea = a if isinstance(a, Explanation) else Explanation(_label(a), tuple(a))
-    eb = b if isinstance(b, Explanation) else Explanation(_label(b), tuple(b))
+    """Rank the records that would tell explanation ``a`` from ``b`` (and from each of
+    ``others``, and those from each other; each a list of terms added to ``model``, or an
+    :class:`Explanation`), each at the size this session's records give it."""
+    exps = [x if isinstance(x, Explanation) else Explanation(_label(x), tuple(x))
+            for x in (a, b, *others)]  # fmt: skip
     kw = {"noise": noise or NoiseModel(), "latitude_deg": latitude_deg, "height_m": height_m}
 
-    def weighed(s: Session) -> tuple[Dataset, tuple[ModelTerm, ...], tuple[ModelTerm, ...]]:
+    def weighed(s: Session) -> tuple[Dataset, list[tuple[ModelTerm, ...]]]:
         raw = build_dataset(s, **kw)  # type: ignore[arg-type]
-        ta, tb = ea.on(raw), eb.on(raw)
-        ds = yardstick(raw, [*ta, *tb])
-        return ds, ea.on(ds), eb.on(ds)
+        ds = yardstick(raw, [mt for e in exps for mt in e.on(raw)])
+        return ds, [e.on(ds) for e in exps]
 
-    ds, ta, tb = weighed(session)
+    def lam(ds: Dataset, terms: list[tuple[ModelTerm, ...]]) -> tuple[tuple[int, int, float], ...]:
+        return tuple(
+            (i, j, noncentrality(ds, model, terms[i], terms[j], values[i], values[j]))
+            for i in range(len(exps)) for j in range(i + 1, len(exps))
+        )  # fmt: skip
+
+    ds, terms = weighed(session)
     base = fit_model(ds, model)
-    fa, fb = fit_model(ds, (*model, *ta)), fit_model(ds, (*model, *tb))
-    va, vb = _values(fa), _values(fb)
-    lam_now = noncentrality(ds, model, ta, tb, va, vb)
+    fits = [fit_model(ds, (*model, *t)) for t in terms]
+    values = [_values(f) for f in fits]
+    lam_now = min(x[2] for x in lam(ds, terms))
     base_values = {p.name: p.value for p in base.parameters if math.isfinite(p.value)}
     hand = Augmenter(session, base_values, local_gravity(latitude_deg, height_m))
     if only is None:
-        temp = has_temperature_term([*ta, *tb]) or any(
-            "temperature" in e.signal[2] for e in (ea, eb) if e.signal
+        temp = has_temperature_term([mt for t in terms for mt in t]) or any(
+            "temperature" in e.signal[2] for e in exps if e.signal
         )
         temps = (OTHER_TEMPERATURE_C,) if temp else ()
         menu = candidates(hand.static_s, hand.turns, time, paces=(1.0, 0.5, 2.0),
                           temperatures=temps)  # fmt: skip
+        if unknown_headings(session):
+            menu += heading_candidates(hand.static_s, time)
         todo = [c for c in menu if hand.fits_range(c)]
     else:
         todo = list(only)
@@ -189,13 +218,44 @@ def separate(
     for i, cand in enumerate(todo):
         if progress is not None:
             progress(i, len(todo), cand.label)
-        aug, ta, tb = weighed(hand.with_candidate(cand))
-        lam = noncentrality(aug, model, ta, tb, va, vb)
-        ranked.append(Separating(cand, lam, (lam - lam_now) / (cand.operator_s / 60.0)))
+        pairs = lam(*weighed(hand.with_candidate(cand)))
+        got = min(x[2] for x in pairs)
+        ranked.append(Separating(cand, got, (got - lam_now) / (cand.operator_s / 60.0), pairs))
     if progress is not None:
         progress(len(todo), len(todo), "")
     ranked.sort(key=lambda s: (-s.per_min, s.candidate.operator_s))
-    return Separation(ea.label, eb.label, lam_now, tuple(ranked), fa.chi2, fb.chi2)
+    return Separation(exps[0].label, exps[1].label, lam_now, tuple(ranked), fits[0].chi2,
+                      fits[1].chi2, tuple(e.label for e in exps[2:]))  # fmt: skip
+
+
+def unknown_headings(session: Session) -> bool:
+    """Whether a static record of ``session`` carries no placement heading (the plate's tilt
+    then holds its horizontal readings: :func:`host.model.catalogue.plate_tilt`)."""
+    return any(r.kind == "static" and HEADING_KEY not in r.meta
+               for r in session.records.values())  # fmt: skip
+
+
+#: the heading the operator is asked to place a noted record at, ° (the dialogue's)
+NOTED_HEADING_DEG = DIALOGUE_HEADING_DEG
+
+
+def heading_candidates(static_s: float, time: OperatorTime = OPERATOR_TIME) -> list[Candidate]:
+    """The records whose placement heading the operator notes (for sessions whose statics
+    carry none): each 45° attitude of :func:`host.bench.plan.tilted_45` at the dialogue's
+    heading, noted; and each face again twice, at the dialogue's heading and turned 90°
+    counter-clockwise on the same face, both noted. ``static_s`` each, s."""
+    out = []
+    for name, up in tilted_45():
+        rec = (name, up, "static", static_s, 0, 0)
+        out.append(Candidate(f"{name} (up {_format_up(up)}), heading noted", (rec,),
+                             time.place_tilted + time.settle + static_s,
+                             headings=(NOTED_HEADING_DEG,)))  # fmt: skip
+    for face in STATIC_NAMES:
+        recs = tuple((face, _face_up(face), "static", static_s, 0, 0) for _ in range(2))
+        out.append(Candidate(f"{face} at 0° and 90°, noted", recs,
+                             2 * (time.place + time.settle + static_s),
+                             headings=(NOTED_HEADING_DEG, NOTED_HEADING_DEG + 90.0)))  # fmt: skip
+    return out
 
 
 def _label(terms: Sequence[ModelTerm]) -> str:

@@ -112,6 +112,9 @@ def test_separate_with_an_unknown_term_is_one_line(
     assert main(["plan", d, "--separate", "no_such_term", "time_drift:accel:x"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no_such_term" in err[0]
+    assert main(["plan", d, "--separate", "time_drift:accel:x"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "two explanations or more" in err[-1]
 
 
 @pytest.mark.slow

@@ -14,9 +14,15 @@ from host.model.catalogue import CATALOGUE
 from host.model.dataset import load_dataset
 from host.model.spec import parse_model
 from host.session.directory import read_session
-from host.session.records import turn_window_s
-from host.workbench.planner import Augmenter, candidates
-from host.workbench.separate import CLEAR, explanation, separate
+from host.session.records import HEADING_KEY, turn_window_s
+from host.workbench.planner import Augmenter, Candidate, candidates
+from host.workbench.separate import (
+    CLEAR,
+    explanation,
+    heading_candidates,
+    separate,
+    unknown_headings,
+)
 from host.workbench.verdict import diagnose
 from tests.independent.simulate import Extra, SessionSpec, write_session
 
@@ -128,3 +134,57 @@ def test_a_signal_of_the_scan_is_weighed_against_a_term(tmp_path: Path) -> None:
     with pytest.raises(UserError, match="no signal"):
         separate(read_session(tmp_path), BASE, signal,
                  explanation("accel x follows no such thing", CATALOGUE), only=[face])  # fmt: skip
+
+
+def test_a_noted_heading_is_in_the_header_of_the_record_it_names(asymmetric: Path) -> None:
+    """The records whose heading the operator notes carry it; the rest of the session's
+    records (unrecorded here) and the plain candidates carry none."""
+    session = read_session(asymmetric)
+    assert unknown_headings(session)
+    hand = Augmenter(session, {}, 9.81)
+    menu = {c.label: c for c in heading_candidates(10.0)}
+    turned = hand.with_candidate(menu["x_dn at 0° and 90°, noted"]).records
+    assert (turned["x_dn_2"].meta[HEADING_KEY], turned["x_dn_3"].meta[HEADING_KEY]) == ("0", "90")
+    assert HEADING_KEY not in turned["x_dn"].meta
+    tilt = next(c for c in menu.values() if c.label.startswith("tilt_45_3 "))
+    assert hand.with_candidate(tilt).records["tilt_45_3"].meta[HEADING_KEY] == "0"
+    plain = next(c for c in candidates(10.0, 2) if c.label.startswith("tilt_45_3 "))
+    assert HEADING_KEY not in hand.with_candidate(plain).records["tilt_45_3"].meta
+
+
+def test_at_unknown_headings_a_45_attitude_separates_the_plate_tilt_once_its_heading_is_noted(
+    tmp_path: Path,
+) -> None:
+    """Statics with no heading: a plate's tilt is a third equal of a face lean and an (f/g)²
+    effect (each static holds it as two unknowns of its own). A 45° attitude whose heading is
+    not noted is held the same way: with the (f/g)² channel horizontal there it buys nothing;
+    noted, it does. The same face at two noted headings does not (a lean and an (f/g)² effect
+    both turn with the cube). λ is the smallest over the pairs, never above the first two's."""
+    write_session(tmp_path, SessionSpec(seed=3000, effect="cross_g2"))
+    truth = json.loads((tmp_path / "truth.json").read_text(encoding="utf-8"))["effect"]
+    ax, src = truth["axis"], truth["source"]
+    session = read_session(tmp_path)
+    signal = explanation(f"accel {ax} follows (specific force {src})² / |specific force {src}|",
+                         CATALOGUE)  # fmt: skip
+    face, plate = (explanation(x, CATALOGUE) for x in (f"face_error:accel:{ax}",
+                                                       "plate_tilt:accel:xyz"))  # fmt: skip
+    # a 45° attitude with the source axis up at 45° and the channel horizontal
+    (k,) = set("xyz") - {ax, src}
+
+    def leaning(c: Candidate) -> bool:
+        up = c.records[0][1]
+        return abs(up["xyz".index(src)]) > 0.5 and abs(up["xyz".index(k)]) > 0.5
+
+    plain = next(c for c in candidates(10.0, 2) if c.label.startswith("tilt_45") and leaning(c))
+    noted = next(c for c in heading_candidates(10.0) if c.label.startswith(plain.label[:10]))
+    turned = next(c for c in heading_candidates(10.0) if c.label.startswith(f"{src}_dn at"))
+    s = separate(session, BASE, signal, face, others=[plate], only=[plain, noted, turned])
+    two = separate(session, BASE, signal, face, only=[plain, noted, turned])
+    lam = {r.candidate.label: r for r in s.ranked}
+    assert s.lam_now < 1.0 and s.others == ("plate_tilt:accel:xyz",)
+    assert lam[plain.label].lam < CLEAR < 10 * CLEAR < lam[noted.label].lam
+    assert lam[turned.label].lam < CLEAR
+    for r in s.ranked:
+        assert r.lam == min(v for _, _, v in r.pairs) and len(r.pairs) == 3
+    for r in two.ranked:
+        assert lam[r.candidate.label].lam <= r.lam + 1e-6
