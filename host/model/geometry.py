@@ -53,9 +53,12 @@ _HEADING_WORDS = {
 
 def reference_axis(up: np.ndarray) -> str:
     """'+x'|'+y'|'+z': the record's reference axis, the first of +x, +y, +z not along ``up``
-    (the axis whose heading ``placement_heading_deg`` gives)."""
-    k = int(np.argmax(np.abs(np.asarray(up, dtype=np.float64))))
-    return "+" + "xyz"[0 if k != 0 else 1]
+    (not parallel to it, as :func:`placement` takes it: on a 45° attitude an axis at 45° to
+    the vertical, made level) — the axis whose heading ``placement_heading_deg`` gives."""
+    u = np.asarray(up, dtype=np.float64)
+    u = u / np.linalg.norm(u)
+    k = next(i for i in range(3) if abs(float(u[i])) < 1.0 - 1e-9)
+    return "+" + "xyz"[k]
 
 
 def placement_words(up: np.ndarray, heading_deg: float = DIALOGUE_HEADING_DEG) -> str:

@@ -50,9 +50,11 @@ def axis_vector(spec: str) -> np.ndarray:
 
 
 def reference_axis(up: np.ndarray) -> np.ndarray:
-    """The first body axis (x, y, z order, positive) that is not along ``up``."""
-    k = int(np.argmax(np.abs(up)))
-    return axis_vector("+" + AXES[0 if k != 0 else 1])
+    """The first body axis (x, y, z order, positive) that is not along ``up`` (not parallel
+    to it: for a 45° attitude with x up at 45°, +x, made level)."""
+    u = np.asarray(up, dtype=float) / np.linalg.norm(up)
+    k = next(i for i in range(3) if abs(u[i]) < 1.0 - 1e-9)
+    return axis_vector("+" + AXES[k])
 
 
 def rot_about(axis: np.ndarray, angle_rad: float) -> np.ndarray:

@@ -49,3 +49,29 @@ def test_tilt_recovered_with_recorded_random_headings(tmp_path: Path, seed: int)
     # and the model then explains the records: χ²/dof near 1 (RMS z ≤ 1.5)
     chi2 = float(fit.white_residual @ fit.white_residual)
     assert math.sqrt(chi2 / fit.dof) < 1.5
+
+
+@pytest.mark.parametrize("heading", [0.0, 90.0])
+def test_a_noted_45_attitude_on_a_tilted_plate_reads_the_tilt_at_its_heading(
+    heading: float,
+) -> None:
+    """The 45° attitudes a planner may ask for with the heading noted: the independent
+    simulator places each at that heading on a tilted plate, and the horizontal force it
+    writes is g·(t_e·e + t_n·n) at the model's plate axes for that heading (the same
+    reference axis on both sides: the first body axis not parallel to up)."""
+    from host.bench.plan import tilted_45
+    from host.model.geometry import reference_axis
+    from tests.independent.simulate import Extra, simulate
+
+    extra = tuple(Extra(n, "static", up, heading_deg=heading) for n, up in tilted_45())
+    s = simulate(SessionSpec(seed=4, effect="plate_tilt", extra=extra))
+    t_e, t_n = s.effect.params["up_east_rad"], s.effect.params["up_north_rad"]
+    for (name, up), r in zip(tilted_45(), s.records[-len(extra) :], strict=True):
+        assert r.name == name
+        u = np.asarray(up)
+        f = r.true_force.mean(axis=0)
+        east, north = plate_axes(u, np.radians([heading]))
+        np.testing.assert_allclose(f - (f @ u) * u, s.g * (t_e * east[0] + t_n * north[0]),
+                                   atol=s.g * 2e-4, err_msg=name)  # fmt: skip
+        ref = "xyz".index(reference_axis(u)[1])
+        assert abs(u[ref]) < 0.9  # the operator's arrow is not the one pointing up
