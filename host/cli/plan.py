@@ -15,9 +15,12 @@ import textwrap
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import numpy as np
+
 from host.calib.publish import session_noise
 from host.cli.model import _catalogue, _common
 from host.errors import UserError
+from host.model.geometry import placement_words
 from host.model.spec import ModelTerm, parse_model, short_spec
 from host.session.directory import read_session
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, UNITS
@@ -98,6 +101,18 @@ def format_separation(s: Separation, top: int) -> str:
         c = r.candidate
         lines.append(f"{i + 1:>2}  {c.label[:34]:<34} {c.operator_s:>5.0f} s  {_num(r.lam):>9}"
                      f"  {_num(r.per_min):>10}")  # fmt: skip
+    for r in s.ranked[:top]:  # the first record listed that asks for a heading, in words
+        recs = r.candidate.records
+        noted = [(x, h) for i, x in enumerate(recs) if (h := _noted(r.candidate.headings, i))
+                 is not None]  # fmt: skip
+        if noted:
+            (name, up, *_), h = noted[0]
+            lines += textwrap.wrap(
+                f"heading noted: put {name} {placement_words(np.asarray(up), h)}, and its "
+                f"record carries placement_heading_deg: {h:g} (the plate's tilt is known there)",
+                80, subsequent_indent="  ",
+            )  # fmt: skip
+            break
     if s.ranked and s.ranked[0].lam < CLEAR:
         lines += textwrap.wrap(
             "none of these records alone separates them at 3σ: measure the first, then ask "

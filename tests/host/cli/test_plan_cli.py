@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -138,3 +139,23 @@ def test_diagnose_leads_to_the_record_that_separates_its_equals(
     assert main(cmd[3:] + ["--top", "2"]) == 0
     first = next(line for line in capsys.readouterr().out.splitlines() if line.startswith(" 1 "))
     assert "as fast" in first
+
+
+def test_a_record_with_a_noted_heading_says_how_to_place_it() -> None:
+    """The ranking tells the operator where the cube goes for a record whose heading is noted
+    (the arrow at 45° to the vertical, made level, along the fence) and that the record
+    carries it; a list without such a record says nothing of headings."""
+    from host.cli.plan import format_separation
+    from host.workbench.separate import Separating, Separation, heading_candidates
+
+    noted = next(c for c in heading_candidates(10.0) if c.label.startswith("tilt_45_3 "))
+    unnoted = dataclasses.replace(noted, label="tilt_45_3 (up −x+y)", headings=())
+    plain = Separating(unnoted, 120.0, 100.0)
+    s = Separation("a", "b", 0.0, (plain, Separating(noted, 150.0, 90.0)), others=("c",))
+    lines = format_separation(s, 2).splitlines()
+    assert all(len(line) <= 80 for line in lines), max(lines, key=len)
+    assert lines[0].startswith("to tell a from b and from c:")
+    text = " ".join(lines)
+    assert "heading noted: put tilt_45_3 against the fence, its X arrow pointing right" in text
+    assert "placement_heading_deg: 0" in text
+    assert "heading" not in format_separation(s, 1)
