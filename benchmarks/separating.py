@@ -17,12 +17,16 @@ line entry):
    "measure the first, then ask again" of docs/planning.md), up to ``--rounds`` records.
 
 Pairs: ``asym`` (truth a gyro scale asymmetry, alternative a quadratic scale on that axis),
-``nonlin`` (the reverse), ``lean`` (truth every fixture face leaning, alternative accel i
-reading (f_j/g)²) and ``g2`` (the reverse); the last two with the placement heading recorded
-(without it a plate tilt joins the group: ``--no-headings``).
+``nonlin`` (the reverse), ``lean`` (truth one pair of fixture faces leaning, alternative
+accel i reading (f_j/g)²) and ``g2`` (the reverse), with the placement heading recorded; and
+``lean_nh``, ``g2_nh`` the same with no heading recorded: the plate's tilt then joins the group
+(each static carries it as two unknowns of its own), ``plan --separate`` is asked to tell the
+truth from both others, and the truth is named alone only when the plate's tilt is neither
+recommended nor in a group with it.
 
-Prints per session the records measured and the Δχ² between the two predicted (λ of the
-record) and obtained (χ² of the alternative minus that of the truth, on the records with it),
+Prints per session the records measured and the Δχ² between the truth and the other(s)
+predicted (the record's λ, the smallest over the pairs with the truth) and obtained (χ² of the
+alternative minus that of the truth on the records with it, the smallest over the others),
 then per pair the count named alone out of the sessions whose diagnosis held the group::
 
     OPENBLAS_NUM_THREADS=1 python3 benchmarks/separating.py --sessions 10
@@ -91,13 +95,15 @@ def _face_term(g: Group, axis: str) -> str | None:
 @dataclass(frozen=True)
 class Doubt:
     """One group of equals as a question: the true explanation and its alternative, as
-    ``plan --separate`` takes them, and the channel ``(sensor, axis)``."""
+    ``plan --separate`` takes them, and the channel ``(sensor, axis)``; ``others``: further
+    members of the group (the plate's tilt, where statics carry no heading)."""
 
     truth: str
     other: str
     sensor: str
     axis: str
     source: str = ""  # the force axis of an (f_j/g)² signal
+    others: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -133,20 +139,35 @@ def _scale_doubts(true: str, other: str) -> Callable[[dict[str, Any], Truth], li
     return doubts
 
 
+def _plate(g: Group) -> str | None:
+    return next((t for t in g["terms"] if t.startswith("plate_tilt:accel")), None)
+
+
 def _still_equal(diag: dict[str, Any], d: Doubt) -> bool:
-    """Do the diagnosis's groups still hold both explanations of ``d``?"""
+    """Do the diagnosis's groups still hold the truth of ``d`` with another of its
+    explanations?"""
     for g in diag.get("equals", []):
         labels = set(g["members"])
-        if d.truth in labels and d.other in labels:
+        if d.truth in labels and ({d.other, *d.others} & labels):
             return True
-        if d.source and _face_term(g, d.axis) and _signal_of(g, "accel", d.axis, d.source):
+        face = _face_term(g, d.axis) if d.source else None
+        signal = _signal_of(g, "accel", d.axis, d.source) if d.source else None
+        if face and signal:
+            return True
+        if d.others and _plate(g) and (face or signal):
             return True
     return False
 
 
+def _plate_named(diag: dict[str, Any], d: Doubt) -> bool:
+    """Is the plate's tilt, a further member of ``d``, recommended?"""
+    return bool(d.others) and _rec_has(diag.get("recommended"), "plate_tilt", "accel", d.axis)
+
+
 def _term_alone(diag: dict[str, Any], d: Doubt) -> bool:
     term = d.truth.split(":")[0]
-    return _rec_has(diag.get("recommended"), term, d.sensor, d.axis) and not _still_equal(diag, d)
+    named = _rec_has(diag.get("recommended"), term, d.sensor, d.axis)
+    return named and not _plate_named(diag, d) and not _still_equal(diag, d)
 
 
 def _lean_doubts(diag: dict[str, Any], t: Truth) -> list[Doubt]:
@@ -157,8 +178,15 @@ def _lean_doubts(diag: dict[str, Any], t: Truth) -> list[Doubt]:
             for src in "xyz":
                 sig = _signal_of(g, "accel", ax, src) if face else None
                 if face and sig:
-                    out.append(Doubt(f"face_error:accel:{ax}", sig, "accel", ax, src))
+                    out.append(Doubt(f"face_error:accel:{ax}", sig, "accel", ax, src,
+                                     _others(g)))  # fmt: skip
     return out
+
+
+def _others(g: Group) -> tuple[str, ...]:
+    """The group's plate tilt, if it holds one (statics without a heading)."""
+    plate = _plate(g)
+    return (plate,) if plate else ()
 
 
 def _g2_doubts(diag: dict[str, Any], t: Truth) -> list[Doubt]:
@@ -168,7 +196,7 @@ def _g2_doubts(diag: dict[str, Any], t: Truth) -> list[Doubt]:
         face, sig = _face_term(g, e["axis"]), _signal_of(g, "accel", e["axis"], e["source"])
         if face and sig:
             out.append(Doubt(sig, f"face_error:accel:{e['axis']}", "accel", e["axis"],
-                             e["source"]))  # fmt: skip
+                             e["source"], _others(g)))  # fmt: skip
     return out[:1]
 
 
@@ -179,7 +207,7 @@ def _signal_alone(diag: dict[str, Any], d: Doubt) -> bool:
                 if (s.get("sensor"), s.get("axis")) == (d.sensor, d.axis)), None)  # fmt: skip
     named = top is not None and f"force {d.source}" in str(top.get("signal", ""))
     face = _rec_has(diag.get("recommended"), "face_error", d.sensor, d.axis)
-    return named and not face and not _still_equal(diag, d)
+    return named and not face and not _plate_named(diag, d) and not _still_equal(diag, d)
 
 
 PAIRS: dict[str, Pair] = {
@@ -191,6 +219,8 @@ PAIRS: dict[str, Pair] = {
                                                                "scale_asymmetry"), _term_alone),
         Pair("lean", "face_pair_lean", {"record_heading": True}, _lean_doubts, _term_alone),
         Pair("g2", "cross_g2", {"record_heading": True}, _g2_doubts, _signal_alone),
+        Pair("lean_nh", "face_pair_lean", {}, _lean_doubts, _term_alone),
+        Pair("g2_nh", "cross_g2", {}, _g2_doubts, _signal_alone),
     ]
 }  # fmt: skip
 
@@ -206,7 +236,8 @@ def _measure(spec: SessionSpec, d: Path, first: dict[str, Any], taken: set[str])
         while name in taken:
             name, k = f"{r['name']}_{k}", k + 1
         taken.add(name)
-        extra.append(extra_record(name, r["up"], r["kind"], r["seconds"], first["pace"]))
+        extra.append(extra_record(name, r["up"], r["kind"], r["seconds"], first["pace"],
+                                  r.get("heading_deg")))  # fmt: skip
     spec = replace(spec, extra=tuple(extra))
     write_session(d, spec)
     return spec
@@ -214,25 +245,41 @@ def _measure(spec: SessionSpec, d: Path, first: dict[str, Any], taken: set[str])
 
 def _obtained(d: Path, doubt: Doubt) -> float:
     """χ²(alternative) − χ²(truth) on the records measured (> 0: the data prefer the truth),
-    on the yardstick ``plan --separate`` weighs them on."""
+    the smallest over the alternatives (the other and the further members), on the yardstick
+    ``plan --separate`` weighs them on."""
     from host.model.catalogue import CATALOGUE
     from host.model.spec import parse_model
     from host.session.directory import read_session
     from host.workbench.separate import explanation, separate
 
-    a, b = (explanation(x, CATALOGUE) for x in (doubt.truth, doubt.other))
-    s = separate(read_session(d), parse_model("base", CATALOGUE), a, b, only=())
-    return s.chi2_b - s.chi2_a
+    a = explanation(doubt.truth, CATALOGUE)
+    got = []
+    for other in (doubt.other, *doubt.others):
+        b = explanation(other, CATALOGUE)
+        s = separate(read_session(d), parse_model("base", CATALOGUE), a, b, only=())
+        got.append(s.chi2_b - s.chi2_a)
+    return min(got)
+
+
+def _noted(ranked: dict[str, Any]) -> bool:
+    """Does a ranked record of ``plan --separate --json`` ask the operator to note a heading?"""
+    return any(r.get("heading_deg") is not None for r in ranked["records"])
+
+
+def _predicted(first: dict[str, Any]) -> float:
+    """The record's λ between the truth (the first explanation) and each other one, the
+    smallest (``first['lam']`` is over every pair, the truth's or not)."""
+    pairs = [v for i, _, v in first.get("pairs", []) if i == 0]
+    return min(pairs) if pairs else float(first["lam"])
 
 
 def run_session(pair: Pair, seed: int, workdir: Path, rounds: int = 3,
-                headings: bool = True) -> dict[str, Any]:  # fmt: skip
+                noted: bool = True) -> dict[str, Any]:  # fmt: skip
     """One session of ``pair``: the diagnosis, the records the planner named and measured,
-    and whether the true effect came out alone. One JSON-able row."""
+    and whether the true effect came out alone (``noted`` False: the first-ranked record
+    whose heading is not noted, the comparison). One JSON-able row."""
     d = workdir / f"{pair.name}_{seed}"
-    opts = dict(pair.spec) if headings else {k: v for k, v in pair.spec.items()
-                                             if k != "record_heading"}  # fmt: skip
-    spec = SessionSpec(seed=seed, effect=pair.effect, **opts)
+    spec = SessionSpec(seed=seed, effect=pair.effect, **pair.spec)
     truth = write_session(d, spec).truth()
     row: dict[str, Any] = {"pair": pair.name, "seed": seed, "effect": truth["effect"]}
     diag = host_json(["model", "diagnose", str(d)])
@@ -251,18 +298,19 @@ def run_session(pair: Pair, seed: int, workdir: Path, rounds: int = 3,
         if not open_doubts:
             break
         doubt = open_doubts[0]
-        plan = host_json(["plan", str(d), "--separate", doubt.truth, doubt.other])
+        plan = host_json(["plan", str(d), "--separate", doubt.truth, doubt.other,
+                          *doubt.others])  # fmt: skip
         if "error" in plan or not plan.get("ranked"):
             row["error"] = plan.get("error", "plan --separate ranked nothing")
             break
-        first = plan["ranked"][0]
+        first = next(x for x in plan["ranked"] if noted or not _noted(x))
         spec = _measure(spec, d, first, taken)
         diag = host_json(["model", "diagnose", str(d)])
         if "error" in diag:
             row["error"] = diag["error"]
             break
-        steps.append({"record": first["record"], "lam": first["lam"], "doubt": doubt.truth,
-                      "obtained": _obtained(d, doubt)})  # fmt: skip
+        steps.append({"record": first["record"], "lam": _predicted(first), "doubt": doubt.truth,
+                      "lam_all": first["lam"], "obtained": _obtained(d, doubt)})  # fmt: skip
     row["steps"] = steps
     row["recommended_after"] = diag.get("recommended")
     row["alone"] = bool(steps) and all(pair.alone(diag, x) for x in doubts)
@@ -307,8 +355,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--sessions", type=int, default=10, help="sessions per pair (default 10)")
     ap.add_argument("--seed0", type=int, default=3000, help="first seed (default 3000)")
     ap.add_argument("--rounds", type=int, default=3, help="records at most per doubt (3)")
-    ap.add_argument("--no-headings", action="store_true",
-                    help="lean/g2 without the placement heading recorded")  # fmt: skip
+    ap.add_argument("--plain", action="store_true",
+                    help="measure the first-ranked record whose heading is not noted")  # fmt: skip
     ap.add_argument("--out", type=Path, help="append one JSON line per session to this file")
     args = ap.parse_args(argv)
     names = [p.strip() for p in args.pairs.split(",") if p.strip()]
@@ -319,7 +367,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for name in names:
             for seed in range(args.seed0, args.seed0 + args.sessions):
-                r = run_session(PAIRS[name], seed, Path(tmp), args.rounds, not args.no_headings)
+                r = run_session(PAIRS[name], seed, Path(tmp), args.rounds, not args.plain)
                 rows.append(r)
                 print(_line(r), flush=True)
                 if args.out:
