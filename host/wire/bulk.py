@@ -90,12 +90,12 @@ class _PairCRC:
         prefix's bytes there); rows (M, W) uint8 C-contiguous, W even, ``start`` even and
         ``start + nbytes + 3 <= W``."""
         at = start + self.prefix
-        # each word's column made contiguous once: a table lookup by a contiguous index is
-        # numpy's fast gather
-        words = np.ascontiguousarray(rows[:, at : at + 2 * self.nwords].view("<u2").T)
-        acc = self.tables[0].take(words[0])
+        # each word's column as the index (take converts it to one contiguous index array
+        # anyway: transposing the words first only copies them once more)
+        words = rows[:, at : at + 2 * self.nwords].view("<u2")
+        acc = self.tables[0].take(words[:, 0])
         for k in range(1, self.nwords):
-            acc ^= self.tables[k].take(words[k])
+            acc ^= self.tables[k].take(words[:, k])
         return acc == self.zero
 
 
