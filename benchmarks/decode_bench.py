@@ -23,6 +23,7 @@ time at a lighter load): 4.12 and 2.13 M frames/s (21.9x).
 from __future__ import annotations
 
 import argparse
+import statistics
 import sys
 import time
 from collections.abc import Callable
@@ -46,14 +47,20 @@ def timed(fn: Callable[[], int], repeat: int) -> tuple[float, float, int]:
     """The least wall time and the least CPU time (this process's and its children's, user +
     system) of ``repeat`` runs (s), and what the run returned. On a loaded machine wall time
     counts the waits for a core; CPU time does not."""
-    wall = cpu = float("inf")
+    walls, cpus, out = timed_all(fn, repeat)
+    return min(walls), min(cpus), out
+
+
+def timed_all(fn: Callable[[], int], repeat: int) -> tuple[list[float], list[float], int]:
+    """The wall and CPU times (s) of each of ``repeat`` runs, and what the last returned."""
+    walls, cpus = [], []
     out = 0
     for _ in range(repeat):
         c0, t0 = _cpu_s(), time.perf_counter()
         out = fn()
-        wall = min(wall, time.perf_counter() - t0)
-        cpu = min(cpu, _cpu_s() - c0)
-    return wall, cpu, out
+        walls.append(time.perf_counter() - t0)
+        cpus.append(_cpu_s() - c0)
+    return walls, cpus, out
 
 
 def _cpu_s() -> float:
@@ -101,35 +108,49 @@ def mavlink_capture(n: int):
     return parse
 
 
-def whole_process(data: bytes, n: int, repeat: int) -> dict[str, float]:
-    """``python -m host decode --stats`` as a user runs it, start-up included, on ``data``
-    written as a raw capture and as an IMUCAP01 capture (4 KiB reads, host times 2 ms after
-    each read's last sample), and on an empty file (the start-up alone): the best wall time
-    (``raw``, ``cap``, ``start``; s) and CPU time (``raw_cpu``, ``cap_cpu``, ``start_cpu``)
-    of ``repeat`` runs each. Bytecode is cached as an installed package has it (pip compiles
-    it; this run does once, into a temporary directory, before timing)."""
-    import os
+def imucap(data: bytes, read_sizes: Callable[[int], int]) -> bytes:
+    """``data`` as an IMUCAP01 capture of reads of ``read_sizes(i)`` bytes from byte i on,
+    each stamped 2 ms after its last sample (frames every 20 ms)."""
     import struct
-    import subprocess
-    import tempfile
 
     from host.wire.capture import MAGIC
 
-    out: dict[str, float] = {}
+    parts = [MAGIC]
+    i = 0
+    while i < len(data):
+        part = data[i : i + read_sizes(i)]
+        t_ns = 10**12 + (i + len(part)) // 27 * 20_000_000 + 2_000_000
+        parts.append(struct.pack("<QI", t_ns, len(part)) + part)
+        i += len(part)
+    return b"".join(parts)
+
+
+def whole_process(data: bytes, n: int, repeat: int, small_reads: bool) -> dict[str, list[float]]:
+    """``python -m host decode --stats`` as a user runs it, start-up included, on ``data``
+    written as a raw capture and as an IMUCAP01 capture (4 KiB reads, host times 2 ms after
+    each read's last sample), with ``small_reads`` also as the reads a board's link makes
+    (``small``: 1 to 2 frames, 27-54 bytes), and on an empty file (the start-up alone): the
+    wall times (``raw``, ``cap``, ``small``, ``start``; s) and CPU times (``raw_cpu``, ...)
+    of ``repeat`` runs each. Bytecode is cached as an installed package has it (pip compiles
+    it; this run does once, into a temporary directory, before timing)."""
+    import os
+    import subprocess
+    import tempfile
+
+    out: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory() as d:
-        raw, cap, empty = Path(d) / "clean.bin", Path(d) / "clean.cap", Path(d) / "empty.bin"
-        raw.write_bytes(data)
-        empty.write_bytes(b"")
-        body = bytearray(MAGIC)
-        for i in range(0, len(data), 4096):
-            part = data[i : i + 4096]
-            t_ns = 10**12 + (i + len(part)) // 27 * 20_000_000 + 2_000_000
-            body += struct.pack("<QI", t_ns, len(part)) + part
-        cap.write_bytes(bytes(body))
+        files = {name: Path(d) / f"{name}.bin" for name in ("raw", "cap", "small", "start")}
+        files["raw"].write_bytes(data)
+        files["start"].write_bytes(b"")
+        files["cap"].write_bytes(imucap(data, lambda i: 4096))
+        if small_reads:
+            files["small"].write_bytes(imucap(data, lambda i: 27 + 27 * (i // 27 % 3 == 1)))
+        else:
+            del files["small"]
         root = Path(__file__).resolve().parent.parent
         env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
         env["PYTHONPYCACHEPREFIX"] = str(Path(d) / "pycache")
-        for name, f in (("raw", raw), ("cap", cap), ("start", empty)):
+        for name, f in files.items():
             cmd = [sys.executable, "-m", "host", "decode", "--stats", str(f)]
 
             def run(c: list[str] = cmd) -> int:
@@ -137,7 +158,7 @@ def whole_process(data: bytes, n: int, repeat: int) -> dict[str, float]:
                 return r.returncode
 
             run()  # compiles and caches the bytecode, warms the file cache
-            out[name], out[name + "_cpu"], _ = timed(run, repeat)
+            out[name], out[name + "_cpu"], _ = timed_all(run, repeat)
     return out
 
 
@@ -153,6 +174,10 @@ def main() -> None:
         "--process-samples", type=int, default=1_500_000,
         help="frames in the capture the whole process decodes (8 h 20 min at 50 Hz)",
     )  # fmt: skip
+    ap.add_argument(
+        "--small-reads", action="store_true",
+        help="with --process, also the capture as a board's link reads it (1-2 frames a read)",
+    )  # fmt: skip
     args = ap.parse_args()
     n = args.samples
     clean = our_capture(n, 0.0)
@@ -162,9 +187,10 @@ def main() -> None:
     t_stream, k_stream = best_of(lambda: stream(clean), max(1, args.repeat // 2))
     try:
         parse = mavlink_capture(n)
-        t_mav, c_mav, k_mav = timed(parse, max(1, args.repeat // 3))
+        w_mav, c_mav, k_mav = timed_all(parse, max(1, args.repeat // 3))
     except ImportError:
-        t_mav, k_mav, c_mav = float("nan"), 0, float("nan")
+        w_mav, c_mav, k_mav = [float("nan")], [float("nan")], 0
+    t_mav = min(w_mav)
     assert k_bulk == n and k_stream == n and (k_mav in (n, 0)), (k_bulk, k_stream, k_mav)
     r_bulk, r_dirty, r_stream, r_mav = n / t_bulk, k_dirty / t_dirty, n / t_stream, n / t_mav
     need = 1_000_000 / 10 / 27  # frames/s on a 1 Mbaud 8N1 link
@@ -179,26 +205,25 @@ def main() -> None:
     if args.process:
         big = args.process_samples
         data = our_capture(big, 0.0) if big != n else clean
-        p = whole_process(data, big, max(1, args.repeat // 2))
-        m_cpu = n / c_mav
-        print(f"process: {big} frames, `python -m host decode --stats FILE`, start-up included")
-        print("                              wall time          CPU time")
-        print(f"process, start-up alone      {p['start']:8.3f} s         {p['start_cpu']:8.3f} s")
-        for key, what in (("raw", "raw capture"), ("cap", "IMUCAP01 capture")):
-            print(
-                f"process, {what:20s} {big / p[key] / 1e6:8.2f} M frames/s "
-                f"{big / p[key + '_cpu'] / 1e6:8.2f} M frames/s"
-            )
-        mav = f"{r_mav / 1e6:8.3f} M frames/s {m_cpu / 1e6:8.3f} M frames/s"
-        print(f"pymavlink RAW_IMU            {mav}")
-        print(
-            f"ratio process raw / pymavlink {big / p['raw'] / r_mav:7.1f} x "
-            f"{big / p['raw_cpu'] / m_cpu:16.1f} x"
-        )
-        print(
-            f"ratio process IMUCAP01 / pymavlink {big / p['cap'] / r_mav:3.1f} x "
-            f"{big / p['cap_cpu'] / m_cpu:15.1f} x (with the clock map)"
-        )
+        runs = max(1, args.repeat // 2)
+        p = whole_process(data, big, runs, args.small_reads)
+        # per column: the best wall time, the best CPU time, the median CPU time (s)
+        mav = [n / min(w_mav), n / min(c_mav), n / statistics.median(c_mav)]
+        print(f"process: {big} frames, `python -m host decode --stats FILE`, {runs} runs")
+        print("                            wall (best)  CPU (best)  CPU (median)")
+        cols = [min(p["start"]), min(p["start_cpu"]), statistics.median(p["start_cpu"])]
+        print("start-up alone             " + "".join(f"{c:10.3f} s " for c in cols).rstrip())
+        cases = [("raw", "raw capture"), ("cap", "IMUCAP01, 4 KiB reads")]
+        cases += [("small", "IMUCAP01, 1-2 frames/read")] if "small" in p else []
+        rates = {}
+        for key, what in cases:
+            times = [min(p[key]), min(p[key + "_cpu"]), statistics.median(p[key + "_cpu"])]
+            rates[key] = [big / t for t in times]
+            print(f"{what:27s}" + "".join(f"{r / 1e6:10.2f}   " for r in rates[key]) + "M/s")
+        print("pymavlink RAW_IMU          " + "".join(f"{r / 1e6:10.3f}   " for r in mav) + "M/s")
+        for key, _ in cases:
+            ratio = "".join(f"{r / m:10.1f}   " for r, m in zip(rates[key], mav, strict=True))
+            print(f"{'ratio ' + key + ' / pymavlink':27s}{ratio}x")
 
 
 if __name__ == "__main__":
