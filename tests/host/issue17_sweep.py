@@ -1,4 +1,5 @@
-"""The bad inputs of issue 17's sweep and issue 31's, as a user types them: each case builds
+"""The bad inputs of issue 17's sweep and issue 31's (its second round, on the commands of
+the last waves: tests/host/issue31_sweep.py), as a user types them: each case builds
 its files in a fresh directory and names the command, the exit codes it may give and the words
 its message must hold. ``tests/host/test_issue17_sweep.py`` runs them in-process on every CI
 run; run them as real processes (what a user sees, Python's own tracebacks included) with::
@@ -46,6 +47,7 @@ class Case:
     interrupt_after_s: float | None = None  # send Ctrl+C after this long (endless input)
     feed_fifo: bool = False  # make() made DIR/fifo: a writer process feeds it DIR/fifo.src
     out_words: str = ""  # must appear in stdout
+    width: bool = False  # stderr within 80 columns but for a single word (a path)
 
 
 # --------------------------------------------------------------------------- inputs
@@ -322,6 +324,12 @@ def check(case: Case, rc: int, err: str, took: float, out: str = "") -> list[str
         bad.append("exit 2 without an 'error:' line")
     if took > case.bound_s:
         bad.append(f"took {took:.0f} s > {case.bound_s:.0f} s")
+    if case.width:
+        from tests.host.cli.cli_run import too_wide
+
+        bad += [f"wider than 80 columns: {ln[:60]}…" for ln in too_wide(err)]
+    if case.words and case.words not in err and case.words in " ".join(err.split()):
+        bad.remove(f"message lacks {case.words!r}")  # the words, wrapped at a space
     return bad
 
 
@@ -358,8 +366,10 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", help="run only the case of this name")
     args = ap.parse_args()
+    from tests.host.issue31_sweep import CASES as WAVE  # the second round's input kinds
+
     failed = ran = 0
-    for case in CASES:
+    for case in (*CASES, *WAVE):
         if args.only and case.name != args.only:
             continue
         ran += 1

@@ -14,6 +14,7 @@ import pytest
 
 from host.__main__ import main
 from tests.host.issue17_sweep import CASES, Case, check, run_process
+from tests.host.issue31_sweep import CASES as WAVE
 
 
 def run_in_process(case: Case, d: Path) -> tuple[int, str, float, str]:
@@ -48,6 +49,17 @@ def run_in_process(case: Case, d: Path) -> tuple[int, str, float, str]:
 @pytest.mark.timeout(90)
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
 def test_bad_input_of_the_sweep(case: Case, tmp_path: Path) -> None:
+    _one_case(case, tmp_path)
+
+
+@pytest.mark.timeout(90)
+@pytest.mark.parametrize("case", WAVE, ids=[c.name for c in WAVE])
+def test_bad_input_of_the_second_round(case: Case, tmp_path: Path) -> None:
+    """The new input kinds (tests/host/issue31_sweep.py): each a few seconds at most."""
+    _one_case(case, tmp_path)
+
+
+def _one_case(case: Case, tmp_path: Path) -> None:
     if case.interrupt_after_s is not None:  # Ctrl+C: a real process (once, not per CI case)
         if case.name != "decode-dev-zero":
             pytest.skip("interrupted cases run as processes")
