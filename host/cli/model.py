@@ -218,8 +218,9 @@ def next_record_lines(
                                  lead="  the ranking: "))  # fmt: skip
     for e in d.equals:
         if e.terms and len(e.members) >= 2:  # a term and another term or a signal of the scan
-            out.append(wrap(f"to tell {e.members[0]} from {e.members[1]} apart:", width))
-            cmd = ["python3", "-m", "host", "plan", str(args.dir), "--separate", *e.members[:2]]
+            rest = "".join(f" and from {m}" for m in e.members[2:])  # all: each pair apart
+            out.append(wrap(f"to tell {e.members[0]} from {e.members[1]}{rest} apart:", width))
+            cmd = ["python3", "-m", "host", "plan", str(args.dir), "--separate", *e.members]
             out.append(command_lines(cmd, width, lead="  "))
     return out
 

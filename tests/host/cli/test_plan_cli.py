@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import shlex
 from pathlib import Path
 
 import pytest
@@ -159,3 +160,26 @@ def test_a_record_with_a_noted_heading_says_how_to_place_it() -> None:
     assert "heading noted: put tilt_45_3 against the fence, its X arrow pointing right" in text
     assert "placement_heading_deg: 0" in text
     assert "heading" not in format_separation(s, 1)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_diagnose_asks_about_every_member_of_a_group_of_three(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Statics without a heading on a unit whose accel reads (f/g)² of another axis: the
+    group holds the plate's tilt, a face lean and the signal; diagnose prints the plan command
+    for all three, and that command, run as printed, names a 45° attitude first."""
+    d = tmp_path / "S"
+    write_session(d, SessionSpec(seed=3000, effect="cross_g2"))
+    assert main(["model", "diagnose", str(d), "--brief"]) == 0
+    text = capsys.readouterr().out.replace(" \\\n    ", " ").replace("\\\n", "")
+    line = next(x for x in text.splitlines() if "--separate" in x)
+    args = shlex.split(line)[3:]
+    members = args[args.index("--separate") + 1 :]
+    assert len(members) == 3 and "plate_tilt:accel:xyz" in members
+    assert any(m.startswith("face_error:accel:") for m in members)
+    assert any("follows (specific force" in m for m in members)
+    assert main([*args, "--top", "1"]) == 0
+    first = next(x for x in capsys.readouterr().out.splitlines() if x.startswith(" 1 "))
+    assert "tilt_45_" in first
