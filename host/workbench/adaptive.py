@@ -284,10 +284,14 @@ class AdaptivePlan:
         return Record(name, rec.t_ms[:n], rec.accel[:n], rec.gyro[:n], rec.temp[:n], meta)
 
     def turns_decision(self, records: Mapping[str, Record], axis: str) -> tuple[bool, str]:
-        """After a turn pair about ``axis`` (the last of ``records``, or earlier): (another
-        pair follows, why — the cw turn's header's ``stopped``), from the σ/tolerance of
-        the axis's gyro scale in the fit of ``records``
-        (:func:`host.workbench.stopping.turns_stop`)."""
+        """After the last turn pair about ``axis`` among ``records`` (in the order measured):
+        (another pair follows, why — the cw turn's header's ``stopped``), from the
+        σ/tolerance of the axis's gyro scale in the fit of the records measured up to that
+        pair (:func:`host.workbench.stopping.turns_stop`). Decided once: records measured
+        after the pair (the next axis's faces) do not reopen it."""
+        names = list(records)
+        last = max((i for i, n in enumerate(names) if _is_cw_about(n, axis)), default=-1)
+        records = {n: records[n] for n in names[: last + 1]}
         key = (axis, tuple((n, len(r), float(r.t_ms[0]) if len(r) else 0.0)
                            for n, r in records.items()))  # fmt: skip
         if key in self._decided:
@@ -355,10 +359,15 @@ class AdaptivePlan:
         return spent
 
 
-def _pairs_about(records: Mapping[str, Record], axis: str) -> int:
-    """The turn pairs about ``axis`` among ``records`` (its cw turns: x_cw, x_cw_2, …)."""
+def _is_cw_about(name: str, axis: str) -> bool:
+    """``name`` is a cw turn about ``axis`` (x_cw, x_cw_2, …): the turn that ends a pair."""
     cw = f"{axis}_cw"
-    return sum(1 for n in records if n == cw or n.startswith(cw + "_"))
+    return name == cw or name.startswith(cw + "_")
+
+
+def _pairs_about(records: Mapping[str, Record], axis: str) -> int:
+    """The turn pairs about ``axis`` among ``records`` (its cw turns)."""
+    return sum(1 for n in records if _is_cw_about(n, axis))
 
 
 def adaptive_run(

@@ -15,8 +15,9 @@ from host.model.spec import parse_model
 from host.session.directory import Session
 from host.session.method import TOLERANCES
 from host.session.records import Record
-from host.workbench.adaptive import adaptive_run, cost_after, minimal_plan
+from host.workbench.adaptive import AdaptivePlan, Stopping, adaptive_run, cost_after, minimal_plan
 from host.workbench.planner import Candidate, candidates, unscaled_sigmas, worst_ratio
+from host.workbench.stopping import StaticRule, turn_scale_ratio
 from tests.independent.hand import IndependentHand
 from tests.independent.simulate import SessionSpec, simulate
 
@@ -132,3 +133,30 @@ def test_the_sigma_predicted_for_what_it_plans_is_the_scatter_over_sessions() ->
                     gsens.append(z)
     assert 0.85 <= float(np.sqrt(np.mean(np.square(pulls)))) <= 1.15, labels
     assert 0.85 <= float(np.sqrt(np.mean(np.square(gsens)))) <= 1.15, labels
+
+
+def test_an_axis_turns_are_decided_on_the_records_up_to_its_last_pair() -> None:
+    """Whether another pair about x follows is decided once, on the fit of the records up to
+    x's last pair: the y faces measured after it, which change the fit's σ of Gxx, do not
+    reopen x (the first records would go back to x after y otherwise)."""
+    spec = SessionSpec(seed=23, static_s=10.0, turns=1, closing=False)
+    menu = {c.records[0][0]: c for c in candidates(10.0, 1, tilted=False)}
+    hand = _measure(spec)
+    records: dict[str, Record] = {}
+    for name in ("x_dn", "x_up", "x_ccw", "y_dn", "y_up"):
+        records.update(hand(menu[name], [name] if name != "x_ccw" else ["x_ccw", "x_cw"]))
+    records = {n: records[n] for n in ("x_dn", "x_up", "x_ccw", "x_cw", "y_dn", "y_up")}
+    up_to_pair = {n: records[n] for n in ("x_dn", "x_up", "x_ccw", "x_cw")}
+    ratio_then = turn_scale_ratio(Session("ADAPT", up_to_pair), BASE, "x")
+    ratio_now = turn_scale_ratio(Session("ADAPT", records), BASE, "x")
+    assert f"{ratio_then:.3g}" != f"{ratio_now:.3g}"  # the y faces move it
+    for target in (ratio_then * 1.01, ratio_then * 0.99):  # met, or not met
+        rule = StaticRule.for_target(target, 9.81, max_s=10.0)
+        plan = AdaptivePlan(BASE, target, [], Stopping(rule, 1))
+        more, why = plan.turns_decision(records, "x")
+        assert more == (target < ratio_then)
+        assert f"σ/tolerance {ratio_then:.3g}" in why, why
+        nxt = plan.next_first(records)
+        assert nxt is not None and nxt.names == (
+            ("x_ccw_2", "x_cw_2") if more else ("y_ccw", "y_cw")
+        )
