@@ -27,10 +27,11 @@ from host.model.stats import beyond_white
 
 @dataclass(frozen=True)
 class TurnClosure:
-    """One ``axis`` turned both ways: gyro ``channel``'s two integrals ``integrals_deg``
-    (ccw, cw) °, the static gyro reading of that attitude on that channel ``rest_dps`` °/s, the
-    turns' durations ``durations_s`` s and ``white_var`` the variance the white noise gives
-    their sum (°²)."""
+    """One pair of turns about ``axis`` (a ccw turn and the cw turn paired with it, in the
+    order measured; an axis turned in several pairs gives one closure per pair): gyro
+    ``channel``'s two integrals ``integrals_deg`` (ccw, cw) °, the static gyro reading of that
+    attitude on that channel ``rest_dps`` °/s, the turns' durations ``durations_s`` s and
+    ``white_var`` the variance the white noise gives their sum (°²)."""
 
     axis: int
     channel: int
