@@ -30,7 +30,14 @@ from host.model.catalogue import CATALOGUE
 from host.model.loader import load_term_file
 from host.model.spec import ModelTerm, parse_model
 from host.session.records import STATIC_NAMES, Record, turn_window_s
-from host.workbench.adaptive import MAX_EXTRA_REACHED, AdaptivePlan, Ask, Stopping
+from host.workbench.adaptive import (
+    MAX_EXTRA_REACHED,
+    AdaptivePlan,
+    Ask,
+    Stopping,
+    cost_after,
+    last_up,
+)
 from host.workbench.planner import candidates
 from host.workbench.stopping import STATIC_MIN_S, StaticRule
 
@@ -123,8 +130,9 @@ def measure_adaptive(dlg: Measuring, opts: DialogueOptions) -> AdaptivePlan:
         dlg.op.say(
             f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}), target {plan.target:g}."
         )
+        cost = cost_after(ask.candidate, last_up(dlg.done), plan.time)  # as the count says
         dlg.op.say(
-            f"Next: {ask.candidate.label} (about {ask.candidate.operator_s:.0f} s of your "
+            f"Next: {ask.candidate.label} (about {cost:.0f} s of your "
             f"time); the worst then {_ratio(ask.ranked.worst_after)}."
         )
         spent += _measure(dlg, plan, ask)
