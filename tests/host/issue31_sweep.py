@@ -71,6 +71,15 @@ def _report_lot_not_there(d: Path) -> list[str]:
             _archived(d)]  # fmt: skip
 
 
+def _result_serial_a_path(d: Path) -> list[str]:
+    import json
+
+    s = _calibrated(d)
+    doc = json.loads((s / "Q1_result.json").read_text())
+    (s / "Q1_result.json").write_text(json.dumps({**doc, "serial": "../../etc"}))
+    return ["archive", "add", str(s), "--archive", str(d / "a.sqlite")]
+
+
 # --------------------------------------------------------------------------- term files
 
 
@@ -155,6 +164,8 @@ CASES: tuple[Case, ...] = (
          _drift_tol_not_there, (2,), "--tol G0q: no such parameter"),
     Case("archive-report-lot-not-there", "report of a lot not archived: a page, exit 0",
          _report_lot_not_there, (2,), "no calibration in lot L9"),
+    Case("archive-result-serial-a-path", "a result whose serial is a path: ValueError",
+         _result_serial_a_path, (2,), "not a result this program wrote (its serial"),
     Case("plan-json", "plan --json on a whole session", lambda d: ["plan", str(_session(d)),
          "--json", "--top", "2"], (0,), out_words='"ranked"'),
     Case("plan-separate-same", "--separate A A ranked records that separate by 0",
