@@ -182,6 +182,20 @@ def leaf_parser(
         parser = acts[0].choices[getattr(args, acts[0].dest)]
 
 
+def empty_word(words: list[str]) -> str | None:
+    """What is wrong when a word of the command line is empty (``--out ""``, ``--out=``, an
+    empty argument: an unset shell variable, most often), else None: no command reads an
+    empty word as a value ('' as a path is the current directory)."""
+    for i, w in enumerate(words):
+        if w.startswith("--") and w.endswith("=") or w == "":
+            opt = w[:-1] if w else words[i - 1] if i and words[i - 1].startswith("--") else ""
+            why = "(an unset variable?)"
+            if opt:
+                return f"{opt} '': an empty value {why}; give one, or leave {opt} out"
+            return f"'': an empty argument {why}; give what it stands for"
+    return None
+
+
 def _version() -> str:
     from host import __version__
     from host.wire.protocol_gen import PROTOCOL_VERSION, SPEC_FINGERPRINT
@@ -238,6 +252,10 @@ def _run(argv: list[str] | None, raw_out: object) -> int:
     args, extra = parser.parse_known_args(argv)
     if extra:  # said by the subcommand that does not know them, with its help
         leaf_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")
+    empty = empty_word(words)
+    if empty is not None:  # was: '' read as '.', records written into the current directory
+        print(f"error: {empty}", file=sys.stderr)
+        return 2
     if not args.command:
         parser.print_help()
         return 2
@@ -252,8 +270,13 @@ def _run(argv: list[str] | None, raw_out: object) -> int:
         sys.stdout = raw_out  # type: ignore[assignment]
     try:
         return runners[args.command](args)
-    except (UserError, OSError) as exc:
+    except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # one a command did not put in its words: its file and its cause
+        where = f"{exc.filename}: " if exc.filename else ""
+        what = (exc.strerror or str(exc)).lower()
+        print(f"error: {where}{what}; check the path, then run again", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

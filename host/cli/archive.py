@@ -12,7 +12,7 @@ from pathlib import Path
 
 from host.archive import checks, stats
 from host.archive.entry import entry_from_directory
-from host.archive.export import write_values
+from host.archive.export import COLUMNS, write_values
 from host.archive.store import ARCHIVE_ENV, DEFAULT_FILE, Archive
 from host.cli import archive_text as text
 from host.cli.screen import terminal_width
@@ -178,6 +178,21 @@ def _check_bench(args: argparse.Namespace) -> int:
     return 1 if any(r.flagged for r in rows) else 0
 
 
+def _only_an_earlier_export(path: Path) -> None:
+    """UserError when ``path`` holds a file that is not an earlier ``archive export`` (its
+    CSV header, or Parquet's magic): a user's own table is kept, not replaced (it was)."""
+    if not path.is_file():
+        return
+    with path.open("rb") as f:
+        head = f.read(64)
+    ours = b"PAR1" if path.suffix.lower() in (".parquet", ".pq") else ",".join(COLUMNS).encode()
+    if not head.startswith(ours[:64]):
+        raise UserError(
+            f"{path}: exists and is no export of the archive; it is kept: give another file "
+            "name, or move it away first"
+        )
+
+
 def _export(args: argparse.Namespace) -> int:
     if Path(args.file).is_dir():
         raise UserError(
@@ -185,6 +200,7 @@ def _export(args: argparse.Namespace) -> int:
         )
     if Path(args.file).suffix.lower() not in (".csv", ".parquet", ".pq"):
         raise UserError(f"{args.file}: write .csv or .parquet")  # before asking the archive
+    _only_an_earlier_export(Path(args.file))
     with _open(args) as a:
         _selected(a, args.serial, args.lot, args.param)  # never an empty file, exit 0
         n = write_values(a.values(args.param, serial=args.serial, lot=args.lot), args.file)

@@ -145,6 +145,8 @@ def run(args: argparse.Namespace) -> int:
         serial = parse_serial(args.serial)
     except ValueError as exc:
         raise UserError(f"--serial: {exc}") from None
+    if args.out.exists() and not args.out.is_dir():  # was: '[Errno 17] File exists'
+        raise UserError(f"--out {args.out}: is a file; give a directory for the record files")
     if args.record and args.labels is not None:  # was: --labels silently left unused
         raise UserError("--record and --labels: give one (the whole file as one record, or "
                         "the labels file's rows)")  # fmt: skip

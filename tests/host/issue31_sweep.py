@@ -80,6 +80,11 @@ def _result_serial_a_path(d: Path) -> list[str]:
     return ["archive", "add", str(s), "--archive", str(d / "a.sqlite")]
 
 
+def _archive_export_over_a_table(d: Path) -> list[str]:
+    (d / "mine.csv").write_text("lot,unit,my notes\nL7,U1,fine\n")
+    return ["archive", "export", str(d / "mine.csv"), "--archive", _archived(d)]
+
+
 # --------------------------------------------------------------------------- term files
 
 
@@ -151,7 +156,7 @@ CASES: tuple[Case, ...] = (
          lambda d: ["archive", "list", "--archive", "postgresql://qc:pw@[::1/line"], (2,),
          "postgresql://qc:***@[::1/line: not a database URL"),
     Case("archive-url-empty", "--archive '' fell back to the default archive",
-         lambda d: ["archive", "list", "--archive", ""], (2,), "--archive '': give"),
+         lambda d: ["archive", "list", "--archive", ""], (2,), "--archive '': an empty value"),
     Case("archive-url-unreachable", "a server nobody answers on",
          lambda d: ["archive", "list", "--archive", "postgresql://qc@127.0.0.1:1/line"], (2,),
          "cannot open it"),
@@ -205,7 +210,7 @@ CASES: tuple[Case, ...] = (
     Case("export-into-a-dir", "--out DIR said 'permission denied'",
          _export_into_a_directory, (2,), "is a directory; give a file name"),
     Case("export-axes-empty", "--axes '' exported in our axes",
-         lambda d: ["export", str(d), "--to", "px4", "--axes", ""], (2,), "--axes '': give"),
+         lambda d: ["export", str(d), "--to", "px4", "--axes", ""], (2,), "--axes '': an empty"),
     Case("export-axes-minus", "--axes -x,-y,z: 'expected one argument', no way out",
          lambda d: ["export", str(d), "--to", "px4", "--axes", "-x,-y,z"], (2,),
          "goes as --axes=VALUE"),
@@ -220,6 +225,19 @@ CASES: tuple[Case, ...] = (
     Case("labels-bom", "a byte-order mark hid the first row's numbers",
          lambda d: _import_with(d, "1\t9\tx_up", "9\t21\tx_ccw", "31\t39\ty_up", bom=True),
          (0,)),
+    Case("empty-out", "--out '' (an unset variable): the records written into the current dir",
+         lambda d: ["import", str(_stream_csv(d)), "--columns", "t,ax,ay,az,gx,gy,gz",
+                    "--serial", "L1", "--out", ""], (2,), "--out '': an empty value"),
+    Case("empty-dir", "plan '' read the current directory's records",
+         lambda d: ["plan", ""], (2,), "'': an empty argument"),
+    Case("archive-export-over-a-table", "archive export over the user's own CSV: replaced",
+         _archive_export_over_a_table, (2,), "exists and is no export of the archive"),
+    Case("import-out-a-file", "import --out FILE: '[Errno 17] File exists'",
+         lambda d: [*_import_with(d, "1\t9\tx_up")[:-4], "--out", str(_stream_csv(d))], (2,),
+         "is a file; give a directory"),
+    Case("plot-where-none-can-be", "--plot under /proc: '[Errno 2] No such file or directory'",
+         lambda d: ["model", "add", str(_session(d)), "temperature_bias:gyro", "--plot",
+                    "/proc/no/plots"], (2,), ": no such file or directory; check the path"),
     Case("labels-and-record", "--record beside --labels left the labels unused",
          lambda d: [*_import_with(d, "1\t9\tx_up"), "--record", "x_up"], (2,),
          "--record and --labels: give one"),

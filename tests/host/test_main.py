@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 
 # what the command's process sees once the command line is loaded (numpy imported with it)
@@ -77,3 +79,23 @@ def test_a_value_starting_with_a_minus_names_the_equals_form() -> None:
     assert "a value starting with '-' goes as --axes=VALUE" in err
     rc, _, err = run(["plan", "D", "--top"])  # a value left out: the same words are true
     assert rc == 2 and "--top=VALUE" in err
+
+
+def test_an_empty_word_is_never_read_as_the_current_directory(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Was: ``import FILE --out "$UNSET"`` wrote the records into the current directory and
+    ``plan ""`` read it ('' is a path to '.'); an empty word is an unset variable, most often."""
+    from tests.host.cli.cli_run import run
+
+    monkeypatch.chdir(tmp_path)
+    for argv, words in (
+        (["import", "x.cap", "--serial", "S1", "--out", ""], "--out '': an empty value"),
+        (["import", "x.cap", "--serial", "S1", "--out="], "--out '': an empty value"),
+        (["calibrate", "--from-dir", "", "--no-archive"], "--from-dir '': an empty value"),
+        (["plan", ""], "'': an empty argument (an unset variable?)"),
+        (["archive", "show", "", "--archive", "a.sqlite"], "'': an empty argument"),
+    ):
+        rc, out, err = run(argv)
+        assert rc == 2 and words in err and err.count("\n") == 1, (argv, err)
+    assert list(tmp_path.iterdir()) == []  # nothing written anywhere

@@ -245,7 +245,7 @@ def test_an_earlier_export_is_replaced_and_any_other_file_kept(tmp_path: Path, c
     for argv, words in (
         (["--out", str(vehicle)], "exists and is no export of this program; it is kept"),
         (["--out", str(tmp_path)], f"is a directory; give a file name, e.g. {tmp_path}/U17.parm"),
-        (["--axes", ""], "--axes '': give three axes"),
+        (["--axes", ""], "--axes '': an empty value (an unset variable?)"),
     ):
         assert main(["export", str(tmp_path), "--to", "ardupilot", *argv]) == 2
         err = capsys.readouterr().err

@@ -358,10 +358,10 @@ def test_a_file_that_is_no_archive_or_no_result_is_one_line(
         (["drift", "--tol", "NOPE=0.1"], "--tol NOPE: no such parameter in these calibrations"),
         (["export", "v.csv", "--serial", "NOPE"], "no calibration of NOPE"),
         (["export", "v.csv", "--param", "NOPE"], "--param NOPE: no such parameter"),
-        (["report", "--html", ""], "--html '': give the page's file name, e.g. --html qc.html"),
+        (["report", "--html", ""], "--html '': an empty value (an unset variable?)"),
         (["report", "--html", "/nonexistent/dir/p.html"], "cannot write /nonexistent/dir/p.html"),
         (["list", "--archive", "postgresql://qc@db:5432x/line"], "not a database URL"),
-        (["list", "--archive", ""], "--archive '': give an SQLite file"),
+        (["list", "--archive", ""], "--archive '': an empty value"),
     ],
 )
 def test_what_is_not_there_is_one_line_and_writes_nothing(
