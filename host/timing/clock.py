@@ -232,7 +232,7 @@ def fit_min_delay_spans(
     stretch = lower_hulls(x, y, cuts)
     cand, bounds = [], [0]
     for i, j in spans:
-        c = np.concatenate(stretch[np.searchsorted(cuts, i) : np.searchsorted(cuts, j)])
+        c = np.concatenate(stretch[cuts.searchsorted(i) : cuts.searchsorted(j)])
         cand.append(c)
         bounds.append(bounds[-1] + c.size)
     c_all = np.concatenate(cand)
@@ -256,8 +256,8 @@ def _fit_lines(
     for _, _, x, _, xs, ys, hx, hy in windows:
         if hx.size < 2:
             raise ValueError("need two points with different device times")
-        xm = float(x.mean())
-        k = int(np.searchsorted(hx, xm, side="right")) - 1
+        xm = float(np.add.reduce(x) / x.size)  # x.mean(): its sum and division, not its wrapper
+        k = int(hx.searchsorted(xm, side="right")) - 1
         k = min(max(k, 0), hx.size - 2)
         b = (hy[k + 1] - hy[k]) / (hx[k + 1] - hx[k])
         pre.append((xs, ys, hy[k] - b * hx[k], b))
@@ -273,7 +273,7 @@ def _fit_lines(
 def _percentiles(a: np.ndarray, qs: tuple[float, ...]) -> list[float]:
     """numpy's (linear) percentiles ``qs`` of ``a`` from one partial sort (np.percentile and
     np.median sort once each, and cost more than the sort itself on a clock window)."""
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         return [float(np.percentile(a, q)) for q in qs]
     pos = [(a.size - 1) * q / 100.0 for q in qs]
     lo = [int(p) for p in pos]
@@ -315,7 +315,7 @@ def _refine_many(
         nb = int((x[-1] - x[0]) // bin_us) + 1
         if edges.size < nb:
             edges = bin_us * np.arange(2 * nb)
-        firsts.append(np.searchsorted(x - x[0] if x[0] else x, edges[:nb], side="left"))
+        firsts.append((x - x[0] if x[0] else x).searchsorted(edges[:nb], side="left"))
     first = np.concatenate(firsts) + np.repeat(at[:-1], [f.size for f in firsts])
     nonempty = np.flatnonzero(np.diff(first, append=r.size))
     first = first[nonempty]

@@ -159,9 +159,9 @@ class _WindowFitter:
             elif not px[-1] > end:
                 break
             # the points are in device-time order: a window is a slice
-            done.append((at, int(np.searchsorted(px, end, side="right")), start + self.h))
+            done.append((at, int(px.searchsorted(end, side="right")), start + self.h))
             self.k += 1
-            at = int(np.searchsorted(px, x0 + self.k * self.h, side="left"))
+            at = int(px.searchsorted(x0 + self.k * self.h, side="left"))
             if at < px.size and px[at] > x0 + self.k * self.h + self.w:
                 # skip the empty windows of a gap: to the first window holding the next point
                 self.k = int(np.ceil((px[at] - x0 - self.w) / self.h))
