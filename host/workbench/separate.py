@@ -22,9 +22,11 @@ static then carries the tilt as it sees it as two unknowns of its own,
 they are). A record at an unknown heading is held the same way, so the menu then adds the
 records whose heading the operator records (:func:`heading_candidates`): a 45° attitude placed
 at the dialogue's heading and noted, and a face again at two noted headings 90° apart (the
-cube turned on the face). A plate's tilt is fixed in the room, a face lean in the cube, an
-(f/g)² effect in the sensor: at a noted heading the tilt the turns' rests measured is known
-there, and only the 45° attitude puts (f/g)² at ½ where a face lean, on a square wedge, is 0.
+cube turned on the face) — where a heading noted against the fence is in the frame of the
+tilt (:func:`headings_can_be_noted`). A plate's tilt is fixed in the room, a face lean in the
+cube, an (f/g)² effect in the sensor: at a noted heading the tilt the turns' rests measured
+is known there, and only the 45° attitude puts (f/g)² at ½ where a face lean, on a square
+wedge, is 0.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from host.model.dataset import Dataset, build_dataset
 from host.model.fit import Fit, fit_model, predict
 from host.model.geometry import DIALOGUE_HEADING_DEG
 from host.model.noise import NoiseModel
+from host.model.plate import LEVEL_P, session_plate
 from host.model.signals import AXES
 from host.model.spec import ModelTerm, parse_model
 from host.model.terms import Term
@@ -209,7 +212,7 @@ def separate(
         temps = (OTHER_TEMPERATURE_C,) if temp else ()
         menu = candidates(hand.static_s, hand.turns, time, paces=(1.0, 0.5, 2.0),
                           temperatures=temps)  # fmt: skip
-        if unknown_headings(session):
+        if unknown_headings(session) and headings_can_be_noted(session, ds):
             menu += heading_candidates(hand.static_s, time)
         todo = [c for c in menu if hand.fits_range(c)]
     else:
@@ -233,6 +236,19 @@ def unknown_headings(session: Session) -> bool:
     then holds its horizontal readings: :func:`host.model.catalogue.plate_tilt`)."""
     return any(r.kind == "static" and HEADING_KEY not in r.meta
                for r in session.records.values())  # fmt: skip
+
+
+def headings_can_be_noted(session: Session, ds: Dataset) -> bool:
+    """Whether a heading noted now is in the frame of the plate's tilt: the fence's, when a
+    turn record carries its heading, or any, when the turns' rests show no tilt (or there are
+    none). With no turn heading recorded on a tilted plate the frame is the first turn's
+    reference axis (:func:`host.model.plate.resolve_placements`), which the operator cannot
+    find again: a heading noted against the fence would be off by that unknown angle.
+    ``ds``: the session's dataset (its turns' rests)."""
+    if any(r.kind == "turn" and HEADING_KEY in r.meta for r in session.records.values()):
+        return True
+    plate = session_plate(ds.signals)
+    return plate is None or plate.p_level >= LEVEL_P
 
 
 #: the heading the operator is asked to place a noted record at, ° (the dialogue's)

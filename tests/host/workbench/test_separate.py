@@ -20,6 +20,7 @@ from host.workbench.separate import (
     CLEAR,
     explanation,
     heading_candidates,
+    headings_can_be_noted,
     separate,
     unknown_headings,
 )
@@ -188,3 +189,21 @@ def test_at_unknown_headings_a_45_attitude_separates_the_plate_tilt_once_its_hea
         assert r.lam == min(v for _, _, v in r.pairs) and len(r.pairs) == 3
     for r in two.ranked:
         assert lam[r.candidate.label].lam <= r.lam + 1e-6
+
+
+def test_a_heading_is_noted_only_where_it_is_in_the_frame_of_the_plates_tilt(
+    tmp_path: Path,
+) -> None:
+    """On a level plate any heading frame will do; on a tilted plate with no turn heading
+    recorded the tilt's frame is the first turn's reference axis, which the operator cannot
+    find again, so no record asks for a noted heading there; with the turns' headings
+    recorded the frame is the fence's."""
+    cases = {"level": ("none", False), "tilted": ("plate_tilt", False),
+             "recorded": ("plate_tilt", True)}  # fmt: skip
+    got = {}
+    for name, (effect, recorded) in cases.items():
+        d = tmp_path / name
+        write_session(d, SessionSpec(seed=4, effect=effect, headings="random",
+                                     record_heading=recorded))  # fmt: skip
+        got[name] = headings_can_be_noted(read_session(d), load_dataset(d))
+    assert got == {"level": True, "tilted": False, "recorded": True}
