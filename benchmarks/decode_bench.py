@@ -2,6 +2,7 @@
 """Decoder throughput against pymavlink, measured in one run on the same number of samples.
 
     python benchmarks/decode_bench.py [--samples N] [--process [--process-samples N]]
+                                       [--small-reads]
 
 Prints frames/s for: our bulk path on a clean capture and with 1 % of frames corrupted, our
 streaming path (4 KiB reads), and pymavlink parsing the same number of RAW_IMU messages with
@@ -10,14 +11,17 @@ up with a 1 Mbaud link. Targets (issue "The wire"): bulk >= 3 M frames/s clean, 
 1 % corrupted, >= 30x pymavlink; streaming well under 5 % of a core at 1 Mbaud. With
 ``--process``, ``python -m host decode --stats`` as a whole process on a raw capture and on an
 IMUCAP01 capture (the clock map too) of ``--process-samples`` frames, and its start-up alone
-(issue 31: >= 3 M frames/s and >= 30x pymavlink as a whole process), in wall time and in CPU
-time (on a loaded machine only the CPU time means anything).
+(issue 31: >= 3 M frames/s and >= 30x pymavlink as a whole process), as the best wall time,
+the best CPU time and the median CPU time of the runs (on a loaded machine only the CPU time
+means anything).
 
-Measured (``--process --repeat 9``, one BLAS thread, four runs on a shared 2-core machine at
-load 5-7, CPU time): raw capture 4.1-4.8 M frames/s (45-55x pymavlink), IMUCAP01 capture
-2.5-2.8 M frames/s (28-33x; best run at load 5: 2.84 M/s CPU, 2.79 wall), start-up alone
-0.12-0.16 s. Before issue 31's work on it (main 0b0ec99, wall
-time at a lighter load): 4.12 and 2.13 M frames/s (21.9x).
+Measured (``--process --repeat 9``, one BLAS thread, ``nice -n 10`` on a shared 2-core machine,
+CPU time, the median of the four process runs): IMUCAP01 capture 2.9-3.2 M frames/s (32-37x
+pymavlink) at load 3-5, 2.6-3.1 M frames/s (32-35x) at load 7-8; raw capture 4.7-5.2 M
+frames/s (51-59x); start-up alone 0.12-0.18 s; with ``--small-reads`` (1-2 frames a read)
+1.1 M frames/s (12x). Main at 5662e5a in the same runs: IMUCAP01 2.2-2.5 M frames/s (28x).
+Before issue 31's work on it (main 0b0ec99, wall time at a lighter load): 4.12 and 2.13 M
+frames/s (21.9x).
 """
 
 from __future__ import annotations
