@@ -150,8 +150,20 @@ def _session_dataset(args: argparse.Namespace) -> tuple[Session, Dataset]:
     )
 
 
+def finite_json(obj: Any) -> Any:
+    """``obj`` with every float that is not finite as None: JSON has no NaN (``json.dumps``
+    wrote ``NaN``, which a strict reader — jq, a browser — refuses)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_json(v) for v in obj]
+    return obj
+
+
 def _print_json(obj: Any) -> None:
-    print(json.dumps(obj, indent=2, ensure_ascii=False))
+    print(json.dumps(finite_json(obj), indent=2, ensure_ascii=False, allow_nan=False))
 
 
 def run_diagnose(args: argparse.Namespace) -> int:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from host.calib.publish import session_noise
-from host.cli.model import _catalogue, _common
+from host.cli.model import _catalogue, _common, finite_json
 from host.errors import UserError
 from host.model.geometry import placement_words
 from host.model.spec import ModelTerm, parse_model, short_spec
@@ -169,7 +169,7 @@ def run_plan(args: argparse.Namespace) -> int:
         sep = separate(session, model, a, b, others=others, time=time,
                        noise=session_noise(session, args.floor, args.noise))  # fmt: skip
         if args.json:
-            print(json.dumps(separation_json(sep), indent=2, ensure_ascii=False))
+            print(json.dumps(finite_json(separation_json(sep)), indent=2, ensure_ascii=False))
         else:
             print(format_separation(sep, args.top))
         return 0
@@ -186,7 +186,7 @@ def run_plan(args: argparse.Namespace) -> int:
         height_m=DEFAULT_HEIGHT_M if args.height is None else args.height, progress=progress,
     )  # fmt: skip
     if args.json:
-        print(json.dumps(_json(p), indent=2, ensure_ascii=False))
+        print(json.dumps(finite_json(_json(p)), indent=2, ensure_ascii=False))
     else:
         print(format_plan(p, args.top))
     return 0
