@@ -10,16 +10,14 @@ decoded. The device→host clock map of an IMUCAP01 capture is built as the samp
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import stat
 import sys
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
-from host.timing import timeline
 from host.wire import capture, sensor
 from host.wire.bulk import (
     SAMPLE_DTYPE,
@@ -31,6 +29,9 @@ from host.wire.bulk import (
     samples_to_physical,
 )
 from host.wire.frames import IMU_FIELDS, Frame, status_text
+
+if TYPE_CHECKING:  # (imported where a capture's arrival times need the clock map)
+    from host.timing import timeline
 
 
 def cli_decode(p: argparse.ArgumentParser) -> Any:
@@ -144,6 +145,8 @@ class _Decode:
         valid = [(o, cfg) for o, f in self.hellos if (cfg := _hello_config(f)) is not None]
         self.scales = [(-1, self.config), *valid[1:]]
         if self.capture:
+            from host.timing import timeline
+
             self.timeline = timeline.TimelineBuilder(
                 baud=baud_from_hello(self.hellos),
                 keep_segments=MAX_LISTED_SEGMENTS,
@@ -204,10 +207,12 @@ class _Decode:
                     file=sys.stderr,
                 )
         while self.timeline.implausible:
+            from host.timing.timeline import MAX_HELD_SAMPLES
+
             k = self.timeline.implausible.pop(0)
             print(
                 f"warning: {self.path}: segment {k}: its device times are no board's (more "
-                f"than {timeline.MAX_HELD_SAMPLES} samples for one clock window); t_host_ns are "
+                f"than {MAX_HELD_SAMPLES} samples for one clock window); t_host_ns are "
                 "the arrival times",
                 file=sys.stderr,
             )
@@ -219,6 +224,8 @@ class _Decode:
         if self.writer is None:
             self.cols = _OUT_COLUMNS + _PHYS + (["t_host_ns"] if self.capture else [])
             if self.args.csv:
+                import csv
+
                 self.writer = csv.writer(self.out, lineterminator="\n")
                 self.writer.writerow(self.cols)
             else:

@@ -4,6 +4,7 @@ on a loaded 2-core machine a thread per core made ``model add`` 20x slower)."""
 from __future__ import annotations
 
 import os
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -68,6 +69,32 @@ def test_start_up_imports_only_what_the_command_needs(tmp_path: Path) -> None:
         timeout=120,
     )  # fmt: skip
     assert done.stdout.strip().splitlines()[-1] == "[]", done.stdout + done.stderr
+
+
+def test_decode_loads_the_clock_map_only_for_a_capture_with_arrival_times(
+    tmp_path: Path,
+) -> None:
+    """``decode --stats`` of a raw capture imports neither the clock map (host.timing) nor the
+    CSV writer; of an IMUCAP01 capture, the clock map."""
+    code = (
+        "import sys\nfrom host.__main__ import main\n"
+        "main(['decode', '--stats', sys.argv[1]])\n"
+        "print(sorted(m for m in ('host.timing', 'csv') if m in sys.modules))\n"
+        "main(['decode', '--stats', sys.argv[2]])\n"
+        "print(sorted(m for m in ('host.timing', 'csv') if m in sys.modules))\n"
+    )
+    from host.wire.capture import MAGIC
+
+    raw, cap = tmp_path / "raw.bin", tmp_path / "arrivals.cap"
+    raw.write_bytes(bytes(100))
+    cap.write_bytes(MAGIC + struct.pack("<QI", 10**9, 100) + bytes(100))  # one read
+    root = Path(__file__).resolve().parents[2]
+    done = subprocess.run(
+        [sys.executable, "-c", code, str(raw), str(cap)], capture_output=True, text=True,
+        cwd=root, timeout=120,
+    )  # fmt: skip
+    lines = [x for x in done.stdout.splitlines() if x.startswith("[")]
+    assert lines == ["[]", "['host.timing']"], done.stdout + done.stderr
 
 
 def test_a_value_starting_with_a_minus_names_the_equals_form() -> None:
