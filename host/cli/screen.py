@@ -11,9 +11,11 @@ words, never cut mid-word by the terminal.
 - :class:`Progress` — the line that shows a long wait moving; :func:`working` — that line
   for a step that cannot say how far it is: its name and the seconds it has taken.
 - :class:`ScreenWriter` — a text stream that wraps what passes through it at words as it is
-  written (prompts without a newline too), when it goes to a terminal; ``python -m host`` puts
-  its stdout and stderr through it (``\\r`` redraws and terminal escapes pass unchanged and
-  take no width). Into a pipe or a file lines stay whole, for ``grep`` and for programs.
+  written (prompts without a newline too), when it goes to a terminal — never inside a
+  shell-quoted word nor before a command's ``\\`` continuation, so a command still pastes;
+  ``python -m host`` puts its stdout and stderr through it (``\\r`` redraws and terminal
+  escapes pass unchanged and take no width). Into a pipe or a file lines stay whole, for
+  ``grep`` and for programs.
 
 Tables are made narrow where they are built (dropping or shortening columns); the writer only
 wraps prose, so a table row that is still too wide shows up in the 80-column test.
@@ -209,6 +211,16 @@ def working(label: str, stream: TextIO | None = None, after_s: float = 1.0) -> I
         progress.done()
 
 
+def quote_after(word: str, quote: str = "") -> str:
+    """The shell quote (``'``, ``"`` or none) open after ``word``, read from ``quote``."""
+    for c in word:
+        if quote:
+            quote = "" if c == quote else quote
+        elif c in "'\"":
+            quote = c
+    return quote
+
+
 class ScreenWriter(io.TextIOBase):
     """A text stream that wraps at words what is written through it, as it is written, when
     ``raw`` is a terminal (else it passes everything through unchanged).
@@ -226,6 +238,7 @@ class ScreenWriter(io.TextIOBase):
         self._line = ""  # the current screen line's start (for its indent)
         self._spaces = ""  # spaces written but not shown yet (dropped at a break)
         self._hang = 0
+        self._quote = ""  # the shell quote a command's word left open on this line ('' none)
         self.on_terminal = self.isatty()
         self._out: list[str] = []
 
@@ -266,11 +279,11 @@ class ScreenWriter(io.TextIOBase):
             if tok[0] in "\x1b\a":
                 self._emit(tok)
             elif tok == "\n":
-                self._spaces = ""
+                self._spaces, self._quote = "", ""
                 self._emit("\n")
                 self._col, self._line = 0, ""
             elif tok == "\r":
-                self._spaces = ""
+                self._spaces, self._quote = "", ""
                 self._emit("\r")
                 self._col, self._line = 0, ""
             elif tok == "\b":
@@ -287,7 +300,11 @@ class ScreenWriter(io.TextIOBase):
                 if not self._line.strip():
                     self._hang = hang_of(self._line + tok + " ")
                 need = len(self._spaces) + len(tok)
-                if self._col + need > width and self._line.strip():
+                # a command laid out to be pasted is never broken inside a quoted word (a
+                # path with spaces) nor before its line's continuation: a newline there would
+                # end the word or the command; the terminal folds the long line instead
+                whole = bool(self._quote) or tok == "\\"
+                if self._col + need > width and self._line.strip() and not whole:
                     hang = min(self._hang, width // 2)
                     self._emit("\n" + " " * hang)
                     self._col, self._line, self._spaces = hang, " " * hang, ""
@@ -295,6 +312,8 @@ class ScreenWriter(io.TextIOBase):
                 self._col += len(self._spaces) + len(tok)
                 self._line += self._spaces + tok
                 self._spaces = ""
+                if self._quote or tok.startswith("'"):  # shlex.quote's words start so
+                    self._quote = quote_after(tok, self._quote)
         self.raw.write("".join(self._out))  # one write: a redraw is not torn apart
         self._out.clear()
         return len(s)

@@ -7,7 +7,7 @@ import shlex
 import subprocess
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from host.calib.commands import command_lines
@@ -117,3 +117,31 @@ def test_the_width_rule_lets_through_only_a_word_that_cannot_break() -> None:
     assert too_wide(f"Report: {path}")
     assert not too_wide(f"{path}\n    {path} \\\n  '{path}/with a space' \\")
     assert not too_wide("a" * 80 + "\n" + "short line")
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    out=st.text(st.characters(blacklist_categories=("Cc", "Cs")), min_size=1, max_size=100),
+    width=st.integers(min_value=30, max_value=120),
+)
+def test_a_resume_command_on_a_terminal_still_pastes(out: str, width: int) -> None:
+    """Was: on a terminal the writer broke a quoted --out with spaces at a space (a newline
+    inside the quotes: another directory) and put a line's ``\\`` alone on the next line (the
+    command ended there). The terminal folds such a line; the writer leaves it whole."""
+    from host.calib.commands import said_with_command
+
+    cmd = ["python3", "-m", "host", "calibrate", "--port", "sim://?seed=1&a=1,2", "--serial",
+           "F1", "--out", out, "--warmup", "0", "--resume"]  # fmt: skip
+    t = FakeTerminal()
+    ScreenWriter(t, lambda: width).write("error: " + said_with_command("kept; continue with:", cmd))
+    lines = screen_lines(t.getvalue())
+    k = next(i for i, ln in enumerate(lines) if ln.startswith("  python3 -m host"))
+    assert shlex.split("\n".join(lines[k:]).replace("\\\n", "")) == cmd
+
+
+def test_prose_with_an_apostrophe_still_wraps() -> None:
+    t = FakeTerminal()
+    text = "the operator's time " * 6 + "'x_side' is not a record name " * 3
+    ScreenWriter(t, lambda: 40).write(text)
+    lines = screen_lines(t.getvalue())
+    assert all(len(x) <= 40 for x in lines) and " ".join(lines).split() == text.split()
