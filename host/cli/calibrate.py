@@ -196,6 +196,9 @@ def adaptive_options(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python -m host calibrate``."""
     adaptive_options(args)
+    for given in getattr(args, "redo", None) or ():  # was: '--redo ,' began a whole new sitting
+        if not any(n.strip() for n in given.split(",")):
+            raise UserError(f"--redo {given!r}: give the record names, e.g. --redo x_ccw,y_up")
     if args.from_dir and getattr(args, "no_self_test", False):
         raise UserError(
             f"--no-self-test is for a live calibration: the records in {args.from_dir} say "
