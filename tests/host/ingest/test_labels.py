@@ -162,3 +162,31 @@ def test_an_editors_byte_order_mark_is_not_text(tmp_path: Path) -> None:
     p = tmp_path / "l.tsv"
     p.write_bytes(b"\xef\xbb\xbf" + _v2("90", "-").replace("\n", "\r\n").encode())
     assert [s.label for s in read_labels(p, _stream())] == ["x_up", "y_up"]
+
+
+_cells = st.one_of(
+    st.sampled_from(["x_up", "y_up", "x_ccw", "x_cw", "x_up_2", "warmup", "-", "", "nan", "inf",
+                     "-1", "0", "9", "21", "1e9", "1.5", "90", "abc", "# imu-bench segments v2",
+                     "\ufeff", " ", "x_up_" + "a" * 20]),
+    st.text(max_size=6),
+)  # fmt: skip
+_row = st.lists(_cells, min_size=0, max_size=8).map("\t".join)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(_row, max_size=6).map("\n".join))
+def test_any_labels_text_is_segments_or_one_line(text: str) -> None:
+    """Whatever a labels file holds: the segments it names, each within the stream, on the
+    face or turn it names, none sharing samples with another of its kind — or one
+    SegmentationError naming the line; never another exception."""
+    s = _turning_stream()
+    try:
+        segs = parse_labels(text, "l.tsv", s)
+    except SegmentationError as exc:
+        assert "\n" not in str(exc)
+        return
+    for g in segs:
+        assert 0 <= g.start < g.stop <= len(s.t_s)
+    statics = sorted((g for g in segs if g.label != "warmup" and g.label[2:4] in ("up", "dn")),
+                     key=lambda g: g.start)  # fmt: skip
+    assert all(b.start >= a.stop for a, b in zip(statics, statics[1:], strict=False))
