@@ -50,7 +50,7 @@ def test_yes_session_on_a_failed_sensor_ends_with_exit_2(
     assert took < 60
     # the dialogue talks on stderr; it ends with one error (its command on lines of its own)
     said = proc.stderr[proc.stderr.find("error: ") :]
-    assert proc.stderr.count("error: ") == 1 and too_wide(said) == [], proc.stderr
+    assert proc.stderr.count("error: ") == 1, proc.stderr
     assert "Traceback" not in proc.stderr + proc.stdout
     flat = " ".join(said.split())
     if fault_at == 0.0 and fault != "no-drdy":
@@ -58,7 +58,9 @@ def test_yes_session_on_a_failed_sensor_ends_with_exit_2(
         assert "WHO_AM_I" in flat and "no sensor answers on SPI" in flat
         return
     assert "the board reports ERROR" in flat or "no samples from the board" in flat
-    # the printed command carries every option given (test_session_resume.py reads it back)
+    # the printed command carries every option given (test_session_resume.py reads it back),
+    # on lines of its own within 80 columns (a plain one-line error may run longer)
+    assert too_wide(said) == [], said
     argv = command_after(said)
     i = argv.index("--serial")
     assert argv[i : i + 10] == ["--serial", "F1", "--out", str(out), "--static-seconds", "3",
