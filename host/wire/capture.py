@@ -13,7 +13,6 @@ resynchronises on its own read headers and says what it skipped (:class:`Capture
 
 from __future__ import annotations
 
-import bisect
 import os
 import stat
 import struct
@@ -74,8 +73,7 @@ def parse(raw: bytes, source: str = "capture") -> Capture:
     data = u.feed(raw) + u.finish()
     return Capture(
         data,
-        np.asarray(u._reads_ns, dtype=np.uint64),
-        np.asarray(u._reads_end, dtype=np.int64),
+        *u.reads(),
         u.truncated_bytes,
         tuple(u.skipped),
     )
@@ -194,8 +192,10 @@ class CaptureUnwrapper:
         self._retry_at = 0  # after damage: weigh it again once the file is this long
         self.total = 0  # port bytes passed on so far
         self.skipped: list[tuple[int, int]] = []
-        self._reads_ns: list[int] = []
-        self._reads_end: list[int] = []
+        # each read's host time and where its bytes end, in parts (joined when asked for):
+        # numpy arrays, not lists of ints, a capture of small reads having millions
+        self._reads_ns: list[np.ndarray] = []
+        self._reads_end: list[np.ndarray] = []
 
     def feed(self, data: bytes | bytearray | memoryview) -> bytes:
         """The port bytes of the reads that ``data`` completes (and checks)."""
@@ -322,7 +322,6 @@ class CaptureUnwrapper:
         if late.any():
             cut = int(np.argmax(late))
             at, times_a, lengths_a = at[:cut], times_a[:cut], lengths_a[:cut]
-        times = times_a.tolist()
         k = len(at) - RESYNC_CHAIN  # the reads with a chain of headers after them
         if k <= 0:
             return pos
@@ -344,10 +343,10 @@ class CaptureUnwrapper:
                 if k == 0:
                     return pos
         out.append(np.stack((end[:k] - n_[:k], end[:k]), axis=1))
-        self._prev_t = times[k - 1]
+        self._prev_t = int(times_a[k - 1])
         if self._times:
-            self._reads_ns += times[:k]
-            self._reads_end += (self.total + np.cumsum(n_[:k])).tolist()
+            self._reads_ns.append(t_[:k])
+            self._reads_end.append(self.total + np.cumsum(n_[:k]))
         self.total += int(np.sum(n_[:k]))
         return int(end[k - 1])
 
@@ -417,8 +416,8 @@ class CaptureUnwrapper:
         if start != end:
             self.total += end - start
             if self._times:
-                self._reads_ns.append(t)
-                self._reads_end.append(self.total)
+                self._reads_ns.append(np.asarray([t], dtype=np.uint64))
+                self._reads_end.append(np.asarray([self.total], dtype=np.int64))
         return np.array([(start, end)], dtype=np.int64)
 
     @property
@@ -430,20 +429,24 @@ class CaptureUnwrapper:
     def arrival_ns_at(self, offsets: np.ndarray) -> np.ndarray:
         """Host time (ns) of the read that delivered the port byte at each offset (counted
         from the first port byte; offsets at or after :meth:`forget_before`'s)."""
-        ends = np.asarray(self._reads_end, dtype=np.int64)
+        ns, ends = self.reads()
         k = np.minimum(_read_of(ends, offsets), max(ends.size - 1, 0))
-        return (
-            np.asarray(self._reads_ns, dtype=np.uint64)[k]
-            if ends.size
-            else np.zeros(np.shape(offsets), np.uint64)
-        )
+        return ns[k] if ends.size else np.zeros(np.shape(offsets), np.uint64)
 
     def forget_before(self, offset: int) -> None:
         """Drop the times of reads that ended at or before ``offset``."""
-        k = min(bisect.bisect_right(self._reads_end, offset), len(self._reads_end) - 1)
+        ns, ends = self.reads()
+        k = min(int(np.searchsorted(ends, offset, side="right")), ends.size - 1)
         if k > 0:
-            del self._reads_ns[:k]
-            del self._reads_end[:k]
+            self._reads_ns, self._reads_end = [ns[k:]], [ends[k:]]
+
+    def reads(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each read kept: its host time (ns, uint64) and where its bytes end in the port
+        bytes (int64), in order (with ``times=True``)."""
+        if len(self._reads_ns) != 1:
+            self._reads_ns = [np.concatenate([np.zeros(0, np.uint64), *self._reads_ns])]
+            self._reads_end = [np.concatenate([np.zeros(0, np.int64), *self._reads_end])]
+        return self._reads_ns[0], self._reads_end[0]
 
 
 #: a read header's length field (at byte 8 of :data:`REC`), and the header's byte offsets
