@@ -8,6 +8,7 @@ residual scan, the verdict, the refits and their words. Never imports the calibr
 - ``absorbed`` — the yardstick for a candidate whose signal a variance component takes up (a gyro
   scale asymmetry in the turn angle): the component estimated without it.
 - ``scan`` — the residuals against every signal (temperature, time, inputs, their squares).
+- ``steps`` — a step in time placed to the sample with its ± and size; two steps on a channel.
 - ``equals`` — groups of equals: candidates and signals the records cannot tell apart, and the
   records that would.
 - ``verdict`` — the whole diagnosis: compare, where it fails, what is missing, the verdict.

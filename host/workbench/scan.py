@@ -1,11 +1,13 @@
 """Unexplained structure: the residuals scanned against every signal.
 
 The residuals of a fit are correlated, channel by channel, with every signal of the records
-(temperature, its rate of change dT/dt, time since power-on, a step in time between two records,
+(temperature, its rate of change dT/dt, time since power-on, a step in time between two rows,
 each input, its square, its magnitude, rate², …); the drop in
 χ² each signal would give is tested, Holm-corrected over the family. A signal that explains a
 channel better than any candidate term (:mod:`host.workbench.candidates`) is what the verdict
-calls unexplained.
+calls unexplained. A step found is named placed to the sample, with its 95 % ± and its size,
+and a second step on its channel when the records tell two from one
+(:mod:`host.workbench.steps`).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from host.model.fit import Fit
 from host.model.signals import AXES, SENSORS, RecordSignals
 from host.model.stats import chi2_sf
 from host.workbench.candidates import ALPHA, IDENTIFIABLE_TOL, holm, json_number
+from host.workbench.steps import STEP, Placed, channel_cuts, place_steps, step_name, step_times
 
 #: |correlation| with session time from which a scanned signal is reported as confounded with
 #: it (the plan's fixed order: the Z faces last makes "(specific force z)²" r ≈ 0.8 with time)
@@ -45,6 +48,9 @@ class ScanHit:
     #: model's columns); |·| near 1: the plan measured them in an order that makes the two
     #: indistinguishable
     time_r: float = math.nan
+    #: a step in time: each step placed to the sample (its time, ±, size; two when a second on
+    #: the channel is significant given the first; :mod:`host.workbench.steps`)
+    steps: tuple[Placed, ...] = ()
 
     @property
     def time_confounded(self) -> bool:
@@ -74,6 +80,9 @@ class ScanHit:
             "r": json_number(self.r), "delta_chi2": json_number(self.delta_chi2),
             "p_value": json_number(self.p_value), "text": self.describe(),
             "time_r": json_number(self.time_r), "time_confounded": self.time_confounded,
+            "steps": [{"at_s": p.at_s, "lo_s": p.lo_s, "hi_s": p.hi_s, "size": p.size,
+                       "size_sd": p.size_sd, "delta_chi2": json_number(p.delta_chi2)}
+                      for p in self.steps],
         }  # fmt: skip
 
 
@@ -115,8 +124,28 @@ def signal_functions(ds: Dataset, sensor: str) -> dict[str, SignalFn]:
     return out
 
 
-#: how the name of every step in time begins
-STEP = "a step in time"
+def signal_function(ds: Dataset, sensor: str, name: str) -> SignalFn | None:
+    """The scan's signal ``name`` on a channel of ``sensor`` (the first of a finding's names
+    joined by ' / '), a step named to the sample as the scan writes it (one or two steps, their
+    sizes) included; None when the scan has no such signal."""
+    first = name.split(" / ")[0]
+    fn = signal_functions(ds, sensor).get(first)
+    if fn is not None or not ds.time_known:
+        return fn
+    steps = step_times(ds.signals, first)
+    if not steps:
+        return None
+    scale = steps[0][1] if steps[0][1] else 1.0
+
+    def placed(s: RecordSignals, sen: str, a: int) -> np.ndarray:
+        out = np.zeros(len(s.t_s))
+        for t, size in steps:
+            out += (size / scale) * (s.t_s > t)
+        return out
+
+    return placed
+
+
 #: the scan's name of the chip's rate of change of temperature
 WARMING = "dT/dt (the chip warming or cooling)"
 #: half the span of the session's temperature samples a record's dT/dt is read from, s: a
@@ -163,9 +192,10 @@ def step_cuts(ds: Dataset) -> list[tuple[float, str]]:
     """Every time a bias step is tried at, s (the records' own clock), with its name: the
     middle of each gap between two records taken one after the other ("a step in time after
     x_cw"), and each boundary between the rows of one record ("a step in time during x_cw,
-    4.3 s in": between a static's blocks, a turn's still moments and moving blocks). A step
-    is read to the resolution the rows give: inside a record it moves only the rows after it
-    (a turn's integral by the part of the turn after it), which no step in a gap can fit."""
+    4.3 s in": between a static's blocks, a turn's still moments and moving blocks): the
+    family the scan tests. Inside a record a step moves only the rows after it (a turn's
+    integral by the part of the turn after it), which no step in a gap can fit; the step found
+    is then placed to the sample (:mod:`host.workbench.steps`)."""
     order = sorted(range(len(ds.signals)), key=lambda i: float(ds.signals[i].t_s[0]))
     out: list[tuple[float, str]] = []
     for k, ri in enumerate(order):
@@ -342,5 +372,34 @@ def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
             if (hit.sensor, hit.axis) in stepped:
                 continue
             stepped.add((hit.sensor, hit.axis))
+            hit = _placed(ds, fit, hit, [c for c, _ in cuts], alpha)
         kept.append(hit)
-    return kept
+    return sorted(kept, key=lambda x: -x.delta_chi2)
+
+
+def _placed(ds: Dataset, fit: Fit, hit: ScanHit, coarse_s: list[float], alpha: float) -> ScanHit:
+    """A step the scan found at a cut, placed to the sample (one or two steps on its channel,
+    :func:`host.workbench.steps.place_steps`) and named so, with their joint Δχ²."""
+    cuts = channel_cuts(ds, fit.basis, hit.sensor, AXES.index(hit.axis))
+    if cuts is None:
+        return hit
+    r = fit.white_residual
+    drift = None
+    if ds.time_known:
+        x = _columns(ds, hit.sensor, AXES.index(hit.axis), [lambda s, sen, a: s.hours], [])
+        if x is not None:
+            w = ds.whiten.apply(x)[:, 0]
+            drift = w - fit.basis @ (fit.basis.T @ w) if fit.basis.shape[1] else w
+    steps = place_steps(cuts, r, fit.dof, coarse_s, alpha, drift)
+    if not steps:
+        return hit
+    unit = "m/s²" if hit.sensor == "accel" else "°/s"
+    name = ", and ".join(step_name(ds.signals, p, unit) for p in steps)
+    others = [n for n in hit.signal.split(" / ") if n != "…" and not n.startswith(STEP)]
+    d2 = max(steps[0].joint, hit.delta_chi2)
+    rr = float(r @ r)
+    return ScanHit(
+        hit.sensor, hit.axis, " / ".join([name, *others]),
+        math.copysign(math.sqrt(min(d2 / rr, 1.0)), steps[0].size), d2,
+        chi2_sf(d2, len(steps)), True, hit.time_r, steps,
+    )  # fmt: skip

@@ -13,6 +13,7 @@ import pytest
 from host.model.dataset import load_dataset
 from host.model.spec import parse_model
 from host.workbench.scan import STEP, ScanHit, _joined, step_cuts
+from host.workbench.steps import step_times
 from host.workbench.verdict import diagnose
 from tests.independent.simulate import SessionSpec, write_session
 
@@ -20,8 +21,8 @@ from tests.independent.simulate import SessionSpec, write_session
 @pytest.mark.slow
 def test_a_gyro_bias_step_is_named_a_step_on_its_channel(tmp_path: Path) -> None:
     """0.12 °/s half-way through (≈ 100× a record mean's noise), 3 sessions: the verdict is not
-    `adequate`, nothing is recommended alone, and the strongest unexplained signal is a step in
-    time on the right channel, placed in the gap or the record where the step fell."""
+    `adequate`, nothing is recommended alone, and the strongest unexplained signal is one step
+    in time on the right channel, its stated ± holding the true time and its size the truth."""
     for seed in (3000, 3001, 3002):
         d = tmp_path / str(seed)
         spec = SessionSpec(seed=seed, effect="bias_step_gyro")
@@ -33,11 +34,15 @@ def test_a_gyro_bias_step_is_named_a_step_on_its_channel(tmp_path: Path) -> None
         top = dg.dominant[0]
         assert (top.sensor, top.axis) == ("gyro", truth["axis"]), top
         assert top.signal.startswith(STEP), top
-        # the records' time is since power-on (the session starts after the warm-up): the
-        # step is placed in the gap or the record where it fell, within the gap's slack
+        # the records' time is since power-on (the session starts after the warm-up): one
+        # step, placed where it fell (inside its 95 % ±, one sample of clock offset allowed),
+        # its size within 4σ, and the name reads back to a time inside that ±
         at = truth["at_session_s"] + spec.warmup_s
-        cut = {name: t for t, name in step_cuts(ds)}[top.signal.split(" / ")[0]]
-        assert abs(cut - at) <= 30.0, (top.signal, at)
+        (p,) = top.steps
+        assert p.lo_s - 0.02 <= at <= p.hi_s + 0.02, (top.signal, at)
+        assert abs(p.size - truth["step"]) <= 4.0 * p.size_sd, (p, truth["step"])
+        ((when, size),) = step_times(ds.signals, top.signal) or [(None, None)]
+        assert when is not None and p.lo_s - 0.01 <= when <= p.hi_s + 0.01, top.signal
 
 
 def test_warming_is_read_from_the_bend_of_the_session_s_temperature() -> None:
