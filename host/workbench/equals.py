@@ -44,7 +44,7 @@ from host.workbench.candidates import (
     json_number,
     try_term,
 )
-from host.workbench.scan import ScanHit, signal_functions
+from host.workbench.scan import ScanHit, signal_function
 
 #: what record varies a signal's input apart from the others' (the first key found in the
 #: signal's name wins; the order puts the specific ones first)
@@ -118,7 +118,7 @@ def signal_label(h: ScanHit) -> str:
 def signal_term(name: str, sensor: str, ds: Dataset) -> Term | None:
     """The scan's signal ``name`` as a one-parameter term (its columns aggregated like any
     term's); None when the scan has no such signal."""
-    fn = signal_functions(ds, sensor).get(name.split(" / ")[0])
+    fn = signal_function(ds, sensor, name)
     if fn is None:
         return None
     return Term(
