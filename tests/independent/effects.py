@@ -216,6 +216,29 @@ def bias_step(
     return make
 
 
+def bias_two_steps(sensor: str) -> Callable[[np.random.Generator], Effect]:
+    """Two bias steps on one channel (each 100× the white noise of a record mean, each of
+    either sign): the first at a time drawn uniformly in 0.08–0.45 × 420 s of the session, the
+    second in 0.55–0.85 (truth: ``step``, ``at_session_s`` the first; ``step_2``,
+    ``at_session_s_2`` the second)."""
+
+    def make(rng: np.random.Generator) -> Effect:
+        i = _pick(rng)[0]
+        big = 0.05 if sensor == "accel" else 0.12
+        sizes = (_sign(rng) * big, _sign(rng) * big)
+        at = (rng.uniform(0.08, 0.45) * 420.0, rng.uniform(0.55, 0.85) * 420.0)
+
+        def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
+            v = sizes[0] * (s.session_s >= at[0]) + sizes[1] * (s.session_s >= at[1])
+            return _channel(sensor, i, v.astype(float))
+
+        p = {"sensor": sensor, "axis": AXES[i], "step": sizes[0], "at_session_s": at[0],
+             "step_2": sizes[1], "at_session_s_2": at[1]}  # fmt: skip
+        return Effect(f"bias_two_steps_{sensor}", p, sensor=fn)
+
+    return make
+
+
 def bias_drift(sensor: str) -> Callable[[np.random.Generator], Effect]:
     """A bias linear in time since power-on, d·hours (catalogue: time_drift)."""
 
@@ -338,6 +361,8 @@ EFFECTS: dict[str, Callable[[np.random.Generator], Effect]] = {
     "bias_step_gyro_early": bias_step("gyro", (0.05, 0.35)),
     "bias_step_accel_late": bias_step("accel", (0.62, 0.85)),
     "bias_step_gyro_late": bias_step("gyro", (0.62, 0.85)),
+    "bias_two_steps_accel": bias_two_steps("accel"),
+    "bias_two_steps_gyro": bias_two_steps("gyro"),
     "bias_drift_accel": bias_drift("accel"),
     "bias_drift_gyro": bias_drift("gyro"),
     "temperature_bias": temperature_bias,
