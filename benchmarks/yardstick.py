@@ -49,6 +49,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.yardstick_steps import records_clock, step_stats, steps_table, two_tell  # noqa: E402
 from tests.independent.physics import ACCEL_LSB, FS_HZ, GYRO_LSB  # noqa: E402
 from tests.independent.simulate import SessionSpec, write_session  # noqa: E402
 
@@ -137,6 +138,8 @@ CASES: dict[str, Case] = {
              names=("time_drift",)),
         *(Case(f"step_{s}_{w}", {"effect": f"bias_step_{s}_{w}"}, "off", signal=_STEP,
                names=("time_drift",)) for w in ("early", "late") for s in ("accel", "gyro")),
+        *(Case(f"two_steps_{s}", {"effect": f"bias_two_steps_{s}"}, "off", signal=_STEP,
+               names=("time_drift",)) for s in ("accel", "gyro")),
         Case("dtdt_gyro", {"effect": "dtdt_bias", "warmup_s": 120.0}, "off", signal=_DTDT),
         Case("cross_g2", {"effect": "cross_g2"}, "off", signal=_SQUARE),
         Case("abs_leak", {"effect": "abs_leak"}, "off", signal=_ABS),
@@ -260,7 +263,7 @@ def run_session(case: Case, seed: int, workdir: Path) -> dict[str, Any]:
     row.update(
         rms_z=fit["rms_z"], p=fit["chi2_p"], chi2_dof=fit["chi2"] / max(fit["dof"], 1),
         verdict=diag["verdict"], recommended=diag["recommended"],
-        signals=[{k: s.get(k) for k in ("sensor", "axis", "signal", "text")}
+        signals=[{k: s.get(k) for k in ("sensor", "axis", "signal", "text", "steps")}
                  for s in diag.get("unexplained_signals", [])[:3]],
         significant=[c["label"] for c in diag.get("candidates", []) if c.get("significant")][:5],
         equals=[{"terms": e["terms"], "signals": e["signals"]} for e in diag.get("equals", [])],
@@ -269,6 +272,14 @@ def run_session(case: Case, seed: int, workdir: Path) -> dict[str, Any]:
         if str(note).startswith("noise floor of a record mean:"):
             row["floor"] = {m[0]: float(m[1]) for m in _FLOOR_RE.findall(str(note))}
     row["white_mean"] = white_of_mean(spec)
+    e = truth["effect"]
+    if "at_session_s" in e:  # bias steps: their times since power-on, sizes, in a record?
+        at = [(e["at_session_s"], e["step"])]
+        if "at_session_s_2" in e:
+            at.append((e["at_session_s_2"], e["step_2"]))
+        row["step_truth"] = [records_clock(s, a + spec.warmup_s) + [size] for a, size in at]
+        if len(at) == 2:
+            row["two_tell"] = two_tell(d, e, [t[0] for t in row["step_truth"]])
     if diag["recommended"]:
         add = host_json(["model", "add", str(d), diag["recommended"], "--model", "base"])
         row["rms_z_after_rec"] = add.get("after", {}).get("rms_z")
@@ -427,6 +438,8 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
             sm["after_rec_med"] = _q([a for a in after if a is not None], 0.5)
             sm["after_term_med"] = _q([r["rms_z_after_term"] for r in ok
                                        if r.get("rms_z_after_term") is not None], 0.5)  # fmt: skip
+        if any("step_truth" in r for r in ok):
+            sm["steps"] = step_stats(ok)
         if case is not None and case.plate:
             ratio, in10, in2s = [], [], []
             for r in ok:
@@ -559,6 +572,7 @@ def tables(summary: dict[str, Any], pull_min_n: int = 1) -> str:
                          str(s.get("rec_most", "—")))  # fmt: skip
             lines.append(f"{k:<17}rec {rec[:78]}")
             lines.append(f"{'':<17}top {str(s.get('top_most', '—'))[:78]}")
+    lines.extend(steps_table(summary))
     plate = [k for k in summary if CASES.get(k) is not None and CASES[k].plate]
     if plate:
         lines.append("")
