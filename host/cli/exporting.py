@@ -19,7 +19,7 @@ from pathlib import Path
 
 from host.calib import exporting
 from host.calib.result import CalibrationResult
-from host.errors import FailedResultError, UserError
+from host.errors import FailedResultError, ResultFileError, UserError
 from host.ingest.importing import parse_axes
 from host.session.atomic import write_text_atomic
 
@@ -83,11 +83,20 @@ def run(args: argparse.Namespace) -> int:
         text = path.read_bytes()
     except OSError as exc:
         raise UserError(f"{path}: cannot read ({exc.strerror or exc})") from exc
-    result = CalibrationResult.from_json(text)
+    try:
+        result = CalibrationResult.from_json(text)
+    except ResultFileError as exc:  # which file: a record given by mistake said only 'JSON'
+        raise ResultFileError(f"{path}: {exc}") from None
     axes = parse_axes(args.axes) if args.axes else None
     thermal = None
     if args.thermal:  # a file; --thermal alone: the result's own bias(T), which it must carry
         from host.calib.thermal import ThermalCalibration
+
+        if not Path(args.thermal).is_file():  # was: '[Errno 2] No such file or directory: …'
+            raise UserError(
+                f"--thermal {args.thermal}: no such file (python3 -m host thermal DIR writes "
+                "SERIAL_thermal.json)"
+            )
 
         thermal = ThermalCalibration.load(args.thermal)
     elif args.thermal is not None and result.thermal_range_c is None:
