@@ -32,7 +32,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats as sps
 
 #: the family-wise false-alarm rate of one command run, unless the user says otherwise
 DEFAULT_ALPHA = 0.01
@@ -43,13 +42,15 @@ CV_LIMIT = 0.01
 #: moving-range constant d₂ for ranges of two
 D2 = 1.128
 #: in-control average run length of an individuals chart with known limits
-ARL_RULE1 = 1.0 / (2.0 * sps.norm.sf(3.0))
+ARL_RULE1 = 1.0 / math.erfc(3.0 / math.sqrt(2.0))  # 1 / (2 · P(z > 3))
 ARL_WESTERN_ELECTRIC = 91.75
 
 
 def family_z(alpha: float, m: int) -> float:
     """The two-sided z beyond which one of ``m`` tests fires, so that any of them fires with
     probability ≤ ``alpha`` when nothing is wrong (Bonferroni)."""
+    from scipy import stats as sps  # scipy's import is a second: only where a figure needs it
+
     return float(sps.norm.isf(alpha / (2.0 * max(m, 1))))
 
 
@@ -87,6 +88,8 @@ def repeatability(values: np.ndarray, sigmas: np.ndarray) -> Repeatability:
         predicted = np.sqrt((np.where(ok, s, 0.0) ** 2).sum(axis=-1) / n)
         cv = np.where(np.abs(mean) >= CV_FAR_FROM_ZERO * predicted, scatter / np.abs(mean), np.nan)
     dof = n - 1
+    from scipy import stats as sps
+
     p = np.where(dof >= 1, sps.chi2.sf(chi2, np.maximum(dof, 1)), np.nan)
     bad = n < 2
     scatter = np.where(bad, np.nan, scatter)
@@ -143,6 +146,8 @@ def lot_summary(x: np.ndarray, limit: float | None = None) -> LotSummary:
 def grubbs_critical(n: int | np.ndarray, alpha: float) -> np.ndarray:
     """Two-sided Grubbs critical value G for ``n`` values at level ``alpha``:
     (n−1)/√n · √(t²/(n−2+t²)), t the upper alpha/(2n) point of Student's t on n−2 dof."""
+    from scipy import stats as sps
+
     nn = np.asarray(n, dtype=np.float64)
     t = sps.t.isf(alpha / (2.0 * nn), np.maximum(nn - 2.0, 1.0))
     return (nn - 1.0) / np.sqrt(nn) * np.sqrt(t * t / (nn - 2.0 + t * t))
