@@ -353,10 +353,10 @@ def plan(
 def model_from_dict(doc: Mapping[str, Any], source: str = "noise file") -> dict[str, np.ndarray]:
     """Per channel the model (N², B², K²) of a noise document (:meth:`NoiseAnalysis.as_dict`);
     an unresolved figure counts at its upper bound (the conservative floor)."""
-    if doc.get("format") != "imu-bench noise":
+    if not isinstance(doc, Mapping) or doc.get("format") != "imu-bench noise":
         raise ValueError(f"{source}: not an imu-bench noise file (key 'format')")
     v = doc.get("format_version")
-    if not isinstance(v, int) or v > NOISE_FORMAT_VERSION:
+    if not isinstance(v, int) or isinstance(v, bool) or v > NOISE_FORMAT_VERSION:
         raise ValueError(
             f"{source}: noise format v{v} is not one this program reads "
             f"(v{NOISE_FORMAT_VERSION}); update the host software"

@@ -195,6 +195,24 @@ def test_noise_file_with_a_newer_version_is_refused(tmp_path) -> None:
         recording.load_noise_file(p)
 
 
+@pytest.mark.parametrize(
+    ("doc", "words"),
+    [
+        ([1, 2, 3], "not an imu-bench noise file"),  # a JSON list: no keys at all
+        ("imu-bench noise", "not an imu-bench noise file"),
+        ({"format": "imu-bench noise", "format_version": True, "channels": {}}, "vTrue"),
+    ],
+)
+def test_a_noise_file_of_another_shape_is_named_not_read(tmp_path, doc, words) -> None:
+    """A JSON document that is no noise object says so in words (it said "'list' object has
+    no attribute 'get'"), and a boolean version is no version (JSON true read as v1)."""
+    p = tmp_path / "n.json"
+    p.write_text(json.dumps(doc))
+    with pytest.raises(UserError, match=words) as err:
+        recording.load_noise_file(p)
+    assert "object has no attribute" not in str(err.value)
+
+
 def test_allan_deviation_equals_the_library_on_every_tau() -> None:
     """The overlapping Allan deviation from cumulative sums is the library's, at every τ of the
     grid, on data with a large mean and a random walk (the sum's round-off would show)."""
