@@ -30,15 +30,15 @@ def records_clock(s: Any, at: float) -> list[Any]:
 
 def two_tell(d: Path, effect: dict[str, Any], at: Sequence[float]) -> bool:
     """Do the records in ``d`` tell the two true steps (at their true times ``at``, s on the
-    records' clock) from the best one step anywhere on the channel (Bonferroni over the scan's
-    cuts at 5 %)? Where they do not, one step elsewhere does as well: the check that two are
-    named counts only where they do."""
+    records' clock) from the best one step anywhere on the channel, alone or with a drift
+    (Bonferroni over the scan's cuts at 5 %)? Where they do not, one step elsewhere (or with a
+    drift) does as well: the check that two are named counts only where they do."""
     from host.model.components import fit_with_components
     from host.model.dataset import load_dataset
     from host.model.signals import AXES
     from host.model.spec import parse_model
     from host.model.stats import chi2_sf
-    from host.workbench.scan import step_cuts
+    from host.workbench.scan import step_cuts, time_column
     from host.workbench.steps import channel_cuts, two_against_one
 
     joint = fit_with_components(load_dataset(d), parse_model("base"))
@@ -46,7 +46,8 @@ def two_tell(d: Path, effect: dict[str, Any], at: Sequence[float]) -> bool:
     cuts = channel_cuts(ds, fit.basis, effect["sensor"], AXES.index(effect["axis"]))
     if cuts is None:
         return False
-    gain = two_against_one(cuts, fit.white_residual, at[0], at[1])
+    drift = time_column(ds, fit, effect["sensor"], effect["axis"])
+    gain = two_against_one(cuts, fit.white_residual, at[0], at[1], drift)
     return bool(chi2_sf(gain, 1) * len(step_cuts(ds)) < 0.05)
 
 

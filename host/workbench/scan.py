@@ -377,6 +377,19 @@ def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
     return sorted(kept, key=lambda x: -x.delta_chi2)
 
 
+def time_column(ds: Dataset, fit: Fit, sensor: str, axis: str) -> np.ndarray | None:
+    """(n_rows,) time since power-on on the channel's rows, whitened, the fit's columns removed:
+    the drift a second step must beat (:func:`host.workbench.steps.place_steps`); None when
+    the records carry no power-on time or the channel no rows."""
+    if not ds.time_known:
+        return None
+    x = _columns(ds, sensor, AXES.index(axis), [lambda s, sen, a: s.hours], [])
+    if x is None:
+        return None
+    w = ds.whiten.apply(x)[:, 0]
+    return np.asarray(w - fit.basis @ (fit.basis.T @ w) if fit.basis.shape[1] else w)
+
+
 def _placed(ds: Dataset, fit: Fit, hit: ScanHit, coarse_s: list[float], alpha: float) -> ScanHit:
     """A step the scan found at a cut, placed to the sample (one or two steps on its channel,
     :func:`host.workbench.steps.place_steps`) and named so, with their joint Δχ²."""
@@ -384,13 +397,9 @@ def _placed(ds: Dataset, fit: Fit, hit: ScanHit, coarse_s: list[float], alpha: f
     if cuts is None:
         return hit
     r = fit.white_residual
-    drift = None
-    if ds.time_known:
-        x = _columns(ds, hit.sensor, AXES.index(hit.axis), [lambda s, sen, a: s.hours], [])
-        if x is not None:
-            w = ds.whiten.apply(x)[:, 0]
-            drift = w - fit.basis @ (fit.basis.T @ w) if fit.basis.shape[1] else w
-    steps = place_steps(cuts, r, fit.dof, coarse_s, alpha, drift)
+    steps = place_steps(
+        cuts, r, fit.dof, coarse_s, alpha, time_column(ds, fit, hit.sensor, hit.axis)
+    )
     if not steps:
         return hit
     unit = "m/s²" if hit.sensor == "accel" else "°/s"

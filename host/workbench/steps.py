@@ -246,14 +246,24 @@ def place_steps(
     return tuple(out)
 
 
-def two_against_one(cuts: StepCuts, r: np.ndarray, t1_s: float, t2_s: float) -> float:
+def two_against_one(
+    cuts: StepCuts, r: np.ndarray, t1_s: float, t2_s: float, drift: np.ndarray | None = None
+) -> float:
     """Δχ² that two steps at the times ``t1_s`` and ``t2_s`` (s, the records' clock) explain
-    on the residual ``r`` beyond the best one step anywhere on the channel: how well the
-    records tell those two steps from one (a check on data whose steps are known)."""
+    on the residual ``r`` beyond the best one step anywhere on the channel, and beyond the best
+    one step with a ``drift`` beside it (the channel's whitened time column, as
+    :func:`place_steps` takes it): how well the records tell those two steps from one (a check
+    on data whose steps are known)."""
     pro = _Profiles(cuts, r)
     last = len(cuts.hi) - 1
     k1, k2 = (min(int(np.searchsorted(cuts.hi, t)), last) for t in (t1_s, t2_s))
-    return pro.pair(k1, k2) - float(np.max(pro.alone()))
+    one = float(np.max(pro.alone()))
+    if drift is not None and float(drift @ drift) > 0.0:
+        u = drift / math.sqrt(float(drift @ drift))
+        with_drift = StepCuts(cuts.white - np.outer(u, u @ cuts.white), cuts.lo, cuts.hi)
+        pro_d = _Profiles(with_drift, r - u * float(u @ r))
+        one = max(one, float(u @ r) ** 2 + float(np.max(pro_d.alone())))
+    return pro.pair(k1, k2) - one
 
 
 def _joint(x: np.ndarray, r: np.ndarray) -> float:
