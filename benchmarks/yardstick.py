@@ -36,7 +36,7 @@ import re
 import subprocess
 import sys
 import tempfile
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -49,11 +49,16 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.yardstick_pulls import (  # noqa: E402
+    Truth,
+    effect_of,
+    pull_group,
+    pull_stats,
+    pulls_of,
+)
 from benchmarks.yardstick_steps import records_clock, step_stats, steps_table, two_tell  # noqa: E402
 from tests.independent.physics import ACCEL_LSB, FS_HZ, GYRO_LSB  # noqa: E402
 from tests.independent.simulate import SessionSpec, write_session  # noqa: E402
-
-Truth = dict[str, Any]
 
 #: the workbench states its floor only in words: "noise floor of a record mean: accel 0.00075
 #: m/s² from …; gyro 0.0017 °/s from …"
@@ -77,12 +82,8 @@ class Case:
     names: tuple[str, ...] = ()
 
 
-def _eff(t: Truth) -> dict[str, Any]:
-    return dict(t["effect"])
-
-
 def _on_axis(term: str) -> Callable[[Truth], str]:
-    return lambda t: f"{term}:{_eff(t)['sensor']}:{_eff(t)['axis']}"
+    return lambda t: f"{term}:{effect_of(t)['sensor']}:{effect_of(t)['axis']}"
 
 
 def _signal(*words: str, source: bool = False) -> Callable[[dict[str, Any], Truth], bool]:
@@ -90,7 +91,7 @@ def _signal(*words: str, source: bool = False) -> Callable[[dict[str, Any], Trut
     (and the effect's source axis, for cross-axis effects)."""
 
     def match(sig: dict[str, Any], t: Truth) -> bool:
-        e = _eff(t)
+        e = effect_of(t)
         if sig.get("sensor") != e["sensor"] or sig.get("axis") != e["axis"]:
             return False
         name = str(sig.get("signal", "")).lower()
@@ -176,78 +177,6 @@ def white_of_mean(spec: SessionSpec) -> dict[str, float]:
     }
 
 
-def _truth_of(name: str, t: Truth) -> float | None:
-    """The truth behind a workbench parameter name (method.md's constants, the catalogue's
-    ``term.sensor.axis`` names), or None if the simulator did not set it."""
-    c = t["constants"]
-    if name in c:
-        return float(c[name])
-    e = _eff(t)
-    parts = name.split(".")
-    if parts[0] == "plate_tilt" and e["name"] == "plate_tilt":
-        # a turn's heading correction: its truth is the circle's error, not written down
-        return None if parts[-1] == "heading" else _plate_truth(parts, t)
-    if parts[0] == "lever_arm" and e["name"] == "lever_arm":
-        return float(e["r_m"]["xyz".index(parts[1])])
-    if parts[0] == "face_error" and e["name"] == "face_lean" and len(parts) == 4:
-        # the pair's mean lean as the accelerometer reads it: [C_A·θ̄]_i / C_A,ii (its
-        # misalignment puts the lean toward the third axis on channel i too; the fit states
-        # the lean in the accelerometer's frame, tests/independent/test_independent_geometry)
-        i, j = "xyz".index(parts[2]), parts[3][-1]
-        lean = e["lean_rad"]
-        mean = 0.5 * (np.asarray(lean["+" + j]) + np.asarray(lean["-" + j]))
-        ca = _accel_matrix(c)
-        return float((ca @ mean)[i] / ca[i, i])
-    keys = {"time_drift": "per_h", "temperature_bias": "per_C", "scale_asymmetry": "asym",
-            "scale_nonlinearity": "k2"}  # fmt: skip
-    if len(parts) == 3 and parts[0] in keys and keys[parts[0]] in e:
-        if parts[1] == e.get("sensor") and parts[2] == e.get("axis"):
-            return float(e[keys[parts[0]]])
-        return 0.0  # the same term on another channel: nothing there
-    return None
-
-
-def _accel_matrix(c: dict[str, Any]) -> np.ndarray:
-    """The accelerometer's I + M from method.md's constants (the signs of §2: x row (1+Sxx,
-    Sxz, −Sxy), y row (−Syz, 1+Syy, Syx), z row (Szy, −Szx, 1+Szz))."""
-    return np.array([
-        [1 + c["Axx"], c["Axz"], -c["Axy"]],
-        [-c["Ayz"], 1 + c["Ayy"], c["Ayx"]],
-        [c["Azy"], -c["Azx"], 1 + c["Azz"]],
-    ])  # fmt: skip
-
-
-def _plate_truth(parts: Sequence[str], t: Truth) -> float:
-    """The truth of a plate_tilt parameter in the frame the workbench reads it in: the fence
-    when headings are recorded, else the first turn's reference axis (the host's frame when no
-    record carries its heading); a record's own ``seen_ref``/``seen_side`` (its heading not
-    recorded): the tilt turned by −(its heading)."""
-    e = _eff(t)
-    up = np.array([float(e["up_east_rad"]), float(e["up_north_rad"])])
-    heads = t["headings_deg"]
-    if len(parts) == 3:  # plate_tilt.<record>.seen_ref|seen_side
-        psi = float(heads[parts[1]])
-        key = parts[2]
-    else:
-        turns = sorted(n for n in heads if n.endswith(("_cw", "_ccw")))
-        psi = 0.0 if t["spec"].get("record_heading") else float(heads[turns[0]])
-        key = parts[1]
-    a = math.radians(psi)
-    seen = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]]) @ up
-    return float(seen[0 if key in ("east", "seen_ref") else 1])
-
-
-def _pulls(params: Iterable[dict[str, Any]], t: Truth, prefix: str = "") -> list[list[Any]]:
-    out = []
-    for p in params:
-        truth = _truth_of(str(p["name"]), t)
-        se = p.get("stderr")
-        if truth is None or not se or not math.isfinite(float(se)):
-            continue
-        out.append([prefix + str(p["name"]), float(p["value"]), float(se), truth])
-    return out
-
-
 def run_session(case: Case, seed: int, workdir: Path) -> dict[str, Any]:
     """Simulate one session of ``case`` and measure the workbench on it: one JSON-able row."""
     d = workdir / f"{case.name}_{seed}"
@@ -295,10 +224,10 @@ def run_session(case: Case, seed: int, workdir: Path) -> dict[str, Any]:
         else:
             row["rms_z_after_term"] = add["after"]["rms_z"]
             row["rms_z_before_term"] = add["before"]["rms_z"]
-            row["coef"] = _pulls(add["new_parameters"], truth)
+            row["coef"] = pulls_of(add["new_parameters"], truth)
     if case.calibrate:
         cal = host_json(["calibrate", "--from-dir", str(d)])
-        row["constants"] = _pulls(cal.get("parameters", []), truth, "cal ")
+        row["constants"] = pulls_of(cal.get("parameters", []), truth, "cal ")
     return row
 
 
@@ -462,49 +391,10 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                 pulls.setdefault(pull_group(nm), {}).setdefault(nm, []).append((v - t) / se)
                 sessions.setdefault(pull_group(nm), set()).add(int(r["seed"]))
         sm["pulls"] = {
-            g: {**_pull_stats(members), "n": len(sessions[g])} for g, members in pulls.items()
+            g: {**pull_stats(members), "n": len(sessions[g])} for g, members in pulls.items()
         }
         out[name] = sm
     return out
-
-
-#: the calibration constants in groups of like values (method.md §7's groups)
-_CONST_GROUPS = (
-    ("A0", "accel bias"), ("G0", "gyro bias"), ("GA", "gyro g-sensitivity"),  # before G..
-)  # fmt: skip
-
-
-def pull_group(name: str) -> str:
-    """The row a pull is counted in: calibration constants by §7 group, a term's coefficients
-    over its channels (``time_drift.gyro.*``), the shared terms' parameters one by one."""
-    if name.startswith("cal "):
-        c = name[4:]
-        for prefix, label in _CONST_GROUPS:
-            if c.startswith(prefix):
-                return f"cal {label}"
-        kind = "scale" if c[1] == c[2] else "misalignment"
-        sensor = "accel" if c[0] == "A" else "gyro"
-        return f"cal {sensor} {kind}"
-    parts = name.split(".")
-    if len(parts) == 3 and parts[0] == "plate_tilt":  # a record's own view of the tilt
-        return f"plate_tilt.*.{parts[2]}"
-    if len(parts) >= 3 and parts[0] not in ("plate_tilt", "lever_arm"):
-        return ".".join(parts[:2]) + ".*"
-    return name
-
-
-def _pull_stats(members: dict[str, list[float]]) -> dict[str, Any]:
-    """Pooled mean/sd/share beyond 3 of a group's pulls, the range of its members' sd (members
-    with at least 3 values) and the number of members ``k``."""
-    allv = np.concatenate([np.asarray(v, dtype=float) for v in members.values()])
-    sds = [float(np.std(v, ddof=1)) for v in members.values() if len(v) > 2]
-    return {
-        "n": int(max(len(v) for v in members.values())), "members": len(members),
-        "mean": float(np.mean(allv)),
-        "sd": float(np.std(allv, ddof=1)) if allv.size > 1 else math.nan,
-        "sd_lo": min(sds) if sds else math.nan, "sd_hi": max(sds) if sds else math.nan,
-        "beyond3": float(np.mean(np.abs(allv) > 3)),
-    }  # fmt: skip
 
 
 def _f(x: Any, fmt: str = ".2f") -> str:

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from benchmarks import yardstick as ys
+from benchmarks import yardstick_pulls as yp
 from tests.independent.simulate import SessionSpec, simulate
 
 
@@ -21,13 +22,13 @@ def test_truth_of_maps_workbench_names_to_the_simulator() -> None:
     t = _truth("bias_drift_gyro")
     e = t["effect"]
     assert isinstance(e, dict)
-    assert ys._truth_of("A0x", t) == t["constants"]["A0x"]  # type: ignore[index]
-    assert ys._truth_of(f"time_drift.gyro.{e['axis']}", t) == e["per_h"]
+    assert yp.truth_of("A0x", t) == t["constants"]["A0x"]  # type: ignore[index]
+    assert yp.truth_of(f"time_drift.gyro.{e['axis']}", t) == e["per_h"]
     other = next(a for a in "xyz" if a != e["axis"])
-    assert ys._truth_of(f"time_drift.gyro.{other}", t) == 0.0
-    assert ys._truth_of("lever_arm.x", t) is None
+    assert yp.truth_of(f"time_drift.gyro.{other}", t) == 0.0
+    assert yp.truth_of("lever_arm.x", t) is None
     lev = _truth("lever_arm")
-    assert ys._truth_of("lever_arm.y", lev) == lev["effect"]["r_m"][1]  # type: ignore[index]
+    assert yp.truth_of("lever_arm.y", lev) == lev["effect"]["r_m"][1]  # type: ignore[index]
     sim = simulate(SessionSpec(seed=5, effect="face_lean"))
     face = sim.truth()
     lean = face["effect"]["lean_rad"]
@@ -36,7 +37,7 @@ def test_truth_of_maps_workbench_names_to_the_simulator() -> None:
     # toward y on channel x too
     ca = sim.base.accel_matrix
     want = float((ca @ mean)[0] / ca[0, 0])
-    assert ys._truth_of("face_error.accel.x.±z", face) == pytest.approx(want, rel=1e-12)
+    assert yp.truth_of("face_error.accel.x.±z", face) == pytest.approx(want, rel=1e-12)
     assert abs(want - mean[0]) > 1e-7  # the misalignment's share is not nothing
 
 
@@ -49,12 +50,12 @@ def test_recommends_matches_term_sensor_and_axis() -> None:
 
 
 def test_pull_groups() -> None:
-    assert ys.pull_group("cal A0x") == "cal accel bias"
-    assert ys.pull_group("cal GAxy") == "cal gyro g-sensitivity"
-    assert ys.pull_group("cal Gyy") == "cal gyro scale"
-    assert ys.pull_group("cal Azx") == "cal accel misalignment"
-    assert ys.pull_group("time_drift.gyro.z") == "time_drift.gyro.*"
-    assert ys.pull_group("lever_arm.z") == "lever_arm.z"
+    assert yp.pull_group("cal A0x") == "cal accel bias"
+    assert yp.pull_group("cal GAxy") == "cal gyro g-sensitivity"
+    assert yp.pull_group("cal Gyy") == "cal gyro scale"
+    assert yp.pull_group("cal Azx") == "cal accel misalignment"
+    assert yp.pull_group("time_drift.gyro.z") == "time_drift.gyro.*"
+    assert yp.pull_group("lever_arm.z") == "lever_arm.z"
 
 
 def _row(seed: int, rms_z: float, p: float, pull: float) -> dict[str, object]:
