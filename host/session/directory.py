@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import math
 import os
 import socket
 import stat
@@ -85,6 +86,47 @@ def split_file_name(path: str | os.PathLike[str]) -> tuple[str, str] | None:
     if not serial or not name:
         return None
     return serial, name
+
+
+def record_names(directory: str | os.PathLike[str], serial: str) -> list[str]:
+    """The names of ``serial``'s records in ``directory``: every ``SERIAL_name.txt`` that
+    :func:`read_session` reads (the repeats ``x_ccw_2`` … too; not the results or the warm-up),
+    by file name."""
+    d = Path(directory)
+    if not d.is_dir():
+        return []
+    names = []
+    for p in sorted(d.glob(f"{serial}_*")):
+        parts = split_file_name(p)
+        if parts is not None and parts[0] == serial and parts[1] not in NON_RECORD_NAMES:
+            names.append(parts[1])
+    return names
+
+
+def measured_order(records: Mapping[str, Record]) -> list[str]:
+    """The names of ``records`` in the order they were measured, from their headers: sitting
+    by sitting (each sitting's capture, ``capture``, in the order of its first record's
+    ``start_time``; records that name no capture last), within a sitting by ``session_s``, then
+    ``start_time``, then name (a record whose header says neither keeps its name's place)."""
+    first: dict[str, str] = {}  # capture -> its earliest record start (ISO)
+    for r in records.values():
+        cap = r.meta.get("capture", "").strip()
+        if cap:
+            t = r.meta.get("start_time", "").strip() or "~"
+            first[cap] = min(first.get(cap, t), t)
+    captures = sorted(first, key=lambda c: (first[c], c))
+
+    def key(name: str) -> tuple[int, float, str, str]:
+        meta = records[name].meta
+        cap = meta.get("capture", "").strip()
+        try:
+            s = float(meta.get("session_s", "nan"))
+        except ValueError:
+            s = math.nan
+        sitting = captures.index(cap) if cap else len(captures)
+        return (sitting, s if math.isfinite(s) else math.inf, meta.get("start_time", ""), name)
+
+    return sorted(records, key=key)
 
 
 def write_record(path: str | os.PathLike[str], record: Record) -> None:
