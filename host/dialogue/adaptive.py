@@ -18,7 +18,7 @@ records, and says the operator's time the records cost (placing, settling, measu
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from typing import Protocol
 
 import numpy as np
@@ -105,11 +105,13 @@ def measure_adaptive(dlg: Measuring, opts: DialogueOptions) -> AdaptivePlan:
     dlg.op.say(screens.stops_when_enough_line(plan.stopping.rule))
     spent = 0.0
     taken = (CLOSING_NAME,)
+    added = planner_records(plan, dlg.done, taken)  # kept by --resume: --max-extra counts them
+    if dlg.done:
+        dlg.op.say(screens.adaptive_resumed_line(len(dlg.done), added))
     while (ask := plan.next_first(dlg.done, taken)) is not None:
         spent += _measure(dlg, plan, ask)
     if all(n in dlg.done for n in STATIC_NAMES):
         dlg._show_stage1()
-    added = 0
     while True:
         p, ask, why = plan.planned(dlg.done, spent, taken, added)
         now = _ratio(p.worst_now)
@@ -139,6 +141,20 @@ def measure_adaptive(dlg: Measuring, opts: DialogueOptions) -> AdaptivePlan:
         added += len(ask.names)
     dlg.op.say(screens.operator_time_line(spent))
     return plan
+
+
+def planner_records(
+    plan: AdaptivePlan, records: Mapping[str, Record], taken: Collection[str] = ()
+) -> int:
+    """How many of ``records`` (kept by ``--resume``, in the order measured) the planner
+    added: those after the engine's first records were done — the first prefix of
+    ``records`` after which :meth:`host.workbench.adaptive.AdaptivePlan.next_first` asks for
+    nothing. The closing check is none of them."""
+    names = [n for n in records if n != CLOSING_NAME]
+    for i in range(len(names) + 1):
+        if plan.next_first({n: records[n] for n in names[:i]}, taken) is None:
+            return len(names) - i
+    return 0
 
 
 def _measure(dlg: Measuring, plan: AdaptivePlan, ask: Ask) -> float:

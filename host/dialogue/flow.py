@@ -28,7 +28,10 @@ Interruptions (decided here, the method says Ctrl+C "discards everything"):
   :data:`host.dialogue.recorder.YES_RECONNECT_S`) and the same measurement is proposed again.
 
 ``--resume``: records already in the output directory (and readable, same serial) are not
-measured again; the results are computed from all of this serial's records in the directory.
+measured again — every one, the repeats (``x_ccw_2``, the adaptive planner's) too, kept in the
+order they were measured (:func:`host.session.directory.measured_order`), so that
+``--plan adaptive`` goes on from them; the results are computed from all of this serial's
+records in the directory.
 ``--redo NAME`` keeps the others and measures NAME again. Nothing accepted is replaced, and one
 process at a time writes a directory (:mod:`host.dialogue.sitting`). SIGTERM and SIGHUP end a
 session as Ctrl+C does.
@@ -41,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import textwrap
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -173,12 +177,12 @@ class CalibrationDialogue(Recorder):
             if moved:
                 self._warn(moved)
             return
-        names = [n for n in self._existing_names() if n not in self.opts.redo]
-        self.done.update(self.sitting.read_kept(names, self._warn))
+        self.done.update(self.sitting.read_kept(self.opts.redo, self._warn))
         if self.opts.redo:
             self.op.say(f"Measuring again: {', '.join(self.opts.redo)} (--redo)")
         if self.opts.keeps_records:
-            self.op.say(f"Resuming: kept {', '.join(self.done) or 'nothing'}")
+            kept = f"Resuming: kept {', '.join(self.done) or 'nothing'}"
+            self.op.say(textwrap.fill(kept, 80, subsequent_indent="  ", break_on_hyphens=False))
             kept_turns = sorted(
                 r.meta["turns"]
                 for n, r in self.done.items()

@@ -45,9 +45,9 @@ from host.dialogue.options import (
 )
 from host.dialogue.sitting import SittingDirectory
 from host.errors import ResumableError
-from host.session.directory import record_path, write_record
+from host.session.directory import record_names, write_record
 from host.session.method import local_gravity, record_stats
-from host.session.records import STATIC_NAMES, STOPPED_KEY, TURN_NAMES, Record, turn_window_s
+from host.session.records import STATIC_NAMES, STOPPED_KEY, Record, turn_window_s
 
 #: when a static record has enough: stop(accel (N, 3) m/s², gyro (N, 3) °/s, elapsed s) -> why
 #: it stops now (its header's ``stopped``), or None: go on
@@ -138,10 +138,8 @@ class Recorder:
         return said_with_command(text, self.command_words(), first=first)
 
     def _existing_names(self) -> list[str]:
-        return [
-            n for n in (*STATIC_NAMES, *TURN_NAMES, CLOSING_NAME)
-            if record_path(self.out_dir, self.serial, n).exists()
-        ]  # fmt: skip
+        """Every record of this serial in the output directory (the repeats too)."""
+        return record_names(self.out_dir, self.serial)
 
     # ---- stage 1 -------------------------------------------------------------------------
     def _ask_static_seconds(self) -> float:

@@ -97,6 +97,12 @@ def operator_time_line(spent_s: float) -> str:
     return f"Adaptive plan: about {spent_s:.0f} s of your time on its records this sitting."
 
 
+def adaptive_resumed_line(kept: int, added: int) -> str:
+    """--plan adaptive --resume: the plan goes on from the ``kept`` records, ``added`` of
+    them the planner's (``--max-extra`` counts them)."""
+    return f"Adaptive plan: goes on from the {kept} records kept, {added} of them the planner's."
+
+
 def closing_line(first: str) -> str:
     """The closing check's announcement: the first attitude (``first``) once more."""
     return (

@@ -17,7 +17,9 @@ from pathlib import Path
 
 from host.session.directory import (
     lock_directory,
+    measured_order,
     read_record,
+    record_names,
     record_path,
     set_aside,
     sitting_files,
@@ -60,11 +62,17 @@ class SittingDirectory:
         self.aside = set_aside(self.out_dir, self.serial, [path], self.aside)
         return path, f"the earlier {path.name} is kept in {self.aside}"
 
-    def read_kept(self, names: Iterable[str], warn: Callable[[str], None]) -> dict[str, Record]:
-        """The records ``names`` already in the directory that can be kept (readable, this
-        serial); ``warn`` is told of each that cannot (it is measured again)."""
+    def read_kept(self, skip: Iterable[str], warn: Callable[[str], None]) -> dict[str, Record]:
+        """Every record of this serial already in the directory but ``skip`` (``--redo``)
+        that can be kept (readable, this serial) — the repeats (``x_ccw_2``, the planner's
+        records) too — in the order they were measured
+        (:func:`host.session.directory.measured_order`); ``warn`` is told of each that
+        cannot (it is measured again)."""
+        skipped = set(skip)
         kept: dict[str, Record] = {}
-        for name in names:
+        for name in record_names(self.out_dir, self.serial):
+            if name in skipped:
+                continue
             p = record_path(self.out_dir, self.serial, name)
             try:
                 rec = read_record(p)
@@ -74,4 +82,4 @@ class SittingDirectory:
                 warn(f"{exc}: it will be measured again")
                 continue
             kept[name] = rec
-        return kept
+        return {n: kept[n] for n in measured_order(kept)}
