@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import os
 import stat
-import struct
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -31,6 +30,7 @@ from host.wire.resync import (
     RESYNC_CHAIN,
     best_parse,
     header_candidates,
+    header_chain,
 )
 
 MAGIC = b"IMUCAP01"
@@ -299,49 +299,27 @@ class CaptureUnwrapper:
         where the headers chain on undamaged: each plausible after the one before,
         :data:`RESYNC_CHAIN` more after it, and none of the headers that a bridge
         (:meth:`_bridges`) would start with; returns where reading goes on."""
-        size, rec = len(buf), REC.size
-        # the walk from header to header by their lengths alone (a Python step per read: the
-        # least it does, the faster a capture of small reads), then the times checked at once:
-        # the walk stops at the first header whose length or time is not plausible
-        unpack_n, at, p = _LENGTH.unpack_from, [], pos
-        while p + rec <= size:
-            n = unpack_n(buf, p + 8)[0]
-            if not 0 < n <= MAX_READ:
-                break
-            at.append(p)
-            p += rec + n
-        if len(at) <= RESYNC_CHAIN:
+        # the chain of headers by their lengths alone (host.wire.resync.header_chain), then
+        # their times checked at once: the reads stop at the first time not plausible
+        at, lengths_a = header_chain(buf, pos)
+        if at.size <= RESYNC_CHAIN:
             return pos
-        heads = np.frombuffer(buf, np.uint8, count=size)[np.asarray(at)[:, None] + _REC_BYTES]
-        times_a = heads[:, :8].copy().view("<u8")[:, 0]
-        lengths_a = heads[:, 8:].copy().view("<u4")[:, 0].astype(np.int64)
-        del heads
+        times_a = _field_at(buf, "<u8", 0, at)
         first = times_a[0] if self._prev_t is None else self._prev_t
         prev_a = np.concatenate((np.asarray([first], dtype=np.uint64), times_a[:-1]))
         late = (times_a < prev_a) | (times_a - prev_a > np.uint64(MAX_GAP_NS))
         if late.any():
             cut = int(np.argmax(late))
             at, times_a, lengths_a = at[:cut], times_a[:cut], lengths_a[:cut]
-        k = len(at) - RESYNC_CHAIN  # the reads with a chain of headers after them
+        k = at.size - RESYNC_CHAIN  # the reads with a chain of headers after them
         if k <= 0:
             return pos
         n_ = lengths_a[:k]
         t_ = times_a[: k + 1]
-        end = np.asarray(at[:k], dtype=np.int64) + rec + n_
-        # a bridge starts, for a bit (16 or more) set in a read's length, with a plausible
-        # header that many bytes before its end: the reads before the first such are clean
-        read, bit = np.nonzero((n_[:, None] >> _BITS) & 1)
-        if read.size:
-            c = end[read] - (np.int64(1) << _BITS[bit])
-            head = np.frombuffer(buf, np.uint8, count=size)[c[:, None] + np.arange(rec)]
-            t2 = head[:, :8].copy().view("<u8")[:, 0]
-            n2 = head[:, 8:].copy().view("<u4")[:, 0]
-            maybe = (n2 > 0) & (n2 <= MAX_READ) & (t2 >= t_[read]) & (t2 <= t_[read + 1])
-            del head
-            if maybe.any():
-                k = int(read[np.argmax(maybe)])
-                if k == 0:
-                    return pos
+        end = at[:k] + REC.size + n_
+        k = _first_bridge(buf, end, n_, t_)  # the reads before it are clean
+        if k == 0:
+            return pos
         out.append(np.stack((end[:k] - n_[:k], end[:k]), axis=1))
         self._prev_t = int(times_a[k - 1])
         if self._times:
@@ -449,18 +427,36 @@ class CaptureUnwrapper:
         return self._reads_ns[0], self._reads_end[0]
 
 
-#: a read header's length field (at byte 8 of :data:`REC`), and the header's byte offsets
-_LENGTH = struct.Struct("<I")
-_REC_BYTES = np.arange(REC.size)
+def _field_at(buf: bytearray, dtype: str, field: int, at: np.ndarray) -> np.ndarray:
+    """The header field of type ``dtype`` at byte ``field`` of each header at ``at`` in
+    ``buf`` (little-endian, read unaligned)."""
+    size = np.dtype(dtype).itemsize
+    view = np.ndarray((len(buf) - field - size + 1,), dtype, buf, field, (1,))
+    got = view[at]
+    del view  # a view of buf: it may be resized again
+    return got
 
-#: the bits of a read's length that a bridge may have flipped (16 up to :data:`MAX_READ`)
-_BITS = np.arange(4, MAX_READ.bit_length(), dtype=np.int64)
+
+def _first_bridge(buf: bytearray, end: np.ndarray, n: np.ndarray, t: np.ndarray) -> int:
+    """The first read a bridge (:meth:`CaptureUnwrapper._bridges`) may start in: for a bit (16
+    or more) set in its length ``n``, a plausible header that many bytes before its ``end``
+    with a time between the read's and the next one's (``t`` holds one more); ``end.size``
+    when there is none."""
+    first = end.size
+    for b in range(4, int(n.max(initial=0)).bit_length()):
+        r = np.flatnonzero(n[:first] & (1 << b))
+        c = end[r] - (1 << b)
+        t2, n2 = _field_at(buf, "<u8", 0, c), _field_at(buf, "<u4", 8, c)
+        maybe = (n2 > 0) & (n2 <= MAX_READ) & (t2 >= t[r]) & (t2 <= t[r + 1])
+        if maybe.any():
+            first = int(r[np.argmax(maybe)])
+    return first
 
 
 def _gather(buf: bytearray, spans: list[np.ndarray]) -> bytes:
     """The bytes of ``buf`` in each (start, end) row of ``spans`` (in order, apart), joined:
-    long reads by slices of a view, many short ones through one mask (a slice costs as much
-    as copying a few hundred bytes)."""
+    long reads by slices of a view, many short ones through one mask that clears the bytes
+    between them (a slice costs as much as copying a few hundred bytes)."""
     s = np.concatenate(spans) if spans else np.zeros((0, 2), np.int64)
     s = s[s[:, 1] > s[:, 0]]
     if s.size == 0:
@@ -469,10 +465,17 @@ def _gather(buf: bytearray, spans: list[np.ndarray]) -> bytes:
         with memoryview(buf) as view:
             return b"".join([view[a:b] for a, b in s.tolist()])
     lo, hi = int(s[0, 0]), int(s[-1, 1])
-    edge = np.zeros(hi - lo + 1, np.int8)  # +1 where a read starts, -1 where it ends
-    edge[s[:, 0] - lo] = 1
-    edge[s[:, 1] - lo] -= 1
-    keep = np.cumsum(edge[:-1], dtype=np.int8).view(bool)
+    keep = np.ones(hi - lo, bool)
+    # between two reads: a header, or what damage skipped (cleared slice by slice if long)
+    gap_at, gap_end = s[:-1, 1] - lo, s[1:, 0] - lo
+    gap = gap_end - gap_at
+    for g in np.flatnonzero(gap > 2 * REC.size).tolist():
+        keep[gap_at[g] : gap_end[g]] = False
+    narrow = (gap > 0) & (gap <= 2 * REC.size)
+    at_n, len_n = gap_at[narrow], gap[narrow]
+    shortest = int(len_n.min(initial=0))
+    for b in range(int(len_n.max(initial=0))):
+        keep[(at_n if b < shortest else at_n[len_n > b]) + b] = False
     arr = np.frombuffer(buf, np.uint8, count=hi - lo, offset=lo)
     data = arr[keep].tobytes()
     del arr

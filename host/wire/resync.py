@@ -1,6 +1,6 @@
-"""Where a damaged capture's reads are: the checks of an IMUCAP01 read header and, where the
-chain of headers breaks, the parse of the bytes that keeps the most reads
-(:class:`host.wire.capture.CaptureUnwrapper` walks the file with them)."""
+"""Where a capture's reads are: the chain of IMUCAP01 read headers walked block-wise where it
+holds, the checks of a read header and, where the chain breaks, the parse of the bytes that
+keeps the most reads (:class:`host.wire.capture.CaptureUnwrapper` walks the file with them)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import numpy as np
 
 #: a read's header: uint64 LE host time (ns), uint32 LE byte count
 REC = struct.Struct("<QI")
+_LENGTH = struct.Struct("<I")  # a header's length field, at its byte 8
 
 
 #: a read's plausible length, bytes: a port read is at most the port's buffer (a few KiB); a
@@ -138,3 +139,86 @@ def best_parse(
     while term[c] >= 0 and k > 0 and ends[path[k - 1]] == p[path[k]]:
         links, k = links + 1, k - 1
     return path, links
+
+
+#: headers walked one by one before the walk goes block-wise (a short chain, as after damage,
+#: costs no numpy work), and the first block's bytes (each block after is twice as long);
+#: reads this long on average (bytes) are walked one by one all along: a step costs less
+#: than looking at their bytes
+_PROBE = 8
+_FIRST_BLOCK = 4096
+_LONG_READ = 256
+
+
+def header_chain(buf: bytearray, pos: int) -> tuple[np.ndarray, np.ndarray]:
+    """The read headers from ``pos`` on, each where the one before ends, walked by their
+    lengths alone up to the first that is not whole in ``buf`` or whose length is not plausible
+    (1 to :data:`MAX_READ`): their positions in ``buf`` and their lengths (bytes, int64).
+
+    Exactly the walk one header at a time, done for a block of bytes at once: the headers in
+    it that may be on the chain (the length's high byte zero, the time's sixth byte the block's
+    first header's: it changes every 2**40 ns, 18 min, and the chain then goes on in the next
+    block) each point at the one after them, and the chain is the path from the first
+    (:func:`_path`). Blocks grow twofold: the bytes looked at stay within about twice the
+    chain's."""
+    size, rec = len(buf), REC.size
+    at: list[int] = []
+    lengths: list[int] = []
+    p, steps = pos, _PROBE
+    while True:
+        while len(at) < steps:
+            if p + rec > size or not 0 < (n := _LENGTH.unpack_from(buf, p + 8)[0]) <= MAX_READ:
+                return np.asarray(at, np.int64), np.asarray(lengths, np.int64)
+            at.append(p)
+            lengths.append(n)
+            p += rec + n
+        if p - pos < _LONG_READ * len(at):
+            break  # short reads: the rest block-wise
+        steps *= 2
+    parts, part_n = [np.asarray(at, np.int64)], [np.asarray(lengths, np.int64)]
+    byte = np.frombuffer(buf, np.uint8, count=size)
+    length = np.ndarray((size - rec + 1,), "<u4", buf, 8, (1,))  # at every byte (unaligned)
+    block = max(_FIRST_BLOCK, 2 * (p - pos))
+    while p + rec <= size and 0 < length[p] <= MAX_READ:
+        hi = min(size - rec + 1, p + block)  # the headers that start here are whole in buf
+        block *= 2
+        c = np.flatnonzero((byte[p + 11 : hi + 11] == 0) & (byte[p + 5 : hi + 5] == byte[p + 5]))
+        n = length[c + p].astype(np.int64)
+        ok = (n > 0) & (n <= MAX_READ)
+        c, n = c[ok], n[ok]
+        nxt = c + rec + n  # where each one's read ends: mostly at the candidate after it
+        miss = np.flatnonzero(nxt[:-1] != c[1:])
+        if miss.size:
+            succ = np.arange(1, c.size + 1)
+            j = np.searchsorted(c, nxt[miss])
+            succ[miss] = np.where(c[np.minimum(j, c.size - 1)] == nxt[miss], j, c.size)
+            on = _path(succ)
+            c, n, nxt = c[on], n[on], nxt[on]
+        parts.append(c + p)
+        part_n.append(n)
+        p += int(nxt[-1])
+    del byte, length  # views of buf: it may be resized again
+    return np.concatenate(parts), np.concatenate(part_n)
+
+
+def _path(succ: np.ndarray) -> np.ndarray:
+    """The path from node 0 in a graph where node i points at ``succ[i]`` (> i; ``succ.size``:
+    at none): its nodes in order. Nodes no other node points at are pruned, as long as that
+    takes few passes (what is left is then the path); else the path is doubled from its first
+    node with jumps of doubling length."""
+    m = succ.size
+    alive = np.ones(m, bool)
+    for _ in range(3):
+        has_in = np.zeros(m + 1, bool)
+        has_in[succ[alive]] = True
+        has_in[0] = True
+        now = alive & has_in[:m]
+        if np.array_equal(now, alive):
+            return np.flatnonzero(alive)
+        alive = now
+    jump = np.append(succ, m)  # node m: none, pointing at itself
+    path = np.zeros(1, np.int64)
+    while path[-1] != m:
+        path = np.concatenate((path, jump[path]))
+        jump = jump[jump]
+    return path[: np.searchsorted(path, m)]
