@@ -24,6 +24,7 @@ from host.session.directory import (
     SIMULATED_BOARD,
     SIMULATED_SCHEMES,
     Session,
+    measured_order,
     split_file_name,
 )
 from host.session.records import NON_RECORD_NAMES, STOPPED_KEY, Record
@@ -244,7 +245,7 @@ def provenance_of(session: Session, software: str = "") -> Provenance:
     captures = tuple(sorted(first_start, key=lambda c: (first_start[c], c)))  # as measured
     sit_of = {n: captures.index(r.meta["capture"].strip()) if r.meta.get("capture", "").strip()
               else len(captures) for n, r in recs.items()}  # fmt: skip
-    order = tuple(sorted(recs, key=lambda n: (*_order_key(recs[n], sit_of[n]), n)))
+    order = tuple(measured_order(recs))
     sittings = tuple(
         Sitting(cap, tuple(n for n in order if sit_of[n] == i))
         for i, cap in enumerate((*captures, ""))
