@@ -261,8 +261,8 @@ def add_live_arguments(p: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     p.add_argument(
         "--redo", action="append", metavar="NAME",
-        help="measure this record again (x_up … z_dn, x_ccw … z_cw; repeat or comma-separate "
-        "for several) and keep the others, as --resume does",
+        help="measure this record again (x_up … z_dn, x_ccw … z_cw, a repeat: x_ccw_2; repeat "
+        "or comma-separate for several) and keep the others, as --resume does",
     )  # fmt: skip
     p.add_argument(
         "--capture", metavar="FILE",
