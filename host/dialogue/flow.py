@@ -123,7 +123,10 @@ class CalibrationDialogue(Recorder):
         self._self_test()
         self._warm_up()
 
+        base = (*STATIC_NAMES, *TURN_NAMES, CLOSING_NAME)
         if opts.plan == "adaptive":  # the engine's order and stopping rule
+            # --redo: measured again by name first (the engine names new records anew)
+            self._measure_again([n for n in opts.redo if n != CLOSING_NAME])
             plan = adaptive.measure_adaptive(self, opts)
             if opts.closing and CLOSING_NAME not in self.done and STATIC_NAMES[0] in self.done:
 
@@ -153,6 +156,7 @@ class CalibrationDialogue(Recorder):
             op.say("The six turns are already measured (--resume).")
         if do_turns and need_turn:
             self._stage2(need_turn)
+        self._measure_again([n for n in opts.redo if n not in base])  # x_ccw_2, x_up_3 …
         if opts.closing and CLOSING_NAME not in self.done and STATIC_NAMES[0] in self.done:
             self._closing_check()
         return self._results()

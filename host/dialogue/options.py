@@ -27,7 +27,7 @@ from host.board.driver import STALL_S
 from host.errors import UserError
 from host.session.directory import Session, record_path
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, local_gravity
-from host.session.records import STATIC_NAMES, TURN_NAMES
+from host.session.records import RECORD_NAME_RE, STATIC_NAMES, TURN_NAMES
 
 WARMUP_DEFAULT_S = 600.0
 #: the closing check: the first static attitude measured again at the end of the session
@@ -227,11 +227,12 @@ class DialogueOptions:
         if self.ready_s is not None and (not math.isfinite(self.ready_s) or self.ready_s < 0):
             raise UserError("--ready-seconds must be 0 or more")
         names = (*STATIC_NAMES, *TURN_NAMES, CLOSING_NAME)
-        unknown = [n for n in self.redo if n not in names]
+        unknown = [n for n in self.redo if not RECORD_NAME_RE.fullmatch(n)]
         if unknown:
             raise UserError(
                 f"--redo {unknown[0]}: not a record name; use one of " + ", ".join(names)
-            )
+                + " or a repeat of one (x_ccw_2)"
+            )  # fmt: skip
         if self.yes and self.serial is None:
             raise UserError("--yes needs --serial (the serial number is mandatory)")
         local_gravity(self.latitude_deg, self.height_m)  # validates both

@@ -47,7 +47,13 @@ from host.dialogue.sitting import SittingDirectory
 from host.errors import ResumableError
 from host.session.directory import record_names, write_record
 from host.session.method import local_gravity, record_stats
-from host.session.records import STATIC_NAMES, STOPPED_KEY, Record, turn_window_s
+from host.session.records import (
+    RECORD_NAME_RE,
+    STATIC_NAMES,
+    STOPPED_KEY,
+    Record,
+    turn_window_s,
+)
 
 #: when a static record has enough: stop(accel (N, 3) m/s², gyro (N, 3) °/s, elapsed s) -> why
 #: it stops now (its header's ``stopped``), or None: go on
@@ -213,6 +219,18 @@ class Recorder:
     def _show_stage1(self) -> None:
         stats = {n: record_stats(self.done[n]) for n in STATIC_NAMES}
         screens.show_stage1(self.op, stage1(stats, self.g), self.g)
+
+    def _measure_again(self, names: Sequence[str]) -> None:
+        """``--redo`` records the plan would not ask for by these names (a repeat such as
+        ``x_ccw_2``, the planner's ``x_up_3``): each measured again as what its name says, a
+        static for the accumulation time, a turn of the session's turns."""
+        for name in names:
+            if RECORD_NAME_RE.match(name)["dir"] in ("up", "dn"):  # type: ignore[index]
+                self._ask_static_seconds()
+                self._measure_static(name)
+            else:
+                n, window = self._ask_turns()
+                self._measure_turn(name, n, window)
 
     # ---- stage 2 -------------------------------------------------------------------------
     def _ask_turns(self) -> tuple[int, float]:

@@ -8,14 +8,18 @@ import math
 import numpy as np
 
 from host.errors import RecordCheckError, UserError
-from host.session.directory import Session
+from host.session.directory import Session, split_file_name
 from host.session.method import (
     ORIENTATION_TOL_DEG,
     STATIC_MAX_ACCEL_STD,
     STATIC_MAX_GYRO_STD,
     RecordStats,
 )
-from host.session.records import MIN_RECORD_ROWS, STATIC_NAMES, TURN_NAMES, Record
+from host.session.records import (
+    MIN_RECORD_ROWS,
+    RECORD_NAME_RE,
+    Record,
+)
 
 
 def axis_label(v: np.ndarray) -> str:
@@ -35,13 +39,13 @@ def remedy(record: Record, bench: str = "re-measure") -> str:
 
 
 def failed_record(exc: RecordCheckError, serial: str) -> str | None:
-    """The bench record (``x_up`` … ``z_cw``) a check failure is about, when its file is this
-    serial's ``SERIAL_name.txt``; None otherwise (another file, or a record the bench does not
-    measure by that name)."""
-    for name in STATIC_NAMES + TURN_NAMES:
-        if exc.file_name == f"{serial}_{name}.txt":
-            return name
-    return None
+    """The bench record (``x_up`` … ``z_cw``, or a repeat such as ``x_ccw_2``) a check failure
+    is about, when its file is this serial's ``SERIAL_name.txt``; None otherwise (another
+    file, or a record the bench does not measure by that name)."""
+    parts = split_file_name(exc.file_name) if exc.file_name else None
+    if parts is None or parts[0] != serial or not RECORD_NAME_RE.fullmatch(parts[1]):
+        return None
+    return parts[1]
 
 
 def check_orientation(record: Record, stats: RecordStats, g: float, file_name: str) -> None:

@@ -460,4 +460,9 @@ def test_a_failed_check_names_its_bench_record() -> None:
     assert failed_record(err("U7_y_cw.txt"), "U7") == "y_cw"
     assert failed_record(err("U7_z_dn.txt"), "U7") == "z_dn"
     assert failed_record(err("U8_z_dn.txt"), "U7") is None  # another unit's file
-    assert failed_record(err("U7_x_up_2.txt"), "U7") is None  # not a record the bench measures
+    # the closing check and the repeats of a session (--redo measures them again by name)
+    assert failed_record(err("U7_x_up_2.txt"), "U7") == "x_up_2"
+    assert failed_record(err("U7_x_ccw_2.txt"), "U7") == "x_ccw_2"
+    assert failed_record(err("U_7_y_up_3.txt"), "U_7") == "y_up_3"
+    assert failed_record(err("U7_tilt_45_1.txt"), "U7") is None  # not a record the bench measures
+    assert failed_record(err("U7_result.txt"), "U7") is None

@@ -45,7 +45,7 @@ def _opts(out: Path, **kw: object) -> options.DialogueOptions:
     return options.DialogueOptions(
         port="sim://?seed=9&speed=max", serial=SERIAL, out=out, static_seconds=STATIC_S,
         turns=1, warmup_s=0.0, yes=True, ready_s=0.0, plan="adaptive", target=1e-6,
-        max_extra=4, **kw,  # type: ignore[arg-type]
+        **{"max_extra": 4, **kw},  # type: ignore[arg-type]
     )  # fmt: skip
 
 
@@ -126,3 +126,29 @@ def test_a_resumed_adaptive_session_keeps_every_record_and_asks_the_engine(
     assert set(order) | set(resumed) <= set(read_session(out, SERIAL).records)
     result = json.loads((out / f"{SERIAL}_result.json").read_text())
     assert set(order) | set(resumed) <= set(result["records"])
+
+
+@pytest.mark.slow
+def test_redo_measures_a_repeat_again_by_its_name_and_keeps_the_earlier_aside(
+    tmp_path: Path,
+) -> None:
+    """``--redo x_ccw_2`` (the name a failed check gives): the engine would never ask for that
+    name again, so the record was not measured and the results failed on it once more; now it
+    is measured first, the earlier file is kept aside unchanged, nothing else is touched."""
+    out = tmp_path / SERIAL
+    con = ScriptedConsole()
+    assert _run(_opts(out, max_extra=0, closing=False), con) in (0, 1), con.text[-1500:]
+    assert "x_ccw_2" in _saved(con.text)
+    before = _hashes(out)
+    again = ScriptedConsole()
+    assert _run(_opts(out, max_extra=0, closing=False, redo=("x_ccw_2",)), again) in (0, 1)
+    assert _saved(again.text)[0] == "x_ccw_2"
+    assert "Turn now! x_ccw_2" in again.text
+    after = _hashes(out)
+    old = f"{SERIAL}_x_ccw_2.txt"
+    assert after[old] != before[old]
+    (aside,) = (out / EARLIER_DIR).iterdir()
+    assert _hashes(aside) == {old: before[old]}
+    kept = [k for k in before if k != old and "_result." not in k]  # the result is new
+    assert {k: after.get(k) for k in kept} == {k: before[k] for k in kept}
+    assert json.loads((out / f"{SERIAL}_result.json").read_text())["records"].count("x_ccw_2") == 1

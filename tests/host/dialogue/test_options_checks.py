@@ -3,10 +3,13 @@ checked before the board is opened, and the operator's answers parsed."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host.dialogue import options
 from host.errors import UserError
@@ -40,6 +43,26 @@ def test_the_latitude_is_checked_before_the_board() -> None:
 def test_redo_names_are_checked() -> None:
     with pytest.raises(UserError, match="--redo x_side: not a record name; use one of x_up"):
         options.DialogueOptions(serial="A", redo=("x_side",)).check()
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    axis=st.sampled_from("xyz"),
+    way=st.sampled_from(["up", "dn", "ccw", "cw"]),
+    rep=st.none() | st.from_regex(r"[0-9A-Za-z]{1,4}", fullmatch=True),
+    junk=st.text(min_size=1, max_size=12),
+)
+def test_redo_takes_every_record_name_a_session_writes_and_nothing_else(
+    axis: str, way: str, rep: str | None, junk: str
+) -> None:
+    """The six faces, the six turns and their repeats (``x_ccw_2``, the closing ``x_up_2``,
+    the planner's ``y_up_3``) are names ``--redo`` measures again; anything else is refused
+    with the names to use."""
+    name = f"{axis}_{way}" + (f"_{rep}" if rep else "")
+    options.DialogueOptions(serial="A", redo=(name,)).check()
+    if not re.fullmatch(r"[xyz]_(up|dn|ccw|cw)(_[0-9A-Za-z]+)?", junk):
+        with pytest.raises(UserError, match=r"(?s)--redo .*not a record name; use one of x_up"):
+            options.DialogueOptions(serial="A", redo=(junk,)).check()
 
 
 def test_redo_takes_several_names_comma_separated_or_repeated() -> None:
