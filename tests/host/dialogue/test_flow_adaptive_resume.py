@@ -73,13 +73,17 @@ def _after_extra_pair(text: str) -> bool:
     return f"{SERIAL}_x_cw_2.txt" in text
 
 
+def _within_an_extra_pair(text: str) -> bool:
+    return f"{SERIAL}_x_ccw_2.txt" in text  # its cw turn not yet measured
+
+
 def _after_a_planner_record(text: str) -> bool:
     # the planner's first record saved and fitted: its next step is about to be said
     return "Next: " in text and "Adaptive plan: worst" in text.split("Next: ", 1)[1]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("cut", [_after_extra_pair, _after_a_planner_record])
+@pytest.mark.parametrize("cut", [_within_an_extra_pair, _after_extra_pair, _after_a_planner_record])
 def test_a_resumed_adaptive_session_keeps_every_record_and_asks_the_engine(
     tmp_path: Path, cut: Callable[[str], bool]
 ) -> None:
@@ -87,7 +91,7 @@ def test_a_resumed_adaptive_session_keeps_every_record_and_asks_the_engine(
     first = CutAfter(cut)
     assert _run(_opts(out), first) == 130, first.text[-1500:]
     order = _saved(first.text)
-    assert any(re.fullmatch(r"[xyz]_(ccw|cw)_2", n) for n in order), order  # an extra pair
+    assert any(re.fullmatch(r"[xyz]_(ccw|cw)_2", n) for n in order), order  # an extra turn
     before = _hashes(out)
     assert {f"{SERIAL}_{n}.txt" for n in order} <= set(before)
 
