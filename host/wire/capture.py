@@ -446,10 +446,12 @@ def _first_bridge(buf: bytearray, end: np.ndarray, n: np.ndarray, t: np.ndarray)
     for b in range(4, int(n.max(initial=0)).bit_length()):
         r = np.flatnonzero(n[:first] & (1 << b))
         c = end[r] - (1 << b)
-        t2, n2 = _field_at(buf, "<u8", 0, c), _field_at(buf, "<u4", 8, c)
-        maybe = (n2 > 0) & (n2 <= MAX_READ) & (t2 >= t[r]) & (t2 <= t[r + 1])
-        if maybe.any():
-            first = int(r[np.argmax(maybe)])
+        # its time between (unsigned: one test), then its length plausible
+        t_r = t[r]
+        between = np.flatnonzero(_field_at(buf, "<u8", 0, c) - t_r <= t[r + 1] - t_r)
+        n2 = _field_at(buf, "<u4", 8, c[between])
+        if (maybe := (n2 > 0) & (n2 <= MAX_READ)).any():
+            first = int(r[between[np.argmax(maybe)]])
     return first
 
 
@@ -458,7 +460,8 @@ def _gather(buf: bytearray, spans: list[np.ndarray]) -> bytes:
     long reads by slices of a view, many short ones through one mask that clears the bytes
     between them (a slice costs as much as copying a few hundred bytes)."""
     s = np.concatenate(spans) if spans else np.zeros((0, 2), np.int64)
-    s = s[s[:, 1] > s[:, 0]]
+    if not (full := s[:, 1] > s[:, 0]).all():
+        s = s[full]
     if s.size == 0:
         return b""
     if s[-1, 1] - s[0, 0] >= 256 * len(s):
@@ -466,20 +469,27 @@ def _gather(buf: bytearray, spans: list[np.ndarray]) -> bytes:
             return b"".join([view[a:b] for a, b in s.tolist()])
     lo, hi = int(s[0, 0]), int(s[-1, 1])
     keep = np.ones(hi - lo, bool)
-    # between two reads: a header, or what damage skipped (cleared slice by slice if long)
-    gap_at, gap_end = s[:-1, 1] - lo, s[1:, 0] - lo
-    gap = gap_end - gap_at
-    for g in np.flatnonzero(gap > 2 * REC.size).tolist():
-        keep[gap_at[g] : gap_end[g]] = False
-    narrow = (gap > 0) & (gap <= 2 * REC.size)
-    at_n, len_n = gap_at[narrow], gap[narrow]
-    shortest = int(len_n.min(initial=0))
-    for b in range(int(len_n.max(initial=0))):
-        keep[(at_n if b < shortest else at_n[len_n > b]) + b] = False
+    # between two reads: a header, or what damage skipped; the gaps of each length up to a
+    # few headers' cleared as items of that length at once, longer ones slice by slice
+    gap_at = s[:-1, 1] - lo
+    gap = s[1:, 0] - lo - gap_at
+    sizes = np.flatnonzero(np.bincount(np.clip(gap, 0, _WIDE), minlength=_WIDE + 1)).tolist()
+    for size in sizes:
+        if size == _WIDE:
+            for g in np.flatnonzero(gap >= _WIDE).tolist():
+                keep[gap_at[g] : gap_at[g] + gap[g]] = False
+        elif size:
+            at = gap_at if len(sizes) == 1 else gap_at[gap == size]
+            items = np.ndarray((keep.size - size + 1,), f"V{size}", keep, 0, (1,))
+            items[at] = np.zeros((), f"V{size}")
     arr = np.frombuffer(buf, np.uint8, count=hi - lo, offset=lo)
     data = arr[keep].tobytes()
     del arr
     return data
+
+
+#: gaps between reads this long and longer (bytes) are cleared slice by slice
+_WIDE = 4 * REC.size
 
 
 def create_capture_file(path: Path) -> BinaryIO:

@@ -146,7 +146,7 @@ def best_parse(
 #: reads this long on average (bytes) are walked one by one all along: a step costs less
 #: than looking at their bytes
 _PROBE = 8
-_FIRST_BLOCK = 4096
+_FIRST_BLOCK = 1 << 16
 _LONG_READ = 256
 
 
@@ -183,9 +183,9 @@ def header_chain(buf: bytearray, pos: int) -> tuple[np.ndarray, np.ndarray]:
         hi = min(size - rec + 1, p + block)  # the headers that start here are whole in buf
         block *= 2
         c = np.flatnonzero((byte[p + 11 : hi + 11] == 0) & (byte[p + 5 : hi + 5] == byte[p + 5]))
-        n = length[c + p].astype(np.int64)
-        ok = (n > 0) & (n <= MAX_READ)
-        c, n = c[ok], n[ok]
+        n = length[p:hi][c]
+        if not (ok := n - np.uint32(1) < np.uint32(MAX_READ)).all():  # 1 to MAX_READ
+            c, n = c[ok], n[ok]
         nxt = c + rec + n  # where each one's read ends: mostly at the candidate after it
         miss = np.flatnonzero(nxt[:-1] != c[1:])
         if miss.size:
@@ -207,7 +207,12 @@ def _path(succ: np.ndarray) -> np.ndarray:
     takes few passes (what is left is then the path); else the path is doubled from its first
     node with jumps of doubling length."""
     m = succ.size
-    alive = np.ones(m, bool)
+    has_in = np.zeros(m + 1, bool)
+    has_in[succ] = True
+    has_in[0] = True
+    alive = has_in[:m]
+    if np.array_equal(succ[(on := np.flatnonzero(alive))[:-1]], on[1:]):
+        return on  # (the usual case: each node left points at the next)
     for _ in range(3):
         has_in = np.zeros(m + 1, bool)
         has_in[succ[alive]] = True
