@@ -19,9 +19,10 @@ Measured (``--process --repeat 9``, one BLAS thread, ``nice -n 10`` on a shared 
 CPU time, the median of the four process runs): IMUCAP01 capture 3.3 M frames/s (36-38x
 pymavlink) at load 5-7, 2.5-3.1 M frames/s (29-35x) at load 8-9; raw capture 5.4-5.5 M
 frames/s (59-63x); start-up alone 0.12-0.13 s; with ``--small-reads`` (1-2 frames a read)
-1.4 M frames/s (16x). Main at 5662e5a in the same conditions: IMUCAP01 2.2-2.5 M frames/s
-(28x). Before issue 31's work on it (main 0b0ec99, wall time at a lighter load): 4.12 and
-2.13 M frames/s (21.9x).
+2.3-2.4 M frames/s (27-28x) at load 6, the read headers walked block-wise (1.4 M frames/s,
+16x, walked one Python step per read). Main at 5662e5a in the same conditions: IMUCAP01
+2.2-2.5 M frames/s (28x). Before issue 31's work on it (main 0b0ec99, wall time at a lighter
+load): 4.12 and 2.13 M frames/s (21.9x).
 """
 
 from __future__ import annotations
