@@ -8,9 +8,10 @@ about its two levels, :func:`step_free_runs`), ``f`` = the bias-instability floo
 the slow wander of a MEMS bias, from the unit's noise file (``--noise``) or ``--floor``, else
 from the records' own samples (:func:`wander_floor`, :func:`session_floor`; a record whose
 blocks jump beyond the others' wander is left out, :func:`outlying_records`) — never from the
-misfit, so that a drift or a step, between records or inside one, shows as misfit. Turn integrals: white noise
-integrated + (floor·T)² + the hand's angle error (``turn_angle_sigma_deg``: given by the user,
-else measured from the closure of the turns made both ways, :mod:`host.model.variance`).
+misfit, so that a drift or a step, between records or inside one, shows as misfit. Turn
+integrals: white noise integrated + (floor·T)² + the hand's angle error
+(``turn_angle_sigma_deg``: given by the user, else measured from the closure of the turns made
+both ways, :mod:`host.model.variance`).
 The still moments of a turn add the cube's seating, its moving blocks the hand
 (:mod:`host.model.rows`, :mod:`host.model.turning`).
 """
