@@ -446,7 +446,10 @@ def _first_bridge(buf: bytearray, end: np.ndarray, n: np.ndarray, t: np.ndarray)
     for b in range(4, int(n.max(initial=0)).bit_length()):
         r = np.flatnonzero(n[:first] & (1 << b))
         c = end[r] - (1 << b)
-        # its time between (unsigned: one test), then its length plausible
+        # its length's high byte zero, its time between (unsigned: one test), its length
+        # plausible: each tested on what the one before left
+        z = np.flatnonzero(_field_at(buf, "u1", 11, c) == 0)
+        r, c = r[z], c[z]
         t_r = t[r]
         between = np.flatnonzero(_field_at(buf, "<u8", 0, c) - t_r <= t[r + 1] - t_r)
         n2 = _field_at(buf, "<u4", 8, c[between])
