@@ -35,6 +35,7 @@ from host.errors import UserError
 from host.model.catalogue import CATALOGUE
 from host.model.dataset import Dataset, build_dataset
 from host.model.loader import load_term_file
+from host.model.signals import RecordSignals
 from host.model.spec import ModelTerm, parse_model, short_spec
 from host.model.terms import Term
 from host.session.directory import Session, read_session
@@ -183,7 +184,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
                 after = add_term(ds, model, suspect, cat).after
             plots = write_plots(args.plot, ds, d.fit, after, suspect, start_times(session))
         # the planner fits too: inside the wait that shows progress, not after it
-        planned = [] if args.json else next_record_lines(args, session, model, d)
+        planned = [] if args.json else next_record_lines(args, session, model, d, ds.signals)
     if args.json:
         obj = d.to_dict()
         if plots:
@@ -205,12 +206,26 @@ def run_diagnose(args: argparse.Namespace) -> int:
     return 0
 
 
+def _short_member(signals: tuple[RecordSignals, ...], member: str) -> str:
+    """A member of a group as the command gives it: a step's signal in its short form (the
+    same steps, :func:`host.workbench.steps.short_step_name`), anything else as named."""
+    from host.workbench.steps import short_step_name
+
+    head, sep, signal = member.partition(" follows ")
+    return f"{head}{sep}{short_step_name(signals, signal)}" if sep else member
+
+
 def next_record_lines(
-    args: argparse.Namespace, session: Session, model: Sequence[ModelTerm], d: Diagnosis
+    args: argparse.Namespace,
+    session: Session,
+    model: Sequence[ModelTerm],
+    d: Diagnosis,
+    signals: tuple[RecordSignals, ...] = (),
 ) -> list[str]:
     """The planner's first line (host.workbench.planner) and, for each group of equals that
     holds a term, the command that finds the record telling its first two members apart (two
-    terms, or a term and a signal of the scan); [] when the planner cannot fit the session."""
+    terms, or a term and a signal of the scan; a step in time as short as ``signals``, the
+    records', let it be said); [] when the planner cannot fit the session."""
     from host.workbench.planner import plan_next
 
     width = terminal_width(sys.stdout)
@@ -232,7 +247,8 @@ def next_record_lines(
         if e.terms and len(e.members) >= 2:  # a term and another term or a signal of the scan
             rest = "".join(f" and from {m}" for m in e.members[2:])  # all: each pair apart
             out.append(wrap(f"to tell {e.members[0]} from {e.members[1]}{rest} apart:", width))
-            cmd = ["python3", "-m", "host", "plan", str(args.dir), "--separate", *e.members]
+            members = [_short_member(signals, m) for m in e.members]
+            cmd = ["python3", "-m", "host", "plan", str(args.dir), "--separate", *members]
             out.append(command_lines(cmd, width, lead="  "))
     return out
 

@@ -392,3 +392,40 @@ def step_times(signals: tuple[RecordSignals, ...], name: str) -> list[tuple[floa
             return None
         out.append((t, size))
     return out
+
+
+def short_step_name(signals: tuple[RecordSignals, ...], name: str) -> str:
+    """A step's name as short as a command line needs it: the same steps read back by
+    :func:`step_times` (every sample on the same side of each), its time given as 'during R,
+    x s in' or, in a gap, 'after R'; the size only when there are two (their ratio matters,
+    one step's size is fitted). ``name`` unchanged when it is no step or a step before the
+    first sample."""
+    times = step_times(signals, name)
+    if not times:
+        return name
+    records = sorted(signals, key=lambda s: float(s.t_s[0]))
+    parts = []
+    for t, size in times:
+        where = _short_when(records, t)
+        if where is None:
+            return name
+        parts.append(f"{STEP} {where}" + (f", by {size:+.3g}" if len(times) > 1 else ""))
+    return ", and ".join(parts)
+
+
+def _short_when(records: list[RecordSignals], t: float) -> str | None:
+    """'during R, x s in' (x between the two samples around ``t``, to as many decimals as that
+    needs) or 'after R' (``t`` in the gap after R); None before the first sample."""
+    for s in records:
+        ts = np.asarray(s.t_s, dtype=float)
+        t0 = float(ts[0])
+        if t0 <= t < float(ts[-1]):
+            k = int(np.searchsorted(ts, t, side="right"))  # the first sample after t
+            lo, hi = float(ts[k - 1]), float(ts[k])
+            for digits in range(2, 7):
+                x = round(0.5 * (lo + hi) - t0, digits)
+                if lo <= t0 + x < hi:
+                    return f"during {s.name}, {x:.{digits}f} s in"
+            return None
+    before = [s for s in records if float(s.t_s[-1]) <= t]
+    return f"after {before[-1].name}" if before else None

@@ -14,7 +14,15 @@ from host.model.dataset import Dataset, load_dataset
 from host.model.fit import Fit
 from host.model.spec import parse_model
 from host.workbench.scan import _columns
-from host.workbench.steps import STEP, Placed, _Profiles, channel_cuts, step_name, step_times
+from host.workbench.steps import (
+    STEP,
+    Placed,
+    _Profiles,
+    channel_cuts,
+    short_step_name,
+    step_name,
+    step_times,
+)
 from tests.independent.simulate import SessionSpec, write_session
 
 _CACHE: dict[str, tuple[Dataset, Fit]] = {}
@@ -122,3 +130,45 @@ def test_any_other_text_is_no_step_and_never_an_error(
         assert step_times(ds.signals, text) is None
     back = step_times(ds.signals, f"{STEP} {text}")
     assert back is None or all(np.isfinite(t) for t, _ in back)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    at=st.floats(0.0, 1.0),
+    at2=st.floats(0.0, 1.0),
+    left=st.floats(0.0, 30.0),
+    right=st.floats(0.0, 30.0),
+    size=st.floats(-1.0, 1.0).filter(lambda x: abs(x) > 1e-3),
+)
+def test_a_step_s_short_name_is_the_same_steps(
+    tmp_path_factory: pytest.TempPathFactory,
+    at: float,
+    at2: float,
+    left: float,
+    right: float,
+    size: float,
+) -> None:
+    """The short name a command gives a step (``plan --separate``, which an 80-column line must
+    hold) reads back to steps that put every sample of every record on the same side as the
+    full name's, with the same sizes' ratio; it is never longer."""
+    ds, _ = _session(tmp_path_factory, "none")
+    t0 = min(float(s.t_s[0]) for s in ds.signals)
+    t1 = max(float(s.t_s[-1]) for s in ds.signals)
+    names = []
+    for a in (at, at2):
+        t = t0 + a * (t1 - t0)
+        p = Placed(t, max(t0, t - left), min(t1, t + right), size, 0.01, 100.0, 100.0)
+        names.append(step_name(ds.signals, p, "°/s"))
+    for name in (names[0], f"{names[0]}, and {names[1]}"):
+        full, short = step_times(ds.signals, name), short_step_name(ds.signals, name)
+        assert len(short) <= len(name)
+        back = step_times(ds.signals, short)
+        assert full is not None
+        if short == name:  # a step before the first sample: left as it was
+            continue
+        assert back is not None and len(back) == len(full), short
+        for s in ds.signals:
+            for (tf, _), (tb, _) in zip(full, back, strict=True):
+                assert np.array_equal(s.t_s > tf, s.t_s > tb), (name, short, s.name)
+        if len(full) == 2:
+            assert back[0][1] / back[1][1] == pytest.approx(full[0][1] / full[1][1], rel=1e-2)
