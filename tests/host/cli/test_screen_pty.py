@@ -102,8 +102,12 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_the_checker_sees_a_folded_line_and_a_wide_redraw() -> None:
-    assert screen_problems("x" * 81) and not screen_problems("x" * 80)
-    assert screen_problems("\r" + "a" * 81 + "\rdone\n")
+    words = "word " * 16  # 80 columns
+    assert screen_problems(words + "x") and not screen_problems(words)
+    assert screen_problems("\r" + words + "more\rdone\n")
+    # one word nothing could break (a path, a quoted signal in a command) is no fold to fix
+    assert not screen_problems("x" * 81) and not screen_problems("  'a quoted " + "w" * 80 + "' \\")
+    assert screen_problems("  'a quoted " + "w" * 80 + "' and more")
     assert not screen_problems('{"frames": 1, "file": "' + "a" * 90 + '"}')
 
 
