@@ -25,6 +25,7 @@ from host.session.directory import (
     SIMULATED_SCHEMES,
     Session,
     measured_order,
+    sittings_in_order,
     split_file_name,
 )
 from host.session.records import NON_RECORD_NAMES, STOPPED_KEY, Record
@@ -236,13 +237,7 @@ def provenance_of(session: Session, software: str = "") -> Provenance:
     """The :class:`Provenance` of a session, from its records' headers and samples;
     ``software``: this program and version (the computation's, not the records')."""
     recs = session.records
-    first_start: dict[str, str] = {}  # capture -> its earliest record start (ISO)
-    for r in recs.values():
-        cap = r.meta.get("capture", "").strip()
-        if cap:
-            t = r.meta.get("start_time", "").strip() or "~"
-            first_start[cap] = min(first_start.get(cap, t), t)
-    captures = tuple(sorted(first_start, key=lambda c: (first_start[c], c)))  # as measured
+    captures = sittings_in_order(recs)
     sit_of = {n: captures.index(r.meta["capture"].strip()) if r.meta.get("capture", "").strip()
               else len(captures) for n, r in recs.items()}  # fmt: skip
     order = tuple(measured_order(recs))

@@ -103,18 +103,24 @@ def record_names(directory: str | os.PathLike[str], serial: str) -> list[str]:
     return names
 
 
-def measured_order(records: Mapping[str, Record]) -> list[str]:
-    """The names of ``records`` in the order they were measured, from their headers: sitting
-    by sitting (each sitting's capture, ``capture``, in the order of its first record's
-    ``start_time``; records that name no capture last), within a sitting by ``session_s``, then
-    ``start_time``, then name (a record whose header says neither keeps its name's place)."""
+def sittings_in_order(records: Mapping[str, Record]) -> tuple[str, ...]:
+    """The captures ``records`` name (header ``capture``: one per sitting), in the order they
+    were measured: by their earliest record's ``start_time``, then name."""
     first: dict[str, str] = {}  # capture -> its earliest record start (ISO)
     for r in records.values():
         cap = r.meta.get("capture", "").strip()
         if cap:
             t = r.meta.get("start_time", "").strip() or "~"
             first[cap] = min(first.get(cap, t), t)
-    captures = sorted(first, key=lambda c: (first[c], c))
+    return tuple(sorted(first, key=lambda c: (first[c], c)))
+
+
+def measured_order(records: Mapping[str, Record]) -> list[str]:
+    """The names of ``records`` in the order they were measured, from their headers: sitting
+    by sitting (each sitting's capture, ``capture``, in the order of its first record's
+    ``start_time``; records that name no capture last), within a sitting by ``session_s``, then
+    ``start_time``, then name (a record whose header says neither keeps its name's place)."""
+    captures = sittings_in_order(records)
 
     def key(name: str) -> tuple[int, float, str, str]:
         meta = records[name].meta
