@@ -3,15 +3,12 @@ near 0") and the noise levels a session measures of itself.
 
 The rows of one record and channel share one covariance ``v·I + f²·11ᵀ``: ``v`` = variance of a
 block mean from the record's own samples (pooled within-block variance × integrated
-autocorrelation time, at least the quantisation step²/12; a block whose level steps is read
-about its two levels, :func:`step_free_runs`), ``f`` = the bias-instability floor:
+autocorrelation time, at least the quantisation step²/12), ``f`` = the bias-instability floor:
 the slow wander of a MEMS bias, from the unit's noise file (``--noise``) or ``--floor``, else
-from the records' own samples (:func:`wander_floor`, :func:`session_floor`; a record whose
-blocks jump beyond the others' wander is left out, :func:`outlying_records`) — never from the
-misfit, so that a drift or a step, between records or inside one, shows as misfit. Turn
-integrals: white noise integrated + (floor·T)² + the hand's angle error
-(``turn_angle_sigma_deg``: given by the user, else measured from the closure of the turns made
-both ways, :mod:`host.model.variance`).
+from the records' own samples (:func:`wander_floor`, :func:`session_floor`) — never from the
+misfit, so that a drift or a step between records shows as misfit. Turn integrals: white noise
+integrated + (floor·T)² + the hand's angle error (``turn_angle_sigma_deg``: given by the user,
+else measured from the closure of the turns made both ways, :mod:`host.model.variance`).
 The still moments of a turn add the cube's seating, its moving blocks the hand
 (:mod:`host.model.rows`, :mod:`host.model.turning`).
 """
@@ -25,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from host.model.signals import SENSORS, UNIT, true_runs
-from host.model.stats import ALPHA_COMPONENT, beyond_white, chi2_sf, f_sf, least_beyond_white
+from host.model.stats import beyond_white, least_beyond_white
 
 
 # ---- noise model ----------------------------------------------------------------------------
@@ -115,50 +112,7 @@ def integrated_autocorrelation(dev: np.ndarray | Sequence[np.ndarray], max_lag: 
     return float(min(max(tau, 1.0), 50.0))
 
 
-#: the lag the serial correlation of a run is summed to at most, when a run is tried for a step
-#: (:func:`step_free_runs`), samples
-STEP_MAX_LAG = 30
-
-
-def step_free_runs(x: np.ndarray, runs: Sequence[tuple[int, int]]) -> list[tuple[int, int]]:
-    """The [start, stop) sample ranges ``runs`` of ``x`` (N,) a record's white noise is read
-    from, each cut in two where its level steps: the best cut of a run (the largest drop in its
-    sum of squares, ΔSS) is taken when ΔSS / (σ²·τ) — σ² and τ
-    (:func:`integrated_autocorrelation`) read about the two levels — is beyond χ²₁ at
-    :data:`~host.model.stats.ALPHA_COMPONENT` over the run's cuts (Bonferroni). Read about one
-    level, a step inside a run is taken for noise: it widens the record's σ, its channel's
-    serial correlation τ (pooled over the records) and the floor, and so hides itself and the
-    time it fell. Under white or filtered noise a run is cut about once in 1/ALPHA_COMPONENT,
-    which moves its variance by a few per cent."""
-    out: list[tuple[int, int]] = []
-    for a, e in runs:
-        n = e - a
-        if n < 8:
-            out.append((a, e))
-            continue
-        seg = np.asarray(x[a:e], dtype=np.float64)
-        c = np.cumsum(seg - seg.mean())[1 : n - 2]  # cuts before samples 2 … n − 2
-        k = np.arange(2, n - 1, dtype=np.float64)
-        drop = c * c * n / (k * (n - k))
-        best = int(np.argmax(drop))
-        cut = a + best + 2
-        dev = [x[a:cut] - x[a:cut].mean(), x[cut:e] - x[cut:e].mean()]
-        ss = float(sum(d @ d for d in dev))
-        var = ss / (n - 2)
-        if var <= 0.0:
-            out.append((a, e))
-            continue
-        tau = integrated_autocorrelation(dev, STEP_MAX_LAG)
-        if chi2_sf(float(drop[best]) / (var * tau), 1) * (n - 1) < ALPHA_COMPONENT:
-            out.extend([(a, cut), (cut, e)])
-        else:
-            out.append((a, e))
-    return out
-
-
-def wander_floor(
-    blocks: Sequence[tuple[np.ndarray, np.ndarray]],
-) -> tuple[float, int, float, int]:
+def wander_floor(blocks: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[float, int, float]:
     """The bias wander a record's own samples show, from the block means of the static records:
     ``blocks`` per record and channel (means (B,), their white-noise variances (B,)). A block
     mean that wanders by f about its record's level scatters by v_b + f², so
@@ -166,79 +120,28 @@ def wander_floor(
     (the Allan variance at the block length less its white part, pooled over the records).
     -> (f ≥ 0 in the channel's unit, 0 unless the scatter is beyond the white noise at
     p < :data:`~host.model.stats.ALPHA_COMPONENT`; dof; the smallest f it would resolve, in
-    the channel's unit; how many records were left out as outliers). A drift or a step between
-    records does not enter: they are effects for the model to find, not noise. Nor does a step
-    inside a record (:func:`outlying_records`): its blocks jump by far more than the others'
-    wander allows, and pooled it would widen every record's rows."""
-    sets = [(y, v) for y, v in blocks if len(y) >= 2]
-    out = outlying_records(sets)
-    kept = [b for k, b in enumerate(sets) if k not in out]
-    ss, white, dof, var_se = _scatter(kept)
+    the channel's unit). A drift or a
+    step between records does not enter: they are effects for the model to find, not noise."""
+    ss = 0.0
+    white = 0.0
+    dof = 0
+    var_se = 0.0
+    for y, v in blocks:
+        b = len(y)
+        if b < 2:
+            continue
+        ss += float(np.sum((y - y.mean()) ** 2))
+        white += (1.0 - 1.0 / b) * float(np.sum(v))
+        dof += b - 1
+        var_se += 2.0 * (b - 1) * float(np.mean(v)) ** 2
     if dof == 0:
-        return 0.0, 0, math.nan, len(out)
+        return 0.0, 0, math.nan
     f2 = (ss - white) / dof
     least = math.sqrt(max(least_beyond_white(white, var_se) - white, 0.0) / dof)
     # a wander the blocks do not resolve (:func:`host.model.stats.beyond_white`) is taken as
     # none: a clipped estimate of 0 ± se would always widen the yardstick a little, and one
     # resolved by chance widens it in that session
-    return (math.sqrt(f2) if beyond_white(ss, white, var_se) else 0.0), dof, least, len(out)
-
-
-def _scatter(blocks: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[float, float, int, float]:
-    """Pooled over the records' ``blocks`` (each (B ≥ 2,) means, their variances): the sum of
-    squares about each record's level, its white-noise mean and variance, and its dof."""
-    ss = white = var_se = 0.0
-    dof = 0
-    for y, v in blocks:
-        b = len(y)
-        ss += float(np.sum((y - y.mean()) ** 2))
-        white += (1.0 - 1.0 / b) * float(np.sum(v))
-        dof += b - 1
-        var_se += 2.0 * (b - 1) * float(np.mean(v)) ** 2
-    return ss, white, dof, var_se
-
-
-def outlying_records(blocks: Sequence[tuple[np.ndarray, np.ndarray]]) -> set[int]:
-    """Which records' blocks (means (B ≥ 2,), their white variances) jump by more than the
-    others' wander allows: a step inside the record, an effect for the model, not wander.
-
-    One at a time, the record whose scatter is least likely given the wander the rest show is
-    left out while that tail probability, times the records still in, is below
-    :data:`~host.model.stats.ALPHA_COMPONENT` (Bonferroni), and never more than a third of
-    them: a scatter most records share is the wander itself. Its scatter per dof over
-    mean(v_b) + f² (f² the others' pooled estimate, at least 0) is an F ratio whose second dof
-    is that estimate's (Satterthwaite: where f² dominates, about the others' dof; a χ² tail
-    would take the estimate as exact and leave out a record of a true wander about once in 20
-    sessions). Under white noise or a wander every record shows, a record is left out about
-    once in 1/ALPHA_COMPONENT sessions, so the floor is as before."""
-    left: set[int] = set()
-    n = len(blocks)
-    stats_ = [_scatter([b]) for b in blocks]
-    while n >= 3 and len(left) + 1 <= n // 3:
-        ins = [k for k in range(n) if k not in left]
-        worst, p_worst = -1, 1.0
-        for k in ins:
-            rest = [stats_[j] for j in ins if j != k]
-            dof_r = sum(r[2] for r in rest)
-            if dof_r == 0:
-                continue
-            f2 = max(sum(r[0] - r[1] for r in rest) / dof_r, 0.0)
-            # the rest's scatter per dof, each record at its own white level plus f²: the
-            # variance of the pooled f²
-            var_f2 = sum(2.0 * r[2] * (r[1] / r[2] + f2) ** 2 for r in rest) / dof_r**2
-            ss_k, white_k, dof_k, _ = stats_[k]
-            scale = white_k / dof_k + f2
-            if scale <= 0.0:
-                continue
-            nu = 2.0 * scale**2 / var_f2 if var_f2 > 0.0 else math.inf
-            ratio = ss_k / (dof_k * scale)
-            p = chi2_sf(ratio * dof_k, dof_k) if math.isinf(nu) else f_sf(ratio, dof_k, nu)
-            if p < p_worst:
-                worst, p_worst = k, p
-        if worst < 0 or p_worst * len(ins) >= ALPHA_COMPONENT:
-            break
-        left.add(worst)
-    return left
+    return (math.sqrt(f2) if beyond_white(ss, white, var_se) else 0.0), dof, least
 
 
 def session_floor(
@@ -257,20 +160,14 @@ def session_floor(
             out[s] = float(nm.floor[s])
             said.append(f"{s} {out[s]:.2g} {UNIT[s]} (given)")
             continue
-        f, dof, least, out_n = wander_floor(blocks.get(s, ()))
+        f, dof, least = wander_floor(blocks.get(s, ()))
         out[s] = f
         if dof == 0:
             said.append(f"{s} 0 (no record long enough for two blocks: white noise only)")
             continue
-        left = (
-            f"; {out_n} record channel(s) left out, their blocks jumping beyond the others' "
-            "wander: a step inside the record, misfit for the model"
-            if out_n
-            else ""
-        )
         said.append(
             f"{s} {f:.2g} {UNIT[s]} (wander of the static records' block means beyond their "
-            f"white noise, {dof} dof; none resolved below {least:.2g}{left})"
+            f"white noise, {dof} dof; none resolved below {least:.2g})"
         )
     return out, (
         "noise floor of a record mean, from each record's own samples (white noise with its "

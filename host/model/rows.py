@@ -22,13 +22,7 @@ import numpy as np
 
 from host.model import turning
 from host.model.catalogue import plate_tilt
-from host.model.noise import (
-    NoiseModel,
-    integrated_autocorrelation,
-    resolution,
-    step_free_runs,
-    still_runs,
-)
+from host.model.noise import NoiseModel, integrated_autocorrelation, resolution, still_runs
 from host.model.signals import SENSORS, RecordSignals
 
 
@@ -182,7 +176,7 @@ def add_block_means(
             if not agg.shape[0]:
                 continue
             idx = table.add(record, sig, s, ax, agg, spans, integral=False)
-            var, devs = white_variance(meas[:, ax], step_free_runs(meas[:, ax], edges))
+            var, devs = white_variance(meas[:, ax], edges)
             table.deviations.setdefault((s, ax), []).extend(devs)
             table.static_deviations.setdefault((s, ax), []).extend(devs)
             table.static_noise.setdefault((s, ax), []).append((var, 1.0))

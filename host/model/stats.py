@@ -62,49 +62,6 @@ def chi2_isf(p: float, dof: float) -> float:
     return 0.5 * (lo + hi)
 
 
-def f_sf(x: float, d1: float, d2: float) -> float:
-    """P(F_{d1,d2} > x): a ratio of two independent χ² over their dof, the second (the
-    yardstick) itself estimated; the regularised incomplete beta I_{d2/(d2+d1·x)}(d2/2, d1/2)
-    by its continued fraction. d2 → ∞ gives :func:`chi2_sf` (d1·x, d1)."""
-    if not (d1 > 0 and d2 > 0) or not math.isfinite(x):
-        return float("nan") if not math.isfinite(x) else 1.0
-    if x <= 0:
-        return 1.0
-    return _beta_reg(d2 / (d2 + d1 * x), 0.5 * d2, 0.5 * d1)
-
-
-def _beta_reg(z: float, a: float, b: float) -> float:
-    """The regularised incomplete beta I_z(a, b), 0 ≤ z ≤ 1 (Lentz's continued fraction on
-    the side where it converges)."""
-    if z <= 0.0:
-        return 0.0
-    if z >= 1.0:
-        return 1.0
-    if z > (a + 1.0) / (a + b + 2.0):
-        return 1.0 - _beta_reg(1.0 - z, b, a)
-    front = math.exp(
-        math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b) + a * math.log(z)
-        + b * math.log1p(-z)
-    ) / a  # fmt: skip
-    tiny = 1e-300
-    c, d = 1.0, 1.0 - (a + b) * z / (a + 1.0)
-    d = 1.0 / (tiny if abs(d) < tiny else d)
-    h = d
-    for m in range(1, 1000):
-        for num in (
-            m * (b - m) * z / ((a + 2 * m - 1) * (a + 2 * m)),
-            -(a + m) * (a + b + m) * z / ((a + 2 * m) * (a + 2 * m + 1)),
-        ):
-            d = 1.0 + num * d
-            d = 1.0 / (tiny if abs(d) < tiny else d)
-            c = 1.0 + num / c
-            c = tiny if abs(c) < tiny else c
-            h *= d * c
-        if abs(d * c - 1.0) < 1e-15:
-            break
-    return float(min(max(front * h, 0.0), 1.0))
-
-
 #: the χ² test of a channel rejects the model at this level: its standard errors are scaled
 ALPHA_FIT = 0.01
 

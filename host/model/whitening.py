@@ -21,7 +21,6 @@ import numpy as np
 
 from host.errors import UserError
 from host.model import turning
-from host.model.noise import outlying_records
 from host.model.rows import ChannelRows
 from host.model.signals import RecordSignals
 from host.model.stats import ALPHA_COMPONENT, chi2_sf
@@ -160,27 +159,21 @@ def _within_record_inflation(
     channels: Sequence[ChannelRows], signals: Sequence[RecordSignals], y: np.ndarray
 ) -> dict[tuple[str, int], float]:
     """Within-record wander per (sensor, axis): the pooled excess scatter of the static
-    records' block means over their white noise (1 unless resolved), leaving out the records
-    the floor leaves out: those whose blocks jump beyond the wander of the sensor's others (a
-    step inside the record, misfit for the model; :func:`host.model.noise.outlying_records`)."""
-    sets: dict[str, list[tuple[int, np.ndarray, np.ndarray]]] = {}
+    records' block means over their white noise (1 unless resolved)."""
+    excess: dict[tuple[str, int], list[float]] = {}
     for ch in channels:
         idx = ch.rows
         if len(idx) >= 2 and signals[ch.record].kind != "turn":
             agg = ch.aggregator
             m = agg.sum(axis=1)  # ones
             counts = np.count_nonzero(agg, axis=1)
-            sets.setdefault(ch.sensor, []).append((ch.axis, y[idx], ch.white / counts * m))
-    excess: dict[tuple[str, int], list[float]] = {}
-    for s, blocks in sets.items():
-        left = outlying_records([(yb, v_b) for _, yb, v_b in blocks])
-        for i, (ax, yb, v_b) in enumerate(blocks):
-            e = excess.setdefault((s, ax), [0.0, 0.0])
-            if i not in left:
-                e[0] += float(np.sum((yb - yb.mean()) ** 2 / v_b))
-                e[1] += len(yb) - 1
+            v_b = ch.white / counts * m
+            yb = y[idx]
+            chi = float(np.sum((yb - yb.mean()) ** 2 / v_b))
+            excess.setdefault((ch.sensor, ch.axis), []).extend([chi, len(idx) - 1])
     out: dict[tuple[str, int], float] = {}
-    for k, (chi2, dof) in excess.items():
+    for k, v in excess.items():
+        chi2, dof = sum(v[0::2]), sum(v[1::2])
         # only a scatter the white noise cannot explain (ALPHA_COMPONENT) widens the
         # contrasts: max(1, χ²/dof) would widen them under the null in half of all sessions
         out[k] = chi2 / dof if dof > 0 and chi2_sf(chi2, dof) < ALPHA_COMPONENT else 1.0

@@ -255,30 +255,6 @@ def bias_drift(sensor: str) -> Callable[[np.random.Generator], Effect]:
     return make
 
 
-def bias_wander(sensor: str) -> Callable[[np.random.Generator], Effect]:
-    """A bias that wanders as a random walk on every channel of ``sensor`` (rate random walk,
-    K unit/√s): its 5 s block means scatter about their 10 s record's level by
-    f = K·√(5 s / 3) (the Allan deviation at 5 s), about 2× the white noise of a block mean
-    (accel 1.2e-3 m/s², gyro 3e-3 °/s); truth ``k_per_sqrt_s`` and ``floor_5s``."""
-
-    def make(rng: np.random.Generator) -> Effect:
-        f = 1.2e-3 if sensor == "accel" else 3e-3
-        k = f / math.sqrt(5.0 / 3.0)
-        dt = 0.01
-        grid = np.arange(-20.0, 800.0, dt)  # s since the session began
-        walk = np.cumsum(rng.normal(0.0, k * math.sqrt(dt), (len(grid), 3)), axis=0)
-
-        def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
-            v = np.stack([np.interp(s.session_s, grid, walk[:, i]) for i in range(3)], axis=1)
-            z = np.zeros_like(v)
-            return (v, z) if sensor == "accel" else (z, v)
-
-        return Effect(f"bias_wander_{sensor}", {"sensor": sensor, "k_per_sqrt_s": k,
-                                                "floor_5s": f}, sensor=fn)  # fmt: skip
-
-    return make
-
-
 def temperature_bias(rng: np.random.Generator) -> Effect:
     """A gyro bias linear in chip temperature, c·(T − 25 °C) (catalogue: temperature_bias)."""
     i = _pick(rng)[0]
@@ -389,8 +365,6 @@ EFFECTS: dict[str, Callable[[np.random.Generator], Effect]] = {
     "bias_two_steps_gyro": bias_two_steps("gyro"),
     "bias_drift_accel": bias_drift("accel"),
     "bias_drift_gyro": bias_drift("gyro"),
-    "bias_wander_accel": bias_wander("accel"),
-    "bias_wander_gyro": bias_wander("gyro"),
     "temperature_bias": temperature_bias,
     "dtdt_bias": dtdt_bias,
     "cross_g2": cross_g2,

@@ -78,10 +78,8 @@ def test_the_stated_plus_minus_holds_the_step_at_its_rate(tmp_path: Path) -> Non
     95 % ± holds the true time in 26–30 of them (outside that range 1 time in 20 at the
     stated rate), no session names a second step, and a step inside a static's 5 s block is
     placed within 0.5 s of the truth (the row boundary alone would leave up to 2.5 s), its ±
-    inside one block's length. (Before, that ± was 5–15× the error: the step's share of that
-    static's two blocks read as wander and the step inside its block as noise; now a block is
-    read about its two levels, host.model.noise.step_free_runs, and the record left out of
-    the floor, host.model.noise.outlying_records.)"""
+    inside one block's length. (That ± is wider than the error: the session's floor takes the
+    step's share of that static's two blocks as wander, host.model.noise.wander_floor.)"""
     held, seconds, in_block = 0, [], []
     for sensor in ("accel", "gyro"):
         for suffix in ("_early", "", "_late"):
