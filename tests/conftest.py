@@ -36,7 +36,25 @@ def _reads_shared(item: pytest.Item) -> bool:
     return False
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    # With two workers (`-n 2 --dist loadfile`) the suite ends when the later worker ends. The
+    # scheduler hands out whole files in the order collected, but by default it first sorts them
+    # by their number of tests, which sends the few-test, many-second files (one diagnosis loop
+    # over ten sessions) last: one worker then runs alone for a minute at the end. Keep the
+    # collected order, in which files with slow tests come first (below).
+    if getattr(config.option, "loadscopereorder", None) is not None:
+        config.option.loadscopereorder = False
+
+
+def _slow_files_first(items: list[pytest.Item]) -> None:
+    """Files holding a slow test first, each file's tests kept together and in their order: the
+    long files are dealt out while the other worker still has work, the short ones fill in."""
+    slow = {item.path for item in items if item.get_closest_marker("slow") is not None}
+    items.sort(key=lambda item: item.path not in slow)  # stable: a file's tests stay together
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    _slow_files_first(items)
     if SHARED_DATA.is_dir():
         return
     skip = pytest.mark.skip(reason=f"needs the project's shared real data {SHARED_DATA} "
