@@ -25,6 +25,7 @@ import numpy as np
 from host.calib.result import CalibrationResult
 from host.errors import UserError
 from host.session.directory import read_record
+from host.session.records import name_problem
 from host.wire.selftest import OUTCOMES
 
 #: environment variables naming the bench and the operator when neither the records' headers
@@ -184,6 +185,23 @@ def _first(metas: Sequence[Mapping[str, str]], key: str) -> str:
     return ""
 
 
+def _named(
+    option: str, given: str | None, metas: Sequence[Mapping[str, str]], key: str, env: str | None
+) -> str:
+    """A name for the archive: the option's value, else the records' header, else $``env``;
+    UserError, naming where it came from, when it is not printable text (an escape sequence
+    in the archive garbles every listing of the lot)."""
+    value, source = given, option
+    if not value:
+        value, source = _first(metas, key), f"the records' '{key}' header line"
+    if not value and env is not None:
+        value, source = os.environ.get(env, ""), f"${env}"
+    problem = name_problem(value) if value else None
+    if problem is not None:
+        raise UserError(f"{source}: {problem}")
+    return value or ""
+
+
 def self_test_outcome(metas: Sequence[Mapping[str, str]], where: object) -> str:
     """The session's self-test as its records' headers say it (``self_test`` line, written by
     :meth:`host.wire.selftest.SelfTest.meta`): 'pass', 'fail', 'not run' or '' (no verdict).
@@ -264,15 +282,20 @@ def entry_from_directory(
     names = [p.name for p in params]
     full = result_covariance(doc, names)
     fit = result.fit
+    named = {
+        "bench": _named("--bench", bench, metas, "bench", BENCH_ENV),
+        "operator": _named("--operator", operator, metas, "operator", OPERATOR_ENV),
+        "lot": _named("--lot", lot, metas, "lot", None),
+    }
     return Entry(
         serial=result.serial,
         measured_at=measured_at,
         model=result.model,
         parameters=params,
         result_hash=sha256_bytes(raw),
-        bench=bench or _first(metas, "bench") or os.environ.get(BENCH_ENV, ""),
-        operator=operator or _first(metas, "operator") or os.environ.get(OPERATOR_ENV, ""),
-        lot=lot or _first(metas, "lot"),
+        bench=named["bench"],
+        operator=named["operator"],
+        lot=named["lot"],
         firmware=_first(metas, "firmware"),
         sensor_revision=_first(metas, "sensor_revision"),
         temp_min_c=float(t.min()) if t.size else math.nan,

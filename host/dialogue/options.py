@@ -27,7 +27,7 @@ from host.board.driver import STALL_S
 from host.errors import UserError
 from host.session.directory import Session, record_path
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, local_gravity
-from host.session.records import RECORD_NAME_RE, STATIC_NAMES, TURN_NAMES
+from host.session.records import RECORD_NAME_RE, STATIC_NAMES, TURN_NAMES, name_problem
 
 WARMUP_DEFAULT_S = 600.0
 #: the closing check: the first static attitude measured again at the end of the session
@@ -210,6 +210,11 @@ class DialogueOptions:
                 f"--max-extra {self.max_extra}: give 0 to {MAX_EXTRA} records ({MAX_EXTRA} is "
                 "about an hour of the operator's time)"
             )
+        for opt, name in (("--operator", self.operator), ("--bench", self.bench),
+                          ("--lot", self.lot)):  # fmt: skip
+            problem = None if name is None else name_problem(name)
+            if problem is not None:  # was: written into every record's header and the archive
+                raise UserError(f"{opt}: {problem}")
         if self.serial is not None:
             try:
                 self.serial = parse_serial(self.serial)

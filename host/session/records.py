@@ -252,6 +252,16 @@ def _fmt(v: float, dec: int) -> str:
     return s
 
 
+def name_problem(value: str) -> str | None:
+    """What is wrong with ``value`` as a name kept in the records' header and the archive (an
+    operator, a bench, a lot), or None. It must be printable text: an escape sequence or a line
+    break in it would garble every listing that shows it."""
+    bad = next((c for c in value if not c.isprintable()), None)
+    if bad is None:
+        return None
+    return f"{value!r} holds a control character ({bad!r}); give printable text"
+
+
 def format_record(record: Record) -> str:
     """The file text of a record (method.md §6), header first."""
     for k, v in record.meta.items():

@@ -156,3 +156,44 @@ def test_a_malformed_covariance_is_ignored_not_a_crash(names: list, matrix: list
     doc = {"covariance": {"names": names, "matrix": matrix}}
     out = result_covariance(doc, ["a"])
     assert out is None or len(out) == 1
+
+
+#: printable names, and one control character to slip into them (escape, line break, tab, DEL,
+#: a C1 control)
+_NAMES = st.text(st.characters(whitelist_categories=("L", "N", "P", "S"), whitelist_characters=" "),
+                 max_size=12)  # fmt: skip
+_CONTROLS = st.sampled_from(["\x1b", "\n", "\r", "\t", "\x00", "\x7f", "\x9b"])
+
+
+@settings(max_examples=25, deadline=None)
+@given(name=_NAMES, control=_CONTROLS, at=st.integers(0, 12), where=st.sampled_from(
+    ["--bench", "--operator", "--lot", "$IMU_BENCH_NAME", "header"]))  # fmt: skip
+def test_a_name_with_a_control_character_never_reaches_the_archive(
+    calibrated: Path, tmp_path_factory: pytest.TempPathFactory, name: str, control: str,
+    at: int, where: str,
+) -> None:  # fmt: skip
+    """An escape sequence kept as a bench, an operator or a lot garbles every later listing of
+    the lot: wherever it comes from, the entry is refused with a line naming that source; the
+    same name without it is kept as given."""
+    bad = name[:at] + control + name[at:]
+    d = _copy(calibrated, tmp_path_factory.mktemp("names") / "E1")
+    options = {"--bench": "bench", "--operator": "operator", "--lot": "lot"}
+    with pytest.MonkeyPatch.context() as mp:
+        mp.delenv(BENCH_ENV, raising=False)
+        if where in options:
+            with pytest.raises(UserError, match=f"^{where}: .*control character"):
+                entry_from_directory(d, **{options[where]: bad})
+            if name.strip():
+                e = entry_from_directory(d, **{options[where]: name})
+                assert getattr(e, options[where]) == name
+        elif where == "header":
+            rec = d / "E1_x_up.txt"
+            rec.write_text(f"# lot: {bad}\n" + rec.read_text())
+            if bad.strip() and "\n" not in bad and "\r" not in bad:
+                with pytest.raises(UserError, match="'lot' header line: .*control character"):
+                    entry_from_directory(d)
+        else:
+            mp.setenv(BENCH_ENV, bad.replace("\x00", ""))  # the environment holds no NUL
+            if control != "\x00":
+                with pytest.raises(UserError, match=r"^\$IMU_BENCH_NAME: .*control character"):
+                    entry_from_directory(d)

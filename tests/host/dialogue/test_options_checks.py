@@ -71,3 +71,13 @@ def test_redo_takes_several_names_comma_separated_or_repeated() -> None:
     parser, _ = build_parser()
     args = parser.parse_args(["calibrate", "--redo", "x_up,y_cw", "--redo", "z_dn"])
     assert options.DialogueOptions.from_args(args).redo == ("x_up", "y_cw", "z_dn")
+
+
+@pytest.mark.parametrize("opt", ["operator", "bench", "lot"])
+def test_a_name_with_a_control_character_is_refused_before_the_board(opt: str) -> None:
+    """It would be written into every record's header and the archive (an escape sequence then
+    colours or clears the screen of whoever lists the lot)."""
+    o = options.DialogueOptions(serial="A", **{opt: "bench\x1b[2J"})
+    with pytest.raises(UserError, match=f"--{opt}: .*control character"):
+        o.check()
+    options.DialogueOptions(serial="A", **{opt: "Ana María, bench 3"}).check()
