@@ -15,10 +15,12 @@ import numpy as np
 from host.errors import UserError
 from host.model.noise import NoiseModel, session_floor
 from host.model.plate import (
+    plate_from_rests,
     resolve_placements,
     resolve_turn_axes,
-    session_plate,
     tilt_matrices,
+    turn_circles,
+    with_headings,
 )
 from host.model.remeasured import leans_are_a_bias_change
 from host.model.rows import (
@@ -356,10 +358,12 @@ def build_dataset(
         aggs.append(add_turn_integrals(table, ri, sig, rec.t_ms, t_rel))
 
     apply_serial_correlation(table, nm.max_lag)
-    signals, plate_notes = resolve_placements(signals, g)
+    # the circles are drawn once: resolving the headings only places them in the room
+    circles = turn_circles(signals)
+    signals, plate_notes = resolve_placements(signals, g, plate_from_rests(circles))
     notes.extend(plate_notes)
-    signals = tilt_matrices(signals, session_plate(signals))
-    plate = session_plate(signals)
+    plate = plate_from_rests(with_headings(circles, signals))
+    signals = tilt_matrices(signals, plate)
     changed = leans_are_a_bias_change(signals, plate)
     signals, tilted = resolve_turn_axes(signals, None if changed else plate)
     notes.extend(a.line() for a in tilted)

@@ -95,15 +95,15 @@ def turn_circle(
     ys: list[float] = []
     rows: list[np.ndarray] = []
     turned = sig.heading
-    for a, b in runs:
+    # the plate's axes at every rest's mean heading at once (one placement, R headings)
+    east, north = plate_axes(sig.up, np.array([float(np.mean(turned[a:b])) for a, b in runs]))
+    for r, (a, b) in enumerate(runs):
         mean = sig.accel[a:b].mean(axis=0)
-        psi = np.array([float(np.mean(turned[a:b]))])
-        east, north = plate_axes(sig.up, psi)
         for c, k in enumerate(hor):
             centre = np.zeros(2)
             centre[c] = 1.0
             ys.append(float(mean[k]))
-            rows.append(np.concatenate([centre, [sig.g * east[0, k], sig.g * north[0, k]]]))
+            rows.append(np.concatenate([centre, [sig.g * east[r, k], sig.g * north[r, k]]]))
     x = np.array(rows)
     y = np.array(ys)
     if np.linalg.matrix_rank(x) < 4 or len(y) <= 4:
@@ -211,12 +211,17 @@ def plate_from_rests(circles: Sequence[TurnCircle]) -> PlateTilt | None:
 
 def session_plate(signals: Sequence[RecordSignals]) -> PlateTilt | None:
     """The plate's tilt from a dataset's records (:attr:`host.model.dataset.Dataset.signals`):
-    each turn record's rests (the reference rate about up within 4σ of the static records'
-    gyro noise, at least :data:`REST_RATE_DPS`: a hand's short pauses between quarter turns
-    count), drawn into :func:`turn_circle`."""
+    the circles of :func:`turn_circles` combined (:func:`plate_from_rests`)."""
+    return plate_from_rests(turn_circles(signals))
+
+
+def turn_circles(signals: Sequence[RecordSignals]) -> list[TurnCircle]:
+    """Each turn record's circle (:func:`turn_circle`) from its rests (the reference rate about
+    up within 4σ of the static records' gyro noise, at least :data:`REST_RATE_DPS`: a hand's
+    short pauses between quarter turns count); none without static records."""
     statics = [s for s in signals if s.kind == "static"]
     if not statics:
-        return None
+        return []
     gyro_sd = np.median([s.gyro.std(axis=0) for s in statics], axis=0)
     circles = []
     for s in signals:
@@ -228,11 +233,21 @@ def session_plate(signals: Sequence[RecordSignals]) -> PlateTilt | None:
         c = turn_circle(s, runs)
         if c is not None:
             circles.append(c)
-    return plate_from_rests(circles)
+    return circles
+
+
+def with_headings(
+    circles: Sequence[TurnCircle], signals: Sequence[RecordSignals]
+) -> list[TurnCircle]:
+    """The circles with the placement heading each record now carries (e.g. after
+    :func:`resolve_placements`): a circle is drawn from the rests alone, the heading only
+    places it in the room, so they are those :func:`turn_circles` draws from ``signals``."""
+    heading = {s.name: s.placement_deg for s in signals}
+    return [replace(c, placement_deg=heading[c.record]) for c in circles]
 
 
 def resolve_placements(
-    signals: Sequence[RecordSignals], g: float
+    signals: Sequence[RecordSignals], g: float, plate: PlateTilt | None
 ) -> tuple[list[RecordSignals], list[str]]:
     """The records with the placement headings their turns' circles give where the header
     gives none (:func:`plate_from_rests`), and the notes that tell the reader the plate's tilt
@@ -244,8 +259,8 @@ def resolve_placements(
     turn's reference axis is the frame (heading 0: the origin of the azimuth, which no
     estimate but the azimuth depends on). A static record without a heading keeps none: one
     heading cannot be read from one rest, so the fit carries it as an unknown of that record
-    (:data:`host.model.catalogue.plate_tilt`'s ``seen_ref``/``seen_side``)."""
-    plate = session_plate(signals)
+    (:data:`host.model.catalogue.plate_tilt`'s ``seen_ref``/``seen_side``). ``plate``: the
+    records' :func:`session_plate`."""
     out = list(signals)
     if plate is None:
         return out, []
@@ -406,7 +421,7 @@ def turn_axes(signals: Sequence[RecordSignals], plate: PlateTilt | None) -> list
     out = []
     for c in plate.circles:
         sig = next(s for s in signals if s.name == c.record)
-        same = [s for s in signals if s.kind == "static" and np.allclose(s.up, sig.up)]
+        same = [s for s in signals if s.kind == "static" and _close(s.up, sig.up)]
         if not same:
             continue
         k = int(np.argmax(np.abs(sig.up)))
@@ -432,6 +447,14 @@ def turn_axes(signals: Sequence[RecordSignals], plate: PlateTilt | None) -> list
         out.append(TurnAxis(c.record, np.asarray(sig.up, dtype=float),
                             tuple(s.name for s in same), lean, sd, bound))  # fmt: skip
     return out
+
+
+def _close(a: np.ndarray, b: np.ndarray) -> bool:
+    """``np.allclose(a, b)`` of two finite up vectors (3,), in plain arithmetic: it is asked
+    for every static record against every turn."""
+    return all(
+        abs(x - y) <= 1e-8 + 1e-5 * abs(y) for x, y in zip(a.tolist(), b.tolist(), strict=True)
+    )
 
 
 def _accel_calibration(

@@ -336,11 +336,9 @@ def hand_sigma(
                 )
             if lever is None:
                 lever = turning.sensed_lever_matrix(sig.t_s, sig.rate, sig.accel_matrix)
-            tilt = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
-            assert tilt is not None
             keys.extend([(ri, ax)] * len(moving))
             ys.extend((moving @ sig.accel[:, ax]).tolist())
-            cl.extend(moving @ np.column_stack([lever[:, ax, :], tilt]))
+            cl.extend(moving @ np.column_stack([lever[:, ax, :], tilt0]))
             ws.extend((white_level.get(("accel", ax), 0.0) / counts).tolist())
     if not ys:
         return (0.0, 0.0), ""

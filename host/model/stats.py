@@ -55,6 +55,8 @@ def chi2_isf(p: float, dof: float) -> float:
         hi *= 2.0
     for _ in range(200):
         mid = 0.5 * (lo + hi)
+        if mid in (lo, hi):  # lo and hi adjacent doubles: every further step returns mid
+            return mid
         if chi2_sf(mid, dof) > p:
             lo = mid
         else:
