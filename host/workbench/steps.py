@@ -129,6 +129,9 @@ class _Profiles:
         self.nn = np.einsum("ij,ij->j", cuts.white, cuts.white)
         self.rb = r @ cuts.white
         self.tiny = 1e-12 * float(np.max(self.nn)) if len(self.nn) else 0.0
+        #: :meth:`given` by cut: the climbs from several pairs meet at the same cuts, and each
+        #: profile is a product with every cut
+        self._given: dict[int, np.ndarray] = {}
 
     def alone(self) -> np.ndarray:
         """(K,) Δχ² of one step at each cut."""
@@ -137,6 +140,11 @@ class _Profiles:
 
     def given(self, k: int) -> np.ndarray:
         """(K,) Δχ² each cut adds to a step at cut ``k``."""
+        if k not in self._given:
+            self._given[k] = self._given_now(k)
+        return self._given[k]
+
+    def _given_now(self, k: int) -> np.ndarray:
         if self.nn[k] <= self.tiny:
             return self.alone()
         norm = math.sqrt(float(self.nn[k]))

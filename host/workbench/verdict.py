@@ -207,7 +207,7 @@ def diagnose(
                  or _adds_to_rest(ds, model, extra, c, cat, finder.level, aug)]  # fmt: skip
     recommended = tuple(c.label for c in alone) if alone and removed >= MOST * misfit else ()
     rec_extra = [_model_term(c, cat) for c in alone if c.label in recommended]
-    hits = scan_signals(ds, aug, alpha)
+    hits = scan_signals(ds, aug, alpha) if aug is not fit else scanned
     notes = list(ds.notes)
     if fit.undetermined:
         notes.append("not determined by these records: " + ", ".join(fit.undetermined))
