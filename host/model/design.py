@@ -186,17 +186,53 @@ def record_columns(ds: Dataset, mt: ModelTerm) -> np.ndarray:
     return out
 
 
-def design(ds: Dataset, model: Sequence[ModelTerm], thetas: Sequence[np.ndarray | None] = ()) -> (
-    tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]
-):  # fmt: skip
-    """(X (n_rows, P), offset (n_rows,), per model term (start, stop) columns)."""
+class BuiltColumns:
+    """The columns of linear model terms over ONE dataset's rows, each term's built once and
+    reused by every design on those rows (:func:`design`'s ``built``): the fits and predictions
+    of one call that weigh several models, or one model against several ``y``, on the same
+    records. A design reads the records' signals, rows and aggregators, never the measured
+    values or the whitening, so a copy of the dataset with another ``y`` (or whitening) shares
+    them; any other dataset builds its own. Made inside a call and dropped with it."""
+
+    def __init__(self, ds: Dataset) -> None:
+        self._rows = (ds.signals, ds.rows_of, ds.aggregators, ds.sensor_aggregators)
+        self._columns: dict[ModelTerm, tuple[np.ndarray, np.ndarray]] = {}
+
+    def of(self, ds: Dataset, mt: ModelTerm, theta: np.ndarray | None = None) -> (
+        tuple[np.ndarray, np.ndarray]
+    ):  # fmt: skip
+        """:func:`term_columns` of ``mt`` on ``ds`` (built the first time; a nonlinear term's
+        depend on ``theta``: built every time)."""
+        same = all(
+            a is b
+            for a, b in zip(
+                self._rows,
+                (ds.signals, ds.rows_of, ds.aggregators, ds.sensor_aggregators),
+                strict=True,
+            )
+        )
+        if mt.term.nonlinear or not same:
+            return term_columns(ds, mt, theta)
+        if mt not in self._columns:
+            self._columns[mt] = term_columns(ds, mt, theta)
+        return self._columns[mt]
+
+
+def design(
+    ds: Dataset,
+    model: Sequence[ModelTerm],
+    thetas: Sequence[np.ndarray | None] = (),
+    built: BuiltColumns | None = None,
+) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
+    """(X (n_rows, P), offset (n_rows,), per model term (start, stop) columns); ``built``: the
+    columns already built on these rows (:class:`BuiltColumns`), else each term's are built."""
     blocks: list[np.ndarray] = []
     offset = np.zeros(ds.n_rows)
     spans: list[tuple[int, int]] = []
     col = 0
     for i, mt in enumerate(model):
         th = thetas[i] if i < len(thetas) else None
-        c, off = term_columns(ds, mt, th)
+        c, off = term_columns(ds, mt, th) if built is None else built.of(ds, mt, th)
         blocks.append(c)
         offset += off
         spans.append((col, col + c.shape[1]))

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from host.model.dataset import Dataset, build_dataset
-from host.model.design import design, select_columns
+from host.model.design import BuiltColumns, design, select_columns
 from host.model.noise import NoiseModel
 from host.model.signals import AXES, SENSORS, UNIT
 from host.model.spec import ModelTerm
@@ -209,13 +209,32 @@ class Fit:
         raise KeyError(name)
 
 
-def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fit:
-    """Weighted least squares of ``model`` over all rows of ``ds`` (one problem, all channels).
+@dataclass(frozen=True, eq=False)
+class _Solved:
+    """The least-squares solution of one model over one dataset's rows (:func:`_solve`)."""
 
-    Parameters the records cannot determine are reported NaN (and listed in ``undetermined``).
-    Nonlinear terms: Gauss-Newton iterations until the parameters settle.
-    """
-    model = tuple(model)
+    x: np.ndarray  # (n_rows, P) the design
+    offset: np.ndarray  # (n_rows,)
+    xw: np.ndarray  # W·x
+    keep: np.ndarray  # (P,) columns independent of the earlier ones
+    basis: np.ndarray  # orthonormal basis of their whitened span
+    theta: np.ndarray  # (P,) NaN where not kept
+    cov: np.ndarray  # (P, P) (zeros unless asked for)
+    predicted: np.ndarray
+    resid: np.ndarray
+    wres: np.ndarray  # W·resid
+    chi2: float
+
+
+def _solve(
+    ds: Dataset,
+    model: tuple[ModelTerm, ...],
+    max_iter: int,
+    built: BuiltColumns | None,
+    covariance: bool,
+) -> _Solved:
+    """Weighted least squares of ``model`` over the rows of ``ds`` (Gauss-Newton over the
+    nonlinear terms), the parameters' covariance only when asked for."""
     thetas: list[np.ndarray | None] = [
         np.tile(np.array(mt.term.initial), len(mt.axes)) if mt.term.nonlinear else None
         for mt in model
@@ -223,7 +242,7 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
     w = ds.whiten
     iters = max_iter if any(mt.term.nonlinear for mt in model) else 1
     for _ in range(iters):
-        x, offset, spans = design(ds, model, thetas)
+        x, offset, spans = design(ds, model, thetas, built)
         xw = w.apply(x)
         yw = w.apply(ds.y - ds.nominal - offset)
         keep, basis = select_columns(xw)
@@ -232,7 +251,8 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
         if keep.any():
             sol, *_ = np.linalg.lstsq(xw[:, keep], yw, rcond=None)
             theta[keep] = sol
-            cov[np.ix_(keep, keep)] = np.linalg.pinv(xw[:, keep].T @ xw[:, keep])
+            if covariance:
+                cov[np.ix_(keep, keep)] = np.linalg.pinv(xw[:, keep].T @ xw[:, keep])
         moved = 0.0
         for i, mt in enumerate(model):
             if mt.term.nonlinear:
@@ -248,7 +268,33 @@ def fit_model(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20) -> Fi
     predicted = ds.nominal + offset + x @ th0
     resid = ds.y - predicted
     wres = w.apply(resid)
-    chi2 = float(wres @ wres)
+    return _Solved(x, offset, xw, keep, basis, theta, cov, predicted, resid, wres,
+                   float(wres @ wres))  # fmt: skip
+
+
+def fit_chi2(
+    ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20, built: BuiltColumns | None = None
+) -> float:
+    """χ² of ``model`` fitted to the rows of ``ds``: :func:`fit_model`'s, without the tables,
+    the standard errors and the channels' statistics (``built``: the columns already built on
+    these rows, :class:`~host.model.design.BuiltColumns`)."""
+    return _solve(ds, tuple(model), max_iter, built, covariance=False).chi2
+
+
+def fit_model(
+    ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20, built: BuiltColumns | None = None
+) -> Fit:
+    """Weighted least squares of ``model`` over all rows of ``ds`` (one problem, all channels).
+
+    Parameters the records cannot determine are reported NaN (and listed in ``undetermined``).
+    Nonlinear terms: Gauss-Newton iterations until the parameters settle. ``built``: the
+    columns already built on these rows (:class:`~host.model.design.BuiltColumns`).
+    """
+    model = tuple(model)
+    sol = _solve(ds, model, max_iter, built, covariance=True)
+    x, xw, keep, basis, theta, cov = sol.x, sol.xw, sol.keep, sol.basis, sol.theta, sol.cov
+    th0 = np.nan_to_num(theta)
+    predicted, resid, wres, chi2 = sol.predicted, sol.resid, sol.wres, sol.chi2
     n_par = int(keep.sum())
     # who owns each column: (name, unit, channel, term label, sensor, axis, key)
     # (axis -1: a shared parameter of all the sensor's channels)
@@ -473,10 +519,12 @@ def residual_tables(
 Values = Mapping[tuple[str, str, str, str], float]
 
 
-def predict(ds: Dataset, model: Sequence[ModelTerm], values: Values) -> np.ndarray:
+def predict(
+    ds: Dataset, model: Sequence[ModelTerm], values: Values, built: BuiltColumns | None = None
+) -> np.ndarray:
     """(n_rows,) the rows of ``ds`` as ``model`` predicts them with the parameter ``values``
     (nothing fitted; a parameter not given is 0): the ideal sensor's value plus every term's
-    contribution, in the rows' units."""
+    contribution, in the rows' units (``built``: the columns already built on these rows)."""
     per_term: list[np.ndarray] = []
     for mt in model:
         per_term.append(np.array([
@@ -486,7 +534,7 @@ def predict(ds: Dataset, model: Sequence[ModelTerm], values: Values) -> np.ndarr
     thetas: list[np.ndarray | None] = [
         th if mt.term.nonlinear else None for mt, th in zip(model, per_term, strict=True)
     ]
-    x, offset, _ = design(ds, model, thetas)
+    x, offset, _ = design(ds, model, thetas, built)
     theta = np.concatenate(per_term) if per_term else np.zeros(0)
     return np.asarray(ds.nominal + offset + x @ theta)
 

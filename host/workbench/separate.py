@@ -40,7 +40,8 @@ from dataclasses import dataclass
 from host.bench.plan import tilted_45
 from host.errors import UserError
 from host.model.dataset import Dataset, build_dataset
-from host.model.fit import Fit, fit_model, predict
+from host.model.design import BuiltColumns
+from host.model.fit import Fit, fit_chi2, fit_model, predict
 from host.model.geometry import DIALOGUE_HEADING_DEG
 from host.model.noise import NoiseModel
 from host.model.plate import LEVEL_P, session_plate
@@ -147,14 +148,18 @@ def noncentrality(
     b: Sequence[ModelTerm],
     va: dict[tuple[str, str, str, str], float],
     vb: dict[tuple[str, str, str, str], float],
+    built: BuiltColumns | None = None,
 ) -> float:
     """min over the two directions of χ² of one explanation fitted to the other's noise-free
-    prediction with values ``va``/``vb`` (the whitening of ``ds`` kept)."""
+    prediction with values ``va``/``vb`` (the whitening of ``ds`` kept); ``built``: the
+    columns already built on the rows of ``ds`` (:class:`~host.model.design.BuiltColumns`),
+    else built here once for both directions."""
     ma, mb = (*model, *a), (*model, *b)
+    built = BuiltColumns(ds) if built is None else built
     lam = math.inf
     for truth, values, other in ((ma, va, mb), (mb, vb, ma)):
-        y = predict(ds, truth, values)
-        lam = min(lam, fit_model(dataclasses.replace(ds, y=y), other).chi2)
+        y = predict(ds, truth, values, built)
+        lam = min(lam, fit_chi2(dataclasses.replace(ds, y=y), other, built=built))
     return lam
 
 
@@ -192,17 +197,21 @@ def separate(
         ds = yardstick(raw, [mt for e in exps for mt in e.on(raw)])
         return ds, [e.on(ds) for e in exps]
 
-    def lam(ds: Dataset, terms: list[tuple[ModelTerm, ...]]) -> tuple[tuple[int, int, float], ...]:
+    def lam(
+        ds: Dataset, terms: list[tuple[ModelTerm, ...]], built: BuiltColumns | None = None
+    ) -> tuple[tuple[int, int, float], ...]:
+        built = BuiltColumns(ds) if built is None else built  # every pair weighs these rows
         return tuple(
-            (i, j, noncentrality(ds, model, terms[i], terms[j], values[i], values[j]))
+            (i, j, noncentrality(ds, model, terms[i], terms[j], values[i], values[j], built))
             for i in range(len(exps)) for j in range(i + 1, len(exps))
         )  # fmt: skip
 
     ds, terms = weighed(session)
-    base = fit_model(ds, model)
-    fits = [fit_model(ds, (*model, *t)) for t in terms]
+    built = BuiltColumns(ds)
+    base = fit_model(ds, model, built=built)
+    fits = [fit_model(ds, (*model, *t), built=built) for t in terms]
     values = [_values(f) for f in fits]
-    lam_now = min(x[2] for x in lam(ds, terms))
+    lam_now = min(x[2] for x in lam(ds, terms, built))
     base_values = {p.name: p.value for p in base.parameters if math.isfinite(p.value)}
     hand = Augmenter(session, base_values, local_gravity(latitude_deg, height_m))
     if only is None:
