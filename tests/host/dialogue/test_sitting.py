@@ -8,12 +8,14 @@ options; the quick ones test the lock and the moves in-process."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -29,9 +31,12 @@ from host.session.directory import (
 from tests.host.cli.cli_run import command_after
 
 SHORT = ["--yes", "--warmup", "0", "--static-seconds", "2", "--turns", "1", "--no-archive"]
-#: slow enough to be interrupted mid-session, and to outlast a second process started beside it
-#: on a loaded machine (1 simulated s per 2 s of wall time: the whole session takes minutes)
-SLOW_PORT = "sim://?speed=0.5&seed=3"
+#: slow enough to be interrupted mid-session: 4 simulated s per wall second, so its first record
+#: is accepted ≈ 1 s after the start and the whole session lasts ≈ 14 s more, while a signal
+#: follows the record the test sees within one poll (50 ms). (At 0.5×, 8 s of waiting for each
+#: first record made up most of this file's 35 s.) A test that needs the session to outlast
+#: something slower holds it still with SIGSTOP (:func:`frozen`).
+SLOW_PORT = "sim://?speed=4&seed=3"
 
 
 def env() -> dict[str, str]:
@@ -78,6 +83,18 @@ def started(out: Path, *extra: str) -> subprocess.Popen[str]:
     wait_for(lambda: bool(set(hashes(out).values()) - earlier) or proc.poll() is not None)
     assert proc.poll() is None, proc.communicate()
     return proc
+
+
+@contextlib.contextmanager
+def frozen(proc: subprocess.Popen[str]) -> Iterator[None]:
+    """``proc`` stopped (SIGSTOP) while inside, then let go (SIGCONT): a stopped process is
+    alive and keeps its lock, but its session cannot end meanwhile, however long what is done
+    beside it takes on a loaded machine. A signal sent inside is acted on when it goes on."""
+    proc.send_signal(signal.SIGSTOP)
+    try:
+        yield
+    finally:
+        proc.send_signal(signal.SIGCONT)
 
 
 # --------------------------------------------------------------------------- quick
@@ -202,18 +219,24 @@ def test_a_second_process_on_the_same_directory_is_refused_with_the_first_ones_p
 ) -> None:
     out = tmp_path / "S1"
     first = started(out)
+    ended = False
     try:
-        for extra in ((), ("--resume",)):
-            kept = hashes(out)
-            second = subprocess.run(
-                calibrate(out, *extra), env=env(), capture_output=True, text=True, timeout=120
-            )
-            assert second.returncode == 2, second.stderr
-            assert f"PID {first.pid}" in second.stderr and "in use" in second.stderr
-            assert {k: hashes(out)[k] for k in kept} == kept
-            assert not (out / "earlier").exists()
+        with frozen(first):  # mid-session, holding the lock, for as long as the tries take
+            for extra in ((), ("--resume",)):
+                kept = hashes(out)
+                second = subprocess.run(
+                    calibrate(out, *extra), env=env(), capture_output=True, text=True,
+                    timeout=120,
+                )  # fmt: skip
+                assert second.returncode == 2, second.stderr
+                assert f"PID {first.pid}" in second.stderr and "in use" in second.stderr
+                assert {k: hashes(out)[k] for k in kept} == kept
+                assert not (out / "earlier").exists()
+            first.send_signal(signal.SIGTERM)  # acted on once it goes on: still mid-session
+            ended = True
     finally:
-        first.send_signal(signal.SIGTERM)
+        if not ended:
+            first.send_signal(signal.SIGTERM)
         first.communicate(timeout=60)
     assert first.returncode == 128 + signal.SIGTERM
 
