@@ -32,6 +32,7 @@ from host.model.rows import (
     hand_sigma,
     seating_sigma,
     turn_accel_rows,
+    turn_tilt_columns,
 )
 from host.model.signals import RecordSignals
 from host.model.variance import Component, TurnClosure, turn_angle_sigma, turn_wobble_sigma
@@ -377,13 +378,14 @@ def build_dataset(
                 table.nominal[row] = float(v)
     floors, floor_note = session_floor(_static_blocks(table, signals), nm)
     notes.append(floor_note)
-    seat, seat_note = seating_sigma(signals, sensor_aggs, table.channels, n_still)
+    tilt_cols = turn_tilt_columns(signals, sensor_aggs)
+    seat, seat_note = seating_sigma(signals, sensor_aggs, table.channels, n_still, tilt_cols)
     if seat_note:
         notes.append(seat_note)
     white_level = {
         k: float(np.mean([v * t for v, t in lv])) for k, lv in table.static_noise.items()
     }
-    hand, hand_note = hand_sigma(signals, sensor_aggs, n_still, white_level)
+    hand, hand_note = hand_sigma(signals, sensor_aggs, n_still, white_level, tilt_cols)
     if hand_note:
         notes.append(hand_note)
     closures = _turn_closures(table, signals, pre, has_power)

@@ -5,6 +5,8 @@ imports it from here."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -16,16 +18,24 @@ def pose_from_up(up_body: np.ndarray) -> np.ndarray:
     orientation is always the same matrix).
     """
     u = np.asarray(up_body, dtype=np.float64)
-    u = u / np.linalg.norm(u)
+    u = u / math.sqrt(u.dot(u))
     # east: the first body axis (x, y, z order) not parallel to up, made orthogonal to it
-    for cand in np.eye(3):
-        e = cand - np.dot(cand, u) * u
-        if np.linalg.norm(e) > 1e-6:
+    for k in range(3):
+        e = _BODY_AXES[k] - u[k] * u
+        size = math.sqrt(e.dot(e))
+        if size > 1e-6:
             break
-    e = e / np.linalg.norm(e)
-    n = np.cross(u, e)
+    e = e / size
+    # north = up × east, the 3-vector cross product in plain arithmetic (called per record)
+    (u0, u1, u2), (e0, e1, e2) = u.tolist(), e.tolist()
+    n = np.array([u1 * e2 - u2 * e1, u2 * e0 - u0 * e2, u0 * e1 - u1 * e0])
     # rows of R are the world axes expressed in body coordinates: R^T = [e n u] as columns
     return np.stack([e, n, u], axis=0)
+
+
+#: the body axes x, y, z as rows (read only)
+_BODY_AXES = np.eye(3)
+_BODY_AXES.flags.writeable = False
 
 
 def placement(up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -92,20 +92,18 @@ def turn_circle(
         return None
     up_k = int(np.argmax(np.abs(sig.up)))
     hor = [k for k in range(3) if k != up_k]
-    ys: list[float] = []
-    rows: list[np.ndarray] = []
     turned = sig.heading
     # the plate's axes at every rest's mean heading at once (one placement, R headings)
     east, north = plate_axes(sig.up, np.array([float(np.mean(turned[a:b])) for a, b in runs]))
-    for r, (a, b) in enumerate(runs):
-        mean = sig.accel[a:b].mean(axis=0)
-        for c, k in enumerate(hor):
-            centre = np.zeros(2)
-            centre[c] = 1.0
-            ys.append(float(mean[k]))
-            rows.append(np.concatenate([centre, [sig.g * east[r, k], sig.g * north[r, k]]]))
-    x = np.array(rows)
-    y = np.array(ys)
+    means = np.array([sig.accel[a:b].mean(axis=0) for a, b in runs])
+    # rows rest by rest, the two horizontal channels in turn: (centre one-hot, g·e, g·n)
+    x = np.zeros((2 * len(runs), 4))
+    y = np.zeros(2 * len(runs))
+    for c, k in enumerate(hor):
+        x[c::2, c] = 1.0
+        x[c::2, 2] = sig.g * east[:, k]
+        x[c::2, 3] = sig.g * north[:, k]
+        y[c::2] = means[:, k]
     if np.linalg.matrix_rank(x) < 4 or len(y) <= 4:
         return None
     coef, *_ = np.linalg.lstsq(x, y, rcond=None)

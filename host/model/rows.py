@@ -83,13 +83,13 @@ class RowTable:
         idx = list(range(len(self.y), len(self.y) + agg.shape[0]))
         self.y.extend((agg @ sig.measured(sensor)[:, axis]).tolist())
         self.nominal.extend((agg @ sig.reference(sensor)[:, axis]).tolist())
-        for b in range(agg.shape[0]):
-            self.record.append(record)
-            self.sensor.append(SENSORS.index(sensor))
-            self.axis.append(axis)
-            self.integral.append(integral)
-            self.t0.append(spans[b][0])
-            self.t1.append(spans[b][1])
+        b = agg.shape[0]
+        self.record.extend([record] * b)
+        self.sensor.extend([SENSORS.index(sensor)] * b)
+        self.axis.extend([axis] * b)
+        self.integral.extend([integral] * b)
+        self.t0.extend(span[0] for span in spans[:b])
+        self.t1.extend(span[1] for span in spans[:b])
         return idx
 
 
@@ -249,11 +249,31 @@ def add_turn_accel(
         table.channels.append(ChannelRows(record, "accel", ax, idx, agg, var))
 
 
+def turn_tilt_columns(
+    signals: Sequence[RecordSignals], sensor_aggs: Mapping[tuple[int, str, int], np.ndarray]
+) -> dict[tuple[int, int], np.ndarray]:
+    """(record, axis) -> the plate tilt's columns (N, 2) (:func:`plate_tilt`, m/s² per rad) on
+    each turn record's horizontal accelerometer that has rows of its own (``sensor_aggs``):
+    what :func:`seating_sigma` and :func:`hand_sigma` take out, computed once for both."""
+    out: dict[tuple[int, int], np.ndarray] = {}
+    for ri, sig in enumerate(signals):
+        if sig.kind != "turn":
+            continue
+        for ax in range(3):
+            if abs(float(sig.up[ax])) > 0.5 or (ri, "accel", ax) not in sensor_aggs:
+                continue
+            cols = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
+            assert cols is not None
+            out[(ri, ax)] = cols
+    return out
+
+
 def seating_sigma(
     signals: Sequence[RecordSignals],
     sensor_aggs: Mapping[tuple[int, str, int], np.ndarray],
     channels: Sequence[ChannelRows],
     n_still: Mapping[int, int],
+    tilt: Mapping[tuple[int, int], np.ndarray],
 ) -> tuple[float, str]:
     """How far the cube's attitude at a still moment of a hand turn departs from resting flat,
     as specific force on a horizontal accelerometer, m/s² (and a note; 0 and '' without the
@@ -262,7 +282,7 @@ def seating_sigma(
     constant (bias, face error, misalignment: all fixed in the body) plus ONE plate tilt for
     the session, g·(t_e·e(ψ) + t_n·n(ψ)) (:func:`plate_tilt`); the scatter beyond each mean's
     white noise, Σ(r² − w)/dof, is the seating variance (method.md §8: repeatability;
-    :func:`host.model.turning.excess_scatter`)."""
+    :func:`host.model.turning.excess_scatter`). ``tilt``: :func:`turn_tilt_columns`."""
     keys: list[tuple[int, int]] = []
     ys: list[float] = []
     cols_l: list[np.ndarray] = []
@@ -274,8 +294,7 @@ def seating_sigma(
             continue
         if (ri, "accel", ax) not in sensor_aggs:
             continue
-        cols = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
-        assert cols is not None
+        cols = tilt[(ri, ax)]
         for b in range(n_still.get(ri, 0)):
             m = float(np.count_nonzero(agg[b]))
             keys.append((ri, ax))
@@ -299,13 +318,15 @@ def hand_sigma(
     sensor_aggs: Mapping[tuple[int, str, int], np.ndarray],
     n_still: Mapping[int, int],
     white_level: Mapping[tuple[str, int], float],
+    tilt: Mapping[tuple[int, int], np.ndarray],
 ) -> tuple[tuple[float, float], str]:
     """The hand's scatter on a horizontal accelerometer while the cube turns, m/s²: (of a
     moving block's mean about its turn's level, of that level about the turn's level at rest)
     and a note ('' without moving blocks): beyond a constant per turn and channel, the lever arm
     and the plate tilt, and beyond the sensor's white noise (``white_level`` (sensor, axis) ->
     variance·τ of one sample, from the static records) —
-    :func:`host.model.turning.hand_scatter`, module docstring there."""
+    :func:`host.model.turning.hand_scatter`, module docstring there. ``tilt``:
+    :func:`turn_tilt_columns`."""
     keys: list[tuple[int, int]] = []
     ys: list[float] = []
     cl: list[np.ndarray] = []
@@ -321,8 +342,7 @@ def hand_sigma(
                 continue
             moving = agg[n_still[ri] :]
             counts = np.count_nonzero(moving, axis=1).astype(float)
-            tilt0 = plate_tilt.columns(sig, "accel", ax) if plate_tilt.columns else None
-            assert tilt0 is not None
+            tilt0 = tilt[(ri, ax)]
             if n_still[ri]:
                 # the same turn and channel at rest: the still moments' mean
                 still = agg[: n_still[ri]]

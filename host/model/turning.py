@@ -97,15 +97,17 @@ def derivative(t: np.ndarray, y: np.ndarray) -> np.ndarray:
         return out
     i = np.arange(2, n - 2)
     d = np.stack([t[i + k] - t[i] for k in range(-2, 3)])  # (5, n-4) offsets, 0 at k=2
-    w = np.zeros_like(d)
-    for k in range(5):
-        # L_k'(0) of the Lagrange basis on the offsets d
-        others = [m for m in range(5) if m != k]
-        den = np.prod([d[k] - d[m] for m in others], axis=0)
-        num = np.zeros(len(i))
-        for m in others:
-            num += np.prod([-d[q] for q in others if q != m], axis=0)
-        w[k] = num / den
+    # L_k'(0) of the Lagrange basis on the offsets d, for all five k at once: over m ≠ k,
+    # den_k = Π (d_k − d_m) and num_k = Σ Π_{q ≠ k, m} (−d_q), the left-out factors and
+    # terms set to 1 and 0 (which leave every product and sum as it is)
+    same = np.eye(5, dtype=bool)
+    diff = d[:, None, :] - d[None, :, :]
+    diff[same] = 1.0
+    neg = np.broadcast_to(-d, (5, 5, 5, len(i))).copy()  # [k, m, q]
+    neg[same[:, None, :] | same[None, :, :]] = 1.0
+    terms = np.prod(neg, axis=2)
+    terms[same] = 0.0
+    w = np.sum(terms, axis=1) / np.prod(diff, axis=1)
     out[2 : n - 2] = sum(w[k][:, None] * y[i + k - 2] for k in range(5))
     return out
 

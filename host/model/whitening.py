@@ -198,6 +198,15 @@ def _integral_group(
     return group, np.array([[1.0 / math.sqrt(var)]])
 
 
+def helmert_contrasts(b: int) -> np.ndarray:
+    """(b − 1, b) the orthonormal Helmert contrasts of ``b`` values: row k − 1 is
+    (1, …, 1, −k, 0, …, 0)/√(k + k²), k ones (each orthogonal to the mean and to the others)."""
+    k = np.arange(1, b)
+    h = np.tri(b - 1, b)  # ones left of and on the diagonal: k ones in row k − 1
+    h[k - 1, k] = -k
+    return h / np.sqrt(k + k * k)[:, None]
+
+
 def _block_group(
     ch: ChannelRows,
     sig: RecordSignals,
@@ -225,13 +234,7 @@ def _block_group(
     if not v_c > 0.0:  # noise-free samples (with a given floor): the only scale there is
         v_c = v_mean
     if b >= 2:
-        # orthonormal Helmert contrasts of the b blocks
-        for k in range(1, b):
-            h = np.zeros(b)
-            h[:k] = 1.0
-            h[k] = -float(k)
-            h /= np.linalg.norm(h)
-            w[k] = h / math.sqrt(v_c)
+        w[1:] = helmert_contrasts(b) / math.sqrt(v_c)
     return Group(ch.record, s, ax, np.array(idx), math.sqrt(v_mean), v_c), w
 
 

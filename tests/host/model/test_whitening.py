@@ -15,7 +15,7 @@ from host.model.dataset import Dataset, build_dataset, session_from_records
 from host.model.design import design
 from host.model.fit import fit_model
 from host.model.spec import parse_model
-from host.model.whitening import Whitener
+from host.model.whitening import Whitener, helmert_contrasts
 from host.session.directory import read_session
 
 REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
@@ -122,3 +122,18 @@ def test_fit_equals_dense_least_squares_from_the_group_covariances(k: int) -> No
         assert gr.residual == pytest.approx(float(a @ r), abs=1e-9 * g.sigma)
         if var > (1e-3 * g.sigma) ** 2:
             assert gr.z == pytest.approx(float(a @ r) / np.sqrt(var), abs=1e-7)
+
+
+@pytest.mark.parametrize("b", [2, 3, 7, 40])
+def test_helmert_contrasts_are_orthonormal_and_blind_to_the_mean(b: int) -> None:
+    """The contrasts a static record's block means are whitened with: orthonormal rows, each
+    orthogonal to the ones vector (a common level moves none of them), row k − 1 comparing the
+    first k blocks with block k."""
+    h = helmert_contrasts(b)
+    assert h.shape == (b - 1, b)
+    assert np.allclose(h @ h.T, np.eye(b - 1), atol=1e-12)
+    assert np.allclose(h @ np.ones(b), 0.0, atol=1e-12)
+    for k in range(1, b):
+        row = h[k - 1]
+        assert np.all(row[:k] > 0) and row[k] < 0 and np.all(row[k + 1 :] == 0)
+        assert np.allclose(row[:k], row[0]) and row[k] == pytest.approx(-k * row[0])
