@@ -24,11 +24,13 @@ from host.model.plate import (
 )
 from host.model.remeasured import leans_are_a_bias_change
 from host.model.rows import (
+    BlockMeans,
     RowTable,
     add_block_means,
     add_turn_accel,
     add_turn_integrals,
     apply_serial_correlation,
+    block_means,
     hand_sigma,
     seating_sigma,
     turn_accel_rows,
@@ -41,6 +43,7 @@ from host.session.directory import Session, read_session
 from host.session.method import (
     DEFAULT_HEIGHT_M,
     DEFAULT_LATITUDE_DEG,
+    RecordStats,
     local_gravity,
     record_stats,
     trapezoid_integral,
@@ -282,6 +285,34 @@ def _turn_closures(
     return out
 
 
+@dataclass(eq=False)
+class RecordWork:
+    """What :func:`build_dataset` reads from a record alone, kept between builds of sessions
+    that share records (the planner adds each candidate to the same measured records): each
+    record's stats, and a static record's block means (:func:`host.model.rows.block_means`)
+    under the reference input and blocks they were read with. Keyed by the record itself (a
+    :class:`Record` is not changed once read); one per caller, dropped with it."""
+
+    stats: dict[Record, RecordStats] = field(default_factory=dict)
+    blocks: dict[tuple[object, ...], BlockMeans] = field(default_factory=dict)
+
+    def record_stats(self, rec: Record) -> RecordStats:
+        """:func:`host.session.method.record_stats` of ``rec``, read once."""
+        if rec not in self.stats:
+            self.stats[rec] = record_stats(rec)
+        return self.stats[rec]
+
+    def block_means(
+        self, rec: Record, sig: RecordSignals, t_rel: np.ndarray, noise: NoiseModel
+    ) -> BlockMeans:
+        """:func:`host.model.rows.block_means` of static record ``rec`` (its signals ``sig``),
+        read once per reference input and blocks."""
+        key = (rec, noise.block_s, noise.max_blocks, sig.force.tobytes(), sig.rate.tobytes())
+        if key not in self.blocks:
+            self.blocks[key] = block_means(sig, t_rel, noise)
+        return self.blocks[key]
+
+
 def build_dataset(
     session: Session,
     *,
@@ -291,6 +322,7 @@ def build_dataset(
     turns: int | None = None,
     earth_rate: bool = False,
     moving: bool = True,
+    work: RecordWork | None = None,
 ) -> Dataset:
     """Check the records (:func:`host.session.observations.build_observations`) and build the
     rows.
@@ -298,14 +330,16 @@ def build_dataset(
     ``earth_rate``: the reference rate includes the vertical Earth rate (as
     :func:`~host.session.observations.build_observations`). ``moving``: the accelerometer's
     block means over the turning parts of the turn records are rows too
-    (:mod:`host.model.turning`; the lever arm shows only there). UserError when there is nothing
-    to fit (no static records, bad records).
+    (:mod:`host.model.turning`; the lever arm shows only there). ``work``: what earlier builds
+    read from the same records (:class:`RecordWork`; None: read everything). UserError when
+    there is nothing to fit (no static records, bad records).
     """
     nm = noise or NoiseModel()
     if not session.records:
         raise UserError("no records to fit")
+    work = RecordWork() if work is None else work
     g = local_gravity(latitude_deg, height_m)
-    stats = {n: record_stats(r) for n, r in session.records.items()}
+    stats = {n: work.record_stats(r) for n, r in session.records.items()}
     obs, notes = build_observations(
         session, g, turns=turns, stats=stats, earth_rate=earth_rate, latitude_deg=latitude_deg
     )
@@ -347,7 +381,7 @@ def build_dataset(
         sig = _record_signals(rec, o, g, t0, t_rel, pre, temp_mean, accel_matrix, gyro_scale)
         signals.append(sig)
         if o.kind != "turn":
-            aggs.append(add_block_means(table, ri, sig, t_rel, nm))
+            aggs.append(add_block_means(table, ri, work.block_means(rec, sig, t_rel, nm)))
             continue
         up_k = int(np.argmax(np.abs(o.up)))
         turn = turn_accel_rows(sig, t_rel, float(gyro_sd[up_k]), moving)

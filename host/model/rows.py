@@ -80,10 +80,27 @@ class RowTable:
     ) -> list[int]:
         """Add the rows ``agg`` (B, N) @ samples of channel ``axis`` of ``sensor``, with their
         time spans ``spans`` (B, s); returns their indices."""
-        idx = list(range(len(self.y), len(self.y) + agg.shape[0]))
-        self.y.extend((agg @ sig.measured(sensor)[:, axis]).tolist())
-        self.nominal.extend((agg @ sig.reference(sensor)[:, axis]).tolist())
-        b = agg.shape[0]
+        y = (agg @ sig.measured(sensor)[:, axis]).tolist()
+        nominal = (agg @ sig.reference(sensor)[:, axis]).tolist()
+        return self.add_values(record, sensor, axis, y, nominal, spans, integral)
+
+    def add_values(
+        self,
+        record: int,
+        sensor: str,
+        axis: int,
+        y: Sequence[float],
+        nominal: Sequence[float],
+        spans: Sequence[tuple[float, float]],
+        integral: bool,
+    ) -> list[int]:
+        """Add the rows of channel ``axis`` of ``sensor`` whose measured and ideal values are
+        ``y`` and ``nominal`` (B,), with their time spans ``spans`` (B, s); returns their
+        indices."""
+        b = len(y)
+        idx = list(range(len(self.y), len(self.y) + b))
+        self.y.extend(y)
+        self.nominal.extend(nominal)
         self.record.extend([record] * b)
         self.sensor.extend([SENSORS.index(sensor)] * b)
         self.axis.extend([axis] * b)
@@ -161,27 +178,51 @@ def _runs_of(agg: np.ndarray) -> list[tuple[int, int]]:
     return out
 
 
-def add_block_means(
-    table: RowTable, record: int, sig: RecordSignals, t_rel: np.ndarray, noise: NoiseModel
-) -> np.ndarray:
-    """A static or rate-table record: every channel's block means, their white noise from the
-    record's own samples (``t_rel`` (N,) s since its first sample). Returns its aggregator."""
+@dataclass(frozen=True, eq=False)
+class BlockMeans:
+    """A static or rate-table record's rows, from its own samples alone (:func:`block_means`):
+    ``aggregator`` (B, N) the weights of the block means, ``spans`` their time spans (s), and
+    per channel (sensor, axis, the block means and the ideal sensor's (B,) in the channel's
+    unit, the white variance of one sample and the deviations it is read from,
+    :func:`white_variance`). Its arrays are not changed once made (several datasets may hold
+    them)."""
+
+    aggregator: np.ndarray
+    spans: tuple[tuple[float, float], ...]
+    channels: tuple[tuple[str, int, list[float], list[float], float, list[np.ndarray]], ...]
+
+
+def block_means(sig: RecordSignals, t_rel: np.ndarray, noise: NoiseModel) -> BlockMeans:
+    """Every channel's block means of a static or rate-table record and their white noise from
+    the record's own samples (``t_rel`` (N,) s since its first sample)."""
     n = len(t_rel)
     edges = block_edges(n, float(t_rel[-1]) if n else 0.0, noise)
     agg = means_of(edges, n)
-    spans = [(float(t_rel[a]), float(t_rel[e - 1])) for a, e in edges]
+    agg.flags.writeable = False
+    spans = tuple((float(t_rel[a]), float(t_rel[e - 1])) for a, e in edges)
+    channels = []
     for s in SENSORS:
-        meas = sig.measured(s)
+        meas, ref = sig.measured(s), sig.reference(s)
         for ax in range(3):
             if not agg.shape[0]:
                 continue
-            idx = table.add(record, sig, s, ax, agg, spans, integral=False)
             var, devs = white_variance(meas[:, ax], edges)
-            table.deviations.setdefault((s, ax), []).extend(devs)
-            table.static_deviations.setdefault((s, ax), []).extend(devs)
-            table.static_noise.setdefault((s, ax), []).append((var, 1.0))
-            table.record_noise[(record, s, ax)] = (var, 1.0)
-            table.channels.append(ChannelRows(record, s, ax, idx, agg, var))
+            y, nominal = (agg @ meas[:, ax]).tolist(), (agg @ ref[:, ax]).tolist()
+            channels.append((s, ax, y, nominal, var, devs))
+    return BlockMeans(agg, spans, tuple(channels))
+
+
+def add_block_means(table: RowTable, record: int, means: BlockMeans) -> np.ndarray:
+    """A static or rate-table record's rows (:func:`block_means`) into ``table``. Returns its
+    aggregator."""
+    agg = means.aggregator
+    for s, ax, y, nominal, var, devs in means.channels:
+        idx = table.add_values(record, s, ax, y, nominal, means.spans, integral=False)
+        table.deviations.setdefault((s, ax), []).extend(devs)
+        table.static_deviations.setdefault((s, ax), []).extend(devs)
+        table.static_noise.setdefault((s, ax), []).append((var, 1.0))
+        table.record_noise[(record, s, ax)] = (var, 1.0)
+        table.channels.append(ChannelRows(record, s, ax, idx, agg, var))
     return agg
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -156,17 +156,21 @@ def _whiten_exact(
 
 
 def _within_record_inflation(
-    channels: Sequence[ChannelRows], signals: Sequence[RecordSignals], y: np.ndarray
+    channels: Sequence[ChannelRows],
+    signals: Sequence[RecordSignals],
+    y: np.ndarray,
+    counts_of: Callable[[np.ndarray], np.ndarray],
 ) -> dict[tuple[str, int], float]:
     """Within-record wander per (sensor, axis): the pooled excess scatter of the static
-    records' block means over their white noise (1 unless resolved)."""
+    records' block means over their white noise (1 unless resolved); ``counts_of``: the
+    samples in each row of an aggregator."""
     excess: dict[tuple[str, int], list[float]] = {}
     for ch in channels:
         idx = ch.rows
         if len(idx) >= 2 and signals[ch.record].kind != "turn":
             agg = ch.aggregator
             m = agg.sum(axis=1)  # ones
-            counts = np.count_nonzero(agg, axis=1)
+            counts = counts_of(agg)
             v_b = ch.white / counts * m
             yb = y[idx]
             chi = float(np.sum((yb - yb.mean()) ** 2 / v_b))
@@ -213,10 +217,11 @@ def _block_group(
     v_blocks: np.ndarray,
     floor: float,
     inflate: float,
+    contrasts: np.ndarray,
 ) -> tuple[Group, np.ndarray]:
     """Block means of a static record, or a turn's still moments (variances ``v_blocks`` of
-    each block mean): their mean and orthonormal Helmert contrasts; -> (the :class:`Group`,
-    its block of W)."""
+    each block mean): their mean and orthonormal Helmert contrasts (``contrasts``,
+    :func:`helmert_contrasts` of their number); -> (the :class:`Group`, its block of W)."""
     idx, s, ax = ch.rows, ch.sensor, ch.axis
     b = len(idx)
     v_mean = float(np.sum(v_blocks)) / b**2 + floor**2
@@ -234,7 +239,7 @@ def _block_group(
     if not v_c > 0.0:  # noise-free samples (with a given floor): the only scale there is
         v_c = v_mean
     if b >= 2:
-        w[1:] = helmert_contrasts(b) / math.sqrt(v_c)
+        w[1:] = contrasts / math.sqrt(v_c)
     return Group(ch.record, s, ax, np.array(idx), math.sqrt(v_mean), v_c), w
 
 
@@ -268,7 +273,17 @@ def whiten_rows(
         groups.append(made[0])
         blocks.append((made[0].rows, made[1]))
 
-    inflate = _within_record_inflation(channels, signals, y)
+    # per call: the samples in each row of an aggregator (shared by a record's channels),
+    # the contrasts of b blocks
+    samples: dict[int, np.ndarray] = {}
+    contrasts: dict[int, np.ndarray] = {}
+
+    def counts_of(agg: np.ndarray) -> np.ndarray:
+        if id(agg) not in samples:
+            samples[id(agg)] = np.count_nonzero(agg, axis=1)
+        return samples[id(agg)]
+
+    inflate = _within_record_inflation(channels, signals, y, counts_of)
     for ch in channels:
         sig = signals[ch.record]
         s, ax, idx = ch.sensor, ch.axis, ch.rows
@@ -278,7 +293,7 @@ def whiten_rows(
             by_hand = turn_sigma[0] if on_up else turn_sigma[1]
             add(_integral_group(ch, floor, static_noise, by_hand))
             continue
-        counts = np.count_nonzero(ch.aggregator, axis=1).astype(float)
+        counts = counts_of(ch.aggregator).astype(float)
         level = white_level.get((s, ax), 0.0)
         # each block mean: the channel's own white noise, else the static records' level
         v_blocks = (ch.white if math.isfinite(ch.white) else level) / counts
@@ -299,5 +314,8 @@ def whiten_rows(
             _, w = _whiten_exact(ch.record, s, ax, idx, cov + (g * FREE_LEVEL_RAD) ** 2)
             add((dataclasses.replace(own, free_level=True), w))
             continue
-        add(_block_group(ch, sig, v_blocks, floor, inflate.get((s, ax), 1.0)))
+        b = len(idx)
+        if b not in contrasts:
+            contrasts[b] = helmert_contrasts(b) if b >= 2 else np.zeros((0, b))
+        add(_block_group(ch, sig, v_blocks, floor, inflate.get((s, ax), 1.0), contrasts[b]))
     return Whitener(len(y), tuple(blocks)), groups

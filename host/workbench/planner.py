@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from host.bench.plan import tilted_45
-from host.model.dataset import build_dataset
+from host.model.dataset import RecordWork, build_dataset
 from host.model.fit import Fit, fit_model
 from host.model.noise import NoiseModel
 from host.model.spec import ModelTerm
@@ -417,7 +417,8 @@ def plan_next(
     (from the engine) when the session cannot be fitted at all."""
     nm = noise or NoiseModel()
     g = local_gravity(latitude_deg, height_m)
-    kw = {"noise": nm, "latitude_deg": latitude_deg, "height_m": height_m}
+    # the measured records are read once for every candidate added to them
+    kw = {"noise": nm, "latitude_deg": latitude_deg, "height_m": height_m, "work": RecordWork()}
     fit = fit_model(build_dataset(session, **kw), model)  # type: ignore[arg-type]
     sigma_now = unscaled_sigmas(fit, fit)
     worst_now, worst_name = worst_ratio(sigma_now, tolerances)
