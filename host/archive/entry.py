@@ -264,7 +264,14 @@ def entry_from_directory(
                 f"{rpath}: no such file — the result was fitted on it; give the records' "
                 "directory with --records"
             )
-        hashes.append((name, sha256_bytes(rpath.read_bytes())))
+        digest = sha256_bytes(rpath.read_bytes())
+        fitted = None if result.provenance is None else result.provenance.record_sha256.get(name)
+        if fitted is not None and fitted != digest:  # was: archived with another sitting's
+            raise UserError(
+                f"{rpath}: not the record the result was fitted on (its SHA-256 differs from "
+                "the one the result names); give the directory of those records with --records"
+            )
+        hashes.append((name, digest))
         rec = read_record(rpath)
         metas.append(rec.meta)
         temps.append(rec.temp)

@@ -10,6 +10,7 @@ nothing here is the time or place of the computation except ``software`` and ``c
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 from collections.abc import Mapping
@@ -111,6 +112,8 @@ class Provenance:
     stopped: Mapping[str, str] = field(default_factory=dict)
     #: records of the unit kept aside in ``earlier/``, oldest folder first (not in the result)
     set_aside: tuple[SetAside, ...] = ()
+    #: record -> SHA-256 (hex) of its file as fitted (absent: records that were not files)
+    record_sha256: Mapping[str, str] = field(default_factory=dict)
 
     @property
     def simulated_line(self) -> str:
@@ -144,6 +147,7 @@ class Provenance:
             "software": self.software,
             "stopped": dict(self.stopped),
             "set_aside": [{"folder": s.folder, "records": list(s.records)} for s in self.set_aside],
+            "record_sha256": dict(self.record_sha256),
         }
 
     @classmethod
@@ -186,6 +190,7 @@ class Provenance:
                 SetAside(str(s["folder"]), tuple(str(x) for x in s["records"]))
                 for s in d.get("set_aside", ())
             ),
+            record_sha256={str(k): str(v) for k, v in d.get("record_sha256", {}).items()},
         )
 
 
@@ -281,7 +286,22 @@ def provenance_of(session: Session, software: str = "") -> Provenance:
         stopped={n: w for n in order if (w := recs[n].meta.get(STOPPED_KEY, "").strip())},
         set_aside=() if session.directory is None else set_aside_records(session.directory,
                                                                           session.serial),
+        record_sha256=record_digests(session),
     )  # fmt: skip
+
+
+def record_digests(session: Session) -> dict[str, str]:
+    """Each record's file in the session's directory -> its SHA-256 (hex): what proves later
+    which files a result was fitted on (``archive add --records`` checks them). Records that
+    are not files there (a session made in memory) have none."""
+    if session.directory is None:
+        return {}
+    out = {}
+    for name in sorted(session.records):
+        path = Path(session.directory) / session.path_of(name)
+        if path.is_file():
+            out[name] = hashlib.sha256(path.read_bytes()).hexdigest()
+    return out
 
 
 def set_aside_records(directory: str | os.PathLike[str], serial: str) -> tuple[SetAside, ...]:

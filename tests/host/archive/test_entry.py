@@ -43,6 +43,15 @@ def _sha(p: Path) -> str:
     return hashlib.sha256(p.read_bytes()).hexdigest()
 
 
+def _without_record_digests(d: Path) -> None:
+    """The result in ``d`` as written before results named their records' digests (format v3
+    all the same): its records may then be edited in place and still be archived."""
+    path = d / "E1_result.json"
+    doc = json.loads(path.read_text())
+    del doc["provenance"]["record_sha256"]
+    path.write_text(json.dumps(doc))
+
+
 def test_the_entry_proves_which_files_it_came_from(calibrated: Path, tmp_path: Path) -> None:
     e = entry_from_directory(calibrated, bench="B2", operator="ana")
     doc = json.loads((calibrated / "E1_result.json").read_text())
@@ -81,6 +90,7 @@ def test_identity_from_the_record_headers_and_the_environment(
         "# sensor_revision: C5\n# self_test: fail\n# lot: L42\n"
     )
     rec.write_text(head + rec.read_text())
+    compute_and_write(read_session(d, None), d, ComputeSettings())  # fitted on these records
     monkeypatch.setenv(BENCH_ENV, "bench-7")
     e = entry_from_directory(d)
     assert e.measured_at == "2026-05-04T07:30:00.250000Z"
@@ -111,10 +121,34 @@ def test_records_elsewhere_and_missing_files(calibrated: Path, tmp_path: Path) -
         entry_from_directory(tmp_path / "nope")
 
 
+def test_records_of_another_sitting_are_not_archived_as_the_results(
+    calibrated: Path, tmp_path: Path
+) -> None:
+    """``archive add DIR --records OTHER``: the result names the SHA-256 of every record file it
+    was fitted on, so records of the same unit measured in another sitting (or one edited after
+    the fit) are refused with a line naming the file; the records it was fitted on are taken."""
+    doc = json.loads((calibrated / "E1_result.json").read_text())
+    digests = doc["provenance"]["record_sha256"]
+    assert digests == {n: _sha(calibrated / f"E1_{n}.txt") for n in doc["records"]}
+    other = write_sim_session(tmp_path / "other", "E1", seed=22)  # same unit, another sitting
+    with pytest.raises(UserError, match=r"E1_\w+\.txt: not the record the result was fitted"):
+        entry_from_directory(calibrated, records_dir=other)
+    shutil.copytree(calibrated, tmp_path / "mine")
+    edited = tmp_path / "mine" / "E1_z_cw.txt"
+    edited.write_text(edited.read_text().replace("\n", "\n", 1) + "\n")
+    with pytest.raises(UserError, match="E1_z_cw.txt: not the record"):
+        entry_from_directory(tmp_path / "mine")
+    e = entry_from_directory(tmp_path / "mine", records_dir=calibrated)
+    assert dict(e.record_hashes) == digests
+    _without_record_digests(tmp_path / "mine")  # a result written before: nothing to check
+    assert entry_from_directory(tmp_path / "mine").serial == "E1"
+
+
 def test_a_bad_self_test_line_is_refused(calibrated: Path, tmp_path: Path) -> None:
     d = _copy(calibrated, tmp_path / "E1")
     rec = d / "E1_y_up.txt"
     rec.write_text("# self_test: maybe\n" + rec.read_text())
+    _without_record_digests(d)
     with pytest.raises(UserError, match="self_test: 'maybe'"):
         entry_from_directory(d)
 
@@ -189,6 +223,7 @@ def test_a_name_with_a_control_character_never_reaches_the_archive(
         elif where == "header":
             rec = d / "E1_x_up.txt"
             rec.write_text(f"# lot: {bad}\n" + rec.read_text())
+            _without_record_digests(d)
             if bad.strip() and "\n" not in bad and "\r" not in bad:
                 with pytest.raises(UserError, match="'lot' header line: .*control character"):
                     entry_from_directory(d)
