@@ -13,17 +13,16 @@ and a second step on its channel when the records tell two from one
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from host.model.dataset import Dataset
-from host.model.design import aggregate
 from host.model.fit import Fit
 from host.model.signals import AXES, SENSORS, RecordSignals
-from host.model.stats import chi2_sf
+from host.model.stats import chi2_isf, chi2_sf
 from host.workbench.candidates import ALPHA, IDENTIFIABLE_TOL, holm, json_number
 from host.workbench.steps import STEP, Placed, channel_cuts, place_steps, step_name, step_times
 
@@ -113,12 +112,16 @@ def _signals(sensor: str) -> dict[str, SignalFn]:
 def signal_functions(ds: Dataset, sensor: str) -> dict[str, SignalFn]:
     """Every signal the scan tries on a channel of ``sensor``, by name (the steps in time and
     the time signals only when the records carry their time since power-on)."""
-    warming = warming_rates(ds)
-    out = {
-        **_signals(sensor),
-        WARMING: lambda s, sen, a: warming[s.name],
-        **(_steps(ds) if ds.time_known else {}),
-    }
+    steps = _steps(ds) if ds.time_known else {}
+    return {**_plain_signals(ds, sensor, warming_rates(ds)), **steps}
+
+
+def _plain_signals(
+    ds: Dataset, sensor: str, warming: Mapping[str, np.ndarray]
+) -> dict[str, SignalFn]:
+    """The signals of :func:`signal_functions` that are not a step in time, the chip's
+    ``warming`` rates (:func:`warming_rates`) given."""
+    out = {**_signals(sensor), WARMING: lambda s, sen, a: warming[s.name]}
     if not ds.time_known:
         out = {k: v for k, v in out.items() if not k.startswith("(time")}
     return out
@@ -129,7 +132,10 @@ def signal_function(ds: Dataset, sensor: str, name: str) -> SignalFn | None:
     joined by ' / '), a step named to the sample as the scan writes it (one or two steps, their
     sizes) included; None when the scan has no such signal."""
     first = name.split(" / ")[0]
-    fn = signal_functions(ds, sensor).get(first)
+    if not first.startswith(STEP):  # the chip's warming is read only for its own signal
+        plain = _plain_signals(ds, sensor, warming_rates(ds) if first == WARMING else {})
+        return plain.get(first)
+    fn = _steps(ds).get(first) if ds.time_known else None
     if fn is not None or not ds.time_known:
         return fn
     steps = step_times(ds.signals, first)
@@ -294,13 +300,42 @@ def _columns(
             continue
         any_rows = True
         agg = ds.aggregator(ri, sensor, a)
-        for k, fn in enumerate(fns):
-            out[rows, k] = aggregate(agg, np.asarray(fn(rs, sensor, a), float))
+        if fns:
+            per_sample = np.empty((len(rs.t_s), len(fns)))
+            for k, fn in enumerate(fns):
+                per_sample[:, k] = fn(rs, sensor, a)
+            out[rows, : len(fns)] = _aggregate_each(agg, per_sample)
         if len(at):
-            out[np.ix_(rows, np.arange(len(fns), out.shape[1]))] = aggregate(
-                agg, (rs.t_s[:, None] > at[None, :]).astype(float)
+            out[np.ix_(rows, np.arange(len(fns), out.shape[1]))] = _steps_aggregated(
+                agg, rs.t_s, at
             )
     return out if any_rows else None
+
+
+def _steps_aggregated(agg: np.ndarray, t_s: np.ndarray, cuts: np.ndarray) -> np.ndarray:
+    """(B, len(cuts)) the rows of one record (``agg`` (B, N) over its sample times ``t_s``
+    (N,) s) moved by a unit step at each of ``cuts`` (s): each row's weights summed over the
+    samples after the cut (the reversed running sum, as :func:`host.workbench.steps.channel_cuts`
+    builds every cut's), round-off below 1e-9 set to exactly 0
+    (:func:`host.model.design.aggregate`)."""
+    n = agg.shape[1]
+    tail = np.zeros((agg.shape[0], n + 1))
+    tail[:, :n] = np.cumsum(agg[:, ::-1], axis=1)[:, ::-1]
+    first_after = np.searchsorted(t_s, cuts, side="right")
+    out = tail[:, first_after]
+    if np.any(first_after < n):  # a sample after some cut: the step's largest value is 1
+        out[np.abs(out) < 1e-9] = 0.0
+    return out
+
+
+def _aggregate_each(agg: np.ndarray, per_sample: np.ndarray) -> np.ndarray:
+    """Rows of one record from per-sample signals: ``agg`` (B, N) @ ``per_sample`` (N, F) in
+    one product, each column's round-off (below 1e-9 of its largest per-sample value) set to
+    exactly 0, as :func:`host.model.design.aggregate` does for one column."""
+    out = agg @ per_sample
+    scale = np.max(np.abs(per_sample), axis=0) if len(per_sample) else np.zeros(out.shape[1])
+    out[np.abs(out) < 1e-9 * scale] = 0.0
+    return out
 
 
 def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
@@ -312,13 +347,13 @@ def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
     r = fit.white_residual
     rr = float(r @ r)
     cuts = step_cuts(ds) if ds.time_known else []
-    steps = {name for _, name in cuts}
+    warming = warming_rates(ds)
 
     def hours(s: RecordSignals, sen: str, a: int) -> np.ndarray:
         return s.hours
 
     for sensor in SENSORS:
-        named = [(k, fn) for k, fn in signal_functions(ds, sensor).items() if k not in steps]
+        named = list(_plain_signals(ds, sensor, warming).items())
         names = [k for k, _ in named] + [name for _, name in cuts]
         # per channel: every signal's whitened column and its part the model does not fit
         chans: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray | None]] = {}
@@ -336,22 +371,32 @@ def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
                 chans[a] = (cw, cp, tcol if float(np.linalg.norm(tcol)) > 0 else None)
             else:
                 chans[a] = (cw, cp, None)
+        # per channel and signal, all at once: the column's norm, its norm orthogonal to the
+        # model, the residual's projection on that part and its correlation with time
+        stats: dict[int, tuple[list[float], list[float], list[float], list[float]]] = {}
+        for a, (cw_all, cp_all, tcol) in chans.items():
+            n0 = np.linalg.norm(cw_all, axis=0)
+            n1 = np.linalg.norm(cp_all, axis=0)
+            ok = n1 > 0
+            proj = np.where(ok, (r @ cp_all) / np.where(ok, n1, 1.0), 0.0)
+            tr = np.full(len(n1), math.nan)
+            if tcol is not None:
+                tr = np.where(ok, (tcol @ cp_all) / np.where(ok, n1, 1.0), 0.0)
+                tr /= float(np.linalg.norm(tcol))
+            stats[a] = (n0.tolist(), n1.tolist(), proj.tolist(), tr.tolist())
         for j, name in enumerate(names):
             for a in range(3):
-                if a not in chans:
+                if a not in stats:
                     continue
-                cw_all, cp_all, tcol = chans[a]
-                n0 = float(np.linalg.norm(cw_all[:, j]))
-                n1 = float(np.linalg.norm(cp_all[:, j]))
-                if n0 == 0 or n1 < IDENTIFIABLE_TOL * n0 or rr == 0:
+                n0s, n1s, projs, trs = stats[a]
+                if n0s[j] == 0 or n1s[j] < IDENTIFIABLE_TOL * n0s[j] or rr == 0:
                     continue
-                proj = float(cp_all[:, j] @ r) / n1
-                hits.append((sensor, a, name, proj / math.sqrt(rr), proj * proj))
-                tr = math.nan
-                if tcol is not None:
-                    tr = float(cp_all[:, j] @ tcol) / (n1 * float(np.linalg.norm(tcol)))
-                time_r.append(tr)
-    pvals = [chi2_sf(h[4], 1) for h in hits]
+                hits.append((sensor, a, name, projs[j] / math.sqrt(rr), projs[j] * projs[j]))
+                time_r.append(trs[j])
+    # a Δχ² below the α-quantile of χ²₁ is never significant, whatever Holm's rank: its p
+    # (beyond α) is not needed, only that it sorts after every p ≤ α
+    floor = 0.99 * chi2_isf(alpha, 1) if 0.0 < alpha < 1.0 else 0.0
+    pvals = [chi2_sf(h[4], 1) if h[4] >= floor else 1.0 for h in hits]
     is_sig = holm(pvals, alpha)
     # signals that move the records identically (|f|, f², … on ±1 g faces) are one finding
     merged: dict[tuple[str, int, float], list[int]] = {}

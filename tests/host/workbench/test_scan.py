@@ -9,10 +9,20 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host.model.dataset import load_dataset
+from host.model.design import aggregate
 from host.model.spec import parse_model
-from host.workbench.scan import STEP, ScanHit, _joined, step_cuts
+from host.workbench.scan import (
+    STEP,
+    ScanHit,
+    _aggregate_each,
+    _joined,
+    _steps_aggregated,
+    step_cuts,
+)
 from host.workbench.steps import step_times
 from host.workbench.verdict import diagnose
 from tests.independent.simulate import SessionSpec, write_session
@@ -126,3 +136,39 @@ def test_a_run_of_equal_steps_is_written_by_its_first_and_last_place() -> None:
     assert _joined(["(specific force z)²", "|specific force z|"]) == (
         "(specific force z)² / |specific force z|"
     )
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.integers(1, 6),
+    st.integers(1, 40),
+    st.integers(1, 8),
+    st.integers(0, 2**32 - 1),
+    st.sampled_from(["block", "trapezoid", "sparse"]),
+)
+def test_a_record_s_signals_and_steps_aggregate_at_once_as_one_at_a_time(
+    rows: int, samples: int, cuts: int, seed: int, weights: str
+) -> None:
+    """The scan's columns of one record in one product (every signal; a step at every cut
+    from the running sum of the rows' weights) are what aggregating each signal, and each
+    step as 0 before and 1 after, gives one at a time (round-off zeroed alike)."""
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.uniform(0.0, 10.0, samples))
+    if weights == "block":  # a static's block means: equal weights on a run of samples
+        agg = np.zeros((rows, samples))
+        for b, part in enumerate(np.array_split(np.arange(samples), rows)):
+            agg[b, part] = 1.0 / max(len(part), 1)
+    else:  # a turn's integrals (uneven weights), or rows weighing few samples
+        agg = rng.uniform(0.0, 0.1, (rows, samples))
+        if weights == "sparse":
+            agg[rng.random((rows, samples)) < 0.7] = 0.0
+    at = np.concatenate([rng.uniform(-1.0, 11.0, cuts), rng.choice(t, min(cuts, samples))])
+    one_by_one = aggregate(agg, (t[:, None] > at[None, :]).astype(float))
+    batched = _steps_aggregated(agg, t, at)
+    assert np.array_equal(one_by_one == 0.0, batched == 0.0)
+    assert np.allclose(batched, one_by_one, rtol=1e-12, atol=1e-12)
+    signals = rng.normal(0.0, 1.0, (samples, cuts)) * rng.choice([1e-12, 1.0, 1e3], cuts)
+    signals[:, 0] = 0.0  # a signal that does not vary in this record
+    each = np.column_stack([aggregate(agg, signals[:, k]) for k in range(cuts)])
+    together = _aggregate_each(agg, signals)
+    assert np.allclose(together, each, rtol=1e-12, atol=1e-12 * np.max(np.abs(signals)))
