@@ -27,6 +27,7 @@ figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imp
   blocks) and the turn rows' own noise (seating, the hand).
 - ``whitening`` — the rows' covariance per record and channel, whitened exactly.
 - ``design`` — each term's columns of the design matrix.
+- ``solve`` — the weighted least squares of a model over a dataset's rows; χ² alone.
 - ``fit`` — the fit, its public result types and the residual tables.
 - ``stats`` — χ² tail probabilities, the uncertainty policy (``stderr_scale``).
 - ``loo`` — leave-one-record-out prediction.

@@ -186,6 +186,19 @@ def record_columns(ds: Dataset, mt: ModelTerm) -> np.ndarray:
     return out
 
 
+def same_records(a: Dataset, b: Dataset) -> bool:
+    """Whether ``a`` and ``b`` hold the same records' signals, rows, aggregators and clock (one
+    a copy of the other with other measured values or another whitening): every term's
+    columns on one are its columns on the other."""
+    return (
+        a.signals is b.signals
+        and a.rows_of is b.rows_of
+        and a.aggregators is b.aggregators
+        and a.sensor_aggregators is b.sensor_aggregators
+        and a.time_known == b.time_known
+    )
+
+
 class BuiltColumns:
     """The columns of linear model terms over ONE dataset's rows, each term's built once and
     reused by every design on those rows (:func:`design`'s ``built``): the fits and predictions
@@ -195,7 +208,7 @@ class BuiltColumns:
     them; any other dataset builds its own. Made inside a call and dropped with it."""
 
     def __init__(self, ds: Dataset) -> None:
-        self._rows = (ds.signals, ds.rows_of, ds.aggregators, ds.sensor_aggregators)
+        self._ds = ds
         self._columns: dict[ModelTerm, tuple[np.ndarray, np.ndarray]] = {}
 
     def of(self, ds: Dataset, mt: ModelTerm, theta: np.ndarray | None = None) -> (
@@ -203,15 +216,7 @@ class BuiltColumns:
     ):  # fmt: skip
         """:func:`term_columns` of ``mt`` on ``ds`` (built the first time; a nonlinear term's
         depend on ``theta``: built every time)."""
-        same = all(
-            a is b
-            for a, b in zip(
-                self._rows,
-                (ds.signals, ds.rows_of, ds.aggregators, ds.sensor_aggregators),
-                strict=True,
-            )
-        )
-        if mt.term.nonlinear or not same:
+        if mt.term.nonlinear or not same_records(ds, self._ds):
             return term_columns(ds, mt, theta)
         if mt not in self._columns:
             self._columns[mt] = term_columns(ds, mt, theta)

@@ -25,9 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from host.model.dataset import Dataset, build_dataset
-from host.model.design import BuiltColumns, design, select_columns
+from host.model.design import BuiltColumns, design
 from host.model.noise import NoiseModel
 from host.model.signals import AXES, SENSORS, UNIT
+from host.model.solve import solve
 from host.model.spec import ModelTerm
 from host.model.stats import ALPHA_FIT, chi2_sf, right_singular, rref, stderr_scale
 from host.model.whitening import Group
@@ -209,78 +210,6 @@ class Fit:
         raise KeyError(name)
 
 
-@dataclass(frozen=True, eq=False)
-class _Solved:
-    """The least-squares solution of one model over one dataset's rows (:func:`_solve`)."""
-
-    x: np.ndarray  # (n_rows, P) the design
-    offset: np.ndarray  # (n_rows,)
-    xw: np.ndarray  # W·x
-    keep: np.ndarray  # (P,) columns independent of the earlier ones
-    basis: np.ndarray  # orthonormal basis of their whitened span
-    theta: np.ndarray  # (P,) NaN where not kept
-    cov: np.ndarray  # (P, P) (zeros unless asked for)
-    predicted: np.ndarray
-    resid: np.ndarray
-    wres: np.ndarray  # W·resid
-    chi2: float
-
-
-def _solve(
-    ds: Dataset,
-    model: tuple[ModelTerm, ...],
-    max_iter: int,
-    built: BuiltColumns | None,
-    covariance: bool,
-) -> _Solved:
-    """Weighted least squares of ``model`` over the rows of ``ds`` (Gauss-Newton over the
-    nonlinear terms), the parameters' covariance only when asked for."""
-    thetas: list[np.ndarray | None] = [
-        np.tile(np.array(mt.term.initial), len(mt.axes)) if mt.term.nonlinear else None
-        for mt in model
-    ]
-    w = ds.whiten
-    iters = max_iter if any(mt.term.nonlinear for mt in model) else 1
-    for _ in range(iters):
-        x, offset, spans = design(ds, model, thetas, built)
-        xw = w.apply(x)
-        yw = w.apply(ds.y - ds.nominal - offset)
-        keep, basis = select_columns(xw)
-        theta = np.full(x.shape[1], np.nan)
-        cov = np.zeros((x.shape[1], x.shape[1]))
-        if keep.any():
-            sol, *_ = np.linalg.lstsq(xw[:, keep], yw, rcond=None)
-            theta[keep] = sol
-            if covariance:
-                cov[np.ix_(keep, keep)] = np.linalg.pinv(xw[:, keep].T @ xw[:, keep])
-        moved = 0.0
-        for i, mt in enumerate(model):
-            if mt.term.nonlinear:
-                a, b = spans[i]
-                old = thetas[i]
-                assert old is not None
-                new = np.where(np.isfinite(theta[a:b]), theta[a:b], old)
-                moved = max(moved, float(np.max(np.abs(new - old) / (1e-12 + np.abs(new)))))
-                thetas[i] = new
-        if moved < 1e-8:
-            break
-    th0 = np.nan_to_num(theta)
-    predicted = ds.nominal + offset + x @ th0
-    resid = ds.y - predicted
-    wres = w.apply(resid)
-    return _Solved(x, offset, xw, keep, basis, theta, cov, predicted, resid, wres,
-                   float(wres @ wres))  # fmt: skip
-
-
-def fit_chi2(
-    ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20, built: BuiltColumns | None = None
-) -> float:
-    """χ² of ``model`` fitted to the rows of ``ds``: :func:`fit_model`'s, without the tables,
-    the standard errors and the channels' statistics (``built``: the columns already built on
-    these rows, :class:`~host.model.design.BuiltColumns`)."""
-    return _solve(ds, tuple(model), max_iter, built, covariance=False).chi2
-
-
 def fit_model(
     ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20, built: BuiltColumns | None = None
 ) -> Fit:
@@ -291,7 +220,7 @@ def fit_model(
     columns already built on these rows (:class:`~host.model.design.BuiltColumns`).
     """
     model = tuple(model)
-    sol = _solve(ds, model, max_iter, built, covariance=True)
+    sol = solve(ds, model, max_iter, built, covariance=True)
     x, xw, keep, basis, theta, cov = sol.x, sol.xw, sol.keep, sol.basis, sol.theta, sol.cov
     th0 = np.nan_to_num(theta)
     predicted, resid, wres, chi2 = sol.predicted, sol.resid, sol.wres, sol.chi2

@@ -31,7 +31,6 @@ wedge, is 0.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
@@ -40,12 +39,13 @@ from dataclasses import dataclass
 from host.bench.plan import tilted_45
 from host.errors import UserError
 from host.model.dataset import Dataset, build_dataset
-from host.model.design import BuiltColumns
-from host.model.fit import Fit, fit_chi2, fit_model, predict
+from host.model.design import BuiltColumns, same_records
+from host.model.fit import Fit, fit_model, predict
 from host.model.geometry import DIALOGUE_HEADING_DEG
 from host.model.noise import NoiseModel
 from host.model.plate import LEVEL_P, session_plate
 from host.model.signals import AXES
+from host.model.solve import fitted_chi2
 from host.model.spec import ModelTerm, parse_model
 from host.model.terms import Term
 from host.session.directory import Session
@@ -141,26 +141,35 @@ def explanation(text: str, catalogue: Mapping[str, Term]) -> Explanation:
     return Explanation(text.strip(), tuple(parse_model(text, catalogue)))
 
 
-def noncentrality(
+def noncentralities(
     ds: Dataset,
     model: Sequence[ModelTerm],
-    a: Sequence[ModelTerm],
-    b: Sequence[ModelTerm],
-    va: dict[tuple[str, str, str, str], float],
-    vb: dict[tuple[str, str, str, str], float],
+    terms: Sequence[Sequence[ModelTerm]],
+    values: Sequence[dict[tuple[str, str, str, str], float]],
     built: BuiltColumns | None = None,
-) -> float:
-    """min over the two directions of χ² of one explanation fitted to the other's noise-free
-    prediction with values ``va``/``vb`` (the whitening of ``ds`` kept); ``built``: the
-    columns already built on the rows of ``ds`` (:class:`~host.model.design.BuiltColumns`),
-    else built here once for both directions."""
-    ma, mb = (*model, *a), (*model, *b)
+) -> tuple[tuple[int, int, float], ...]:
+    """(i, j, λ) for each pair i < j of the explanations ``terms`` (each a list of terms added
+    to ``model``, with its ``values``): λ the min over the two directions of χ² of one
+    explanation fitted to the other's noise-free prediction (the whitening of ``ds`` kept).
+    Each explanation predicts once, and each is fitted to the others' predictions on one
+    whitened design (``built``: the columns already built on the rows of ``ds``,
+    :class:`~host.model.design.BuiltColumns`, else built here once for all)."""
     built = BuiltColumns(ds) if built is None else built
-    lam = math.inf
-    for truth, values, other in ((ma, va, mb), (mb, vb, ma)):
-        y = predict(ds, truth, values, built)
-        lam = min(lam, fit_chi2(dataclasses.replace(ds, y=y), other, built=built))
-    return lam
+    models = [(*model, *t) for t in terms]
+    ys = [predict(ds, m, v, built) for m, v in zip(models, values, strict=True)]
+    chi2: dict[tuple[int, int], float] = {}  # (fitted, predicted) -> χ²
+    for j, m in enumerate(models):
+        truths = [i for i in range(len(models)) if i != j]
+        for i, c in zip(truths, fitted_chi2(ds, m, [ys[i] for i in truths], built), strict=True):
+            chi2[(j, i)] = c
+    out = []
+    for i in range(len(models)):
+        for j in range(i + 1, len(models)):
+            lam = math.inf
+            for got in (chi2[(j, i)], chi2[(i, j)]):
+                lam = min(lam, got)
+            out.append((i, j, lam))
+    return tuple(out)
 
 
 def yardstick(ds: Dataset, terms: Sequence[ModelTerm]) -> Dataset:
@@ -194,17 +203,15 @@ def separate(
 
     def weighed(s: Session) -> tuple[Dataset, list[tuple[ModelTerm, ...]]]:
         raw = build_dataset(s, **kw)  # type: ignore[arg-type]
-        ds = yardstick(raw, [mt for e in exps for mt in e.on(raw)])
-        return ds, [e.on(ds) for e in exps]
+        on_raw = [e.on(raw) for e in exps]
+        ds = yardstick(raw, [mt for t in on_raw for mt in t])
+        # the yardstick weighs the same records' rows anew: the terms built on them hold
+        return ds, on_raw if same_records(ds, raw) else [e.on(ds) for e in exps]
 
     def lam(
         ds: Dataset, terms: list[tuple[ModelTerm, ...]], built: BuiltColumns | None = None
     ) -> tuple[tuple[int, int, float], ...]:
-        built = BuiltColumns(ds) if built is None else built  # every pair weighs these rows
-        return tuple(
-            (i, j, noncentrality(ds, model, terms[i], terms[j], values[i], values[j], built))
-            for i in range(len(exps)) for j in range(i + 1, len(exps))
-        )  # fmt: skip
+        return noncentralities(ds, model, terms, values, built)
 
     ds, terms = weighed(session)
     built = BuiltColumns(ds)
