@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from host.model.dataset import Dataset
+from host.model.design import BuiltColumns
 from host.model.fit import Fit, fit_model
 from host.model.spec import ModelTerm
 from host.model.stats import beyond_white
@@ -144,10 +145,15 @@ def _component(spec: _Spec, var: float, se: float, dof: float) -> Component:
     return Component(spec.name, value, sigma, int(round(dof)), "°", spec.absorbs, plausible)
 
 
-def fit_with_components(ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 10) -> JointFit:
+def fit_with_components(
+    ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 10, built: BuiltColumns | None = None
+) -> JointFit:
     """Fit ``model`` (:func:`host.model.fit.fit_model`) with the turn-angle and wobble
     components estimated jointly with it (module docstring): fit, estimate each from the
-    residuals, reweigh its rows, fit again until they settle."""
+    residuals, reweigh its rows, fit again until they settle. Reweighing changes the whitening,
+    never the design: every fit reads the terms' columns built once (``built``: those already
+    built on these rows, :class:`~host.model.design.BuiltColumns`)."""
+    built = built if built is not None else BuiltColumns(ds)
     specs = _specs(ds)
     var = {
         s.name: (ds.turn_angle_sigma_deg if s.name == "turn angle" else ds.turn_wobble_sigma_deg)
@@ -156,7 +162,7 @@ def fit_with_components(ds: Dataset, model: Sequence[ModelTerm], max_iter: int =
     }
     est: dict[str, tuple[float, float, float]] = {}
     cur = ds
-    fit = fit_model(cur, model)
+    fit = fit_model(cur, model, built=built)
     iterations = 1
     for _ in range(max_iter):
         moved = False
@@ -173,7 +179,7 @@ def fit_with_components(ds: Dataset, model: Sequence[ModelTerm], max_iter: int =
             cur = _reweigh(cur, s, new)
         if not moved:
             break
-        fit = fit_model(cur, model)
+        fit = fit_model(cur, model, built=built)
         iterations += 1
     comps = tuple(_component(s, var[s.name], *est[s.name][1:]) for s in specs)
     notes = tuple(n for n in cur.notes if not n.startswith("a named variance component: turn"))

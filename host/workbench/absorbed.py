@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from host.model.dataset import Dataset, turn_pairs
-from host.model.design import term_columns
+from host.model.design import BuiltColumns, term_columns
 from host.model.spec import ModelTerm
 from host.model.variance import turn_angle_sigma
 
@@ -40,14 +40,15 @@ def _turn_pairs(ds: Dataset) -> list[tuple[int, int, int]]:
     return out
 
 
-def closure_axes(ds: Dataset, mt: ModelTerm) -> frozenset[int]:
+def closure_axes(ds: Dataset, mt: ModelTerm, built: BuiltColumns | None = None) -> frozenset[int]:
     """The axes whose turn closure the candidate ``mt`` moves as an angle error does: its
     columns are (near) nothing on the static rows of that gyro channel and the same sign in
     both turn directions. Empty for a term odd in the direction (a scale factor cancels) or
-    one that acts at rest too (a bias: the closure takes off the static reading)."""
+    one that acts at rest too (a bias: the closure takes off the static reading). ``built``:
+    the columns already built on these rows (:class:`~host.model.design.BuiltColumns`)."""
     if mt.sensor != "gyro" or not ds.closures:
         return frozenset()
-    x, _ = term_columns(ds, mt)
+    x, _ = built.of(ds, mt) if built is not None else term_columns(ds, mt)
     out = set()
     for k, ccw, cw in _turn_pairs(ds):
         ends = np.abs(x[[ccw, cw]]).max()

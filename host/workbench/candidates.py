@@ -22,7 +22,7 @@ import numpy as np
 
 from host.model.catalogue import BASE, CATALOGUE
 from host.model.dataset import Dataset
-from host.model.design import term_columns
+from host.model.design import BuiltColumns, term_columns
 from host.model.fit import Fit, fit_model, residual_sigmas
 from host.model.signals import AXES
 from host.model.spec import ModelTerm
@@ -139,9 +139,11 @@ class Tried:
         return self.mt.count(self.ds.signals)
 
 
-def try_term(ds: Dataset, fit: Fit, mt: ModelTerm) -> Tried:
-    """Add ``mt`` to the fitted model by orthogonal projection (exact for linear terms)."""
-    x, off = term_columns(ds, mt)
+def try_term(ds: Dataset, fit: Fit, mt: ModelTerm, built: BuiltColumns | None = None) -> Tried:
+    """Add ``mt`` to the fitted model by orthogonal projection (exact for linear terms);
+    ``built``: the columns already built on these rows (:class:`~host.model.design.BuiltColumns`).
+    """
+    x, off = built.of(ds, mt) if built is not None else term_columns(ds, mt)
     cw = ds.whiten.apply(x)
     q = fit.basis
 
@@ -177,33 +179,38 @@ def try_term(ds: Dataset, fit: Fit, mt: ModelTerm) -> Tried:
 
 
 def _try_own_yardstick(
-    ds: Dataset, fit: Fit, mt: ModelTerm, cache: dict[frozenset[int], tuple[Dataset, Fit]]
+    ds: Dataset,
+    fit: Fit,
+    mt: ModelTerm,
+    cache: dict[frozenset[int], tuple[Dataset, Fit]],
+    built: BuiltColumns,
 ) -> Tried:
     """:func:`try_term` against a yardstick without the candidate's own signal: a term that moves
     the turn closures is tested with the turn-angle σ of the other axes
     (:mod:`host.workbench.absorbed`); the model refitted on it once per set of axes."""
-    axes = closure_axes(ds, mt)
+    axes = closure_axes(ds, mt, built)
     if not axes:
-        return try_term(ds, fit, mt)
+        return try_term(ds, fit, mt, built)
     if axes not in cache:
         ds2 = without_turn_angle(ds, axes)
-        cache[axes] = (ds2, fit if ds2 is ds else fit_model(ds2, fit.model))
-    return try_term(*cache[axes], mt)
+        cache[axes] = (ds2, fit if ds2 is ds else fit_model(ds2, fit.model, built=built))
+    return try_term(*cache[axes], mt, built)
 
 
-def _same_yardstick(a: Tried, b: Tried) -> tuple[Tried, Tried]:
+def _same_yardstick(a: Tried, b: Tried, built: BuiltColumns | None = None) -> tuple[Tried, Tried]:
     """``a`` and ``b`` on one yardstick (the one without the turn-angle σ, if either has it)
     so that one can be tested given the other."""
     if a.ds is b.ds:
         return a, b
     if b.ds.turn_angle_sigma_deg < a.ds.turn_angle_sigma_deg:
-        return try_term(b.ds, b.fit, a.mt), b
-    return a, try_term(a.ds, a.fit, b.mt)
+        return try_term(b.ds, b.fit, a.mt, built), b
+    return a, try_term(a.ds, a.fit, b.mt, built)
 
 
-def conditional_delta(a: Tried, b: Tried) -> float:
-    """Δχ² of adding ``b`` to the model that already holds ``a`` (both orthogonal to it)."""
-    a, b = _same_yardstick(a, b)
+def conditional_delta(a: Tried, b: Tried, built: BuiltColumns | None = None) -> float:
+    """Δχ² of adding ``b`` to the model that already holds ``a`` (both orthogonal to it);
+    ``built``: the columns already built on these rows."""
+    a, b = _same_yardstick(a, b, built)
     if a.reason or b.reason:
         return 0.0
     qa, _ = np.linalg.qr(a.cw_perp)
@@ -242,10 +249,17 @@ def evaluate_candidates(
     fit: Fit,
     catalogue: Mapping[str, Term] | None = None,
     alpha: float = ALPHA,
+    built: BuiltColumns | None = None,
 ) -> tuple[list[Candidate], list[Tried]]:
-    """Try every candidate on ``fit``; Holm-correct; find confounded groups; sort best first."""
+    """Try every candidate on ``fit``; Holm-correct; find confounded groups; sort best first
+    (``built``: the columns already built on these rows,
+    :class:`~host.model.design.BuiltColumns`)."""
+    built = built if built is not None else BuiltColumns(ds)
     cache: dict[frozenset[int], tuple[Dataset, Fit]] = {}
-    tried = [_try_own_yardstick(ds, fit, mt, cache) for mt in candidate_terms(fit.model, catalogue)]
+    tried = [
+        _try_own_yardstick(ds, fit, mt, cache, built)
+        for mt in candidate_terms(fit.model, catalogue)
+    ]
     n_rows = len(fit.residual)
     ident = [t for t in tried if not t.reason]
     pvals = [chi2_sf(t.delta, t.n_params) for t in ident]
@@ -266,8 +280,8 @@ def evaluate_candidates(
                 continue
             if not (sig[id(a)] or sig[id(b)]):
                 continue
-            b_given_a = chi2_sf(conditional_delta(a, b), b.n_params) <= alpha / m
-            a_given_b = chi2_sf(conditional_delta(b, a), a.n_params) <= alpha / m
+            b_given_a = chi2_sf(conditional_delta(a, b, built), b.n_params) <= alpha / m
+            a_given_b = chi2_sf(conditional_delta(b, a, built), a.n_params) <= alpha / m
             if not b_given_a and not a_given_b:
                 confounded[id(a)].append(b.mt.label)
                 confounded[id(b)].append(a.mt.label)

@@ -29,6 +29,7 @@ from host.errors import UserError
 from host.model.catalogue import CATALOGUE
 from host.model.components import fit_with_components
 from host.model.dataset import Dataset
+from host.model.design import BuiltColumns
 from host.model.fit import Fit, GroupResidual, SpanResidual, fit_model
 from host.model.signals import AXES
 from host.model.spec import ModelTerm, merge_model, model_spec
@@ -130,7 +131,9 @@ def diagnose(
     """Fit ``model`` to ``ds`` and run the whole diagnosis (module docstring). UserError when
     the records leave the fit no degrees of freedom: then nothing tests the model, and any
     verdict (one record gave ``adequate``) would be a claim without evidence."""
-    joint = fit_with_components(ds, model)
+    # every fit and candidate of the diagnosis reads the terms' columns built once on these rows
+    built = BuiltColumns(ds)
+    joint = fit_with_components(ds, model, built=built)
     ds, fit = joint.dataset, joint.fit
     if fit.dof <= 0:
         n = len(ds.signals)
@@ -139,7 +142,7 @@ def diagnose(
             f"degrees of freedom ({fit.n_params} parameters determined by as many values): "
             "nothing tests it; diagnose needs more records (at least the six static faces)"
         )
-    cands, tried = evaluate_candidates(ds, fit, catalogue, alpha)
+    cands, tried = evaluate_candidates(ds, fit, catalogue, alpha, built)
     #: a candidate tested against its own yardstick (host.workbench.absorbed): the scan is
     #: weighed against it on that yardstick too
     own = {c.label: (t.ds, t.fit) for c, t in zip(cands, tried, strict=True) if t.ds is not ds}
@@ -162,13 +165,16 @@ def diagnose(
             best.setdefault(c.channel, c)
     # structure in the model's residual that a plain signal explains better than any candidate
     dominant: dict[tuple[str, str], ScanHit] = {}
+    own_scans: dict[str, list[ScanHit]] = {}  # each own yardstick scanned once
     for h in scanned:
         ch = (h.sensor, h.axis)
         cb = best.get(ch)
         if ch in dominant:
             continue
         if cb is not None and cb.label in own:
-            same = [g for g in scan_signals(*own[cb.label], alpha) if (g.sensor, g.axis) == ch]
+            if cb.label not in own_scans:
+                own_scans[cb.label] = scan_signals(*own[cb.label], alpha)
+            same = [g for g in own_scans[cb.label] if (g.sensor, g.axis) == ch]
             if same and same[0].delta_chi2 > DOMINANT * cb.delta_chi2:
                 dominant[ch] = same[0]
         elif cb is None or h.delta_chi2 > DOMINANT * cb.delta_chi2:
@@ -191,8 +197,8 @@ def diagnose(
             grouped.add(c.label)
             groups[c.label] = g
     extra = [_model_term(c, cat) for c in usable]
-    aug = fit_model(ds, merge_model(list(model) + extra)) if extra else fit
-    misfit, removed = _misfit_removed(ds, fit, model, extra, aug)
+    aug = fit_model(ds, merge_model(list(model) + extra), built=built) if extra else fit
+    misfit, removed = _misfit_removed(ds, fit, model, extra, aug, built)
     alone = [c for c in usable if c.label not in grouped]
     # a signal no term explains may have equals too (temperature², dT/dt and time measured
     # together): the group is reported beside it
@@ -204,7 +210,7 @@ def diagnose(
         # each recommended term adds significantly to the others (a term significant only
         # through a misfit another explains is not what is missing)
         alone = [c for c in alone if c.label in own
-                 or _adds_to_rest(ds, model, extra, c, cat, finder.level, aug)]  # fmt: skip
+                 or _adds_to_rest(ds, model, extra, c, cat, finder.level, aug, built)]  # fmt: skip
     recommended = tuple(c.label for c in alone) if alone and removed >= MOST * misfit else ()
     rec_extra = [_model_term(c, cat) for c in alone if c.label in recommended]
     hits = scan_signals(ds, aug, alpha) if aug is not fit else scanned
@@ -254,17 +260,23 @@ def diagnose(
 
 
 def _misfit_removed(
-    ds: Dataset, fit: Fit, model: Sequence[ModelTerm], extra: Sequence[ModelTerm], aug: Fit
+    ds: Dataset,
+    fit: Fit,
+    model: Sequence[ModelTerm],
+    extra: Sequence[ModelTerm],
+    aug: Fit,
+    built: BuiltColumns,
 ) -> tuple[float, float]:
     """The misfit (χ² − dof) and how much of it the ``extra`` terms remove, on the yardstick
     they are tested on (:mod:`host.workbench.absorbed`): a term that moves the closure of the
     turns about an axis (a gyro scale asymmetry, a quadratic scale) is weighed without the
     turn-angle σ of that axis, which would otherwise hold its misfit as the hand's angle error
     and leave it nothing to remove. ``aug``: the model with ``extra`` fitted on ``ds``."""
-    axes = frozenset().union(*(closure_axes(ds, mt) for mt in extra))
+    axes = frozenset().union(*(closure_axes(ds, mt, built) for mt in extra))
     yard = without_turn_angle(ds, axes) if axes else ds
     if yard is not ds:
-        fit, aug = fit_model(yard, model), fit_model(yard, merge_model([*model, *extra]))
+        fit = fit_model(yard, model, built=built)
+        aug = fit_model(yard, merge_model([*model, *extra]), built=built)
     return max(fit.chi2 - fit.dof, 0.0), fit.chi2 - aug.chi2
 
 
@@ -287,12 +299,13 @@ def _adds_to_rest(
     cat: Mapping[str, Term],
     level: float,
     aug: Fit,
+    built: BuiltColumns,
 ) -> bool:
     """Does ``c`` lower χ² significantly (at ``level``) when the other ``extra`` terms are
     already in the model? ``aug``: the model with all of ``extra`` fitted."""
     mine = _model_term(c, cat)
     rest = [mt for mt in extra if mt.label != mine.label]
-    without = fit_model(ds, merge_model([*model, *rest]))
+    without = fit_model(ds, merge_model([*model, *rest]), built=built)
     return chi2_sf(max(without.chi2 - aug.chi2, 0.0), mine.count(ds.signals)) <= level
 
 
