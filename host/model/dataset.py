@@ -19,6 +19,7 @@ from host.model.plate import (
     resolve_placements,
     resolve_turn_axes,
     tilt_matrices,
+    turn_axes,
     turn_circles,
     with_headings,
 )
@@ -399,8 +400,11 @@ def build_dataset(
     notes.extend(plate_notes)
     plate = plate_from_rests(with_headings(circles, signals))
     signals = tilt_matrices(signals, plate)
-    changed = leans_are_a_bias_change(signals, plate)
-    signals, tilted = resolve_turn_axes(signals, None if changed else plate)
+    # the turns' axes, read once: whether a bias change explains their leans, else which
+    # turns were tilted
+    axes = turn_axes(signals, plate)
+    changed = leans_are_a_bias_change(signals, axes)
+    signals, tilted = resolve_turn_axes(signals, [] if changed else axes)
     notes.extend(a.line() for a in tilted)
     if changed:
         notes.append(changed.line(g))

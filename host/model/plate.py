@@ -473,14 +473,14 @@ def _accel_calibration(
 
 
 def resolve_turn_axes(
-    signals: Sequence[RecordSignals], plate: PlateTilt | None
+    signals: Sequence[RecordSignals], axes: Sequence[TurnAxis]
 ) -> tuple[list[RecordSignals], list[TurnAxis]]:
     """The records with each tilted turn's reference rate and specific force along its
-    measured axis (:func:`turn_axes`, :attr:`TurnAxis.tilted`): the gyro cross-axis values
-    such a turn would fake are corrected by the tilt the accelerometer shows. Returns the
-    records and the tilted turns (their :meth:`TurnAxis.line` tells the reader)."""
+    measured axis (``axes``: :func:`turn_axes`, :attr:`TurnAxis.tilted`): the gyro cross-axis
+    values such a turn would fake are corrected by the tilt the accelerometer shows. Returns
+    the records and the tilted turns (their :meth:`TurnAxis.line` tells the reader)."""
     out = list(signals)
-    tilted = [a for a in turn_axes(signals, plate) if a.tilted]
+    tilted = [a for a in axes if a.tilted]
     for a in tilted:
         i = next(j for j, s in enumerate(out) if s.name == a.record)
         s = out[i]

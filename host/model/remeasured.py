@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host.model.plate import SEAT_TOL_RAD, PlateTilt, TurnAxis, turn_axes
+from host.model.plate import SEAT_TOL_RAD, TurnAxis
 from host.model.signals import RecordSignals
 
 #: a change between the two measurements of a face counts beyond this many standard errors
@@ -107,12 +107,11 @@ def _untilted(a: TurnAxis, lean: np.ndarray) -> bool:
 
 
 def leans_are_a_bias_change(
-    signals: Sequence[RecordSignals], plate: PlateTilt | None
+    signals: Sequence[RecordSignals], axes: Sequence[TurnAxis]
 ) -> BiasChange | None:
-    """The change a re-measured face shows, when it explains the turns' leans (module
-    docstring): some tilted turn, and a history of that change (a step or a drift) under which
-    no turn is tilted any more; else None."""
-    axes = turn_axes(signals, plate)
+    """The change a re-measured face shows, when it explains the turns' leans ``axes``
+    (:func:`host.model.plate.turn_axes`; module docstring): some tilted turn, and a history of
+    that change (a step or a drift) under which no turn is tilted any more; else None."""
     if not any(a.tilted for a in axes):
         return None
     ch = bias_change(signals)
