@@ -169,15 +169,6 @@ def trapezoid_weights(t_ms: np.ndarray) -> np.ndarray:
     return w[None, :]
 
 
-def _runs_of(agg: np.ndarray) -> list[tuple[int, int]]:
-    """[start, stop) sample ranges of the rows of a still-moment aggregator."""
-    out = []
-    for row in agg:
-        nz = np.flatnonzero(row)
-        out.append((int(nz[0]), int(nz[-1]) + 1))
-    return out
-
-
 @dataclass(frozen=True, eq=False)
 class BlockMeans:
     """A static or rate-table record's rows, from its own samples alone (:func:`block_means`):
@@ -248,6 +239,8 @@ class TurnAccel:
     aggregators: tuple[np.ndarray, ...]
     spans: tuple[tuple[float, float], ...]
     n_still: int
+    #: [start, stop) sample ranges of the still moments (the first ``n_still`` rows)
+    still: tuple[tuple[int, int], ...] = ()
 
 
 def turn_accel_rows(
@@ -268,7 +261,7 @@ def turn_accel_rows(
         acc_agg if abs(float(sig.up[ax])) < 0.5 else acc_agg[: len(runs)] for ax in range(3)
     )
     spans = tuple((float(t_rel[a]), float(t_rel[e - 1])) for a, e in [*runs, *blocks])
-    return TurnAccel(aggs, spans, len(runs))
+    return TurnAccel(aggs, spans, len(runs), tuple(runs))
 
 
 def add_turn_accel(
@@ -285,7 +278,7 @@ def add_turn_accel(
         if turn.n_still == 0:
             table.channels.append(ChannelRows(record, "accel", ax, idx, agg, math.nan))
             continue
-        var, devs = white_variance(sig.accel[:, ax], _runs_of(agg[: turn.n_still]))
+        var, devs = white_variance(sig.accel[:, ax], turn.still)
         table.deviations.setdefault(("accel", ax), []).extend(devs)
         table.channels.append(ChannelRows(record, "accel", ax, idx, agg, var))
 
