@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 from host.bench.plan import tilted_45
 from host.errors import UserError
-from host.model.dataset import Dataset, build_dataset
+from host.model.dataset import Dataset, RecordWork, build_dataset
 from host.model.design import BuiltColumns, same_records
 from host.model.fit import Fit, fit_model, predict
 from host.model.geometry import DIALOGUE_HEADING_DEG
@@ -199,7 +199,8 @@ def separate(
     :class:`Explanation`), each at the size this session's records give it."""
     exps = [x if isinstance(x, Explanation) else Explanation(_label(x), tuple(x))
             for x in (a, b, *others)]  # fmt: skip
-    kw = {"noise": noise or NoiseModel(), "latitude_deg": latitude_deg, "height_m": height_m}
+    kw = {"noise": noise or NoiseModel(), "latitude_deg": latitude_deg, "height_m": height_m,
+          "work": RecordWork()}  # fmt: skip
 
     def weighed(s: Session) -> tuple[Dataset, list[tuple[ModelTerm, ...]]]:
         raw = build_dataset(s, **kw)  # type: ignore[arg-type]
