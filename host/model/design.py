@@ -4,6 +4,7 @@ errors become one line naming the term)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -21,18 +22,23 @@ MAX_COLUMN = 1e100
 
 
 # ---- design matrix --------------------------------------------------------------------------
-def aggregate(agg: np.ndarray, per_sample: np.ndarray) -> np.ndarray:
+def aggregate(agg: np.ndarray, per_sample: np.ndarray, scale: float | None = None) -> np.ndarray:
     """Rows of one record from per-sample values: ``agg`` (B,N) @ ``per_sample`` (N,…), with
-    round-off (below 1e-9 of the largest per-sample value) set to exactly 0."""
+    round-off (below 1e-9 of the largest per-sample value, ``scale`` where the caller has
+    it already) set to exactly 0."""
     out = agg @ per_sample
-    scale = float(np.max(np.abs(per_sample))) if per_sample.size else 0.0
+    if scale is None:
+        scale = float(np.abs(per_sample).max()) if per_sample.size else 0.0
     out[np.abs(out) < 1e-9 * scale] = 0.0
-    return np.asarray(out)
+    return out
 
 
-def _call_term(t: Term, what: str, sig: RecordSignals, fn: Callable[[], Any]) -> np.ndarray:
+def _call_term(
+    t: Term, what: str, sig: RecordSignals, fn: Callable[[], Any]
+) -> tuple[np.ndarray, float]:
     """Call a term's function (user code, maybe): any exception or a non-finite value becomes
-    one UserError naming the term, the function and the record."""
+    one UserError naming the term, the function and the record. -> (its values, their
+    largest magnitude)."""
     try:
         raw = fn()
         if np.iscomplexobj(raw):  # its real part alone would be taken, with a warning
@@ -47,27 +53,29 @@ def _call_term(t: Term, what: str, sig: RecordSignals, fn: Callable[[], Any]) ->
         raise UserError(
             f"term {t.name}: {what}() raised {type(exc).__name__}: {exc} (record {sig.name})"
         ) from None
-    if not np.all(np.isfinite(x)):
+    big = float(np.abs(x).max()) if x.size else 0.0  # NaN (or inf) if any value is not finite
+    if not math.isfinite(big):
         raise UserError(
             f"term {t.name}: {what}() returned {int(np.count_nonzero(~np.isfinite(x)))} "
             f"non-finite values (NaN or inf) for record {sig.name}; it must give finite numbers"
         )
-    big = float(np.max(np.abs(x))) if x.size else 0.0
     if big > MAX_COLUMN:  # the fit's squares overflow: 'SVD did not converge', a traceback
         raise UserError(
             f"term {t.name}: {what}() returned values up to {big:.3g} for record {sig.name}, "
             f"beyond the fit's range (±{MAX_COLUMN:g}); scale the term to the records' units"
         )
-    return x
+    return x, big
 
 
 def _regressors(
     t: Term, sig: RecordSignals, sensor: str, axis: int, twin: bool = False
-) -> np.ndarray:
+) -> tuple[np.ndarray, float]:
+    """(N, k) a term's per-sample regressors on one channel of one record, their largest
+    magnitude."""
     columns = t.twin_columns if twin else t.columns
     assert columns is not None
     what = "twin_columns" if twin else "columns"
-    x = _call_term(t, what, sig, lambda: columns(sig, sensor, axis))
+    x, big = _call_term(t, what, sig, lambda: columns(sig, sensor, axis))
     if x.ndim == 1:
         x = x[:, None]
     if x.shape != (len(sig.t_s), len(t.params)):
@@ -75,7 +83,7 @@ def _regressors(
             f"term {t.name}: {what}() returned shape {x.shape}, expected "
             f"({len(sig.t_s)}, {len(t.params)})"
         )
-    return x
+    return x, big
 
 
 def term_columns(
@@ -101,7 +109,7 @@ def term_columns(
                 rows = ds.rows_of.get((ri, mt.sensor, ax))
                 if rows is not None:
                     cols[rows] = aggregate(
-                        ds.aggregator(ri, mt.sensor, ax), _regressors(mt.term, sig, mt.sensor, ax)
+                        ds.aggregator(ri, mt.sensor, ax), *_regressors(mt.term, sig, mt.sensor, ax)
                     )
         return np.column_stack([cols, own]), np.zeros(ds.n_rows)
     cols = np.zeros((ds.n_rows, k * len(mt.axes)))
@@ -119,7 +127,7 @@ def term_columns(
             agg = ds.aggregator(ri, mt.sensor, ax)
             if not mt.term.nonlinear:
                 cols[rows, j * k : (j + 1) * k] = aggregate(
-                    agg, _regressors(mt.term, sig, mt.sensor, ax)
+                    agg, *_regressors(mt.term, sig, mt.sensor, ax)
                 )
                 continue
             value = mt.term.value
@@ -132,7 +140,7 @@ def term_columns(
                 ax: int = ax,
                 value: ValueFn = value,
             ) -> np.ndarray:
-                return _call_term(mt.term, "value", sig, lambda: value(sig, mt.sensor, ax, pp))
+                return _call_term(mt.term, "value", sig, lambda: value(sig, mt.sensor, ax, pp))[0]
 
             v0 = at(p)
             jac = np.zeros((len(sig.t_s), k))
@@ -150,7 +158,7 @@ def term_columns(
                 rows = ds.rows_of.get((ri, twin, ax))
                 if rows is not None:
                     cols[rows, j * k : (j + 1) * k] = aggregate(
-                        ds.aggregator(ri, twin, ax), _regressors(mt.term, sig, twin, ax, True)
+                        ds.aggregator(ri, twin, ax), *_regressors(mt.term, sig, twin, ax, True)
                     )
     return np.column_stack([cols, own]), offset
 
@@ -176,13 +184,13 @@ def record_columns(ds: Dataset, mt: ModelTerm) -> np.ndarray:
             rows = ds.rows_of.get((ri, mt.sensor, ax))
             if rows is None:
                 continue
-            x = _call_term(t, "record_columns", sig, lambda: fn(sig, mt.sensor, ax))  # noqa: B023
+            x, big = _call_term(t, "record_columns", sig, lambda: fn(sig, mt.sensor, ax))  # noqa: B023
             if x.shape != (len(sig.t_s), k):
                 raise UserError(
                     f"term {t.name}: record_columns() returned shape {x.shape}, expected "
                     f"({len(sig.t_s)}, {k})"
                 )
-            out[rows, start - k : start] = aggregate(ds.aggregator(ri, mt.sensor, ax), x)
+            out[rows, start - k : start] = aggregate(ds.aggregator(ri, mt.sensor, ax), x, big)
     return out
 
 
