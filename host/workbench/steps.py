@@ -74,7 +74,12 @@ class Placed:
 def channel_cuts(ds: Dataset, basis: np.ndarray, sensor: str, axis: int) -> StepCuts | None:
     """Every cut between two samples of the session as a step column on channel ``axis`` of
     ``sensor`` (aggregated onto its rows like a term's, whitened, the fit's ``basis`` removed);
-    None when the channel has no rows."""
+    None when the channel has no rows.
+
+    W is block-diagonal within each record's rows (one block per record and channel), so the
+    whitened column of a cut is the whitened rows of the records after it, which every cut in
+    a record shares, and the record's own rows moved by the samples after the cut, whitened by
+    that record's blocks alone."""
     order = sorted(range(len(ds.signals)), key=lambda i: float(ds.signals[i].t_s[0]))
     cols: list[np.ndarray] = []
     lo: list[np.ndarray] = []
@@ -93,7 +98,8 @@ def channel_cuts(ds: Dataset, basis: np.ndarray, sensor: str, axis: int) -> Step
         blocks.append((ri, rows, agg))
     if not np.any(full):
         return None
-    after = full.copy()
+    own_blocks = _record_blocks(ds, [rows for _, rows, _ in blocks if len(rows)])
+    after = ds.whiten.apply(full)
     for k, (ri, rows, agg) in enumerate(blocks):
         t = ds.signals[ri].t_s
         if len(rows):
@@ -103,7 +109,7 @@ def channel_cuts(ds: Dataset, basis: np.ndarray, sensor: str, axis: int) -> Step
             # samples i… : the reversed running sum
             tail = np.cumsum(agg[:, ::-1], axis=1)[:, ::-1][:, 1:n]
             x = np.repeat(after[:, None], n - 1, axis=1)
-            x[rows] = tail
+            x[rows] = _whiten_own(own_blocks[int(rows[0])], tail)
             cols.append(x)
             lo.append(np.asarray(t[:-1], dtype=float))
             hi.append(np.asarray(t[1:], dtype=float))
@@ -112,12 +118,46 @@ def channel_cuts(ds: Dataset, basis: np.ndarray, sensor: str, axis: int) -> Step
             cols.append(after[:, None].copy())
             lo.append(np.array([float(t[-1])]))
             hi.append(np.array([float(nxt[0])]))
-    x = np.concatenate(cols, axis=1)
-    cw = ds.whiten.apply(x)
+    cw = np.concatenate(cols, axis=1)
     cp = cw - basis @ (basis.T @ cw) if basis.shape[1] else cw
     spans = tuple((float(ds.signals[ri].t_s[0]), float(ds.signals[ri].t_s[-1]))
                   for ri, rows, _ in blocks if len(rows))  # fmt: skip
     return StepCuts(cp, np.concatenate(lo), np.concatenate(hi), spans)
+
+
+def _record_blocks(
+    ds: Dataset, record_rows: Sequence[np.ndarray]
+) -> dict[int, list[tuple[np.ndarray, np.ndarray]]]:
+    """First row of each record's rows -> the whitener's blocks on them: (positions of the
+    block's rows among the record's, the block W_b). ValueError if a block reaches past the
+    record's rows (W would not be block-diagonal within records)."""
+    first = {int(rows[0]): k for k, (rows, _) in enumerate(ds.whiten.blocks) if len(rows)}
+    out: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+    for rows in record_rows:
+        at = {int(r): i for i, r in enumerate(rows)}
+        mine: list[tuple[np.ndarray, np.ndarray]] = []
+        seen = 0
+        for r in rows:
+            k = first.get(int(r))
+            if k is None:
+                continue
+            b_rows, w = ds.whiten.blocks[k]
+            if any(int(b) not in at for b in b_rows):
+                raise ValueError(f"a whitening block reaches past the record's rows {rows}")
+            mine.append((np.array([at[int(b)] for b in b_rows], dtype=np.intp), w))
+            seen += len(b_rows)
+        if seen != len(rows):
+            raise ValueError(f"the record's rows {rows} are not whole whitening blocks")
+        out[int(rows[0])] = mine
+    return out
+
+
+def _whiten_own(own: Sequence[tuple[np.ndarray, np.ndarray]], a: np.ndarray) -> np.ndarray:
+    """W·a on one record's rows (``a`` (rows, k)), block by block (``own``: positions, W_b)."""
+    out = np.zeros_like(a)
+    for pos, w in own:
+        out[pos] = w @ a[pos]
+    return out
 
 
 class _Profiles:
