@@ -27,6 +27,8 @@ from host.model.remeasured import leans_are_a_bias_change
 from host.model.rows import (
     BlockMeans,
     RowTable,
+    TurnAccel,
+    TurnAccelValues,
     add_block_means,
     add_turn_accel,
     add_turn_integrals,
@@ -35,9 +37,11 @@ from host.model.rows import (
     hand_sigma,
     seating_sigma,
     turn_accel_rows,
+    turn_accel_values,
     turn_tilt_columns,
 )
 from host.model.signals import RecordSignals
+from host.model.turning import sensed_lever_matrix
 from host.model.variance import Component, TurnClosure, turn_angle_sigma, turn_wobble_sigma
 from host.model.whitening import Group, Whitener, whiten_rows
 from host.session.directory import Session, read_session
@@ -296,6 +300,10 @@ class RecordWork:
 
     stats: dict[Record, RecordStats] = field(default_factory=dict)
     blocks: dict[tuple[object, ...], BlockMeans] = field(default_factory=dict)
+    turns: dict[tuple[object, ...], tuple[TurnAccel | None, TurnAccelValues]] = field(
+        default_factory=dict
+    )
+    levers: dict[tuple[object, ...], np.ndarray] = field(default_factory=dict)
 
     def record_stats(self, rec: Record) -> RecordStats:
         """:func:`host.session.method.record_stats` of ``rec``, read once."""
@@ -312,6 +320,29 @@ class RecordWork:
         if key not in self.blocks:
             self.blocks[key] = block_means(sig, t_rel, noise)
         return self.blocks[key]
+
+    def turn_accel(
+        self, rec: Record, sig: RecordSignals, t_rel: np.ndarray, gyro_sd_dps: float, moving: bool
+    ) -> tuple[TurnAccel | None, TurnAccelValues]:
+        """Turn record ``rec``'s accelerometer rows (:func:`host.model.rows.turn_accel_rows`,
+        :func:`host.model.rows.turn_accel_values`), read once per reference input (its
+        signals ``sig``), gyro noise and ``moving``."""
+        key = (rec, sig.up.tobytes(), sig.rate.tobytes(), sig.force.tobytes(), gyro_sd_dps, moving)
+        if key not in self.turns:
+            turn = turn_accel_rows(sig, t_rel, gyro_sd_dps, moving)
+            self.turns[key] = (turn, () if turn is None else turn_accel_values(sig, turn))
+        return self.turns[key]
+
+    def lever(self, rec: Record, sig: RecordSignals) -> np.ndarray:
+        """:func:`host.model.turning.sensed_lever_matrix` of turn record ``rec`` (its signals
+        ``sig``), read once per clock, reference rate and accelerometer matrix."""
+        matrix = None if sig.accel_matrix is None else np.asarray(sig.accel_matrix).tobytes()
+        key = (rec, sig.t_s.tobytes(), sig.rate.tobytes(), matrix)
+        if key not in self.levers:
+            lever = sensed_lever_matrix(sig.t_s, sig.rate, sig.accel_matrix)
+            lever.flags.writeable = False  # several datasets may read it
+            self.levers[key] = lever
+        return self.levers[key]
 
 
 def build_dataset(
@@ -385,12 +416,12 @@ def build_dataset(
             aggs.append(add_block_means(table, ri, work.block_means(rec, sig, t_rel, nm)))
             continue
         up_k = int(np.argmax(np.abs(o.up)))
-        turn = turn_accel_rows(sig, t_rel, float(gyro_sd[up_k]), moving)
+        turn, values = work.turn_accel(rec, sig, t_rel, float(gyro_sd[up_k]), moving)
         if turn is not None:
             for ax in range(3):
                 sensor_aggs[(ri, "accel", ax)] = turn.aggregators[ax]
             n_still[ri] = turn.n_still
-            add_turn_accel(table, ri, sig, turn, nm)
+            add_turn_accel(table, ri, turn, values)
         aggs.append(add_turn_integrals(table, ri, sig, rec.t_ms, t_rel))
 
     apply_serial_correlation(table, nm.max_lag)
@@ -423,7 +454,11 @@ def build_dataset(
     white_level = {
         k: float(np.mean([v * t for v, t in lv])) for k, lv in table.static_noise.items()
     }
-    hand, hand_note = hand_sigma(signals, sensor_aggs, n_still, white_level, tilt_cols)
+    records = [session.records[n] for n in names]
+    hand, hand_note = hand_sigma(
+        signals, sensor_aggs, n_still, white_level, tilt_cols,
+        lambda ri: work.lever(records[ri], signals[ri]),
+    )  # fmt: skip
     if hand_note:
         notes.append(hand_note)
     closures = _turn_closures(table, signals, pre, has_power)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Hashable, Mapping, Sequence
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -255,6 +255,7 @@ def turn_accel_rows(
     if not (runs or blocks):
         return None
     acc_agg = means_of([*runs, *blocks], len(t_rel))
+    acc_agg.flags.writeable = False  # several datasets may hold it
     # the up channel reads no lever arm, only the hand pressing and tilting the cube
     # (g·(1 − cos θ), one-signed): its moving blocks are left out
     aggs = tuple(
@@ -264,22 +265,37 @@ def turn_accel_rows(
     return TurnAccel(aggs, spans, len(runs), tuple(runs))
 
 
-def add_turn_accel(
-    table: RowTable, record: int, sig: RecordSignals, turn: TurnAccel, noise: NoiseModel
-) -> None:
-    """A turn record's accelerometer rows (:func:`turn_accel_rows`): the white noise of a still
-    moment's mean from the still moments' own samples (NaN without still moments: the static
-    records' level is taken)."""
+#: per accelerometer axis with rows: (axis, the rows' means and the ideal sensor's (B,), m/s²,
+#: the white variance of one sample from the still moments (NaN without), its deviations)
+TurnAccelValues = tuple[tuple[int, list[float], list[float], float, list[np.ndarray]], ...]
+
+
+def turn_accel_values(sig: RecordSignals, turn: TurnAccel) -> TurnAccelValues:
+    """A turn record's accelerometer rows (:func:`turn_accel_rows`) read from its samples: the
+    white noise of a still moment's mean from the still moments' own samples (NaN without
+    still moments: the static records' level is taken)."""
+    out: list[tuple[int, list[float], list[float], float, list[np.ndarray]]] = []
     for ax in range(3):
         agg = turn.aggregators[ax]
         if not agg.shape[0]:
             continue
-        idx = table.add(record, sig, "accel", ax, agg, turn.spans, integral=False)
+        y, nominal = (agg @ sig.accel[:, ax]).tolist(), (agg @ sig.force[:, ax]).tolist()
         if turn.n_still == 0:
-            table.channels.append(ChannelRows(record, "accel", ax, idx, agg, math.nan))
+            out.append((ax, y, nominal, math.nan, []))
             continue
         var, devs = white_variance(sig.accel[:, ax], turn.still)
-        table.deviations.setdefault(("accel", ax), []).extend(devs)
+        out.append((ax, y, nominal, var, devs))
+    return tuple(out)
+
+
+def add_turn_accel(table: RowTable, record: int, turn: TurnAccel, values: TurnAccelValues) -> None:
+    """A turn record's accelerometer rows (:func:`turn_accel_rows`, :func:`turn_accel_values`)
+    into ``table``."""
+    for ax, y, nominal, var, devs in values:
+        agg = turn.aggregators[ax]
+        idx = table.add_values(record, "accel", ax, y, nominal, turn.spans, integral=False)
+        if turn.n_still:
+            table.deviations.setdefault(("accel", ax), []).extend(devs)
         table.channels.append(ChannelRows(record, "accel", ax, idx, agg, var))
 
 
@@ -353,6 +369,7 @@ def hand_sigma(
     n_still: Mapping[int, int],
     white_level: Mapping[tuple[str, int], float],
     tilt: Mapping[tuple[int, int], np.ndarray],
+    lever_of: Callable[[int], np.ndarray],
 ) -> tuple[tuple[float, float], str]:
     """The hand's scatter on a horizontal accelerometer while the cube turns, m/s²: (of a
     moving block's mean about its turn's level, of that level about the turn's level at rest)
@@ -360,7 +377,8 @@ def hand_sigma(
     and the plate tilt, and beyond the sensor's white noise (``white_level`` (sensor, axis) ->
     variance·τ of one sample, from the static records) —
     :func:`host.model.turning.hand_scatter`, module docstring there. ``tilt``:
-    :func:`turn_tilt_columns`."""
+    :func:`turn_tilt_columns`; ``lever_of``: a turn record's
+    :func:`host.model.turning.sensed_lever_matrix` by its index."""
     keys: list[tuple[int, int]] = []
     ys: list[float] = []
     cl: list[np.ndarray] = []
@@ -389,7 +407,7 @@ def hand_sigma(
                     np.concatenate([np.zeros(3), m_still @ tilt0]),
                 )
             if lever is None:
-                lever = turning.sensed_lever_matrix(sig.t_s, sig.rate, sig.accel_matrix)
+                lever = lever_of(ri)
             keys.extend([(ri, ax)] * len(moving))
             ys.extend((moving @ sig.accel[:, ax]).tolist())
             cl.extend(moving @ np.column_stack([lever[:, ax, :], tilt0]))
