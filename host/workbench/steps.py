@@ -17,6 +17,8 @@ scan's α), and then each step is placed again given the other.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 import re
 from collections.abc import Sequence
@@ -36,17 +38,74 @@ STEP = "a step in time"
 PROFILE_DROP = 3.84
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StepCuts:
-    """Every distinct cut of one channel: ``white`` (n_rows, K) the whitened step columns with
-    the fit's columns removed, and each cut's span of time ``lo``/``hi`` (K,) s: the two samples
-    either side of it (a gap between records: its last and first sample); ``spans`` (first,
-    last sample time, s) of each record with rows on the channel."""
+    """Every distinct cut of one channel as a whitened step column with the fit's columns
+    removed, and each cut's span of time ``lo``/``hi`` (K,) s: the two samples either side of
+    it (a gap between records: its last and first sample); ``spans`` (first, last sample time,
+    s) of each record with rows on the channel.
 
-    white: np.ndarray
+    Kept in parts, never as the (n_rows, K) matrix: cut k's column is ``level[:, owner[k]]``
+    (the records after the cut, moved whole) plus the cut's record's own rows ``rows`` moved
+    by ``moved[:, k - start]`` (one of ``records``: (rows, start, moved)), less ``q @ z[:, k]``
+    (the own rows' part along the removed directions ``q``, orthonormal; ``level`` has none).
+    """
+
     lo: np.ndarray
     hi: np.ndarray
-    spans: tuple[tuple[float, float], ...] = ()
+    spans: tuple[tuple[float, float], ...]
+    level: np.ndarray
+    owner: np.ndarray
+    records: tuple[tuple[np.ndarray, int, np.ndarray], ...]
+    q: np.ndarray
+    z: np.ndarray
+
+    @functools.cached_property
+    def white(self) -> np.ndarray:
+        """(n_rows, K) every cut's column (tests and small sessions: memory n_rows·K)."""
+        out = self.level[:, self.owner] - self.q @ self.z
+        for rows, start, moved in self.records:
+            out[rows, start : start + moved.shape[1]] += moved
+        return np.asarray(out)
+
+    def dot(self, v: np.ndarray) -> np.ndarray:
+        """(K,) ``v`` (n_rows,) · every cut's column."""
+        out = (v @ self.level)[self.owner] - (v @ self.q) @ self.z
+        for rows, start, moved in self.records:
+            out[start : start + moved.shape[1]] += v[rows] @ moved
+        return np.asarray(out)
+
+    def columns(self, ks: Sequence[int] | np.ndarray) -> np.ndarray:
+        """(n_rows, len(ks)) the columns of the cuts ``ks``."""
+        ks = np.asarray(ks, dtype=np.intp)
+        out = self.level[:, self.owner[ks]] - self.q @ self.z[:, ks]
+        for rows, start, moved in self.records:
+            inside = (ks >= start) & (ks < start + moved.shape[1])
+            if np.any(inside):
+                out[np.ix_(rows, np.flatnonzero(inside))] += moved[:, ks[inside] - start]
+        return np.asarray(out)
+
+    def norms2(self) -> np.ndarray:
+        """(K,) every column's squared norm: level and removed part are orthogonal, so
+        ‖level + own − q·z‖² = ‖level‖² + 2·level·own + ‖own‖² − ‖z‖²."""
+        out = np.einsum("ij,ij->j", self.level, self.level)[self.owner]
+        out -= np.einsum("ij,ij->j", self.z, self.z)
+        for rows, start, moved in self.records:
+            lv = self.level[rows][:, self.owner[start : start + moved.shape[1]]]
+            out[start : start + moved.shape[1]] += np.einsum("ij,ij->j", moved, moved + 2.0 * lv)
+        return np.asarray(out)
+
+    def without(self, u: np.ndarray) -> StepCuts:
+        """The cuts with the unit direction ``u`` (n_rows,), orthogonal to ``q``, removed too."""
+        z_u = np.zeros(self.z.shape[1])
+        for rows, start, moved in self.records:
+            z_u[start : start + moved.shape[1]] = u[rows] @ moved
+        return dataclasses.replace(
+            self,
+            level=self.level - np.outer(u, u @ self.level),
+            q=np.column_stack([self.q, u]),
+            z=np.vstack([self.z, z_u]),
+        )
 
 
 @dataclass(frozen=True)
@@ -81,7 +140,6 @@ def channel_cuts(ds: Dataset, basis: np.ndarray, sensor: str, axis: int) -> Step
     a record shares, and the record's own rows moved by the samples after the cut, whitened by
     that record's blocks alone."""
     order = sorted(range(len(ds.signals)), key=lambda i: float(ds.signals[i].t_s[0]))
-    cols: list[np.ndarray] = []
     lo: list[np.ndarray] = []
     hi: list[np.ndarray] = []
     # the rows of the records after the cut: each row's weights summed (a mean 1, an integral
@@ -100,29 +158,40 @@ def channel_cuts(ds: Dataset, basis: np.ndarray, sensor: str, axis: int) -> Step
         return None
     own_blocks = _record_blocks(ds, [rows for _, rows, _ in blocks if len(rows)])
     after = ds.whiten.apply(full)
+    levels = [after.copy()]
+    owner: list[np.ndarray] = []
+    records: list[tuple[np.ndarray, int, np.ndarray]] = []
+    k_at = 0
     for k, (ri, rows, agg) in enumerate(blocks):
         t = ds.signals[ri].t_s
         if len(rows):
             after[rows] = 0.0
+            levels.append(after.copy())
             n = agg.shape[1]
             # a cut before sample i (1 ≤ i < n) moves this record's rows by the weights of
             # samples i… : the reversed running sum
             tail = np.cumsum(agg[:, ::-1], axis=1)[:, ::-1][:, 1:n]
-            x = np.repeat(after[:, None], n - 1, axis=1)
-            x[rows] = _whiten_own(own_blocks[int(rows[0])], tail)
-            cols.append(x)
+            records.append((rows, k_at, _whiten_own(own_blocks[int(rows[0])], tail)))
+            owner.append(np.full(n - 1, len(levels) - 1, dtype=np.intp))
+            k_at += n - 1
             lo.append(np.asarray(t[:-1], dtype=float))
             hi.append(np.asarray(t[1:], dtype=float))
         if k + 1 < len(blocks):  # the gap after this record: every later record moved whole
             nxt = ds.signals[blocks[k + 1][0]].t_s
-            cols.append(after[:, None].copy())
+            owner.append(np.array([len(levels) - 1], dtype=np.intp))
+            k_at += 1
             lo.append(np.array([float(t[-1])]))
             hi.append(np.array([float(nxt[0])]))
-    cw = np.concatenate(cols, axis=1)
-    cp = cw - basis @ (basis.T @ cw) if basis.shape[1] else cw
+    level = np.column_stack(levels)
+    z = np.zeros((basis.shape[1], k_at))
+    if basis.shape[1]:
+        level = level - basis @ (basis.T @ level)
+        for rows, start, moved in records:
+            z[:, start : start + moved.shape[1]] = basis[rows].T @ moved
     spans = tuple((float(ds.signals[ri].t_s[0]), float(ds.signals[ri].t_s[-1]))
                   for ri, rows, _ in blocks if len(rows))  # fmt: skip
-    return StepCuts(cp, np.concatenate(lo), np.concatenate(hi), spans)
+    return StepCuts(np.concatenate(lo), np.concatenate(hi), spans, level,
+                    np.concatenate(owner), tuple(records), basis, z)  # fmt: skip
 
 
 def _record_blocks(
@@ -166,8 +235,8 @@ class _Profiles:
 
     def __init__(self, cuts: StepCuts, r: np.ndarray) -> None:
         self.cuts, self.r = cuts, r
-        self.nn = np.einsum("ij,ij->j", cuts.white, cuts.white)
-        self.rb = r @ cuts.white
+        self.nn = cuts.norms2()
+        self.rb = cuts.dot(r)
         self.tiny = 1e-12 * float(np.max(self.nn)) if len(self.nn) else 0.0
         #: :meth:`given` by cut: the climbs from several pairs meet at the same cuts, and each
         #: profile is a product with every cut
@@ -188,7 +257,7 @@ class _Profiles:
         if self.nn[k] <= self.tiny:
             return self.alone()
         norm = math.sqrt(float(self.nn[k]))
-        a = (self.cuts.white[:, k] / norm) @ self.cuts.white
+        a = self.cuts.dot(self.cuts.columns([k])[:, 0] / norm)
         num = (self.rb - a * float(self.rb[k]) / norm) ** 2
         den = self.nn - a * a
         ok = den > 1e-9 * self.nn
@@ -196,7 +265,7 @@ class _Profiles:
 
     def pair(self, i: int, j: int) -> float:
         """Δχ² of steps at cuts ``i`` and ``j`` together."""
-        return _joint(self.cuts.white[:, [i, j]], self.r)
+        return _joint(self.cuts.columns([i, j]), self.r)
 
     def climb(self, i: int, j: int) -> tuple[int, int]:
         """From the pair (i, j): each step placed again given the other, to the sample, until
@@ -276,13 +345,13 @@ def place_steps(
     if drift is not None and float(drift @ drift) > 0.0:
         # the pair against one step, each with the drift beside it
         u = drift / math.sqrt(float(drift @ drift))
-        with_drift = StepCuts(cuts.white - np.outer(u, u @ cuts.white), cuts.lo, cuts.hi)
+        with_drift = cuts.without(u)
         pro_d = _Profiles(with_drift, r - u * float(u @ r))
         gain = pro_d.pair(*best) - float(np.max(pro_d.alone()))
         if chi2_sf(gain, 1) * n >= alpha:
             return single
     ks = sorted(best, key=lambda k: float(cuts.lo[k]))
-    x = cuts.white[:, ks]
+    x = cuts.columns(ks)
     beta, *_ = np.linalg.lstsq(x, r, rcond=None)
     scale = max(1.0, (rr - both) / max(dof - 2, 1))
     cov = np.linalg.inv(x.T @ x)
@@ -308,7 +377,7 @@ def two_against_one(
     one = float(np.max(pro.alone()))
     if drift is not None and float(drift @ drift) > 0.0:
         u = drift / math.sqrt(float(drift @ drift))
-        with_drift = StepCuts(cuts.white - np.outer(u, u @ cuts.white), cuts.lo, cuts.hi)
+        with_drift = cuts.without(u)
         pro_d = _Profiles(with_drift, r - u * float(u @ r))
         one = max(one, float(u @ r) ** 2 + float(np.max(pro_d.alone())))
     return pro.pair(k1, k2) - one
@@ -330,7 +399,7 @@ def _coarse_pairs(
     idx = np.unique(at[at < len(cuts.hi)])
     if len(idx) < 2:
         return []
-    x = cuts.white[:, idx]
+    x = cuts.columns(idx)
     g = x.T @ x
     b = pro.rb[idx]
     d = np.diag(g)
@@ -354,7 +423,7 @@ def _placed(
     """The step at cut ``k`` from its profile ``prof`` (given the channel's other step, if
     any): its time, ±, its own size and the size's σ (χ²/dof ``scale`` above 1 widens both)."""
     _, at, lo, hi = _best(cuts, prof, PROFILE_DROP * scale)
-    col = cuts.white[:, k]
+    col = cuts.columns([k])[:, 0]
     nn = float(col @ col)
     return Placed(at, lo, hi, float(col @ r) / nn, math.sqrt(scale / nn), float(prof[k]), joint)
 

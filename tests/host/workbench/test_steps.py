@@ -80,6 +80,34 @@ def test_the_profile_given_a_step_is_the_refit_with_both(
             assert given_i[k] == pytest.approx(both - alone[i], rel=1e-6, abs=1e-6)
 
 
+def test_the_cuts_kept_in_parts_are_their_columns(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> None:
+    """Products with the cuts, their squared norms, a few columns and the cuts with a drift's
+    direction removed, all read from the parts, are those of the (n_rows, K) matrix of their
+    columns (the parts are never that matrix)."""
+    ds, fit = _session(tmp_path_factory, "bias_step_gyro")
+    for sensor, axis in (("gyro", 0), ("accel", 2)):
+        cuts = channel_cuts(ds, fit.basis, sensor, axis)
+        assert cuts is not None
+        white = cuts.white
+        scale = float(np.max(np.abs(white)))
+        r = fit.white_residual
+        assert np.allclose(cuts.dot(r), r @ white, rtol=0, atol=1e-10 * scale * np.abs(r).sum())
+        nn = np.einsum("ij,ij->j", white, white)
+        assert np.allclose(cuts.norms2(), nn, rtol=1e-9, atol=1e-12 * float(np.max(nn)))
+        ks = [0, len(cuts.lo) // 3, len(cuts.lo) - 1]
+        assert np.allclose(cuts.columns(ks), white[:, ks], rtol=0, atol=1e-12 * scale)
+        drift = np.random.default_rng(1).normal(size=len(r))
+        drift -= fit.basis @ (fit.basis.T @ drift)
+        u = drift / np.linalg.norm(drift)
+        less = white - np.outer(u, u @ white)
+        got = cuts.without(u)
+        assert np.allclose(got.white, less, rtol=0, atol=1e-12 * scale)
+        nn_less = np.einsum("ij,ij->j", less, less)
+        assert np.allclose(got.norms2(), nn_less, rtol=1e-9, atol=1e-12 * float(np.max(nn)))
+
+
 @settings(max_examples=60, deadline=None)
 @given(
     at=st.floats(0.0, 1.0),
