@@ -416,30 +416,38 @@ def residual_tables(
     for rows the model was not fitted to: z against the measurement's σ alone)."""
     out: list[GroupResidual] = []
     spans: list[SpanResidual] = []
-    sd_res = residual_sigmas(ds, basis)
+    sd_res = residual_sigmas(ds, basis).tolist()
+    # each group's mean residual, measured and model value, the groups of one length at once
+    # (one row of a (groups, length) array each: the same sum, in the same order, as its own)
+    means = np.zeros((len(ds.groups), 3))
+    by_len: dict[int, list[int]] = {}
+    for k, gr in enumerate(ds.groups):
+        by_len.setdefault(len(gr.rows), []).append(k)
+    for ks in by_len.values():
+        rows = np.array([ds.groups[k].rows for k in ks])
+        for c, v in enumerate((resid, ds.y, predicted)):
+            means[ks, c] = v[rows].mean(axis=1)
     for k, gr in enumerate(ds.groups):
         sig = ds.signals[gr.record]
         turn = sig.kind == "turn" and gr.sensor == "gyro"  # an integral, °
         unit = "°" if turn else UNIT[gr.sensor]
-        r = float(np.mean(resid[gr.rows]))
-        sd = float(sd_res[k])
+        r, measured, model = means[k].tolist()
+        sd = sd_res[k]
         out.append(
             GroupResidual(
                 record=sig.name, kind=sig.kind, sensor=gr.sensor, axis=AXES[gr.axis],
-                measured=float(np.mean(ds.y[gr.rows])), model=float(np.mean(predicted[gr.rows])),
-                residual=r, sigma=gr.sigma, z=r / sd if sd > 1e-3 * gr.sigma else math.nan,
-                unit=unit,
+                measured=measured, model=model, residual=r, sigma=gr.sigma,
+                z=r / sd if sd > 1e-3 * gr.sigma else math.nan, unit=unit,
             )
         )  # fmt: skip
         b = len(gr.rows)
         if b >= 2 and math.isfinite(gr.contrast_var):
             sd = math.sqrt(gr.contrast_var * (1.0 - 1.0 / b))
-            for row in gr.rows:
-                d = float(resid[row]) - r
-                spans.append(
-                    SpanResidual(sig.name, gr.sensor, AXES[gr.axis], float(ds.span[row, 0]),
-                                 float(ds.span[row, 1]), d, d / sd, unit)
-                )  # fmt: skip
+            for res, (t0, t1) in zip(resid[gr.rows].tolist(), ds.span[gr.rows].tolist(),
+                                     strict=True):  # fmt: skip
+                d = res - r
+                spans.append(SpanResidual(sig.name, gr.sensor, AXES[gr.axis], t0, t1, d, d / sd,
+                                          unit))  # fmt: skip
     return tuple(out), tuple(spans)
 
 
