@@ -338,31 +338,59 @@ def _aggregate_each(agg: np.ndarray, per_sample: np.ndarray) -> np.ndarray:
     return out
 
 
-def scan_signals(ds: Dataset, fit: Fit, alpha: float = ALPHA) -> list[ScanHit]:
+class ScanColumns:
+    """The scan's signals on the rows of ``ds``, whitened: the same for every fit the scan
+    weighs them against on those rows (each fit removes its own columns), so built once per
+    dataset by whoever scans it more than once, and dropped with the call."""
+
+    def __init__(self, ds: Dataset) -> None:
+        self.ds = ds
+        #: every step the scan tries (:func:`step_cuts`) and the chip's warming rates
+        self.cuts = step_cuts(ds) if ds.time_known else []
+        self.warming = warming_rates(ds)
+        self._white: dict[tuple[str, int], np.ndarray | None] = {}
+
+    def named(self, sensor: str) -> list[tuple[str, SignalFn]]:
+        """The signals other than the steps, by name, in the scan's order."""
+        return list(_plain_signals(self.ds, sensor, self.warming).items())
+
+    def white(self, sensor: str, a: int) -> np.ndarray | None:
+        """(n_rows, signals [+ time since power-on] + cuts) whitened; None: no rows."""
+        if (sensor, a) not in self._white:
+
+            def hours(s: RecordSignals, sen: str, a: int) -> np.ndarray:
+                return s.hours
+
+            fns = [fn for _, fn in self.named(sensor)] + ([hours] if self.ds.time_known else [])
+            x = _columns(self.ds, sensor, a, fns, [c for c, _ in self.cuts])
+            self._white[(sensor, a)] = None if x is None else self.ds.whiten.apply(x)
+        return self._white[(sensor, a)]
+
+
+def scan_signals(
+    ds: Dataset, fit: Fit, alpha: float = ALPHA, columns: ScanColumns | None = None
+) -> list[ScanHit]:
     """Residuals of ``fit`` against every signal on every channel, Holm-corrected; -> the
-    significant hits, strongest first."""
+    significant hits, strongest first (``columns``: the signals already built on these rows,
+    :class:`ScanColumns`)."""
     hits: list[tuple[str, int, str, float, float]] = []
     time_r: list[float] = []
     q = fit.basis
     r = fit.white_residual
     rr = float(r @ r)
-    cuts = step_cuts(ds) if ds.time_known else []
-    warming = warming_rates(ds)
-
-    def hours(s: RecordSignals, sen: str, a: int) -> np.ndarray:
-        return s.hours
+    if columns is None or columns.ds is not ds:
+        columns = ScanColumns(ds)
+    cuts = columns.cuts
 
     for sensor in SENSORS:
-        named = list(_plain_signals(ds, sensor, warming).items())
+        named = columns.named(sensor)
         names = [k for k, _ in named] + [name for _, name in cuts]
         # per channel: every signal's whitened column and its part the model does not fit
         chans: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray | None]] = {}
         for a in range(3):
-            fns = [fn for _, fn in named] + ([hours] if ds.time_known else [])
-            x = _columns(ds, sensor, a, fns, [c for c, _ in cuts])
-            if x is None:
+            cw = columns.white(sensor, a)
+            if cw is None:
                 continue
-            cw = ds.whiten.apply(x)
             cp = cw - q @ (q.T @ cw) if q.shape[1] else cw
             if ds.time_known:
                 tcol = cp[:, len(named)]

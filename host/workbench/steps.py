@@ -79,11 +79,18 @@ class StepCuts:
         """(n_rows, len(ks)) the columns of the cuts ``ks``."""
         ks = np.asarray(ks, dtype=np.intp)
         out = self.level[:, self.owner[ks]] - self.q @ self.z[:, ks]
-        for rows, start, moved in self.records:
-            inside = (ks >= start) & (ks < start + moved.shape[1])
+        at = np.searchsorted(self._starts, ks, side="right") - 1  # the record of each cut
+        for j in np.unique(at[at >= 0]):
+            rows, start, moved = self.records[j]
+            inside = (at == j) & (ks < start + moved.shape[1])
             if np.any(inside):
                 out[np.ix_(rows, np.flatnonzero(inside))] += moved[:, ks[inside] - start]
         return np.asarray(out)
+
+    @functools.cached_property
+    def _starts(self) -> np.ndarray:
+        """(records,) the first cut of each record's own."""
+        return np.array([start for _, start, _ in self.records], dtype=np.intp)
 
     def norms2(self) -> np.ndarray:
         """(K,) every column's squared norm: level and removed part are orthogonal, so

@@ -38,7 +38,7 @@ from host.model.terms import Term
 from host.workbench.absorbed import closure_axes, without_turn_angle
 from host.workbench.candidates import ALPHA, Candidate, evaluate_candidates, json_number
 from host.workbench.equals import Equals, EqualsFinder
-from host.workbench.scan import ScanHit, scan_signals
+from host.workbench.scan import ScanColumns, ScanHit, scan_signals
 
 VERDICTS = ("adequate", "missing_effect", "unexplained", "untestable")
 #: the verdict advises adding terms only when together they remove at least this fraction of
@@ -147,7 +147,8 @@ def diagnose(
     #: weighed against it on that yardstick too
     own = {c.label: (t.ds, t.fit) for c, t in zip(cands, tried, strict=True) if t.ds is not ds}
     cat = catalogue if catalogue is not None else CATALOGUE
-    scanned = scan_signals(ds, fit, alpha)
+    columns = ScanColumns(ds)  # the fit and the fit with the extra terms scan the same rows
+    scanned = scan_signals(ds, fit, alpha, columns)
     finder = EqualsFinder(ds, fit, cands, tried, scanned, cat, alpha)
     usable_all = [c for c in cands if c.significant and not c.explained_by and not c.implausible]
     top = max(usable_all, key=lambda c: c.delta_chi2, default=None)
@@ -213,7 +214,7 @@ def diagnose(
                  or _adds_to_rest(ds, model, extra, c, cat, finder.level, aug, built)]  # fmt: skip
     recommended = tuple(c.label for c in alone) if alone and removed >= MOST * misfit else ()
     rec_extra = [_model_term(c, cat) for c in alone if c.label in recommended]
-    hits = scan_signals(ds, aug, alpha) if aug is not fit else scanned
+    hits = scan_signals(ds, aug, alpha, columns) if aug is not fit else scanned
     notes = list(ds.notes)
     if fit.undetermined:
         notes.append("not determined by these records: " + ", ".join(fit.undetermined))
