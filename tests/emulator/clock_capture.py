@@ -33,6 +33,9 @@ SUMMARY = "summary.json"
 SECONDS = 60
 #: the test this capture is for (how the collection hook recognises it)
 TEST_ID = "tests/emulator/test_emu_clock.py::test_sixty_second_capture_has_an_exact_device_clock"
+#: the capture started by this process, held for its lifetime (a dropped Popen of a running
+#: process is a ResourceWarning in the session's summary)
+_STARTED: list[subprocess.Popen[bytes]] = []
 
 
 def run_directory() -> Path:
@@ -51,10 +54,11 @@ def start(directory: Path) -> bool:
         return False
     env = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1"}
     with open(directory / "log.txt", "wb") as log:
-        subprocess.Popen(
+        proc = subprocess.Popen(
             [sys.executable, "-m", "tests.emulator.clock_capture", str(directory)],
             cwd=ROOT, env=env, stdin=subprocess.DEVNULL, stdout=log, stderr=log,
         )  # fmt: skip
+    _STARTED.append(proc)
     return True
 
 
