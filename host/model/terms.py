@@ -73,6 +73,10 @@ class Term:
     #: rows of the same axis with the same parameters (linear per-channel terms only)
     twin_sensor: str = ""
     twin_columns: ColumnFn | None = None
+    #: a built-in term's columns of the three channels at once, where one computation serves
+    #: them all (a turn's lever-arm matrix, the plate's axes): ``columns_all(signals, sensor)``
+    #: -> per axis exactly what ``columns(signals, sensor, axis)`` gives
+    columns_all: Callable[[RecordSignals, str], Sequence[np.ndarray]] | None = None
 
     @property
     def physics(self) -> str:
