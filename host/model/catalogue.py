@@ -266,12 +266,19 @@ def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     turn record the horizontal accelerometers follow g·|tilt|·cos(ψ − ψ₀) while a face error,
     a bias and a misalignment stay put. On the six static faces alone the two angles act like
     accelerometer biases and misalignments (each face is one heading)."""
-    cols = np.zeros((len(sig.t_s), 2))
+    return _plate_tilt_all(sig, sensor)[axis]
+
+
+def _plate_tilt_all(sig: RecordSignals, sensor: str) -> list[np.ndarray]:
+    """:func:`plate_tilt`'s columns (N, 2) of the three channels, from one reading of the
+    plate's axes."""
+    out = [np.zeros((len(sig.t_s), 2)) for _ in range(3)]
     if sig.kind in ("static", "turn") and sig.placement_deg is not None:
         east, north = _sensed(sig, *plate_axes(sig.up, sig.plate_heading))
-        cols[:, 0] = sig.g * east[:, axis]
-        cols[:, 1] = sig.g * north[:, axis]
-    return cols
+        for axis, cols in enumerate(out):
+            cols[:, 0] = sig.g * east[:, axis]
+            cols[:, 1] = sig.g * north[:, axis]
+    return out
 
 
 def _sensed(sig: RecordSignals, *vectors: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -346,9 +353,16 @@ def lever_arm(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     rad/s. Read from the moving blocks of the turn records; zero at rest (static records, the
     still moments). The accelerometer reads that force through its scale and misalignment
     (measured on the static records before the fit). 0.12 m/s² at 90 °/s and r = 5 cm."""
+    return _lever_arm_all(sig, sensor)[axis]
+
+
+def _lever_arm_all(sig: RecordSignals, sensor: str) -> list[np.ndarray]:
+    """:func:`lever_arm`'s columns (N, 3) of the three channels, m/s² per m, from one
+    lever-arm matrix of the turn."""
     if sig.kind != "turn":
-        return np.zeros((len(sig.t_s), 3))
-    return turning.sensed_lever_matrix(sig.t_s, sig.rate, sig.accel_matrix)[:, axis, :]
+        return [np.zeros((len(sig.t_s), 3)) for _ in range(3)]
+    m = turning.sensed_lever_matrix(sig.t_s, sig.rate, sig.accel_matrix)
+    return [m[:, axis, :] for axis in range(3)]
 
 
 #: plausible magnitude of each catalogue term's parameters per sensor, from the InvenSense
@@ -390,6 +404,9 @@ _PLAUSIBLE: dict[str, tuple[dict[str, float], str]] = {
 #: a face's lean is one angle whether the cube rests or turns on it: the gyro reads it too
 face_error = replace(face_error, twin_sensor="gyro", twin_columns=_face_turn)
 
+#: the plate's tilt and the lever arm read all three channels from one computation
+lever_arm = replace(lever_arm, columns_all=_lever_arm_all)
+
 #: catalogue terms whose parameters are properties of the bench, one set for all channels
 _SHARED = ("plate_tilt", "lever_arm")
 
@@ -397,7 +414,8 @@ _SHARED = ("plate_tilt", "lever_arm")
 #: unknowns: the plate's tilt as seen at that heading (two angles, whose direction against the
 #: session's tilt is the heading), so the fit never assumes one; a turn whose heading was read
 #: from its rests' circle carries one, the correction of that heading (rad)
-plate_tilt = replace(plate_tilt, record_params=("seen_ref", "seen_side", "heading"),
+plate_tilt = replace(plate_tilt, columns_all=_plate_tilt_all,
+                     record_params=("seen_ref", "seen_side", "heading"),
                      record_units=("rad", "rad", "rad"), record_columns=_plate_tilt_seen,
                      owns=_heading_unknown, record_params_of=_heading_params)  # fmt: skip
 

@@ -68,14 +68,32 @@ def _call_term(
 
 
 def _regressors(
-    t: Term, sig: RecordSignals, sensor: str, axis: int, twin: bool = False
+    t: Term,
+    sig: RecordSignals,
+    sensor: str,
+    axis: int,
+    twin: bool = False,
+    every: dict[int, Sequence[np.ndarray]] | None = None,
+    record: int = -1,
 ) -> tuple[np.ndarray, float]:
     """(N, k) a term's per-sample regressors on one channel of one record, their largest
-    magnitude."""
+    magnitude. ``every``: record -> its three channels' columns, where the term gives them at
+    once (:attr:`Term.columns_all`), filled on the record's first channel."""
     columns = t.twin_columns if twin else t.columns
     assert columns is not None
     what = "twin_columns" if twin else "columns"
-    x, big = _call_term(t, what, sig, lambda: columns(sig, sensor, axis))
+    all_axes = t.columns_all if not twin and every is not None else None
+    if all_axes is None:
+        x, big = _call_term(t, what, sig, lambda: columns(sig, sensor, axis))
+    else:
+        assert every is not None
+
+        def channel() -> np.ndarray:
+            if record not in every:
+                every[record] = all_axes(sig, sensor)
+            return every[record][axis]
+
+        x, big = _call_term(t, what, sig, channel)
     if x.ndim == 1:
         x = x[:, None]
     if x.shape != (len(sig.t_s), len(t.params)):
@@ -100,6 +118,7 @@ def term_columns(
     """
     k = len(mt.term.params)
     own = record_columns(ds, mt)
+    every: dict[int, Sequence[np.ndarray]] = {}  # a record's channels, built at once
     if mt.term.shared:
         if mt.term.nonlinear:
             raise UserError(f"term {mt.term.name}: a shared term must be linear (columns())")
@@ -109,7 +128,8 @@ def term_columns(
                 rows = ds.rows_of.get((ri, mt.sensor, ax))
                 if rows is not None:
                     cols[rows] = aggregate(
-                        ds.aggregator(ri, mt.sensor, ax), *_regressors(mt.term, sig, mt.sensor, ax)
+                        ds.aggregator(ri, mt.sensor, ax),
+                        *_regressors(mt.term, sig, mt.sensor, ax, every=every, record=ri),
                     )
         return np.column_stack([cols, own]), np.zeros(ds.n_rows)
     cols = np.zeros((ds.n_rows, k * len(mt.axes)))
@@ -127,7 +147,7 @@ def term_columns(
             agg = ds.aggregator(ri, mt.sensor, ax)
             if not mt.term.nonlinear:
                 cols[rows, j * k : (j + 1) * k] = aggregate(
-                    agg, *_regressors(mt.term, sig, mt.sensor, ax)
+                    agg, *_regressors(mt.term, sig, mt.sensor, ax, every=every, record=ri)
                 )
                 continue
             value = mt.term.value
