@@ -320,6 +320,8 @@ class EmulatedBoard:
         assert self._proc is not None
         if self._reader:
             self._reader.join(5)
+        if self._proc.stdout is not None and not (self._reader and self._reader.is_alive()):
+            self._proc.stdout.close()  # read to its end (else left open: a ResourceWarning)
         summary = None
         for line in self._lines:
             if line.startswith("SUMMARY "):
