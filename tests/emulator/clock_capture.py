@@ -1,18 +1,11 @@
 """The sixty-second real-time capture that ``test_emu_clock.py`` checks, run in a process of its
-own that starts as soon as a test session has collected that test.
-
-The capture is 60 s of wall time (the emulated AVR paced to the wall clock) and light on the CPU
-(≈ 5 s): run inside the test it held a pytest worker idle for a minute while the other one did
-all the computing. Started at collection (``tests/emulator/conftest.py``), it runs beside the
-first minute of the suite, and the test, whenever its worker gets to it, waits only for what is
-left and then checks the capture as it did. One capture per test run: under pytest-xdist the
-first worker to create the run's directory (:func:`run_directory`, named by the run's id) starts
-it; the test finds it there on whichever worker it runs.
+own: the AVR emulated at real time for 60 s (light on the CPU, ≈ 5 s), read through Link into
+an IMUCAP01 capture by a reader the test process's own work cannot delay.
 
 ``python -m tests.emulator.clock_capture DIR``: build the firmware into ``DIR/fw``, capture
 into ``DIR/emu60.cap``, then write ``DIR/summary.json`` (the emulator's summary, or the
 error): its appearance says the capture is done. It ends by itself (60 emulated s; at most
-100 s of reading), also when no test waits for it (a run cut short).
+100 s of reading).
 """
 
 from __future__ import annotations
@@ -31,8 +24,6 @@ ROOT = Path(__file__).resolve().parents[2]
 CAPTURE = "emu60.cap"
 SUMMARY = "summary.json"
 SECONDS = 60
-#: the test this capture is for (how the collection hook recognises it)
-TEST_ID = "tests/emulator/test_emu_clock.py::test_sixty_second_capture_has_an_exact_device_clock"
 #: the capture started by this process, held for its lifetime (a dropped Popen of a running
 #: process is a ResourceWarning in the session's summary)
 _STARTED: list[subprocess.Popen[bytes]] = []

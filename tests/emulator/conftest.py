@@ -12,7 +12,6 @@ import pytest
 
 from host.bench import build
 from host.errors import UserError
-from tests.emulator import clock_capture
 
 
 @pytest.fixture(scope="session")
@@ -38,25 +37,3 @@ def fw_elf(emu_toolchain, tmp_path_factory) -> Path:
         return build.build_firmware(tmp_path_factory.mktemp("emu-fw"))
     except UserError as exc:
         pytest.fail(f"the real firmware does not build: {exc}")
-
-
-def pytest_collection_finish(session: pytest.Session) -> None:
-    """Start the sixty-second real-time capture (``clock_capture.py``) as soon as its test is
-    collected to run, so that it runs beside the rest of the suite instead of holding a worker
-    idle for a minute; its test waits for what is left. Not for ``--collect-only``, nor
-    without the toolchain (the test is skipped)."""
-    if session.config.option.collectonly:
-        return
-    if not any(item.nodeid == clock_capture.TEST_ID for item in session.items):
-        return
-    if build.toolchain_problem(need_avr=True) is None:
-        clock_capture.start(clock_capture.run_directory())
-
-
-@pytest.hookimpl(trylast=True)
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The sixty-second test last (after the order tests/conftest.py deals files in): its
-    capture runs from the collection on, so by then it is done and the test only checks it;
-    dealt first, as a slow file, it would wait out the whole minute."""
-    last = [item for item in items if item.nodeid == clock_capture.TEST_ID]
-    items[:] = [item for item in items if item.nodeid != clock_capture.TEST_ID] + last
