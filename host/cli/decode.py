@@ -240,8 +240,10 @@ class _Decode:
             # unmapped or out of int64's range (nonsense arrival times, warned): the arrival
             ok = np.isfinite(host_ns) & (np.abs(host_ns) < 2.0**62)
             mapped = np.where(ok, np.rint(np.where(ok, host_ns, 0.0)), 0.0).astype(np.int64)
-            mapped[~ok] = np.asarray(arr, dtype=np.uint64)[~ok].astype(np.int64)
-            table.append(mapped.tolist())
+            column = mapped.tolist()
+            for i in np.flatnonzero(~ok).tolist():  # as read (was: cast to int64, wrapped < 0)
+                column[i] = int(arr[i])
+            table.append(column)
         if self.args.csv:
             self.writer.writerows(zip(*table, strict=True))
         else:

@@ -67,6 +67,7 @@ capture_records = st.lists(
 )
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # a cast out of range is a wrong value
 @settings(max_examples=60, **SETTINGS)
 @given(
     raw=st.lists(frame_bytes, max_size=20).map(b"".join),

@@ -79,3 +79,19 @@ def test_a_hello_of_another_spec_is_one_line_naming_it(tmp_path: Path) -> None:
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     rc, _, err = decode(path, "--stats")  # counting frames needs no spec
     assert rc == 0, err
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_arrival_times_beyond_a_signed_64_bit_number_are_printed_unsigned(tmp_path: Path) -> None:
+    """A capture whose reads say 2⁶⁴ − 1 s ns (a nonsense clock, warned about): each sample's
+    ``t_host_ns`` is that arrival as read, not cast to int64 and wrapped below zero (it printed
+    −1000000000 with a warning from numpy)."""
+    t = 2**64 - 10**9
+    parts = [hello(0, 0), samples(0, 0, 16384, 1310)]
+    body = b"".join(struct.pack("<QI", t + k * 10**8, len(p)) + p for k, p in enumerate(parts))
+    path = tmp_path / "far.cap"
+    path.write_bytes(MAGIC + body)
+    rc, rows, err = decode(path)
+    assert rc == 0 and "not trustworthy" in err, err
+    host = [r["t_host_ns"] for r in rows]
+    assert len(host) == 10 and all(h > 2**63 for h in host), host
