@@ -43,7 +43,7 @@ from host.model.rows import (
 from host.model.signals import RecordSignals
 from host.model.turning import sensed_lever_matrix
 from host.model.variance import Component, TurnClosure, turn_angle_sigma, turn_wobble_sigma
-from host.model.whitening import Group, Whitener, whiten_rows
+from host.model.whitening import Group, GroupsBySize, Whitener, groups_by_size, whiten_rows
 from host.session.directory import Session, read_session
 from host.session.method import (
     DEFAULT_HEIGHT_M,
@@ -114,6 +114,12 @@ class Dataset:
         for gr in self.groups:
             a[gr.rows] = 1.0 / len(gr.rows)
         return self.whiten.solve_t(a)
+
+    @functools.cached_property
+    def groups_by_size(self) -> GroupsBySize:
+        """``groups`` gathered by their number of rows (:func:`host.model.whitening.
+        group_means` takes every group's mean a size at a time)."""
+        return groups_by_size(self.groups)
 
     @functools.cached_property
     def row_group(self) -> np.ndarray:

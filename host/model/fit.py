@@ -31,7 +31,7 @@ from host.model.signals import AXES, SENSORS, UNIT
 from host.model.solve import solve
 from host.model.spec import ModelTerm
 from host.model.stats import ALPHA_FIT, chi2_sf, right_singular, rref, stderr_scale
-from host.model.whitening import Group
+from host.model.whitening import Group, group_means
 from host.session.directory import Session
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
@@ -418,15 +418,7 @@ def residual_tables(
     spans: list[SpanResidual] = []
     sd_res = residual_sigmas(ds, basis).tolist()
     # each group's mean residual, measured and model value, the groups of one length at once
-    # (one row of a (groups, length) array each: the same sum, in the same order, as its own)
-    means = np.zeros((len(ds.groups), 3))
-    by_len: dict[int, list[int]] = {}
-    for k, gr in enumerate(ds.groups):
-        by_len.setdefault(len(gr.rows), []).append(k)
-    for ks in by_len.values():
-        rows = np.array([ds.groups[k].rows for k in ks])
-        for c, v in enumerate((resid, ds.y, predicted)):
-            means[ks, c] = v[rows].mean(axis=1)
+    means = np.column_stack([group_means(v, ds.groups_by_size) for v in (resid, ds.y, predicted)])
     for k, gr in enumerate(ds.groups):
         sig = ds.signals[gr.record]
         turn = sig.kind == "turn" and gr.sensor == "gyro"  # an integral, °

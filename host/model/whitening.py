@@ -53,6 +53,36 @@ class Group:
 FREE_LEVEL_RAD = 0.1
 
 
+#: groups gathered by their number of rows: (group indices (m,), their rows (m, b)) per size
+GroupsBySize = list[tuple[np.ndarray, np.ndarray]]
+
+
+def groups_by_size(groups: Sequence[Group]) -> GroupsBySize:
+    """``groups`` gathered by their number of rows, for :func:`group_means`."""
+    sizes: dict[int, list[int]] = {}
+    for k, gr in enumerate(groups):
+        sizes.setdefault(len(gr.rows), []).append(k)
+    return [
+        (np.array(ks, dtype=np.intp),
+         np.array([groups[k].rows for k in ks], dtype=np.intp).reshape(len(ks), b))
+        for b, ks in sorted(sizes.items())
+    ]  # fmt: skip
+
+
+def group_means(values: np.ndarray, by_size: GroupsBySize) -> np.ndarray:
+    """(n_groups,) the mean of ``values`` (n_rows,) over each group's rows, the groups of one
+    size in one call (each row of the gathered (m, b) array summed as ``np.mean`` sums one
+    group's: the same value to the bit); NaN for a group without rows."""
+    n = sum(len(ks) for ks, _ in by_size)
+    out = np.zeros(n)
+    for ks, rows in by_size:
+        if rows.shape[1]:
+            out[ks] = np.mean(values[rows], axis=1)
+        else:
+            out[ks] = math.nan
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class Whitener:
     """W (n, n) with W·Cov·Wᵀ = I, block-diagonal: ``blocks`` one (row indices (b,), the

@@ -28,6 +28,7 @@ from host.model.signals import AXES
 from host.model.spec import ModelTerm
 from host.model.stats import chi2_sf
 from host.model.terms import Term
+from host.model.whitening import group_means
 from host.workbench.absorbed import closure_axes, without_turn_angle
 
 #: family-wise error rate of each family of tests (candidates; signal scan; overall χ²)
@@ -290,7 +291,6 @@ def evaluate_candidates(
             elif b_given_a and not a_given_b:
                 explained_by.setdefault(id(a), b.mt.label)
     out: list[tuple[Candidate, Tried]] = []
-    by_size = groups_by_size(ds)  # a yardstick of a candidate's own weighs the same groups
     for t in tried:
         mt = t.mt
         labels = mt.term.param_labels(mt.sensor, mt.axes[0])
@@ -307,7 +307,7 @@ def evaluate_candidates(
         c0 = coefs.get(name0, (math.nan, math.nan, units[best]))
         after_rms = math.nan
         if not t.reason:
-            after_rms = _rms_z_after(t.ds, t.fit, t, by_size)
+            after_rms = _rms_z_after(t.ds, t.fit, t)
         out.append(
             (
                 Candidate(
@@ -378,45 +378,14 @@ def _implausible(mt: ModelTerm, coefs: Mapping[str, tuple[float, float, str]], f
     return why
 
 
-def _rms_z_after(ds: Dataset, fit: Fit, t: Tried, by_size: GroupsBySize) -> float:
+def _rms_z_after(ds: Dataset, fit: Fit, t: Tried) -> float:
     """RMS of the record/channel z after adding the candidate: the refit's whitened residual
-    is r − C⊥·β; W⁻¹ brings it back to the rows (``by_size``: :func:`groups_by_size` of
-    ``ds``)."""
+    is r − C⊥·β; W⁻¹ brings it back to the rows."""
     resid_after = ds.whiten.inv_apply(t.r - t.cw_perp @ t.beta)
     q, _ = np.linalg.qr(t.cw_perp)
     basis = np.column_stack([fit.basis, q]) if fit.basis.shape[1] else q
     sd = residual_sigmas(ds, basis)
-    means = group_means(resid_after, by_size)
+    means = group_means(resid_after, ds.groups_by_size)
     sigma = np.array([gr.sigma for gr in ds.groups])
     zs = means[sd > 1e-3 * sigma] / sd[sd > 1e-3 * sigma]
     return float(np.sqrt(np.mean(np.square(zs)))) if len(zs) else math.nan
-
-
-#: the groups of a dataset by their number of rows: (group indices (m,), their rows (m, b))
-GroupsBySize = list[tuple[np.ndarray, np.ndarray]]
-
-
-def groups_by_size(ds: Dataset) -> GroupsBySize:
-    """``ds.groups`` gathered by their number of rows, for :func:`group_means`."""
-    sizes: dict[int, list[int]] = {}
-    for k, gr in enumerate(ds.groups):
-        sizes.setdefault(len(gr.rows), []).append(k)
-    return [
-        (np.array(ks, dtype=np.intp),
-         np.array([ds.groups[k].rows for k in ks], dtype=np.intp).reshape(len(ks), b))
-        for b, ks in sorted(sizes.items())
-    ]  # fmt: skip
-
-
-def group_means(values: np.ndarray, by_size: GroupsBySize) -> np.ndarray:
-    """(n_groups,) the mean of ``values`` (n_rows,) over each group's rows, the groups of one
-    size in one call (each row of the gathered (m, b) array summed as ``np.mean`` sums one
-    group's: the same value to the bit)."""
-    n = sum(len(ks) for ks, _ in by_size)
-    out = np.zeros(n)
-    for ks, rows in by_size:
-        if rows.shape[1]:
-            out[ks] = np.mean(values[rows], axis=1)
-        else:
-            out[ks] = math.nan
-    return out

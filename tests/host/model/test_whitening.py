@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host.bench.plan import Plan, simulate_session
 from host.bench.truth import SensorTruth
@@ -15,7 +17,7 @@ from host.model.dataset import Dataset, build_dataset, session_from_records
 from host.model.design import design
 from host.model.fit import fit_model
 from host.model.spec import parse_model
-from host.model.whitening import Whitener, helmert_contrasts
+from host.model.whitening import Whitener, group_means, groups_by_size, helmert_contrasts
 from host.session.directory import read_session
 
 REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
@@ -137,3 +139,21 @@ def test_helmert_contrasts_are_orthonormal_and_blind_to_the_mean(b: int) -> None
         row = h[k - 1]
         assert np.all(row[:k] > 0) and row[k] < 0 and np.all(row[k + 1 :] == 0)
         assert np.allclose(row[:k], row[0]) and row[k] == pytest.approx(-k * row[0])
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.integers(1, 40), min_size=1, max_size=30), st.integers(0, 2**32 - 1))
+def test_group_means_are_each_group_s_mean(sizes: list[int], seed: int) -> None:
+    """The groups' means taken a size at a time are each group's own ``np.mean`` to the bit
+    (the residual tables and the candidates' RMS z after adding one are read from them), rows
+    in any order."""
+    rng = np.random.default_rng(seed)
+    rows = np.split(rng.permutation(sum(sizes)), np.cumsum(sizes)[:-1])
+
+    class _Group:
+        def __init__(self, r: np.ndarray) -> None:
+            self.rows = r
+
+    values = rng.normal(0.0, 1.0, sum(sizes)) * rng.choice([1e-6, 1.0, 1e6], sum(sizes))
+    got = group_means(values, groups_by_size([_Group(r) for r in rows]))  # type: ignore[arg-type]
+    assert got.tolist() == [float(np.mean(values[r])) for r in rows]

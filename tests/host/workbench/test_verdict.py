@@ -10,14 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from host.model.dataset import build_dataset, load_dataset, session_from_records
 from host.model.plate import session_plate
 from host.model.spec import parse_model
 from host.model.stats import chi2_isf
-from host.workbench.candidates import group_means, groups_by_size, holm
+from host.workbench.candidates import holm
 from host.workbench.ladder import add_term, ladder
 from host.workbench.scenarios import case_dataset, hidden_effect_case, run_case
 from host.workbench.text import format_diagnosis
@@ -147,26 +145,6 @@ def test_control_is_adequate_in_at_least_95_of_100_seeds() -> None:
     noise file it is rightly misfit (a drift looks the same)."""
     verdicts = [_control(s)[0] for s in range(100)]
     assert verdicts.count("adequate") >= 95, verdicts
-
-
-@settings(max_examples=40, deadline=None)
-@given(st.lists(st.integers(1, 40), min_size=1, max_size=30), st.integers(0, 2**32 - 1))
-def test_group_means_are_each_group_s_mean(sizes: list[int], seed: int) -> None:
-    """The groups' means taken a size at a time are each group's own ``np.mean`` to the bit
-    (the candidates' RMS z after adding one is read from them), rows in any order."""
-    rng = np.random.default_rng(seed)
-    rows = np.split(rng.permutation(sum(sizes)), np.cumsum(sizes)[:-1])
-
-    class _Group:
-        def __init__(self, r: np.ndarray) -> None:
-            self.rows = r
-
-    class _Rows:
-        groups = tuple(_Group(r) for r in rows)
-
-    values = rng.normal(0.0, 1.0, sum(sizes)) * rng.choice([1e-6, 1.0, 1e6], sum(sizes))
-    got = group_means(values, groups_by_size(_Rows()))  # type: ignore[arg-type]
-    assert got.tolist() == [float(np.mean(values[r])) for r in rows]
 
 
 def test_holm() -> None:
