@@ -22,10 +22,12 @@ MAX_COLUMN = 1e100
 
 
 # ---- design matrix --------------------------------------------------------------------------
-def aggregate(agg: np.ndarray, per_sample: np.ndarray, scale: float | None = None) -> np.ndarray:
+def aggregate(
+    agg: np.ndarray, per_sample: np.ndarray, scale: float | np.ndarray | None = None
+) -> np.ndarray:
     """Rows of one record from per-sample values: ``agg`` (B,N) @ ``per_sample`` (N,…), with
     round-off (below 1e-9 of the largest per-sample value, ``scale`` where the caller has
-    it already) set to exactly 0."""
+    it already, or per column: (…,) the largest of each) set to exactly 0."""
     out = agg @ per_sample
     if scale is None:
         scale = float(np.abs(per_sample).max()) if per_sample.size else 0.0

@@ -20,11 +20,20 @@ from typing import Any
 import numpy as np
 
 from host.model.dataset import Dataset
+from host.model.design import aggregate
 from host.model.fit import Fit
 from host.model.signals import AXES, SENSORS, RecordSignals
 from host.model.stats import chi2_isf, chi2_sf
 from host.workbench.candidates import ALPHA, IDENTIFIABLE_TOL, holm, json_number
-from host.workbench.steps import STEP, Placed, channel_cuts, place_steps, step_name, step_times
+from host.workbench.steps import (
+    STEP,
+    Placed,
+    channel_cuts,
+    place_steps,
+    step_name,
+    step_times,
+    tail_weights,
+)
 
 #: |correlation| with session time from which a scanned signal is reported as confounded with
 #: it (the plan's fixed order: the Z faces last makes "(specific force z)²" r ≈ 0.8 with time)
@@ -304,7 +313,9 @@ def _columns(
             per_sample = np.empty((len(rs.t_s), len(fns)))
             for k, fn in enumerate(fns):
                 per_sample[:, k] = fn(rs, sensor, a)
-            out[rows, : len(fns)] = _aggregate_each(agg, per_sample)
+            # each signal's round-off set to 0 against its own largest value
+            scale = np.abs(per_sample).max(axis=0) if len(per_sample) else 0.0
+            out[rows, : len(fns)] = aggregate(agg, per_sample, scale)
         if len(at):
             out[np.ix_(rows, np.arange(len(fns), out.shape[1]))] = _steps_aggregated(
                 agg, rs.t_s, at
@@ -320,21 +331,11 @@ def _steps_aggregated(agg: np.ndarray, t_s: np.ndarray, cuts: np.ndarray) -> np.
     (:func:`host.model.design.aggregate`)."""
     n = agg.shape[1]
     tail = np.zeros((agg.shape[0], n + 1))
-    tail[:, :n] = np.cumsum(agg[:, ::-1], axis=1)[:, ::-1]
+    tail[:, :n] = tail_weights(agg)
     first_after = np.searchsorted(t_s, cuts, side="right")
     out = tail[:, first_after]
     if np.any(first_after < n):  # a sample after some cut: the step's largest value is 1
         out[np.abs(out) < 1e-9] = 0.0
-    return out
-
-
-def _aggregate_each(agg: np.ndarray, per_sample: np.ndarray) -> np.ndarray:
-    """Rows of one record from per-sample signals: ``agg`` (B, N) @ ``per_sample`` (N, F) in
-    one product, each column's round-off (below 1e-9 of its largest per-sample value) set to
-    exactly 0, as :func:`host.model.design.aggregate` does for one column."""
-    out = agg @ per_sample
-    scale = np.max(np.abs(per_sample), axis=0) if len(per_sample) else np.zeros(out.shape[1])
-    out[np.abs(out) < 1e-9 * scale] = 0.0
     return out
 
 

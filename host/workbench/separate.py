@@ -165,10 +165,7 @@ def noncentralities(
     out = []
     for i in range(len(models)):
         for j in range(i + 1, len(models)):
-            lam = math.inf
-            for got in (chi2[(j, i)], chi2[(i, j)]):
-                lam = min(lam, got)
-            out.append((i, j, lam))
+            out.append((i, j, min(math.inf, chi2[(j, i)], chi2[(i, j)])))
     return tuple(out)
 
 

@@ -177,7 +177,7 @@ def channel_cuts(ds: Dataset, basis: np.ndarray, sensor: str, axis: int) -> Step
             n = agg.shape[1]
             # a cut before sample i (1 ≤ i < n) moves this record's rows by the weights of
             # samples i… : the reversed running sum
-            tail = np.cumsum(agg[:, ::-1], axis=1)[:, ::-1][:, 1:n]
+            tail = tail_weights(agg)[:, 1:n]
             records.append((rows, k_at, _whiten_own(own_blocks[int(rows[0])], tail)))
             owner.append(np.full(n - 1, len(levels) - 1, dtype=np.intp))
             k_at += n - 1
@@ -199,6 +199,12 @@ def channel_cuts(ds: Dataset, basis: np.ndarray, sensor: str, axis: int) -> Step
                   for ri, rows, _ in blocks if len(rows))  # fmt: skip
     return StepCuts(np.concatenate(lo), np.concatenate(hi), spans, level,
                     np.concatenate(owner), tuple(records), basis, z)  # fmt: skip
+
+
+def tail_weights(agg: np.ndarray) -> np.ndarray:
+    """(B, N) each row of ``agg`` (B, N)'s weights summed from each sample to the last (the
+    reversed running sum): how much a unit step before that sample moves each row."""
+    return np.cumsum(agg[:, ::-1], axis=1)[:, ::-1]
 
 
 def _record_blocks(
