@@ -1,9 +1,11 @@
 """The checks every record passes before a fit (method.md §3, §4: the face up, the cube at
-rest, the whole turn, the gyro range); :mod:`host.session.observations` applies them."""
+rest, the whole turn, the gyro range; a pose at rest without ``up``, a move joining two
+poses); :mod:`host.session.observations` applies them."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 
 import numpy as np
 
@@ -17,8 +19,11 @@ from host.session.method import (
 )
 from host.session.records import (
     MIN_RECORD_ROWS,
+    MOVE_NAME_RE,
     RECORD_NAME_RE,
     Record,
+    RecordError,
+    pose_name,
 )
 
 
@@ -169,3 +174,59 @@ def check_record_lengths(session: Session) -> None:
                 "re-measure this record",
                 file_name=session.path_of(name),
             )
+
+
+def check_pose(record: Record, stats: RecordStats, g: float, file_name: str) -> None:
+    """A pose (a rest at an attitude nobody set) must say no ``up`` (its attitude is fitted),
+    read about one g and be at rest: else RecordCheckError naming the file and what to do."""
+    if "up" in record.meta:
+        raise RecordCheckError(
+            f"{file_name}: a pose has no up direction (its attitude is fitted), but its header "
+            "says 'up:'; delete that line, or name the record as a face (x_up …) if a cube "
+            "set it",
+            file_name=file_name,
+        )
+    norm = float(np.linalg.norm(stats.accel_mean))
+    if not 0.7 * g < norm < 1.3 * g:
+        raise RecordCheckError(
+            f"{file_name}: the mean specific force is {norm:.2f} m/s², expected about "
+            f"{g:.2f}: was the unit moving or not connected? {remedy(record)}",
+            file_name=file_name,
+        )
+    if np.any(stats.accel_std > STATIC_MAX_ACCEL_STD) or np.any(
+        stats.gyro_std > STATIC_MAX_GYRO_STD
+    ):
+        raise RecordCheckError(
+            f"{file_name}: the unit moved during the pose (std {stats.accel_std.max():.3f} "
+            f"m/s², {stats.gyro_std.max():.3f} °/s): hold it still; {remedy(record)}",
+            file_name=file_name,
+        )
+
+
+def check_move(record: Record, poses: Collection[str], file_name: str) -> None:
+    """A move must join two different poses of the session (header ``from:``/``to:``, or its
+    name ``move_01_02``; both, they must agree) and stay inside the gyro range."""
+    try:
+        first, last = record.move_from, record.move_to
+    except RecordError as exc:
+        raise RecordCheckError(f"{file_name}: {exc}", file_name=file_name) from exc
+    m = MOVE_NAME_RE.match(record.name)
+    if m and (first, last) != (pose_name(int(m.group("a"))), pose_name(int(m.group("b")))):
+        raise RecordCheckError(
+            f"{file_name}: the header says the move goes from {first} to {last}, its name "
+            f"says otherwise; rename the file or correct the header",
+            file_name=file_name,
+        )
+    if first == last:
+        raise RecordCheckError(
+            f"{file_name}: the move starts and ends at {first}; a move joins two poses",
+            file_name=file_name,
+        )
+    missing = [p for p in (first, last) if p not in poses]
+    if missing:
+        raise RecordCheckError(
+            f"{file_name}: the move joins {first} and {last}, but the session has no "
+            f"{' and no '.join(missing)}; add the pose record or delete the move",
+            file_name=file_name,
+        )
+    check_range(record, file_name)

@@ -25,10 +25,10 @@ from host.errors import UserError, write_error
 from host.session.atomic import write_text_atomic
 from host.session.records import (
     NON_RECORD_NAMES,
-    RECORD_NAME_RE,
     Record,
     RecordError,
     format_record,
+    is_standard_name,
     parse_record_text,
 )
 
@@ -78,7 +78,7 @@ def split_file_name(path: str | os.PathLike[str]) -> tuple[str, str] | None:
         return None
     stem = p.stem
     for i in range(len(stem) - 1, 0, -1):
-        if stem[i] == "_" and RECORD_NAME_RE.match(stem[i + 1 :]):
+        if stem[i] == "_" and is_standard_name(stem[i + 1 :]):
             return stem[:i], stem[i + 1 :]
     if "_" not in stem:
         return None

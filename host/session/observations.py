@@ -13,7 +13,9 @@ import numpy as np
 from host.errors import RecordCheckError, UserError
 from host.session.checks import (
     axis_label,
+    check_move,
     check_orientation,
+    check_pose,
     check_range,
     check_record_lengths,
     check_turn_at_rest,
@@ -95,6 +97,7 @@ def build_observations(
         ys = np.array([st[n].gyro_mean for n in statics])
         pre, *_ = np.linalg.lstsq(xs, ys, rcond=None)  # (4,3): rows GA^T (3), bias
 
+    poses = {n for n, r in session.records.items() if r.kind == "pose"}
     obs: list[Observation] = []
     for name, rec in session.records.items():
         s = st[name]
@@ -160,6 +163,10 @@ def build_observations(
                     gyro_sigma=np.maximum(s.gyro_std, gyro_noise) / math.sqrt(s.n),
                 )
             )  # fmt: skip
+        elif rec.kind == "pose":
+            check_pose(rec, s, g, fname)
+        elif rec.kind == "move":
+            check_move(rec, poses, fname)
         else:
             notes.append(f"{fname}: not a static, turn or rate record; ignored")
     turn_axes = {(axis_label(o.up), int(np.sign(o.rate @ o.up))) for o in obs if o.kind == "turn"}

@@ -76,6 +76,15 @@ NON_RECORD_NAMES = ("result", WARMUP_NAME)
 
 _AXES = "xyz"
 RECORD_NAME_RE = re.compile(r"^(?P<axis>[xyz])_(?P<dir>up|dn|ccw|cw)(?:_(?P<rep>[0-9A-Za-z]+))?$")
+#: a rest at an attitude nobody set (no cube, no ``up``): ``pose_01``, ``pose_02``, …
+POSE_NAME_RE = re.compile(r"^pose_(?P<n>[0-9]{2,})$")
+#: the motion between two rests, from the last sample of the rest before to the first sample of
+#: the rest after: ``move_01_02`` goes from ``pose_01`` to ``pose_02``
+MOVE_NAME_RE = re.compile(r"^move_(?P<a>[0-9]{2,})_(?P<b>[0-9]{2,})$")
+#: a move's header names the rests it joins: ``from: pose_01``, ``to: pose_02``
+MOVE_FROM_KEY, MOVE_TO_KEY = "from", "to"
+#: the record kinds (:attr:`Record.kind`), "unknown" aside
+RECORD_KINDS = ("static", "turn", "rate", "pose", "move")
 _HEADER_RE = re.compile(r"^imu-bench record v(?P<v>\d+)\s*$")
 _META_RE = re.compile(r"^(?P<key>[^:]+?)\s*:\s?(?P<value>.*)$")
 _UNDERSCORES_RE = re.compile(r"^_{3,}\s*$")
@@ -94,6 +103,26 @@ class RecordError(InputError):
     """A record file that cannot be read (message names the file and line)."""
 
 
+def pose_name(number: int) -> str:
+    """The name of the ``number``-th pose (1-based): ``pose_01``, … ``pose_100``."""
+    if number < 1:
+        raise ValueError(f"pose number {number}: poses are numbered from 1")
+    return f"pose_{number:02d}"
+
+
+def move_name(first: int, second: int) -> str:
+    """The name of the move from pose ``first`` to pose ``second``: ``move_01_02``."""
+    if first < 1 or second < 1 or first == second:
+        raise ValueError(f"move {first} -> {second}: two different poses numbered from 1")
+    return f"move_{first:02d}_{second:02d}"
+
+
+def is_standard_name(name: str) -> bool:
+    """A record name the bench or ``import`` gives: a face or turn (``x_up``, ``z_cw_2``), a
+    pose (``pose_01``) or a move (``move_01_02``)."""
+    return bool(RECORD_NAME_RE.match(name) or POSE_NAME_RE.match(name) or MOVE_NAME_RE.match(name))
+
+
 @dataclass(frozen=True, eq=False)
 class Record:
     """One measurement: a static attitude or a turn (method.md §6).
@@ -103,8 +132,11 @@ class Record:
     ``gyro`` (N,3) °/s, ``temp`` (N,) °C, ``meta`` the ``# key: value`` header lines.
 
     Extra plans are described by meta: ``up: [ux, uy, uz]`` the up direction in chip axes
-    (unit vector) for any static/turn record; ``kind: static|turn|rate``; ``turns: n``;
-    ``rate_dps`` and ``rate_axis`` (e.g. "+x" or "[0, 0, 1]") for rate-table records.
+    (unit vector) for any static/turn record; ``kind: static|turn|rate|pose|move``;
+    ``turns: n``; ``rate_dps`` and ``rate_axis`` (e.g. "+x" or "[0, 0, 1]") for rate-table
+    records. A pose (``pose_01``) is a rest at an unknown attitude: it has no ``up``. A move
+    (``move_01_02``) is the motion between two poses; ``from``/``to`` in its header (or its
+    name) say which (:attr:`move_from`, :attr:`move_to`).
     """
 
     name: str
@@ -132,8 +164,12 @@ class Record:
         """ "static" (gravity reference), "turn" (integral method), "rate" (rate table) or
         "unknown"."""
         k = self.meta.get("kind", "").strip().lower()
-        if k in ("static", "turn", "rate"):
+        if k in RECORD_KINDS:
             return k
+        if POSE_NAME_RE.match(self.name):
+            return "pose"
+        if MOVE_NAME_RE.match(self.name):
+            return "move"
         m = RECORD_NAME_RE.match(self.name)
         if m:
             return "static" if m.group("dir") in ("up", "dn") else "turn"
@@ -145,7 +181,13 @@ class Record:
 
     @property
     def up(self) -> np.ndarray:
-        """Unit vector of the up direction in chip axes (from meta ``up`` or the name)."""
+        """Unit vector of the up direction in chip axes (from meta ``up`` or the name); a pose
+        or a move has none (RecordError)."""
+        if self.kind in ("pose", "move"):
+            raise RecordError(
+                f"record {self.name}: a {self.kind} has no up direction (its attitude is "
+                "fitted, not set)"
+            )
         if "up" in self.meta:
             return parse_vector(self.meta["up"], f"record {self.name}: meta 'up'")
         m = RECORD_NAME_RE.match(self.name)
@@ -178,6 +220,32 @@ class Record:
             return 1 if self.rate_dps >= 0 else -1
         v = self._axis_vector()
         return 1 if v[int(np.argmax(np.abs(v)))] > 0 else -1
+
+    @property
+    def move_from(self) -> str:
+        """The pose a move starts from (header ``from:``, else its name: ``move_01_02`` ->
+        ``pose_01``); RecordError for a record that is no move or names none."""
+        return self._move_end(MOVE_FROM_KEY, "a")
+
+    @property
+    def move_to(self) -> str:
+        """The pose a move ends at (header ``to:``, else its name: ``move_01_02`` ->
+        ``pose_02``); RecordError for a record that is no move or names none."""
+        return self._move_end(MOVE_TO_KEY, "b")
+
+    def _move_end(self, key: str, group: str) -> str:
+        if self.kind != "move":
+            raise RecordError(f"record {self.name}: not a move, it has no {key!r} pose")
+        text = self.meta.get(key, "").strip()
+        if text:
+            return text
+        m = MOVE_NAME_RE.match(self.name)
+        if m is None:
+            raise RecordError(
+                f"record {self.name}: a move names its poses in its header "
+                f"('{MOVE_FROM_KEY}: pose_01', '{MOVE_TO_KEY}: pose_02')"
+            )
+        return pose_name(int(m.group(group)))
 
     @property
     def rate_dps(self) -> float:
