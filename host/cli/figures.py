@@ -29,7 +29,7 @@ from host.model.dataset import Dataset
 from host.model.design import term_columns
 from host.model.fit import Fit
 from host.model.signals import AXES, UNIT
-from host.model.spec import parse_model, short_spec
+from host.model.spec import ModelTerm, parse_model, short_spec
 from host.session.records import STATIC_NAMES, TURN_NAMES
 
 #: a title longer than this wraps or is cut in a figure a person glances at
@@ -144,6 +144,26 @@ def column_unit(sensor: str, param_unit: str) -> str:
     return f"{u} per {param_unit}"
 
 
+def suspect_signal(ds: Dataset, mt: ModelTerm, axis: int) -> tuple[np.ndarray, str, str]:
+    """The signal (one value per row), its name and unit that ``mt``'s residuals are drawn
+    against on channel ``axis``: the column of its first parameter on that axis; for a term
+    whose parameters every channel shares (a lever arm, a plate tilt: one set of columns, each
+    channel's rows holding its own regressors), the parameter that varies most on that
+    channel's rows (a lever arm's offset along the axis itself moves it least)."""
+    cols, _ = term_columns(ds, mt)
+    units = mt.term.param_units(mt.sensor)
+    k = len(mt.term.params)
+    if not mt.term.shared:
+        j = mt.axes.index(axis) * k
+        return cols[:, j], mt.term.name, column_unit(mt.sensor, units[0])
+    rows = [r for (ri, s, a), r in ds.rows_of.items() if s == mt.sensor and a == axis]
+    on = np.concatenate(rows) if rows else np.arange(0)
+    spread = [float(np.ptp(cols[on, j])) if len(on) else 0.0 for j in range(k)]
+    j = int(np.argmax(spread))
+    name = mt.term.name if k == 1 else f"{mt.term.name} {mt.term.params[j]}"
+    return cols[:, j], name, column_unit(mt.sensor, units[j])
+
+
 def suspect_figure(ds: Dataset, fits: Sequence[tuple[str, Fit]], spec: str, lim: float) -> Any:
     """Each record's residual (z) against the mean of the suspect term's signal over the
     record, before and after adding it: a line of points before, a flat cloud after."""
@@ -157,10 +177,7 @@ def suspect_figure(ds: Dataset, fits: Sequence[tuple[str, Fit]], spec: str, lim:
         return sum(z**2 for z in zs if math.isfinite(z))
 
     axis = max(mt.axes, key=misfit)
-    k_axis = mt.axes.index(axis)
-    cols, _ = term_columns(ds, mt)
-    x = cols[:, k_axis * len(mt.term.params)]
-    xunit = column_unit(mt.sensor, mt.term.param_units(mt.sensor)[0])
+    x, xname, xunit = suspect_signal(ds, mt, axis)
     channel = f"{mt.sensor} {AXES[axis]}"
     fig, axs = plt.subplots(1, len(fits), figsize=(6 * len(fits), 4.8), squeeze=False)
     for k, (tag, fit) in enumerate(fits):
@@ -196,7 +213,7 @@ def suspect_figure(ds: Dataset, fits: Sequence[tuple[str, Fit]], spec: str, lim:
         ax.axhline(3, color="k", lw=0.6, ls="--", label="±3 (3 σ)")
         ax.axhline(-3, color="k", lw=0.6, ls="--")
         ax.set_ylim(-lim, lim)
-        ax.set_xlabel(f"{mt.term.name} signal, mean over the record ({xunit})", fontsize=8)
+        ax.set_xlabel(f"{xname} signal, mean over the record ({xunit})", fontsize=8)
         ax.set_ylabel(f"{channel}: {Z_LABEL}", fontsize=8)
         ax.set_title(f"{tag}: RMS z {fit.rms_z:.2f}", fontsize=10)
         h, lab = ax.get_legend_handles_labels()

@@ -129,3 +129,97 @@ def test_the_thermal_figure_reads_at_a_glance() -> None:
     fig = figures.thermal_figure(cal, pts)
     check_figure(fig)
     assert "°C" in fig.axes[0].get_xlabel() and "degC" not in fig._suptitle.get_text()
+
+
+@pytest.fixture(scope="module")
+def lever_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An independent session (tests/independent) whose sensor sits off the cube's centre."""
+    from tests.independent.simulate import SessionSpec
+    from tests.independent.simulate import write_session as write_independent
+
+    d = tmp_path_factory.mktemp("lever")
+    write_independent(d, SessionSpec(seed=1003, effect="lever_arm"))
+    return d
+
+
+def test_every_suspect_has_a_signal_on_every_axis(lever_session: Path) -> None:
+    """A suspect's signal on each of its channels, for every term of the catalogue: a term
+    whose parameters every channel shares (a lever arm) has one set of columns, read on the
+    channel's own rows (the first parameter of axis y or z was read past its columns: the
+    IndexError of issue 39 when the top suspect was lever_arm:accel:xyz)."""
+    from host.model.catalogue import CATALOGUE
+    from host.model.spec import ModelTerm
+
+    ds = load_dataset(lever_session)
+    for t in CATALOGUE.values():
+        for sensor in t.sensors:
+            mt = ModelTerm(t, sensor, (0, 1, 2))
+            for axis in range(3):
+                x, name, unit = figures.suspect_signal(ds, mt, axis)
+                assert x.shape == (ds.n_rows,) and np.all(np.isfinite(x)), (mt.label, axis)
+                assert name.startswith(t.name) and unit, (mt.label, axis)
+    # the lever arm: on each channel a parameter that moves it (an offset along the channel's
+    # own axis is not one: the turns about the other axes see it)
+    lever = ModelTerm(CATALOGUE["lever_arm"], "accel", (0, 1, 2))
+    for axis in range(3):
+        _, name, _ = figures.suspect_signal(ds, lever, axis)
+        assert not name.endswith(" " + lever.term.params[axis]), name
+
+
+def _worst_on(fit: object, sensor: str, axis: str) -> object:
+    """``fit`` whose channel ``sensor axis`` misfits most (the other channels' z shrunk)."""
+    import dataclasses
+
+    groups = tuple(g if (g.sensor, g.axis) == (sensor, axis) else dataclasses.replace(g, z=0.0)
+                   for g in fit.groups)  # type: ignore[attr-defined]  # fmt: skip
+    return dataclasses.replace(fit, groups=groups)  # type: ignore[type-var]
+
+
+def test_the_lever_arm_suspect_is_drawn_on_every_channel(lever_session: Path) -> None:
+    ds = load_dataset(lever_session)
+    a = add_term(ds, parse_model("base"), "lever_arm:accel")
+    for axis in "xyz":
+        before = _worst_on(a.before, "accel", axis)
+        fig = figures.suspect_figure(ds, [("before", before), ("after", a.after)],  # type: ignore[list-item]
+                                     "lever_arm:accel:xyz", 5.0)  # fmt: skip
+        check_figure(fig)
+        assert f"accel {axis}" in fig._suptitle.get_text()
+
+
+REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
+
+
+def _diagnosis_sessions(root: Path) -> list[tuple[Path, str]]:
+    """The sessions the diagnosis tests read (tests/host/workbench/test_verdict.py): each
+    hidden-effect demo, independent sessions with a scale asymmetry and a lever arm, and
+    imucal's real session (with the plate's tilt in, its top suspect is the lever arm)."""
+    from tests.independent.simulate import SessionSpec
+    from tests.independent.simulate import write_session as write_independent
+
+    out = []
+    for effect in ("temperature", "drift", "asymmetry", "warmup", "none"):
+        d = root / effect
+        write_session(d, "F7", dict(hidden_effect_case(effect, 0).records))
+        out.append((d, "base"))
+    for seed, effect in ((4000, "scale_asymmetry"), (1003, "lever_arm")):
+        d = root / effect
+        write_independent(d, SessionSpec(seed=seed, effect=effect))
+        out.append((d, "base"))
+    if REAL.is_dir():
+        out += [(REAL, "base"), (REAL, "base,plate_tilt:accel")]
+    return out
+
+
+@pytest.mark.slow
+def test_diagnose_plot_draws_on_every_session_of_the_diagnosis_tests(tmp_path: Path) -> None:
+    from tests.host.cli.cli_run import run
+
+    for k, (d, model) in enumerate(_diagnosis_sessions(tmp_path / "sessions")):
+        plots = tmp_path / f"plots{k}"
+        rc, out, err = run(["model", "diagnose", str(d), "--brief", "--model", model,
+                            "--plot", str(plots)])  # fmt: skip
+        assert rc == 0, (d, model, err)
+        drawn = {p.name for p in plots.iterdir()}
+        assert "compare_before.png" in drawn, (d, drawn)
+        if "  try: python3 -m host model add" in out:
+            assert {"compare_after.png", "suspect.png"} <= drawn, (d, model, drawn)
