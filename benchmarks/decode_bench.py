@@ -9,7 +9,7 @@ streaming path (4 KiB reads), and pymavlink parsing the same number of RAW_IMU m
 its own parser; then the ratios, and the share of one core the streaming decoder needs to keep
 up with a 1 Mbaud link. Targets (issue "The wire"): bulk >= 3 M frames/s clean, >= 1 M with
 1 % corrupted, >= 30x pymavlink; streaming well under 5 % of a core at 1 Mbaud. With
-``--process``, ``python -m host decode --stats`` as a whole process on a raw capture and on an
+``--process``, ``python3 -m host decode --stats`` as a whole process on a raw capture and on an
 IMUCAP01 capture (the clock map too) of ``--process-samples`` frames, and its start-up alone
 (issue 31: >= 3 M frames/s and >= 30x pymavlink as a whole process), as the best wall time,
 the best CPU time and the median CPU time of the runs (on a loaded machine only the CPU time
@@ -131,7 +131,7 @@ def imucap(data: bytes, read_sizes: Callable[[int], int]) -> bytes:
 
 
 def whole_process(data: bytes, n: int, repeat: int, small_reads: bool) -> dict[str, list[float]]:
-    """``python -m host decode --stats`` as a user runs it, start-up included, on ``data``
+    """``python3 -m host decode --stats`` as a user runs it, start-up included, on ``data``
     written as a raw capture and as an IMUCAP01 capture (4 KiB reads, host times 2 ms after
     each read's last sample), with ``small_reads`` also as the reads a board's link makes
     (``small``: 1 to 2 frames, 27-54 bytes), and on an empty file (the start-up alone): the
@@ -173,7 +173,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument(
         "--process", action="store_true",
-        help="also time `python -m host decode --stats` as a whole process (start-up included)",
+        help="also time `python3 -m host decode --stats` as a whole process (start-up included)",
     )  # fmt: skip
     ap.add_argument(
         "--process-samples", type=int, default=1_500_000,
@@ -214,7 +214,7 @@ def main() -> None:
         p = whole_process(data, big, runs, args.small_reads)
         # per column: the best wall time, the best CPU time, the median CPU time (s)
         mav = [n / min(w_mav), n / min(c_mav), n / statistics.median(c_mav)]
-        print(f"process: {big} frames, `python -m host decode --stats FILE`, {runs} runs")
+        print(f"process: {big} frames, `python3 -m host decode --stats FILE`, {runs} runs")
         print("                            wall (best)  CPU (best)  CPU (median)")
         cols = [min(p["start"]), min(p["start_cpu"]), statistics.median(p["start_cpu"])]
         print("start-up alone             " + "".join(f"{c:10.3f} s " for c in cols).rstrip())

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Peak memory of ``python -m host decode`` on big inputs, against a small capture decoded in
+"""Peak memory of ``python3 -m host decode`` on big inputs, against a small capture decoded in
 the same run (issue 17, item 4: decoding reads in chunks, in bounded memory).
 
     python benchmarks/decode_memory.py [--mib 1024] [--dense-mib 128] [--keep DIR]

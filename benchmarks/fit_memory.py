@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Peak memory and time of ``python -m host calibrate --from-dir`` against the number of records
+"""Peak memory and time of ``python3 -m host calibrate --from-dir`` against the number of records
 (issue 31, item 3: memory that grows with the data, not with its square).
 
     python benchmarks/fit_memory.py [--sizes 1,10,100] [--keep DIR]

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Peak memory and time of ``python -m host noise`` on static captures of 1×, 10× and 100× a
+"""Peak memory and time of ``python3 -m host noise`` on static captures of 1×, 10× and 100× a
 base length (issue 31, item 3: ``noise`` streams its capture).
 
     python benchmarks/noise_memory.py [--hours 0.9] [--scales 1,10,100] [--keep DIR]

@@ -1,4 +1,4 @@
-"""``python -m host COMMAND ...``: the thin command line.
+"""``python3 -m host COMMAND ...``: the thin command line.
 
 Each command lives in the module of its stage; this file only maps command names to
 ``module:function`` pairs. The function is called with the subparser to fill in and
@@ -210,7 +210,7 @@ def build_parser(
     of that command alone (the others are listed, their modules not imported: start-up
     imports what the command needs)."""
     parser = OneLineErrors(
-        prog="python -m host", description="IMU calibration bench host (APM 2.6 / MPU-6000).",
+        prog="python3 -m host", description="IMU calibration bench host (APM 2.6 / MPU-6000).",
         epilog=EXIT_CODES,
     )  # fmt: skip
     parser.add_argument("--version", action="version", version=_version())

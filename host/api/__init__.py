@@ -4,6 +4,6 @@
   result file, numpy arrays) and returning the bench's own objects: ``read_session``,
   ``calibrate``, ``write_result``, ``load_result``, ``apply``, ``diagnose``, ``export``.
 
-``host/__init__.py`` imports them only when one is first used, so ``python -m host`` starts
+``host/__init__.py`` imports them only when one is first used, so ``python3 -m host`` starts
 without them.
 """

@@ -8,7 +8,7 @@
 - ``stats`` — pure functions over numpy arrays: repeatability (χ² against the predicted σ),
   drift, lot summary and outliers, control-chart run rules, bench comparison by Eₙ, each with
   its stated family-wise false-alarm rate.
-- ``checks`` — the questions of ``python -m host archive`` answered from the store with
+- ``checks`` — the questions of ``python3 -m host archive`` answered from the store with
   ``stats`` (trend, repeat, drift, lot, control charts, check-bench); their text on the
   command line is the command's (:mod:`host.cli.archive_text`).
 - ``page`` — the self-contained HTML page (``archive report --html``), charts as inline SVG.

@@ -97,7 +97,7 @@ def nothing_selected(archive: Archive, selection: str, names: Sequence[str] | No
                 f"{', '.join(known) or 'none'})"
             )
     what = f"the archive has no calibration {selection}".rstrip()
-    return UserError(f"{what} (python -m host archive list shows what it holds)")
+    return UserError(f"{what} (python3 -m host archive list shows what it holds)")
 
 
 def trend(

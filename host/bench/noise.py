@@ -112,11 +112,11 @@ def capture_bytes(t_s: np.ndarray, data: np.ndarray, temp_c: np.ndarray) -> byte
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m host.bench.noise OUT.cap [--hours H] [--seed S]``: write a static capture with
-    the known noise of :meth:`NoiseTruth.mpu6000` (for trying ``python -m host noise``)."""
+    """``python3 -m host.bench.noise OUT.cap [--hours H] [--seed S]``: write a static capture with
+    the known noise of :meth:`NoiseTruth.mpu6000` (for trying ``python3 -m host noise``)."""
     import argparse
 
-    p = argparse.ArgumentParser(prog="python -m host.bench.noise", description=main.__doc__)
+    p = argparse.ArgumentParser(prog="python3 -m host.bench.noise", description=main.__doc__)
     p.add_argument("out", help="capture file to write")
     p.add_argument("--hours", type=float, default=4.0, help="length, h (default 4)")
     p.add_argument("--seed", type=int, default=3, help="random seed (default 3)")

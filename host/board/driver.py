@@ -300,7 +300,7 @@ class Board:
                 self.link, timeout_s, read=self.read_frames, port_name=self.url
             )
         except LinkTimeout as exc:
-            raise LinkTimeout(f"{exc}: is the firmware flashed? (python -m host flash)") from None
+            raise LinkTimeout(f"{exc}: is the firmware flashed? (python3 -m host flash)") from None
         return self._accept_hello(f)
 
     def _accept_hello(self, f: Frame) -> BoardInfo:
@@ -309,7 +309,7 @@ class Board:
         check_spec(
             info.spec_fingerprint,
             who="the firmware",
-            remedy="flash the matching firmware (python -m host flash)",
+            remedy="flash the matching firmware (python3 -m host flash)",
             protocol_version=info.protocol_version,
         )
         if info.who_am_i in (0x00, 0xFF):

@@ -1,10 +1,10 @@
-"""Flashing (``python -m host flash``): build the firmware, check its hex, flash it with avrdude
+"""Flashing (``python3 -m host flash``): build the firmware, check its hex, flash it with avrdude
 through the board's stk500v2 bootloader, then check that the board says HELLO with what was just
 flashed.
 
-    python -m host flash                   # /dev/ttyACM0, firmware/build/imu_bench.hex
-    python -m host flash --port /dev/ttyUSB0 --hex other.hex
-    python -m host flash --port 'emu://?flash=/tmp/board.flash'  # the emulated board
+    python3 -m host flash                   # /dev/ttyACM0, firmware/build/imu_bench.hex
+    python3 -m host flash --port /dev/ttyUSB0 --hex other.hex
+    python3 -m host flash --port 'emu://?flash=/tmp/board.flash'  # the emulated board
 
 Steps: ``make -C firmware`` (unless ``--hex``); parse the Intel hex and refuse a corrupt one (bad
 record, checksum, no end record) or one that does not fit the application section (256 KiB
@@ -259,7 +259,7 @@ def run_avrdude(
     if port.startswith("/") and not os.path.exists(port):
         # (avrdude 7.1 spins forever with -c wiring on a port it cannot open)
         raise UserError(
-            f"no port {port}: is the board plugged in? (python -m serial.tools.list_ports)"
+            f"no port {port}: is the board plugged in? (python3 -m serial.tools.list_ports)"
         )
     cmd = avrdude_command(port, hex_path, baud, part)
     t0 = time.monotonic()

@@ -60,7 +60,7 @@ def open_port(url: str, baud: int = DEFAULT_BAUD, timeout_s: float = 0.05) -> se
             raise UserError(f"cannot open {url!r}: {exc}") from None
         raise UserError(
             f"cannot open {url!r}: {exc}; check the USB cable and the port name "
-            "(python -m serial.tools.list_ports lists them), or use sim:// to try without a board"
+            "(python3 -m serial.tools.list_ports lists them), or use sim:// to try without a board"
         ) from None
 
 
@@ -109,7 +109,7 @@ class Link:
         elif time.monotonic() - self._last_rx > self.stall_s:
             raise LinkTimeout(
                 f"no data from the board for {self.stall_s:.1f} s; check the cable and that "
-                "the firmware is running (python -m host flash)"
+                "the firmware is running (python3 -m host flash)"
             )
         return t_ns, data
 

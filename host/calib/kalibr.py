@@ -1,6 +1,6 @@
 """Kalibr's IMU configuration (``imu.yaml``) from a noise file (``noise FILE --save``): the
 four continuous-time noise figures Kalibr wants, from the Allan analysis of a long static
-recording (``python -m host export --to kalibr --noise NOISE.json``), not from a calibration.
+recording (``python3 -m host export --to kalibr --noise NOISE.json``), not from a calibration.
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ def export_kalibr(noise: dict[str, object], topic: str = "/imu0") -> str:
     vals, bounds = kalibr_values(noise)
     rate = float(noise.get("rate_hz", 0.0) or 0.0)  # type: ignore[arg-type]
     lines = [
-        "# Kalibr IMU noise model from an imu-bench noise file (python -m host noise --save)",
+        "# Kalibr IMU noise model from an imu-bench noise file (python3 -m host noise --save)",
         "# continuous-time densities; the worst axis of each sensor; no inflation applied",
         f"# recording: {float(noise.get('duration_s', 0.0) or 0.0):.0f} s at {rate:.2f} Hz",  # type: ignore[arg-type]
         "# NOT REPRESENTED by this format: bias instability, per-axis figures, and every",

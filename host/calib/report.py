@@ -389,7 +389,7 @@ def _conclusion(r: CalibrationResult, nxt: list[str]) -> list[str]:
                          "does not bias them.", "  ", "    "))  # fmt: skip
         out.extend(_command(nxt, "  Next: ", "    ", "(what the model lacks)"))
     out.extend(_wrap("Repeatability (method.md §8: three calibrations, coefficient of "
-                     f"variation ≤ 1 %): python -m host archive repeat {r.serial}",
+                     f"variation ≤ 1 %): python3 -m host archive repeat {r.serial}",
                      "  ", "    ", keep=("≤ 1 %",)))  # fmt: skip
     return out
 
@@ -458,7 +458,7 @@ def next_words(
     floor came from (the yardstick its fit was judged on)."""
     if not fit_story(result):
         return []
-    words = ["python", "-m", "host", "model", "diagnose"]
+    words = ["python3", "-m", "host", "model", "diagnose"]
     words.append("DIR" if records_dir is None else str(records_dir))
     if result.model != "base":
         words += ["--model", result.model]

@@ -352,7 +352,7 @@ class CalibrationResult:
             raise ResultFileError(
                 f"calibration result format v{version} but this program reads "
                 f"{', '.join(f'v{v}' for v in cls.READS)}; recompute it with "
-                "'python -m host calibrate --from-dir'"
+                "'python3 -m host calibrate --from-dir'"
             )
         try:
             return _from_v1(d) if version == 1 else _from_v2(d, version)
@@ -457,7 +457,7 @@ def thermal_parameters(cal: ThermalCalibration, t_ref_c: float) -> tuple[Paramet
         if ch.order > len(t.params):
             raise UserError(
                 f"{name}: bias(T) of order {ch.order}; a result carries up to order "
-                f"{len(t.params)}: refit with python -m host thermal --max-order {len(t.params)}"
+                f"{len(t.params)}: refit with python3 -m host thermal --max-order {len(t.params)}"
             )
         c, cov = recentred(ch, cal.t_ref_c, t_ref_c)
         out += _poly_parameters(t, sensor, ax, c[: ch.order], cov)

@@ -1,4 +1,4 @@
-"""The commands of ``python -m host``, one module each (thin: parse, call the library, print).
+"""The commands of ``python3 -m host``, one module each (thin: parse, call the library, print).
 
 - ``archive`` — ``archive``: every calibration kept by serial, the lot's statistics;
   ``archive_text`` — its answers as text within the terminal's width.

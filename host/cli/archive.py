@@ -1,4 +1,4 @@
-"""``python -m host archive``: every calibration kept by serial, and the questions of a lab
+"""``python3 -m host archive``: every calibration kept by serial, and the questions of a lab
 and a production line (:mod:`host.archive`). Thin: parse, call the library, print."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The text of ``python -m host archive``'s answers, within the terminal's width (80 columns
+"""The text of ``python3 -m host archive``'s answers, within the terminal's width (80 columns
 into a pipe or a file): prose wrapped at words (continuations indented by two), tables
 through :func:`host.cli.screen.table` (too wide, their least needed columns are left out and
 named). The answers are :mod:`host.archive.checks`'; nothing here decides anything."""
@@ -35,7 +35,7 @@ def prose(text: str, width: int) -> list[str]:
 CONDITIONAL = "PASS*"
 FOOTNOTE = (
     "* conditional PASS: every value within tolerance as fitted, on a model that does not fit "
-    "the records (not a clean pass; python -m host model diagnose DIR on its records)"
+    "the records (not a clean pass; python3 -m host model diagnose DIR on its records)"
 )
 
 

@@ -1,4 +1,4 @@
-"""``python -m host calibrate``: compute the calibration from records and write the report.
+"""``python3 -m host calibrate``: compute the calibration from records and write the report.
 
 ``--from-dir DIR`` recomputes from the record files in DIR. Otherwise the live dialogue of
 method.md §5 runs (:func:`host.dialogue.flow.run_dialogue`) on ``--port`` — or, with no port
@@ -86,7 +86,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--thermal",
         metavar="FILE",
-        help="the unit's bias(T), SERIAL_thermal.json from 'python -m host thermal': removed "
+        help="the unit's bias(T), SERIAL_thermal.json from 'python3 -m host thermal': removed "
         "from the records and carried in the result, which apply() then needs temperatures "
         "for (default: SERIAL_thermal.json in the records' directory if there; 'none': ignore)",
     )
@@ -194,7 +194,7 @@ def adaptive_options(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Runner of ``python -m host calibrate``."""
+    """Runner of ``python3 -m host calibrate``."""
     adaptive_options(args)
     for given in getattr(args, "redo", None) or ():  # was: '--redo ,' began a whole new sitting
         if not any(n.strip() for n in given.split(",")):

@@ -1,4 +1,4 @@
-"""``python -m host capture FILE --port URL``: record a port's bytes with host times (IMUCAP01).
+"""``python3 -m host capture FILE --port URL``: record a port's bytes with host times (IMUCAP01).
 
 The port and the timestamped reads are :class:`host.board.link.Link`.
 """
@@ -83,7 +83,7 @@ def run_capture(args: Any) -> int:
     if n_samples == 0:
         raise UserError(
             f"no samples from the board in {elapsed:.1f} s ({args.file} holds what came); "
-            "is it streaming? (python -m host flash checks its HELLO)"
+            "is it streaming? (python3 -m host flash checks its HELLO)"
         )
     return stop.status  # 0 when --seconds ran out; Ctrl+C 130 (the file is whole either way)
 

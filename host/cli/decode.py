@@ -1,4 +1,4 @@
-"""``python -m host decode FILE``: a capture's samples as JSONL or CSV, or the decoder counters.
+"""``python3 -m host decode FILE``: a capture's samples as JSONL or CSV, or the decoder counters.
 
 The input streams through in chunks (:class:`host.wire.bulk.BulkReader`): a capture of any
 size, a FIFO or an endless device decodes in bounded memory, and rows are written as they are

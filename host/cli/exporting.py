@@ -1,4 +1,4 @@
-"""``python -m host export RESULT --to FORMAT``: the calibration in another tool's convention.
+"""``python3 -m host export RESULT --to FORMAT``: the calibration in another tool's convention.
 
 RESULT is ``SERIAL_result.json`` (or the directory holding one); ``--to kalibr --noise F``
 needs no result, only the noise file of a long static recording (``noise FILE --save F``).
@@ -33,7 +33,7 @@ def _result_path(path: Path) -> Path:
         return found[0]
     if not path.exists():
         raise UserError(
-            f"{path}: no such file (python -m host calibrate writes SERIAL_result.json)"
+            f"{path}: no such file (python3 -m host calibrate writes SERIAL_result.json)"
         )
     return path
 
@@ -68,7 +68,7 @@ def check_out(out: Path | None, to: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Runner of ``python -m host export``."""
+    """Runner of ``python3 -m host export``."""
     if args.axes is not None and not args.axes.strip():  # e.g. --axes "$UNSET"
         raise UserError("--axes '': give three axes, e.g. x,-y,-z (or leave --axes out: x,y,z)")
     check_out(args.out, args.to)
@@ -170,6 +170,6 @@ def cli_export(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int
         help="export a result that failed (outside tolerance, not determined), marked FAILED",
     )
     p.add_argument(
-        "--noise", type=Path, help="noise file (python -m host noise FILE --save F): for kalibr"
+        "--noise", type=Path, help="noise file (python3 -m host noise FILE --save F): for kalibr"
     )
     return run

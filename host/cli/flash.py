@@ -1,4 +1,4 @@
-"""``python -m host flash``: build, flash and verify the firmware, then check its HELLO.
+"""``python3 -m host flash``: build, flash and verify the firmware, then check its HELLO.
 
 The work is :func:`host.board.flash.flash`; this module only reads the options.
 """

@@ -1,4 +1,4 @@
-"""``python -m host import FILE …``: foreign data in, the project's record files out.
+"""``python3 -m host import FILE …``: foreign data in, the project's record files out.
 
 Reads a column file (``--columns``), an imucal session (its CSV with ``--sections LIST.json``)
 or a capture (``.cap``), cuts the stream into records (automatically, from a labels file, from
@@ -138,7 +138,7 @@ def _whole_file(stream: importing.Stream, name: str) -> list[Segment]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Runner of ``python -m host import``."""
+    """Runner of ``python3 -m host import``."""
     from host.dialogue.options import parse_serial
 
     try:

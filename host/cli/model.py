@@ -1,4 +1,4 @@
-"""``python -m host model diagnose|add|ladder`` and ``python -m host demo hidden-effect``.
+"""``python3 -m host model diagnose|add|ladder`` and ``python3 -m host demo hidden-effect``.
 
 The model workbench on the command line (:mod:`host.workbench`: the diagnosis, a term added,
 the ladder, their words in :mod:`host.workbench.text`), and a demo that hides ONE physical effect

@@ -1,4 +1,4 @@
-"""``python -m host noise FILE``: Allan deviation of a static recording, its noise figures,
+"""``python3 -m host noise FILE``: Allan deviation of a static recording, its noise figures,
 a recording planner, and the noise file the workbench takes its noise floor from.
 
 FILE is a capture (``.cap`` IMUCAP01 or raw bytes, as ``capture`` writes them; streamed, in
@@ -171,7 +171,7 @@ def parse_precision(text: str) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Runner of ``python -m host noise``."""
+    """Runner of ``python3 -m host noise``."""
     path = Path(args.file)
     if not 0.5 <= args.ci < 1:
         raise UserError(f"--ci: expected a confidence level between 0.5 and 1, got {args.ci}")

@@ -1,4 +1,4 @@
-"""``python -m host plan DIR``: which record to measure next, ranked by what it buys.
+"""``python3 -m host plan DIR``: which record to measure next, ranked by what it buys.
 
 Every record the operator could add (a face again, a 45° attitude, a pair of turns about an
 axis) is ranked by how much it shrinks the worst standard error relative to its tolerance per

@@ -13,7 +13,7 @@ words, never cut mid-word by the terminal.
 - :class:`ScreenWriter` — a text stream that wraps what passes through it at words as it is
   written (prompts without a newline too), when it goes to a terminal — never inside a
   shell-quoted word nor before a command's ``\\`` continuation, so a command still pastes;
-  ``python -m host`` puts its stdout and stderr through it (``\\r`` redraws and terminal
+  ``python3 -m host`` puts its stdout and stderr through it (``\\r`` redraws and terminal
   escapes pass unchanged and take no width). Into a pipe or a file lines stay whole, for
   ``grep`` and for programs.
 

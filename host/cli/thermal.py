@@ -1,4 +1,4 @@
-"""``python -m host thermal DIR``: bias against chip temperature from the warm-up, static and
+"""``python3 -m host thermal DIR``: bias against chip temperature from the warm-up, static and
 thermal-ramp records of a unit (:mod:`host.calib.thermal_fit`), written as ``SERIAL_thermal.json``
 (:mod:`host.calib.thermal`), and its plot.
 """
@@ -82,7 +82,7 @@ def unit_records(directory: str, serial: str | None) -> tuple[str, list[Record]]
 
 
 def run(args: argparse.Namespace) -> int:
-    """Runner of ``python -m host thermal``."""
+    """Runner of ``python3 -m host thermal``."""
     serial, records = unit_records(args.dir, args.serial)
     sys.stderr.write(timing_report({r.name: r for r in records}))
     if args.order is not None and not 0 <= args.order <= 6:

@@ -1,6 +1,6 @@
 """The live calibration dialogue (method.md §5): its sequence with the operator on a board.
 
-``python -m host calibrate --port PORT ...`` calls :func:`run_dialogue`. The dialogue only asks,
+``python3 -m host calibrate --port PORT ...`` calls :func:`run_dialogue`. The dialogue only asks,
 decides and records, in this order: the board's identity, the serial number, the self-test, the
 warm-up, the six faces (stage 1), the turns (stage 2), the closing check, the results. The faces,
 the turns and the closing check, each until it is saved, are :mod:`host.dialogue.recorder`; one
@@ -212,7 +212,7 @@ class CalibrationDialogue(Recorder):
     def _warm_up(self) -> None:
         """The warm-up (method.md §5 step 3), recorded as ``SERIAL_warmup.txt``: one attitude,
         the chip temperature rising — the thermal calibration's first ramp
-        (``python -m host thermal``). Any key skips the rest of the wait (nothing recorded)."""
+        (``python3 -m host thermal``). Any key skips the rest of the wait (nothing recorded)."""
         s = self.opts.warmup_s
         if s <= 0 or (self.opts.keeps_records and self.done and screens.no_warm_up(self.op)):
             return
@@ -301,9 +301,9 @@ def run_dialogue(
     console: Console | None = None,
     port_factory: Callable[[str], serial.SerialBase] | None = None,
 ) -> int:
-    """Run the live calibration dialogue; the runner of ``python -m host calibrate --port``.
+    """Run the live calibration dialogue; the runner of ``python3 -m host calibrate --port``.
 
-    ``args``: the parsed ``calibrate`` arguments (``python -m host calibrate``) or a
+    ``args``: the parsed ``calibrate`` arguments (``python3 -m host calibrate``) or a
     :class:`DialogueOptions`. ``console``: the terminal (default: the real one; tests pass a
     :class:`host.dialogue.console.ScriptedConsole`). ``port_factory(url)``: opens the port
     (default :func:`host.board.link.open_port`). Returns the exit status: 0 every value within

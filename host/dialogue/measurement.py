@@ -256,7 +256,7 @@ def record_header(
                 else {}
             ),
             "capture": board.capture.path.name,
-            "program": "python -m host calibrate (live)",
+            "program": "python3 -m host calibrate (live)",
         }
     )
     return meta

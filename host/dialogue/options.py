@@ -1,4 +1,4 @@
-"""The dialogue's options: what ``python -m host calibrate`` (live) is told, read and checked.
+"""The dialogue's options: what ``python3 -m host calibrate`` (live) is told, read and checked.
 
 :class:`DialogueOptions` holds every option of the live dialogue (units in the names: s, deg,
 m), :meth:`DialogueOptions.from_args` reads them from the ``calibrate`` arguments and

@@ -442,7 +442,7 @@ _SUPERSCRIPT = {1: "", 2: "²", 3: "³", 4: "⁴", 5: "⁵", 6: "⁶"}
         f"per_C{'' if j == 1 else j}": f"{{u}}/°C{_SUPERSCRIPT[j]}"
         for j in range(1, THERMAL_MAX_ORDER + 1)
     },
-    needs="a thermal calibration of the unit: python -m host thermal DIR (the warm-up record, "
+    needs="a thermal calibration of the unit: python3 -m host thermal DIR (the warm-up record, "
     "a chamber ramp), then calibrate --thermal SERIAL_thermal.json",
 )
 def thermal_bias(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
@@ -457,7 +457,7 @@ def thermal_bias(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     sensors=("accel",),
     params={"per_C": "1/°C", "per_C2": "1/°C²"},
     needs="a thermal calibration with the axis up and down across the temperature span: "
-    "python -m host thermal DIR --scale, then calibrate --thermal SERIAL_thermal.json",
+    "python3 -m host thermal DIR --scale, then calibrate --thermal SERIAL_thermal.json",
 )
 def thermal_scale(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     """Accelerometer scale change with chip temperature measured by the thermal calibration

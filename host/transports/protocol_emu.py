@@ -19,7 +19,7 @@ URL grammar (all options optional, ``&``-separated)::
   reads (tens of times real time), so device time runs ahead of host time.
 - ``stimulus``: where the MPU-6000 model's physical truth comes from. ``sim`` (the default):
   the project's physics simulator (below), so plain ``emu://`` is a whole virtual bench whose
-  operator follows the calibration program (``python -m host calibrate --port emu://`` works
+  operator follows the calibration program (``python3 -m host calibrate --port emu://`` works
   as it does with ``sim://``); ``rest``: at rest, Z up, 25 °C, exactly (no noise, no sensor
   errors; the emulator's own ``noise_*`` options add white noise); a path: a stimulus file
   (``host.bench.stimulus.write_stimulus``).
@@ -54,7 +54,7 @@ URL grammar (all options optional, ``&``-separated)::
   for avrdude, then starts the application. Default 0 (the application starts at once).
 - ``flash``: the chip's flash persisted in this file (raw 256 KiB image; implies ``boot=1``):
   loaded at start if it exists (else an empty chip, or ``elf`` programmed into it), written back
-  when avrdude has programmed it and at exit — flash once (``python -m host flash --port
+  when avrdude has programmed it and at exit — flash once (``python3 -m host flash --port
   'emu://?flash=PATH'``), then open ``emu://?flash=PATH`` as often as you like.
 
 Opening the port starts the emulator and opens its pseudo-terminal (the open is the DTR reset:

@@ -112,7 +112,7 @@ def read_capture_bytes(path: str | os.PathLike[str], limit: int = MAX_CAPTURE_BY
     if not stat.S_ISREG(st.st_mode):
         raise UserError(
             f"{p}: not a regular file (a device or a pipe); to record a port use "
-            "'python -m host capture --port PORT FILE', then decode FILE"
+            "'python3 -m host capture --port PORT FILE', then decode FILE"
         )
     if st.st_size > limit:
         raise UserError(

@@ -154,7 +154,7 @@ class Readable(Protocol):
 class FrameReader:
     """Yield ``(raw_bytes, frame)`` from anything with ``read(n)`` (a port, a file, a socket).
 
-    An IMUCAP01 capture (``python -m host capture``, a session's ``SERIAL_session.cap``) is
+    An IMUCAP01 capture (``python3 -m host capture``, a session's ``SERIAL_session.cap``) is
     recognised by its magic and unwrapped: the frames come from the bytes it recorded.
     Stops at end of input (``read`` returning ``b""``); for a live port with a timeout, an
     empty read just means no data yet, so pass ``stop_on_empty=False`` and break yourself.

@@ -85,7 +85,7 @@ def test_simulator_options_of_the_url() -> None:
 
 @pytest.mark.slow
 def test_full_calibration_recovers_the_simulator_truth(tmp_path: Path, fw_elf: Path) -> None:
-    """``python -m host calibrate --port emu://... --yes``: the real firmware measures the
+    """``python3 -m host calibrate --port emu://... --yes``: the real firmware measures the
     simulated cube through the whole dialogue, and the constants are the simulator's."""
     # seed 4: with 1 turn the gyro misalignments come out within ≈ 0.5e-3; some seeds reach
     # ≈ 1e-3 with 1 turn on sim:// just the same (the method, not the emulator: same numbers)

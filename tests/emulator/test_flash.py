@@ -1,4 +1,4 @@
-"""``python -m host flash`` against the emulated board booting like the real one: Debian's
+"""``python3 -m host flash`` against the emulated board booting like the real one: Debian's
 stk500v2 bootloader at 0x3E000, the application in a persistent flash file, avrdude through the
 emulator's pty (``emu://?flash=PATH``)."""
 
@@ -45,7 +45,7 @@ def old_elf(flash_tools, tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def current_hex(flash_tools) -> Path:
-    return build_firmware_hex()  # what `python -m host flash` builds and flashes
+    return build_firmware_hex()  # what `python3 -m host flash` builds and flashes
 
 
 @pytest.fixture(scope="module")

@@ -66,7 +66,7 @@ def broken_links(page: Path, root: Path = ROOT) -> list[str]:
 
 
 def test_slug_is_githubs() -> None:
-    assert slug("Out: `python -m host export`") == "out-python--m-host-export"
+    assert slug("Out: `python3 -m host export`") == "out-python3--m-host-export"
     assert slug("The virtual bench (`sim://`)") == "the-virtual-bench-sim"
     assert slug("Noise: Allan deviation and how long to record") == (
         "noise-allan-deviation-and-how-long-to-record"

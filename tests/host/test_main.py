@@ -1,4 +1,4 @@
-"""``python -m host`` runs numpy's BLAS on one thread unless the user asks otherwise (issue 31:
+"""``python3 -m host`` runs numpy's BLAS on one thread unless the user asks otherwise (issue 31:
 on a loaded 2-core machine a thread per core made ``model add`` 20x slower)."""
 
 from __future__ import annotations

@@ -120,7 +120,7 @@ def test_plot_without_matplotlib_names_a_package_that_exists(
 
 
 def test_the_readmes_command_index_names_every_command_once() -> None:
-    """The README's 'Commands' table has one row per command of ``python -m host``, and every
+    """The README's 'Commands' table has one row per command of ``python3 -m host``, and every
     ``python3 -m host WORD`` in the README and docs/ names a command that exists."""
     from host.__main__ import COMMANDS
 
@@ -131,7 +131,7 @@ def test_the_readmes_command_index_names_every_command_once() -> None:
     assert sorted(firsts) == sorted(COMMANDS)
     for page in doc_pages():
         for word in re.findall(r"python3? -m host ([a-z][\w-]*)", page.read_text(encoding="utf-8")):
-            assert word in COMMANDS, f"{page.name}: python -m host {word}: no such command"
+            assert word in COMMANDS, f"{page.name}: python3 -m host {word}: no such command"
 
 
 @pytest.mark.slow

@@ -1,4 +1,4 @@
-"""``python -m host export``: every format round-trips through the target's own formula.
+"""``python3 -m host export``: every format round-trips through the target's own formula.
 
 For each target, the exported numbers are read back from the exported text and applied with
 the formula the target uses; on synthetic raw samples that must reproduce ``apply()`` to 1e-6

@@ -1,4 +1,4 @@
-"""The test report (§7), the result files and ``python -m host calibrate --from-dir``."""
+"""The test report (§7), the result files and ``python3 -m host calibrate --from-dir``."""
 
 from __future__ import annotations
 
@@ -240,7 +240,7 @@ def test_from_dir_ends_on_the_verdict_and_the_report(tmp_path: Path, capsys) -> 
         # (a path too long for the line follows its label on a line of its own)
         i = next(i for i, ln in enumerate(err) if ln.startswith("Report:"))
         assert " ".join(ln.strip() for ln in err[i:-1]) == (
-            f"Report: {out / 'REAL_result.txt'} Next: python -m host model diagnose {REAL}"
+            f"Report: {out / 'REAL_result.txt'} Next: python3 -m host model diagnose {REAL}"
         )
         head = (out / "REAL_result.txt").read_text().splitlines()[:10]
         assert f"Verdict: {err[-1]} (RESULT below)" in " ".join(ln.strip() for ln in head)

@@ -102,7 +102,7 @@ def test_the_quick_start_ends_on_one_conditional_verdict(quick_start: dict) -> N
     assert str(quick_start["out"]).endswith(report)
 
     # one next command in every place, on the directory the records are in (./DEMO01)
-    nxt = "python -m host model diagnose DEMO01"
+    nxt = "python3 -m host model diagnose DEMO01"
     assert f"Next: {nxt}" in ending
     assert story["head_next"] == story["conclusion_next"] == f"Next: {nxt} (what the model lacks)"
     assert f"Find it: {nxt}" in " ".join(ln.strip() for ln in report.splitlines())
@@ -126,7 +126,7 @@ def test_the_next_command_runs_and_finds_the_same_misfit(
     workbench reads the same RMS z the verdict quotes."""
     d: Path = quick_start["dir"]
     argv = command_from(_ending(str(quick_start["err"])))
-    assert argv[:4] == ["python", "-m", "host", "model"]
+    assert argv[:4] == ["python3", "-m", "host", "model"]
     monkeypatch.chdir(d.parent)
     rc, out, _ = run(argv[3:] + ["--brief"])
     doc = json.loads((d / "DEMO01_result.json").read_text(encoding="utf-8"))
@@ -171,7 +171,7 @@ def test_a_hidden_step_names_the_records_directory_not_the_output(tmp_path: Path
     assert doc["fit"]["verdict"] == "inadequate"
     ending = _ending(err)
     words = command_from(ending)
-    assert words == ["python", "-m", "host", "model", "diagnose", str(rec)]
+    assert words == ["python3", "-m", "host", "model", "diagnose", str(rec)]
     text = (out / "IND01_result.txt").read_text(encoding="utf-8")
     story = _story_of(text)
     concl = text.splitlines()[text.splitlines().index("CONCLUSION") :]
@@ -208,7 +208,7 @@ def test_any_directory_name_comes_back_whole_from_the_next_command(
 ) -> None:
     r = _inadequate(tmp_path_factory.mktemp("any"))
     words = shlex.split(next_command(r, name))
-    assert words == ["python", "-m", "host", "model", "diagnose", name]
+    assert words == ["python3", "-m", "host", "model", "diagnose", name]
     custom = dataclasses.replace(r, model="base,lever_arm:accel", term_files=("my terms.py",))
     words = shlex.split(next_command(custom, name))
     assert words[5:] == [name, "--model", "base,lever_arm:accel", "--term-file", "my terms.py"]
@@ -271,7 +271,7 @@ def test_the_next_command_repeats_the_floor_the_fit_was_judged_on(
         os.chdir(cwd)
     opts = dict(zip(given[::2], given[1::2], strict=True))
     assert doc["floor_source"] == {k.removeprefix("--"): v for k, v in opts.items()}
-    assert words[:6] == ["python", "-m", "host", "model", "diagnose", str(rec)]
+    assert words[:6] == ["python3", "-m", "host", "model", "diagnose", str(rec)]
     assert words[6:] == [w for k in ("--noise", "--floor") if k in opts for w in (k, opts[k])]
     assert plain["floor_source"] == {} and plain_words[6:] == []
     # the floor it names is the one the fit used: another yardstick, another RMS z
@@ -302,7 +302,7 @@ def test_a_long_path_leaves_only_itself_past_80_columns(tmp_path: Path) -> None:
     report = (rec / "IND01_result.txt").read_text(encoding="utf-8")
     assert len(str(rec)) > 80 and rc == 0
     assert too_wide(err) == [] and too_wide(report) == [] and too_wide(out) == []
-    want = ["python", "-m", "host", "model", "diagnose", str(rec), "--noise",
+    want = ["python3", "-m", "host", "model", "diagnose", str(rec), "--noise",
             str(tmp_path / "noise.json")]  # fmt: skip
     lines = report.splitlines()
     concl = lines[lines.index("CONCLUSION") :]

@@ -7,7 +7,7 @@ import io
 
 
 def run(argv: list[str]) -> tuple[int, str, str]:
-    """``python -m host ARGV`` in this process: (exit status, stdout, stderr); argparse's
+    """``python3 -m host ARGV`` in this process: (exit status, stdout, stderr); argparse's
     SystemExit counts as the exit status."""
     from host.__main__ import main
 

@@ -1,4 +1,4 @@
-"""``python -m host archive`` (host/cli/archive.py): a result calibrate wrote goes in once,
+"""``python3 -m host archive`` (host/cli/archive.py): a result calibrate wrote goes in once,
 comes back by serial, the checks answer with their exit codes, bad options are one line."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""``python -m host capture`` (host/cli/capture.py): what it says it recorded is what the file
+"""``python3 -m host capture`` (host/cli/capture.py): what it says it recorded is what the file
 holds, however Ctrl+C falls."""
 
 from __future__ import annotations

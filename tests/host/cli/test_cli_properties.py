@@ -31,7 +31,7 @@ BOUND_S = 20.0
 
 
 def run_cli(argv: list[str]) -> int:
-    """Exit status of ``python -m host ARGV``; an escaping exception fails the test."""
+    """Exit status of ``python3 -m host ARGV``; an escaping exception fails the test."""
     t0 = time.monotonic()
     out, err = io.StringIO(), io.StringIO()
     try:

@@ -63,9 +63,8 @@ def test_demo_help_names_its_demo_once() -> None:
 def test_an_option_a_subcommand_lacks_is_answered_by_that_subcommand() -> None:
     rc, out, err = run(["model", "ladder", "DIR", "--plot", "d"])
     assert rc == 2 and out == ""
-    assert (
-        err == "error: unrecognized arguments: --plot d (see: python -m host model ladder --help)\n"
-    )
+    see = "(see: python3 -m host model ladder --help)"
+    assert err == f"error: unrecognized arguments: --plot d {see}\n"
 
 
 def test_import_without_serial_is_one_line() -> None:
@@ -77,7 +76,7 @@ def test_import_without_serial_is_one_line() -> None:
 def test_leaf_parser_finds_the_subcommand() -> None:
     parser, _ = build_parser()
     args, _ = parser.parse_known_args(["archive", "list"])
-    assert leaf_parser(parser, args).prog == "python -m host archive list"
+    assert leaf_parser(parser, args).prog == "python3 -m host archive list"
 
 
 tokens = st.sampled_from(

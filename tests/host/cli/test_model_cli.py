@@ -1,4 +1,4 @@
-"""``python -m host model diagnose|add|ladder`` and ``demo hidden-effect`` (host/cli/model.py)."""
+"""``python3 -m host model diagnose|add|ladder`` and ``demo hidden-effect`` (host/cli/model.py)."""
 
 from __future__ import annotations
 

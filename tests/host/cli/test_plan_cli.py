@@ -1,4 +1,4 @@
-"""``python -m host plan DIR`` (host/cli/plan.py): the ranking as a user reads it."""
+"""``python3 -m host plan DIR`` (host/cli/plan.py): the ranking as a user reads it."""
 
 from __future__ import annotations
 

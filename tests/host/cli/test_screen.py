@@ -113,7 +113,7 @@ def test_the_width_rule_lets_through_only_a_word_that_cannot_break() -> None:
 
     path = "/tmp/" + "deep/" * 18 + "records"
     assert too_wide("The model does not fit these records " * 3)
-    assert too_wide(f"Next: python -m host model diagnose {path}")
+    assert too_wide(f"Next: python3 -m host model diagnose {path}")
     assert too_wide(f"Report: {path}")
     assert not too_wide(f"{path}\n    {path} \\\n  '{path}/with a space' \\")
     assert not too_wide("a" * 80 + "\n" + "short line")

@@ -27,7 +27,7 @@ def run_in_pty(
     argv: list[str], cwd: Path, cols: int = 80, rows: int = 24, keys: bytes = b"",
     timeout_s: float = 120.0,
 ) -> tuple[int, str]:  # fmt: skip
-    """``python -m host ARGV`` on a pseudo-terminal of ``cols``×``rows``: exit status and what
+    """``python3 -m host ARGV`` on a pseudo-terminal of ``cols``×``rows``: exit status and what
     it wrote to the screen (stdout and stderr both). ``keys`` are typed after the start."""
     master, slave = os.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, cols, 0, 0))

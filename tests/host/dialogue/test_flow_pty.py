@@ -1,5 +1,5 @@
 """The live calibration program end to end in a pseudo-terminal: a real process
-(``python -m host calibrate ...``), its screen read from the pty master, keys written to it.
+(``python3 -m host calibrate ...``), its screen read from the pty master, keys written to it.
 Ctrl+C is the byte 0x03 through the terminal (the tty turns it into SIGINT).
 
 The board is ``sim://`` at ``speed=max`` (or a few times real time where a measurement must

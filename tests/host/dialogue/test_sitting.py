@@ -3,7 +3,7 @@ process at a time writes a directory (a lock a kill -9 does not leave stuck), SI
 a session as Ctrl+C does, and a capture is never overwritten. Each whole-session test ends by
 comparing the SHA-256 of every record accepted before with what is on disk after.
 
-The sessions are real ``python -m host calibrate`` processes on the virtual board with short
+The sessions are real ``python3 -m host calibrate`` processes on the virtual board with short
 options; the quick ones test the lock and the moves in-process."""
 
 from __future__ import annotations

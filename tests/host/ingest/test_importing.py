@@ -1,4 +1,4 @@
-"""``python -m host import``: column files, timing quality, automatic segmentation (issue 15)."""
+"""``python3 -m host import``: column files, timing quality, automatic segmentation (issue 15)."""
 
 from __future__ import annotations
 

@@ -224,7 +224,7 @@ def test_one_percent_corrupted_recovers_the_rest(seed: int) -> None:
 
 
 def imucap(data: bytes, reads: list[int]) -> bytes:
-    """``data`` as ``python -m host capture`` writes it: magic, then (host ns, n, bytes) per
+    """``data`` as ``python3 -m host capture`` writes it: magic, then (host ns, n, bytes) per
     read, the reads ``reads`` bytes long (the rest in one last read)."""
     import struct
 
