@@ -45,8 +45,13 @@ NEAR_FACTOR = 100.0
 class Candidate:
     """One term tried on top of the model (per sensor and axis).
 
-    ``delta_chi2``: drop of χ²; ``p_value`` of the LR test (χ² with ``n_params`` dof);
-    ``significant`` after Holm's correction; ``delta_bic`` = −Δχ² + k·ln n (negative: better);
+    ``delta_chi2``: drop of χ² from ``chi2_before``, the χ² of the model on the yardstick it
+    was tested on (``yardstick`` says how that differs from the fit's, "" when it does not);
+    ``p_value`` of the LR test (χ² with ``n_params`` dof); ``significant`` after Holm's
+    correction and only when it lowers the misfit: ``rms_z_after`` below ``rms_z_before`` (the
+    model's RMS z on that yardstick; ``rises`` True when the test passes but RMS z does not
+    fall, its parameters taking the records' freedom); ``delta_bic`` = −Δχ² + k·ln n
+    (negative: better);
     ``coefficient``/``stderr``/``unit`` of its (largest, in σ) parameter, ``coefficients`` all
     of them (name -> (value, stderr, unit)). ``identifiable`` False: ``reason`` says why and
     ``needs`` what data would help. ``confounded_with``: candidates the data cannot tell apart
@@ -66,6 +71,10 @@ class Candidate:
     significant: bool = False
     delta_bic: float = math.nan
     rms_z_after: float = math.nan
+    rms_z_before: float = math.nan
+    chi2_before: float = math.nan
+    yardstick: str = ""
+    rises: bool = False
     coefficient: float = math.nan
     stderr: float = math.nan
     unit: str = ""
@@ -89,6 +98,9 @@ class Candidate:
             "delta_chi2": json_number(self.delta_chi2), "p_value": json_number(self.p_value),
             "delta_bic": json_number(self.delta_bic),
             "rms_z_after": json_number(self.rms_z_after),
+            "rms_z_before": json_number(self.rms_z_before),
+            "chi2_before": json_number(self.chi2_before), "yardstick": self.yardstick,
+            "rises": self.rises,
             "coefficient": json_number(self.coefficient), "stderr": json_number(self.stderr),
             "unit": self.unit,
             "coefficients": {k: {"value": json_number(v), "stderr": json_number(s), "unit": u}
@@ -261,17 +273,51 @@ def evaluate_candidates(
         _try_own_yardstick(ds, fit, mt, cache, built)
         for mt in candidate_terms(fit.model, catalogue)
     ]
-    n_rows = len(fit.residual)
-    ident = [t for t in tried if not t.reason]
-    pvals = [chi2_sf(t.delta, t.n_params) for t in ident]
-    sig = dict(zip([id(t) for t in ident], holm(pvals, alpha), strict=True))
-    pv = dict(zip([id(t) for t in ident], pvals, strict=True))
-    # significant candidates of the same channel against each other
-    significant = [t for t in ident if sig[id(t)]]
-    m = max(len(ident), 1)
-    # members just below significance (p within NEAR_FACTOR of the threshold) join the
-    # comparison: a group the data cannot resolve is reported whole
-    near = [t for t in ident if not sig[id(t)] and pv[id(t)] <= NEAR_FACTOR * alpha / m]
+    tests = _Tests.of(tried, alpha)
+    confounded, explained_by = _compare(tried, tests, alpha, built)
+    out = [(_candidate(ds, fit, t, tests, confounded[id(t)], explained_by.get(id(t), "")), t)
+           for t in tried]  # fmt: skip
+    ordered = _best_first(out)
+    return [c for c, _ in ordered], [t for _, t in ordered]
+
+
+@dataclass(frozen=True)
+class _Tests:
+    """Each identifiable candidate's test, by ``id`` of its :class:`Tried`: its p-value, its
+    RMS z after, whether Holm passes it, whether RMS z then rises instead of falling, and
+    whether it is significant (passed, and lowers the misfit it is tested on: a term whose χ²
+    drop passes while RMS z rises, its parameters taking the records' degrees of freedom so
+    that the residuals' σ shrink faster than the residuals, is not what is missing)."""
+
+    p: dict[int, float]
+    after: dict[int, float]
+    rises: dict[int, bool]
+    sig: dict[int, bool]
+    m: int
+
+    @classmethod
+    def of(cls, tried: Sequence[Tried], alpha: float) -> _Tests:
+        ident = [t for t in tried if not t.reason]
+        keys = [id(t) for t in ident]
+        pvals = [chi2_sf(t.delta, t.n_params) for t in ident]
+        after = {id(t): _rms_z_after(t.ds, t.fit, t) for t in ident}
+        passed = dict(zip(keys, holm(pvals, alpha), strict=True))
+        rises = {id(t): passed[id(t)] and not after[id(t)] < t.fit.rms_z for t in ident}
+        sig = {k: passed[k] and not rises[k] for k in keys}
+        return cls(dict(zip(keys, pvals, strict=True)), after, rises, sig, max(len(ident), 1))
+
+
+def _compare(
+    tried: Sequence[Tried], tests: _Tests, alpha: float, built: BuiltColumns
+) -> tuple[dict[int, list[str]], dict[int, str]]:
+    """Significant candidates of the same channel against each other: the labels each is
+    CONFOUNDED with, and the better one that explains it, by ``id`` of its :class:`Tried`.
+    Members just below significance (p within NEAR_FACTOR of the threshold) join the
+    comparison: a group the data cannot resolve is reported whole."""
+    sig, m = tests.sig, tests.m
+    significant = [t for t in tried if sig.get(id(t))]
+    near = [t for t in tried if id(t) in sig and not sig[id(t)]
+            and tests.p[id(t)] <= NEAR_FACTOR * alpha / m]  # fmt: skip
     confounded: dict[int, list[str]] = {id(t): [] for t in tried}
     explained_by: dict[int, str] = {}
     pool = significant + near
@@ -290,43 +336,47 @@ def evaluate_candidates(
                 explained_by.setdefault(id(b), a.mt.label)
             elif b_given_a and not a_given_b:
                 explained_by.setdefault(id(a), b.mt.label)
-    out: list[tuple[Candidate, Tried]] = []
-    for t in tried:
-        mt = t.mt
-        labels = mt.term.param_labels(mt.sensor, mt.axes[0])
-        units = mt.term.param_units(mt.sensor)
-        coefs: dict[str, tuple[float, float, str]] = {}
-        best = 0
-        if not t.reason:
-            se = np.sqrt(np.diag(t.cov))
-            coefs = {
-                labels[j]: (float(t.beta[j]), float(se[j]), units[j]) for j in range(len(labels))
-            }
-            best = int(np.argmax(np.abs(t.beta[: len(labels)]) / se[: len(labels)]))
-        name0 = labels[best]
-        c0 = coefs.get(name0, (math.nan, math.nan, units[best]))
-        after_rms = math.nan
-        if not t.reason:
-            after_rms = _rms_z_after(t.ds, t.fit, t)
-        out.append(
-            (
-                Candidate(
-                    term=mt.term.name, sensor=mt.sensor,
-                    axes="".join(AXES[a] for a in mt.axes),
-                    n_params=t.n_params, physics=mt.term.physics,
-                    identifiable=not t.reason, reason=t.reason, needs=mt.term.needs,
-                    delta_chi2=t.delta, p_value=pv.get(id(t), math.nan),
-                    significant=bool(sig.get(id(t), False)),
-                    delta_bic=(-t.delta + t.n_params * math.log(max(n_rows, 2)))
-                    if not t.reason else math.nan,
-                    rms_z_after=after_rms, coefficient=c0[0], stderr=c0[1], unit=c0[2],
-                    coefficients=coefs, confounded_with=tuple(confounded[id(t)]),
-                    explained_by=explained_by.get(id(t), ""),
-                    implausible=_implausible(mt, coefs, fit) if sig.get(id(t)) else "",
-                ),
-                t,
-            )
-        )  # fmt: skip
+    return confounded, explained_by
+
+
+def _candidate(
+    ds: Dataset, fit: Fit, t: Tried, tests: _Tests, confounded: Sequence[str], explained_by: str
+) -> Candidate:
+    """The report of one tried term (its largest parameter in σ first)."""
+    mt = t.mt
+    labels = mt.term.param_labels(mt.sensor, mt.axes[0])
+    units = mt.term.param_units(mt.sensor)
+    coefs: dict[str, tuple[float, float, str]] = {}
+    best = 0
+    if not t.reason:
+        se = np.sqrt(np.diag(t.cov))
+        coefs = {labels[j]: (float(t.beta[j]), float(se[j]), units[j]) for j in range(len(labels))}
+        best = int(np.argmax(np.abs(t.beta[: len(labels)]) / se[: len(labels)]))
+    c0 = coefs.get(labels[best], (math.nan, math.nan, units[best]))
+    key = id(t)
+    sig = bool(tests.sig.get(key, False))
+    n_rows = len(fit.residual)
+    return Candidate(
+        term=mt.term.name, sensor=mt.sensor, axes="".join(AXES[a] for a in mt.axes),
+        n_params=t.n_params, physics=mt.term.physics,
+        identifiable=not t.reason, reason=t.reason, needs=mt.term.needs,
+        delta_chi2=t.delta, p_value=tests.p.get(key, math.nan), significant=sig,
+        delta_bic=(-t.delta + t.n_params * math.log(max(n_rows, 2)))
+        if not t.reason else math.nan,
+        rms_z_after=tests.after.get(key, math.nan),
+        rms_z_before=t.fit.rms_z if not t.reason else math.nan,
+        chi2_before=t.fit.chi2 if not t.reason else math.nan,
+        yardstick=t.ds.notes[-1] if t.ds is not ds and not t.reason else "",
+        rises=tests.rises.get(key, False),
+        coefficient=c0[0], stderr=c0[1], unit=c0[2],
+        coefficients=coefs, confounded_with=tuple(confounded), explained_by=explained_by,
+        implausible=_implausible(mt, coefs, fit) if sig else "",
+    )  # fmt: skip
+
+
+def _best_first(out: list[tuple[Candidate, Tried]]) -> list[tuple[Candidate, Tried]]:
+    """Usable first, then significant, not significant, not identifiable; by ΔBIC within;
+    confounded partners right after the first of their group."""
 
     def key(item: tuple[Candidate, Tried]) -> tuple[int, int, float]:
         c = item[0]
@@ -339,8 +389,7 @@ def evaluate_candidates(
         bic = float(f"{c.delta_bic:.9g}") if math.isfinite(c.delta_bic) else math.inf
         return (rank, 0, bic)
 
-    out.sort(key=key)
-    # confounded partners right after the first of their group
+    out = sorted(out, key=key)
     ordered: list[tuple[Candidate, Tried]] = []
     placed: set[str] = set()
     by_label = {c.label: (c, t) for c, t in out}
@@ -353,7 +402,7 @@ def evaluate_candidates(
             if other not in placed and other in by_label:
                 ordered.append(by_label[other])
                 placed.add(other)
-    return [c for c, _ in ordered], [t for _, t in ordered]
+    return ordered
 
 
 def _implausible(mt: ModelTerm, coefs: Mapping[str, tuple[float, float, str]], fit: Fit) -> str:

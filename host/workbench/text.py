@@ -31,12 +31,25 @@ def _fmt(v: float, unit: str) -> str:
     return f"{s} {unit}".strip()
 
 
+def _before_after(before: float, after: float) -> str:
+    """'20.95 → 1.53', with digits enough (up to four) that a change shows: '20.952 → 20.947'."""
+    for digits in range(2, 5):
+        if f"{before:.{digits}f}" != f"{after:.{digits}f}":
+            break
+    return f"{before:.{digits}f} → {after:.{digits}f}"
+
+
+def _z(z: float) -> str:
+    """A residual in σ, or that the model passes exactly through it (no σ to divide by)."""
+    return f"{z:+.1f} σ" if math.isfinite(z) else "fitted exactly"
+
+
 def describe_residual(g: GroupResidual) -> str:
     """'gyro x, record y_up: measured 0.731 °/s, model 0.702, 8.1 σ'."""
     what = "integral" if g.unit == "°" else "mean"
     return (
         f"{g.sensor} {g.axis}, record {g.record}: measured {what} {g.measured:.4f} {g.unit}, "
-        f"model {g.model:.4f}, residual {g.residual:+.4f} = {g.z:+.1f} σ"
+        f"model {g.model:.4f}, residual {g.residual:+.4f} = {_z(g.z)}"
     )
 
 
@@ -64,9 +77,16 @@ def format_fit(fit: Fit, compare: bool = True) -> list[str]:
 
 
 def format_candidate(c: Candidate) -> str:
+    """One candidate: its test's Δχ² with the χ² it falls from (on the yardstick it was tested
+    on, named when that is not the fit's), RMS z before → after on the same yardstick, and
+    SIGNIFICANT only when the test passes and RMS z falls."""
     if not c.identifiable:
         return f"{c.label}: NOT identifiable — {c.reason}; would need {c.needs}"
     mark = "SIGNIFICANT" if c.significant else "not significant"
+    if c.rises:
+        mark += " (its Δχ² passes the test, but RMS z does not fall: its parameters take the "
+        mark += "records' degrees of freedom)"
+    where = f"; tested with the {c.yardstick}" if c.yardstick else ""
     extra = ""
     if c.confounded_with:
         extra += f"; CONFOUNDED with {', '.join(c.confounded_with)}"
@@ -75,8 +95,9 @@ def format_candidate(c: Candidate) -> str:
     if c.implausible:
         extra += f"; IMPLAUSIBLE: {c.implausible}"
     return (
-        f"{c.label}: {mark}, Δχ² = {c.delta_chi2:.1f} (p = {c.p_value:.2g}), "
-        f"ΔBIC = {c.delta_bic:+.1f}, RMS z after {c.rms_z_after:.2f}, "
+        f"{c.label}: {mark}, Δχ² = {c.delta_chi2:.1f} of χ² {c.chi2_before:.1f} "
+        f"(p = {c.p_value:.2g}{where}), ΔBIC = {c.delta_bic:+.1f}, "
+        f"RMS z {_before_after(c.rms_z_before, c.rms_z_after)}, "
         f"coefficient {_fmt(c.coefficient, '')} ± {_fmt(c.stderr, c.unit)}{extra}"
     )
 
@@ -256,11 +277,11 @@ def format_addition(a: Addition) -> str:
         "  worst residuals before → after:",
     ]
     after_of = {(g.record, g.sensor, g.axis): g for g in f.groups}
-    for g in sorted(b.groups, key=lambda g: -abs(g.z))[:5]:
+    for g in sorted(b.groups, key=lambda g: -abs(g.z) if math.isfinite(g.z) else 0.0)[:5]:
         g2 = after_of[(g.record, g.sensor, g.axis)]
         lines.append(
-            f"    {g.sensor} {g.axis}, {g.record}: {g.residual:+.4f} {g.unit} ({g.z:+.1f} σ) → "
-            f"{g2.residual:+.4f} ({g2.z:+.1f} σ)"
+            f"    {g.sensor} {g.axis}, {g.record}: {g.residual:+.4f} {g.unit} ({_z(g.z)}) → "
+            f"{g2.residual:+.4f} ({_z(g2.z)})"
         )
     lines.append("  new coefficients:")
     for p in a.new_parameters:

@@ -251,13 +251,15 @@ def test_the_demo_and_the_command_it_prints_give_one_figure(
     assert main(["demo", "hidden-effect", "--effect", "temperature", "--seed", "4",
                  "--out", str(tmp_path)]) == 0  # fmt: skip
     out = capsys.readouterr().out
-    demo_rms = re.findall(r"RMS z +([\d.]+) → ([\d.]+)", out)
+    # the additions' before → after lines (a candidate's line has its own RMS z before → after)
+    addition = re.compile(r"^  RMS z +([\d.]+) → ([\d.]+)", re.M)
+    demo_rms = addition.findall(out)
     assert demo_rms, out
     try_cmd = out.split("try: ", 1)[1].split("\n-- adding", 1)[0]
     argv = shlex.split(try_cmd.replace("\\\n", ""))
     assert argv[:4] == ["python3", "-m", "host", "model"] and "--floor" in argv
     assert main(argv[3:]) == 0
-    add_rms = re.findall(r"RMS z +([\d.]+) → ([\d.]+)", capsys.readouterr().out)
+    add_rms = addition.findall(capsys.readouterr().out)
     assert add_rms[0] == demo_rms[0]
 
 
