@@ -19,6 +19,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from host.calib.applying import apply
+from host.calib.codec import read_result
 from host.calib.result import CalibrationResult
 from host.errors import InputError
 from host.session.directory import Session
@@ -184,7 +185,7 @@ def load_result(path: PathLike) -> CalibrationResult:
     >>> result.serial, result.model, result.simulated
     ('DEMO01', 'base', True)
     """
-    return CalibrationResult.load(path)
+    return read_result(path)
 
 
 def diagnose(

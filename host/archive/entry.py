@@ -1,7 +1,7 @@
 """One archived calibration: what the archive keeps of a result and the files it came from.
 
 :func:`entry_from_directory` reads what ``calibrate`` wrote — ``SERIAL_result.json`` (through
-:meth:`~host.calib.result.CalibrationResult.load`), the report ``SERIAL_result.txt`` and the
+:func:`~host.calib.codec.read_result`), the report ``SERIAL_result.txt`` and the
 record files the result names — and returns an :class:`Entry`: the identity of the session
 (serial, bench, operator, lot, firmware and sensor revision, the time of the first record, the
 chip temperatures), the model, every parameter with its σ and the covariance, the fit quality,
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from host.calib.result import CalibrationResult
+from host.calib.codec import read_result
 from host.errors import UserError
 from host.session.directory import read_record
 from host.session.records import name_problem
@@ -242,7 +242,7 @@ def entry_from_directory(
     naming the missing or bad file."""
     path = _find_result(Path(directory), serial)
     raw = path.read_bytes()
-    result = CalibrationResult.load(path)
+    result = read_result(path)
     doc = json.loads(raw)
     from host.dialogue.options import parse_serial  # the rule of every file name (only here)
 

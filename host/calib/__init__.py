@@ -7,7 +7,11 @@ Data in: a session (the record files of one sitting, :mod:`host.session`). Out: 
 - ``publish`` — compute and write: the one step from records to the published result (live and
   ``--from-dir``).
 - ``values`` — the parts of a result: parameters, fit quality, residuals, verified values.
-- ``result`` — the versioned result object and its files (v1, v2, v3).
+- ``result`` — the result: a frozen record of values.
+- ``verdict`` — the verdict policy: which values pass, whether the result does, when a PASS is
+  conditional.
+- ``result_text`` — the result's words: its verdict line and one-line summary.
+- ``codec`` — the result's files: JSON v3 written, v1–v3 read (v1's §7 names among them).
 - ``provenance`` — where the records came from: simulated or a unit, the equipment, the chip
   temperatures, the plan, when measured and in how many sittings (from the record headers).
 - ``applying`` — ``apply`` to raw samples and held-out ``verify``.

@@ -50,6 +50,7 @@ import numpy as np
 
 from host.calib.result import CalibrationResult, carried_thermal
 from host.calib.thermal import ThermalCalibration, change_from_reference, recentre_poly
+from host.calib.verdict import passed as passed_flags
 from host.errors import FailedResultError, InputError
 from host.session.method import (
     ACCEL_BIAS_NAMES,
@@ -108,7 +109,7 @@ def linear_model(result: CalibrationResult, with_thermal: bool = True) -> Linear
 def failures(result: CalibrationResult) -> list[str]:
     """What failed in ``result``, in words ('outside tolerance: Gxx, A0z'); [] when it
     passed."""
-    passed = result.passed()
+    passed = passed_flags(result)
     outside = [n for n in CONSTANT_NAMES if passed[n] is False and n in result.constants()
                and math.isfinite(result.constants()[n])]  # fmt: skip
     out = [f"outside tolerance: {', '.join(outside)}"] if outside else []

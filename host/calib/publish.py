@@ -20,6 +20,7 @@ from typing import TextIO
 
 from host.calib.applying import verify_directory
 from host.calib.calibration import calibrate_from_records
+from host.calib.codec import result_to_json
 from host.calib.report import format_report, write_results
 from host.calib.result import CalibrationResult
 from host.calib.thermal import ThermalCalibration
@@ -181,5 +182,5 @@ def show_result(pub: Published, as_json: bool, out: TextIO | None = None) -> Non
     result on ``out`` (stdout)."""
     stream = out if out is not None else sys.stdout
     result = pub.result
-    stream.write(result.to_json() if as_json else format_report(result, pub.records_dir))
+    stream.write(result_to_json(result) if as_json else format_report(result, pub.records_dir))
     stream.flush()

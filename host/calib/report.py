@@ -3,7 +3,7 @@
 ``SERIAL_result.txt``: plain UTF-8, at most 80 columns (fits A4), header with serial and date,
 every value on its line with tolerance and a +/− mark, stage-1 bias consistency, residuals per
 record, g/latitude/height, three signature lines. ``SERIAL_result.json``: see
-:meth:`host.calib.result.CalibrationResult.to_dict`. Further terms of the model (beyond the §2
+:func:`host.calib.codec.result_to_dict`. Further terms of the model (beyond the §2
 linear model) get their own section after the §7 table, value ± σ and unit; undetermined
 values are marked "not determined" with what would determine them.
 """
@@ -16,10 +16,13 @@ import shlex
 from collections.abc import Sequence
 from pathlib import Path
 
+from host.calib.codec import FLOOR_SOURCES, result_to_json
 from host.calib.commands import command_lines
 from host.calib.provenance import UNKNOWN_SENSOR, Provenance
-from host.calib.result import FLOOR_SOURCES, CalibrationResult
+from host.calib.result import CalibrationResult
 from host.calib.values import RecordResidual
+from host.calib.verdict import failed_values
+from host.calib.verdict import passed as passed_flags
 from host.session.atomic import write_texts_atomic
 from host.session.directory import SIMULATED_BOARD
 from host.session.method import (
@@ -51,7 +54,7 @@ def format_report(
     ``records_dir``: the directory of the records, for the next command a poor fit names
     (:func:`next_command`; None: ``DIR``)."""
     r = result
-    passed = r.passed()
+    passed = passed_flags(r)
     consts = r.constants()
     rule = "-" * WIDTH
     out: list[str] = []
@@ -102,7 +105,7 @@ def format_report(
             else:
                 out.append(f"  {p.name:<34}{'not determined':>14}")
         out.append(rule)
-    bad = r.failed_values()
+    bad = failed_values(r)
     if bad:
         out.append(f"RESULT: {len(bad)} value(s) outside tolerance or not determined:")
         line = "  "
@@ -514,7 +517,7 @@ def verdict_line(
     :func:`next_command` on the records' directory ``records_dir`` (None: the report's);
     the :func:`simulated_banner` when the records came from a virtual or emulated board;
     and last the verdict, the same line as the report's
-    and the result file's (:meth:`~host.calib.result.CalibrationResult.verdict`)."""
+    and the result file's (:func:`~host.calib.result_text.verdict_line`)."""
     out = _wrap(fit_story(result), "", "  ")
     out.extend(path_lines("Report:", [report_path]))
     nxt = next_words(result, Path(report_path).parent if records_dir is None else records_dir)
@@ -536,5 +539,5 @@ def write_results(
     report's next command (None: ``directory``). UserError names the file that failed."""
     txt, js = result_paths(directory, result.serial)
     where = directory if records_dir is None else records_dir
-    write_texts_atomic({txt: format_report(result, where), js: result.to_json()})
+    write_texts_atomic({txt: format_report(result, where), js: result_to_json(result)})
     return txt, js

@@ -1,16 +1,16 @@
-"""The calibration result a user ships, and its files.
+"""The calibration result a user ships: a frozen record of values.
 
 A result is the model the user chose (a spec of named terms, :mod:`host.model.spec`) with every
 parameter of every term (:mod:`host.calib.values`): value, 1-σ standard error, unit, and — for
-the §2 constants that the report of method.md §7 tolerances — the tolerance and the pass flag.
-Format v2 (``SERIAL_result.json``, ``format_version: 2``) also carries the noise model of the fit
-and the fit quality (χ², dof, RMS z, p, verdict); format v3 adds where the records came from
-(:class:`host.calib.provenance.Provenance`: ``simulated`` and by what, the equipment, when
-measured) and, later, where the floor of a record mean came from (``floor_source``: the
-``--noise``/``--floor`` to repeat; absent in files written before it, which load as measured).
-Format v1 and v2 files still load: v1 becomes the ``base`` model, and a v1/v2 file is
-simulated when its notes say ``SIMULATED BOARD``. A thermal calibration travels in a result as
-the term ``thermal_bias`` (:func:`thermal_parameters`, :func:`carried_thermal`).
+the §2 constants that the report of method.md §7 tolerances — the tolerance and the pass flag;
+the noise model of the fit and the fit quality, where the records came from
+(:class:`host.calib.provenance.Provenance`) and where the floor of a record mean came from. A
+thermal calibration travels in a result as the term ``thermal_bias`` (:func:`thermal_parameters`,
+:func:`carried_thermal`).
+
+The rest is elsewhere: the verdict policy in :mod:`host.calib.verdict`, its words in
+:mod:`host.calib.result_text`, the files (JSON v1–v3 both ways, the old names of v1 among them)
+in :mod:`host.calib.codec`.
 
 A parameter whose value is NaN was **not determined** by the records; ``needs`` says what
 would determine it. Applying a result to raw samples and verifying it on held-out records:
@@ -19,18 +19,15 @@ would determine it. Applying a result to raw samples and verifying it on held-ou
 
 from __future__ import annotations
 
-import dataclasses
-import json
 import math
-import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
 from host.calib.provenance import Provenance
+from host.calib.result_text import summary, verdict_line
 from host.calib.thermal import CHANNELS as THERMAL_CHANNELS
 from host.calib.thermal import ThermalCalibration, recentre_poly, recentred
 from host.calib.values import (
@@ -39,11 +36,13 @@ from host.calib.values import (
     RecordResidual,
     Verification,
     as_float,
-    jsonable,
+    constants_of,
     tolerance_of,
+    undetermined_of,
     within,
 )
-from host.errors import ResultFileError, UserError
+from host.calib.verdict import all_passed, conditional
+from host.errors import UserError
 from host.model.catalogue import CARRIED
 from host.model.signals import AXES, TEMP_REF_C
 from host.model.spec import parse_model
@@ -51,15 +50,10 @@ from host.model.terms import Term
 from host.session.directory import SIMULATED_BOARD
 from host.session.method import (
     ACCEL_BIAS_NAMES,
-    CONSTANT_NAMES,
     GYRO_BIAS_NAMES,
-    NOISE_NAMES,
-    UNITS,
     names_to_gsens,
     names_to_matrix,
 )
-
-FORMAT = "imu-bench calibration result"
 
 
 # ---- the result ---------------------------------------------------------------------------
@@ -78,13 +72,9 @@ class CalibrationResult:
     is data, :func:`host.calib.applying.apply` never runs a file it names, only the files its
     caller passes, and only when one of these digests matches.
 
-    The §7 constants are attributes too (``result.Axx``, NaN when not determined or not in the
-    model), as in format v1.
+    The §7 constants by report name: :meth:`constants` (``result.constants()["Axx"]``, NaN
+    when not determined or not in the model). Files: :mod:`host.calib.codec`.
     """
-
-    FORMAT_VERSION: ClassVar[int] = 3
-    #: the format versions :meth:`from_json` reads
-    READS: ClassVar[tuple[int, ...]] = (1, 2, 3)
 
     serial: str
     created: str
@@ -137,13 +127,7 @@ class CalibrationResult:
 
     def __repr__(self) -> str:
         """One line: serial, model, size, verdict, and SIMULATED for simulated records."""
-        verdict = "PASS" if self.all_passed else "FAIL"
-        fit = f", fit {self.fit.verdict}" if self.fit is not None else ""
-        sim = ", SIMULATED" if self.simulated else ""
-        return (
-            f"<CalibrationResult {self.serial}: model {self.model}, "
-            f"{len(self.parameters)} parameters, {verdict}{fit}{sim}>"
-        )
+        return summary(self)
 
     # ---- views ---------------------------------------------------------------------------
     @property
@@ -159,12 +143,6 @@ class CalibrationResult:
             return self.provenance.simulated_line
         return next((n for n in self.notes if n.startswith(SIMULATED_BOARD)), "")
 
-    def __getattr__(self, name: str) -> float:
-        # the §7 constants by name, as in format v1 (result.Axx)
-        if name in CONSTANT_NAMES:
-            return self.constants()[name]
-        raise AttributeError(name)
-
     def parameter(self, name: str) -> ParameterResult:
         """The parameter called ``name`` (KeyError if the model has none)."""
         for p in self.parameters:
@@ -174,9 +152,7 @@ class CalibrationResult:
 
     def constants(self) -> dict[str, float]:
         """§7 name -> value in report order (NaN: not determined, or not in the model)."""
-        by = {p.name: p.value for p in self.parameters}
-        by.update(self.noise_std)
-        return {n: float(by.get(n, math.nan)) for n in CONSTANT_NAMES}
+        return constants_of(self.parameters, self.noise_std)
 
     @property
     def further(self) -> tuple[ParameterResult, ...]:
@@ -191,57 +167,22 @@ class CalibrationResult:
     @property
     def undetermined(self) -> tuple[ParameterResult, ...]:
         """The parameters the records did not determine."""
-        return tuple(p for p in self.parameters if not p.determined)
-
-    def passed(self) -> dict[str, bool | None]:
-        """§7 name -> True within tolerance, False outside or not determined, None no
-        tolerance (or not in the model)."""
-        in_model = {p.name for p in self.parameters} | set(self.noise_std)
-        return {n: within(n, v) if n in in_model else None for n, v in self.constants().items()}
+        return undetermined_of(self.parameters)
 
     @property
     def all_passed(self) -> bool:
-        """Every toleranced value within tolerance, every parameter determined, the
-        held-out records (if verified) predicted within the §8 accuracy, and no failed
-        self-test of the sensor."""
-        ok = all(p is not False for p in self.passed().values()) and not self.undetermined
-        ok = ok and self.self_test != "fail"
-        return ok and (self.verification is None or self.verification.passed)
+        """The result passes (:func:`host.calib.verdict.all_passed`)."""
+        return all_passed(self)
 
     @property
     def conditional(self) -> bool:
-        """A PASS that rests on a model that does not fit these records (the fit's verdict is
-        ``inadequate``): every value is within tolerance as fitted, but it holds only if the
-        effect the model lacks does not bias the values. It does not change
-        :attr:`all_passed` (nor the exit status 0)."""
-        return self.all_passed and self.fit is not None and self.fit.verdict == "inadequate"
-
-    def failed_values(self) -> list[str]:
-        """Names of the §7 values outside tolerance, then of the parameters not determined."""
-        bad = [n for n, ok in self.passed().items() if ok is False]
-        return bad + [p.name for p in self.undetermined if p.name not in bad]
+        """A PASS that rests on a model that does not fit these records
+        (:func:`host.calib.verdict.conditional`); :attr:`all_passed` stays True."""
+        return conditional(self)
 
     def verdict(self) -> str:
-        """PASS or FAIL and why, in one line: the report's header and conclusion, the last
-        line on screen and the result file's ``verdict`` say it alike. ``PASS (conditional:
-        the model does not fit, RMS z 8.35)`` when :attr:`conditional`; a FAIL on a model
-        that does not fit says so as its last reason."""
-        fit = self.fit
-        misfit = fit is not None and fit.verdict == "inadequate"
-        skipped = " — self-test not run" if self.self_test == "not run" else ""
-        if self.all_passed and fit is not None and misfit:
-            return f"PASS (conditional: the model does not fit, RMS z {fit.rms_z:.2f}){skipped}"
-        if self.all_passed:
-            return "PASS: every value within tolerance" + skipped
-        bad = self.failed_values()
-        why = [f"{len(bad)} value(s) outside tolerance or not determined"] if bad else []
-        if self.verification is not None and not self.verification.passed:
-            why.append("held-out records not predicted within the limits")
-        if self.self_test == "fail":
-            why.append("the sensor failed its self-test")
-        if misfit:
-            why.append("the model does not fit")
-        return f"FAIL: {'; '.join(why)}{skipped}"
+        """PASS or FAIL and why, in one line (:func:`host.calib.result_text.verdict_line`)."""
+        return verdict_line(self)
 
     def accel_m(self) -> np.ndarray:
         """Ma (3×3, method.md §2), NaN where not determined."""
@@ -264,136 +205,6 @@ class CalibrationResult:
         """G0 (3,), °/s."""
         c = self.constants()
         return np.array([c[n] for n in GYRO_BIAS_NAMES], dtype=np.float64)
-
-    # ---- JSON ----------------------------------------------------------------------------
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (format v2)."""
-        return {
-            "format": FORMAT,
-            "format_version": self.FORMAT_VERSION,
-            "serial": self.serial,
-            "created": self.created,
-            "simulated": self.simulated,
-            "simulated_by": [] if self.provenance is None else list(self.provenance.simulated_by),
-            "provenance": None if self.provenance is None else self.provenance.to_dict(),
-            "self_test": self.self_test,
-            "model": self.model,
-            "term_files": list(self.term_files),
-            "term_sha256": dict(self.term_sha256),
-            "parameters": [p.to_dict() for p in self.parameters],
-            # the §7 view, for readers: value and pass flag by report name (not read back)
-            "constants": jsonable(self.constants()),
-            "pass": self.passed(),
-            "noise_std": {
-                n: {
-                    "value": jsonable(v),
-                    "unit": UNITS[n],
-                    "tolerance": tolerance_of(n),
-                    "passed": within(n, v),
-                }
-                for n, v in self.noise_std.items()
-            },  # fmt: skip
-            "all_passed": self.all_passed,
-            # derived, not read back: the verdict line the report and the screen print, and
-            # whether a PASS rests on a model that does not fit (exit status 0 either way)
-            "verdict": self.verdict(),
-            "conditional": self.conditional,
-            "fit": None if self.fit is None else self.fit.to_dict(),
-            "noise_model": jsonable(dict(self.noise_model)),
-            "floor_source": dict(self.floor_source),
-            "g": self.g,
-            "g_unit": "m/s²",
-            "latitude_deg": self.latitude_deg,
-            "height_m": self.height_m,
-            "turns": self.turns,
-            "temp_mean_c": self.temp_mean_c,
-            "time_known": self.time_known,
-            "earth_rate": self.earth_rate,
-            "method": self.method,
-            "records": list(self.records),
-            "bias_estimates": jsonable(dict(self.bias_estimates)),
-            "closed_form": jsonable(dict(self.closed_form)),
-            "combinations": list(self.combinations),
-            "residuals": [r.to_dict() for r in self.residuals],
-            "covariance": None
-            if not self.covariance
-            else {
-                "names": [p.name for p in self.parameters],
-                "matrix": jsonable(self.covariance),
-                "units": "the product of the two parameters' units",
-            },
-            "notes": list(self.notes),
-            "verification": None if self.verification is None else self.verification.to_dict(),
-            "thermal": None
-            if self.thermal_range_c is None
-            else {
-                "valid_range_c": list(self.thermal_range_c),
-                "source": self.thermal_source,
-                "model": "thermal_bias: sum_j c_j (T - temp_mean_c)^j, T chip degC",
-            },
-        }
-
-    def to_json(self) -> str:
-        """The JSON text of :meth:`to_dict` (UTF-8, indented)."""
-        return json.dumps(self.to_dict(), indent=2, ensure_ascii=False) + "\n"
-
-    @classmethod
-    def from_json(cls, text: str | bytes) -> CalibrationResult:
-        """Parse a result file, format v2 or v1; UserError on bad JSON, an unknown version or
-        a missing field."""
-        try:
-            d = json.loads(text)
-        except (ValueError, UnicodeDecodeError) as exc:
-            raise ResultFileError(f"calibration result: not valid JSON ({exc})") from exc
-        if not isinstance(d, dict) or "format_version" not in d:
-            raise ResultFileError("calibration result: not an imu-bench result (no format_version)")
-        version = d["format_version"]
-        if type(version) is not int or version not in cls.READS:  # JSON true is not v1
-            raise ResultFileError(
-                f"calibration result format v{version} but this program reads "
-                f"{', '.join(f'v{v}' for v in cls.READS)}; recompute it with "
-                "'python3 -m host calibrate --from-dir'"
-            )
-        try:
-            return _from_v1(d) if version == 1 else _from_v2(d, version)
-        except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
-            raise ResultFileError(f"calibration result: missing or bad field ({exc})") from exc
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> CalibrationResult:
-        """Read ``SERIAL_result.json`` (v1 or v2)."""
-        try:
-            text = Path(path).read_text(encoding="utf-8")
-        except OSError as exc:
-            raise ResultFileError(f"{path}: cannot read the result ({exc.strerror})") from exc
-        except UnicodeDecodeError:
-            raise ResultFileError(
-                f"{path}: not a calibration result (not UTF-8 text); give the "
-                "SERIAL_result.json that calibrate wrote"
-            ) from None
-        return cls.from_json(text)
-
-
-def _common(d: Mapping[str, Any]) -> dict[str, Any]:
-    return {
-        "serial": str(d["serial"]),
-        "created": str(d["created"]),
-        "g": float(d["g"]),
-        "latitude_deg": float(d["latitude_deg"]),
-        "height_m": float(d["height_m"]),
-        "turns": None if d.get("turns") is None else int(d["turns"]),
-        "earth_rate": bool(d.get("earth_rate", False)),
-        "method": str(d.get("method", "")),
-        "records": tuple(str(x) for x in d.get("records", ())),
-        "bias_estimates": {
-            k: (as_float(v[0]), as_float(v[1]), as_float(v[2]))
-            for k, v in d.get("bias_estimates", {}).items()
-        },
-        "closed_form": {k: as_float(v) for k, v in d.get("closed_form", {}).items()},
-        "residuals": tuple(RecordResidual.from_dict(r) for r in d.get("residuals", [])),
-        "notes": tuple(str(x) for x in d.get("notes", [])),
-        "self_test": str(d.get("self_test", "")),
-    }
 
 
 def base_parameters(
@@ -495,82 +306,3 @@ def carried_thermal(result: CalibrationResult) -> ThermalCalibration | None:
         )  # fmt: skip
     lo, hi = result.thermal_range_c
     return ThermalCalibration(result.serial, result.temp_mean_c, lo, hi, chans)
-
-
-def _from_v1(d: Mapping[str, Any]) -> CalibrationResult:
-    consts = {n: as_float(d["constants"][n]) for n in CONSTANT_NAMES}
-    params = base_parameters(consts, {k: as_float(v) for k, v in d.get("std_errors", {}).items()})
-    params = tuple(
-        dataclasses.replace(p, needs="a turn about that axis (format v1: not measured)")
-        if not p.determined
-        else p
-        for p in params
-    )
-    return CalibrationResult(
-        model="base",
-        parameters=params,
-        noise_std={n: consts[n] for n in NOISE_NAMES},
-        loaded_version=1,
-        **_common(d),
-    )
-
-
-def _covariance(doc: Any, names: list[str]) -> tuple[tuple[float, ...], ...]:
-    """A file's ``covariance`` ({names, matrix}) over ``names``, in their order (names it has
-    beyond them are left out: their marginal); () for none. ValueError when it does not cover
-    every parameter or is not a square matrix."""
-    if doc is None:
-        return ()
-    cnames = [str(n) for n in doc["names"]]
-    m = np.array([[as_float(x) for x in row] for row in doc["matrix"]], dtype=np.float64)
-    if m.shape != (len(cnames), len(cnames)) or not set(names) <= set(cnames):
-        raise ValueError("covariance: not a square matrix over every parameter")
-    idx = [cnames.index(n) for n in names]
-    return tuple(tuple(float(x) for x in row) for row in m[np.ix_(idx, idx)])
-
-
-#: the keys of a result's ``floor_source``: the options whose values it keeps
-FLOOR_SOURCES = ("noise", "floor")
-
-
-def _floor_source(doc: Any) -> dict[str, str]:
-    """A file's ``floor_source``: text values under the known keys only (it is data that a
-    command line repeats, quoted; nothing in it is run). ValueError for anything else."""
-    if not isinstance(doc, dict) or not set(doc) <= set(FLOOR_SOURCES):
-        raise ValueError(f"floor_source: expected keys among {', '.join(FLOOR_SOURCES)}")
-    if not all(isinstance(v, str) and v for v in doc.values()):
-        raise ValueError("floor_source: each value is the text of an option")
-    return {k: doc[k] for k in FLOOR_SOURCES if k in doc}
-
-
-def _from_v2(d: Mapping[str, Any], version: int) -> CalibrationResult:
-    """Format v2, and v3 with its ``provenance``."""
-    fit = d.get("fit")
-    th = d.get("thermal")
-    prov = d.get("provenance") if version >= 3 else None
-    if version >= 3 and bool(d.get("simulated")) != bool(prov and prov.get("simulated")):
-        raise ValueError("'simulated' and provenance.simulated disagree")
-    return CalibrationResult(
-        loaded_version=version,
-        provenance=None if prov is None else Provenance.from_dict(prov),
-        covariance=_covariance(d.get("covariance"), [str(p["name"]) for p in d["parameters"]]),
-        model=str(d["model"]),
-        parameters=tuple(ParameterResult.from_dict(p) for p in d["parameters"]),
-        noise_std={str(k): as_float(v["value"]) for k, v in d["noise_std"].items()},
-        fit=None if fit is None else FitQuality.from_dict(fit),
-        noise_model=dict(d.get("noise_model", {})),
-        floor_source=_floor_source(d.get("floor_source", {})),
-        term_files=tuple(str(x) for x in d.get("term_files", ())),
-        term_sha256={str(k): str(v) for k, v in d.get("term_sha256", {}).items()},
-        temp_mean_c=float(d.get("temp_mean_c", TEMP_REF_C)),
-        time_known=bool(d.get("time_known", True)),
-        combinations=tuple(str(x) for x in d.get("combinations", ())),
-        verification=(
-            None if d.get("verification") is None else Verification.from_dict(d["verification"])
-        ),
-        thermal_range_c=None
-        if th is None
-        else (float(th["valid_range_c"][0]), float(th["valid_range_c"][1])),
-        thermal_source="" if th is None else str(th.get("source", "")),
-        **_common(d),
-    )

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from host.model.catalogue import BASE
-from host.session.method import NOISE_NAMES, TOLERANCES
+from host.session.method import CONSTANT_NAMES, NOISE_NAMES, TOLERANCES
 
 
 # ---- small JSON helpers -------------------------------------------------------------------
@@ -182,6 +182,21 @@ def within(name: str, value: float) -> bool | None:
     if not math.isfinite(value):
         return False
     return value <= tol if name in NOISE_NAMES else abs(value) <= tol
+
+
+def constants_of(
+    parameters: tuple[ParameterResult, ...], noise_std: Mapping[str, float]
+) -> dict[str, float]:
+    """§7 name -> value in report order, from a result's parameters and noise levels (NaN:
+    not determined, or not in the model)."""
+    by = {p.name: p.value for p in parameters}
+    by.update(noise_std)
+    return {n: float(by.get(n, math.nan)) for n in CONSTANT_NAMES}
+
+
+def undetermined_of(parameters: tuple[ParameterResult, ...]) -> tuple[ParameterResult, ...]:
+    """The parameters the records did not determine (NaN value)."""
+    return tuple(p for p in parameters if not p.determined)
 
 
 # ---- held-out verification ------------------------------------------------------------------

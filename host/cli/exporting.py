@@ -18,7 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from host.calib import exporting
-from host.calib.result import CalibrationResult
+from host.calib.codec import result_from_json
 from host.errors import FailedResultError, ResultFileError, UserError
 from host.ingest.importing import parse_axes
 from host.session.atomic import write_text_atomic
@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise UserError(f"{path}: cannot read ({exc.strerror or exc})") from exc
     try:
-        result = CalibrationResult.from_json(text)
+        result = result_from_json(text)
     except ResultFileError as exc:  # which file: a record given by mistake said only 'JSON'
         raise ResultFileError(f"{path}: {exc}") from None
     axes = parse_axes(args.axes) if args.axes else None

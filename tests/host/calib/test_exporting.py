@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 
 from host.__main__ import main
 from host.calib.applying import apply
+from host.calib.codec import result_from_json, result_to_json
 from host.calib.exporting import FORMATS, export
 from host.calib.result import CalibrationResult, base_parameters
 from host.errors import FailedResultError, UserError
@@ -217,7 +218,7 @@ def test_unmeasured_gyro_scale_exports_as_nominal_and_says_so() -> None:
 def test_cli_writes_each_format_and_refuses_unknown_ones(tmp_path: Path, capsys) -> None:
     res = _result()
     rj = tmp_path / "EXP1_result.json"
-    rj.write_text(res.to_json())
+    rj.write_text(result_to_json(res))
     for fmt, (_, ext) in FORMATS.items():
         out = tmp_path / f"cal{ext}"
         assert main(["export", str(tmp_path), "--to", fmt, "--out", str(out)]) == 0
@@ -233,7 +234,7 @@ def test_cli_writes_each_format_and_refuses_unknown_ones(tmp_path: Path, capsys)
 def test_an_earlier_export_is_replaced_and_any_other_file_kept(tmp_path: Path, capsys) -> None:
     """Was: --out over a vehicle's parameter file replaced it whole, silently; --out DIR said
     'permission denied'; --axes '' (an unset variable) exported in our axes."""
-    (tmp_path / "EXP1_result.json").write_text(_result().to_json())
+    (tmp_path / "EXP1_result.json").write_text(result_to_json(_result()))
     for fmt, (_, ext) in FORMATS.items():
         out = tmp_path / f"cal{ext}"
         for again in (False, True):
@@ -258,7 +259,7 @@ def test_an_earlier_export_is_replaced_and_any_other_file_kept(tmp_path: Path, c
 )
 @given(st.binary(max_size=200).filter(lambda b: b"imu-bench" not in b))
 def test_no_other_file_is_ever_replaced(tmp_path: Path, body: bytes) -> None:
-    (tmp_path / "EXP1_result.json").write_text(_result().to_json())
+    (tmp_path / "EXP1_result.json").write_text(result_to_json(_result()))
     out = tmp_path / "any.params"
     out.write_bytes(body)
     with contextlib.redirect_stderr(io.StringIO()) as err:
@@ -342,7 +343,7 @@ def test_px4_thermal_names_a_fourth_order_it_cannot_hold() -> None:
 
 def test_thermal_for_a_format_without_it_is_refused(tmp_path: Path, capsys) -> None:
     rj = tmp_path / "EXP1_result.json"
-    rj.write_text(_result().to_json())
+    rj.write_text(result_to_json(_result()))
     tj = tmp_path / "EXP1_thermal.json"
     tj.write_text(_thermal(THERMAL).to_json())
     assert main(["export", str(rj), "--to", "px4", "--thermal", str(tj)]) == 0
@@ -420,7 +421,7 @@ def test_kalibr_yaml_round_trip_through_kalibrs_discrete_noise(tmp_path: Path, c
     assert "gy rate_random_walk not resolved" in text and "bias instability" in text
     # a noise file is for kalibr only; kalibr needs one
     rj = tmp_path / "EXP1_result.json"
-    rj.write_text(_result().to_json())
+    rj.write_text(result_to_json(_result()))
     assert main(["export", str(rj), "--to", "px4", "--noise", str(nf)]) == 2
     assert main(["export", "--to", "px4"]) == 2
     assert "give the result" in capsys.readouterr().err
@@ -464,7 +465,7 @@ def test_no_export_writes_nan_or_inf(values: dict[str, float], fmt: str) -> None
 
 def test_cli_refuses_to_export_an_undetermined_result(tmp_path: Path, capsys) -> None:
     rj = tmp_path / "EXP1_result.json"
-    rj.write_text(_result(A0y=math.nan, GAxz=math.nan).to_json())
+    rj.write_text(result_to_json(_result(A0y=math.nan, GAxz=math.nan)))
     for fmt, (_, ext) in FORMATS.items():
         out = tmp_path / f"cal{ext}"
         assert main(["export", str(rj), "--to", fmt, "--out", str(out)]) == 1  # FAILED
@@ -546,17 +547,17 @@ def test_ardupilot_thermal_from_the_result_itself(tmp_path: Path, capsys) -> Non
         parameters=(*base.parameters, *thermal_parameters(th, 29.0)),
     )  # fmt: skip
     rj = tmp_path / "EXP1_result.json"
-    rj.write_text(res.to_json())
+    rj.write_text(result_to_json(res))
     assert main(["export", str(rj), "--to", "ardupilot", "--thermal"]) == 0
     p = _params(capsys.readouterr().out)
     accel, gyro = _samples()
     temp = np.random.default_rng(7).uniform(22.0, 48.0, len(accel))
     a_t, g_t = _ardupilot_tcal_apply(p, accel, gyro, temp)
-    a_ref, g_ref = apply(CalibrationResult.from_json(rj.read_text()), accel, gyro, temp_c=temp)
+    a_ref, g_ref = apply(result_from_json(rj.read_text()), accel, gyro, temp_c=temp)
     _close(a_t, a_ref)
     _close(g_t, g_ref)
     # --thermal alone on a result without bias(T) says what to give
-    rj.write_text(base.to_json())
+    rj.write_text(result_to_json(base))
     assert main(["export", str(rj), "--to", "ardupilot", "--thermal"]) == 2
     assert "carries no bias(T)" in capsys.readouterr().err
 

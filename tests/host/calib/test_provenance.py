@@ -12,8 +12,8 @@ import pytest
 
 from host.__main__ import main
 from host.bench.plan import write_session
+from host.calib.codec import read_result, result_from_json, result_to_dict, result_to_json
 from host.calib.exporting import FORMATS
-from host.calib.result import CalibrationResult
 from host.errors import ResultFileError
 from host.workbench.scenarios import hidden_effect_case
 
@@ -64,7 +64,7 @@ def test_demo_records_recomputed_keep_the_simulated_mark(
     out = capsys.readouterr().out
     mark = "*** SIMULATED BOARD simulator (source: sim): not a measurement of a unit ***"
     assert out.splitlines()[1] == mark
-    res = CalibrationResult.load(tmp_path / "DEMO_result.json")
+    res = read_result(tmp_path / "DEMO_result.json")
     assert res.simulated and res.provenance is not None
     assert res.provenance.simulated_by == ("simulator (source: sim)",)
     assert mark in (tmp_path / "DEMO_result.txt").read_text(encoding="utf-8")
@@ -75,18 +75,18 @@ def test_older_files_read_and_an_edited_mark_is_refused(tmp_path: Path) -> None:
     from host.session.directory import read_session
 
     write_session(tmp_path, "DEMO", dict(hidden_effect_case("temperature", 4).records))
-    doc = json.loads(calibrate_from_records(read_session(tmp_path)).to_json())
+    doc = json.loads(result_to_json(calibrate_from_records(read_session(tmp_path))))
     v2 = {k: v for k, v in doc.items() if k not in ("simulated", "simulated_by", "provenance")}
     v2["format_version"] = 2
-    old = CalibrationResult.from_json(json.dumps(v2))
+    old = result_from_json(json.dumps(v2))
     assert old.loaded_version == 2 and old.provenance is None
     assert old.simulated  # from its note, as v2 files said it
     v2["notes"] = [n for n in v2["notes"] if not n.startswith("SIMULATED BOARD")]
-    assert not CalibrationResult.from_json(json.dumps(v2)).simulated
+    assert not result_from_json(json.dumps(v2)).simulated
     # a v3 file edited to look like a unit's: the two marks disagree
     doc["simulated"] = False
     with pytest.raises(ResultFileError, match="'simulated' and provenance.simulated disagree"):
-        CalibrationResult.from_json(json.dumps(doc))
+        result_from_json(json.dumps(doc))
 
 
 def test_unit_records_carry_no_mark(tmp_path: Path) -> None:
@@ -97,4 +97,4 @@ def test_unit_records_carry_no_mark(tmp_path: Path) -> None:
     res = calibrate_from_records(read_session(real))
     assert not res.simulated and res.simulated_line == ""
     assert res.provenance is not None and res.provenance.sensor == "unknown sensor"
-    assert "SIMULATED" not in json.dumps(res.to_dict())
+    assert "SIMULATED" not in json.dumps(result_to_dict(res))

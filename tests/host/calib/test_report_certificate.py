@@ -14,7 +14,7 @@ import pytest
 
 from host import __version__
 from host.__main__ import main
-from host.calib.result import CalibrationResult
+from host.calib.codec import read_result
 from host.session.directory import read_session
 from tests.host.cli.cli_run import too_wide
 
@@ -48,7 +48,7 @@ def _line(text: str, start: str) -> str:
 @pytest.mark.slow
 def test_every_item_of_the_certificate_from_a_live_session(live: Path) -> None:
     text = (live / "C1_result.txt").read_text(encoding="utf-8")
-    res = CalibrationResult.load(live / "C1_result.json")
+    res = read_result(live / "C1_result.json")
     recs = read_session(live).records
     meta = recs["x_up"].meta
     # 80 columns; only a single word longer than a line may pass them (a path: a test's

@@ -14,9 +14,9 @@ import pytest
 
 from host.__main__ import main
 from host.bench.plan import write_session
+from host.calib.codec import read_result
 from host.calib.report import format_report
 from host.calib.report_pdf import LINES_PER_PAGE, text_pages
-from host.calib.result import CalibrationResult
 from host.workbench.scenarios import hidden_effect_case
 
 pytest.importorskip("matplotlib")
@@ -44,7 +44,7 @@ def test_the_pdf_holds_the_report_and_its_residual_plots(published: Path, tmp_pa
 
     pdf = published / "PDF1_result.pdf"
     assert pdf.is_file() and pdf.read_bytes()[:5] == b"%PDF-"
-    res = CalibrationResult.load(published / "PDF1_result.json")
+    res = read_result(published / "PDF1_result.json")
     report = format_report(res, published)  # the next command names the records
     assert report == (published / "PDF1_result.txt").read_text(encoding="utf-8").replace(
         res.created.replace("T", " "), res.created.replace("T", " ")

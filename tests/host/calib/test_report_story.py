@@ -15,6 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from host.calib.calibration import calibrate_from_records
+from host.calib.codec import result_to_json
 from host.calib.report import next_command
 from host.calib.result import CalibrationResult
 from host.session.directory import read_session
@@ -184,7 +185,7 @@ def test_a_hidden_step_names_the_records_directory_not_the_output(tmp_path: Path
     failed = dataclasses.replace(res, self_test="fail")
     assert failed.verdict().startswith("FAIL: the sensor failed its self-test; ")
     assert failed.verdict().endswith("; the model does not fit")
-    assert not failed.conditional and json.loads(failed.to_json())["conditional"] is False
+    assert not failed.conditional and json.loads(result_to_json(failed))["conditional"] is False
 
 
 _result_cache: list[CalibrationResult] = []

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from host.calib.calibration import calibrate_from_records
+from host.calib.codec import result_from_json, result_to_json
 from host.calib.report import write_results
-from host.calib.result import CalibrationResult
 from host.errors import ResultFileError
 from host.session.directory import read_session
 from tests.independent.simulate import SessionSpec, write_session
@@ -40,18 +40,16 @@ def test_the_covariance_is_the_fits_and_round_trips(session_dir: Path, tmp_path:
     assert np.all(np.abs(rho) <= 1 + 1e-9)
     assert np.abs(rho - np.eye(n)).max() > 0.3  # not a diagonal matrix in disguise
     assert np.linalg.eigvalsh(c).min() > -1e-12 * np.abs(c).max()
-    back = CalibrationResult.from_json(res.to_json())
+    back = result_from_json(result_to_json(res))
     np.testing.assert_array_equal(np.array(back.covariance), c)
     # reordered parameters in the file: the matrix follows the names
-    doc = json.loads(res.to_json())
+    doc = json.loads(result_to_json(res))
     doc["covariance"]["names"] = doc["covariance"]["names"][::-1]
     doc["covariance"]["matrix"] = [row[::-1] for row in doc["covariance"]["matrix"][::-1]]
-    np.testing.assert_array_equal(
-        np.array(CalibrationResult.from_json(json.dumps(doc)).covariance), c
-    )
+    np.testing.assert_array_equal(np.array(result_from_json(json.dumps(doc)).covariance), c)
     doc["covariance"]["names"] = doc["covariance"]["names"][1:]
     with pytest.raises(ResultFileError, match="covariance"):
-        CalibrationResult.from_json(json.dumps(doc))
+        result_from_json(json.dumps(doc))
     # the archive reads it as the full matrix now
     from host.archive.entry import entry_from_directory
 
@@ -74,7 +72,7 @@ def test_an_undetermined_parameter_has_nan_rows() -> None:
     assert np.all(np.isnan(c[i])) and np.all(np.isnan(c[:, i]))
     j = names.index("A0x")
     assert math.isfinite(c[j, j]) and c[j, j] == pytest.approx(res.parameter("A0x").stderr ** 2)
-    assert "NaN" not in res.to_json()
+    assert "NaN" not in result_to_json(res)
 
 
 @pytest.mark.slow

@@ -17,6 +17,7 @@ from host.bench.physics import Environment
 from host.bench.plan import simulate_thermal
 from host.bench.truth import SensorTruth
 from host.calib import thermal, thermal_fit
+from host.calib.codec import read_result, result_from_json, result_to_json
 from host.session.directory import write_record
 
 #: per channel ax ay az gx gy gz: true order 1, 2, 3, 3, 0, 2
@@ -190,19 +191,18 @@ def test_calibration_carries_bias_of_temperature_and_apply_removes_it(
     ramp, calibrated_with_thermal, capsys
 ) -> None:
     from host.calib.applying import apply
-    from host.calib.result import CalibrationResult
 
     d, cal = calibrated_with_thermal
     main(["calibrate", "--from-dir", str(d), "--out", str(d), "--json"])
     doc = json.loads(capsys.readouterr().out)
-    result = CalibrationResult.load(d / "T5_result.json")
+    result = read_result(d / "T5_result.json")
     assert doc["thermal"]["valid_range_c"] == pytest.approx([cal.t_min_c, cal.t_max_c])
     assert result.thermal_range_c == pytest.approx((cal.t_min_c, cal.t_max_c))
     assert "thermal_bias" in result.model
     carried = [p for p in result.parameters if p.term == "thermal_bias"]
     assert len(carried) == sum(ORDERS.values())
-    plain = CalibrationResult.from_json(
-        json.dumps({**json.loads(result.to_json()), "thermal": None, "model": "base",
+    plain = result_from_json(
+        json.dumps({**json.loads(result_to_json(result)), "thermal": None, "model": "base",
                     "parameters": [p for p in doc["parameters"] if p["term"] != "thermal_bias"]})
     )  # fmt: skip
     assert plain.thermal_range_c is None
@@ -355,7 +355,6 @@ def test_scale_against_temperature_is_carried_by_the_result(tmp_path) -> None:
     from host.bench.plan import Plan, simulate_session, write_session
     from host.calib.applying import apply
     from host.calib.calibration import calibrate_from_records
-    from host.calib.result import CalibrationResult
     from host.session.directory import read_session
 
     recs = simulate_thermal(SCALE_TRUTH, CHAMBER, FLIP_PLAN, seed=13)
@@ -363,9 +362,8 @@ def test_scale_against_temperature_is_carried_by_the_result(tmp_path) -> None:
     env = Environment(room_c=22.0, rise_c=10.0, tau_s=300.0, room_amp_c=0.0)
     write_session(tmp_path, "T8", simulate_session(SCALE_TRUTH, Plan(environment=env), seed=9))
     session = read_session(tmp_path)
-    result = CalibrationResult.from_json(
-        calibrate_from_records(session, thermal=cal, thermal_source="T8_thermal.json").to_json()
-    )
+    fitted = calibrate_from_records(session, thermal=cal, thermal_source="T8_thermal.json")
+    result = result_from_json(result_to_json(fitted))
     assert "thermal_scale" in result.model
     assert result.parameter("thermal_scale.accel.z.per_C").value == pytest.approx(3e-4, rel=0.02)
     plain = calibrate_from_records(session)

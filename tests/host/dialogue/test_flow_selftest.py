@@ -11,7 +11,7 @@ import pytest
 
 from host.__main__ import main
 from host.archive.store import Archive
-from host.calib.result import CalibrationResult
+from host.calib.codec import read_result
 from host.session.directory import read_record
 from host.session.records import STATIC_NAMES
 
@@ -31,7 +31,7 @@ def test_a_part_failing_its_self_test_fails_its_calibration_and_its_archive_entr
     for name in STATIC_NAMES:
         meta = read_record(out / f"F1_{name}.txt").meta
         assert meta["self_test"] == "fail" and "ay, gz" in meta["self_test_note"]
-    result = CalibrationResult.load(out / "F1_result.json")
+    result = read_result(out / "F1_result.json")
     assert result.self_test == "fail" and not result.all_passed
     verdicts = [ln for ln in said.splitlines() if ln.startswith("FAIL")]  # the last screen line
     assert verdicts and "the sensor failed its self-test" in verdicts[-1]
@@ -58,7 +58,7 @@ def test_a_calibration_without_the_self_test_says_not_run_everywhere(
     assert "keep the cube still" not in said and "OUT OF ±14 %" not in said
     for name in STATIC_NAMES:
         assert read_record(out / f"N1_{name}.txt").meta["self_test"] == "not run"
-    result = CalibrationResult.load(out / "N1_result.json")
+    result = read_result(out / "N1_result.json")
     assert result.self_test == "not run"
     assert result.verdict().endswith("— self-test not run")
     report = (out / "N1_result.txt").read_text()
