@@ -16,16 +16,18 @@ Use it from Python (docs/python-api.md); each name has its own help, e.g. ``help
 These are imported when first used, so ``python -m host`` starts light. The command line:
 ``python -m host --help``. The packages, one per stage of the data's journey (docs/layout.md):
 
+- :mod:`host.version` — the version (``host.__version__``), at the bottom: it imports nothing
 - :mod:`host.wire` — the spec table (generated), frame codecs and decoders, capture files, counts
 - :mod:`host.timing` — device time: unwrap, the device→host clock map
-- :mod:`host.board` — ports and URLs (link), flashing and the firmware build
+- :mod:`host.board` — ports and URLs (link), the board driver, one measurement, flashing
 - :mod:`host.dialogue` — the live calibration dialogue (method.md §5) and its console
 - :mod:`host.ingest` — foreign data in: column files, imucal sessions, captures -> records
 - :mod:`host.session` — records, the session directory, the method's constants, record checks
 - :mod:`host.calib` — the calibration and its result, the report, export
 - :mod:`host.model` — the engine: terms, dataset, noise model, the fit, statistics
 - :mod:`host.workbench` — the model workbench: candidates, scan, verdict, ladder
-- :mod:`host.bench` — the virtual bench: truth, physics, simulator, link simulator, emulator
+- :mod:`host.bench` — the virtual bench: truth, physics, simulator, link simulator, emulator,
+  and the firmware and emulator builds (:mod:`host.bench.build`)
 - :mod:`host.transports` — pyserial URL adapters (``sim://``, ``emu://``, ``replay://``)
 - :mod:`host.api` — the functions above (:mod:`host.api.functions`)
 - :mod:`host.cli` — the commands of ``python -m host``
@@ -34,9 +36,10 @@ These are imported when first used, so ``python -m host`` starts light. The comm
 from __future__ import annotations
 
 import importlib
+from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.1.0"
+from host.version import __version__
 
 if TYPE_CHECKING:  # for type checkers and readers; at run time __getattr__ imports them
     from host.api.functions import (
@@ -92,4 +95,12 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_API})
+    """The public names, the module's own dunders and the subpackages imported so far (not
+    the helpers this file imports for itself: importlib, typing's names)."""
+    own = {n for n in globals() if n.startswith("__") and n.endswith("__")}
+    packages = {
+        n
+        for n, v in globals().items()
+        if isinstance(v, ModuleType) and v.__name__.startswith("host.")
+    }
+    return sorted({*__all__, *own, *packages})

@@ -197,7 +197,7 @@ def empty_word(words: list[str]) -> str | None:
 
 
 def _version() -> str:
-    from host import __version__
+    from host.version import __version__
     from host.wire.protocol_gen import PROTOCOL_VERSION, SPEC_FINGERPRINT
 
     return f"imu-bench {__version__} (protocol {PROTOCOL_VERSION}, spec {SPEC_FINGERPRINT:#010x})"

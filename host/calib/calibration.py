@@ -28,7 +28,6 @@ from typing import Any
 
 import numpy as np
 
-from host import __version__
 from host.calib.provenance import provenance_of
 from host.calib.result import CalibrationResult, thermal_parameters
 from host.calib.thermal import CHANNELS, ThermalCalibration, corrected_records
@@ -61,6 +60,7 @@ from host.session.method import (
     trapezoid_integral,
 )
 from host.session.records import STATIC_NAMES, TURN_NAMES, Record
+from host.version import __version__
 
 
 # ---- closed form, method.md §3 and §4 -----------------------------------------------------

@@ -57,7 +57,7 @@ def imports_of(path: Path, known: set[str]) -> set[str]:
     for name in imported_names(path):
         while name and name not in known:
             name = name.rpartition(".")[0]
-        if name and name != "host":  # the package root holds only the version
+        if name:
             out.add(name)
     return out
 
@@ -199,10 +199,19 @@ def test_the_known_exceptions_are_still_real() -> None:
     assert [e for e in KNOWN if e[1] not in g.get(e[0], set())] == []
 
 
+def test_no_module_imports_the_package_root() -> None:
+    """``host/__init__.py`` is the API on top of every stage (its names lead into
+    :mod:`host.api`), so a module importing it points upward; the version sits at the bottom,
+    in :mod:`host.version`, which imports nothing."""
+    g = graph()
+    assert sorted(m for m, ts in g.items() if "host" in ts) == []
+    assert g["host.version"] == set() and "host.api.functions" in g["host"]
+
+
 def test_every_module_lives_in_a_stage_package() -> None:
     """host/ holds only the package files; every module is in its stage's subpackage."""
     flat = sorted(p.name for p in HOST.glob("*.py"))
-    assert flat == ["__init__.py", "__main__.py", "errors.py"], (
+    assert flat == ["__init__.py", "__main__.py", "errors.py", "version.py"], (
         "put a new module in its stage's package (docs/layout.md), not in host/ itself"
     )
 
