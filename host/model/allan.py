@@ -326,10 +326,6 @@ class ChannelNoise:
     coef: np.ndarray
     figures: dict[str, Figure]
 
-    def model_adev(self, tau_s: np.ndarray) -> np.ndarray:
-        """σ(τ) of the jointly fitted model, channel unit."""
-        return np.sqrt(basis(tau_s) @ self.coef)
-
 
 def _wls_nonneg(y: np.ndarray, a: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Weighted least squares ``a @ c ≈ y`` with c ≥ 0 (every subset of the 3 columns)."""

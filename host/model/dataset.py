@@ -134,9 +134,6 @@ class Dataset:
         channel ``axis``."""
         return self.sensor_aggregators.get((record, sensor, axis), self.aggregators[record])
 
-    def record_name(self, i: int) -> str:
-        return self.signals[i].name
-
 
 def turn_heading(t_s: np.ndarray, rate_up_dps: np.ndarray) -> np.ndarray:
     """(N,) the angle turned about the up axis since the record began, ° (trapezoid rule over

@@ -4,7 +4,8 @@
 A term file's code runs under a time bound (:data:`TIME_LIMIT_S`, ``--term-timeout``): past
 :data:`PROGRESS_S` a line on stderr says which term file is running and for how long, and past
 the bound it stops with one line naming the file and the option that raises it (an endless
-loop no longer hangs the program).
+loop no longer hangs the program). The bound holds for each loading of a file (its loading and
+every call of its terms after it), so a program that loads a file again starts afresh.
 
 A term file is code: it runs only when a user names it (``--term-file``, or ``term_files=`` of
 :func:`host.calib.applying.apply`), never because a result file mentions it. Its SHA-256
@@ -31,12 +32,21 @@ from host.errors import TermFileMismatch, UserError
 from host.model.catalogue import CATALOGUE
 from host.model.terms import Term
 
-#: the time a term file's code may run in one command, s (``--term-timeout`` sets it)
+#: the time a loaded term file's code may run, s (``--term-timeout`` sets it for a command)
 TIME_LIMIT_S = 120.0
 #: after this long in a term file's code, a progress line every as long, s
 PROGRESS_S = 5.0
-_spent: dict[str, float] = {}  # term file -> seconds its code has run so far
 _active: list[str] = []  # the term file whose code runs now (bounded once, not nested)
+
+
+@dataclasses.dataclass
+class _Budget:
+    """The time one loading of the term file ``path`` may still spend in its code: its
+    loading and every call of its terms share it, s."""
+
+    path: str
+    limit_s: float
+    spent_s: float = 0.0
 
 
 class TermFileTimeout(UserError):
@@ -44,47 +54,50 @@ class TermFileTimeout(UserError):
 
 
 @contextlib.contextmanager
-def _bounded(path: str, what: str) -> Iterator[None]:
-    """Run user code from ``path`` with progress lines and the time bound (main thread only:
-    elsewhere it runs unbounded)."""
+def _bounded(budget: _Budget, what: str) -> Iterator[None]:
+    """Run user code of ``budget``'s file with progress lines and the time bound it has left
+    (main thread only: elsewhere it runs unbounded)."""
     main = threading.current_thread() is threading.main_thread()
     if not main or not hasattr(signal, "setitimer") or _active:
         yield  # elsewhere, or inside user code already bounded: runs as it is
         return
+    path, limit = budget.path, budget.limit_s
     _active.append(path)
     start = time.monotonic()
-    before = _spent.get(path, 0.0)
+    before = budget.spent_s
 
     def tick(_signum: int, _frame: object) -> None:
         ran = before + time.monotonic() - start
-        if ran > TIME_LIMIT_S:
+        if ran > limit:
             raise TermFileTimeout(
                 f"{path}: {what} has run {ran:.0f} s (an endless loop?); stopped at the "
-                f"bound of {TIME_LIMIT_S:g} s: fix the term, or give --term-timeout S"
+                f"bound of {limit:g} s: fix the term, or give --term-timeout S"
             )
-        print(f"{path}: {what} running for {ran:.0f} s (bound {TIME_LIMIT_S:g} s, "
+        print(f"{path}: {what} running for {ran:.0f} s (bound {limit:g} s, "
               "--term-timeout)", file=sys.stderr, flush=True)  # fmt: skip
 
-    first = max(0.01, min(PROGRESS_S, TIME_LIMIT_S - before))
+    first = max(0.01, min(PROGRESS_S, limit - before))
     old = signal.signal(signal.SIGALRM, tick)
-    signal.setitimer(signal.ITIMER_REAL, first, min(PROGRESS_S, max(TIME_LIMIT_S, 0.01)))
+    signal.setitimer(signal.ITIMER_REAL, first, min(PROGRESS_S, max(limit, 0.01)))
     try:
         yield
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, old)
-        _spent[path] = before + time.monotonic() - start
+        budget.spent_s = before + time.monotonic() - start
         _active.clear()
 
 
-def _guarded(path: str, what: str, fn: Callable[..., Any] | None) -> Callable[..., Any] | None:
+def _guarded(
+    budget: _Budget, what: str, fn: Callable[..., Any] | None
+) -> Callable[..., Any] | None:
     """``fn`` (a term's user function) run under :func:`_bounded`."""
     if fn is None:
         return None
 
     @functools.wraps(fn)
     def run(*args: Any, **kwargs: Any) -> Any:
-        with _bounded(path, what):
+        with _bounded(budget, what):
             return fn(*args, **kwargs)
 
     return run
@@ -139,8 +152,9 @@ def load_term_file(
     module = importlib.util.module_from_spec(spec)
     module.__file__ = str(p)
     sys.modules[mod_name] = module
+    budget = _Budget(str(p), TIME_LIMIT_S)
     try:
-        with _bounded(str(p), "loading it"):
+        with _bounded(budget, "loading it"):
             exec(compile(code, str(p), "exec"), module.__dict__)  # noqa: S102 - the user named it
     except TermFileTimeout:
         raise
@@ -159,7 +173,7 @@ def load_term_file(
                 f"name (@term(name=...)); taken: base, {', '.join(out)}"
             )
         code_of: dict[str, Any] = {
-            f: _guarded(str(p), f"term {t.name}", getattr(t, f)) for f in _USER_CODE
+            f: _guarded(budget, f"term {t.name}", getattr(t, f)) for f in _USER_CODE
         }
         out[t.name] = dataclasses.replace(t, **code_of)
     return out

@@ -42,12 +42,6 @@ SIMULATED_SCHEMES = ("sim://", "emu://")
 SIMULATED_BOARD = "SIMULATED BOARD"
 
 
-def simulated_ports(records: Mapping[str, Record]) -> list[str]:
-    """The distinct ``port`` URLs of ``records`` that name a virtual or emulated board."""
-    ports = {r.meta.get("port", "").strip() for r in records.values()}
-    return sorted(p for p in ports if p.startswith(SIMULATED_SCHEMES))
-
-
 @dataclass(frozen=True, eq=False)
 class Session:
     """The records of one unit: ``serial`` and ``records`` name -> Record."""

@@ -13,7 +13,7 @@ the supporting line of the lower convex hull at the points' mean device time; it
 Σ(yᵢ − a − b·xᵢ) subject to yᵢ ≥ a + b·xᵢ). Points are arrivals minus the frame's known
 serialisation time at the link's baud rate.
 
-- Offline (a whole capture; :func:`host.timing.timeline.fit_offline`): lines fitted in
+- Offline (a whole capture; :class:`host.timing.timeline.TimelineBuilder`): lines fitted in
   overlapping windows and blended linearly between window centres, so a clock whose skew
   drifts slowly with temperature is still followed.
 - Live (:class:`LiveClock`): the same estimator over a sliding window of recent points.

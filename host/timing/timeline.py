@@ -448,19 +448,3 @@ def build_timeline(
     dev = np.concatenate([k.device_us for k in blocks]) if blocks else np.zeros(n)
     host = np.concatenate([k.host_ns for k in blocks]) if blocks else np.full(n, np.nan)
     return Timeline(dev, host, tuple(b.segments))
-
-
-def fit_offline(
-    device_us: np.ndarray, floor_ns: np.ndarray, window_s: float = 60.0
-) -> PiecewiseClockMap:
-    """Best map over a whole capture (points in device-time order): minimum-delay lines in
-    half-overlapping windows (the windows of :class:`TimelineBuilder`, which fits them as the
-    points stream in)."""
-    x = np.asarray(device_us, dtype=np.float64)
-    y = np.asarray(floor_ns, dtype=np.float64)
-    fitter = _WindowFitter(window_s, None if x.size == 0 else float(x[0]))
-    fitter.add(x, y)
-    fitter.finish(x, y)
-    if fitter.clock is None:
-        raise ValueError("need two points with different device times")
-    return fitter.clock

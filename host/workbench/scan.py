@@ -118,17 +118,11 @@ def _signals(sensor: str) -> dict[str, SignalFn]:
     return out
 
 
-def signal_functions(ds: Dataset, sensor: str) -> dict[str, SignalFn]:
-    """Every signal the scan tries on a channel of ``sensor``, by name (the steps in time and
-    the time signals only when the records carry their time since power-on)."""
-    steps = _steps(ds) if ds.time_known else {}
-    return {**_plain_signals(ds, sensor, warming_rates(ds)), **steps}
-
-
 def _plain_signals(
     ds: Dataset, sensor: str, warming: Mapping[str, np.ndarray]
 ) -> dict[str, SignalFn]:
-    """The signals of :func:`signal_functions` that are not a step in time, the chip's
+    """The signals the scan tries on a channel of ``sensor`` that are not a step in time (the
+    time signals only when the records carry their time since power-on), the chip's
     ``warming`` rates (:func:`warming_rates`) given."""
     out = {**_signals(sensor), WARMING: lambda s, sen, a: warming[s.name]}
     if not ds.time_known:

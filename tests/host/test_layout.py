@@ -3,6 +3,7 @@ the tests mirroring the tree."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -94,3 +95,41 @@ def test_the_tests_mirror_the_source_tree() -> None:
         assert any(name == m or name.startswith(m + "_") for m in modules) or (
             stage.name == "cli" and (name.endswith("cli") or name == "cli_properties")
         ), f"{path.relative_to(ROOT)} tests no module of host/{stage.name}/"
+
+
+#: the start of a path that names one machine's disk: a home, a work or mount root, a drive
+MACHINE_PATH = re.compile(r"(?<![\w.~-])(?:/(?:home|Users|root|work|mnt|media|srv)/|[A-Z]:\\\\)\w")
+
+
+def machine_paths(root: Path) -> list[str]:
+    """``file:line path`` for each absolute path of one machine in docs/ and tests/ (and the
+    README): the project is read and run from any clone, its shared data as ``../shared/…``."""
+    here = str(ROOT.parent)  # this clone's own place, whatever it is
+    files = [root / "README.md", *sorted((root / "docs").rglob("*.md"))]
+    files += sorted(p for p in (root / "tests").rglob("*") if p.suffix in (".py", ".md"))
+    bad = []
+    for path in files:
+        for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            if MACHINE_PATH.search(line) or (len(here) > 1 and here + "/" in line):
+                bad.append(f"{path.relative_to(root).as_posix()}:{n} {line.strip()[:80]}")
+    return bad
+
+
+def test_no_doc_or_test_names_one_machines_path() -> None:
+    assert machine_paths(ROOT) == []
+
+
+def test_the_path_check_sees_a_machines_path(tmp_path: Path) -> None:
+    """The check itself: a home directory, a work root and a drive letter are found; the
+    shared data as ``../shared``, a temporary directory and a serial device are not."""
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "tests").mkdir()
+    (tmp_path / "README.md").write_text("python3 -m host calibrate --from-dir ../shared/data/x\n")
+    (tmp_path / "docs" / "a.md").write_text(
+        "--out /tmp/demo --port /dev/ttyACM0\nsee /" + "home/alice/imu\n"
+    )
+    (tmp_path / "tests" / "test_b.py").write_text(
+        'DATA = Path("/' + 'work/shared/data")\nWIN = "C:' + '\\\\data\\\\x"\n'
+    )
+    got = [line.split(" ", 1)[0] for line in machine_paths(tmp_path)]
+    assert got == ["docs/a.md:2", "tests/test_b.py:1", "tests/test_b.py:2"]

@@ -18,8 +18,7 @@ from host.model.plate import TurnAxis, bias_note, session_plate, turn_axes
 from host.model.spec import parse_model
 from tests.independent.simulate import SessionSpec, write_session
 
-IMUCAL = Path(__file__).resolve().parents[3] / ".." / "shared" / "data" / "imucal-example"
-IMUCAL = IMUCAL if IMUCAL.is_dir() else Path("/work/shared/data/imucal-example")
+IMUCAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
 
 
 def _session(tmp: Path, seed: int, effect: str, recorded: bool) -> tuple[Path, dict]:
