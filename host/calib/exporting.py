@@ -117,6 +117,8 @@ def failures(result: CalibrationResult) -> list[str]:
         out.append(f"not determined: {', '.join(p.name for p in result.undetermined)}")
     if result.verification is not None and not result.verification.passed:
         out.append("held-out records not predicted within the limits")
+    if result.self_test == "fail":
+        out.append("the sensor failed its self-test")
     return out
 
 

@@ -567,3 +567,24 @@ def test_ardupilot_thermal_names_what_it_cannot_hold() -> None:
     text = export(_result(), "ardupilot", thermal=th)
     assert "gy bias(T) terms above order 3 (order 4" in text
     assert "INS_TCAL1_GYR3_Y" in text
+
+
+def test_a_unit_that_failed_its_self_test_is_not_exported(tmp_path: Path, capsys) -> None:
+    """Every value within tolerance, but the sensor failed its self-test (issue 43): every
+    format refuses it with exit 1 naming the self-test; --allow-fail writes it marked FAILED."""
+    failed = dataclasses.replace(_result(), self_test="fail")
+    rj = tmp_path / "EXP1_result.json"
+    rj.write_text(result_to_json(failed))
+    assert result_from_json(rj.read_text()).self_test == "fail"
+    for fmt, (_, ext) in FORMATS.items():
+        out = tmp_path / f"cal{ext}"
+        assert main(["export", str(rj), "--to", fmt, "--out", str(out)]) == 1, fmt
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "failed its self-test" in err, err
+        assert not out.exists()
+        assert main(["export", str(rj), "--to", fmt, "--out", str(out), "--allow-fail"]) == 0
+        assert "FAILED calibration, exported with --allow-fail" in out.read_text()
+        assert "the sensor failed its self-test" in out.read_text()
+        capsys.readouterr()
+    passing = dataclasses.replace(_result(), self_test="pass")  # the same values, passed
+    assert "FAILED" not in export(passing, "px4")

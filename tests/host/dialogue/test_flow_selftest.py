@@ -39,6 +39,13 @@ def test_a_part_failing_its_self_test_fails_its_calibration_and_its_archive_entr
         (s,) = a.summaries()
         e = a.entry(s.id)
     assert (e.self_test, e.verdict) == ("fail", "fail")
+    # and its constants cannot be flashed: every format refuses it (issue 43)
+    for fmt in ("ardupilot", "px4", "c-header", "imucal"):
+        exported = tmp_path / f"F1.{fmt}"
+        assert (
+            main(["export", str(out / "F1_result.json"), "--to", fmt, "--out", str(exported)]) == 1
+        )
+        assert "failed its self-test" in capsys.readouterr().err and not exported.exists()
 
 
 @pytest.mark.slow  # a whole --yes session on the virtual board (~20 s)
