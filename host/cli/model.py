@@ -331,7 +331,9 @@ def ladder_columns() -> list[Column]:
 def ladder_cells(i: int, step: LadderStep, before: LadderStep | None, start: str) -> list[str]:
     """One rung as table cells: the term added without ``:xyz`` (every rung adds all three
     axes), the start as its short spec."""
-    added = step.added.removesuffix(":xyz") if step.added else f"start: {start}"
+    added = (step.added.removesuffix(":xyz") if step.added
+             else f"drop {step.dropped.removesuffix(':xyz')}" if step.dropped
+             else f"start: {start}")  # fmt: skip
     return [
         str(i),
         added,
@@ -345,8 +347,21 @@ def ladder_cells(i: int, step: LadderStep, before: LadderStep | None, start: str
     ]
 
 
+def ladder_start(args: argparse.Namespace) -> str:
+    """The ladder's start: ``--model`` or ``--start`` (the same option), ``bias`` when neither
+    is given; both, naming different models, are refused (one would be ignored)."""
+    given = [v for v in (args.model, args.start) if v is not None]
+    if len(set(given)) > 1:
+        raise UserError(
+            f"--model {args.model} and --start {args.start} both name the ladder's start: give "
+            "one (the ladder climbs from it; its terms stay in)"
+        )
+    return given[0] if given else "bias"
+
+
 def run_ladder(args: argparse.Namespace) -> int:
     cat = _catalogue(args)
+    args.start = ladder_start(args)
     progress = Progress()
     progress.show(f"ladder: reading the records of {args.dir} ...")
     ds = _dataset(args)
@@ -438,13 +453,19 @@ def cli_model(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]
     a.add_argument("term", help="term[:sensor[:axes]] to add, e.g. temperature_bias:gyro:x")
     a.add_argument("--plot", metavar="DIR", type=plot_dir, default=None,
                    help="write the PNG plots into this directory (made if missing)")  # fmt: skip
-    lad = command("ladder", "the greedy path of models from 'bias' upward: at each rung the "
-                  "term that lowers BIC most, while significant; ends with the calibrate "
-                  "command that ships the last model",
+    lad = command("ladder", "the stepwise path of models from 'bias' upward: at each rung the "
+                  "term that lowers BIC most, while significant, then every earlier rung's "
+                  "term tested again and dropped when it no longer earns its place; ends with "
+                  "the calibrate command that ships the last model",
                   "  python3 -m host model ladder U17/\n"
-                  "  python3 -m host model ladder U17/ --start base")  # fmt: skip
+                  "  python3 -m host model ladder U17/ --model base")  # fmt: skip
     _common(lad)
-    lad.add_argument("--start", default="bias", help="starting model (default bias)")
+    lad.set_defaults(model=None)  # the start: --model or --start, bias when neither
+    for act in lad._actions:
+        if act.dest == "model":
+            act.help = "the starting model (default bias): comma list of term[:sensor[:axes]]"
+    lad.add_argument("--start", default=None,
+                     help="starting model, the same as --model (default bias)")  # fmt: skip
     runners = {"diagnose": run_diagnose, "add": run_add, "ladder": run_ladder, "terms": run_terms}
 
     def run(args: argparse.Namespace) -> int:

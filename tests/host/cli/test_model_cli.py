@@ -57,6 +57,33 @@ def test_ladder(temp_dir: tuple[Path, str], capsys: pytest.CaptureFixture[str]) 
     assert "start: bias" in out and "temperature_bias:gyro" in out and "final model" in out
 
 
+def test_ladder_model_is_the_start_or_refused(
+    temp_dir: tuple[Path, str], capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``ladder --model M`` climbs from M (it was accepted and ignored: the ladder started from
+    bias); given beside a different ``--start`` it is refused in one line."""
+    import host.cli.model as cli_model
+    import host.workbench.ladder as ladder_module
+
+    d, _ = temp_dir
+    starts: list[str] = []
+
+    def climb(ds: object, start: str, *a: object, **k: object) -> list:
+        starts.append(start)  # the start it was given; it climbs nowhere
+        return [ladder_module.LadderStep("", start, 0, 0.0, 1, 1.0, 0.0, float("nan"))]
+
+    monkeypatch.setattr(cli_model, "ladder", climb)
+    assert main(["model", "ladder", str(d), "--model", "base,time_drift:gyro"]) == 0
+    assert "final model: base, time_drift:gyro" in capsys.readouterr().out
+    assert main(["model", "ladder", str(d)]) == 0
+    assert starts == ["base,time_drift:gyro", "bias"]
+    capsys.readouterr()
+    assert main(["model", "ladder", str(d), "--model", "base", "--start", "bias"]) == 2
+    err = capsys.readouterr().err
+    assert "--model base and --start bias" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+
+
 @pytest.mark.slow
 def test_term_file_and_plot(temp_dir: tuple[Path, str], tmp_path: Path,
                             capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
