@@ -151,6 +151,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--record and --labels: give one (the whole file as one record, or "
                         "the labels file's rows)")  # fmt: skip
     stream, segments = _read_stream(args)
+    for note in (*stream.notes, *segmentation.gap_notes(stream)):
+        print(f"warning: {note}", file=sys.stderr)
     thresholds = None
     notes: list[str] = []
     if args.record:

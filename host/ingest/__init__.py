@@ -8,6 +8,8 @@ Data in: a logger's columns, an imucal session, a capture. Out: record files wit
   the attitude of a rest.
 - ``reading`` — the session read as a person would: visits to faces, whole turns, the plan's
   choice of statics, the warm-up apart, each choice with its reason.
+- ``gaps`` — where a stream is not read across: gaps in its time, values out of any sensor's
+  range.
 - ``segmentation`` — unit checks, the found segments, and the records built from them.
 - ``labels`` — the printed table and the labels file that corrects the cut.
 """

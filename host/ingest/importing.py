@@ -24,12 +24,13 @@ import json
 import math
 import os
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from host.errors import UserError
+from host.ingest.gaps import out_of_range, out_of_range_text
 
 #: standard gravity, m/s²: the "g" of a logger that writes accelerations in g
 STANDARD_G = 9.80665
@@ -56,7 +57,9 @@ class Stream:
 
     ``t_s`` (N,) true sample times in s (from the file's clock; non-decreasing), ``accel``
     (N,3) m/s², ``gyro`` (N,3) °/s, ``temp`` (N,) °C (``NO_TEMPERATURE_C`` when not recorded,
-    see ``meta['temperature']``), ``meta`` how it was read (source, column map, units, axes).
+    see ``meta['temperature']``), ``meta`` how it was read (source, column map, units, axes),
+    ``lines`` (N,) the file's line number of each sample (None: not from a text file) and
+    ``notes`` what was left out of the file, one line each (rows out of range).
     """
 
     t_s: np.ndarray
@@ -64,6 +67,8 @@ class Stream:
     gyro: np.ndarray
     temp: np.ndarray
     meta: dict[str, str] = field(default_factory=dict)
+    lines: np.ndarray | None = None
+    notes: tuple[str, ...] = ()
 
     def __len__(self) -> int:
         return int(self.t_s.shape[0])
@@ -292,7 +297,26 @@ def parse_column_text(
     else:
         temp = np.full(len(lines), NO_TEMPERATURE_C)
         meta["temperature"] = f"not recorded (column filled with {NO_TEMPERATURE_C:g})"
-    return Stream(t_s=t_s, accel=accel, gyro=gyro, temp=temp, meta=meta)
+    stream = Stream(t_s, accel, gyro, temp, meta, np.asarray(linenos, dtype=np.int64))
+    return _without_out_of_range(stream, source)
+
+
+def _without_out_of_range(stream: Stream, source: str) -> Stream:
+    """The stream without its rows out of any IMU's range (:mod:`host.ingest.gaps`), each
+    named in ``notes``; ForeignFileError when no row is left."""
+    bad = out_of_range(stream.accel, stream.gyro)
+    if not np.any(bad):
+        return stream
+    assert stream.lines is not None
+    note = out_of_range_text(source, stream.lines, stream.accel, stream.gyro, bad)
+    if np.all(bad) or np.count_nonzero(~bad) < 2:
+        raise ForeignFileError(f"{note.split(': out of')[0]}: out of any IMU's range in every "
+                               "row; check the --units and --columns")  # fmt: skip
+    keep = ~bad
+    meta = dict(stream.meta)
+    meta["rows_left_out"] = f"{int(np.count_nonzero(bad))} (out of range)"
+    return Stream(stream.t_s[keep], stream.accel[keep], stream.gyro[keep], stream.temp[keep],
+                  meta, stream.lines[keep], (*stream.notes, note))  # fmt: skip
 
 
 def _fast_rows(lines: list[str], delim: str | None, n_col: int) -> np.ndarray | None:
@@ -417,7 +441,7 @@ def parse_imucal_stream(text: str, source: str, rate_hz: float | None) -> Stream
     meta = dict(stream.meta)
     meta["importer"] = "imucal session"
     meta.pop("header", None)
-    return Stream(stream.t_s, stream.accel, stream.gyro, stream.temp, meta)
+    return replace(stream, meta=meta)
 
 
 def parse_imucal_session(
@@ -436,7 +460,8 @@ def parse_imucal_session(
     if not isinstance(raw, dict):
         raise ForeignFileError(f"{sections_source}: expected an object of sections like x_p")
     out: list[tuple[str, int, int]] = []
-    n = len(stream)
+    row = np.rint(stream.t_s * float(rate_hz or 1.0)).astype(np.int64)  # the file's sample n
+    n = int(row[-1]) + 1
     for key, span in raw.items():
         label = IMUCAL_SECTIONS.get(str(key))
         if label is None:
@@ -455,8 +480,9 @@ def parse_imucal_session(
                 f"{sections_source}: section {key} spans samples {start}..{stop}, but "
                 f"{Path(source).name} has {n} samples"
             )
-        out.append((label, start, stop))
-    return Stream(stream.t_s, stream.accel, stream.gyro, stream.temp, meta), out
+        # rows left out (out of range) shift the samples after them
+        out.append((label, int(np.searchsorted(row, start)), int(np.searchsorted(row, stop))))
+    return replace(stream, meta=meta), out
 
 
 # ---- the project's captures -----------------------------------------------------------------

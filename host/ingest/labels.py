@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from host.ingest.gaps import gap_between, gap_starts
 from host.ingest.importing import Stream
 from host.ingest.reading import Segment
 from host.ingest.stillness import SegmentationError, attitude, axis_text
@@ -233,6 +234,13 @@ def _turn_from_label(
     stream: Stream, start: int, stop: int, label: str, axis: str, d: str, where: str
 ) -> Segment:
     t, acc, gyr = stream.t_s, stream.accel, stream.gyro
+    gaps = gap_starts(t)
+    if gap_between(gaps, start, stop - 1):
+        g = int(gaps[np.searchsorted(gaps, start, side="right")])
+        raise SegmentationError(
+            f"{where}: {label} spans a gap in the time column ({t[g - 1]:.3f} s to {t[g]:.3f} s, "
+            "no samples): a turn is never integrated across one; correct the times"
+        )
     k = "xyz".index(axis)
     sign_up = 1.0 if acc[start:stop, k].mean() >= 0 else -1.0
     up = np.zeros(3)

@@ -14,11 +14,13 @@ the records are found in it, in the words of method.md §3-§5.
    one turn (four 90° steps are one turn), and a pause shorter than ``TURN_MERGE_REST_S`` at a
    whole turn with the motion going on the same way is part of a longer turn; rests within
    ``SAME_STOP_DEG`` and ``SAME_STOP_ACCEL`` of each other around a turn's start or end (a slow
-   hand leaves and reaches its rest in pieces) are one opening or closing rest. A turn record is
-   cut as the method's beeps would: from ``TURN_LEAD_S`` before the motion (inside the opening
-   rest) for the fixed window of method.md §4 (7/12/15 s), at least ``TURN_PAD_S`` past the
-   motion, never beyond its closing rest (never the next attitude's rest). Rests inside a turn
-   belong to it.
+   hand leaves and reaches its rest in pieces) are one opening or closing rest. A turn record
+   starts at the end of the rest before its motion and ends at the start of the rest after it,
+   with one sample interval of each (its last two samples, the first two of the closing rest:
+   the detector's last quiet sample may already move); of a stop in pieces, the last piece
+   before and the first piece after that lasts ``TURN_REST_MIN_S`` (a re-seat's settling
+   before the turn is not part of it). Rests
+   inside a turn belong to it. No visit spans a gap in time (:mod:`host.ingest.gaps`).
 4. **The plan** picks the statics: visits without turns, with a rest of at least
    ``MIN_STATIC_S``, are matched to the plan's faces (x_up, x_dn, y_up, y_dn, z_up, z_dn) in
    order, keeping as many as the order allows (when two visits could serve a face, the later
@@ -36,8 +38,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from host.ingest.gaps import gap_between, gap_starts
 from host.ingest.stillness import Rest, Thresholds, attitude, axis_text, rests
-from host.session.records import STATIC_NAMES, WARMUP_NAME, turn_window_s
+from host.session.records import STATIC_NAMES, WARMUP_NAME
 from host.session.spacing import cumulative_trapezoid
 
 FACE_LEAVE_DEG = 45.0  #: gravity this far off a face's axis means the cube left the face
@@ -47,8 +50,7 @@ TURN_MERGE_REST_S = 1.5  #: a shorter pause at a whole turn, motion going on the
 SAME_STOP_DEG = 5.0  #: rests this close in heading are one stop of the hand (a slow start or end)
 SAME_STOP_ACCEL = 0.2  #: … and this close in specific force, m/s² (≈ 1°: not the next attitude)
 BACKSTEP_DEG = 20.0  #: a turn may step back this far between its rests (a hand correcting)
-TURN_LEAD_S = 1.0  #: a turn record starts this long before the motion (in its opening rest), s
-TURN_PAD_S = 0.5  #: … and lasts the method's window (7/12/15 s) or this long past the motion, s
+TURN_REST_MIN_S = 0.1  #: a turn starts and ends at a rest at least this long (shorter: motion), s
 MIN_STATIC_S = 1.0  #: a rest shorter than this is not a static record, s
 WARMUP_RISE_C = 0.2  #: a rise of the temperature this large before the plan: the warm-up, °C
 ABORTED_MIN_DEG = 30.0  #: a rotation about up this large that is no whole turn is named, °
@@ -117,6 +119,7 @@ def _visits(
     smooth = (c[hi] - c[lo]) / (hi - lo)[:, None]
     norm = np.maximum(np.linalg.norm(smooth, axis=1), 1e-9)
     cos_leave = math.cos(math.radians(FACE_LEAVE_DEG))
+    gaps = gap_starts(t)
     visits: list[_Visit] = []
     tilted: list[Rest] = []
     for r in found:
@@ -125,7 +128,11 @@ def _visits(
             tilted.append(r)
             continue
         v = visits[-1] if visits else None
-        if v is not None and v.face == label:
+        if (
+            v is not None
+            and v.face == label
+            and not gap_between(gaps, v.rests[-1].stop - 1, r.start)
+        ):
             between = slice(v.rests[-1].stop, r.start)
             stays = smooth[between] @ v.up / norm[between]
             if stays.size == 0 or float(stays.min()) > cos_leave:
@@ -167,6 +174,7 @@ def _find_turns(v: _Visit, t: np.ndarray) -> None:
         if begin is None:
             j += 1
             continue
+        opening = begin
         while begin > first and _same_stop(v, begin - 1, begin, start_yaw, end_yaw):
             begin -= 1  # a slow start breaks the opening rest into pieces: its first piece
         end = j
@@ -184,14 +192,34 @@ def _find_turns(v: _Visit, t: np.ndarray) -> None:
             if more is None:
                 break
             end, n = more
+        closing = end
         while end < k - 1 and _same_stop(v, end, end + 1, start_yaw, end_yaw):
             end += 1  # … and a slow end its closing rest: up to its last piece
         if begin > first:
             _aborted(v, first, begin, start_yaw, end_yaw)
-        v.turns.append((begin, end, end_yaw[end] - start_yaw[begin]))
+        a, b = _opening(v, t, begin, opening), _closing(v, t, closing, end)
+        v.turns.append((a, b, end_yaw[b] - start_yaw[a]))
         first = end
         j = end + 1
     _aborted(v, first, k - 1, start_yaw, end_yaw)
+
+
+def _lasts(v: _Visit, t: np.ndarray, m: int) -> bool:
+    r = v.rests[m]
+    return float(t[r.stop - 1] - t[r.start]) >= TURN_REST_MIN_S
+
+
+def _opening(v: _Visit, t: np.ndarray, first: int, last: int) -> int:
+    """The rest a turn starts from, of the pieces ``first`` … ``last`` of its opening stop:
+    the last that lasts ``TURN_REST_MIN_S`` (the motion starts at its last sample), else the
+    first piece (a slow hand's start is all motion)."""
+    return next((m for m in range(last, first - 1, -1) if _lasts(v, t, m)), first)
+
+
+def _closing(v: _Visit, t: np.ndarray, first: int, last: int) -> int:
+    """The rest a turn ends at, of the pieces ``first`` … ``last`` of its closing stop: the
+    first that lasts ``TURN_REST_MIN_S``, else the last piece."""
+    return next((m for m in range(first, last + 1) if _lasts(v, t, m)), last)
 
 
 def _same_stop(v: _Visit, a: int, b: int, start_yaw: list[float], end_yaw: list[float]) -> bool:
@@ -357,10 +385,8 @@ def _turn_segments(v: _Visit, t: np.ndarray, used: set[str]) -> list[Segment]:
     for a, b, angle in v.turns:
         ra, rb = v.rests[a], v.rests[b]
         n = round(abs(angle) / 360.0)
-        m0, m1 = float(t[ra.stop - 1]), float(t[rb.start])
-        start = max(ra.start, int(np.searchsorted(t, m0 - TURN_LEAD_S, "left")))
-        end_s = max(float(t[start]) + turn_window_s(n), m1 + TURN_PAD_S)
-        stop = min(rb.stop, int(np.searchsorted(t, end_s, "left")))
+        # the motion and one sample interval of each rest around it (a rest of one sample: it)
+        start, stop = max(ra.start, ra.stop - 2), min(rb.stop, rb.start + 2)
         direction = 1 if angle > 0 else -1
         base = f"{'xyz'[int(np.argmax(np.abs(v.up)))]}_{'ccw' if direction > 0 else 'cw'}"
         label, k = base, 1

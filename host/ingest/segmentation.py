@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from host.ingest.gaps import gap_between, gap_starts
 from host.ingest.importing import Stream
 from host.ingest.reading import Segment, read_session
 from host.ingest.stillness import SegmentationError, Thresholds, axis_text
@@ -23,6 +24,8 @@ from host.session.spacing import timing_quality, trapezoid
 
 MIN_SPACING_S = 20e-6  #: a median sample spacing outside these bounds means a wrong time unit
 MAX_SPACING_S = 2.0
+#: rests this close in gravity's direction, °, are one attitude (a whole turn's start and end)
+SAME_ATTITUDE_DEG = 3.0
 
 
 def segment_stream(stream: Stream) -> tuple[list[Segment], Thresholds, list[str]]:
@@ -41,7 +44,39 @@ def segment_stream(stream: Stream) -> tuple[list[Segment], Thresholds, list[str]
         )
     norms = [float(np.linalg.norm(stream.accel[s.start : s.stop].mean(axis=0))) for s in rests]
     _check_gravity(stream, norms)
+    segs = sorted(segs + gap_segments(stream), key=lambda s: (s.start, s.stop))
     return segs, thr, notes
+
+
+def _where(stream: Stream, i: int) -> str:
+    """'line 12' of the file (or 'sample 11' of a stream not from a text file)."""
+    if stream.lines is not None:
+        return f"line {int(stream.lines[i])}"
+    return f"sample {i}"
+
+
+def gap_segments(stream: Stream) -> list[Segment]:
+    """One table row per gap in the stream's time (:mod:`host.ingest.gaps`), label ``-``."""
+    t = stream.t_s
+    out = []
+    for g in gap_starts(t).tolist():
+        dt = float(t[g] - t[g - 1])
+        where = f"no samples from {_where(stream, g - 1)} to {_where(stream, g)}"
+        why = "a gap in the time column: nothing is integrated across it"
+        found = f"gap of {dt:.4g} s"
+        out.append(Segment(g - 1, g + 1, float(t[g - 1]), float(t[g]), found, "-", where,
+                           reason=why))  # fmt: skip
+    return out
+
+
+def gap_notes(stream: Stream) -> list[str]:
+    """One line per gap in the stream's time, for the screen: where, how long, what it means."""
+    src = stream.meta.get("source", "the file")
+    return [
+        f"{src}: {s.found} in the time column ({s.t0_s:.3f} s to {s.t1_s:.3f} s, {s.quality}): "
+        "no rest, turn or move spans it"
+        for s in gap_segments(stream)
+    ]
 
 
 def _check_gravity(stream: Stream, norms: list[float]) -> None:
@@ -94,11 +129,12 @@ def gyro_unit_hint(stream: Stream, segments: list[Segment]) -> str | None:
         return None
     still = [s for s in segments if s.found.startswith("still")]
     t, gyr = stream.t_s, stream.gyro
+    gaps = gap_starts(t)
     for a, b in zip(still, still[1:], strict=False):
-        if a.found != b.found:
-            continue
-        bias = gyr[a.start : a.stop].mean(axis=0)
         lo, hi = a.stop - 1, b.start + 1
+        if not _same_attitude(stream, a, b) or gap_between(gaps, lo, hi - 1):
+            continue  # a whole turn comes back to the attitude it left, with no gap between
+        bias = gyr[a.start : a.stop].mean(axis=0)
         angle = abs(float(trapezoid(t[lo:hi], gyr[lo:hi] - bias) @ np.asarray(a.up)))
         k = round(angle / (2 * math.pi))
         if k >= 1 and abs(angle - 2 * math.pi * k) < 0.15 * 2 * math.pi:
@@ -108,6 +144,17 @@ def gyro_unit_hint(stream: Stream, segments: list[Segment]) -> str | None:
                 "was found: is the gyro in rad/s? add --units gyro=rad/s"
             )
     return None
+
+
+def _same_attitude(stream: Stream, a: Segment, b: Segment) -> bool:
+    """Two rests on one face whose gravity is within ``SAME_ATTITUDE_DEG`` (whole turns about
+    up, in whatever unit, come back to the attitude they left; a tilted rest is on no face)."""
+    if a.found != b.found or not a.found.startswith("still") or "tilted" in a.found:
+        return False
+    ga = stream.accel[a.start : a.stop].mean(axis=0)
+    gb = stream.accel[b.start : b.stop].mean(axis=0)
+    cos = float(ga @ gb) / max(float(np.linalg.norm(ga) * np.linalg.norm(gb)), 1e-12)
+    return cos >= math.cos(math.radians(SAME_ATTITUDE_DEG))
 
 
 def _up_text(up: tuple[float, float, float]) -> str:

@@ -16,7 +16,8 @@
    ``JOIN_STEP`` while the gyro turns slower than ``JOIN_RATE_DPS``) the samples on either side
    are one-sample rests: a record that ends while the cube still settles ends there. A rest's
    end samples whose accelerometer is ``ACCEL_DEV_SIGMAS`` noise floors off the samples just
-   inside them are not part of it (the cube starts to tilt before the gyro shows it).
+   inside them are not part of it (the cube starts to tilt before the gyro shows it). No rest
+   spans a gap in time (:mod:`host.ingest.gaps`): the pieces either side are two rests.
 4. **Attitude** of a rest from gravity: the axis nearest the mean specific force (up = +g on
    that axis, method.md §3), with the angle off it as its quality.
 """
@@ -29,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from host.errors import UserError
+from host.ingest.gaps import gap_starts
 
 STILL_WINDOW_S = 0.5  #: moving window of the noise-floor detector, s (at least 5 samples)
 NOISE_QUANTILE = 0.10  #: the quietest tenth of windows gives each channel's noise floor
@@ -206,7 +208,19 @@ def rests(
         if join not in starts:
             out.append(Rest(join, join + 1))
     out.sort(key=lambda r: r.start)
-    return out, thr, bias_t
+    return _split_at_gaps(out, gap_starts(t_s)), thr, bias_t
+
+
+def _split_at_gaps(found: list[Rest], gaps: np.ndarray) -> list[Rest]:
+    """The rests with none spanning a gap in time (:mod:`host.ingest.gaps`): each piece apart."""
+    if gaps.size == 0:
+        return found
+    out: list[Rest] = []
+    for r in found:
+        cuts = [int(g) for g in gaps.tolist() if r.start < g < r.stop]
+        edges = [r.start, *cuts, r.stop]
+        out.extend(Rest(a, b) for a, b in zip(edges, edges[1:], strict=False))
+    return out
 
 
 def _settled(r: Rest, acc: np.ndarray, thr: Thresholds) -> Rest:

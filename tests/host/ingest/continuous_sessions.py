@@ -5,8 +5,9 @@ order, is re-oriented between faces by a rotation about a horizontal axis, and i
 the vertical by hand; the sensor is the linear model of method.md §2 with white noise and
 quantisation to the MPU-6000's LSB (±2 g, ±250 °/s). Operators differ in how they work: fast,
 slow or stepped turns, long or short rests, a warm-up first, a face placed twice, a turn begun
-and turned back. Each session carries its truth: the constants and where each record really is
-(the labelled windows), for the segmentation tests and ``benchmarks/segmentation.py``.
+and turned back, the cube pressed into place before its turns. Each session carries its truth:
+the constants and where each record really is (the labelled windows), for the segmentation
+tests and ``benchmarks/segmentation.py``.
 """
 
 from __future__ import annotations
@@ -21,8 +22,8 @@ G = 9.78030 * (1 + 0.005302 * math.sin(math.radians(55.75)) ** 2
                - 0.000007 * math.sin(math.radians(111.5)) ** 2) - 0.000003086 * 150  # fmt: skip
 ACCEL_LSB = 4 * 9.81 / 2**16  #: m/s² per count at ±2 g (method.md §1)
 GYRO_LSB = 500 / 2**16  #: °/s per count at ±250 °/s
-TURN_WINDOW_S = {1: 7.0, 2: 12.0, 3: 15.0}  #: method.md §4: the recording window of n turns, s
 FACES = ("x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn")
+LABEL_PAD_S = 0.5  #: a labelled turn holds this much of the rests before and after its motion, s
 
 
 @dataclass(frozen=True)
@@ -41,6 +42,7 @@ class Operator:
     warmup_s: float = 0.0
     replaced_face: str | None = None  #: this face is placed, lifted and placed again
     aborted_turn: bool = False  #: the first turn is begun, turned back, then made
+    reseat: bool = False  #: before the turns on a face, the cube is pressed down: it rocks 1.5°
     rate_hz: float = 50.0
     jitter: float = 0.0  #: sample time jitter, fraction of the period
 
@@ -56,15 +58,15 @@ OPERATORS = (
     Operator("aborted turn", aborted_turn=True),
     Operator("stepped, warm-up", turns=1, steps=4, warmup_s=120.0, turn_rate=150.0),
     Operator("jittery 100 Hz", rate_hz=100.0, jitter=0.3, turns=3, turn_rate=180.0),
+    Operator("re-seated", turns=1, steps=4, turn_rate=300.0, pre_turn_s=4.0, reseat=True),
 )
 
 
 @dataclass
 class ContinuousSession:
     """The stream (t s, accel m/s², gyro °/s, temp °C), the true constants (method.md §7
-    names), the labelled windows: record name -> (t0, t1) s — a static's rest, a turn as the
-    dialogue's beeps would cut it (from 1 s before the motion for the method's window of
-    7/12/15 s, or to 0.5 s past a longer motion, within its rests) — and each turn's motion."""
+    names), the labelled windows: record name -> (t0, t1) s — a static's rest, a turn's motion
+    with ``LABEL_PAD_S`` of the rests around it — and each turn's motion."""
 
     t: np.ndarray
     accel: np.ndarray
@@ -189,6 +191,11 @@ def make_session(seed: int, op: Operator) -> ContinuousSession:
         windows[face] = b.rest(op.static_s * rng.uniform(0.9, 1.1))
     for ax in "xyz":
         b.to_face(f"{ax}_up")
+        if op.reseat:  # settles, is pressed into place, rocks about a horizontal axis
+            b.rest(0.2)
+            h = b.R @ np.roll(_body_axis(f"{ax}_up"), 1)
+            b.rotate(h, 1.5, 0.15)
+            b.rotate(h, -1.5, 0.15)
         b.rest(op.pre_turn_s)
         for k, (d, sfx) in enumerate(((1, "ccw"), (-1, "cw"))):
             if k:
@@ -202,10 +209,8 @@ def make_session(seed: int, op: Operator) -> ContinuousSession:
             b.turn(d * (360.0 * op.turns + rng.normal(0, 0.5)))
             motions[f"{ax}_{sfx}"] = (t0, b.t_now)
         b.rest(op.between_turns_s)
-    for name, (t0, t1) in motions.items():
-        after = op.between_turns_s
-        start = t0 - min(1.0, op.pre_turn_s if name.endswith("ccw") else op.between_turns_s)
-        windows[name] = (start, min(t1 + after, max(start + TURN_WINDOW_S[op.turns], t1 + 0.5)))
+    for name, (t0, t1) in motions.items():  # the labelled turn: its motion, 0.5 s of rest around
+        windows[name] = (t0 - LABEL_PAD_S, t1 + LABEL_PAD_S)
     cs = _sample(b, rng, op, truth, windows)
     cs.motions = motions
     return cs

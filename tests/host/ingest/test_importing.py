@@ -260,8 +260,11 @@ def _dialogue_records(block: object, windows: list[tuple[str, float, float]]) ->
     return out
 
 
-#: agreement of the segmented and the dialogue's records (same samples, other cut points)
-AGREE = {"A": 1e-4, "A0": 1e-3, "G": 5e-4, "G0": 5e-3, "GA": 5e-3}
+#: agreement of the segmented and the dialogue's records (same samples, other cut points: the
+#: dialogue's turns hold 1 s of the rests around them, the cut's start and end at the motion, so
+#: the accelerometer rows inside the turns differ; on this unit, with effects the base model
+#: lacks, that moves the accelerometer's constants by up to 3e-4, as far from the truth)
+AGREE = {"A": 5e-4, "A0": 2e-3, "G": 5e-4, "G0": 5e-3, "GA": 5e-3}
 
 
 def _group(name: str) -> str:
@@ -464,7 +467,8 @@ def test_a_turn_made_in_four_steps_with_pauses_is_one_turn() -> None:
     turns = [s for s in segs if s.turns]
     assert [(s.label, s.turns, s.direction) for s in turns] == [("y_cw", 1, -1)]
     assert "in 4 steps" in turns[0].quality
-    assert turns[0].t0_s < 3.0 and turns[0].t1_s > 14.5
+    # from the rest before the first step (at 3.0 s) to the rest after the last (at 14.5 s)
+    assert abs(turns[0].t0_s - 3.0) < 0.05 and abs(turns[0].t1_s - 14.5) < 0.05
 
 
 def test_the_calibration_integrates_turns_over_the_true_sample_times() -> None:

@@ -18,7 +18,7 @@ from host.ingest.segmentation import build_records, segment_stream
 from host.ingest.stillness import attitude
 from host.session.directory import Session, read_record, read_session
 from host.session.method import TOLERANCES
-from host.session.records import STATIC_NAMES, TURN_NAMES
+from host.session.records import STATIC_NAMES, TURN_NAMES, Record
 from host.wire.bulk import decode_file
 from tests.host.ingest.continuous_sessions import OPERATORS, Operator, make_session
 
@@ -26,6 +26,8 @@ REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example
 #: imucal's section order (x_p, x_a, y_p, y_a, z_p, z_a, x_rot, y_rot, z_rot) in our names
 IMUCAL_ORDER = ("x_up", "x_dn", "y_up", "y_dn", "z_up", "z_dn", "x_cw", "y_cw", "z_cw")
 IMUCAL_HZ = 102.4
+#: a turn's record starts and ends this close to its motion's (issue 41: within 0.2 s)
+TURN_CUT_S = 0.2
 
 
 def _segmented(op: Operator, seed: int) -> tuple[object, list, dict]:
@@ -37,11 +39,12 @@ def _segmented(op: Operator, seed: int) -> tuple[object, list, dict]:
 
 # ---- continuous sessions from the independent simulator ----------------------------------
 @pytest.mark.slow
-def test_continuous_sessions_of_ten_operators_give_the_true_constants() -> None:
-    """Issue 26 Done-when: on 10 sessions (one per operator: fast, slow, stepped, long and short
-    rests, warm-up first, a face placed twice, an aborted turn, …) the records are the labelled
-    ones and every constant is within a tenth of its method.md §7 tolerance of the truth in at
-    least 9. A tenth: a constant that was not measured (0, or a wrong record) is further off."""
+def test_continuous_sessions_of_eleven_operators_give_the_true_constants() -> None:
+    """Issue 26 Done-when: on 11 sessions (one per operator: fast, slow, stepped, long and short
+    rests, warm-up first, a face placed twice, an aborted turn, re-seated before the turns, …)
+    the records are the labelled ones and every constant is within a tenth of its method.md §7
+    tolerance of the truth in at least 10. A tenth: a constant that was not measured (0, or a
+    wrong record) is further off."""
     good = 0
     failures = []
     for i, op in enumerate(OPERATORS):
@@ -58,11 +61,11 @@ def test_continuous_sessions_of_ten_operators_give_the_true_constants() -> None:
             good += 1
         else:
             failures.append(f"{op.name}: {worst} off by {off[worst]:.2f} of its tolerance")
-    assert good >= 9, failures
+    assert good >= 10, failures
 
 
-@pytest.mark.parametrize("op", [OPERATORS[2], OPERATORS[5], OPERATORS[6], OPERATORS[7]],
-                         ids=lambda o: o.name)  # fmt: skip
+@pytest.mark.parametrize("op", [OPERATORS[2], OPERATORS[5], OPERATORS[6], OPERATORS[7],
+                                OPERATORS[10]], ids=lambda o: o.name)  # fmt: skip
 def test_statics_on_the_labelled_samples_and_turns_without_the_next_attitude(
     op: Operator,
 ) -> None:
@@ -70,10 +73,11 @@ def test_statics_on_the_labelled_samples_and_turns_without_the_next_attitude(
     for name, (t0, t1) in cs.windows.items():  # type: ignore[attr-defined]
         seg = next(s for s in segs if s.label == name)
         if name in TURN_NAMES:
-            # the whole motion, as the beeps would have cut it, and nothing of another face
+            # from the end of the rest before the motion to the start of the rest after it (the
+            # raised-cosine motion stays under the rest's noise for a few samples), and nothing
+            # of another face
             m0, m1 = cs.motions[name]  # type: ignore[attr-defined]
-            assert seg.t0_s <= m0 and seg.t1_s >= m1, name
-            assert abs(seg.t0_s - t0) < 0.1 and abs(seg.t1_s - t1) < 0.1, (name, seg, t0, t1)
+            assert abs(seg.t0_s - m0) < TURN_CUT_S and abs(seg.t1_s - m1) < TURN_CUT_S, (name, seg)
             rec = records[name]
             faces = {attitude(a)[0] for a in rec.accel}
             assert faces == {f"{name[0]}_up"}, (name, faces)
@@ -155,9 +159,8 @@ def test_imucal_without_its_section_list_gives_the_same_records_and_constants(
         assert sorted(session.records) == sorted(IMUCAL_ORDER), (what, printed)
         for name, (t0, t1) in spans.items():
             a, b = _span(session.records[name].meta["segment_s"])
-            if name in TURN_NAMES:  # inside its own section: no rest of another record
-                assert t0 - 0.01 <= a and b <= t1 + 0.01, (what, name, a, b, t0, t1)
-                assert b - a > 0.85 * (t1 - t0), (what, name)
+            if name in TURN_NAMES:  # its own section, from rest to rest
+                assert abs(a - t0) <= TURN_CUT_S and abs(b - t1) <= TURN_CUT_S, (what, name, a, b)
             else:
                 assert abs(a - t0) <= 1.0 and abs(b - t1) <= 1.0, (what, name, a, b, t0, t1)
         c = calibrate_from_records(session).constants()
@@ -168,6 +171,14 @@ def test_imucal_without_its_section_list_gives_the_same_records_and_constants(
 
 
 # ---- the bench's own capture ------------------------------------------------------------
+def _motion_start_s(rec: Record) -> float:
+    """Seconds into a turn record where its rate about up first leaves its first samples' (the
+    rest before the motion) by 3 °/s: the hand starts."""
+    rate = rec.gyro @ rec.up
+    moving = np.flatnonzero(np.abs(rate - np.median(rate[:20])) > 3.0)
+    return float(rec.t_ms[moving[0]] / 1000.0)
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(120)
 @pytest.mark.parametrize("warmup", ["40", "0"])
@@ -198,12 +209,19 @@ def test_sim_capture_is_cut_into_the_records_the_dialogue_wrote(
         t0 = (int(live.records[name].meta["device_t_us_start"]) - first_us) / 1e6
         a = _span(imported.records[name].meta["segment_s"])[0]
         assert abs(a - t0) < 1.0, (name, a, t0)
-    for name in TURN_NAMES:  # the device clock since power-on, as the live records have it
+    for name in TURN_NAMES:  # the device clock since power-on, as the live records have it:
+        # the imported turn starts where the live record's motion starts (after its 1 s lead)
         got_s = float(imported.records[name].meta["power_on_s"])
-        assert abs(got_s - float(live.records[name].meta["power_on_s"])) < 0.5, name
+        motion_s = float(live.records[name].meta["power_on_s"]) + _motion_start_s(
+            live.records[name]
+        )
+        assert abs(got_s - motion_s) < TURN_CUT_S, (name, got_s, motion_s)
     ref = calibrate_from_records(live)
     got_c = calibrate_from_records(imported).constants()
     for k, v in ref.constants().items():
         if math.isfinite(v) and "std" not in k:
-            assert abs(got_c[k] - v) <= 0.5 * ref.std_errors[k], (k, got_c[k], v)
+            # the live turns hold 1 s of the rests around them, whose accelerometer rows weigh in
+            # the fit (the plate's tilt, seen at the turns' rests); the imported turns do not
+            within = 0.5 if k.startswith("G") else 2.0
+            assert abs(got_c[k] - v) <= within * ref.std_errors[k], (k, got_c[k], v)
     assert np.isfinite(list(got_c.values())).any()
