@@ -8,6 +8,8 @@ Data in: a logger's columns, an imucal session, a capture. Out: record files wit
   the attitude of a rest.
 - ``reading`` — the session read as a person would: visits to faces, whole turns, the plan's
   choice of statics, the warm-up apart, each choice with its reason.
+- ``poses`` — a session that is not the method's read as poses and moves: every rest a pose,
+  the motion between two a move.
 - ``gaps`` — where a stream is not read across: gaps in its time, values out of any sensor's
   range.
 - ``segmentation`` — unit checks, the found segments, and the records built from them.

@@ -232,32 +232,8 @@ def parse_column_text(
         )
     if rate_hz is not None and (not math.isfinite(rate_hz) or rate_hz <= 0):
         raise ForeignFileError(f"--rate {rate_hz}: must be a positive number of samples per second")
-    n_col = len(columns)
-    delim: str | None = None
-    header: list[str] | None = None
-    lines: list[str] = []
-    linenos: list[int] = []
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        if not linenos and header is None:
-            delim = _choose_delimiter(line, n_col)
-            fields = _split(line, delim)
-            numbers = [_is_number(f) for f, c in zip(fields, columns, strict=False) if c != "skip"]
-            if not all(numbers):
-                header = fields
-                if len(fields) != n_col:
-                    raise ForeignFileError(
-                        f"{source}:{lineno}: the header has {len(fields)} columns (separated by "
-                        f"{_delimiter_name(delim)}) but --columns names {n_col}"
-                    )
-                continue
-        lines.append(line)
-        linenos.append(lineno)
-    if not lines:
-        raise ForeignFileError(f"{source}: no rows of numbers in this file")
-    data = _fast_rows(lines, delim, n_col)
+    lines, linenos, delim, header = _data_lines(text, source, columns)
+    data = _fast_rows(lines, delim, len(columns))
     if data is None:  # something is wrong: find the first bad line and say what
         data = np.array(
             [_row(ln, no, delim, columns, source) for ln, no in zip(lines, linenos, strict=True)],
@@ -265,17 +241,7 @@ def parse_column_text(
         )
     col = {name: k for k, name in enumerate(columns) if name != "skip"}
     if "t" in col:
-        t_s = data[:, col["t"]] * units.t
-        back = np.flatnonzero(np.diff(t_s) < 0)
-        if back.size:
-            i = int(back[0]) + 1
-            raise ForeignFileError(
-                f"{source}:{linenos[i]}: time goes backwards "
-                f"({data[i - 1, col['t']]:g} then {data[i, col['t']]:g}); sort the file by time "
-                "or name the right column t"
-            )
-        if t_s[-1] <= t_s[0] and len(t_s) > 1:
-            raise ForeignFileError(f"{source}: the time column t does not advance")
+        t_s = _times(data[:, col["t"]], units.t, linenos, source)
     else:
         assert rate_hz is not None
         t_s = np.arange(len(lines), dtype=np.float64) / rate_hz
@@ -317,6 +283,55 @@ def _without_out_of_range(stream: Stream, source: str) -> Stream:
     meta["rows_left_out"] = f"{int(np.count_nonzero(bad))} (out of range)"
     return Stream(stream.t_s[keep], stream.accel[keep], stream.gyro[keep], stream.temp[keep],
                   meta, stream.lines[keep], (*stream.notes, note))  # fmt: skip
+
+
+def _data_lines(
+    text: str, source: str, columns: tuple[str, ...]
+) -> tuple[list[str], list[int], str | None, list[str] | None]:
+    """A column file's rows of numbers, their line numbers, the separator and the header line
+    (None: none); ForeignFileError for a header of the wrong width or no rows at all."""
+    n_col = len(columns)
+    delim: str | None = None
+    header: list[str] | None = None
+    lines: list[str] = []
+    linenos: list[int] = []
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        if not linenos and header is None:
+            delim = _choose_delimiter(line, n_col)
+            fields = _split(line, delim)
+            numbers = [_is_number(f) for f, c in zip(fields, columns, strict=False) if c != "skip"]
+            if not all(numbers):
+                header = fields
+                if len(fields) != n_col:
+                    raise ForeignFileError(
+                        f"{source}:{lineno}: the header has {len(fields)} columns (separated by "
+                        f"{_delimiter_name(delim)}) but --columns names {n_col}"
+                    )
+                continue
+        lines.append(line)
+        linenos.append(lineno)
+    if not lines:
+        raise ForeignFileError(f"{source}: no rows of numbers in this file")
+    return lines, linenos, delim, header
+
+
+def _times(raw: np.ndarray, scale: float, linenos: list[int], source: str) -> np.ndarray:
+    """The time column in s; ForeignFileError naming the line where it goes backwards, or when
+    it does not advance."""
+    t_s = raw * scale
+    back = np.flatnonzero(np.diff(t_s) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise ForeignFileError(
+            f"{source}:{linenos[i]}: time goes backwards ({raw[i - 1]:g} then {raw[i]:g}); sort "
+            "the file by time or name the right column t"
+        )
+    if t_s[-1] <= t_s[0] and len(t_s) > 1:
+        raise ForeignFileError(f"{source}: the time column t does not advance")
+    return np.asarray(t_s)
 
 
 def _fast_rows(lines: list[str], delim: str | None, n_col: int) -> np.ndarray | None:

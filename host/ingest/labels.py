@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -23,7 +24,7 @@ from host.ingest.gaps import gap_between, gap_starts
 from host.ingest.importing import Stream
 from host.ingest.reading import Segment
 from host.ingest.stillness import SegmentationError, attitude, axis_text
-from host.session.records import WARMUP_NAME
+from host.session.records import MOVE_NAME_RE, POSE_NAME_RE, WARMUP_NAME
 from host.session.spacing import trapezoid
 
 LABELS_HEADER = "# imu-bench segments v2"
@@ -63,8 +64,8 @@ def format_labels(segments: list[Segment], source: str) -> str:
     """The labels file (TSV) the user edits: one row per segment, times in s of the stream."""
     out = [
         f"{LABELS_HEADER} of {source}",
-        "# Edit the label column (x_up … z_dn, x_ccw … z_cw, x_up_2 for a repeat, warmup, '-' "
-        "to leave a row out),",
+        "# Edit the label column (x_up … z_dn, x_ccw … z_cw, x_up_2 for a repeat, warmup, "
+        "pose_01, move_01_02, '-' to leave a row out),",
         "# or the start/end times; add rows for what was missed. heading_deg: where the cube's "
         "reference axis",
         "# (the first of +x, +y, +z not up) pointed, ° counter-clockwise seen from above from "
@@ -82,8 +83,11 @@ def format_labels(segments: list[Segment], source: str) -> str:
 
 
 def valid_label(label: str) -> bool:
-    """A record name the import writes: x_up … z_cw (optional _repeat suffix) or warmup."""
-    return label == WARMUP_NAME or bool(_LABEL_RE.match(label))
+    """A record name the import writes: x_up … z_cw (optional _repeat suffix), warmup, a pose
+    (pose_01) or a move (move_01_02)."""
+    return label == WARMUP_NAME or bool(
+        _LABEL_RE.match(label) or POSE_NAME_RE.match(label) or MOVE_NAME_RE.match(label)
+    )
 
 
 def read_labels(path: str | os.PathLike[str], stream: Stream) -> list[Segment]:
@@ -106,10 +110,42 @@ def read_labels(path: str | os.PathLike[str], stream: Stream) -> list[Segment]:
 
 def parse_labels(text: str, source: str, stream: Stream) -> list[Segment]:
     """The segments of a labels file's text (see :func:`read_labels`); ``source`` names it."""
-    p = source
-    t = stream.t_s
     segs: list[Segment] = []
     seen: dict[str, int] = {}
+    for lineno, f, col_heading in _rows(text, source):
+        where = f"{source}:{lineno}"
+        if len(f) < 4:
+            raise SegmentationError(f"{where}: expected row, start_s, end_s, label")
+        label = f[3].strip()
+        if label == "-":
+            continue
+        if not valid_label(label):
+            raise SegmentationError(
+                f"{where}: label {label!r} is not a record name (x_up … z_dn, x_ccw … z_cw, "
+                "x_up_2, warmup, pose_01, move_01_02, or - to leave the row out)"
+            )
+        if label in seen:
+            raise SegmentationError(
+                f"{where}: label {label} is also on line {seen[label]}; name a repeat {label}_2"
+            )
+        seen[label] = lineno
+        start, stop = _samples(f, stream, where)
+        segs.append(
+            _row_segment(stream, start, stop, label, _heading(f, col_heading, where), where)
+        )
+    if not segs:
+        raise SegmentationError(f"{source}: no labelled rows (every label is '-')")
+    segs.sort(key=lambda s: s.start)
+    # two rests (statics, poses), or two motions (turns, moves), on one sample (a turn's window
+    # reaches into the rests around it by design; the warm-up is kept apart)
+    for group in ("rest", "motion"):
+        _no_overlap([s for s in segs if _group(s.label) == group], source)
+    return segs
+
+
+def _rows(text: str, source: str) -> Iterator[tuple[int, list[str], int | None]]:
+    """The data rows of a labels file: (line number, fields, heading_deg's column or None);
+    SegmentationError on a version this program does not read."""
     col_heading: int | None = None
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
@@ -117,7 +153,7 @@ def parse_labels(text: str, source: str, stream: Stream) -> list[Segment]:
         version = line.removeprefix(LABELS_HEADER[:-2]).split(" ", 1)[0]
         if line.startswith(LABELS_HEADER[:-2]) and version not in _VERSIONS:
             raise SegmentationError(
-                f"{p}:{lineno}: labels file {version}; this program reads "
+                f"{source}:{lineno}: labels file {version}; this program reads "
                 f"{' and '.join(_VERSIONS)}: write it again with this program's import"
             )
         if line.startswith("#") and names[:4] == list(_COLUMNS[:4]):
@@ -125,78 +161,76 @@ def parse_labels(text: str, source: str, stream: Stream) -> list[Segment]:
             continue
         if not line or line.startswith("#"):
             continue
-        where = f"{p}:{lineno}"
-        f = line.split("\t") if "\t" in line else line.split()
-        if len(f) < 4:
-            raise SegmentationError(f"{where}: expected row, start_s, end_s, label")
-        try:
-            t0, t1 = float(f[1]), float(f[2])
-        except ValueError:
-            raise SegmentationError(f"{where}: start_s and end_s must be numbers") from None
-        label = f[3].strip()
-        if label == "-":
-            continue
-        if not valid_label(label):
-            raise SegmentationError(
-                f"{where}: label {label!r} is not a record name (x_up … z_dn, x_ccw … z_cw, "
-                "x_up_2, warmup, or - to leave the row out)"
-            )
-        if label in seen:
-            raise SegmentationError(
-                f"{where}: label {label} is also on line {seen[label]}; name a repeat {label}_2"
-            )
-        seen[label] = lineno
-        if not t1 > t0:
-            raise SegmentationError(f"{where}: end_s must be after start_s")
-        if t0 < t[0] - _SLACK_S or t1 > t[-1] + _SLACK_S:
-            raise SegmentationError(
-                f"{where}: {t0:g}..{t1:g} s reaches past the stream, which spans "
-                f"{t[0]:.3f}..{t[-1]:.3f} s: give times within it"
-            )
-        start = int(np.searchsorted(t, t0, side="left"))
-        stop = int(np.searchsorted(t, t1, side="right"))
-        if stop - start < 2:
-            raise SegmentationError(
-                f"{where}: {t0:g}..{t1:g} s holds fewer than 2 samples (the stream spans "
-                f"{t[0]:.3f}..{t[-1]:.3f} s)"
-            )
-        heading = _heading(f, col_heading, where)
-        if label == WARMUP_NAME:
-            up = attitude(stream.accel[start:stop].mean(axis=0))[1]
-            segs.append(
-                Segment(start, stop, float(t[start]), float(t[stop - 1]), "labelled", label,
-                        "from the labels file (kept apart from the plan)", _t3(up))
-            )  # fmt: skip
-            continue
-        m = _LABEL_RE.match(label)
-        assert m
-        axis, d = m.group("axis"), m.group("dir")
+        yield lineno, (line.split("\t") if "\t" in line else line.split()), col_heading
+
+
+def _samples(f: list[str], stream: Stream, where: str) -> tuple[int, int]:
+    """A row's start and end times as samples ``start`` … ``stop − 1`` of the stream."""
+    t = stream.t_s
+    try:
+        t0, t1 = float(f[1]), float(f[2])
+    except ValueError:
+        raise SegmentationError(f"{where}: start_s and end_s must be numbers") from None
+    if not t1 > t0:
+        raise SegmentationError(f"{where}: end_s must be after start_s")
+    if t0 < t[0] - _SLACK_S or t1 > t[-1] + _SLACK_S:
+        raise SegmentationError(
+            f"{where}: {t0:g}..{t1:g} s reaches past the stream, which spans "
+            f"{t[0]:.3f}..{t[-1]:.3f} s: give times within it"
+        )
+    start = int(np.searchsorted(t, t0, side="left"))
+    stop = int(np.searchsorted(t, t1, side="right"))
+    if stop - start < 2:
+        raise SegmentationError(
+            f"{where}: {t0:g}..{t1:g} s holds fewer than 2 samples (the stream spans "
+            f"{t[0]:.3f}..{t[-1]:.3f} s)"
+        )
+    return start, stop
+
+
+def _group(label: str) -> str | None:
+    """'rest' (a static or a pose), 'motion' (a turn or a move) or None (the warm-up)."""
+    if POSE_NAME_RE.match(label):
+        return "rest"
+    if MOVE_NAME_RE.match(label):
+        return "motion"
+    m = _LABEL_RE.match(label)
+    if m is None:
+        return None
+    return "rest" if m.group("dir") in ("up", "dn") else "motion"
+
+
+def _row_segment(
+    stream: Stream, start: int, stop: int, label: str, heading: float | None, where: str
+) -> Segment:
+    """The segment of one labelled row (samples ``start`` … ``stop − 1``)."""
+    t = stream.t_s
+    t0, t1 = float(t[start]), float(t[stop - 1])
+    if label == WARMUP_NAME or POSE_NAME_RE.match(label):
+        up = attitude(stream.accel[start:stop].mean(axis=0))[1]
+        note = "(kept apart from the plan)" if label == WARMUP_NAME else "(a pose)"
+        return Segment(start, stop, t0, t1, "labelled", label, f"from the labels file {note}",
+                       _t3(up))  # fmt: skip
+    if MOVE_NAME_RE.match(label):
+        _no_gap(stream, start, stop, label, where, "move")
+        return Segment(start, stop, t0, t1, "labelled", label, "from the labels file (a move)")
+    m = _LABEL_RE.match(label)
+    assert m
+    axis, d = m.group("axis"), m.group("dir")
+    if d in ("up", "dn"):
         up = np.zeros(3)
-        if d in ("up", "dn"):
-            up["xyz".index(axis)] = 1.0 if d == "up" else -1.0
-            found, _, off = attitude(stream.accel[start:stop].mean(axis=0))
-            if found != f"{axis}_{d}":
-                raise SegmentationError(
-                    f"{where}: {label} on {t0:g}..{t1:g} s, but there gravity is along "
-                    + (f"{found} ({off:.0f}° off)" if found != "tilted" else "no face's axis")
-                    + ": correct the label or the times"
-                )
-            segs.append(
-                Segment(start, stop, float(t[start]), float(t[stop - 1]), "labelled", label,
-                        "from the labels file", _t3(up), heading_deg=heading)
-            )  # fmt: skip
-            continue
-        seg = _turn_from_label(stream, start, stop, label, axis, d, where)
-        segs.append(replace(seg, heading_deg=heading))
-    if not segs:
-        raise SegmentationError(f"{p}: no labelled rows (every label is '-')")
-    segs.sort(key=lambda s: s.start)
-    # two statics, or two turns, on one sample (a turn's window reaches into the rests
-    # around it by design; the warm-up is kept apart)
-    for kind in (("up", "dn"), ("ccw", "cw")):
-        same = [s for s in segs if s.label != WARMUP_NAME and s.label.split("_")[1] in kind]
-        _no_overlap(same, p)
-    return segs
+        up["xyz".index(axis)] = 1.0 if d == "up" else -1.0
+        found, _, off = attitude(stream.accel[start:stop].mean(axis=0))
+        if found != f"{axis}_{d}":
+            raise SegmentationError(
+                f"{where}: {label} on {t0:g}..{t1:g} s, but there gravity is along "
+                + (f"{found} ({off:.0f}° off)" if found != "tilted" else "no face's axis")
+                + ": correct the label or the times"
+            )
+        return Segment(start, stop, t0, t1, "labelled", label, "from the labels file", _t3(up),
+                       heading_deg=heading)  # fmt: skip
+    seg = _turn_from_label(stream, start, stop, label, axis, d, where)
+    return replace(seg, heading_deg=heading)
 
 
 def _no_overlap(segs: list[Segment], source: str) -> None:
@@ -230,17 +264,23 @@ def _heading(fields: list[str], col: int | None, where: str) -> float | None:
     return 0.0 if deg >= 360.0 else deg  # −1e-300 % 360 rounds to 360.0
 
 
-def _turn_from_label(
-    stream: Stream, start: int, stop: int, label: str, axis: str, d: str, where: str
-) -> Segment:
-    t, acc, gyr = stream.t_s, stream.accel, stream.gyro
+def _no_gap(stream: Stream, start: int, stop: int, label: str, where: str, what: str) -> None:
+    """SegmentationError when samples ``start`` … ``stop − 1`` span a gap in time."""
+    t = stream.t_s
     gaps = gap_starts(t)
     if gap_between(gaps, start, stop - 1):
         g = int(gaps[np.searchsorted(gaps, start, side="right")])
         raise SegmentationError(
             f"{where}: {label} spans a gap in the time column ({t[g - 1]:.3f} s to {t[g]:.3f} s, "
-            "no samples): a turn is never integrated across one; correct the times"
+            f"no samples): a {what} is never integrated across one; correct the times"
         )
+
+
+def _turn_from_label(
+    stream: Stream, start: int, stop: int, label: str, axis: str, d: str, where: str
+) -> Segment:
+    t, acc, gyr = stream.t_s, stream.accel, stream.gyro
+    _no_gap(stream, start, stop, label, where, "turn")
     k = "xyz".index(axis)
     sign_up = 1.0 if acc[start:stop, k].mean() >= 0 else -1.0
     up = np.zeros(3)

@@ -15,11 +15,23 @@ import math
 
 import numpy as np
 
+from host.ingest import poses
 from host.ingest.gaps import gap_between, gap_starts
 from host.ingest.importing import Stream
+from host.ingest.poses import is_pose_session, read_poses
 from host.ingest.reading import Segment, read_session
 from host.ingest.stillness import SegmentationError, Thresholds, axis_text
-from host.session.records import HEADING_KEY, STATIC_NAMES, TURN_NAMES, WARMUP_NAME, Record
+from host.session.records import (
+    HEADING_KEY,
+    MOVE_FROM_KEY,
+    MOVE_NAME_RE,
+    MOVE_TO_KEY,
+    POSE_NAME_RE,
+    STATIC_NAMES,
+    TURN_NAMES,
+    WARMUP_NAME,
+    Record,
+)
 from host.session.spacing import timing_quality, trapezoid
 
 MIN_SPACING_S = 20e-6  #: a median sample spacing outside these bounds means a wrong time unit
@@ -36,6 +48,8 @@ def segment_stream(stream: Stream) -> tuple[list[Segment], Thresholds, list[str]
     segs, thr, notes = read_session(
         stream.t_s, stream.accel, stream.gyro, stream.temp, temp_recorded
     )
+    if is_pose_session(segs):  # not the method's own: every rest a pose, the moves between
+        segs, notes = read_poses(stream.t_s, stream.accel, stream.gyro), []
     rests = [s for s in segs if s.found.startswith("still")]
     if not rests:
         raise SegmentationError(
@@ -124,7 +138,10 @@ def check_time_unit(stream: Stream) -> None:
 
 def gyro_unit_hint(stream: Stream, segments: list[Segment]) -> str | None:
     """When no turn was found but the rotation between two still periods of one attitude is
-    close to a whole number of 2π, the gyro is probably in rad/s: the hint, else None."""
+    close to a whole number of 2π, the gyro is probably in rad/s: the hint, else None. Of a
+    pose session: when the moves' rotations miss the poses' gravity (:mod:`host.ingest.poses`)."""
+    if any(s.label.startswith("move_") for s in segments):
+        return poses.gyro_unit_hint(stream.t_s, stream.accel, stream.gyro, segments)
     if any(s.turns for s in segments):
         return None
     still = [s for s in segments if s.found.startswith("still")]
@@ -181,14 +198,7 @@ def build_records(
         if device_t0 is not None:  # a capture: the device clock is the power-on time
             meta["power_on_s"] = f"{float(device_t0) + float(t[0]):.3f}"
         meta["session_s"] = f"{float(t[0] - stream.t_s[0]):.3f}"
-        turn = s.turns > 0 or s.label[1:].startswith(("_ccw", "_cw"))
-        meta["kind"] = "turn" if turn else ("warmup" if s.label == WARMUP_NAME else "static")
-        meta["up"] = _up_text(s.up)
-        if s.heading_deg is not None:
-            meta[HEADING_KEY] = f"{s.heading_deg:g}"
-        if turn:
-            meta["turns"] = str(max(1, s.turns))
-            meta["direction"] = "ccw" if s.direction > 0 else "cw"
+        meta.update(_kind_meta(s))
         meta["segment_s"] = f"{s.t0_s:.3f}..{s.t1_s:.3f} of the stream"
         meta["segment_found"] = s.found
         if s.reason:
@@ -207,8 +217,33 @@ def build_records(
     return out
 
 
+def _kind_meta(s: Segment) -> dict[str, str]:
+    """What a record's header says of its kind: a pose or a move (no ``up``: the attitude is
+    fitted; a move its two poses), a turn (up, turns, direction), a static or the warm-up."""
+    if POSE_NAME_RE.match(s.label):
+        return {"kind": "pose"}
+    if MOVE_NAME_RE.match(s.label):
+        a, b = s.label.split("_")[1:]
+        return {"kind": "move", MOVE_FROM_KEY: f"pose_{a}", MOVE_TO_KEY: f"pose_{b}"}
+    turn = s.turns > 0 or s.label[1:].startswith(("_ccw", "_cw"))
+    meta = {"kind": "turn" if turn else ("warmup" if s.label == WARMUP_NAME else "static")}
+    meta["up"] = _up_text(s.up)
+    if s.heading_deg is not None:
+        meta[HEADING_KEY] = f"{s.heading_deg:g}"
+    if turn:
+        meta["turns"] = str(max(1, s.turns))
+        meta["direction"] = "ccw" if s.direction > 0 else "cw"
+    return meta
+
+
 def plan_summary(records: dict[str, Record]) -> str:
-    """Which records of the standard plan (6 statics, 6 turns) were found and which not."""
+    """Which records of the standard plan (6 statics, 6 turns) were found and which not; of a
+    pose session, how many poses and moves."""
+    n_pose = sum(1 for r in records.values() if r.kind == "pose")
+    if n_pose:
+        n_move = sum(1 for r in records.values() if r.kind == "move")
+        return (f"{n_pose} pose records, {n_move} move records (a pose session: the rests are "
+                "at attitudes no plan set)")  # fmt: skip
     have_s = [n for n in STATIC_NAMES if n in records]
     have_t = [n for n in TURN_NAMES if n in records]
     miss = [n for n in STATIC_NAMES + TURN_NAMES if n not in records]
