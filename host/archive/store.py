@@ -46,6 +46,7 @@ from host.archive.schema import (
     parameters,
     record_files,
 )
+from host.calib.codec import result_from_json
 from host.errors import UserError
 
 ARCHIVE_ENV = "IMU_BENCH_ARCHIVE"
@@ -436,6 +437,13 @@ class Archive:
         return _value_table(rows)
 
 
+#: what calibrate prints for a simulated session given no --archive
+SIMULATED_NOT_ARCHIVED = (
+    "not archived: a simulated session goes only into an archive named with --archive URL, "
+    "never into the default one"
+)
+
+
 def archive_directory(
     directory: str | os.PathLike[str],
     url: str | None = None,
@@ -447,11 +455,15 @@ def archive_directory(
     lot: str | None = None,
 ) -> str:
     """Archive the result ``calibrate`` wrote into ``directory`` (what every calibration does
-    at its end); returns the line to print. UserError when it cannot."""
+    at its end); returns the line to print. UserError when it cannot. A result of simulated
+    records goes only into an archive named by ``url`` (``--archive``): never into the
+    default one ($IMU_BENCH_ARCHIVE or the user's own file), beside the real units."""
     e = entry_from_directory(
         directory, serial=serial, records_dir=records_dir, bench=bench, operator=operator,
         lot=lot,
     )  # fmt: skip
+    if url is None and result_from_json(e.result_json).simulated:
+        return SIMULATED_NOT_ARCHIVED
     with Archive(url) as a:
         cid, added = a.add(e)
         where = a.display_url

@@ -294,3 +294,29 @@ def test_an_unreachable_server_is_one_line_without_the_password() -> None:
     assert "secret" not in str(info.value)
     # the URL as the user gave it, without the driver the program chose
     assert "archive postgresql://qc:***@127.0.0.1:1/archive" in str(info.value)
+
+
+@pytest.mark.slow  # two sessions of the README's first command on the virtual board
+def test_simulated_sessions_stay_out_of_the_default_archive(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The README's first command, run twice, leaves the user's archive and the one
+    $IMU_BENCH_ARCHIVE names as they were (issue 43); named with --archive, it goes in."""
+    from host.__main__ import main
+    from host.archive.store import archive_directory
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
+    env_db = tmp_path / "env.sqlite"
+    monkeypatch.setenv("IMU_BENCH_ARCHIVE", str(env_db))
+    first = ["calibrate", "--serial", "DEMO01", "--yes", "--warmup", "0", "--static-seconds",
+             "5", "--turns", "1"]  # fmt: skip
+    for _ in range(2):
+        assert main(first) in (0, 1)
+        err = " ".join(capsys.readouterr().err.split())
+        assert "not archived: a simulated session goes only into an archive named" in err
+    assert not env_db.exists() and not (tmp_path / "xdg" / "imu-bench" / "archive.sqlite").exists()
+    named = tmp_path / "named.sqlite"
+    assert archive_directory(tmp_path / "DEMO01", str(named)).startswith("archived as #1")
+    with Archive(str(named)) as a:
+        assert [s.serial for s in a.summaries()] == ["DEMO01"]
