@@ -244,12 +244,6 @@ def entry_from_directory(
     raw = path.read_bytes()
     result = read_result(path)
     doc = json.loads(raw)
-    from host.dialogue.options import parse_serial  # the rule of every file name (only here)
-
-    try:  # it names the report and the records beside it (was: a ValueError traceback)
-        parse_serial(result.serial)
-    except ValueError as exc:
-        raise UserError(f"{path}: not a result this program wrote (its serial: {exc})") from None
     report = path.with_name(f"{result.serial}_result.txt")
     if not report.is_file():
         raise UserError(f"{report}: no such file (the report written with {path.name})")

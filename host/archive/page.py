@@ -17,12 +17,18 @@ from host.archive import checks, stats
 from host.archive.checks import BenchRow, Chart, DriftRow, LotReport, RepeatRow, TrendPoint
 from host.archive.schema import now_utc
 from host.archive.store import Archive
+from host.session.inputs import written_serial
 
 W, H, PAD = 520, 180, 34
 
 
 def _e(s: object) -> str:
     return html.escape(str(s))
+
+
+def _u(serial: str) -> str:
+    """A unit's serial as the page shows it: by the serial rule (one line), then for HTML."""
+    return _e(written_serial(serial))
 
 
 def _g(v: float, digits: int = 4) -> str:
@@ -127,26 +133,26 @@ text-align:right}td:first-child,th:first-child{text-align:left}.bad{color:#b00;f
 def _attention(d: PageData) -> str:
     items: list[str] = []
     for serial, why in d.lot.failing:
-        items.append(f"<li><b>{_e(serial)}</b>: {_e(why)}</li>")
+        items.append(f"<li><b>{_u(serial)}</b>: {_e(why)}</li>")
     for serial, rms_z in d.lot.conditional:
-        items.append(f"<li><b>{_e(serial)}</b>: conditional PASS, the model does not fit its "
+        items.append(f"<li><b>{_u(serial)}</b>: conditional PASS, the model does not fit its "
                      f"records (RMS z {_e(_g(rms_z, 3))})</li>")  # fmt: skip
     for row in d.lot.rows:
         for serial, v in row.outliers:
-            items.append(f"<li><b>{_e(serial)}</b>: {_e(row.name)} = {_e(_g(v, 5))} is an "
+            items.append(f"<li><b>{_u(serial)}</b>: {_e(row.name)} = {_e(_g(v, 5))} is an "
                          "outlier of the lot</li>")  # fmt: skip
     for dr in d.drift:
         if dr.moved:
             since = dr.before_at[:10]
-            items.append(f"<li><b>{_e(dr.serial)}</b>: {_e(dr.name)} moved {_e(_g(dr.delta, 3))}"
+            items.append(f"<li><b>{_u(dr.serial)}</b>: {_e(dr.name)} moved {_e(_g(dr.delta, 3))}"
                          f" ({dr.z:+.1f} σ) since {_e(since)}: recalibrate</li>")  # fmt: skip
     for serial, bench in sorted({(r.serial, r.bench) for r in d.repeat if r.failed}):
         names = ", ".join(r.name for r in d.repeat if r.failed and r.serial == serial)
-        items.append(f"<li><b>{_e(serial)}</b> on {_e(bench)}: not repeatable ({_e(names)})</li>")
+        items.append(f"<li><b>{_u(serial)}</b> on {_e(bench)}: not repeatable ({_e(names)})</li>")
     for br in d.benches:
         if br.flagged:
             items.append(f"<li><b>bench {_e(br.bench)}</b>: {_e(br.name)} biased by "
-                         f"{_e(_g(br.mean - br.ref, 3))} (Eₙ = {br.en:+.2f}) on {_e(d.reference)}"
+                         f"{_e(_g(br.mean - br.ref, 3))} (Eₙ = {br.en:+.2f}) on {_u(d.reference)}"
                          "</li>")  # fmt: skip
     if not items:
         return '<p class="ok" id="attention">Nothing needs attention.</p>'
@@ -175,13 +181,15 @@ def render(d: PageData) -> str:
         svg_chart(
             f"{c.bench} · {c.name}", c.values.tolist(), centre=c.centre, sigma=c.sigma,
             marked=[bool(f) for f in c.fired],
-            labels=[f"{t[:19]} {s}" for t, s in zip(c.times, c.serials, strict=True)],
+            labels=[f"{t[:19]} {written_serial(s)}"
+                    for t, s in zip(c.times, c.serials, strict=True)],
         )
         for c in d.charts
     ]  # fmt: skip
     trends = [
         svg_chart(
-            f"{serial} · {name}", [p.value for p in pts], err=[p.stderr for p in pts],
+            f"{written_serial(serial)} · {name}", [p.value for p in pts],
+            err=[p.stderr for p in pts],
             labels=[f"{p.measured_at[:19]} {p.bench} {_g(p.value, 6)} ± {_g(p.stderr, 2)}"
                     for p in pts],
         )
@@ -204,7 +212,7 @@ def render(d: PageData) -> str:
 {_lot_table(d.lot)}
 <h2>Control charts</h2>
 <p>Individuals charts per bench{
-        (" of the reference unit " + _e(d.reference)) if d.reference else ""
+        (" of the reference unit " + _u(d.reference)) if d.reference else ""
     }; σ from the moving range of the first 20 points; red: a
 Western Electric rule fired ({signals} point(s)). In control a chart signals once per
 {stats.ARL_WESTERN_ELECTRIC:.0f} points on average.</p>

@@ -36,8 +36,9 @@ from host.calib.values import (
     within,
 )
 from host.calib.verdict import all_passed, conditional, passed
-from host.errors import ResultFileError
+from host.errors import InputError, ResultFileError
 from host.model.signals import TEMP_REF_C
+from host.session.inputs import check_serial, load_json
 from host.session.method import CONSTANT_NAMES, NOISE_NAMES, UNITS
 
 FORMAT = "imu-bench calibration result"
@@ -151,7 +152,9 @@ def result_from_json(text: str | bytes) -> CalibrationResult:
     """Parse a result file, format v3, v2 or v1; ResultFileError (a UserError) on bad JSON,
     an unknown version or a missing field."""
     try:
-        d = json.loads(text)
+        d = load_json(text, "calibration result")
+    except InputError as exc:  # too large or too deep: one line, not the parser's recursion
+        raise ResultFileError(str(exc)) from None
     except (ValueError, UnicodeDecodeError) as exc:
         raise ResultFileError(f"calibration result: not valid JSON ({exc})") from exc
     if not isinstance(d, dict) or "format_version" not in d:
@@ -164,9 +167,16 @@ def result_from_json(text: str | bytes) -> CalibrationResult:
             "'python3 -m host calibrate --from-dir'"
         )
     try:
-        return _from_v1(d) if version == 1 else _from_v2(d, version)
+        result = _from_v1(d) if version == 1 else _from_v2(d, version)
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
         raise ResultFileError(f"calibration result: missing or bad field ({exc})") from exc
+    try:  # it names the report and the records beside it: one line of every file it is in
+        check_serial(result.serial, "its serial")
+    except ValueError as exc:
+        raise ResultFileError(
+            f"calibration result: not a result this program wrote ({exc})"
+        ) from None
+    return result
 
 
 def read_result(path: str | os.PathLike[str]) -> CalibrationResult:
@@ -180,7 +190,10 @@ def read_result(path: str | os.PathLike[str]) -> CalibrationResult:
             f"{path}: not a calibration result (not UTF-8 text); give the "
             "SERIAL_result.json that calibrate wrote"
         ) from None
-    return result_from_json(text)
+    try:
+        return result_from_json(text)
+    except ResultFileError as exc:  # which file
+        raise ResultFileError(f"{path}: {exc}") from None
 
 
 def _common(d: Mapping[str, Any]) -> dict[str, Any]:

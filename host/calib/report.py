@@ -25,6 +25,7 @@ from host.calib.verdict import failed_values
 from host.calib.verdict import passed as passed_flags
 from host.session.atomic import write_texts_atomic
 from host.session.directory import SIMULATED_BOARD
+from host.session.inputs import written_serial
 from host.session.method import (
     ACCEL_BIAS_NAMES,
     GROUPS,
@@ -216,7 +217,7 @@ def _head(r: CalibrationResult, nxt: list[str]) -> list[str]:
     computed, local gravity, the verdict and, on a poor fit, the next command ``nxt``."""
     pv = r.provenance
     sensor = "MPU-6000" if pv is None else pv.sensor
-    out = [f"TEST REPORT, IMU {sensor}, serial No. {r.serial}"]
+    out = [f"TEST REPORT, IMU {sensor}, serial No. {written_serial(r.serial)}"]
     out.extend(simulated_banner(r))
     if pv is not None and pv.measured_from:
         out.extend(_wrap(f"Measured: {_measured(pv)} (the records' start times)", "", "  "))
@@ -265,7 +266,7 @@ def _object_and_equipment(r: CalibrationResult) -> list[str]:
     eq = pv.equipment
     names = (("who_am_i", "WHO_AM_I"), ("product_id", "product ID"))
     ids = ", ".join(f"{w} {eq[k]}" for k, w in names if k in eq)
-    unit = f"serial No. {r.serial}, {pv.sensor}" + (f" ({ids})" if ids else "")
+    unit = f"serial No. {written_serial(r.serial)}, {pv.sensor}" + (f" ({ids})" if ids else "")
     if pv.sensor == UNKNOWN_SENSOR:
         unit += "; the tolerances below are the MPU-6000's (method.md §7)"
     out.extend(_wrap(f"Unit: {unit}", "  ", "    "))
@@ -392,7 +393,7 @@ def _conclusion(r: CalibrationResult, nxt: list[str]) -> list[str]:
                          "does not bias them.", "  ", "    "))  # fmt: skip
         out.extend(_command(nxt, "  Next: ", "    ", "(what the model lacks)"))
     out.extend(_wrap("Repeatability (method.md §8: three calibrations, coefficient of "
-                     f"variation ≤ 1 %): python3 -m host archive repeat {r.serial}",
+                     f"variation ≤ 1 %): python3 -m host archive repeat {written_serial(r.serial)}",
                      "  ", "    ", keep=("≤ 1 %",)))  # fmt: skip
     return out
 

@@ -19,6 +19,7 @@ import numpy as np
 from host.calib.report import format_report, measured_order
 from host.calib.result import CalibrationResult
 from host.errors import UserError, write_error
+from host.session.inputs import written_serial
 
 #: A4 portrait, inches; text lines per page at the font size below
 A4 = (8.27, 11.69)
@@ -63,7 +64,7 @@ def write_report_pdf(
     out = Path(path)
     tmp = out.with_name(f".{out.name}.tmp")
     lines = format_report(result, records_dir).splitlines()
-    title = f"Test report, serial No. {result.serial}"
+    title = f"Test report, serial No. {written_serial(result.serial)}"
     if result.simulated:
         title = f"{title} ({result.simulated_line})"
     meta = {"Title": title, "Author": "imu-bench", "Subject": "IMU calibration (method.md §7)"}
@@ -99,7 +100,8 @@ def _residual_page(result: CalibrationResult) -> object:
     fig = Figure(figsize=A4)
     axs = fig.subplots(3, 1)
     fig.suptitle(
-        f"Residuals (measured − model) in the order measured, serial No. {result.serial}",
+        "Residuals (measured − model) in the order measured, serial No. "
+        + written_serial(result.serial),
         size=10,
     )
     ordered = measured_order(result)

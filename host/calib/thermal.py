@@ -29,6 +29,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from host.errors import UserError
+from host.session.inputs import check_serial, load_json
 from host.session.records import Record
 
 CHANNELS = ("ax", "ay", "az", "gx", "gy", "gz")
@@ -173,7 +174,7 @@ class ThermalCalibration:
     def load(cls, path: str | os.PathLike[str]) -> ThermalCalibration:
         """Read ``SERIAL_thermal.json``; UserError naming the file when it cannot."""
         try:
-            d = json.loads(Path(path).read_text(encoding="utf-8"))
+            d = load_json(Path(path).read_bytes())
         except (OSError, ValueError) as exc:
             raise UserError(f"{path}: cannot read a thermal result ({exc})") from None
         return cls.from_dict(d, str(path))
@@ -208,7 +209,8 @@ class ThermalCalibration:
                     tuple(float(x) for x in sc.get("selection", {}).get("bic", ())),
                 )
             lo, hi = (float(x) for x in d["valid_range_c"])
-            return cls(str(d["serial"]), float(d["t_ref_c"]), lo, hi, chans, tuple(d["attitudes"]))
+            serial = check_serial(str(d["serial"]), "its serial")
+            return cls(serial, float(d["t_ref_c"]), lo, hi, chans, tuple(d["attitudes"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise UserError(f"{source}: damaged thermal result ({exc})") from None
 

@@ -139,7 +139,7 @@ def _whole_file(stream: importing.Stream, name: str) -> list[Segment]:
 
 def run(args: argparse.Namespace) -> int:
     """Runner of ``python3 -m host import``."""
-    from host.dialogue.options import parse_serial
+    from host.session.inputs import parse_serial
 
     try:
         serial = parse_serial(args.serial)

@@ -74,13 +74,13 @@ from host.dialogue.options import (
     CLOSING_NAME,
     DialogueOptions,
     check_out_dir,
-    parse_serial,
 )
 from host.dialogue.recorder import YES_MAX_ATTEMPTS, Recorder
 from host.dialogue.sitting import SittingDirectory
 from host.errors import RecordCheckError, ResumableError, UserError, write_error
 from host.session.checks import failed_record
 from host.session.directory import DirectoryBusy, read_session, record_path, write_record
+from host.session.inputs import parse_serial
 from host.session.records import STATIC_NAMES, TURN_NAMES, WARMUP_NAME
 from host.wire import sensor
 

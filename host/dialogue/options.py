@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import re
 import shlex
 import tempfile
 from collections.abc import Callable, Sequence
@@ -26,6 +25,7 @@ from host.board.acquisition import SAMPLE_STALL_S
 from host.board.driver import STALL_S
 from host.errors import UserError
 from host.session.directory import Session, record_path
+from host.session.inputs import parse_serial
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, local_gravity
 from host.session.records import RECORD_NAME_RE, STATIC_NAMES, TURN_NAMES, name_problem
 
@@ -43,29 +43,8 @@ LOSS_LIMIT = 0.01
 DEFAULT_READY_S = 2.0
 #: the most records the adaptive plan may add (a million ran on with no end in sight)
 MAX_EXTRA = 60
-SERIAL_RE = re.compile(r"^[A-Za-z0-9_-]{1,12}$")
 
 # --------------------------------------------------------------------------- answers
-
-
-SERIAL_RULE = "1 to 12 characters: letters, digits, _ or - (it starts every file name)"
-
-
-def parse_serial(text: str) -> str:
-    """A serial number: 1–12 characters of A-Z a-z 0-9 _ - (it prefixes every file name).
-    ValueError states the rule and what in ``text`` breaks it."""
-    s = text.strip()
-    if SERIAL_RE.match(s):
-        return s
-    if not s:
-        raise ValueError(f"the serial number is mandatory: {SERIAL_RULE}")
-    bad = sorted({c for c in s if not (c.isascii() and (c.isalnum() or c in "_-"))})
-    why = []
-    if bad:
-        why.append("not allowed: " + " ".join(repr(c) for c in bad))
-    if len(s) > 12:
-        why.append(f"{len(s)} characters")
-    raise ValueError(f"serial number {s!r} ({'; '.join(why)}): use {SERIAL_RULE}")
 
 
 def parse_seconds(text: str) -> float:

@@ -10,7 +10,6 @@ whose noise floor of a record mean is :func:`record_mean_floor`.
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -35,6 +34,7 @@ from host.model.allan import (
     relative_precision,
     sensor_of,
 )
+from host.session.inputs import load_json
 from host.session.spacing import ValueCounts
 from host.wire.sensor import G0
 
@@ -434,10 +434,12 @@ def load_noise_file(path: str | os.PathLike[str]) -> dict[str, Any]:
     result to :func:`record_mean_floor`); raises UserError naming the problem."""
     p = Path(path)
     try:
-        doc = json.loads(p.read_text(encoding="utf-8"))
+        doc = load_json(p.read_bytes())
         model_from_dict(doc, str(p))
     except FileNotFoundError:
         raise UserError(f"{p}: no such noise file (write one with: noise FILE --save)") from None
+    except OSError as exc:
+        raise UserError(f"{p}: cannot read the noise file ({exc.strerror or exc})") from None
     except (ValueError, KeyError, TypeError, AttributeError) as exc:
         raise UserError(f"{p}: not a readable noise file ({exc})") from None
     return dict(doc)

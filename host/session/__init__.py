@@ -8,6 +8,7 @@ Data in: record files (``SERIAL_name.txt``). Out: :class:`~host.session.records.
 - ``records`` — the record and its text format (parse, format), record names and header keys.
 - ``directory`` — the session directory: file names, reading and writing record files.
 - ``atomic`` — publishing several files together or not at all.
+- ``inputs`` — what comes in from outside: the serial rule, JSON read within bounds.
 - ``method`` — the method's constants, sign layout, local gravity and per-record quantities.
 - ``spacing`` — sample spacing: timing quality, the timing table, integrals over true times.
 - ``checks`` — each record checked against the method (orientation, range, turn angle).

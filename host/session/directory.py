@@ -23,6 +23,7 @@ from pathlib import Path
 
 from host.errors import UserError, write_error
 from host.session.atomic import write_text_atomic
+from host.session.inputs import check_serial, written_serial
 from host.session.records import (
     NON_RECORD_NAMES,
     Record,
@@ -207,10 +208,14 @@ def read_session(directory: str | os.PathLike[str], serial: str | None = None) -
             raise RecordError(f"{d}: no record files SERIAL_name.txt (e.g. S1_x_up.txt) here")
         if len(found) > 1:
             raise RecordError(
-                f"{d}: records of several units ({', '.join(sorted(found))}); "
+                f"{d}: records of several units ({', '.join(map(written_serial, sorted(found)))}); "
                 "choose one with --serial"
             )
         serial = next(iter(found))
+    try:  # the serial starts every file name and is written in the report and exports
+        check_serial(serial, "the records' serial number")
+    except ValueError as exc:
+        raise RecordError(f"{d}: {exc}; rename the files SERIAL_name.txt") from None
     if serial not in found:
         raise RecordError(f"{d}: no records of serial {serial!r} ({serial}_x_up.txt ...)")
     records: dict[str, Record] = {}

@@ -48,6 +48,8 @@ class Case:
     feed_fifo: bool = False  # make() made DIR/fifo: a writer process feeds it DIR/fifo.src
     out_words: str = ""  # must appear in stdout
     width: bool = False  # stderr within 80 columns but for a single word (a path)
+    process: bool = False  # only a real process shows it (its own end, a closed pipe)
+    head_lines: int | None = None  # stdout closed after this many lines (as '| head -N')
 
 
 # --------------------------------------------------------------------------- inputs
@@ -314,7 +316,7 @@ def check(case: Case, rc: int, err: str, took: float, out: str = "") -> list[str
     bad = []
     if case.out_words and case.out_words not in out:
         bad.append(f"output lacks {case.out_words!r}")
-    if "Traceback" in err:
+    if "Traceback" in err or "Exception ignored" in err:
         bad.append("traceback")
     if rc not in case.codes:
         bad.append(f"exit {rc}, expected {case.codes}")
@@ -351,7 +353,10 @@ def run_process(case: Case, d: Path) -> tuple[int, str, float, str]:
                 head += p.stderr.readline()
             time.sleep(case.interrupt_after_s)
             p.send_signal(signal.SIGINT)
-        out, err = p.communicate(timeout=case.bound_s * 2)
+        if case.head_lines is not None:  # as '| head -N': read N lines, then close the pipe
+            out, err = _head(p, case.head_lines, case.bound_s * 2)
+        else:
+            out, err = p.communicate(timeout=case.bound_s * 2)
         err = head + err
     except subprocess.TimeoutExpired:
         p.kill()
@@ -362,14 +367,26 @@ def run_process(case: Case, d: Path) -> tuple[int, str, float, str]:
     return p.returncode, err, time.monotonic() - t0, out
 
 
+def _head(p: subprocess.Popen[str], lines: int, timeout: float) -> tuple[str, str]:
+    """Read ``lines`` lines of ``p``'s stdout and close it, as ``| head -N`` does; then its
+    stderr to the end."""
+    assert p.stdout is not None and p.stderr is not None
+    out = "".join(p.stdout.readline() for _ in range(lines))
+    p.stdout.close()
+    err = p.stderr.read()
+    p.wait(timeout=timeout)
+    return out, err
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", help="run only the case of this name")
     args = ap.parse_args()
     from tests.host.issue31_sweep import CASES as WAVE  # the second round's input kinds
+    from tests.host.issue44_sweep import CASES as RULES  # issue 44: one rule for every input
 
     failed = ran = 0
-    for case in (*CASES, *WAVE):
+    for case in (*CASES, *WAVE, *RULES):
         if args.only and case.name != args.only:
             continue
         ran += 1

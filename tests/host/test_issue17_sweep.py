@@ -1,4 +1,5 @@
-"""Issue 17's sweep of bad inputs, re-run on every CI run (the cases: tests/host/issue17_sweep.py;
+"""Issue 17's sweep of bad inputs, re-run on every CI run (the cases: tests/host/issue17_sweep.py,
+issue31_sweep.py and issue44_sweep.py;
 ``python3 -m tests.host.issue17_sweep`` runs them as real processes). Each gives its exit code,
 one ``error:`` line naming the problem when it is 2, never a traceback, in bounded time."""
 
@@ -15,6 +16,7 @@ import pytest
 from host.__main__ import main
 from tests.host.issue17_sweep import CASES, Case, check, run_process
 from tests.host.issue31_sweep import CASES as WAVE
+from tests.host.issue44_sweep import CASES as RULES
 
 
 def run_in_process(case: Case, d: Path) -> tuple[int, str, float, str]:
@@ -57,6 +59,18 @@ def test_bad_input_of_the_sweep(case: Case, tmp_path: Path) -> None:
 def test_bad_input_of_the_second_round(case: Case, tmp_path: Path) -> None:
     """The new input kinds (tests/host/issue31_sweep.py): each a few seconds at most."""
     _one_case(case, tmp_path)
+
+
+@pytest.mark.timeout(90)
+@pytest.mark.parametrize("case", RULES, ids=[c.name for c in RULES])
+def test_one_rule_for_every_input(case: Case, tmp_path: Path) -> None:
+    """Issue 44's cases (tests/host/issue44_sweep.py); those only a process can show (its own
+    end, a closed pipe) run as real processes."""
+    if case.process:
+        rc, err, took, out = run_process(case, tmp_path)
+        assert not check(case, rc, err, took, out), (case.why, rc, err[-800:], out[-300:])
+    else:
+        _one_case(case, tmp_path)
 
 
 def _one_case(case: Case, tmp_path: Path) -> None:

@@ -1,0 +1,93 @@
+"""The cases of issue 44: one rule for what every command accepts — a serial that is never more
+than one line of a file, a wire that names what it cannot read, inputs within bounds, nothing
+replaced silently, a term file's process ending a failure, every command reading what another
+wrote. The cases are :class:`tests.host.issue17_sweep.Case`: ``tests/host/test_issue17_sweep.py``
+runs them on every CI run and ``python3 -m tests.host.issue17_sweep`` as real processes, with
+issue 17's and 31's.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from tests.host.issue17_sweep import Case, _session
+from tests.host.issue31_sweep import _calibrated
+
+#: the serial of the issue: a C comment's end, a function, a line break, an ArduPilot parameter
+EVIL = "Q1 */ int evil(void){return 1;} /*\nARMING_CHECK 0"
+#: the record files' serial of the issue (a file name may hold any byte but '/' and NUL)
+EVIL_NAME = "Q1\nARMING_CHECK 0\n#"
+MARKUP = 'X"><svg onload=alert(1)>'
+
+
+# --------------------------------------------------------------------------- 1. the serial
+
+
+def _result_with_serial(d: Path, serial: str) -> Path:
+    """A calibrated session whose result JSON says ``serial``."""
+    s = _calibrated(d)
+    doc = json.loads((s / "Q1_result.json").read_text())
+    (s / "Q1_result.json").write_text(json.dumps({**doc, "serial": serial}))
+    return s / "Q1_result.json"
+
+
+def _renamed(d: Path, serial: str) -> Path:
+    """A session whose record files are named ``serial_name.txt`` (headers without serial)."""
+    s = _session(d)
+    for p in sorted(s.glob("Q1_*.txt")):
+        text = "".join(ln for ln in p.read_text().splitlines(True) if ln != "# serial: Q1\n")
+        (s / (serial + p.name[2:])).write_text(text)
+        p.unlink()
+    return s
+
+
+def _export_evil(d: Path, to: str) -> list[str]:
+    return ["export", str(_result_with_serial(d, EVIL)), "--to", to, "--allow-fail"]
+
+
+# --------------------------------------------------------------------------- 3. bounds
+
+
+def _deep(d: Path, name: str = "deep.json") -> Path:
+    p = d / name
+    p.write_text("[" * 100_000)
+    return p
+
+
+def _archive_add_deep(d: Path) -> list[str]:
+    s = _session(d)
+    _deep(s, "Q1_result.json")
+    (s / "Q1_result.txt").write_text("report\n")
+    return ["archive", "add", str(s), "--archive", str(d / "a.sqlite")]
+
+
+CASES: tuple[Case, ...] = (
+    # 1. one serial rule
+    Case("export-serial-line-break", "a result's serial with a line break: ARMING_CHECK 0",
+         lambda d: _export_evil(d, "ardupilot"), (2,),
+         "not a result this program wrote (its serial"),
+    Case("export-serial-c-comment", "a result's serial: a C function in the header",
+         lambda d: _export_evil(d, "c-header"), (2,), "not allowed: '\\n'"),
+    Case("from-dir-serial-line-break", "records named Q1\\nARMING_CHECK 0\\n#_x_up.txt",
+         lambda d: ["calibrate", "--from-dir", str(_renamed(d, EVIL_NAME)), "--no-archive"],
+         (2,), "the records' serial number 'Q1\\x0aARMING_CHEC...'"),
+    Case("from-dir-serial-markup", "X\"><svg onload=…> passes --from-dir",
+         lambda d: ["calibrate", "--from-dir", str(_renamed(d, MARKUP)), "--no-archive"],
+         (2,), "not allowed:"),
+    # 3. inputs bounded
+    Case("export-deep-json", "a result of [ x 100000: RecursionError in export",
+         lambda d: ["export", str(_deep(d, "Q1_result.json")), "--to", "px4"], (2,),
+         "JSON nested 100000 deep"),
+    Case("archive-add-deep-json", "a result of [ x 100000: RecursionError in archive add",
+         _archive_add_deep, (2,), "JSON nested 100000 deep"),
+    Case("export-thermal-deep-json", "a thermal file of [ x 100000: RecursionError",
+         lambda d: ["export", str(_calibrated(d)), "--to", "px4", "--allow-fail", "--thermal",
+                    str(_deep(d))], (2,), "JSON nested 100000 deep"),
+    Case("calibrate-noise-deep-json", "a noise file of [ x 100000: RecursionError",
+         lambda d: ["calibrate", "--from-dir", str(_session(d)), "--noise", str(_deep(d)),
+                    "--no-archive"], (2,), "JSON nested 100000 deep"),
+    Case("kalibr-noise-deep-json", "a noise file of [ x 100000 for Kalibr",
+         lambda d: ["export", "--to", "kalibr", "--noise", str(_deep(d))], (2,),
+         "JSON nested 100000 deep"),
+)  # fmt: skip
