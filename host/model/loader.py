@@ -20,6 +20,8 @@ import dataclasses
 import functools
 import hashlib
 import importlib.util
+import os
+import posix
 import signal
 import sys
 import threading
@@ -88,16 +90,48 @@ def _bounded(budget: _Budget, what: str) -> Iterator[None]:
         _active.clear()
 
 
+class TermFileExit(UserError):
+    """A term file's code tried to end the program (``sys.exit``, ``os._exit``)."""
+
+
+@contextlib.contextmanager
+def _no_exit(path: str, what: str) -> Iterator[None]:
+    """Run user code from ``path`` so that its ending the process, however it ends it, is a
+    failure: ``sys.exit``/``exit()``/``raise SystemExit`` and ``os._exit`` (which ends the
+    process at once, exit status and all, with no result written) raise
+    :class:`TermFileExit` naming the file instead."""
+
+    def refuse(how: str) -> TermFileExit:
+        return TermFileExit(
+            f"{path}: {what} called {how}: a term file may not end the program; nothing was "
+            "computed with it (return the term's columns instead)"
+        )
+
+    def no_exit(code: int) -> None:
+        raise refuse(f"os._exit({code})")
+
+    saved = [(m, m._exit) for m in (os, posix)]
+    for m, _ in saved:
+        setattr(m, "_exit", no_exit)  # noqa: B010 - restored below
+    try:
+        yield
+    except SystemExit as exc:
+        raise refuse(f"sys.exit({exc.code!r})") from None
+    finally:
+        for m, f in saved:
+            setattr(m, "_exit", f)  # noqa: B010
+
+
 def _guarded(
     budget: _Budget, what: str, fn: Callable[..., Any] | None
 ) -> Callable[..., Any] | None:
-    """``fn`` (a term's user function) run under :func:`_bounded`."""
+    """``fn`` (a term's user function) run under :func:`_bounded` and :func:`_no_exit`."""
     if fn is None:
         return None
 
     @functools.wraps(fn)
     def run(*args: Any, **kwargs: Any) -> Any:
-        with _bounded(budget, what):
+        with _no_exit(budget.path, what), _bounded(budget, what):
             return fn(*args, **kwargs)
 
     return run
@@ -154,9 +188,9 @@ def load_term_file(
     sys.modules[mod_name] = module
     budget = _Budget(str(p), TIME_LIMIT_S)
     try:
-        with _bounded(budget, "loading it"):
+        with _no_exit(str(p), "loading it"), _bounded(budget, "loading it"):
             exec(compile(code, str(p), "exec"), module.__dict__)  # noqa: S102 - the user named it
-    except TermFileTimeout:
+    except (TermFileTimeout, TermFileExit):
         raise
     except UserError as exc:
         raise UserError(f"{p}: {exc}") from exc

@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from tests.host.issue17_sweep import Case, _session
+from tests.host.issue17_sweep import Case, _session, _term
 from tests.host.issue31_sweep import _calibrated
 
 #: the serial of the issue: a C comment's end, a function, a line break, an ArduPilot parameter
@@ -62,6 +62,16 @@ def _archive_add_deep(d: Path) -> list[str]:
     return ["archive", "add", str(s), "--archive", str(d / "a.sqlite")]
 
 
+# --------------------------------------------------------------------------- 5. term files
+
+
+def _term_ends(d: Path, body: str, at_load: bool = False) -> list[str]:
+    f = _term(d, "bye", "import os; " + body if not at_load else "return sig.t_s")
+    if at_load:
+        f.write_text("import os\n" + body + "\n" + f.read_text())
+    return ["model", "add", str(_session(d)), "bye:gyro", "--term-file", str(f)]
+
+
 CASES: tuple[Case, ...] = (
     # 1. one serial rule
     Case("export-serial-line-break", "a result's serial with a line break: ARMING_CHECK 0",
@@ -90,4 +100,13 @@ CASES: tuple[Case, ...] = (
     Case("kalibr-noise-deep-json", "a noise file of [ x 100000 for Kalibr",
          lambda d: ["export", "--to", "kalibr", "--noise", str(_deep(d))], (2,),
          "JSON nested 100000 deep"),
+    # 5. a term file's process ending is a failure
+    Case("term-os-exit-0", "a term calling os._exit(0): exit 0, no result",
+         lambda d: _term_ends(d, "os._exit(0)"), (2,), "called os._exit(0)", process=True),
+    Case("term-file-os-exit-0", "a term file calling os._exit(0) as it loads",
+         lambda d: _term_ends(d, "os._exit(0)", at_load=True), (2,), "loading it called os._exit",
+         process=True),
+    Case("term-sys-exit-0", "a term calling sys.exit(0)",
+         lambda d: _term_ends(d, "import sys; sys.exit(0)"), (2,), "called sys.exit(0)",
+         process=True),
 )  # fmt: skip
