@@ -8,6 +8,7 @@ returns the callable that runs the command (``run(args) -> int``).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
@@ -239,10 +240,24 @@ def main(argv: list[str] | None = None) -> int:
     sys.stdout, sys.stderr = ScreenWriter(raw_out), ScreenWriter(raw_err)
     try:
         return _run(argv, raw_out)
+    except BrokenPipeError:  # the reader of stdout went away (| head): end quietly
+        return _reader_gone()
     finally:
         for stream in (sys.stdout, sys.stderr):
-            stream.flush()
+            try:
+                stream.flush()
+            except BrokenPipeError:
+                _reader_gone()
         sys.stdout, sys.stderr = raw_out, raw_err
+
+
+def _reader_gone() -> int:
+    """What is still to be written to a closed pipe goes nowhere (not a second error as
+    Python ends); the command ends quietly, as ``head`` asked: exit status 0."""
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.__stdout__.fileno() if sys.__stdout__ else 1)
+    return 0
 
 
 def _run(argv: list[str] | None, raw_out: object) -> int:
@@ -273,6 +288,8 @@ def _run(argv: list[str] | None, raw_out: object) -> int:
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # not a file of the command's: its reader stopped reading
+        raise
     except OSError as exc:  # one a command did not put in its words: its file and its cause
         where = f"{exc.filename}: " if exc.filename else ""
         what = (exc.strerror or str(exc)).lower()

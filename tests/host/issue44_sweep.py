@@ -100,6 +100,12 @@ CASES: tuple[Case, ...] = (
     Case("kalibr-noise-deep-json", "a noise file of [ x 100000 for Kalibr",
          lambda d: ["export", "--to", "kalibr", "--noise", str(_deep(d))], (2,),
          "JSON nested 100000 deep"),
+    # 6. a closed pipe ends a command quietly
+    Case("terms-into-a-closed-pipe", "model terms | head -0: 'error: broken pipe', exit 2",
+         lambda d: ["model", "terms"], (0,), process=True, head_lines=0),
+    Case("export-into-a-closed-pipe", "export RESULT | head -0: 'error: broken pipe'",
+         lambda d: ["export", str(_calibrated(d)), "--to", "px4", "--allow-fail"], (0,),
+         process=True, head_lines=0),
     # 5. a term file's process ending is a failure
     Case("term-os-exit-0", "a term calling os._exit(0): exit 0, no result",
          lambda d: _term_ends(d, "os._exit(0)"), (2,), "called os._exit(0)", process=True),
