@@ -5,29 +5,33 @@ last record) and ``python -m host calibrate --from-dir DIR`` (:mod:`host.cli.cal
 :func:`compute_and_write` checks the records, fits the model, verifies held-out records if asked
 and writes ``SERIAL_result.txt`` and ``SERIAL_result.json`` together (method.md §7);
 :func:`show_result` prints the report (or the JSON) on stdout. Each caller adds its own lines
-around them (where the files went, the verdict), in its own voice.
+around them (where the files went, the verdict), in its own voice. ``--from-dir`` takes the
+locks a live session takes (:func:`directory_locks`) and moves an earlier result of other
+records aside (:func:`set_aside_other_result`), so no result is replaced silently.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
+import os
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
 from host.calib.applying import verify_directory
 from host.calib.calibration import calibrate_from_records
-from host.calib.codec import result_to_json
-from host.calib.report import format_report, write_results
+from host.calib.codec import read_result, result_to_json
+from host.calib.report import format_report, result_paths, write_results
 from host.calib.result import CalibrationResult
 from host.calib.thermal import ThermalCalibration
 from host.errors import UserError
 from host.model.noise import NoiseModel
 from host.model.signals import SENSORS
-from host.session.directory import Session
+from host.session.directory import Session, lock_directory, set_aside
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
 
@@ -134,11 +138,13 @@ def compute_and_write(
     out_dir: Path,
     settings: ComputeSettings,
     note: Callable[[str], None] = _stderr,
+    before_write: Callable[[CalibrationResult], object] | None = None,
 ) -> Published:
     """Compute the calibration of ``session`` and write both result files into ``out_dir``
     (together or not at all, :func:`host.calib.report.write_results`). UserError for what the
     user can fix (a bad record, option or directory); nothing is written then. ``note``: where
-    remarks go (default stderr)."""
+    remarks go (default stderr). ``before_write``: called with the result once it is computed,
+    before anything is written (``--from-dir`` sets an earlier result aside there)."""
     if settings.turns is not None and settings.turns < 1:
         raise UserError("--turns must be at least 1")
     thermal, source = thermal_of(session, settings.thermal, note)
@@ -160,6 +166,8 @@ def compute_and_write(
     if not out_dir.is_dir():
         raise UserError(f"{out_dir}: no such directory{_why_not_a_directory(out_dir)}")
     records_dir = Path(session.directory) if session.directory is not None else out_dir
+    if before_write is not None:
+        before_write(result)
     txt, js = write_results(result, out_dir, records_dir)
     pdf = None
     if settings.pdf:
@@ -184,3 +192,48 @@ def show_result(pub: Published, as_json: bool, out: TextIO | None = None) -> Non
     result = pub.result
     stream.write(result_to_json(result) if as_json else format_report(result, pub.records_dir))
     stream.flush()
+
+
+# --------------------------------------------------------------------------- --from-dir
+
+
+@contextlib.contextmanager
+def directory_locks(records_dir: Path, out_dir: Path, what: str) -> Iterator[None]:
+    """The lock a live session takes (:func:`host.session.directory.lock_directory`), on
+    ``out_dir`` and on ``records_dir`` when that is another directory this user may write (a
+    live session there is still measuring): DirectoryBusy naming the other process's PID
+    when one holds either, so two computations never write one result at once."""
+    with contextlib.ExitStack() as stack:
+        out = out_dir.resolve()
+        for d in dict.fromkeys([out, records_dir.resolve()]):
+            if d.is_dir() and (d == out or os.access(d, os.W_OK)):
+                stack.enter_context(lock_directory(d, what))
+        yield
+
+
+def set_aside_other_result(
+    out_dir: Path, result: CalibrationResult, note: Callable[[str], None] = _stderr
+) -> Path | None:
+    """Before ``result`` is written into ``out_dir``: an earlier result there fitted on other
+    records (other names, or other bytes by their SHA-256; one that cannot be read or names
+    none) is moved with its report and PDF into ``out_dir/earlier/SERIAL_<UTC time>/``, bytes
+    unchanged, as a new live sitting moves an earlier one; ``note`` says where. A result of
+    the same records is computed again in its place. Returns where it went (None: nowhere)."""
+    txt, js = result_paths(out_dir, result.serial)
+    files = [p for p in (txt, js, txt.with_suffix(".pdf")) if p.is_file()]
+    if not files:
+        return None
+    try:
+        earlier = read_result(js)
+        same = earlier.records == result.records and _digests(earlier) == _digests(result)
+    except UserError:
+        same = False
+    if same and _digests(result):
+        return None
+    aside = set_aside(out_dir, result.serial, files)
+    note(f"the earlier result in {out_dir}, of other records, moved to {aside}")
+    return aside
+
+
+def _digests(result: CalibrationResult) -> dict[str, str]:
+    return {} if result.provenance is None else dict(result.provenance.record_sha256)

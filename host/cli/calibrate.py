@@ -15,7 +15,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 from host.calib.commands import command_lines, said_with_command
-from host.calib.publish import ComputeSettings, compute_and_write, show_result
+from host.calib.publish import (
+    ComputeSettings,
+    compute_and_write,
+    directory_locks,
+    set_aside_other_result,
+    show_result,
+)
 from host.calib.report import path_lines, verdict_line
 from host.calib.result import CalibrationResult
 from host.cli import out_directory
@@ -137,11 +143,17 @@ def compute_settings(args: argparse.Namespace) -> ComputeSettings:
     )
 
 
-def run_computation(session: Session, args: argparse.Namespace, out_dir: Path) -> CalibrationResult:
+def run_computation(
+    session: Session,
+    args: argparse.Namespace,
+    out_dir: Path,
+    before_write: Callable[[CalibrationResult], object] | None = None,
+) -> CalibrationResult:
     """Compute from ``session``, write both result files into ``out_dir``, print the report
-    (or the JSON with ``--json``) on stdout (:func:`host.calib.publish.compute_and_write`)."""
+    (or the JSON with ``--json``) on stdout (:func:`host.calib.publish.compute_and_write`;
+    ``before_write`` as there)."""
     with working("calibrate: checking the records and fitting the model"):
-        pub = compute_and_write(session, out_dir, compute_settings(args))
+        pub = compute_and_write(session, out_dir, compute_settings(args), before_write=before_write)
     show_result(pub, args.json)
     if not args.json:
         pdf = [] if pub.pdf_path is None else [pub.pdf_path]
@@ -214,7 +226,10 @@ def run(args: argparse.Namespace) -> int:
     sys.stderr.write(timing_report(session.records))
     out_dir = out_directory(args.out) if args.out else Path(args.from_dir)
     try:
-        result = run_computation(session, args, out_dir)
+        with directory_locks(Path(args.from_dir), out_dir, f"calibrate --from-dir {args.from_dir}"):
+            result = run_computation(
+                session, args, out_dir, lambda r: set_aside_other_result(out_dir, r)
+            )
     except RecordCheckError as exc:
         name = failed_record(exc, session.serial)
         rec = session.records.get(name) if name is not None else None

@@ -62,6 +62,32 @@ def _archive_add_deep(d: Path) -> list[str]:
     return ["archive", "add", str(s), "--archive", str(d / "a.sqlite")]
 
 
+# --------------------------------------------------------------------------- 4. replaced
+
+
+#: locks a case holds for its whole run (as a live session in the directory would)
+_HELD: list[object] = []
+
+
+def _locked(d: Path) -> Path:
+    """``d`` locked as a live session locks its directory (another open file: the command's
+    own lock meets it as another process's would)."""
+    from host.session.directory import lock_directory
+
+    d.mkdir(parents=True, exist_ok=True)
+    _HELD.append(lock_directory(d, "calibrate --serial Q1 (a live session)"))
+    return d
+
+
+def _earlier_result_of_other_records(d: Path) -> list[str]:
+    """A result in ``a/Q1`` of its records; other records of Q1 (another sitting) in ``b/Q1``,
+    computed into ``a/Q1``."""
+    out = _calibrated(d / "a")
+    other = _session(d / "b")
+    (other / "Q1_x_up.txt").write_text((other / "Q1_x_up.txt").read_text() + "\n")
+    return ["calibrate", "--from-dir", str(other), "--out", str(out), "--no-archive"]
+
+
 # --------------------------------------------------------------------------- 5. term files
 
 
@@ -100,6 +126,16 @@ CASES: tuple[Case, ...] = (
     Case("kalibr-noise-deep-json", "a noise file of [ x 100000 for Kalibr",
          lambda d: ["export", "--to", "kalibr", "--noise", str(_deep(d))], (2,),
          "JSON nested 100000 deep"),
+    # 4. nothing replaced silently
+    Case("from-dir-beside-a-live-session", "--from-dir ignores a live session's lock",
+         lambda d: ["calibrate", "--from-dir", str(_locked(_session(d))), "--no-archive"],
+         (2,), "is in use by another process"),
+    Case("from-dir-into-a-busy-out", "two --from-dir into one --out: both succeed, one wins",
+         lambda d: ["calibrate", "--from-dir", str(_session(d)), "--out",
+                    str(_locked(d / "out")), "--no-archive"], (2,),
+         "is in use by another process"),
+    Case("from-dir-over-other-records", "a result of other records replaced, no earlier/ copy",
+         _earlier_result_of_other_records, (0, 1), "of other records, moved to"),
     # 6. a closed pipe ends a command quietly
     Case("terms-into-a-closed-pipe", "model terms | head -0: 'error: broken pipe', exit 2",
          lambda d: ["model", "terms"], (0,), process=True, head_lines=0),

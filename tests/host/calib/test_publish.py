@@ -3,12 +3,14 @@ shared by the live calibration and ``calibrate --from-dir``."""
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 from pathlib import Path
 
 import pytest
 
+from host.calib.codec import read_result
 from host.calib.publish import ComputeSettings, compute_and_write, parse_floor, show_result
 from host.errors import UserError
 from host.session.directory import read_session
@@ -54,3 +56,20 @@ def test_bad_settings_write_nothing(records_dir: Path, tmp_path: Path) -> None:
     with pytest.raises(UserError, match="no such directory"):
         compute_and_write(session, tmp_path / "absent", ComputeSettings())
     assert list(tmp_path.iterdir()) == []
+
+
+def test_from_dir_keeps_an_earlier_result_of_other_records(tmp_path: Path) -> None:
+    """A result is computed again in place from the same records; one of other records is
+    moved to earlier/ with its report, bytes unchanged, never replaced."""
+    from host.calib.publish import set_aside_other_result
+    from tests.host.issue31_sweep import _calibrated
+
+    d = _calibrated(tmp_path)
+    again = read_result(d / "Q1_result.json")
+    assert set_aside_other_result(d, again, print) is None  # the same records
+    before = (d / "Q1_result.json").read_bytes()
+    other = dataclasses.replace(again, records=again.records[:-1])
+    aside = set_aside_other_result(d, other, print)
+    assert aside is not None and aside.parent.name == "earlier"
+    assert (aside / "Q1_result.json").read_bytes() == before
+    assert (aside / "Q1_result.txt").is_file() and not (d / "Q1_result.json").exists()
