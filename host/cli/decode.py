@@ -18,17 +18,20 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
+from host.errors import UserError
 from host.wire import capture, sensor
 from host.wire.bulk import (
     SAMPLE_DTYPE,
     BulkReader,
     BulkResult,
     baud_from_hello,
+    foreign_text,
     full_scale_from_hello,
     product_id_from_hello,
     samples_to_physical,
+    unreadable,
 )
-from host.wire.frames import IMU_FIELDS, Frame, status_text
+from host.wire.frames import BY_NAME, IMU_FIELDS, Frame, status_text
 
 if TYPE_CHECKING:  # (imported where a capture's arrival times need the clock map)
     from host.timing import timeline
@@ -98,8 +101,29 @@ class _Decode:
         self.capture = False
         self.writer: Any = None
         self.cols: list[str] = []
+        #: CRC-valid frames of another length than this spec's, not HELLO: named at the end
+        self.foreign: list[tuple[int, int, int]] = []
 
     def add(self, result: BulkResult, arrivals: np.ndarray | None) -> None:
+        stop = None if self.args.stats else unreadable(result)
+        if stop is not None:  # the samples before it are decoded; none after it
+            keep = result.samples["offset"] < stop[0]
+            others = [(o, f) for o, f in result.others if o < stop[0]]
+            result = BulkResult(result.samples[keep], others, result.stats)
+            arrivals = None if arrivals is None else arrivals[keep]
+        self._add(result, arrivals)
+        hello = BY_NAME["HELLO"].type  # (a HELLO's stops the decoding: named below)
+        self.foreign += [x for x in result.foreign if self.args.stats or x[1] != hello]
+        if stop is not None:
+            self._drain()
+            raise UserError(
+                f"{self.path}: byte {stop[0]}: {stop[1]}; decoding stops there (the samples "
+                "before it are written): the samples after it were not measured with scales "
+                "this program can read — decode them with the host of that firmware and sensor "
+                "(decode --stats still counts the frames)"
+            )
+
+    def _add(self, result: BulkResult, arrivals: np.ndarray | None) -> None:
         self.capture = arrivals is not None
         new = [(o, f) for o, f in result.others if f.name == "HELLO"]
         if new and not self.args.stats:
@@ -164,7 +188,8 @@ class _Decode:
             self._write(block.samples, block.host_ns, block.arrival_ns)
         self._warn()
 
-    def finish(self, reader: BulkReader) -> int:
+    def _drain(self) -> None:
+        """Write every sample held (for a HELLO, for the clock map)."""
         if self.config is None:
             self._decide()
         if self.timeline is not None:
@@ -172,6 +197,11 @@ class _Decode:
                 self._write(block.samples, block.host_ns, block.arrival_ns)
             self._warn()
         self._write(np.zeros(0, SAMPLE_DTYPE), None, None)  # the CSV header, with no samples
+
+    def finish(self, reader: BulkReader) -> int:
+        self._drain()
+        if text := foreign_text(self.path, self.foreign):
+            print(f"warning: {text}", file=sys.stderr)
         if self.bus_warning:
             print(f"warning: {self.path}: {self.bus_warning}", file=sys.stderr)
         if self.config is not None and (unknown := sensor.revision_warning(self.config[2])):

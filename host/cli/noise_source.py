@@ -32,7 +32,7 @@ class CaptureSamples:
     ``block`` samples at a time are read back (a few MiB of arrays)."""
 
     def __init__(self, path: Path, work: Path, block: int = 1 << 16) -> None:
-        from host.wire.bulk import BulkReader
+        from host.wire.bulk import BulkReader, unreadable
         from host.wire.capture import damage_text, open_stream
 
         self.block = block
@@ -43,6 +43,9 @@ class CaptureSamples:
         with open_stream(path) as f, open(self._file, "wb") as out:
             reader = BulkReader(f)
             for result, _ in reader:
+                if (stop := unreadable(result)) is not None:  # no scale to read them by
+                    why = f"{path}: byte {stop[0]}: {stop[1]}"
+                    raise UserError(f"{why}; its samples cannot be scaled as measured")
                 s = result.samples
                 hellos += [(o, fr) for o, fr in result.others if fr.name == "HELLO"]
                 if s.size == 0:

@@ -517,11 +517,15 @@ def read_capture_stream(path: str | os.PathLike[str]) -> Stream:
         full_scale_from_hello,
         product_id_from_hello,
         samples_to_physical,
+        unreadable,
     )
     from host.wire.frames import bus_meta
 
     p = Path(path)
     result, arrivals = decode_file(p)
+    if (stop := unreadable(result)) is not None:  # no scale to read its samples by
+        raise ForeignFileError(f"{p}: byte {stop[0]}: {stop[1]}; its samples cannot be scaled "
+                               "as they were measured: nothing imported")  # fmt: skip
     s = result.samples
     if s.size < 2:
         raise ForeignFileError(f"{p}: no IMU samples decoded from this capture")

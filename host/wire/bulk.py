@@ -21,6 +21,7 @@ from host.errors import UserError
 from host.wire import sensor
 from host.wire.capture import CaptureUnwrapper
 from host.wire.frames import (
+    BY_NAME,
     CRC_LEN,
     CRC_TABLE,
     HEADER_LEN,
@@ -31,9 +32,11 @@ from host.wire.frames import (
     IMU_SAMPLE,
     LENGTHS_FROM,
     MAX_PAYLOAD,
+    MESSAGES,
     SYNC,
     WIRE_IMU_FIELDS,
     Frame,
+    crc16,
     crc16_rows,
 )
 from host.wire.segments import segments
@@ -124,6 +127,9 @@ class BulkResult:
     samples: np.ndarray  # SAMPLE_DTYPE
     others: list[tuple[int, Frame]]  # (byte offset, frame) for non-IMU frames
     stats: DecoderStats = field(default_factory=DecoderStats)
+    #: CRC-valid frames of a known type but another length than this spec gives it (another
+    #: firmware's): (byte offset, type, payload length) each, never decoded (:func:`foreign`)
+    foreign: list[tuple[int, int, int]] = field(default_factory=list)
 
 
 #: the longest frame on the wire (bytes): a candidate starting this far before the end of the
@@ -175,6 +181,7 @@ class ChunkedDecoder:
         result, consumed = _decode_bulk_bytes(self._buf, self.sender, limit, self._before)
         result.samples["offset"] += self._base
         result.others = [(off + self._base, f) for off, f in result.others]
+        result.foreign = [(off + self._base, t, ln) for off, t, ln in result.foreign]
         del self._buf[:consumed]
         self._base += consumed
         for k, v in result.stats.as_dict().items():
@@ -225,8 +232,10 @@ def _decode_bulk_bytes(
     length = buf[cand + 3].astype(np.int64)
     expected = lengths[mtype]
     ok_len = (length <= MAX_PAYLOAD) & (expected != IMPOSSIBLE)
+    other_len = ok_len & (expected >= 0) & (length != expected)
     ok_len &= (expected < 0) | (length == expected)
     end = cand + HEADER_LEN + length + CRC_LEN
+    alien = _crc_valid(buf, cand[other_len & (end <= n)], n)
     ok = ok_len & (end <= n)
     cand, mtype, length, end = cand[ok], mtype[ok], length[ok], end[ok]
     crc_ok = np.zeros(cand.size, dtype=bool)
@@ -340,7 +349,31 @@ def _decode_bulk_bytes(
         (int(vs[i]), Frame(int(vtype[i]), int(seq[i]), bytes(buf[vs[i] + HEADER_LEN : ve[i] - 2])))
         for i in np.flatnonzero(vtype != IMU_SAMPLE)
     ]
-    return BulkResult(samples, others, stats), consumed
+    return BulkResult(samples, others, stats, _outside(buf, alien, vs, ve)), consumed
+
+
+def _crc_valid(buf: np.ndarray, starts: np.ndarray, n: int) -> np.ndarray:
+    """The candidates at ``starts`` whose stored CRC matches over the length they claim."""
+    good = [
+        int(p) for p in starts
+        if crc16(buf[p + 2 : (e := p + HEADER_LEN + int(buf[p + 3]) + CRC_LEN) - 2].tobytes())
+        == int(buf[e - 2]) | (int(buf[e - 1]) << 8)
+    ]  # fmt: skip
+    return np.asarray(good, dtype=np.int64)
+
+
+def _outside(
+    buf: np.ndarray, starts: np.ndarray, vs: np.ndarray, ve: np.ndarray
+) -> list[tuple[int, int, int]]:
+    """(offset, type, payload length) of the frames at ``starts`` that no frame taken
+    (``vs``..``ve``) holds: the ones the sequential scan meets."""
+    if not starts.size:
+        return []
+    if vs.size:
+        k = np.searchsorted(vs, starts, side="right") - 1
+        inside = (k >= 0) & (starts < np.where(k >= 0, ve[np.maximum(k, 0)], 0))
+        starts = starts[~inside]
+    return [(int(p), int(buf[p + 2]), int(buf[p + 3])) for p in starts]
 
 
 class BulkReader:
@@ -439,6 +472,39 @@ def full_scale_from_hello(others: list[tuple[int, Frame]]) -> tuple[int, int]:
             "this project's (decode --stats still counts the frames)"
         )
     return 0, 0
+
+
+def unreadable(result: BulkResult) -> tuple[int, str] | None:
+    """The first place in ``result`` after which samples cannot be scaled as they were
+    measured, and why: a CRC-valid HELLO of another length than this spec's (another firmware
+    version's: its full scales are not where this spec reads them) or a HELLO of another
+    sensor (WHO_AM_I not an MPU-6000's 0x68: its counts are not an MPU-6000's); None when
+    there is none. Decoding them with this spec's scales would be silently wrong (a ±16 g
+    HELLO of 24 bytes gave az = 1.226 m/s² for 9.807)."""
+    places: list[tuple[int, str]] = []
+    hello = BY_NAME["HELLO"]
+    for off, mtype, length in result.foreign:
+        if mtype == hello.type:
+            why = f"a HELLO with a {length}-byte payload, its CRC valid (this spec's HELLO has"
+            places.append((off, f"{why} {hello.length}): another firmware version's"))
+    for off, f in result.others:
+        if f.name == "HELLO" and (who := f.fields["who_am_i"]) != sensor.WHO_AM_I_MPU6000:
+            why = f"a HELLO of another sensor (WHO_AM_I {who:#04x}; an MPU-6000 reads"
+            places.append((off, f"{why} {sensor.WHO_AM_I_MPU6000:#04x})"))
+    return min(places, default=None)
+
+
+def foreign_text(path: object, foreign: list[tuple[int, int, int]]) -> str | None:
+    """The line naming CRC-valid frames of a known type but another length (other than a
+    HELLO, which :func:`unreadable` names): none of them is decoded."""
+    if not foreign:
+        return None
+    off, mtype, length = foreign[0]
+    return (
+        f"{path}: {len(foreign)} CRC-valid frame(s) of another length than this spec gives "
+        f"their type (first at byte {off}: {MESSAGES[mtype].name} with a {length}-byte "
+        f"payload, this spec's {MESSAGES[mtype].length}): another firmware's; not decoded"
+    )
 
 
 def product_id_from_hello(others: list[tuple[int, Frame]]) -> int | None:

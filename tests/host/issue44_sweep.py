@@ -46,6 +46,38 @@ def _export_evil(d: Path, to: str) -> list[str]:
     return ["export", str(_result_with_serial(d, EVIL)), "--to", to, "--allow-fail"]
 
 
+# --------------------------------------------------------------------------- 2. the wire
+
+
+def _hello(d: Path, length: int = 23, who: int = 0x68, again: int | None = None) -> list[str]:
+    """A CRC-valid HELLO of ``length`` payload bytes (the spec's: 23) announcing ±16 g, then
+    samples of 1 g (2048 counts at ±16 g); ``again``: a second HELLO of WHO_AM_I ``again`` in
+    the middle."""
+    from host.bench.firmware import hello_fields
+    from host.wire.frames import HEADER_LEN, _envelope, encode_frame
+
+    def hello(seq: int, who: int) -> bytes:
+        payload = encode_frame("HELLO", seq, **(hello_fields() | {"accel_fs_sel": 3,
+                                                                  "who_am_i": who}))  # fmt: skip
+        body = payload[HEADER_LEN:-2]
+        body = body[:length] + bytes(max(0, length - len(body)))
+        return _envelope(payload[2], seq, body)
+
+    frames = [hello(0, who)] + [_imu(k, 1000 + 20_000 * k, az=2048) for k in range(1, 6)]
+    if again is not None:
+        frames += [hello(6, again)] + [_imu(k, 1000 + 20_000 * k, az=2048) for k in range(7, 9)]
+    p = d / "hello.bin"
+    p.write_bytes(b"".join(frames))
+    return ["decode", str(p)]
+
+
+def _imu(seq: int, t_us: int, az: int) -> bytes:
+    from host.wire.frames import encode_frame
+
+    return encode_frame("IMU_SAMPLE", seq, t_us=t_us, ax=0, ay=0, az=az, temp=300, gx=0, gy=0,
+                        gz=0, flags=0)  # fmt: skip
+
+
 # --------------------------------------------------------------------------- 3. bounds
 
 
@@ -111,6 +143,13 @@ CASES: tuple[Case, ...] = (
     Case("from-dir-serial-markup", "X\"><svg onload=…> passes --from-dir",
          lambda d: ["calibrate", "--from-dir", str(_renamed(d, MARKUP)), "--no-archive"],
          (2,), "not allowed:"),
+    # 2. the wire names what it cannot read
+    Case("hello-of-24-bytes", "a CRC-valid 24-byte HELLO of ±16 g: az = 1.226 for 9.807",
+         lambda d: _hello(d, 24), (2,), "a HELLO with a 24-byte payload, its CRC valid"),
+    Case("hello-of-22-bytes", "a CRC-valid 22-byte HELLO: dropped, default scales",
+         lambda d: _hello(d, 22), (2,), "(this spec's HELLO has 23)"),
+    Case("hello-of-another-sensor", "a mid-stream HELLO of WHO_AM_I 0x12 gets no word",
+         lambda d: _hello(d, again=0x12), (2,), "a HELLO of another sensor (WHO_AM_I 0x12"),
     # 3. inputs bounded
     Case("export-deep-json", "a result of [ x 100000: RecursionError in export",
          lambda d: ["export", str(_deep(d, "Q1_result.json")), "--to", "px4"], (2,),
