@@ -227,9 +227,9 @@ def run(args: argparse.Namespace) -> int:
     out_dir = out_directory(args.out) if args.out else Path(args.from_dir)
     try:
         with directory_locks(Path(args.from_dir), out_dir, f"calibrate --from-dir {args.from_dir}"):
-            result = run_computation(
-                session, args, out_dir, lambda r: set_aside_other_result(out_dir, r)
-            )
+            result = run_computation(session, args, out_dir, lambda r: set_aside_other_result(
+                out_dir, r, lambda text: print(wrap(text), file=sys.stderr)
+            ))  # fmt: skip
     except RecordCheckError as exc:
         name = failed_record(exc, session.serial)
         rec = session.records.get(name) if name is not None else None

@@ -201,7 +201,8 @@ def test_a_really_full_disk_between_the_two_files(
     st = os.statvfs(tiny_disk)
     page = st.f_frsize
     room_for_txt = -(-len(before[0]) // page) * page  # the new report is as long as the old
-    (tiny_disk / "filler").write_bytes(b"\0" * (st.f_bavail * page - room_for_txt))
+    room_for_lock = page  # --from-dir holds the directory's lock file while it writes
+    (tiny_disk / "filler").write_bytes(b"\0" * (st.f_bavail * page - room_for_txt - room_for_lock))
     assert os.statvfs(tiny_disk).f_bavail * page < len(before[1])  # the JSON cannot fit
 
     rc, _, err = calibrate(records_dir, out, 60.0, capsys)
