@@ -370,6 +370,50 @@ def _numbers(fields: list[str]) -> list[float] | None:
     return vals
 
 
+def _header_line(meta: dict[str, str], key: str, value: str, where: str) -> None:
+    """Keep header ``key: value`` in ``meta``; RecordError when an earlier line gave ``key``
+    another value (two ``# serial:`` lines: which one is the unit's?)."""
+    if key in meta and meta[key] != value:
+        raise RecordError(
+            f"{where}: a second '{key}:' header line ({value!r}) contradicts the first "
+            f"({meta[key]!r}); keep the one that is true"
+        )
+    meta[key] = value
+
+
+#: the sample spacing a record's times may have on average, ms: the MPU-6000 samples at most
+#: at 8 kHz; one sample a minute is no recording of a sensor either
+SPACING_RANGE_MS = (0.1, 60_000.0)
+
+
+def _check_times(t_ms: np.ndarray, meta: dict[str, str], source: str) -> None:
+    """RecordError for time stamps no record has: all equal, or spaced on average outside
+    :data:`SPACING_RANGE_MS` (times in seconds, or in µs, where the format has ms), and for a
+    session-time header (:data:`TIME_KEYS`) that is not a finite number of seconds."""
+    for key in TIME_KEYS:
+        try:
+            v = float(meta.get(key, "0"))
+        except ValueError:
+            continue
+        if not math.isfinite(v):
+            raise RecordError(f"{source}: header '{key}: {meta[key]}' is not a finite number "
+                              "of seconds; correct the line or remove it")  # fmt: skip
+    if t_ms.size < 2:
+        return
+    mean = (t_ms[-1] - t_ms[0]) / (t_ms.size - 1)
+    if mean == 0:
+        raise RecordError(f"{source}: every time stamp is {t_ms[0]:g} ms: the times do not "
+                          "run; the first column is the time since the start in ms")  # fmt: skip
+    lo, hi = SPACING_RANGE_MS
+    if not lo <= mean <= hi:
+        unit = "seconds" if mean < lo else "µs or another unit"
+        raise RecordError(
+            f"{source}: the time stamps are {mean:.3g} ms apart on average (a sensor samples "
+            f"every {lo:g} to {hi:g} ms): they look like {unit}; the first column is the time "
+            "since the start in ms (import --units t=s converts)"
+        )
+
+
 def parse_record_text(text: str, source: str, name: str | None = None) -> Record:
     """Parse the text of a record file; ``source`` names it in messages (e.g. the path).
 
@@ -399,7 +443,7 @@ def parse_record_text(text: str, source: str, name: str | None = None) -> Record
                 continue
             mm = _META_RE.match(body)
             if mm and state == "data" and not rows:
-                meta[mm.group("key").strip()] = mm.group("value").strip()
+                _header_line(meta, mm.group("key").strip(), mm.group("value").strip(), where)
             continue
         if _UNDERSCORES_RE.match(line):
             if state != "data":
@@ -450,6 +494,7 @@ def parse_record_text(text: str, source: str, name: str | None = None) -> Record
     if not rows:
         raise RecordError(f"{source}: no data rows; re-measure this record")
     data = np.array(rows, dtype=np.float64)
+    _check_times(data[:, 0], meta, source)
     mean = data[:, 1:].mean(axis=0)
     bad = np.abs(mean - np.array(summary[0])) > np.array(_MEAN_TOL)
     if np.any(bad):

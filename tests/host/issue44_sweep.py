@@ -9,6 +9,8 @@ issue 17's and 31's.
 from __future__ import annotations
 
 import json
+import re
+from collections.abc import Callable
 from pathlib import Path
 
 from tests.host.issue17_sweep import Case, _session, _term
@@ -130,6 +132,25 @@ def _term_ends(d: Path, body: str, at_load: bool = False) -> list[str]:
     return ["model", "add", str(_session(d)), "bye:gyro", "--term-file", str(f)]
 
 
+def _edited(d: Path, edit: Callable[[str], str]) -> list[str]:
+    """A session whose y_up record's text is ``edit``-ed."""
+    s = _session(d)
+    p = s / "Q1_y_up.txt"
+    p.write_text(edit(p.read_text()))
+    return ["calibrate", "--from-dir", str(s), "--no-archive"]
+
+
+def _times(text: str, f: Callable[[float], str]) -> str:
+    """``text`` with each data row's time ``f``-ed."""
+    out = []
+    for ln in text.splitlines():
+        if ln[:1].isdigit() and "\t" in ln:
+            t, rest = ln.split("\t", 1)
+            ln = f(float(t)) + "\t" + rest
+        out.append(ln)
+    return "\n".join(out) + "\n"
+
+
 CASES: tuple[Case, ...] = (
     # 1. one serial rule
     Case("export-serial-line-break", "a result's serial with a line break: ARMING_CHECK 0",
@@ -165,6 +186,18 @@ CASES: tuple[Case, ...] = (
     Case("kalibr-noise-deep-json", "a noise file of [ x 100000 for Kalibr",
          lambda d: ["export", "--to", "kalibr", "--noise", str(_deep(d))], (2,),
          "JSON nested 100000 deep"),
+    Case("record-times-all-equal", "a record whose time stamps are all equal: accepted",
+         lambda d: _edited(d, lambda t: _times(t, lambda v: "100.0")), (2,),
+         "every time stamp is 100 ms"),
+    Case("record-times-in-seconds", "a record's times in seconds, not ms: accepted",
+         lambda d: _edited(d, lambda t: _times(t, lambda v: f"{v / 1000:.4f}")), (2,),
+         "they look like seconds"),
+    Case("record-two-serials", "two different '# serial:' headers in one record: accepted",
+         lambda d: _edited(d, lambda t: "# serial: Q2\n" + t), (2,),
+         "a second 'serial:' header line ('Q1') contradicts the first ('Q2')"),
+    Case("record-power-on-inf", "# power_on_s: inf: a numpy warning, then a term blamed",
+         lambda d: _edited(d, lambda t: re.sub(r"# power_on_s: .*", "# power_on_s: inf", t)),
+         (2,), "header 'power_on_s: inf' is not a finite number"),
     # 4. nothing replaced silently
     Case("from-dir-beside-a-live-session", "--from-dir ignores a live session's lock",
          lambda d: ["calibrate", "--from-dir", str(_locked(_session(d))), "--no-archive"],
