@@ -80,6 +80,8 @@ class Case:
     #: catalogue terms that, significant on the effect's channel, count as naming it (a step
     #: or a drift "named as a step or drift": time_drift)
     names: tuple[str, ...] = ()
+    #: catalogue terms that must never be recommended on this case (a wrong geometry)
+    wrong: tuple[str, ...] = ()
 
 
 def _on_axis(term: str) -> Callable[[Truth], str]:
@@ -119,6 +121,17 @@ CASES: dict[str, Case] = {
              term=lambda t: "plate_tilt:accel", plate=True),
         Case("plate_tilt_unrec", {"effect": "plate_tilt", "headings": "random"}, "catalogue",
              term=lambda t: "plate_tilt:accel", plate=True),
+        # the method's bench (issue 40): each turn in one motion, resting only at its ends
+        Case("plate_tilt_motion", {"effect": "plate_tilt", "headings": "random",
+                                   "turn_motion": "continuous"}, "catalogue",
+             term=lambda t: "plate_tilt:accel", plate=True, wrong=("lever_arm", "face_error")),
+        Case("lever_arm_motion", {"effect": "lever_arm_mm", "headings": "random",
+                                  "turn_motion": "continuous"}, "catalogue",
+             term=lambda t: "lever_arm:accel", wrong=("plate_tilt", "face_error")),
+        Case("tilt_lever_motion", {"effect": "plate_tilt_lever_arm", "headings": "random",
+                                   "turn_motion": "continuous"}, "catalogue",
+             term=lambda t: "plate_tilt:accel,lever_arm:accel", plate=True,
+             wrong=("face_error",)),
         Case("turn_axis_tilt", {"effect": "turn_axis_tilt"}, "catalogue", calibrate=True,
              signal=lambda s, t: False),
         Case("face_lean", {"effect": "face_lean"}, "catalogue", term=lambda t: "face_error:accel"),
@@ -337,6 +350,10 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                 bool(r["recommended"]) and len(_non_base(r["recommended"])) == 1 for r in ok
             )
             sm["rec_any"] = sum(bool(r["recommended"]) for r in ok)
+            if case.wrong:
+                sm["rec_wrong"] = sum(
+                    any(_recommends(r["recommended"], w) for w in case.wrong) for r in ok
+                )
             sm["rec_most"] = _most(
                 [_generic(r["recommended"], r["effect"]) for r in ok if r["recommended"]]
             )
@@ -476,6 +493,13 @@ def tables(summary: dict[str, Any], pull_min_n: int = 1) -> str:
                 f"{_f(s['tilt_ratio_p10']) + '–' + _f(s['tilt_ratio_p90']):>14}"
                 f"{s['tilt_in10']:>7}{s['tilt_in2s']:>7}"
             )
+    wrong = [k for k in summary if summary[k].get("rec_wrong") is not None]
+    if wrong:
+        lines.append("")
+        lines.append("== a wrong geometry recommended (a term the case does not hold)")
+        for k in wrong:
+            lines.append(f"{k:<17}{summary[k]['rec_wrong']:>3} of {summary[k]['n']}: "
+                         f"{', '.join(CASES[k].wrong)}")  # fmt: skip
     lines.append("")
     lines.append("== pulls (fitted − truth)/σ: want sd 0.7–1.4 over ≥ 50 sessions; n = sessions,")
     lines.append("   k = coefficients pooled (a term's channels), sd range = smallest–largest sd")

@@ -31,10 +31,10 @@ def truth_of(name: str, t: Truth) -> float | None:
         return float(c[name])
     e = effect_of(t)
     parts = name.split(".")
-    if parts[0] == "plate_tilt" and e["name"] == "plate_tilt":
+    if parts[0] == "plate_tilt" and "up_east_rad" in e:
         # a turn's heading correction: its truth is the circle's error, not written down
         return None if parts[-1] == "heading" else plate_truth(parts, t)
-    if parts[0] == "lever_arm" and e["name"] == "lever_arm":
+    if parts[0] == "lever_arm" and "r_m" in e:
         return float(e["r_m"]["xyz".index(parts[1])])
     if parts[0] == "face_error" and e["name"] == "face_lean" and len(parts) == 4:
         # the pair's mean lean as the accelerometer reads it: [C_A·θ̄]_i / C_A,ii (its

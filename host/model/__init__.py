@@ -7,8 +7,11 @@ figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imp
 
 - ``geometry`` — placement: the cube's pose from its up vector, the plate's axes at a heading, the
   operator's words for a placement.
-- ``plate`` — the plate's tilt from the circle the turns' rests draw; headings records lack; the
-  axis each turn was made about (a tilted seat named and corrected).
+- ``plate`` — the plate's tilt from the circle the turns' rests (or their motion) draw; headings
+  records lack.
+- ``turn_motion`` — the tilt as each turn sees it from every sample of its motion, jointly with
+  the lever arm, the seating and the hand as variance components (turns without inner rests).
+- ``turn_axis`` — the axis each turn was made about (a tilted seat named and corrected).
 - ``remeasured`` — a face measured twice: the accelerometer's bias change between the two, and
   whether the turns' leans are that change rather than tilted turn axes.
 - ``signals`` — a record's reference signals (force, rate, temperature, time, heading); units.

@@ -211,7 +211,7 @@ def face_error(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     sensor in the cube), so with this term both are stated in the frame of the faces' mean
     normals. A turn made with the cube seated off its face (a lean the static of that face
     does not have) is measured from its rests instead
-    (:func:`host.model.plate.resolve_turn_axes`)."""
+    (:func:`host.model.turn_axis.resolve_turn_axes`)."""
     face = _face(sig)
     cols = np.zeros((len(sig.t_s), 2))
     seen = 1.0 if sig.accel_matrix is None else float(sig.accel_matrix[axis, axis])
@@ -361,7 +361,7 @@ def _lever_arm_all(sig: RecordSignals, sensor: str) -> list[np.ndarray]:
     lever-arm matrix of the turn."""
     if sig.kind != "turn":
         return [np.zeros((len(sig.t_s), 3)) for _ in range(3)]
-    m = turning.sensed_lever_matrix(sig.t_s, sig.rate, sig.accel_matrix)
+    m = turning.sensed_lever_matrix(sig.t_s, sig.rate, sig.lever_matrix)
     return [m[:, axis, :] for axis in range(3)]
 
 

@@ -17,9 +17,7 @@ from host.model.noise import NoiseModel, session_floor
 from host.model.plate import (
     plate_from_rests,
     resolve_placements,
-    resolve_turn_axes,
     tilt_matrices,
-    turn_axes,
     turn_circles,
     with_headings,
 )
@@ -41,6 +39,7 @@ from host.model.rows import (
     turn_tilt_columns,
 )
 from host.model.signals import RecordSignals
+from host.model.turn_axis import resolve_turn_axes, turn_axes
 from host.model.turning import sensed_lever_matrix
 from host.model.variance import Component, TurnClosure, turn_angle_sigma, turn_wobble_sigma
 from host.model.whitening import Group, GroupsBySize, Whitener, groups_by_size, whiten_rows
@@ -339,10 +338,10 @@ class RecordWork:
     def lever(self, rec: Record, sig: RecordSignals) -> np.ndarray:
         """:func:`host.model.turning.sensed_lever_matrix` of turn record ``rec`` (its signals
         ``sig``), read once per clock, reference rate and accelerometer matrix."""
-        matrix = None if sig.accel_matrix is None else np.asarray(sig.accel_matrix).tobytes()
+        matrix = None if sig.lever_matrix is None else np.asarray(sig.lever_matrix).tobytes()
         key = (rec, sig.t_s.tobytes(), sig.rate.tobytes(), matrix)
         if key not in self.levers:
-            lever = sensed_lever_matrix(sig.t_s, sig.rate, sig.accel_matrix)
+            lever = sensed_lever_matrix(sig.t_s, sig.rate, sig.lever_matrix)
             lever.flags.writeable = False  # several datasets may read it
             self.levers[key] = lever
         return self.levers[key]

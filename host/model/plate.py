@@ -16,10 +16,11 @@ whose heading is recorded, and — where a record has no heading — the heading
 circle up with the others, as an estimate with its σ (never a convention). With no heading
 recorded at all, the azimuth is given relative to the first turn's reference axis.
 
-:func:`resolve_turn_axes`: the axis each turn was made about, from its circle's centre against
-the static of the same face; a turn made with the cube seated off its face (a few degrees) is
-named, and its reference rate taken along the measured axis so that the gyro cross-axis values
-it would fake are corrected.
+Where the rests draw no circle (a turn made in one motion, resting only at its ends), the
+tilt as each turn sees it is read from its motion instead (:func:`motion_circles`,
+:mod:`host.model.turn_motion`), and where they do, the motion's reading is printed beside the
+rests' (they should agree). The axis each turn was made about, from its circle's centre, is
+:mod:`host.model.turn_axis`'s.
 
 Units: rad for tilts, m/s² for specific force, degrees for headings (counter-clockwise seen
 from above, from the fence to the reference axis).
@@ -28,7 +29,7 @@ from above, from the fence to the reference axis).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -37,6 +38,7 @@ from host.model.geometry import plate_axes
 from host.model.noise import still_runs
 from host.model.signals import RecordSignals
 from host.model.stats import chi2_sf
+from host.model.turn_motion import motion_tilts
 
 #: a rest for the circle: the rate about up below this, °/s (or 4σ of the gyro's noise), kept
 #: after :data:`REST_TRIM_S` s cut at each end — a hand pausing between quarter turns
@@ -64,6 +66,13 @@ class TurnCircle:
     #: up): the body-fixed part, gravity along the turn axis; ``centre_var`` (2,) its variance
     centre: np.ndarray = field(default_factory=lambda: np.zeros(2))
     centre_var: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    #: what it was read from: "rests" (the still moments inside the turn) or "motion"
+    #: (every sample: :func:`host.model.turn_motion.motion_tilts`, ``n_blocks`` moving blocks
+    #: beside the ``n_rests`` rests)
+    source: str = "rests"
+    n_blocks: int = 0
+    #: the same record's tilt read from its motion, beside one read from its rests (None)
+    motion: TurnCircle | None = None
 
     @property
     def size(self) -> float:
@@ -147,15 +156,21 @@ class PlateTilt:
         mrad, sd = 1e3 * self.size, 1e3 * self.size_sd
         out = [
             f"plate tilt {mrad:.2f} ± {sd:.2f} mrad ({math.degrees(self.size):.3f}°), leaning "
-            f"toward {self.azimuth_deg:.0f}° from {self.frame}, read from the rests of "
-            f"{len(self.circles)} turns: the horizontal accelerometers draw a circle of radius "
+            f"toward {self.azimuth_deg:.0f}° from {self.frame}, read from {self._source()}: "
+            f"the horizontal accelerometers draw a circle of radius "
             f"g·tilt = {g * self.size:.4f} m/s² about the turn axis"
         ]
         for c in self.circles:
+            read = (
+                f"from {c.n_rests} rests"
+                if c.source == "rests"
+                else f"from its motion ({c.n_blocks} moving blocks, {c.n_rests} rests)"
+            )
             out.append(
                 f"  {c.record}: circle radius {g * c.size:.4f} ± {g * c.size_sd:.4f} m/s² "
-                f"({1e3 * c.size:.2f} mrad) from {c.n_rests} rests, residual rms {c.rms:.4f} m/s²"
+                f"({1e3 * c.size:.2f} mrad) {read}, residual rms {c.rms:.4f} m/s²"
             )
+        out.extend(self._motion_lines())
         for name, (deg, dsd) in self.headings.items():
             out.append(
                 f"  {name}: no placement_heading_deg in its header; its circle puts it at "
@@ -172,6 +187,35 @@ class PlateTilt:
                 "below 1 mrad) or record placement_heading_deg when a tolerance is that tight"
             )
         return out
+
+    def _source(self) -> str:
+        """What the tilt was read from, in words."""
+        rests = sum(c.source == "rests" for c in self.circles)
+        moved = len(self.circles) - rests
+        if not moved:
+            return f"the rests of {rests} turns"
+        if not rests:
+            return f"the motion of {moved} turns (every sample, with the lever arm)"
+        return f"the rests of {rests} turns and the motion of {moved}"
+
+    def _motion_lines(self) -> list[str]:
+        """The tilt read again from the motion of the turns whose rests gave it (every sample,
+        with the lever arm and the hand), and whether the two agree."""
+        moved = [c.motion for c in self.circles if c.motion is not None]
+        if not moved or any(c.source != "rests" for c in self.circles):
+            return []
+        other = plate_from_rests(moved)
+        if other is None:
+            return []
+        diff = other.size - self.size
+        z = diff / math.hypot(other.size_sd, self.size_sd)
+        word = "agree" if abs(z) < 3.0 else "DISAGREE"
+        return [
+            f"  from the motion of the same {len(moved)} turns (every sample: the rests and "
+            f"the moving blocks, jointly with the lever arm): {1e3 * other.size:.2f} ± "
+            f"{1e3 * other.size_sd:.2f} mrad; the rests and the motion {word} "
+            f"({1e3 * diff:+.2f} mrad, {z:+.1f}σ)"
+        ]
 
 
 def plate_from_rests(circles: Sequence[TurnCircle]) -> PlateTilt | None:
@@ -216,11 +260,15 @@ def session_plate(signals: Sequence[RecordSignals]) -> PlateTilt | None:
 def turn_circles(signals: Sequence[RecordSignals]) -> list[TurnCircle]:
     """Each turn record's circle (:func:`turn_circle`) from its rests (the reference rate about
     up within 4σ of the static records' gyro noise, at least :data:`REST_RATE_DPS`: a hand's
-    short pauses between quarter turns count); none without static records."""
+    short pauses between quarter turns count), carrying the tilt its motion shows
+    (:attr:`TurnCircle.motion`); where the rests draw none (a turn in one motion, resting only
+    at its ends), the tilt from its motion alone (:func:`motion_circles`). None without
+    static records."""
     statics = [s for s in signals if s.kind == "static"]
     if not statics:
         return []
     gyro_sd = np.median([s.gyro.std(axis=0) for s in statics], axis=0)
+    motion = {c.record: c for c in motion_circles(signals, gyro_sd)}
     circles = []
     for s in signals:
         if s.kind != "turn":
@@ -230,8 +278,38 @@ def turn_circles(signals: Sequence[RecordSignals]) -> list[TurnCircle]:
         runs = still_runs(s.rate @ s.up, s.t_s - s.t_s[0], sd, trim_s=REST_TRIM_S, min_s=0.1)
         c = turn_circle(s, runs)
         if c is not None:
-            circles.append(c)
+            circles.append(replace(c, motion=motion.get(s.name)))
+        elif s.name in motion:
+            circles.append(motion[s.name])
     return circles
+
+
+def motion_circles(signals: Sequence[RecordSignals], gyro_sd: np.ndarray) -> list[TurnCircle]:
+    """Each turn record's tilt read from every sample of its motion, jointly with one lever
+    arm and the hand's scatter (:func:`host.model.turn_motion.motion_tilts`), as the circle
+    it draws in the turn's own angle; ``gyro_sd`` (3,) °/s the static records' gyro noise."""
+    statics = [s for s in signals if s.kind == "static"]
+    accel_var = np.median([s.accel.var(axis=0) for s in statics], axis=0)
+    fit = motion_tilts(signals, gyro_sd, accel_var)
+    if fit is None:
+        return []
+    placed = {s.name: s.placement_deg for s in signals}
+    return [
+        TurnCircle(
+            m.record,
+            m.tilt,
+            m.cov,
+            m.rms,
+            m.n_rests,
+            placed[m.record],
+            m.centre,
+            m.centre_var,
+            "motion",
+            m.n_blocks,
+        )  # fmt: skip
+        for m in fit.tilts
+        if np.all(np.isfinite(m.cov))
+    ]
 
 
 def with_headings(
@@ -273,7 +351,101 @@ def resolve_placements(
     if plate.p_level >= LEVEL_P:
         return out, []
     unknown = [s.name for s in signals if s.kind == "static" and s.placement_deg is None]
-    return out, ["; ".join(line.strip() for line in plate.lines(g, unknown))]
+    seats = statics_against_turns(signals, plate)
+    lines = [*plate.lines(g, unknown), *([seats] if seats else [])]
+    return out, ["; ".join(line.strip() for line in lines)]
+
+
+def statics_against_turns(signals: Sequence[RecordSignals], plate: PlateTilt) -> str | None:
+    """One geometry for statics and turns: the tilt the turns show predicts each static
+    record's lean. A static on a face a turn was made on, read against that turn's circle
+    centre (the body-fixed part of the face: bias, misalignment and the face's lean cancel),
+    sees the plate's tilt at its own heading, of the tilt's size whatever the heading; where
+    its heading is not recorded the size alone is the prediction. -> the sentence saying
+    whether they agree (χ² of the sizes against the tilt's, p ≥ :data:`LEVEL_P`) and, where
+    not, that the fixture's seating is what is left; None without such a static."""
+    seen = []
+    for k in range(3):
+        on = [c for c in plate.circles if _up_axis(signals, c.record) == k]
+        if not on:
+            continue
+        hor = [i for i in range(3) if i != k]
+        centre = np.mean([c.centre for c in on], axis=0)
+        centre_var = np.mean([c.centre_var for c in on], axis=0) / len(on)
+        turn = next(s for s in signals if s.name == on[0].record)
+        for st in signals:
+            if st.kind != "static" or float(st.up @ turn.up) < 1.0 - 1e-6:
+                continue
+            scale = 1.0 if st.accel_matrix is None else np.diag(st.accel_matrix)[hor]
+            lean = (st.accel[:, hor].mean(axis=0) - centre) / (st.g * scale)
+            var = (centre_var + st.accel[:, hor].var(axis=0) / len(st.t_s)) / (st.g * scale) ** 2
+            size = float(np.hypot(*lean))
+            u = lean / max(size, 1e-12)
+            seen.append((st.name, size, math.sqrt(float(u @ (var * u)))))
+    if not seen:
+        return None
+    z = [(size - plate.size) / math.hypot(sd, plate.size_sd) for _, size, sd in seen]
+    chi2 = float(np.sum(np.square(z)))
+    p = chi2_sf(chi2, float(len(z)))
+    sizes = ", ".join(f"{n} {1e3 * v:.2f} ± {1e3 * sd:.2f}" for n, v, sd in seen)
+    head = (
+        f"one geometry: the statics on the faces turned on, read against their turn's circle "
+        f"centre, lean {sizes} mrad where the turns' tilt predicts {1e3 * plate.size:.2f} ± "
+        f"{1e3 * plate.size_sd:.2f} at any heading: they "
+    )
+    if p >= LEVEL_P:
+        return head + f"agree (χ² = {chi2:.1f} on {len(z)}, p = {p:.2g})"
+    worst = max(abs(v - plate.size) for _, v, _ in seen)
+    return head + (
+        f"do not (χ² = {chi2:.1f} on {len(z)}, p = {p:.2g}): the statics were not seated as "
+        f"the cube sat while it turned — what is left is the fixture's seating (a re-seating "
+        f"or a face's lean of up to {1e3 * worst:.1f} mrad), which these records cannot tell "
+        "apart"
+    )
+
+
+def seen_tilts_line(names: Sequence[str], values: Sequence[float], cov: np.ndarray) -> str | None:
+    """After a fit with ``plate_tilt``: each static record's own view of the tilt (its
+    ``seen_ref``/``seen_side``, where its heading is not recorded) against the session's tilt
+    (``plate_tilt.east``/``.north``): one geometry predicts the same size on every record.
+    ``names``, ``values`` and ``cov`` the fit's parameters and their covariance (a size's σ
+    is along its direction: the two angles are correlated where the headings are unknown).
+    -> the sentence (None without both)."""
+    at = {n: i for i, n in enumerate(names)}
+
+    def size_of(a: str, b: str) -> tuple[float, float]:
+        i = [at[a], at[b]]
+        v = np.asarray(values)[i]
+        size = float(np.hypot(*v))
+        u = v / max(size, 1e-12)
+        return size, math.sqrt(max(float(u @ np.asarray(cov)[np.ix_(i, i)] @ u), 0.0))
+
+    if "plate_tilt.east" not in at or "plate_tilt.north" not in at:
+        return None
+    size, size_sd = size_of("plate_tilt.east", "plate_tilt.north")
+    seen = [
+        (n.split(".")[1], *size_of(n, n.replace(".seen_ref", ".seen_side")))
+        for n in sorted(at)
+        if n.startswith("plate_tilt.") and n.endswith(".seen_ref")
+    ]
+    if not seen:
+        return None
+    z = [(v - size) / math.hypot(sd, size_sd) for _, v, sd in seen]
+    chi2 = float(np.sum(np.square(z)))
+    p = chi2_sf(chi2, float(len(z)))
+    word = "agree" if p >= LEVEL_P else "do NOT agree: what is left is the fixture's seating"
+    lo, hi = min(v for _, v, _ in seen), max(v for _, v, _ in seen)
+    return (
+        f"one geometry: the {len(seen)} statics' own views of the tilt are {1e3 * lo:.2f}–"
+        f"{1e3 * hi:.2f} mrad in size against the session's {1e3 * size:.2f} ± "
+        f"{1e3 * size_sd:.2f} mrad; they {word} (χ² = {chi2:.1f} on {len(z)}, p = {p:.2g})"
+    )
+
+
+def _up_axis(signals: Sequence[RecordSignals], record: str) -> int:
+    """The body axis record ``record`` rests on (the largest component of its up)."""
+    s = next(x for x in signals if x.name == record)
+    return int(np.argmax(np.abs(s.up)))
 
 
 def tilt_matrices(signals: Sequence[RecordSignals], plate: PlateTilt | None) -> list[RecordSignals]:
@@ -335,159 +507,6 @@ def _matrix_from_centres(signals: Sequence[RecordSignals], plate: PlateTilt) -> 
         m = np.mean(v, axis=0)
         c[[i for i in range(3) if i != k], k] = m[[i for i in range(3) if i != k]]
     return c
-
-
-# ---- the turn axis: where gravity sits in the body while the cube turns ---------------------
-#: a turn whose axis sits further than this from the static seat on the same face is named
-#: tilted (and beyond what the plate's tilt and the noise allow), rad: 5 mrad (0.3°), above a
-#: hand re-seating a cube on a clean plate
-SEAT_TOL_RAD = 0.005
-
-
-@dataclass(frozen=True)
-class TurnAxis:
-    """Where one turn record's axis sits in the body against the static record(s) of the same
-    face: ``lean`` (3,) rad, the axis's unit vector minus the nominal up (zero along up);
-    ``sd`` rad its noise σ per component; ``bound`` rad how far the plate's tilt at the
-    statics' unknown heading can move it (0 when their heading is recorded)."""
-
-    record: str
-    up: np.ndarray
-    statics: tuple[str, ...]
-    lean: np.ndarray
-    sd: float
-    bound: float
-
-    @property
-    def size(self) -> float:
-        """|lean|, rad."""
-        return float(np.linalg.norm(self.lean))
-
-    @property
-    def tilted(self) -> bool:
-        """The turn was made about an axis off the static seat beyond what the plate allows
-        (:attr:`bound`) plus a re-seating (:data:`SEAT_TOL_RAD`) or the noise (3σ), whichever
-        is larger."""
-        return self.size > self.bound + max(SEAT_TOL_RAD, 3.0 * self.sd)
-
-    @property
-    def axis(self) -> np.ndarray:
-        """(3,) the turn axis in the body, a unit vector (the nominal up leaned): the lean is
-        what the horizontal accelerometers read of g, so its components are the unit axis's own
-        (sines), and along up it keeps √(1 − |lean|²). Normalising up + lean instead takes them
-        for tangents: the axis falls short across by |lean|²/2 of itself (0.15 mrad at 5°,
-        the gyro cross-axis pulls' sd 1.7 there) and long along up by |lean|⁴/2 (its scale)."""
-        along = math.sqrt(max(1.0 - float(self.lean @ self.lean), 0.0))
-        return np.asarray(self.lean + along * self.up)
-
-    def line(self) -> str:
-        """The reader's sentence: the tilt, the gyro cross-axis it would fake, the correction."""
-        k = int(np.argmax(np.abs(self.up)))
-        up = ("+" if self.up[k] > 0 else "-") + "xyz"[k]
-        fake = ", ".join(
-            f"gyro {'xyz'[i]} {self.lean[i] * 360.0:+.2f}°/turn ({self.lean[i]:+.4f} of the rate)"
-            for i in range(3) if i != k
-        )  # fmt: skip
-        out = (
-            f"{self.record}: turned about an axis {1e3 * self.size:.1f} mrad "
-            f"({math.degrees(self.size):.2f}°) off {up} — the accelerometer during the turn puts "
-            f"gravity that far from where {' and '.join(self.statics)} has it (the cube was not "
-            f"seated flat while it turned). A tilted turn puts part of its rate on the other "
-            f"gyros ({fake}), which a fit would take for cross-axis sensitivity: the turn's "
-            "reference rate is taken along the measured axis instead, and the turn's "
-            f"cross-axis integrals carry that measurement's σ (± {1e3 * self.sd:.2f} mrad of "
-            "the rate), so the fitted cross-axis values' σ include the geometry"
-        )
-        if self.bound > 0:
-            out += (
-                f"; the axis is uncertain by up to {1e3 * self.bound:.1f} mrad (the plate's "
-                "tilt at the statics' unknown heading), and so are the gyro cross-axis values "
-                "of this axis — record placement_heading_deg or level the plate"
-            )
-        return out
-
-
-def turn_axes(signals: Sequence[RecordSignals], plate: PlateTilt | None) -> list[TurnAxis]:
-    """Each turn record's axis against the static records of the same face (the circle's
-    centre of :func:`turn_circle` against their mean horizontal readings: a bias, a
-    misalignment and a face error are the same in both and cancel; the plate's tilt at the
-    statics' heading is removed when it is recorded in the plate's frame, else bounds the
-    result)."""
-    if plate is None:
-        return []
-    cal = _accel_calibration(signals)
-    out = []
-    for c in plate.circles:
-        sig = next(s for s in signals if s.name == c.record)
-        same = [s for s in signals if s.kind == "static" and _close(s.up, sig.up)]
-        if not same:
-            continue
-        k = int(np.argmax(np.abs(sig.up)))
-        hor = [i for i in range(3) if i != k]
-        reads, var = [], []
-        known = plate.frame == "the fence" and all(s.placement_deg is not None for s in same)
-        for st in same:
-            m = st.accel[:, hor].mean(axis=0)
-            if known:
-                east, north = plate_axes(st.up, np.array([math.radians(st.placement_deg or 0.0)]))
-                m = m - st.g * (plate.vector[0] * east[0, hor] + plate.vector[1] * north[0, hor])
-            reads.append(m)
-            var.append(st.accel[:, hor].var(axis=0) / len(st.t_s))
-        static = np.zeros(3)
-        static[hor] = np.mean(reads, axis=0)
-        static[k] = float(np.mean([st.accel[:, k].mean() for st in same]))
-        turn = static.copy()
-        turn[hor] = c.centre
-        sd = math.sqrt(float(np.max(c.centre_var + np.mean(var, axis=0) / len(same)))) / sig.g
-        lean = np.zeros(3)
-        lean[hor] = (cal(turn) - cal(static))[hor] / sig.g
-        bound = 0.0 if known else plate.size + 2.0 * plate.size_sd
-        out.append(TurnAxis(c.record, np.asarray(sig.up, dtype=float),
-                            tuple(s.name for s in same), lean, sd, bound))  # fmt: skip
-    return out
-
-
-def _close(a: np.ndarray, b: np.ndarray) -> bool:
-    """``np.allclose(a, b)`` of two finite up vectors (3,), in plain arithmetic: it is asked
-    for every static record against every turn."""
-    return all(
-        abs(x - y) <= 1e-8 + 1e-5 * abs(y) for x, y in zip(a.tolist(), b.tolist(), strict=True)
-    )
-
-
-def _accel_calibration(
-    signals: Sequence[RecordSignals],
-) -> Callable[[np.ndarray], np.ndarray]:
-    """The accelerometer's bias and scale-and-misalignment matrix from the static records'
-    means (f = b + C·g·up, least squares), as the map from a reading (3,) m/s² to the specific
-    force; the identity when the statics do not determine them. A lean read through it is
-    free of the scale factors and cross-axis terms (a few % of it otherwise)."""
-    st = [s for s in signals if s.kind == "static"]
-    a = np.array([np.concatenate([s.g * s.up, [1.0]]) for s in st]) if st else np.zeros((0, 4))
-    if len(st) < 4 or np.linalg.matrix_rank(a) < 4:
-        return lambda f: np.asarray(f, dtype=float)
-    y = np.array([s.accel.mean(axis=0) for s in st])
-    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
-    c_inv, b = np.linalg.inv(coef[:3].T), coef[3]
-    return lambda f: np.asarray(c_inv @ (np.asarray(f, dtype=float) - b))
-
-
-def resolve_turn_axes(
-    signals: Sequence[RecordSignals], axes: Sequence[TurnAxis]
-) -> tuple[list[RecordSignals], list[TurnAxis]]:
-    """The records with each tilted turn's reference rate and specific force along its
-    measured axis (``axes``: :func:`turn_axes`, :attr:`TurnAxis.tilted`): the gyro cross-axis
-    values such a turn would fake are corrected by the tilt the accelerometer shows. Returns
-    the records and the tilted turns (their :meth:`TurnAxis.line` tells the reader)."""
-    out = list(signals)
-    tilted = [a for a in axes if a.tilted]
-    for a in tilted:
-        i = next(j for j, s in enumerate(out) if s.name == a.record)
-        s = out[i]
-        w = s.rate @ s.up
-        out[i] = replace(s, rate=w[:, None] * a.axis[None, :],
-                         force=np.tile(s.g * a.axis, (len(s.t_s), 1)))  # fmt: skip
-    return out, tilted
 
 
 # ---- what the tilt did to the accelerometer's bias estimates (the report's lines) ------------

@@ -1,10 +1,10 @@
 """A face measured twice (the plan's closing ``x_up_2``): how far the accelerometer's bias moved
 between the two, and whether that change is what the turns' accelerometers show.
 
-A turn's axis is read against the static of the same face (:func:`host.model.plate.turn_axes`):
+A turn's axis is read against the static of the same face (:func:`host.model.turn_axis.turn_axes`):
 the turn's horizontal accelerometers against the static's. A bias step or drift between the two
 records moves them exactly as a seat tilted by Δb/g does: a 0.05 m/s² step is a 5 mrad lean, the
-size a hand's re-seating is allowed (:data:`host.model.plate.SEAT_TOL_RAD`). Taken for tilted
+size a hand's re-seating is allowed (:data:`host.model.turn_axis.SEAT_TOL_RAD`). Taken for tilted
 axes, such turns get their reference rate turned by the lean, which the gyro then shows as
 structure of its own (a false "(rate y)²"), and the step itself is absorbed on the accelerometer.
 
@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host.model.plate import SEAT_TOL_RAD, TurnAxis
 from host.model.signals import RecordSignals
+from host.model.turn_axis import SEAT_TOL_RAD, TurnAxis
 
 #: a change between the two measurements of a face counts beyond this many standard errors
 CHANGE_SIGMAS = 5.0
@@ -110,7 +110,7 @@ def leans_are_a_bias_change(
     signals: Sequence[RecordSignals], axes: Sequence[TurnAxis]
 ) -> BiasChange | None:
     """The change a re-measured face shows, when it explains the turns' leans ``axes``
-    (:func:`host.model.plate.turn_axes`; module docstring): some tilted turn, and a history of
+    (:func:`host.model.turn_axis.turn_axes`; module docstring): some tilted turn, and a history of
     that change (a step or a drift) under which no turn is tilted any more; else None."""
     if not any(a.tilted for a in axes):
         return None

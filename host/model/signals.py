@@ -73,6 +73,15 @@ class RecordSignals:
         return self.accel if sensor == "accel" else self.gyro
 
     @property
+    def lever_matrix(self) -> np.ndarray | None:
+        """(3, 3) how the accelerometer reads a specific force other than gravity (the turning
+        force of :func:`host.model.turning.sensed_lever_matrix`): :attr:`tilt_matrix` where it
+        is known (on a tilted plate the statics' misalignments hold the tilt at their unknown
+        headings: 15 mrad of a 1° tilt mixes 0.7 mm of a 5 cm offset's other components into
+        each), else :attr:`accel_matrix`."""
+        return self.tilt_matrix if self.tilt_matrix is not None else self.accel_matrix
+
+    @property
     def hours(self) -> np.ndarray:
         """(N,) hours since power-on."""
         return self.t_s / 3600.0

@@ -43,7 +43,7 @@ class Group:
     free_level: bool = False
 
 
-#: a turn made about an axis off its face's seat (:func:`host.model.plate.resolve_turn_axes`)
+#: a turn made about an axis off its face's seat (:func:`host.model.turn_axis.resolve_turn_axes`)
 #: has its lean measured from its own accelerometer rows against the statics of that face, so
 #: its horizontal accelerometer rows' level is that lean, not a second reading of the sensor:
 #: weighed as a reading, it would count those statics' noise twice (the accelerometer's bias

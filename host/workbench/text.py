@@ -12,8 +12,11 @@ import math
 import textwrap
 from collections.abc import Mapping, Sequence
 
+import numpy as np
+
 from host.model.catalogue import BASE
 from host.model.fit import Fit, GroupResidual
+from host.model.plate import seen_tilts_line
 from host.model.spec import ModelTerm, short_spec
 from host.model.terms import Term
 from host.workbench.candidates import Candidate
@@ -286,6 +289,12 @@ def format_addition(a: Addition) -> str:
     lines.append("  new coefficients:")
     for p in a.new_parameters:
         lines.append(f"    {p.name} = {_fmt(p.value, '')} ± {_fmt(p.stderr, p.unit)}")
+    cov = f.covariance
+    if cov is None:
+        cov = np.diag([p.stderr**2 for p in f.parameters])
+    seen = seen_tilts_line([p.name for p in f.parameters], [p.value for p in f.parameters], cov)
+    if seen:
+        lines.extend(textwrap.wrap(seen, 78, initial_indent="  ", subsequent_indent="    "))
     return "\n".join(lines)
 
 

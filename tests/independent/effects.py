@@ -193,6 +193,30 @@ def lever_arm(rng: np.random.Generator) -> Effect:
     return Effect("lever_arm", {"r_m": r.tolist()}, geometry=geo)
 
 
+def lever_arm_mm(rng: np.random.Generator) -> Effect:
+    """The sensor sits 10–50 mm off the cube's centre along every axis (either sign)."""
+    r = np.array([_sign(rng) * rng.uniform(0.010, 0.050) for _ in range(3)])
+
+    def geo(g: Geometry) -> None:
+        g.lever_arm_m = r
+
+    return Effect("lever_arm", {"r_m": r.tolist()}, geometry=geo)
+
+
+def plate_tilt_lever_arm(rng: np.random.Generator) -> Effect:
+    """Both: the plate tilted 0.1°–1° toward any azimuth (:func:`plate_tilt`) and the sensor
+    10–50 mm off the cube's centre (:func:`lever_arm_mm`), from one stream."""
+    tilt, arm = plate_tilt(rng), lever_arm_mm(rng)
+    tilt_geo, arm_geo = tilt.geometry, arm.geometry
+    assert tilt_geo is not None and arm_geo is not None
+
+    def geo(g: Geometry) -> None:
+        tilt_geo(g)
+        arm_geo(g)
+
+    return Effect("plate_tilt_lever_arm", {**tilt.params, **arm.params}, geometry=geo)
+
+
 # ---- sensor ------------------------------------------------------------------------------
 def bias_step(
     sensor: str, when: tuple[float, float] = (0.4, 0.6)
@@ -355,6 +379,8 @@ EFFECTS: dict[str, Callable[[np.random.Generator], Effect]] = {
     "face_lean": face_lean,
     "face_pair_lean": face_pair_lean,
     "lever_arm": lever_arm,
+    "lever_arm_mm": lever_arm_mm,
+    "plate_tilt_lever_arm": plate_tilt_lever_arm,
     "bias_step_accel": bias_step("accel"),
     "bias_step_gyro": bias_step("gyro"),
     "bias_step_accel_early": bias_step("accel", (0.05, 0.35)),

@@ -150,6 +150,73 @@ def hand_turn(
     return TurnProfile(starts=starts, durations=dur, sign=sign)
 
 
+@dataclass(frozen=True)
+class ContinuousTurn:
+    """A hand turn of ``n`` whole turns in ONE motion (the method's bench: rests only at its
+    start and end, the same heading): from ``start`` s for ``duration`` s the rate about the
+    plate's normal is A·sin²(πu)·(1 + a·sin(2πmu + φ)), u = (t − start)/duration, A = 720°·n
+    /duration (the hand speeding up and slowing down ``m`` ≥ 2 times, by ±``a`` < 1: the
+    modulation integrates to 0 over the turn, so the turned angle is exactly 360°·n), zero
+    outside. ``sign`` +1 ccw, −1 cw; ``scale`` as :class:`TurnProfile`'s."""
+
+    start: float
+    duration: float
+    turns: int
+    sign: int
+    depth: float = 0.0
+    waves: int = 2
+    phase: float = 0.0
+    scale: float = 1.0
+
+    def _u(self, t: np.ndarray) -> np.ndarray:
+        return np.clip((np.asarray(t, dtype=float) - self.start) / self.duration, 0.0, 1.0)
+
+    @property
+    def _peak(self) -> float:
+        return 720.0 * self.turns / self.duration
+
+    def angle_deg(self, t: np.ndarray) -> np.ndarray:
+        """Turned angle (signed, °) at record times ``t`` (s): the rate's integral in closed
+        form (∫ sin(2πkv + φ) dv = (cos φ − cos(2πku + φ))/(2πk), k ≥ 1)."""
+        u, m, ph = self._u(t), self.waves, self.phase
+
+        def s_int(k: int) -> np.ndarray:
+            return (math.cos(ph) - np.cos(2 * math.pi * k * u + ph)) / (2 * math.pi * k)
+
+        base = u / 2 - np.sin(2 * math.pi * u) / (4 * math.pi)
+        mod = 0.5 * s_int(m) - 0.25 * (s_int(m + 1) + s_int(m - 1))
+        return self.sign * self.scale * self._peak * self.duration * (base + self.depth * mod)
+
+    def rate_dps(self, t: np.ndarray) -> np.ndarray:
+        """Rate about the plate's normal, °/s."""
+        u = self._u(t)
+        wave = 1.0 + self.depth * np.sin(2 * math.pi * self.waves * u + self.phase)
+        inside = (u > 0.0) & (u < 1.0)
+        return np.where(inside, self.sign * self.scale * self._peak * np.sin(math.pi * u) ** 2
+                        * wave, 0.0)  # fmt: skip
+
+    def accel_dps2(self, t: np.ndarray) -> np.ndarray:
+        """Angular acceleration about the plate's normal, °/s²."""
+        u, m, ph = self._u(t), self.waves, self.phase
+        wave = 1.0 + self.depth * np.sin(2 * math.pi * m * u + ph)
+        d_wave = self.depth * 2 * math.pi * m * np.cos(2 * math.pi * m * u + ph)
+        d = math.pi * np.sin(2 * math.pi * u) * wave + np.sin(math.pi * u) ** 2 * d_wave
+        inside = (u > 0.0) & (u < 1.0)
+        return np.where(inside, self.sign * self.scale * self._peak * d / self.duration, 0.0)
+
+
+def continuous_turn(
+    rng: np.random.Generator, turns: int, window_s: float, sign: int, turn_s: float = 4.4
+) -> ContinuousTurn:
+    """``turns`` whole turns in one motion of about ``turn_s`` s per turn (±10 %), after a
+    rest of 0.7–0.9 s, the rest of ``window_s`` after it (at least 0.4 s); the hand speeds
+    up and slows down 2–3 times by ±10–25 % (peak below 230 °/s at the hand's pace)."""
+    first = rng.uniform(0.7, 0.9)
+    dur = min(turns * turn_s * rng.uniform(0.9, 1.1), window_s - 0.4 - first)
+    depth, waves, phase = rng.uniform(0.1, 0.25), int(rng.integers(2, 4)), rng.uniform(0, 6.283)
+    return ContinuousTurn(first, dur, turns, sign, depth, waves, phase)
+
+
 def error_matrix(scale: np.ndarray, mis: dict[str, float], sensor: str) -> np.ndarray:
     """I + M of method.md §2: row i of the output, column j of the input, with the signs of §2:
     x row (1+Sxx, Sxz, −Sxy), y row (−Syz, 1+Syy, Syx), z row (Szy, −Szx, 1+Szz); ``mis`` keys

@@ -57,6 +57,10 @@ class SessionSpec:
     temp_noise_c: float = 0.02
     quantise: bool = True
     latitude_deg: float = 55.75
+    #: how the hand turns: "quarters" (quarter turns with rests between them) or
+    #: "continuous" (the method's bench: the whole turns in one motion, rests only at its
+    #: start and end, at the same heading; :func:`tests.independent.physics.continuous_turn`)
+    turn_motion: str = "quarters"
     #: the hand's turn-angle error: each turn record is long by a normal draw of this std, °
     #: (0: every turn exactly 360°·n)
     turn_angle_sd_deg: float = 0.0
@@ -171,7 +175,11 @@ def _record(
     turn_deg = 0.0
     if kind == "turn":
         sign = 1 if name.split("_")[1] == "ccw" else -1
-        prof = ph.hand_turn(rng, spec.turns, duration_s, sign, quarter_s=0.95 / pace)
+        prof: ph.TurnProfile | ph.ContinuousTurn
+        if spec.turn_motion == "continuous":
+            prof = ph.continuous_turn(rng, spec.turns, duration_s, sign, turn_s=4.4 / pace)
+        else:
+            prof = ph.hand_turn(rng, spec.turns, duration_s, sign, quarter_s=0.95 / pace)
         if spec.turn_angle_sd_deg > 0:  # drawn only then: the other sessions keep their stream
             err = float(rng.normal(0.0, spec.turn_angle_sd_deg))
             prof = replace(prof, scale=1.0 + err / (360.0 * spec.turns))
@@ -227,6 +235,8 @@ def simulate(spec: SessionSpec) -> SimSession:
         raise ValueError(f"unknown effect {spec.effect!r}; one of {', '.join(EFFECTS)}")
     if spec.headings not in ("zero", "random"):
         raise ValueError("headings: 'zero' or 'random'")
+    if spec.turn_motion not in ("quarters", "continuous"):
+        raise ValueError("turn_motion: 'quarters' or 'continuous'")
     # separate streams: the same seed gives the same unit, plan and noise whatever the effect
     rng = np.random.default_rng([spec.seed, 0])
     base = random_base(rng)

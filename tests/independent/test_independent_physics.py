@@ -83,6 +83,30 @@ def test_turn_integrals_are_360_n(turns: int) -> None:
         np.testing.assert_allclose(r.true_force[0], r.true_force[-1], atol=1e-9)
 
 
+@pytest.mark.parametrize("turns", [1, 2])
+def test_a_continuous_turn_is_one_motion_of_360_n_resting_only_at_its_ends(turns: int) -> None:
+    """The method's bench: each turn record turns 360°·n in one motion (its trapezoid
+    integral within 0.005°, the profile's own angle exact), the rate never below 1 °/s
+    between the motion's first and last 0.3 s (no rest inside it), within ±250 °/s, and the
+    rate and angular acceleration the derivatives of the angle and the rate."""
+    s = simulate(_quiet(SessionSpec(seed=3, turns=turns, turn_motion="continuous")))
+    for r in s.records:
+        if r.meta["kind"] != "turn":
+            continue
+        w = r.true_rate @ ph.axis_vector("+" + r.name[0])
+        t = r.t_ms / 1000.0
+        assert abs(abs(np.trapezoid(w, t)) - 360.0 * turns) < 0.005
+        assert abs(abs(r.turn_deg) - 360.0 * turns) < 1e-9
+        moving = np.flatnonzero(np.abs(w) > 1e-9)
+        inner = (t > t[moving[0]] + 0.3) & (t < t[moving[-1]] - 0.3)
+        assert np.all(np.abs(w[inner]) > 1.0) and np.max(np.abs(w)) < 250.0
+        assert t[moving[0]] > 0.6 and t[-1] - t[moving[-1]] > 0.35  # rests at both ends
+    prof = ph.continuous_turn(np.random.default_rng(7), turns, 12.0, -1)
+    tt = np.linspace(0.0, 12.0, 240001)
+    np.testing.assert_allclose(np.gradient(prof.angle_deg(tt), tt), prof.rate_dps(tt), atol=1e-3)
+    np.testing.assert_allclose(np.gradient(prof.rate_dps(tt), tt), prof.accel_dps2(tt), atol=0.05)
+
+
 def test_noise_std_matches_the_stated_density() -> None:
     spec = SessionSpec(seed=11, static_s=200.0, accel_density=0.003, gyro_density=0.006)
     r = _by_name(simulate(spec))["z_up"]

@@ -14,8 +14,9 @@ import pytest
 
 from host.model.dataset import load_dataset
 from host.model.fit import fit_model
-from host.model.plate import TurnAxis, bias_note, session_plate, turn_axes
+from host.model.plate import bias_note, plate_from_rests, session_plate
 from host.model.spec import parse_model
+from host.model.turn_axis import TurnAxis, turn_axes
 from tests.independent.simulate import SessionSpec, write_session
 
 IMUCAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
@@ -104,6 +105,24 @@ def test_imucal_plate_tilt_is_the_size_the_rests_show() -> None:
     assert placed["x_cw"] == 0.0
     assert all(abs(float(placed[n] or 0.0) - 180.0) < 10.0 for n in ("y_cw", "z_cw")), placed
     assert any(n.startswith("plate tilt") for n in ds.notes)
+
+
+@pytest.mark.skipif(not IMUCAL.is_dir(), reason="imucal's real session not present")
+def test_imucal_tilt_from_the_motion_agrees_with_the_rests() -> None:
+    """Issue 40: the same three turns read from every sample of their motion (the rests and
+    the moving blocks, jointly with the lever arm and the hand) give the size the rests do,
+    and the diagnosis prints both."""
+    ds = load_dataset(IMUCAL)
+    plate = session_plate(ds.signals)
+    assert plate is not None
+    moved = [c.motion for c in plate.circles if c.motion is not None]
+    assert len(moved) == 3
+    motion = plate_from_rests(moved)
+    assert motion is not None
+    assert 4.0e-3 <= motion.size <= 6.5e-3 and motion.size_sd <= 1e-3
+    assert abs(motion.size - plate.size) < 3.0 * math.hypot(motion.size_sd, plate.size_sd)
+    note = next(n for n in ds.notes if n.startswith("plate tilt"))
+    assert "from the motion of the same 3 turns" in note and "agree" in note
 
 
 #: the gyro cross-axis constant of channel i for a turn about axis k (method.md §2's names)
