@@ -25,7 +25,7 @@ from host.cli.screen import Column, table, terminal_width
 from host.errors import UserError
 from host.model import allan, recording
 from host.session.atomic import write_text_atomic
-from host.session.records import Record
+from host.session.records import Record, RecordError
 from host.session.spacing import quality_report, timing_report
 
 
@@ -34,15 +34,15 @@ def load_record(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     record file, and a one-line description of what was read."""
     from host.session.directory import read_record
 
+    give = "give a static record (SERIAL_x_up.txt) or a capture of the unit at rest (.cap)"
     with open(path, "rb") as fh:
         head = fh.read(64)
-    if not head.startswith(b"# imu-bench record"):
-        what = "the calibration report" if head.startswith(b"TEST REPORT") else "no record"
-        raise UserError(
-            f"{path}: {what}, not a recording; give a static record (SERIAL_x_up.txt) "
-            "or a capture of the unit at rest (.cap)"
-        )
-    rec = read_record(path)
+    if head.startswith(b"TEST REPORT"):
+        raise UserError(f"{path}: the calibration report, not a recording; {give}")
+    try:  # with its header or without, as calibrate --from-dir reads it (method.md §6)
+        rec = read_record(path)
+    except RecordError as exc:
+        raise UserError(f"{exc} — not a record, nor a recording; {give}") from None
     if rec.kind == "turn":
         raise UserError(
             f"{path}: a turn record (the cube turned by hand), not a recording at rest; give "

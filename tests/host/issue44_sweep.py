@@ -122,6 +122,16 @@ def _earlier_result_of_other_records(d: Path) -> list[str]:
     return ["calibrate", "--from-dir", str(other), "--out", str(out), "--no-archive"]
 
 
+# --------------------------------------------------------------------------- 6. each other's
+
+
+def _noise_of_a_bare_record(d: Path) -> list[str]:
+    """A static record in the method's format: no '#' header (as calibrate --from-dir reads)."""
+    p = _session(d) / "Q1_z_up.txt"
+    p.write_text("".join(ln for ln in p.read_text().splitlines(True) if not ln.startswith("#")))
+    return ["noise", str(p)]
+
+
 # --------------------------------------------------------------------------- 5. term files
 
 
@@ -214,6 +224,9 @@ CASES: tuple[Case, ...] = (
     Case("export-into-a-closed-pipe", "export RESULT | head -0: 'error: broken pipe'",
          lambda d: ["export", str(_calibrated(d)), "--to", "px4", "--allow-fail"], (0,),
          process=True, head_lines=0),
+    # 6. every command reads what another wrote
+    Case("noise-of-a-record-without-header", "noise refuses a record calibrate reads",
+         _noise_of_a_bare_record, (0,), out_words="record z_up"),
     # 5. a term file's process ending is a failure
     Case("term-os-exit-0", "a term calling os._exit(0): exit 0, no result",
          lambda d: _term_ends(d, "os._exit(0)"), (2,), "called os._exit(0)", process=True),
