@@ -32,6 +32,7 @@ from host.wire.bulk import (
     unreadable,
 )
 from host.wire.frames import BY_NAME, IMU_FIELDS, Frame, status_text
+from host.wire.segments import repeated, repeated_text
 
 if TYPE_CHECKING:  # (imported where a capture's arrival times need the clock map)
     from host.timing import timeline
@@ -103,8 +104,15 @@ class _Decode:
         self.cols: list[str] = []
         #: CRC-valid frames of another length than this spec's, not HELLO: named at the end
         self.foreign: list[tuple[int, int, int]] = []
+        self.repeated = 0  # samples dropped as repeats of one before (segments.repeated)
 
     def add(self, result: BulkResult, arrivals: np.ndarray | None) -> None:
+        twice = repeated(result.samples)  # a capture's read written twice: kept once
+        if twice.any():
+            self.repeated += int(twice.sum())
+            keep = ~twice
+            result = BulkResult(result.samples[keep], result.others, result.stats, result.foreign)
+            arrivals = None if arrivals is None else arrivals[keep]
         stop = None if self.args.stats else unreadable(result)
         if stop is not None:  # the samples before it are decoded; none after it
             keep = result.samples["offset"] < stop[0]
@@ -202,6 +210,8 @@ class _Decode:
         self._drain()
         if text := foreign_text(self.path, self.foreign):
             print(f"warning: {text}", file=sys.stderr)
+        if self.repeated:
+            print(f"warning: {self.path}: {repeated_text(self.repeated)}", file=sys.stderr)
         if self.bus_warning:
             print(f"warning: {self.path}: {self.bus_warning}", file=sys.stderr)
         if self.config is not None and (unknown := sensor.revision_warning(self.config[2])):

@@ -39,7 +39,7 @@ from host.wire.frames import (
     crc16,
     crc16_rows,
 )
-from host.wire.segments import segments
+from host.wire.segments import repeated, repeated_text, segments
 from host.wire.stream import DecoderStats, Readable
 
 #: an IMU_SAMPLE frame with one pad byte, so that rows have an even width (16-bit word views)
@@ -527,6 +527,11 @@ def decode_file(path: Path) -> tuple[BulkResult, np.ndarray | None]:
         arrivals = cap.arrival_ns_at(result.samples["offset"] + IMU_FRAME_LEN - 1)
     else:
         result = decode_bulk(raw)
+    twice = repeated(result.samples)
+    if twice.any():  # a read written twice: kept once
+        print(f"warning: {path}: {repeated_text(int(twice.sum()))}", file=sys.stderr)
+        result.samples = result.samples[~twice]
+        arrivals = None if arrivals is None else arrivals[~twice]
     return result, arrivals
 
 

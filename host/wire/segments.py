@@ -115,3 +115,29 @@ def segments(
     if any_reset:
         gaps[reset] = 0
     return reset, gaps
+
+
+def repeated(samples: np.ndarray) -> np.ndarray:
+    """Which IMU samples (a structured array with ``seq``, ``t_us``, the counts and ``flags``)
+    repeat an earlier one of the same array exactly — the same ``seq``, ``t_us``, every count
+    and flags: a capture's read written twice, never a new sample (a reset restarts ``seq``
+    and ``t_us``, not the sensor's noise). The first of each is not marked."""
+    if samples.size < 2:
+        return np.zeros(samples.size, dtype=bool)
+    names = [n for n in ("seq", "t_us", "ax", "ay", "az", "temp", "gx", "gy", "gz", "flags")
+             if samples.dtype.names and n in samples.dtype.names]  # fmt: skip
+    key = np.empty(samples.size, dtype=[(n, samples.dtype[n]) for n in names])
+    for n in names:  # (packed: a view of the fields would hold the others' bytes too)
+        key[n] = samples[n]
+    _, first = np.unique(key.view(np.dtype((np.void, key.dtype.itemsize))), return_index=True)
+    out = np.ones(samples.size, dtype=bool)
+    out[first] = False
+    return out
+
+
+def repeated_text(n: int) -> str:
+    """The line naming ``n`` samples :func:`repeated` found (each was kept once)."""
+    return (
+        f"{n} sample(s) repeat an earlier one exactly (seq, t_us and every count): a read of "
+        "the capture written twice; each is kept once"
+    )

@@ -80,6 +80,15 @@ def _imu(seq: int, t_us: int, az: int) -> bytes:
                         gz=0, flags=0)  # fmt: skip
 
 
+def _read_written_twice(d: Path) -> list[str]:
+    """A capture whose fifth read is written twice (the same arrival time and bytes)."""
+    from tests.host.issue17_sweep import _cap
+    from tests.host.issue17_sweep import _imu as imu
+
+    reads = [(10**9 + k * 20_000_000, imu(k, 1000 + 20_000 * k)) for k in range(10)]
+    return ["decode", str(_cap(d, [*reads[:5], reads[4], *reads[5:]]))]
+
+
 # --------------------------------------------------------------------------- 3. bounds
 
 
@@ -181,6 +190,8 @@ CASES: tuple[Case, ...] = (
          lambda d: _hello(d, 22), (2,), "(this spec's HELLO has 23)"),
     Case("hello-of-another-sensor", "a mid-stream HELLO of WHO_AM_I 0x12 gets no word",
          lambda d: _hello(d, again=0x12), (2,), "a HELLO of another sensor (WHO_AM_I 0x12"),
+    Case("capture-read-written-twice", "a read written twice: decoded twice, as a reset",
+         _read_written_twice, (0,), "1 sample(s) repeat an earlier one exactly"),
     # 3. inputs bounded
     Case("export-deep-json", "a result of [ x 100000: RecursionError in export",
          lambda d: ["export", str(_deep(d, "Q1_result.json")), "--to", "px4"], (2,),
