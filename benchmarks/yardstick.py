@@ -57,6 +57,7 @@ from benchmarks.yardstick_pulls import (  # noqa: E402
     pulls_of,
 )
 from benchmarks.yardstick_steps import records_clock, step_stats, steps_table, two_tell  # noqa: E402
+from tests.independent.effects import STEP_PLACES  # noqa: E402
 from tests.independent.physics import ACCEL_LSB, FS_HZ, GYRO_LSB  # noqa: E402
 from tests.independent.simulate import SessionSpec, write_session  # noqa: E402
 
@@ -152,6 +153,12 @@ CASES: dict[str, Case] = {
              names=("time_drift",)),
         *(Case(f"step_{s}_{w}", {"effect": f"bias_step_{s}_{w}"}, "off", signal=_STEP,
                names=("time_drift",)) for w in ("early", "late") for s in ("accel", "gyro")),
+        *(Case(f"step_{s}_at_{w}", {"effect": f"bias_step_{s}_at_{w}"}, "off", signal=_STEP,
+               names=("time_drift",)) for w in STEP_PLACES for s in ("accel", "gyro")),
+        # the same without the closing x_up_2 (a plan that ends on its turns)
+        *(Case(f"step_{s}_at_{w}_open", {"effect": f"bias_step_{s}_at_{w}", "closing": False},
+               "off", signal=_STEP, names=("time_drift",))
+          for w in STEP_PLACES if w != "closing" for s in ("accel", "gyro")),
         *(Case(f"two_steps_{s}", {"effect": f"bias_two_steps_{s}"}, "off", signal=_STEP,
                names=("time_drift",)) for s in ("accel", "gyro")),
         Case("dtdt_gyro", {"effect": "dtdt_bias", "warmup_s": 120.0}, "off", signal=_DTDT),

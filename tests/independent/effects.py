@@ -49,6 +49,10 @@ class Effect:
     params: dict[str, Any] = field(default_factory=dict)
     sensor: SensorFn | None = None
     geometry: Callable[[Geometry], None] | None = None
+    #: called by the simulator before each record with (name, start, end, end of the record
+    #: before it or None), s since the session began: an effect placed in the plan's pauses or
+    #: records reads its time from them
+    before_record: Callable[[str, float, float, float | None], None] | None = None
 
 
 def _channel(sensor: str, axis: int, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -240,6 +244,69 @@ def bias_step(
     return make
 
 
+#: where in the plan a placed step falls: the records it may fall before (in the pause
+#: between the record before and that one), or inside ("in:"), one drawn per session
+STEP_PLACES: dict[str, tuple[str, ...]] = {
+    "pair": ("x_dn", "y_dn", "z_dn"),  # between the two faces of a pair
+    "pairs": ("y_up", "z_up"),  # between two pairs
+    "to_turns": ("x_ccw",),  # between the last face and the first turn
+    "turn_pair": ("x_cw", "y_cw", "z_cw"),  # between the two turns about one axis
+    "turns": ("y_ccw", "z_ccw"),  # between the turns about two axes
+    "closing": ("x_up_2",),  # before the closing x_up again
+    "in_static": tuple(f"in:{a}_{d}" for a in "xyz" for d in ("up", "dn")),
+    "in_turn": tuple(f"in:{a}_{d}" for a in "xyz" for d in ("ccw", "cw")),
+}
+#: the sizes a placed step is drawn from (uniform, either sign): m/s², °/s
+STEP_SIZES = {"accel": (0.02, 0.1), "gyro": (0.05, 0.5)}
+
+
+def _step_channel(rng: np.random.Generator, place: str, where: str) -> int:
+    """The channel a placed step falls on: in a pause between records about two axes, the axis
+    of either (the plan's order lines up with it there: the split pair's own axis, the pair or
+    turns measured just before or after); inside a record, its axis half the time; else any."""
+    order = [*(f"{a}_{d}" for a in "xyz" for d in ("up", "dn")),
+             *(f"{a}_{d}" for a in "xyz" for d in ("ccw", "cw")), "x_up_2"]  # fmt: skip
+    rec = where.removeprefix("in:")
+    if place in ("pair", "pairs", "turn_pair", "turns"):
+        before = order[order.index(rec) - 1]
+        return AXES.index(str(rng.choice([before[0], rec[0]])))
+    if where.startswith("in:") and rng.uniform() < 0.5:
+        return AXES.index(rec[0])
+    return _pick(rng)[0]
+
+
+def bias_step_at(sensor: str, place: str) -> Callable[[np.random.Generator], Effect]:
+    """A bias step of 0.02–0.1 m/s² or 0.05–0.5 °/s (either sign) placed in the plan
+    (:data:`STEP_PLACES`): in a pause, at 20–80 % of it; inside a record, at 15–85 % of its
+    length; on the channel :func:`_step_channel` draws (truth: ``at_session_s``, ``place``,
+    ``record``: the record it falls
+    before or in)."""
+
+    def make(rng: np.random.Generator) -> Effect:
+        lo, hi = STEP_SIZES[sensor]
+        size = _sign(rng) * float(rng.uniform(lo, hi))
+        k = int(rng.integers(0, len(STEP_PLACES[place])))
+        where = STEP_PLACES[place][k]
+        i = _step_channel(rng, place, where)
+        frac = float(rng.uniform(0.15, 0.85) if where.startswith("in:") else rng.uniform(0.2, 0.8))
+        p: dict[str, Any] = {"sensor": sensor, "axis": AXES[i], "step": size,
+                             "at_session_s": math.inf, "place": place,
+                             "record": where.removeprefix("in:")}  # fmt: skip
+
+        def locate(name: str, start: float, end: float, prev_end: float | None) -> None:
+            if where == f"in:{name}":
+                p["at_session_s"] = start + frac * (end - start)
+            elif where == name and prev_end is not None:
+                p["at_session_s"] = prev_end + frac * (start - prev_end)
+
+        def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
+            return _channel(sensor, i, np.where(s.session_s >= p["at_session_s"], size, 0.0))
+
+        return Effect(f"bias_step_{sensor}_at_{place}", p, sensor=fn, before_record=locate)
+
+    return make
+
+
 def bias_two_steps(sensor: str) -> Callable[[np.random.Generator], Effect]:
     """Two bias steps on one channel (each 100× the white noise of a record mean, each of
     either sign): the first at a time drawn uniformly in 0.08–0.45 × 420 s of the session, the
@@ -387,6 +454,7 @@ EFFECTS: dict[str, Callable[[np.random.Generator], Effect]] = {
     "bias_step_gyro_early": bias_step("gyro", (0.05, 0.35)),
     "bias_step_accel_late": bias_step("accel", (0.62, 0.85)),
     "bias_step_gyro_late": bias_step("gyro", (0.62, 0.85)),
+    **{f"bias_step_{s}_at_{w}": bias_step_at(s, w) for s in ("accel", "gyro") for w in STEP_PLACES},
     "bias_two_steps_accel": bias_two_steps("accel"),
     "bias_two_steps_gyro": bias_two_steps("gyro"),
     "bias_drift_accel": bias_drift("accel"),

@@ -261,11 +261,18 @@ def simulate(spec: SessionSpec) -> SimSession:
         name, seconds = x if isinstance(x, tuple) else (x, spec.static_s)
         plan.append((name, window if name.split("_")[1] in ("ccw", "cw") else seconds))
     t = spec.warmup_s
+    prev_end: float | None = None
     for name, dur in plan:
         heading = 0.0 if spec.headings == "zero" else 90.0 * int(rng.integers(0, 4))
         noted = extras[name].heading_deg if name in extras else None
         heading = heading if noted is None else noted  # drawn all the same: the same stream
+        if effect.before_record is not None:  # session time: since the warm-up ended
+            w = spec.warmup_s
+            effect.before_record(
+                name, t - w, t + dur - w, None if prev_end is None else prev_end - w
+            )
         s.records.append(_record(rng, s, name, t, dur, heading, extras.get(name)))
+        prev_end = t + dur
         t += dur + rng.uniform(15.0, 25.0)
     return s
 
