@@ -145,6 +145,16 @@ def _component(spec: _Spec, var: float, se: float, dof: float) -> Component:
     return Component(spec.name, value, sigma, int(round(dof)), "°", spec.absorbs, plausible)
 
 
+def without_components(ds: Dataset, names: Sequence[str]) -> Dataset:
+    """``ds`` with the rows of the components ``names`` ("turn angle", "turn wobble") weighed by
+    their white variance alone, the component at 0: the yardstick on which what an implausible
+    component took up (a step, a tilt, an unmodelled term) shows as misfit."""
+    for s in _specs(ds):
+        if s.name in names and len(s.rows) and not s.fixed:
+            ds = _reweigh(ds, s, 0.0)
+    return ds
+
+
 def fit_with_components(
     ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 10, built: BuiltColumns | None = None
 ) -> JointFit:

@@ -11,6 +11,10 @@ residual scan, the verdict, the refits and their words. Never imports the calibr
 - ``steps`` — a step in time placed to the sample with its ± and size; two steps on a channel.
 - ``equals`` — groups of equals: candidates and signals the records cannot tell apart, and the
   records that would.
+- ``evidence`` — a term against the best step on its channel, each fitted with the other: a
+  catalogue term is recommended only when it explains what the step does not.
+- ``sinks`` — an implausible variance component is a finding: what it absorbed, found on the
+  yardstick without it; the gyro at the turns' rests, where a bias change is read directly.
 - ``verdict`` — the whole diagnosis: compare, where it fails, what is missing, the verdict.
 - ``ladder`` — add a term (before → after) and the greedy ladder of models.
 - ``text`` — the words for people: diagnosis, addition, ladder, the catalogue, a demo's outcome.

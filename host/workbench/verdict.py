@@ -21,6 +21,7 @@ The words for people are :mod:`host.workbench.text`.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -32,13 +33,16 @@ from host.model.dataset import Dataset
 from host.model.design import BuiltColumns
 from host.model.fit import Fit, GroupResidual, SpanResidual, fit_model
 from host.model.signals import AXES
-from host.model.spec import ModelTerm, merge_model, model_spec
+from host.model.spec import ModelTerm, merge_model, model_spec, parse_model
 from host.model.stats import chi2_sf
 from host.model.terms import Term
 from host.workbench.absorbed import closure_axes, without_turn_angle
 from host.workbench.candidates import ALPHA, Candidate, evaluate_candidates, json_number
 from host.workbench.equals import Equals, EqualsFinder
+from host.workbench.evidence import Weighed, weigh_steps
 from host.workbench.scan import ScanColumns, ScanHit, scan_signals
+from host.workbench.sinks import Absorbed, rest_hits, what_absorbed
+from host.workbench.steps import STEP
 
 VERDICTS = ("adequate", "missing_effect", "unexplained", "untestable")
 #: the verdict advises adding terms only when together they remove at least this fraction of
@@ -134,14 +138,76 @@ def diagnose(
     # every fit and candidate of the diagnosis reads the terms' columns built once on these rows
     built = BuiltColumns(ds)
     joint = fit_with_components(ds, model, built=built)
-    ds, fit = joint.dataset, joint.fit
-    if fit.dof <= 0:
-        n = len(ds.signals)
-        raise UserError(
-            f"{n} record{' leaves' if n == 1 else 's leave'} the model no "
-            f"degrees of freedom ({fit.n_params} parameters determined by as many values): "
-            "nothing tests it; diagnose needs more records (at least the six static faces)"
-        )
+    found = _diagnose(joint.dataset, joint.fit, model, catalogue, alpha, built)
+    cat = catalogue if catalogue is not None else CATALOGUE
+    rec = parse_model(found.recommended_spec, cat) if found.recommended_spec else []
+    found = _not_a_sink(found, what_absorbed(joint.dataset, model, alpha, built, rec))
+    return _at_rest(found, joint.dataset, rest_hits(joint.dataset, alpha), cat, built)
+
+
+def _at_rest(
+    d: Diagnosis,
+    ds: Dataset,
+    hits: Sequence[ScanHit],
+    cat: Mapping[str, Term],
+    built: BuiltColumns,
+) -> Diagnosis:
+    """``d`` with the bias changes the gyro reads at the turns' rests
+    (:func:`host.workbench.sinks.rest_hits`): on a channel where nothing is recommended and
+    no signal named, a change is the channel's finding; a group of equals there whose terms
+    are nothing at rest (they move only the turns' closures: a scale asymmetry) cannot be what
+    moved the rests, and is dropped."""
+    named = {(h.sensor, h.axis) for h in d.dominant}
+    by_label = {c.label: c for c in d.candidates}
+    on = {(c.sensor, a) for lab in d.recommended if (c := by_label.get(lab)) for a in c.axes}
+    dominant, groups, notes = list(d.dominant), list(d.equals), list(d.notes)
+    for h in hits:
+        ch = (h.sensor, h.axis)
+        if ch in named or ch in on:
+            continue
+        here = [e for e in groups if any(_on_channel(t, ch) for t in e.terms)]
+        if any(not _only_turns(t, ds, cat, built) for e in here for t in e.terms):
+            continue
+        groups = [e for e in groups if e not in here]
+        dominant.append(h)
+        notes.append(
+            f"the gyro at the turns' rests: {h.signal[len(STEP) + 1 :]}"
+            + (f"; not {', '.join(t for e in here for t in e.terms)}, which give nothing at "
+               "rest" if here else "")
+        )  # fmt: skip
+    if len(dominant) == len(d.dominant):
+        return d
+    return dataclasses.replace(
+        d, verdict="unexplained", dominant=tuple(dominant), equals=tuple(groups),
+        notes=tuple(notes),
+    )  # fmt: skip
+
+
+def _on_channel(label: str, ch: tuple[str, str]) -> bool:
+    parts = label.split(":")
+    return len(parts) == 3 and parts[1] == ch[0] and ch[1] in parts[2]
+
+
+def _only_turns(label: str, ds: Dataset, cat: Mapping[str, Term], built: BuiltColumns) -> bool:
+    """Does the term ``label`` move only the turns' closures (nothing at rest)?"""
+    name, sensor, axes = label.split(":")
+    if name not in cat:
+        return False
+    mt = ModelTerm(cat[name], sensor, tuple(AXES.index(a) for a in axes))
+    return bool(closure_axes(ds, mt, built))
+
+
+def _diagnose(
+    ds: Dataset,
+    fit: Fit,
+    model: Sequence[ModelTerm],
+    catalogue: Mapping[str, Term] | None,
+    alpha: float,
+    built: BuiltColumns,
+) -> Diagnosis:
+    """:func:`diagnose` of the joint fit ``fit`` on ``ds`` (its components estimated with it),
+    before its variance components are checked for what they absorbed."""
+    _require_dof(ds, fit)
     cands, tried = evaluate_candidates(ds, fit, catalogue, alpha, built)
     #: a candidate tested against its own yardstick (host.workbench.absorbed): the scan is
     #: weighed against it on that yardstick too
@@ -150,21 +216,156 @@ def diagnose(
     columns = ScanColumns(ds)  # the fit and the fit with the extra terms scan the same rows
     scanned = scan_signals(ds, fit, alpha, columns)
     finder = EqualsFinder(ds, fit, cands, tried, scanned, cat, alpha)
-    usable_all = [c for c in cands if c.significant and not c.explained_by and not c.implausible]
-    top = max(usable_all, key=lambda c: c.delta_chi2, default=None)
+    top = _shared_first(cands, scanned, cat, finder)
+    if top is not None:
+        # a property of the bench explains more than any one channel's term or signal: take
+        # it first and diagnose what is left after it (:func:`_shared_first`)
+        return _after_shared(ds, fit, cands, top, model, cat, alpha)
+    best, dominant = _best_and_dominant(cands, scanned, own, alpha)
+    usable = [c for ch, c in best.items()
+              if ch not in dominant and not _beaten(c, dominant.values())]  # fmt: skip
+    # a term is recommended only when it explains what the best step on its channel does not
+    weighed = weigh_steps(
+        ds, fit, usable, {c.label: t for c, t in zip(cands, tried, strict=True)}, scanned,
+        finder.level, len(columns.cuts), built,
+    )  # fmt: skip
+    usable = weighed.kept
+    for ch, h in weighed.stepped.items():
+        dominant.setdefault(ch, h)
+    groups, grouped = _grouped(usable, finder)
+    for e in weighed.groups:
+        groups.setdefault(e.members[0], e)
+    extra = [_model_term(c, cat) for c in usable]
+    aug = fit_model(ds, merge_model(list(model) + extra), built=built) if extra else fit
+    misfit, removed = _misfit_removed(ds, fit, model, extra, aug, built)
+    # a signal no term explains may have equals too (temperature², dT/dt and time measured
+    # together): the group is reported beside it
+    for h in dominant.values():
+        g = finder.signal_group(h)
+        if g is not None and not any(g.members[0] in k.members for k in groups.values()):
+            groups[g.members[0]] = g
+    alone = [c for c in usable if c.label not in grouped]
+    if len(extra) > 1:
+        # each recommended term adds significantly to the others (a term significant only
+        # through a misfit another explains is not what is missing)
+        alone = [c for c in alone if c.label in own
+                 or _adds_to_rest(ds, model, extra, c, cat, finder.level, aug, built)]  # fmt: skip
+    recommended = tuple(c.label for c in alone) if alone and removed >= MOST * misfit else ()
+    rec_extra = [_model_term(c, cat) for c in alone if c.label in recommended]
+    hits = scan_signals(ds, aug, alpha, columns) if aug is not fit else scanned
+    return _conclude(
+        ds, fit, cands, aug, hits, dominant, groups, grouped, set(own), weighed, alone,
+        recommended, rec_extra, (misfit, removed), alpha,
+    )  # fmt: skip
+
+
+def _verdict_of(
+    dominant: bool,
+    missing: bool,
+    hits: bool,
+    aug: Fit,
+    cands: Sequence[Candidate],
+    fit: Fit,
+    alpha: float,
+) -> str:
+    """The verdict: a signal no term explains, a term (or a group of equals) that is missing,
+    structure or misfit left, no degrees of freedom to test, or adequate."""
+    if dominant:
+        return "unexplained"
+    if missing:
+        return "missing_effect"
+    if hits or aug.chi2_p < alpha or any(c.significant for c in cands):
+        return "unexplained"
+    return "untestable" if fit.untestable else "adequate"
+
+
+def _shared_first(
+    cands: Sequence[Candidate],
+    scanned: Sequence[ScanHit],
+    cat: Mapping[str, Term],
+    finder: EqualsFinder,
+) -> Candidate | None:
+    """The strongest usable candidate when it is a shared (bench) term (one set of parameters
+    for every channel) with no equals and no plain signal beats it, else None (an
+    accelerometer's bias step inside the turns moves their still moments as a tilted plate
+    does: the step, one parameter, explains more than the tilt)."""
+    usable = [c for c in cands if c.significant and not c.explained_by and not c.implausible]
+    top = max(usable, key=lambda c: c.delta_chi2, default=None)
     if (top is not None and cat[top.term].shared and finder.group(top) is None
             and not _beaten(top, scanned)):  # fmt: skip
-        # a property of the bench (one set of parameters for every channel) explains more than
-        # any single channel's term or signal: take it first and diagnose what is left after
-        # it (an accelerometer's bias step inside the turns moves their still moments as a
-        # tilted plate does: the step, one parameter, explains more than the tilt)
-        return _after_shared(ds, fit, cands, top, model, cat, alpha)
-    # the best usable candidate of each channel (significant, plausible, not made redundant)
+        return top
+    return None
+
+
+def _require_dof(ds: Dataset, fit: Fit) -> None:
+    """UserError when the records leave the fit no degrees of freedom."""
+    if fit.dof <= 0:
+        n = len(ds.signals)
+        raise UserError(
+            f"{n} record{' leaves' if n == 1 else 's leave'} the model no "
+            f"degrees of freedom ({fit.n_params} parameters determined by as many values): "
+            "nothing tests it; diagnose needs more records (at least the six static faces)"
+        )
+
+
+def _conclude(
+    ds: Dataset,
+    fit: Fit,
+    cands: Sequence[Candidate],
+    aug: Fit,
+    hits: Sequence[ScanHit],
+    dominant: Mapping[tuple[str, str], ScanHit],
+    groups: Mapping[str, Equals],
+    grouped: set[str],
+    own: set[str],
+    weighed: Weighed,
+    alone: Sequence[Candidate],
+    recommended: tuple[str, ...],
+    rec_extra: Sequence[ModelTerm],
+    misfit_removed: tuple[float, float],
+    alpha: float,
+) -> Diagnosis:
+    """The notes and the verdict of :func:`_diagnose` from what it found; ``misfit_removed``:
+    the model's misfit (χ² − dof) and what the extra terms remove of it."""
+    misfit, removed = misfit_removed
+    notes = [*ds.notes, *weighed.notes, *_fit_notes(fit)]
+    if alone and not recommended and not groups:
+        notes.append(
+            f"the best candidates ({', '.join(c.label for c in alone)}) remove only "
+            f"{100 * removed / misfit:.0f} % of the misfit (χ² − dof = {misfit:.1f}): "
+            "none of them is what is missing"
+        )
+    notes += [f"{c.label} is significant but not physical: {c.implausible}"
+              for c in cands if c.implausible]  # fmt: skip
+    equal = bool(weighed.groups) or bool(groups and (removed >= MOST * misfit or grouped & own))
+    verdict = _verdict_of(
+        bool(dominant), bool(recommended) or equal, bool(hits), aug, cands, fit, alpha
+    )
+    if verdict == "missing_effect" and aug.chi2_p < alpha and not hits:
+        notes.append(
+            f"even with the recommended terms the fit is poor (χ² p = {aug.chi2_p:.2g}): "
+            "more is missing, or the noise model is too optimistic"
+        )
+    return Diagnosis(
+        fit, tuple(cands), tuple(hits), verdict, tuple(notes), recommended,
+        tuple(dominant.values()), model_spec(merge_model(rec_extra)) if recommended else None,
+        ds.g, tuple(groups.values()),
+    )  # fmt: skip
+
+
+def _best_and_dominant(
+    cands: Sequence[Candidate],
+    scanned: Sequence[ScanHit],
+    own: Mapping[str, tuple[Dataset, Fit]],
+    alpha: float,
+) -> tuple[dict[tuple[str, str], Candidate], dict[tuple[str, str], ScanHit]]:
+    """The best usable candidate of each channel (significant, plausible, not made redundant)
+    and the structure in the model's residual that a plain signal explains better than it (a
+    candidate on its own yardstick, ``own``, is weighed against that yardstick's scan)."""
     best: dict[tuple[str, str], Candidate] = {}
     for c in cands:
         if c.significant and not c.explained_by and not c.implausible:
             best.setdefault(c.channel, c)
-    # structure in the model's residual that a plain signal explains better than any candidate
     dominant: dict[tuple[str, str], ScanHit] = {}
     own_scans: dict[str, list[ScanHit]] = {}  # each own yardstick scanned once
     for h in scanned:
@@ -180,13 +381,17 @@ def diagnose(
                 dominant[ch] = same[0]
         elif cb is None or h.delta_chi2 > DOMINANT * cb.delta_chi2:
             dominant[ch] = h
-    usable = [c for ch, c in best.items()
-              if ch not in dominant and not _beaten(c, dominant.values())]  # fmt: skip
-    # a candidate the records cannot tell apart from another explanation is not recommended
-    # alone: its group of equals is reported instead (the fit after it still holds it, so
-    # that what is left is scanned)
-    groups: dict[str, Equals] = {}  # one entry per group, by its strongest anchor
-    grouped: set[str] = set()  # the usable candidates in some group
+    return best, dominant
+
+
+def _grouped(
+    usable: Sequence[Candidate], finder: EqualsFinder
+) -> tuple[dict[str, Equals], set[str]]:
+    """A candidate the records cannot tell apart from another explanation is not recommended
+    alone: its group of equals is reported instead (the fit after it still holds it, so that
+    what is left is scanned). -> the groups by their strongest anchor, the candidates in one."""
+    groups: dict[str, Equals] = {}
+    grouped: set[str] = set()
     for c in sorted(usable, key=lambda c: -c.delta_chi2):
         # two channels' bests can be each other's equals (a face lean and a plate tilt on
         # unknown headings): one group, not two
@@ -197,25 +402,13 @@ def diagnose(
         if g is not None:
             grouped.add(c.label)
             groups[c.label] = g
-    extra = [_model_term(c, cat) for c in usable]
-    aug = fit_model(ds, merge_model(list(model) + extra), built=built) if extra else fit
-    misfit, removed = _misfit_removed(ds, fit, model, extra, aug, built)
-    alone = [c for c in usable if c.label not in grouped]
-    # a signal no term explains may have equals too (temperature², dT/dt and time measured
-    # together): the group is reported beside it
-    for h in dominant.values():
-        g = finder.signal_group(h)
-        if g is not None and not any(g.members[0] in k.members for k in groups.values()):
-            groups[g.members[0]] = g
-    if len(extra) > 1:
-        # each recommended term adds significantly to the others (a term significant only
-        # through a misfit another explains is not what is missing)
-        alone = [c for c in alone if c.label in own
-                 or _adds_to_rest(ds, model, extra, c, cat, finder.level, aug, built)]  # fmt: skip
-    recommended = tuple(c.label for c in alone) if alone and removed >= MOST * misfit else ()
-    rec_extra = [_model_term(c, cat) for c in alone if c.label in recommended]
-    hits = scan_signals(ds, aug, alpha, columns) if aug is not fit else scanned
-    notes = list(ds.notes)
+    return groups, grouped
+
+
+def _fit_notes(fit: Fit) -> list[str]:
+    """What the fit itself says: the parameters the records leave undetermined, the channels
+    with no degrees of freedom, how the σ were made."""
+    notes = []
     if fit.undetermined:
         notes.append("not determined by these records: " + ", ".join(fit.undetermined))
         combos = [c.describe() for ch in fit.channels for c in ch.combinations]
@@ -229,34 +422,41 @@ def diagnose(
         )
     if fit.uncertainty_note():
         notes.append(fit.uncertainty_note())
-    if alone and not recommended and not groups:
-        notes.append(
-            f"the best candidates ({', '.join(c.label for c in alone)}) remove only "
-            f"{100 * removed / misfit:.0f} % of the misfit (χ² − dof = {misfit:.1f}): "
-            "none of them is what is missing"
-        )
-    for c in cands:
-        if c.implausible:
-            notes.append(f"{c.label} is significant but not physical: {c.implausible}")
-    if dominant:
-        verdict = "unexplained"
-    elif recommended or (groups and (removed >= MOST * misfit or grouped & set(own))):
-        verdict = "missing_effect"
-    elif hits or aug.chi2_p < alpha or any(c.significant for c in cands):
-        verdict = "unexplained"
-    elif fit.untestable:
-        verdict = "untestable"
-    else:
-        verdict = "adequate"
-    if verdict == "missing_effect" and aug.chi2_p < alpha and not hits:
-        notes.append(
-            f"even with the recommended terms the fit is poor (χ² p = {aug.chi2_p:.2g}): "
-            "more is missing, or the noise model is too optimistic"
-        )
-    return Diagnosis(
-        fit, tuple(cands), tuple(hits), verdict, tuple(notes), recommended,
-        tuple(dominant.values()), model_spec(merge_model(rec_extra)) if recommended else None,
-        ds.g, tuple(groups.values()),
+    return notes
+
+
+def _not_a_sink(d: Diagnosis, absorbed: Absorbed | None) -> Diagnosis:
+    """``d`` with its implausible variance components as a finding (:mod:`host.workbench.sinks`):
+    never ``adequate``; what they absorbed named as its channel's unexplained signal, and a
+    recommended term on that channel dropped (the signal explains it)."""
+    if absorbed is None:
+        return d
+    said = absorbed.describe()
+    notes = [*d.notes, *([] if said in d.notes else [said])]
+    if absorbed.by_terms:
+        return dataclasses.replace(d, notes=tuple(notes))
+    h = absorbed.hit
+    dominant = list(d.dominant)
+    recommended = d.recommended
+    if h is not None:
+        dominant = [h, *(x for x in dominant if (x.sensor, x.axis) != (h.sensor, h.axis))]
+        dominant.sort(key=lambda x: -x.delta_chi2)  # the strongest finding first
+        by_label = {c.label: c for c in d.candidates}
+        mine = {lab for lab in recommended if lab in by_label
+                and by_label[lab].sensor == h.sensor and h.axis in by_label[lab].axes}  # fmt: skip
+        if mine:
+            notes.append(
+                f"not recommended: {', '.join(sorted(mine))} (what the component absorbed, "
+                f"{h.signal}, explains its channel)"
+            )
+            recommended = tuple(lab for lab in recommended if lab not in mine)
+    spec = d.recommended_spec if recommended == d.recommended else (
+        ",".join(recommended) or None
+    )  # fmt: skip
+    verdict = "unexplained" if dominant or d.verdict in ("adequate", "untestable") else d.verdict
+    return dataclasses.replace(
+        d, verdict=verdict, notes=tuple(notes), recommended=recommended,
+        dominant=tuple(dominant), recommended_spec=spec,
     )  # fmt: skip
 
 
