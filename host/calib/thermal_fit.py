@@ -91,8 +91,6 @@ def window_means(records: Iterable[Record], window_s: float = 20.0) -> ThermalPo
             up = np.asarray(rec.up, dtype=np.float64)
         except UserError:
             up = np.full(3, np.nan)
-        if key not in keys:
-            keys.append(key)
         t = rec.t_ms / 1000.0
         timed = timed and "power_on_s" in rec.meta
         start = float(rec.meta.get("power_on_s", 0.0) or 0.0)
@@ -104,6 +102,10 @@ def window_means(records: Iterable[Record], window_s: float = 20.0) -> ThermalPo
         last = first + count - 1
         means = np.add.reduceat(data, first, axis=0) / count[:, None]
         keep = (count >= 2) & (t[last] - t[first] >= 0.5 * window_s)
+        if not keep.any():  # no window: its attitude is no unknown of the fit (was: a zero
+            continue  # column, 'each attitude was measured at a single temperature')
+        if key not in keys:
+            keys.append(key)
         for mean in means[keep]:
             temps.append(float(mean[6]))
             vals.append(mean[:6])

@@ -141,6 +141,27 @@ def _noise_of_a_bare_record(d: Path) -> list[str]:
     return ["noise", str(p)]
 
 
+def _session_with_warmup(d: Path) -> list[str]:
+    """A dialogue's session: its records (statics of 3 s, each shorter than the 20 s window)
+    and its warm-up, 15 min with x up from 25 to 35 °C, the bias rising 2 mg/°C."""
+    import numpy as np
+
+    from host.session.directory import read_record, write_record
+    from host.session.records import Record
+
+    s = _session(d)
+    up = read_record(s / "Q1_x_up.txt")
+    t_ms = np.arange(9000) * 100.0
+    temp = 35.0 - 10.0 * np.exp(-t_ms / 300_000.0)
+    rng = np.random.default_rng(7)
+    accel = np.tile(up.accel.mean(axis=0), (9000, 1)) + rng.normal(0, 0.01, (9000, 3))
+    accel[:, 0] += 0.0196 * (temp - 25.0)
+    gyro = np.tile(up.gyro.mean(axis=0), (9000, 1)) + rng.normal(0, 0.02, (9000, 3))
+    meta = {**up.meta, "kind": "warmup", "record": "warmup"}
+    write_record(s / "Q1_warmup.txt", Record("warmup", t_ms, accel, gyro, temp, meta))
+    return ["thermal", str(s)]
+
+
 # --------------------------------------------------------------------------- 5. term files
 
 
@@ -238,6 +259,9 @@ CASES: tuple[Case, ...] = (
     # 6. every command reads what another wrote
     Case("noise-of-a-record-without-header", "noise refuses a record calibrate reads",
          _noise_of_a_bare_record, (0,), out_words="record z_up"),
+    Case("thermal-of-a-session-with-warmup", "thermal refuses a dialogue's session with its "
+         "warm-up: 'each attitude was measured at a single temperature'",
+         _session_with_warmup, (0,), "written:"),
     # 5. a term file's process ending is a failure
     Case("term-os-exit-0", "a term calling os._exit(0): exit 0, no result",
          lambda d: _term_ends(d, "os._exit(0)"), (2,), "called os._exit(0)", process=True),
