@@ -21,7 +21,7 @@ import numpy as np
 from host.errors import UserError
 from host.ingest import importing, labels, segmentation
 from host.ingest.reading import Segment
-from host.ingest.stillness import attitude
+from host.ingest.stillness import Thresholds, attitude
 from host.session import spacing
 from host.session.atomic import write_text_atomic
 from host.session.directory import record_path, write_record
@@ -55,6 +55,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--labels", type=Path, help="labels file (SERIAL_segments.tsv, edited) to cut the stream"
     )
     p.add_argument("--record", help="import the whole file as this one record (e.g. x_up)")
+    p.add_argument(
+        "--poses",
+        action="store_true",
+        help="every rest a pose record, each motion between two a move, even of the method's "
+        "session (without: when the faces and turns leave most rests out)",
+    )
     p.add_argument("--serial", required=True, help="serial number: prefixes every file name")
     p.add_argument("--out", required=True, type=Path, help="directory for the record files")
     p.add_argument("--force", action="store_true", help="overwrite records already in --out")
@@ -137,8 +143,8 @@ def _whole_file(stream: importing.Stream, name: str) -> list[Segment]:
     return labels.parse_labels(rows, f"--record {name}", stream)
 
 
-def run(args: argparse.Namespace) -> int:
-    """Runner of ``python3 -m host import``."""
+def _checked_serial(args: argparse.Namespace) -> str:
+    """The serial; UserError (one line) for a bad one or options that exclude each other."""
     from host.session.inputs import parse_serial
 
     try:
@@ -150,20 +156,38 @@ def run(args: argparse.Namespace) -> int:
     if args.record and args.labels is not None:  # was: --labels silently left unused
         raise UserError("--record and --labels: give one (the whole file as one record, or "
                         "the labels file's rows)")  # fmt: skip
-    stream, segments = _read_stream(args)
+    if args.poses and (args.record or args.labels is not None):
+        raise UserError("--poses reads the stream as found; --record and --labels say the "
+                        "records themselves: give one")  # fmt: skip
+    return serial
+
+
+def _cut(
+    args: argparse.Namespace, stream: importing.Stream, segments: list[Segment]
+) -> tuple[list[Segment], Thresholds | None, list[str]]:
+    """The segments the records are cut from (the whole file, the labels file, imucal's
+    sections or those found), the stillness thresholds when found, and the notes on ambiguous
+    choices; the stream's warnings (rows left out, gaps, a gyro unit) on stderr."""
     for note in (*stream.notes, *segmentation.gap_notes(stream)):
         print(f"warning: {note}", file=sys.stderr)
-    thresholds = None
-    notes: list[str] = []
     if args.record:
-        segments = _whole_file(stream, args.record)
-    elif args.labels is not None:
-        segments = labels.read_labels(args.labels, stream)
-    elif not segments:
-        segments, thresholds, notes = segmentation.segment_stream(stream)
-        hint = segmentation.gyro_unit_hint(stream, segments)
-        if hint:
-            print(f"warning: {hint}", file=sys.stderr)
+        return _whole_file(stream, args.record), None, []
+    if args.labels is not None:
+        return labels.read_labels(args.labels, stream), None, []
+    if segments:  # imucal's sections
+        return segments, None, []
+    found, thresholds, notes = segmentation.segment_stream(stream, poses=args.poses)
+    hint = segmentation.gyro_unit_hint(stream, found)
+    if hint:
+        print(f"warning: {hint}", file=sys.stderr)
+    return found, thresholds, notes
+
+
+def run(args: argparse.Namespace) -> int:
+    """Runner of ``python3 -m host import``."""
+    serial = _checked_serial(args)
+    stream, segments = _read_stream(args)
+    segments, thresholds, notes = _cut(args, stream, segments)
     records = segmentation.build_records(stream, segments, thresholds, serial)
     if not records:
         raise UserError(f"{args.file}: nothing labelled to write (every label is '-')")

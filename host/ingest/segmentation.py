@@ -40,15 +40,19 @@ MAX_SPACING_S = 2.0
 SAME_ATTITUDE_DEG = 3.0
 
 
-def segment_stream(stream: Stream) -> tuple[list[Segment], Thresholds, list[str]]:
+def segment_stream(
+    stream: Stream, poses: bool = False
+) -> tuple[list[Segment], Thresholds, list[str]]:
     """Segments in time order with proposed labels and the reason for each, the stillness
-    thresholds, and notes on ambiguous choices (the alternatives are rows of the table)."""
+    thresholds, and notes on ambiguous choices (the alternatives are rows of the table).
+    ``poses``: read every rest as a pose and each motion as a move, whoever's the session
+    (else only when it is no session of the method's, :func:`host.ingest.poses.is_pose_session`)."""
     check_time_unit(stream)
     temp_recorded = "temperature" not in stream.meta and bool(np.ptp(stream.temp) > 0)
     segs, thr, notes = read_session(
         stream.t_s, stream.accel, stream.gyro, stream.temp, temp_recorded
     )
-    if is_pose_session(segs):  # not the method's own: every rest a pose, the moves between
+    if poses or is_pose_session(segs):  # every rest a pose, the moves between
         segs, notes = read_poses(stream.t_s, stream.accel, stream.gyro), []
     rests = [s for s in segs if s.found.startswith("still")]
     if not rests:
@@ -242,8 +246,8 @@ def plan_summary(records: dict[str, Record]) -> str:
     n_pose = sum(1 for r in records.values() if r.kind == "pose")
     if n_pose:
         n_move = sum(1 for r in records.values() if r.kind == "move")
-        return (f"{n_pose} pose records, {n_move} move records (a pose session: the rests are "
-                "at attitudes no plan set)")  # fmt: skip
+        return (f"{n_pose} pose records, {n_move} move records (every rest a pose, each motion "
+                "between two a move)")  # fmt: skip
     have_s = [n for n in STATIC_NAMES if n in records]
     have_t = [n for n in TURN_NAMES if n in records]
     miss = [n for n in STATIC_NAMES + TURN_NAMES if n not in records]

@@ -16,9 +16,10 @@ from host.__main__ import main
 from host.ingest.importing import Stream
 from host.ingest.labels import format_labels, parse_labels
 from host.ingest.poses import move_rotation
-from host.ingest.segmentation import build_records, segment_stream
+from host.ingest.segmentation import build_records, gyro_unit_hint, segment_stream
 from host.ingest.stillness import SegmentationError
 from host.session.directory import read_session
+from tests.host.ingest.continuous_sessions import OPERATORS, make_session
 
 IMUTK = Path(__file__).resolve().parents[4] / "shared" / "data" / "imutk-xsens"
 G = 9.81
@@ -173,3 +174,39 @@ def test_imutk_session_gives_a_pose_per_rest_and_no_false_alarm(
     # read in the wrong unit, the moves' rotations miss the poses' gravity: named
     assert main([*argv[:-4], "--serial", "XS", "--out", str(tmp_path / "deg")]) == 0
     assert "try --units gyro=rad/s" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("factor", "units"), [(math.pi / 180, "gyro=rad/s"),
+                                               (180 / math.pi, "gyro=deg/s")])  # fmt: skip
+def test_a_gyro_read_in_the_wrong_unit_is_named_from_the_moves(factor: float, units: str) -> None:
+    """A rad/s log read as °/s (and the other way): the moves' rotations miss the poses'
+    gravity, and would not in the other unit."""
+    stream, _ = pose_stream(11, 6)
+    segs, _, _ = segment_stream(stream)
+    assert gyro_unit_hint(stream, segs) is None  # the right unit: no hint
+    wrong = Stream(stream.t_s, stream.accel, stream.gyro * factor, stream.temp, stream.meta)
+    segs, _, _ = segment_stream(wrong)
+    hint = gyro_unit_hint(wrong, segs)
+    assert hint is not None and f"try --units {units}" in hint and "\n" not in hint
+
+
+def test_poses_reads_the_methods_session_as_poses_too(tmp_path: Path, capsys) -> None:
+    cs = make_session(5, OPERATORS[0])
+    rows = ["t,ax,ay,az,gx,gy,gz"] + [
+        f"{a:.4f},{b[0]:.5f},{b[1]:.5f},{b[2]:.5f},{c[0]:.4f},{c[1]:.4f},{c[2]:.4f}"
+        for a, b, c in zip(cs.t, cs.accel, cs.gyro, strict=True)
+    ]
+    f = tmp_path / "s.csv"
+    f.write_text("\n".join(rows) + "\n")
+    argv = ["import", str(f), "--columns", "t,ax,ay,az,gx,gy,gz", "--serial", "M"]
+    assert main([*argv, "--out", str(tmp_path / "faces")]) == 0
+    assert "6 of 6 static records, 6 of 6 turn records" in capsys.readouterr().out
+    assert main([*argv, "--poses", "--out", str(tmp_path / "poses")]) == 0
+    session = read_session(tmp_path / "poses")
+    kinds = [r.kind for r in session.records.values()]
+    assert set(kinds) == {"pose", "move"} and kinds.count("pose") >= 12  # faces and rests
+    assert kinds.count("move") == kinds.count("pose") - 1
+    # the whole file as one record, or the labels' rows, are records already: one line
+    assert main([*argv, "--poses", "--record", "x_up", "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--poses" in err and "give one" in err
