@@ -40,6 +40,7 @@ from host.model.fit import fit_model
 from host.model.loader import load_term_file, term_file_sha256
 from host.model.noise import NoiseModel
 from host.model.plate import bias_note
+from host.model.poses import frame_note
 from host.model.spec import parse_model, short_spec
 from host.model.stats import ALPHA_FIT
 from host.session.checks import check_record_lengths
@@ -284,7 +285,7 @@ def calibrate_from_records(
     joint = fit_with_components(ds, mts)
     fit, ds = joint.fit, joint.dataset
     stats = {n: record_stats(r) for n, r in session.records.items()}
-    statics = [s.name for s in ds.signals if s.kind == "static"]
+    statics = [s.name for s in ds.signals if s.kind in ("static", "pose")]
     noise_std: dict[str, float] = {}
     anoise = np.max([stats[n].accel_std for n in statics], axis=0)
     gnoise = np.max([stats[n].gyro_std for n in statics], axis=0)
@@ -340,7 +341,7 @@ def calibrate_from_records(
     for sig in ds.signals:
         st = stats[sig.name]
         gr = t3(by.get((sig.name, "gyro", ax), math.nan) for ax in "xyz")
-        if sig.kind == "turn":
+        if sig.kind in ("turn", "move"):
             residuals.append(RecordResidual(
                 sig.name, sig.kind, st.n, st.duration_s, nan3, nan3,
                 t3(x / st.duration_s for x in gr), nan3, gr,
@@ -375,6 +376,8 @@ def calibrate_from_records(
     tilt = bias_note(ds.signals, {p.name: p.stderr for p in fit.parameters}, ds.g)
     if tilt:
         notes.append(tilt)
+    if any(s.pose_frame for s in ds.signals):
+        notes.append(frame_note())
     combos = tuple(c.describe() for ch in fit.channels for c in ch.combinations)
     if fit.undetermined:
         notes.append(

@@ -35,6 +35,10 @@ figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imp
 - ``stats`` — χ² tail probabilities, the uncertainty policy (``stderr_scale``).
 - ``loo`` — leave-one-record-out prediction.
 - ``turning`` — the accelerometer while the cube turns: lever arm, moving blocks, the hand.
+- ``poses`` — poses without a cube: the first estimates of the accelerometer, the gyro and each
+  pose's attitude, the frame's convention when no record has a set attitude, a move's exact
+  kinematics and its rows.
+- ``moves`` — the moves' rows in a dataset, each read by every gyro channel and two poses.
 - ``allan`` — Allan deviation and the noise figures read from it.
 - ``recording`` — a recording's noise, the planner and the noise file.
 """

@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from host.model import plate, turning
+from host.model import plate, poses, turning
 from host.model.geometry import plate_axes
 from host.model.signals import AXES, RecordSignals
 from host.model.terms import Term, term
@@ -75,9 +75,27 @@ def _mis_labels(sensor: str, axis: int) -> tuple[str, ...]:
       needs="inputs along the other two axes (gravity along them; turns about them)")  # fmt: skip
 def misalignment(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     """Small-angle axis misalignment (method.md §2 Axz, Axy …): the channel also senses the
-    input along the other two axes, with the signs of §2."""
+    input along the other two axes, with the signs of §2.
+
+    Without a record of a set attitude (poses only) the frame is the accelerometer's own:
+    the misalignments :data:`host.model.poses.FRAME_FIXED` are zero by that convention (their
+    columns are), and each pose carries its attitude as two unknowns of its own
+    (:func:`_pose_attitude`)."""
     ref = sig.reference(sensor)
-    return np.column_stack([sg * ref[:, k] for _, k, sg in _off_diagonal(axis)])
+    cols = np.column_stack([sg * ref[:, k] for _, k, sg in _off_diagonal(axis)])
+    if sig.pose_frame and sensor == "accel":
+        for c, (name, _, _) in enumerate(_off_diagonal(axis)):
+            if f"A{name}" in poses.FRAME_FIXED:
+                cols[:, c] = 0.0
+    return cols
+
+
+def _pose_attitude(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """A pose's attitude, an unknown of the record: gravity's direction moves from the first
+    estimate ``up`` by a·e₁ + b·e₂ (rad, :func:`host.model.poses.attitude_basis`), which the
+    accelerometer reads as g·(a·e₁ + b·e₂) on its channels."""
+    basis = poses.attitude_basis(sig.up)
+    return np.tile(sig.g * basis[:, axis], (len(sig.t_s), 1))
 
 
 @term(sensors=("gyro",), params={"gx": "(°/s)/g", "gy": "(°/s)/g", "gz": "(°/s)/g"},
@@ -403,6 +421,12 @@ _PLAUSIBLE: dict[str, tuple[dict[str, float], str]] = {
 
 #: a face's lean is one angle whether the cube rests or turns on it: the gyro reads it too
 face_error = replace(face_error, twin_sensor="gyro", twin_columns=_face_turn)
+
+#: a pose (a rest at an attitude nobody set) carries its attitude: two angles of its own on the
+#: accelerometer, which a rotation of every pose with the sensor's axes trades for misalignment
+misalignment = replace(misalignment, record_params=("attitude_a", "attitude_b"),
+                       record_units=("rad", "rad"), record_columns=_pose_attitude,
+                       owns=lambda sig: sig.kind == "pose", record_sensor="accel")  # fmt: skip
 
 #: the plate's tilt and the lever arm read all three channels from one computation
 lever_arm = replace(lever_arm, columns_all=_lever_arm_all)

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from host.errors import UserError
+from host.model.moves import add_moves
 from host.model.noise import NoiseModel, session_floor
 from host.model.plate import (
     plate_from_rests,
@@ -21,6 +22,7 @@ from host.model.plate import (
     turn_circles,
     with_headings,
 )
+from host.model.poses import RecordLinks, first_estimates
 from host.model.remeasured import leans_are_a_bias_change
 from host.model.rows import (
     BlockMeans,
@@ -99,6 +101,9 @@ class Dataset:
     #: the closures of the turns made both ways the turn-angle σ is measured from (empty when
     #: it is given): a candidate that moves them is tested against the σ of the others
     closures: tuple[TurnClosure, ...] = ()
+    #: rows of other records that read a record's own unknowns (a move's rows read its two
+    #: poses' attitudes): (term name, record name) -> [(row, coefficient per unknown)]
+    record_links: RecordLinks = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
@@ -385,11 +390,14 @@ def build_dataset(
             "records carry no power-on time (meta power_on_s): time terms see only the time "
             "within each record (centred on its middle)"
         )
+    first = first_estimates(obs_of, g)  # poses: their attitudes before the fit
+    obs_of.update(first.observations)
     # preliminary static gyro bias + g-sensitivity (per channel), for the turn reference rate
-    statics = [n for n in names if obs_of[n].kind in ("static", "rate")]
+    statics = [n for n in names if obs_of[n].kind in ("static", "rate", "pose")]
     xs = np.array([np.concatenate([obs_of[n].force, [1.0]]) for n in statics])
     ys = np.array([stats[n].gyro_mean - obs_of[n].rate for n in statics])
     pre, *_ = np.linalg.lstsq(xs, ys, rcond=None)
+    first = first.with_moves(session.records, obs_of, pre)
     accel_matrix = _preliminary_accel_matrix(
         xs, np.array([stats[n].accel_mean for n in statics]), g
     )
@@ -399,6 +407,7 @@ def build_dataset(
     # per-sample gyro noise (°/s) per axis: finds the still moments inside the turns
     gyro_sd = np.median([stats[n].gyro_std for n in statics], axis=0)
 
+    pose_frame = not any(obs_of[n].kind in ("static", "turn", "rate") for n in names)
     temp_mean = float(np.mean([float(np.mean(session.records[n].temp)) for n in names]))
     signals: list[RecordSignals] = []
     aggs: list[np.ndarray] = []
@@ -413,7 +422,12 @@ def build_dataset(
         # without power-on times only the variation within a record is known: centre it
         t0 = float(rec.meta.get("power_on_s", "0") or 0.0) if has_power else -float(t_rel.mean())
         sig = _record_signals(rec, o, g, t0, t_rel, pre, temp_mean, accel_matrix, gyro_scale)
-        signals.append(sig)
+        if o.kind == "move":  # read against the first estimates; its rows come last
+            sig = replace(sig, force=first.force(rec), rate=first.reference_rate(rec, pre))
+        signals.append(replace(sig, pose_frame=pose_frame) if pose_frame else sig)
+        if o.kind == "move":
+            aggs.append(np.zeros((2, len(rec))))
+            continue
         if o.kind != "turn":
             aggs.append(add_block_means(table, ri, work.block_means(rec, sig, t_rel, nm)))
             continue
@@ -496,9 +510,15 @@ def build_dataset(
                 sd = math.hypot(gr.sigma, math.degrees(sd_rad * turned))
                 whiten = whiten.with_block(gr.rows, np.array([[1.0 / sd]]))
                 groups[k] = replace(gr, sigma=sd)
+    whiten, move_rows_of, move_aggs, links = add_moves(
+        table, signals, records, white_level, whiten, groups
+    )
+    y_arr = np.array(table.y)
+    sensor_aggs.update(move_aggs)
     rows_of: dict[tuple[int, str, int], np.ndarray] = {}
     for gr in groups:
         rows_of[(gr.record, gr.sensor, gr.axis)] = gr.rows
+    rows_of.update(move_rows_of)  # a move's two rows, read by every gyro channel
     return Dataset(
         signals=tuple(signals),
         row_record=np.array(table.record, dtype=int),
@@ -524,6 +544,7 @@ def build_dataset(
         closures=tuple(c for c in closures if c.axis == c.channel)
         if nm.turn_angle_sigma_deg is None
         else (),
+        record_links=links,
     )
 
 

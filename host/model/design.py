@@ -190,7 +190,7 @@ def record_columns(ds: Dataset, mt: ModelTerm) -> np.ndarray:
     (:meth:`Term.own_params`, k of each record, in :meth:`ModelTerm.slots` order): each
     record's columns are non-zero on its own rows only, on every channel of the term."""
     t = mt.term
-    owners = t.owners(ds.signals)
+    owners = t.owners(ds.signals, mt.sensor)
     widths = [len(t.own_params(ds.signals[ri])) for ri in owners]
     out = np.zeros((ds.n_rows, sum(widths)))
     if not owners:
@@ -213,6 +213,8 @@ def record_columns(ds: Dataset, mt: ModelTerm) -> np.ndarray:
                     f"({len(sig.t_s)}, {k})"
                 )
             out[rows, start - k : start] = aggregate(ds.aggregator(ri, mt.sensor, ax), x, big)
+        for row, coef in ds.record_links.get((t.name, sig.name), ()):
+            out[row, start - k : start] = coef  # another record's row reads these unknowns
     return out
 
 

@@ -27,6 +27,7 @@ import numpy as np
 from host.model.dataset import Dataset, build_dataset
 from host.model.design import BuiltColumns, design
 from host.model.noise import NoiseModel
+from host.model.poses import FRAME_FIXED
 from host.model.signals import AXES, SENSORS, UNIT
 from host.model.solve import solve
 from host.model.spec import ModelTerm
@@ -241,12 +242,14 @@ def fit_model(
         scale_of[(chf.sensor, -1)] = max(scale_of.get((chf.sensor, -1), 1.0), chf.se_scale)
     params: list[Parameter] = []
     undetermined: list[str] = []
+    fixed = _by_convention(ds)
     for c, (name, unit, ch, label, key) in enumerate(owners):
-        ok = bool(keep[c] and estimable[c])
+        ok = bool(keep[c] and estimable[c]) or name in fixed
         se = math.sqrt(max(float(cov[c, c]), 0.0)) * scale_of.get(ch, 1.0) if ok else math.nan
+        value = (0.0 if name in fixed else float(theta[c])) if ok else math.nan
         params.append(
-            Parameter(name, label, float(theta[c]) if ok else math.nan, se, unit,
-                      ch[0], AXES[ch[1]] if ch[1] >= 0 else "", key)
+            Parameter(name, label, value, 0.0 if name in fixed else se, unit, ch[0],
+                      AXES[ch[1]] if ch[1] >= 0 else "", key)
         )  # fmt: skip
         if not ok:
             undetermined.append(name)
@@ -256,6 +259,9 @@ def fit_model(
     bad = ~(keep & estimable)
     pcov[bad, :] = np.nan
     pcov[:, bad] = np.nan
+    conv = np.array([o[0] in fixed for o in owners], dtype=bool)
+    pcov[conv, :] = 0.0
+    pcov[:, conv] = 0.0
     return Fit(
         model=model, parameters=tuple(params), predicted=predicted, residual=resid,
         white_residual=wres, basis=basis, chi2=chi2, dof=ds.n_rows - n_par - _free(ds.groups),
@@ -263,6 +269,12 @@ def fit_model(
         groups=groups, spans=spans_out, undetermined=tuple(undetermined),
         channels=tuple(channels), covariance=pcov,
     )  # fmt: skip
+
+
+def _by_convention(ds: Dataset) -> set[str]:
+    """The parameters fixed at 0 by the frame's convention: without a record of a set attitude
+    (poses only), :data:`host.model.poses.FRAME_FIXED`; else none."""
+    return set(FRAME_FIXED) if any(s.pose_frame for s in ds.signals) else set()
 
 
 def residual_sigmas(ds: Dataset, basis: np.ndarray) -> np.ndarray:
@@ -297,6 +309,7 @@ def _channel_fits(
     the row space of the channel's design) and the combinations they do determine."""
     estimable = np.zeros(len(owners), dtype=bool)
     out: list[ChannelFit] = []
+    joint = _pose_record_dof(ds, x, owners)  # with poses: over a sensor's channels together
     for s_i, sensor in enumerate(SENSORS):
         for ax in range(3):
             rows = np.flatnonzero((ds.row_sensor == s_i) & (ds.row_axis == ax))
@@ -326,11 +339,7 @@ def _channel_fits(
             # record-level design: one row per record/channel value (mean of its rows; not a
             # free level's, which is a value of its own)
             tested = [g for g in grs if not g.free_level]
-            rank_g = 0
-            if len(cols) and tested:
-                xg = np.array([x[np.ix_(g.rows, cols)].mean(axis=0) for g in tested])
-                gn = np.linalg.norm(xg, axis=0)
-                rank_g = int(np.linalg.matrix_rank(xg[:, gn > 0] / gn[gn > 0], tol=1e-9))
+            rank_g = _record_rank(x, tested, cols)
             chi2 = float(wres[rows] @ wres[rows])
             dof = len(rows) - rank - _free(grs)
             scale = stderr_scale(chi2, dof)
@@ -339,11 +348,39 @@ def _channel_fits(
                 if null.shape[1]
                 else ()
             )
-            out.append(ChannelFit(sensor, AXES[ax], chi2, dof, len(tested) - rank_g, scale, combos))
+            dof_g = joint.get(sensor, len(tested) - rank_g)
+            out.append(ChannelFit(sensor, AXES[ax], chi2, dof, dof_g, scale, combos))
     if any(o[2][1] < 0 for o in owners):
         # shared parameters couple the channels: what all rows together determine
         estimable = _estimable(xw)
     return out, estimable
+
+
+def _pose_record_dof(
+    ds: Dataset, x: np.ndarray, owners: Sequence[tuple[str, str, tuple[str, int], str, str]]
+) -> dict[str, int]:
+    """sensor -> its record-level dof counted over its three channels together, in a session
+    with poses: a pose's attitude (two unknowns shared by the accelerometer's channels) is
+    tested by the three values it explains, which no channel alone shows. {} without poses."""
+    if not any(sig.kind == "pose" for sig in ds.signals):
+        return {}
+    out: dict[str, int] = {}
+    for sensor in SENSORS:
+        tested = [g for g in ds.groups if g.sensor == sensor and not g.free_level]
+        cols = np.array([c for c, o in enumerate(owners) if o[2][0] == sensor], dtype=int)
+        if tested and len(cols):
+            out[sensor] = len(tested) - _record_rank(x, tested, cols)
+    return out
+
+
+def _record_rank(x: np.ndarray, tested: Sequence[Group], cols: np.ndarray) -> int:
+    """The rank of the record-level design: one row per record/channel value of ``tested``
+    (the mean of its rows of the design ``x``), on the columns ``cols``."""
+    if not len(cols) or not tested:
+        return 0
+    xg = np.array([x[np.ix_(g.rows, cols)].mean(axis=0) for g in tested])
+    gn = np.linalg.norm(xg, axis=0)
+    return int(np.linalg.matrix_rank(xg[:, gn > 0] / gn[gn > 0], tol=1e-9))
 
 
 def _free(groups: Sequence[Group]) -> int:

@@ -44,6 +44,9 @@ class RecordSignals:
     rests' circle (not recorded), the plate's tilt (east, north) the circles show — the fit
     carries a correction of that heading as an unknown of the record, linearised there (None:
     the heading is recorded, or it is the frame's origin).
+    ``pose_frame``: no record of the session has a set attitude (poses only), so the frame is
+    the accelerometer's own by convention (:data:`host.model.poses.FRAME_FIXED`). A pose's
+    ``up`` is the first estimate of its attitude (:func:`host.model.poses.attitudes`).
     """
 
     name: str
@@ -63,6 +66,7 @@ class RecordSignals:
     gyro_scale: np.ndarray | None = None
     heading_tilt: np.ndarray | None = None
     tilt_matrix: np.ndarray | None = None
+    pose_frame: bool = False
 
     def reference(self, sensor: str) -> np.ndarray:
         """(N,3) the true input of ``sensor``: specific force m/s² or rate °/s."""

@@ -34,7 +34,8 @@ class ModelTerm:
         """Parameters on the records ``signals``: :attr:`n_params` and the unknowns of the
         records that carry their own (:attr:`Term.record_params`)."""
         t = self.term
-        return self.n_params + sum(len(t.own_params(signals[i])) for i in t.owners(signals))
+        owners = t.owners(signals, self.sensor)
+        return self.n_params + sum(len(t.own_params(signals[i])) for i in owners)
 
     def slots(self, signals: Sequence[RecordSignals] = ()) -> list[tuple[int | None, str, str]]:
         """(output axis or None for a shared parameter, name, parameter key) of each of its
@@ -52,7 +53,7 @@ class ModelTerm:
                 for ax in self.axes
                 for q, n in enumerate(t.param_labels(self.sensor, ax))
             ]
-        for i in t.owners(signals):
+        for i in t.owners(signals, self.sensor):
             rec = signals[i].name
             out.extend(
                 (None, f"{t.name}.{rec}.{p}", f"{rec}.{p}") for p in t.own_params(signals[i])

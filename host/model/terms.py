@@ -67,6 +67,9 @@ class Term:
     record_columns: ColumnFn | None = None
     owns: Callable[[RecordSignals], bool] | None = None
     record_params_of: Callable[[RecordSignals], tuple[str, ...]] | None = None
+    #: the records' own unknowns belong to this sensor's channels alone ('': every sensor the
+    #: term acts on), e.g. a pose's attitude to the accelerometer's misalignment
+    record_sensor: str = ""
     #: the same parameters seen by another sensor (one geometry read by two sensors, e.g. a
     #: face's lean: gravity leaned on the accelerometer, the turn axis leaned on the gyro):
     #: ``twin_columns(signals, twin_sensor, axis)`` -> (N, len(params)) fill ``twin_sensor``'s
@@ -103,10 +106,12 @@ class Term:
         """The unknowns record ``sig`` carries of its own (of :attr:`record_params`)."""
         return self.record_params if self.record_params_of is None else self.record_params_of(sig)
 
-    def owners(self, signals: Sequence[RecordSignals]) -> list[int]:
+    def owners(self, signals: Sequence[RecordSignals], sensor: str = "") -> list[int]:
         """Indices of the records in ``signals`` that carry unknowns of their own
-        (:attr:`record_params`)."""
+        (:attr:`record_params`) on ``sensor``'s channels ('': any)."""
         if not self.record_params or self.owns is None:
+            return []
+        if self.record_sensor and sensor and sensor != self.record_sensor:
             return []
         return [i for i, s in enumerate(signals) if self.owns(s)]
 

@@ -31,6 +31,7 @@ from host.session.method import (
     RecordStats,
     record_stats,
 )
+from host.session.records import Record
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,8 +41,8 @@ class Observation:
     Per gyro channel i the model is ``gyro[i] = (I+Mg)[i]·rate + GA[i]·force + G0[i]·tau``;
     per accel channel ``accel[i] = (I+Ma)[i]·(g·up) + A0[i]`` (means only).
 
-    static / rate: ``gyro`` = channel means (°/s), ``rate`` = reference rate (°/s),
-    ``force`` = up direction (g), ``tau`` = 1.
+    static / rate / pose: ``gyro`` = channel means (°/s), ``rate`` = reference rate (°/s),
+    ``force`` = up direction (g; a pose's first estimate of its attitude), ``tau`` = 1.
     turn: ``gyro`` = trapezoid integrals (°), ``rate`` = ±360·n·up (°), ``force`` = up·T (g·s),
     ``tau`` = T (s), the record duration.
     """
@@ -57,6 +58,52 @@ class Observation:
     accel: np.ndarray | None = None  # means, m/s² (statics only)
     accel_sigma: np.ndarray | None = None
     turns: int | None = None
+
+
+def rest_up(record: Record, stats: RecordStats) -> np.ndarray:
+    """(3,) the up direction of a rest: a static's set one, a pose's first estimate (its mean
+    specific force, normalised; the model refines it, :mod:`host.model.poses`)."""
+    if record.kind == "pose":
+        return np.asarray(stats.accel_mean / np.linalg.norm(stats.accel_mean))
+    return record.up
+
+
+def pose_or_move(
+    rec: Record, s: RecordStats, earth: float, accel_noise: np.ndarray, gyro_noise: np.ndarray
+) -> Observation:
+    """The observation of a pose (its means, against gravity along its first attitude, and
+    the vertical Earth rate ``earth`` °/s along it) or of a move (its integral; the model reads
+    it against the rests it joins, :mod:`host.model.poses`). ``accel_noise``, ``gyro_noise``
+    (3,): the per-sample σ of the rests, m/s² and °/s."""
+    if rec.kind == "pose":
+        up = rest_up(rec, s)
+        return Observation(
+            record=rec.name, kind="pose", up=up, rate=earth * up, force=up.copy(), tau=1.0,
+            gyro=s.gyro_mean, gyro_sigma=gyro_noise / math.sqrt(s.n), accel=s.accel_mean,
+            accel_sigma=accel_noise / math.sqrt(s.n),
+        )  # fmt: skip
+    t = s.duration_s
+    up = s.accel_mean / max(float(np.linalg.norm(s.accel_mean)), 1e-9)
+    return Observation(
+        record=rec.name, kind="move", up=up, rate=np.zeros(3), force=up, tau=t,
+        gyro=s.gyro_integral, gyro_sigma=gyro_noise * math.sqrt(s.dt_s * t),
+    )  # fmt: skip
+
+
+def _checked_rests(session: Session, stats: Mapping[str, RecordStats], g: float) -> list[str]:
+    """The static and pose records, each checked (:func:`check_orientation`,
+    :func:`check_pose`); UserError when there are none."""
+    rests = [n for n, r in session.records.items() if r.kind in ("static", "pose")]
+    if not rests:
+        raise UserError(
+            "no static or pose records (SERIAL_x_up.txt …, SERIAL_pose_01.txt …): the "
+            "calibration needs rests"
+        )
+    for name in rests:
+        rec = session.records[name]
+        check = check_pose if rec.kind == "pose" else check_orientation
+        check(rec, stats[name], g, session.path_of(name))
+    return rests
 
 
 def build_observations(
@@ -81,17 +128,13 @@ def build_observations(
         else {n: record_stats(r) for n, r in session.records.items()}
     )
     notes: list[str] = []
-    statics = [n for n, r in session.records.items() if r.kind == "static"]
-    if not statics:
-        raise UserError("no static records (SERIAL_x_up.txt …): the calibration needs them")
-    for name in statics:
-        check_orientation(session.records[name], st[name], g, session.path_of(name))
+    statics = _checked_rests(session, st, g)
     accel_noise = np.maximum(np.max([st[n].accel_std for n in statics], axis=0), 1e-4)
     gyro_noise = np.maximum(np.max([st[n].gyro_std for n in statics], axis=0), 1e-3)
     earth = EARTH_RATE_DPS * math.sin(math.radians(latitude_deg)) if earth_rate else 0.0
 
-    # static-only preliminary gyro bias and g-sensitivity for the turn checks
-    xs = np.array([np.concatenate([session.records[n].up, [1.0]]) for n in statics])
+    # rests-only preliminary gyro bias and g-sensitivity for the turn checks
+    xs = np.array([np.concatenate([rest_up(session.records[n], st[n]), [1.0]]) for n in statics])
     pre: np.ndarray | None = None
     if np.linalg.matrix_rank(xs) == 4:
         ys = np.array([st[n].gyro_mean for n in statics])
@@ -163,10 +206,10 @@ def build_observations(
                     gyro_sigma=np.maximum(s.gyro_std, gyro_noise) / math.sqrt(s.n),
                 )
             )  # fmt: skip
-        elif rec.kind == "pose":
-            check_pose(rec, s, g, fname)
-        elif rec.kind == "move":
-            check_move(rec, poses, fname)
+        elif rec.kind in ("pose", "move"):
+            if rec.kind == "move":
+                check_move(rec, poses, fname)
+            obs.append(pose_or_move(rec, s, earth, accel_noise, gyro_noise))
         else:
             notes.append(f"{fname}: not a static, turn or rate record; ignored")
     turn_axes = {(axis_label(o.up), int(np.sign(o.rate @ o.up))) for o in obs if o.kind == "turn"}

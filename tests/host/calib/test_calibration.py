@@ -261,7 +261,7 @@ def test_turn_that_did_not_happen() -> None:
 
 
 def test_no_statics_is_an_error() -> None:
-    with pytest.raises(UserError, match="no static records"):
+    with pytest.raises(UserError, match="no static or pose records"):
         calibrate_from_records(_session(make_records(TURN_NAMES)))
 
 
