@@ -8,12 +8,15 @@ their ports. It can misbehave on purpose (:data:`OPERATOR_FAULTS`).
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
 
 from host.bench.physics import (
     Bench,
+    Motion,
+    move_to,
     static_motion,
     up_vector,
 )
@@ -36,7 +39,9 @@ class CubeOperator:
     ``place`` (``name="x_up"`` or ``up=[...]``): the cube rests with that face up from ``now``.
     ``turn`` (``axis``, ``direction`` ccw|cw, ``turns``, ``window_s``): from ``now`` (the start
     beep) the cube is ``axis`` up and turned by hand, starting 0.8–1.3 s later and stopping
-    0.8–1.5 s before the window ends (:func:`turn_motion`). Other actions are ignored.
+    0.8–1.5 s before the window ends (:func:`turn_motion`). ``pose`` (``up``, ``first``): no
+    cube, the hand moves the unit to a new attitude and holds it (:meth:`pose`). Other actions
+    are ignored.
     ``faults`` maps :data:`OPERATOR_FAULTS` names to K: the K-th ``place`` puts the next axis
     up (``wrong_face``), the K-th ``turn`` stops at 0.8 of the turns (``incomplete_turn``) or
     peaks at 320 °/s (``too_fast``). ``rng`` draws the hand motions.
@@ -61,7 +66,31 @@ class CubeOperator:
             return self.place(sim, now, **kw)
         if action == "turn":
             return self.turn(sim, now, **kw)
+        if action == "pose":
+            return self.pose(sim, now, **kw)
         return {"action": action, "done": False}
+
+    def pose(self, sim: Simulator, now: float, **kw: Any) -> dict[str, Any]:
+        """Hold the unit (no cube) still with ``up`` (body vector) up: ``first`` puts it there
+        at once; otherwise it rests where it was for 0.6–1.0 s after ``now`` (the beep), then
+        the hand moves it there in 1.2–2.0 s (longer for more than 90°: under 150 °/s) by one
+        rotation about a body axis (not the shortest: twisted by up to ±60° about the old up)
+        and holds it still."""
+        up = np.asarray(kw["up"], dtype=float)
+        if kw.get("first"):
+            sim.set_motion(static_motion(up), now)
+            return {"action": "pose", "done": True, "up": up.tolist(), "start_s": now}
+        attitude = sim.motion_at(now).kinematics(np.array([now]))[0][0]
+        start = now + float(self.rng.uniform(0.6, 1.0))
+        move = move_to(attitude, up, start, 1.0, float(self.rng.uniform(-60.0, 60.0)))
+        # 1.2–2.0 s, longer for a larger angle: the peak rate 2·angle/duration under 150 °/s
+        duration = max(float(self.rng.uniform(1.2, 2.0)), abs(move.angle_deg) / 75.0)
+        move = dataclasses.replace(move, duration_s=duration)
+        sim.set_motion(move, now)
+        rest = tuple(tuple(row) for row in move.end_attitude.tolist())
+        sim.set_motion(Motion(rest), start + duration)
+        return {"action": "pose", "done": True, "up": up.tolist(), "start_s": start,
+                "end_s": start + duration, "angle_deg": move.angle_deg}  # fmt: skip
 
     def place(self, sim: Simulator, now: float, **kw: Any) -> dict[str, Any]:
         """Put the cube at rest with a face (``name``) or a body vector (``up``) up."""

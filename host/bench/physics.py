@@ -308,6 +308,71 @@ class ConstantRateMotion(Motion):
         return True
 
 
+@dataclass(frozen=True)
+class MoveMotion(Motion):
+    """A hand moving the unit from ``attitude`` to a new one (no cube: a pose): a rotation by
+    ``angle_deg`` about the body axis ``axis`` (unit vector) from ``start_s`` over
+    ``duration_s``, its rate a raised cosine (zero at both ends); at rest before and after.
+    Attitude ``R(t) = P·Rot(axis, ψ(t))``, body rate ``ψ̇·axis``."""
+
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    angle_deg: float = 0.0
+    start_s: float = 0.0
+    duration_s: float = 1.0
+
+    def _angle_and_rate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        tau = np.clip((t - self.start_s) / self.duration_s, 0.0, 1.0)
+        theta = math.radians(self.angle_deg)
+        angle = theta * (tau - np.sin(2 * math.pi * tau) / (2 * math.pi))
+        rate = theta / self.duration_s * (1.0 - np.cos(2 * math.pi * tau))
+        return angle, rate
+
+    def kinematics(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        t = np.asarray(t, dtype=np.float64)
+        angle, rate = self._angle_and_rate(t)
+        k = skew(np.array(self.axis))
+        s, c = np.sin(angle)[..., None, None], np.cos(angle)[..., None, None]
+        rot = np.eye(3) + s * k + (1.0 - c) * (k @ k)
+        return self.pose_matrix @ rot, rate[..., None] * np.array(self.axis)
+
+    @property
+    def moving(self) -> bool:
+        return True
+
+    @property
+    def end_attitude(self) -> np.ndarray:
+        """(3, 3) the attitude it comes to rest in."""
+        return self.pose_matrix @ rot_vector(np.array(self.axis), math.radians(self.angle_deg))
+
+
+def move_to(attitude: np.ndarray, up_body: np.ndarray, start_s: float, duration_s: float,
+            twist_deg: float = 0.0) -> MoveMotion:  # fmt: skip
+    """The move from ``attitude`` (3, 3) that brings gravity along ``up_body`` (unit vector):
+    gravity seen in the body turns by Q (Q·u₀ = u₁): the shortest such rotation after a twist of
+    ``twist_deg`` about u₀ (a hand does not move along the shortest way), made as one rotation
+    about a fixed body axis (Rot(axis, angle) = Qᵀ: a room-fixed vector turns the other way)."""
+    u0 = np.asarray(attitude, dtype=np.float64)[2]
+    u1 = np.asarray(up_body, dtype=np.float64) / np.linalg.norm(up_body)
+    cross = np.cross(u0, u1)
+    if np.linalg.norm(cross) < 1e-9:  # the same up (or opposite): about any axis across it
+        cross = np.cross(u0, [1.0, 0.0, 0.0] if abs(u0[0]) < 0.9 else [0.0, 1.0, 0.0])
+    shortest = rot_vector(cross, math.acos(max(-1.0, min(1.0, float(u0 @ u1)))))
+    q = shortest @ rot_vector(u0, math.radians(twist_deg))
+    r = q.T
+    angle = math.acos(max(-1.0, min(1.0, (float(np.trace(r)) - 1.0) / 2.0)))
+    if angle < 1e-9:
+        axis = np.array([0.0, 0.0, 1.0])
+    elif math.sin(angle) < 1e-3:  # about a half turn: the axis is r's eigenvector of 1
+        values, vectors = np.linalg.eig(r)
+        axis = np.real(vectors[:, int(np.argmin(np.abs(values - 1.0)))])
+        if float(axis @ vee(r - r.T)) < 0:
+            axis = -axis
+    else:
+        axis = vee(r - r.T) / (2.0 * math.sin(angle))
+    return MoveMotion(_as_tuple(attitude), (float(axis[0]), float(axis[1]), float(axis[2])),
+                      math.degrees(angle), start_s, duration_s)  # fmt: skip
+
+
 # --------------------------------------------------------------------------- bench
 def normal_gravity(latitude_deg: float, height_m: float = 0.0) -> float:
     """Helmert's normal gravity with height correction (method.md §3), m/s²."""

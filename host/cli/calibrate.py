@@ -26,7 +26,7 @@ from host.calib.report import path_lines, verdict_line
 from host.calib.result import CalibrationResult
 from host.cli import out_directory
 from host.cli.screen import terminal_width, working, wrap
-from host.dialogue.options import DEFAULT_READY_S, MAX_EXTRA, WARMUP_DEFAULT_S
+from host.dialogue.options import DEFAULT_READY_S, MAX_EXTRA, PLANS, WARMUP_DEFAULT_S
 from host.errors import RecordCheckError, UserError
 from host.session.checks import failed_record
 from host.session.directory import Session, read_session
@@ -201,8 +201,11 @@ def adaptive_options(args: argparse.Namespace) -> None:
             f"{what} is for a live calibration: the records in {args.from_dir} are measured "
             f"(python3 -m host plan {args.from_dir} names the next record worth measuring)"
         )
-    if given and plan != "adaptive":
-        raise UserError(f"{given[0]}: only --plan adaptive reads it; add --plan adaptive")
+    if given and plan not in ("adaptive", "poses"):
+        raise UserError(
+            f"{given[0]}: only --plan adaptive reads it; add --plan adaptive (or --plan poses, "
+            "which reads it too)"
+        )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -284,12 +287,15 @@ def add_live_arguments(p: argparse.ArgumentParser) -> None:
         help="IMUCAP01 capture of the session (default OUT/SERIAL_session.cap)",
     )  # fmt: skip
     p.add_argument(
-        "--plan", choices=("fixed", "adaptive"), default="fixed",
+        "--plan", choices=PLANS, default="fixed",
         help="fixed: the method's records; adaptive: axis by axis, each face ends when its mean "
         "(the up face: the face pair) is precise enough for --target (10 s to "
         "--static-seconds), turn pairs after the up face go on until the gyro scale "
         "meets it (3 pairs at most), then the records the planner names (a face again, a turn "
-        "pair) until every value's σ/tolerance meets --target (plan DIR ranks them)",
+        "pair) until every value's σ/tolerance meets --target (plan DIR ranks them); poses: no "
+        "cube, the unit held still in the attitudes the planner asks for, moved by hand "
+        "between them, until every value the poses determine meets --target (at most 10 + "
+        "--max-extra poses); poses16: the 16 attitudes of the Earth-rate article's scheme",
     )  # fmt: skip
     p.add_argument(  # None when not given: given without --plan adaptive, it is refused
         "--target", type=float, metavar="R",

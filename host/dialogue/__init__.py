@@ -16,6 +16,9 @@ the results through :mod:`host.calib.publish`.
 - ``adaptive`` — ``--plan adaptive``: the records the workbench's adaptive engine asks for
   (faces and turn pairs axis by axis, each until it has enough, then the planner's) until every
   value's σ/tolerance meets the target.
+- ``poses`` — ``--plan poses`` / ``poses16``: no cube, the unit held still in the attitudes the
+  planner (or the 16-position scheme) asks for, each move and rest cut into a move and a pose
+  record, until every value the poses determine meets the target.
 - ``screens`` — what is shown: prompts, the progress line, the summaries of records and stages.
 - ``console`` — the terminal the operator answers at (and a scripted one for tests), and the
   questions asked on it.

@@ -59,7 +59,7 @@ from host.board.link import LinkLost, LinkTimeout
 from host.calib.commands import said_with_command
 from host.calib.publish import ComputeSettings, compute_and_write, show_result
 from host.calib.report import verdict_line
-from host.dialogue import adaptive, screens
+from host.dialogue import adaptive, poses, screens
 from host.dialogue.console import (
     Console,
     EndedBySignal,
@@ -124,6 +124,9 @@ class CalibrationDialogue(Recorder):
         self._warm_up()
 
         base = (*STATIC_NAMES, *TURN_NAMES, CLOSING_NAME)
+        if opts.plan in ("poses", "poses16"):  # no cube: poses and the moves between them
+            poses.measure_poses(self, opts)
+            return self._results()
         if opts.plan == "adaptive":  # the engine's order and stopping rule
             # --redo: measured again by name first (the engine names new records anew)
             self._measure_again([n for n in opts.redo if n != CLOSING_NAME])
@@ -251,7 +254,7 @@ class CalibrationDialogue(Recorder):
         op = self.op
         missing = [
             n for n in STATIC_NAMES if not record_path(self.out_dir, self.serial, n).exists()
-        ]
+        ] if not self.opts.plan.startswith("poses") else []  # fmt: skip
         if missing:
             raise ResumableError(
                 self._resume_hint(

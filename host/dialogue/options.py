@@ -41,6 +41,9 @@ MAX_TURNS = 10
 LOSS_LIMIT = 0.01
 #: pause between "get ready to turn" and the start beep, s
 DEFAULT_READY_S = 2.0
+#: the dialogue's plans: the method's records, the adaptive planner's, poses without a cube
+#: (the planner's attitudes, or the 16 of the Earth-rate article's scheme)
+PLANS = ("fixed", "adaptive", "poses", "poses16")
 #: the most records the adaptive plan may add (a million ran on with no end in sight)
 MAX_EXTRA = 60
 
@@ -178,8 +181,10 @@ class DialogueOptions:
         for f in self.term_files:
             cat = load_term_file(f, cat)
         parse_model(self.model, cat)  # a bad --model fails now, not after the session
-        if self.plan not in ("fixed", "adaptive"):
-            raise UserError(f"--plan {self.plan}: give fixed (the method's plan) or adaptive")
+        if self.plan not in PLANS:
+            raise UserError(
+                f"--plan {self.plan}: give fixed (the method's plan), adaptive, poses or poses16"
+            )
         if not (math.isfinite(self.target) and self.target > 0.0):
             raise UserError(
                 f"--target {self.target:g}: give the worst σ/tolerance to reach, e.g. 0.05"

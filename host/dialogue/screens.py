@@ -169,7 +169,7 @@ def measurement_progress(op: Questions, name: str, seconds: float, info: BoardIn
     the operator."""
     a_scale = sensor.G0 / info.accel_lsb_per_g
     g_scale = 1.0 / sensor.GYRO_LSB_PER_DPS[info.gyro_fs_sel]
-    up_axis = "xyz".index(name[0])
+    up_axis = "xyz".find(name[0])  # a pose (pose_01): none
     last = {"t": 0.0, "k": 0, "sum": 0.0, "angle": 0.0}
 
     def tick(elapsed: float, sums: np.ndarray, k: int) -> None:
@@ -180,7 +180,7 @@ def measurement_progress(op: Questions, name: str, seconds: float, info: BoardIn
             op.progress(head)
             return
         m = sums / k
-        if name.endswith(("_ccw", "_cw")):
+        if name.endswith(("_ccw", "_cw")) and up_axis >= 0:
             s_up = float(sums[4 + up_axis])
             if k > last["k"]:
                 rate = (s_up - last["sum"]) / (k - last["k"]) * g_scale
