@@ -73,6 +73,9 @@ class TurnCircle:
     n_blocks: int = 0
     #: the same record's tilt read from its motion, beside one read from its rests (None)
     motion: TurnCircle | None = None
+    #: read from the motion: the named variance components fitted with it, m/s² of a row
+    #: beyond its white noise — the seating at the rests, the hand on the moving blocks
+    scatter: tuple[float, float] = (0.0, 0.0)
 
     @property
     def size(self) -> float:
@@ -194,9 +197,10 @@ class PlateTilt:
         moved = len(self.circles) - rests
         if not moved:
             return f"the rests of {rests} turns"
-        if not rests:
-            return f"the motion of {moved} turns (every sample, with the lever arm)"
-        return f"the rests of {rests} turns and the motion of {moved}"
+        seat, hand = next(c.scatter for c in self.circles if c.source == "motion")
+        scatter = _scatter(seat, hand)
+        what = f"the motion of {moved} turns (every sample, with the lever arm — {scatter})"
+        return what if not rests else f"the rests of {rests} turns and {what}"
 
     def _motion_lines(self) -> list[str]:
         """The tilt read again from the motion of the turns whose rests gave it (every sample,
@@ -212,10 +216,19 @@ class PlateTilt:
         word = "agree" if abs(z) < 3.0 else "DISAGREE"
         return [
             f"  from the motion of the same {len(moved)} turns (every sample: the rests and "
-            f"the moving blocks, jointly with the lever arm): {1e3 * other.size:.2f} ± "
+            f"the moving blocks, jointly with the lever arm — {_scatter(*moved[0].scatter)}): "
+            f"{1e3 * other.size:.2f} ± "
             f"{1e3 * other.size_sd:.2f} mrad; the rests and the motion {word} "
             f"({1e3 * diff:+.2f} mrad, {z:+.1f}σ)"
         ]
+
+
+def _scatter(seat: float, hand: float) -> str:
+    """The motion fit's variance components in words, m/s²."""
+    return (
+        f"beyond the white noise the seating {seat:.2g} m/s² at a rest, the hand {hand:.2g} "
+        "on a moving block"
+    )
 
 
 def plate_from_rests(circles: Sequence[TurnCircle]) -> PlateTilt | None:
@@ -306,7 +319,8 @@ def motion_circles(signals: Sequence[RecordSignals], gyro_sd: np.ndarray) -> lis
             m.centre_var,
             "motion",
             m.n_blocks,
-        )  # fmt: skip
+            scatter=(fit.seating, fit.hand),
+        )
         for m in fit.tilts
         if np.all(np.isfinite(m.cov))
     ]

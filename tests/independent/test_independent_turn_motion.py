@@ -54,6 +54,10 @@ def test_the_tilt_is_read_from_the_motion_of_turns_without_inner_rests(
     plate = session_plate(ds.signals)
     assert plate is not None and len(plate.circles) == 6
     assert all(c.source == "motion" and c.n_rests == 2 for c in plate.circles)
+    note = next(n for n in ds.notes if n.startswith("plate tilt"))
+    assert "read from the motion of 6 turns" in note and "the hand" in note
+    # no hand is simulated: the hand's component is far below the tilt's g·θ
+    assert plate.circles[0].scatter[1] < 0.05 * 9.8 * plate.size
     fit = fit_with_components(ds, parse_model("base,plate_tilt:accel")).fit
     size, sd = tilt_size(fit)
     true = float(truth["effect"]["tilt_rad"])
