@@ -57,11 +57,12 @@ def serial_problem(serial: str) -> str | None:
 
 def check_serial(serial: str, where: str = "serial number") -> str:
     """``serial`` itself when it obeys the rule; ValueError naming ``where`` it came from, the
-    serial (escaped) and what breaks the rule otherwise."""
+    serial (as typed when printable, else escaped) and what breaks the rule otherwise."""
     why = serial_problem(serial)
     if why is None:
         return serial
-    raise ValueError(f"{where} '{written_serial(serial)}' ({why}): use {SERIAL_RULE}")
+    shown = serial if serial.isprintable() and len(serial) <= 29 else written_serial(serial)
+    raise ValueError(f"{where} '{shown}' ({why}): use {SERIAL_RULE}")
 
 
 def parse_serial(text: str) -> str:

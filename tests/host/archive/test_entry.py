@@ -224,7 +224,8 @@ def test_a_name_with_a_control_character_never_reaches_the_archive(
             rec = d / "E1_x_up.txt"
             rec.write_text(f"# lot: {bad}\n" + rec.read_text())
             _without_record_digests(d)
-            if bad.strip() and "\n" not in bad and "\r" not in bad:
+            # a header's value is read less the blanks around it: a tab there is one of them
+            if control in bad.strip() and "\n" not in bad and "\r" not in bad:
                 with pytest.raises(UserError, match="'lot' header line: .*control character"):
                     entry_from_directory(d)
         else:
