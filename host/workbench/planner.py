@@ -332,7 +332,7 @@ class Augmenter:
     def __init__(self, session: Session, values: Mapping[str, float], g: float, seed: int = 0):
         recs = list(session.records.values())
         stats = [record_stats(r) for r in recs]
-        statics = [s for s in stats if s.kind == "static"]
+        statics = [s for s in stats if s.kind in ("static", "pose")]  # the rests
         self.session, self.values, self.g, self.seed = session, values, g, seed
         self.accel_sd = np.median([s.accel_std for s in statics], axis=0)
         self.gyro_sd = np.median([s.gyro_std for s in statics], axis=0)
