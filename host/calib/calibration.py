@@ -24,7 +24,6 @@ import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -33,15 +32,15 @@ from host.calib.result import CalibrationResult, thermal_parameters
 from host.calib.thermal import CHANNELS, ThermalCalibration, corrected_records
 from host.calib.values import FitQuality, ParameterResult, RecordResidual, within
 from host.errors import UserError
-from host.model.catalogue import CATALOGUE
+from host.model.catalogue import BASE, CATALOGUE
 from host.model.components import fit_with_components
-from host.model.dataset import build_dataset
-from host.model.fit import fit_model
+from host.model.dataset import Dataset, build_dataset
+from host.model.fit import Fit, fit_model
 from host.model.loader import load_term_file, term_file_sha256
 from host.model.noise import NoiseModel
 from host.model.plate import bias_note
 from host.model.poses import frame_note
-from host.model.spec import parse_model, short_spec
+from host.model.spec import ModelTerm, parse_model, short_spec
 from host.model.stats import ALPHA_FIT
 from host.session.checks import check_record_lengths
 from host.session.directory import Session
@@ -162,9 +161,27 @@ def _synthetic_record(
     return Record(name, t_ms, accel, gyro, np.full(n, temp_c), dict(meta))
 
 
+def _missing_records(
+    session: Session, g: float, turns: int | None
+) -> tuple[dict[str, Record], int]:
+    """Synthetic records of the standard plan that ``session`` lacks, by name, made like its
+    own (its mean chip temperature, its turns' n, a power-on time after its last record), and
+    that n."""
+    recs = list(session.records.values())
+    temp = float(np.mean([float(np.mean(r.temp)) for r in recs])) if recs else 25.0
+    ns = [int(r.meta["turns"]) for r in recs if r.meta.get("turns", "").isdigit()]
+    n_turns = turns or (ns[0] if ns else 1)
+    meta: dict[str, str] = {}
+    if recs and all("power_on_s" in r.meta for r in recs):
+        last = max(float(r.meta["power_on_s"]) + r.duration_s for r in recs)
+        meta["power_on_s"] = f"{last + 60.0:.3f}"
+    missing = [n for n in STATIC_NAMES + TURN_NAMES if n not in session.records]
+    return {c: _synthetic_record(c, g, n_turns, temp, meta) for c in missing}, n_turns
+
+
 def what_would_determine(
     session: Session,
-    model: Any,
+    model: list[ModelTerm],
     names: Iterable[str],
     *,
     latitude_deg: float = DEFAULT_LATITUDE_DEG,
@@ -178,18 +195,8 @@ def what_would_determine(
     wanted = list(names)
     if not wanted:
         return {}
-    g = local_gravity(latitude_deg, height_m)
-    have = set(session.records)
-    candidates = [n for n in STATIC_NAMES + TURN_NAMES if n not in have]
-    recs = list(session.records.values())
-    temp = float(np.mean([float(np.mean(r.temp)) for r in recs])) if recs else 25.0
-    ns = [int(r.meta["turns"]) for r in recs if r.meta.get("turns", "").isdigit()]
-    n_turns = turns or (ns[0] if ns else 1)
-    meta: dict[str, str] = {}
-    if recs and all("power_on_s" in r.meta for r in recs):
-        last = max(float(r.meta["power_on_s"]) + r.duration_s for r in recs)
-        meta["power_on_s"] = f"{last + 60.0:.3f}"
-    synth = {c: _synthetic_record(c, g, n_turns, temp, meta) for c in candidates}
+    synth, n_turns = _missing_records(session, local_gravity(latitude_deg, height_m), turns)
+    candidates = list(synth)
 
     def determined(extra: Iterable[str]) -> set[str]:
         records = dict(session.records)
@@ -236,7 +243,7 @@ def calibrate_from_records(
     created: str | None = None,
     model: str = "base",
     term_files: Iterable[str] = (),
-    noise: Any = None,
+    noise: NoiseModel | None = None,
     thermal: ThermalCalibration | None = None,
     thermal_source: str = "",
 ) -> CalibrationResult:
@@ -255,27 +262,12 @@ def calibrate_from_records(
     model's biases are those at T̄; the result then carries the bias change as the term
     ``thermal_bias`` about T̄ with the range over which it holds (``thermal_range_c``).
     """
-    from datetime import datetime
-
     check_record_lengths(session)
     t_guess = float(np.mean([float(np.mean(r.temp)) for r in session.records.values()]))
     if thermal is not None:
-        if thermal.serial and session.serial and thermal.serial != session.serial:
-            raise UserError(
-                f"{thermal_source or 'the thermal calibration'} is of serial {thermal.serial}, "
-                f"the records of {session.serial}: give the unit's own SERIAL_thermal.json"
-            )
-        session = dataclasses.replace(
-            session, records=corrected_records(session.records, thermal, t_guess)
-        )
-    files = tuple(str(f) for f in term_files)
-    digests = {str(Path(f).resolve()): term_file_sha256(f) for f in files}
-    cat = dict(CATALOGUE)
-    for f in files:  # the bytes hashed are the bytes run
-        cat = load_term_file(f, cat, sha256=(digests[str(Path(f).resolve())],))
-    mts = parse_model(model, cat)
+        session = _thermally_corrected(session, thermal, thermal_source, t_guess)
+    mts, digests = _model_with_term_files(model, tuple(str(f) for f in term_files))
     nm = noise if noise is not None else NoiseModel()
-    g = local_gravity(latitude_deg, height_m)
     ds = build_dataset(
         session, noise=nm, latitude_deg=latitude_deg, height_m=height_m, turns=turns,
         earth_rate=earth_rate,
@@ -283,20 +275,127 @@ def calibrate_from_records(
     # the turn-angle and wobble components estimated jointly with the model: a term that
     # explains the turn closures (an asymmetry) takes their scatter from the yardstick
     joint = fit_with_components(ds, mts)
-    fit, ds = joint.fit, joint.dataset
+    fitted = _Fitted(
+        session, mts, digests, nm, joint.fit, joint.dataset, latitude_deg, height_m, turns,
+        earth_rate,
+    )  # fmt: skip
+    return _result(fitted, created, thermal, thermal_source, t_guess)
+
+
+@dataclass(frozen=True, eq=False)
+class _Fitted:
+    """A session's fit as :func:`calibrate_from_records` made it, and what it was made with."""
+
+    session: Session
+    model: list[ModelTerm]
+    digests: dict[str, str]  # term file (resolved path) -> SHA-256
+    noise: NoiseModel
+    fit: Fit
+    dataset: Dataset
+    latitude_deg: float
+    height_m: float
+    turns: int | None
+    earth_rate: bool
+
+
+def _result(
+    f: _Fitted,
+    created: str | None,
+    thermal: ThermalCalibration | None,
+    thermal_source: str,
+    t_corrected: float,
+) -> CalibrationResult:
+    """The result of a fit: its parameters with what would determine the others, the closed
+    form beside it, residuals, notes and where the records came from; the bias(T) the
+    records were corrected with (to ``t_corrected``, °C) carried as ``thermal_bias``."""
+    from datetime import datetime
+
+    session, fit, ds, nm = f.session, f.fit, f.dataset, f.noise
     stats = {n: record_stats(r) for n, r in session.records.items()}
+    g = local_gravity(f.latitude_deg, f.height_m)
+    closed, bias_est, n_turns = _closed_form(session, stats, g, ds)
+    params, spec = _parameters(f), short_spec(f.model)
+    t_mean = float(ds.signals[0].temp_mean_c) if ds.signals else 25.0
+    if thermal is not None:
+        params, spec = _with_thermal(params, spec, thermal, t_corrected, t_mean)
+    th_note = None if thermal is None else _thermal_note(session, thermal, thermal_source)
+    notes = _notes(session, ds, fit, f.model, th_note)
+    prov = provenance_of(session, software=f"imu-bench {__version__}")
+    if prov.simulated:  # never let a virtual board pass for a unit (first note, as in v2 files)
+        notes.insert(0, prov.simulated_line)
+    metas = [rec.meta for rec in session.records.values()]
+    return CalibrationResult(
+        covariance=_covariance(fit.covariance, params),
+        serial=session.serial,
+        created=created or datetime.now().astimezone().isoformat(timespec="seconds"),
+        g=g, latitude_deg=f.latitude_deg, height_m=f.height_m, turns=n_turns,
+        model=spec,
+        parameters=params,
+        noise_std=_noise_levels(stats, ds),
+        fit=_fit_quality(fit),
+        noise_model={"block_s": nm.block_s, "max_blocks": nm.max_blocks,
+                     "floor": dict(ds.floor), "turn_angle_sigma_deg": nm.turn_angle_sigma_deg},
+        term_files=tuple(f.digests),
+        term_sha256=f.digests,
+        temp_mean_c=t_mean,
+        time_known=ds.time_known,
+        earth_rate=f.earth_rate,
+        records=tuple(s.name for s in ds.signals),
+        bias_estimates=bias_est,
+        closed_form=closed,
+        combinations=tuple(c.describe() for ch in fit.channels for c in ch.combinations),
+        residuals=_residuals(ds, fit, stats),
+        notes=tuple(notes),
+        thermal_range_c=None if thermal is None else (thermal.t_min_c, thermal.t_max_c),
+        thermal_source=thermal_source,
+        provenance=prov,
+        self_test=next((m["self_test"] for m in metas if m.get("self_test")), ""),
+    )  # fmt: skip
+
+
+def _thermally_corrected(
+    session: Session, thermal: ThermalCalibration, source: str, t_c: float
+) -> Session:
+    """The records of ``session`` corrected to ``t_c`` (°C) with the unit's bias(T); a thermal
+    calibration of another serial is refused."""
+    if thermal.serial and session.serial and thermal.serial != session.serial:
+        raise UserError(
+            f"{source or 'the thermal calibration'} is of serial {thermal.serial}, "
+            f"the records of {session.serial}: give the unit's own SERIAL_thermal.json"
+        )
+    return dataclasses.replace(session, records=corrected_records(session.records, thermal, t_c))
+
+
+def _model_with_term_files(
+    model: str, files: tuple[str, ...]
+) -> tuple[list[ModelTerm], dict[str, str]]:
+    """The model spec parsed over the catalogue and the users' term files, and each file's
+    SHA-256 by its resolved path (the bytes hashed are the bytes run)."""
+    digests = {str(Path(f).resolve()): term_file_sha256(f) for f in files}
+    cat = dict(CATALOGUE)
+    for f in files:
+        cat = load_term_file(f, cat, sha256=(digests[str(Path(f).resolve())],))
+    return parse_model(model, cat), digests
+
+
+def _noise_levels(stats: Mapping[str, RecordStats], ds: Dataset) -> dict[str, float]:
+    """§3 noise: the largest sample std over the static records, per channel (Gstd…, Astd…)."""
     statics = [s.name for s in ds.signals if s.kind in ("static", "pose")]
-    noise_std: dict[str, float] = {}
     anoise = np.max([stats[n].accel_std for n in statics], axis=0)
     gnoise = np.max([stats[n].gyro_std for n in statics], axis=0)
-    noise_std.update(zip(GYRO_NOISE_NAMES, map(float, gnoise), strict=True))
-    noise_std.update(zip(ACCEL_NOISE_NAMES, map(float, anoise), strict=True))
+    out = dict(zip(GYRO_NOISE_NAMES, map(float, gnoise), strict=True))
+    out.update(zip(ACCEL_NOISE_NAMES, map(float, anoise), strict=True))
+    return out
 
+
+def _parameters(f: _Fitted) -> tuple[ParameterResult, ...]:
+    """The fit's parameters with their §7 tolerance and pass flag, and what would determine
+    the undetermined ones (:func:`what_would_determine`)."""
     needs = what_would_determine(
-        session, mts, fit.undetermined, latitude_deg=latitude_deg, height_m=height_m,
-        turns=turns,
+        f.session, f.model, f.fit.undetermined, latitude_deg=f.latitude_deg,
+        height_m=f.height_m, turns=f.turns,
     )  # fmt: skip
-    params = tuple(
+    return tuple(
         ParameterResult(
             p.term_name,
             p.sensor,
@@ -310,10 +409,16 @@ def calibrate_from_records(
             within(p.name, p.value),
             needs.get(p.name, ""),
         )  # fmt: skip
-        for p in fit.parameters
+        for p in f.fit.parameters
     )
 
-    # closed form where the plan has it (the check printed beside the fit)
+
+def _closed_form(
+    session: Session, stats: Mapping[str, RecordStats], g: float, ds: Dataset
+) -> tuple[dict[str, float], dict[str, tuple[float, float, float]], int | None]:
+    """The closed form where the plan has it (the check printed beside the fit): §3's values
+    and bias estimates from the six faces, §4's gyro matrix from the six turns; and the
+    turns' n (None: none, or mixed)."""
     closed: dict[str, float] = {}
     bias_est: dict[str, tuple[float, float, float]] = {}
     if all(n in stats and session.records[n].kind == "static" for n in STATIC_NAMES):
@@ -328,47 +433,55 @@ def calibrate_from_records(
     n_turns = next(iter(ns)) if len(ns) == 1 else None
     if all(n in ds.turns_of for n in TURN_NAMES) and n_turns is not None:
         closed.update(matrix_to_names("G", stage2(stats, n_turns)))
+    return closed, bias_est, n_turns
 
-    # residuals per record, from the fit's record/channel values
+
+def _t3(v: Iterable[float]) -> tuple[float, float, float]:
+    a, b, c = (float(x) for x in v)
+    return (a, b, c)
+
+
+def _residuals(
+    ds: Dataset, fit: Fit, stats: Mapping[str, RecordStats]
+) -> tuple[RecordResidual, ...]:
+    """Residuals per record, from the fit's record/channel values: a static's or rate's mean
+    (and its samples' std), a turn's integral residual (and as °/s over its duration)."""
     by = {(gr.record, gr.sensor, gr.axis): gr.residual for gr in fit.groups}
     nan3 = (math.nan, math.nan, math.nan)
-
-    def t3(v: Iterable[float]) -> tuple[float, float, float]:
-        a, b, c = (float(x) for x in v)
-        return (a, b, c)
-
-    residuals: list[RecordResidual] = []
+    out: list[RecordResidual] = []
     for sig in ds.signals:
         st = stats[sig.name]
-        gr = t3(by.get((sig.name, "gyro", ax), math.nan) for ax in "xyz")
+        gr = _t3(by.get((sig.name, "gyro", ax), math.nan) for ax in "xyz")
         if sig.kind in ("turn", "move"):
-            residuals.append(RecordResidual(
+            out.append(RecordResidual(
                 sig.name, sig.kind, st.n, st.duration_s, nan3, nan3,
-                t3(x / st.duration_s for x in gr), nan3, gr,
+                _t3(x / st.duration_s for x in gr), nan3, gr,
             ))  # fmt: skip
             continue
-        ar = t3(by.get((sig.name, "accel", ax), math.nan) for ax in "xyz")
-        residuals.append(RecordResidual(
-            sig.name, sig.kind, st.n, st.duration_s, ar, t3(st.accel_std), gr, t3(st.gyro_std),
+        ar = _t3(by.get((sig.name, "accel", ax), math.nan) for ax in "xyz")
+        out.append(RecordResidual(
+            sig.name, sig.kind, st.n, st.duration_s, ar, _t3(st.accel_std), gr,
+            _t3(st.gyro_std),
         ))  # fmt: skip
+    return tuple(out)
 
+
+def _notes(
+    session: Session, ds: Dataset, fit: Fit, mts: list[ModelTerm], thermal: str | None
+) -> list[str]:
+    """The result's notes, in the report's order: the dataset's (the power-on-time note only
+    for a model with time terms), the bias(T) used (``thermal``), records kept despite a
+    warning, mixed turn counts, the uncertainty policy, the plate's tilt, what is not
+    determined."""
     # the power-on-time note matters only to time terms, which base does not have
-    only_base = all(
-        mt.term.name in ("bias", "scale", "misalignment", "g_sensitivity") for mt in mts
-    )
+    only_base = all(mt.term.name in BASE for mt in mts)
     notes = [n for n in ds.notes if not (only_base and "power_on_s" in n)]
-    spec = short_spec(mts)
-    t_mean = float(ds.signals[0].temp_mean_c) if ds.signals else 25.0
     if thermal is not None:
-        params, spec = _with_thermal(params, spec, thermal, t_guess, t_mean)
-        notes.append(_thermal_note(session, thermal, thermal_source))
-    prov = provenance_of(session, software=f"imu-bench {__version__}")
-    metas = [rec.meta for rec in session.records.values()]
-    if prov.simulated:  # never let a virtual board pass for a unit (first note, as in v2 files)
-        notes.insert(0, prov.simulated_line)
+        notes.append(thermal)
     for name, rec in session.records.items():  # kept by the operator despite a warning
         if rec.meta.get("warning"):
             notes.append(f"{name} kept despite a warning: {rec.meta['warning']}")
+    ns = set(ds.turns_of.values())
     if len(ns) > 1:
         notes.append(f"turn records with different numbers of turns: {sorted(ns)}")
     if fit.uncertainty_note():
@@ -378,50 +491,25 @@ def calibrate_from_records(
         notes.append(tilt)
     if any(s.pose_frame for s in ds.signals):
         notes.append(frame_note())
-    combos = tuple(c.describe() for ch in fit.channels for c in ch.combinations)
     if fit.undetermined:
         notes.append(
             f"not determined by these records: {', '.join(fit.undetermined)} (nothing is fixed "
             "at zero; see what would determine each)"
         )
+    return notes
+
+
+def _fit_quality(fit: Fit) -> FitQuality:
+    """The result's fit quality: inadequate when the standard errors were widened or p is
+    below :data:`host.model.stats.ALPHA_FIT`, untestable when a channel has no dof."""
     verdict = (
         "inadequate"
         if fit.scaled or fit.chi2_p < ALPHA_FIT
         else ("untestable" if fit.untestable else "adequate")
     )
-    quality = FitQuality(
+    return FitQuality(
         fit.chi2, fit.dof, fit.rms_z, fit.chi2_p, verdict, fit.untestable, fit.uncertainty_note()
     )
-    return CalibrationResult(
-        covariance=_covariance(fit.covariance, params),
-        serial=session.serial,
-        created=created or datetime.now().astimezone().isoformat(timespec="seconds"),
-        g=g,
-        latitude_deg=latitude_deg,
-        height_m=height_m,
-        turns=n_turns,
-        model=spec,
-        parameters=params,
-        noise_std=noise_std,
-        fit=quality,
-        noise_model={"block_s": nm.block_s, "max_blocks": nm.max_blocks,
-                     "floor": dict(ds.floor), "turn_angle_sigma_deg": nm.turn_angle_sigma_deg},
-        term_files=tuple(digests),
-        term_sha256=digests,
-        temp_mean_c=t_mean,
-        time_known=ds.time_known,
-        earth_rate=earth_rate,
-        records=tuple(s.name for s in ds.signals),
-        bias_estimates=bias_est,
-        closed_form=closed,
-        combinations=combos,
-        residuals=tuple(residuals),
-        notes=tuple(notes),
-        thermal_range_c=None if thermal is None else (thermal.t_min_c, thermal.t_max_c),
-        thermal_source=thermal_source,
-        provenance=prov,
-        self_test=next((m["self_test"] for m in metas if m.get("self_test")), ""),
-    )  # fmt: skip
 
 
 def _covariance(

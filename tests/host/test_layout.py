@@ -151,8 +151,6 @@ LONG_FUNCTIONS = {
     "host/board/acquisition.py:acquire",  # 161
     "host/board/flash.py:parse_ihex",  # 75
     "host/calib/applying.py:apply",  # 127
-    "host/calib/calibration.py:what_would_determine",  # 62
-    "host/calib/calibration.py:calibrate_from_records",  # 194
     "host/calib/report.py:format_report",  # 162
     "host/calib/thermal_fit.py:window_means",  # 62
     "host/calib/thermal_fit.py:fit_scale",  # 85
