@@ -15,7 +15,7 @@ import math
 import warnings
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -28,7 +28,7 @@ from host.model.fit import predict_session
 from host.model.loader import load_term_file
 from host.model.noise import NoiseModel
 from host.model.signals import AXES, RecordSignals
-from host.model.spec import parse_model
+from host.model.spec import ModelTerm, parse_model
 from host.model.stats import chi2_sf
 from host.model.terms import Term
 from host.session.directory import Session, read_session
@@ -156,71 +156,138 @@ def apply(
     >>> accel.shape == rec.accel.shape, round(float(accel[:, 0].mean()), 1)  # x up: +1 g on x
     (True, 9.8)
     """
+    a2, g2, single = _samples(accel, gyro)
+    _refuse_undetermined(result, allow_undetermined)
+    model = parse_model(result.model, _catalogue_for(result, term_files, catalogue))
+    temp, time = _inputs(result, temp_c, t_s, len(a2))
+    force, rate = _invert(_Forward(result, model, a2, g2, temp, time), result, a2, g2)
+    return (force[0], rate[0]) if single else (force, rate)
+
+
+def _refuse_undetermined(result: CalibrationResult, allowed: bool) -> None:
+    """NotDeterminedError for a result with parameters the records did not determine, unless
+    ``allowed`` (they are taken as nominal, 0)."""
+    und = [p.name for p in result.undetermined]
+    if und and not allowed:
+        raise NotDeterminedError(
+            f"the result of {result.serial} does not determine {', '.join(und)}; recalibrate "
+            "with the records it needs, or pass allow_undetermined=True to take them as 0"
+        )
+
+
+def _inputs(
+    result: CalibrationResult,
+    temp_c: np.ndarray | float | None,
+    t_s: np.ndarray | float | None,
+    n: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The chip temperature and the time per sample (stand-ins for those not given), with a
+    warning for temperatures outside the carried bias(T)'s range."""
+    temp = _optional_input(temp_c, n, "temp_c", "°C")
+    time = _optional_input(t_s, n, "t_s", "s")
+    if result.thermal_range_c is not None and temp_c is not None:
+        _warn_outside_thermal_range(temp, result.thermal_range_c)
+    return temp, time
+
+
+def _samples(accel: np.ndarray, gyro: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The raw samples as (N, 3) float arrays, and whether they came as one sample (3,)."""
     a_raw = np.asarray(accel, dtype=np.float64)
     g_raw = np.asarray(gyro, dtype=np.float64)
-    single = a_raw.ndim == 1
     a2, g2 = np.atleast_2d(a_raw), np.atleast_2d(g_raw)
     if a2.shape[1:] != (3,) or g2.shape != a2.shape:
         raise InputError(
             f"apply(): accel {a_raw.shape} and gyro {g_raw.shape} must both be (N,3) or (3,)"
         )
-    n = len(a2)
-    und = [p.name for p in result.undetermined]
-    if und and not allow_undetermined:
-        raise NotDeterminedError(
-            f"the result of {result.serial} does not determine {', '.join(und)}; recalibrate "
-            "with the records it needs, or pass allow_undetermined=True to take them as 0"
-        )
-    cat = _catalogue_for(result, term_files, catalogue)
-    model = parse_model(result.model, cat)
-    theta: dict[tuple[str, str, str], dict[str, float]] = {}
-    for p in result.parameters:
-        v = p.value if p.determined else 0.0
-        theta.setdefault((p.term, p.sensor, p.axis), {})[p.key] = v
-    temp: Any = _Missing("temp_c", n) if temp_c is None else _per_sample(temp_c, n, "temp_c", "°C")
-    time: Any = _Missing("t_s", n) if t_s is None else _per_sample(t_s, n, "t_s", "s")
-    if result.thermal_range_c is not None and temp_c is not None:
-        lo, hi = result.thermal_range_c
-        outside = (temp < lo) | (temp > hi)
-        if np.any(outside):
-            warnings.warn(
-                f"{int(np.count_nonzero(outside))} samples at {float(temp.min()):.1f} to "
-                f"{float(temp.max()):.1f} °C lie outside the thermal calibration's range "
-                f"{lo:.1f} to {hi:.1f} °C: the bias(T) polynomial is extrapolated there",
-                ThermalRangeWarning,
-                stacklevel=2,
-            )
-    inv_a = np.linalg.inv(np.eye(3) + np.nan_to_num(result.accel_m()))
-    inv_g = np.linalg.inv(np.eye(3) + np.nan_to_num(result.gyro_m()))
+    return a2, g2, a_raw.ndim == 1
 
-    def predict(force: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+
+def _optional_input(x: np.ndarray | float | None, n: int, what: str, unit: str) -> np.ndarray:
+    """An input per sample, or for one not given a stand-in that raises when a term uses it
+    (an array to the terms, :class:`_Missing` underneath)."""
+    if x is None:
+        return cast(np.ndarray, _Missing(what, n))
+    return _per_sample(x, n, what, unit)
+
+
+def _warn_outside_thermal_range(temp: np.ndarray, valid: tuple[float, float]) -> None:
+    """:class:`host.calib.thermal.ThermalRangeWarning` for samples outside the chip
+    temperatures (°C) where the carried bias(T) holds (attributed to apply()'s caller)."""
+    lo, hi = valid
+    outside = (temp < lo) | (temp > hi)
+    if np.any(outside):
+        warnings.warn(
+            f"{int(np.count_nonzero(outside))} samples at {float(temp.min()):.1f} to "
+            f"{float(temp.max()):.1f} °C lie outside the thermal calibration's range "
+            f"{lo:.1f} to {hi:.1f} °C: the bias(T) polynomial is extrapolated there",
+            ThermalRangeWarning,
+            stacklevel=4,
+        )
+
+
+class _Forward:
+    """The model of a result from the true specific force and rate to what the sensor reads:
+    input + Σ terms, each with its own column (or value) function and the result's values
+    (undetermined ones as 0)."""
+
+    def __init__(
+        self,
+        result: CalibrationResult,
+        model: list[ModelTerm],
+        accel: np.ndarray,
+        gyro: np.ndarray,
+        temp: np.ndarray,
+        time: np.ndarray,
+    ) -> None:
+        self.result, self.model = result, model
+        self.accel, self.gyro, self.temp, self.time = accel, gyro, temp, time
+        self.theta: dict[tuple[str, str, str], dict[str, float]] = {}
+        for p in result.parameters:
+            v = p.value if p.determined else 0.0
+            self.theta.setdefault((p.term, p.sensor, p.axis), {})[p.key] = v
+
+    def __call__(self, force: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(accel, gyro) the sensor reads for ``force`` m/s² and ``rate`` °/s, (N, 3) each."""
+        r = self.result
         sig = RecordSignals(
-            name="apply", kind="apply", t_s=time, temp_c=temp, force=force, rate=rate,
-            accel=a2, gyro=g2, g=result.g, up=np.zeros(3), temp_mean_c=result.temp_mean_c,
+            name="apply", kind="apply", t_s=self.time, temp_c=self.temp, force=force,
+            rate=rate, accel=self.accel, gyro=self.gyro, g=r.g, up=np.zeros(3),
+            temp_mean_c=r.temp_mean_c,
         )  # fmt: skip
         out = {"accel": force.copy(), "gyro": rate.copy()}
-        for mt in model:
+        for mt in self.model:
             for ax in mt.axes:
-                vals = theta.get((mt.term.name, mt.sensor, AXES[ax]), {})
-                th = np.array([vals.get(k, 0.0) for k in mt.term.params])
-                try:
-                    if mt.term.value is not None:
-                        c = np.asarray(mt.term.value(sig, mt.sensor, ax, th), dtype=np.float64)
-                    else:
-                        assert mt.term.columns is not None
-                        x = np.asarray(mt.term.columns(sig, mt.sensor, ax), dtype=np.float64)
-                        c = (x.reshape(n, -1) @ th) if th.size else np.zeros(n)
-                except _MissingInput as exc:
-                    raise InputError(
-                        f"term {mt.label} of this result needs {_NEEDS_ARG[exc.what]} to apply()"
-                    ) from None
-                out[mt.sensor][:, ax] += c
+                out[mt.sensor][:, ax] += self._term(mt, ax, sig)
         return out["accel"], out["gyro"]
 
+    def _term(self, mt: ModelTerm, ax: int, sig: RecordSignals) -> np.ndarray:
+        """One term's contribution to channel ``ax`` of its sensor, (N,)."""
+        n = len(self.accel)
+        vals = self.theta.get((mt.term.name, mt.sensor, AXES[ax]), {})
+        th = np.array([vals.get(k, 0.0) for k in mt.term.params])
+        try:
+            if mt.term.value is not None:
+                return np.asarray(mt.term.value(sig, mt.sensor, ax, th), dtype=np.float64)
+            assert mt.term.columns is not None
+            x = np.asarray(mt.term.columns(sig, mt.sensor, ax), dtype=np.float64)
+            return (x.reshape(n, -1) @ th) if th.size else np.zeros(n)
+        except _MissingInput as exc:
+            raise InputError(
+                f"term {mt.label} of this result needs {_NEEDS_ARG[exc.what]} to apply()"
+            ) from None
+
+
+def _invert(
+    forward: _Forward, result: CalibrationResult, a2: np.ndarray, g2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The specific force and rate whose readings are ``a2``, ``g2``: fixed-point iteration
+    on (I+M)⁻¹ from the linear model's inverse (exact for the linear model)."""
+    inv_a = np.linalg.inv(np.eye(3) + np.nan_to_num(result.accel_m()))
+    inv_g = np.linalg.inv(np.eye(3) + np.nan_to_num(result.gyro_m()))
     force = (a2 - np.nan_to_num(result.accel_bias())) @ inv_a.T
     rate = np.zeros_like(g2)
     for _ in range(50):
-        pa, pg = predict(force, rate)
+        pa, pg = forward(force, rate)
         da = (a2 - pa) @ inv_a.T
         dg = (g2 - pg) @ inv_g.T
         force, rate = force + da, rate + dg
@@ -228,7 +295,7 @@ def apply(
             1e-12 * max(1.0, float(np.max(np.abs(a2), initial=0.0)))
         ):
             break
-    return (force[0], rate[0]) if single else (force, rate)
+    return force, rate
 
 
 # ---- held-out verification ------------------------------------------------------------------

@@ -20,7 +20,7 @@ from host.calib.codec import FLOOR_SOURCES, result_to_json
 from host.calib.commands import command_lines
 from host.calib.provenance import UNKNOWN_SENSOR, Provenance
 from host.calib.result import CalibrationResult
-from host.calib.values import RecordResidual
+from host.calib.values import RecordResidual, Verification
 from host.calib.verdict import failed_values
 from host.calib.verdict import passed as passed_flags
 from host.session.atomic import write_texts_atomic
@@ -55,30 +55,53 @@ def format_report(
     ``records_dir``: the directory of the records, for the next command a poor fit names
     (:func:`next_command`; None: ``DIR``)."""
     r = result
-    passed = passed_flags(r)
-    consts = r.constants()
     rule = "-" * WIDTH
-    out: list[str] = []
     nxt = next_words(r, records_dir)
-    out.extend(_head(r, nxt))
-    out.append(rule)
-    out.extend(_object_and_equipment(r))
-    out.append(rule)
-    out.extend(_procedure(r, nxt))
+    out = [*_head(r, nxt), rule, *_object_and_equipment(r), rule, *_procedure(r, nxt)]
     if r.earth_rate:
         out.append("Earth rate: vertical component included in the reference rates")
+    out += [*_closed_form_check(r), rule, *_results_table(r), rule]
+    if r.further:
+        out += [*_further_terms(r), rule]
+    out += [*_result_lines(r), rule]
+    if r.undetermined:
+        out += [*_undetermined(r), rule]
+    if r.bias_estimates:
+        out += [*_bias_consistency(r), rule]
+    out += [*_noise_lines(r), rule, *_residual_table(r)]
+    if r.verification is not None:
+        out += [rule, *_verification_lines(r.verification)]
+    if r.notes:
+        out += [rule, "Notes:"]
+        for note in r.notes:
+            out.extend(_wrap(note, "  -", "    "))
+    out += [rule, *_conclusion(r, nxt), rule, ""]
+    for role in ("Customer's representative", "Quality control", "Workshop"):
+        out.append(f"{role:<27}_______________________  /________________/")
+        out.append("")
+    return "\n".join(line.rstrip() for line in out) + "\n"
+
+
+def _closed_form_check(r: CalibrationResult) -> list[str]:
+    """How far the closed form of §3, §4 is from the fit (nothing when there is none)."""
+    consts = r.constants()
     cf = [abs(consts[n] - v) for n, v in r.closed_form.items() if n not in NOISE_NAMES]
     cf = [d for d in cf if math.isfinite(d)]
-    if cf:
-        what = "the fit" if not r.further else "the fit (whose further terms move the biases)"
-        out.extend(
-            _wrap(f"Closed form (§3, §4) differs from {what} by at most {max(cf):.2e}", "", "  ")
-        )
-    out.append(rule)
-    out.append("RESULTS: value, tolerance, mark (+ within, − outside), and U: the expanded")
-    out.append("uncertainty, k = 2 (twice the standard error; about 95 % coverage)")
-    out.append(f"  {'value':<7}{'measured':>12}  {'unit':<8}{'tolerance':>11}  mark  U (k = 2)")
-    out.append(rule)
+    if not cf:
+        return []
+    what = "the fit" if not r.further else "the fit (whose further terms move the biases)"
+    return _wrap(f"Closed form (§3, §4) differs from {what} by at most {max(cf):.2e}", "", "  ")
+
+
+def _results_table(r: CalibrationResult) -> list[str]:
+    """The §7 table: every value with its unit, tolerance, mark and expanded uncertainty."""
+    passed, consts = passed_flags(r), r.constants()
+    out = [
+        "RESULTS: value, tolerance, mark (+ within, − outside), and U: the expanded",
+        "uncertainty, k = 2 (twice the standard error; about 95 % coverage)",
+        f"  {'value':<7}{'measured':>12}  {'unit':<8}{'tolerance':>11}  mark  U (k = 2)",
+        "-" * WIDTH,
+    ]
     last_title = ""
     std_errors = r.std_errors
     in_model = {p.name for p in r.parameters} | set(r.noise_std)
@@ -97,16 +120,25 @@ def format_report(
                 f"  {n:<7}{_v(consts[n]):>12}  {UNITS[n]:<8}{tol_s:>11}   {_mark(passed[n])}  "
                 f"{se_s:>11}{note}"
             )
-    out.append(rule)
-    if r.further:
-        out.append("Further terms of the model (value ± U, k = 2)")
-        for p in r.further:
-            if p.determined:
-                out.append(f"  {p.name:<34}{_v(p.value, 6):>14} ± {K * p.stderr:.2g} {p.unit}")
-            else:
-                out.append(f"  {p.name:<34}{'not determined':>14}")
-        out.append(rule)
+    return out
+
+
+def _further_terms(r: CalibrationResult) -> list[str]:
+    """The parameters of the terms beyond the §2 model, value ± U."""
+    out = ["Further terms of the model (value ± U, k = 2)"]
+    for p in r.further:
+        if p.determined:
+            out.append(f"  {p.name:<34}{_v(p.value, 6):>14} ± {K * p.stderr:.2g} {p.unit}")
+        else:
+            out.append(f"  {p.name:<34}{'not determined':>14}")
+    return out
+
+
+def _result_lines(r: CalibrationResult) -> list[str]:
+    """RESULT: the values outside tolerance or not determined (wrapped), or all within; and
+    a failed self-test."""
     bad = failed_values(r)
+    out = []
     if bad:
         out.append(f"RESULT: {len(bad)} value(s) outside tolerance or not determined:")
         line = "  "
@@ -120,50 +152,64 @@ def format_report(
         out.append("RESULT: all values within tolerance")
     if r.self_test == "fail":
         out.append("RESULT: FAIL — the sensor failed its MPU-6000 self-test")
-    out.append(rule)
-    if r.undetermined:
-        out.append("Not determined by these records, and what would determine them:")
-        by_need: dict[str, list[str]] = {}
-        for p in r.undetermined:
-            by_need.setdefault(p.needs or "more records", []).append(p.name)
-        for need, names_ in by_need.items():
-            out.extend(_wrap(f"{', '.join(names_)}: {need}", "  -", "    "))
-        if r.combinations:
-            out.append("  What these records do determine of them:")
-            for c in r.combinations:
-                out.extend(_wrap(c, "   ", "      "))
-        out.append(rule)
+    return out
 
-    if r.bias_estimates:
-        out.append("Stage 1 bias consistency (§3): estimates from the X, Y, Z pairs")
+
+def _undetermined(r: CalibrationResult) -> list[str]:
+    """What the records did not determine, by what would determine it, and the combinations
+    of those they do determine."""
+    out = ["Not determined by these records, and what would determine them:"]
+    by_need: dict[str, list[str]] = {}
+    for p in r.undetermined:
+        by_need.setdefault(p.needs or "more records", []).append(p.name)
+    for need, names_ in by_need.items():
+        out.extend(_wrap(f"{', '.join(names_)}: {need}", "  -", "    "))
+    if r.combinations:
+        out.append("  What these records do determine of them:")
+        for c in r.combinations:
+            out.extend(_wrap(c, "   ", "      "))
+    return out
+
+
+def _bias_consistency(r: CalibrationResult) -> list[str]:
+    """§3's three bias estimates per bias, from the X, Y, Z face pairs, and their spread."""
+    out = [
+        "Stage 1 bias consistency (§3): estimates from the X, Y, Z pairs",
+        f"  {'bias':<6}{'X pair':>11}{'Y pair':>11}{'Z pair':>11}{'mean':>11}{'spread':>11}",
+    ]
+    for n in GYRO_BIAS_NAMES + ACCEL_BIAS_NAMES:
+        if n not in r.bias_estimates:
+            continue
+        e = r.bias_estimates[n]
+        spread = max(e) - min(e)
+        mean = sum(e) / 3.0
         out.append(
-            f"  {'bias':<6}{'X pair':>11}{'Y pair':>11}{'Z pair':>11}{'mean':>11}{'spread':>11}"
+            f"  {n:<6}{_v(e[0]):>11}{_v(e[1]):>11}{_v(e[2]):>11}{_v(mean):>11}"
+            f"{spread:>11.5f} {UNITS[n]}"
         )
-        for n in GYRO_BIAS_NAMES + ACCEL_BIAS_NAMES:
-            if n not in r.bias_estimates:
-                continue
-            e = r.bias_estimates[n]
-            spread = max(e) - min(e)
-            mean = sum(e) / 3.0
-            out.append(
-                f"  {n:<6}{_v(e[0]):>11}{_v(e[1]):>11}{_v(e[2]):>11}{_v(mean):>11}"
-                f"{spread:>11.5f} {UNITS[n]}"
-            )
-        out.append("  A spread much larger than the noise means the linear model misses")
-        out.append("  something (method.md §3).")
-        out.append(rule)
+    out.append("  A spread much larger than the noise means the linear model misses")
+    out.append("  something (method.md §3).")
+    return out
 
-    out.append("Noise (std): largest over the static orientations, per channel (§3)")
-    out.append("  gyro  °/s : " + "  ".join(f"{n} {consts[n]:.4f}" for n in NOISE_NAMES[:3]))
-    out.append("  accel m/s²: " + "  ".join(f"{n} {consts[n]:.4f}" for n in NOISE_NAMES[3:]))
-    out.append(rule)
-    out.append("Residuals per record in the order measured (measured − model): mean / std of")
-    out.append("samples; turns: integral residual, degrees; sit: the sitting it was measured in")
-    out.append("(PROCEDURE above); at: its start, s into that sitting")
-    out.append(
+
+def _noise_lines(r: CalibrationResult) -> list[str]:
+    consts = r.constants()
+    return [
+        "Noise (std): largest over the static orientations, per channel (§3)",
+        "  gyro  °/s : " + "  ".join(f"{n} {consts[n]:.4f}" for n in NOISE_NAMES[:3]),
+        "  accel m/s²: " + "  ".join(f"{n} {consts[n]:.4f}" for n in NOISE_NAMES[3:]),
+    ]
+
+
+def _residual_table(r: CalibrationResult) -> list[str]:
+    """Every record's residuals in the order measured, with its sitting and start."""
+    out = [
+        "Residuals per record in the order measured (measured − model): mean / std of",
+        "samples; turns: integral residual, degrees; sit: the sitting it was measured in",
+        "(PROCEDURE above); at: its start, s into that sitting",
         f"  {'record':<9}{'sit':>4}{'at,s':>6}{'T,s':>5}  {'accel x y z, m/s²':<24}"
-        f"{'gyro x y z, °/s (turns °)':<26}"
-    )
+        f"{'gyro x y z, °/s (turns °)':<26}",
+    ]
     at = r.provenance.session_s if r.provenance is not None else {}
     sitting = sitting_of(r)
     for res in measured_order(r):
@@ -171,45 +217,39 @@ def format_report(
         t_s = f"{t:6.0f}" if t is not None else f"{'-':>6}"
         sit = str(sitting.get(res.record, "-"))
         head = f"  {res.record[:9]:<9}{sit:>4}{t_s}{res.duration_s:>5.1f}  "
-        if res.kind == "turn" and res.angle_deg is not None:
-            acc = f"{'-':<24}"
-            gyr = " ".join(f"{x:+8.3f}" for x in res.angle_deg)
-            out.append(head + acc + gyr + " °")
-            continue
-        acc = " ".join(f"{x:+.4f}" if math.isfinite(x) else "    -  " for x in res.accel_mean)
-        gyr = " ".join(f"{x:+8.4f}" for x in res.gyro_mean)
-        out.append(head + f"{acc:<24}" + gyr)
-        if res.kind == "static":
-            accs = " ".join(f"{x:7.4f}" for x in res.accel_std)
-            gyrs = " ".join(f"{x:8.4f}" for x in res.gyro_std)
-            out.append(f"  {'  std':<24}  {accs:<24}{gyrs}")
-    if r.verification is not None:
-        v = r.verification
-        out.append(rule)
-        out.extend(_wrap(f"Verification on records not used in the fit: {v.source}", "", "  "))
-        out.append("  measured − predicted (limits of method.md §8: 0.01 g, 0.5 °/s; turns °)")
-        for x in v.values:
-            out.append(
-                f"  {x.record[:10]:<10} {x.channel:<8}{x.residual:>+11.4f} {x.unit:<5}"
-                f"± {x.sigma:<9.2g} z {x.z:>+7.1f}   limit {x.limit:.3g}  {_mark(x.passed)}"
-            )
+        out.extend(_residual_rows(head, res))
+    return out
+
+
+def _residual_rows(head: str, res: RecordResidual) -> list[str]:
+    """One record's rows of the residual table: a turn's integral residuals, a static's or
+    rate's means (and a static's samples' std)."""
+    if res.kind == "turn" and res.angle_deg is not None:
+        return [head + f"{'-':<24}" + " ".join(f"{x:+8.3f}" for x in res.angle_deg) + " °"]
+    acc = " ".join(f"{x:+.4f}" if math.isfinite(x) else "    -  " for x in res.accel_mean)
+    gyr = " ".join(f"{x:+8.4f}" for x in res.gyro_mean)
+    out = [head + f"{acc:<24}" + gyr]
+    if res.kind == "static":
+        accs = " ".join(f"{x:7.4f}" for x in res.accel_std)
+        gyrs = " ".join(f"{x:8.4f}" for x in res.gyro_std)
+        out.append(f"  {'  std':<24}  {accs:<24}{gyrs}")
+    return out
+
+
+def _verification_lines(v: Verification) -> list[str]:
+    """The held-out records measured against the result (method.md §8 limits)."""
+    out = _wrap(f"Verification on records not used in the fit: {v.source}", "", "  ")
+    out.append("  measured − predicted (limits of method.md §8: 0.01 g, 0.5 °/s; turns °)")
+    for x in v.values:
         out.append(
-            f"  RMS z = {v.rms_z:.2f}, χ² = {v.chi2:.1f} on {len(v.values)} values "
-            f"(p = {v.p:.3g}): {'all within' if v.passed else 'NOT all within'} the limits"
+            f"  {x.record[:10]:<10} {x.channel:<8}{x.residual:>+11.4f} {x.unit:<5}"
+            f"± {x.sigma:<9.2g} z {x.z:>+7.1f}   limit {x.limit:.3g}  {_mark(x.passed)}"
         )
-    if r.notes:
-        out.append(rule)
-        out.append("Notes:")
-        for note in r.notes:
-            out.extend(_wrap(note, "  -", "    "))
-    out.append(rule)
-    out.extend(_conclusion(r, nxt))
-    out.append(rule)
-    out.append("")
-    for role in ("Customer's representative", "Quality control", "Workshop"):
-        out.append(f"{role:<27}_______________________  /________________/")
-        out.append("")
-    return "\n".join(line.rstrip() for line in out) + "\n"
+    out.append(
+        f"  RMS z = {v.rms_z:.2f}, χ² = {v.chi2:.1f} on {len(v.values)} values "
+        f"(p = {v.p:.3g}): {'all within' if v.passed else 'NOT all within'} the limits"
+    )
+    return out
 
 
 def _head(r: CalibrationResult, nxt: list[str]) -> list[str]:

@@ -150,8 +150,6 @@ LONG_FUNCTIONS = {
     "host/bench/options.py:parse_sim_options",  # 82
     "host/board/acquisition.py:acquire",  # 161
     "host/board/flash.py:parse_ihex",  # 75
-    "host/calib/applying.py:apply",  # 127
-    "host/calib/report.py:format_report",  # 162
     "host/calib/thermal_fit.py:window_means",  # 62
     "host/calib/thermal_fit.py:fit_scale",  # 85
     "host/cli/archive.py:cli_archive",  # 78
