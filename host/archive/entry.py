@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from host.calib.codec import read_result
+from host.calib.result import CalibrationResult
 from host.errors import UserError
 from host.session.directory import read_record
 from host.session.records import name_problem
@@ -226,28 +227,20 @@ def conditional_pass(verdict: str, fit_verdict: str) -> bool:
     return verdict == "pass" and fit_verdict == "inadequate"
 
 
-def entry_from_directory(
-    directory: str | os.PathLike[str],
-    *,
-    serial: str | None = None,
-    records_dir: str | os.PathLike[str] | None = None,
-    bench: str | None = None,
-    operator: str | None = None,
-    lot: str | None = None,
-) -> Entry:
-    """The :class:`Entry` of the result in ``directory`` (or the result file itself): the
-    result, its report beside it and its records (in ``records_dir``, default the same
-    directory). ``bench``/``operator``/``lot`` override the records' header lines of those
-    names; bench and operator fall back to $IMU_BENCH_NAME / $IMU_BENCH_OPERATOR. UserError
-    naming the missing or bad file."""
-    path = _find_result(Path(directory), serial)
-    raw = path.read_bytes()
-    result = read_result(path)
-    doc = json.loads(raw)
-    report = path.with_name(f"{result.serial}_result.txt")
+def _report_beside(path: Path, serial: str) -> Path:
+    """The report written with the result file ``path``; UserError when it is missing."""
+    report = path.with_name(f"{serial}_result.txt")
     if not report.is_file():
         raise UserError(f"{report}: no such file (the report written with {path.name})")
-    rdir = Path(records_dir) if records_dir is not None else path.parent
+    return report
+
+
+def _fitted_records(
+    result: CalibrationResult, rdir: Path
+) -> tuple[list[tuple[str, str]], list[dict[str, str]], list[np.ndarray]]:
+    """Each record the result was fitted on, from ``rdir``: (name, SHA-256), its header and
+    its chip temperatures, °C. UserError for one missing, or not the one fitted (its
+    SHA-256 differs from the one the result names)."""
     hashes: list[tuple[str, str]] = []
     metas: list[dict[str, str]] = []
     temps: list[np.ndarray] = []
@@ -269,10 +262,47 @@ def entry_from_directory(
         rec = read_record(rpath)
         metas.append(rec.meta)
         temps.append(rec.temp)
+    return hashes, metas, temps
+
+
+def _temperature_range(temps: list[np.ndarray]) -> tuple[float, float, float]:
+    """The lowest, mean and highest chip temperature of the records, °C (NaN: none)."""
     t = np.concatenate(temps) if temps else np.array([])
     t = t[np.isfinite(t)]
-    starts = sorted(utc_iso(m["start_time"]) for m in metas if m.get("start_time"))
-    measured_at = starts[0] if starts else utc_iso(result.created)
+    if not t.size:
+        return math.nan, math.nan, math.nan
+    return float(t.min()), float(t.mean()), float(t.max())
+
+
+def _measured_at(metas: list[dict[str, str]], created: str) -> str:
+    """When the session was measured: its first record's start (UTC ISO), else when the
+    result was computed."""
+    starts = [utc_iso(m["start_time"]) for m in metas if m.get("start_time")]
+    return min(starts) if starts else utc_iso(created)
+
+
+def entry_from_directory(
+    directory: str | os.PathLike[str],
+    *,
+    serial: str | None = None,
+    records_dir: str | os.PathLike[str] | None = None,
+    bench: str | None = None,
+    operator: str | None = None,
+    lot: str | None = None,
+) -> Entry:
+    """The :class:`Entry` of the result in ``directory`` (or the result file itself): the
+    result, its report beside it and its records (in ``records_dir``, default the same
+    directory). ``bench``/``operator``/``lot`` override the records' header lines of those
+    names; bench and operator fall back to $IMU_BENCH_NAME / $IMU_BENCH_OPERATOR. UserError
+    naming the missing or bad file."""
+    path = _find_result(Path(directory), serial)
+    raw = path.read_bytes()
+    result, doc = read_result(path), json.loads(raw)
+    report = _report_beside(path, result.serial)
+    rdir = Path(records_dir) if records_dir is not None else path.parent
+    hashes, metas, temps = _fitted_records(result, rdir)
+    t_min, t_mean, t_max = _temperature_range(temps)
+    measured_at = _measured_at(metas, result.created)
     self_test = self_test_outcome(metas, path)
     params = tuple(
         Parameter(
@@ -280,28 +310,22 @@ def entry_from_directory(
         )
         for p in result.parameters
     )
-    names = [p.name for p in params]
-    full = result_covariance(doc, names)
+    full = result_covariance(doc, [p.name for p in params])
     fit = result.fit
-    named = {
-        "bench": _named("--bench", bench, metas, "bench", BENCH_ENV),
-        "operator": _named("--operator", operator, metas, "operator", OPERATOR_ENV),
-        "lot": _named("--lot", lot, metas, "lot", None),
-    }
     return Entry(
         serial=result.serial,
         measured_at=measured_at,
         model=result.model,
         parameters=params,
         result_hash=sha256_bytes(raw),
-        bench=named["bench"],
-        operator=named["operator"],
-        lot=named["lot"],
+        bench=_named("--bench", bench, metas, "bench", BENCH_ENV),
+        operator=_named("--operator", operator, metas, "operator", OPERATOR_ENV),
+        lot=_named("--lot", lot, metas, "lot", None),
         firmware=_first(metas, "firmware"),
         sensor_revision=_first(metas, "sensor_revision"),
-        temp_min_c=float(t.min()) if t.size else math.nan,
-        temp_mean_c=float(t.mean()) if t.size else math.nan,
-        temp_max_c=float(t.max()) if t.size else math.nan,
+        temp_min_c=t_min,
+        temp_mean_c=t_mean,
+        temp_max_c=t_max,
         covariance=full if full is not None else diagonal_covariance([p.stderr for p in params]),
         covariance_kind="full" if full is not None else "diagonal",
         chi2=fit.chi2 if fit else math.nan,

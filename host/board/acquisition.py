@@ -130,131 +130,174 @@ def acquire(
     start_time = datetime.now().astimezone().isoformat(timespec="milliseconds")
     link.send("PING", nonce=nonce)
     crc0 = link.decoder.stats.crc_errors
-    duration_us = int(round(duration_s * 1e6))
-    period_us = 1e6 / rate_hz
-    every = max(1, round(rate_hz))  # samples in a second: how often ``enough`` is asked
-    t0: int | None = None  # device t_us of the beep (raw, 32-bit)
-    newest_t: int | None = None  # newest sample time seen since the beep (fallback t0)
-    held: list[tuple[int, Frame]] = []  # frames read before t0 was known
-    t_raw: list[int] = []
-    el: list[int] = []
-    rows: list[tuple[int, ...]] = []
-    sums = np.zeros(7, dtype=np.int64)
-    st = {"first_ns": 0, "last_seq": -1, "last_rel": -1, "lost": 0, "missed": 0}
-    next_tick = last_sample = time.monotonic()
+    w = _Window(board, rate_hz, nonce, duration_s, enough)
+    next_tick = w.last_sample = time.monotonic()
     ping_deadline = next_tick + PONG_TIMEOUT_S
-    last_error: Frame | None = None
-
-    def take(arrival_ns: int, f: Frame) -> bool:
-        """One frame of the window's stream (t0 known); True once the window is over."""
-        assert t0 is not None
-        gap = 0
-        if st["last_seq"] >= 0:
-            d = int(seq_step(st["last_seq"], f.seq))
-            if seq_went_back(d):
-                raise BoardReset("the board restarted during the measurement")
-            gap = d - 1
-        st["last_seq"] = f.seq
-        if f.type != IMU_SAMPLE:
-            board.report_frame(f)
-            if rows:
-                st["lost"] += gap
-            return False
-        p = f.payload
-        t_us = sample_t_us(p)
-        rel = int(t_us_step(t0, t_us))
-        if t_us_went_back(rel):  # sampled before the beep: not part of the measurement
-            if rows:
-                raise BoardReset("the board's clock went back during the measurement")
-            return False
-        if rel >= duration_us:
-            return True
-        if rows:
-            if rel < st["last_rel"]:
-                raise BoardReset("the board's clock went back during the measurement")
-            st["lost"] += gap
-        else:  # frames lost between the beep and the first sample of the window
-            st["first_ns"] = arrival_ns
-            st["lost"] += min(gap, int(rel // period_us))
-        st["last_rel"] = rel
-        counts = sample_counts(p)
-        if sample_flags(p) & MISSED:
-            st["missed"] += 1
-        t_raw.append(t_us)
-        el.append(rel)
-        rows.append(counts)
-        sums[:] += counts
-        if enough is not None and len(rows) % every == 0:
-            return enough(np.asarray(rows), (rel + period_us) / 1e6)
-        return False
-
-    def take_held() -> bool:
-        nonlocal held
-        batch, held = held, []
-        for a_ns, g in batch:
-            if take(a_ns, g):
-                return True
-        return False
-
     done = False
     while not done:
-        batch = board.read_frames()
-        if any(f.type == IMU_SAMPLE for _, f in batch):
-            last_sample = time.monotonic()
-        for arrival_ns, f in batch:
-            if f.name == "HELLO":
-                raise BoardReset("the board restarted during the measurement")
-            if f.name == "ERROR" and f.fields["code"] in SENSOR_ERROR_CODES:
-                raise SensorFault(
-                    f"the board reports {error_text(f)}: its sensor stopped; check the "
-                    "IMU and its wiring, then power-cycle the board"
-                )
-            if f.name == "ERROR":
-                last_error = f
-            if t0 is None:
-                if f.name == "PONG" and f.fields["nonce"] == nonce:
-                    t0 = f.fields["t_us"]
-                elif f.type == IMU_SAMPLE:
-                    newest_t = sample_t_us(f.payload)
-                held.append((arrival_ns, f))
-                if t0 is not None and take_held():
-                    done = True
-                    break
-                continue
-            if take(arrival_ns, f):
-                done = True
-                break
+        done = w.read()
         now = time.monotonic()
-        if t0 is None and now >= ping_deadline and newest_t is not None:
-            # no PONG (an older firmware?): the window starts after the newest sample
-            t0 = int(t_us_step(-1, newest_t))  # the µs after it, modulo the wrap
-            done = take_held()
-        if now - last_sample > board.sample_stall_s and not done:
-            raise SensorFault(
-                f"no samples from the board for {board.sample_stall_s:g} s"
-                + (f" (last: {error_text(last_error)})" if last_error else "")
-                + " although it still answers: the sensor has stalled; check the IMU, "
-                "then power-cycle the board"
-            )
+        if w.t0 is None and now >= ping_deadline and w.newest_t is not None:
+            done = w.start_after_newest()
+        w.check_stall(now, done)
         if now >= next_tick:
             next_tick = now + tick_every_s
             if check_escape is not None and check_escape():
                 raise MeasurementAborted()
             if tick is not None:
-                tick((el[-1] if el else 0) / 1e6, sums, len(rows))
+                tick((w.el[-1] if w.el else 0) / 1e6, w.sums, len(w.rows))
     if tick is not None:
-        tick(duration_s, sums, len(rows))
-    first = el[0] if el else 0
-    return Acquisition(
-        t_us=np.asarray(el, dtype=np.int64) - first,
-        counts=np.asarray(rows, dtype=np.int64).reshape(-1, 7),
-        start_t_us=t_raw[0] if t_raw else 0,
-        beep_ns=beep_ns,
-        first_ns=st["first_ns"],
-        start_time=start_time,
-        lost_frames=st["lost"],
-        missed=st["missed"],
-        crc_errors=link.decoder.stats.crc_errors - crc0,
-        beep_t_us=t0 if t0 is not None else 0,
-        status_flags=board.status_flags,
-    )
+        tick(duration_s, w.sums, len(w.rows))
+    crc = link.decoder.stats.crc_errors - crc0
+    return w.acquisition(beep_ns, start_time, crc, board.status_flags)
+
+
+class _Window:
+    """The state of one measurement while it is read: the window's start on device time
+    (``t0``: the PONG's t_us; None until known), the frames held until then, the samples
+    taken and the counters."""
+
+    def __init__(
+        self,
+        board: FrameSource,
+        rate_hz: float,
+        nonce: int,
+        duration_s: float,
+        enough: Callable[[np.ndarray, float], bool] | None,
+    ) -> None:
+        self.board, self.nonce, self.enough = board, nonce, enough
+        self.duration_us = int(round(duration_s * 1e6))
+        self.period_us = 1e6 / rate_hz
+        self.every = max(1, round(rate_hz))  # samples in a second: how often ``enough`` is asked
+        self.t0: int | None = None  # device t_us of the beep (raw, 32-bit)
+        self.newest_t: int | None = None  # newest sample time seen since the beep (fallback t0)
+        self.held: list[tuple[int, Frame]] = []  # frames read before t0 was known
+        self.t_raw: list[int] = []
+        self.el: list[int] = []
+        self.rows: list[tuple[int, ...]] = []
+        self.sums = np.zeros(7, dtype=np.int64)
+        self.first_ns = 0
+        self.last_seq = -1
+        self.last_rel = -1
+        self.lost = 0
+        self.missed = 0
+        self.last_sample = 0.0  # host monotonic s of the latest read that brought a sample
+        self.last_error: Frame | None = None
+
+    def read(self) -> bool:
+        """One read of the board; True once the window is over."""
+        batch = self.board.read_frames()
+        if any(f.type == IMU_SAMPLE for _, f in batch):
+            self.last_sample = time.monotonic()
+        for arrival_ns, f in batch:
+            self.check_frame(f)
+            if self.t0 is None:
+                if f.name == "PONG" and f.fields["nonce"] == self.nonce:
+                    self.t0 = f.fields["t_us"]
+                elif f.type == IMU_SAMPLE:
+                    self.newest_t = sample_t_us(f.payload)
+                self.held.append((arrival_ns, f))
+                if self.t0 is not None and self.take_held():
+                    return True
+                continue
+            if self.take(arrival_ns, f):
+                return True
+        return False
+
+    def check_frame(self, f: Frame) -> None:
+        """A new HELLO (the board restarted) or a sensor ERROR end the measurement; other
+        ERRORs are kept for the stall message."""
+        if f.name == "HELLO":
+            raise BoardReset("the board restarted during the measurement")
+        if f.name == "ERROR" and f.fields["code"] in SENSOR_ERROR_CODES:
+            raise SensorFault(
+                f"the board reports {error_text(f)}: its sensor stopped; check the "
+                "IMU and its wiring, then power-cycle the board"
+            )
+        if f.name == "ERROR":
+            self.last_error = f
+
+    def start_after_newest(self) -> bool:
+        """No PONG (an older firmware?): the window starts after the newest sample; True once
+        the window is over."""
+        assert self.newest_t is not None
+        self.t0 = int(t_us_step(-1, self.newest_t))  # the µs after it, modulo the wrap
+        return self.take_held()
+
+    def check_stall(self, now: float, done: bool) -> None:
+        if now - self.last_sample > self.board.sample_stall_s and not done:
+            raise SensorFault(
+                f"no samples from the board for {self.board.sample_stall_s:g} s"
+                + (f" (last: {error_text(self.last_error)})" if self.last_error else "")
+                + " although it still answers: the sensor has stalled; check the IMU, "
+                "then power-cycle the board"
+            )
+
+    def take_held(self) -> bool:
+        batch, self.held = self.held, []
+        return any(self.take(a_ns, g) for a_ns, g in batch)
+
+    def take(self, arrival_ns: int, f: Frame) -> bool:
+        """One frame of the window's stream (t0 known); True once the window is over."""
+        assert self.t0 is not None
+        gap = 0
+        if self.last_seq >= 0:
+            d = int(seq_step(self.last_seq, f.seq))
+            if seq_went_back(d):
+                raise BoardReset("the board restarted during the measurement")
+            gap = d - 1
+        self.last_seq = f.seq
+        if f.type != IMU_SAMPLE:
+            self.board.report_frame(f)
+            if self.rows:
+                self.lost += gap
+            return False
+        t_us = sample_t_us(f.payload)
+        rel = int(t_us_step(self.t0, t_us))
+        if t_us_went_back(rel):  # sampled before the beep: not part of the measurement
+            if self.rows:
+                raise BoardReset("the board's clock went back during the measurement")
+            return False
+        if rel >= self.duration_us:
+            return True
+        if self.rows:
+            if rel < self.last_rel:
+                raise BoardReset("the board's clock went back during the measurement")
+            self.lost += gap
+        else:  # frames lost between the beep and the first sample of the window
+            self.first_ns = arrival_ns
+            self.lost += min(gap, int(rel // self.period_us))
+        return self.keep(f, t_us, rel)
+
+    def keep(self, f: Frame, t_us: int, rel: int) -> bool:
+        """A sample of the window; True when ``enough`` ends the window after it."""
+        self.last_rel = rel
+        counts = sample_counts(f.payload)
+        if sample_flags(f.payload) & MISSED:
+            self.missed += 1
+        self.t_raw.append(t_us)
+        self.el.append(rel)
+        self.rows.append(counts)
+        self.sums[:] += counts
+        if self.enough is not None and len(self.rows) % self.every == 0:
+            return self.enough(np.asarray(self.rows), (rel + self.period_us) / 1e6)
+        return False
+
+    def acquisition(
+        self, beep_ns: int, start_time: str, crc_errors: int, status_flags: int | None
+    ) -> Acquisition:
+        """The measurement: the samples on device time from the first, and the counters."""
+        first = self.el[0] if self.el else 0
+        return Acquisition(
+            t_us=np.asarray(self.el, dtype=np.int64) - first,
+            counts=np.asarray(self.rows, dtype=np.int64).reshape(-1, 7),
+            start_t_us=self.t_raw[0] if self.t_raw else 0,
+            beep_ns=beep_ns,
+            first_ns=self.first_ns,
+            start_time=start_time,
+            lost_frames=self.lost,
+            missed=self.missed,
+            crc_errors=crc_errors,
+            beep_t_us=self.t0 if self.t0 is not None else 0,
+            status_flags=status_flags,
+        )

@@ -70,6 +70,21 @@ def attitude_key(rec: Record) -> str:
     return "[" + ", ".join(f"{v:+.2f}" for v in up) + "]"
 
 
+def _record_windows(rec: Record, window_s: float) -> np.ndarray:
+    """(W, 8) the means of one record's windows of ``window_s`` s that hold two samples and
+    at least half a window: accel (3), gyro (3), chip temperature, time in the record, s."""
+    t = rec.t_ms / 1000.0
+    idx = np.floor((t - t[0]) / window_s).astype(np.int64)
+    data = np.column_stack([rec.accel, rec.gyro, rec.temp, t])
+    # windows are runs of equal idx (t rises): sums by np.add.reduceat
+    first = np.flatnonzero(np.diff(idx, prepend=idx[0] - 1))
+    count = np.diff(np.append(first, idx.size))
+    last = first + count - 1
+    means = np.add.reduceat(data, first, axis=0) / count[:, None]
+    keep = (count >= 2) & (t[last] - t[first] >= 0.5 * window_s)
+    return means[keep]
+
+
 def window_means(records: Iterable[Record], window_s: float = 20.0) -> ThermalPoints:
     """Cut each static record into windows of ``window_s`` s (the last partial window is
     dropped if shorter than half) and average temperature and channels in each."""
@@ -91,22 +106,14 @@ def window_means(records: Iterable[Record], window_s: float = 20.0) -> ThermalPo
             up = np.asarray(rec.up, dtype=np.float64)
         except UserError:
             up = np.full(3, np.nan)
-        t = rec.t_ms / 1000.0
         timed = timed and "power_on_s" in rec.meta
         start = float(rec.meta.get("power_on_s", 0.0) or 0.0)
-        idx = np.floor((t - t[0]) / window_s).astype(np.int64)
-        data = np.column_stack([rec.accel, rec.gyro, rec.temp, t])
-        # windows are runs of equal idx (t rises): sums by np.add.reduceat
-        first = np.flatnonzero(np.diff(idx, prepend=idx[0] - 1))
-        count = np.diff(np.append(first, idx.size))
-        last = first + count - 1
-        means = np.add.reduceat(data, first, axis=0) / count[:, None]
-        keep = (count >= 2) & (t[last] - t[first] >= 0.5 * window_s)
-        if not keep.any():  # no window: its attitude is no unknown of the fit (was: a zero
+        means = _record_windows(rec, window_s)
+        if not len(means):  # no window: its attitude is no unknown of the fit (was: a zero
             continue  # column, 'each attitude was measured at a single temperature')
         if key not in keys:
             keys.append(key)
-        for mean in means[keep]:
+        for mean in means:
             temps.append(float(mean[6]))
             vals.append(mean[:6])
             groups.append(keys.index(key))

@@ -260,68 +260,24 @@ def analyse_blocks(
     significant temperature drift is removed first when ``remove_thermal`` (see
     :func:`thermal_drift`)."""
     k = len(channels)
-    n, t_first, t_last = 0, 0.0, 0.0
-    spacing, temps = ValueCounts(), ValueCounts()
-    sx, st, temp_ok = np.zeros(k), 0.0, True
-    for t, x, tc in source.blocks():
-        if t.size == 0:
-            continue
-        spacing.add(np.diff(t) if n == 0 else np.diff(np.concatenate([[t_last], t])))
-        t_first, t_last = (float(t[0]) if n == 0 else t_first), float(t[-1])
-        n += t.size
-        sx += x.sum(axis=0)
-        if tc is None or not np.all(np.isfinite(tc)):
-            temp_ok = False
-        else:
-            temps.add(tc)
-            st += float(tc.sum())
+    first = _first_pass(source, k)
+    n = first.n
     if n < 64:
         raise ValueError(f"{n} samples: an Allan deviation needs at least 64")
-    step = spacing.median()
+    step = first.spacing.median()
     if not step > 0:
         raise ValueError("the sample times do not increase")
     rate = 1.0 / step
-    notes: list[str] = []
-    gaps = spacing.values > 1.5 * step
-    if np.any(gaps):
-        lost = float(np.sum((spacing.values[gaps] - step) * spacing.counts[gaps]))
-        share = lost / (t_last - t_first)
-        if share > 0.001:
-            notes.append(
-                f"{int(spacing.counts[gaps].sum())} gaps in the sample times "
-                f"({100 * share:.1f} % of the recording): the Allan deviation treats the "
-                "samples as evenly spaced"
-            )
-    xbar, tbar = sx / n, st / n
+    notes = _gap_notes(first, step)
+    xbar, tbar = first.sx / n, first.st / n
     span, drifts = 0.0, {}
-    if temp_ok and n >= 16:
-        span = temps.percentile(99) - temps.percentile(1)
+    if first.temp_ok and n >= 16:
+        span = first.temps.percentile(99) - first.temps.percentile(1)
         if span >= 0.5:
             drifts = _drifts(source, xbar, tbar, span)
-    thermal = {channels[j]: d for j, d in drifts.items()}
-    coef = np.zeros(k)
-    sig = [channels[j] for j, d in drifts.items() if d.significant]
-    if sig:
-        what = "removed before the Allan deviation" if remove_thermal else "NOT removed"
-        notes.append(
-            f"temperature drift: the chip moved {span:.1f} °C and {', '.join(sig)} "
-            f"follow it ({what}; it would read as rate random walk)"
-        )
-        if remove_thermal:
-            coef = np.array([drifts[j].coefficient if drifts[j].significant else 0.0
-                             for j in range(k)])  # fmt: skip
-    # the phase of each channel less its temperature line: cumulative sums carried across
-    # the blocks (the sum of the line's term over the recording is 0)
-    stores = [phases() for _ in range(k)]
-    carry = np.zeros(k)
-    for s in stores:
-        s.append(np.zeros(1))
-    for _, x, tc in source.blocks():
-        for j in range(k):
-            col = x[:, j] - coef[j] * (tc - tbar) if coef[j] and tc is not None else x[:, j]
-            cs = np.cumsum(np.concatenate([[carry[j]], col - xbar[j]]))[1:]
-            carry[j] = cs[-1] if cs.size else carry[j]
-            stores[j].append(cs / rate)
+    coef, note = _thermal_removal(drifts, channels, span, remove_thermal)
+    notes += note
+    stores = _phases_of(source, coef, xbar, tbar, rate, phases, k)
     out: dict[str, ChannelNoise] = {}
     for j, name in enumerate(channels):
         curve = allan_curve_of_phase(stores[j].window, n, rate, block=phase_block)
@@ -334,7 +290,103 @@ def analyse_blocks(
                 notes.append(f"{name}: {w}")
     # the samples' length, not the span of their times: a gap holds no samples
     duration = float(n) * step
+    thermal = {channels[j]: d for j, d in drifts.items()}
     return NoiseAnalysis(out, duration, rate, span, thermal, remove_thermal, ci, tuple(notes))
+
+
+@dataclass
+class _FirstPass:
+    """What the first pass over a recording's blocks gathers: the samples' count, first and
+    last time, the spacings and chip temperatures (as counts of values), the channels' sums
+    and the temperatures' sum (``temp_ok``: every sample has a finite temperature)."""
+
+    n: int
+    t_first: float
+    t_last: float
+    spacing: ValueCounts
+    temps: ValueCounts
+    sx: np.ndarray
+    st: float
+    temp_ok: bool
+
+
+def _first_pass(source: Blocks, k: int) -> _FirstPass:
+    f = _FirstPass(0, 0.0, 0.0, ValueCounts(), ValueCounts(), np.zeros(k), 0.0, True)
+    for t, x, tc in source.blocks():
+        if t.size == 0:
+            continue
+        f.spacing.add(np.diff(t) if f.n == 0 else np.diff(np.concatenate([[f.t_last], t])))
+        f.t_first, f.t_last = (float(t[0]) if f.n == 0 else f.t_first), float(t[-1])
+        f.n += t.size
+        f.sx += x.sum(axis=0)
+        if tc is None or not np.all(np.isfinite(tc)):
+            f.temp_ok = False
+        else:
+            f.temps.add(tc)
+            f.st += float(tc.sum())
+    return f
+
+
+def _gap_notes(first: _FirstPass, step: float) -> list[str]:
+    """The warning for gaps in the sample times (spacings over 1.5 steps) that hold more than
+    0.1 % of the recording."""
+    spacing = first.spacing
+    gaps = spacing.values > 1.5 * step
+    if not np.any(gaps):
+        return []
+    lost = float(np.sum((spacing.values[gaps] - step) * spacing.counts[gaps]))
+    share = lost / (first.t_last - first.t_first)
+    if share <= 0.001:
+        return []
+    return [
+        f"{int(spacing.counts[gaps].sum())} gaps in the sample times "
+        f"({100 * share:.1f} % of the recording): the Allan deviation treats the "
+        "samples as evenly spaced"
+    ]
+
+
+def _thermal_removal(
+    drifts: Mapping[int, ThermalDrift], channels: Sequence[str], span: float, remove: bool
+) -> tuple[np.ndarray, list[str]]:
+    """Each channel's temperature coefficient to remove (0 where not significant, or when
+    not ``remove``), and the note saying which channels follow the temperature."""
+    coef = np.zeros(len(channels))
+    sig = [channels[j] for j, d in drifts.items() if d.significant]
+    if not sig:
+        return coef, []
+    what = "removed before the Allan deviation" if remove else "NOT removed"
+    note = (
+        f"temperature drift: the chip moved {span:.1f} °C and {', '.join(sig)} "
+        f"follow it ({what}; it would read as rate random walk)"
+    )
+    if remove:
+        coef = np.array([drifts[j].coefficient if drifts[j].significant else 0.0
+                         for j in range(len(channels))])  # fmt: skip
+    return coef, [note]
+
+
+def _phases_of(
+    source: Blocks,
+    coef: np.ndarray,
+    xbar: np.ndarray,
+    tbar: float,
+    rate: float,
+    phases: Callable[[], PhaseStore],
+    k: int,
+) -> list[PhaseStore]:
+    """The phase of each channel less its temperature line: cumulative sums carried across
+    the blocks (the sum of the line's term over the recording is 0), one store each."""
+    stores = [phases() for _ in range(k)]
+    carry = np.zeros(k)
+    for s in stores:
+        s.append(np.zeros(1))
+    for _, x, tc in source.blocks():
+        for j in range(k):
+            col = x[:, j] - coef[j] * (tc - tbar) if coef[j] and tc is not None else x[:, j]
+            cs = np.cumsum(np.concatenate([[carry[j]], col - xbar[j]]))[1:]
+            carry[j] = cs[-1] if cs.size else carry[j]
+            stores[j].append(cs / rate)
+    return stores
 
 
 def plan(

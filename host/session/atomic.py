@@ -41,20 +41,9 @@ def write_texts_atomic(files: Mapping[str | os.PathLike[str], str]) -> None:
     try:
         for path, text in files.items():
             p = Path(path)
-            try:
-                fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
-            except OSError as exc:
-                raise write_error(p, exc) from None
+            fd, tmp = _temp_beside(p)
             temps.append((tmp, p))
-            try:
-                if hasattr(os, "fchmod"):  # a new file's usual mode, not mkstemp's private 0600
-                    os.fchmod(fd, 0o666 & ~_umask())
-                with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-                    f.write(text)
-                    f.flush()
-                    os.fsync(f.fileno())
-            except OSError as exc:
-                raise write_error(p, exc) from None
+            _write_synced(fd, p, text)
         for _, p in temps:
             backups[p] = _backup_link(p)
         replaced: list[Path] = []
@@ -82,6 +71,29 @@ def write_texts_atomic(files: Mapping[str | os.PathLike[str], str]) -> None:
         for backup in backups.values():
             if backup is not None and backup not in keep:
                 _unlink_quietly(backup)
+
+
+def _temp_beside(target: Path) -> tuple[int, str]:
+    """A new hidden temp file in ``target``'s directory: (its descriptor, its name); the
+    user's write error, naming ``target``, if it cannot be made."""
+    try:
+        return tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as exc:
+        raise write_error(target, exc) from None
+
+
+def _write_synced(fd: int, target: Path, text: str) -> None:
+    """Write ``text`` (UTF-8, \\n) to the temp file ``fd`` with a new file's usual mode (not
+    mkstemp's private 0600) and fsync it; the user's write error names ``target``."""
+    try:
+        if hasattr(os, "fchmod"):
+            os.fchmod(fd, 0o666 & ~_umask())
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as exc:
+        raise write_error(target, exc) from None
 
 
 def _backup_link(target: Path) -> str | None:

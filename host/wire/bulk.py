@@ -217,7 +217,6 @@ def _decode_bulk_bytes(
     candidate is complete in ``data`` when ``limit <= len(data) - MAX_FRAME + 1``, so they are
     final whatever follows). ``before``: the counters' state after the preceding bytes.
     Returns the result (offsets relative to ``data``) and how many bytes it consumed."""
-    lengths = LENGTHS_FROM[sender]
     buf = np.frombuffer(data, dtype=np.uint8)
     n = buf.size
     stats = DecoderStats()
@@ -226,6 +225,41 @@ def _decode_bulk_bytes(
     if n < 2:
         stats.bytes_discarded = limit
         return BulkResult(np.zeros(0, SAMPLE_DTYPE), [], stats), limit
+    cand, mtype, length, end, alien = _candidates(buf, LENGTHS_FROM[sender], limit)
+    crc_ok, imu_cand, imu_rows = _crc_checks(buf, cand, mtype, length, end)
+    vs, ve, taken = _taken(cand[crc_ok], end[crc_ok], np.flatnonzero(crc_ok))
+    vtype = mtype[taken]
+    stats.crc_errors = _crc_errors(cand[~crc_ok], vs, ve)
+    consumed = max(limit, int(ve[-1])) if ve.size else limit
+    stats.frames = int(vs.size)
+    stats.unknown_types = int(np.count_nonzero(LENGTHS_FROM["any"][vtype] < 0))
+    stats.bytes_discarded = int(consumed - np.sum(ve - vs))
+    imu_idx = np.flatnonzero(vtype == IMU_SAMPLE)
+    taken_mask = np.zeros(cand.size, dtype=bool)
+    taken_mask[taken] = True
+    imu_taken = taken_mask[imu_cand]
+    wire = (imu_rows if imu_taken.all() else imu_rows[imu_taken]).view(_WIRE_IMU_PADDED)[:, 0]
+    seq = np.empty(vs.size, dtype=np.int64)  # the IMU samples' from their rows, the others'
+    seq[imu_idx] = wire["seq"]
+    other = np.flatnonzero(vtype != IMU_SAMPLE)
+    seq[other] = buf[vs[other] + 4].astype(np.int64) | (buf[vs[other] + 5].astype(np.int64) << 8)
+    reset, gaps = _counter_rules(seq, imu_idx, wire["t_us"].astype(np.int64), before, stats)
+    samples = _samples_of(wire, vs[imu_idx], imu_idx, reset, gaps, before, stats)
+    others = [
+        (int(vs[i]), Frame(int(vtype[i]), int(seq[i]), bytes(buf[vs[i] + HEADER_LEN : ve[i] - 2])))
+        for i in other
+    ]
+    return BulkResult(samples, others, stats, _outside(buf, alien, vs, ve)), consumed
+
+
+def _candidates(
+    buf: np.ndarray, lengths: np.ndarray, limit: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every SYNC pair starting before ``limit`` whose header is whole, of a type the sender
+    sends with a length it may have, and whose frame ends inside ``buf``: (start, type,
+    payload length, end) each; and the starts of CRC-valid frames of a known type but
+    another length (another firmware's)."""
+    n = buf.size
     cand = np.flatnonzero((buf[:-1] == SYNC[0]) & (buf[1:] == SYNC[1]))
     cand = cand[: np.searchsorted(cand, min(n - HEADER_LEN, limit - 1), side="right")]
     mtype = buf[cand + 2]
@@ -237,7 +271,14 @@ def _decode_bulk_bytes(
     end = cand + HEADER_LEN + length + CRC_LEN
     alien = _crc_valid(buf, cand[other_len & (end <= n)], n)
     ok = ok_len & (end <= n)
-    cand, mtype, length, end = cand[ok], mtype[ok], length[ok], end[ok]
+    return cand[ok], mtype[ok], length[ok], end[ok], alien
+
+
+def _crc_checks(
+    buf: np.ndarray, cand: np.ndarray, mtype: np.ndarray, length: np.ndarray, end: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Whether each candidate's CRC checks; and the IMU samples among them (their indices
+    and their bytes, one row each, for the samples array)."""
     crc_ok = np.zeros(cand.size, dtype=bool)
     # IMU samples, the bulk of any capture: copy each candidate's bytes (plus one pad byte, so
     # rows have an even width) and check all CRCs from 16-bit words
@@ -255,11 +296,16 @@ def _decode_bulk_bytes(
         e = end[idx]
         stored = buf[e - 2].astype(np.uint16) | (buf[e - 1].astype(np.uint16) << 8)
         crc_ok[idx] = crc16_rows(rows) == stored
+    return crc_ok, imu_cand, imu_rows
 
-    # choose the frames the sequential scan would consume: a valid frame is taken unless it
-    # starts inside one already taken (rare overlaps are resolved greedily, in order; none
-    # where each frame ends before the next starts)
-    vs, ve = cand[crc_ok], end[crc_ok]
+
+def _taken(
+    vs: np.ndarray, ve: np.ndarray, taken: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The valid frames (starts ``vs``, ends ``ve``, candidate indices ``taken``) the
+    sequential scan would consume: a valid frame is taken unless it starts inside one already
+    taken (rare overlaps are resolved greedily, in order; none where each frame ends before
+    the next starts)."""
     take = np.ones(vs.size, dtype=bool)
     if vs.size > 1 and np.any(vs[1:] < ve[:-1]):
         prev_max_end = np.maximum.accumulate(ve)[:-1]
@@ -271,64 +317,75 @@ def _decode_bulk_bytes(
                     take[i] = False
                 else:
                     last_end = int(ve[i])
-    taken = np.flatnonzero(crc_ok)
     if not take.all():
-        vs, ve, taken = vs[take], ve[take], taken[take]
-    vtype = mtype[taken]
-    # CRC failures are counted only for candidates the scan examines (not inside a taken frame)
-    bad = cand[~crc_ok]
-    if bad.size and not vs.size:
-        stats.crc_errors = int(bad.size)
-    elif bad.size:
-        k = np.searchsorted(vs, bad, side="right") - 1
-        inside = (k >= 0) & (bad < np.where(k >= 0, ve[np.maximum(k, 0)], 0))
-        stats.crc_errors = int(np.count_nonzero(~inside))
-    consumed = max(limit, int(ve[-1])) if ve.size else limit
-    stats.frames = int(vs.size)
-    stats.unknown_types = int(np.count_nonzero(LENGTHS_FROM["any"][vtype] < 0))
-    stats.bytes_discarded = int(consumed - np.sum(ve - vs))
+        return vs[take], ve[take], taken[take]
+    return vs, ve, taken
 
-    imu_idx = np.flatnonzero(vtype == IMU_SAMPLE)
-    taken_mask = np.zeros(cand.size, dtype=bool)
-    taken_mask[taken] = True
-    imu_taken = taken_mask[imu_cand]
-    wire = (imu_rows if imu_taken.all() else imu_rows[imu_taken]).view(_WIRE_IMU_PADDED)[:, 0]
-    seq = np.empty(vs.size, dtype=np.int64)  # the IMU samples' from their rows, the others'
-    seq[imu_idx] = wire["seq"]
-    other = np.flatnonzero(vtype != IMU_SAMPLE)
-    seq[other] = buf[vs[other] + 4].astype(np.int64) | (buf[vs[other] + 5].astype(np.int64) << 8)
-    t_us = wire["t_us"].astype(np.int64)
-    segment0 = 0
+
+def _crc_errors(bad: np.ndarray, vs: np.ndarray, ve: np.ndarray) -> int:
+    """CRC failures the scan examines: those of candidates ``bad`` not inside a taken frame."""
+    if not bad.size:
+        return 0
+    if not vs.size:
+        return int(bad.size)
+    k = np.searchsorted(vs, bad, side="right") - 1
+    inside = (k >= 0) & (bad < np.where(k >= 0, ve[np.maximum(k, 0)], 0))
+    return int(np.count_nonzero(~inside))
+
+
+def _counter_rules(
+    seq: np.ndarray,
+    imu_idx: np.ndarray,
+    t_us: np.ndarray,
+    before: _Before | None,
+    stats: DecoderStats,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The counters' rules over the taken frames (:func:`host.wire.segments.segments`):
+    resets and frames lost before each; counted in ``stats``, remembered in ``before``."""
     if before is not None and before.last_seq is not None:
         # the rules see the last frame before these bytes first (as the IMU sample it was
         # when its segment has a last sample time): its own verdict was counted already
         prev_imu = before.last_t_us is not None
-        seq = np.concatenate(([before.last_seq], seq))
-        imu_idx = np.concatenate(([0], imu_idx + 1)) if prev_imu else imu_idx + 1
+        seq1 = np.concatenate(([before.last_seq], seq))
+        imu1 = np.concatenate(([0], imu_idx + 1)) if prev_imu else imu_idx + 1
         if prev_imu:
             t_us = np.concatenate((np.asarray([before.last_t_us], np.int64), t_us))
-        reset, gaps = segments(seq, imu_idx, t_us)
-        seq, reset, gaps = seq[1:], reset[1:], gaps[1:]
-        imu_idx = imu_idx[1:] - 1 if prev_imu else imu_idx - 1
+        reset, gaps = segments(seq1, imu1, t_us)
+        reset, gaps = reset[1:], gaps[1:]
         t_us = t_us[1:] if prev_imu else t_us
     else:
         reset, gaps = segments(seq, imu_idx, t_us)
     stats.resets = int(np.count_nonzero(reset))
     stats.lost_frames = int(np.sum(gaps))
-    if before is not None:
-        segment0 = before.segment
-        if seq.size:
-            seg_of = np.cumsum(reset) if stats.resets else None  # None: all in segment0
-            before.last_seq = int(seq[-1])
-            if imu_idx.size and (seg_of is None or seg_of[imu_idx[-1]] == seg_of[-1]):
-                before.last_t_us = int(t_us[-1])
-            elif stats.resets:  # a reset after the last sample forgets its time
-                before.last_t_us = None
-            before.segment += stats.resets
+    if before is not None and seq.size:
+        seg_of = np.cumsum(reset) if stats.resets else None  # None: all in one segment
+        before.last_seq = int(seq[-1])
+        if imu_idx.size and (seg_of is None or seg_of[imu_idx[-1]] == seg_of[-1]):
+            before.last_t_us = int(t_us[-1])
+        elif stats.resets:  # a reset after the last sample forgets its time
+            before.last_t_us = None
+    return reset, gaps
+
+
+def _samples_of(
+    wire: np.ndarray,
+    offsets: np.ndarray,
+    imu_idx: np.ndarray,
+    reset: np.ndarray,
+    gaps: np.ndarray,
+    before: _Before | None,
+    stats: DecoderStats,
+) -> np.ndarray:
+    """The samples array: the wire values, each sample's offset, segment (``before``'s
+    numbering) and the frames lost since the previous sample (those after the last sample of
+    the bytes before counted on the first)."""
+    segment0 = 0 if before is None else before.segment
+    if before is not None and reset.size:
+        before.segment += stats.resets
     samples = np.empty(imu_idx.size, dtype=SAMPLE_DTYPE)  # every field is written below
     for name in ("seq", "t_us", *IMU_FIELDS, "flags"):
         samples[name] = wire[name]
-    samples["offset"] = vs[imu_idx]
+    samples["offset"] = offsets
     # (no reset, no frame lost: the usual chunk, a constant segment and no losses to place)
     samples["segment"] = (segment0 + np.cumsum(reset))[imu_idx] if stats.resets else segment0
     lost_by_last = 0  # frames lost up to the last sample
@@ -345,11 +402,7 @@ def _decode_bulk_bytes(
             before.lost_since_sample = after
         else:
             before.lost_since_sample += after
-    others = [
-        (int(vs[i]), Frame(int(vtype[i]), int(seq[i]), bytes(buf[vs[i] + HEADER_LEN : ve[i] - 2])))
-        for i in np.flatnonzero(vtype != IMU_SAMPLE)
-    ]
-    return BulkResult(samples, others, stats, _outside(buf, alien, vs, ve)), consumed
+    return samples
 
 
 def _crc_valid(buf: np.ndarray, starts: np.ndarray, n: int) -> np.ndarray:
