@@ -2,7 +2,8 @@
 
 Each command lives in the module of its stage; this file only maps command names to
 ``module:function`` pairs. The function is called with the subparser to fill in and
-returns the callable that runs the command (``run(args) -> int``).
+returns the command (:class:`host.cli.options.Command`): how its typed options are read
+from the parsed arguments, and the runner that takes them (``run(options) -> int``).
 """
 
 from __future__ import annotations
@@ -12,8 +13,7 @@ import contextlib
 import importlib
 import os
 import sys
-from collections.abc import Callable
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 #: numpy's BLAS starts a thread per core; the fits here are small, and on a shared or loaded
 #: machine those threads fight each other and every other process for the cores (a 2-core
@@ -23,6 +23,9 @@ for _name in BLAS_THREAD_VARIABLES:
     os.environ.setdefault(_name, "1")
 
 from host.errors import UserError  # noqa: E402  (after the BLAS setting: numpy reads it once)
+
+if TYPE_CHECKING:
+    from host.cli.options import Command
 
 #: command -> (module, function adding the arguments and returning the runner, one-line help)
 COMMANDS: dict[str, tuple[str, str, str]] = {
@@ -176,11 +179,12 @@ def leaf_parser(
     parser: argparse.ArgumentParser, args: argparse.Namespace
 ) -> argparse.ArgumentParser:
     """The parser of the subcommand ``args`` chose (``model ladder``'s for ``model ladder``)."""
+    chosen = vars(args)
     while True:
         acts = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
-        if not acts or getattr(args, acts[0].dest, None) not in acts[0].choices:
+        if not acts or chosen.get(acts[0].dest) not in acts[0].choices:
             return parser
-        parser = acts[0].choices[getattr(args, acts[0].dest)]
+        parser = acts[0].choices[chosen[acts[0].dest]]
 
 
 def empty_word(words: list[str]) -> str | None:
@@ -206,17 +210,17 @@ def _version() -> str:
 
 def build_parser(
     only: str | None = None,
-) -> tuple[argparse.ArgumentParser, dict[str, Callable[[argparse.Namespace], int]]]:
-    """The parser and the runners of every command; with ``only``, the arguments and runner
-    of that command alone (the others are listed, their modules not imported: start-up
-    imports what the command needs)."""
+) -> tuple[argparse.ArgumentParser, dict[str, Command[Any]]]:
+    """The parser and the commands (:class:`host.cli.options.Command`); with ``only``, the
+    arguments and the command of that command alone (the others are listed, their modules
+    not imported: start-up imports what the command needs)."""
     parser = OneLineErrors(
         prog="python3 -m host", description="IMU calibration bench host (APM 2.6 / MPU-6000).",
         epilog=EXIT_CODES,
     )  # fmt: skip
     parser.add_argument("--version", action="version", version=_version())
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    runners: dict[str, Callable[[argparse.Namespace], int]] = {}
+    runners: dict[str, Command[Any]] = {}
     for name, (module, func, help_text) in COMMANDS.items():
         # the exit codes once, at the top and for calibrate (whose 0 and 1 are the verdict)
         codes = EXIT_CODES if name == "calibrate" else ""
@@ -261,6 +265,8 @@ def _reader_gone() -> int:
 
 
 def _run(argv: list[str] | None, raw_out: object) -> int:
+    from host.cli.options import OptionError
+
     words = sys.argv[1:] if argv is None else argv
     command = next((w for w in words if not w.startswith("-")), None)
     parser, runners = build_parser(command or "")  # no command: no command's module
@@ -274,17 +280,16 @@ def _run(argv: list[str] | None, raw_out: object) -> int:
     if not args.command:
         parser.print_help()
         return 2
-    if getattr(args, "term_timeout", None) is not None:  # the bound on term files' code
-        from host.model import loader
-
-        if not args.term_timeout > 0:
-            leaf_parser(parser, args).error("--term-timeout: give a number of seconds above 0")
-        loader.TIME_LIMIT_S = args.term_timeout
-    if args.command in MACHINE_STDOUT or getattr(args, "json", False):
-        sys.stdout.flush()
-        sys.stdout = raw_out  # type: ignore[assignment]
+    chosen = runners[args.command]
     try:
-        return runners[args.command](args)
+        try:
+            options = chosen.options(args)
+        except OptionError as exc:  # a value on the command line: said with the help to read
+            leaf_parser(parser, args).error(str(exc))
+        if args.command in MACHINE_STDOUT or chosen.data_out(options):
+            sys.stdout.flush()
+            sys.stdout = raw_out  # type: ignore[assignment]
+        return chosen.run(options)
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -8,13 +8,16 @@ import math
 import os
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from host.archive import checks, stats
 from host.archive.entry import entry_from_directory
 from host.archive.export import COLUMNS, write_values
-from host.archive.store import ARCHIVE_ENV, DEFAULT_FILE, Archive
+from host.archive.store import Archive
 from host.cli import archive_text as text
+from host.cli.options import Command, add_archive_option, positive
 from host.cli.screen import terminal_width
 from host.errors import UserError, write_error
 
@@ -26,16 +29,6 @@ def _alpha(s: str) -> float:
         v = math.nan
     if not 0 < v < 1:
         raise argparse.ArgumentTypeError(f"expected a rate between 0 and 1, got {s!r}")
-    return v
-
-
-def _positive(s: str) -> float:
-    try:
-        v = float(s)
-    except ValueError:
-        v = math.nan
-    if not v > 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {s!r}")
     return v
 
 
@@ -56,13 +49,60 @@ def parse_tolerances(items: list[str]) -> dict[str, float]:
     return out
 
 
-def _open(args: argparse.Namespace, create: bool = False) -> Archive:
+@dataclass(frozen=True)
+class ArchiveOptions:
+    """``archive ACTION``: the action, the archive (None: the default one), which
+    calibrations (serial, bench, lot; ``param``: which parameters, None: all), the
+    false-alarm rate, and what the actions of their own take: the directories ``add`` reads
+    (their records', who measured), the id ``show`` shows, the pooling of ``repeat``, the
+    k·σ and tolerances of ``drift``, the reference unit, the page and the file written."""
+
+    action: str
+    archive: str | None = None
+    serial: str | None = None
+    bench: str | None = None
+    lot: str | None = None
+    param: tuple[str, ...] | None = None
+    alpha: float = stats.DEFAULT_ALPHA
+    dirs: tuple[str, ...] = ()
+    records: str | None = None
+    operator: str | None = None
+    id: int | None = None
+    across_benches: bool = False
+    k: float | None = None
+    tol: tuple[str, ...] = ()
+    reference: str | None = None
+    html: str = ""
+    file: str = ""
+
+
+#: what an action the namespace lacks an argument of takes (every action reads its own only)
+_UNSET = {"serial": None, "bench": None, "lot": None, "param": None,
+          "alpha": stats.DEFAULT_ALPHA, "dirs": (), "records": None, "operator": None,
+          "id": None, "across_benches": False, "k": None, "tol": (), "reference": None,
+          "html": "", "file": ""}  # fmt: skip
+
+
+def archive_options(ns: argparse.Namespace) -> ArchiveOptions:
+    """The ``archive`` options from its arguments (the action's, the rest unset)."""
+    given = vars(ns)
+    v: dict[str, Any] = {name: given.get(name, unset) for name, unset in _UNSET.items()}
+    return ArchiveOptions(
+        action=ns.archive_command, archive=ns.archive, serial=v["serial"], bench=v["bench"],
+        lot=v["lot"], param=None if v["param"] is None else tuple(v["param"]),
+        alpha=v["alpha"], dirs=tuple(v["dirs"]), records=v["records"],
+        operator=v["operator"], id=v["id"], across_benches=v["across_benches"], k=v["k"],
+        tol=tuple(v["tol"]), reference=v["reference"], html=v["html"], file=v["file"],
+    )  # fmt: skip
+
+
+def _open(args: ArchiveOptions, create: bool = False) -> Archive:
     """The archive of ``--archive``; only ``add`` creates one (a question to an archive that
     is not there, a typo in its path, is not answered from a new empty one)."""
     return Archive(args.archive, create=create)
 
 
-def _add(args: argparse.Namespace) -> int:
+def _add(args: ArchiveOptions) -> int:
     with _open(args, create=True) as a:
         for d in args.dirs:
             e = entry_from_directory(
@@ -77,13 +117,13 @@ def _add(args: argparse.Namespace) -> int:
     return 0
 
 
-def _list(args: argparse.Namespace) -> int:
+def _list(args: ArchiveOptions) -> int:
     with _open(args) as a:
         sys.stdout.write(text.summaries(a.summaries(args.serial, args.bench, args.lot)))
     return 0
 
 
-def _show(args: argparse.Namespace) -> int:
+def _show(args: ArchiveOptions) -> int:
     with _open(args) as a:
         if args.id is not None:
             key: int | str = args.id
@@ -97,9 +137,10 @@ def _show(args: argparse.Namespace) -> int:
     return 0
 
 
-def _trend(args: argparse.Namespace) -> int:
+def _trend(args: ArchiveOptions) -> int:
+    serial = args.serial or ""  # (its parser requires it)
     with _open(args) as a:
-        sys.stdout.write(text.trend(args.serial, checks.trend(a, args.serial, args.param)))
+        sys.stdout.write(text.trend(serial, checks.trend(a, serial, args.param)))
     return 0
 
 
@@ -127,7 +168,7 @@ def _selected(
             )
 
 
-def _repeat(args: argparse.Namespace) -> int:
+def _repeat(args: ArchiveOptions) -> int:
     with _open(args) as a:
         _selected(a, args.serial, args.lot)
         rows = checks.repeat(
@@ -137,8 +178,8 @@ def _repeat(args: argparse.Namespace) -> int:
     return 1 if any(r.failed for r in rows) else 0
 
 
-def _drift(args: argparse.Namespace) -> int:
-    tol = parse_tolerances(args.tol)
+def _drift(args: ArchiveOptions) -> int:
+    tol = parse_tolerances(list(args.tol))
     with _open(args) as a:
         _selected(a, args.serial, args.lot, list(tol), "--tol")  # a parameter not there
         rows, k = checks.drift(
@@ -148,7 +189,7 @@ def _drift(args: argparse.Namespace) -> int:
     return 1 if any(r.moved for r in rows) else 0
 
 
-def _lot(args: argparse.Namespace) -> int:
+def _lot(args: ArchiveOptions) -> int:
     with _open(args) as a:
         rep = checks.lot_report(a, args.lot, alpha=args.alpha, names=args.param)
         if not rep.units:  # a lot that is not there is not a lot that passed
@@ -160,7 +201,7 @@ def _lot(args: argparse.Namespace) -> int:
     return 1 if bad else 0
 
 
-def _control(args: argparse.Namespace) -> int:
+def _control(args: ArchiveOptions) -> int:
     with _open(args) as a:
         cs = checks.control_charts(a, serial=args.serial, bench=args.bench, names=args.param)
         if not cs:
@@ -171,10 +212,11 @@ def _control(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_bench(args: argparse.Namespace) -> int:
+def _check_bench(args: ArchiveOptions) -> int:
+    reference = args.reference or ""  # (its parser requires it)
     with _open(args) as a:
-        rows, k = checks.check_bench(a, args.reference, alpha=args.alpha)
-    sys.stdout.write(text.benches(rows, k, args.alpha, args.reference))
+        rows, k = checks.check_bench(a, reference, alpha=args.alpha)
+    sys.stdout.write(text.benches(rows, k, args.alpha, reference))
     return 1 if any(r.flagged for r in rows) else 0
 
 
@@ -193,7 +235,7 @@ def _only_an_earlier_export(path: Path) -> None:
         )
 
 
-def _export(args: argparse.Namespace) -> int:
+def _export(args: ArchiveOptions) -> int:
     if Path(args.file).is_dir():
         raise UserError(
             f"{args.file}: is a directory; give a file name, e.g. {Path(args.file) / 'values.csv'}"
@@ -227,7 +269,7 @@ def page_path(html: str) -> Path:
     return path / PAGE_NAME if path.is_dir() else path
 
 
-def _report(args: argparse.Namespace) -> int:
+def _report(args: ArchiveOptions) -> int:
     from host.archive.page import page_data, render
     from host.session.atomic import write_text_atomic
 
@@ -257,14 +299,10 @@ ARCHIVE_EXAMPLES: dict[str, tuple[str, ...]] = {
 }
 
 
-def cli_archive(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
-    """Fill in the ``archive`` subparser; returns the runner."""
+def cli_archive(p: argparse.ArgumentParser) -> Command[ArchiveOptions]:
+    """Fill in the ``archive`` subparser; returns the command."""
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument(
-        "--archive", metavar="URL",
-        help=f"the archive: an SQLite file or postgresql://user@host/db (default ${ARCHIVE_ENV}, "
-        f"else {DEFAULT_FILE})",
-    )  # fmt: skip
+    add_archive_option(common, "the archive")
     alpha = argparse.ArgumentParser(add_help=False)
     alpha.add_argument(
         "--alpha", type=_alpha, default=stats.DEFAULT_ALPHA,
@@ -272,66 +310,97 @@ def cli_archive(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], in
     )  # fmt: skip
     sub = p.add_subparsers(dest="archive_command", metavar="ACTION", required=True)
 
-    def action(name: str, run: Callable[[argparse.Namespace], int], help_text: str,
-               *parents: argparse.ArgumentParser) -> argparse.ArgumentParser:  # fmt: skip
-        q = sub.add_parser(
+    def action(name: str, help_text: str, *parents: argparse.ArgumentParser) -> Parser:
+        return sub.add_parser(
             name, help=help_text, description=help_text, parents=[common, *parents],
             epilog="examples:\n" + "\n".join(f"  python3 -m host archive {name}{e}"
                                               for e in ARCHIVE_EXAMPLES[name]),
             formatter_class=argparse.RawDescriptionHelpFormatter,
         )  # fmt: skip
-        q.set_defaults(archive_run=run)
-        return q
 
-    q = action("add", _add, "archive the results calibrate wrote (same result twice: no-op)")
+    _keeping_actions(action)
+    _question_actions(action, alpha)
+    _page_actions(action, alpha)
+    return Command(archive_options, run)
+
+
+#: a function adding one action's subparser: (name, help, parent parsers) -> its parser
+Parser = argparse.ArgumentParser
+Action = Callable[..., Parser]
+SERIAL_HELP = "only this unit's calibrations"
+BENCH_HELP = "only the calibrations on this bench"
+LOT_HELP = "only the calibrations of this production lot"
+PARAM_HELP = "only this parameter (repeatable; default: every one)"
+
+
+def _keeping_actions(action: Action) -> None:
+    """add, list, show, trend: what is kept."""
+    q = action("add", "archive the results calibrate wrote (same result twice: no-op)")
     q.add_argument("dirs", nargs="+", metavar="DIR", help="directory of SERIAL_result.json")
     q.add_argument("--serial", help="which result, when DIR holds several")
     q.add_argument("--records", metavar="DIR", help="the records' directory (default DIR)")
     q.add_argument("--bench", help="bench name (default: the records' header, $IMU_BENCH_NAME)")
     q.add_argument("--operator", help="operator (default: the records', $IMU_BENCH_OPERATOR)")
     q.add_argument("--lot", help="production lot (default: the records' header)")
-    q = action("list", _list, "list archived calibrations")
-    for opt in ("--serial", "--bench", "--lot"):
-        q.add_argument(opt)
-    q = action("show", _show, "a unit's calibrations and the latest (or --id) in full")
-    q.add_argument("serial", nargs="?")
+    q = action("list", "list archived calibrations")
+    q.add_argument("--serial", help=SERIAL_HELP)
+    q.add_argument("--bench", help=BENCH_HELP)
+    q.add_argument("--lot", help=LOT_HELP)
+    q = action("show", "a unit's calibrations and the latest (or --id) in full")
+    q.add_argument("serial", nargs="?", help="the unit whose calibrations to list")
     q.add_argument("--id", type=int, help="show this calibration (an id from 'archive list')")
-    q = action("trend", _trend, "each parameter of a unit against time, with its σ")
-    q.add_argument("serial")
+    q = action("trend", "each parameter of a unit against time, with its σ")
+    q.add_argument("serial", help="the unit")
     q.add_argument("--param", action="append", metavar="NAME", help="only these parameters")
-    q = action("repeat", _repeat, "between-session scatter against the predicted σ", alpha)
+
+
+def _question_actions(action: Action, alpha: Parser) -> None:
+    """repeat, drift, lot, control: a lab's and a line's questions."""
+    q = action("repeat", "between-session scatter against the predicted σ", alpha)
     q.add_argument("serial", nargs="?", help="one unit (default: every unit)")
-    q.add_argument("--lot")
+    q.add_argument("--lot", help=LOT_HELP)
     q.add_argument("--across-benches", action="store_true",
                    help="pool a unit's sessions on all benches (reproducibility)")  # fmt: skip
-    q = action("drift", _drift, "units that moved since their last calibration", alpha)
-    q.add_argument("--k", type=_positive, help="flag beyond k·σ (default: from --alpha)")
+    q = action("drift", "units that moved since their last calibration", alpha)
+    q.add_argument("--k", type=positive, help="flag beyond k·σ (default: from --alpha)")
     q.add_argument("--tol", action="append", default=[], metavar="NAME=VALUE",
                    help="flag a change beyond this, in the parameter's unit")  # fmt: skip
-    q.add_argument("--serial")
-    q.add_argument("--lot")
-    q = action("lot", _lot, "per parameter: mean, spread, 3σ vs the datasheet, outliers", alpha)
+    q.add_argument("--serial", help=SERIAL_HELP)
+    q.add_argument("--lot", help=LOT_HELP)
+    q = action("lot", "per parameter: mean, spread, 3σ vs the datasheet, outliers", alpha)
     q.add_argument("lot", nargs="?", help="the lot (default: every unit)")
-    q.add_argument("--param", action="append", metavar="NAME")
-    q = action("control", _control, "control charts per bench and parameter, run rules")
+    q.add_argument("--param", action="append", metavar="NAME", help=PARAM_HELP)
+    q = action("control", "control charts per bench and parameter, run rules")
     q.add_argument("--serial", help="chart this unit only (e.g. the reference unit)")
-    q.add_argument("--bench")
-    q.add_argument("--param", action="append", metavar="NAME")
-    q = action("check-bench", _check_bench, "compare benches on a reference unit (Eₙ)", alpha)
+    q.add_argument("--bench", help=BENCH_HELP)
+    q.add_argument("--param", action="append", metavar="NAME", help=PARAM_HELP)
+
+
+def _page_actions(action: Action, alpha: Parser) -> None:
+    """check-bench, report, export: the benches compared, the QC page, the values."""
+    q = action("check-bench", "compare benches on a reference unit (Eₙ)", alpha)
     q.add_argument("reference", help="serial of the reference unit calibrated on every bench")
-    q = action("report", _report, "one self-contained HTML page for the QC lead", alpha)
+    q = action("report", "one self-contained HTML page for the QC lead", alpha)
     q.add_argument("--html", required=True, metavar="FILE",
                    help=f"the page to write (a directory: {PAGE_NAME} in it)")  # fmt: skip
     q.add_argument("--reference", metavar="SERIAL", help="the reference unit (bench check)")
-    q.add_argument("--lot")
+    q.add_argument("--lot", help=LOT_HELP)
     q.add_argument("--param", action="append", metavar="NAME", help="parameters to chart")
-    q = action("export", _export, "values as CSV (or Parquet with pyarrow)")
+    q = action("export", "values as CSV (or Parquet with pyarrow)")
     q.add_argument("file", help="FILE.csv or FILE.parquet")
-    q.add_argument("--serial")
-    q.add_argument("--lot")
-    q.add_argument("--param", action="append", metavar="NAME")
+    q.add_argument("--serial", help=SERIAL_HELP)
+    q.add_argument("--lot", help=LOT_HELP)
+    q.add_argument("--param", action="append", metavar="NAME", help=PARAM_HELP)
 
-    def run(args: argparse.Namespace) -> int:
-        return int(args.archive_run(args))
 
-    return run
+#: each action's runner
+ACTIONS: dict[str, Callable[[ArchiveOptions], int]] = {
+    "add": _add, "list": _list, "show": _show, "trend": _trend, "repeat": _repeat,
+    "drift": _drift, "lot": _lot, "control": _control, "check-bench": _check_bench,
+    "report": _report, "export": _export,
+}  # fmt: skip
+
+
+def run(args: ArchiveOptions) -> int:
+    """Runner of ``python3 -m host archive``: the action's."""
+    return ACTIONS[args.action](args)

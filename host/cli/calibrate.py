@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable
+from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 from host.calib.commands import command_lines, said_with_command
@@ -25,13 +27,52 @@ from host.calib.publish import (
 from host.calib.report import path_lines, verdict_line
 from host.calib.result import CalibrationResult
 from host.cli import out_directory
+from host.cli.options import (
+    Command,
+    ModelOptions,
+    add_archive_option,
+    add_floor_options,
+    add_model_options,
+    add_site_options,
+    floor_options,
+    model_options,
+    site_options,
+)
 from host.cli.screen import terminal_width, working, wrap
-from host.dialogue.options import DEFAULT_READY_S, MAX_EXTRA, PLANS, WARMUP_DEFAULT_S
+from host.dialogue.options import (
+    DEFAULT_READY_S,
+    MAX_EXTRA,
+    PLANS,
+    WARMUP_DEFAULT_S,
+    DialogueOptions,
+    Planning,
+    Provenance,
+    Schedule,
+    SessionFiles,
+)
 from host.errors import RecordCheckError, UserError
 from host.session.checks import failed_record
 from host.session.directory import Session, read_session
-from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 from host.session.spacing import timing_report
+
+
+@dataclass(frozen=True)
+class CalibrateOptions:
+    """The ``calibrate`` options: ``from_dir`` the records' directory to recompute from (None:
+    a live calibration, the dialogue), ``dialogue`` everything else — the files, the schedule,
+    the plan, how to compute, provenance and archive (:class:`host.dialogue.options.
+    DialogueOptions`; with ``--from-dir`` only the serial, ``--out``, ``--json``, the compute
+    settings and the provenance are read), ``model`` the model and its term files."""
+
+    from_dir: str | None
+    dialogue: DialogueOptions
+    model: ModelOptions
+
+    @property
+    def compute(self) -> ComputeSettings:
+        """How to compute from the records of ``from_dir`` (``--turns``: turns of the turn
+        records whose header does not say it)."""
+        return replace(self.dialogue.compute, turns=self.dialogue.schedule.turns)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -52,37 +93,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--turns", type=int, help="turns per turn record (default: the records' header or inferred)"
     )
-    p.add_argument(
-        "--latitude", type=float, default=DEFAULT_LATITUDE_DEG,
-        help=f"site latitude, degrees (default {DEFAULT_LATITUDE_DEG})",
-    )  # fmt: skip
-    p.add_argument(
-        "--height", type=float, default=DEFAULT_HEIGHT_M,
-        help=f"site height above sea level, m (default {DEFAULT_HEIGHT_M:g})",
-    )  # fmt: skip
+    add_site_options(p)
     p.add_argument(
         "--json", action="store_true", help="print the JSON result instead of the report"
     )
-    p.add_argument(
-        "--model",
-        default="base",
-        help="the model to fit and ship: comma list of term[:sensor[:axes]] (default base = "
-        "bias,scale,misalignment,g_sensitivity, method.md §2; see 'model diagnose')",
-    )
-    p.add_argument(
-        "--floor",
-        default=None,
-        metavar="accel=A,gyro=G",
-        help="bias-instability floor of a record mean (m/s², °/s), as 'model diagnose'; "
-        "default: from --noise, else measured from the records",
-    )
-    p.add_argument(
-        "--noise",
-        default=None,
-        metavar="NOISE.json",
-        help="noise file of this unit (noise FILE --save): the floor of a record mean from its "
-        "Allan variance, as 'model diagnose --noise'",
-    )
+    add_model_options(p, lead="the model to fit and ship: ")
+    add_floor_options(p)
+    add_result_arguments(p)
+
+
+def add_result_arguments(p: argparse.ArgumentParser) -> None:
+    """What is done with the result: verified, corrected for temperature, archived, in PDF."""
     p.add_argument(
         "--verify",
         metavar="DIR2",
@@ -96,11 +117,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "from the records and carried in the result, which apply() then needs temperatures "
         "for (default: SERIAL_thermal.json in the records' directory if there; 'none': ignore)",
     )
-    p.add_argument(
-        "--archive", metavar="URL",
-        help="archive the result here: an SQLite file or postgresql://user@host/db (default "
-        "$IMU_BENCH_ARCHIVE, else ~/.local/share/imu-bench/archive.sqlite)",
-    )  # fmt: skip
+    add_archive_option(p, "archive the result here")
     p.add_argument("--no-archive", action="store_true", help="do not archive the result")
     p.add_argument(
         "--pdf",
@@ -114,58 +131,95 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--operator", help="who measures: the records and the archive ($IMU_BENCH_OPERATOR)"
     )
     p.add_argument("--lot", help="production lot for the archive")
-    p.add_argument(
-        "--term-file",
-        action="append",
-        default=[],
-        metavar="F",
-        help="Python file defining extra terms for --model (repeatable)",
-    )
-    p.add_argument(
-        "--term-timeout", type=float, metavar="S",
-        help="how long the term files' code may run, s (default 120; a progress line every 5 s)",
+
+
+def calibrate_options(ns: argparse.Namespace) -> CalibrateOptions:
+    """The ``calibrate`` options from its arguments; UserError for options where nothing
+    reads them (the live ones with ``--from-dir``) or that name no record."""
+    _live_only(ns)
+    for given in ns.redo or ():  # was: '--redo ,' began a whole new sitting
+        if not any(n.strip() for n in given.split(",")):
+            raise UserError(f"--redo {given!r}: give the record names, e.g. --redo x_ccw,y_up")
+    return CalibrateOptions(from_dir=ns.from_dir, dialogue=dialogue_options(ns),
+                            model=model_options(ns))  # fmt: skip
+
+
+def dialogue_options(ns: argparse.Namespace) -> DialogueOptions:
+    """The live dialogue's options from the ``calibrate`` arguments."""
+    model, floor, site = model_options(ns), floor_options(ns), site_options(ns)
+    plan = Planning(plan=ns.plan, target=0.05 if ns.target is None else ns.target,
+                    max_extra=12 if ns.max_extra is None else ns.max_extra)  # fmt: skip
+    return DialogueOptions(
+        port=ns.port, yes=ns.yes, json=ns.json,
+        files=SessionFiles(
+            serial=ns.serial, out=Path(ns.out) if ns.out else None,
+            capture=Path(ns.capture) if ns.capture else None, resume=ns.resume,
+            redo=tuple(n.strip() for r in ns.redo or () for n in r.split(",") if n.strip()),
+        ),
+        schedule=Schedule(
+            static_seconds=ns.static_seconds, turns=ns.turns, warmup_s=ns.warmup,
+            ready_s=ns.ready_seconds, closing=not ns.no_closing, self_test=not ns.no_self_test,
+        ),
+        planning=plan,
+        compute=ComputeSettings(
+            latitude_deg=site.latitude_deg, height_m=site.height_m, model=model.spec,
+            term_files=model.term_files, floor=floor.floor, verify=ns.verify,
+            thermal=ns.thermal, noise_file=floor.noise, pdf=ns.pdf,
+        ),
+        provenance=Provenance(operator=ns.operator, bench=ns.bench, lot=ns.lot,
+                              archive=ns.archive, no_archive=ns.no_archive),
     )  # fmt: skip
 
 
-def compute_settings(args: argparse.Namespace) -> ComputeSettings:
-    """The ``calibrate`` options that say how to compute (:class:`ComputeSettings`)."""
-    return ComputeSettings(
-        turns=args.turns,
-        latitude_deg=args.latitude,
-        height_m=args.height,
-        model=args.model,
-        term_files=tuple(args.term_file),
-        floor=getattr(args, "floor", None),
-        verify=getattr(args, "verify", None),
-        thermal=getattr(args, "thermal", None),
-        noise_file=getattr(args, "noise", None),
-        pdf=bool(getattr(args, "pdf", False)),
-    )
+def _live_only(ns: argparse.Namespace) -> None:
+    """UserError for the live options given with ``--from-dir`` (was: silently ignored, a
+    directory recomputed as if they were not given), and for the adaptive plan's options
+    without ``--plan adaptive``."""
+    given = [o for o, v in (("--target", ns.target), ("--max-extra", ns.max_extra))
+             if v is not None]  # fmt: skip
+    if ns.from_dir and (ns.plan != "fixed" or given):
+        what = "--plan adaptive" if ns.plan != "fixed" else given[0]
+        raise UserError(
+            f"{what} is for a live calibration: the records in {ns.from_dir} are measured "
+            f"(python3 -m host plan {ns.from_dir} names the next record worth measuring)"
+        )
+    if given and ns.plan not in ("adaptive", "poses"):
+        raise UserError(
+            f"{given[0]}: only --plan adaptive reads it; add --plan adaptive (or --plan poses, "
+            "which reads it too)"
+        )
+    if ns.from_dir and ns.no_self_test:
+        raise UserError(
+            f"--no-self-test is for a live calibration: the records in {ns.from_dir} say "
+            "whether the self-test ran"
+        )
 
 
 def run_computation(
     session: Session,
-    args: argparse.Namespace,
+    opts: CalibrateOptions,
     out_dir: Path,
     before_write: Callable[[CalibrationResult], object] | None = None,
 ) -> CalibrationResult:
     """Compute from ``session``, write both result files into ``out_dir``, print the report
     (or the JSON with ``--json``) on stdout (:func:`host.calib.publish.compute_and_write`;
     ``before_write`` as there)."""
+    json = opts.dialogue.json
     with working("calibrate: checking the records and fitting the model"):
-        pub = compute_and_write(session, out_dir, compute_settings(args), before_write=before_write)
-    show_result(pub, args.json)
-    if not args.json:
+        pub = compute_and_write(session, out_dir, opts.compute, before_write=before_write)
+    show_result(pub, json)
+    if not json:
         pdf = [] if pub.pdf_path is None else [pub.pdf_path]
         written = path_lines("written:", [pub.report_path, pub.json_path, *pdf])
         print("\n".join(written), file=sys.stderr)
-    if not getattr(args, "no_archive", False):
-        print(archive_line(pub.json_path.parent, session, args), file=sys.stderr)
+    if not opts.dialogue.provenance.no_archive:
+        print(archive_line(pub.json_path.parent, session, opts.dialogue.provenance),
+              file=sys.stderr)  # fmt: skip
     print(verdict_line(pub.result, pub.report_path, pub.records_dir), file=sys.stderr)  # last
     return pub.result
 
 
-def archive_line(out_dir: Path, session: Session, args: argparse.Namespace) -> str:
+def archive_line(out_dir: Path, session: Session, who: Provenance) -> str:
     """Archive the result just written in ``out_dir`` (:func:`host.archive.store.
     archive_directory`); the line saying where, or — when it cannot — why, with the command
     that archives it later (the result files are kept either way)."""
@@ -174,9 +228,8 @@ def archive_line(out_dir: Path, session: Session, args: argparse.Namespace) -> s
     records = session.directory if session.directory is not None else out_dir
     try:
         return wrap(archive_directory(
-            out_dir, getattr(args, "archive", None), serial=session.serial,
-            records_dir=records, bench=getattr(args, "bench", None),
-            operator=getattr(args, "operator", None), lot=getattr(args, "lot", None),
+            out_dir, who.archive, serial=session.serial, records_dir=records, bench=who.bench,
+            operator=who.operator, lot=who.lot,
         ))  # fmt: skip
     except UserError as exc:
         later = ["python3", "-m", "host", "archive", "add", str(out_dir), "--records", str(records)]
@@ -188,49 +241,28 @@ def archive_line(out_dir: Path, session: Session, args: argparse.Namespace) -> s
         )
 
 
-def adaptive_options(args: argparse.Namespace) -> None:
-    """UserError for the adaptive plan's options where nothing reads them (was: silently
-    ignored, a fixed session measured or a directory recomputed as if they were not given)."""
-    values = (("--target", getattr(args, "target", None)),
-              ("--max-extra", getattr(args, "max_extra", None)))  # fmt: skip
-    given = [o for o, v in values if v is not None]
-    plan = getattr(args, "plan", "fixed")
-    if args.from_dir and (plan != "fixed" or given):
-        what = "--plan adaptive" if plan != "fixed" else given[0]
-        raise UserError(
-            f"{what} is for a live calibration: the records in {args.from_dir} are measured "
-            f"(python3 -m host plan {args.from_dir} names the next record worth measuring)"
-        )
-    if given and plan not in ("adaptive", "poses"):
-        raise UserError(
-            f"{given[0]}: only --plan adaptive reads it; add --plan adaptive (or --plan poses, "
-            "which reads it too)"
-        )
-
-
-def run(args: argparse.Namespace) -> int:
+def run(opts: CalibrateOptions) -> int:
     """Runner of ``python3 -m host calibrate``."""
-    adaptive_options(args)
-    for given in getattr(args, "redo", None) or ():  # was: '--redo ,' began a whole new sitting
-        if not any(n.strip() for n in given.split(",")):
-            raise UserError(f"--redo {given!r}: give the record names, e.g. --redo x_ccw,y_up")
-    if args.from_dir and getattr(args, "no_self_test", False):
-        raise UserError(
-            f"--no-self-test is for a live calibration: the records in {args.from_dir} say "
-            "whether the self-test ran"
-        )
-    if not args.from_dir:
+    opts.model.bound_term_files()
+    if opts.from_dir is None:
         from host.dialogue.flow import run_dialogue
 
-        if not args.no_archive:
-            args.after_publish = lambda out_dir, session: archive_line(out_dir, session, args)
-        return run_dialogue(args)
-    session = read_session(args.from_dir, args.serial)
+        who = opts.dialogue.provenance
+        after = None if who.no_archive else partial(archive_line, who=who)
+        return run_dialogue(opts.dialogue, after_publish=after)
+    return run_from_dir(opts, opts.from_dir)
+
+
+def run_from_dir(opts: CalibrateOptions, from_dir: str) -> int:
+    """``calibrate --from-dir``: the records of ``from_dir`` computed and written; a record
+    that fails its checks is said with the command that measures it again."""
+    session = read_session(from_dir, opts.dialogue.files.serial)
     sys.stderr.write(timing_report(session.records))
-    out_dir = out_directory(args.out) if args.out else Path(args.from_dir)
+    out = opts.dialogue.files.out
+    out_dir = out_directory(out) if out else Path(from_dir)
     try:
-        with directory_locks(Path(args.from_dir), out_dir, f"calibrate --from-dir {args.from_dir}"):
-            result = run_computation(session, args, out_dir, lambda r: set_aside_other_result(
+        with directory_locks(Path(from_dir), out_dir, f"calibrate --from-dir {from_dir}"):
+            result = run_computation(session, opts, out_dir, lambda r: set_aside_other_result(
                 out_dir, r, lambda text: print(wrap(text), file=sys.stderr)
             ))  # fmt: skip
     except RecordCheckError as exc:
@@ -239,7 +271,7 @@ def run(args: argparse.Namespace) -> int:
         if name is None or rec is None or "importer" in rec.meta:  # imported: nothing to redo
             raise
         cmd = ["python3", "-m", "host", "calibrate", "--serial", session.serial,
-               "--out", str(args.from_dir), "--redo", name]  # fmt: skip
+               "--out", str(from_dir), "--redo", name]  # fmt: skip
         raise UserError(
             said_with_command(f"{exc}; measure {name} again (the others are kept) with:", cmd)
         ) from None
@@ -286,6 +318,11 @@ def add_live_arguments(p: argparse.ArgumentParser) -> None:
         "--capture", metavar="FILE",
         help="IMUCAP01 capture of the session (default OUT/SERIAL_session.cap)",
     )  # fmt: skip
+    add_plan_arguments(p)
+
+
+def add_plan_arguments(p: argparse.ArgumentParser) -> None:
+    """The live mode's plan: fixed or adaptive, its target and budget, the turns' pause."""
     p.add_argument(
         "--plan", choices=PLANS, default="fixed",
         help="fixed: the method's records; adaptive: axis by axis, each face ends when its mean "
@@ -312,8 +349,8 @@ def add_live_arguments(p: argparse.ArgumentParser) -> None:
     )  # fmt: skip
 
 
-def cli_calibrate(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
-    """Fill in the ``calibrate`` subparser; returns the runner."""
+def cli_calibrate(p: argparse.ArgumentParser) -> Command[CalibrateOptions]:
+    """Fill in the ``calibrate`` subparser; returns the command."""
     add_arguments(p)
     add_live_arguments(p)
-    return run
+    return Command(calibrate_options, run, data_out=lambda o: o.dialogue.json)

@@ -5,6 +5,7 @@ The port and the timestamped reads are :class:`host.board.link.Link`.
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import shutil
@@ -12,26 +13,49 @@ import signal
 import sys
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from host.board.link import DEFAULT_BAUD, Link
+from host.cli.options import Command
 from host.errors import UserError
 from host.wire.frames import IMU_SAMPLE, SENSOR_ERROR_CODES, Frame, error_text
 
 
-def cli_capture(p: Any) -> Any:
+@dataclass(frozen=True)
+class CaptureOptions:
+    """``capture``: the file to write, the port and its baud, how long, s of host time (None:
+    until Ctrl+C)."""
+
+    file: Path
+    port: str
+    baud: int = DEFAULT_BAUD
+    seconds: float | None = None
+
+
+def cli_capture(p: argparse.ArgumentParser) -> Command[CaptureOptions]:
+    """Fill in the ``capture`` subparser; returns the command."""
     p.add_argument("file", type=Path, help="IMUCAP01 capture file to write")
     p.add_argument("--port", required=True, help="serial device or URL (sim://, emu://, ...)")
-    p.add_argument("--baud", type=int, default=DEFAULT_BAUD)
+    p.add_argument(
+        "--baud", type=int, default=DEFAULT_BAUD,
+        help=f"the port's baud rate (default {DEFAULT_BAUD}, the firmware's; sim:// and emu:// "
+        "take any)",
+    )  # fmt: skip
     p.add_argument(
         "--seconds", type=float, default=None,
         help="how long to record, s of host time (default: until Ctrl+C, which keeps the file)",
     )  # fmt: skip
-    return run_capture
+    return Command(capture_options, run_capture)
 
 
-def run_capture(args: Any) -> int:
+def capture_options(ns: argparse.Namespace) -> CaptureOptions:
+    """The ``capture`` options from its arguments."""
+    return CaptureOptions(file=ns.file, port=ns.port, baud=ns.baud, seconds=ns.seconds)
+
+
+def run_capture(args: CaptureOptions) -> int:
     """Record until ``--seconds`` or Ctrl+C; a status line on stderr once a second (redrawn in
     place on a terminal); the decoder counters as JSON on stdout at the end."""
     if args.seconds is not None and (not math.isfinite(args.seconds) or args.seconds <= 0):

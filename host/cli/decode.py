@@ -13,11 +13,13 @@ import argparse
 import json
 import stat
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
+from host.cli.options import Command
 from host.errors import UserError
 from host.wire import capture, sensor
 from host.wire.bulk import (
@@ -38,7 +40,17 @@ if TYPE_CHECKING:  # (imported where a capture's arrival times need the clock ma
     from host.timing import timeline
 
 
-def cli_decode(p: argparse.ArgumentParser) -> Any:
+@dataclass(frozen=True)
+class DecodeOptions:
+    """``decode``: the input; CSV rows (else JSON lines), or only the decoder counters."""
+
+    file: Path
+    csv: bool = False
+    stats: bool = False
+
+
+def cli_decode(p: argparse.ArgumentParser) -> Command[DecodeOptions]:
+    """Fill in the ``decode`` subparser; returns the command."""
     p.add_argument(
         "file",
         type=Path,
@@ -49,7 +61,12 @@ def cli_decode(p: argparse.ArgumentParser) -> Any:
     fmt.add_argument("--jsonl", action="store_true", help="one JSON object per sample (default)")
     fmt.add_argument("--csv", action="store_true", help="CSV with a header row")
     p.add_argument("--stats", action="store_true", help="print only the decoder counters (JSON)")
-    return run_decode
+    return Command(decode_options, run_decode)
+
+
+def decode_options(ns: argparse.Namespace) -> DecodeOptions:
+    """The ``decode`` options from its arguments."""
+    return DecodeOptions(file=ns.file, csv=ns.csv, stats=ns.stats)
 
 
 def _clock_summary(seg: timeline.Segment) -> dict[str, Any]:
@@ -86,7 +103,7 @@ MAX_LISTED_SEGMENTS = 1000
 class _Decode:
     """The decode command's pipeline over the chunks of one input: scale, map, write."""
 
-    def __init__(self, args: argparse.Namespace, out: TextIO) -> None:
+    def __init__(self, args: DecodeOptions, out: TextIO) -> None:
         self.args = args
         self.path = args.file
         self.out = out
@@ -342,7 +359,7 @@ def _keep_freed_memory() -> None:
     mallopt(m_trim_threshold, 2 * KEEP_FREED)
 
 
-def run_decode(args: argparse.Namespace) -> int:
+def run_decode(args: DecodeOptions) -> int:
     path: Path = args.file
     _keep_freed_memory()
     try:

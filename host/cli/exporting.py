@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from host.calib import exporting
 from host.calib.codec import result_from_json
+from host.calib.result import CalibrationResult
+from host.cli.options import Command
 from host.errors import FailedResultError, ResultFileError, UserError
 from host.ingest.importing import parse_axes
 from host.session.atomic import write_text_atomic
@@ -67,7 +69,29 @@ def check_out(out: Path | None, to: str) -> None:
             )
 
 
-def run(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class ExportOptions:
+    """``export``: the result (a file or its directory; None: kalibr from ``noise`` alone),
+    the format, the output file (None: stdout), the target's axes from ours (None: x,y,z),
+    ``thermal`` (None: not asked; '': the result's own bias(T); else its file), whether a
+    failed result is exported, the noise file (kalibr)."""
+
+    result: Path | None
+    to: str
+    out: Path | None = None
+    axes: str | None = None
+    thermal: str | None = None
+    allow_fail: bool = False
+    noise: Path | None = None
+
+
+def export_options(ns: argparse.Namespace) -> ExportOptions:
+    """The ``export`` options from its arguments."""
+    return ExportOptions(result=ns.result, to=ns.to, out=ns.out, axes=ns.axes,
+                         thermal=ns.thermal, allow_fail=ns.allow_fail, noise=ns.noise)  # fmt: skip
+
+
+def run(args: ExportOptions) -> int:
     """Runner of ``python3 -m host export``."""
     if args.axes is not None and not args.axes.strip():  # e.g. --axes "$UNSET"
         raise UserError("--axes '': give three axes, e.g. x,-y,-z (or leave --axes out: x,y,z)")
@@ -87,6 +111,12 @@ def run(args: argparse.Namespace) -> int:
         result = result_from_json(text)
     except ResultFileError as exc:  # which file: a record given by mistake said only 'JSON'
         raise ResultFileError(f"{path}: {exc}") from None
+    return _export_result(args, result)
+
+
+def _export_result(args: ExportOptions, result: CalibrationResult) -> int:
+    """The result in the format asked for, with the bias(T) asked for; exit status 1 for a
+    failed result (unless --allow-fail)."""
     axes = parse_axes(args.axes) if args.axes else None
     thermal = None
     if args.thermal:  # a file; --thermal alone: the result's own bias(T), which it must carry
@@ -115,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _emit(args: argparse.Namespace, out: str) -> None:
+def _emit(args: ExportOptions, out: str) -> None:
     if args.out:
         again = args.out.exists()  # an earlier export (check_out refused anything else)
         write_text_atomic(args.out, out)
@@ -125,7 +155,7 @@ def _emit(args: argparse.Namespace, out: str) -> None:
         sys.stdout.write(out)
 
 
-def _run_kalibr(args: argparse.Namespace) -> int:
+def _run_kalibr(args: ExportOptions) -> int:
     """``export … --to kalibr --noise NOISE.json``: Kalibr's imu.yaml from noise figures."""
     if args.noise is None:
         raise UserError(f"--to kalibr: {exporting.PENDING['kalibr']}")
@@ -136,8 +166,8 @@ def _run_kalibr(args: argparse.Namespace) -> int:
     return 0
 
 
-def cli_export(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
-    """Fill in the ``export`` subparser; returns the runner."""
+def cli_export(p: argparse.ArgumentParser) -> Command[ExportOptions]:
+    """Fill in the ``export`` subparser; returns the command."""
     p.add_argument(
         "result", type=Path, nargs="?", help="SERIAL_result.json (or its directory); not for kalibr"
     )
@@ -172,4 +202,4 @@ def cli_export(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int
     p.add_argument(
         "--noise", type=Path, help="noise file (python3 -m host noise FILE --save F): for kalibr"
     )
-    return run
+    return Command(export_options, run)

@@ -6,13 +6,26 @@ The work is :func:`host.board.flash.flash`; this module only reads the options.
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from host.board.flash import BOOTLOADER_BAUD, DEFAULT_PORT, HELLO_TIMEOUT_S, flash
+from host.cli.options import Command
 
 
-def cli_flash(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+@dataclass(frozen=True)
+class FlashOptions:
+    """``flash``: the port, the hex (None: built), the bootloader's baud, how long to wait for
+    the HELLO after flashing, s."""
+
+    port: str = DEFAULT_PORT
+    hex: Path | None = None
+    baud: int = BOOTLOADER_BAUD
+    hello_timeout_s: float = HELLO_TIMEOUT_S
+
+
+def cli_flash(p: argparse.ArgumentParser) -> Command[FlashOptions]:
+    """Fill in the ``flash`` subparser; returns the command."""
     p.add_argument(
         "--port",
         default=DEFAULT_PORT,
@@ -30,9 +43,15 @@ def cli_flash(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]
         default=HELLO_TIMEOUT_S,
         help="seconds to wait for HELLO after flashing",
     )
-    return run_flash
+    return Command(flash_options, run_flash)
 
 
-def run_flash(args: argparse.Namespace) -> int:
-    flash(args.port, args.hex, args.baud, hello_timeout_s=args.hello_timeout)
+def flash_options(ns: argparse.Namespace) -> FlashOptions:
+    """The ``flash`` options from its arguments."""
+    return FlashOptions(port=ns.port, hex=ns.hex, baud=ns.baud, hello_timeout_s=ns.hello_timeout)
+
+
+def run_flash(opts: FlashOptions) -> int:
+    """Runner of ``python3 -m host flash``."""
+    flash(opts.port, opts.hex, opts.baud, hello_timeout_s=opts.hello_timeout_s)
     return 0

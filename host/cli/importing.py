@@ -13,11 +13,12 @@ from __future__ import annotations
 import argparse
 import shlex
 import sys
-from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from host.cli.options import Command
 from host.errors import UserError
 from host.ingest import importing, labels, segmentation
 from host.ingest.reading import Segment
@@ -66,7 +67,37 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="overwrite records already in --out")
 
 
-def _read_stream(args: argparse.Namespace) -> tuple[importing.Stream, list[Segment]]:
+@dataclass(frozen=True)
+class ImportOptions:
+    """``import``: the file; what its columns are, their units, our axes from its axes, its
+    sample rate, Hz (None: from its time column); imucal's section list, a labels file, or
+    the whole file as one record; every rest a pose (``poses``); the serial, the output
+    directory, overwrite or not."""
+
+    file: Path
+    serial: str
+    out: Path
+    columns: str | None = None
+    units: str | None = None
+    axes: str | None = None
+    rate: float | None = None
+    sections: Path | None = None
+    labels: Path | None = None
+    record: str | None = None
+    poses: bool = False
+    force: bool = False
+
+
+def import_options(ns: argparse.Namespace) -> ImportOptions:
+    """The ``import`` options from its arguments."""
+    return ImportOptions(
+        file=ns.file, serial=ns.serial, out=ns.out, columns=ns.columns, units=ns.units,
+        axes=ns.axes, rate=ns.rate, sections=ns.sections, labels=ns.labels, record=ns.record,
+        poses=ns.poses, force=ns.force,
+    )  # fmt: skip
+
+
+def _read_stream(args: ImportOptions) -> tuple[importing.Stream, list[Segment]]:
     """The stream, and the segments when the file itself says where they are (imucal)."""
     path: Path = args.file
     if path.suffix.lower() == ".cap":
@@ -75,19 +106,20 @@ def _read_stream(args: argparse.Namespace) -> tuple[importing.Stream, list[Segme
         return importing.read_capture_stream(path), []
     text = importing.read_text(path)
     beside = path.with_name(f"{path.stem}_list.json")  # imucal's own naming
-    if args.sections is None and not args.columns and beside.exists():
+    sections = args.sections
+    if sections is None and not args.columns and beside.exists():
         if importing.looks_like_imucal(text):
             print(f"sections: {beside.name} (beside the session)")
-            args.sections = beside
-    if args.sections is not None:
+            sections = beside
+    if sections is not None:
         if not importing.looks_like_imucal(text):
             raise UserError(
                 f"{path}: --sections is for imucal's session CSV, whose header names "
                 f"{', '.join(importing.IMUCAL_COLUMNS)}"
             )
-        sections_text = importing.read_text(args.sections)
+        sections_text = importing.read_text(sections)
         stream, spans = importing.parse_imucal_session(
-            text, sections_text, str(path), str(args.sections), args.rate
+            text, sections_text, str(path), str(sections), args.rate
         )
         return stream, [_section_segment(stream, lab, a, b) for lab, a, b in spans]
     if not args.columns:
@@ -143,7 +175,7 @@ def _whole_file(stream: importing.Stream, name: str) -> list[Segment]:
     return labels.parse_labels(rows, f"--record {name}", stream)
 
 
-def _checked_serial(args: argparse.Namespace) -> str:
+def _checked_serial(args: ImportOptions) -> str:
     """The serial; UserError (one line) for a bad one or options that exclude each other."""
     from host.session.inputs import parse_serial
 
@@ -163,7 +195,7 @@ def _checked_serial(args: argparse.Namespace) -> str:
 
 
 def _cut(
-    args: argparse.Namespace, stream: importing.Stream, segments: list[Segment]
+    args: ImportOptions, stream: importing.Stream, segments: list[Segment]
 ) -> tuple[list[Segment], Thresholds | None, list[str]]:
     """The segments the records are cut from (the whole file, the labels file, imucal's
     sections or those found), the stillness thresholds when found, and the notes on ambiguous
@@ -183,7 +215,7 @@ def _cut(
     return found, thresholds, notes
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: ImportOptions) -> int:
     """Runner of ``python3 -m host import``."""
     serial = _checked_serial(args)
     stream, segments = _read_stream(args)
@@ -191,7 +223,6 @@ def run(args: argparse.Namespace) -> int:
     records = segmentation.build_records(stream, segments, thresholds, serial)
     if not records:
         raise UserError(f"{args.file}: nothing labelled to write (every label is '-')")
-
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     paths = [record_path(out, serial, n) for n in records]
@@ -210,6 +241,18 @@ def run(args: argparse.Namespace) -> int:
         print(f"ambiguous: {note}; to take the other, swap their labels in the labels file")
     sys.stdout.write(spacing.timing_table(records))
     _warn_timing(records)
+    _write(args, serial, records, segments, src)
+    _others_there(out, serial, paths)
+    print(f"next: python3 -m host calibrate --from-dir {shlex.quote(str(out))}")
+    return 0
+
+
+def _write(
+    args: ImportOptions, serial: str, records: dict[str, Record], segments: list[Segment],
+    src: str,
+) -> None:  # fmt: skip
+    """The record files and (the cut found or from imucal's sections) the labels file."""
+    out = args.out
     labels_path = out / f"{serial}_segments.tsv"
     editable = not args.record and args.labels is None  # found or from imucal's sections
     if editable:
@@ -221,6 +264,10 @@ def run(args: argparse.Namespace) -> int:
     print(f"written: {len(records)} records to {out}/ ({first} …)")
     if editable:
         print(f"to correct the cut: edit {labels_path} and run again with --labels {labels_path}")
+
+
+def _others_there(out: Path, serial: str, paths: list[Path]) -> None:
+    """A note on this serial's other records in ``out``: calibrate reads them too."""
     others = sorted(
         p.name
         for p in out.glob(f"{serial}_*.txt")
@@ -232,8 +279,6 @@ def run(args: argparse.Namespace) -> int:
             "calibrate --from-dir uses them too",
             file=sys.stderr,
         )
-    print(f"next: python3 -m host calibrate --from-dir {shlex.quote(str(out))}")
-    return 0
 
 
 def _warn_timing(records: dict[str, Record]) -> None:
@@ -241,7 +286,7 @@ def _warn_timing(records: dict[str, Record]) -> None:
         print(line, file=sys.stderr)
 
 
-def cli_import(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
-    """Fill in the ``import`` subparser; returns the runner."""
+def cli_import(p: argparse.ArgumentParser) -> Command[ImportOptions]:
+    """Fill in the ``import`` subparser; returns the command."""
     add_arguments(p)
-    return run
+    return Command(import_options, run)

@@ -13,7 +13,9 @@ import json
 import math
 import shlex
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +23,12 @@ from host.calib.commands import command_lines
 from host.calib.publish import session_noise
 from host.cli import pyplot
 from host.cli.figures import write_plots
+from host.cli.options import (
+    Command,
+    WorkbenchOptions,
+    add_workbench_arguments,
+    workbench_options,
+)
 from host.cli.screen import (
     Column,
     Progress,
@@ -81,55 +89,52 @@ class _Renamed(argparse.Action):
 
 
 # ---- command line ---------------------------------------------------------------------------
-def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("dir", help="directory with the records SERIAL_name.txt")
-    p.add_argument(
-        "--model",
-        default="base",
-        help="comma list of term[:sensor[:axes]] "
-        "(default base = bias,scale,misalignment,g_sensitivity, method.md §2)",
-    )
-    p.add_argument(
-        "--term-file",
-        action="append",
-        default=[],
-        metavar="F",
-        help="Python file defining extra terms (repeatable)",
-    )
-    p.add_argument(
-        "--term-timeout", type=float, metavar="S",
-        help="how long the term files' code may run, s (default 120; a progress line every 5 s)",
-    )  # fmt: skip
-    p.add_argument("--serial", default=None, help="serial whose records to use")
-    p.add_argument(
-        "--floor",
-        default=None,
-        metavar="accel=A,gyro=G",
-        help="bias-instability floor of a record mean (m/s², °/s), e.g. accel=5e-4,gyro=3e-3; a "
-        "sensor not given comes from --noise, else from the records' own samples (the wander of "
-        "their block means beyond white noise)",
-    )
-    p.add_argument(
-        "--noise",
-        default=None,
-        metavar="NOISE.json",
-        help="noise file of this unit (python3 -m host noise FILE --save NOISE.json): the floor "
-        "is its Allan variance at the static records' length without the white part",
-    )
-    p.add_argument("--latitude", type=float, default=None, help="site latitude, degrees")
-    p.add_argument("--height", type=float, default=None, help="site height, m")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
+@dataclass(frozen=True)
+class DiagnoseOptions:
+    """``model diagnose``: the records and model, the plots' directory, no compare table."""
+
+    bench: WorkbenchOptions
+    plot: Path | None = None
+    brief: bool = False
 
 
-def _catalogue(args: argparse.Namespace) -> dict[str, Term]:
+@dataclass(frozen=True)
+class AddOptions:
+    """``model add``: the records and model, the term to add, the plots' directory."""
+
+    bench: WorkbenchOptions
+    term: str
+    plot: Path | None = None
+
+
+@dataclass(frozen=True)
+class LadderOptions:
+    """``model ladder``: the records and model options, the model the ladder starts from."""
+
+    bench: WorkbenchOptions
+    start: str = "bias"
+
+
+@dataclass(frozen=True)
+class TermsOptions:
+    """``model terms``: the term files whose terms are listed too, JSON on stdout."""
+
+    term_files: tuple[str, ...] = ()
+    json: bool = False
+
+
+ModelCommandOptions = DiagnoseOptions | AddOptions | LadderOptions | TermsOptions
+
+
+def _catalogue(term_files: Sequence[str]) -> dict[str, Term]:
     cat = dict(CATALOGUE)
-    for f in args.term_file:
+    for f in term_files:
         cat = load_term_file(f, cat)
     return cat
 
 
-def _dataset(args: argparse.Namespace) -> Dataset:
-    return _session_dataset(args)[1]
+def _dataset(w: WorkbenchOptions) -> Dataset:
+    return _session_dataset(w)[1]
 
 
 def start_times(session: Session) -> dict[str, str]:
@@ -138,16 +143,14 @@ def start_times(session: Session) -> dict[str, str]:
             if r.meta.get("start_time")}  # fmt: skip
 
 
-def _session_dataset(args: argparse.Namespace) -> tuple[Session, Dataset]:
-    from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
-
-    session = read_session(args.dir, args.serial)
+def _session_dataset(w: WorkbenchOptions) -> tuple[Session, Dataset]:
+    session = read_session(w.dir, w.serial)
     sys.stderr.write(timing_report(session.records))
     return session, build_dataset(
         session,
-        noise=session_noise(session, args.floor, getattr(args, "noise", None)),
-        latitude_deg=DEFAULT_LATITUDE_DEG if args.latitude is None else args.latitude,
-        height_m=DEFAULT_HEIGHT_M if args.height is None else args.height,
+        noise=session_noise(session, w.floor.floor, w.floor.noise),
+        latitude_deg=w.site.latitude_deg,
+        height_m=w.site.height_m,
     )
 
 
@@ -167,13 +170,15 @@ def _print_json(obj: Any) -> None:
     print(json.dumps(finite_json(obj), indent=2, ensure_ascii=False, allow_nan=False))
 
 
-def run_diagnose(args: argparse.Namespace) -> int:
-    cat = _catalogue(args)
-    model = parse_model(args.model, cat)
+def run_diagnose(args: DiagnoseOptions) -> int:
+    w = args.bench
+    w.model.bound_term_files()
+    cat = _catalogue(w.model.term_files)
+    model = parse_model(w.model.spec, cat)
     if args.plot:
         pyplot()  # no matplotlib: say so now, not after the fits
     with working("diagnose: reading the records, fitting the model and every candidate"):
-        session, ds = _session_dataset(args)
+        session, ds = _session_dataset(w)
         d = diagnose(ds, model, cat)
         plots: list[Path] = []
         if args.plot:
@@ -184,8 +189,8 @@ def run_diagnose(args: argparse.Namespace) -> int:
                 after = add_term(ds, model, suspect, cat).after
             plots = write_plots(args.plot, ds, d.fit, after, suspect, start_times(session))
         # the planner fits too: inside the wait that shows progress, not after it
-        planned = [] if args.json else next_record_lines(args, session, model, d, ds.signals)
-    if args.json:
+        planned = [] if w.json else next_record_lines(w, session, model, d, ds.signals)
+    if w.json:
         obj = d.to_dict()
         if plots:
             obj["plots"] = [str(p) for p in plots]
@@ -194,9 +199,9 @@ def run_diagnose(args: argparse.Namespace) -> int:
         try_line = None
         width, now = terminal_width(sys.stdout), short_spec(d.fit.model)
         if d.recommended_spec:
-            cmd = add_command(args, d.recommended_spec, now)
+            cmd = add_command(w, d.recommended_spec, now)
             try_line = command_lines(cmd, width, lead="  try: ")
-        see_one = {t: command_lines(add_command(args, t, now), width, lead="  to see one: ")
+        see_one = {t: command_lines(add_command(w, t, now), width, lead="  to see one: ")
                    for e in d.equals for t in e.terms}  # fmt: skip
         print(format_diagnosis(d, compare=not args.brief, try_line=try_line, see_one=see_one))
         for line in planned:
@@ -216,7 +221,7 @@ def _short_member(signals: tuple[RecordSignals, ...], member: str) -> str:
 
 
 def next_record_lines(
-    args: argparse.Namespace,
+    w: WorkbenchOptions,
     session: Session,
     model: Sequence[ModelTerm],
     d: Diagnosis,
@@ -232,7 +237,7 @@ def next_record_lines(
     out: list[str] = []
     try:
         with working("diagnose: ranking the records to measure next"):
-            p = plan_next(session, model, noise=session_noise(session, args.floor, args.noise))
+            p = plan_next(session, model, noise=session_noise(session, *_floor(w)))
     except UserError:
         return out
     if p.ranked:
@@ -241,61 +246,69 @@ def next_record_lines(
                 else f"worst σ/tolerance {p.worst_now:.3g} → {r.worst_after:.3g}")  # fmt: skip
         out.append(wrap(f"next record: {r.candidate.label} ({r.candidate.operator_s:.0f} s of "
                         f"the operator's time): {gain}", width))  # fmt: skip
-        out.append(command_lines(["python3", "-m", "host", "plan", str(args.dir)], width,
+        out.append(command_lines(["python3", "-m", "host", "plan", str(w.dir)], width,
                                  lead="  the ranking: "))  # fmt: skip
     for e in d.equals:
         if e.terms and len(e.members) >= 2:  # a term and another term or a signal of the scan
             rest = "".join(f" and from {m}" for m in e.members[2:])  # all: each pair apart
             out.append(wrap(f"to tell {e.members[0]} from {e.members[1]}{rest} apart:", width))
             members = [_short_member(signals, m) for m in e.members]
-            cmd = ["python3", "-m", "host", "plan", str(args.dir), "--separate", *members]
+            cmd = ["python3", "-m", "host", "plan", str(w.dir), "--separate", *members]
             out.append(command_lines(cmd, width, lead="  "))
     return out
 
 
-def _same_options(args: argparse.Namespace) -> list[str]:
+def _floor(w: WorkbenchOptions) -> tuple[str | None, str | None]:
+    """The ``--floor`` text and the ``--noise`` file (:func:`host.calib.publish.session_noise`)."""
+    return w.floor.floor, w.floor.noise
+
+
+def _same_options(w: WorkbenchOptions) -> list[str]:
     """The options that say which records and how (serial, site, floor, term files)."""
     cmd: list[str] = []
-    for f in args.term_file:
+    for f in w.model.term_files:
         cmd += ["--term-file", f]
-    for opt, val in (("--serial", args.serial), ("--latitude", args.latitude),
-                     ("--height", args.height), ("--floor", args.floor),
-                     ("--noise", getattr(args, "noise", None))):  # fmt: skip
+    if w.serial is not None:
+        cmd += ["--serial", w.serial]
+    cmd += w.site.words()
+    for opt, val in (("--floor", w.floor.floor), ("--noise", w.floor.noise)):
         if val is not None:
             cmd += [opt, str(val)]
     return cmd
 
 
-def calibrate_command(args: argparse.Namespace, model: str) -> str:
+def calibrate_command(w: WorkbenchOptions, model: str) -> str:
     """The exact ``calibrate`` command that fits and ships ``model`` on the records the
     workbench just used (same directory, serial, site, floor and term files)."""
-    cmd = ["python3", "-m", "host", "calibrate", "--from-dir", args.dir, "--model", model]
-    return shlex.join(cmd + _same_options(args))
+    cmd = ["python3", "-m", "host", "calibrate", "--from-dir", w.dir, "--model", model]
+    return shlex.join(cmd + _same_options(w))
 
 
-def add_command(args: argparse.Namespace, term: str, model: str) -> list[str]:
+def add_command(w: WorkbenchOptions, term: str, model: str) -> list[str]:
     """The ``model add`` command that adds ``term`` to ``model`` on the same records."""
-    cmd = ["python3", "-m", "host", "model", "add", args.dir, term]
-    return cmd + (["--model", model] if model != "base" else []) + _same_options(args)
+    cmd = ["python3", "-m", "host", "model", "add", w.dir, term]
+    return cmd + (["--model", model] if model != "base" else []) + _same_options(w)
 
 
-def run_add(args: argparse.Namespace) -> int:
-    cat = _catalogue(args)
-    model = parse_model(args.model, cat)
+def run_add(args: AddOptions) -> int:
+    w = args.bench
+    w.model.bound_term_files()
+    cat = _catalogue(w.model.term_files)
+    model = parse_model(w.model.spec, cat)
     if args.plot:
         pyplot()  # no matplotlib: say so now, not after the fits
     paths: list[Path] = []
     with working(f"add: reading the records, fitting with and without {args.term}"):
-        session, ds = _session_dataset(args)
+        session, ds = _session_dataset(w)
         a = add_term(ds, model, args.term, cat)
         if args.plot:
             paths = write_plots(args.plot, ds, a.before, a.after, a.added[0].label,
                                 start_times(session))  # fmt: skip
-    ship = calibrate_command(args, short_spec(a.after.model))
+    ship = calibrate_command(w, short_spec(a.after.model))
     # a term these records do not determine is not a model to ship: calibrate would end on
     # "not determined" (exit 1); was "— ± —" and the ship command
     lost = [p.name for p in a.new_parameters if not math.isfinite(p.value)]
-    if args.json:
+    if w.json:
         _print_json({**a.to_dict(), "calibrate_command": None if lost else ship,
                      "not_determined": lost})  # fmt: skip
     else:
@@ -307,7 +320,7 @@ def run_add(args: argparse.Namespace) -> int:
             print(wrap(f"not shipped: these records do not determine {', '.join(lost)} (no "
                        "variation of the term's input, or it acts like terms already in the "
                        f"model); leave {args.term} out, or measure what determines it: "
-                       f"python3 -m host plan {args.dir}", width))  # fmt: skip
+                       f"python3 -m host plan {w.dir}", width))  # fmt: skip
         else:
             print(command_lines(shlex.split(ship), width, lead="ship this model: "))
     return 0
@@ -347,24 +360,25 @@ def ladder_cells(i: int, step: LadderStep, before: LadderStep | None, start: str
     ]
 
 
-def ladder_start(args: argparse.Namespace) -> str:
+def ladder_start(model: str | None, start: str | None) -> str:
     """The ladder's start: ``--model`` or ``--start`` (the same option), ``bias`` when neither
     is given; both, naming different models, are refused (one would be ignored)."""
-    given = [v for v in (args.model, args.start) if v is not None]
+    given = [v for v in (model, start) if v is not None]
     if len(set(given)) > 1:
         raise UserError(
-            f"--model {args.model} and --start {args.start} both name the ladder's start: give "
+            f"--model {model} and --start {start} both name the ladder's start: give "
             "one (the ladder climbs from it; its terms stay in)"
         )
     return given[0] if given else "bias"
 
 
-def run_ladder(args: argparse.Namespace) -> int:
-    cat = _catalogue(args)
-    args.start = ladder_start(args)
+def run_ladder(args: LadderOptions) -> int:
+    w = args.bench
+    w.model.bound_term_files()
+    cat = _catalogue(w.model.term_files)
     progress = Progress()
-    progress.show(f"ladder: reading the records of {args.dir} ...")
-    ds = _dataset(args)
+    progress.show(f"ladder: reading the records of {w.dir} ...")
+    ds = _dataset(w)
     progress.show("ladder: fitting the start model ...")
     width = terminal_width(sys.stdout)
     columns = ladder_columns()
@@ -375,7 +389,7 @@ def run_ladder(args: argparse.Namespace) -> int:
 
     def on_step(step: LadderStep) -> None:
         progress.done()
-        if args.json:
+        if w.json:
             return
         if not rows:
             print(table_row(shown, [c.header for c in shown]))
@@ -389,8 +403,8 @@ def run_ladder(args: argparse.Namespace) -> int:
     steps = ladder(ds, args.start, cat, on_step=on_step, on_try=on_try)
     progress.done()
     final = parse_model(steps[-1].model, cat)
-    ship = calibrate_command(args, short_spec(final))
-    if args.json:
+    ship = calibrate_command(w, short_spec(final))
+    if w.json:
         _print_json({"steps": [dataclasses.asdict(s) for s in steps], "calibrate_command": ship})
     else:
         for line in left_out(columns, shown, width):
@@ -400,9 +414,9 @@ def run_ladder(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_terms(args: argparse.Namespace) -> int:
+def run_terms(args: TermsOptions) -> int:
     """``model terms``: the catalogue (with --term-file: and those terms too)."""
-    cat = _catalogue(args)
+    cat = _catalogue(args.term_files)
     if args.json:
         _print_json(
             [
@@ -423,7 +437,7 @@ def run_terms(args: argparse.Namespace) -> int:
     return 0
 
 
-def cli_model(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+def cli_model(p: argparse.ArgumentParser) -> Command[ModelCommandOptions | None]:
     """``model diagnose|add|ladder|terms``."""
     sub = p.add_subparsers(dest="model_command", metavar="diagnose|add|ladder|terms")
 
@@ -442,14 +456,14 @@ def cli_model(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]
     d = command("diagnose", "compare model and records, say what is missing",
                 "  python3 -m host model diagnose U17/\n"
                 "  python3 -m host model diagnose U17/ --brief --plot plots/")  # fmt: skip
-    _common(d)
+    add_workbench_arguments(d)
     d.add_argument("--plot", metavar="DIR", type=plot_dir, default=None,
                    help="write the PNG plots into this directory (made if missing)")  # fmt: skip
     d.add_argument("--brief", action="store_true", help="leave out the compare table")
     a = command("add", "refit with a term added: before → after",
                 "  python3 -m host model add U17/ temperature_bias:gyro:x\n"
                 "  python3 -m host model add U17/ lever_arm:accel --plot plots/")  # fmt: skip
-    _common(a)
+    add_workbench_arguments(a)
     a.add_argument("term", help="term[:sensor[:axes]] to add, e.g. temperature_bias:gyro:x")
     a.add_argument("--plot", metavar="DIR", type=plot_dir, default=None,
                    help="write the PNG plots into this directory (made if missing)")  # fmt: skip
@@ -459,26 +473,76 @@ def cli_model(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]
                   "the calibrate command that ships the last model",
                   "  python3 -m host model ladder U17/\n"
                   "  python3 -m host model ladder U17/ --model base")  # fmt: skip
-    _common(lad)
+    add_workbench_arguments(lad)
     lad.set_defaults(model=None)  # the start: --model or --start, bias when neither
     for act in lad._actions:
         if act.dest == "model":
             act.help = "the starting model (default bias): comma list of term[:sensor[:axes]]"
     lad.add_argument("--start", default=None,
                      help="starting model, the same as --model (default bias)")  # fmt: skip
-    runners = {"diagnose": run_diagnose, "add": run_add, "ladder": run_ladder, "terms": run_terms}
+    return Command(model_command_options, partial(run_model, p), data_out=_json_out)
 
-    def run(args: argparse.Namespace) -> int:
-        if not args.model_command:
-            p.print_help()
-            return 2
-        return runners[args.model_command](args)
 
-    return run
+def model_command_options(ns: argparse.Namespace) -> ModelCommandOptions | None:
+    """The options of the ``model`` subcommand chosen (None: none chosen)."""
+    name = ns.model_command
+    if name is None:
+        return None
+    if name == "terms":
+        return TermsOptions(term_files=tuple(ns.term_file), json=ns.json)
+    if name == "ladder":  # its --model is its start
+        start = ladder_start(ns.model, ns.start)
+        w = workbench_options(ns)
+        return LadderOptions(replace(w, model=replace(w.model, spec=start)), start=start)
+    w = workbench_options(ns)
+    if name == "diagnose":
+        return DiagnoseOptions(w, plot=ns.plot, brief=ns.brief)
+    return AddOptions(w, term=ns.term, plot=ns.plot)
+
+
+def _json_out(o: ModelCommandOptions | None) -> bool:
+    """The subcommand prints JSON (data for programs)."""
+    if o is None:
+        return False
+    return o.json if isinstance(o, TermsOptions) else o.bench.json
+
+
+def run_model(p: argparse.ArgumentParser, o: ModelCommandOptions | None) -> int:
+    """Runner of ``model``: its subcommand's, or the help (exit status 2) without one."""
+    if isinstance(o, DiagnoseOptions):
+        return run_diagnose(o)
+    if isinstance(o, AddOptions):
+        return run_add(o)
+    if isinstance(o, LadderOptions):
+        return run_ladder(o)
+    if isinstance(o, TermsOptions):
+        return run_terms(o)
+    p.print_help()
+    return 2
 
 
 # ---- demo -----------------------------------------------------------------------------------
-def run_demo(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class DemoOptions:
+    """``demo hidden-effect``: the effect (or all), the simulation's seed, where the records
+    go (None: not written), the 12 45° attitudes added, the static records' length, s."""
+
+    effect: str = "all"
+    seed: int = 1
+    out: str | None = None
+    tilted: bool = False
+    static_s: float = 10.0
+
+
+def demo_options(ns: argparse.Namespace) -> DemoOptions | None:
+    """The ``demo`` options (None: no demo chosen)."""
+    if ns.demo_command != "hidden-effect":
+        return None
+    return DemoOptions(effect=ns.effect, seed=ns.seed, out=ns.out, tilted=ns.tilted,
+                       static_s=ns.static_s)  # fmt: skip
+
+
+def run_demo(args: DemoOptions) -> int:
     effects = DEFAULT_EFFECTS if args.effect == "all" else (args.effect,)
     for eff in effects:
         if eff not in EFFECTS:
@@ -513,7 +577,7 @@ def run_demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def cli_demo(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+def cli_demo(p: argparse.ArgumentParser) -> Command[DemoOptions | None]:
     """``demo hidden-effect``."""
     sub = p.add_subparsers(dest="demo_command", metavar="DEMO", title="demos")
     text = ("simulate a session with one effect hidden from the fit and let the workbench "
@@ -533,10 +597,12 @@ def cli_demo(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
     h.add_argument("--static-s", type=float, dest="static_s", action=_Renamed,
                    new="--static-seconds", help=argparse.SUPPRESS)  # fmt: skip
 
-    def run(args: argparse.Namespace) -> int:
-        if args.demo_command != "hidden-effect":
-            p.print_help()
-            return 2
-        return run_demo(args)
+    return Command(demo_options, partial(_demo_or_help, p))
 
-    return run
+
+def _demo_or_help(p: argparse.ArgumentParser, o: DemoOptions | None) -> int:
+    """Runner of ``demo``: the demo chosen, or the help (exit status 2) without one."""
+    if o is None:
+        p.print_help()
+        return 2
+    return run_demo(o)

@@ -14,13 +14,14 @@ import json
 import math
 import sys
 import tempfile
-from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from host.cli import pyplot
 from host.cli.figures import DPI, noise_figure
+from host.cli.options import Command
 from host.cli.screen import Column, table, terminal_width
 from host.errors import UserError
 from host.model import allan, recording
@@ -170,7 +171,28 @@ def parse_precision(text: str) -> float:
     return v
 
 
-def run(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class NoiseOptions:
+    """``noise``: the recording, the figures as JSON on stdout, the plot (a PNG), the
+    relative precision to plan the recording for (its text: 10% or 0.1), the confidence
+    level, a drift following the temperature kept, the noise file to write."""
+
+    file: str
+    json: bool = False
+    plot: str | None = None
+    plan: str | None = None
+    ci: float = allan.CI_LEVEL
+    keep_thermal: bool = False
+    save: str | None = None
+
+
+def noise_options(ns: argparse.Namespace) -> NoiseOptions:
+    """The ``noise`` options from its arguments."""
+    return NoiseOptions(file=ns.file, json=ns.json, plot=ns.plot, plan=ns.plan, ci=ns.ci,
+                        keep_thermal=ns.keep_thermal, save=ns.save)  # fmt: skip
+
+
+def run(args: NoiseOptions) -> int:
     """Runner of ``python3 -m host noise``."""
     path = Path(args.file)
     if not 0.5 <= args.ci < 1:
@@ -209,8 +231,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def cli_noise(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
-    """Fill in the ``noise`` subparser; returns the runner."""
+def cli_noise(p: argparse.ArgumentParser) -> Command[NoiseOptions]:
+    """Fill in the ``noise`` subparser; returns the command."""
     p.add_argument("file", help="a static recording: capture (.cap) or record file (.txt)")
     p.add_argument("--json", action="store_true", help="print the figures as JSON")
     p.add_argument("--plot", metavar="PNG", help="write the log-log Allan deviation plot")
@@ -233,4 +255,4 @@ def cli_noise(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]
         help="write the noise file (the --json document; e.g. SERIAL_noise.json for the "
         "workbench's noise floor)",
     )
-    return run
+    return Command(noise_options, run, data_out=lambda o: o.json)

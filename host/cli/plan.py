@@ -12,18 +12,27 @@ import json
 import math
 import sys
 import textwrap
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from host.calib.publish import session_noise
-from host.cli.model import _catalogue, _common, finite_json
+from host.cli.model import _catalogue, finite_json
+from host.cli.options import (
+    Command,
+    FloorOptions,
+    WorkbenchOptions,
+    add_workbench_arguments,
+    workbench_options,
+)
 from host.errors import UserError
 from host.model.geometry import placement_words
 from host.model.spec import ModelTerm, parse_model, short_spec
-from host.session.directory import read_session
-from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, UNITS
+from host.model.terms import Term
+from host.session.directory import Session, read_session
+from host.session.method import UNITS
 from host.session.spacing import timing_report
 from host.workbench.planner import NextPlan, OperatorTime, Ranked, plan_next
 from host.workbench.separate import CLEAR, Explanation, Separation, explanation, separate
@@ -150,25 +159,42 @@ def _noted(headings: tuple[float | None, ...], i: int) -> float | None:
     return headings[i] if i < len(headings) else None
 
 
-def run_plan(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class PlanOptions:
+    """``plan``: the records and model (:class:`host.cli.model.WorkbenchOptions`), how many
+    records to list, the operator's time to place the cube on a face and on an edge, s, and
+    the explanations to tell apart instead (None: the ranking)."""
+
+    bench: WorkbenchOptions
+    top: int = 10
+    place_s: float = OperatorTime.place
+    place_tilted_s: float = OperatorTime.place_tilted
+    separate: tuple[str, ...] | None = None
+
+
+def plan_options(ns: argparse.Namespace) -> PlanOptions:
+    """The ``plan`` options from its arguments."""
+    return PlanOptions(
+        bench=workbench_options(ns), top=ns.top, place_s=ns.place_s,
+        place_tilted_s=ns.place_tilted_s,
+        separate=None if ns.separate is None else tuple(ns.separate),
+    )  # fmt: skip
+
+
+def run_plan(args: PlanOptions) -> int:
+    """Runner of ``python3 -m host plan``."""
+    w = args.bench
     if args.top < 1:
         raise UserError(f"--top {args.top}: give how many records to list, 1 or more")
-    session = read_session(args.dir, args.serial)
+    w.model.bound_term_files()
+    session = read_session(w.dir, w.serial)
     sys.stderr.write(timing_report(session.records))
-    cat = _catalogue(args)
-    model = parse_model(args.model, cat)
+    cat = _catalogue(w.model.term_files)
+    model = parse_model(w.model.spec, cat)
     time = OperatorTime(place=args.place_s, place_tilted=args.place_tilted_s)
     if args.separate:
-        if len(args.separate) < 2:
-            raise UserError("--separate needs two explanations or more (the members of a "
-                            "group of equals as model diagnose names them)")  # fmt: skip
-        a, b, *others = exps = [explanation(x, cat) for x in args.separate]
-        for i, x in enumerate(exps):
-            for y in exps[i + 1 :]:
-                _two_explanations(x, y, model)
-        sep = separate(session, model, a, b, others=others, time=time,
-                       noise=session_noise(session, args.floor, args.noise))  # fmt: skip
-        if args.json:
+        sep = _separation(session, model, cat, args.separate, time, w.floor)
+        if w.json:
             print(json.dumps(finite_json(separation_json(sep)), indent=2, ensure_ascii=False))
         else:
             print(format_separation(sep, args.top))
@@ -180,16 +206,32 @@ def run_plan(args: argparse.Namespace) -> int:
             sys.stderr.write(f"\rtrying {done}/{total} {label[:40]:<40}{end}")
             sys.stderr.flush()
 
+    noise = session_noise(session, w.floor.floor, w.floor.noise)
     p = plan_next(
-        session, model, noise=session_noise(session, args.floor, args.noise), time=time,
-        latitude_deg=DEFAULT_LATITUDE_DEG if args.latitude is None else args.latitude,
-        height_m=DEFAULT_HEIGHT_M if args.height is None else args.height, progress=progress,
+        session, model, noise=noise, time=time, latitude_deg=w.site.latitude_deg,
+        height_m=w.site.height_m, progress=progress,
     )  # fmt: skip
-    if args.json:
+    if w.json:
         print(json.dumps(finite_json(_json(p)), indent=2, ensure_ascii=False))
     else:
         print(format_plan(p, args.top))
     return 0
+
+
+def _separation(
+    session: Session, model: Sequence[ModelTerm], cat: dict[str, Term],
+    given: Sequence[str], time: OperatorTime, floor: FloorOptions,
+) -> Separation:  # fmt: skip
+    """``--separate A B …``: the records that tell the explanations apart."""
+    if len(given) < 2:
+        raise UserError("--separate needs two explanations or more (the members of a "
+                        "group of equals as model diagnose names them)")  # fmt: skip
+    a, b, *others = exps = [explanation(x, cat) for x in given]
+    for i, x in enumerate(exps):
+        for y in exps[i + 1 :]:
+            _two_explanations(x, y, model)
+    noise = session_noise(session, floor.floor, floor.noise)
+    return separate(session, model, a, b, others=others, time=time, noise=noise)
 
 
 def _two_explanations(a: Explanation, b: Explanation, model: Sequence[ModelTerm]) -> None:
@@ -227,8 +269,9 @@ def _seconds(text: str) -> float:
     return v
 
 
-def cli_plan(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
-    _common(p)
+def cli_plan(p: argparse.ArgumentParser) -> Command[PlanOptions]:
+    """Fill in the ``plan`` subparser; returns the command."""
+    add_workbench_arguments(p)
     p.add_argument("--top", type=int, default=10, help="how many records to list (default 10)")
     p.add_argument(
         "--place-s", type=_seconds, default=OperatorTime.place, metavar="S",
@@ -245,4 +288,4 @@ def cli_plan(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
         "or a signal as model diagnose names it, e.g. face_error:accel:y 'accel y follows "
         "(specific force z)²' plate_tilt:accel:xyz",
     )  # fmt: skip
-    return run_plan
+    return Command(plan_options, run_plan, data_out=lambda o: o.bench.json)

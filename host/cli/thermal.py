@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +15,7 @@ import numpy as np
 from host.calib import thermal, thermal_fit
 from host.cli import out_directory, pyplot
 from host.cli.figures import DPI, shown_unit, thermal_figure
+from host.cli.options import Command
 from host.errors import UserError
 from host.session.atomic import write_text_atomic
 from host.session.directory import read_record, read_session, split_file_name
@@ -81,7 +82,33 @@ def unit_records(directory: str, serial: str | None) -> tuple[str, list[Record]]
     return session.serial, records
 
 
-def run(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class ThermalOptions:
+    """``thermal``: the records' directory and serial (None: from the file names), the
+    polynomial order (None: chosen up to ``max_order``), the scale fitted too, the averaging
+    window, s, where the result goes (None: the records' directory), the plot (a PNG, None:
+    none), the result as JSON on stdout."""
+
+    dir: str
+    serial: str | None = None
+    order: int | None = None
+    max_order: int = thermal_fit.MAX_ORDER
+    scale: bool = False
+    window: float = 20.0
+    out: str | None = None
+    plot: str | None = None
+    json: bool = False
+
+
+def thermal_options(ns: argparse.Namespace) -> ThermalOptions:
+    """The ``thermal`` options from its arguments."""
+    return ThermalOptions(
+        dir=ns.dir, serial=ns.serial, order=ns.order, max_order=ns.max_order, scale=ns.scale,
+        window=ns.window, out=ns.out, plot=ns.plot, json=ns.json,
+    )  # fmt: skip
+
+
+def run(args: ThermalOptions) -> int:
     """Runner of ``python3 -m host thermal``."""
     serial, records = unit_records(args.dir, args.serial)
     sys.stderr.write(timing_report({r.name: r for r in records}))
@@ -108,8 +135,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def cli_thermal(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
-    """Fill in the ``thermal`` subparser; returns the runner."""
+def cli_thermal(p: argparse.ArgumentParser) -> Command[ThermalOptions]:
+    """Fill in the ``thermal`` subparser; returns the command."""
     p.add_argument("dir", help="directory of the unit's records (warm-up, static, thermal ramp)")
     p.add_argument("--serial", help="serial number (default: from the file names)")
     p.add_argument("--order", type=int, help="fix the polynomial order (default: chosen)")
@@ -134,4 +161,4 @@ def cli_thermal(p: argparse.ArgumentParser) -> Callable[[argparse.Namespace], in
     )
     p.add_argument("--plot", metavar="PNG", help="bias against temperature with curve and band")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
-    return run
+    return Command(thermal_options, run, data_out=lambda o: o.json)

@@ -72,9 +72,9 @@ class Measuring(Protocol):
 def model_of(opts: DialogueOptions) -> list[ModelTerm]:
     """The model the dialogue fits (``--model``, its ``--terms`` files)."""
     cat = dict(CATALOGUE)
-    for f in opts.term_files:
+    for f in opts.compute.term_files:
         cat = load_term_file(f, cat)
-    return parse_model(opts.model, cat)
+    return parse_model(opts.compute.model, cat)
 
 
 def adaptive_plan(
@@ -85,12 +85,13 @@ def adaptive_plan(
     shorter) and at most ``static_s`` s (``--static-seconds``), turn pairs of ``turns`` turns
     each way; the planner's records a face again of ``static_s`` or three times it, or a turn
     pair. ``g``: local gravity, m/s²."""
-    rule = StaticRule.for_target(opts.target, g, min_s=min(STATIC_MIN_S, static_s), max_s=static_s)
+    target, site = opts.planning.target, opts.compute
+    rule = StaticRule.for_target(target, g, min_s=min(STATIC_MIN_S, static_s), max_s=static_s)
     menu = candidates((static_s, 3 * static_s), turns, tilted=False)
     return AdaptivePlan(
-        model_of(opts), opts.target, menu, Stopping(rule, turns), serial,
-        latitude_deg=opts.latitude_deg, height_m=opts.height_m, max_operator_s=math.inf,
-        max_extra=opts.max_extra,
+        model_of(opts), target, menu, Stopping(rule, turns), serial,
+        latitude_deg=site.latitude_deg, height_m=site.height_m, max_operator_s=math.inf,
+        max_extra=opts.planning.max_extra,
     )  # fmt: skip
 
 
@@ -122,7 +123,11 @@ def measure_adaptive(dlg: Measuring, opts: DialogueOptions) -> AdaptivePlan:
             )
             break
         if ask is None:
-            why = f"--max-extra {opts.max_extra} reached" if why == MAX_EXTRA_REACHED else why
+            why = (
+                f"--max-extra {opts.planning.max_extra} reached"
+                if why == MAX_EXTRA_REACHED
+                else why
+            )
             dlg.op.say(
                 f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}), above {plan.target:g}:"
             )

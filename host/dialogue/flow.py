@@ -42,11 +42,10 @@ human is asked (``place`` before the placement prompt, ``turn`` at the start bee
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import textwrap
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -57,7 +56,7 @@ from host.board.acquisition import BoardReset, MeasurementAborted, SensorFault
 from host.board.driver import BoardInfo, default_port
 from host.board.link import LinkLost, LinkTimeout
 from host.calib.commands import said_with_command
-from host.calib.publish import ComputeSettings, compute_and_write, show_result
+from host.calib.publish import compute_and_write, show_result
 from host.calib.report import verdict_line
 from host.dialogue import adaptive, poses, screens
 from host.dialogue.console import (
@@ -79,12 +78,22 @@ from host.dialogue.recorder import YES_MAX_ATTEMPTS, Recorder
 from host.dialogue.sitting import SittingDirectory
 from host.errors import RecordCheckError, ResumableError, UserError, write_error
 from host.session.checks import failed_record
-from host.session.directory import DirectoryBusy, read_session, record_path, write_record
+from host.session.directory import (
+    DirectoryBusy,
+    Session,
+    read_session,
+    record_path,
+    write_record,
+)
 from host.session.inputs import parse_serial
 from host.session.records import STATIC_NAMES, TURN_NAMES, WARMUP_NAME
 from host.wire import sensor
 
 # --------------------------------------------------------------------------- the dialogue
+
+#: called with (output directory, session) once the result files are written; returns the
+#: line to say (``calibrate`` archives the result there: host.cli.calibrate.archive_line)
+AfterPublish = Callable[[Path, Session], str]
 
 
 @dataclass
@@ -101,8 +110,34 @@ class CalibrationDialogue(Recorder):
     """The §5 dialogue: the sitting's sequence around its records (:class:`host.dialogue.
     recorder.Recorder`)."""
 
+    def __init__(
+        self,
+        opts: DialogueOptions,
+        console: Console,
+        port_factory: Callable[[str], serial.SerialBase] | None = None,
+        after_publish: AfterPublish | None = None,
+    ) -> None:
+        super().__init__(opts, console, port_factory)
+        #: called once the result files are written (calibrate archives the result there)
+        self.after_publish = after_publish
+
     # ---- the program ---------------------------------------------------------------------
     def run(self) -> DialogueResult:
+        self._open_sitting()
+        self._start_capture()
+        self._self_test()
+        self._warm_up()
+        if self.opts.planning.plan in ("poses", "poses16"):  # no cube: poses and moves
+            poses.measure_poses(self, self.opts)
+        elif self.opts.planning.plan == "adaptive":  # the engine's order and stopping rule
+            self._adaptive_records()
+        else:
+            self._fixed_records()
+        return self._results()
+
+    def _open_sitting(self) -> None:
+        """The board's identity, the serial number, the output directory locked and what of
+        it is kept."""
         op, opts = self.op, self.opts
         screens.show_opening(op, self.board.url)
         info = self._connect()
@@ -111,33 +146,30 @@ class CalibrationDialogue(Recorder):
             self._warn(f"WHO_AM_I {info.who_am_i:#04x} is not an MPU-6000's 0x68")
         if opts.yes and not self.board.has_operator:
             self._warn("--yes on a real board: nobody is asked to place or turn the cube")
-
-        self.serial = opts.serial or op.ask(
+        self.serial = opts.files.serial or op.ask(
             "Serial number (1-12 characters: letters, digits, _ or -)", parse_serial
         )
         self.out_dir = opts.out_dir_for(self.serial)
         check_out_dir(self.out_dir)
         self.sitting = SittingDirectory(self.out_dir, self.serial, self.command(then=()))
         self._take_stock()
-        self._start_capture()
-        self._self_test()
-        self._warm_up()
 
-        base = (*STATIC_NAMES, *TURN_NAMES, CLOSING_NAME)
-        if opts.plan in ("poses", "poses16"):  # no cube: poses and the moves between them
-            poses.measure_poses(self, opts)
-            return self._results()
-        if opts.plan == "adaptive":  # the engine's order and stopping rule
-            # --redo: measured again by name first (the engine names new records anew)
-            self._measure_again([n for n in opts.redo if n != CLOSING_NAME])
-            plan = adaptive.measure_adaptive(self, opts)
-            if opts.closing and CLOSING_NAME not in self.done and STATIC_NAMES[0] in self.done:
+    def _adaptive_records(self) -> None:
+        """--plan adaptive: the engine's records, then the closing check as it says."""
+        # --redo: measured again by name first (the engine names new records anew)
+        self._measure_again([n for n in self.opts.files.redo if n != CLOSING_NAME])
+        plan = adaptive.measure_adaptive(self, self.opts)
+        if self._closing_due():
 
-                def stop(a: np.ndarray, g: np.ndarray, t: float) -> str | None:
-                    return plan.static_stop(CLOSING_NAME, self.done, a, g, t)
+            def stop(a: np.ndarray, g: np.ndarray, t: float) -> str | None:
+                return plan.static_stop(CLOSING_NAME, self.done, a, g, t)
 
-                self._closing_check(stop)
-            return self._results()
+            self._closing_check(stop)
+
+    def _fixed_records(self) -> None:
+        """The method's records: the six faces, the turns, the repeats --redo names, the
+        closing check; each stage asked for (a stage measured already is said so)."""
+        op, opts = self.op, self.opts
         need_static = [n for n in STATIC_NAMES if n not in self.done]
         need_turn = [n for n in TURN_NAMES if n not in self.done]
         do_static = bool(need_static)
@@ -159,10 +191,19 @@ class CalibrationDialogue(Recorder):
             op.say("The six turns are already measured (--resume).")
         if do_turns and need_turn:
             self._stage2(need_turn)
-        self._measure_again([n for n in opts.redo if n not in base])  # x_ccw_2, x_up_3 …
-        if opts.closing and CLOSING_NAME not in self.done and STATIC_NAMES[0] in self.done:
+        base = (*STATIC_NAMES, *TURN_NAMES, CLOSING_NAME)
+        self._measure_again([n for n in opts.files.redo if n not in base])  # x_ccw_2, x_up_3 …
+        if self._closing_due():
             self._closing_check()
-        return self._results()
+
+    def _closing_due(self) -> bool:
+        """The closing check is to be measured: asked for, not measured yet, and the first
+        attitude it repeats measured."""
+        return (
+            self.opts.schedule.closing
+            and CLOSING_NAME not in self.done
+            and STATIC_NAMES[0] in self.done
+        )
 
     def _connect(self) -> BoardInfo:
         try:
@@ -171,7 +212,7 @@ class CalibrationDialogue(Recorder):
             raise UserError(str(exc)) from None
 
     def _start_capture(self) -> None:
-        path = self.opts.capture or capture_path(self.out_dir, self.serial)
+        path = self.opts.files.capture or capture_path(self.out_dir, self.serial)
         self.board.capture.start(path)
         self.op.say(f"Recording the link to {path}")
 
@@ -184,9 +225,9 @@ class CalibrationDialogue(Recorder):
             if moved:
                 self._warn(moved)
             return
-        self.done.update(self.sitting.read_kept(self.opts.redo, self._warn))
-        if self.opts.redo:
-            self.op.say(f"Measuring again: {', '.join(self.opts.redo)} (--redo)")
+        self.done.update(self.sitting.read_kept(self.opts.files.redo, self._warn))
+        if self.opts.files.redo:
+            self.op.say(f"Measuring again: {', '.join(self.opts.files.redo)} (--redo)")
         if self.opts.keeps_records:
             kept = f"Resuming: kept {', '.join(self.done) or 'nothing'}"
             self.op.say(textwrap.fill(kept, 80, subsequent_indent="  ", break_on_hyphens=False))
@@ -209,14 +250,14 @@ class CalibrationDialogue(Recorder):
 
     def _self_test(self) -> None:
         """The MPU-6000's self-test, into every record's header (measurement.self_test)."""
-        run = self.opts.self_test
+        run = self.opts.schedule.self_test
         self_test(self.board, self.op, YES_MAX_ATTEMPTS, lambda e: self._recover(e, False), run)
 
     def _warm_up(self) -> None:
         """The warm-up (method.md §5 step 3), recorded as ``SERIAL_warmup.txt``: one attitude,
         the chip temperature rising — the thermal calibration's first ramp
         (``python3 -m host thermal``). Any key skips the rest of the wait (nothing recorded)."""
-        s = self.opts.warmup_s
+        s = self.opts.schedule.warmup_s
         if s <= 0 or (self.opts.keeps_records and self.done and screens.no_warm_up(self.op)):
             return
         op = self.op
@@ -254,7 +295,7 @@ class CalibrationDialogue(Recorder):
         op = self.op
         missing = [
             n for n in STATIC_NAMES if not record_path(self.out_dir, self.serial, n).exists()
-        ] if not self.opts.plan.startswith("poses") else []  # fmt: skip
+        ] if not self.opts.planning.plan.startswith("poses") else []  # fmt: skip
         if missing:
             raise ResumableError(
                 self._resume_hint(
@@ -262,19 +303,8 @@ class CalibrationDialogue(Recorder):
                 )
             )
         session = read_session(self.out_dir, self.serial)
-        settings = ComputeSettings(
-            latitude_deg=self.opts.latitude_deg,
-            height_m=self.opts.height_m,
-            model=self.opts.model,
-            term_files=self.opts.term_files,
-            floor=self.opts.floor,
-            verify=self.opts.verify,
-            thermal=self.opts.thermal,
-            noise_file=self.opts.noise,
-            pdf=self.opts.pdf,
-        )
         try:
-            pub = compute_and_write(session, self.out_dir, settings, note=op.say)
+            pub = compute_and_write(session, self.out_dir, self.opts.compute, note=op.say)
         except RecordCheckError as exc:
             name = failed_record(exc, self.serial)
             if name is None:
@@ -288,8 +318,8 @@ class CalibrationDialogue(Recorder):
         pdf = f", {pub.pdf_path}" if pub.pdf_path is not None else ""
         op.say(f"Results: {pub.report_path} and {pub.json_path}{pdf}")
         show_result(pub, self.opts.json)
-        if self.opts.after_publish is not None:  # calibrate archives the result
-            op.say(self.opts.after_publish(self.out_dir, session))
+        if self.after_publish is not None:  # calibrate archives the result
+            op.say(self.after_publish(self.out_dir, session))
         op.say(verdict_line(pub.result, pub.report_path, pub.records_dir))  # the last lines
         return DialogueResult(
             self.out_dir, list(self.accepted), pub.result, (pub.report_path, pub.json_path)
@@ -300,26 +330,23 @@ class CalibrationDialogue(Recorder):
 
 
 def run_dialogue(
-    args: argparse.Namespace | DialogueOptions,
+    options: DialogueOptions,
     console: Console | None = None,
     port_factory: Callable[[str], serial.SerialBase] | None = None,
+    after_publish: AfterPublish | None = None,
 ) -> int:
     """Run the live calibration dialogue; the runner of ``python3 -m host calibrate --port``.
 
-    ``args``: the parsed ``calibrate`` arguments (``python3 -m host calibrate``) or a
-    :class:`DialogueOptions`. ``console``: the terminal (default: the real one; tests pass a
+    ``options``: what ``calibrate`` was told (:func:`host.cli.calibrate.dialogue_options`).
+    ``console``: the terminal (default: the real one; tests pass a
     :class:`host.dialogue.console.ScriptedConsole`). ``port_factory(url)``: opens the port
-    (default :func:`host.board.link.open_port`). Returns the exit status: 0 every value within
-    tolerance, 1 some outside, 130 aborted with Ctrl+C. UserError for what the user can fix.
+    (default :func:`host.board.link.open_port`). ``after_publish(out_dir, session)``: called
+    once the result files are written, returns the line to say (``calibrate`` archives the
+    result: :func:`host.cli.calibrate.archive_line`). Returns the exit status: 0 every value
+    within tolerance, 1 some outside, 130 aborted with Ctrl+C. UserError for what the user
+    can fix.
     """
-    opts = DialogueOptions.from_args(args)
-    opts.check()
-    note = None
-    if not opts.port:
-        opts.port, note = default_port()
-        if opts.port == "sim://" and opts.yes:  # nobody watches: as fast as it computes
-            opts.port = "sim://?speed=max"
-            note = f"{note}; at full speed with --yes (--port sim:// shows it in real time)"
+    opts, note = with_port(options.check())
     own = console is None
     term = TerminalConsole(interactive=not opts.yes) if own else None
     con: Console = term if term is not None else console  # type: ignore[assignment]
@@ -330,30 +357,13 @@ def run_dialogue(
         with signals_end_like_ctrl_c():
             if note:
                 con.say(note)
-            session = CalibrationDialogue(opts, con, port_factory)
+            session = CalibrationDialogue(opts, con, port_factory, after_publish)
             outcome = session.run()
             return 0 if outcome.result is not None and outcome.result.all_passed else 1
     except KeyboardInterrupt as exc:
-        why = exc.name if isinstance(exc, EndedBySignal) else "Ctrl+C"
-        with contextlib.suppress(OSError):  # after SIGHUP the terminal may be gone
-            con.end_progress()
-            con.say("")
-            con.say(
-                f"Aborted ({why}) during the warm-up (not recorded)."
-                if session is not None and session.in_warm_up
-                else f"Aborted ({why}): the measurement in progress is discarded."
-            )
-            if session is not None and session.serial:
-                con.say(session._resume_hint(first=0))
-        return exc.exit_status if isinstance(exc, EndedBySignal) else 130
+        return _aborted(exc, con, session)
     except (UserError, OSError) as exc:
-        # a session ending on an error (disk full, sensor failed, board gone) always says how
-        # to continue with the records already accepted
-        told = isinstance(exc, (ResumableError, DirectoryBusy))  # it says what to do
-        if session is None or not session.serial or told:
-            raise
-        text = str(exc) if isinstance(exc, UserError) else str(write_error(exc.filename, exc))
-        raise UserError(session._resume_hint(text)) from None
+        raise _ended_on_error(exc, session) from None
     finally:
         if session is not None:
             session.board.close()
@@ -361,3 +371,44 @@ def run_dialogue(
                 session.sitting.release()
         if term is not None:
             term.close()
+
+
+def with_port(opts: DialogueOptions) -> tuple[DialogueOptions, str | None]:
+    """``opts`` with the port to use: the one given, else the first board found, else the
+    virtual board (at full speed with --yes: nobody watches); and what to say about it."""
+    if opts.port:
+        return opts, None
+    port, note = default_port()
+    if port == "sim://" and opts.yes:  # nobody watches: as fast as it computes
+        port = "sim://?speed=max"
+        note = f"{note}; at full speed with --yes (--port sim:// shows it in real time)"
+    return replace(opts, port=port), note
+
+
+def _aborted(exc: KeyboardInterrupt, con: Console, session: CalibrationDialogue | None) -> int:
+    """Ctrl+C (or SIGTERM, SIGHUP): what is discarded, the command that continues; the exit
+    status of the signal."""
+    why = exc.name if isinstance(exc, EndedBySignal) else "Ctrl+C"
+    with contextlib.suppress(OSError):  # after SIGHUP the terminal may be gone
+        con.end_progress()
+        con.say("")
+        con.say(
+            f"Aborted ({why}) during the warm-up (not recorded)."
+            if session is not None and session.in_warm_up
+            else f"Aborted ({why}): the measurement in progress is discarded."
+        )
+        if session is not None and session.serial:
+            con.say(session._resume_hint(first=0))
+    return exc.exit_status if isinstance(exc, EndedBySignal) else 130
+
+
+def _ended_on_error(
+    exc: UserError | OSError, session: CalibrationDialogue | None
+) -> UserError | OSError:
+    """The error a session ends on: one that ended it after records were accepted (disk
+    full, sensor failed, board gone) says how to continue with them."""
+    told = isinstance(exc, (ResumableError, DirectoryBusy))  # it says what to do
+    if session is None or not session.serial or told:
+        return exc
+    text = str(exc) if isinstance(exc, UserError) else str(write_error(exc.filename, exc))
+    return UserError(session._resume_hint(text))

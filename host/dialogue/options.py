@@ -1,7 +1,11 @@
 """The dialogue's options: what ``python3 -m host calibrate`` (live) is told, read and checked.
 
 :class:`DialogueOptions` holds every option of the live dialogue (units in the names: s, deg,
-m), :meth:`DialogueOptions.from_args` reads them from the ``calibrate`` arguments and
+m) in its parts — the session's files (:class:`SessionFiles`), what is measured for how long
+(:class:`Schedule`), the plan (:class:`Planning`), how the result is computed
+(:class:`host.calib.publish.ComputeSettings`), who measures where and the archive
+(:class:`Provenance`), the link's limits (:class:`LinkLimits`); ``calibrate`` builds them from
+its arguments (:func:`host.cli.calibrate.dialogue_options`) and
 :meth:`DialogueOptions.check` refuses the values and combinations that cannot work, before any
 wait or any I/O with the board. :meth:`DialogueOptions.command` writes them back as the command
 line that continues a session (``--resume``, ``--redo NAME``). The answers the operator types
@@ -11,20 +15,19 @@ options: :func:`parse_serial`, :func:`parse_seconds`, :func:`parse_turns`.
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import shlex
 import tempfile
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
 
 from host.board.acquisition import SAMPLE_STALL_S
 from host.board.driver import STALL_S
+from host.calib.publish import ComputeSettings
 from host.errors import UserError
-from host.session.directory import Session, record_path
+from host.session.directory import record_path
 from host.session.inputs import parse_serial
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, local_gravity
 from host.session.records import RECORD_NAME_RE, STATIC_NAMES, TURN_NAMES, name_problem
@@ -75,165 +78,120 @@ def parse_turns(text: str) -> int:
 # --------------------------------------------------------------------------- options
 
 
-@dataclass
-class DialogueOptions:
-    """Everything the dialogue needs; units in the names (s, deg, m)."""
+@dataclass(frozen=True)
+class SessionFiles:
+    """Which unit, where its files go and what of an earlier sitting is kept: ``serial``
+    (None: asked), ``out`` (None: a directory named after the serial), ``capture`` (None: the
+    next free ``OUT/SERIAL_session.cap``), ``resume`` (keep every record there), ``redo`` (the
+    records measured again, the others kept)."""
 
-    port: str | None = None
     serial: str | None = None
     out: Path | None = None
+    capture: Path | None = None
+    resume: bool = False
+    redo: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """What is measured and for how long, s: ``static_seconds`` per static record and
+    ``turns`` per turn record (None: asked), the warm-up, the pause before a turn's start
+    beep (None: :data:`DEFAULT_READY_S`, 0 when nobody turns: ``--yes`` on ``sim://``), the
+    closing check (:data:`CLOSING_NAME`) and the MPU-6000's self-test first."""
+
     static_seconds: float | None = None
     turns: int | None = None
     warmup_s: float = WARMUP_DEFAULT_S
-    latitude_deg: float = DEFAULT_LATITUDE_DEG
-    height_m: float = DEFAULT_HEIGHT_M
-    yes: bool = False
-    json: bool = False
-    resume: bool = False
-    redo: tuple[str, ...] = ()
-    capture: Path | None = None
-    ready_s: float | None = None  # None: DEFAULT_READY_S, 0 when nobody turns (--yes, sim)
+    ready_s: float | None = None
+    closing: bool = True
+    self_test: bool = True
+
+
+@dataclass(frozen=True)
+class Planning:
+    """``plan``: "fixed" (the method's records) or "adaptive" (after the turns, the planner's
+    records until ``target``, the worst σ/tolerance — every value's standard error a
+    twentieth of its tolerance, its 95 % interval a tenth, unless --target says otherwise —
+    with at most ``max_extra`` records added)."""
+
+    plan: str = "fixed"
+    target: float = 0.05
+    max_extra: int = 12
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Who measures on which bench (every record's header and the archive), the production
+    lot, and where ``calibrate`` archives the result (``archive``: None the default one;
+    ``no_archive``: not at all) — repeated in the command that continues the session, so a
+    resumed session is archived where the first was."""
+
+    operator: str | None = None
+    bench: str | None = None
+    lot: str | None = None
+    archive: str | None = None
+    no_archive: bool = False
+
+
+@dataclass(frozen=True)
+class LinkLimits:
+    """How much the link may lose and how long it may stall, s: above ``loss_limit`` (a
+    fraction of the samples) a measurement is proposed again; ``reconnect_timeout_s`` None:
+    wait for a vanished board until Esc/Ctrl+C (``--yes``: YES_RECONNECT_S)."""
+
     loss_limit: float = LOSS_LIMIT
     stall_s: float = STALL_S
     sample_stall_s: float = SAMPLE_STALL_S
     hello_timeout_s: float = 5.0
-    reconnect_timeout_s: float | None = None  # None: until Esc/Ctrl+C (--yes: YES_RECONNECT_S)
-    model: str = "base"  # the model to fit and ship (a host.model.spec model)
-    term_files: tuple[str, ...] = ()  # Python files of custom terms for ``model``
-    verify: str | None = None  # a directory of records to predict (held-out verification)
-    floor: str | None = None  # --floor accel=A,gyro=G (None: measured from the records)
-    thermal: str | None = None  # --thermal FILE|none (None: SERIAL_thermal.json if beside)
-    noise: str | None = None  # --noise NOISE.json (the floor from the unit's noise file)
-    closing: bool = True  # measure the first attitude again at the end (CLOSING_NAME)
-    self_test: bool = True  # the MPU-6000 self-test first (--no-self-test: recorded not run)
-    operator: str | None = None  # --operator: who measures, written in every record's header
-    bench: str | None = None  # --bench: which bench, written in every record's header
-    pdf: bool = False  # --pdf: also the report as SERIAL_result.pdf
-    plan: str = "fixed"  # "adaptive": after the turns, the planner's records until ``target``
-    #: adaptive: the worst σ/tolerance to reach — every value's standard error a twentieth of
-    #: its tolerance (its 95 % interval a tenth) unless --target says otherwise
-    target: float = 0.05
-    max_extra: int = 12  # adaptive: at most this many records added
-    #: called with (output directory, session) once the result files are written; returns the
-    #: line to say (``calibrate`` archives the result there: host.cli.calibrate.archive_line)
-    after_publish: Callable[[Path, Session], str] | None = None
-    #: where ``calibrate`` archives the result (``after_publish``): repeated in the command
-    #: that continues the session, so a resumed session is archived where the first was
-    archive: str | None = None
-    lot: str | None = None
-    no_archive: bool = False
+    reconnect_timeout_s: float | None = None
 
-    @classmethod
-    def from_args(cls, args: argparse.Namespace | DialogueOptions) -> DialogueOptions:
-        """From the ``calibrate`` arguments (missing attributes take the defaults)."""
-        if isinstance(args, DialogueOptions):
-            return args
 
-        def get(name: str, default: Any = None) -> Any:
-            v = getattr(args, name, None)
-            return default if v is None else v
+@dataclass(frozen=True)
+class DialogueOptions:
+    """Everything the dialogue needs, in its parts: the port (None: the first board found,
+    else ``sim://``), ``yes`` (nothing asked), ``json`` (the result as JSON on stdout), the
+    session's files, its schedule, its plan, how the result is computed (the same settings
+    as ``calibrate --from-dir``: :class:`host.calib.publish.ComputeSettings`), its provenance
+    and the link's limits."""
 
-        out = get("out")
-        cap = get("capture")
-        return cls(
-            port=get("port"),
-            serial=get("serial"),
-            out=Path(out) if out else None,
-            static_seconds=get("static_seconds"),
-            turns=get("turns"),
-            warmup_s=float(get("warmup", WARMUP_DEFAULT_S)),
-            latitude_deg=float(get("latitude", DEFAULT_LATITUDE_DEG)),
-            height_m=float(get("height", DEFAULT_HEIGHT_M)),
-            yes=bool(get("yes", False)),
-            json=bool(get("json", False)),
-            resume=bool(get("resume", False)),
-            redo=tuple(n.strip() for r in get("redo", []) for n in r.split(",") if n.strip()),
-            capture=Path(cap) if cap else None,
-            ready_s=None if get("ready_seconds") is None else float(get("ready_seconds")),
-            model=str(get("model", "base")),
-            term_files=tuple(get("term_file", ())),
-            verify=get("verify"),
-            floor=get("floor"),
-            thermal=get("thermal"),
-            noise=get("noise"),
-            operator=get("operator"),
-            bench=get("bench"),
-            pdf=bool(get("pdf", False)),
-            closing=not bool(get("no_closing", False)),
-            self_test=not bool(get("no_self_test", False)),
-            plan=str(get("plan", "fixed")),
-            target=float(get("target", 0.05)),
-            max_extra=int(get("max_extra", 12)),
-            after_publish=get("after_publish"),
-            archive=get("archive"),
-            lot=get("lot"),
-            no_archive=bool(get("no_archive", False)),
-        )
+    port: str | None = None
+    yes: bool = False
+    json: bool = False
+    files: SessionFiles = field(default_factory=SessionFiles)
+    schedule: Schedule = field(default_factory=Schedule)
+    planning: Planning = field(default_factory=Planning)
+    compute: ComputeSettings = field(default_factory=ComputeSettings)
+    provenance: Provenance = field(default_factory=Provenance)
+    link: LinkLimits = field(default_factory=LinkLimits)
 
-    def check(self) -> None:
-        """Option values and combinations that cannot work -> UserError, before any wait or
-        any I/O with the board (the output directory is looked at, not created)."""
-        from host.model.catalogue import CATALOGUE
-        from host.model.loader import load_term_file
-        from host.model.spec import parse_model
+    def check(self) -> DialogueOptions:
+        """These options with the serial number and the accumulation time as parsed; option
+        values and combinations that cannot work -> UserError, before any wait or any I/O
+        with the board (the output directory is looked at, not created)."""
+        _check_model(self.compute)
+        _check_planning(self.planning)
+        _check_names(self.provenance)
+        files, schedule = _checked_serial(self.files), _checked_schedule(self.schedule)
+        _check_redo(files, self.yes)
+        checked = replace(self, files=files, schedule=schedule)
+        local_gravity(self.compute.latitude_deg, self.compute.height_m)  # validates both
+        checked._check_files()
+        return checked
 
-        cat = dict(CATALOGUE)
-        for f in self.term_files:
-            cat = load_term_file(f, cat)
-        parse_model(self.model, cat)  # a bad --model fails now, not after the session
-        if self.plan not in PLANS:
+    def _check_files(self) -> None:
+        """The output directory writable, the capture new, and --yes not waiting on an answer
+        for the accumulation time."""
+        f = self.files
+        if f.serial is not None:
+            check_out_dir(self.out_dir_for(f.serial))
+        if f.capture is not None and (f.capture.exists() or f.capture.is_symlink()):
             raise UserError(
-                f"--plan {self.plan}: give fixed (the method's plan), adaptive, poses or poses16"
-            )
-        if not (math.isfinite(self.target) and self.target > 0.0):
-            raise UserError(
-                f"--target {self.target:g}: give the worst σ/tolerance to reach, e.g. 0.05"
-            )
-        if not 0 <= self.max_extra <= MAX_EXTRA:
-            raise UserError(
-                f"--max-extra {self.max_extra}: give 0 to {MAX_EXTRA} records ({MAX_EXTRA} is "
-                "about an hour of the operator's time)"
-            )
-        for opt, name in (("--operator", self.operator), ("--bench", self.bench),
-                          ("--lot", self.lot)):  # fmt: skip
-            problem = None if name is None else name_problem(name)
-            if problem is not None:  # was: written into every record's header and the archive
-                raise UserError(f"{opt}: {problem}")
-        if self.serial is not None:
-            try:
-                self.serial = parse_serial(self.serial)
-            except ValueError as exc:
-                raise UserError(f"--serial: {exc}") from None
-        if self.static_seconds is not None:
-            try:
-                self.static_seconds = parse_seconds(str(self.static_seconds))
-            except ValueError as exc:
-                raise UserError(f"--static-seconds: {exc}") from None
-        if self.turns is not None and not 1 <= self.turns <= MAX_TURNS:
-            raise UserError(f"--turns must be 1 to {MAX_TURNS} (3 or fewer recommended)")
-        if not math.isfinite(self.warmup_s) or self.warmup_s < 0:
-            raise UserError("--warmup must be 0 (skip) or a number of seconds")
-        if self.ready_s is not None and (not math.isfinite(self.ready_s) or self.ready_s < 0):
-            raise UserError("--ready-seconds must be 0 or more")
-        names = (*STATIC_NAMES, *TURN_NAMES, CLOSING_NAME)
-        unknown = [n for n in self.redo if not RECORD_NAME_RE.fullmatch(n)]
-        if unknown:
-            raise UserError(
-                f"--redo {unknown[0]}: not a record name; use one of " + ", ".join(names)
-                + " or a repeat of one (x_ccw_2)"
-            )  # fmt: skip
-        if self.yes and self.serial is None:
-            raise UserError("--yes needs --serial (the serial number is mandatory)")
-        local_gravity(self.latitude_deg, self.height_m)  # validates both
-        if self.serial is not None:
-            check_out_dir(self.out_dir_for(self.serial))
-        if self.capture is not None and (self.capture.exists() or self.capture.is_symlink()):
-            raise UserError(
-                f"--capture {self.capture}: exists; a capture is never overwritten: give a new "
+                f"--capture {f.capture}: exists; a capture is never overwritten: give a new "
                 "file name, or leave --capture out (the next free SERIAL_session_N.cap)"
             )
-        kept = [n for n in STATIC_NAMES if n not in self._statics_to_measure()]
-        if self.yes and self.static_seconds is None and self._statics_to_measure() and not kept:
+        measured = self._statics_to_measure()
+        kept = [n for n in STATIC_NAMES if n not in measured]
+        if self.yes and self.schedule.static_seconds is None and measured and not kept:
             raise UserError(
                 "--yes needs --static-seconds S, the accumulation time per static orientation "
                 "(e.g. --static-seconds 30): nothing is asked with --yes"
@@ -242,20 +200,21 @@ class DialogueOptions:
     @property
     def keeps_records(self) -> bool:
         """--resume or --redo: records already in the output directory are kept."""
-        return self.resume or bool(self.redo)
+        return self.files.resume or bool(self.files.redo)
 
     def out_dir_for(self, serial: str) -> Path:
         """The output directory: ``--out``, else a directory named after the serial number."""
-        return self.out if self.out is not None else Path(serial)
+        return self.files.out if self.files.out is not None else Path(serial)
 
     def _statics_to_measure(self) -> list[str]:
         """The static records this session will measure (all without --resume/--redo)."""
-        if not self.keeps_records or self.serial is None:
+        serial = self.files.serial
+        if not self.keeps_records or serial is None:
             return list(STATIC_NAMES)
-        out = self.out_dir_for(self.serial)
+        out = self.out_dir_for(serial)
         return [
             n for n in STATIC_NAMES
-            if n in self.redo or not record_path(out, self.serial, n).exists()
+            if n in self.files.redo or not record_path(out, serial, n).exists()
         ]  # fmt: skip
 
     def command(
@@ -290,34 +249,130 @@ class DialogueOptions:
             args += ["--static-seconds", _number(static_seconds)]
         if turns is not None:
             args += ["--turns", str(turns)]
-        args += ["--warmup", _number(self.warmup_s)]
-        if self.ready_s is not None:
-            args += ["--ready-seconds", _number(self.ready_s)]
-        if self.latitude_deg != DEFAULT_LATITUDE_DEG:
-            args += ["--latitude", _number(self.latitude_deg)]
-        if self.height_m != DEFAULT_HEIGHT_M:
-            args += ["--height", _number(self.height_m)]
-        if self.model != "base":
-            args += ["--model", self.model]
-        for f in self.term_files:
-            args += ["--term-file", f]
-        if self.verify:
-            args += ["--verify", self.verify]
-        for opt, val in (("--floor", self.floor), ("--thermal", self.thermal),
-                         ("--noise", self.noise)):  # fmt: skip
-            if val:
-                args += [opt, val]
-        for opt, val in (("--operator", self.operator), ("--bench", self.bench),
-                         ("--archive", self.archive), ("--lot", self.lot)):  # fmt: skip
-            if val:
-                args += [opt, val]
-        if self.plan != "fixed":  # the resumed session plans as this one did
-            args += ["--plan", self.plan, "--target", _number(self.target),
-                     "--max-extra", str(self.max_extra)]  # fmt: skip
-        flags = (("--no-closing", not self.closing), ("--no-self-test", not self.self_test),
-                 ("--pdf", self.pdf), ("--no-archive", self.no_archive), ("--yes", self.yes),
-                 ("--json", self.json))  # fmt: skip
+        args += _schedule_words(self.schedule)
+        args += _compute_words(self.compute)
+        args += _provenance_words(self.provenance)
+        if self.planning.plan != "fixed":  # the resumed session plans as this one did
+            p = self.planning
+            args += ["--plan", p.plan, "--target", _number(p.target),
+                     "--max-extra", str(p.max_extra)]  # fmt: skip
+        flags = (("--no-closing", not self.schedule.closing),
+                 ("--no-self-test", not self.schedule.self_test),
+                 ("--pdf", self.compute.pdf), ("--no-archive", self.provenance.no_archive),
+                 ("--yes", self.yes), ("--json", self.json))  # fmt: skip
         return [*args, *(a for a, on in flags if on), *then]
+
+
+def _check_model(compute: ComputeSettings) -> None:
+    """A bad --model (or term file) fails now, not after the session."""
+    from host.model.catalogue import CATALOGUE
+    from host.model.loader import load_term_file
+    from host.model.spec import parse_model
+
+    cat = dict(CATALOGUE)
+    for f in compute.term_files:
+        cat = load_term_file(f, cat)
+    parse_model(compute.model, cat)
+
+
+def _check_planning(p: Planning) -> None:
+    """The plan's name, target and record budget."""
+    if p.plan not in PLANS:
+        raise UserError(
+            f"--plan {p.plan}: give fixed (the method's plan), adaptive, poses or poses16"
+        )
+    if not (math.isfinite(p.target) and p.target > 0.0):
+        raise UserError(f"--target {p.target:g}: give the worst σ/tolerance to reach, e.g. 0.05")
+    if not 0 <= p.max_extra <= MAX_EXTRA:
+        raise UserError(
+            f"--max-extra {p.max_extra}: give 0 to {MAX_EXTRA} records ({MAX_EXTRA} is "
+            "about an hour of the operator's time)"
+        )
+
+
+def _check_names(p: Provenance) -> None:
+    """Names written into every record's header and the archive: printable, one line."""
+    for opt, name in (("--operator", p.operator), ("--bench", p.bench), ("--lot", p.lot)):
+        problem = None if name is None else name_problem(name)
+        if problem is not None:  # was: written into every record's header and the archive
+            raise UserError(f"{opt}: {problem}")
+
+
+def _checked_serial(f: SessionFiles) -> SessionFiles:
+    """The serial number as parsed."""
+    if f.serial is None:
+        return f
+    try:
+        return replace(f, serial=parse_serial(f.serial))
+    except ValueError as exc:
+        raise UserError(f"--serial: {exc}") from None
+
+
+def _check_redo(f: SessionFiles, yes: bool) -> None:
+    """The records --redo names are record names; --yes has the serial number."""
+    unknown = [n for n in f.redo if not RECORD_NAME_RE.fullmatch(n)]
+    if unknown:
+        names = (*STATIC_NAMES, *TURN_NAMES, CLOSING_NAME)
+        raise UserError(
+            f"--redo {unknown[0]}: not a record name; use one of " + ", ".join(names)
+            + " or a repeat of one (x_ccw_2)"
+        )  # fmt: skip
+    if yes and f.serial is None:
+        raise UserError("--yes needs --serial (the serial number is mandatory)")
+
+
+def _checked_schedule(s: Schedule) -> Schedule:
+    """The accumulation time as parsed; turns, warm-up and pause in their ranges."""
+    static_seconds = s.static_seconds
+    if static_seconds is not None:
+        try:
+            static_seconds = parse_seconds(str(static_seconds))
+        except ValueError as exc:
+            raise UserError(f"--static-seconds: {exc}") from None
+    if s.turns is not None and not 1 <= s.turns <= MAX_TURNS:
+        raise UserError(f"--turns must be 1 to {MAX_TURNS} (3 or fewer recommended)")
+    if not math.isfinite(s.warmup_s) or s.warmup_s < 0:
+        raise UserError("--warmup must be 0 (skip) or a number of seconds")
+    if s.ready_s is not None and (not math.isfinite(s.ready_s) or s.ready_s < 0):
+        raise UserError("--ready-seconds must be 0 or more")
+    return replace(s, static_seconds=static_seconds)
+
+
+def _schedule_words(s: Schedule) -> list[str]:
+    """The warm-up and the pause before a turn as command-line words."""
+    words = ["--warmup", _number(s.warmup_s)]
+    if s.ready_s is not None:
+        words += ["--ready-seconds", _number(s.ready_s)]
+    return words
+
+
+def _compute_words(c: ComputeSettings) -> list[str]:
+    """The options of how the result is computed that differ from the defaults."""
+    words: list[str] = []
+    if c.latitude_deg != DEFAULT_LATITUDE_DEG:
+        words += ["--latitude", _number(c.latitude_deg)]
+    if c.height_m != DEFAULT_HEIGHT_M:
+        words += ["--height", _number(c.height_m)]
+    if c.model != "base":
+        words += ["--model", c.model]
+    for f in c.term_files:
+        words += ["--term-file", f]
+    if c.verify:
+        words += ["--verify", c.verify]
+    for opt, val in (("--floor", c.floor), ("--thermal", c.thermal), ("--noise", c.noise_file)):
+        if val:
+            words += [opt, val]
+    return words
+
+
+def _provenance_words(p: Provenance) -> list[str]:
+    """Who, which bench, where archived and the lot, as given."""
+    words: list[str] = []
+    for opt, val in (("--operator", p.operator), ("--bench", p.bench),
+                     ("--archive", p.archive), ("--lot", p.lot)):  # fmt: skip
+        if val:
+            words += [opt, val]
+    return words
 
 
 def _number(x: float) -> str:

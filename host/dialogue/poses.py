@@ -206,8 +206,8 @@ def worst_fitted(records: Mapping[str, Record], opts: DialogueOptions, serial: s
     """(the worst σ/tolerance of the values the records determine, its name), from the fit of
     every record so far (``calibrate --from-dir``'s); ∞ while a value is not determined."""
     res = calibrate_from_records(
-        Session(serial=serial, records=dict(records)), latitude_deg=opts.latitude_deg,
-        height_m=opts.height_m, model=opts.model,
+        Session(serial=serial, records=dict(records)), latitude_deg=opts.compute.latitude_deg,
+        height_m=opts.compute.height_m, model=opts.compute.model,
     )  # fmt: skip
     worst, name = 0.0, ""
     for p in res.parameters:
@@ -224,12 +224,12 @@ def measure_poses(dlg: Measuring, opts: DialogueOptions) -> None:
     """The records of ``--plan poses`` / ``poses16``: pose after pose (kept ones count, the
     first after a resume without a move), until the target is met or the scheme ends."""
     seconds = dlg._ask_static_seconds()
-    scheme = opts.plan == "poses16"
+    scheme = opts.planning.plan == "poses16"
     op = dlg.op
     numbers = [int(m.group("n")) for n in dlg.done if (m := POSE_NAME_RE.match(n))]
     k = max(numbers, default=0)
     previous: str | None = None  # a resumed sitting starts without a move
-    limit = len(SIXTEEN) if scheme else FIRST_FIT_POSES + opts.max_extra
+    limit = len(SIXTEEN) if scheme else FIRST_FIT_POSES + opts.planning.max_extra
     while k < limit:
         ups = pose_ups(dlg.done)
         op.say(coverage_line(ups))
@@ -246,11 +246,16 @@ def measure_poses(dlg: Measuring, opts: DialogueOptions) -> None:
             continue
         worst, name = worst_fitted(dlg.done, opts, dlg.serial)
         shown = f"{worst:.3g}" if math.isfinite(worst) else "∞ (a value not determined)"
-        if worst <= opts.target:
-            op.say(f"Poses: worst σ/tolerance {shown} ({name}): target {opts.target:g} met.")
+        if worst <= opts.planning.target:
+            op.say(
+                f"Poses: worst σ/tolerance {shown} ({name}): target {opts.planning.target:g} met."
+            )
             return
-        op.say(f"Poses: worst σ/tolerance {shown} ({name}), target {opts.target:g}.")
-    op.say(f"Poses: {k} poses measured" + ("" if scheme else f" (--max-extra {opts.max_extra})"))
+        op.say(f"Poses: worst σ/tolerance {shown} ({name}), target {opts.planning.target:g}.")
+    op.say(
+        f"Poses: {k} poses measured"
+        + ("" if scheme else f" (--max-extra {opts.planning.max_extra})")
+    )
 
 
 def _noise(records: Mapping[str, Record], g: float) -> tuple[float, float]:

@@ -66,7 +66,7 @@ YES_RECONNECT_S = 60.0
 
 
 class Recorder:
-    """The records of a dialogue: ``op`` asks, ``board`` measures; files go to ``opts.out``."""
+    """The records of a dialogue: ``op`` asks, ``board`` measures; files go to its directory."""
 
     def __init__(
         self,
@@ -76,15 +76,15 @@ class Recorder:
     ) -> None:
         self.opts = opts
         self.op = Questions(console, yes=opts.yes, idle=self._idle)
-        self.board = Board(opts.port or "sim://", port_factory, opts.stall_s, self._warn,
-                           opts.hello_timeout_s, opts.sample_stall_s)  # fmt: skip
-        self.g = local_gravity(opts.latitude_deg, opts.height_m)
+        self.board = Board(opts.port or "sim://", port_factory, opts.link.stall_s, self._warn,
+                           opts.link.hello_timeout_s, opts.link.sample_stall_s)  # fmt: skip
+        self.g = local_gravity(opts.compute.latitude_deg, opts.compute.height_m)
         self.serial = ""
         self.out_dir = Path()
         self.done: dict[str, Record] = {}
         self.accepted: list[str] = []
-        self.turns: int | None = opts.turns
-        self.static_seconds: float | None = opts.static_seconds
+        self.turns: int | None = opts.schedule.turns
+        self.static_seconds: float | None = opts.schedule.static_seconds
         self._in_idle = False
         self._session_start_ns = time.monotonic_ns()
         #: True while the warm-up runs (Ctrl+C there discards no measurement)
@@ -109,7 +109,7 @@ class Recorder:
 
     def _recover(self, exc: Exception, measuring: bool) -> None:
         """The board vanished or went silent: wait for it (no pumping of the dead link)."""
-        limit = self.opts.reconnect_timeout_s
+        limit = self.opts.link.reconnect_timeout_s
         if limit is None and self.opts.yes:
             limit = YES_RECONNECT_S
         self._in_idle = True
@@ -270,7 +270,7 @@ class Recorder:
             attempts += 1
             op.any_key(screens.turn_place_prompt(axis))
             op.say(screens.get_ready_line(n, direction, window))
-            ready = self.opts.ready_s
+            ready = self.opts.schedule.ready_s
             if ready is None:  # no pause when nobody turns the cube (--yes, virtual board)
                 ready = 0.0 if self.opts.yes and self.board.has_operator else DEFAULT_READY_S
             if ready > 0 and op.countdown(ready, "  start in", False):
@@ -311,7 +311,7 @@ class Recorder:
         # the engine's angle check needs the statics' bias, and a turn within the range
         statics = {k: v for k, v in self.done.items() if k in STATIC_NAMES} if not over else {}
         problems += turn_problems(
-            rec, self.g, self.serial, statics, self.out_dir, n, self.opts.latitude_deg
+            rec, self.g, self.serial, statics, self.out_dir, n, self.opts.compute.latitude_deg
         )
         return problems
 
@@ -329,14 +329,17 @@ class Recorder:
                        resume_hint=self._resume_hint, enough=enough)  # fmt: skip
 
     def _record(self, name: str, acq: Acquisition, extra: dict[str, str]) -> Record:
-        who = {"operator": self.opts.operator, "bench": self.opts.bench}  # the report's
+        who = {
+            "operator": self.opts.provenance.operator,
+            "bench": self.opts.provenance.bench,
+        }  # the report's
         extra = {**extra, **{k: " ".join(v.split()) for k, v in who.items() if v and v.strip()}}
         return make_record(self.board, self.serial, name, acq, extra, self._session_start_ns)
 
     def _loss_problems(self, name: str, acq: Acquisition) -> list[str]:
         if acq.lost:
             self.op.say(screens.loss_line(name, acq))
-        return loss_problems(name, acq, self.opts.loss_limit)
+        return loss_problems(name, acq, self.opts.link.loss_limit)
 
     def _decide(self, name: str, problems: list[str], attempts: int) -> bool:
         """Save (True) or repeat (False). With problems the default is to repeat."""

@@ -12,6 +12,7 @@ import pytest
 
 from host.dialogue.console import ScriptedConsole
 from tests.host.cli.cli_run import run
+from tests.host.dialogue.flat_options import flat_options
 
 
 def test_esc_at_press_any_key_does_not_start_the_measurement() -> None:
@@ -148,11 +149,11 @@ def test_serial_number_message_states_the_rule_and_the_culprit() -> None:
 def test_yes_without_static_seconds_fails_before_the_board_and_the_warm_up(
     tmp_path: Path,
 ) -> None:
-    from host.dialogue import flow, options
+    from host.dialogue import flow
     from host.errors import UserError
 
     opened: list[str] = []
-    o = options.DialogueOptions(port="sim://?speed=max", serial="F1", out=tmp_path / "F1",
+    o = flat_options(port="sim://?speed=max", serial="F1", out=tmp_path / "F1",
                             yes=True, warmup_s=600.0)  # fmt: skip
     con = ScriptedConsole()
     with pytest.raises(UserError, match=r"--yes needs --static-seconds S, .*e\.g\."):
@@ -165,7 +166,7 @@ def test_ctrl_c_during_the_warm_up_does_not_speak_of_a_measurement(tmp_path: Pat
     import io
 
     from host.board.link import open_port
-    from host.dialogue import flow, options
+    from host.dialogue import flow
 
     con = ScriptedConsole()
 
@@ -174,7 +175,7 @@ def test_ctrl_c_during_the_warm_up_does_not_speak_of_a_measurement(tmp_path: Pat
             raise KeyboardInterrupt
 
     con.progress = interrupt_in_warm_up  # type: ignore[method-assign]
-    o = options.DialogueOptions(port="sim://?speed=max&effects=linear,noise&earth_rate=0",
+    o = flat_options(port="sim://?speed=max&effects=linear,noise&earth_rate=0",
                             serial="W1", out=tmp_path / "W1", static_seconds=2.0, turns=1,
                             warmup_s=30.0, yes=True, ready_s=0.0)  # fmt: skip
     with contextlib.redirect_stdout(io.StringIO()):
@@ -187,7 +188,7 @@ def test_ctrl_c_during_the_warm_up_does_not_speak_of_a_measurement(tmp_path: Pat
 def test_the_default_virtual_board_runs_at_full_speed_when_nobody_watches(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, yes: bool, url: str
 ) -> None:
-    from host.dialogue import flow, options
+    from host.dialogue import flow
     from host.errors import UserError
 
     monkeypatch.setattr(flow, "default_port", lambda: ("sim://", "NO BOARD FOUND"))
@@ -197,7 +198,7 @@ def test_the_default_virtual_board_runs_at_full_speed_when_nobody_watches(
         opened.append(u)
         raise UserError("enough")
 
-    o = options.DialogueOptions(serial="F1", out=tmp_path / "F1", static_seconds=2.0, turns=1,
+    o = flat_options(serial="F1", out=tmp_path / "F1", static_seconds=2.0, turns=1,
                             warmup_s=0.0, yes=yes)  # fmt: skip
     con = ScriptedConsole()
     with pytest.raises(UserError, match="enough"):
@@ -214,13 +215,13 @@ def test_no_pause_before_a_turn_when_nobody_turns_the_cube(tmp_path: Path) -> No
     import io
 
     from host.board.link import open_port
-    from host.dialogue import flow, options
+    from host.dialogue import flow
 
     for ready, counts in ((None, False), (0.5, True)):
         con = ScriptedConsole()
         shown: list[str] = []
         con.progress = shown.append  # type: ignore[method-assign]
-        o = options.DialogueOptions(port="sim://?speed=max&effects=linear,noise&earth_rate=0",
+        o = flat_options(port="sim://?speed=max&effects=linear,noise&earth_rate=0",
                                 serial="R1", out=tmp_path / f"R{ready}", static_seconds=1.0,
                                 turns=1, warmup_s=0.0, yes=True, ready_s=ready)  # fmt: skip
         with contextlib.redirect_stdout(io.StringIO()):

@@ -43,6 +43,45 @@ def test_every_command_has_a_description_and_a_runnable_example(path: list[str])
     assert ("exit status:" in out) == (path == ["calibrate"]), out  # said once, at the top
 
 
+def every_parser() -> list[tuple[str, argparse.ArgumentParser]]:
+    """Every parser of the command line, the top one and each command's and subcommand's."""
+    parser, _ = build_parser()
+    found: list[tuple[str, argparse.ArgumentParser]] = []
+
+    def walk(p: argparse.ArgumentParser) -> None:
+        found.append((p.prog, p))
+        for a in p._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                for child in a.choices.values():
+                    walk(child)
+
+    walk(parser)
+    return found
+
+
+def test_every_option_and_argument_of_every_command_has_help() -> None:
+    """Was: a dozen without a word (capture --baud, the archive's filters)."""
+    missing = [
+        f"{prog} {' '.join(a.option_strings) or a.dest}"
+        for prog, p in every_parser()
+        for a in p._actions
+        if not isinstance(a, argparse._SubParsersAction) and not (a.help or "").strip()
+    ]
+    assert missing == []
+
+
+def test_calibrate_and_the_archive_commands_name_the_default_archive_alike() -> None:
+    from host.archive.store import ARCHIVE_ENV
+
+    said = []
+    for prog, p in every_parser():
+        for a in p._actions:
+            if "--archive" in a.option_strings:
+                said.append(" ".join((a.help or "").split("(default ", 1)[1].split()))
+    assert len(said) == 1 + 11 and len(set(said)) == 1, said  # calibrate, the 11 actions
+    assert f"${ARCHIVE_ENV}" in said[0] and "~/.local/share/imu-bench/archive.sqlite" in said[0]
+
+
 def test_help_is_wrapped_at_spaces_only(monkeypatch: pytest.MonkeyPatch) -> None:
     """No word cut at its hyphen ("imu-" / "bench") at 80 columns."""
     monkeypatch.setenv("COLUMNS", "80")

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from host.bench.plan import write_session
 from host.workbench.scenarios import hidden_effect_case
 from tests.host.cli.cli_run import run
+from tests.host.dialogue.flat_options import flat_options
 
 
 @pytest.fixture(scope="module")
@@ -97,10 +98,10 @@ def test_the_adaptive_plans_options_where_nothing_reads_them(
 @given(st.integers(min_value=-(10**12), max_value=10**12))
 def test_max_extra_is_a_bound_an_operator_can_keep_or_one_line(n: int) -> None:
     """Was: --max-extra 1000000 with a target the records cannot meet ran with no end."""
-    from host.dialogue.options import MAX_EXTRA, DialogueOptions
+    from host.dialogue.options import MAX_EXTRA
     from host.errors import UserError
 
-    o = DialogueOptions(serial="M1", plan="adaptive", max_extra=n)
+    o = flat_options(serial="M1", plan="adaptive", max_extra=n)
     if 0 <= n <= MAX_EXTRA:
         o.check()
     else:

@@ -28,6 +28,7 @@ from host.errors import UserError
 from host.session.directory import read_record, read_session
 from host.session.records import STATIC_NAMES, TURN_NAMES
 from host.wire import protocol_gen as gen
+from tests.host.dialogue.flat_options import flat_options
 
 #: every record a default session writes, in the order measured: the closing check last
 ALL = (*STATIC_NAMES, *TURN_NAMES, options.CLOSING_NAME)
@@ -58,7 +59,7 @@ def opts(tmp_path: Path, url: str, **kw: Any) -> options.DialogueOptions:
         warmup_s=0.0, yes=True, ready_s=0.0,
     )  # fmt: skip
     base.update(kw)
-    return options.DialogueOptions(**base)
+    return flat_options(**base)
 
 
 def run(o: options.DialogueOptions, console: ScriptedConsole, ports: Ports) -> tuple[int, str]:

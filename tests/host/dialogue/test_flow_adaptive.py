@@ -22,10 +22,11 @@ from host.session.records import STATIC_NAMES, STOPPED_KEY, TURN_NAMES, Record
 from host.workbench.adaptive import Stopping, adaptive_run
 from host.workbench.planner import Candidate, candidates
 from host.workbench.stopping import TURN_PAIRS_MAX, StaticRule
+from tests.host.dialogue.flat_options import flat_options
 
 
 def _run(tmp: Path, **kw: object) -> tuple[str, Path, int]:
-    o = options.DialogueOptions(
+    o = flat_options(
         port="sim://?seed=9&speed=max", serial="AD1", out=tmp / "AD1", static_seconds=2.0,
         turns=1, warmup_s=0.0, yes=True, ready_s=0.0, plan="adaptive", **kw,  # type: ignore[arg-type]
     )  # fmt: skip
@@ -66,7 +67,7 @@ def test_it_adds_nothing_when_the_target_is_already_met(tmp_path: Path) -> None:
 def test_bad_plan_options_are_refused_before_the_board() -> None:
     for kw, word in (({"plan": "best"}, "--plan"), ({"target": 0.0}, "--target"),
                      ({"max_extra": -1}, "--max-extra")):  # fmt: skip
-        o = options.DialogueOptions(serial="AD1", **kw)  # type: ignore[arg-type]
+        o = flat_options(serial="AD1", **kw)  # type: ignore[arg-type]
         with pytest.raises(options.UserError, match=word):
             o.check()
 
@@ -79,7 +80,7 @@ def test_the_dialogue_measures_what_the_benchmarks_adaptive_run_plans(tmp_path: 
     :func:`host.workbench.adaptive.adaptive_run`, handed the dialogue's records, asks for the
     same records in the same order and counts the same operator time."""
     target, static_s = 0.005, 60.0
-    o = options.DialogueOptions(
+    o = flat_options(
         port="sim://?seed=9&speed=max&effects=linear,noise", serial="PR1", out=tmp_path / "PR1",
         static_seconds=static_s, turns=1, warmup_s=0.0, yes=True, ready_s=0.0, plan="adaptive",
         target=target, max_extra=2, closing=False,

@@ -20,6 +20,7 @@ from host.dialogue.adaptive import adaptive_plan
 from host.dialogue.console import ScriptedConsole
 from host.session.directory import EARLIER_DIR, read_record, read_session
 from host.session.method import local_gravity
+from tests.host.dialogue.flat_options import flat_options
 
 SERIAL = "AR1"
 STATIC_S = 2.0
@@ -46,7 +47,7 @@ class CutAfter(ScriptedConsole):
 
 
 def _opts(out: Path, **kw: object) -> options.DialogueOptions:
-    return options.DialogueOptions(
+    return flat_options(
         port="sim://?seed=9&speed=max", serial=SERIAL, out=out, static_seconds=STATIC_S,
         turns=1, warmup_s=0.0, yes=True, ready_s=0.0, plan="adaptive", target=1e-6,
         **{"max_extra": MAX_EXTRA, **kw},  # type: ignore[arg-type]

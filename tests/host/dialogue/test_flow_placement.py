@@ -26,6 +26,7 @@ from host.dialogue.console import ScriptedConsole
 from host.model.geometry import plate_axes
 from host.session.directory import read_record
 from host.session.records import HEADING_KEY, STATIC_NAMES, TURN_NAMES
+from tests.host.dialogue.flat_options import flat_options
 from tests.host.dialogue.test_flow_pty import emu_missing
 
 #: the operator's words -> the room direction (east, north) of the arrow, with the fence
@@ -45,7 +46,7 @@ PROMPT = re.compile(
 
 def _dialogue(port: str, out: Path, serial: str) -> str:
     """A whole ``--yes`` session on ``port`` into ``out``; what the operator was shown."""
-    o = options.DialogueOptions(
+    o = flat_options(
         port=port, serial=serial, out=out, static_seconds=2.0, turns=1, warmup_s=0.0,
         yes=True, ready_s=0.0, hello_timeout_s=30.0,
     )  # fmt: skip

@@ -21,6 +21,7 @@ from host.errors import UserError
 from host.session.directory import read_record
 from host.session.records import STATIC_NAMES, TURN_NAMES
 from tests.host.cli.cli_run import command_after, too_wide
+from tests.host.dialogue.flat_options import flat, options_of, with_options
 from tests.host.dialogue.test_flow import LINEAR, Ports, run
 from tests.host.dialogue.test_flow import opts as live_opts
 
@@ -29,17 +30,6 @@ def opts(tmp_path: Path, url: str, **kw: Any) -> options.DialogueOptions:
     """test_flow's options for unit F1: 2 s statics, one turn each way."""
     short: dict[str, Any] = dict(serial="F1", out=tmp_path / "F1", static_seconds=2.0, turns=1)
     return live_opts(tmp_path, url, **{**short, **kw})
-
-
-def options_of(command: str) -> options.DialogueOptions:
-    """The DialogueOptions a printed ``python3 -m host calibrate ...`` command line gives, read
-    as a POSIX shell would split it."""
-    from host.__main__ import build_parser
-
-    argv = shlex.split(command)
-    assert argv[:4] == ["python3", "-m", "host", "calibrate"], command
-    parser, _ = build_parser()
-    return options.DialogueOptions.from_args(parser.parse_args(argv[3:]))
 
 
 # --------------------------------------------------------------------------- checks first
@@ -55,9 +45,9 @@ def test_yes_with_resume_needs_no_static_seconds_when_the_statics_are_kept(
     write_session(tmp_path / "F1", "F1", {n: r for n, r in recs.items() if n in STATIC_NAMES})
     o = opts(tmp_path, "sim://", static_seconds=None, resume=True)
     o.check()  # nothing static to measure: no question to answer
-    o.redo = ("y_dn",)
+    o = with_options(o, redo=("y_dn",))
     o.check()  # a static measured again takes the kept statics' length (said, not asked)
-    o.redo = STATIC_NAMES  # none kept: nothing says how long
+    o = with_options(o, redo=STATIC_NAMES)  # none kept: nothing says how long
     with pytest.raises(UserError, match="--static-seconds"):
         o.check()
 
@@ -97,7 +87,7 @@ def test_ctrl_c_prints_a_command_with_every_option_and_the_answers(tmp_path: Pat
     rc, _ = run(o, con, Ports())
     assert rc == 130
     assert "Aborted (Ctrl+C): the measurement in progress is discarded." in con.text
-    again = options_of(shlex.join(command_after(con.text)))
+    again = flat(options_of(shlex.join(command_after(con.text))))
     assert again.resume and again.port == url and again.serial == "F1"
     assert again.out == out
     assert (again.static_seconds, again.turns, again.warmup_s, again.ready_s) == (
@@ -146,7 +136,7 @@ def test_a_resume_hint_keeps_to_80_columns_and_pastes_back_whatever_the_path(
     assert rc == 130 and list(out.glob("F1_*_*.txt"))  # a record kept (the plan's first)
     hint = con.text.split("Aborted (Ctrl+C)", 1)[1]  # the prose before: wrapped on screen
     assert too_wide(hint) == [], hint
-    again = options_of(shlex.join(command_after(con.text)))
+    again = flat(options_of(shlex.join(command_after(con.text))))
     assert again.out == out and again.resume and again.port == url
     assert (again.plan, again.target, again.max_extra) == ("adaptive", 0.08, 3)
     assert (again.operator, again.bench, again.lot, again.pdf) == ("Ann Lee", "B2", "L7", True)
@@ -174,17 +164,18 @@ def test_a_turn_kept_despite_its_warning_ends_with_the_record_to_redo(tmp_path: 
     assert "turn" in header["warning"]
     said = command_after(msg, "with:")
     again = options_of(shlex.join(said))
-    assert again.redo == ("x_ccw",) and again.static_seconds == 2.0 and again.turns == 1
+    read = flat(again)
+    assert read.redo == ("x_ccw",) and read.static_seconds == 2.0 and read.turns == 1
     # --resume (everything measured) does not stop on the bare error either: it names the redo
     resumed = options_of(shlex.join([*said[:-2], "--resume"]))
-    resumed.yes = True
+    resumed = with_options(resumed, yes=True)
     with pytest.raises(UserError) as e2:
         run(resumed, ScriptedConsole(), Ports())
     assert "measure x_ccw again" in " ".join(str(e2.value).split())
     assert command_after(str(e2.value), "with:")[-2:] == ["--redo", "x_ccw"]
-    assert again.out == tmp_path / "a b" / "F1"
-    again.yes = True
-    again.port = f"sim://?seed=12&{LINEAR}"  # the same bench, without the operator's fault
+    assert read.out == tmp_path / "a b" / "F1"
+    # the same bench, without the operator's fault
+    again = with_options(again, yes=True, port=f"sim://?seed=12&{LINEAR}")
     rc, stdout = run(again, ScriptedConsole(), Ports())
     assert rc in (0, 1) and "TEST REPORT" in stdout
     assert "warning" not in read_record(tmp_path / "a b" / "F1" / "F1_x_ccw.txt").meta

@@ -14,6 +14,7 @@ from host.archive.store import Archive
 from host.calib.codec import read_result
 from host.session.directory import read_record
 from host.session.records import STATIC_NAMES
+from tests.host.dialogue.flat_options import flat_options
 
 
 @pytest.mark.slow  # a whole --yes session on the virtual board (~20 s)
@@ -79,11 +80,10 @@ def test_a_calibration_without_the_self_test_says_not_run_everywhere(
 def test_no_self_test_is_kept_by_the_resume_command_and_refused_with_from_dir(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from host.dialogue.options import DialogueOptions
 
-    skip = DialogueOptions(port="sim://", self_test=False)
+    skip = flat_options(port="sim://", self_test=False)
     assert "--no-self-test" in skip.command("N2", static_seconds=5.0, turns=1, port="sim://")
-    run = DialogueOptions(port="sim://")
+    run = flat_options(port="sim://")
     assert "--no-self-test" not in run.command("N2", static_seconds=5.0, turns=1, port="sim://")
     assert main(["calibrate", "--from-dir", str(tmp_path), "--no-self-test"]) == 2
     err = capsys.readouterr().err.strip().splitlines()

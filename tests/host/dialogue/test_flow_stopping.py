@@ -13,16 +13,17 @@ from pathlib import Path
 import pytest
 
 from host.calib.provenance import Provenance
-from host.dialogue import flow, options
+from host.dialogue import flow
 from host.dialogue.console import ScriptedConsole
 from host.session.directory import read_session
 from host.session.records import STATIC_NAMES, STOPPED_KEY
 from host.workbench.stopping import TURN_PAIRS_MAX
+from tests.host.dialogue.flat_options import flat_options
 from tests.host.dialogue.test_flow_pty import emu_missing
 
 
 def _run(tmp: Path, **kw: object) -> tuple[str, Path]:
-    o = options.DialogueOptions(
+    o = flat_options(
         port="sim://?seed=4&speed=max", serial="ST1", out=tmp / "ST1", turns=1, warmup_s=0.0,
         yes=True, ready_s=0.0, plan="adaptive", max_extra=0, closing=False, **kw,  # type: ignore[arg-type]
     )  # fmt: skip
@@ -77,7 +78,7 @@ def test_a_target_out_of_reach_measures_the_maximum_and_says_so(tmp_path: Path) 
 @pytest.mark.skipif(emu_missing() is not None, reason=str(emu_missing()))
 def test_the_adaptive_dialogue_runs_end_to_end_on_the_real_firmware(tmp_path: Path) -> None:
     """``emu://``: the firmware in the emulator, its virtual operator placing and turning."""
-    o = options.DialogueOptions(
+    o = flat_options(
         port="emu://", serial="EM1", out=tmp_path / "EM1", turns=1, warmup_s=0.0, yes=True,
         ready_s=0.0, plan="adaptive", target=10.0, max_extra=1, static_seconds=3.0,
         hello_timeout_s=30.0,

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from types import SimpleNamespace
 
 import pytest
 from hypothesis import given, settings
@@ -14,14 +13,15 @@ from hypothesis import strategies as st
 from host.dialogue import options
 from host.errors import UserError
 from host.session.records import turn_window_s
+from tests.host.dialogue.flat_options import flat, flat_options, options_of
 
 
 def test_options_from_args() -> None:
-    ns = SimpleNamespace(port="sim://", serial="A-1", out="d", static_seconds=5.0, turns=3,
-                         warmup=0.0, latitude=50.0, height=10.0, yes=True, json=False,
-                         resume=True, capture=None, ready_seconds=1.5)  # fmt: skip
-    o = options.DialogueOptions.from_args(ns)  # type: ignore[arg-type]
-    assert (o.out, o.turns, o.warmup_s, o.resume, o.ready_s) == (Path("d"), 3, 0.0, True, 1.5)
+    o = options_of("python3 -m host calibrate --port sim:// --serial A-1 --out d "
+                   "--static-seconds 5 --turns 3 --warmup 0 --latitude 50 --height 10 --yes "
+                   "--resume --ready-seconds 1.5")  # fmt: skip
+    f = flat(o)
+    assert (f.out, f.turns, f.warmup_s, f.resume, f.ready_s) == (Path("d"), 3, 0.0, True, 1.5)
     o.check()
     for bad in ("", "x" * 13, "a b", "é"):
         with pytest.raises(ValueError):
@@ -37,12 +37,12 @@ def test_turn_windows() -> None:
 
 def test_the_latitude_is_checked_before_the_board() -> None:
     with pytest.raises(UserError, match="latitude"):
-        options.DialogueOptions(serial="A", latitude_deg=123.0).check()
+        flat_options(serial="A", latitude_deg=123.0).check()
 
 
 def test_redo_names_are_checked() -> None:
     with pytest.raises(UserError, match="--redo x_side: not a record name; use one of x_up"):
-        options.DialogueOptions(serial="A", redo=("x_side",)).check()
+        flat_options(serial="A", redo=("x_side",)).check()
 
 
 @settings(max_examples=40, deadline=None)
@@ -59,25 +59,22 @@ def test_redo_takes_every_record_name_a_session_writes_and_nothing_else(
     the planner's ``y_up_3``) are names ``--redo`` measures again; anything else is refused
     with the names to use."""
     name = f"{axis}_{way}" + (f"_{rep}" if rep else "")
-    options.DialogueOptions(serial="A", redo=(name,)).check()
+    flat_options(serial="A", redo=(name,)).check()
     if not re.fullmatch(r"[xyz]_(up|dn|ccw|cw)(_[0-9A-Za-z]+)?", junk):
         with pytest.raises(UserError, match=r"(?s)--redo .*not a record name; use one of x_up"):
-            options.DialogueOptions(serial="A", redo=(junk,)).check()
+            flat_options(serial="A", redo=(junk,)).check()
 
 
 def test_redo_takes_several_names_comma_separated_or_repeated() -> None:
-    from host.__main__ import build_parser
-
-    parser, _ = build_parser()
-    args = parser.parse_args(["calibrate", "--redo", "x_up,y_cw", "--redo", "z_dn"])
-    assert options.DialogueOptions.from_args(args).redo == ("x_up", "y_cw", "z_dn")
+    o = options_of("python3 -m host calibrate --redo x_up,y_cw --redo z_dn")
+    assert o.files.redo == ("x_up", "y_cw", "z_dn")
 
 
 @pytest.mark.parametrize("opt", ["operator", "bench", "lot"])
 def test_a_name_with_a_control_character_is_refused_before_the_board(opt: str) -> None:
     """It would be written into every record's header and the archive (an escape sequence then
     colours or clears the screen of whoever lists the lot)."""
-    o = options.DialogueOptions(serial="A", **{opt: "bench\x1b[2J"})
+    o = flat_options(serial="A", **{opt: "bench\x1b[2J"})
     with pytest.raises(UserError, match=f"--{opt}: .*control character"):
         o.check()
-    options.DialogueOptions(serial="A", **{opt: "Ana María, bench 3"}).check()
+    flat_options(serial="A", **{opt: "Ana María, bench 3"}).check()

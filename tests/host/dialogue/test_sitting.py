@@ -29,6 +29,7 @@ from host.session.directory import (
     sitting_files,
 )
 from tests.host.cli.cli_run import command_after
+from tests.host.dialogue.flat_options import flat_options
 
 SHORT = ["--yes", "--warmup", "0", "--static-seconds", "2", "--turns", "1", "--no-archive"]
 #: slow enough to be interrupted mid-session: 4 simulated s per wall second, so its first record
@@ -146,14 +147,13 @@ def test_setting_aside_moves_the_bytes_of_a_sitting_and_nothing_of_another_unit(
 
 
 def test_a_capture_file_is_never_overwritten(tmp_path: Path) -> None:
-    from host.dialogue.options import DialogueOptions
     from host.wire.capture import CaptureWriter
 
     cap = tmp_path / "s.cap"
     cap.write_bytes(b"IMUCAP01 earlier")
     with pytest.raises(UserError, match="never overwritten"):
         CaptureWriter(cap)
-    opts = DialogueOptions(serial="S1", out=tmp_path / "S1", resume=True, capture=cap)
+    opts = flat_options(serial="S1", out=tmp_path / "S1", resume=True, capture=cap)
     with pytest.raises(UserError, match=r"--capture .*never overwritten"):
         opts.check()  # before any board is opened
     done = subprocess.run(
