@@ -98,7 +98,8 @@ EXAMPLES: dict[str, str] = {
   python3 -m host calibrate --from-dir U17/
       recompute the report from saved records""",
     "capture": """examples:
-  python3 -m host capture --port /dev/ttyACM0 session.cap        until Ctrl+C
+  python3 -m host capture --port /dev/ttyACM0 session.cap
+      until Ctrl+C
   python3 -m host capture --port "sim://?speed=10" --seconds 5 s.cap""",
     "decode": """examples:
   python3 -m host decode session.cap --jsonl | head
@@ -107,13 +108,18 @@ EXAMPLES: dict[str, str] = {
   python3 -m host model diagnose DIR --plot plots/
   python3 -m host model add DIR temperature_bias:gyro:x""",
     "archive": """examples:
-  python3 -m host archive add U17/                   keep U17's result in your archive
-  python3 -m host archive repeat U17                 do its calibrations agree within σ?
-  python3 -m host archive drift                      which units moved: recalibrate
+  python3 -m host archive add U17/
+      keep U17's result in your archive
+  python3 -m host archive repeat U17
+      do its calibrations agree within σ?
+  python3 -m host archive drift
+      which units moved: recalibrate
   python3 -m host archive lot --archive postgresql://qc@db/line
-  python3 -m host archive check-bench REF01          compare the benches on a reference unit""",
+  python3 -m host archive check-bench REF01
+      compare the benches on a reference unit""",
     "plan": """examples:
-  python3 -m host plan U17/                  the next record that buys the most precision
+  python3 -m host plan U17/
+      the next record that buys the most precision
   python3 -m host plan U17/ --model base,temperature_bias:gyro --top 5
   python3 -m host plan U17/ --separate scale_asymmetry:gyro:z scale_nonlinearity:gyro:z
       the record that tells two explanations apart""",
@@ -122,28 +128,41 @@ EXAMPLES: dict[str, str] = {
     "import": """examples:
   python3 -m host import logger.csv --columns t,temp,ax,ay,az,gx,gy,gz \\
       --units t=ms,accel=g,gyro=rad/s --axes x,-y,-z --serial LOG1 --out LOG1/
-  python3 -m host import session.cap --serial U17 --out U17/   a capture, cut into records""",
+  python3 -m host import session.cap --serial U17 --out U17/
+      a capture, cut into records""",
     "thermal": """examples:
-  python3 -m host thermal U17/ --plot U17_thermal.png   bias(T) from warm-up and statics
-  python3 -m host thermal U17/ --window 5               records of 10 s: 5 s windows""",
+  python3 -m host thermal U17/ --plot U17_thermal.png
+      bias(T) from warm-up and statics
+  python3 -m host thermal U17/ --window 5
+      records of 10 s: 5 s windows""",
     "noise": """examples:
-  python3 -m host noise U17/U17_x_up.txt --plot allan.png    the figures and their plot
-  python3 -m host noise long.cap --save U17_noise.json       the noise file of the unit
-  python3 -m host noise long.cap --plan 10%                  how long to record""",
+  python3 -m host noise U17/U17_x_up.txt --plot allan.png
+      the figures and their plot
+  python3 -m host noise long.cap --save U17_noise.json
+      the noise file of the unit
+  python3 -m host noise long.cap --plan 10%
+      how long to record""",
     "flash": """examples:
-  python3 -m host flash --port /dev/ttyACM0           build, flash, check the HELLO
-  python3 -m host flash --port 'emu://?flash=board.flash'    the emulated board, no hardware""",
+  python3 -m host flash --port /dev/ttyACM0
+      build, flash, check the HELLO
+  python3 -m host flash --port 'emu://?flash=board.flash'
+      the emulated board, no hardware""",
     "export": """examples:
   python3 -m host export U17/ --to ardupilot --out U17.parm
-  python3 -m host export U17/ --to px4 --axes x,-y,-z       the board's axes
-  python3 -m host export U17/ --to c-header --allow-fail    a FAILED result, marked so
-  python3 -m host export U17/ --to ardupilot --thermal      with INS_TCAL1_* from bias(T)""",
+  python3 -m host export U17/ --to px4 --axes x,-y,-z
+      the board's axes
+  python3 -m host export U17/ --to c-header --allow-fail
+      a FAILED result, marked so
+  python3 -m host export U17/ --to ardupilot --thermal
+      with INS_TCAL1_* from bias(T)""",
 }
 
 
 class WholeWords(argparse.RawDescriptionHelpFormatter):
     """Help text wrapped at spaces only ("imu-bench" is not cut at its hyphen); description
-    and examples keep their lines, a line too long for the terminal wrapped under its indent."""
+    and examples keep their lines, a line too long for the terminal wrapped under its indent,
+    an example's command kept whole on lines of its own (:func:`host.cli.screen.
+    help_examples`)."""
 
     def _split_lines(self, text: str, width: int) -> list[str]:
         import textwrap
@@ -152,9 +171,9 @@ class WholeWords(argparse.RawDescriptionHelpFormatter):
                              break_long_words=False)  # fmt: skip
 
     def _fill_text(self, text: str, width: int, indent: str) -> str:
-        from host.cli.screen import wrap
+        from host.cli.screen import help_examples
 
-        return wrap("\n".join(indent + line for line in text.splitlines()), width + 2)
+        return help_examples("\n".join(indent + line for line in text.splitlines()), width + 2)
 
 
 class OneLineErrors(argparse.ArgumentParser):

@@ -17,8 +17,8 @@
 Shared by the commands: ``options`` (``options.py``): each command's typed options, read once
 from its arguments (a frozen dataclass per command, built at this edge: nothing else reads the
 argparse namespace), and the argument groups commands share — the model and its term files, the
-noise floor, the site, the workbench's records, the archive; :func:`pyplot` (the one place that says how to get matplotlib),
-:func:`out_directory` (an ``--out`` directory made if missing), and
+noise floor, the site, the workbench's records, the archive; :func:`pyplot` (the one place that
+says how to get matplotlib), :func:`out_directory` (an ``--out`` directory made if missing), and
 ``screen`` (``screen.py``): the width rule — text wrapped at words within the terminal, tables
 narrowed, long commands broken so they still run, the progress line of a long wait; and
 ``figures`` (``figures.py``): the plots of ``model``, ``noise`` and ``thermal``.

@@ -285,12 +285,12 @@ def _report(args: ArchiveOptions) -> int:
 
 #: each action's examples (what follows ``python3 -m host archive ACTION``)
 ARCHIVE_EXAMPLES: dict[str, tuple[str, ...]] = {
-    "add": (" U17/                 keep U17's result", " runs/*/ --bench B2 --lot L7"),
+    "add": (" U17/\n      keep U17's result", " runs/*/ --bench B2 --lot L7"),
     "list": ("", " --serial U17"),
     "show": (" U17", " --id 12"),
     "trend": (" U17 --param G0x",),
-    "repeat": (" U17                do its calibrations agree within σ?", " --across-benches"),
-    "drift": ("                     which units moved: recalibrate", " --tol G0x=0.05"),
+    "repeat": (" U17\n      do its calibrations agree within σ?", " --across-benches"),
+    "drift": ("\n      which units moved: recalibrate", " --tol G0x=0.05"),
     "lot": (" L7", " --param Gxx"),
     "control": (" --serial REF01",),
     "check-bench": (" REF01",),

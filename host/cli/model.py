@@ -449,7 +449,8 @@ def cli_model(p: argparse.ArgumentParser) -> Command[ModelCommandOptions | None]
 
     t = command("terms", "list the terms: physics, parameters and units",
                 "  python3 -m host model terms\n"
-                "  python3 -m host model terms --term-file my_terms.py  with your own")  # fmt: skip
+                "  python3 -m host model terms --term-file my_terms.py\n"
+                "      with your own")  # fmt: skip
     t.add_argument("--term-file", action="append", default=[], metavar="F",
                    help="also list the terms of this Python file (repeatable)")  # fmt: skip
     t.add_argument("--json", action="store_true", help="the list as JSON")
@@ -586,7 +587,7 @@ def cli_demo(p: argparse.ArgumentParser) -> Command[DemoOptions | None]:
         "hidden-effect", help="an effect hidden in a simulated session, found by the workbench",
         description=text, formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  python3 -m host demo hidden-effect --effect temperature --seed 4\n"
-        "  python3 -m host demo hidden-effect --out /tmp/demo     every effect, records kept",
+        "  python3 -m host demo hidden-effect --out /tmp/demo\n      every effect, records kept",
     )  # fmt: skip
     h.add_argument("--effect", default="all", help=f"all (default) or one of {', '.join(EFFECTS)}")
     h.add_argument("--seed", type=int, default=1, help="simulation seed (default 1)")

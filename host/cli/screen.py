@@ -89,6 +89,63 @@ def wrap(text: str, width: int | None = None) -> str:
     return "\n".join(out)
 
 
+#: how an example of a command's help starts: the command, on lines of its own
+EXAMPLE_START = "  python3 -m host "
+
+
+def help_examples(text: str, width: int) -> str:
+    """A help text whose examples (lines starting with :data:`EXAMPLE_START`, continued by
+    lines after a trailing `` \\``) are laid out whole: each command on lines of its own,
+    broken only between words with `` \\`` and a 4-space indent, as written (a quote or a
+    glob kept), so that it runs when pasted; its description — the lines indented more, after
+    it — and every other line wrapped at words under their indent."""
+    out: list[str] = []
+    lines = text.split("\n")
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        if not line.startswith(EXAMPLE_START):
+            out.append(wrap(line, width))
+            i += 1
+            continue
+        while line.endswith("\\") and i + 1 < len(lines):  # its continuation lines
+            i += 1
+            line = line[:-1] + lines[i].strip()
+        out.append(_example_command(line, width))
+        i += 1
+    return "\n".join(out)
+
+
+def _example_command(line: str, width: int) -> str:
+    """One example's command (its words as written, shell quotes kept) on one line when it
+    fits in ``width``, else broken with `` \\`` before an option (an option and its values
+    kept together where they fit a line), continued 4 columns in."""
+    import shlex
+
+    units: list[list[str]] = []
+    for word in shlex.split(line, posix=False):  # each word as written, quotes and all
+        if not units or (word.startswith("--") and units[-1][0] != ""):
+            units.append([word])
+        else:
+            units[-1].append(word)
+    lines: list[str] = []
+    cur = "  " + units[0][0]
+    for unit in [units[0][1:], *units[1:]]:
+        if not unit:
+            continue
+        text = " ".join(unit)
+        if len(cur) + 1 + len(text) + 2 <= width:
+            cur += " " + text
+            continue
+        for word in unit if len("    " + text) + 2 > width else [text]:
+            if len(cur) + 1 + len(word) + 2 <= width:
+                cur += " " + word
+            else:
+                lines.append(cur + " \\")
+                cur = "    " + word
+    return "\n".join([*lines, cur])
+
+
 @dataclass(frozen=True)
 class Column:
     """One column of :func:`table`: its header, its cells (one per row), ``<`` or ``>``

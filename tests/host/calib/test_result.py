@@ -107,27 +107,42 @@ def test_apply_names_the_missing_input(temperature_session: tuple[Path, str, flo
         apply(res, rec.accel[:5], rec.gyro[:5], temp_c=np.ones(3))
 
 
-# ---- one engine: the same numbers from calibrate and the workbench --------------------------
-def test_imucal_same_constants_and_errors_from_calibrate_and_diagnose(
+# ---- real data: calibrate's result file against imucal's own ------------------------------
+def test_imucal_same_constants_from_calibrate_as_imucals_own_result(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    """``calibrate --from-dir`` on imucal's example session, read back from the result it
+    prints, against the result imucal's FerrarisCalibration computed from the same data
+    (``imucal_result.json``, beside the records): imucal's u = K·R·a + b, for small errors
+    K·R − I our scale and misalignment matrix (method.md §2 signs); the gyro bias, and the
+    accelerometer bias of its own axis pair (imucal's estimator; ours is the mean of three,
+    which the misfit of this unit moves by up to 0.03 m/s²)."""
+    from host.session.method import names_to_matrix
+
     for p in REAL.glob("REAL_*.txt"):
         shutil.copy(p, tmp_path / p.name)
     main(["calibrate", "--from-dir", str(tmp_path), "--json"])
     cal = json.loads(capsys.readouterr().out)
-    assert main(["model", "diagnose", str(tmp_path), "--json"]) == 0
-    diag = json.loads(capsys.readouterr().out)
     mine = {p["name"]: p for p in cal["parameters"]}
-    theirs = {p["name"]: p for p in diag["parameters"]}
-    assert set(mine) == set(theirs) and len(mine) == 33
-    for name, p in theirs.items():
-        assert mine[name]["value"] == pytest.approx(p["value"], rel=1e-12), name
-        assert mine[name]["stderr"] == pytest.approx(p["stderr"], rel=1e-12), name
+    assert len(mine) == 33
+    value = {name: p["value"] for name, p in mine.items()}
+    imucal = json.loads((REAL / "imucal_result.json").read_text())
+    theirs = {k: np.array(v) for k, v in imucal.items() if isinstance(v, list)}
+    for pre, k, r in (("A", "K_a", "R_a"), ("G", "K_g", "R_g")):
+        gap = names_to_matrix(pre, value) - (theirs[k] @ theirs[r] - np.eye(3))
+        assert np.abs(np.diag(gap)).max() < 2e-3, pre  # the scale errors
+        assert np.abs(gap).max() < 2e-3, pre  # and the misalignments
+    gyro_bias = np.array([value[f"G0{a}"] for a in "xyz"])
+    assert np.abs(gyro_bias - theirs["b_g"]).max() < 2e-3
+    accel_bias = np.array([value[f"A0{a}"] for a in "xyz"])
+    assert np.abs(accel_bias - theirs["b_a"]).max() < 0.03
     # the accelerometer misfit (bias estimates 0.02-0.04 m/s² apart) scales its errors:
     # the same policy in both, said in both (unscaled, A0x's error would be 0.0003 m/s²: the
     # scale is ~16; the moving blocks of the turns add degrees of freedom the model fits)
     assert mine["A0x"]["stderr"] > 0.004 and cal["fit"]["verdict"] == "inadequate"
     assert "standard errors scaled" in cal["fit"]["stderr_note"]
+    assert main(["model", "diagnose", str(tmp_path), "--json"]) == 0
+    diag = json.loads(capsys.readouterr().out)
     assert any("standard errors scaled" in n for n in diag["notes"])
 
 
@@ -169,26 +184,6 @@ def test_three_attitudes_one_way_turns(tmp_path: Path, capsys: pytest.CaptureFix
     assert diag["recommended"].split(",")[0] == "plate_tilt:accel:xyz"
     assert any("no degrees of freedom on gyro x, gyro y, gyro z" in n for n in diag["notes"])
     assert any(n.startswith("plate tilt 5.") for n in diag["notes"])
-
-
-def test_model_add_prints_the_calibrate_command(
-    temperature_session: tuple[Path, str, float], capsys: pytest.CaptureFixture[str]
-) -> None:
-    d, term, _ = temperature_session
-    assert main(["model", "add", str(d), term]) == 0
-    out = capsys.readouterr().out
-    lines = out.splitlines()
-    i = next(i for i, ln in enumerate(lines) if ln.startswith("ship this model: "))
-    cmd = lines[i].removeprefix("ship this model: ")
-    while cmd.endswith("\\"):  # a long command is broken as a shell would read it
-        i += 1
-        cmd = cmd.removesuffix("\\").rstrip() + " " + lines[i].strip()
-    assert cmd == f"python3 -m host calibrate --from-dir {d} --model base,{term}"
-    # and that command ships exactly the model the workbench showed
-    args = cmd.split()[3:]
-    assert main([*args, "--json"]) == 0
-    res = json.loads(capsys.readouterr().out)
-    assert res["model"] == f"base,{term}"
 
 
 # ---- held-out verification and leave-one-record-out -----------------------------------------

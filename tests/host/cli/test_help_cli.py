@@ -74,12 +74,57 @@ def test_calibrate_and_the_archive_commands_name_the_default_archive_alike() -> 
     from host.archive.store import ARCHIVE_ENV
 
     said = []
-    for prog, p in every_parser():
+    for _, p in every_parser():
         for a in p._actions:
             if "--archive" in a.option_strings:
                 said.append(" ".join((a.help or "").split("(default ", 1)[1].split()))
     assert len(said) == 1 + 11 and len(set(said)) == 1, said  # calibrate, the 11 actions
     assert f"${ARCHIVE_ENV}" in said[0] and "~/.local/share/imu-bench/archive.sqlite" in said[0]
+
+
+def example_commands(help_text: str) -> list[str]:
+    """The example commands of a help text, each joined from its lines (`` \\`` ends a line
+    the command goes on from); what follows one is its description, indented more."""
+    lines = help_text.split("examples:\n", 1)[1].split("\n\n", 1)[0].splitlines()
+    found: list[str] = []
+    going_on = False
+    for line in lines:
+        if going_on:
+            found[-1] = found[-1][:-1] + line.strip()
+        elif line.startswith("  python3 -m host "):
+            found.append(line.strip())
+        else:
+            assert line.startswith("      ") and not line.strip().startswith("-"), line
+        going_on = found[-1].endswith("\\") if found else False
+    return found
+
+
+@pytest.mark.parametrize("columns", [80, 50])
+@pytest.mark.parametrize("path", every_command(), ids=" ".join)
+def test_help_examples_keep_each_command_whole_and_runnable_as_pasted(
+    path: list[str], columns: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Was: re-wrapped at 80 columns, a command broke mid-way and its description spilled into
+    the command column (``plan U17/  the next record that buys the most`` / ``precision``).
+    Now each command, joined from its lines as a shell joins them, is one the parser reads
+    whole, and what is said about it is on lines of its own."""
+    import shlex
+
+    monkeypatch.setenv("COLUMNS", str(columns))
+    _, out, _ = run([*path, "--help"])
+    commands = example_commands(out)
+    assert commands, out
+    parser, _ = build_parser()
+    for command in commands:
+        words = shlex.split(command.split(" | ")[0])  # (a pipe into another program)
+        assert words[:3] == ["python3", "-m", "host"], command
+        with contextlib.redirect_stderr(io.StringIO()) as err:
+            try:
+                parser.parse_args(words[3:])
+            except SystemExit:
+                raise AssertionError(f"{command}: {err.getvalue()}") from None
+    for line in out.split("examples:\n", 1)[1].splitlines():
+        assert len(line) <= columns or " " not in line.strip(), line
 
 
 def test_help_is_wrapped_at_spaces_only(monkeypatch: pytest.MonkeyPatch) -> None:

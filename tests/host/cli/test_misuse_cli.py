@@ -55,9 +55,14 @@ def test_thermal_on_short_statics_says_why_and_which_window(session: Path) -> No
     # now, if anything, is the records' temperature span)
 
 
-def test_noise_and_thermal_print_degrees_celsius(session: Path) -> None:
+def test_noise_and_thermal_print_degrees_celsius(session: Path, tmp_path: Path) -> None:
     rc, out, _ = run(["noise", str(session / "M1_x_up.txt")])
     assert rc == 0 and "°C" in out and "degC" not in out and "sqrt" not in out
+    # (the thermal file written elsewhere: beside the records, calibrate would read it)
+    rc, out, err = run(["thermal", str(session), "--window", "5", "--out", str(tmp_path)])
+    assert rc == 0, err
+    assert "°C" in out and "degC" not in out and "deg C" not in out
+    assert "/°C" in out  # the coefficients' unit: per degree Celsius
 
 
 def test_out_to_a_missing_directory_makes_it(session: Path, tmp_path: Path) -> None:

@@ -323,3 +323,23 @@ def test_a_slow_diagnosis_or_addition_shows_it_is_working(
     assert max(b - a for a, b in zip(stamps, stamps[1:], strict=False)) < 2.0
     assert term.writes[-1][1] == "\r\x1b[K"  # the line cleared before the result is printed
     assert capsys.readouterr().out
+
+
+def test_model_add_prints_the_calibrate_command(
+    temp_dir: tuple[Path, str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    d, term = temp_dir
+    assert main(["model", "add", str(d), term]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    i = next(i for i, ln in enumerate(lines) if ln.startswith("ship this model: "))
+    cmd = lines[i].removeprefix("ship this model: ")
+    while cmd.endswith("\\"):  # a long command is broken as a shell would read it
+        i += 1
+        cmd = cmd.removesuffix("\\").rstrip() + " " + lines[i].strip()
+    assert cmd == f"python3 -m host calibrate --from-dir {d} --model base,{term}"
+    # and that command ships exactly the model the workbench showed
+    args = cmd.split()[3:]
+    assert main([*args, "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["model"] == f"base,{term}"
