@@ -47,7 +47,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "record a port's bytes with host times to a file",
     ),
     "model": ("host.cli.model", "cli_model", "model workbench: diagnose, add a term, ladder"),
-    "demo": ("host.cli.model", "cli_demo", "demo: find an effect hidden in a simulated session"),
+    "demo": ("host.cli.demo", "cli_demo", "demo: find an effect hidden in a simulated session"),
     "thermal": (
         "host.cli.thermal",
         "cli_thermal",

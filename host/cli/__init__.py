@@ -8,7 +8,8 @@
 - ``flash`` — ``flash``: build, flash and check the firmware.
 - ``importing`` — ``import``: foreign data into records.
 - ``exporting`` — ``export``: the result in another tool's format.
-- ``model`` — ``model`` and ``demo``: the workbench.
+- ``model`` — ``model``: the workbench; ``demo`` — ``demo``: an effect hidden in a simulated
+  session, found by it.
 - ``noise`` — ``noise``: Allan deviation and noise figures of a recording; ``noise_source`` —
   the capture it streams, in bounded memory at any length.
 - ``plan`` — ``plan``: which record to measure next.
