@@ -16,7 +16,9 @@ residual scan, the verdict, the refits and their words. Never imports the calibr
 - ``sinks`` — an implausible variance component is a finding: what it absorbed, found on the
   yardstick without it; the gyro at the turns' rests, where a bias change is read directly.
 - ``verdict`` — the whole diagnosis: compare, where it fails, what is missing, the verdict.
-- ``ladder`` — add a term (before → after) and the greedy ladder of models.
+- ``nuisance`` — the records' own unknowns tested against the shared parameter they stand for
+  (each static's own view of the plate's tilt against the plate's one tilt).
+- ``ladder`` — add a term (before → after) and the stepwise ladder of models, which prunes.
 - ``text`` — the words for people: diagnosis, addition, ladder, the catalogue, a demo's outcome.
 - ``planner`` — the record to measure next: every candidate added as it would be measured, the
   fit's σ/tolerance it leaves, ranked per minute of the operator's time.

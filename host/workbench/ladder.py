@@ -25,6 +25,7 @@ from host.model.stats import chi2_sf
 from host.model.terms import Term
 from host.workbench.absorbed import closure_axes, without_turn_angle
 from host.workbench.candidates import ALPHA
+from host.workbench.nuisance import SeenTiltTest, seen_tilt_test
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,6 +40,26 @@ class Addition:
     #: how the yardstick of ``before`` differs from the model's own ("" when it does not): a term
     #: that moves the turn closures is measured without the turn angle of its axes
     yardstick: str = ""
+    #: the records' own views of the plate's tilt against the plate's one tilt, when the term
+    #: gave them (:mod:`host.workbench.nuisance`)
+    seen_tilt: SeenTiltTest | None = None
+
+    @property
+    def exact(self) -> tuple[str, ...]:
+        """Channels the addition leaves with no degrees of freedom that had some before: the
+        model passes through their records exactly, so their fall of RMS z is no evidence."""
+        return tuple(c for c in self.after.untestable if c not in self.before.untestable)
+
+    def tested_rms_z(self) -> tuple[float, float]:
+        """RMS z before and after over the channels that keep degrees of freedom after it
+        (NaN when none does): the fall the addition can be judged by."""
+
+        def rms(f: Fit) -> float:
+            zs = [g.z for g in f.groups if f"{g.sensor} {g.axis}" not in self.after.untestable
+                  and math.isfinite(g.z)]  # fmt: skip
+            return math.sqrt(sum(z * z for z in zs) / len(zs)) if zs else math.nan
+
+        return rms(self.before), rms(self.after)
 
     @property
     def new_parameters(self) -> list[Any]:
@@ -59,6 +80,9 @@ class Addition:
             if self.held_out is None
             else {"before": self.held_out[0].rms_z, "after": self.held_out[1].rms_z},
             "before": fit_d(self.before),
+            "fitted_exactly": list(self.exact),
+            "tested_rms_z": dict(zip(("before", "after"), self.tested_rms_z(), strict=True)),
+            "seen_tilt": None if self.seen_tilt is None else self.seen_tilt.describe(),
             "before_yardstick": self.yardstick,
             "after": fit_d(self.after),
             "new_parameters": [
@@ -95,7 +119,7 @@ def add_term(
     own = ds_before is not joint.dataset
     held_out = (leave_one_out(ds_before if own else ds, before), leave_one_out(ds, after))
     note = ds_before.notes[-1] if own else ""
-    return Addition(before, after, tuple(new), held_out, note)
+    return Addition(before, after, tuple(new), held_out, note, seen_tilt_test(after))
 
 
 #: a term that changes another term of its sensor is offered only once that term is in (the

@@ -158,6 +158,13 @@ def format_diagnosis(
             f"{h.signal} (Δχ² = {h.delta_chi2:.1f})"
             + ("; confounded with session time in this plan" if h.time_confounded else "")
         )
+    if d.untestable_with:
+        lines.extend(textwrap.wrap(
+            f"with the recommended terms {', '.join(d.untestable_with)} are UNTESTABLE: no "
+            "degrees of freedom left between records (the model passes exactly through each), "
+            "so their fall of RMS z is no evidence that the terms are right; records that test "
+            "them: other attitudes (tilt_45_*), turns both ways, headings recorded",
+            78, initial_indent="  ", subsequent_indent="    "))  # fmt: skip
     by_label = {c.label: c for c in d.candidates}
     for label in d.recommended:
         c = by_label[label]
@@ -254,8 +261,8 @@ def format_addition(a: Addition) -> str:
     b, f = a.before, a.after
     lines = [
         f"added {', '.join(mt.label for mt in a.added)}",
-        f"  RMS z  {b.rms_z:8.2f} → {f.rms_z:.2f}"
-        + (f"  ({b.rms_z / f.rms_z:.1f}× smaller)" if f.rms_z > 0 else ""),
+        f"  RMS z  {b.rms_z:8.2f} → {f.rms_z:.2f}" + _fall(a),
+        *_exact_lines(a),
         f"  χ²     {b.chi2:8.1f} → {f.chi2:.1f}  (dof {b.dof} → {f.dof}; p {b.chi2_p:.2g} → "
         f"{f.chi2_p:.2g})",
         f"  BIC    {b.bic:8.1f} → {f.bic:.1f}",
@@ -296,6 +303,32 @@ def format_addition(a: Addition) -> str:
     if seen:
         lines.extend(textwrap.wrap(seen, 78, initial_indent="  ", subsequent_indent="    "))
     return "\n".join(lines)
+
+
+def _fall(a: Addition) -> str:
+    """How much smaller RMS z is — only when no channel is left fitted exactly by it."""
+    b, f = a.before, a.after
+    if a.exact:
+        return "  (not a fall of the error: see below)"
+    return f"  ({b.rms_z / f.rms_z:.1f}× smaller)" if f.rms_z > 0 else ""
+
+
+def _exact_lines(a: Addition) -> list[str]:
+    """The channels the addition fits exactly, and RMS z on the channels it leaves testable;
+    the records' own views of the plate's tilt tested against the plate's."""
+    out: list[str] = []
+    if a.exact:
+        tb, ta = a.tested_rms_z()
+        rest = (f"on the channels still tested, RMS z {tb:.2f} → {ta:.2f}" if math.isfinite(ta)
+                else "no channel is left to test it")  # fmt: skip
+        out += textwrap.wrap(
+            f"{', '.join(a.exact)}: UNTESTABLE with it — no degrees of freedom left between "
+            f"records (the model passes exactly through each), so their RMS z says nothing; "
+            f"{rest}", 78, initial_indent="  ", subsequent_indent="    ")  # fmt: skip
+    if a.seen_tilt is not None:
+        out += textwrap.wrap(a.seen_tilt.describe(), 78, initial_indent="  ",
+                             subsequent_indent="    ")  # fmt: skip
+    return out
 
 
 def physics_paragraph(t: Term) -> str:

@@ -40,6 +40,7 @@ from host.workbench.absorbed import closure_axes, without_turn_angle
 from host.workbench.candidates import ALPHA, Candidate, evaluate_candidates, json_number
 from host.workbench.equals import Equals, EqualsFinder
 from host.workbench.evidence import Weighed, weigh_steps
+from host.workbench.nuisance import seen_tilt_test
 from host.workbench.scan import ScanColumns, ScanHit, scan_signals
 from host.workbench.sinks import Absorbed, rest_hits, what_absorbed
 from host.workbench.steps import STEP
@@ -73,6 +74,9 @@ class Diagnosis:
     #: groups of explanations the records cannot tell apart (:mod:`host.workbench.equals`):
     #: none of their members is recommended alone
     equals: tuple[Equals, ...] = ()
+    #: channels the recommended terms leave with no degrees of freedom between records (the
+    #: model with them passes exactly through each): untestable with them
+    untestable_with: tuple[str, ...] = ()
 
     @property
     def worst(self) -> tuple[GroupResidual, ...]:
@@ -112,6 +116,7 @@ class Diagnosis:
             "recommended": self.recommended_spec,
             "unexplained_signals": [h.to_dict() for h in self.dominant],
             "equals": [e.to_dict() for e in self.equals],
+            "untestable_with": list(self.untestable_with),
             "notes": list(self.notes),
         }  # fmt: skip
 
@@ -533,6 +538,8 @@ def _after_shared(
         f"diagnosis of the model with it: {inner.verdict}"
     )
     notes.extend(n for n in inner.notes if n not in ds.notes)
+    views = [t.describe() for t in map(seen_tilt_test, (fit, inner.fit)) if t is not None]
+    notes.extend(v for v in views[:1] if v not in notes)  # the records' own tilts tested
     if inner.verdict == "unexplained" or removed < MOST * misfit:
         return Diagnosis(fit, tuple(cands), inner.unexplained, "unexplained", tuple(notes), (),
                          inner.dominant, None, ds.g, inner.equals)  # fmt: skip
@@ -551,7 +558,9 @@ def _after_shared(
             notes.append(f"{top.label} adds nothing once the others are in: not recommended")
     recommended = ((top.label,) if keep else ()) + tuple(inner.recommended)
     extra = ([shared] if keep else []) + inner_terms
+    exact = [c for c in (*inner.fit.untestable, *inner.untestable_with) if c not in fit.untestable]
     return Diagnosis(
         fit, tuple(cands), inner.unexplained, "missing_effect", tuple(notes), recommended,
         (), model_spec(merge_model(extra)) if extra else None, ds.g, inner.equals,
+        tuple(dict.fromkeys(exact)) if keep else inner.untestable_with,
     )  # fmt: skip
