@@ -230,16 +230,20 @@ def _preliminary_accel_matrix(
 
 def _static_blocks(
     table: RowTable, signals: list[RecordSignals]
-) -> dict[str, list[tuple[np.ndarray, np.ndarray]]]:
-    """sensor -> per static record and channel (block means, their white-noise variances): what
-    the records' own samples say about the bias wander (:func:`host.model.noise.wander_floor`)."""
+) -> dict[str, list[tuple[np.ndarray, np.ndarray, int, np.ndarray]]]:
+    """sensor -> per static record and channel (block means, their white-noise variances, the
+    channel's axis, the blocks' mean temperature and time (B, 2)): what the records' own samples
+    say about the bias wander (:func:`host.model.noise.wander_floor`)."""
     y = np.asarray(table.y)
-    out: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
+    out: dict[str, list[tuple[np.ndarray, np.ndarray, int, np.ndarray]]] = {}
     for ch in table.channels:
-        if signals[ch.record].kind == "turn" or len(ch.rows) < 2:
+        sig = signals[ch.record]
+        if sig.kind == "turn" or len(ch.rows) < 2:
             continue
         counts = np.count_nonzero(ch.aggregator, axis=1).astype(float)
-        out.setdefault(ch.sensor, []).append((y[ch.rows], ch.white / counts))
+        w = ch.aggregator / ch.aggregator.sum(axis=1, keepdims=True)
+        shapes = np.column_stack([w @ sig.temp_c, w @ sig.t_s])
+        out.setdefault(ch.sensor, []).append((y[ch.rows], ch.white / counts, ch.axis, shapes))
     return out
 
 

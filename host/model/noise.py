@@ -112,30 +112,51 @@ def integrated_autocorrelation(dev: np.ndarray | Sequence[np.ndarray], max_lag: 
     return float(min(max(tau, 1.0), 50.0))
 
 
-def wander_floor(blocks: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[float, int, float]:
+#: what the static records' block means may follow inside a record that is an effect, not
+#: wander: the chip's temperature and the time (a temperature bias, a drift)
+SHAPES = ("temperature", "time")
+
+
+def wander_floor(
+    blocks: Sequence[tuple[np.ndarray, np.ndarray]],
+    shapes: Sequence[tuple[int, np.ndarray]] | None = None,
+) -> tuple[float, int, float]:
     """The bias wander a record's own samples show, from the block means of the static records:
     ``blocks`` per record and channel (means (B,), their white-noise variances (B,)). A block
     mean that wanders by f about its record's level scatters by v_b + f², so
     E[Σ(y_b − ȳ)²] = (1 − 1/B)·Σ(v_b + f²) and f² = Σ[SS − (1 − 1/B)·Σv_b] / Σ(1 − 1/B)·B
     (the Allan variance at the block length less its white part, pooled over the records).
+    ``shapes``, one per entry of ``blocks``: its channel and what its blocks were read at
+    ((B, k): their mean temperature and time, :data:`SHAPES`). A bias that follows them across
+    the blocks of every record of a channel alike (a temperature bias, a drift) is an effect,
+    and the larger it is the more it would raise a floor read from the raw scatter (and lower
+    the misfit it should show): per channel the blocks' departures are first fitted by those
+    shapes, and f is read from what is left, their k dof taken off.
     -> (f ≥ 0 in the channel's unit, 0 unless the scatter is beyond the white noise at
     p < :data:`~host.model.stats.ALPHA_COMPONENT`; dof; the smallest f it would resolve, in
-    the channel's unit). A drift or a
-    step between records does not enter: they are effects for the model to find, not noise."""
-    ss = 0.0
-    white = 0.0
-    dof = 0
-    var_se = 0.0
-    for y, v in blocks:
+    the channel's unit). A drift or a step between records does not enter either."""
+    ss, white, dof, var_se, taken = 0.0, 0.0, 0, 0.0, 0
+    by_channel: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+    for i, (y, v) in enumerate(blocks):
         b = len(y)
         if b < 2:
             continue
-        ss += float(np.sum((y - y.mean()) ** 2))
         white += (1.0 - 1.0 / b) * float(np.sum(v))
         dof += b - 1
         var_se += 2.0 * (b - 1) * float(np.mean(v)) ** 2
-    if dof == 0:
+        if shapes is None:
+            ss += float(np.sum((y - y.mean()) ** 2))
+            continue
+        channel, x = shapes[i]
+        by_channel.setdefault(channel, []).append((y - y.mean(), x - x.mean(axis=0)))
+    for parts in by_channel.values():
+        resid, k = _without_shapes(parts)
+        ss += resid
+        taken += k
+    if dof - taken <= 0:
         return 0.0, 0, math.nan
+    keep = (dof - taken) / dof  # the white part the shapes' fit leaves, in expectation
+    white, var_se, dof = white * keep, var_se * keep, dof - taken
     f2 = (ss - white) / dof
     least = math.sqrt(max(least_beyond_white(white, var_se) - white, 0.0) / dof)
     # a wander the blocks do not resolve (:func:`host.model.stats.beyond_white`) is taken as
@@ -144,15 +165,32 @@ def wander_floor(blocks: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[float
     return (math.sqrt(f2) if beyond_white(ss, white, var_se) else 0.0), dof, least
 
 
+def _without_shapes(parts: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[float, int]:
+    """Σ of squares of one channel's block departures (each record's, about its mean) left
+    after fitting them by the shapes' departures (one coefficient each for every record of the
+    channel), and how many coefficients that took (the shapes' rank)."""
+    y = np.concatenate([p[0] for p in parts])
+    x = np.concatenate([p[1] for p in parts])
+    scale = np.linalg.norm(x, axis=0)
+    x = x[:, scale > 0] / scale[scale > 0]
+    if not x.shape[1]:
+        return float(y @ y), 0
+    beta, _, rank, _ = np.linalg.lstsq(x, y, rcond=1e-9)
+    r = y - x @ beta
+    return float(r @ r), int(rank)
+
+
 def session_floor(
-    blocks: Mapping[str, Sequence[tuple[np.ndarray, np.ndarray]]], nm: NoiseModel
+    blocks: Mapping[str, Sequence[tuple[np.ndarray, np.ndarray, int, np.ndarray]]],
+    nm: NoiseModel,
 ) -> tuple[dict[str, float], str]:
     """The floor per sensor (m/s², °/s) and a note saying where it came from: ``nm.floor`` where
     given (``--floor``, ``--noise``: the unit's Allan variance), else from the records' own
-    samples (:func:`wander_floor` over ``blocks``: sensor -> the static records' block means and
-    their white variances). Never from repeated attitudes: a slow effect between two
-    measurements of one attitude (a drift, a step, a temperature bias) is misfit for the model
-    and the workbench to see, not noise to widen the yardstick with."""
+    samples (:func:`wander_floor` over ``blocks``: sensor -> the static records' block means,
+    their white variances, the channel and the blocks' :data:`SHAPES`). Never from repeated
+    attitudes: a slow effect between two measurements of one attitude (a drift, a step, a
+    temperature bias) is misfit for the model and the workbench to see, not noise to widen the
+    yardstick with."""
     out: dict[str, float] = {}
     said: list[str] = []
     for s in SENSORS:
@@ -160,14 +198,17 @@ def session_floor(
             out[s] = float(nm.floor[s])
             said.append(f"{s} {out[s]:.2g} {UNIT[s]} (given)")
             continue
-        f, dof, least = wander_floor(blocks.get(s, ()))
+        entries = blocks.get(s, ())
+        f, dof, least = wander_floor([e[:2] for e in entries],
+                                     [(e[2], e[3]) for e in entries])  # fmt: skip
         out[s] = f
         if dof == 0:
             said.append(f"{s} 0 (no record long enough for two blocks: white noise only)")
             continue
         said.append(
             f"{s} {f:.2g} {UNIT[s]} (wander of the static records' block means beyond their "
-            f"white noise, {dof} dof; none resolved below {least:.2g})"
+            f"white noise and what follows the temperature or the time inside every record, "
+            f"{dof} dof; none resolved below {least:.2g})"
         )
     return out, (
         "noise floor of a record mean, from each record's own samples (white noise with its "

@@ -357,6 +357,23 @@ def temperature_bias(rng: np.random.Generator) -> Effect:
     return Effect("temperature_bias", {"sensor": "gyro", "axis": AXES[i], "per_C": c}, sensor=fn)
 
 
+def temperature_bias_accel(per_c: float = 0.003) -> Callable[[np.random.Generator], Effect]:
+    """An accelerometer bias linear in chip temperature, c·(T − 25 °C), c = ±``per_c``
+    (m/s²)/°C (catalogue: temperature_bias)."""
+
+    def make(rng: np.random.Generator) -> Effect:
+        i = _pick(rng)[0]
+        c = _sign(rng) * per_c
+
+        def fn(s: Signals) -> tuple[np.ndarray, np.ndarray]:
+            return _channel("accel", i, c * (s.temp_c - 25.0))
+
+        p = {"sensor": "accel", "axis": AXES[i], "per_C": c}
+        return Effect("temperature_bias_accel", p, sensor=fn)
+
+    return make
+
+
 def dtdt_bias(rng: np.random.Generator) -> Effect:
     """A gyro bias that follows the rate of change of the chip temperature, c·dT/dt
     (thermal gradients across the die while it warms; off the catalogue)."""
@@ -460,6 +477,9 @@ EFFECTS: dict[str, Callable[[np.random.Generator], Effect]] = {
     "bias_drift_accel": bias_drift("accel"),
     "bias_drift_gyro": bias_drift("gyro"),
     "temperature_bias": temperature_bias,
+    "temperature_bias_accel": temperature_bias_accel(),
+    "temperature_bias_accel_weak": temperature_bias_accel(0.001),
+    "temperature_bias_accel_strong": temperature_bias_accel(0.01),
     "dtdt_bias": dtdt_bias,
     "cross_g2": cross_g2,
     "abs_leak": abs_leak,

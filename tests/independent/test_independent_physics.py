@@ -278,7 +278,7 @@ def test_each_effect_is_the_only_difference(name: str) -> None:
                 want = np.where(pow_s - spec.warmup_s >= p["at_session_s"], p["step"], 0.0)
             elif name.startswith("bias_drift"):
                 want = p["per_h"] * pow_s / 3600.0
-            elif name == "temperature_bias":
+            elif name.startswith("temperature_bias"):  # gyro, and the accelerometer's
                 want = p["per_C"] * (c.temp_c - 25.0)
             else:
                 _, rate = ph.chip_temperature(pow_s, ctrl.temp)
