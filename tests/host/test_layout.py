@@ -28,46 +28,6 @@ def test_no_module_is_over_600_lines() -> None:
     assert too_long == [], f"split these (at most {MAX_MODULE_LINES} lines): " + ", ".join(too_long)
 
 
-#: no function of these is longer than this (issue 42): a long function is named steps
-MAX_FUNCTION_LINES = 60
-#: where the rule holds so far (issue 42 brings the other packages under it)
-SHORT_FUNCTIONS = ("host/cli", "host/dialogue", "host/__main__.py")
-
-
-def long_functions(path: Path) -> list[str]:
-    """The functions (and methods) of ``path`` over :data:`MAX_FUNCTION_LINES`, with their
-    length: from the ``def`` line to the last line of the body."""
-    import ast
-
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    return [
-        f"{node.name} ({node.end_lineno - node.lineno + 1} lines)"
-        for node in ast.walk(tree)
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
-        and node.end_lineno is not None
-        and node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES
-    ]
-
-
-def test_no_function_of_the_commands_or_the_dialogue_is_over_60_lines() -> None:
-    too_long = []
-    for where in SHORT_FUNCTIONS:
-        top = ROOT / where
-        for path in sorted(top.rglob("*.py") if top.is_dir() else [top]):
-            too_long += [f"{path.relative_to(ROOT).as_posix()}: {f}" for f in long_functions(path)]
-    assert too_long == [], f"split these (at most {MAX_FUNCTION_LINES} lines): " + ", ".join(
-        too_long
-    )
-
-
-def test_the_function_length_counts_from_def_to_the_last_line(tmp_path: Path) -> None:
-    body = "".join(f"    x{i} = {i}\n" for i in range(MAX_FUNCTION_LINES - 1))
-    ok, over = tmp_path / "ok.py", tmp_path / "over.py"
-    ok.write_text(f"def f():\n{body}")  # the def and 59 lines: 60
-    over.write_text(f"def g():\n{body}    return x0\n")
-    assert long_functions(ok) == [] and long_functions(over) == ["g (61 lines)"]
-
-
 def test_no_command_reads_the_argparse_namespace_past_its_edge() -> None:
     """The options travel as typed objects (host.cli.options): a ``getattr(args, …)`` reads an
     attribute a command's parser may not have (it did: 21 of them, defaults repeated)."""
@@ -200,12 +160,6 @@ LONG_FUNCTIONS = {
     "host/bench/options.py:parse_sim_options",
     "host/board/flash.py:parse_ihex",
     "host/calib/thermal_fit.py:fit_scale",
-    "host/cli/archive.py:cli_archive",
-    "host/cli/calibrate.py:add_arguments",
-    "host/cli/calibrate.py:add_live_arguments",
-    "host/dialogue/flow.py:CalibrationDialogue.run",
-    "host/dialogue/flow.py:run_dialogue",
-    "host/dialogue/options.py:DialogueOptions.check",
     "host/ingest/reading.py:read_session",
     "host/model/dataset.py:build_dataset",
     "host/model/design.py:term_columns",
