@@ -268,116 +268,179 @@ def _plan_match(faces: list[str]) -> dict[int, str]:
     return out
 
 
+@dataclass
+class _Stream:
+    """The stream read: times s, accel m/s², gyro °/s, temperature °C (recorded or not)."""
+
+    t: np.ndarray
+    acc: np.ndarray
+    gyr: np.ndarray
+    temp: np.ndarray
+    temp_recorded: bool
+
+    def dur(self, r: Rest) -> float:
+        """How long a rest lasts, s."""
+        return float(self.t[r.stop - 1] - self.t[r.start])
+
+
+@dataclass
+class _Statics:
+    """The static visits (indices into the visits), each one's longest rest, the names chosen
+    for them with the reason, and every record name taken so far."""
+
+    visits: list[int]
+    best: dict[int, Rest]
+    chosen: dict[int, str]
+    why: dict[int, str] = field(default_factory=dict)
+    used: set[str] = field(default_factory=set)
+
+
 def read_session(
     t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, temp: np.ndarray, temp_recorded: bool
 ) -> tuple[list[Segment], Thresholds, list[str]]:
     """Segments of a stream (times s, accel m/s², gyro °/s, temperature °C) with labels and
     reasons, the stillness thresholds, and notes on ambiguous choices (module docstring)."""
+    s = _Stream(t, acc, gyr, temp, temp_recorded)
     found, thr, bias = rests(t, acc, gyr)
     visits, tilted = _visits(t, acc, gyr, bias, found)
     for v in visits:
         _find_turns(v, t)
-    dur = lambda r: float(t[r.stop - 1] - t[r.start])  # noqa: E731
-    segs: list[Segment] = []
     notes: list[str] = []
+    st = _match_statics(s, visits)
+    _name_after_plan(s, visits, st)
+    _explain_left_out(s, visits, st, notes)
+    segs: list[Segment] = []
+    for i, v in enumerate(visits):
+        segs.extend(_visit_segments(s, v, i, st, notes))
+    for r in tilted:
+        if s.dur(r) >= MIN_STATIC_S:
+            segs.append(_rest_segment(s, r, None, "-", "gravity is on no axis"))
+    segs.sort(key=lambda g: g.start)
+    return segs, thr, notes
 
-    def rest_seg(r: Rest, v: _Visit | None, label: str, reason: str) -> Segment:
-        am = acc[r.start : r.stop].mean(axis=0)
-        _, up, angle = attitude(am)
-        q = (
-            f"gravity {angle:.1f}° off {axis_text(up)}, |a| {np.linalg.norm(am):.3f} m/s², "
-            f"std a {acc[r.start : r.stop].std(axis=0).max():.3g} m/s², "
-            f"std g {gyr[r.start : r.stop].std(axis=0).max():.3g} °/s"
-        )
-        what = f"still {axis_text(up)}" if v is not None else "still tilted"
-        return Segment(r.start, r.stop, float(t[r.start]), float(t[r.stop - 1]), what, label, q,
-                       _t3(up), reason=reason)  # fmt: skip
 
-    # statics: visits without turns, longest rest each, matched to the plan
+def _rest_segment(s: _Stream, r: Rest, v: _Visit | None, label: str, reason: str) -> Segment:
+    """A rest as a segment, its quality in words (attitude, |a|, spreads)."""
+    am = s.acc[r.start : r.stop].mean(axis=0)
+    _, up, angle = attitude(am)
+    q = (
+        f"gravity {angle:.1f}° off {axis_text(up)}, |a| {np.linalg.norm(am):.3f} m/s², "
+        f"std a {s.acc[r.start : r.stop].std(axis=0).max():.3g} m/s², "
+        f"std g {s.gyr[r.start : r.stop].std(axis=0).max():.3g} °/s"
+    )
+    what = f"still {axis_text(up)}" if v is not None else "still tilted"
+    return Segment(r.start, r.stop, float(s.t[r.start]), float(s.t[r.stop - 1]), what, label, q,
+                   _t3(up), reason=reason)  # fmt: skip
+
+
+def _match_statics(s: _Stream, visits: list[_Visit]) -> _Statics:
+    """Visits without turns, longest rest each, matched to the plan's faces in order."""
     static_v = [i for i, v in enumerate(visits) if not v.turns
-                and max(dur(r) for r in v.rests) >= MIN_STATIC_S]  # fmt: skip
-    best = {i: max(visits[i].rests, key=dur) for i in static_v}
+                and max(s.dur(r) for r in v.rests) >= MIN_STATIC_S]  # fmt: skip
+    best = {i: max(visits[i].rests, key=s.dur) for i in static_v}
     match = _plan_match([visits[i].face for i in static_v])
     chosen: dict[int, str] = {static_v[k]: name for k, name in match.items()}
-    first_static = min(chosen) if chosen else len(visits)
+    st = _Statics(static_v, best, chosen, used=set(chosen.values()))
+    for i in static_v:
+        if i in chosen:
+            st.why[i] = (
+                f"{chosen[i]}: the plan's {STATIC_NAMES.index(chosen[i]) + 1}. face in order"
+            )
+    return st
+
+
+def _name_after_plan(s: _Stream, visits: list[_Visit], st: _Statics) -> None:
+    """Name the static visits the plan's order left: the warm-up before it, a face after the
+    turns (a repeat ``x_up_2`` when the face is taken)."""
+    first_static = min(st.chosen) if st.chosen else len(visits)
     turn_v = [i for i, v in enumerate(visits) if v.turns]
     last_turn = max(turn_v) if turn_v else -1
-    used = set(chosen.values())
-    why: dict[int, str] = {}
-    for i in static_v:
-        v = visits[i]
-        if i in chosen:
-            why[i] = f"{chosen[i]}: the plan's {STATIC_NAMES.index(chosen[i]) + 1}. face in order"
+    planned = set(st.chosen)
+    for i in st.visits:
+        if i in planned:
             continue
-        a, b = best[i].start, best[i].stop
-        rise = _rise(temp[v.rests[0].start : v.rests[-1].stop]) if temp_recorded else 0.0
-        if i < first_static and rise >= WARMUP_RISE_C and WARMUP_NAME not in used:
-            chosen[i] = WARMUP_NAME
-            used.add(WARMUP_NAME)
-            why[i] = (f"warm-up: before the plan's first static, temperature {rise:+.1f} °C "
-                      f"over {t[b - 1] - t[a]:.0f} s")  # fmt: skip
-        elif i > last_turn >= 0 and v.face in used:
+        v = visits[i]
+        a, b = st.best[i].start, st.best[i].stop
+        rise = _rise(s.temp[v.rests[0].start : v.rests[-1].stop]) if s.temp_recorded else 0.0
+        if i < first_static and rise >= WARMUP_RISE_C and WARMUP_NAME not in st.used:
+            st.chosen[i] = WARMUP_NAME
+            st.used.add(WARMUP_NAME)
+            st.why[i] = (f"warm-up: before the plan's first static, temperature {rise:+.1f} °C "
+                         f"over {s.t[b - 1] - s.t[a]:.0f} s")  # fmt: skip
+        elif i > last_turn >= 0 and v.face in st.used:
             name = f"{v.face}_2"
             k = 2
-            while name in used:
+            while name in st.used:
                 k += 1
                 name = f"{v.face}_{k}"
-            chosen[i] = name
-            used.add(name)
-            why[i] = f"{name}: {v.face} again after the turns, a repeat (the closing check)"
-        elif i > last_turn >= 0 and v.face not in used:
-            chosen[i] = v.face
-            used.add(v.face)
-            why[i] = f"{v.face}: after the turns, the only visit to {axis_text(v.up)}"
-    for i in static_v:
-        if i in chosen:
+            st.chosen[i] = name
+            st.used.add(name)
+            st.why[i] = f"{name}: {v.face} again after the turns, a repeat (the closing check)"
+        elif i > last_turn >= 0 and v.face not in st.used:
+            st.chosen[i] = v.face
+            st.used.add(v.face)
+            st.why[i] = f"{v.face}: after the turns, the only visit to {axis_text(v.up)}"
+
+
+def _explain_left_out(s: _Stream, visits: list[_Visit], st: _Statics, notes: list[str]) -> None:
+    """The reason each static visit left unnamed is left out; an alternative is also a note."""
+    first_static = min(st.chosen) if st.chosen else len(visits)
+    for i in st.visits:
+        if i in st.chosen:
             continue
         v = visits[i]
-        owner = next((j for j, n in chosen.items() if n == v.face), None)
+        owner = next((j for j, n in st.chosen.items() if n == v.face), None)
         if i < first_static:
-            why[i] = "before the plan's first static" + (
-                " (its temperature does not rise: not a warm-up)" if temp_recorded else ""
+            st.why[i] = "before the plan's first static" + (
+                " (its temperature does not rise: not a warm-up)" if s.temp_recorded else ""
             )
         elif owner is not None:
-            why[i] = (f"alternative for {v.face}: another visit to {axis_text(v.up)}, the plan's "
-                      f"order chose the one at {t[best[owner].start]:.1f} s")  # fmt: skip
-            notes.append(f"{v.face}: visits at {t[best[owner].start]:.1f} s (chosen) and "
-                         f"{t[best[i].start]:.1f} s (alternative)")  # fmt: skip
+            t_owner, t_here = s.t[st.best[owner].start], s.t[st.best[i].start]
+            st.why[i] = (f"alternative for {v.face}: another visit to {axis_text(v.up)}, the "
+                         f"plan's order chose the one at {t_owner:.1f} s")  # fmt: skip
+            notes.append(f"{v.face}: visits at {t_owner:.1f} s (chosen) and "
+                         f"{t_here:.1f} s (alternative)")  # fmt: skip
         else:
-            why[i] = f"{axis_text(v.up)} out of the plan's order"
-    for i, v in enumerate(visits):
-        turn_spans = [(v.rests[a].stop, v.rests[b].start) for a, b, _ in v.turns]
-        for r in v.rests:
-            if dur(r) < MIN_STATIC_S or any(s <= r.start and r.stop <= e for s, e in turn_spans):
-                continue  # a pause inside a turn, or too short to be a static
-            if v.turns:
-                segs.append(rest_seg(r, v, "-", f"a rest on {axis_text(v.up)} between turns, "
-                                     "belongs to the turns"))  # fmt: skip
-            elif r is best[i]:
-                segs.append(rest_seg(r, v, chosen.get(i, "-"), why.get(i, "")))
-            else:
-                ref = best[i]
-                lab = chosen.get(i)
-                reason = f"a shorter rest of the same visit ({dur(r):.1f} s < {dur(ref):.1f} s)"
-                if lab:
-                    reason += f"; alternative for {lab}"
-                    if dur(r) > 0.5 * dur(ref):
-                        notes.append(
-                            f"{lab}: rests of {dur(ref):.1f} s (chosen) and "
-                            f"{dur(r):.1f} s at {t[r.start]:.1f} s (alternative)"
-                        )
-                segs.append(rest_seg(r, v, "-", reason))
-        segs.extend(_turn_segments(v, t, used))
-        for a, b, d in v.aborted:
-            s, e = v.rests[a].stop - 1, v.rests[b].start + 1
-            segs.append(Segment(s, e, float(t[s]), float(t[e - 1]), f"move about {axis_text(v.up)}",
-                                "-", f"{d:+.0f}° about {axis_text(v.up)}", _t3(v.up),
-                                reason="no whole turn (an aborted turn?)"))  # fmt: skip
-    for r in tilted:
-        if dur(r) >= MIN_STATIC_S:
-            segs.append(rest_seg(r, None, "-", "gravity is on no axis"))
-    segs.sort(key=lambda s: s.start)
-    return segs, thr, notes
+            st.why[i] = f"{axis_text(v.up)} out of the plan's order"
+
+
+def _visit_segments(s: _Stream, v: _Visit, i: int, st: _Statics, notes: list[str]) -> list[Segment]:
+    """The segments of one visit: its rests (named or with the reason they are left out), its
+    turns, and its aborted turns."""
+    segs: list[Segment] = []
+    turn_spans = [(v.rests[a].stop, v.rests[b].start) for a, b, _ in v.turns]
+    for r in v.rests:
+        if s.dur(r) < MIN_STATIC_S or any(a <= r.start and r.stop <= e for a, e in turn_spans):
+            continue  # a pause inside a turn, or too short to be a static
+        if v.turns:
+            segs.append(_rest_segment(s, r, v, "-", f"a rest on {axis_text(v.up)} between turns, "
+                                      "belongs to the turns"))  # fmt: skip
+        elif r is st.best[i]:
+            segs.append(_rest_segment(s, r, v, st.chosen.get(i, "-"), st.why.get(i, "")))
+        else:
+            reason = _shorter_rest(s, r, st.best[i], st.chosen.get(i), notes)
+            segs.append(_rest_segment(s, r, v, "-", reason))
+    segs.extend(_turn_segments(v, s.t, st.used))
+    for a, b, d in v.aborted:
+        m0, m1 = v.rests[a].stop - 1, v.rests[b].start + 1
+        about = axis_text(v.up)
+        segs.append(Segment(m0, m1, float(s.t[m0]), float(s.t[m1 - 1]), f"move about {about}",
+                            "-", f"{d:+.0f}° about {about}", _t3(v.up),
+                            reason="no whole turn (an aborted turn?)"))  # fmt: skip
+    return segs
+
+
+def _shorter_rest(s: _Stream, r: Rest, ref: Rest, lab: str | None, notes: list[str]) -> str:
+    """Why a rest shorter than its visit's longest is left out; a long one is a note."""
+    reason = f"a shorter rest of the same visit ({s.dur(r):.1f} s < {s.dur(ref):.1f} s)"
+    if lab:
+        reason += f"; alternative for {lab}"
+        if s.dur(r) > 0.5 * s.dur(ref):
+            notes.append(
+                f"{lab}: rests of {s.dur(ref):.1f} s (chosen) and "
+                f"{s.dur(r):.1f} s at {s.t[r.start]:.1f} s (alternative)"
+            )
+    return reason
 
 
 def _turn_segments(v: _Visit, t: np.ndarray, used: set[str]) -> list[Segment]:

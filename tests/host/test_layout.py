@@ -160,7 +160,6 @@ LONG_FUNCTIONS = {
     "host/bench/options.py:parse_sim_options",
     "host/board/flash.py:parse_ihex",
     "host/calib/thermal_fit.py:fit_scale",
-    "host/ingest/reading.py:read_session",
     "host/model/dataset.py:build_dataset",
     "host/model/design.py:term_columns",
     "host/model/whitening.py:whiten_rows",
