@@ -278,6 +278,7 @@ def run_add(args: AddOptions) -> int:
     w.model.bound_term_files()
     cat = _catalogue(w.model.term_files)
     model = parse_model(w.model.spec, cat)
+    parse_model(args.term, cat)  # a term that is none: said now, not after reading the records
     if args.plot:
         pyplot()  # no matplotlib: say so now, not after the fits
     paths: list[Path] = []
