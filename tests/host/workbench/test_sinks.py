@@ -32,10 +32,10 @@ def test_the_gyro_at_a_turns_rests_reads_a_bias_change_since_its_face(tmp_path: 
 
 
 def test_the_turns_rests_read_no_change_on_a_control(tmp_path: Path) -> None:
-    """On a control the changes at the rests scatter as their σ says (|z| < 4.5 over ~60)."""
+    """On a control the changes at the rests scatter as their σ says (|z| < 4.5 over ~18)."""
     d, _ = _session(tmp_path, "none", 1001)
     changes = rest_changes(load_dataset(d))
-    assert len(changes) >= 36
+    assert len(changes) >= 18  # three channels of each of the six turns
     assert max(abs(c.z) for c in changes) < 4.5
     assert not rest_hits(load_dataset(d), 0.01)
 
