@@ -362,85 +362,141 @@ class ScanColumns:
         return self._white[(sensor, a)]
 
 
+#: one signal tried on one channel: (sensor, axis index, signal name, r, Δχ²)
+_Tried = tuple[str, int, str, float, float]
+#: a channel's signals: whitened, their part the model does not fit, and time since power-on
+#: (its part the model does not fit; None: the records carry none, or it is all the model's)
+_Channel = tuple[np.ndarray, np.ndarray, np.ndarray | None]
+#: per signal of a channel: its norm, its norm orthogonal to the model, the residual's
+#: projection on that part and its correlation with time
+_ChannelStats = tuple[list[float], list[float], list[float], list[float]]
+
+
 def scan_signals(
     ds: Dataset, fit: Fit, alpha: float = ALPHA, columns: ScanColumns | None = None
 ) -> list[ScanHit]:
     """Residuals of ``fit`` against every signal on every channel, Holm-corrected; -> the
     significant hits, strongest first (``columns``: the signals already built on these rows,
     :class:`ScanColumns`)."""
-    hits: list[tuple[str, int, str, float, float]] = []
-    time_r: list[float] = []
-    q = fit.basis
-    r = fit.white_residual
-    rr = float(r @ r)
     if columns is None or columns.ds is not ds:
         columns = ScanColumns(ds)
-    cuts = columns.cuts
-
+    r = fit.white_residual
+    tried: list[_Tried] = []
+    time_r: list[float] = []
     for sensor in SENSORS:
         named = columns.named(sensor)
-        names = [k for k, _ in named] + [name for _, name in cuts]
-        # per channel: every signal's whitened column and its part the model does not fit
-        chans: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray | None]] = {}
+        names = [k for k, _ in named] + [name for _, name in columns.cuts]
+        chans = _sensor_channels(ds, columns, fit.basis, sensor, len(named))
+        stats = {a: _channel_stats(chan, r) for a, chan in chans.items()}
+        got, got_r = _try_signals(sensor, names, stats, float(r @ r))
+        tried += got
+        time_r += got_r
+    pvals, is_sig = _holm_tested(tried, alpha)
+    found = _findings(tried, pvals, is_sig, time_r)
+    return _one_step_per_channel(ds, fit, found, [c for c, _ in columns.cuts], alpha)
+
+
+def _sensor_channels(
+    ds: Dataset, columns: ScanColumns, q: np.ndarray, sensor: str, n_named: int
+) -> dict[int, _Channel]:
+    """Per channel of ``sensor`` with rows: every signal's whitened column and its part the
+    model's orthonormal basis ``q`` does not fit, the time column (after the ``n_named``
+    signals, when the records carry time since power-on) taken out beside them."""
+    chans: dict[int, _Channel] = {}
+    for a in range(3):
+        cw = columns.white(sensor, a)
+        if cw is None:
+            continue
+        cp = cw - q @ (q.T @ cw) if q.shape[1] else cw
+        if ds.time_known:
+            tcol = cp[:, n_named]
+            keep = np.r_[0:n_named, n_named + 1 : cw.shape[1]]
+            cw, cp = cw[:, keep], cp[:, keep]
+            chans[a] = (cw, cp, tcol if float(np.linalg.norm(tcol)) > 0 else None)
+        else:
+            chans[a] = (cw, cp, None)
+    return chans
+
+
+def _channel_stats(chan: _Channel, r: np.ndarray) -> _ChannelStats:
+    """Every signal of one channel at once, against the whitened residual ``r``: the column's
+    norm, its norm orthogonal to the model, the residual's projection on that part and its
+    correlation with time (NaN without a time column)."""
+    cw_all, cp_all, tcol = chan
+    n0 = np.linalg.norm(cw_all, axis=0)
+    n1 = np.linalg.norm(cp_all, axis=0)
+    ok = n1 > 0
+    proj = np.where(ok, (r @ cp_all) / np.where(ok, n1, 1.0), 0.0)
+    tr = np.full(len(n1), math.nan)
+    if tcol is not None:
+        tr = np.where(ok, (tcol @ cp_all) / np.where(ok, n1, 1.0), 0.0)
+        tr /= float(np.linalg.norm(tcol))
+    return n0.tolist(), n1.tolist(), proj.tolist(), tr.tolist()
+
+
+def _try_signals(
+    sensor: str,
+    names: Sequence[str],
+    stats: Mapping[int, _ChannelStats],
+    rr: float,
+) -> tuple[list[_Tried], list[float]]:
+    """Each signal ``names`` on each channel of ``sensor`` that the model leaves a part of,
+    signal by signal, and its correlation with time (``rr``: the whitened residual's squared
+    norm; none when it is 0)."""
+    tried: list[_Tried] = []
+    time_r: list[float] = []
+    for j, name in enumerate(names):
         for a in range(3):
-            cw = columns.white(sensor, a)
-            if cw is None:
+            if a not in stats:
                 continue
-            cp = cw - q @ (q.T @ cw) if q.shape[1] else cw
-            if ds.time_known:
-                tcol = cp[:, len(named)]
-                keep = np.r_[0 : len(named), len(named) + 1 : cw.shape[1]]
-                cw, cp = cw[:, keep], cp[:, keep]
-                chans[a] = (cw, cp, tcol if float(np.linalg.norm(tcol)) > 0 else None)
-            else:
-                chans[a] = (cw, cp, None)
-        # per channel and signal, all at once: the column's norm, its norm orthogonal to the
-        # model, the residual's projection on that part and its correlation with time
-        stats: dict[int, tuple[list[float], list[float], list[float], list[float]]] = {}
-        for a, (cw_all, cp_all, tcol) in chans.items():
-            n0 = np.linalg.norm(cw_all, axis=0)
-            n1 = np.linalg.norm(cp_all, axis=0)
-            ok = n1 > 0
-            proj = np.where(ok, (r @ cp_all) / np.where(ok, n1, 1.0), 0.0)
-            tr = np.full(len(n1), math.nan)
-            if tcol is not None:
-                tr = np.where(ok, (tcol @ cp_all) / np.where(ok, n1, 1.0), 0.0)
-                tr /= float(np.linalg.norm(tcol))
-            stats[a] = (n0.tolist(), n1.tolist(), proj.tolist(), tr.tolist())
-        for j, name in enumerate(names):
-            for a in range(3):
-                if a not in stats:
-                    continue
-                n0s, n1s, projs, trs = stats[a]
-                if n0s[j] == 0 or n1s[j] < IDENTIFIABLE_TOL * n0s[j] or rr == 0:
-                    continue
-                hits.append((sensor, a, name, projs[j] / math.sqrt(rr), projs[j] * projs[j]))
-                time_r.append(trs[j])
-    # a Δχ² below the α-quantile of χ²₁ is never significant, whatever Holm's rank: its p
-    # (beyond α) is not needed, only that it sorts after every p ≤ α
+            n0s, n1s, projs, trs = stats[a]
+            if n0s[j] == 0 or n1s[j] < IDENTIFIABLE_TOL * n0s[j] or rr == 0:
+                continue
+            tried.append((sensor, a, name, projs[j] / math.sqrt(rr), projs[j] * projs[j]))
+            time_r.append(trs[j])
+    return tried, time_r
+
+
+def _holm_tested(tried: Sequence[_Tried], alpha: float) -> tuple[list[float], list[bool]]:
+    """Each tried signal's p and whether it is significant, Holm-corrected over them all. A
+    Δχ² below the α-quantile of χ²₁ is never significant, whatever Holm's rank: its p (beyond
+    α) is not needed, only that it sorts after every p ≤ α."""
     floor = 0.99 * chi2_isf(alpha, 1) if 0.0 < alpha < 1.0 else 0.0
-    pvals = [chi2_sf(h[4], 1) if h[4] >= floor else 1.0 for h in hits]
-    is_sig = holm(pvals, alpha)
-    # signals that move the records identically (|f|, f², … on ±1 g faces) are one finding
+    pvals = [chi2_sf(h[4], 1) if h[4] >= floor else 1.0 for h in tried]
+    return pvals, holm(pvals, alpha)
+
+
+def _findings(
+    tried: Sequence[_Tried], pvals: Sequence[float], is_sig: Sequence[bool],
+    time_r: Sequence[float],
+) -> list[ScanHit]:  # fmt: skip
+    """The significant signals as findings: those that move the records identically on one
+    channel (|f|, f², … on ±1 g faces: the same Δχ²) are one finding, named by them all."""
     merged: dict[tuple[str, int, float], list[int]] = {}
-    for i, h in enumerate(hits):
+    for i, h in enumerate(tried):
         if is_sig[i]:
             merged.setdefault((h[0], h[1], round(h[4], 6)), []).append(i)
-    out = [
-        ScanHit(hits[ix[0]][0], AXES[hits[ix[0]][1]], _joined([hits[i][2] for i in ix]),
-                hits[ix[0]][3], hits[ix[0]][4], pvals[ix[0]], True, time_r[ix[0]])
+    return [
+        ScanHit(tried[ix[0]][0], AXES[tried[ix[0]][1]], _joined([tried[i][2] for i in ix]),
+                tried[ix[0]][3], tried[ix[0]][4], pvals[ix[0]], True, time_r[ix[0]])
         for ix in merged.values()
     ]  # fmt: skip
-    # a step at the times either side of the strongest one is the same finding, less well
-    # placed: one step per channel is reported
+
+
+def _one_step_per_channel(
+    ds: Dataset, fit: Fit, found: Sequence[ScanHit], coarse_s: list[float], alpha: float
+) -> list[ScanHit]:
+    """The findings strongest first, one step per channel: a step at the times either side of
+    the strongest one is the same finding, less well placed; the one kept is placed to the
+    sample (the scan's cuts ``coarse_s``, s)."""
     kept: list[ScanHit] = []
     stepped: set[tuple[str, str]] = set()
-    for hit in sorted(out, key=lambda x: -x.delta_chi2):
+    for hit in sorted(found, key=lambda x: -x.delta_chi2):
         if hit.signal.startswith(STEP):
             if (hit.sensor, hit.axis) in stepped:
                 continue
             stepped.add((hit.sensor, hit.axis))
-            hit = _placed(ds, fit, hit, [c for c, _ in cuts], alpha)
+            hit = _placed(ds, fit, hit, coarse_s, alpha)
         kept.append(hit)
     return sorted(kept, key=lambda x: -x.delta_chi2)
 
