@@ -137,6 +137,11 @@ class Placed:
         return max(self.at_s - self.lo_s, self.hi_s - self.at_s)
 
 
+#: one record's rows on a channel, in the session's order: (record index, its rows, their
+#: aggregator (rows, samples)); no rows: empty
+_RecordRows = tuple[int, np.ndarray, np.ndarray]
+
+
 def channel_cuts(ds: Dataset, basis: np.ndarray, sensor: str, axis: int) -> StepCuts | None:
     """Every cut between two samples of the session as a step column on channel ``axis`` of
     ``sensor`` (aggregated onto its rows like a term's, whitened, the fit's ``basis`` removed);
@@ -146,13 +151,19 @@ def channel_cuts(ds: Dataset, basis: np.ndarray, sensor: str, axis: int) -> Step
     whitened column of a cut is the whitened rows of the records after it, which every cut in
     a record shares, and the record's own rows moved by the samples after the cut, whitened by
     that record's blocks alone."""
+    blocks, full = _records_in_order(ds, sensor, axis)
+    if not np.any(full):
+        return None
+    return _basis_removed(_cuts_in_parts(ds, blocks, ds.whiten.apply(full)), basis)
+
+
+def _records_in_order(ds: Dataset, sensor: str, axis: int) -> tuple[list[_RecordRows], np.ndarray]:
+    """The records in the session's order with their rows on the channel, and (n_rows,) the
+    rows of them all moved by a step before the first sample: each row's weights summed (a
+    mean 1, an integral its span)."""
     order = sorted(range(len(ds.signals)), key=lambda i: float(ds.signals[i].t_s[0]))
-    lo: list[np.ndarray] = []
-    hi: list[np.ndarray] = []
-    # the rows of the records after the cut: each row's weights summed (a mean 1, an integral
-    # its span); the records before the cut: 0
     full = np.zeros(ds.n_rows)
-    blocks: list[tuple[int, np.ndarray, np.ndarray]] = []
+    blocks: list[_RecordRows] = []
     for ri in order:
         rows = ds.rows_of.get((ri, sensor, axis))
         if rows is None:
@@ -161,11 +172,18 @@ def channel_cuts(ds: Dataset, basis: np.ndarray, sensor: str, axis: int) -> Step
         agg = ds.aggregator(ri, sensor, axis)
         full[rows] = agg.sum(axis=1)
         blocks.append((ri, rows, agg))
-    if not np.any(full):
-        return None
+    return blocks, full
+
+
+def _cuts_in_parts(ds: Dataset, blocks: Sequence[_RecordRows], after: np.ndarray) -> StepCuts:
+    """The cuts of the records ``blocks`` (in order) in parts, no basis removed yet (``q``,
+    ``z`` empty): a level per record (``after``: the whitened rows of every record moved
+    whole, each record's own rows set to 0 past its cuts), and each record's own rows moved
+    by the samples after each of its cuts."""
     own_blocks = _record_blocks(ds, [rows for _, rows, _ in blocks if len(rows)])
-    after = ds.whiten.apply(full)
     levels = [after.copy()]
+    lo: list[np.ndarray] = []
+    hi: list[np.ndarray] = []
     owner: list[np.ndarray] = []
     records: list[tuple[np.ndarray, int, np.ndarray]] = []
     k_at = 0
@@ -189,16 +207,23 @@ def channel_cuts(ds: Dataset, basis: np.ndarray, sensor: str, axis: int) -> Step
             k_at += 1
             lo.append(np.array([float(t[-1])]))
             hi.append(np.array([float(nxt[0])]))
-    level = np.column_stack(levels)
-    z = np.zeros((basis.shape[1], k_at))
-    if basis.shape[1]:
-        level = level - basis @ (basis.T @ level)
-        for rows, start, moved in records:
-            z[:, start : start + moved.shape[1]] = basis[rows].T @ moved
     spans = tuple((float(ds.signals[ri].t_s[0]), float(ds.signals[ri].t_s[-1]))
                   for ri, rows, _ in blocks if len(rows))  # fmt: skip
-    return StepCuts(np.concatenate(lo), np.concatenate(hi), spans, level,
-                    np.concatenate(owner), tuple(records), basis, z)  # fmt: skip
+    return StepCuts(np.concatenate(lo), np.concatenate(hi), spans, np.column_stack(levels),
+                    np.concatenate(owner), tuple(records), np.zeros((len(after), 0)),
+                    np.zeros((0, k_at)))  # fmt: skip
+
+
+def _basis_removed(cuts: StepCuts, basis: np.ndarray) -> StepCuts:
+    """``cuts`` (none removed yet) with the fit's orthonormal ``basis`` (n_rows, p) removed:
+    from the levels, and ``z`` (p, K) each cut's own rows' part along it."""
+    level = cuts.level
+    z = np.zeros((basis.shape[1], len(cuts.lo)))
+    if basis.shape[1]:
+        level = level - basis @ (basis.T @ level)
+        for rows, start, moved in cuts.records:
+            z[:, start : start + moved.shape[1]] = basis[rows].T @ moved
+    return dataclasses.replace(cuts, level=level, q=basis, z=z)
 
 
 def tail_weights(agg: np.ndarray) -> np.ndarray:

@@ -171,7 +171,6 @@ LONG_FUNCTIONS = {
     "host/workbench/planner.py:plan_next",
     "host/workbench/scenarios.py:hidden_effect_case",
     "host/workbench/separate.py:separate",
-    "host/workbench/steps.py:channel_cuts",
     "host/workbench/text.py:format_diagnosis",
 }
 
