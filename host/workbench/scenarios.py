@@ -1,5 +1,5 @@
 """Hidden-effect scenarios: a simulated session with ONE physical effect hidden in it, and what
-the workbench makes of it (``python -m host demo hidden-effect``, the diagnosis tests, and
+the workbench makes of it (``python3 -m host demo hidden-effect``, the diagnosis tests, and
 ``benchmarks/model_bench.py``).
 
 The sessions come from the virtual bench (:mod:`host.bench.sim`, imported when a case is made);
@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,8 +21,13 @@ from host.model.dataset import Dataset, build_dataset, session_from_records
 from host.model.noise import NoiseModel
 from host.model.signals import AXES
 from host.model.spec import parse_model
+from host.session.records import Record
 from host.workbench.ladder import Addition, add_term
 from host.workbench.verdict import Diagnosis, diagnose
+
+if TYPE_CHECKING:  # the virtual bench is imported when a case is made
+    from host.bench.physics import Environment
+    from host.bench.truth import SensorTruth, Vec3
 
 # ---- hidden-effect scenarios ----------------------------------------------------------------
 #: effect name -> one-line description
@@ -51,7 +56,7 @@ class HiddenCase:
     term: str
     truth: float
     unit: str
-    records: Mapping[str, Any]
+    records: Mapping[str, Record]
     description: str
     #: the unit's bias wander per sensor, m/s² and °/s: the RMS over the axes of its
     #: Gauss-Markov bias instability (steady-state std) — what a noise file of this unit
@@ -66,6 +71,24 @@ class HiddenCase:
         return NoiseModel(floor=dict(self.known_floor))
 
 
+@dataclass(frozen=True, eq=False)
+class _Hidden:
+    """What one effect changes in a simulated session: the unit (``put``: the effect put into
+    a :class:`host.bench.truth.SensorTruth`) and the room (``environment``, None: the plan's),
+    the term that would fit it with its true coefficient and unit, the warm-up before the first
+    record (s) and the shortest static record it needs (s; None: any)."""
+
+    put: Callable[[SensorTruth], SensorTruth]
+    term: str = ""
+    unit: str = ""
+    truth: float = 0.0
+    environment: Environment | None = None
+    warmup_s: float = 600.0
+    static_min_s: float | None = None
+    #: every component of a vector effect's truth (the lever arm's x, y, z in m), else ()
+    vector: tuple[float, ...] = ()
+
+
 def hidden_effect_case(
     effect: str, seed: int = 0, *, tilted: bool = False, static_s: float = 10.0
 ) -> HiddenCase:
@@ -75,7 +98,6 @@ def hidden_effect_case(
     (:meth:`host.bench.truth.SensorTruth.random`); every other effect is off except the hidden
     one, on an axis chosen by the seed.
     """
-    from host.bench.physics import Environment
     from host.bench.plan import Plan, simulate_session, tilted_45
     from host.bench.truth import SensorTruth
 
@@ -85,56 +107,102 @@ def hidden_effect_case(
     base = SensorTruth.random(rng).only("linear", "noise", "bias_instability")
     axis = int(rng.integers(3))
     sign = 1.0 if rng.random() < 0.5 else -1.0
-    vec = [0.0, 0.0, 0.0]
-    env: Environment | None = None
-    warmup_s = 600.0
-    term, unit, truth = "", "", 0.0
-    if effect == "temperature":
-        truth = sign * float(rng.uniform(0.015, 0.03))
-        vec[axis] = truth
-        fields: dict[str, Any] = {"gyro_temp_bias": tuple(vec)}
-        env = Environment(room_c=float(rng.uniform(20, 24)), rise_c=10.0, tau_s=250.0,
-                          room_amp_c=2.5, room_period_s=240.0,
-                          room_phase=float(rng.uniform(0, 2 * np.pi)))  # fmt: skip
-        term, unit = f"temperature_bias:gyro:{AXES[axis]}", "°/s/°C"
-    elif effect == "asymmetry":
-        truth = sign * float(rng.uniform(0.004, 0.008))
-        vec[axis] = truth
-        fields = {"accel_scale_asym": tuple(vec)}
-        term, unit = f"scale_asymmetry:accel:{AXES[axis]}", ""
-    elif effect == "drift":
-        truth = sign * float(rng.uniform(0.8, 1.5))
-        vec[axis] = truth
-        fields = {"gyro_drift": tuple(vec)}
-        env = Environment(room_c=float(rng.uniform(20, 26)), rise_c=0.0, room_amp_c=0.0)
-        term, unit = f"time_drift:gyro:{AXES[axis]}", "°/s/h"
-        static_s = max(static_s, 30.0)  # the drift needs the statics spread over minutes
-    elif effect == "warmup":
-        truth = sign * float(rng.uniform(0.015, 0.03))
-        vec[axis] = truth
-        fields = {"gyro_temp_bias": tuple(vec)}
-        env = Environment(room_c=float(rng.uniform(20, 24)), rise_c=40.0, tau_s=4000.0,
-                          room_amp_c=0.0)  # fmt: skip
-        warmup_s = 0.0
-        static_s = max(static_s, 30.0)
-        term, unit = f"temperature_bias:gyro:{AXES[axis]}", "°/s/°C"
-    elif effect == "lever_arm":
-        arm = rng.uniform(0.02, 0.05, 3) * np.where(rng.random(3) < 0.5, -1.0, 1.0)
-        fields = {"lever_arm_m": tuple(float(v) for v in arm)}
-        truth = float(arm[0])
-        term, unit = "lever_arm:accel:xyz", "m"
-    else:
-        fields = {}
-    truth_obj = dataclasses.replace(base, **fields)
-    plan = Plan(static_s=static_s, gap_s=20.0, environment=env, warmup_s=warmup_s,
-                tilted=tilted_45() if tilted else ())  # fmt: skip
-    records = simulate_session(truth_obj, plan, seed)
-    floor = {
-        s: float(np.sqrt(np.mean(np.square(getattr(truth_obj, f"{s}_bias_instability")))))
+    hidden = _HIDDEN[effect](rng, axis, sign)
+    if hidden.static_min_s is not None:
+        static_s = max(static_s, hidden.static_min_s)
+    truth = hidden.put(base)
+    plan = Plan(static_s=static_s, gap_s=20.0, environment=hidden.environment,
+                warmup_s=hidden.warmup_s, tilted=tilted_45() if tilted else ())  # fmt: skip
+    records = simulate_session(truth, plan, seed)
+    return HiddenCase(effect, hidden.term, hidden.truth, hidden.unit, records, EFFECTS[effect],
+                      _known_floor(truth), hidden.vector)  # fmt: skip
+
+
+def _known_floor(truth: SensorTruth) -> dict[str, float]:
+    """Per sensor the RMS over the axes of the unit's bias instability (m/s², °/s)."""
+    return {
+        s: float(np.sqrt(np.mean(np.square(getattr(truth, f"{s}_bias_instability")))))
         for s in ("accel", "gyro")
     }
-    vector = tuple(float(v) for v in fields["lever_arm_m"]) if effect == "lever_arm" else ()
-    return HiddenCase(effect, term, truth, unit, records, EFFECTS[effect], floor, vector)
+
+
+def _on_axis(axis: int, value: float) -> Vec3:
+    """(x, y, z) with ``value`` on ``axis`` and 0 on the others."""
+    vec = [0.0, 0.0, 0.0]
+    vec[axis] = value
+    return vec[0], vec[1], vec[2]
+
+
+def _temperature(rng: np.random.Generator, axis: int, sign: float) -> _Hidden:
+    """Gyro bias linear in temperature, the room's air conditioning cycling the chip."""
+    from host.bench.physics import Environment
+
+    truth = sign * float(rng.uniform(0.015, 0.03))
+    env = Environment(room_c=float(rng.uniform(20, 24)), rise_c=10.0, tau_s=250.0,
+                      room_amp_c=2.5, room_period_s=240.0,
+                      room_phase=float(rng.uniform(0, 2 * np.pi)))  # fmt: skip
+    vec = _on_axis(axis, truth)
+    return _Hidden(lambda t: dataclasses.replace(t, gyro_temp_bias=vec),
+                   f"temperature_bias:gyro:{AXES[axis]}", "°/s/°C", truth, env)  # fmt: skip
+
+
+def _asymmetry(rng: np.random.Generator, axis: int, sign: float) -> _Hidden:
+    """Accelerometer scale asymmetry on one axis."""
+    truth = sign * float(rng.uniform(0.004, 0.008))
+    vec = _on_axis(axis, truth)
+    return _Hidden(lambda t: dataclasses.replace(t, accel_scale_asym=vec),
+                   f"scale_asymmetry:accel:{AXES[axis]}", "", truth)  # fmt: skip
+
+
+def _drift(rng: np.random.Generator, axis: int, sign: float) -> _Hidden:
+    """Gyro bias drifting with time at a constant temperature; the statics spread over
+    minutes (30 s each at least)."""
+    from host.bench.physics import Environment
+
+    truth = sign * float(rng.uniform(0.8, 1.5))
+    env = Environment(room_c=float(rng.uniform(20, 26)), rise_c=0.0, room_amp_c=0.0)
+    vec = _on_axis(axis, truth)
+    return _Hidden(lambda t: dataclasses.replace(t, gyro_drift=vec),
+                   f"time_drift:gyro:{AXES[axis]}", "°/s/h", truth, env,
+                   static_min_s=30.0)  # fmt: skip
+
+
+def _warmup(rng: np.random.Generator, axis: int, sign: float) -> _Hidden:
+    """Gyro bias linear in temperature while the chip warms steadily from power-on (no
+    warm-up before the first record; statics of 30 s at least)."""
+    from host.bench.physics import Environment
+
+    truth = sign * float(rng.uniform(0.015, 0.03))
+    env = Environment(room_c=float(rng.uniform(20, 24)), rise_c=40.0, tau_s=4000.0,
+                      room_amp_c=0.0)  # fmt: skip
+    vec = _on_axis(axis, truth)
+    return _Hidden(lambda t: dataclasses.replace(t, gyro_temp_bias=vec),
+                   f"temperature_bias:gyro:{AXES[axis]}", "°/s/°C", truth, env,
+                   warmup_s=0.0, static_min_s=30.0)  # fmt: skip
+
+
+def _lever_arm(rng: np.random.Generator, axis: int, sign: float) -> _Hidden:
+    """The sensor 2–5 cm off the cube's centre on every axis (each sign drawn)."""
+    arm = rng.uniform(0.02, 0.05, 3) * np.where(rng.random(3) < 0.5, -1.0, 1.0)
+    vector = (float(arm[0]), float(arm[1]), float(arm[2]))
+    return _Hidden(lambda t: dataclasses.replace(t, lever_arm_m=vector),
+                   "lever_arm:accel:xyz", "m", float(arm[0]), vector=vector)  # fmt: skip
+
+
+def _none(rng: np.random.Generator, axis: int, sign: float) -> _Hidden:
+    """The control: nothing hidden."""
+    return _Hidden(dataclasses.replace)
+
+
+#: effect -> what it changes in the simulation, from the seed's generator, axis and sign
+_HIDDEN: dict[str, Callable[[np.random.Generator, int, float], _Hidden]] = {
+    "temperature": _temperature,
+    "asymmetry": _asymmetry,
+    "drift": _drift,
+    "warmup": _warmup,
+    "lever_arm": _lever_arm,
+    "none": _none,
+}
 
 
 def case_dataset(case: HiddenCase, noise: NoiseModel | None = None) -> Dataset:
