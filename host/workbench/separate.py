@@ -177,6 +177,32 @@ def yardstick(ds: Dataset, terms: Sequence[ModelTerm]) -> Dataset:
     return without_turn_angle(ds, axes) if axes else ds
 
 
+#: the fitted values of a fit's parameters by (term, sensor, axis, key)
+_Values = dict[tuple[str, str, str, str], float]
+
+
+@dataclass(frozen=True, eq=False)
+class _Weighing:
+    """How a session (the one measured, or it with a candidate record) is weighed: its dataset
+    on the yardstick of the explanations ``exps`` and each explanation's terms on it, built
+    with the same noise and site; ``work`` the records' own reads, kept between the builds."""
+
+    exps: tuple[Explanation, ...]
+    noise: NoiseModel
+    latitude_deg: float
+    height_m: float
+    work: RecordWork
+
+    def weighed(self, s: Session) -> tuple[Dataset, list[tuple[ModelTerm, ...]]]:
+        """The dataset of ``s`` on the yardstick and each explanation's terms on it."""
+        raw = build_dataset(s, noise=self.noise, latitude_deg=self.latitude_deg,
+                            height_m=self.height_m, work=self.work)  # fmt: skip
+        on_raw = [e.on(raw) for e in self.exps]
+        ds = yardstick(raw, [mt for t in on_raw for mt in t])
+        # the yardstick weighs the same records' rows anew: the terms built on them hold
+        return ds, on_raw if same_records(ds, raw) else [e.on(ds) for e in self.exps]
+
+
 def separate(
     session: Session,
     model: Sequence[ModelTerm],
@@ -194,55 +220,68 @@ def separate(
     """Rank the records that would tell explanation ``a`` from ``b`` (and from each of
     ``others``, and those from each other; each a list of terms added to ``model``, or an
     :class:`Explanation`), each at the size this session's records give it."""
-    exps = [x if isinstance(x, Explanation) else Explanation(_label(x), tuple(x))
-            for x in (a, b, *others)]  # fmt: skip
-    kw = {"noise": noise or NoiseModel(), "latitude_deg": latitude_deg, "height_m": height_m,
-          "work": RecordWork()}  # fmt: skip
-
-    def weighed(s: Session) -> tuple[Dataset, list[tuple[ModelTerm, ...]]]:
-        raw = build_dataset(s, **kw)  # type: ignore[arg-type]
-        on_raw = [e.on(raw) for e in exps]
-        ds = yardstick(raw, [mt for t in on_raw for mt in t])
-        # the yardstick weighs the same records' rows anew: the terms built on them hold
-        return ds, on_raw if same_records(ds, raw) else [e.on(ds) for e in exps]
-
-    def lam(
-        ds: Dataset, terms: list[tuple[ModelTerm, ...]], built: BuiltColumns | None = None
-    ) -> tuple[tuple[int, int, float], ...]:
-        return noncentralities(ds, model, terms, values, built)
-
-    ds, terms = weighed(session)
+    exps = tuple(x if isinstance(x, Explanation) else Explanation(_label(x), tuple(x))
+                 for x in (a, b, *others))  # fmt: skip
+    weighing = _Weighing(exps, noise or NoiseModel(), latitude_deg, height_m, RecordWork())
+    ds, terms = weighing.weighed(session)
     built = BuiltColumns(ds)
     base = fit_model(ds, model, built=built)
     fits = [fit_model(ds, (*model, *t), built=built) for t in terms]
     values = [_values(f) for f in fits]
-    lam_now = min(x[2] for x in lam(ds, terms, built))
+    lam_now = min(x[2] for x in noncentralities(ds, model, terms, values, built))
     base_values = {p.name: p.value for p in base.parameters if math.isfinite(p.value)}
     hand = Augmenter(session, base_values, local_gravity(latitude_deg, height_m))
-    if only is None:
-        temp = has_temperature_term([mt for t in terms for mt in t]) or any(
-            "temperature" in e.signal[2] for e in exps if e.signal
-        )
-        temps = (OTHER_TEMPERATURE_C,) if temp else ()
-        menu = candidates(hand.static_s, hand.turns, time, paces=(1.0, 0.5, 2.0),
-                          temperatures=temps)  # fmt: skip
-        if unknown_headings(session) and headings_can_be_noted(session, ds):
-            menu += heading_candidates(hand.static_s, time)
-        todo = [c for c in menu if hand.fits_range(c)]
-    else:
-        todo = list(only)
+    todo = _menu(session, ds, hand, terms, exps, time) if only is None else list(only)
+    ranked = _ranked(weighing, hand, model, values, todo, lam_now, progress)
+    return Separation(exps[0].label, exps[1].label, lam_now, tuple(ranked), fits[0].chi2,
+                      fits[1].chi2, tuple(e.label for e in exps[2:]))  # fmt: skip
+
+
+def _menu(
+    session: Session,
+    ds: Dataset,
+    hand: Augmenter,
+    terms: Sequence[tuple[ModelTerm, ...]],
+    exps: Sequence[Explanation],
+    time: OperatorTime,
+) -> list[Candidate]:
+    """The records worth weighing: the planner's menu (at another temperature too when an
+    explanation follows temperature; the noted-heading records when the statics carry no
+    heading and one noted now is in the tilt's frame), those the session's range allows."""
+    temp = has_temperature_term([mt for t in terms for mt in t]) or any(
+        "temperature" in e.signal[2] for e in exps if e.signal
+    )
+    temps = (OTHER_TEMPERATURE_C,) if temp else ()
+    menu = candidates(hand.static_s, hand.turns, time, paces=(1.0, 0.5, 2.0),
+                      temperatures=temps)  # fmt: skip
+    if unknown_headings(session) and headings_can_be_noted(session, ds):
+        menu += heading_candidates(hand.static_s, time)
+    return [c for c in menu if hand.fits_range(c)]
+
+
+def _ranked(
+    weighing: _Weighing,
+    hand: Augmenter,
+    model: Sequence[ModelTerm],
+    values: Sequence[_Values],
+    todo: Sequence[Candidate],
+    lam_now: float,
+    progress: Callable[[int, int, str], None] | None,
+) -> list[Separating]:
+    """Each of ``todo`` added to the session and weighed (λ of every pair at the sizes
+    ``values`` the records give them), best λ gained per minute first."""
     ranked = []
     for i, cand in enumerate(todo):
         if progress is not None:
             progress(i, len(todo), cand.label)
-        pairs = lam(*weighed(hand.with_candidate(cand)))
+        ds, terms = weighing.weighed(hand.with_candidate(cand))
+        pairs = noncentralities(ds, model, terms, values)
         got = min(x[2] for x in pairs)
         ranked.append(Separating(cand, got, (got - lam_now) / (cand.operator_s / 60.0), pairs))
     if progress is not None:
         progress(len(todo), len(todo), "")
     ranked.sort(key=lambda s: (-s.per_min, s.candidate.operator_s))
-    return Separation(exps[0].label, exps[1].label, lam_now, tuple(ranked), fits[0].chi2,
-                      fits[1].chi2, tuple(e.label for e in exps[2:]))  # fmt: skip
+    return ranked
 
 
 def unknown_headings(session: Session) -> bool:

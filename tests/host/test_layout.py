@@ -169,7 +169,6 @@ LONG_FUNCTIONS = {
     "host/wire/resync.py:best_parse",
     "host/workbench/adaptive.py:adaptive_run",
     "host/workbench/planner.py:plan_next",
-    "host/workbench/separate.py:separate",
     "host/workbench/text.py:format_diagnosis",
 }
 
