@@ -22,36 +22,36 @@ from host.model.plate import (
     turn_circles,
     with_headings,
 )
-from host.model.poses import RecordLinks, first_estimates
+from host.model.poses import FirstEstimates, RecordLinks, first_estimates
 from host.model.remeasured import leans_are_a_bias_change
 from host.model.rows import (
-    BlockMeans,
+    RecordWork,
     RowTable,
-    TurnAccel,
-    TurnAccelValues,
     add_block_means,
     add_turn_accel,
     add_turn_integrals,
     apply_serial_correlation,
-    block_means,
     hand_sigma,
     seating_sigma,
-    turn_accel_rows,
-    turn_accel_values,
     turn_tilt_columns,
 )
-from host.model.signals import RecordSignals
-from host.model.turn_axis import resolve_turn_axes, turn_axes
-from host.model.turning import sensed_lever_matrix
-from host.model.variance import Component, TurnClosure, turn_angle_sigma, turn_wobble_sigma
-from host.model.whitening import Group, GroupsBySize, Whitener, groups_by_size, whiten_rows
+from host.model.signals import RecordSignals, record_signals
+from host.model.turn_axis import TurnAxis, resolve_turn_axes, turn_axes
+from host.model.variance import Component, TurnClosure, TurnSigmas, turn_sigmas
+from host.model.whitening import (
+    Group,
+    GroupsBySize,
+    RowNoise,
+    Whitener,
+    groups_by_size,
+    whiten_rows,
+)
 from host.session.directory import Session, read_session
 from host.session.method import (
     DEFAULT_HEIGHT_M,
     DEFAULT_LATITUDE_DEG,
     RecordStats,
     local_gravity,
-    record_stats,
     trapezoid_integral,
 )
 from host.session.observations import Observation, build_observations
@@ -139,61 +139,6 @@ class Dataset:
         return self.sensor_aggregators.get((record, sensor, axis), self.aggregators[record])
 
 
-def turn_heading(t_s: np.ndarray, rate_up_dps: np.ndarray) -> np.ndarray:
-    """(N,) the angle turned about the up axis since the record began, ° (trapezoid rule over
-    the reference rate ``rate_up_dps`` (N,) °/s at times ``t_s`` (N,) s; method.md §4)."""
-    if len(t_s) < 2:
-        return np.zeros(len(t_s))
-    step = np.diff(t_s) * (rate_up_dps[1:] + rate_up_dps[:-1]) / 2.0
-    return np.concatenate([[0.0], np.cumsum(step)])
-
-
-def _turn_reference(
-    rec_gyro: np.ndarray, t_ms: np.ndarray, up: np.ndarray, bias_dps: np.ndarray, want_deg: float
-) -> np.ndarray:
-    """(N,3) reference rate of a turn: the measured rate about the up axis (static bias
-    removed), scaled so that its trapezoid integral is exactly ``want_deg``."""
-    raw = (rec_gyro - bias_dps) @ up
-    total = float(trapezoid_integral(t_ms, raw))
-    if abs(total) < 1e-6:
-        return np.zeros((len(t_ms), 3))
-    return (raw * (want_deg / total))[:, None] * up[None, :]
-
-
-def _record_signals(
-    rec: Record,
-    o: Observation,
-    g: float,
-    t0: float,
-    t_rel: np.ndarray,
-    gyro_bias: np.ndarray,
-    temp_mean_c: float,
-    accel_matrix: np.ndarray | None = None,
-    gyro_scale: np.ndarray | None = None,
-) -> RecordSignals:
-    """The reference signals of one record (observation ``o``): gravity ``g`` m/s² along its up
-    direction, the reference rate (a turn: its measured rate about up less the static
-    ``gyro_bias`` (4, 3) (g-sensitivity rows, bias), scaled to the known turn; otherwise the
-    observation's rate), the time ``t0`` + ``t_rel`` s and the heading."""
-    n = len(rec)
-    force = np.tile(g * o.up, (n, 1)) if o.kind != "rate" else np.tile(g * rec.up, (n, 1))
-    if o.kind == "turn":
-        bias_up = gyro_bias[:3].T @ o.up + gyro_bias[3]
-        want = float(o.rate @ o.up)
-        rate = _turn_reference(rec.gyro, rec.t_ms, o.up, bias_up, want)
-        heading: np.ndarray | None = turn_heading(t_rel, rate @ o.up)
-    else:  # rate table; statics: zero, or the vertical Earth rate
-        rate = np.tile(o.rate, (n, 1))
-        heading = None
-    return RecordSignals(
-        name=o.record, kind=o.kind, t_s=t0 + t_rel, temp_c=rec.temp.copy(), force=force,
-        rate=rate, accel=rec.accel, gyro=rec.gyro, g=g, up=o.up, temp_mean_c=temp_mean_c,
-        heading_deg=heading, placement_deg=rec.placement_heading_deg,
-        accel_matrix=accel_matrix if o.kind in ("turn", "static") else None,
-        gyro_scale=gyro_scale if o.kind in ("turn", "static") else None,
-    )  # fmt: skip
-
-
 def _preliminary_gyro_scale(
     turns: Sequence[tuple[Record, Observation]], gyro_bias: np.ndarray
 ) -> np.ndarray | None:
@@ -247,113 +192,247 @@ def _static_blocks(
     return out
 
 
-def turn_pairs(signals: Sequence[RecordSignals], timed: bool) -> list[tuple[int, int, int]]:
-    """(up axis, ccw record, cw record) for each pair of turns made both ways about an axis:
-    its ccw turns paired with its cw turns in the order measured (the first with the first, the
-    second with the second, …; by first sample time when ``timed``, else as the records are
-    listed); a turn without a partner is left out."""
-    by_dir: dict[tuple[int, int], list[tuple[float, int]]] = {}
-    for r, sig in enumerate(signals):
-        if sig.kind != "turn":
-            continue
-        k = int(np.argmax(np.abs(sig.up)))
-        turned = float(np.sum(sig.rate[:, k]))
-        if turned != 0.0:
-            start = float(sig.t_s[0]) if timed and len(sig.t_s) else 0.0
-            by_dir.setdefault((k, int(np.sign(turned))), []).append((start, r))
-    out: list[tuple[int, int, int]] = []
-    for k in range(3):
-        ccw = [r for _, r in sorted(by_dir.get((k, 1), []))]
-        cw = [r for _, r in sorted(by_dir.get((k, -1), []))]
-        out.extend((k, a, b) for a, b in zip(ccw, cw, strict=False))
-    return out
+@dataclass(frozen=True, eq=False)
+class _Observed:
+    """The records as the model reads them, before any row: ``obs`` each one's observation
+    (:func:`~host.session.observations.build_observations`) and ``of`` the same by record
+    name, the poses with their first attitudes (``first``: :func:`~host.model.poses.
+    first_estimates`); ``names`` the records observed, in the session's order; ``stats`` per
+    record; ``has_power``: every one carries its power-on time; ``notes`` so far."""
+
+    obs: list[Observation]
+    of: dict[str, Observation]
+    names: list[str]
+    stats: dict[str, RecordStats]
+    first: FirstEstimates
+    has_power: bool
+    notes: list[str]
 
 
-def _turn_closures(
-    table: RowTable, signals: list[RecordSignals], rest: np.ndarray, timed: bool
-) -> list[TurnClosure]:
-    """Per pair of turns made both ways about an axis (:func:`turn_pairs`) and gyro channel,
-    the two integrals and what the static records say the gyro reads at rest there (``rest``
-    (4, 3): the gyro's g-sensitivity per g and bias from the statics), each with its own white
-    noise: :func:`host.model.variance.turn_angle_sigma`."""
-    statics = [len(sig.t_s) for sig in signals if sig.kind != "turn"]
-    n_static = float(np.median(statics)) if statics else 1.0
-    got: dict[tuple[int, int], tuple[float, float, float, float]] = {}
-    for ch in table.channels:
-        sig = signals[ch.record]
-        if sig.kind != "turn" or ch.sensor != "gyro":
-            continue
-        w = ch.aggregator[0]
-        at_rest = float(np.concatenate([sig.up, [1.0]]) @ rest[:, ch.axis])  # force in g
-        got[(ch.record, ch.axis)] = (table.y[ch.rows[0]], at_rest, float(w.sum()), float(w @ w))
-    out = []
-    for k, ccw, cw in turn_pairs(signals, timed):
-        for ax in range(3):
-            if (ccw, ax) not in got or (cw, ax) not in got:
-                continue
-            levels = table.static_noise.get(("gyro", ax), [(0.0, 1.0)])
-            v = float(np.mean([a * t for a, t in levels]))
-            (i1, r1, t1, ww1), (i2, _, t2, ww2) = got[(ccw, ax)], got[(cw, ax)]
-            # the white noise of both integrals, and of the rest reading (about one static
-            # record's mean) carried over both durations
-            white = v * (ww1 + ww2) + v / n_static * (t1 + t2) ** 2
-            out.append(TurnClosure(k, ax, (i1, i2), r1, (t1, t2), white))
-    return out
-
-
-@dataclass(eq=False)
-class RecordWork:
-    """What :func:`build_dataset` reads from a record alone, kept between builds of sessions
-    that share records (the planner adds each candidate to the same measured records): each
-    record's stats, and a static record's block means (:func:`host.model.rows.block_means`)
-    under the reference input and blocks they were read with. Keyed by the record itself (a
-    :class:`Record` is not changed once read); one per caller, dropped with it."""
-
-    stats: dict[Record, RecordStats] = field(default_factory=dict)
-    blocks: dict[tuple[object, ...], BlockMeans] = field(default_factory=dict)
-    turns: dict[tuple[object, ...], tuple[TurnAccel | None, TurnAccelValues]] = field(
-        default_factory=dict
+def _observe(
+    session: Session, g: float, turns: int | None, earth_rate: bool, latitude_deg: float,
+    work: RecordWork,
+) -> _Observed:  # fmt: skip
+    """Check the records and observe each one (gravity ``g`` m/s²; ``turns``, ``earth_rate``
+    and ``latitude_deg`` as :func:`~host.session.observations.build_observations` takes them);
+    the poses' attitudes first estimated."""
+    stats = {n: work.record_stats(r) for n, r in session.records.items()}
+    obs, notes = build_observations(
+        session, g, turns=turns, stats=stats, earth_rate=earth_rate, latitude_deg=latitude_deg
     )
-    levers: dict[tuple[object, ...], np.ndarray] = field(default_factory=dict)
+    obs_of = {o.record: o for o in obs}
+    names = [n for n in session.records if n in obs_of]
+    has_power = all("power_on_s" in session.records[n].meta for n in names)
+    if not has_power:
+        notes.append(
+            "records carry no power-on time (meta power_on_s): time terms see only the time "
+            "within each record (centred on its middle)"
+        )
+    first = first_estimates(obs_of, g)  # poses: their attitudes before the fit
+    obs_of.update(first.observations)
+    return _Observed(obs, obs_of, names, stats, first, has_power, notes)
 
-    def record_stats(self, rec: Record) -> RecordStats:
-        """:func:`host.session.method.record_stats` of ``rec``, read once."""
-        if rec not in self.stats:
-            self.stats[rec] = record_stats(rec)
-        return self.stats[rec]
 
-    def block_means(
-        self, rec: Record, sig: RecordSignals, t_rel: np.ndarray, noise: NoiseModel
-    ) -> BlockMeans:
-        """:func:`host.model.rows.block_means` of static record ``rec`` (its signals ``sig``),
-        read once per reference input and blocks."""
-        key = (rec, noise.block_s, noise.max_blocks, sig.force.tobytes(), sig.rate.tobytes())
-        if key not in self.blocks:
-            self.blocks[key] = block_means(sig, t_rel, noise)
-        return self.blocks[key]
+@dataclass(frozen=True, eq=False)
+class _BeforeFit:
+    """What the records say before the fit, for their reference signals: ``rest`` (4, 3) the
+    gyro's g-sensitivity per g and bias from the static records (least squares per channel),
+    ``first`` the first estimates with the moves, ``accel_matrix`` and ``gyro_scale``
+    (:func:`_preliminary_accel_matrix`, :func:`_preliminary_gyro_scale`), ``gyro_sd`` (3,) the
+    per-sample gyro noise °/s per axis (it finds the still moments inside the turns)."""
 
-    def turn_accel(
-        self, rec: Record, sig: RecordSignals, t_rel: np.ndarray, gyro_sd_dps: float, moving: bool
-    ) -> tuple[TurnAccel | None, TurnAccelValues]:
-        """Turn record ``rec``'s accelerometer rows (:func:`host.model.rows.turn_accel_rows`,
-        :func:`host.model.rows.turn_accel_values`), read once per reference input (its
-        signals ``sig``), gyro noise and ``moving``."""
-        key = (rec, sig.up.tobytes(), sig.rate.tobytes(), sig.force.tobytes(), gyro_sd_dps, moving)
-        if key not in self.turns:
-            turn = turn_accel_rows(sig, t_rel, gyro_sd_dps, moving)
-            self.turns[key] = (turn, () if turn is None else turn_accel_values(sig, turn))
-        return self.turns[key]
+    rest: np.ndarray
+    first: FirstEstimates
+    accel_matrix: np.ndarray | None
+    gyro_scale: np.ndarray | None
+    gyro_sd: np.ndarray
 
-    def lever(self, rec: Record, sig: RecordSignals) -> np.ndarray:
-        """:func:`host.model.turning.sensed_lever_matrix` of turn record ``rec`` (its signals
-        ``sig``), read once per clock, reference rate and accelerometer matrix."""
-        matrix = None if sig.lever_matrix is None else np.asarray(sig.lever_matrix).tobytes()
-        key = (rec, sig.t_s.tobytes(), sig.rate.tobytes(), matrix)
-        if key not in self.levers:
-            lever = sensed_lever_matrix(sig.t_s, sig.rate, sig.lever_matrix)
-            lever.flags.writeable = False  # several datasets may read it
-            self.levers[key] = lever
-        return self.levers[key]
+
+def _before_the_fit(session: Session, observed: _Observed, g: float) -> _BeforeFit:
+    """The static records' gyro bias and g-sensitivity, the moves' first estimates, the
+    accelerometer's matrix and the gyro's scale read before the fit (gravity ``g`` m/s²)."""
+    of, stats, names = observed.of, observed.stats, observed.names
+    statics = [n for n in names if of[n].kind in ("static", "rate", "pose")]
+    xs = np.array([np.concatenate([of[n].force, [1.0]]) for n in statics])
+    ys = np.array([stats[n].gyro_mean - of[n].rate for n in statics])
+    pre, *_ = np.linalg.lstsq(xs, ys, rcond=None)
+    first = observed.first.with_moves(session.records, of, pre)
+    accel_matrix = _preliminary_accel_matrix(
+        xs, np.array([stats[n].accel_mean for n in statics]), g
+    )
+    gyro_scale = _preliminary_gyro_scale(
+        [(session.records[n], of[n]) for n in names if of[n].kind == "turn"], pre
+    )
+    gyro_sd = np.median([stats[n].gyro_std for n in statics], axis=0)
+    return _BeforeFit(pre, first, accel_matrix, gyro_scale, gyro_sd)
+
+
+@dataclass(frozen=True, eq=False)
+class _Rows:
+    """Each record's signals and rows, in the order of :attr:`_Observed.names`: ``signals``
+    and ``aggregators`` per record, the rows themselves (``table``), a turn's accelerometer
+    aggregators (``sensor_aggs``) and ``n_still``: turn record -> how many of its
+    accelerometer rows are still moments (the rest: moving)."""
+
+    signals: list[RecordSignals] = field(default_factory=list)
+    aggregators: list[np.ndarray] = field(default_factory=list)
+    table: RowTable = field(default_factory=RowTable)
+    sensor_aggs: dict[tuple[int, str, int], np.ndarray] = field(default_factory=dict)
+    n_still: dict[int, int] = field(default_factory=dict)
+
+
+def _signals_of(
+    rec: Record, o: Observation, g: float, t_rel: np.ndarray, observed: _Observed,
+    before: _BeforeFit, temp_mean_c: float,
+) -> RecordSignals:  # fmt: skip
+    """Record ``rec``'s reference signals (:func:`~host.model.signals.record_signals`;
+    ``t_rel`` (N,) s since its first sample); a move's read against the first estimates."""
+    # without power-on times only the variation within a record is known: centre it
+    if observed.has_power:
+        t0 = float(rec.meta.get("power_on_s", "0") or 0.0)
+    else:
+        t0 = -float(t_rel.mean())
+    sig = record_signals(rec, o, g, t0, t_rel, before.rest, temp_mean_c, before.accel_matrix,
+                          before.gyro_scale)  # fmt: skip
+    if o.kind == "move":  # read against the first estimates; its rows come last
+        sig = replace(sig, force=before.first.force(rec),
+                      rate=before.first.reference_rate(rec, before.rest))  # fmt: skip
+    return sig
+
+
+def _record_rows(
+    session: Session, observed: _Observed, before: _BeforeFit, g: float, nm: NoiseModel,
+    moving: bool, work: RecordWork,
+) -> _Rows:  # fmt: skip
+    """Every record's signals and rows, one builder per kind (:mod:`host.model.rows`; a move
+    has none until the others are whitened), the rows' serial correlation applied."""
+    names, of = observed.names, observed.of
+    pose_frame = not any(of[n].kind in ("static", "turn", "rate") for n in names)
+    temp_mean = float(np.mean([float(np.mean(session.records[n].temp)) for n in names]))
+    out = _Rows()
+    for ri, name in enumerate(names):
+        rec, o = session.records[name], of[name]
+        t_rel = (rec.t_ms - rec.t_ms[0]) / 1000.0
+        sig = _signals_of(rec, o, g, t_rel, observed, before, temp_mean)
+        out.signals.append(replace(sig, pose_frame=pose_frame) if pose_frame else sig)
+        if o.kind == "move":
+            out.aggregators.append(np.zeros((2, len(rec))))
+        elif o.kind != "turn":
+            out.aggregators.append(
+                add_block_means(out.table, ri, work.block_means(rec, sig, t_rel, nm))
+            )
+        else:
+            gyro_sd = float(before.gyro_sd[int(np.argmax(np.abs(o.up)))])
+            turn, values = work.turn_accel(rec, sig, t_rel, gyro_sd, moving)
+            if turn is not None:
+                for ax in range(3):
+                    out.sensor_aggs[(ri, "accel", ax)] = turn.aggregators[ax]
+                out.n_still[ri] = turn.n_still
+                add_turn_accel(out.table, ri, turn, values)
+            out.aggregators.append(add_turn_integrals(out.table, ri, sig, rec.t_ms, t_rel))
+    apply_serial_correlation(out.table, nm.max_lag)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _Placed:
+    """The records placed on the plate: their ``signals`` with headings, tilt matrices and
+    each tilted turn about its measured axis; the ``tilted`` turns, the indices of their
+    records (``moved``) and what was said of it (``notes``)."""
+
+    signals: list[RecordSignals]
+    tilted: list[TurnAxis]
+    moved: set[int]
+    notes: list[str]
+
+
+def _place_on_the_plate(signals: list[RecordSignals], g: float) -> _Placed:
+    """The plate's tilt from the turns' circles, each record placed in the room, and the
+    turns' axes, read once: whether a bias change explains their leans, else which turns were
+    tilted (those then about their measured axes)."""
+    # the circles are drawn once: resolving the headings only places them in the room
+    circles = turn_circles(signals)
+    signals, notes = resolve_placements(signals, g, plate_from_rests(circles))
+    plate = plate_from_rests(with_headings(circles, signals))
+    signals = tilt_matrices(signals, plate)
+    axes = turn_axes(signals, plate)
+    changed = leans_are_a_bias_change(signals, axes)
+    signals, tilted = resolve_turn_axes(signals, [] if changed else axes)
+    notes = [*notes, *(a.line() for a in tilted)]
+    if changed:
+        notes.append(changed.line(g))
+    moved = {i for i, s in enumerate(signals) if s.name in {a.record for a in tilted}}
+    return _Placed(signals, tilted, moved, notes)
+
+
+def _nominal_about_measured_axes(table: RowTable, placed: _Placed) -> None:
+    """The ideal sensor's value of each row of a tilted turn, now about its measured axis."""
+    for ch in table.channels:
+        if ch.record in placed.moved:
+            ref = ch.aggregator @ placed.signals[ch.record].reference(ch.sensor)[:, ch.axis]
+            for row, v in zip(ch.rows, ref, strict=True):
+                table.nominal[row] = float(v)
+
+
+@dataclass(frozen=True, eq=False)
+class _SensorNoise:
+    """The rows' noise beyond each sample's white noise: the ``floors`` per sensor, the white
+    level per (sensor, axis) (variance·τ of one sample, from the static records), the seating
+    and the hand's scatter (m/s², :func:`host.model.rows.seating_sigma`,
+    :func:`host.model.rows.hand_sigma`) and what was said of them."""
+
+    floors: dict[str, float]
+    white_level: dict[tuple[str, int], float]
+    seat: float
+    hand: tuple[float, float]
+    notes: list[str]
+
+
+def _sensor_noise(
+    rows: _Rows, signals: list[RecordSignals], records: list[Record], nm: NoiseModel,
+    work: RecordWork,
+) -> _SensorNoise:  # fmt: skip
+    """The floor from the static records' block means (or as given in ``nm``), the seating
+    at the turns' still moments and the hand while they turn."""
+    table, sensor_aggs, n_still = rows.table, rows.sensor_aggs, rows.n_still
+    floors, floor_note = session_floor(_static_blocks(table, signals), nm)
+    notes = [floor_note]
+    tilt_cols = turn_tilt_columns(signals, sensor_aggs)
+    seat, seat_note = seating_sigma(signals, sensor_aggs, table.channels, n_still, tilt_cols)
+    if seat_note:
+        notes.append(seat_note)
+    white_level = {
+        k: float(np.mean([v * t for v, t in lv])) for k, lv in table.static_noise.items()
+    }
+    hand, hand_note = hand_sigma(
+        signals, sensor_aggs, n_still, white_level, tilt_cols,
+        lambda ri: work.lever(records[ri], signals[ri]),
+    )  # fmt: skip
+    if hand_note:
+        notes.append(hand_note)
+    return _SensorNoise(floors, white_level, seat, hand, notes)
+
+
+def _tilted_turn_sigmas(
+    whiten: Whitener, groups: list[Group], signals: list[RecordSignals], tilted: list[TurnAxis]
+) -> Whitener:
+    """A corrected turn's gyro integrals carry its measured axis's σ (``groups`` changed in
+    place, the whitener returned)."""
+    for a in tilted:
+        ri = next(i for i, s in enumerate(signals) if s.name == a.record)
+        turned = abs(float(signals[ri].heading[-1]))  # rad
+        # per component: the accelerometer's σ, and the plate's tilt at the statics' unknown
+        # heading (up to ``bound`` in any direction: RMS bound/√2 per component)
+        axis_sd = math.hypot(a.sd, a.bound / math.sqrt(2.0))
+        for k, gr in enumerate(groups):
+            if gr.record == ri and gr.sensor == "gyro":
+                # across the axis the error moves the rate directly; along it by lean·δ
+                across = abs(float(a.up[gr.axis])) < 0.5
+                sd_rad = axis_sd if across else a.size * axis_sd
+                sd = math.hypot(gr.sigma, math.degrees(sd_rad * turned))
+                whiten = whiten.with_block(gr.rows, np.array([[1.0 / sd]]))
+                groups[k] = replace(gr, sigma=sd)
+    return whiten
 
 
 def build_dataset(
@@ -382,143 +461,40 @@ def build_dataset(
         raise UserError("no records to fit")
     work = RecordWork() if work is None else work
     g = local_gravity(latitude_deg, height_m)
-    stats = {n: work.record_stats(r) for n, r in session.records.items()}
-    obs, notes = build_observations(
-        session, g, turns=turns, stats=stats, earth_rate=earth_rate, latitude_deg=latitude_deg
-    )
-    obs_of = {o.record: o for o in obs}
-    names = [n for n in session.records if n in obs_of]
-    has_power = all("power_on_s" in session.records[n].meta for n in names)
-    if not has_power:
-        notes.append(
-            "records carry no power-on time (meta power_on_s): time terms see only the time "
-            "within each record (centred on its middle)"
-        )
-    first = first_estimates(obs_of, g)  # poses: their attitudes before the fit
-    obs_of.update(first.observations)
-    # preliminary static gyro bias + g-sensitivity (per channel), for the turn reference rate
-    statics = [n for n in names if obs_of[n].kind in ("static", "rate", "pose")]
-    xs = np.array([np.concatenate([obs_of[n].force, [1.0]]) for n in statics])
-    ys = np.array([stats[n].gyro_mean - obs_of[n].rate for n in statics])
-    pre, *_ = np.linalg.lstsq(xs, ys, rcond=None)
-    first = first.with_moves(session.records, obs_of, pre)
-    accel_matrix = _preliminary_accel_matrix(
-        xs, np.array([stats[n].accel_mean for n in statics]), g
-    )
-    gyro_scale = _preliminary_gyro_scale(
-        [(session.records[n], obs_of[n]) for n in names if obs_of[n].kind == "turn"], pre
-    )
-    # per-sample gyro noise (°/s) per axis: finds the still moments inside the turns
-    gyro_sd = np.median([stats[n].gyro_std for n in statics], axis=0)
-
-    pose_frame = not any(obs_of[n].kind in ("static", "turn", "rate") for n in names)
-    temp_mean = float(np.mean([float(np.mean(session.records[n].temp)) for n in names]))
-    signals: list[RecordSignals] = []
-    aggs: list[np.ndarray] = []
-    table = RowTable()
-    sensor_aggs: dict[tuple[int, str, int], np.ndarray] = {}
-    #: turn record -> how many of its accelerometer rows are still moments (the rest: moving)
-    n_still: dict[int, int] = {}
-    for ri, name in enumerate(names):
-        rec = session.records[name]
-        o = obs_of[name]
-        t_rel = (rec.t_ms - rec.t_ms[0]) / 1000.0
-        # without power-on times only the variation within a record is known: centre it
-        t0 = float(rec.meta.get("power_on_s", "0") or 0.0) if has_power else -float(t_rel.mean())
-        sig = _record_signals(rec, o, g, t0, t_rel, pre, temp_mean, accel_matrix, gyro_scale)
-        if o.kind == "move":  # read against the first estimates; its rows come last
-            sig = replace(sig, force=first.force(rec), rate=first.reference_rate(rec, pre))
-        signals.append(replace(sig, pose_frame=pose_frame) if pose_frame else sig)
-        if o.kind == "move":
-            aggs.append(np.zeros((2, len(rec))))
-            continue
-        if o.kind != "turn":
-            aggs.append(add_block_means(table, ri, work.block_means(rec, sig, t_rel, nm)))
-            continue
-        up_k = int(np.argmax(np.abs(o.up)))
-        turn, values = work.turn_accel(rec, sig, t_rel, float(gyro_sd[up_k]), moving)
-        if turn is not None:
-            for ax in range(3):
-                sensor_aggs[(ri, "accel", ax)] = turn.aggregators[ax]
-            n_still[ri] = turn.n_still
-            add_turn_accel(table, ri, turn, values)
-        aggs.append(add_turn_integrals(table, ri, sig, rec.t_ms, t_rel))
-
-    apply_serial_correlation(table, nm.max_lag)
-    # the circles are drawn once: resolving the headings only places them in the room
-    circles = turn_circles(signals)
-    signals, plate_notes = resolve_placements(signals, g, plate_from_rests(circles))
-    notes.extend(plate_notes)
-    plate = plate_from_rests(with_headings(circles, signals))
-    signals = tilt_matrices(signals, plate)
-    # the turns' axes, read once: whether a bias change explains their leans, else which
-    # turns were tilted
-    axes = turn_axes(signals, plate)
-    changed = leans_are_a_bias_change(signals, axes)
-    signals, tilted = resolve_turn_axes(signals, [] if changed else axes)
-    notes.extend(a.line() for a in tilted)
-    if changed:
-        notes.append(changed.line(g))
-    moved = {i for i, s in enumerate(signals) if s.name in {a.record for a in tilted}}
-    for ch in table.channels:  # the ideal sensor's value of a turn now about its measured axis
-        if ch.record in moved:
-            ref = ch.aggregator @ signals[ch.record].reference(ch.sensor)[:, ch.axis]
-            for row, v in zip(ch.rows, ref, strict=True):
-                table.nominal[row] = float(v)
-    floors, floor_note = session_floor(_static_blocks(table, signals), nm)
-    notes.append(floor_note)
-    tilt_cols = turn_tilt_columns(signals, sensor_aggs)
-    seat, seat_note = seating_sigma(signals, sensor_aggs, table.channels, n_still, tilt_cols)
-    if seat_note:
-        notes.append(seat_note)
-    white_level = {
-        k: float(np.mean([v * t for v, t in lv])) for k, lv in table.static_noise.items()
-    }
-    records = [session.records[n] for n in names]
-    hand, hand_note = hand_sigma(
-        signals, sensor_aggs, n_still, white_level, tilt_cols,
-        lambda ri: work.lever(records[ri], signals[ri]),
-    )  # fmt: skip
-    if hand_note:
-        notes.append(hand_note)
-    closures = _turn_closures(table, signals, pre, has_power)
-    wobble = turn_wobble_sigma([c for c in closures if c.axis != c.channel])
-    if nm.turn_angle_sigma_deg is None:
-        angle = turn_angle_sigma([c for c in closures if c.axis == c.channel])
-        components: tuple[Component, ...] = (angle, wobble)
-    else:
-        absorbs = "the hand's angle error (given)"
-        angle = Component("turn angle", float(nm.turn_angle_sigma_deg), 0.0, 0, "°", absorbs)
-        components = (wobble,)
-        notes.append(f"turn angle: {angle.value:g}° per turn (given)")
-    notes.extend("a named variance component: " + c.describe() for c in components)
-    turn_sigma = (angle.value, wobble.value)
-    y_arr = np.array(table.y)
-    whiten, groups = whiten_rows(
-        table.channels, signals, y_arr, floors=floors, static_noise=table.static_noise,
-        white_level=white_level, n_still=n_still, seat=seat, hand=hand, turn_sigma=turn_sigma,
-        free_levels={(ri, ax) for ri in moved for ax in range(3)
+    observed = _observe(session, g, turns, earth_rate, latitude_deg, work)
+    before = _before_the_fit(session, observed, g)
+    rows = _record_rows(session, observed, before, g, nm, moving, work)
+    placed = _place_on_the_plate(rows.signals, g)
+    _nominal_about_measured_axes(rows.table, placed)
+    records = [session.records[n] for n in observed.names]
+    sensor = _sensor_noise(rows, placed.signals, records, nm, work)
+    turn = turn_sigmas(rows.table, placed.signals, before.rest, observed.has_power, nm)
+    signals = placed.signals
+    row_noise = RowNoise(
+        floors=sensor.floors, static_noise=rows.table.static_noise,
+        white_level=sensor.white_level, n_still=rows.n_still, seat=sensor.seat,
+        hand=sensor.hand, turn_sigma=(turn.angle_deg, turn.wobble_deg),
+        free_levels={(ri, ax) for ri in placed.moved for ax in range(3)
                      if abs(float(signals[ri].up[ax])) < 0.5}, g=g,
     )  # fmt: skip
-    for a in tilted:  # a corrected turn's integrals carry its measured axis's σ
-        ri = next(i for i, s in enumerate(signals) if s.name == a.record)
-        turned = abs(float(signals[ri].heading[-1]))  # rad
-        # per component: the accelerometer's σ, and the plate's tilt at the statics' unknown
-        # heading (up to ``bound`` in any direction: RMS bound/√2 per component)
-        axis_sd = math.hypot(a.sd, a.bound / math.sqrt(2.0))
-        for k, gr in enumerate(groups):
-            if gr.record == ri and gr.sensor == "gyro":
-                # across the axis the error moves the rate directly; along it by lean·δ
-                across = abs(float(a.up[gr.axis])) < 0.5
-                sd_rad = axis_sd if across else a.size * axis_sd
-                sd = math.hypot(gr.sigma, math.degrees(sd_rad * turned))
-                whiten = whiten.with_block(gr.rows, np.array([[1.0 / sd]]))
-                groups[k] = replace(gr, sigma=sd)
+    whiten, groups = whiten_rows(rows.table.channels, signals, np.array(rows.table.y), row_noise)
+    whiten = _tilted_turn_sigmas(whiten, groups, signals, placed.tilted)
     whiten, move_rows_of, move_aggs, links = add_moves(
-        table, signals, records, white_level, whiten, groups
+        rows.table, signals, records, sensor.white_level, whiten, groups
     )
-    y_arr = np.array(table.y)
-    sensor_aggs.update(move_aggs)
+    rows.sensor_aggs.update(move_aggs)
+    notes = [*observed.notes, *placed.notes, *sensor.notes, *turn.notes]
+    return _assemble(observed, rows, signals, whiten, groups, move_rows_of, links, g,
+                     notes, sensor, turn)  # fmt: skip
+
+
+def _assemble(
+    observed: _Observed, rows: _Rows, signals: list[RecordSignals], whiten: Whitener,
+    groups: list[Group], move_rows_of: Mapping[tuple[int, str, int], np.ndarray],
+    links: RecordLinks, g: float, notes: list[str], sensor: _SensorNoise, turn: TurnSigmas,
+) -> Dataset:  # fmt: skip
+    """The :class:`Dataset` of the rows built (a move's two rows read by every gyro channel)."""
+    table = rows.table
     rows_of: dict[tuple[int, str, int], np.ndarray] = {}
     for gr in groups:
         rows_of[(gr.record, gr.sensor, gr.axis)] = gr.rows
@@ -530,26 +506,25 @@ def build_dataset(
         row_axis=np.array(table.axis, dtype=int),
         row_integral=np.array(table.integral, dtype=bool),
         span=np.column_stack([table.t0, table.t1]),
-        y=y_arr,
+        y=np.array(table.y),
         nominal=np.array(table.nominal),
         whiten=whiten,
         groups=tuple(groups),
-        aggregators=tuple(aggs),
+        aggregators=tuple(rows.aggregators),
         rows_of=rows_of,
         g=g,
         notes=tuple(notes),
-        time_known=has_power,
-        floor=floors,
-        turns_of={o.record: o.turns for o in obs if o.kind == "turn" and o.turns is not None},
-        sensor_aggregators=sensor_aggs,
-        components=components,
-        turn_angle_sigma_deg=turn_sigma[0],
-        turn_wobble_sigma_deg=turn_sigma[1],
-        closures=tuple(c for c in closures if c.axis == c.channel)
-        if nm.turn_angle_sigma_deg is None
-        else (),
+        time_known=observed.has_power,
+        floor=sensor.floors,
+        turns_of={o.record: o.turns for o in observed.obs
+                  if o.kind == "turn" and o.turns is not None},
+        sensor_aggregators=rows.sensor_aggs,
+        components=turn.components,
+        turn_angle_sigma_deg=turn.angle_deg,
+        turn_wobble_sigma_deg=turn.wobble_deg,
+        closures=turn.closures,
         record_links=links,
-    )
+    )  # fmt: skip
 
 
 def load_dataset(

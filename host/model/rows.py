@@ -8,7 +8,8 @@
 
 The turn records' accelerometer rows have noise of their own beyond the sensor's: the cube's
 seating at the still moments (:func:`seating_sigma`) and the hand while it turns
-(:func:`hand_sigma`), both measured from the rows themselves.
+(:func:`hand_sigma`), both measured from the rows themselves. What the builders read from a
+record alone is kept between builds of sessions that share records (:class:`RecordWork`).
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ from host.model import turning
 from host.model.catalogue import plate_tilt
 from host.model.noise import NoiseModel, integrated_autocorrelation, resolution, still_runs
 from host.model.signals import SENSORS, RecordSignals
+from host.session.method import RecordStats, record_stats
+from host.session.records import Record
 
 
 @dataclass(frozen=True, eq=False)
@@ -422,3 +425,58 @@ def hand_sigma(
         f"blocks ({dof} dof beyond a constant per turn and channel, the lever arm and the "
         f"plate tilt); a turn's level while moving departs from its level at rest by {level:.2g}"
     )
+
+
+@dataclass(eq=False)
+class RecordWork:
+    """What :func:`host.model.dataset.build_dataset` reads from a record alone, kept between
+    builds of sessions that share records (the planner adds each candidate to the same
+    measured records): each record's stats, and a static record's block means (:func:`block_means`)
+    under the reference input and blocks they were read with. Keyed by the record itself (a
+    :class:`Record` is not changed once read); one per caller, dropped with it."""
+
+    stats: dict[Record, RecordStats] = field(default_factory=dict)
+    blocks: dict[tuple[object, ...], BlockMeans] = field(default_factory=dict)
+    turns: dict[tuple[object, ...], tuple[TurnAccel | None, TurnAccelValues]] = field(
+        default_factory=dict
+    )
+    levers: dict[tuple[object, ...], np.ndarray] = field(default_factory=dict)
+
+    def record_stats(self, rec: Record) -> RecordStats:
+        """:func:`host.session.method.record_stats` of ``rec``, read once."""
+        if rec not in self.stats:
+            self.stats[rec] = record_stats(rec)
+        return self.stats[rec]
+
+    def block_means(
+        self, rec: Record, sig: RecordSignals, t_rel: np.ndarray, noise: NoiseModel
+    ) -> BlockMeans:
+        """:func:`host.model.rows.block_means` of static record ``rec`` (its signals ``sig``),
+        read once per reference input and blocks."""
+        key = (rec, noise.block_s, noise.max_blocks, sig.force.tobytes(), sig.rate.tobytes())
+        if key not in self.blocks:
+            self.blocks[key] = block_means(sig, t_rel, noise)
+        return self.blocks[key]
+
+    def turn_accel(
+        self, rec: Record, sig: RecordSignals, t_rel: np.ndarray, gyro_sd_dps: float, moving: bool
+    ) -> tuple[TurnAccel | None, TurnAccelValues]:
+        """Turn record ``rec``'s accelerometer rows (:func:`host.model.rows.turn_accel_rows`,
+        :func:`host.model.rows.turn_accel_values`), read once per reference input (its
+        signals ``sig``), gyro noise and ``moving``."""
+        key = (rec, sig.up.tobytes(), sig.rate.tobytes(), sig.force.tobytes(), gyro_sd_dps, moving)
+        if key not in self.turns:
+            turn = turn_accel_rows(sig, t_rel, gyro_sd_dps, moving)
+            self.turns[key] = (turn, () if turn is None else turn_accel_values(sig, turn))
+        return self.turns[key]
+
+    def lever(self, rec: Record, sig: RecordSignals) -> np.ndarray:
+        """:func:`host.model.turning.sensed_lever_matrix` of turn record ``rec`` (its signals
+        ``sig``), read once per clock, reference rate and accelerometer matrix."""
+        matrix = None if sig.lever_matrix is None else np.asarray(sig.lever_matrix).tobytes()
+        key = (rec, sig.t_s.tobytes(), sig.rate.tobytes(), matrix)
+        if key not in self.levers:
+            lever = turning.sensed_lever_matrix(sig.t_s, sig.rate, sig.lever_matrix)
+            lever.flags.writeable = False  # several datasets may read it
+            self.levers[key] = lever
+        return self.levers[key]

@@ -1,12 +1,17 @@
 """What the terms see of a record: its reference signals (:class:`RecordSignals`: reference
 specific force, reference rate, chip temperature, time since power-on, heading) beside the
-measured outputs, and the names of the sensors, axes and units."""
+measured outputs, made from the record and its observation (:func:`record_signals`), and the
+names of the sensors, axes and units."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+
+from host.session.method import trapezoid_integral
+from host.session.observations import Observation
+from host.session.records import Record
 
 SENSORS = ("accel", "gyro")
 AXES = "xyz"
@@ -115,3 +120,58 @@ def true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
     m = np.asarray(mask, dtype=bool)
     edges = np.flatnonzero(np.diff(np.concatenate([[False], m, [False]]).astype(np.int8)))
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def turn_heading(t_s: np.ndarray, rate_up_dps: np.ndarray) -> np.ndarray:
+    """(N,) the angle turned about the up axis since the record began, ° (trapezoid rule over
+    the reference rate ``rate_up_dps`` (N,) °/s at times ``t_s`` (N,) s; method.md §4)."""
+    if len(t_s) < 2:
+        return np.zeros(len(t_s))
+    step = np.diff(t_s) * (rate_up_dps[1:] + rate_up_dps[:-1]) / 2.0
+    return np.concatenate([[0.0], np.cumsum(step)])
+
+
+def _turn_reference(
+    rec_gyro: np.ndarray, t_ms: np.ndarray, up: np.ndarray, bias_dps: np.ndarray, want_deg: float
+) -> np.ndarray:
+    """(N,3) reference rate of a turn: the measured rate about the up axis (static bias
+    removed), scaled so that its trapezoid integral is exactly ``want_deg``."""
+    raw = (rec_gyro - bias_dps) @ up
+    total = float(trapezoid_integral(t_ms, raw))
+    if abs(total) < 1e-6:
+        return np.zeros((len(t_ms), 3))
+    return (raw * (want_deg / total))[:, None] * up[None, :]
+
+
+def record_signals(
+    rec: Record,
+    o: Observation,
+    g: float,
+    t0: float,
+    t_rel: np.ndarray,
+    gyro_bias: np.ndarray,
+    temp_mean_c: float,
+    accel_matrix: np.ndarray | None = None,
+    gyro_scale: np.ndarray | None = None,
+) -> RecordSignals:
+    """The reference signals of one record (observation ``o``): gravity ``g`` m/s² along its up
+    direction, the reference rate (a turn: its measured rate about up less the static
+    ``gyro_bias`` (4, 3) (g-sensitivity rows, bias), scaled to the known turn; otherwise the
+    observation's rate), the time ``t0`` + ``t_rel`` s and the heading."""
+    n = len(rec)
+    force = np.tile(g * o.up, (n, 1)) if o.kind != "rate" else np.tile(g * rec.up, (n, 1))
+    if o.kind == "turn":
+        bias_up = gyro_bias[:3].T @ o.up + gyro_bias[3]
+        want = float(o.rate @ o.up)
+        rate = _turn_reference(rec.gyro, rec.t_ms, o.up, bias_up, want)
+        heading: np.ndarray | None = turn_heading(t_rel, rate @ o.up)
+    else:  # rate table; statics: zero, or the vertical Earth rate
+        rate = np.tile(o.rate, (n, 1))
+        heading = None
+    return RecordSignals(
+        name=o.record, kind=o.kind, t_s=t0 + t_rel, temp_c=rec.temp.copy(), force=force,
+        rate=rate, accel=rec.accel, gyro=rec.gyro, g=g, up=o.up, temp_mean_c=temp_mean_c,
+        heading_deg=heading, placement_deg=rec.placement_heading_deg,
+        accel_matrix=accel_matrix if o.kind in ("turn", "static") else None,
+        gyro_scale=gyro_scale if o.kind in ("turn", "static") else None,
+    )  # fmt: skip

@@ -10,8 +10,10 @@ of freedom (never a constant, never the misfit of the model under test).
   on this plan the two cannot be told apart, and the note says so (a turn of another angle,
   e.g. 180°, or a rate table separates them).
 
-The cube's seating at the still moments and the hand while the cube turns are estimated beside
-the rows (:func:`host.model.rows.seating_sigma`, :func:`host.model.rows.hand_sigma`).
+The closures are read from a dataset's rows (:func:`turn_pairs`, :func:`turn_closures`), and
+:func:`turn_sigmas` gives the components a dataset's turn integrals carry. The cube's seating at
+the still moments and the hand while the cube turns are estimated beside the rows
+(:func:`host.model.rows.seating_sigma`, :func:`host.model.rows.hand_sigma`).
 """
 
 from __future__ import annotations
@@ -22,6 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from host.model.noise import NoiseModel
+from host.model.rows import RowTable
+from host.model.signals import RecordSignals
 from host.model.stats import beyond_white
 
 
@@ -122,3 +127,92 @@ def _closure_component(
     sigma = se_var / (2.0 * value) if value > 0 else math.sqrt(se_var)
     plausible = f"{value:.2g}° over {most:g}°: {why}" if value > most else ""
     return Component(name, value, sigma, k, "°", absorbs, plausible)
+
+
+def turn_pairs(signals: Sequence[RecordSignals], timed: bool) -> list[tuple[int, int, int]]:
+    """(up axis, ccw record, cw record) for each pair of turns made both ways about an axis:
+    its ccw turns paired with its cw turns in the order measured (the first with the first, the
+    second with the second, …; by first sample time when ``timed``, else as the records are
+    listed); a turn without a partner is left out."""
+    by_dir: dict[tuple[int, int], list[tuple[float, int]]] = {}
+    for r, sig in enumerate(signals):
+        if sig.kind != "turn":
+            continue
+        k = int(np.argmax(np.abs(sig.up)))
+        turned = float(np.sum(sig.rate[:, k]))
+        if turned != 0.0:
+            start = float(sig.t_s[0]) if timed and len(sig.t_s) else 0.0
+            by_dir.setdefault((k, int(np.sign(turned))), []).append((start, r))
+    out: list[tuple[int, int, int]] = []
+    for k in range(3):
+        ccw = [r for _, r in sorted(by_dir.get((k, 1), []))]
+        cw = [r for _, r in sorted(by_dir.get((k, -1), []))]
+        out.extend((k, a, b) for a, b in zip(ccw, cw, strict=False))
+    return out
+
+
+def turn_closures(
+    table: RowTable, signals: Sequence[RecordSignals], rest: np.ndarray, timed: bool
+) -> list[TurnClosure]:
+    """Per pair of turns made both ways about an axis (:func:`turn_pairs`) and gyro channel,
+    the two integrals and what the static records say the gyro reads at rest there (``rest``
+    (4, 3): the gyro's g-sensitivity per g and bias from the statics), each with its own white
+    noise: :func:`host.model.variance.turn_angle_sigma`."""
+    statics = [len(sig.t_s) for sig in signals if sig.kind != "turn"]
+    n_static = float(np.median(statics)) if statics else 1.0
+    got: dict[tuple[int, int], tuple[float, float, float, float]] = {}
+    for ch in table.channels:
+        sig = signals[ch.record]
+        if sig.kind != "turn" or ch.sensor != "gyro":
+            continue
+        w = ch.aggregator[0]
+        at_rest = float(np.concatenate([sig.up, [1.0]]) @ rest[:, ch.axis])  # force in g
+        got[(ch.record, ch.axis)] = (table.y[ch.rows[0]], at_rest, float(w.sum()), float(w @ w))
+    out = []
+    for k, ccw, cw in turn_pairs(signals, timed):
+        for ax in range(3):
+            if (ccw, ax) not in got or (cw, ax) not in got:
+                continue
+            levels = table.static_noise.get(("gyro", ax), [(0.0, 1.0)])
+            v = float(np.mean([a * t for a, t in levels]))
+            (i1, r1, t1, ww1), (i2, _, t2, ww2) = got[(ccw, ax)], got[(cw, ax)]
+            # the white noise of both integrals, and of the rest reading (about one static
+            # record's mean) carried over both durations
+            white = v * (ww1 + ww2) + v / n_static * (t1 + t2) ** 2
+            out.append(TurnClosure(k, ax, (i1, i2), r1, (t1, t2), white))
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class TurnSigmas:
+    """The turns' named variance components (``components``), the turn-angle σ and the
+    wobble they give the turn integrals (°), the closures the angle was measured from
+    (empty when it is given) and what was said of them."""
+
+    components: tuple[Component, ...]
+    angle_deg: float
+    wobble_deg: float
+    closures: tuple[TurnClosure, ...]
+    notes: list[str]
+
+
+def turn_sigmas(
+    table: RowTable, signals: Sequence[RecordSignals], rest: np.ndarray, timed: bool,
+    nm: NoiseModel,
+) -> TurnSigmas:  # fmt: skip
+    """The hand's turn-angle error (measured from the closures of the turns made both ways,
+    unless ``nm`` gives it) and its wobble on the cross axes (:mod:`host.model.variance`)."""
+    closures = turn_closures(table, signals, rest, timed)
+    wobble = turn_wobble_sigma([c for c in closures if c.axis != c.channel])
+    notes = []
+    if nm.turn_angle_sigma_deg is None:
+        angle = turn_angle_sigma([c for c in closures if c.axis == c.channel])
+        components: tuple[Component, ...] = (angle, wobble)
+        kept = tuple(c for c in closures if c.axis == c.channel)
+    else:
+        absorbs = "the hand's angle error (given)"
+        angle = Component("turn angle", float(nm.turn_angle_sigma_deg), 0.0, 0, "°", absorbs)
+        components, kept = (wobble,), ()
+        notes.append(f"turn angle: {angle.value:g}° per turn (given)")
+    notes.extend("a named variance component: " + c.describe() for c in components)
+    return TurnSigmas(components, angle.value, wobble.value, kept, notes)

@@ -273,79 +273,110 @@ def _block_group(
     return Group(ch.record, s, ax, np.array(idx), math.sqrt(v_mean), v_c), w
 
 
-def whiten_rows(
-    channels: Sequence[ChannelRows],
-    signals: Sequence[RecordSignals],
-    y: np.ndarray,
-    *,
-    floors: Mapping[str, float],
-    static_noise: Mapping[tuple[str, int], Sequence[tuple[float, float]]],
-    white_level: Mapping[tuple[str, int], float],
-    n_still: Mapping[int, int],
-    seat: float,
-    hand: tuple[float, float],
-    turn_sigma: tuple[float, float],
-    free_levels: Collection[tuple[int, int]] = (),
-    g: float = 9.80665,
-) -> tuple[Whitener, list[Group]]:
-    """(W (n, n) as its blocks, the groups) for the rows ``y`` (n,) built as ``channels``:
-    ``floors`` the bias-instability floor per sensor, ``white_level`` (sensor, axis) ->
+@dataclass(frozen=True, eq=False)
+class RowNoise:
+    """What the rows' covariance is made of beyond each channel's own white noise: ``floors``
+    the bias-instability floor per sensor (m/s², °/s), ``white_level`` (sensor, axis) ->
     variance·τ of one sample from the static records (``static_noise`` their levels per
     record), ``n_still`` turn record -> how many of its accelerometer rows are still moments,
     ``seat`` and ``hand`` the seating and the hand's scatter (m/s², :mod:`host.model.rows`),
     ``turn_sigma`` the hand's turn-angle error and its wobble on the cross axes (°,
     :mod:`host.model.variance`); ``free_levels`` (record, axis) of the accelerometer channels
     whose rows' common level is an unknown of its own (:data:`FREE_LEVEL_RAD`, ``g`` m/s²)."""
+
+    floors: Mapping[str, float]
+    static_noise: Mapping[tuple[str, int], Sequence[tuple[float, float]]]
+    white_level: Mapping[tuple[str, int], float]
+    n_still: Mapping[int, int]
+    seat: float
+    hand: tuple[float, float]
+    turn_sigma: tuple[float, float]
+    free_levels: Collection[tuple[int, int]] = ()
+    g: float = 9.80665
+
+
+class _Shared:
+    """What one whitening reads more than once: the samples in each row of an aggregator
+    (shared by a record's channels) and the Helmert contrasts of b blocks."""
+
+    def __init__(self) -> None:
+        self._samples: dict[int, np.ndarray] = {}
+        self._contrasts: dict[int, np.ndarray] = {}
+
+    def counts_of(self, agg: np.ndarray) -> np.ndarray:
+        """(B,) the samples in each row of ``agg`` (B, N)."""
+        if id(agg) not in self._samples:
+            self._samples[id(agg)] = np.count_nonzero(agg, axis=1)
+        return self._samples[id(agg)]
+
+    def contrasts(self, b: int) -> np.ndarray:
+        """:func:`helmert_contrasts` of ``b`` blocks ((0, b) for fewer than two)."""
+        if b not in self._contrasts:
+            self._contrasts[b] = helmert_contrasts(b) if b >= 2 else np.zeros((0, b))
+        return self._contrasts[b]
+
+
+def _moving_group(
+    ch: ChannelRows, v_blocks: np.ndarray, ns: int, level: float, counts: np.ndarray,
+    floor: float, noise: RowNoise,
+) -> tuple[Group, np.ndarray]:  # fmt: skip
+    """A turn's accelerometer rows with moving blocks after its ``ns`` still moments, or a
+    level left free (:data:`FREE_LEVEL_RAD`): each moving block the sensor's white noise (the
+    static records' ``level``) and the hand, correlated, whitened exactly."""
+    idx, ax = ch.rows, ch.axis
+    free = ch.sensor == "accel" and (ch.record, ax) in noise.free_levels
+    v_blocks[ns:] = level / counts[ns:]
+    cov = np.diag(v_blocks) + floor**2
+    cov[ns:, ns:] += turning.hand_covariance(noise.hand[0], noise.hand[1], len(idx) - ns)
+    if not free:
+        return _whiten_exact(ch.record, ch.sensor, ax, idx, cov)
+    own, _ = _whiten_exact(ch.record, ch.sensor, ax, idx, cov)
+    _, w = _whiten_exact(ch.record, ch.sensor, ax, idx, cov + (noise.g * FREE_LEVEL_RAD) ** 2)
+    return dataclasses.replace(own, free_level=True), w
+
+
+def _channel_group(
+    ch: ChannelRows, sig: RecordSignals, noise: RowNoise, inflate: float, shared: _Shared
+) -> tuple[Group, np.ndarray]:
+    """The :class:`Group` of one record and channel and its block of W: a turn's gyro
+    integral, a turn's accelerometer rows, or block means (``inflate``: the within-record
+    wander of the channel, :func:`_within_record_inflation`)."""
+    s, ax, idx = ch.sensor, ch.axis, ch.rows
+    floor = noise.floors[s]
+    if sig.kind == "turn" and s == "gyro":
+        on_up = abs(float(sig.up[ax])) > 0.5
+        by_hand = noise.turn_sigma[0] if on_up else noise.turn_sigma[1]
+        return _integral_group(ch, floor, noise.static_noise, by_hand)
+    counts = shared.counts_of(ch.aggregator).astype(float)
+    level = noise.white_level.get((s, ax), 0.0)
+    # each block mean: the channel's own white noise, else the static records' level
+    v_blocks = (ch.white if math.isfinite(ch.white) else level) / counts
+    horizontal = abs(float(sig.up[ax])) < 0.5
+    ns = noise.n_still.get(ch.record, len(idx)) if sig.kind == "turn" else len(idx)
+    if sig.kind == "turn" and horizontal:
+        v_blocks[:ns] = v_blocks[:ns] + noise.seat**2  # a horizontal channel at a still moment
+    free = s == "accel" and (ch.record, ax) in noise.free_levels
+    if ns < len(idx) or free:
+        return _moving_group(ch, v_blocks, ns, level, counts, floor, noise)
+    return _block_group(ch, sig, v_blocks, floor, inflate, shared.contrasts(len(idx)))
+
+
+def whiten_rows(
+    channels: Sequence[ChannelRows],
+    signals: Sequence[RecordSignals],
+    y: np.ndarray,
+    noise: RowNoise,
+) -> tuple[Whitener, list[Group]]:
+    """(W (n, n) as its blocks, the groups) for the rows ``y`` (n,) built as ``channels``, with
+    the noise beyond each channel's own white noise ``noise``."""
+    shared = _Shared()
+    inflate = _within_record_inflation(channels, signals, y, shared.counts_of)
     groups: list[Group] = []
     blocks: list[tuple[np.ndarray, np.ndarray]] = []
-
-    def add(made: tuple[Group, np.ndarray]) -> None:
-        groups.append(made[0])
-        blocks.append((made[0].rows, made[1]))
-
-    # per call: the samples in each row of an aggregator (shared by a record's channels),
-    # the contrasts of b blocks
-    samples: dict[int, np.ndarray] = {}
-    contrasts: dict[int, np.ndarray] = {}
-
-    def counts_of(agg: np.ndarray) -> np.ndarray:
-        if id(agg) not in samples:
-            samples[id(agg)] = np.count_nonzero(agg, axis=1)
-        return samples[id(agg)]
-
-    inflate = _within_record_inflation(channels, signals, y, counts_of)
     for ch in channels:
-        sig = signals[ch.record]
-        s, ax, idx = ch.sensor, ch.axis, ch.rows
-        floor = floors[s]
-        if sig.kind == "turn" and s == "gyro":
-            on_up = abs(float(sig.up[ax])) > 0.5
-            by_hand = turn_sigma[0] if on_up else turn_sigma[1]
-            add(_integral_group(ch, floor, static_noise, by_hand))
-            continue
-        counts = counts_of(ch.aggregator).astype(float)
-        level = white_level.get((s, ax), 0.0)
-        # each block mean: the channel's own white noise, else the static records' level
-        v_blocks = (ch.white if math.isfinite(ch.white) else level) / counts
-        horizontal = abs(float(sig.up[ax])) < 0.5
-        ns = n_still.get(ch.record, len(idx)) if sig.kind == "turn" else len(idx)
-        if sig.kind == "turn" and horizontal:
-            v_blocks[:ns] = v_blocks[:ns] + seat**2  # a horizontal channel at a still moment
-        free = s == "accel" and (ch.record, ax) in free_levels
-        if ns < len(idx) or free:
-            # moving blocks: the sensor's white noise (the static records' level) + the hand
-            v_blocks[ns:] = level / counts[ns:]
-            cov = np.diag(v_blocks) + floor**2
-            cov[ns:, ns:] += turning.hand_covariance(hand[0], hand[1], len(idx) - ns)
-            if not free:
-                add(_whiten_exact(ch.record, s, ax, idx, cov))
-                continue
-            own, _ = _whiten_exact(ch.record, s, ax, idx, cov)
-            _, w = _whiten_exact(ch.record, s, ax, idx, cov + (g * FREE_LEVEL_RAD) ** 2)
-            add((dataclasses.replace(own, free_level=True), w))
-            continue
-        b = len(idx)
-        if b not in contrasts:
-            contrasts[b] = helmert_contrasts(b) if b >= 2 else np.zeros((0, b))
-        add(_block_group(ch, sig, v_blocks, floor, inflate.get((s, ax), 1.0), contrasts[b]))
+        group, w = _channel_group(
+            ch, signals[ch.record], noise, inflate.get((ch.sensor, ch.axis), 1.0), shared
+        )
+        groups.append(group)
+        blocks.append((group.rows, w))
     return Whitener(len(y), tuple(blocks)), groups

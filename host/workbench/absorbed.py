@@ -18,10 +18,10 @@ import math
 
 import numpy as np
 
-from host.model.dataset import Dataset, turn_pairs
+from host.model.dataset import Dataset
 from host.model.design import BuiltColumns, term_columns
 from host.model.spec import ModelTerm
-from host.model.variance import turn_angle_sigma
+from host.model.variance import turn_angle_sigma, turn_pairs
 
 #: a candidate's part even in the turn direction, relative to its largest turn integral, below
 #: which it does not move a closure (float round-off of an odd term)
@@ -31,7 +31,7 @@ EVEN_TOL = 1e-6
 def _turn_pairs(ds: Dataset) -> list[tuple[int, int, int]]:
     """(up axis, row of the ccw turn's integral on that axis, row of the cw one) for each pair
     of turns made both ways about an axis, paired as the closures are
-    (:func:`host.model.dataset.turn_pairs`)."""
+    (:func:`host.model.variance.turn_pairs`)."""
     out: list[tuple[int, int, int]] = []
     for k, ccw, cw in turn_pairs(ds.signals, ds.time_known):
         a, b = ds.rows_of.get((ccw, "gyro", k)), ds.rows_of.get((cw, "gyro", k))

@@ -25,9 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from host.bench.plan import tilted_45
-from host.model.dataset import RecordWork, build_dataset
+from host.model.dataset import build_dataset
 from host.model.fit import Fit, fit_model
 from host.model.noise import NoiseModel
+from host.model.rows import RecordWork
 from host.model.spec import ModelTerm
 from host.session.directory import Session
 from host.session.method import (

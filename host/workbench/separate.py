@@ -38,12 +38,13 @@ from dataclasses import dataclass
 
 from host.bench.plan import tilted_45
 from host.errors import UserError
-from host.model.dataset import Dataset, RecordWork, build_dataset
+from host.model.dataset import Dataset, build_dataset
 from host.model.design import BuiltColumns, same_records
 from host.model.fit import Fit, fit_model, predict
 from host.model.geometry import DIALOGUE_HEADING_DEG
 from host.model.noise import NoiseModel
 from host.model.plate import LEVEL_P, session_plate
+from host.model.rows import RecordWork
 from host.model.signals import AXES
 from host.model.solve import fitted_chi2
 from host.model.spec import ModelTerm, parse_model
