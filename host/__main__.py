@@ -96,7 +96,9 @@ EXAMPLES: dict[str, str] = {
   python3 -m host calibrate --port /dev/ttyACM0 --serial U17 --no-self-test
       skip the sensor's self-test (recorded as not run; the verdict says so)
   python3 -m host calibrate --from-dir U17/
-      recompute the report from saved records""",
+      recompute the report from saved records
+  python3 -m host calibrate --from-dir U17/ --decision-rule simple
+      mark each value by its value alone, U not used (default guarded: value ± U)""",
     "capture": """examples:
   python3 -m host capture --port /dev/ttyACM0 session.cap
       until Ctrl+C

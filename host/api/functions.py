@@ -14,12 +14,14 @@ session's records.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Iterable
 from pathlib import Path
 
 from host.calib.applying import apply
 from host.calib.codec import read_result
+from host.calib.decision import DEFAULT_RULE, check_rule
 from host.calib.result import CalibrationResult
 from host.errors import InputError
 from host.session.directory import Session
@@ -84,6 +86,7 @@ def calibrate(
     term_files: Iterable[PathLike] = (),
     latitude_deg: float = DEFAULT_LATITUDE_DEG,
     height_m: float = DEFAULT_HEIGHT_M,
+    decision_rule: str = DEFAULT_RULE,
 ) -> CalibrationResult:
     """Calibrate a unit from its records: check them, fit the model, return every parameter.
 
@@ -98,12 +101,17 @@ def calibrate(
         Python files of your own terms named in ``model``.
     latitude_deg, height_m : float
         The site, degrees and metres: local gravity by the Helmert formula.
+    decision_rule : str
+        How each value's mark is decided (docs/calibration.md): ``"guarded"`` (default: a
+        pass only where value ± U lies within the tolerance) or ``"simple"`` (the value
+        alone).
 
     Returns
     -------
     CalibrationResult
         Every parameter with its standard error (``result.parameter("Gxx")``), the pass
-        flags against method.md §7's tolerances (``result.all_passed``), the fit quality and
+        flags against method.md §7's tolerances by the decision rule
+        (``result.all_passed``), the fit quality and
         where the records came from (``result.provenance``).
 
     Raises
@@ -121,10 +129,11 @@ def calibrate(
     """
     from host.calib.calibration import calibrate_from_records
 
-    return calibrate_from_records(
+    result = calibrate_from_records(
         _session(session), model=model, term_files=[str(f) for f in term_files],
         latitude_deg=latitude_deg, height_m=height_m,
     )  # fmt: skip
+    return dataclasses.replace(result, decision_rule=check_rule(decision_rule))
 
 
 def write_result(result: CalibrationResult, directory: PathLike) -> tuple[Path, Path]:
@@ -250,8 +259,9 @@ def export(
     axes : str
         The target's axes from ours with signs, e.g. ``"x,-y,-z"``.
     allow_fail : bool
-        Export a result that failed (a value outside tolerance or not determined); the text
-        then says FAILED. Default: refused.
+        Export a result whose verdict is not a pass (a value outside tolerance, undecided or
+        not determined, a failed self-test, records of the method missing); the text then
+        says FAILED. Default: refused.
 
     Returns
     -------
@@ -268,7 +278,10 @@ def export(
 
     Examples
     --------
-    >>> text = host.export(host.calibrate(directory), "ardupilot")
+    >>> host.export(host.calibrate(directory), "ardupilot")  # its U reaches past the limits
+    Traceback (most recent call last):
+    host.errors.FailedResultError: result of DEMO01 FAILED (undecided under guarded acceptance: ...
+    >>> text = host.export(host.calibrate(directory, decision_rule="simple"), "ardupilot")
     >>> text.splitlines()[1]
     '# *** SIMULATED BOARD simulator (source: sim): not a measurement of a unit ***'
     >>> [ln.split()[0] for ln in text.splitlines() if ln.startswith("INS_ACCSCAL")]

@@ -8,9 +8,12 @@ Data in: a session (the record files of one sitting, :mod:`host.session`). Out: 
   ``--from-dir``).
 - ``values`` — the parts of a result: parameters, fit quality, residuals, verified values.
 - ``result`` — the result: a frozen record of values.
-- ``verdict`` — the verdict policy: which values pass, whether the result does, when a PASS is
-  conditional.
-- ``result_text`` — the result's words: its verdict line and one-line summary.
+- ``decision`` — the decision rule: a value's mark (+, −, ?) from its value, U and tolerance,
+  by guarded or simple acceptance, and the rule in words.
+- ``verdict`` — the verdict policy: which values pass, whether the result does (INCOMPLETE when
+  records of the method are missing), when a PASS is conditional.
+- ``result_text`` — the result's words: its verdict line, one-line summary and the list of the
+  method's records.
 - ``codec`` — the result's files: JSON v3 written, v1–v3 read (v1's §7 names among them).
 - ``provenance`` — where the records came from: simulated or a unit, the equipment, the chip
   temperatures, the plan, when measured and in how many sittings (from the record headers).

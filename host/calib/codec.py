@@ -3,11 +3,13 @@
 Format v2 carries the model (a spec of named terms) with every parameter, the noise model of
 the fit and the fit quality (χ², dof, RMS z, p, verdict); v3 adds where the records came from
 (:class:`host.calib.provenance.Provenance`) and, later, where the floor of a record mean came
-from (``floor_source``; absent in files written before it, which load as measured). v1 and v2
+from (``floor_source``; absent in files written before it, which load as measured) and the
+decision rule its marks follow (``decision_rule``, :mod:`host.calib.decision`; absent in files
+written before it, which load as ``simple``, the rule they were judged by). v1 and v2
 files still load: a v1 file's §7 names (``constants``, ``std_errors``) become the parameters of
 the ``base`` model here, and a v1/v2 file is simulated when its notes say ``SIMULATED BOARD``.
 Beside the values a file carries derived views for its readers, not read back: the §7 values
-by report name, their pass flags and the verdict line (:mod:`host.calib.verdict`,
+by report name, their marks and pass flags and the verdict line (:mod:`host.calib.verdict`,
 :mod:`host.calib.result_text`). A result file is data: loading one runs nothing.
 """
 
@@ -22,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from host.calib.decision import LEGACY_RULE
 from host.calib.provenance import Provenance
 from host.calib.result import CalibrationResult, base_parameters
 from host.calib.result_text import verdict_line
@@ -33,9 +36,8 @@ from host.calib.values import (
     as_float,
     jsonable,
     tolerance_of,
-    within,
 )
-from host.calib.verdict import all_passed, conditional, passed
+from host.calib.verdict import all_passed, conditional, marks, passed
 from host.errors import InputError, ResultFileError
 from host.model.signals import TEMP_REF_C
 from host.session.inputs import check_serial, load_json
@@ -68,6 +70,7 @@ def _head(r: CalibrationResult) -> dict[str, Any]:
         "simulated_by": [] if prov is None else list(prov.simulated_by),
         "provenance": None if prov is None else prov.to_dict(),
         "self_test": r.self_test,
+        "decision_rule": r.decision_rule,
         "model": r.model,
         "term_files": list(r.term_files),
         "term_sha256": dict(r.term_sha256),
@@ -77,16 +80,19 @@ def _head(r: CalibrationResult) -> dict[str, Any]:
 
 def _verdict_views(r: CalibrationResult) -> dict[str, Any]:
     """The §7 view (value and pass flag by report name), the noise levels, and the verdict
-    line and whether a PASS rests on a model that does not fit (derived, not read back)."""
+    line and whether a PASS rests on a model that does not fit (derived, not read back).
+    ``marks``: ``+``, ``−``, ``?`` by the decision rule; ``pass`` is true for ``+`` only."""
+    flags = passed(r)
     return {
         "constants": jsonable(r.constants()),
-        "pass": passed(r),
+        "marks": marks(r),
+        "pass": flags,
         "noise_std": {
             n: {
                 "value": jsonable(v),
                 "unit": UNITS[n],
                 "tolerance": tolerance_of(n),
-                "passed": within(n, v),
+                "passed": flags.get(n),
             }
             for n, v in r.noise_std.items()
         },  # fmt: skip
@@ -215,6 +221,7 @@ def _common(d: Mapping[str, Any]) -> dict[str, Any]:
         "residuals": tuple(RecordResidual.from_dict(r) for r in d.get("residuals", [])),
         "notes": tuple(str(x) for x in d.get("notes", [])),
         "self_test": str(d.get("self_test", "")),
+        "decision_rule": str(d.get("decision_rule", LEGACY_RULE)),
     }
 
 

@@ -34,7 +34,8 @@ refused with one line naming them: no format here can carry NaN.
 
 An export cannot mislead: every format says, in a comment (or imucal's ``comment`` field),
 when the records came from a simulated board (:attr:`LinearModel.marks`), and a result that
-failed — a value outside tolerance or not determined, held-out records not predicted — is
+failed — any verdict that is not a pass: a value outside tolerance, undecided under the
+decision rule or not determined, held-out records not predicted, a failed self-test — is
 refused (:class:`host.errors.FailedResultError`, naming what failed) unless ``allow_fail``,
 and then marked FAILED in the file.
 """
@@ -50,14 +51,13 @@ import numpy as np
 
 from host.calib.result import CalibrationResult, carried_thermal
 from host.calib.thermal import ThermalCalibration, change_from_reference, recentre_poly
-from host.calib.verdict import passed as passed_flags
+from host.calib.verdict import reasons
 from host.errors import FailedResultError, InputError
 from host.session.inputs import written_serial
 from host.session.method import (
     ACCEL_BIAS_NAMES,
     ACCEL_MIS_NAMES,
     ACCEL_SCALE_NAMES,
-    CONSTANT_NAMES,
     GYRO_BIAS_NAMES,
     GYRO_GSENS_NAMES,
 )
@@ -109,18 +109,9 @@ def linear_model(result: CalibrationResult, with_thermal: bool = True) -> Linear
 
 def failures(result: CalibrationResult) -> list[str]:
     """What failed in ``result``, in words ('outside tolerance: Gxx, A0z'); [] when it
-    passed."""
-    passed = passed_flags(result)
-    outside = [n for n in CONSTANT_NAMES if passed[n] is False and n in result.constants()
-               and math.isfinite(result.constants()[n])]  # fmt: skip
-    out = [f"outside tolerance: {', '.join(outside)}"] if outside else []
-    if result.undetermined:
-        out.append(f"not determined: {', '.join(p.name for p in result.undetermined)}")
-    if result.verification is not None and not result.verification.passed:
-        out.append("held-out records not predicted within the limits")
-    if result.self_test == "fail":
-        out.append("the sensor failed its self-test")
-    return out
+    passed: the verdict's own reasons (:func:`host.calib.verdict.reasons`), so an export
+    is refused exactly when the verdict is not a pass."""
+    return reasons(result)
 
 
 def marks_of(result: CalibrationResult) -> tuple[str, ...]:

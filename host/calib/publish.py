@@ -25,6 +25,7 @@ from typing import TextIO
 from host.calib.applying import verify_directory
 from host.calib.calibration import calibrate_from_records
 from host.calib.codec import read_result, result_to_json
+from host.calib.decision import DEFAULT_RULE
 from host.calib.report import format_report, result_paths, write_results
 from host.calib.result import CalibrationResult
 from host.calib.thermal import ThermalCalibration
@@ -99,6 +100,8 @@ class ComputeSettings:
     noise_file: str | None = None
     #: also write the report as ``SERIAL_result.pdf`` with its residual plots
     pdf: bool = False
+    #: how each value's mark is decided (:mod:`host.calib.decision`: guarded or simple)
+    decision_rule: str = DEFAULT_RULE
 
 
 @dataclass(frozen=True)
@@ -160,7 +163,11 @@ def compute_and_write(
         noise=session_noise(session, settings.floor, settings.noise_file),
     )
     given = {"noise": settings.noise_file, "floor": settings.floor}
-    result = dataclasses.replace(result, floor_source={k: v for k, v in given.items() if v})
+    result = dataclasses.replace(
+        result,
+        floor_source={k: v for k, v in given.items() if v},
+        decision_rule=settings.decision_rule,
+    )
     if settings.verify:
         result = verify_directory(result, settings.verify, term_files=settings.term_files)
     if not out_dir.is_dir():

@@ -18,11 +18,12 @@ from pathlib import Path
 
 from host.calib.codec import FLOOR_SOURCES, result_to_json
 from host.calib.commands import command_lines
+from host.calib.decision import K, statement
 from host.calib.provenance import UNKNOWN_SENSOR, Provenance
 from host.calib.result import CalibrationResult
+from host.calib.result_text import method_record_lines
 from host.calib.values import RecordResidual, Verification
-from host.calib.verdict import failed_values
-from host.calib.verdict import passed as passed_flags
+from host.calib.verdict import marks, missing_records, outside, undecided
 from host.session.atomic import write_texts_atomic
 from host.session.directory import SIMULATED_BOARD
 from host.session.inputs import written_serial
@@ -35,9 +36,6 @@ from host.session.method import (
 )
 
 WIDTH = 80
-PLUS, MINUS = "+", "−"
-#: coverage factor of the expanded uncertainties the report prints (U = K · standard error)
-K = 2.0
 
 
 def _v(x: float, dec: int = 5) -> str:
@@ -45,7 +43,7 @@ def _v(x: float, dec: int = 5) -> str:
 
 
 def _mark(ok: bool | None) -> str:
-    return " " if ok is None else (PLUS if ok else MINUS)
+    return " " if ok is None else ("+" if ok else "−")
 
 
 def format_report(
@@ -95,10 +93,11 @@ def _closed_form_check(r: CalibrationResult) -> list[str]:
 
 def _results_table(r: CalibrationResult) -> list[str]:
     """The §7 table: every value with its unit, tolerance, mark and expanded uncertainty."""
-    passed, consts = passed_flags(r), r.constants()
+    mark, consts = marks(r), r.constants()
     out = [
-        "RESULTS: value, tolerance, mark (+ within, − outside), and U: the expanded",
+        "RESULTS: value, tolerance, mark (decision rule below), and U: the expanded",
         "uncertainty, k = 2 (twice the standard error; about 95 % coverage)",
+        *_wrap(statement(r.decision_rule), "", "  "),
         f"  {'value':<7}{'measured':>12}  {'unit':<8}{'tolerance':>11}  mark  U (k = 2)",
         "-" * WIDTH,
     ]
@@ -117,7 +116,7 @@ def _results_table(r: CalibrationResult) -> list[str]:
             if not math.isfinite(consts[n]):
                 note = "  not determined" if n in in_model else "  not in the model"
             out.append(
-                f"  {n:<7}{_v(consts[n]):>12}  {UNITS[n]:<8}{tol_s:>11}   {_mark(passed[n])}  "
+                f"  {n:<7}{_v(consts[n]):>12}  {UNITS[n]:<8}{tol_s:>11}   {mark[n] or ' '}  "
                 f"{se_s:>11}{note}"
             )
     return out
@@ -135,21 +134,20 @@ def _further_terms(r: CalibrationResult) -> list[str]:
 
 
 def _result_lines(r: CalibrationResult) -> list[str]:
-    """RESULT: the values outside tolerance or not determined (wrapped), or all within; and
-    a failed self-test."""
-    bad = failed_values(r)
+    """RESULT: the values outside tolerance or not determined, and those undecided (value ±
+    U across a limit), each list wrapped; or all within; and a failed self-test."""
+    bad, unsure = outside(r), undecided(r)
     out = []
-    if bad:
-        out.append(f"RESULT: {len(bad)} value(s) outside tolerance or not determined:")
-        line = "  "
-        for n in bad:
-            if len(line) + len(n) + 1 > WIDTH:
-                out.append(line.rstrip())
-                line = "  "
-            line += n + " "
-        out.append(line.rstrip())
-    else:
+    for names, what in ((bad, "outside tolerance or not determined"),
+                        (unsure, "undecided, value ± U across a limit (not a pass)")):  # fmt: skip
+        if names:
+            out.append(f"RESULT: {len(names)} value(s) {what}:")
+            out.extend(_wrap(" ".join(names), "  ", "  "))
+    if not bad and not unsure:
         out.append("RESULT: all values within tolerance")
+    if gone := missing_records(r):
+        out.extend(_wrap(f"RESULT: INCOMPLETE — records of the method not measured: "
+                         f"{' '.join(gone)}", "", "  "))  # fmt: skip
     if r.self_test == "fail":
         out.append("RESULT: FAIL — the sensor failed its MPU-6000 self-test")
     return out
@@ -354,6 +352,7 @@ def _procedure(r: CalibrationResult, nxt: list[str]) -> list[str]:
     out = ["PROCEDURE"]
     sittings = "" if pv is None else f", measured in {_sittings(pv)}"
     out.extend(_wrap(f"Records: {len(r.residuals)} ({plan}){sittings}", "  ", "    "))
+    out.extend(method_record_lines(r))
     if pv is not None and pv.set_aside:
         kept = "; ".join(f"{s.folder}: {_names(s.records)}" for s in pv.set_aside)
         out.extend(_wrap(f"Kept aside, not in this result (measured again, or an earlier "

@@ -2,7 +2,8 @@
 
 A result is the model the user chose (a spec of named terms, :mod:`host.model.spec`) with every
 parameter of every term (:mod:`host.calib.values`): value, 1-σ standard error, unit, and — for
-the §2 constants that the report of method.md §7 tolerances — the tolerance and the pass flag;
+the §2 constants that the report of method.md §7 tolerances — the tolerance and the pass flag
+(as the result's decision rule gives it, :mod:`host.calib.decision`);
 the noise model of the fit and the fit quality, where the records came from
 (:class:`host.calib.provenance.Provenance`) and where the floor of a record mean came from. A
 thermal calibration travels in a result as the term ``thermal_bias`` (:func:`thermal_parameters`,
@@ -26,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from host.calib.decision import DEFAULT_RULE, check_rule
 from host.calib.provenance import Provenance
 from host.calib.result_text import summary, verdict_line
 from host.calib.thermal import CHANNELS as THERMAL_CHANNELS
@@ -41,7 +43,7 @@ from host.calib.values import (
     undetermined_of,
     within,
 )
-from host.calib.verdict import all_passed, conditional
+from host.calib.verdict import all_passed, conditional, judged_parameters
 from host.errors import UserError
 from host.model.catalogue import CARRIED
 from host.model.signals import AXES, TEMP_REF_C
@@ -122,8 +124,16 @@ class CalibrationResult:
     #: yardstick again: ``noise`` the ``--noise`` file, ``floor`` the ``--floor`` text, each as
     #: the user gave it; {} when it was measured from the records (or an older file)
     floor_source: Mapping[str, str] = field(default_factory=dict)
+    #: how each value's mark was decided (:mod:`host.calib.decision`): 'guarded' (value ± U
+    #: within the tolerance) or 'simple' (the value within it, U not used)
+    decision_rule: str = DEFAULT_RULE
     #: format version of the file this was loaded from
     loaded_version: int = 3
+
+    def __post_init__(self) -> None:
+        """The rule checked, and each §7 parameter's ``passed`` flag set by it."""
+        check_rule(self.decision_rule)
+        object.__setattr__(self, "parameters", judged_parameters(self))
 
     def __repr__(self) -> str:
         """One line: serial, model, size, verdict, and SIMULATED for simulated records."""

@@ -2,14 +2,24 @@
 
 The verdict line is what the report's header and conclusion, the last line on screen and the
 result file's ``verdict`` say alike (the policy behind it: :mod:`host.calib.verdict`); the
-summary is the result's ``repr``.
+summary is the result's ``repr``; the list of the method's records, those not measured
+marked, is the report's.
 """
 
 from __future__ import annotations
 
+import textwrap
 from typing import Protocol
 
-from host.calib.verdict import Judged, all_passed, failed_values, misfit
+from host.calib.verdict import (
+    Judged,
+    all_passed,
+    method_records,
+    misfit,
+    missing_records,
+    outside,
+    undecided,
+)
 
 
 class Summarized(Judged, Protocol):
@@ -26,24 +36,57 @@ class Summarized(Judged, Protocol):
 
 
 def verdict_line(r: Judged) -> str:
-    """PASS or FAIL and why, in one line. ``PASS (conditional: the model does not fit, RMS z
-    8.35)`` when the PASS is conditional; a FAIL on a model that does not fit says so as its
-    last reason; ``— self-test not run`` ends the line when the self-test was skipped."""
+    """PASS, FAIL or INCOMPLETE and why, in one line. INCOMPLETE (not a pass) names the
+    method's records not measured, then any other reason. ``PASS (conditional: the model
+    does not fit, RMS z 8.35)`` when the PASS is conditional; a FAIL on a model that does
+    not fit says so as its last reason; values whose ± U reaches across a limit (``?``
+    under guarded acceptance, :mod:`host.calib.decision`) are named as undecided; ``—
+    self-test not run`` ends the line when the self-test was skipped."""
     fit = r.fit
     skipped = " — self-test not run" if r.self_test == "not run" else ""
     if all_passed(r) and fit is not None and misfit(r):
         return f"PASS (conditional: the model does not fit, RMS z {fit.rms_z:.2f}){skipped}"
     if all_passed(r):
         return "PASS: every value within tolerance" + skipped
-    bad = failed_values(r)
+    bad, unsure = outside(r), undecided(r)
     why = [f"{len(bad)} value(s) outside tolerance or not determined"] if bad else []
+    if unsure:
+        why.append(f"{_names(unsure)} undecided (± U across a limit)")
     if r.verification is not None and not r.verification.passed:
         why.append("held-out records not predicted within the limits")
     if r.self_test == "fail":
         why.append("the sensor failed its self-test")
     if misfit(r):
         why.append("the model does not fit")
+    if gone := missing_records(r):
+        head = f"INCOMPLETE: {_names(gone, 6)} not measured"
+        return "; ".join([head, *why]) + skipped
     return f"FAIL: {'; '.join(why)}{skipped}"
+
+
+def _names(names: list[str], most: int = 3) -> str:
+    """Up to ``most`` names, then how many more."""
+    more = f" and {len(names) - most} more" if len(names) > most else ""
+    return ", ".join(names[:most]) + more
+
+
+def method_record_lines(r: Judged, width: int = 80) -> list[str]:
+    """The report's list of the records the method asks for, those not measured marked NOT
+    MEASURED, in lines ≤ ``width``; [] for a plan that names no fixed set (poses and
+    moves)."""
+    need, gone = method_records(r), missing_records(r)
+    if not need:
+        return []
+    head = f"Method's records (method.md §3, §4): {len(need) - len(gone)} of {len(need)} measured"
+    parts = [(head + ("" if gone else ": " + " ".join(need)), "  ", "    ")]
+    if gone:
+        parts.append(("measured: " + " ".join(n for n in need if n not in gone), "    ", "      "))
+        parts.append(("NOT MEASURED: " + " ".join(gone), "    ", "      "))
+    return [
+        line
+        for text, first, rest in parts
+        for line in textwrap.wrap(text, width, initial_indent=first, subsequent_indent=rest)
+    ]
 
 
 def summary(r: Summarized) -> str:

@@ -17,6 +17,7 @@ from functools import partial
 from pathlib import Path
 
 from host.calib.commands import command_lines, said_with_command
+from host.calib.decision import DEFAULT_RULE, RULES
 from host.calib.publish import (
     ComputeSettings,
     compute_and_write,
@@ -99,6 +100,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     add_model_options(p, lead="the model to fit and ship: ")
     add_floor_options(p)
+    p.add_argument(
+        "--decision-rule",
+        choices=RULES,
+        default=DEFAULT_RULE,
+        help="how a value's mark is decided: guarded (default: + only where value ± U lies "
+        "within the tolerance, ? where it reaches across a limit, not a pass) or simple "
+        "(the value alone within the tolerance, U not used)",
+    )
     add_result_arguments(p)
 
 
@@ -165,6 +174,7 @@ def dialogue_options(ns: argparse.Namespace) -> DialogueOptions:
             latitude_deg=site.latitude_deg, height_m=site.height_m, model=model.spec,
             term_files=model.term_files, floor=floor.floor, verify=ns.verify,
             thermal=ns.thermal, noise_file=floor.noise, pdf=ns.pdf,
+            decision_rule=ns.decision_rule,
         ),
         provenance=Provenance(operator=ns.operator, bench=ns.bench, lot=ns.lot,
                               archive=ns.archive, no_archive=ns.no_archive),

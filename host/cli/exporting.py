@@ -1,12 +1,14 @@
 """``python3 -m host export RESULT --to FORMAT``: the calibration in another tool's convention.
 
 RESULT is ``SERIAL_result.json`` (or the directory holding one); ``--to kalibr --noise F``
-needs no result, only the noise file of a long static recording (``noise FILE --save F``).
+needs no result, only the noise file of a long static recording (``noise FILE --save F``);
+given one, it checks it as the other formats do.
 The text goes to stdout, or to ``--out FILE`` (written atomically; an earlier export there is
 replaced, any other file refused and kept). ``--axes`` maps our chip
-axes to the target's, with the same spelling as ``import --axes``. A failed result (a value
-outside tolerance or not determined) is not exported: exit status 1 and one line naming what
-failed, unless ``--allow-fail`` (the file then says FAILED). Formats and their
+axes to the target's, with the same spelling as ``import --axes``. A result whose verdict is
+not a pass (a value outside tolerance, undecided under the decision rule or not determined,
+a failed self-test, records of the method not measured) is not exported: exit status 1 and
+one line naming why, unless ``--allow-fail`` (the file then says FAILED). Formats and their
 conventions: :mod:`host.calib.exporting`.
 """
 
@@ -102,16 +104,20 @@ def run(args: ExportOptions) -> int:
         raise UserError(f"--noise: only --to kalibr reads a noise file, not --to {args.to}")
     if args.result is None:
         raise UserError(f"--to {args.to}: give the result, SERIAL_result.json or its directory")
-    path = _result_path(args.result)
+    return _export_result(args, _read_result(args.result))
+
+
+def _read_result(given: Path) -> CalibrationResult:
+    """The result in the file ``given`` (or the one in its directory)."""
+    path = _result_path(given)
     try:
         text = path.read_bytes()
     except OSError as exc:
         raise UserError(f"{path}: cannot read ({exc.strerror or exc})") from exc
     try:
-        result = result_from_json(text)
+        return result_from_json(text)
     except ResultFileError as exc:  # which file: a record given by mistake said only 'JSON'
         raise ResultFileError(f"{path}: {exc}") from None
-    return _export_result(args, result)
 
 
 def _export_result(args: ExportOptions, result: CalibrationResult) -> int:
@@ -156,20 +162,36 @@ def _emit(args: ExportOptions, out: str) -> None:
 
 
 def _run_kalibr(args: ExportOptions) -> int:
-    """``export … --to kalibr --noise NOISE.json``: Kalibr's imu.yaml from noise figures."""
+    """``export [RESULT] --to kalibr --noise NOISE.json``: Kalibr's imu.yaml from noise
+    figures; the unit's result, when given, is refused as every format refuses it when it
+    failed (exit status 1), and its marks (FAILED, SIMULATED BOARD …) head the file."""
     if args.noise is None:
         raise UserError(f"--to kalibr: {exporting.PENDING['kalibr']}")
     from host.calib.kalibr import export_kalibr
     from host.model.recording import load_noise_file
 
-    _emit(args, export_kalibr(load_noise_file(args.noise)))
+    marks: tuple[str, ...] = ()
+    if args.result is not None:
+        result = _read_result(args.result)
+        try:
+            if not args.allow_fail:
+                exporting.refuse_failed(result)
+        except FailedResultError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 1
+        marks = exporting.marks_of(result)
+    text = export_kalibr(load_noise_file(args.noise))
+    _emit(args, "".join(f"# *** {m} ***\n" for m in marks) + text)
     return 0
 
 
 def cli_export(p: argparse.ArgumentParser) -> Command[ExportOptions]:
     """Fill in the ``export`` subparser; returns the command."""
     p.add_argument(
-        "result", type=Path, nargs="?", help="SERIAL_result.json (or its directory); not for kalibr"
+        "result",
+        type=Path,
+        nargs="?",
+        help="SERIAL_result.json (or its directory); kalibr needs none, and checks one given",
     )
     p.add_argument(
         "--to",
@@ -197,7 +219,8 @@ def cli_export(p: argparse.ArgumentParser) -> Command[ExportOptions]:
     p.add_argument(
         "--allow-fail",
         action="store_true",
-        help="export a result that failed (outside tolerance, not determined), marked FAILED",
+        help="export a result whose verdict is not a pass (outside tolerance, undecided, not "
+        "determined, failed self-test, records missing), marked FAILED in the file",
     )
     p.add_argument(
         "--noise", type=Path, help="noise file (python3 -m host noise FILE --save F): for kalibr"

@@ -229,21 +229,25 @@ def test_a_long_board_url_is_shown_whole_within_80_columns(result: CalibrationRe
 
 
 def test_from_dir_ends_on_the_verdict_and_the_report(tmp_path: Path, capsys) -> None:
-    # The real imucal session: one-way turns, so it fails (values out of tolerance); the last
-    # line on the terminal says so and where the report is, also with --json on stdout.
+    # The real imucal session: one-way turns only, so it is INCOMPLETE (the method's ccw turns
+    # not measured) and fails besides (values out of tolerance); the last lines on the terminal
+    # say so and where the report is, also with --json on stdout.
     for extra in ([], ["--json"]):
         out = tmp_path / f"o{len(extra)}"
         out.mkdir()
         rc = main(["calibrate", "--from-dir", str(REAL), "--out", str(out), *extra])
         err = capsys.readouterr().err.rstrip("\n").splitlines()
-        assert rc == 1 and err[-1].startswith("FAIL: ") and "outside tolerance" in err[-1]
-        # the model does not fit imucal's session either: a reason of the FAIL, and the next
+        k = next(k for k, ln in enumerate(err) if ln.startswith("INCOMPLETE: "))
+        verdict = " ".join(ln.strip() for ln in err[k:])
+        assert rc == 1 and verdict.startswith("INCOMPLETE: x_ccw, y_ccw, z_ccw not measured; ")
+        assert "outside tolerance" in verdict and all(len(ln) <= 80 for ln in err[k:])
+        # the model does not fit imucal's session either: a reason of the verdict, and the next
         # command names the records' directory (not --out); real data: no SIMULATED mark
-        assert err[-1].endswith("; the model does not fit") and len(err[-1]) <= 80
+        assert verdict.endswith("; the model does not fit")
         # (a path too long for the line follows its label on a line of its own)
         i = next(i for i, ln in enumerate(err) if ln.startswith("Report:"))
-        assert " ".join(ln.strip() for ln in err[i:-1]) == (
+        assert " ".join(ln.strip() for ln in err[i:k]) == (
             f"Report: {out / 'REAL_result.txt'} Next: python3 -m host model diagnose {REAL}"
         )
         head = (out / "REAL_result.txt").read_text().splitlines()[:10]
-        assert f"Verdict: {err[-1]} (RESULT below)" in " ".join(ln.strip() for ln in head)
+        assert f"Verdict: {verdict} (RESULT below)" in " ".join(ln.strip() for ln in head)

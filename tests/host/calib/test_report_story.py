@@ -1,7 +1,9 @@
 """The first run tells one story (issue 24, item 5): when the model does not fit, the report's
 header, its conclusion, the result file and the last line on screen give one conditional
 verdict, and the report and the screen give the real next command (``model diagnose`` on the
-records' directory). The exit status stays what the tolerances say."""
+records' directory). The exit status stays what the tolerances say, under the decision rule
+(issue 43: the default, guarded acceptance, makes a value whose ± U reaches across a limit
+undecided, not a pass)."""
 
 from __future__ import annotations
 
@@ -46,7 +48,7 @@ def _story_of(report: str) -> dict[str, str]:
     concl = lines[lines.index("CONCLUSION") + 1 :]
     story = {
         "head": _unwrapped(lines, "Verdict: "),
-        "conclusion": concl[0].strip(),
+        "conclusion": _unwrapped(concl, concl[0].strip()),
     }
     for where, part in (("head_next", lines[:12]), ("conclusion_next", concl[:8])):
         found = any(ln.strip().startswith("Next: ") for ln in part)
@@ -80,18 +82,34 @@ def quick_start(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     return {"rc": rc, "out": out, "err": err, "dir": here / "DEMO01"}
 
 
-def test_the_quick_start_ends_on_one_conditional_verdict(quick_start: dict) -> None:
+def _undecided_by_hand(doc: dict) -> list[str]:
+    """The §7 values of a result file whose value ± 2σ reaches across its tolerance: what
+    guarded acceptance (ILAC-G8, w = U, k = 2) marks '?', worked out here from the file."""
+    out = []
+    for p in doc["parameters"]:
+        tol, v, se = p["tolerance"], p["value"], p["stderr"]
+        if tol is not None and v is not None and se is not None:
+            if abs(v) + 2 * se > tol >= abs(v) - 2 * se:
+                out.append(p["name"])
+    return out
+
+
+def test_the_quick_start_ends_on_one_verdict_everywhere(quick_start: dict) -> None:
     d: Path = quick_start["dir"]
     doc = json.loads((d / "DEMO01_result.json").read_text(encoding="utf-8"))
     report = (d / "DEMO01_result.txt").read_text(encoding="utf-8")
     fit = doc["fit"]
-    # the simulated bench carries effects the base model lacks: a PASS on a poor fit
-    assert fit["verdict"] == "inadequate" and doc["all_passed"] is True
-    assert doc["conditional"] is True
-    # ... so the exit status is still the tolerances' (0), and the verdict says the condition
-    assert quick_start["rc"] == 0
+    # the simulated bench carries effects the base model lacks: the fit is poor, its standard
+    # errors widened, and under the default rule the values whose ± U crosses a limit are '?'
+    assert fit["verdict"] == "inadequate" and doc["decision_rule"] == "guarded"
+    unsure = _undecided_by_hand(doc)
+    assert unsure and sorted(n for n, m in doc["marks"].items() if m == "?") == sorted(unsure)
+    assert doc["all_passed"] is False and doc["conditional"] is False
+    assert quick_start["rc"] == 1  # a '?' is not a pass
     verdict = doc["verdict"]
-    assert verdict == f"PASS (conditional: the model does not fit, RMS z {fit['rms_z']:.2f})"
+    assert verdict.startswith("FAIL: ") and verdict.endswith("; the model does not fit")
+    assert all(n in verdict for n in unsure[:3]) and "undecided" in verdict
+    assert "Decision rule: guarded acceptance" in report
 
     # one verdict in every place: the screen's last line, the report's head and conclusion
     ending = _ending(str(quick_start["err"]))
@@ -107,15 +125,40 @@ def test_the_quick_start_ends_on_one_conditional_verdict(quick_start: dict) -> N
     assert f"Next: {nxt}" in ending
     assert story["head_next"] == story["conclusion_next"] == f"Next: {nxt} (what the model lacks)"
     assert f"Find it: {nxt}" in " ".join(ln.strip() for ln in report.splitlines())
-    # what the condition means, before the verdict; and the mark right above it
+    # what the misfit means, before the verdict; and the mark right above it
     assert ending[0].startswith(f"The model does not fit these records (RMS z {fit['rms_z']:.2f}")
-    assert "conditional" in " ".join(ending[:-1])
     assert ending[-2].startswith("*** SIMULATED BOARD sim://?speed=max")
     assert f"Report: {Path('DEMO01') / 'DEMO01_result.txt'}" in ending
     assert all(len(ln) <= 80 for ln in ending), ending
     assert all(len(ln) <= 80 for ln in report.splitlines())
-    # what leaves the bench says it too: an export carries the verdict among its marks
-    rc, parm, _ = run(["export", str(d / "DEMO01_result.json"), "--to", "ardupilot"])
+    # a unit that did not pass does not leave the bench
+    rc, parm, err = run(["export", str(d / "DEMO01_result.json"), "--to", "ardupilot"])
+    assert rc == 1 and parm == "" and "undecided under guarded acceptance" in err
+
+
+def test_under_simple_acceptance_the_quick_start_is_a_conditional_pass(
+    quick_start: dict, tmp_path: Path
+) -> None:
+    """The same records judged by simple acceptance (U not used): every value is within
+    tolerance as fitted, so a PASS, conditional on a model that does not fit, told alike in
+    every place and carried by an export."""
+    d: Path = quick_start["dir"]
+    rc, _, err = run(["calibrate", "--from-dir", str(d), "--out", str(tmp_path),
+                      "--decision-rule", "simple", "--no-archive"])  # fmt: skip
+    doc = json.loads((tmp_path / "DEMO01_result.json").read_text(encoding="utf-8"))
+    report = (tmp_path / "DEMO01_result.txt").read_text(encoding="utf-8")
+    fit = doc["fit"]
+    assert doc["decision_rule"] == "simple" and "?" not in doc["marks"].values()
+    assert doc["all_passed"] is True and doc["conditional"] is True and rc == 0
+    verdict = doc["verdict"]
+    assert verdict == f"PASS (conditional: the model does not fit, RMS z {fit['rms_z']:.2f})"
+    ending = _ending(err)
+    story = _story_of(report)
+    assert ending[-1] == verdict == story["conclusion"]
+    assert story["head"] == f"Verdict: {verdict} (RESULT below)"
+    assert "conditional" in " ".join(ending[:-1])
+    assert "Decision rule: simple acceptance" in report
+    rc, parm, _ = run(["export", str(tmp_path / "DEMO01_result.json"), "--to", "ardupilot"])
     assert rc == 0 and f"# *** {verdict} ***" in parm.splitlines()[:4]
 
 
@@ -182,7 +225,7 @@ def test_a_hidden_step_names_the_records_directory_not_the_output(tmp_path: Path
 
     # the same records judged against tighter limits: FAIL, and the misfit is a reason
     res = calibrate_from_records(read_session(rec))
-    failed = dataclasses.replace(res, self_test="fail")
+    failed = dataclasses.replace(res, self_test="fail", decision_rule="simple")
     assert failed.verdict().startswith("FAIL: the sensor failed its self-test; ")
     assert failed.verdict().endswith("; the model does not fit")
     assert not failed.conditional and json.loads(result_to_json(failed))["conditional"] is False
