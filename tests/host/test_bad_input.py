@@ -137,17 +137,23 @@ def test_decode_dev_zero_streams_in_bounded_memory_until_ctrl_c(tmp_path: Path) 
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     # The stop rule is an amount read, never a wall-clock deadline: on a loaded machine the
-    # read is slower (275 MiB in 40 s was seen), and the per-test limit catches a hang.
-    if not _read_bytes(os.getpid()):
-        p.kill()
-        pytest.skip("no /proc/PID/io here to see how much was read")
-    while _read_bytes(p.pid) < 600 << 20 and p.poll() is None:
-        time.sleep(0.2)
-    assert p.poll() is None, p.communicate()  # still reading, not refused nor crashed
-    read_mb = _read_bytes(p.pid) / 2**20
-    rss_mb = _peak_rss_kb(p.pid) / 1024
-    p.send_signal(signal.SIGINT)
-    out, err = p.communicate(timeout=30)
+    # read is slower (275 MiB in 40 s was seen), and the per-test limit catches a hang. The
+    # decoder is killed whatever happens: a test stopped by that limit once left it reading
+    # /dev/zero for 45 minutes on both cores.
+    try:
+        if not _read_bytes(os.getpid()):
+            pytest.skip("no /proc/PID/io here to see how much was read")
+        while _read_bytes(p.pid) < 600 << 20 and p.poll() is None:
+            time.sleep(0.2)
+        assert p.poll() is None, p.communicate()  # still reading, not refused nor crashed
+        read_mb = _read_bytes(p.pid) / 2**20
+        rss_mb = _peak_rss_kb(p.pid) / 1024
+        p.send_signal(signal.SIGINT)
+        out, err = p.communicate(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
     assert p.returncode == 130, err
     assert "Traceback" not in err and "reading the device /dev/zero until it ends" in err
     assert read_mb >= 600, read_mb  # ~40x a 4 MiB chunk went through
