@@ -115,8 +115,21 @@ def format_diagnosis(
     """The human-readable report of :func:`diagnose`; ``try_line`` is the command that adds
     the recommended term, ``see_one`` term -> the lines of the command that adds a member of a
     group of equals (the caller knows the directory and options; else ``DIR``)."""
-    lines = ["== 1. compare: measured vs model"] + format_fit(d.fit, compare)
-    lines.append("== 2. where it fails (|z| > 3, worst first)")
+    lines = ["== 1. compare: measured vs model", *format_fit(d.fit, compare)]
+    lines += _where_it_fails(d)
+    lines += _what_is_missing(d, max_candidates)
+    lines += _unexplained(d)
+    lines += _verdict(d)
+    lines += _recommended(d)
+    for e in d.equals:
+        lines.extend(format_equals(e, see_one))
+    lines += _what_to_try(d, try_line)
+    return "\n".join(lines)
+
+
+def _where_it_fails(d: Diagnosis) -> list[str]:
+    """Section 2: the worst records and channels, and the worst spans inside records."""
+    lines = ["== 2. where it fails (|z| > 3, worst first)"]
     if not d.worst and not d.worst_spans:
         lines.append("  nowhere: every record and channel within 3 σ")
     for g in d.worst[:15]:
@@ -126,15 +139,16 @@ def format_diagnosis(
             f"  {s.sensor} {s.axis}, record {s.record}, {s.t0_s:.1f}–{s.t1_s:.1f} s: departs "
             f"from the record's mean by {s.residual:+.4f} {s.unit} = {s.z:+.1f} σ"
         )
-    lines.append("== 3. what is missing (candidates, best first; Holm α = 0.01)")
+    return lines
+
+
+def _what_is_missing(d: Diagnosis, max_candidates: int) -> list[str]:
+    """Section 3: the significant candidates, then the best of the rest up to
+    ``max_candidates`` in all, then the terms not identifiable, one line per term and reason."""
+    lines = ["== 3. what is missing (candidates, best first; Holm α = 0.01)"]
     sig = [c for c in d.candidates if c.significant]
-    shown = (
-        sig
-        + [c for c in d.candidates if not c.significant and c.identifiable][
-            : max(0, max_candidates - len(sig))
-        ]
-    )
-    for c in shown:
+    rest = [c for c in d.candidates if not c.significant and c.identifiable]
+    for c in sig + rest[: max(0, max_candidates - len(sig))]:
         lines.append("  " + format_candidate(c))
     unident = [c for c in d.candidates if not c.identifiable]
     groups: dict[tuple[str, str], list[str]] = {}
@@ -145,13 +159,23 @@ def format_diagnosis(
         lines.append(
             f"  {name} ({', '.join(chans)}): NOT identifiable — {reason}; would need {needs}"
         )
+    return lines
+
+
+def _unexplained(d: Diagnosis) -> list[str]:
+    """The structure no catalogue term explains, and the diagnosis's notes."""
+    lines = []
     if d.unexplained:
         lines.append("== unexplained structure (no term of the catalogue explains it)")
         for h in d.unexplained[:10]:
             lines.append("  unexplained: " + h.describe())
-    for n in d.notes:
-        lines.append(f"note: {n}")
-    lines.append(f"== verdict: {d.verdict}")
+    return lines + [f"note: {n}" for n in d.notes]
+
+
+def _verdict(d: Diagnosis) -> list[str]:
+    """The verdict, the channels whose residual follows a signal no term explains, and the
+    recommended terms that leave nothing to test them."""
+    lines = [f"== verdict: {d.verdict}"]
     for h in d.dominant:
         lines.append(
             f"  {h.sensor} {h.axis}: no catalogue term explains it; the residual follows "
@@ -165,6 +189,13 @@ def format_diagnosis(
             "so their fall of RMS z is no evidence that the terms are right; records that test "
             "them: other attitudes (tilt_45_*), turns both ways, headings recorded",
             78, initial_indent="  ", subsequent_indent="    "))  # fmt: skip
+    return lines
+
+
+def _recommended(d: Diagnosis) -> list[str]:
+    """Each recommended term: its physics, its coefficients in words, and what would tell it
+    from the terms it is confounded with."""
+    lines = []
     by_label = {c.label: c for c in d.candidates}
     for label in d.recommended:
         c = by_label[label]
@@ -177,16 +208,20 @@ def format_diagnosis(
                 o = by_label.get(other)
                 if o is not None:
                     lines.append(f"      {other}: {o.needs}")
-    for e in d.equals:
-        lines.extend(format_equals(e, see_one))
+    return lines
+
+
+def _what_to_try(d: Diagnosis, try_line: str | None) -> list[str]:
+    """The command that adds the recommended terms (``try_line``, else one naming ``DIR``),
+    or why none is recommended."""
     if d.recommended_spec:
-        lines.append(try_line or f"  try: python3 -m host model add DIR {d.recommended_spec} "
-                     f"--model {short_spec(d.fit.model)}")  # fmt: skip
-    elif d.equals:
-        lines.append("  recommended alone: none (each group above is one finding)")
-    elif d.verdict != "adequate":
-        lines.append("  recommended: nothing from the catalogue")
-    return "\n".join(lines)
+        return [try_line or f"  try: python3 -m host model add DIR {d.recommended_spec} "
+                f"--model {short_spec(d.fit.model)}"]  # fmt: skip
+    if d.equals:
+        return ["  recommended alone: none (each group above is one finding)"]
+    if d.verdict != "adequate":
+        return ["  recommended: nothing from the catalogue"]
+    return []
 
 
 def format_equals(e: Equals, see_one: Mapping[str, str] | None = None) -> list[str]:

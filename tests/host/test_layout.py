@@ -167,7 +167,6 @@ LONG_FUNCTIONS = {
     "host/wire/resync.py:best_parse",
     "host/workbench/adaptive.py:adaptive_run",
     "host/workbench/planner.py:plan_next",
-    "host/workbench/text.py:format_diagnosis",
 }
 
 
