@@ -13,8 +13,8 @@ Use it from Python (docs/python-api.md); each name has its own help, e.g. ``help
 - errors: ``host.UserError`` (one line a user can act on) and ``host.InputError`` (bad input,
   also a ``ValueError``), in :mod:`host.errors`
 
-These are imported when first used, so ``python -m host`` starts light. The command line:
-``python -m host --help``. The packages, one per stage of the data's journey (docs/layout.md):
+These are imported when first used, so ``python3 -m host`` starts light. The command line:
+``python3 -m host --help``. The packages, one per stage of the data's journey (docs/layout.md):
 
 - :mod:`host.version` — the version (``host.__version__``), at the bottom: it imports nothing
 - :mod:`host.wire` — the spec table (generated), frame codecs and decoders, capture files, counts
@@ -30,7 +30,7 @@ These are imported when first used, so ``python -m host`` starts light. The comm
   and the firmware and emulator builds (:mod:`host.bench.build`)
 - :mod:`host.transports` — pyserial URL adapters (``sim://``, ``emu://``, ``replay://``)
 - :mod:`host.api` — the functions above (:mod:`host.api.functions`)
-- :mod:`host.cli` — the commands of ``python -m host``
+- :mod:`host.cli` — the commands of ``python3 -m host``
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ arrays) and returning the bench's own objects: :func:`read_session`, :func:`cali
 :mod:`host.calib.applying`), :func:`diagnose`, :func:`export`. Their errors are
 :class:`host.errors.UserError`\\ s, and the ones about bad input are also ``ValueError``\\ s
 (:class:`host.errors.InputError`). ``host/__init__.py`` imports this package only when one of
-these names is first used, so ``python -m host`` starts without it.
+these names is first used, so ``python3 -m host`` starts without it.
 
 The examples below run as tests (``tests/host/api/test_functions.py``), ``directory`` a
 session's records.
@@ -96,7 +96,7 @@ def calibrate(
         The records (:func:`read_session`), or the directory that holds them.
     model : str
         The model spec, ``base`` (method.md §2) or with further terms, e.g.
-        ``"base,temperature_bias:gyro:y"`` (``python -m host model terms`` lists them).
+        ``"base,temperature_bias:gyro:y"`` (``python3 -m host model terms`` lists them).
     term_files : iterable of path-like
         Python files of your own terms named in ``model``.
     latitude_deg, height_m : float
@@ -204,7 +204,7 @@ def diagnose(
     term_files: Iterable[PathLike] = (),
 ) -> Diagnosis:
     """Test a model against the records: does it explain them down to the noise, and if not,
-    which term would (what ``python -m host model diagnose DIR`` prints).
+    which term would (what ``python3 -m host model diagnose DIR`` prints).
 
     Parameters
     ----------

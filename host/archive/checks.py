@@ -1,4 +1,4 @@
-"""The questions of ``python -m host archive``, answered from the store with :mod:`stats`:
+"""The questions of ``python3 -m host archive``, answered from the store with :mod:`stats`:
 trend, repeat, drift, lot, control charts and the bench check. Each returns plain values (the
 text and the page render them elsewhere); ``alpha`` is the family-wise false-alarm rate of the
 run (:mod:`host.archive.stats`)."""

@@ -11,7 +11,7 @@ import shlex
 import textwrap
 from collections.abc import Sequence
 
-#: the columns a printed error's ``error: `` takes before its text (``python -m host``)
+#: the columns a printed error's ``error: `` takes before its text (``python3 -m host``)
 ERROR_LEAD = len("error: ")
 
 

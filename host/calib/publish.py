@@ -1,7 +1,7 @@
 """Compute and write: the one step from a directory of records to the published result.
 
 Both ways to a result end here — the live calibration (:mod:`host.dialogue.flow`, after the
-last record) and ``python -m host calibrate --from-dir DIR`` (:mod:`host.cli.calibrate`):
+last record) and ``python3 -m host calibrate --from-dir DIR`` (:mod:`host.cli.calibrate`):
 :func:`compute_and_write` checks the records, fits the model, verifies held-out records if asked
 and writes ``SERIAL_result.txt`` and ``SERIAL_result.json`` together (method.md §7);
 :func:`show_result` prints the report (or the JSON) on stdout. Each caller adds its own lines

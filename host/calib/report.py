@@ -496,7 +496,7 @@ def next_words(
     result: CalibrationResult, records_dir: str | os.PathLike[str] | None = None
 ) -> list[str]:
     """[] when the model fits; else the words of the command that finds what it lacks:
-    ``python -m host model diagnose DIR`` on the records' directory ``records_dir`` (None: the
+    ``python3 -m host model diagnose DIR`` on the records' directory ``records_dir`` (None: the
     word ``DIR``) with the result's model and term files, and the ``--noise``/``--floor`` its
     floor came from (the yardstick its fit was judged on)."""
     if not fit_story(result):

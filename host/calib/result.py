@@ -107,7 +107,7 @@ class CalibrationResult:
     #: held-out verification on records not used in the fit (``calibrate --verify DIR2``)
     verification: Verification | None = None
     #: the chip temperatures (°C, low, high) over which the carried bias(T) (term
-    #: ``thermal_bias``, from ``python -m host thermal``) holds; None: no thermal calibration
+    #: ``thermal_bias``, from ``python3 -m host thermal``) holds; None: no thermal calibration
     thermal_range_c: tuple[float, float] | None = None
     #: where the bias(T) came from (the SERIAL_thermal.json file)
     thermal_source: str = ""

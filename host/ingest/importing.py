@@ -5,7 +5,7 @@ Everything here turns a file into a :class:`Stream` — true sample times (s), s
 line and column in every message. Cutting the stream into records is
 :mod:`host.ingest.segmentation`'s job; nothing here assumes the data came from the bench.
 
-Options of ``python -m host import`` (spellings fixed by issue 15):
+Options of ``python3 -m host import`` (spellings fixed by issue 15):
 
 - ``--columns t,ax,ay,az,gx,gy,gz,temp``: what each column of the file is, in order; ``skip``
   ignores a column; ``t`` and ``temp`` are optional (without ``t``, ``--rate HZ`` gives the

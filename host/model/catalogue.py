@@ -470,7 +470,7 @@ _SUPERSCRIPT = {1: "", 2: "²", 3: "³", 4: "⁴", 5: "⁵", 6: "⁶"}
     "a chamber ramp), then calibrate --thermal SERIAL_thermal.json",
 )
 def thermal_bias(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
-    """Bias change with chip temperature measured by the thermal calibration (``python -m host
+    """Bias change with chip temperature measured by the thermal calibration (``python3 -m host
     thermal``, method.md §8 "fits bias(T)"): Σ_j c_j·(T − T̄)^j about the session's mean chip
     temperature T̄, the order chosen per channel by that fit (coefficients not carried are 0)."""
     d = sig.temp_c - sig.temp_mean_c
@@ -485,7 +485,7 @@ def thermal_bias(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
 )
 def thermal_scale(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     """Accelerometer scale change with chip temperature measured by the thermal calibration
-    (``python -m host thermal``): output += Σ_q s_q·(T − T̄)^q · input along the axis, about
+    (``python3 -m host thermal``): output += Σ_q s_q·(T − T̄)^q · input along the axis, about
     the session's mean chip temperature T̄ (coefficients not carried are 0)."""
     d = sig.temp_c - sig.temp_mean_c
     f = sig.reference(sensor)[:, axis]

@@ -146,6 +146,40 @@ def test_the_path_check_sees_a_machines_path(tmp_path: Path) -> None:
     assert got == ["docs/a.md:2", "tests/test_b.py:1", "tests/test_b.py:2"]
 
 
+#: the command as the README does not write it (split so that this file does not hold it)
+OTHER_SPELLING = "python" + " -m host"
+
+
+def other_spellings(root: Path) -> list[str]:
+    """``file:line`` for each :data:`OTHER_SPELLING` in the code, docs and tests: the command
+    is written one way everywhere, ``python3 -m host`` as the README writes it (issue 42)."""
+    files = [root / "README.md", *sorted((root / "docs").rglob("*.md"))]
+    for top in ("host", "tests", "benchmarks"):
+        files += sorted(p for p in (root / top).rglob("*") if p.suffix in (".py", ".md"))
+    return [
+        f"{path.relative_to(root).as_posix()}:{n}"
+        for path in files
+        for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        if re.search(re.escape(OTHER_SPELLING) + r"\b", line)
+    ]
+
+
+def test_the_command_is_written_as_the_readme_writes_it() -> None:
+    assert other_spellings(ROOT) == []
+
+
+def test_the_spelling_check_sees_the_other_spelling(tmp_path: Path) -> None:
+    """The check itself: the other spelling in a docstring and a doc is found; the README's
+    ``python3 -m host`` and another module run with ``python -m`` are not."""
+    for d in ("docs", "host", "tests", "benchmarks"):
+        (tmp_path / d).mkdir()
+    (tmp_path / "README.md").write_text("python3 -m host calibrate\npython -m pytest -q\n")
+    (tmp_path / "docs" / "a.md").write_text("run:\n\n    " + OTHER_SPELLING + " noise F\n")
+    (tmp_path / "host" / "m.py").write_text('"""Options of ``' + OTHER_SPELLING + ' import``."""\n')
+    (tmp_path / "tests" / "test_c.py").write_text('CMD = "python3 -m host model terms"\n')
+    assert other_spellings(tmp_path) == ["docs/a.md:3", "host/m.py:1"]
+
+
 # --------------------------------------------------------------------------- function length
 
 #: no function of host/ is longer than this (issue 42): a long function is a sequence of named
