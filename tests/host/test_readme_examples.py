@@ -163,3 +163,15 @@ def test_the_fit_example_gives_the_fit_line_of_model_diagnose(tmp_path: Path) ->
     assert abs(fit.chi2 - cli["chi2"]) <= 1e-9 * cli["chi2"]  # type: ignore[attr-defined]
     assert f"RMS z {cli['rms_z']:.2f}," in printed.getvalue()
     assert printed.getvalue().count("±") == len(fit.parameters) > 20  # type: ignore[attr-defined]
+
+
+def test_the_pages_name_the_result_format_that_is_written() -> None:
+    """Was: docs/python-api.md said "format v2 or v1" where every result file written is v3.
+    Each page that names the format a result JSON is written in names the codec's."""
+    from host.calib.codec import FORMAT_VERSION
+
+    api = (ROOT / "docs" / "python-api.md").read_text(encoding="utf-8")
+    formats = (ROOT / "docs" / "formats.md").read_text(encoding="utf-8")
+    assert f"written as format v{FORMAT_VERSION};" in api
+    assert f"the JSON (format v{FORMAT_VERSION})" in api
+    assert f"`SERIAL_result.json` (format v{FORMAT_VERSION}:" in formats
