@@ -104,6 +104,7 @@ def test_bringup_and_60s_stream(emu_bin, fw_elf, tmp_path):
     # wall-clock bound here failed whenever the machine was busy)
 
 
+@pytest.mark.slow
 def test_every_axis_lands_where_it_belongs(emu_bin, fw_elf, tmp_path):
     f = np.array([1.1, -2.2, 9.3])  # m/s^2, chip axes
     w = np.array([11.0, -22.0, 33.0])  # deg/s
@@ -253,6 +254,7 @@ def test_dmp_mode_loads_the_described_image_and_streams_quaternions(
 
 
 @pytest.mark.timeout(120)  # one build and one short run on a loaded machine
+@pytest.mark.slow
 def test_emulator_refuses_to_run_a_dmp_image_loaded_for_another_kind(
     emu_bin, emu_toolchain, tmp_path
 ):

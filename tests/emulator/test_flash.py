@@ -149,6 +149,7 @@ def test_flash_new_firmware_over_old_then_stream(board_flash, current_hex) -> No
 
 
 @pytest.mark.parametrize("damage", ["checksum", "oversized"])
+@pytest.mark.slow
 def test_bad_hex_is_refused_and_the_old_firmware_keeps_running(
     damage, old_flash, current_hex, tmp_path
 ) -> None:
@@ -190,6 +191,7 @@ def padding(start: int, end: int) -> list[str]:
 # --------------------------------------------------------------------------- other failures
 
 
+@pytest.mark.slow
 def test_wrong_board_is_named(board_flash, current_hex) -> None:
     before = board_flash.read_bytes()
     with pytest.raises(UserError, match=r"wrong board on .*signature 0x1e9801 is not an m1280"):
@@ -197,6 +199,7 @@ def test_wrong_board_is_named(board_flash, current_hex) -> None:
     assert board_flash.read_bytes() == before
 
 
+@pytest.mark.slow
 def test_firmware_that_does_not_say_hello(board_flash, tmp_path) -> None:
     src = tmp_path / "mute.c"
     src.write_text("int main(void) { for (;;) {} }\n")

@@ -18,6 +18,7 @@ REQUIRED_FLAGS = (
 )
 
 
+@pytest.mark.slow
 def test_default_build_fits(default_build: Build) -> None:
     flash, ram = default_build.sizes()
     print(f"\nimu_bench.elf: flash {flash} bytes, RAM {ram} bytes (static; stack on top)")

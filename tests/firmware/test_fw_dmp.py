@@ -13,6 +13,7 @@ DMP_SIZES = {"motionapps20": 1929, "emd6": 3062}
 
 
 @pytest.mark.parametrize("kind", sorted(DMP_SIZES))
+@pytest.mark.slow
 def test_dmp_build_embeds_image(avr_toolchain, default_build: Build, tmp_path, kind) -> None:
     image = os.urandom(DMP_SIZES[kind])  # stand-in for InvenSense's image: random, right size
     path = tmp_path / "dummy_dmp.bin"

@@ -185,6 +185,7 @@ def run_driver(exe: Path, *args: str, stdin: str = "") -> list[str]:
     return r.stdout.split("\n")[:-1]
 
 
+@pytest.mark.slow
 def test_crc_check_value(driver) -> None:
     assert run_driver(driver)[0] == "C 29b1"  # CRC-16/CCITT-FALSE check value
 

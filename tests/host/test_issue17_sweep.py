@@ -63,6 +63,7 @@ def test_bad_input_of_the_second_round(case: Case, tmp_path: Path) -> None:
 
 @pytest.mark.timeout(90)
 @pytest.mark.parametrize("case", RULES, ids=[c.name for c in RULES])
+@pytest.mark.slow
 def test_one_rule_for_every_input(case: Case, tmp_path: Path) -> None:
     """Issue 44's cases (tests/host/issue44_sweep.py); those only a process can show (its own
     end, a closed pipe) run as real processes."""

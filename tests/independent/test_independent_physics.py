@@ -247,6 +247,7 @@ def test_lever_arm_centripetal_and_tangential() -> None:
 
 
 @pytest.mark.parametrize("name", sorted(set(EFFECTS) - {"none"}))
+@pytest.mark.slow
 def test_each_effect_is_the_only_difference(name: str) -> None:
     """Same seed: same unit, plan and noise; the effect session differs from the control by the
     effect alone (a sensor effect by its formula on the true inputs)."""

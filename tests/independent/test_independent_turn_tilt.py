@@ -35,7 +35,9 @@ def _run(argv: list[str]) -> tuple[int, str]:
     return rc, out.getvalue()
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize(
+    "seed", [0, pytest.param(1, marks=pytest.mark.slow), pytest.param(2, marks=pytest.mark.slow)]
+)
 def test_one_tilted_turn_is_named_and_its_cross_axis_never_printed_as_the_sensors(
     tmp_path: Path, seed: int
 ) -> None:

@@ -44,6 +44,7 @@ def test_every_name_has_a_numpydoc_docstring_with_an_example() -> None:
     assert host.apply is __import__("host.calib.applying", fromlist=["apply"]).apply  # one apply
 
 
+@pytest.mark.slow
 def test_the_examples_run(directory: Path, tmp_path: Path) -> None:
     globs = {"host": host, "directory": directory, "out": tmp_path}
     flags = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
@@ -104,6 +105,7 @@ def _python(code: str) -> str:
     return run.stdout
 
 
+@pytest.mark.slow
 def test_import_host_is_light_and_help_lists_the_api() -> None:
     loaded = _python(
         "import sys, host; print(sorted(m for m in sys.modules if m.split('.')[0] == 'numpy' "
@@ -116,6 +118,7 @@ def test_import_host_is_light_and_help_lists_the_api() -> None:
     assert "host.InputError" in text and "ValueError" in text
 
 
+@pytest.mark.slow
 def test_the_docs_page_runs_as_written(directory: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     page = (ROOT / "docs" / "python-api.md").read_text(encoding="utf-8")
     section = page.split("\n## Use it from Python\n", 1)[1].split("\n## ", 1)[0]

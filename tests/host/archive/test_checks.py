@@ -28,6 +28,7 @@ def lot_archive(archive_url: str) -> tuple[Archive, object]:
     return a, lot
 
 
+@pytest.mark.slow
 def test_the_planted_problems_and_only_they_are_found(lot_archive: tuple) -> None:
     a, lot = lot_archive
     with a:

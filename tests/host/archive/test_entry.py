@@ -186,6 +186,7 @@ cells = st.none() | st.floats() | st.text(max_size=3) | st.lists(st.floats(), ma
     st.lists(st.sampled_from(["a", "b", 1, None]), max_size=3),
     st.lists(st.lists(cells, max_size=3) | cells, max_size=3),
 )
+@pytest.mark.slow
 def test_a_malformed_covariance_is_ignored_not_a_crash(names: list, matrix: list) -> None:
     doc = {"covariance": {"names": names, "matrix": matrix}}
     out = result_covariance(doc, ["a"])
@@ -202,6 +203,7 @@ _CONTROLS = st.sampled_from(["\x1b", "\n", "\r", "\t", "\x00", "\x7f", "\x9b"])
 @settings(max_examples=25, deadline=None)
 @given(name=_NAMES, control=_CONTROLS, at=st.integers(0, 12), where=st.sampled_from(
     ["--bench", "--operator", "--lot", "$IMU_BENCH_NAME", "header"]))  # fmt: skip
+@pytest.mark.slow
 def test_a_name_with_a_control_character_never_reaches_the_archive(
     calibrated: Path, tmp_path_factory: pytest.TempPathFactory, name: str, control: str,
     at: int, where: str,

@@ -54,6 +54,7 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow
 def test_decode_jsonl_csv_stats(tmp_path: Path) -> None:
     data, counts = sample_bytes(20)
     hello = encode_frame(
@@ -84,6 +85,7 @@ def test_decode_jsonl_csv_stats(tmp_path: Path) -> None:
     }  # fmt: skip
 
 
+@pytest.mark.slow
 def test_decode_capture_maps_device_time_to_host_time(tmp_path: Path) -> None:
     """t_host_ns is the sample's mapped host time: far closer to the truth than arrival."""
     from host.bench.linksim import LinkParams, simulate_link

@@ -97,6 +97,7 @@ def test_write_results(tmp_path: Path, result: CalibrationResult) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["SIM7_result.json", "SIM7_result.txt"]
 
 
+@pytest.mark.slow
 def test_cli_from_dir(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     _write_session(tmp_path)
     rc = main(["calibrate", "--from-dir", str(tmp_path)])
@@ -149,6 +150,7 @@ def test_cli_real_data(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
         ("wrongface", [], r"^error: SIM7_y_up.txt: gravity is on -Y, expected \+Y: the cube"),
     ],
 )
+@pytest.mark.slow
 def test_cli_errors_one_line(
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],

@@ -43,6 +43,7 @@ def disk_fills_at(monkeypatch: pytest.MonkeyPatch, n: int) -> None:
 
 
 @pytest.mark.parametrize("full_at", [1, 2])
+@pytest.mark.slow
 def test_disk_full_between_the_two_result_files_changes_neither(
     records_dir: Path,
     tmp_path: Path,

@@ -94,6 +94,7 @@ def _undecided_by_hand(doc: dict) -> list[str]:
     return out
 
 
+@pytest.mark.slow
 def test_the_quick_start_ends_on_one_verdict_everywhere(quick_start: dict) -> None:
     d: Path = quick_start["dir"]
     doc = json.loads((d / "DEMO01_result.json").read_text(encoding="utf-8"))
@@ -181,6 +182,7 @@ def test_the_next_command_runs_and_finds_the_same_misfit(
     assert tries and all("python3 -m host model add DEMO01 " in t for t in tries), tries
 
 
+@pytest.mark.slow
 def test_a_model_that_fits_gives_a_plain_verdict_and_no_next_command(tmp_path: Path) -> None:
     """The independent simulator with nothing hidden: the fit is not inadequate; the verdict
     is the plain one everywhere and nothing sends the user to the workbench."""
@@ -201,6 +203,7 @@ def test_a_model_that_fits_gives_a_plain_verdict_and_no_next_command(tmp_path: P
     assert rc == 0 and "PASS" not in parm and "conditional" not in parm
 
 
+@pytest.mark.slow
 def test_a_hidden_step_names_the_records_directory_not_the_output(tmp_path: Path) -> None:
     """A gyro bias step between records (independent simulator) read from a directory whose
     name needs quoting, the results written elsewhere (--out): the next command names the
@@ -247,6 +250,7 @@ def _inadequate(tmp: Path) -> CalibrationResult:
 
 @settings(max_examples=60, deadline=None)
 @given(name=st.text(st.characters(blacklist_categories=("Cs", "Cc")), min_size=1, max_size=30))
+@pytest.mark.slow
 def test_any_directory_name_comes_back_whole_from_the_next_command(
     tmp_path_factory: pytest.TempPathFactory, name: str
 ) -> None:
@@ -297,6 +301,7 @@ FLOORS = [["--floor", "accel=5e-4,gyro=3e-3"], ["--noise", "unit noise.json"],
 
 
 @pytest.mark.parametrize("given", FLOORS, ids=" ".join)
+@pytest.mark.slow
 def test_the_next_command_repeats_the_floor_the_fit_was_judged_on(
     tmp_path: Path, given: list[str]
 ) -> None:

@@ -65,6 +65,7 @@ def _static_block_means(res: CalibrationResult, d: Path, axis: int) -> np.ndarra
     return np.array(out)
 
 
+@pytest.mark.slow
 def test_hidden_temperature_bias_round_trip(
     temperature_session: tuple[Path, str, float], capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -108,6 +109,7 @@ def test_apply_names_the_missing_input(temperature_session: tuple[Path, str, flo
 
 
 # ---- real data: calibrate's result file against imucal's own ------------------------------
+@pytest.mark.slow
 def test_imucal_same_constants_from_calibrate_as_imucals_own_result(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -147,6 +149,7 @@ def test_imucal_same_constants_from_calibrate_as_imucals_own_result(
 
 
 # ---- never a silent zero -------------------------------------------------------------------
+@pytest.mark.slow
 def test_three_attitudes_one_way_turns(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     for n in ("x_up", "y_up", "z_up", "x_cw", "y_cw", "z_cw"):
         shutil.copy(REAL / f"REAL_{n}.txt", tmp_path)
@@ -199,6 +202,7 @@ def _write(d: Path, serial: str, seed: int, **truth_override: float) -> None:
         write_record(record_path(d, serial, name), rec)
 
 
+@pytest.mark.slow
 def test_verify_predicts_another_session(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -239,6 +243,7 @@ def test_verify_predicts_another_session(
     assert np.allclose(resid, 0.2, atol=0.01)
 
 
+@pytest.mark.slow
 def test_held_out_error_shows_a_term_that_only_fits_noise(
     temperature_session: tuple[Path, str, float],
 ) -> None:

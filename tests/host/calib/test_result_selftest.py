@@ -32,6 +32,7 @@ def _result(self_test: str | None) -> CalibrationResult:
     ("self_test", "passed", "line"),
     [(None, True, "not run"), ("pass", True, "PASS"), ("fail", False, "FAIL")],
 )
+@pytest.mark.slow
 def test_the_self_test_is_in_the_result_and_a_failure_fails_it(
     self_test: str | None, passed: bool, line: str
 ) -> None:

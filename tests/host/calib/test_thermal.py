@@ -187,6 +187,7 @@ def calibrated_with_thermal(ramp, tmp_path_factory) -> tuple:
     return d, cal
 
 
+@pytest.mark.slow
 def test_calibration_carries_bias_of_temperature_and_apply_removes_it(
     ramp, calibrated_with_thermal, capsys
 ) -> None:
@@ -292,6 +293,7 @@ def test_bias_wander_does_not_pass_for_a_higher_order() -> None:
     assert inside >= 43, inside
 
 
+@pytest.mark.slow
 def test_a_directory_with_only_the_warm_up_is_fitted_from_it(tmp_path, capsys) -> None:
     """The dialogue's warm-up alone (SERIAL_warmup.txt: 10 minutes from cold, 8 °C) is a
     thermal calibration's first ramp: ``thermal`` fits it rather than saying 'no records'."""
@@ -314,6 +316,7 @@ FLIP_PLAN = [("warmup", "z_up", 600.0)] + [
 SCALE_TRUTH = dataclasses.replace(TRUTH, accel_temp_scale=(1e-4, -2e-4, 3e-4))
 
 
+@pytest.mark.slow
 def test_scale_against_temperature_where_the_attitudes_allow() -> None:
     """z up and z down along the ramp determine the z accelerometer's scale(T) (truth 3e-4 per
     °C, order 1) beside its cubic bias(T); x and y saw no gravity: no scale fitted, and asking
@@ -349,6 +352,7 @@ def test_scale_against_temperature_where_the_attitudes_allow() -> None:
     assert thermal.ThermalCalibration.from_dict(v1).channels["az"].scale_order == 0
 
 
+@pytest.mark.slow
 def test_scale_against_temperature_is_carried_by_the_result(tmp_path) -> None:
     """The thermal fit of the flip ramp, given to the calibration of the six attitudes and turns
     (chip near 31 °C): apply() returns ±g along z over 22–70 °C in both attitudes."""

@@ -158,6 +158,7 @@ def test_calibrate_from_dir_archives_its_result_unless_told_not_to(
 
 @settings(max_examples=200, deadline=None)
 @given(st.lists(st.text(max_size=20), max_size=3))
+@pytest.mark.slow
 def test_any_tolerance_text_is_tolerances_or_one_line(items: list[str]) -> None:
     try:
         out = parse_tolerances(items)
@@ -278,6 +279,7 @@ def misfit_lot(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, dict[str,
     return db, docs
 
 
+@pytest.mark.slow
 def test_a_conditional_pass_is_shown_as_such(
     misfit_lot: tuple[str, dict[str, dict]], capsys: pytest.CaptureFixture,
     monkeypatch: pytest.MonkeyPatch,
@@ -367,6 +369,7 @@ def test_a_file_that_is_no_archive_or_no_result_is_one_line(
         (["list", "--archive", ""], "--archive '': an empty value"),
     ],
 )
+@pytest.mark.slow
 def test_what_is_not_there_is_one_line_and_writes_nothing(
     calibrated: Path,
     tmp_path: Path,

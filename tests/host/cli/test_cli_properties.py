@@ -76,6 +76,7 @@ capture_records = st.lists(
     cut=st.integers(0, 16),
     fmt=st.sampled_from([[], ["--csv"], ["--stats"], ["--jsonl"]]),
 )
+@pytest.mark.slow
 def test_decode_any_bytes(
     raw: bytes, cap: list[tuple[int, bytes]], as_capture: bool, cut: int, fmt: list[str]
 ) -> None:
@@ -129,6 +130,7 @@ damage = st.one_of(
     height=st.one_of(st.none(), floats),
     json_out=st.booleans(),
 )
+@pytest.mark.slow
 def test_calibrate_from_dir_with_damaged_records_and_any_options(
     victim: str,
     dmg: tuple[str, object],
@@ -189,6 +191,7 @@ def test_calibrate_from_dir_with_damaged_records_and_any_options(
         ),
     ),
 )
+@pytest.mark.slow
 def test_model_commands_with_any_spec_and_term_file(
     cmd: str, spec: str, term_src: str | None
 ) -> None:

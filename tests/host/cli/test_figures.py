@@ -61,6 +61,7 @@ def _is_twin_of_a_labelled_line(line: object, ax: object) -> bool:
                and not o.get_label().startswith("_") for o in ax.lines)  # type: ignore[attr-defined]  # fmt: skip
 
 
+@pytest.mark.slow
 def test_the_workbench_figures_read_at_a_glance(case: tuple[Path, str]) -> None:
     d, term = case
     ds = load_dataset(d)
@@ -77,6 +78,7 @@ def test_the_workbench_figures_read_at_a_glance(case: tuple[Path, str]) -> None:
     assert "°C" in suspect.axes[0].get_xlabel()  # a temperature term's signal is in °C
 
 
+@pytest.mark.slow
 def test_a_channel_fitted_exactly_says_so(case: tuple[Path, str]) -> None:
     """A channel whose records leave no degrees of freedom (the fit passes through each) has no
     residual to show: its panel says so in words instead of standing empty."""
@@ -109,6 +111,7 @@ def test_records_follow_their_start_time_across_sittings(case: tuple[Path, str])
     assert set(order[-2:]) == later_sitting and set(order) == set(names)
 
 
+@pytest.mark.slow
 def test_the_noise_figure_reads_at_a_glance() -> None:
     from host.bench.noise import NoiseTruth, static_noise
     from host.model import recording
@@ -119,6 +122,7 @@ def test_the_noise_figure_reads_at_a_glance() -> None:
     assert "°/s" in fig.axes[3].get_ylabel() and "deg" not in fig.axes[3].get_ylabel()
 
 
+@pytest.mark.slow
 def test_the_thermal_figure_reads_at_a_glance() -> None:
     from host.bench.plan import simulate_thermal
     from host.calib import thermal_fit
@@ -175,6 +179,7 @@ def _worst_on(fit: object, sensor: str, axis: str) -> object:
     return dataclasses.replace(fit, groups=groups)  # type: ignore[type-var]
 
 
+@pytest.mark.slow
 def test_the_lever_arm_suspect_is_drawn_on_every_channel(lever_session: Path) -> None:
     ds = load_dataset(lever_session)
     a = add_term(ds, parse_model("base"), "lever_arm:accel")

@@ -63,6 +63,7 @@ def test_help_texts_give_examples_and_exit_codes() -> None:
     assert "until Ctrl+C" in out
 
 
+@pytest.mark.slow
 def test_capture_shows_progress_and_runs_until_ctrl_c(tmp_path: Path) -> None:
     import json
     import os
@@ -230,6 +231,7 @@ def test_no_pause_before_a_turn_when_nobody_turns_the_cube(tmp_path: Path) -> No
 
 
 @pytest.mark.timeout(300)  # a whole session in a subprocess: seconds alone, a minute on a busy CI
+@pytest.mark.slow
 def test_the_readmes_first_command_gives_a_whole_session(tmp_path: Path) -> None:
     """The command under 'Run a calibration' in README.md, as written (after ``pip install``),
     with no board: the virtual board at full speed, announced, a report, the verdict last."""

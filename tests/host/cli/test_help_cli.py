@@ -101,6 +101,7 @@ def example_commands(help_text: str) -> list[str]:
 
 @pytest.mark.parametrize("columns", [80, 50])
 @pytest.mark.parametrize("path", every_command(), ids=" ".join)
+@pytest.mark.slow
 def test_help_examples_keep_each_command_whole_and_runnable_as_pasted(
     path: list[str], columns: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -172,6 +173,7 @@ tokens = st.sampled_from(
 
 @settings(max_examples=150, deadline=None)
 @given(st.sampled_from(sorted(COMMANDS)), st.lists(tokens | st.text(max_size=6), max_size=6))
+@pytest.mark.slow
 def test_any_options_are_parsed_or_refused_in_one_line(command: str, argv: list[str]) -> None:
     """The parse of any words: a namespace, or exit 2 with one line — never a traceback."""
     parser, _ = build_parser()

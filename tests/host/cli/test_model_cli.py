@@ -37,6 +37,7 @@ def test_diagnose_text_and_json(
     assert obj["fit"]["rms_z"] > 1.2
 
 
+@pytest.mark.slow
 def test_add_shows_the_error_falling(
     temp_dir: tuple[Path, str], capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -183,6 +184,7 @@ def _noise_doc(b_accel: float, b_gyro: float) -> dict:
     return {"format": "imu-bench noise", "format_version": 1, "channels": chans}
 
 
+@pytest.mark.slow
 def test_noise_file_gives_the_floor(
     temp_dir: tuple[Path, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -267,6 +269,7 @@ def test_a_slow_ladder_shows_progress_at_least_every_two_seconds(
     assert "final model:" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_the_demo_and_the_command_it_prints_give_one_figure(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -325,6 +328,7 @@ def test_a_slow_diagnosis_or_addition_shows_it_is_working(
     assert capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_model_add_prints_the_calibrate_command(
     temp_dir: tuple[Path, str], capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -65,6 +65,7 @@ def in_memory(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, np.column_stack([phys[c] for c in allan.CHANNELS]), phys["temp"]
 
 
+@pytest.mark.slow
 def test_streamed_noise_equals_the_whole_capture_to_rounding(tmp_path: Path) -> None:
     path = tmp_path / "static.cap"
     n, seconds = write_capture(path)

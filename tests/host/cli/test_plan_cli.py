@@ -27,6 +27,7 @@ def session_without_y_turns(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return d
 
 
+@pytest.mark.slow
 def test_the_table_names_the_record_and_fits_80_columns(
     session_without_y_turns: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -40,6 +41,7 @@ def test_the_table_names_the_record_and_fits_80_columns(
     assert sum(1 for line in lines if line[:3].strip().isdigit()) == 4
 
 
+@pytest.mark.slow
 def test_json_ranks_every_candidate(
     session_without_y_turns: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

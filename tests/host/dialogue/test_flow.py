@@ -84,6 +84,7 @@ def yes_session(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     return dict(rc=rc, stdout=stdout, con=con, ports=ports, out=tmp / "S1")
 
 
+@pytest.mark.slow
 def test_yes_session_writes_every_file(yes_session: dict[str, Any]) -> None:
     out: Path = yes_session["out"]
     names = sorted(p.name for p in out.iterdir())
@@ -178,6 +179,7 @@ def test_yes_session_hints_follow_the_dialogue(yes_session: dict[str, Any]) -> N
     assert all(t["turns"] == 2 and t["window_s"] == 12.0 for t in turns)
 
 
+@pytest.mark.slow
 def test_yes_session_records_carry_session_time(yes_session: dict[str, Any]) -> None:
     """Every live record says when it started (records.TIME_KEYS), from the device clock: the
     start matches the simulated board's time of the operator hint that began it, and the
@@ -229,6 +231,7 @@ def load_dataset_without(directory: Path, name: str) -> Any:
 # --------------------------------------------------------------------------- scripted dialogue
 
 
+@pytest.mark.slow
 def test_scripted_dialogue_validates_and_repeats(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -285,6 +288,7 @@ def test_esc_aborts_one_measurement_and_ctrl_c_keeps_accepted(tmp_path: Path) ->
     assert no_temp_files(out)
 
 
+@pytest.mark.slow
 def test_resume_measures_only_the_missing_records(tmp_path: Path) -> None:
     url = f"sim://?seed=8&{LINEAR}"
     con = ScriptedConsole(["y", " ", "y", " ", "y", " ", CTRL_C])
@@ -307,6 +311,7 @@ def test_resume_measures_only_the_missing_records(tmp_path: Path) -> None:
     assert (out / "S1_session.cap").exists() and (out / "S1_session_2.cap").exists()
 
 
+@pytest.mark.slow
 def test_resume_refuses_other_turns(tmp_path: Path) -> None:
     url = f"sim://?seed=9&{LINEAR}"
     o = opts(tmp_path, url, static_seconds=2.0, turns=1)
@@ -547,6 +552,7 @@ def test_the_warm_up_is_recorded_as_a_record_of_its_own(tmp_path: Path) -> None:
     assert "warmup" not in read_session(tmp_path / "S1").records
 
 
+@pytest.mark.slow
 def test_no_closing_leaves_the_closing_check_out(tmp_path: Path) -> None:
     """--no-closing: no x_up_2, no closing prompt; the printed resume command keeps it."""
     url = f"sim://?seed=13&{LINEAR}"

@@ -197,6 +197,7 @@ def session_records(out: Path) -> dict[str, int]:
 
 
 @pytest.mark.timeout(90)
+@pytest.mark.slow
 def test_disk_full_on_the_session_capture_keeps_what_was_recorded(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -241,6 +242,7 @@ def test_disk_full_on_the_session_capture_keeps_what_was_recorded(
 
 
 @pytest.mark.timeout(120)
+@pytest.mark.slow
 def test_a_really_full_disk_in_a_live_session_then_resume(tmp_path: Path) -> None:
     """No injection: the output directory is a 128 KiB tmpfs. Whichever file meets the full disk
     first (the capture or a record), the session ends with one error line and the resume

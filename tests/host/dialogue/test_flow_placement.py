@@ -85,6 +85,7 @@ def _assert_prompts_match_records_model_and_bench(text: str, out: Path, serial: 
         np.testing.assert_allclose([r[0] @ arrow, r[1] @ arrow], want, atol=1e-12, err_msg=name)
 
 
+@pytest.mark.slow
 def test_every_prompt_names_the_placement_the_record_and_the_model_carry(
     tmp_path: Path,
 ) -> None:

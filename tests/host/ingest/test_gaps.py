@@ -77,6 +77,7 @@ def test_no_rest_or_turn_spans_a_gap_and_the_gap_is_named(where: float, gap_s: f
     channel=st.integers(0, 5),
     value=st.one_of(st.just(1e300), st.floats(2.5e4, 1e308), st.floats(-1e308, -2.5e4)),
 )
+@pytest.mark.slow
 def test_a_value_out_of_range_is_named_and_its_turn_kept(
     name: str, frac: float, channel: int, value: float
 ) -> None:

@@ -276,6 +276,7 @@ def _group(name: str) -> str:
 
 
 @pytest.mark.timeout(60)  # a 5-minute session simulated, decoded, segmented, fitted twice
+@pytest.mark.slow
 def test_continuous_capture_is_cut_into_the_12_records_with_the_dialogue_constants(
     tmp_path: Path, capsys
 ) -> None:
@@ -304,6 +305,7 @@ def test_continuous_capture_is_cut_into_the_12_records_with_the_dialogue_constan
     assert (out / "C1_segments.tsv").exists()
 
 
+@pytest.mark.slow
 def test_labels_file_corrects_the_cut(tmp_path: Path, capsys) -> None:
     """Relabel a rest period as a second x_up and leave z_cw out: the records follow."""
     block, _ = _continuous_session(5)
@@ -337,6 +339,7 @@ def test_labels_file_corrects_the_cut(tmp_path: Path, capsys) -> None:
     assert "also holds L1_z_cw.txt" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_a_binary_labels_file_is_one_line(tmp_path: Path, capsys) -> None:
     block, _ = _continuous_session(5)
     cap = tmp_path / "s.cap"

@@ -175,6 +175,7 @@ _row = st.lists(_cells, min_size=0, max_size=8).map("\t".join)
 
 @settings(max_examples=100, deadline=None)
 @given(st.lists(_row, max_size=6).map("\n".join))
+@pytest.mark.slow
 def test_any_labels_text_is_segments_or_one_line(text: str) -> None:
     """Whatever a labels file holds: the segments it names, each within the stream, on the
     face or turn it names, none sharing samples with another of its kind — or one

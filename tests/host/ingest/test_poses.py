@@ -82,6 +82,7 @@ def pose_stream(seed: int, n_poses: int) -> tuple[Stream, list[tuple[float, floa
 
 @settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**31), n_poses=st.integers(3, 7))
+@pytest.mark.slow
 def test_every_rest_at_a_random_attitude_is_a_pose_and_the_motions_moves(
     seed: int, n_poses: int
 ) -> None:
@@ -190,6 +191,7 @@ def test_a_gyro_read_in_the_wrong_unit_is_named_from_the_moves(factor: float, un
     assert hint is not None and f"try --units {units}" in hint and "\n" not in hint
 
 
+@pytest.mark.slow
 def test_poses_reads_the_methods_session_as_poses_too(tmp_path: Path, capsys) -> None:
     cs = make_session(5, OPERATORS[0])
     rows = ["t,ax,ay,az,gx,gy,gz"] + [

@@ -67,6 +67,7 @@ def test_a_term_named_like_a_built_in_is_refused(
         ("return np.ones(len(sig.t_s)) * 1j", r"columns\(\) returned complex numbers"),
     ],
 )
+@pytest.mark.slow
 def test_a_term_that_fails_is_one_line_naming_it(
     records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], body: str, words: str
 ) -> None:
@@ -105,6 +106,7 @@ def test_a_sound_user_term_still_works(
     assert '"rms_z"' in out
 
 
+@pytest.mark.slow
 def test_diagnose_on_one_record_is_no_verdict(
     records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -120,6 +122,7 @@ def test_diagnose_on_one_record_is_no_verdict(
 
 
 @pytest.mark.timeout(60)
+@pytest.mark.slow
 def test_an_endless_term_shows_progress_and_stops_at_the_bound_the_user_raises(
     records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
     monkeypatch: pytest.MonkeyPatch,
@@ -169,6 +172,7 @@ def test_each_loading_of_a_term_file_has_the_whole_bound(
 
 
 @pytest.mark.parametrize("body", ["return np.zeros(len(sig.t_s))", "return np.ones(len(sig.t_s))"])
+@pytest.mark.slow
 def test_a_term_the_records_do_not_determine_is_not_shipped(
     records_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], body: str
 ) -> None:

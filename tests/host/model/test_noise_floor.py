@@ -57,6 +57,7 @@ def test_a_bias_that_follows_temperature_or_time_is_not_wander() -> None:
                 assert wander_floor(blocks)[0] > got + 3e-4, c  # the raw scatter takes the bias
 
 
+@pytest.mark.slow
 def test_the_floor_does_not_grow_with_an_accel_temperature_bias(tmp_path: Path) -> None:
     """Independent sessions from power-on (the chip warming fast) with 30 s statics, an
     accelerometer bias following the chip temperature at 0, 3 and 10 mm/s²/°C: the floor read

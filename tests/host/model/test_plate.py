@@ -30,6 +30,7 @@ def _session(tmp: Path, seed: int, effect: str, recorded: bool) -> tuple[Path, d
 
 
 @pytest.mark.parametrize("seed", [21, 22])
+@pytest.mark.slow
 def test_unrecorded_headings_tilt_within_its_sigma_and_headings_found(
     tmp_path: Path, seed: int
 ) -> None:
@@ -130,6 +131,7 @@ _CROSS = {(0, 1): "Gxz", (0, 2): "Gxy", (1, 0): "Gyz", (1, 2): "Gyx", (2, 0): "G
 
 
 @pytest.mark.parametrize("seed", [31, 32, 33])
+@pytest.mark.slow
 def test_a_tilted_turn_axis_is_named_and_its_cross_axis_values_corrected(
     tmp_path: Path, seed: int
 ) -> None:
@@ -166,6 +168,7 @@ def test_a_tilted_turn_axis_is_named_and_its_cross_axis_values_corrected(
 @pytest.mark.parametrize(("seed", "effect", "headings"),
                          [(34, "none", "zero"), (35, "plate_tilt", "random"),
                           (36, "face_lean", "zero")])  # fmt: skip
+@pytest.mark.slow
 def test_no_turn_is_named_tilted_when_none_was(
     tmp_path: Path, seed: int, effect: str, headings: str
 ) -> None:

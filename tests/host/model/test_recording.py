@@ -41,6 +41,7 @@ def long_run() -> recording.NoiseAnalysis:
 
 
 @pytest.mark.timeout(300)  # 4 h of 50 Hz samples, six Allan deviations
+@pytest.mark.slow
 def test_figures_come_back_within_their_intervals(long_run: recording.NoiseAnalysis) -> None:
     for j, name in enumerate(allan.CHANNELS):
         for q, truth in zip(allan.QUANTITIES, true_figures(TRUTH, j), strict=True):
@@ -92,6 +93,7 @@ def test_planned_length_gives_the_requested_precision() -> None:
 
 
 @pytest.mark.timeout(200)  # two analyses of a one-hour warm-up
+@pytest.mark.slow
 def test_temperature_drift_is_reported_not_read_as_rate_random_walk() -> None:
     warm = NoiseTruth(
         white=TRUTH.white,
@@ -118,6 +120,7 @@ def test_temperature_drift_is_reported_not_read_as_rate_random_walk() -> None:
 
 
 @pytest.mark.timeout(200)  # one-hour capture through the command
+@pytest.mark.slow
 def test_command_json_keys_units_and_noise_file(tmp_path, capsys) -> None:
     t, x, temp = static_noise(TRUTH, 3600.0, np.random.default_rng(11))
     cap = tmp_path / "static.cap"

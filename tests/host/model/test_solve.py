@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
 from host.model.catalogue import CATALOGUE
 from host.model.dataset import build_dataset, session_from_records
@@ -31,6 +32,7 @@ def _dataset(effect: str, seed: int):  # type: ignore[no-untyped-def]
     return build_dataset(session_from_records(hidden_effect_case(effect, seed=seed).records))
 
 
+@pytest.mark.slow
 def test_chi2_of_several_rows_is_each_fits_own() -> None:
     """One whitened design fitted to several sets of rows gives, for each, the χ² of the whole
     fit on a copy of the dataset holding those rows (a linear and a nonlinear model)."""

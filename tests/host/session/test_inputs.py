@@ -115,6 +115,7 @@ def test_record_names_obey_the_rule_or_are_refused(
 
 @SLOW
 @given(serial=serials)
+@pytest.mark.slow
 def test_a_result_json_and_the_archive_obey_the_rule(
     serial: str, calibrated: Path, tmp_path: Path
 ) -> None:
@@ -211,6 +212,7 @@ def _noise_doc(serial: str) -> dict[str, object]:
 @given(st.recursive(st.none() | st.integers() | st.text(alphabet='[]{}"\\ab'),
                     lambda c: st.lists(c, max_size=3) | st.dictionaries(st.text(), c, max_size=3),
                     max_leaves=20))  # fmt: skip
+@pytest.mark.slow
 def test_the_depth_is_the_nesting_of_the_document(doc: object) -> None:
     def depth(x: object) -> int:
         if isinstance(x, list):

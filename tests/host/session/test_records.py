@@ -245,6 +245,7 @@ _finite = st.floats(min_value=-3e4, max_value=3e4, allow_nan=False, allow_infini
         max_size=4,
     ),
 )
+@pytest.mark.slow
 def test_round_trip_property(n: int, seed: int, scale: float, meta: dict[str, str]) -> None:
     rng = np.random.default_rng(seed)
     t = np.cumsum(rng.uniform(0.0, 30.0, n))

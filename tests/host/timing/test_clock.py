@@ -86,6 +86,7 @@ _small_points = st.lists(
 
 @settings(max_examples=50, deadline=None)
 @given(points=_small_points)
+@pytest.mark.slow
 def test_lower_hull_is_the_walked_hull_and_lies_under_every_point(
     points: list[tuple[int, int]],
 ) -> None:
@@ -240,6 +241,7 @@ def test_a_capture_fitted_window_by_window_and_in_batches_has_the_same_maps() ->
 
 @settings(max_examples=50, deadline=None)
 @given(runs=st.lists(_small_points, min_size=1, max_size=5))
+@pytest.mark.slow
 def test_the_hulls_of_several_runs_at_once_are_each_runs_walked_hull(
     runs: list[list[tuple[int, int]]],
 ) -> None:
@@ -312,6 +314,7 @@ def test_overlapping_windows_of_one_run_get_each_windows_min_delay_line(
     ),
     v0=st.integers(0, 2**16 - 1),
 )
+@pytest.mark.slow
 def test_unwrap_with_host_time_is_the_step_by_step_rule(
     steps: list[tuple[int, int]], v0: int
 ) -> None:

@@ -64,6 +64,7 @@ def test_chunked_bulk_decoder_equals_the_whole_file(
     st.lists(st.integers(1, 500), min_size=1, max_size=6),
     st.integers(0, 40),
 )
+@pytest.mark.slow
 def test_capture_unwrapper_with_times_equals_parse(
     reads: list[int], pieces: list[int], cut: int
 ) -> None:
@@ -86,6 +87,7 @@ def test_capture_unwrapper_with_times_equals_parse(
         assert np.array_equal(u.arrival_ns_at(offsets), want.arrival_ns_at(offsets))
 
 
+@pytest.mark.slow
 def test_a_read_longer_than_any_port_read_is_damage_and_memory_stays_bounded() -> None:
     """A made-up header claiming a 5 MiB read (no port read is above MAX_READ) in front of
     5 MiB of zeros and then two real reads: the zeros are skipped as one damaged place, the
@@ -216,6 +218,7 @@ def run_decode(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int
 
 
 @pytest.mark.parametrize("fmt", ["--csv", "--jsonl", "--stats"])
+@pytest.mark.slow
 def test_decode_output_does_not_depend_on_the_read_size(
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
@@ -274,6 +277,7 @@ def test_the_frame_rows_are_the_bytes_at_each_start_zero_padded(
     offsets=st.lists(st.integers(0, 520), max_size=120),
     in_order=st.booleans(),
 )
+@pytest.mark.slow
 def test_each_bytes_read_is_the_count_of_reads_ended_before_it(
     ends: list[int], offsets: list[int], in_order: bool
 ) -> None:

@@ -125,6 +125,7 @@ def test_one_damage_loses_at_most_the_read_it_hit(
 
 @settings(max_examples=100, deadline=None)
 @given(reads=read_lists, cut=st.integers(1, 30))
+@pytest.mark.slow
 def test_a_cut_off_end_is_a_cut_not_damage(reads: list[tuple[int, bytes]], cut: int) -> None:
     raw, starts, want = write(reads)
     size = len(raw) - cut

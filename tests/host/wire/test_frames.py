@@ -183,6 +183,7 @@ def corrupt(data: bytes, rng: random.Random, n_ops: int) -> bytes:
 
 @settings(max_examples=80, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.integers(0, 40), st.lists(st.integers(1, 97), max_size=30))
+@pytest.mark.slow
 def test_bulk_equals_streaming_on_corrupted_streams(seed: int, n_ops: int, chunks) -> None:
     data = corrupt(BASE, random.Random(seed), n_ops)
     frames, stats = stream_decode(data, chunks)
@@ -247,6 +248,7 @@ def imucap(data: bytes, reads: list[int]) -> bytes:
     st.integers(0, 2**32 - 1),
     st.integers(0, 10),
 )
+@pytest.mark.slow
 def test_imucap01_files_decode_like_the_bytes_they_hold(
     reads: list[int], chunk: int, seed: int, n_ops: int
 ) -> None:

@@ -4,6 +4,7 @@ protocol/README.md) that a board never sends."""
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -35,6 +36,7 @@ def test_a_host_type_in_the_device_stream_is_no_frame() -> None:
     ),
     st.integers(1, 40),
 )
+@pytest.mark.slow
 def test_device_stream_never_yields_a_host_type_and_bulk_equals_streaming(
     frames: list[tuple[int, bytes]], chunk: int
 ) -> None:

@@ -50,6 +50,7 @@ def test_every_revision_name_and_number_reads_back() -> None:
     g=st.floats(-1.9, 1.9),
 )
 @example(afs=0, pid=0x55, g=1.0)
+@pytest.mark.slow
 def test_c4_c5_count_half_the_lsb_per_g_at_every_full_scale(afs: int, pid: int, g: float) -> None:
     lsb = sensor.accel_lsb_per_g(afs, pid)
     assert lsb == sensor.ACCEL_LSB_PER_G[afs] / (2 if pid in HALF else 1)
@@ -151,6 +152,7 @@ def _capture(tmp_path: Path, product_id: int, flags: int) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_decode_scales_by_the_revision_and_warns_of_the_low_clock(tmp_path: Path) -> None:
     def decode(path: Path) -> subprocess.CompletedProcess[str]:
         cmd = [sys.executable, "-m", "host", "decode", str(path), "--csv"]

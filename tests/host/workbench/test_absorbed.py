@@ -53,6 +53,7 @@ def test_without_turn_angle_reweighs_only_the_up_integrals(tmp_path: Path) -> No
 
 
 @pytest.mark.parametrize("seed", [1000, 1001, 1002])
+@pytest.mark.slow
 def test_scale_asymmetry_is_not_adequate(tmp_path: Path, seed: int) -> None:
     ds, truth = _session(tmp_path, seed, "scale_asymmetry")
     d = diagnose(ds, parse_model("base"))
@@ -63,6 +64,7 @@ def test_scale_asymmetry_is_not_adequate(tmp_path: Path, seed: int) -> None:
 
 
 @pytest.mark.parametrize("seed", [1000, 1001, 1002, 1003])
+@pytest.mark.slow
 def test_controls_stay_adequate(tmp_path: Path, seed: int) -> None:
     ds, _ = _session(tmp_path, seed, "none")
     d = diagnose(ds, parse_model("base"))
@@ -70,6 +72,7 @@ def test_controls_stay_adequate(tmp_path: Path, seed: int) -> None:
 
 
 @pytest.mark.parametrize("seed", [1000, 1001, 1002])
+@pytest.mark.slow
 def test_adding_the_asymmetry_shows_the_misfit_it_takes(tmp_path: Path, seed: int) -> None:
     """Before → after is measured on the yardstick the term is tested on: with the turn angle
     of its axis in the yardstick, base reads RMS z ~1 (the closure is called the hand's) and
@@ -83,6 +86,7 @@ def test_adding_the_asymmetry_shows_the_misfit_it_takes(tmp_path: Path, seed: in
     assert f"about {truth['axis']}" in a.yardstick
 
 
+@pytest.mark.slow
 def test_a_term_that_leaves_the_closures_keeps_the_models_yardstick(tmp_path: Path) -> None:
     """A term odd in the turn direction does not move the closures: before is the model's own
     fit; on a control (no turn angle to take out) the asymmetry's before is too, and adding it
@@ -95,6 +99,7 @@ def test_a_term_that_leaves_the_closures_keeps_the_models_yardstick(tmp_path: Pa
     assert b.before.rms_z == pytest.approx(base.rms_z) and b.before.rms_z < 1.5 * b.after.rms_z
 
 
+@pytest.mark.slow
 def test_a_term_on_every_turned_axis_keeps_the_models_yardstick(tmp_path: Path) -> None:
     """With every closure taken by the term none is left to measure the hand's angle error:
     a yardstick without it would sell the hand's error as the term's, so before is the

@@ -38,6 +38,7 @@ def _numbers(line: str) -> tuple[float, float, float, float]:
 
 @pytest.mark.parametrize(("seed", "effect"), [(1000, "temperature_bias"),
                                               (4000, "scale_asymmetry")])  # fmt: skip
+@pytest.mark.slow
 def test_significant_only_where_the_misfit_falls(tmp_path: Path, seed: int, effect: str) -> None:
     """A temperature bias on gyro z: a gyro scale asymmetry on z passes its χ² test (tested
     without the turn angle of z) yet RMS z rises 6.50 → 6.63 on that yardstick, and it was

@@ -8,6 +8,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from host.model.dataset import Dataset, load_dataset
 from host.model.loader import load_term_file
 from host.model.spec import parse_model
@@ -23,6 +25,7 @@ def _session(tmp_path: Path, seed: int, effect: str) -> tuple[Dataset, dict[str,
     return load_dataset(d), s.truth()["effect"]
 
 
+@pytest.mark.slow
 def test_cross_axis_g2_is_one_group_with_the_face_error_and_nothing_alone(tmp_path: Path) -> None:
     """Accel i += c·(f_j/g)²: on the six faces a face lean of the ±j pair toward i is the same
     numbers. Neither is recommended; the group holds both, says so in words of at most 80
@@ -43,6 +46,7 @@ def test_cross_axis_g2_is_one_group_with_the_face_error_and_nothing_alone(tmp_pa
     assert obj and obj[0]["signals"][0]["sensor"] == "accel" and obj[0]["terms"]
 
 
+@pytest.mark.slow
 def test_a_user_term_is_a_member_like_the_catalogues(tmp_path: Path) -> None:
     """A user's term file writing the same cross-axis g² as a term joins the group beside the
     catalogue's face error: the data, not a list of pairs, decide who is equal."""
@@ -62,6 +66,7 @@ def test_a_user_term_is_a_member_like_the_catalogues(tmp_path: Path) -> None:
     assert not set(g.terms) & set(d.recommended)
 
 
+@pytest.mark.slow
 def test_a_term_is_not_the_equal_of_its_own_input(tmp_path: Path) -> None:
     """A gyro drift: the scan's 'time since power-on' is time_drift's own column and its
     square a variant of the same input, not another explanation: time_drift is recommended
@@ -82,6 +87,7 @@ def test_family_is_the_input_whatever_its_power() -> None:
     assert family("dT/dt (the chip warming or cooling)") != family("temperature")
 
 
+@pytest.mark.slow
 def test_a_plate_tilt_equal_to_face_leans_on_all_channels_together(tmp_path: Path) -> None:
     """Every face leaning, statics without a recorded heading: a plate tilt with a heading
     unknown per static fits the leans of all three channels, as do the three channels' face

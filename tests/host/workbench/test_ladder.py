@@ -52,6 +52,7 @@ def test_the_temperature_demo_ships_the_hidden_term_and_nothing_idle(seed: int) 
 
 
 @pytest.mark.parametrize("seed", [1000, 1003])
+@pytest.mark.slow
 def test_a_term_another_makes_idle_is_dropped(tmp_path: Path, seed: int) -> None:
     """Independent sessions with a gyro temperature bias: a term that stood in for it (a
     drift, a temperature-dependent scale) no longer earns its place once the bias is in, and

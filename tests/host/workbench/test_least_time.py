@@ -80,6 +80,7 @@ def _plan(
     return cost, _sigma2(rests)
 
 
+@pytest.mark.slow
 def test_no_plan_found_by_brute_force_beats_the_bound() -> None:
     """Thousands of random plans of faces, 45° attitudes and turn pairs, each with the least
     rest that reaches σ² ≤ 0.01 on every GA (bisection): none costs less than the bound, the

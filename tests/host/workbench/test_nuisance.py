@@ -27,6 +27,7 @@ def _tilted(tmp_path: Path, seed: int) -> Path:
     return d
 
 
+@pytest.mark.slow
 def test_the_records_views_of_one_tilt_agree_with_it(tmp_path: Path) -> None:
     """Every record sat on the plate as the turns did: each static's own view of the tilt has
     the plate's size, within its σ (pooled z sd near 1, no session flagged)."""
@@ -41,6 +42,7 @@ def test_the_records_views_of_one_tilt_agree_with_it(tmp_path: Path) -> None:
     assert min(ps) > 1e-3, ps
 
 
+@pytest.mark.slow
 def test_an_addition_that_fits_channels_exactly_is_no_fall(tmp_path: Path) -> None:
     """With no heading recorded each static carries its own view of the tilt: the
     accelerometer's record values are then fitted exactly. The headline was 'RMS z 37.86 →

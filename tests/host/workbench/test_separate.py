@@ -64,6 +64,7 @@ def test_turns_at_another_rate_separate_asymmetry_from_nonlinearity(asymmetric: 
             assert r.lam == pytest.approx(s.lam_now, abs=1e-6)
 
 
+@pytest.mark.slow
 def test_one_explanation_against_itself_is_never_separated(asymmetric: Path) -> None:
     a = parse_model("scale_asymmetry:gyro:z", CATALOGUE)
     s = separate(read_session(asymmetric), BASE, a, a, only=candidates(10.0, 2)[:3])
@@ -95,6 +96,7 @@ def test_turns_at_half_the_pace_are_half_the_rate_in_twice_the_window(asymmetric
 
 
 @pytest.mark.parametrize("effect", ["scale_asymmetry", "scale_nonlinearity"])
+@pytest.mark.slow
 def test_after_turns_at_half_the_pace_the_scale_term_is_recommended(
     tmp_path: Path, effect: str
 ) -> None:
@@ -112,6 +114,7 @@ def test_after_turns_at_half_the_pace_the_scale_term_is_recommended(
     assert d.recommended_spec == f"{effect}:gyro:y"
 
 
+@pytest.mark.slow
 def test_a_signal_of_the_scan_is_weighed_against_a_term(tmp_path: Path) -> None:
     """A signal as the diagnosis names it ('accel y follows (specific force z)² / …') is an
     explanation like a term: on the six faces it is a face lean's equal (λ 0); a 45° attitude
@@ -153,6 +156,7 @@ def test_a_noted_heading_is_in_the_header_of_the_record_it_names(asymmetric: Pat
     assert HEADING_KEY not in hand.with_candidate(plain).records["tilt_45_3"].meta
 
 
+@pytest.mark.slow
 def test_at_unknown_headings_a_45_attitude_separates_the_plate_tilt_once_its_heading_is_noted(
     tmp_path: Path,
 ) -> None:
@@ -191,6 +195,7 @@ def test_at_unknown_headings_a_45_attitude_separates_the_plate_tilt_once_its_hea
         assert lam[r.candidate.label].lam <= r.lam + 1e-6
 
 
+@pytest.mark.slow
 def test_a_heading_is_noted_only_where_it_is_in_the_frame_of_the_plates_tilt(
     tmp_path: Path,
 ) -> None:

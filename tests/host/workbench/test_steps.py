@@ -38,6 +38,7 @@ def _session(tmp_path_factory: pytest.TempPathFactory, effect: str) -> tuple[Dat
 
 
 @pytest.mark.parametrize(("sensor", "axis"), [("accel", 0), ("gyro", 2)])
+@pytest.mark.slow
 def test_every_cut_is_the_step_the_scan_aggregates(
     tmp_path_factory: pytest.TempPathFactory, sensor: str, axis: int
 ) -> None:
@@ -80,6 +81,7 @@ def test_the_profile_given_a_step_is_the_refit_with_both(
             assert given_i[k] == pytest.approx(both - alone[i], rel=1e-6, abs=1e-6)
 
 
+@pytest.mark.slow
 def test_the_cuts_kept_in_parts_are_their_columns(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> None:

@@ -62,17 +62,20 @@ def _check_found(
 
 
 @pytest.mark.parametrize("seed", range(4))
+@pytest.mark.slow
 def test_hidden_temperature_bias_is_named_first(seed: int) -> None:
     """Gyro bias ∝ chip temperature, the room cycling ±2.5 °C (temperature up AND down)."""
     _check_found("temperature", seed)
 
 
 @pytest.mark.parametrize("seed", range(4))
+@pytest.mark.slow
 def test_hidden_gyro_time_drift_at_constant_temperature(seed: int) -> None:
     _check_found("drift", seed)
 
 
 @pytest.mark.parametrize("seed", range(4))
+@pytest.mark.slow
 def test_hidden_accel_scale_asymmetry_six_attitudes_is_a_group_of_equals(seed: int) -> None:
     """With only the six ±1 g faces asymmetry and quadratic nonlinearity move the record means
     identically: they are one group of equals, neither recommended alone, with the record that
@@ -117,6 +120,7 @@ def test_monotonic_warmup_confounds_temperature_and_time(seed: int) -> None:
     assert {f"temperature_bias:gyro:{axis}", f"time_drift:gyro:{axis}"} <= group
 
 
+@pytest.mark.slow
 def test_constant_temperature_makes_temperature_terms_unidentifiable() -> None:
     d = run_case(hidden_effect_case("drift", 0)).diagnosis
     temp = [c for c in d.candidates if c.term.startswith("temperature")]
@@ -240,6 +244,7 @@ def test_real_imucal_plate_tilt_is_what_the_rests_show_and_no_face_error_is_clai
 
 @pytest.mark.parametrize("seed", range(3))
 @pytest.mark.parametrize("known_noise", [False, True])
+@pytest.mark.slow
 def test_effect_outside_the_catalogue_is_unexplained_and_named(
     seed: int, known_noise: bool
 ) -> None:
@@ -353,6 +358,7 @@ def _stepped_session(tilt_en: tuple[float, float], seed: int) -> dict:
 
 
 @pytest.mark.parametrize("seed", range(2))
+@pytest.mark.slow
 def test_plate_tilt_is_one_pair_of_angles_read_from_the_still_moments_of_turns(seed: int) -> None:
     """A tilted plate, stepped turns: the horizontal accelerometers follow the heading at the
     still moments, which only a plate tilt explains (a face error or bias turns with the
@@ -372,6 +378,7 @@ def test_plate_tilt_is_one_pair_of_angles_read_from_the_still_moments_of_turns(s
     assert a.before.rms_z > 3 * a.after.rms_z
 
 
+@pytest.mark.slow
 def test_diagnose_prints_the_components_its_fit_used(tmp_path: Path) -> None:
     """A model with a gyro scale asymmetry takes the turns' closures: the turn angle is then
     not measured (its rows carry white noise only), as the joint fit says. Diagnose read a
