@@ -18,9 +18,16 @@ Data in: a session (the record files of one sitting, :mod:`host.session`). Out: 
 - ``provenance`` — where the records came from: simulated or a unit, the equipment, the chip
   temperatures, the plan, when measured and in how many sittings (from the record headers).
 - ``applying`` — ``apply`` to raw samples and held-out ``verify``.
-- ``report`` — the test report (method.md §7) and the result files.
+- ``report`` — the test report (method.md §7) as sections, and the result files.
+- ``report_lines`` — the text report's lines: 80 columns, wrapped, pages numbered.
+- ``report_tables`` — the report's tables of numbers: residuals, noise, bias consistency,
+  verification.
+- ``certificate`` — what makes the report a certificate (ISO/IEC 17025 §7.8): the report
+  number, laboratory, customer, method, dates, traceability, signatory.
+- ``bench_file`` — the laboratory's bench file (TOML, data only), checked on load.
 - ``commands`` — the shell commands a report or a screen names, laid out to be pasted.
-- ``report_pdf`` — the test report as a PDF with its residual plots (``calibrate --pdf``).
+- ``report_pdf`` — the certificate as a typeset PDF: tables and residual plots (``calibrate
+  --pdf``).
 - ``thermal`` — bias against temperature: the thermal result, ``apply_thermal``, corrected records.
 - ``thermal_fit`` — the bias(T) fit from warm-up, static and chamber records.
 - ``exporting`` — the result as other tools' parameters and files.

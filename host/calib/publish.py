@@ -24,6 +24,7 @@ from typing import TextIO
 
 from host.calib.applying import verify_directory
 from host.calib.calibration import calibrate_from_records
+from host.calib.certificate import Issue, issue_now
 from host.calib.codec import read_result, result_to_json
 from host.calib.decision import DEFAULT_RULE
 from host.calib.report import format_report, result_paths, write_results
@@ -87,7 +88,9 @@ class ComputeSettings:
     ``verify``: a directory of held-out records to predict (None: no verification);
     ``thermal``: the ``--thermal`` option (:func:`thermal_of`); ``noise_file``: the
     ``--noise`` file (:func:`session_noise`); ``pdf``: also the PDF report
-    (:mod:`host.calib.report_pdf`)."""
+    (:mod:`host.calib.report_pdf`); ``issue``: the certificate's facts beyond the result —
+    bench file, customer, where the site came from (:class:`host.calib.certificate.Issue`;
+    its time of issue is set when the report is written)."""
 
     turns: int | None = None
     latitude_deg: float = DEFAULT_LATITUDE_DEG
@@ -102,19 +105,22 @@ class ComputeSettings:
     pdf: bool = False
     #: how each value's mark is decided (:mod:`host.calib.decision`: guarded or simple)
     decision_rule: str = DEFAULT_RULE
+    issue: Issue = field(default_factory=Issue)
 
 
 @dataclass(frozen=True)
 class Published:
     """A result and the files it was written to (``pdf_path``: None when not asked);
     ``records_dir``: the directory its records were read from (the report's next command
-    names it; None: not known)."""
+    names it; None: not known); ``issue``: the certificate's facts the report was issued
+    with (its number among them)."""
 
     result: CalibrationResult
     report_path: Path
     json_path: Path
     pdf_path: Path | None = None
     records_dir: Path | None = None
+    issue: Issue = field(default_factory=Issue)
 
 
 def thermal_of(
@@ -175,13 +181,14 @@ def compute_and_write(
     records_dir = Path(session.directory) if session.directory is not None else out_dir
     if before_write is not None:
         before_write(result)
-    txt, js = write_results(result, out_dir, records_dir)
+    issue = dataclasses.replace(settings.issue, issued=issue_now())
+    txt, js = write_results(result, out_dir, records_dir, issue)
     pdf = None
     if settings.pdf:
         from host.calib.report_pdf import pdf_path, write_report_pdf
 
-        pdf = write_report_pdf(result, pdf_path(txt), records_dir)
-    return Published(result, txt, js, pdf, records_dir)
+        pdf = write_report_pdf(result, pdf_path(txt), records_dir, issue)
+    return Published(result, txt, js, pdf, records_dir, issue)
 
 
 def _why_not_a_directory(path: Path) -> str:
@@ -197,7 +204,8 @@ def show_result(pub: Published, as_json: bool, out: TextIO | None = None) -> Non
     result on ``out`` (stdout)."""
     stream = out if out is not None else sys.stdout
     result = pub.result
-    stream.write(result_to_json(result) if as_json else format_report(result, pub.records_dir))
+    text = result_to_json(result) if as_json else format_report(result, pub.records_dir, pub.issue)
+    stream.write(text)
     stream.flush()
 
 

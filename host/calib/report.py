@@ -14,70 +14,108 @@ import math
 import os
 import shlex
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 
+from host.calib.certificate import (
+    RELATES_ONLY,
+    Issue,
+    head_lines,
+    page_header,
+    report_number,
+    signature_lines,
+    site_text,
+    traceability_lines,
+)
 from host.calib.codec import FLOOR_SOURCES, result_to_json
 from host.calib.commands import command_lines
 from host.calib.decision import K, statement
 from host.calib.provenance import UNKNOWN_SENSOR, Provenance
+from host.calib.report_lines import WIDTH, paginate
+from host.calib.report_lines import wrap as _wrap
+from host.calib.report_tables import (
+    bias_consistency,
+    noise_lines,
+    residual_table,
+    value_text,
+    verification_lines,
+)
 from host.calib.result import CalibrationResult
 from host.calib.result_text import method_record_lines
-from host.calib.values import RecordResidual, Verification
 from host.calib.verdict import marks, missing_records, outside, undecided
 from host.session.atomic import write_texts_atomic
 from host.session.directory import SIMULATED_BOARD
 from host.session.inputs import written_serial
 from host.session.method import (
-    ACCEL_BIAS_NAMES,
     GROUPS,
-    GYRO_BIAS_NAMES,
     NOISE_NAMES,
     UNITS,
 )
 
-WIDTH = 80
-
-
-def _v(x: float, dec: int = 5) -> str:
-    return f"{x:+.{dec}f}" if math.isfinite(x) else "n/d"
-
-
-def _mark(ok: bool | None) -> str:
-    return " " if ok is None else ("+" if ok else "−")
-
 
 def format_report(
-    result: CalibrationResult, records_dir: str | os.PathLike[str] | None = None
+    result: CalibrationResult,
+    records_dir: str | os.PathLike[str] | None = None,
+    issue: Issue | None = None,
 ) -> str:
-    """The text of ``SERIAL_result.txt`` (lines ≤ 80 characters, ends with a newline);
-    ``records_dir``: the directory of the records, for the next command a poor fit names
-    (:func:`next_command`; None: ``DIR``)."""
+    """The text of ``SERIAL_result.txt`` (lines ≤ 80 characters, pages of at most
+    :data:`~host.calib.report_lines.PAGE_LINES` lines, each after the first begun by a form
+    feed and the report number with "page i of n"; ends with a newline): the
+    :func:`report_sections`, between rules. ``records_dir``: the directory of the records, for
+    the next command a poor fit names (:func:`next_command`; None: ``DIR``); ``issue``: the
+    certificate's facts beyond the result (:class:`host.calib.certificate.Issue`; None: none
+    known, and the report says so)."""
+    iss = issue if issue is not None else Issue()
+    out: list[str] = []
+    starts: set[int] = set()
+    for key, lines in report_sections(result, records_dir, iss):
+        starts.add(len(out))
+        out += [*lines, "-" * WIDTH] if key != "signatures" else ["", *lines]
+    number = report_number(result, iss)
+    first = next(i for i, ln in enumerate(out) if ln.startswith("Report No. "))
+    header = partial(page_header, number, result.serial)
+    pages = paginate(out, header, first, frozenset(starts))
+    return "\n".join(line.rstrip() for line in pages) + "\n"
+
+
+def report_sections(
+    result: CalibrationResult, records_dir: str | os.PathLike[str] | None, issue: Issue
+) -> list[tuple[str, list[str]]]:
+    """The report's sections in order, each (key, its lines): the text report sets them
+    between rules, the PDF (:mod:`host.calib.report_pdf`) sets those it has tables for as
+    tables and the others as paragraphs. A section with nothing to say is left out."""
     r = result
-    rule = "-" * WIDTH
     nxt = next_words(r, records_dir)
-    out = [*_head(r, nxt), rule, *_object_and_equipment(r), rule, *_procedure(r, nxt)]
+    procedure = _procedure(r, nxt)
     if r.earth_rate:
-        out.append("Earth rate: vertical component included in the reference rates")
-    out += [*_closed_form_check(r), rule, *_results_table(r), rule]
-    if r.further:
-        out += [*_further_terms(r), rule]
-    out += [*_result_lines(r), rule]
-    if r.undetermined:
-        out += [*_undetermined(r), rule]
-    if r.bias_estimates:
-        out += [*_bias_consistency(r), rule]
-    out += [*_noise_lines(r), rule, *_residual_table(r)]
-    if r.verification is not None:
-        out += [rule, *_verification_lines(r.verification)]
-    if r.notes:
-        out += [rule, "Notes:"]
-        for note in r.notes:
-            out.extend(_wrap(note, "  -", "    "))
-    out += [rule, *_conclusion(r, nxt), rule, ""]
-    for role in ("Customer's representative", "Quality control", "Workshop"):
-        out.append(f"{role:<27}_______________________  /________________/")
-        out.append("")
-    return "\n".join(line.rstrip() for line in out) + "\n"
+        procedure.append("Earth rate: vertical component included in the reference rates")
+    sections = [
+        ("head", _head(r, nxt, issue)),
+        ("object", _object_and_equipment(r)),
+        ("procedure", procedure + _closed_form_check(r)),
+        ("traceability", traceability_lines(r, issue)),
+        ("results", _results_table(r)),
+        ("further", _further_terms(r) if r.further else []),
+        ("result", _result_lines(r)),
+        ("undetermined", _undetermined(r) if r.undetermined else []),
+        ("bias", bias_consistency(r) if r.bias_estimates else []),
+        ("residuals", [*noise_lines(r), "-" * WIDTH, *residual_table(r)]),
+        ("verification", [] if r.verification is None else verification_lines(r.verification)),
+        ("notes", _notes(r)),
+        ("conclusion", _conclusion(r, nxt)),
+        ("signatures", signature_lines(issue)),
+    ]
+    return [(k, lines) for k, lines in sections if lines]
+
+
+def _notes(r: CalibrationResult) -> list[str]:
+    """The result's notes, one item each."""
+    if not r.notes:
+        return []
+    out = ["Notes:"]
+    for note in r.notes:
+        out.extend(_wrap(note, "  -", "    "))
+    return out
 
 
 def _closed_form_check(r: CalibrationResult) -> list[str]:
@@ -91,9 +129,34 @@ def _closed_form_check(r: CalibrationResult) -> list[str]:
     return _wrap(f"Closed form (§3, §4) differs from {what} by at most {max(cf):.2e}", "", "  ")
 
 
+#: a row of the results table: name, value, unit, tolerance, mark, U (k = 2), note
+ResultRow = tuple[str, str, str, str, str, str, str]
+
+
+def result_rows(r: CalibrationResult) -> list[tuple[str, list[ResultRow]]]:
+    """The §7 table as data: each group's title (with its unit) and its rows — every value
+    with its unit, tolerance, mark and expanded uncertainty, as the report writes them."""
+    decided, consts = marks(r), r.constants()
+    std_errors = r.std_errors
+    in_model = {p.name for p in r.parameters} | set(r.noise_std)
+    groups: list[tuple[str, list[ResultRow]]] = []
+    for title, names, unit, tol in GROUPS:
+        tol_s = "none" if tol is None else (f"≤{tol:g}" if names[0] in NOISE_NAMES else f"±{tol:g}")
+        head = f"{title}" + (f", {unit}" if unit and unit != "rad" else "")
+        if not groups or groups[-1][0] != head:
+            groups.append((head, []))
+        for n in names:
+            se = std_errors.get(n, math.nan)
+            note = ""
+            if not math.isfinite(consts[n]):
+                note = "not determined" if n in in_model else "not in the model"
+            groups[-1][1].append((n, value_text(consts[n]), UNITS[n], tol_s, decided[n] or " ",
+                                  f"±{K * se:.5f}" if math.isfinite(se) else "", note))  # fmt: skip
+    return groups
+
+
 def _results_table(r: CalibrationResult) -> list[str]:
     """The §7 table: every value with its unit, tolerance, mark and expanded uncertainty."""
-    mark, consts = marks(r), r.constants()
     out = [
         "RESULTS: value, tolerance, mark (decision rule below), and U: the expanded",
         "uncertainty, k = 2 (twice the standard error; about 95 % coverage)",
@@ -101,24 +164,11 @@ def _results_table(r: CalibrationResult) -> list[str]:
         f"  {'value':<7}{'measured':>12}  {'unit':<8}{'tolerance':>11}  mark  U (k = 2)",
         "-" * WIDTH,
     ]
-    last_title = ""
-    std_errors = r.std_errors
-    in_model = {p.name for p in r.parameters} | set(r.noise_std)
-    for title, names, unit, tol in GROUPS:
-        tol_s = "none" if tol is None else (f"≤{tol:g}" if names[0] in NOISE_NAMES else f"±{tol:g}")
-        if title != last_title:
-            out.append(f"{title}" + (f", {unit}" if unit and unit != "rad" else ""))
-        last_title = title
-        for n in names:
-            se = std_errors.get(n, math.nan)
-            se_s = f"±{K * se:.5f}" if math.isfinite(se) else ""
-            note = ""
-            if not math.isfinite(consts[n]):
-                note = "  not determined" if n in in_model else "  not in the model"
-            out.append(
-                f"  {n:<7}{_v(consts[n]):>12}  {UNITS[n]:<8}{tol_s:>11}   {mark[n] or ' '}  "
-                f"{se_s:>11}{note}"
-            )
+    for title, rows in result_rows(r):
+        out.append(title)
+        for n, v, unit, tol_s, m, se_s, note in rows:
+            note = f"  {note}" if note else ""
+            out.append(f"  {n:<7}{v:>12}  {unit:<8}{tol_s:>11}   {m}  {se_s:>11}{note}")
     return out
 
 
@@ -127,7 +177,7 @@ def _further_terms(r: CalibrationResult) -> list[str]:
     out = ["Further terms of the model (value ± U, k = 2)"]
     for p in r.further:
         if p.determined:
-            out.append(f"  {p.name:<34}{_v(p.value, 6):>14} ± {K * p.stderr:.2g} {p.unit}")
+            out.append(f"  {p.name:<34}{value_text(p.value, 6):>14} ± {K * p.stderr:.2g} {p.unit}")
         else:
             out.append(f"  {p.name:<34}{'not determined':>14}")
     return out
@@ -169,104 +219,23 @@ def _undetermined(r: CalibrationResult) -> list[str]:
     return out
 
 
-def _bias_consistency(r: CalibrationResult) -> list[str]:
-    """§3's three bias estimates per bias, from the X, Y, Z face pairs, and their spread."""
-    out = [
-        "Stage 1 bias consistency (§3): estimates from the X, Y, Z pairs",
-        f"  {'bias':<6}{'X pair':>11}{'Y pair':>11}{'Z pair':>11}{'mean':>11}{'spread':>11}",
-    ]
-    for n in GYRO_BIAS_NAMES + ACCEL_BIAS_NAMES:
-        if n not in r.bias_estimates:
-            continue
-        e = r.bias_estimates[n]
-        spread = max(e) - min(e)
-        mean = sum(e) / 3.0
-        out.append(
-            f"  {n:<6}{_v(e[0]):>11}{_v(e[1]):>11}{_v(e[2]):>11}{_v(mean):>11}"
-            f"{spread:>11.5f} {UNITS[n]}"
-        )
-    out.append("  A spread much larger than the noise means the linear model misses")
-    out.append("  something (method.md §3).")
-    return out
-
-
-def _noise_lines(r: CalibrationResult) -> list[str]:
-    consts = r.constants()
-    return [
-        "Noise (std): largest over the static orientations, per channel (§3)",
-        "  gyro  °/s : " + "  ".join(f"{n} {consts[n]:.4f}" for n in NOISE_NAMES[:3]),
-        "  accel m/s²: " + "  ".join(f"{n} {consts[n]:.4f}" for n in NOISE_NAMES[3:]),
-    ]
-
-
-def _residual_table(r: CalibrationResult) -> list[str]:
-    """Every record's residuals in the order measured, with its sitting and start."""
-    out = [
-        "Residuals per record in the order measured (measured − model): mean / std of",
-        "samples; turns: integral residual, degrees; sit: the sitting it was measured in",
-        "(PROCEDURE above); at: its start, s into that sitting",
-        f"  {'record':<9}{'sit':>4}{'at,s':>6}{'T,s':>5}  {'accel x y z, m/s²':<24}"
-        f"{'gyro x y z, °/s (turns °)':<26}",
-    ]
-    at = r.provenance.session_s if r.provenance is not None else {}
-    sitting = sitting_of(r)
-    for res in measured_order(r):
-        t = at.get(res.record)
-        t_s = f"{t:6.0f}" if t is not None else f"{'-':>6}"
-        sit = str(sitting.get(res.record, "-"))
-        head = f"  {res.record[:9]:<9}{sit:>4}{t_s}{res.duration_s:>5.1f}  "
-        out.extend(_residual_rows(head, res))
-    return out
-
-
-def _residual_rows(head: str, res: RecordResidual) -> list[str]:
-    """One record's rows of the residual table: a turn's integral residuals, a static's or
-    rate's means (and a static's samples' std)."""
-    if res.kind == "turn" and res.angle_deg is not None:
-        return [head + f"{'-':<24}" + " ".join(f"{x:+8.3f}" for x in res.angle_deg) + " °"]
-    acc = " ".join(f"{x:+.4f}" if math.isfinite(x) else "    -  " for x in res.accel_mean)
-    gyr = " ".join(f"{x:+8.4f}" for x in res.gyro_mean)
-    out = [head + f"{acc:<24}" + gyr]
-    if res.kind == "static":
-        accs = " ".join(f"{x:7.4f}" for x in res.accel_std)
-        gyrs = " ".join(f"{x:8.4f}" for x in res.gyro_std)
-        out.append(f"  {'  std':<24}  {accs:<24}{gyrs}")
-    return out
-
-
-def _verification_lines(v: Verification) -> list[str]:
-    """The held-out records measured against the result (method.md §8 limits)."""
-    out = _wrap(f"Verification on records not used in the fit: {v.source}", "", "  ")
-    out.append("  measured − predicted (limits of method.md §8: 0.01 g, 0.5 °/s; turns °)")
-    for x in v.values:
-        out.append(
-            f"  {x.record[:10]:<10} {x.channel:<8}{x.residual:>+11.4f} {x.unit:<5}"
-            f"± {x.sigma:<9.2g} z {x.z:>+7.1f}   limit {x.limit:.3g}  {_mark(x.passed)}"
-        )
-    out.append(
-        f"  RMS z = {v.rms_z:.2f}, χ² = {v.chi2:.1f} on {len(v.values)} values "
-        f"(p = {v.p:.3g}): {'all within' if v.passed else 'NOT all within'} the limits"
-    )
-    return out
-
-
-def _head(r: CalibrationResult, nxt: list[str]) -> list[str]:
-    """Title (the sensor named from the data), the simulated mark, when measured and when
-    computed, local gravity, the verdict and, on a poor fit, the next command ``nxt``."""
+def _head(r: CalibrationResult, nxt: list[str], issue: Issue) -> list[str]:
+    """Title (the sensor named from the data), the simulated mark, the certificate's number,
+    laboratory, customer, item, method and dates (:func:`host.calib.certificate.head_lines`),
+    when measured and when computed, local gravity and where it came from, the verdict and,
+    on a poor fit, the next command ``nxt``."""
     pv = r.provenance
     sensor = "MPU-6000" if pv is None else pv.sensor
     out = [f"TEST REPORT, IMU {sensor}, serial No. {written_serial(r.serial)}"]
     out.extend(simulated_banner(r))
+    out.extend(head_lines(r, issue))
     if pv is not None and pv.measured_from:
         out.extend(_wrap(f"Measured: {_measured(pv)} (the records' start times)", "", "  "))
     else:
         out.append("Measured: the records carry no start time")
     by = f" by {pv.software}" if pv is not None and pv.software else ""
     out.append(f"Computed: {_time(r.created)}{by}")
-    out.append(
-        f"Local gravity g = {r.g:.5f} m/s² (Helmert formula, latitude {r.latitude_deg:.3f}°, "
-        f"height {r.height_m:.0f} m)"
-    )
+    out.extend(_wrap(f"Local gravity g = {r.g:.5f} m/s² ({site_text(r, issue)})", "", "  "))
     out.extend(_wrap(f"Verdict: {r.verdict()} (RESULT below)", "", "  "))
     if nxt:
         out.extend(_command(nxt, "Next: ", "  ", "(what the model lacks)"))
@@ -398,26 +367,9 @@ def _sittings(pv: Provenance) -> str:
     return f"{n} sittings (--resume/--redo; {'; '.join(parts)})"
 
 
-def sitting_of(r: CalibrationResult) -> dict[str, int]:
-    """record -> the number of the sitting it was measured in (1, 2, … as the report's
-    PROCEDURE counts them: ``--resume`` and ``--redo`` each start one); empty when the result
-    does not say (format v1/v2)."""
-    if r.provenance is None:
-        return {}
-    return {n: i for i, st in enumerate(r.provenance.sittings, 1) for n in st.records}
-
-
 def _names(records: tuple[str, ...]) -> str:
     """'x_ccw, x_cw' for up to three records, else '12 records'."""
     return ", ".join(records) if len(records) <= 3 else f"{len(records)} records"
-
-
-def measured_order(r: CalibrationResult) -> list[RecordResidual]:
-    """The residuals of ``r`` in the order their records were measured (sitting, then
-    ``session_s``); records of unknown time last, by name."""
-    order = r.provenance.measured_order if r.provenance is not None else ()
-    rank = {name: i for i, name in enumerate(order)}
-    return sorted(r.residuals, key=lambda x: (rank.get(x.record, len(rank)), x.record))
 
 
 def _conclusion(r: CalibrationResult, nxt: list[str]) -> list[str]:
@@ -434,25 +386,8 @@ def _conclusion(r: CalibrationResult, nxt: list[str]) -> list[str]:
     out.extend(_wrap("Repeatability (method.md §8: three calibrations, coefficient of "
                      f"variation ≤ 1 %): python3 -m host archive repeat {written_serial(r.serial)}",
                      "  ", "    ", keep=("≤ 1 %",)))  # fmt: skip
+    out.append(f"  {RELATES_ONLY}")
     return out
-
-
-def _wrap(text: str, first: str, indent: str, keep: tuple[str, ...] = ()) -> list[str]:
-    """``text`` in lines ≤ 80 columns, the first after ``first``, the others after ``indent``;
-    the phrases in ``keep`` are never broken."""
-    lines: list[str] = []
-    line = first
-    for k in keep:
-        text = text.replace(k, k.replace(" ", "\ue000"))
-    for word in text.split():
-        if line.strip() and len(line) + 1 + len(word) > WIDTH:
-            lines.append(line)
-            line = indent + word
-        else:
-            line = f"{line} {word}" if line.strip() else line + word
-    if line:
-        lines.append(line)
-    return [ln.replace("\ue000", " ") for ln in lines]
 
 
 def simulated_banner(result: CalibrationResult) -> list[str]:
@@ -572,12 +507,14 @@ def write_results(
     result: CalibrationResult,
     directory: str | os.PathLike[str],
     records_dir: str | os.PathLike[str] | None = None,
+    issue: Issue | None = None,
 ) -> tuple[Path, Path]:
     """Publish the report and the JSON result in ``directory`` together or not at all
     (:func:`host.session.atomic.write_texts_atomic`: the signed report and the file ``apply()``
     reads never disagree); returns the paths. ``records_dir``: where the records are, for the
-    report's next command (None: ``directory``). UserError names the file that failed."""
+    report's next command (None: ``directory``); ``issue``: as in :func:`format_report`.
+    UserError names the file that failed."""
     txt, js = result_paths(directory, result.serial)
     where = directory if records_dir is None else records_dir
-    write_texts_atomic({txt: format_report(result, where), js: result_to_json(result)})
+    write_texts_atomic({txt: format_report(result, where, issue), js: result_to_json(result)})
     return txt, js

@@ -16,6 +16,8 @@ from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 
+from host.calib.bench_file import find_bench_file, load_bench_file
+from host.calib.certificate import FROM_BENCH_FILE, FROM_DEFAULT, FROM_OPTIONS, Issue
 from host.calib.commands import command_lines, said_with_command
 from host.calib.decision import DEFAULT_RULE, RULES
 from host.calib.publish import (
@@ -31,6 +33,7 @@ from host.cli import out_directory
 from host.cli.options import (
     Command,
     ModelOptions,
+    Site,
     add_archive_option,
     add_floor_options,
     add_model_options,
@@ -54,6 +57,7 @@ from host.dialogue.options import (
 from host.errors import RecordCheckError, UserError
 from host.session.checks import failed_record
 from host.session.directory import Session, read_session
+from host.session.records import name_problem
 from host.session.spacing import timing_report
 
 
@@ -134,8 +138,17 @@ def add_result_arguments(p: argparse.ArgumentParser) -> None:
         help="also write the report as SERIAL_result.pdf, with its residual plots",
     )
     p.add_argument(
-        "--bench", help="bench name: the records and the archive (default $IMU_BENCH_NAME)"
+        "--bench",
+        help="bench name: the records and the archive (default: the bench file's id, "
+        "else $IMU_BENCH_NAME)",
     )
+    p.add_argument(
+        "--bench-file", metavar="FILE",
+        help="the laboratory's bench file (TOML: laboratory, bench, signatory, the plate's and "
+        "cube's last checks, the site; docs/bench-file.md) for the certificate (default "
+        "$IMU_BENCH_FILE, else ~/.config/imu-bench/bench.toml if there; 'none': no file)",
+    )  # fmt: skip
+    p.add_argument("--customer", help="the customer, named on the certificate")
     p.add_argument(
         "--operator", help="who measures: the records and the archive ($IMU_BENCH_OPERATOR)"
     )
@@ -153,9 +166,37 @@ def calibrate_options(ns: argparse.Namespace) -> CalibrateOptions:
                             model=model_options(ns))  # fmt: skip
 
 
+def certificate_issue(ns: argparse.Namespace) -> tuple[Site, Issue, str | None]:
+    """The site, the certificate's facts (:class:`host.calib.certificate.Issue`) and the bench
+    name from ``--bench-file`` (:func:`host.calib.bench_file.find_bench_file`), ``--customer``,
+    ``--latitude``/``--height`` (given: they win over the bench file's site) and ``--bench``
+    (default: the bench file's id; another is refused)."""
+    path = find_bench_file(ns.bench_file)
+    bench = load_bench_file(path) if path is not None else None
+    if ns.customer is not None and (name_problem(ns.customer) or not ns.customer.strip()):
+        raise UserError(f"--customer: {name_problem(ns.customer) or 'give a name'}")
+    name = ns.bench
+    if bench is not None and name is not None and name != bench.bench_id:
+        raise UserError(
+            f"--bench {name}: the bench file {bench.path} is of bench {bench.bench_id}; give "
+            "that bench's file or leave --bench out"
+        )
+    origin = {True: FROM_OPTIONS, False: FROM_BENCH_FILE if bench else FROM_DEFAULT}
+    lat_from, h_from = origin[ns.latitude is not None], origin[ns.height is not None]
+    site = site_options(ns)
+    if bench is not None:
+        lat = bench.site.latitude_deg if ns.latitude is None else site.latitude_deg
+        site = Site(latitude_deg=lat, height_m=bench.site.height_m if ns.height is None
+                    else site.height_m)  # fmt: skip
+        name = bench.bench_id
+    issue = Issue(bench=bench, customer=ns.customer, site_from=(lat_from, h_from))
+    return site, issue, name
+
+
 def dialogue_options(ns: argparse.Namespace) -> DialogueOptions:
     """The live dialogue's options from the ``calibrate`` arguments."""
-    model, floor, site = model_options(ns), floor_options(ns), site_options(ns)
+    model, floor = model_options(ns), floor_options(ns)
+    site, issue, bench = certificate_issue(ns)
     plan = Planning(plan=ns.plan, target=0.05 if ns.target is None else ns.target,
                     max_extra=12 if ns.max_extra is None else ns.max_extra)  # fmt: skip
     return DialogueOptions(
@@ -173,10 +214,10 @@ def dialogue_options(ns: argparse.Namespace) -> DialogueOptions:
         compute=ComputeSettings(
             latitude_deg=site.latitude_deg, height_m=site.height_m, model=model.spec,
             term_files=model.term_files, floor=floor.floor, verify=ns.verify,
-            thermal=ns.thermal, noise_file=floor.noise, pdf=ns.pdf,
+            thermal=ns.thermal, noise_file=floor.noise, pdf=ns.pdf, issue=issue,
             decision_rule=ns.decision_rule,
         ),
-        provenance=Provenance(operator=ns.operator, bench=ns.bench, lot=ns.lot,
+        provenance=Provenance(operator=ns.operator, bench=bench, lot=ns.lot,
                               archive=ns.archive, no_archive=ns.no_archive),
     )  # fmt: skip
 

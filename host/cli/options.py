@@ -151,18 +151,20 @@ class Site:
 def add_site_options(p: argparse.ArgumentParser) -> None:
     """--latitude and --height."""
     p.add_argument(
-        "--latitude", type=float, default=DEFAULT_LATITUDE_DEG,
+        "--latitude", type=float,
         help=f"site latitude, degrees (default {DEFAULT_LATITUDE_DEG})",
     )  # fmt: skip
     p.add_argument(
-        "--height", type=float, default=DEFAULT_HEIGHT_M,
+        "--height", type=float,
         help=f"site height above sea level, m (default {DEFAULT_HEIGHT_M:g})",
     )  # fmt: skip
 
 
 def site_options(ns: argparse.Namespace) -> Site:
-    """The options :func:`add_site_options` added."""
-    return Site(latitude_deg=ns.latitude, height_m=ns.height)
+    """The options :func:`add_site_options` added (the default site where one is not given;
+    ``calibrate`` reads them itself: its report says where the site came from)."""
+    lat = DEFAULT_LATITUDE_DEG if ns.latitude is None else ns.latitude
+    return Site(latitude_deg=lat, height_m=DEFAULT_HEIGHT_M if ns.height is None else ns.height)
 
 
 # ---------------------------------------------------------------------------- the workbench

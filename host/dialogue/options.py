@@ -25,6 +25,7 @@ from pathlib import Path
 
 from host.board.acquisition import SAMPLE_STALL_S
 from host.board.driver import STALL_S
+from host.calib.certificate import FROM_OPTIONS
 from host.calib.publish import ComputeSettings
 from host.errors import UserError
 from host.session.directory import record_path
@@ -349,10 +350,15 @@ def _schedule_words(s: Schedule) -> list[str]:
 def _compute_words(c: ComputeSettings) -> list[str]:
     """The options of how the result is computed that differ from the defaults."""
     words: list[str] = []
-    if c.latitude_deg != DEFAULT_LATITUDE_DEG:
+    given = c.issue.site_from or (FROM_OPTIONS, FROM_OPTIONS)  # the bench file's: it says them
+    if c.latitude_deg != DEFAULT_LATITUDE_DEG and given[0] == FROM_OPTIONS:
         words += ["--latitude", _number(c.latitude_deg)]
-    if c.height_m != DEFAULT_HEIGHT_M:
+    if c.height_m != DEFAULT_HEIGHT_M and given[1] == FROM_OPTIONS:
         words += ["--height", _number(c.height_m)]
+    if c.issue.bench is not None:
+        words += ["--bench-file", c.issue.bench.path]
+    if c.issue.customer:
+        words += ["--customer", c.issue.customer]
     if c.model != "base":
         words += ["--model", c.model]
     for f in c.term_files:

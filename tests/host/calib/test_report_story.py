@@ -50,7 +50,8 @@ def _story_of(report: str) -> dict[str, str]:
         "head": _unwrapped(lines, "Verdict: "),
         "conclusion": _unwrapped(concl, concl[0].strip()),
     }
-    for where, part in (("head_next", lines[:12]), ("conclusion_next", concl[:8])):
+    head = lines[: lines.index("-" * 80)]  # the head: the lines before the first rule
+    for where, part in (("head_next", head), ("conclusion_next", concl[:8])):
         found = any(ln.strip().startswith("Next: ") for ln in part)
         story[where] = _unwrapped(part, "Next: ") if found else ""
     return story
