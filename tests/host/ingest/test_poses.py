@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from host.__main__ import main
@@ -82,6 +82,7 @@ def pose_stream(seed: int, n_poses: int) -> tuple[Stream, list[tuple[float, floa
 
 @settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**31), n_poses=st.integers(3, 7))
+@example(seed=27970, n_poses=6)  # a slow move's end read as rest 0.11 s early
 @pytest.mark.slow
 def test_every_rest_at_a_random_attitude_is_a_pose_and_the_motions_moves(
     seed: int, n_poses: int
@@ -96,8 +97,11 @@ def test_every_rest_at_a_random_attitude_is_a_pose_and_the_motions_moves(
     )
     for (t0, t1), rec in zip(truth, poses, strict=True):
         a, b = (float(x) for x in rec.meta["segment_s"].split()[0].split(".."))
-        # within the rest, but for the ends of the raised-cosine moves under the rest's noise
-        assert t0 - 0.1 <= a and b <= t1 + 0.1 and b - a > 0.6 * (t1 - t0), (a, b, t0, t1)
+        # within the rest, but for the ends of the raised-cosine moves under the rest's noise:
+        # the rate falls as the square of the time left, so the last 0.1-0.2 s of a slow move
+        # turn at 1-3 deg/s, still to a hand's eye (seed 27970, 6 poses: 0.11 s). The issue's
+        # yardstick for a cut is 0.2 s, as for the moves below.
+        assert t0 - 0.2 <= a and b <= t1 + 0.2 and b - a > 0.6 * (t1 - t0), (a, b, t0, t1)
         assert rec.kind == "pose" and "up" not in rec.meta
     for k in range(n_poses - 1):
         move = records[f"move_{k + 1:02d}_{k + 2:02d}"]
