@@ -46,7 +46,7 @@ from host.model.spec import ModelTerm, parse_model, short_spec
 from host.model.terms import Term
 from host.session.directory import Session, read_session
 from host.session.spacing import timing_report
-from host.workbench.ladder import LadderStep, add_term, ladder
+from host.workbench.ladder import LadderStep, add_term, ladder, new_terms
 from host.workbench.text import (
     format_addition,
     format_diagnosis,
@@ -278,7 +278,8 @@ def run_add(args: AddOptions) -> int:
     w.model.bound_term_files()
     cat = _catalogue(w.model.term_files)
     model = parse_model(w.model.spec, cat)
-    parse_model(args.term, cat)  # a term that is none: said now, not after reading the records
+    # a term that is none, or one the model has: said now, not after reading the records
+    new_terms(model, args.term, cat)
     if args.plot:
         pyplot()  # no matplotlib: say so now, not after the fits
     paths: list[Path] = []

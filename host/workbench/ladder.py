@@ -92,6 +92,18 @@ class Addition:
         }
 
 
+def new_terms(
+    model: Sequence[ModelTerm], item: str, catalogue: Mapping[str, Term] | None = None
+) -> list[ModelTerm]:
+    """The terms ``item`` adds to ``model``; a :class:`UserError` when it names none or
+    only terms the model has (said before any record is read)."""
+    new = parse_model(item, catalogue)
+    have = {(mt.term.name, mt.sensor, a) for mt in model for a in mt.axes}
+    if all((mt.term.name, mt.sensor, a) in have for mt in new for a in mt.axes):
+        raise UserError(f"{item} is already in the model {model_spec(model)}")
+    return new
+
+
 def add_term(
     ds: Dataset,
     model: Sequence[ModelTerm],
@@ -99,10 +111,7 @@ def add_term(
     catalogue: Mapping[str, Term] | None = None,
 ) -> Addition:
     """Refit with ``item`` (``term[:sensor[:axes]]``) added."""
-    new = parse_model(item, catalogue)
-    have = {(mt.term.name, mt.sensor, a) for mt in model for a in mt.axes}
-    if all((mt.term.name, mt.sensor, a) in have for mt in new for a in mt.axes):
-        raise UserError(f"{item} is already in the model {model_spec(model)}")
+    new = new_terms(model, item, catalogue)
     # each with the turn components estimated jointly (host.model.components): the new term
     # may explain the closures a turn-angle σ measured before it would keep. The model before
     # is measured on the yardstick the term was tested on (host.workbench.absorbed): without
