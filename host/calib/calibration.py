@@ -187,16 +187,24 @@ def what_would_determine(
     latitude_deg: float = DEFAULT_LATITUDE_DEG,
     height_m: float = DEFAULT_HEIGHT_M,
     turns: int | None = None,
+    again: Iterable[str] = (),
 ) -> dict[str, str]:
     """For each parameter in ``names`` that the records of ``session`` do not determine under
     ``model`` (model terms of :mod:`host.model`): which records of the standard plan
     (method.md §3, §4) would determine it — 'add any one of: x_dn, y_dn' or 'add all of:
-    x_ccw, x_cw' — else the term's own ``needs`` text."""
+    x_ccw, x_cw' — else the term's own ``needs`` text. ``again``: turn records in motion at an
+    end, each a candidate measured again at rest ("x_ccw again (at rest at both ends)")."""
     wanted = list(names)
     if not wanted:
         return {}
     synth, n_turns = _missing_records(session, local_gravity(latitude_deg, height_m), turns)
+    redo = [n for n in again if n in session.records and n not in synth]
+    g = local_gravity(latitude_deg, height_m)
+    temp = float(np.mean([float(np.mean(r.temp)) for r in session.records.values()]))
+    for n in redo:
+        synth[n] = _synthetic_record(n, g, n_turns, temp, session.records[n].meta)
     candidates = list(synth)
+    label = {c: f"{c} again (at rest at both ends)" if c in redo else c for c in candidates}
 
     def determined(extra: Iterable[str]) -> set[str]:
         records = dict(session.records)
@@ -220,14 +228,14 @@ def what_would_determine(
     for name in wanted:
         alone = [c for c in candidates if name in singles[c]]
         if alone:
-            out[name] = f"add any one of: {', '.join(alone)}"
+            out[name] = f"add any one of: {', '.join(label[c] for c in alone)}"
         elif name in everything:
             need = list(candidates)
             for c in candidates:  # greedy: drop what is not needed
                 rest = [x for x in need if x != c]
                 if rest and name in determined(rest):
                     need = rest
-            out[name] = f"add all of: {', '.join(need)}"
+            out[name] = f"add all of: {', '.join(label[c] for c in need)}"
         else:
             out[name] = needs_of.get(name, "") or "records that excite it"
     return out
@@ -394,6 +402,7 @@ def _parameters(f: _Fitted) -> tuple[ParameterResult, ...]:
     needs = what_would_determine(
         f.session, f.model, f.fit.undetermined, latitude_deg=f.latitude_deg,
         height_m=f.height_m, turns=f.turns,
+        again=[s.name for s in f.dataset.signals if s.angle_column is not None],
     )  # fmt: skip
     return tuple(
         ParameterResult(
@@ -417,8 +426,8 @@ def _closed_form(
     session: Session, stats: Mapping[str, RecordStats], g: float, ds: Dataset
 ) -> tuple[dict[str, float], dict[str, tuple[float, float, float]], int | None]:
     """The closed form where the plan has it (the check printed beside the fit): §3's values
-    and bias estimates from the six faces, §4's gyro matrix from the six turns; and the
-    turns' n (None: none, or mixed)."""
+    and bias estimates from the six faces, §4's gyro matrix from the six turns (none of them
+    in motion at an end: its angle is not 360°·n); and the turns' n (None: none, or mixed)."""
     closed: dict[str, float] = {}
     bias_est: dict[str, tuple[float, float, float]] = {}
     if all(n in stats and session.records[n].kind == "static" for n in STATIC_NAMES):
@@ -431,7 +440,8 @@ def _closed_form(
             bias_est[GYRO_BIAS_NAMES[i]] = (a, b, c)
     ns = set(ds.turns_of.values())
     n_turns = next(iter(ns)) if len(ns) == 1 else None
-    if all(n in ds.turns_of for n in TURN_NAMES) and n_turns is not None:
+    at_rest = not any(sig.angle_column is not None for sig in ds.signals)
+    if all(n in ds.turns_of for n in TURN_NAMES) and n_turns is not None and at_rest:
         closed.update(matrix_to_names("G", stage2(stats, n_turns)))
     return closed, bias_est, n_turns
 

@@ -315,7 +315,8 @@ def turn_problems(
 ) -> list[str]:
     """The attitude check of a turn record of unit ``serial``, then, with ``statics``
     already measured, the engine's angle check with their bias (problems of this record
-    only)."""
+    only); a turn that starts or ends in motion is one too (the fit would keep it with its
+    angle an unknown: measured again at rest, it gives the gyro scale)."""
     file_name = f"{serial}_{rec.name}.txt"
     problems: list[str] = []
     try:
@@ -325,7 +326,13 @@ def turn_problems(
     if statics:
         sess = Session(serial, {**statics, rec.name: rec}, out_dir)
         try:
-            build_observations(sess, g, turns=turns, latitude_deg=latitude_deg)
+            obs, _ = build_observations(sess, g, turns=turns, latitude_deg=latitude_deg)
+            moving = next((o.in_motion for o in obs if o.record == rec.name), "")
+            if moving:
+                problems.append(
+                    f"{file_name}: the turn record {moving}: its angle is not known, so it "
+                    "gives no gyro scale; rest the cube before the first beep and after the turn"
+                )
         except RecordCheckError as exc:
             if exc.file_name == file_name:  # a problem of this record, not of the statics
                 problems.append(str(exc))

@@ -12,6 +12,8 @@ figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imp
 - ``turn_motion`` — the tilt as each turn sees it from every sample of its motion, jointly with
   the lever arm, the seating and the hand as variance components (turns without inner rests).
 - ``turn_axis`` — the axis each turn was made about (a tilted seat named and corrected).
+- ``turn_angle`` — a turn's angle and reference rate: ±360°·n between two rests, an unknown of
+  the fit when it starts or ends in motion.
 - ``remeasured`` — a face measured twice: the accelerometer's bias change between the two, and
   whether the turns' leans are that change rather than tilted turn axes.
 - ``signals`` — a record's reference signals (force, rate, temperature, time, heading); units.

@@ -63,8 +63,22 @@ def bias(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
 @term(params={"scale": "1"}, needs="inputs of both signs on this axis (±1 g faces; CW and CCW "
       "turns about the axis)", labels=lambda s, i: (f"{_PREFIX[s]}{AXES[i] * 2}",))  # fmt: skip
 def scale(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
-    """Relative scale-factor error (method.md §2 Axx, Gxx): output = (1 + s)·input."""
+    """Relative scale-factor error (method.md §2 Axx, Gxx): output = (1 + s)·input.
+
+    A turn record that starts or ends in motion carries its angle as an unknown of its own on
+    the gyro (:func:`_turn_angle`): its integral about up reads (1 + s)·angle, so the scale
+    about that axis comes from the other records (a turn at rest, a rate table), or is not
+    determined."""
     return sig.reference(sensor)[:, axis : axis + 1]
+
+
+def _turn_angle(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """A turn's angle, an unknown of the record where it starts or ends in motion (°, the
+    correction of the angle its reference rate turns): each gyro channel reads it through the
+    measured rate per degree (:attr:`RecordSignals.angle_column`, the scale and the
+    cross-axis terms in it)."""
+    assert sig.angle_column is not None
+    return np.asarray(sig.angle_column)[:, axis : axis + 1]
 
 
 def _mis_labels(sensor: str, axis: int) -> tuple[str, ...]:
@@ -427,6 +441,12 @@ face_error = replace(face_error, twin_sensor="gyro", twin_columns=_face_turn)
 misalignment = replace(misalignment, record_params=("attitude_a", "attitude_b"),
                        record_units=("rad", "rad"), record_columns=_pose_attitude,
                        owns=lambda sig: sig.kind == "pose", record_sensor="accel")  # fmt: skip
+
+#: a turn that starts or ends in motion carries its angle: one unknown of its own on the gyro,
+#: which trades with the scale about its axis
+scale = replace(scale, record_params=("turn_angle",), record_units=("°",),
+                record_columns=_turn_angle, owns=lambda sig: sig.angle_column is not None,
+                record_sensor="gyro")  # fmt: skip
 
 #: the plate's tilt and the lever arm read all three channels from one computation
 lever_arm = replace(lever_arm, columns_all=_lever_arm_all)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -36,6 +36,7 @@ from host.model.rows import (
     turn_tilt_columns,
 )
 from host.model.signals import RecordSignals, record_signals
+from host.model.turn_angle import preliminary_gyro_scale, turn_reads
 from host.model.turn_axis import TurnAxis, resolve_turn_axes, turn_axes
 from host.model.variance import Component, TurnClosure, TurnSigmas, turn_sigmas
 from host.model.whitening import (
@@ -52,7 +53,6 @@ from host.session.method import (
     DEFAULT_LATITUDE_DEG,
     RecordStats,
     local_gravity,
-    trapezoid_integral,
 )
 from host.session.observations import Observation, build_observations
 from host.session.records import Record
@@ -139,25 +139,6 @@ class Dataset:
         return self.sensor_aggregators.get((record, sensor, axis), self.aggregators[record])
 
 
-def _preliminary_gyro_scale(
-    turns: Sequence[tuple[Record, Observation]], gyro_bias: np.ndarray
-) -> np.ndarray | None:
-    """(3,) 1 + each gyro's scale on its own axis from the turn records before the fit: the
-    measured integral about up (static ``gyro_bias`` (4, 3) removed) over the known turn, the
-    mean of the turns about each axis (1 for an axis without turns); None without turns. It
-    carries a face's lean into the gyro's columns (:data:`host.model.catalogue.face_error`)."""
-    per: dict[int, list[float]] = {0: [], 1: [], 2: []}
-    for rec, o in turns:
-        want = float(o.rate @ o.up)
-        bias = gyro_bias[:3].T @ o.up + gyro_bias[3]
-        total = float(trapezoid_integral(rec.t_ms, (rec.gyro - bias) @ o.up))
-        if abs(want) > 1e-6 and abs(total) > 1e-6:
-            per[int(np.argmax(np.abs(o.up)))].append(total / want)
-    if not any(per.values()):
-        return None
-    return np.array([float(np.mean(v)) if v else 1.0 for v in per.values()])
-
-
 def _preliminary_accel_matrix(
     xs: np.ndarray, accel_means: np.ndarray, g: float
 ) -> np.ndarray | None:
@@ -238,13 +219,16 @@ class _BeforeFit:
     """What the records say before the fit, for their reference signals: ``rest`` (4, 3) the
     gyro's g-sensitivity per g and bias from the static records (least squares per channel),
     ``first`` the first estimates with the moves, ``accel_matrix`` and ``gyro_scale``
-    (:func:`_preliminary_accel_matrix`, :func:`_preliminary_gyro_scale`), ``gyro_sd`` (3,) the
-    per-sample gyro noise °/s per axis (it finds the still moments inside the turns)."""
+    (:func:`_preliminary_accel_matrix`, :func:`host.model.turn_angle.preliminary_gyro_scale`),
+    ``reads`` what each gyro channel reads of a turn about each axis
+    (:func:`host.model.turn_angle.turn_reads`), ``gyro_sd`` (3,) the per-sample gyro noise °/s
+    per axis (it finds the still moments inside the turns)."""
 
     rest: np.ndarray
     first: FirstEstimates
     accel_matrix: np.ndarray | None
     gyro_scale: np.ndarray | None
+    reads: dict[int, np.ndarray]
     gyro_sd: np.ndarray
 
 
@@ -260,11 +244,10 @@ def _before_the_fit(session: Session, observed: _Observed, g: float) -> _BeforeF
     accel_matrix = _preliminary_accel_matrix(
         xs, np.array([stats[n].accel_mean for n in statics]), g
     )
-    gyro_scale = _preliminary_gyro_scale(
-        [(session.records[n], of[n]) for n in names if of[n].kind == "turn"], pre
-    )
+    turns = [(session.records[n], of[n]) for n in names if of[n].kind == "turn"]
+    gyro_scale = preliminary_gyro_scale(turns, pre)
     gyro_sd = np.median([stats[n].gyro_std for n in statics], axis=0)
-    return _BeforeFit(pre, first, accel_matrix, gyro_scale, gyro_sd)
+    return _BeforeFit(pre, first, accel_matrix, gyro_scale, turn_reads(turns, pre), gyro_sd)
 
 
 @dataclass(frozen=True, eq=False)
@@ -293,7 +276,7 @@ def _signals_of(
     else:
         t0 = -float(t_rel.mean())
     sig = record_signals(rec, o, g, t0, t_rel, before.rest, temp_mean_c, before.accel_matrix,
-                          before.gyro_scale)  # fmt: skip
+                          before.gyro_scale, before.reads)  # fmt: skip
     if o.kind == "move":  # read against the first estimates; its rows come last
         sig = replace(sig, force=before.first.force(rec),
                       rate=before.first.reference_rate(rec, before.rest))  # fmt: skip

@@ -5,11 +5,12 @@ names of the sensors, axes and units."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
-from host.session.method import trapezoid_integral
+from host.model.turn_angle import angle_free, turn_reference
 from host.session.observations import Observation
 from host.session.records import Record
 
@@ -52,6 +53,10 @@ class RecordSignals:
     ``pose_frame``: no record of the session has a set attitude (poses only), so the frame is
     the accelerometer's own by convention (:data:`host.model.poses.FRAME_FIXED`). A pose's
     ``up`` is the first estimate of its attitude (:func:`host.model.poses.attitudes`).
+    ``angle_column`` (N, 3): on a turn record that starts or ends in motion (its angle is not
+    ±360·n but an unknown of the fit, :data:`host.model.catalogue.scale`), what each gyro
+    channel reads per degree of that angle, (°/s)/°: the measured rate less the statics' bias
+    over the angle the reference rate turns (None: the turn's angle is known).
     """
 
     name: str
@@ -72,6 +77,7 @@ class RecordSignals:
     heading_tilt: np.ndarray | None = None
     tilt_matrix: np.ndarray | None = None
     pose_frame: bool = False
+    angle_column: np.ndarray | None = None
 
     def reference(self, sensor: str) -> np.ndarray:
         """(N,3) the true input of ``sensor``: specific force m/s² or rate °/s."""
@@ -131,18 +137,6 @@ def turn_heading(t_s: np.ndarray, rate_up_dps: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(step)])
 
 
-def _turn_reference(
-    rec_gyro: np.ndarray, t_ms: np.ndarray, up: np.ndarray, bias_dps: np.ndarray, want_deg: float
-) -> np.ndarray:
-    """(N,3) reference rate of a turn: the measured rate about the up axis (static bias
-    removed), scaled so that its trapezoid integral is exactly ``want_deg``."""
-    raw = (rec_gyro - bias_dps) @ up
-    total = float(trapezoid_integral(t_ms, raw))
-    if abs(total) < 1e-6:
-        return np.zeros((len(t_ms), 3))
-    return (raw * (want_deg / total))[:, None] * up[None, :]
-
-
 def record_signals(
     rec: Record,
     o: Observation,
@@ -153,17 +147,24 @@ def record_signals(
     temp_mean_c: float,
     accel_matrix: np.ndarray | None = None,
     gyro_scale: np.ndarray | None = None,
+    turn_reads: Mapping[int, np.ndarray] | None = None,
 ) -> RecordSignals:
     """The reference signals of one record (observation ``o``): gravity ``g`` m/s² along its up
     direction, the reference rate (a turn: its measured rate about up less the static
     ``gyro_bias`` (4, 3) (g-sensitivity rows, bias), scaled to the known turn; otherwise the
-    observation's rate), the time ``t0`` + ``t_rel`` s and the heading."""
+    observation's rate), the time ``t0`` + ``t_rel`` s and the heading; a turn in motion at an
+    end, its angle's column (:func:`host.model.turn_angle.angle_free`, ``turn_reads``:
+    :func:`host.model.turn_angle.turn_reads`)."""
     n = len(rec)
     force = np.tile(g * o.up, (n, 1)) if o.kind != "rate" else np.tile(g * rec.up, (n, 1))
+    angle: np.ndarray | None = None
     if o.kind == "turn":
         bias_up = gyro_bias[:3].T @ o.up + gyro_bias[3]
         want = float(o.rate @ o.up)
-        rate = _turn_reference(rec.gyro, rec.t_ms, o.up, bias_up, want)
+        if o.in_motion:  # its angle unknown: the measured one through the gyro's scale
+            reads = (turn_reads or {}).get(int(np.argmax(np.abs(o.up))), o.up)
+            want, angle = angle_free(rec, o.up, bias_up, gyro_scale, reads)
+        rate = turn_reference(rec.gyro, rec.t_ms, o.up, bias_up, want)
         heading: np.ndarray | None = turn_heading(t_rel, rate @ o.up)
     else:  # rate table; statics: zero, or the vertical Earth rate
         rate = np.tile(o.rate, (n, 1))
@@ -173,5 +174,5 @@ def record_signals(
         rate=rate, accel=rec.accel, gyro=rec.gyro, g=g, up=o.up, temp_mean_c=temp_mean_c,
         heading_deg=heading, placement_deg=rec.placement_heading_deg,
         accel_matrix=accel_matrix if o.kind in ("turn", "static") else None,
-        gyro_scale=gyro_scale if o.kind in ("turn", "static") else None,
+        gyro_scale=gyro_scale if o.kind in ("turn", "static") else None, angle_column=angle,
     )  # fmt: skip

@@ -133,10 +133,11 @@ def turn_pairs(signals: Sequence[RecordSignals], timed: bool) -> list[tuple[int,
     """(up axis, ccw record, cw record) for each pair of turns made both ways about an axis:
     its ccw turns paired with its cw turns in the order measured (the first with the first, the
     second with the second, …; by first sample time when ``timed``, else as the records are
-    listed); a turn without a partner is left out."""
+    listed); a turn without a partner, or in motion at an end (its angle unknown), is left
+    out."""
     by_dir: dict[tuple[int, int], list[tuple[float, int]]] = {}
     for r, sig in enumerate(signals):
-        if sig.kind != "turn":
+        if sig.kind != "turn" or sig.angle_column is not None:  # in motion: no closure
             continue
         k = int(np.argmax(np.abs(sig.up)))
         turned = float(np.sum(sig.rate[:, k]))

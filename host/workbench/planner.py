@@ -30,6 +30,7 @@ from host.model.fit import Fit, fit_model
 from host.model.noise import NoiseModel
 from host.model.rows import RecordWork
 from host.model.spec import ModelTerm
+from host.session.checks import turn_in_motion
 from host.session.directory import Session
 from host.session.method import (
     DEFAULT_HEIGHT_M,
@@ -348,10 +349,12 @@ class Augmenter:
             self.meta["power_on_s"] = f"{end + 60.0:.3f}"
         if any(HEADING_KEY in r.meta for r in recs):
             self.meta[HEADING_KEY] = "0"
-        #: up axis -> the hand's rate profile of a turn the operator made about it (°/s)
+        #: up axis -> the hand's rate profile of a turn the operator made about it (°/s), at
+        #: rest at both ends (one in motion would make every candidate turn start in motion)
         self.profiles: dict[int, np.ndarray] = {}
+        rest_bias = np.median([s.gyro_mean for s in statics], axis=0)
         for r in recs:
-            if r.kind == "turn" and len(r) > 10:
+            if r.kind == "turn" and len(r) > 10 and not turn_in_motion(r, rest_bias):
                 k = int(np.argmax(np.abs(r.up)))
                 rate = r.gyro[:, k] * float(np.sign(r.up[k]))
                 self.profiles.setdefault(k, np.abs(rate - np.median(rate[:5])))

@@ -195,7 +195,6 @@ LONG_FUNCTIONS = {
     "host/board/flash.py:parse_ihex",
     "host/calib/thermal_fit.py:fit_scale",
     "host/model/design.py:term_columns",
-    "host/session/observations.py:build_observations",
     "host/session/records.py:parse_record_text",
     "host/timing/clock.py:_refine_many",
     "host/wire/resync.py:best_parse",

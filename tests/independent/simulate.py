@@ -69,6 +69,10 @@ class SessionSpec:
     #: as long as its kind's records in the plan, or (name, seconds) for a static of its own
     #: length, or an :class:`Extra` (an attitude off the faces, turns at another pace)
     extra: tuple[str | tuple[str, float] | Extra, ...] = ()
+    #: turn records cut in motion: (record, 'starts' | 'ends', degrees): the record starts
+    #: after the hand has turned that many degrees, or ends that many degrees before it stops
+    #: (the beep came late, or early); the sensor and the other records are unchanged
+    turn_cut: tuple[tuple[str, str, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -229,6 +233,34 @@ def _record(
     )
 
 
+def cut_in_motion(r: SimRecord, end: str, missed_deg: float) -> SimRecord:
+    """Turn record ``r`` cut where the hand has turned ``missed_deg`` since its motion began
+    (``end`` 'starts') or has that many degrees still to turn (``end`` 'ends'): the samples
+    before (after) are dropped, the time column restarts at the new first sample, the header's
+    times and window follow, and ``turn_deg`` is the angle turned within what is left."""
+    t_s = r.t_ms / 1000.0
+    speed = np.linalg.norm(r.true_rate, axis=1)
+    turned = np.concatenate([[0.0], np.cumsum(np.diff(t_s) * (speed[1:] + speed[:-1]) / 2)])
+    total = float(turned[-1])
+    if end == "starts":
+        keep = slice(int(np.searchsorted(turned, missed_deg)), len(t_s))
+    elif end == "ends":
+        keep = slice(0, int(np.searchsorted(turned, total - missed_deg, "right")))
+    else:
+        raise ValueError("turn_cut: 'starts' or 'ends'")
+    t0 = float(t_s[keep][0])
+    left = float(turned[keep][-1] - turned[keep][0])
+    meta = dict(r.meta)
+    meta["power_on_s"] = f"{float(meta['power_on_s']) + t0:.3f}"
+    meta["session_s"] = f"{float(meta['session_s']) + t0:.3f}"
+    meta["window_s"] = f"{float(t_s[keep][-1] - t0) + 1.0 / ph.FS_HZ:.3f}"
+    return replace(
+        r, meta=meta, t_ms=r.t_ms[keep] - 1000.0 * t0, accel=r.accel[keep], gyro=r.gyro[keep],
+        temp_c=r.temp_c[keep], true_force=r.true_force[keep], true_rate=r.true_rate[keep],
+        turn_deg=math.copysign(left, r.turn_deg),
+    )  # fmt: skip
+
+
 def simulate(spec: SessionSpec) -> SimSession:
     """The records of one session (see the module docstring)."""
     if spec.effect not in EFFECTS:
@@ -271,7 +303,10 @@ def simulate(spec: SessionSpec) -> SimSession:
             effect.before_record(
                 name, t - w, t + dur - w, None if prev_end is None else prev_end - w
             )
-        s.records.append(_record(rng, s, name, t, dur, heading, extras.get(name)))
+        rec = _record(rng, s, name, t, dur, heading, extras.get(name))
+        for cut_name, end, missed in spec.turn_cut:
+            rec = cut_in_motion(rec, end, missed) if cut_name == name else rec
+        s.records.append(rec)
         prev_end = t + dur
         t += dur + rng.uniform(15.0, 25.0)
     return s
