@@ -4,13 +4,19 @@ says so with ``--archive`` or its own $IMU_BENCH_ARCHIVE.
 
 A test that reads the project's real data beside the clone (``../shared/data/imucal-example``,
 named ``REAL`` or ``IMUCAL`` in the test modules) is skipped, with that reason, in a clone
-without it: a missing data folder is not a failure of the code."""
+without it: a missing data folder is not a failure of the code.
+
+Where the environment writes no bytecode (``PYTHONDONTWRITEBYTECODE``), the suite keeps its
+compiled modules in a cache of its own outside the checkout (:func:`_cache_bytecode`), so that
+each worker and each ``python3 -m host`` a test starts does not compile every module again."""
 
 from __future__ import annotations
 
 import inspect
 import os
 import re
+import sys
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -20,6 +26,27 @@ import pytest
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "imucal-example"
 #: how a test (or a fixture it uses) names that data
 _READS_SHARED = re.compile(r"\b(REAL|IMUCAL)\b|/ \"shared\" /")
+
+
+def _cache_bytecode() -> None:
+    """Where the environment writes no bytecode, write it into a per-user cache outside the
+    checkout (``sys.pycache_prefix``; the processes the tests start inherit it): the source
+    tree stays as clean as the environment asked, and the modules (pytest's rewritten test
+    modules too) are compiled once, not again in each worker and each ``python3 -m host``
+    (the collection of the suite took 16 s of CPU per worker compiling, 5 s with the cache;
+    ``python3 -m host calibrate --help`` 0.45 s, 0.28 s). A pyc is used only while its source's
+    mtime and size match, as in ``__pycache__``; an environment that writes bytecode is left
+    alone."""
+    if not sys.dont_write_bytecode:
+        return
+    if not sys.pycache_prefix:
+        uid = os.getuid() if hasattr(os, "getuid") else 0
+        cache = Path(tempfile.gettempdir()) / f"imu-bench-pycache-{uid}"
+        cache.mkdir(mode=0o700, exist_ok=True)
+        sys.pycache_prefix = str(cache)
+    os.environ["PYTHONPYCACHEPREFIX"] = sys.pycache_prefix
+    os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+    sys.dont_write_bytecode = False
 
 
 def _reads_shared(item: pytest.Item) -> bool:
@@ -37,6 +64,7 @@ def _reads_shared(item: pytest.Item) -> bool:
 
 
 def pytest_configure(config: pytest.Config) -> None:
+    _cache_bytecode()  # before the test modules are collected and imported
     # With two workers (`-n 2 --dist loadfile`) the suite ends when the later worker ends. The
     # scheduler hands out whole files in the order collected, but by default it first sorts them
     # by their number of tests, which sends the few-test, many-second files (one diagnosis loop
