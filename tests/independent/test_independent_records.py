@@ -141,3 +141,27 @@ def test_a_noted_heading_is_where_the_cube_is_placed_and_in_its_header() -> None
     # the plan's records are the same with the noted ones appended
     plain = {r.name: r for r in simulate(dataclasses.replace(spec, extra=())).records}
     np.testing.assert_array_equal(plain["z_cw"].accel, recs["z_cw"].accel)
+
+
+def test_the_table_written_at_once_is_each_cell_as_printed_alone() -> None:
+    """The writer formats a record's table in one go; each cell is still the per-cell rule:
+    its column's decimals, and a value that rounds to zero printed without a minus sign."""
+    from tests.independent.recordfile import COLUMN_DECIMALS, _num, record_text
+
+    rng = np.random.default_rng(17)
+    n = 300
+    t = np.cumsum(rng.uniform(0.0, 10.0, n))
+    accel = rng.normal(0.0, 1.0, (n, 3)) * 10.0 ** rng.uniform(-6, 1, (n, 3))
+    gyro = rng.normal(0.0, 1.0, (n, 3)) * 10.0 ** rng.uniform(-6, 1, (n, 3))
+    accel[0] = [-0.0, -4.9e-5, -5.1e-5]  # minus zero, one that rounds to it, one that does not
+    gyro[1] = [-4e-4, -6e-4, 0.0]
+    temp = rng.normal(25.0, 0.05, n)
+    lines = record_text("x_up", {"serial": "R1"}, t, accel, gyro, temp).splitlines()
+    table = [ln for ln in lines if not ln.startswith("#")]
+    data = np.column_stack([t, accel, gyro, temp])
+    for row, line in zip(data, table[:n], strict=True):
+        cells = [_num(float(v), d) for v, d in zip(row, COLUMN_DECIMALS, strict=True)]
+        assert line.split("\t") == cells
+    assert table[0].split("\t")[1:4] == ["0.0000", "0.0000", "-0.0001"]
+    assert table[1].split("\t")[4:7] == ["0.000", "-0.001", "0.000"]
+    assert table[n] == "_" * 72 and table[n + 1].startswith("mean\t")
