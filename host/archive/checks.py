@@ -201,7 +201,7 @@ def drift(
 ) -> tuple[list[DriftRow], float]:
     """Every unit's change between its last two sessions; returns the rows and the k used
     (``k`` None: the family-wise k of ``alpha`` over every (unit, parameter) compared)."""
-    g = grid(archive.values(serial=serial, lot=lot), ("serial",))
+    g = grid(archive.values(serial=serial, lot=lot, with_simulated=False), ("serial",))
     # the last two sessions that determined each parameter (a session without it is skipped)
     at = np.where(np.isfinite(g.values), np.arange(g.values.shape[-1]), -1)
     last = at.max(axis=-1, initial=-1)
@@ -263,7 +263,7 @@ def lot_report(
     the datasheet limit (``limits``, default the method's §7 tolerances), and the outlier
     units (Grubbs at alpha / number of parameters); the units whose latest session failed,
     and those whose PASS is conditional (the model does not fit their records)."""
-    t = archive.values(names, lot=lot, latest_per_unit=True)
+    t = archive.values(names, lot=lot, latest_per_unit=True, with_simulated=False)
     lim = TOLERANCES if limits is None else limits
     g = grid(t, ("serial",))
     x = g.values[..., 0] if g.values.size else np.zeros((0, 0))
@@ -320,7 +320,7 @@ def control_charts(
 ) -> list[Chart]:
     """One chart per bench and parameter: every session on the bench (of ``serial`` only when
     given, e.g. the reference unit) in time order."""
-    t = archive.values(names, serial=serial, bench=bench)
+    t = archive.values(names, serial=serial, bench=bench, with_simulated=False)
     charts = []
     for b in sorted(set(t.bench.tolist())):
         on = t.where(t.bench == b)

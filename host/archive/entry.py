@@ -64,7 +64,8 @@ class Entry:
     'not run' (``--no-self-test``) or '' (no verdict, or records without a self-test);
     ``result_hash``/``report_hash``/``records_hash``: SHA-256 (hex) of the result file, the
     report and the records (the hash of the sorted 'name sha256' lines of ``record_hashes``);
-    ``result_json``: the result file's text, kept whole.
+    ``result_json``: the result file's text, kept whole; ``simulated``: its records came
+    from a virtual or emulated board (kept, but not in the lot, control and drift statistics).
     """
 
     serial: str
@@ -93,6 +94,7 @@ class Entry:
     records_hash: str = ""
     record_hashes: tuple[tuple[str, str], ...] = ()
     result_json: str = ""
+    simulated: bool = False
 
     def parameter(self, name: str) -> Parameter:
         """The parameter called ``name`` (KeyError if the entry has none)."""
@@ -339,4 +341,5 @@ def entry_from_directory(
         records_hash=records_digest(hashes),
         record_hashes=tuple(hashes),
         result_json=raw.decode("utf-8"),
+        simulated=result.simulated,
     )

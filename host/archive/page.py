@@ -113,6 +113,8 @@ class PageData:
     reference: str
     charts: list[Chart]
     trends: dict[str, dict[str, list[TrendPoint]]]
+    #: simulated calibrations the lot, drift and control charts left out
+    simulated: int = 0
 
 
 STYLE = """
@@ -175,6 +177,14 @@ def _lot_table(rep: LotReport) -> str:
     return f'<table id="lot">{head}{"".join(rows)}</table>'
 
 
+def _left_out(n: int) -> str:
+    """The line that says how many simulated calibrations the statistics left out."""
+    if not n:
+        return ""
+    return (f'<p id="simulated">Left out of the lot, drift and control charts: {n} simulated '
+            "calibration(s) (sim://, emu://: not a unit).</p>")  # fmt: skip
+
+
 def render(d: PageData) -> str:
     """The whole page."""
     charts = [
@@ -205,6 +215,7 @@ def render(d: PageData) -> str:
 <h1>{_e(d.title)}</h1>
 <p>Archive {_e(d.archive)} · generated {_e(d.generated)} · {d.lot.units} unit(s) · false alarms
 {100 * d.alpha:g} % per check over a lot with nothing wrong.</p>
+{_left_out(d.simulated)}
 <h2>Units that need attention</h2>
 {_attention(d)}
 <h2>The lot</h2>
@@ -262,5 +273,5 @@ def page_data(
         alpha=alpha, lot=rep, repeat=repeat, drift=drift, drift_k=k, benches=benches,
         bench_k=bench_k, reference=reference or "",
         charts=checks.control_charts(archive, serial=reference, names=chart_names),
-        trends=trends,
+        trends=trends, simulated=archive.simulated_count(lot=lot),
     )  # fmt: skip

@@ -3,7 +3,9 @@
 ``calibrations`` holds one row per archived result (identity: the result file's SHA-256,
 unique), ``parameters`` one row per fitted parameter of it (value and σ; NaN is stored as
 NULL), ``record_files`` the hash of every record the result was fitted on. Rows are only ever
-inserted: no statement of the archive updates or deletes one.
+inserted: no statement of the archive updates or deletes one (but the v4 migration, which
+sets the new ``simulated`` flag once on the rows archived before it). A simulated session
+(``simulated``) is kept, and left out of the lot, control and drift statistics.
 
 :data:`MIGRATIONS` is the ordered list of schema versions; ``archive_schema`` records which
 were applied. :func:`migrate` applies the missing ones in one transaction per version, under a
@@ -28,6 +30,8 @@ from sqlalchemy import (
     Table,
     Text,
     UniqueConstraint,
+    false,
+    inspect,
     select,
     text,
 )
@@ -74,6 +78,9 @@ calibrations = Table(
     Column("covariance_kind", String(16), nullable=False),
     Column("covariance", Text, nullable=False),
     Column("result_json", Text, nullable=False),
+    #: the records came from a virtual or emulated board (sim://, emu://) or the simulator:
+    #: kept, but left out of the lot, control and drift statistics (schema v4)
+    Column("simulated", Boolean, nullable=False, server_default=false()),
     UniqueConstraint("result_hash", name="uq_calibrations_result_hash"),
 )
 
@@ -160,11 +167,38 @@ def _v3(conn: Connection) -> None:
         conn.execute(text(ddl))
 
 
+def _v4(conn: Connection) -> None:
+    """The ``simulated`` flag: a column (an archive created by this program has it from v1's
+    table), set once here for the rows archived before it whose result file says
+    ``"simulated": true`` (the one statement that ever changes a row, and only this new
+    column), and the sessions' covering index with it, so that the statistics leave
+    simulated sessions out from the index alone."""
+    columns = {col["name"] for col in inspect(conn).get_columns("calibrations")}
+    if "simulated" not in columns:
+        conn.execute(
+            text("ALTER TABLE calibrations ADD COLUMN simulated BOOLEAN NOT NULL DEFAULT FALSE")
+        )
+    conn.execute(
+        text(
+            "UPDATE calibrations SET simulated = TRUE "
+            "WHERE result_json LIKE '%\"simulated\": true%'"
+        )
+    )
+    for ddl in (
+        "CREATE INDEX ix_calibrations_unit_sims ON calibrations "
+        "(serial, measured_at, id, records_hash, bench, lot, self_test, verdict, fit_verdict, "
+        "rms_z, simulated)",
+        "DROP INDEX ix_calibrations_unit_verdicts",
+    ):
+        conn.execute(text(ddl))
+
+
 #: (version, what it does, the change) in order; a new version appends, none is ever edited
 MIGRATIONS: tuple[tuple[int, str, Callable[[Connection], None]], ...] = (
     (1, "calibrations, parameters, record_files", _v1),
     (2, "covering indexes for the lot and trend queries; lz4 for the large columns", _v2),
     (3, "the fit's verdict and RMS z in the sessions' covering index", _v3),
+    (4, "the simulated flag, set for simulated results, in the sessions' index", _v4),
 )
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 

@@ -27,6 +27,7 @@ from sqlalchemy import (
     Table,
     create_engine,
     event,
+    false,
     func,
     make_url,
     select,
@@ -326,6 +327,19 @@ class Archive:
             for r in rows
         ]
 
+    def simulated_count(
+        self, serial: str | None = None, bench: str | None = None, lot: str | None = None
+    ) -> int:
+        """How many archived calibrations (of one serial/bench/lot when given) are of
+        simulated records: the statistics leave them out and say how many."""
+        c = calibrations.c
+        q = select(func.count()).select_from(calibrations).where(c.simulated == true())
+        for col, v in ((c.serial, serial), (c.bench, bench), (c.lot, lot)):
+            if v is not None:
+                q = q.where(col == v)
+        with self.engine.connect() as conn:
+            return int(conn.execute(q).scalar_one())
+
     def count(self) -> tuple[int, int]:
         """(calibrations, parameter rows) in the archive."""
         with self.engine.connect() as conn:
@@ -384,6 +398,7 @@ class Archive:
             fit_verdict=r.fit_verdict, verdict=r.verdict, self_test=r.self_test,
             report_hash=r.report_hash, records_hash=r.records_hash,
             record_hashes=tuple((f.name, f.sha256) for f in files), result_json=r.result_json,
+            simulated=bool(r.simulated),
         )  # fmt: skip
 
     def values(
@@ -394,11 +409,13 @@ class Archive:
         bench: str | None = None,
         lot: str | None = None,
         latest_per_unit: bool = False,
+        with_simulated: bool = True,
     ) -> ValueTable:
         """The parameter values of the archived sessions (filtered by ``serial``/``bench``/
         ``lot``, only the parameters ``names`` when given). A session is one set of records:
         when the same records were archived with several results (recomputed), the latest
-        archived counts. ``latest_per_unit``: only each serial's latest session."""
+        archived counts. ``latest_per_unit``: only each serial's latest session;
+        ``with_simulated`` False: simulated sessions left out (as if not archived)."""
         c = calibrations.c
         later = calibrations.alias("later")
         # one session per set of records: its latest archived result (no later one with the
@@ -410,6 +427,9 @@ class Archive:
             .label("ru"),
         )  # fmt: skip
         newer = select(later.c.id).where(later.c.records_hash == c.records_hash, later.c.id > c.id)
+        if not with_simulated:
+            sessions = sessions.where(c.simulated == false())
+            newer = newer.where(later.c.simulated == false())
         for col, lcol, v in (
             (c.serial, later.c.serial, serial),
             (c.bench, later.c.bench, bench),
@@ -507,7 +527,7 @@ def _row_of(e: Entry) -> dict[str, Any]:
         "p": _null(e.p), "fit_verdict": e.fit_verdict, "verdict": e.verdict,
         "self_test": e.self_test, "report_hash": e.report_hash, "records_hash": e.records_hash,
         "covariance_kind": e.covariance_kind, "covariance": _covariance_text(e.covariance),
-        "result_json": e.result_json,
+        "result_json": e.result_json, "simulated": e.simulated,
     }  # fmt: skip
 
 

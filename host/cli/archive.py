@@ -178,6 +178,14 @@ def _repeat(args: ArchiveOptions) -> int:
     return 1 if any(r.failed for r in rows) else 0
 
 
+def _left_out(n: int) -> str:
+    """The line that says how many simulated calibrations the statistics left out ('')."""
+    if not n:
+        return ""
+    return (f"left out of these statistics: {n} simulated calibration(s) (sim://, emu://: "
+            "not a unit; archive list shows them)\n")  # fmt: skip
+
+
 def _drift(args: ArchiveOptions) -> int:
     tol = parse_tolerances(list(args.tol))
     with _open(args) as a:
@@ -185,7 +193,8 @@ def _drift(args: ArchiveOptions) -> int:
         rows, k = checks.drift(
             a, alpha=args.alpha, k=args.k, tolerances=tol, serial=args.serial, lot=args.lot
         )
-    sys.stdout.write(text.drift(rows, k, args.alpha))
+        left = a.simulated_count(serial=args.serial, lot=args.lot)
+    sys.stdout.write(text.drift(rows, k, args.alpha) + _left_out(left))
     return 1 if any(r.moved for r in rows) else 0
 
 
@@ -195,7 +204,8 @@ def _lot(args: ArchiveOptions) -> int:
         if not rep.units:  # a lot that is not there is not a lot that passed
             lot = f"in lot {args.lot}" if args.lot else "with these parameters"
             raise checks.nothing_selected(a, lot, args.param)
-    sys.stdout.write(text.lot(rep, args.alpha))
+        left = a.simulated_count(lot=args.lot)
+    sys.stdout.write(text.lot(rep, args.alpha) + _left_out(left))
     odd = any(r.outliers or r.summary.within is False for r in rep.rows)
     bad = bool(rep.failing or rep.conditional) or odd
     return 1 if bad else 0
@@ -208,7 +218,8 @@ def _control(args: ArchiveOptions) -> int:
             sel = [f"of {args.serial}" if args.serial else "", f"on {args.bench}" if args.bench
                    else ""]  # fmt: skip
             raise checks.nothing_selected(a, " ".join(w for w in sel if w), args.param)
-    sys.stdout.write(text.charts(cs))
+        left = a.simulated_count(serial=args.serial, bench=args.bench)
+    sys.stdout.write(text.charts(cs) + _left_out(left))
     return 0
 
 

@@ -26,6 +26,7 @@ from pathlib import Path
 from host.board.acquisition import SAMPLE_STALL_S
 from host.board.driver import STALL_S
 from host.calib.certificate import FROM_OPTIONS
+from host.calib.decision import DEFAULT_RULE
 from host.calib.publish import ComputeSettings
 from host.errors import UserError
 from host.session.directory import record_path
@@ -365,6 +366,8 @@ def _compute_words(c: ComputeSettings) -> list[str]:
         words += ["--term-file", f]
     if c.verify:
         words += ["--verify", c.verify]
+    if c.decision_rule != DEFAULT_RULE:
+        words += ["--decision-rule", c.decision_rule]
     for opt, val in (("--floor", c.floor), ("--thermal", c.thermal), ("--noise", c.noise_file)):
         if val:
             words += [opt, val]

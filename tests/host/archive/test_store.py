@@ -201,8 +201,9 @@ def test_an_archive_of_version_1_is_migrated_and_keeps_its_rows(
         )
         with a.engine.connect() as conn:
             names = {ix["name"] for ix in inspect(conn).get_indexes("calibrations")}
-            assert "ix_calibrations_unit_verdicts" in names
-            assert not names & {"ix_calibrations_serial_time", "ix_calibrations_unit_sessions"}
+            assert "ix_calibrations_unit_sims" in names  # v4: with the simulated flag
+            assert not names & {"ix_calibrations_serial_time", "ix_calibrations_unit_sessions",
+                                "ix_calibrations_unit_verdicts"}  # fmt: skip
             if a.backend == "postgresql":  # the large columns compressed with lz4
                 kinds = conn.execute(text(
                     "SELECT attname, attcompression FROM pg_attribute WHERE attrelid = "
@@ -306,6 +307,7 @@ def test_simulated_sessions_stay_out_of_the_default_archive(
     from host.archive.store import archive_directory
 
     monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
     env_db = tmp_path / "env.sqlite"
     monkeypatch.setenv("IMU_BENCH_ARCHIVE", str(env_db))
@@ -316,6 +318,21 @@ def test_simulated_sessions_stay_out_of_the_default_archive(
         err = " ".join(capsys.readouterr().err.split())
         assert "not archived: a simulated session goes only into an archive named" in err
     assert not env_db.exists() and not (tmp_path / "xdg" / "imu-bench" / "archive.sqlite").exists()
+    # the user's own archives, holding a real unit, are left byte for byte as they were
+    import hashlib
+
+    own = tmp_path / "xdg" / "imu-bench" / "archive.sqlite"
+    own.parent.mkdir(parents=True)
+    for db in (env_db, own):
+        with Archive(str(db)) as a:
+            a.add(_entry("U17"))
+    before = {db: hashlib.sha256(db.read_bytes()).hexdigest() for db in (env_db, own)}
+    for env in (str(env_db), None):  # $IMU_BENCH_ARCHIVE, then the user's own file
+        if env is None:
+            monkeypatch.delenv("IMU_BENCH_ARCHIVE")
+        assert main(first) in (0, 1)  # a third and fourth run, with the archives there
+        assert "not archived: a simulated" in " ".join(capsys.readouterr().err.split())
+    assert {db: hashlib.sha256(db.read_bytes()).hexdigest() for db in (env_db, own)} == before
     named = tmp_path / "named.sqlite"
     assert archive_directory(tmp_path / "DEMO01", str(named)).startswith("archived as #1")
     with Archive(str(named)) as a:

@@ -120,3 +120,26 @@ def test_the_verdict_report_and_file_follow_the_rule() -> None:
     doc["decision_rule"] = "lenient"
     with pytest.raises(Exception, match="lenient"):
         result_from_json(json.dumps(doc))
+
+
+@pytest.mark.parametrize("given", ["lenient", "", "GUARDED", "guarded "])
+def test_calibrate_refuses_a_rule_it_does_not_know(given: str) -> None:
+    """A rule given wrong is one parser error naming the choices, before any record is read."""
+    from tests.host.cli.cli_run import run
+
+    rc, out, err = run(["calibrate", "--from-dir", "nowhere", "--decision-rule", given])
+    assert rc == 2 and out == "" and "guarded" in err and "simple" in err
+    assert "Traceback" not in err
+
+
+def test_the_resume_command_keeps_the_rule() -> None:
+    """A live session judged by simple acceptance, interrupted, resumes judged by it."""
+    from tests.host.dialogue.flat_options import flat_options
+
+    simple = flat_options(port="sim://", decision_rule="simple")
+    words = simple.command_words("R2", static_seconds=5.0, turns=1, port="sim://")
+    assert words[words.index("--decision-rule") + 1] == "simple"
+    default = flat_options(port="sim://")
+    assert "--decision-rule" not in default.command_words(
+        "R2", static_seconds=5.0, turns=1, port="sim://"
+    )
