@@ -15,7 +15,7 @@ import numpy as np
 from host.model import plate, poses, turning
 from host.model.geometry import plate_axes
 from host.model.signals import AXES, RecordSignals
-from host.model.terms import Term, term
+from host.model.terms import OwnUnknowns, Term, Twin, term
 
 # ---- the catalogue --------------------------------------------------------------------------
 #: position of each §2 name in M (row = channel, column = input axis) and its sign
@@ -60,8 +60,25 @@ def bias(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     return np.ones((len(sig.t_s), 1))
 
 
+def _turn_angle(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """A turn's angle, an unknown of the record where it starts or ends in motion (°, the
+    correction of the angle its reference rate turns): each gyro channel reads it through the
+    measured rate per degree (:attr:`RecordSignals.angle_column`, the scale and the
+    cross-axis terms in it)."""
+    assert sig.angle_column is not None
+    return np.asarray(sig.angle_column)[:, axis : axis + 1]
+
+
+#: a turn that starts or ends in motion carries its angle: one unknown of its own on the gyro,
+#: which trades with the scale about its axis
+_TURN_ANGLE = OwnUnknowns(("turn_angle",), ("°",), _turn_angle,
+                          owns=lambda sig: sig.angle_column is not None,
+                          sensor="gyro")  # fmt: skip
+
+
 @term(params={"scale": "1"}, needs="inputs of both signs on this axis (±1 g faces; CW and CCW "
-      "turns about the axis)", labels=lambda s, i: (f"{_PREFIX[s]}{AXES[i] * 2}",))  # fmt: skip
+      "turns about the axis)", labels=lambda s, i: (f"{_PREFIX[s]}{AXES[i] * 2}",),
+      own=_TURN_ANGLE)  # fmt: skip
 def scale(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     """Relative scale-factor error (method.md §2 Axx, Gxx): output = (1 + s)·input.
 
@@ -72,20 +89,25 @@ def scale(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     return sig.reference(sensor)[:, axis : axis + 1]
 
 
-def _turn_angle(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
-    """A turn's angle, an unknown of the record where it starts or ends in motion (°, the
-    correction of the angle its reference rate turns): each gyro channel reads it through the
-    measured rate per degree (:attr:`RecordSignals.angle_column`, the scale and the
-    cross-axis terms in it)."""
-    assert sig.angle_column is not None
-    return np.asarray(sig.angle_column)[:, axis : axis + 1]
-
-
 def _mis_labels(sensor: str, axis: int) -> tuple[str, ...]:
     return tuple(f"{_PREFIX[sensor]}{s}" for s, _, _ in _off_diagonal(axis))
 
 
-@term(params={"m1": "rad", "m2": "rad"}, labels=_mis_labels,
+def _pose_attitude(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """A pose's attitude, an unknown of the record: gravity's direction moves from the first
+    estimate ``up`` by a·e₁ + b·e₂ (rad, :func:`host.model.poses.attitude_basis`), which the
+    accelerometer reads as g·(a·e₁ + b·e₂) on its channels."""
+    basis = poses.attitude_basis(sig.up)
+    return np.tile(sig.g * basis[:, axis], (len(sig.t_s), 1))
+
+
+#: a pose (a rest at an attitude nobody set) carries its attitude: two angles of its own on the
+#: accelerometer, which a rotation of every pose with the sensor's axes trades for misalignment
+_POSE_ATTITUDE = OwnUnknowns(("attitude_a", "attitude_b"), ("rad", "rad"), _pose_attitude,
+                             owns=lambda sig: sig.kind == "pose", sensor="accel")  # fmt: skip
+
+
+@term(params={"m1": "rad", "m2": "rad"}, labels=_mis_labels, own=_POSE_ATTITUDE,
       needs="inputs along the other two axes (gravity along them; turns about them)")  # fmt: skip
 def misalignment(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     """Small-angle axis misalignment (method.md §2 Axz, Axy …): the channel also senses the
@@ -102,14 +124,6 @@ def misalignment(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
             if f"A{name}" in poses.FRAME_FIXED:
                 cols[:, c] = 0.0
     return cols
-
-
-def _pose_attitude(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
-    """A pose's attitude, an unknown of the record: gravity's direction moves from the first
-    estimate ``up`` by a·e₁ + b·e₂ (rad, :func:`host.model.poses.attitude_basis`), which the
-    accelerometer reads as g·(a·e₁ + b·e₂) on its channels."""
-    basis = poses.attitude_basis(sig.up)
-    return np.tile(sig.g * basis[:, axis], (len(sig.t_s), 1))
 
 
 @term(sensors=("gyro",), params={"gx": "(°/s)/g", "gy": "(°/s)/g", "gz": "(°/s)/g"},
@@ -217,8 +231,24 @@ def _face_check(signals: Sequence[RecordSignals]) -> str | None:
     )
 
 
+def _face_turn(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """The face lean as gyro ``axis`` sees it: a turn at rate ω about the plate's normal, made
+    on face ±j leaning θ toward ``axis``, puts θ·ω (°/s per rad) on that gyro, read through
+    its scale (:attr:`RecordSignals.gyro_scale`)."""
+    face = _face(sig)
+    cols = np.zeros((len(sig.t_s), 2))
+    if face is not None and sig.kind == "turn":
+        seen = 1.0 if sig.gyro_scale is None else float(sig.gyro_scale[axis])
+        omega_up = seen * (sig.rate @ sig.up)
+        for c, k in enumerate(_other_axes(axis)):
+            if face[0] == k:
+                cols[:, c] = omega_up
+    return cols
+
+
+# a face's lean is one angle whether the cube rests or turns on it: the gyro reads it too
 @term(sensors=("accel",), params={"pair_a": "rad", "pair_b": "rad"}, needs=_FACE_NEEDS,
-      check=_face_check,
+      check=_face_check, twin=Twin("gyro", _face_turn),
       labels=lambda s, i: tuple(f"face_error.accel.{AXES[i]}.±{AXES[k]}"
                                 for k in _other_axes(i)))  # fmt: skip
 def face_error(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
@@ -252,53 +282,6 @@ def face_error(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
             if face[0] == k:
                 cols[:, c] = sig.g * seen
     return cols
-
-
-def _face_turn(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
-    """The face lean as gyro ``axis`` sees it: a turn at rate ω about the plate's normal, made
-    on face ±j leaning θ toward ``axis``, puts θ·ω (°/s per rad) on that gyro, read through
-    its scale (:attr:`RecordSignals.gyro_scale`)."""
-    face = _face(sig)
-    cols = np.zeros((len(sig.t_s), 2))
-    if face is not None and sig.kind == "turn":
-        seen = 1.0 if sig.gyro_scale is None else float(sig.gyro_scale[axis])
-        omega_up = seen * (sig.rate @ sig.up)
-        for c, k in enumerate(_other_axes(axis)):
-            if face[0] == k:
-                cols[:, c] = omega_up
-    return cols
-
-
-@term(sensors=("accel",), params={"tilt_east": "rad", "tilt_north": "rad"},
-      labels=lambda s, i: ("plate_tilt.east", "plate_tilt.north"),
-      needs="the accelerometer at several headings on the plate (the still moments inside the "
-      "turn records, a quarter turn or more apart), or static attitudes beyond the six faces "
-      "(tilt_45_*)")  # fmt: skip
-def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
-    """A base plate that is not level: gravity leans by the same two angles in every record.
-
-    ONE pair of small angles (rad) for the whole session, in the plate's frame: gravity's
-    up direction leans ``tilt_east`` toward the ruler (east) and ``tilt_north`` toward
-    north = up × east. The plate does not move, so the angles are shared by every record made
-    on it and by all three accelerometer channels (:attr:`Term.shared`). Resting on a face, the
-    horizontal accelerometers read g·(tilt_east·e + tilt_north·n) (through the accelerometer's
-    matrix, :func:`_sensed`), with e, n the plate's axes
-    in body coordinates at the record's heading on the plate (its header's
-    ``placement_heading_deg`` plus the angle turned, :func:`host.model.geometry.plate_axes`;
-    a turn without one gets it from its rests' circle, :func:`host.model.plate.resolve_placements`,
-    and carries that heading's correction as an unknown of its own (``heading``, rad, the fit
-    linearised at the circles' tilt), so the tilt's azimuth σ counts the circles' scatter;
-    a static without one carries the tilt as it sees it as two unknowns of its own, whose
-    direction against the session's tilt is its heading: never assumed).
-
-    What tells it from a fixture-face error or a bias: the cube turning on the plate. A face
-    error is fixed in the body, a plate tilt is fixed in the room: at heading ψ (turned ψ
-    counter-clockwise about up since the placement) the plate's axes in the body are
-    e(ψ) = e·cos ψ − n·sin ψ and n(ψ) = n·cos ψ + e·sin ψ, so at the still moments inside a
-    turn record the horizontal accelerometers follow g·|tilt|·cos(ψ − ψ₀) while a face error,
-    a bias and a misalignment stay put. On the six static faces alone the two angles act like
-    accelerometer biases and misalignments (each face is one heading)."""
-    return _plate_tilt_all(sig, sensor)[axis]
 
 
 def _plate_tilt_all(sig: RecordSignals, sensor: str) -> list[np.ndarray]:
@@ -356,6 +339,49 @@ def _plate_tilt_seen(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     return sig.g * np.column_stack([east[:, axis], north[:, axis]])
 
 
+#: a static (or a turn without rests to read) whose heading is not recorded carries its own
+#: unknowns: the plate's tilt as seen at that heading (two angles, whose direction against the
+#: session's tilt is the heading), so the fit never assumes one; a turn whose heading was read
+#: from its rests' circle carries one, the correction of that heading (rad)
+_SEEN_TILT = OwnUnknowns(("seen_ref", "seen_side", "heading"), ("rad", "rad", "rad"),
+                         _plate_tilt_seen, owns=_heading_unknown,
+                         params_of=_heading_params)  # fmt: skip
+
+
+# the plate's tilt reads all three channels from one computation (``columns_all``)
+@term(sensors=("accel",), params={"tilt_east": "rad", "tilt_north": "rad"},
+      labels=lambda s, i: ("plate_tilt.east", "plate_tilt.north"),
+      columns_all=_plate_tilt_all, own=_SEEN_TILT,
+      needs="the accelerometer at several headings on the plate (the still moments inside the "
+      "turn records, a quarter turn or more apart), or static attitudes beyond the six faces "
+      "(tilt_45_*)")  # fmt: skip
+def plate_tilt(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
+    """A base plate that is not level: gravity leans by the same two angles in every record.
+
+    ONE pair of small angles (rad) for the whole session, in the plate's frame: gravity's
+    up direction leans ``tilt_east`` toward the ruler (east) and ``tilt_north`` toward
+    north = up × east. The plate does not move, so the angles are shared by every record made
+    on it and by all three accelerometer channels (:attr:`Term.shared`). Resting on a face, the
+    horizontal accelerometers read g·(tilt_east·e + tilt_north·n) (through the accelerometer's
+    matrix, :func:`_sensed`), with e, n the plate's axes
+    in body coordinates at the record's heading on the plate (its header's
+    ``placement_heading_deg`` plus the angle turned, :func:`host.model.geometry.plate_axes`;
+    a turn without one gets it from its rests' circle, :func:`host.model.plate.resolve_placements`,
+    and carries that heading's correction as an unknown of its own (``heading``, rad, the fit
+    linearised at the circles' tilt), so the tilt's azimuth σ counts the circles' scatter;
+    a static without one carries the tilt as it sees it as two unknowns of its own, whose
+    direction against the session's tilt is its heading: never assumed).
+
+    What tells it from a fixture-face error or a bias: the cube turning on the plate. A face
+    error is fixed in the body, a plate tilt is fixed in the room: at heading ψ (turned ψ
+    counter-clockwise about up since the placement) the plate's axes in the body are
+    e(ψ) = e·cos ψ − n·sin ψ and n(ψ) = n·cos ψ + e·sin ψ, so at the still moments inside a
+    turn record the horizontal accelerometers follow g·|tilt|·cos(ψ − ψ₀) while a face error,
+    a bias and a misalignment stay put. On the six static faces alone the two angles act like
+    accelerometer biases and misalignments (each face is one heading)."""
+    return _plate_tilt_all(sig, sensor)[axis]
+
+
 def _lever_check(signals: Sequence[RecordSignals]) -> str | None:
     turns = [s for s in signals if s.kind == "turn"]
     if not turns:
@@ -369,7 +395,18 @@ def _lever_check(signals: Sequence[RecordSignals]) -> str | None:
     return None
 
 
+def _lever_arm_all(sig: RecordSignals, sensor: str) -> list[np.ndarray]:
+    """:func:`lever_arm`'s columns (N, 3) of the three channels, m/s² per m, from one
+    lever-arm matrix of the turn."""
+    if sig.kind != "turn":
+        return [np.zeros((len(sig.t_s), 3)) for _ in range(3)]
+    m = turning.sensed_lever_matrix(sig.t_s, sig.rate, sig.lever_matrix)
+    return [m[:, axis, :] for axis in range(3)]
+
+
+# the lever arm reads all three channels from one turn's matrix (``columns_all``)
 @term(sensors=("accel",), params={"x": "m", "y": "m", "z": "m"}, check=_lever_check,
+      columns_all=_lever_arm_all,
       labels=lambda s, i: ("lever_arm.x", "lever_arm.y", "lever_arm.z"),
       needs="turns about at least two axes at a brisk rate (≥ 30 °/s; each turn sees the two "
       "components of the offset perpendicular to its axis)")  # fmt: skip
@@ -386,15 +423,6 @@ def lever_arm(sig: RecordSignals, sensor: str, axis: int) -> np.ndarray:
     still moments). The accelerometer reads that force through its scale and misalignment
     (measured on the static records before the fit). 0.12 m/s² at 90 °/s and r = 5 cm."""
     return _lever_arm_all(sig, sensor)[axis]
-
-
-def _lever_arm_all(sig: RecordSignals, sensor: str) -> list[np.ndarray]:
-    """:func:`lever_arm`'s columns (N, 3) of the three channels, m/s² per m, from one
-    lever-arm matrix of the turn."""
-    if sig.kind != "turn":
-        return [np.zeros((len(sig.t_s), 3)) for _ in range(3)]
-    m = turning.sensed_lever_matrix(sig.t_s, sig.rate, sig.lever_matrix)
-    return [m[:, axis, :] for axis in range(3)]
 
 
 #: plausible magnitude of each catalogue term's parameters per sensor, from the InvenSense
@@ -433,35 +461,8 @@ _PLAUSIBLE: dict[str, tuple[dict[str, float], str]] = {
                                   "calibration cube is not inside the cube"),
 }  # fmt: skip
 
-#: a face's lean is one angle whether the cube rests or turns on it: the gyro reads it too
-face_error = replace(face_error, twin_sensor="gyro", twin_columns=_face_turn)
-
-#: a pose (a rest at an attitude nobody set) carries its attitude: two angles of its own on the
-#: accelerometer, which a rotation of every pose with the sensor's axes trades for misalignment
-misalignment = replace(misalignment, record_params=("attitude_a", "attitude_b"),
-                       record_units=("rad", "rad"), record_columns=_pose_attitude,
-                       owns=lambda sig: sig.kind == "pose", record_sensor="accel")  # fmt: skip
-
-#: a turn that starts or ends in motion carries its angle: one unknown of its own on the gyro,
-#: which trades with the scale about its axis
-scale = replace(scale, record_params=("turn_angle",), record_units=("°",),
-                record_columns=_turn_angle, owns=lambda sig: sig.angle_column is not None,
-                record_sensor="gyro")  # fmt: skip
-
-#: the plate's tilt and the lever arm read all three channels from one computation
-lever_arm = replace(lever_arm, columns_all=_lever_arm_all)
-
 #: catalogue terms whose parameters are properties of the bench, one set for all channels
 _SHARED = ("plate_tilt", "lever_arm")
-
-#: a static (or a turn without rests to read) whose heading is not recorded carries its own
-#: unknowns: the plate's tilt as seen at that heading (two angles, whose direction against the
-#: session's tilt is the heading), so the fit never assumes one; a turn whose heading was read
-#: from its rests' circle carries one, the correction of that heading (rad)
-plate_tilt = replace(plate_tilt, columns_all=_plate_tilt_all,
-                     record_params=("seen_ref", "seen_side", "heading"),
-                     record_units=("rad", "rad", "rad"), record_columns=_plate_tilt_seen,
-                     owns=_heading_unknown, record_params_of=_heading_params)  # fmt: skip
 
 #: the built-in terms, in catalogue order
 CATALOGUE: dict[str, Term] = {

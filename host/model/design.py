@@ -14,7 +14,7 @@ from host.errors import UserError
 from host.model.dataset import Dataset
 from host.model.signals import RecordSignals
 from host.model.spec import ModelTerm
-from host.model.terms import Term, ValueFn
+from host.model.terms import Term
 
 #: the largest magnitude a term's column may take: its square, summed over the rows, stays
 #: far inside float64 (a column of 1e150 made the fit's SVD fail)
@@ -118,62 +118,49 @@ def term_columns(
     parameters on the twin sensor's rows of the same axis. The unknowns of records that carry
     their own follow (:func:`record_columns`).
     """
-    k = len(mt.term.params)
     own = record_columns(ds, mt)
-    every: dict[int, Sequence[np.ndarray]] = {}  # a record's channels, built at once
     if mt.term.shared:
         if mt.term.nonlinear:
             raise UserError(f"term {mt.term.name}: a shared term must be linear (columns())")
-        cols = np.zeros((ds.n_rows, k))
-        for ax in mt.axes:
-            for ri, sig in enumerate(ds.signals):
-                rows = ds.rows_of.get((ri, mt.sensor, ax))
-                if rows is not None:
-                    cols[rows] = aggregate(
-                        ds.aggregator(ri, mt.sensor, ax),
-                        *_regressors(mt.term, sig, mt.sensor, ax, every=every, record=ri),
-                    )
-        return np.column_stack([cols, own]), np.zeros(ds.n_rows)
+        return np.column_stack([_shared_columns(ds, mt), own]), np.zeros(ds.n_rows)
+    if mt.term.nonlinear:
+        cols, offset = _linearised_columns(ds, mt, theta)
+    else:
+        cols, offset = _linear_columns(ds, mt), np.zeros(ds.n_rows)
+    return np.column_stack([cols, own]), offset
+
+
+def _shared_columns(ds: Dataset, mt: ModelTerm) -> np.ndarray:
+    """(n_rows, k) a shared term's one set of columns: each channel's rows hold that
+    channel's regressors."""
+    cols = np.zeros((ds.n_rows, len(mt.term.params)))
+    every: dict[int, Sequence[np.ndarray]] = {}  # a record's channels, built at once
+    for ax in mt.axes:
+        for ri, sig in enumerate(ds.signals):
+            rows = ds.rows_of.get((ri, mt.sensor, ax))
+            if rows is not None:
+                cols[rows] = aggregate(
+                    ds.aggregator(ri, mt.sensor, ax),
+                    *_regressors(mt.term, sig, mt.sensor, ax, every=every, record=ri),
+                )
+    return cols
+
+
+def _linear_columns(ds: Dataset, mt: ModelTerm) -> np.ndarray:
+    """(n_rows, k·axes) a linear term's columns, k per axis, on its sensor's rows and on its
+    twin sensor's rows of the same axis (:attr:`Term.twin_columns`)."""
+    k = len(mt.term.params)
     cols = np.zeros((ds.n_rows, k * len(mt.axes)))
-    offset = np.zeros(ds.n_rows)
-    th = (
-        np.tile(np.array(mt.term.initial), len(mt.axes))
-        if theta is None and mt.term.nonlinear
-        else theta
-    )
+    every: dict[int, Sequence[np.ndarray]] = {}  # a record's channels, built at once
     for j, ax in enumerate(mt.axes):
         for ri, sig in enumerate(ds.signals):
             rows = ds.rows_of.get((ri, mt.sensor, ax))
-            if rows is None:
-                continue
-            agg = ds.aggregator(ri, mt.sensor, ax)
-            if not mt.term.nonlinear:
+            if rows is not None:
                 cols[rows, j * k : (j + 1) * k] = aggregate(
-                    agg, *_regressors(mt.term, sig, mt.sensor, ax, every=every, record=ri)
+                    ds.aggregator(ri, mt.sensor, ax),
+                    *_regressors(mt.term, sig, mt.sensor, ax, every=every, record=ri),
                 )
-                continue
-            value = mt.term.value
-            assert value is not None and th is not None
-            p = np.asarray(th[j * k : (j + 1) * k], dtype=np.float64)
-
-            def at(
-                pp: np.ndarray,
-                sig: RecordSignals = sig,
-                ax: int = ax,
-                value: ValueFn = value,
-            ) -> np.ndarray:
-                return _call_term(mt.term, "value", sig, lambda: value(sig, mt.sensor, ax, pp))[0]
-
-            v0 = at(p)
-            jac = np.zeros((len(sig.t_s), k))
-            for q in range(k):
-                h = 1e-6 * max(1.0, abs(p[q]))
-                dp = np.zeros(k)
-                dp[q] = h
-                jac[:, q] = (at(p + dp) - at(p - dp)) / (2 * h)
-            cols[rows, j * k : (j + 1) * k] = agg @ jac
-            offset[rows] = agg @ (v0 - jac @ p)
-    if mt.term.twin_columns is not None and not mt.term.nonlinear:
+    if mt.term.twin_columns is not None:
         twin = mt.term.twin_sensor
         for j, ax in enumerate(mt.axes):
             for ri, sig in enumerate(ds.signals):
@@ -182,7 +169,52 @@ def term_columns(
                     cols[rows, j * k : (j + 1) * k] = aggregate(
                         ds.aggregator(ri, twin, ax), *_regressors(mt.term, sig, twin, ax, True)
                     )
-    return np.column_stack([cols, own]), offset
+    return cols
+
+
+def _linearised_columns(
+    ds: Dataset, mt: ModelTerm, theta: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """A nonlinear term's Jacobian columns (n_rows, k·axes) at ``theta`` (its initial values
+    when None) and the offset value(θ) − J·θ (n_rows,)."""
+    k = len(mt.term.params)
+    cols = np.zeros((ds.n_rows, k * len(mt.axes)))
+    offset = np.zeros(ds.n_rows)
+    th = np.tile(np.array(mt.term.initial), len(mt.axes)) if theta is None else theta
+    for j, ax in enumerate(mt.axes):
+        p = np.asarray(th[j * k : (j + 1) * k], dtype=np.float64)
+        for ri, sig in enumerate(ds.signals):
+            rows = ds.rows_of.get((ri, mt.sensor, ax))
+            if rows is None:
+                continue
+            v0, jac = _value_and_jacobian(mt, sig, ax, p)
+            agg = ds.aggregator(ri, mt.sensor, ax)
+            cols[rows, j * k : (j + 1) * k] = agg @ jac
+            offset[rows] = agg @ (v0 - jac @ p)
+    return cols, offset
+
+
+def _value_and_jacobian(
+    mt: ModelTerm, sig: RecordSignals, ax: int, p: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """A nonlinear term's per-sample value (N,) on channel ``ax`` of one record at its
+    parameters ``p`` (k,), and its Jacobian (N, k) by central differences (step 1e-6 of
+    each parameter, at least 1e-6)."""
+    value = mt.term.value
+    assert value is not None
+
+    def at(pp: np.ndarray) -> np.ndarray:
+        return _call_term(mt.term, "value", sig, lambda: value(sig, mt.sensor, ax, pp))[0]
+
+    k = len(p)
+    v0 = at(p)
+    jac = np.zeros((len(sig.t_s), k))
+    for q in range(k):
+        h = 1e-6 * max(1.0, abs(p[q]))
+        dp = np.zeros(k)
+        dp[q] = h
+        jac[:, q] = (at(p + dp) - at(p - dp)) / (2 * h)
+    return v0, jac
 
 
 def record_columns(ds: Dataset, mt: ModelTerm) -> np.ndarray:

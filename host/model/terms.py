@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -116,6 +116,30 @@ class Term:
         return [i for i, s in enumerate(signals) if self.owns(s)]
 
 
+@dataclass(frozen=True)
+class Twin:
+    """The same parameters seen by another sensor (:attr:`Term.twin_sensor`): ``columns``
+    fill ``sensor``'s rows of the same axis (:attr:`Term.twin_columns`)."""
+
+    sensor: str
+    columns: ColumnFn
+
+
+@dataclass(frozen=True)
+class OwnUnknowns:
+    """Unknowns of one record (:attr:`Term.record_params`): every record ``owns`` selects
+    carries ``params`` (units ``units``) with columns ``columns``; ``params_of`` names the
+    subset one record carries, ``sensor`` the sensor whose channels they belong to ('': every
+    one the term acts on)."""
+
+    params: tuple[str, ...]
+    units: tuple[str, ...]
+    columns: ColumnFn
+    owns: Callable[[RecordSignals], bool]
+    params_of: Callable[[RecordSignals], tuple[str, ...]] | None = None
+    sensor: str = ""
+
+
 def term(
     *,
     sensors: Sequence[str] = SENSORS,
@@ -124,11 +148,16 @@ def term(
     check: CheckFn | None = None,
     labels: LabelFn | None = None,
     name: str | None = None,
+    columns_all: Callable[[RecordSignals, str], Sequence[np.ndarray]] | None = None,
+    twin: Twin | None = None,
+    own: OwnUnknowns | None = None,
 ) -> Callable[[ColumnFn], Term]:
     """Decorator turning a column function into a :class:`Term` (see the README's example).
 
     ``params``: parameter name -> unit template (``{u}`` = the channel's unit); default one
     parameter in the channel's unit. The function's docstring is the term's physics.
+    ``columns_all``, ``twin`` and ``own``: :attr:`Term.columns_all`, the term's
+    :attr:`Term.twin_sensor` and its records' own unknowns (:attr:`Term.record_params`).
     """
     pmap = dict(params) if params is not None else {"c": "{u}"}
 
@@ -139,10 +168,18 @@ def term(
         bad = [s for s in sensors if s not in SENSORS]
         if bad or not pmap:
             raise UserError(f"term {fn.__name__}: sensors must be accel/gyro, params non-empty")
-        return Term(
+        made = Term(
             name=name or fn.__name__, doc=doc, sensors=tuple(sensors), params=tuple(pmap),
             units=tuple(pmap.values()), columns=fn, needs=needs, check=check, labels=labels,
+            columns_all=columns_all,
         )  # fmt: skip
+        if twin is not None:
+            made = replace(made, twin_sensor=twin.sensor, twin_columns=twin.columns)
+        if own is not None:
+            made = replace(made, record_params=own.params, record_units=own.units,
+                           record_columns=own.columns, owns=own.owns,
+                           record_params_of=own.params_of, record_sensor=own.sensor)  # fmt: skip
+        return made
 
     return wrap
 
