@@ -414,95 +414,124 @@ def _check_times(t_ms: np.ndarray, meta: dict[str, str], source: str) -> None:
         )
 
 
-def parse_record_text(text: str, source: str, name: str | None = None) -> Record:
-    """Parse the text of a record file; ``source`` names it in messages (e.g. the path).
+@dataclass
+class _RecordText:
+    """A record file as it is read, line by line: its header (``meta``), the data rows, the
+    mean and std rows after the underscores (``summary``), whether that line was passed and
+    the last line that was not empty."""
 
-    Raises RecordError naming ``source:line`` for anything that is not a complete record.
-    """
-    meta: dict[str, str] = {}
-    rows: list[list[float]] = []
-    summary: list[list[float]] = []
-    state = "data"  # -> "summary" after the underscore line
-    last_line = 0
+    meta: dict[str, str] = field(default_factory=dict)
+    rows: list[list[float]] = field(default_factory=list)
+    summary: list[list[float]] = field(default_factory=list)
+    in_summary: bool = False
+    last_line: int = 0
+
+
+def _comment_line(parsed: _RecordText, body: str, where: str) -> None:
+    """A ``#`` line (``body`` after the ``#``): the format version, or a header line while no
+    data row has come."""
+    hm = _HEADER_RE.match(body)
+    if hm:
+        v = int(hm.group("v"))
+        if v > RECORD_FORMAT_VERSION:
+            raise RecordError(
+                f"{where}: record format v{v} is newer than this program reads "
+                f"(v{RECORD_FORMAT_VERSION}); update the host software"
+            )
+        return
+    mm = _META_RE.match(body)
+    if mm and not parsed.in_summary and not parsed.rows:
+        _header_line(parsed.meta, mm.group("key").strip(), mm.group("value").strip(), where)
+
+
+def _data_row(rows: list[list[float]], line: str, where: str) -> None:
+    """One data row: eight finite numbers, its time not before the last row's."""
+    vals = _numbers(line.split())
+    if vals is None:
+        raise RecordError(
+            f"{where}: not a row of numbers ({line[:40]!r}); the file is damaged — "
+            "re-measure this record"
+        )
+    if len(vals) != 8:
+        raise RecordError(
+            f"{where}: {len(vals)} columns, expected 8 (time, Ax, Ay, Az, Gx, Gy, Gz, "
+            "temp); the file is truncated or damaged — re-measure this record"
+        )
+    if not all(math.isfinite(v) for v in vals):
+        raise RecordError(f"{where}: non-finite value; re-measure this record")
+    if rows and vals[0] < rows[-1][0]:
+        raise RecordError(f"{where}: time goes backwards; the file is damaged")
+    rows.append(vals)
+
+
+def _summary_row(summary: list[list[float]], line: str, where: str) -> None:
+    """The mean row, then the std row, after the underscores (labelled or not)."""
+    fields = line.split()
+    label_ok = fields[0].lower() in ("mean", "std")
+    vals = _numbers(fields[1:] if label_ok else fields)
+    if vals is None or len(vals) not in (7, 8) or len(summary) >= 2:
+        raise RecordError(
+            f"{where}: expected the mean and std rows after the underscores; the file is damaged"
+        )
+    if label_ok and fields[0].lower() != ("mean", "std")[len(summary)]:
+        raise RecordError(f"{where}: expected the {('mean', 'std')[len(summary)]} row")
+    summary.append(vals[-7:])
+
+
+def _read_lines(text: str, source: str) -> _RecordText:
+    """Every line of a record file's ``text`` read into a :class:`_RecordText`."""
+    parsed = _RecordText()
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if not line:
             continue
-        last_line = lineno
+        parsed.last_line = lineno
         where = f"{source}:{lineno}"
         if line.startswith("#"):
-            body = line[1:].strip()
-            hm = _HEADER_RE.match(body)
-            if hm:
-                v = int(hm.group("v"))
-                if v > RECORD_FORMAT_VERSION:
-                    raise RecordError(
-                        f"{where}: record format v{v} is newer than this program reads "
-                        f"(v{RECORD_FORMAT_VERSION}); update the host software"
-                    )
-                continue
-            mm = _META_RE.match(body)
-            if mm and state == "data" and not rows:
-                _header_line(meta, mm.group("key").strip(), mm.group("value").strip(), where)
-            continue
-        if _UNDERSCORES_RE.match(line):
-            if state != "data":
+            _comment_line(parsed, line[1:].strip(), where)
+        elif _UNDERSCORES_RE.match(line):
+            if parsed.in_summary:
                 raise RecordError(f"{where}: a second line of underscores; the file is damaged")
-            state = "summary"
-            continue
-        fields = line.split()
-        if state == "data":
-            vals = _numbers(fields)
-            if vals is None:
-                raise RecordError(
-                    f"{where}: not a row of numbers ({line[:40]!r}); the file is damaged — "
-                    "re-measure this record"
-                )
-            if len(vals) != 8:
-                raise RecordError(
-                    f"{where}: {len(vals)} columns, expected 8 (time, Ax, Ay, Az, Gx, Gy, Gz, "
-                    "temp); the file is truncated or damaged — re-measure this record"
-                )
-            if not all(math.isfinite(v) for v in vals):
-                raise RecordError(f"{where}: non-finite value; re-measure this record")
-            if rows and vals[0] < rows[-1][0]:
-                raise RecordError(f"{where}: time goes backwards; the file is damaged")
-            rows.append(vals)
+            parsed.in_summary = True
+        elif parsed.in_summary:
+            _summary_row(parsed.summary, line, where)
         else:
-            label_ok = fields[0].lower() in ("mean", "std")
-            body_fields = fields[1:] if label_ok else fields
-            vals = _numbers(body_fields)
-            if vals is None or len(vals) not in (7, 8) or len(summary) >= 2:
-                raise RecordError(
-                    f"{where}: expected the mean and std rows after the underscores; "
-                    "the file is damaged"
-                )
-            if label_ok and fields[0].lower() != ("mean", "std")[len(summary)]:
-                raise RecordError(f"{where}: expected the {('mean', 'std')[len(summary)]} row")
-            summary.append(vals[-7:])
-    end = f"{source}:{last_line + 1}"
-    if state == "data":
+            _data_row(parsed.rows, line, where)
+    return parsed
+
+
+def _check_complete(parsed: _RecordText, source: str) -> None:
+    """The underscores, the mean and std rows and some data are there."""
+    end = f"{source}:{parsed.last_line + 1}"
+    if not parsed.in_summary:
         raise RecordError(
             f"{end}: no line of underscores after the data: the file is truncated "
             "(recording interrupted?) — re-measure this record"
         )
-    if len(summary) < 2:
+    if len(parsed.summary) < 2:
         raise RecordError(
             f"{end}: mean/std rows missing after the underscores: the file is "
             "truncated — re-measure this record"
         )
-    if not rows:
+    if not parsed.rows:
         raise RecordError(f"{source}: no data rows; re-measure this record")
-    data = np.array(rows, dtype=np.float64)
-    _check_times(data[:, 0], meta, source)
+
+
+def _check_stored_mean(data: np.ndarray, stored: list[float], source: str) -> None:
+    """The rows' mean of each column matches the stored mean row (:data:`_MEAN_TOL`)."""
     mean = data[:, 1:].mean(axis=0)
-    bad = np.abs(mean - np.array(summary[0])) > np.array(_MEAN_TOL)
+    bad = np.abs(mean - np.array(stored)) > np.array(_MEAN_TOL)
     if np.any(bad):
         col = ("Ax", "Ay", "Az", "Gx", "Gy", "Gz", "temp")[int(np.argmax(bad))]
         raise RecordError(
             f"{source}: the stored mean of {col} does not match the rows (rows missing or "
             "edited?); re-measure this record"
         )
+
+
+def _record_name(meta: dict[str, str], name: str | None, source: str) -> str:
+    """The record's name: ``name`` (from the file name), else its ``# record:`` line; the two
+    agree when both are there."""
     rec_name = name or meta.get("record") or ""
     if not rec_name:
         raise RecordError(f"{source}: record name unknown (no '# record:' line, file name)")
@@ -511,11 +540,24 @@ def parse_record_text(text: str, source: str, name: str | None = None) -> Record
             f"{source}: the header says record {meta['record']!r} but the file name says "
             f"{name!r}; rename the file"
         )
+    return rec_name
+
+
+def parse_record_text(text: str, source: str, name: str | None = None) -> Record:
+    """Parse the text of a record file; ``source`` names it in messages (e.g. the path).
+
+    Raises RecordError naming ``source:line`` for anything that is not a complete record.
+    """
+    parsed = _read_lines(text, source)
+    _check_complete(parsed, source)
+    data = np.array(parsed.rows, dtype=np.float64)
+    _check_times(data[:, 0], parsed.meta, source)
+    _check_stored_mean(data, parsed.summary[0], source)
     return Record(
-        name=rec_name,
+        name=_record_name(parsed.meta, name, source),
         t_ms=data[:, 0],
         accel=data[:, 1:4],
         gyro=data[:, 4:7],
         temp=data[:, 7],
-        meta=meta,
+        meta=parsed.meta,
     )

@@ -284,24 +284,27 @@ def _percentiles(a: np.ndarray, qs: tuple[float, ...]) -> list[float]:
     ]
 
 
-def _refine_many(
-    windows: Sequence[tuple[np.ndarray, np.ndarray, float, float]], bin_us: float = 1e6
-) -> list[tuple[float, float]]:
-    """Refine each window's hull line (x sorted, y, a, b), all windows together: the floor
-    (first lowest point) of each ``bin_us`` bin of the detrended points that holds at least
-    5, then a robust least-squares line through the floors, lowered to pass under all floors
-    but the lowest 2 %, so its offset stays a minimum-delay offset.
+#: a window as :func:`_refine_many` takes it: (x sorted, y, its hull line's a, b)
+_Window = tuple[np.ndarray, np.ndarray, float, float]
 
-    The hull edge at the mean is exact for the points it touches but can be short, so its
-    slope is noisy; the floors of many bins pin the slope down. A window shorter than four
-    bins, with fewer than four floors, or whose floors are not all finite keeps its hull
-    line. The windows' points are joined end to end, the floors found by segment reductions,
-    and the robust line iterated on (window × floor) arrays, each window stopping when it
-    would alone."""
-    out = [(float(a), float(b)) for _, _, a, b in windows]
-    ids = [w for w, (x, _, _, _) in enumerate(windows) if x[-1] - x[0] >= 4 * bin_us]
-    if not ids:
-        return out
+
+@dataclass(frozen=True, eq=False)
+class _Bins:
+    """The windows' points joined end to end (window ``k`` of ``ids`` at ``at[k]:at[k + 1]``):
+    ``r`` their residuals from their hull lines, and the non-empty bins: ``first`` point of
+    each, its ``counts`` and its window (``window``, the index in ``ids``)."""
+
+    at: np.ndarray
+    r: np.ndarray
+    first: np.ndarray
+    counts: np.ndarray
+    window: np.ndarray
+
+
+def _join_bins(windows: Sequence[_Window], ids: list[int], bin_us: float) -> _Bins:
+    """The residuals of windows ``ids`` from their hull lines, end to end, and their
+    ``bin_us`` bins of device time (bin j of a window: its points with
+    j·bin_us <= x − x[0] < (j + 1)·bin_us)."""
     at = np.cumsum([0] + [windows[w][0].size for w in ids])
     r = np.empty(at[-1])  # the windows' residuals end to end
     firsts = []
@@ -310,8 +313,8 @@ def _refine_many(
         x, y, a, b = windows[w]
         seg = r[at[k] : at[k + 1]]
         np.subtract(y, np.add(np.multiply(x, b, out=seg), a, out=seg), out=seg)
-        # bin j: the points with j·bin_us <= x − x[0] < (j + 1)·bin_us, found by bisection
-        # (the same as ``(x − x[0]) // bin_us``: a float floor division costs 30 times more)
+        # bin j found by bisection (the same as ``(x − x[0]) // bin_us``: a float floor
+        # division costs 30 times more)
         nb = int((x[-1] - x[0]) // bin_us) + 1
         if edges.size < nb:
             edges = bin_us * np.arange(2 * nb)
@@ -320,9 +323,15 @@ def _refine_many(
     nonempty = np.flatnonzero(np.diff(first, append=r.size))
     first = first[nonempty]
     counts = np.diff(first, append=r.size)
-    bin_win = np.repeat(np.arange(len(ids)), [f.size for f in firsts])[nonempty]
-    # each bin's first lowest point (nan counts as the highest: a bin's floor is not finite
-    # only when none of its points is, and then its window keeps the hull line)
+    window = np.repeat(np.arange(len(ids)), [f.size for f in firsts])[nonempty]
+    return _Bins(at, r, first, counts, window)
+
+
+def _bin_floors(bins: _Bins) -> tuple[np.ndarray, np.ndarray]:
+    """(the point, its window) of the floor of each bin of at least 5 points: its first
+    lowest point (nan counts as the highest: a bin's floor is not finite only when none of its
+    points is, and then its window keeps the hull line)."""
+    r, first, counts = bins.r, bins.first, bins.counts
     low = np.minimum.reduceat(r, first)
     r_low = r if np.all(np.isfinite(low)) else np.where(np.isnan(r), np.inf, r)
     if r_low is not r:
@@ -330,13 +339,15 @@ def _refine_many(
     lowest = np.flatnonzero(r_low == np.repeat(low, counts))
     lowest_bin = np.searchsorted(first, lowest, side="right") - 1
     pick = lowest[np.flatnonzero(np.diff(lowest_bin, prepend=-1))][counts >= 5]
-    fw = bin_win[counts >= 5]
-    m = np.bincount(fw, minlength=len(ids))
-    rows = np.flatnonzero(m >= 4)
-    if rows.size == 0:
-        return out
-    sel = m[fw] >= 4
-    pick, fw = pick[sel], fw[sel]
+    return pick, bins.window[counts >= 5]
+
+
+def _floor_table(
+    windows: Sequence[_Window], ids: list[int], bins: _Bins, pick: np.ndarray, fw: np.ndarray,
+    m: np.ndarray, rows: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """(x, residual, valid) (window × floor) of the floors ``pick`` of the windows ``rows``
+    (of ``ids``) that have ``m`` >= 4 floors each (``fw``: each floor's window)."""
     row_of = np.full(len(ids), -1)
     row_of[rows] = np.arange(rows.size)
     starts = np.concatenate(([0], np.cumsum(m[rows])[:-1]))
@@ -346,13 +357,23 @@ def _refine_many(
     fx = np.zeros((rows.size, width))
     fr = np.zeros((rows.size, width))
     valid = np.zeros((rows.size, width), dtype=bool)
+    at = bins.at
     cut = np.searchsorted(pick, at[1:-1])  # each window's floors: its own points' x
     px = [windows[ids[k]][0][p - at[k]] for k, p in enumerate(np.split(pick, cut))]
-    fx[fr_row, col], fr[fr_row, col], valid[fr_row, col] = np.concatenate(px), r[pick], True
+    fx[fr_row, col], fr[fr_row, col], valid[fr_row, col] = np.concatenate(px), bins.r[pick], True
+    return fx, fr, valid
+
+
+def _robust_lines(
+    fx: np.ndarray, fr: np.ndarray, valid: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(c0, c1, the floors kept) per row: a least-squares line through the valid floors,
+    refitted up to three times without those beyond 4 MADs, each row stopping when its kept
+    floors do not change or fewer than four would be left."""
     keep = valid.copy()
-    active = np.ones(rows.size, dtype=bool)
-    c0 = np.zeros(rows.size)
-    c1 = np.zeros(rows.size)
+    active = np.ones(fx.shape[0], dtype=bool)
+    c0 = np.zeros(fx.shape[0])
+    c1 = np.zeros(fx.shape[0])
     for _ in range(3):
         k1, k0 = _lines(fx, fr, keep)
         c1 = np.where(active, k1, c1)
@@ -368,6 +389,34 @@ def _refine_many(
         active = go
         if not active.any():
             break
+    return c0, c1, keep
+
+
+def _refine_many(windows: Sequence[_Window], bin_us: float = 1e6) -> list[tuple[float, float]]:
+    """Refine each window's hull line (x sorted, y, a, b), all windows together: the floor
+    (first lowest point) of each ``bin_us`` bin of the detrended points that holds at least
+    5, then a robust least-squares line through the floors, lowered to pass under all floors
+    but the lowest 2 %, so its offset stays a minimum-delay offset.
+
+    The hull edge at the mean is exact for the points it touches but can be short, so its
+    slope is noisy; the floors of many bins pin the slope down. A window shorter than four
+    bins, with fewer than four floors, or whose floors are not all finite keeps its hull
+    line. The windows' points are joined end to end, the floors found by segment reductions,
+    and the robust line iterated on (window × floor) arrays, each window stopping when it
+    would alone."""
+    out = [(float(a), float(b)) for _, _, a, b in windows]
+    ids = [w for w, (x, _, _, _) in enumerate(windows) if x[-1] - x[0] >= 4 * bin_us]
+    if not ids:
+        return out
+    bins = _join_bins(windows, ids, bin_us)
+    pick, fw = _bin_floors(bins)
+    m = np.bincount(fw, minlength=len(ids))
+    rows = np.flatnonzero(m >= 4)
+    if rows.size == 0:
+        return out
+    sel = m[fw] >= 4
+    fx, fr, valid = _floor_table(windows, ids, bins, pick[sel], fw[sel], m, rows)
+    c0, c1, keep = _robust_lines(fx, fr, valid)
     floor = _row_percentiles(fr - (c0[:, None] + c1[:, None] * fx), keep, 2.0)
     for row, w in enumerate(np.asarray(ids)[rows]):
         if np.isfinite(c0[row]) and np.isfinite(c1[row]):

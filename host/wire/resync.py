@@ -66,6 +66,65 @@ def header_candidates(
     return (idx + lo).astype(np.int64), t, n[idx].astype(np.int64)
 
 
+def _link_scores(
+    c: int, p: np.ndarray, t: np.ndarray, n: np.ndarray, ends: np.ndarray, score: np.ndarray
+) -> np.ndarray | None:
+    """(c,) the score of the best parse ending at each earlier candidate plus the link from
+    it to candidate ``c`` (-inf where no link fits), None where none does."""
+    # a read ends where the next starts, or before it (bytes skipped), or inside it where one
+    # damage explains it: a byte lost (in its data or the next header), or one bit of its
+    # length flipped (never to a read of no bytes: none is written)
+    cut = p[c] - p[:c] - REC.size
+    flip = n[:c] ^ np.maximum(cut, 0)
+    fits = (
+        (ends[:c] <= p[c])
+        | ((ends[:c] - p[c] == 1) & (cut >= 0))
+        | ((cut > 0) & ((flip & (flip - 1)) == 0))
+    )
+    # nor is a read cut at this header when a header inside it chains on exactly to this one:
+    # that is the read before this one (the damage hit the cut read's header or data), and
+    # the cut would lose it too
+    inner = np.flatnonzero((ends[:c] == p[c]) & (t[:c] <= t[c]))
+    if inner.size:
+        holds = (p[inner] >= p[:c, None] + REC.size) & (t[inner] >= t[:c, None])
+        fits &= (ends[:c] <= p[c]) | ~holds.any(axis=1)
+    ok = fits & (t[:c] <= t[c]) & (t[c] - t[:c] <= np.uint64(MAX_GAP_NS))
+    if not ok.any():
+        return None
+    cost = np.where(ends[:c] == p[c], 0.0, np.where(cut >= n[:c], _SKIP, _CUT))
+    return np.where(ok, score[:c] + 1.0 - cost, -np.inf)
+
+
+def _parse_scores(
+    p: np.ndarray, t: np.ndarray, n: np.ndarray, ends: np.ndarray, pos: int, prev_t: int | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(score, back) per candidate: the best parse from ``pos`` whose last read starts there
+    and the candidate before it in that parse (-1: none, its first read)."""
+    m = p.size
+    score = np.empty(m)
+    back = np.full(m, -1, np.int64)
+    for c in range(m):
+        best = -np.inf
+        if prev_t is None or int(t[c]) - prev_t <= MAX_GAP_NS:
+            best = 1.0 if p[c] == pos else 1.0 - _SKIP
+        s = _link_scores(c, p, t, n, ends, score) if c else None
+        if s is not None:
+            b = int(np.argmax(s))
+            if s[b] > best:
+                best, back[c] = float(s[b]), b
+        score[c] = best
+    return score, back
+
+
+def _end_terms(ends: np.ndarray, limit: int, at_eof: bool) -> np.ndarray:
+    """What ending the parse with each candidate's read adds to its score."""
+    if at_eof:
+        # the last read: ends at the end (0); runs past it (a cut: not passed on, -1); leaves
+        # less than a header (a cut-off header, 0); leaves more (damage)
+        return np.where(ends > limit, -1.0, np.where(limit - ends < REC.size, 0.0, -_SKIP))
+    return np.where(ends + REC.size > limit, 0.0, -_SKIP)
+
+
 def best_parse(
     p: np.ndarray,
     t: np.ndarray,
@@ -83,49 +142,11 @@ def best_parse(
     the file (a read cut off there is a cut, not damage); else reads may run past it. Returns
     the candidates' indices in order and how many links without damage end it (the first read
     comes at most :data:`MAX_GAP_NS` after ``prev_t``)."""
-    m = p.size
-    if m == 0:
+    if p.size == 0:
         return [], 0
     ends = p + REC.size + n.astype(np.int64)
-    score = np.empty(m)
-    back = np.full(m, -1, np.int64)
-    gap = np.uint64(MAX_GAP_NS)
-    for c in range(m):
-        best = -np.inf
-        if prev_t is None or int(t[c]) - prev_t <= MAX_GAP_NS:
-            best = 1.0 if p[c] == pos else 1.0 - _SKIP
-        if c:
-            # a read ends where the next starts, or before it (bytes skipped), or inside it
-            # where one damage explains it: a byte lost (in its data or the next header), or
-            # one bit of its length flipped (never to a read of no bytes: none is written)
-            cut = p[c] - p[:c] - REC.size
-            flip = n[:c] ^ np.maximum(cut, 0)
-            fits = (
-                (ends[:c] <= p[c])
-                | ((ends[:c] - p[c] == 1) & (cut >= 0))
-                | ((cut > 0) & ((flip & (flip - 1)) == 0))
-            )
-            # nor is a read cut at this header when a header inside it chains on exactly to
-            # this one: that is the read before this one (the damage hit the cut read's
-            # header or data), and the cut would lose it too
-            inner = np.flatnonzero((ends[:c] == p[c]) & (t[:c] <= t[c]))
-            if inner.size:
-                holds = (p[inner] >= p[:c, None] + REC.size) & (t[inner] >= t[:c, None])
-                fits &= (ends[:c] <= p[c]) | ~holds.any(axis=1)
-            ok = fits & (t[:c] <= t[c]) & (t[c] - t[:c] <= gap)
-            if ok.any():
-                cost = np.where(ends[:c] == p[c], 0.0, np.where(cut >= n[:c], _SKIP, _CUT))
-                s = np.where(ok, score[:c] + 1.0 - cost, -np.inf)
-                b = int(np.argmax(s))
-                if s[b] > best:
-                    best, back[c] = float(s[b]), b
-        score[c] = best
-    if at_eof:
-        # the last read: ends at the end (0); runs past it (a cut: not passed on, -1); leaves
-        # less than a header (a cut-off header, 0); leaves more (damage)
-        term = np.where(ends > limit, -1.0, np.where(limit - ends < REC.size, 0.0, -_SKIP))
-    else:
-        term = np.where(ends + REC.size > limit, 0.0, -_SKIP)
+    score, back = _parse_scores(p, t, n, ends, pos, prev_t)
+    term = _end_terms(ends, limit, at_eof)
     total = score + term
     c = int(np.argmax(total))
     if total[c] < (0.0 if at_eof and limit - pos < REC.size else -_SKIP):

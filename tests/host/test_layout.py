@@ -194,9 +194,6 @@ LONG_FUNCTIONS = {
     "host/bench/options.py:parse_sim_options",
     "host/board/flash.py:parse_ihex",
     "host/calib/thermal_fit.py:fit_scale",
-    "host/session/records.py:parse_record_text",
-    "host/timing/clock.py:_refine_many",
-    "host/wire/resync.py:best_parse",
     "host/workbench/adaptive.py:adaptive_run",
     "host/workbench/planner.py:plan_next",
 }
