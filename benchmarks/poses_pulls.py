@@ -19,7 +19,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from host.calib.calibration import calibrate_from_records  # noqa: E402
+from host.calib.calibration import CalibrationOptions, calibrate_from_records  # noqa: E402
 from host.session.directory import read_session  # noqa: E402
 from tests.independent.poses import PoseSpec, simulate_poses, truth_in_frame, write_poses  # noqa: E402
 
@@ -31,7 +31,8 @@ def session_pulls(seed: int, poses: int) -> dict[str, tuple[float, float, float]
     with tempfile.TemporaryDirectory() as d:
         write_poses(d, sess)
         res = calibrate_from_records(
-            read_session(d), latitude_deg=spec.latitude_deg, height_m=spec.height_m
+            read_session(d),
+            CalibrationOptions(latitude_deg=spec.latitude_deg, height_m=spec.height_m),
         )
     assert sess.truth is not None
     truth = truth_in_frame(sess.truth)

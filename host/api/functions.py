@@ -127,12 +127,11 @@ def calibrate(
     >>> abs(result.parameter("A0x").value) < 0.5
     True
     """
-    from host.calib.calibration import calibrate_from_records
+    from host.calib.calibration import CalibrationOptions, calibrate_from_records
 
-    result = calibrate_from_records(
-        _session(session), model=model, term_files=[str(f) for f in term_files],
-        latitude_deg=latitude_deg, height_m=height_m,
-    )  # fmt: skip
+    options = CalibrationOptions(model=model, term_files=tuple(str(f) for f in term_files),
+                                 latitude_deg=latitude_deg, height_m=height_m)  # fmt: skip
+    result = calibrate_from_records(_session(session), options)
     return dataclasses.replace(result, decision_rule=check_rule(decision_rule))
 
 

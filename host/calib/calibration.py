@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -241,53 +241,61 @@ def what_would_determine(
     return out
 
 
+@dataclass(frozen=True)
+class CalibrationOptions:
+    """How :func:`calibrate_from_records` calibrates a session: ``model`` the model spec
+    (default ``base``, method.md §2) over the catalogue and the custom terms of the Python
+    files ``term_files``; ``noise`` the noise model (None: :class:`host.model.noise.NoiseModel`'s
+    defaults); ``turns`` n for turn records without meta ``turns`` (None: inferred per record);
+    the site (``latitude_deg``, ``height_m``: local gravity); ``earth_rate``: the reference
+    rate includes the vertical Earth rate; ``thermal`` the unit's bias(T)
+    (:mod:`host.calib.thermal`, from ``thermal_source``); ``created`` the date/time for the
+    report header (None: now, local time, ISO)."""
+
+    model: str = "base"
+    term_files: Sequence[str] = ()
+    noise: NoiseModel | None = None
+    turns: int | None = None
+    latitude_deg: float = DEFAULT_LATITUDE_DEG
+    height_m: float = DEFAULT_HEIGHT_M
+    earth_rate: bool = False
+    thermal: ThermalCalibration | None = None
+    thermal_source: str = ""
+    created: str | None = None
+
+
 def calibrate_from_records(
-    session: Session,
-    *,
-    turns: int | None = None,
-    latitude_deg: float = DEFAULT_LATITUDE_DEG,
-    height_m: float = DEFAULT_HEIGHT_M,
-    earth_rate: bool = False,
-    created: str | None = None,
-    model: str = "base",
-    term_files: Iterable[str] = (),
-    noise: NoiseModel | None = None,
-    thermal: ThermalCalibration | None = None,
-    thermal_source: str = "",
+    session: Session, options: CalibrationOptions | None = None
 ) -> CalibrationResult:
-    """Check the records of ``session``, fit ``model`` (default ``base``, method.md §2) with
-    the workbench's weighted least squares (:func:`host.model.fit.fit_model`, its noise model
-    ``noise``, default :class:`host.model.noise.NoiseModel`), return every parameter.
+    """Check the records of ``session``, fit the model of ``options`` (default
+    :class:`CalibrationOptions`) with the workbench's weighted least squares
+    (:func:`host.model.fit.fit_model`, its noise model), return every parameter.
 
     The closed form of §3/§4 is computed beside it where the plan has it (``closed_form``).
     Parameters the records do not determine are NaN with what would determine them; they make
-    ``all_passed`` False. ``turns``: n for turn records without meta ``turns`` (None: inferred
-    per record). ``term_files``: Python files with custom terms. ``created``: date/time for
-    the report header (default: now, local time, ISO).
+    ``all_passed`` False.
 
-    ``thermal``: the unit's bias(T) (:mod:`host.calib.thermal`, from ``thermal_source``). The
-    records are first corrected to the session's mean chip temperature T̄ with it, so the
-    model's biases are those at T̄; the result then carries the bias change as the term
-    ``thermal_bias`` about T̄ with the range over which it holds (``thermal_range_c``).
+    With a ``thermal`` calibration the records are first corrected to the session's mean chip
+    temperature T̄ with it, so the model's biases are those at T̄; the result then carries the
+    bias change as the term ``thermal_bias`` about T̄ with the range over which it holds
+    (``thermal_range_c``).
     """
+    o = options if options is not None else CalibrationOptions()
     check_record_lengths(session)
     t_guess = float(np.mean([float(np.mean(r.temp)) for r in session.records.values()]))
-    if thermal is not None:
-        session = _thermally_corrected(session, thermal, thermal_source, t_guess)
-    mts, digests = _model_with_term_files(model, tuple(str(f) for f in term_files))
-    nm = noise if noise is not None else NoiseModel()
+    if o.thermal is not None:
+        session = _thermally_corrected(session, o.thermal, o.thermal_source, t_guess)
+    mts, digests = _model_with_term_files(o.model, tuple(str(f) for f in o.term_files))
+    nm = o.noise if o.noise is not None else NoiseModel()
     ds = build_dataset(
-        session, noise=nm, latitude_deg=latitude_deg, height_m=height_m, turns=turns,
-        earth_rate=earth_rate,
+        session, noise=nm, latitude_deg=o.latitude_deg, height_m=o.height_m, turns=o.turns,
+        earth_rate=o.earth_rate,
     )  # fmt: skip
     # the turn-angle and wobble components estimated jointly with the model: a term that
     # explains the turn closures (an asymmetry) takes their scatter from the yardstick
     joint = fit_with_components(ds, mts)
-    fitted = _Fitted(
-        session, mts, digests, nm, joint.fit, joint.dataset, latitude_deg, height_m, turns,
-        earth_rate,
-    )  # fmt: skip
-    return _result(fitted, created, thermal, thermal_source, t_guess)
+    fitted = _Fitted(session, mts, digests, nm, joint.fit, joint.dataset, o)
+    return _result(fitted, t_guess)
 
 
 @dataclass(frozen=True, eq=False)
@@ -300,27 +308,19 @@ class _Fitted:
     noise: NoiseModel
     fit: Fit
     dataset: Dataset
-    latitude_deg: float
-    height_m: float
-    turns: int | None
-    earth_rate: bool
+    options: CalibrationOptions
 
 
-def _result(
-    f: _Fitted,
-    created: str | None,
-    thermal: ThermalCalibration | None,
-    thermal_source: str,
-    t_corrected: float,
-) -> CalibrationResult:
+def _result(f: _Fitted, t_corrected: float) -> CalibrationResult:
     """The result of a fit: its parameters with what would determine the others, the closed
     form beside it, residuals, notes and where the records came from; the bias(T) the
     records were corrected with (to ``t_corrected``, °C) carried as ``thermal_bias``."""
     from datetime import datetime
 
-    session, fit, ds, nm = f.session, f.fit, f.dataset, f.noise
+    session, fit, ds, nm, o = f.session, f.fit, f.dataset, f.noise, f.options
+    thermal, thermal_source = o.thermal, o.thermal_source
     stats = {n: record_stats(r) for n, r in session.records.items()}
-    g = local_gravity(f.latitude_deg, f.height_m)
+    g = local_gravity(o.latitude_deg, o.height_m)
     closed, bias_est, n_turns = _closed_form(session, stats, g, ds)
     params, spec = _parameters(f), short_spec(f.model)
     t_mean = float(ds.signals[0].temp_mean_c) if ds.signals else 25.0
@@ -335,8 +335,8 @@ def _result(
     return CalibrationResult(
         covariance=_covariance(fit.covariance, params),
         serial=session.serial,
-        created=created or datetime.now().astimezone().isoformat(timespec="seconds"),
-        g=g, latitude_deg=f.latitude_deg, height_m=f.height_m, turns=n_turns,
+        created=o.created or datetime.now().astimezone().isoformat(timespec="seconds"),
+        g=g, latitude_deg=o.latitude_deg, height_m=o.height_m, turns=n_turns,
         model=spec,
         parameters=params,
         noise_std=_noise_levels(stats, ds),
@@ -347,7 +347,7 @@ def _result(
         term_sha256=f.digests,
         temp_mean_c=t_mean,
         time_known=ds.time_known,
-        earth_rate=f.earth_rate,
+        earth_rate=o.earth_rate,
         records=tuple(s.name for s in ds.signals),
         bias_estimates=bias_est,
         closed_form=closed,
@@ -400,8 +400,8 @@ def _parameters(f: _Fitted) -> tuple[ParameterResult, ...]:
     """The fit's parameters with their §7 tolerance and pass flag, and what would determine
     the undetermined ones (:func:`what_would_determine`)."""
     needs = what_would_determine(
-        f.session, f.model, f.fit.undetermined, latitude_deg=f.latitude_deg,
-        height_m=f.height_m, turns=f.turns,
+        f.session, f.model, f.fit.undetermined, latitude_deg=f.options.latitude_deg,
+        height_m=f.options.height_m, turns=f.options.turns,
         again=[s.name for s in f.dataset.signals if s.angle_column is not None],
     )  # fmt: skip
     return tuple(

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import TextIO
 
 from host.calib.applying import verify_directory
-from host.calib.calibration import calibrate_from_records
+from host.calib.calibration import CalibrationOptions, calibrate_from_records
 from host.calib.certificate import Issue, issue_now
 from host.calib.codec import read_result, result_to_json
 from host.calib.decision import DEFAULT_RULE
@@ -157,17 +157,17 @@ def compute_and_write(
     if settings.turns is not None and settings.turns < 1:
         raise UserError("--turns must be at least 1")
     thermal, source = thermal_of(session, settings.thermal, note)
-    result = calibrate_from_records(
-        session,
-        thermal=thermal,
-        thermal_source=source,
+    options = CalibrationOptions(
+        model=settings.model,
+        term_files=tuple(settings.term_files),
+        noise=session_noise(session, settings.floor, settings.noise_file),
         turns=settings.turns,
         latitude_deg=settings.latitude_deg,
         height_m=settings.height_m,
-        model=settings.model,
-        term_files=settings.term_files,
-        noise=session_noise(session, settings.floor, settings.noise_file),
+        thermal=thermal,
+        thermal_source=source,
     )
+    result = calibrate_from_records(session, options)
     given = {"noise": settings.noise_file, "floor": settings.floor}
     result = dataclasses.replace(
         result,

@@ -367,6 +367,127 @@ MAX_SCALE_ORDER = 2
 G_NOMINAL = 9.80665
 
 
+@dataclass(frozen=True, eq=False)
+class _ScaleProblem:
+    """Accelerometer channel ``j``'s scale against temperature as it is fitted: its window
+    means ``y`` (M,) at ``temp_c`` (M,) °C in the attitudes ``group`` (``n_groups`` of them),
+    gravity along the axis at each (``force``, m/s²; NaN where an attitude's direction is not
+    known), the temperature about ``t_ref`` in units of half the span (``d``, ``span`` °C)
+    and the scale's columns ``force·d^q``, q = 1 … ``q_top``."""
+
+    j: int
+    temp_c: np.ndarray
+    y: np.ndarray
+    group: np.ndarray
+    n_groups: int
+    t_ref: float
+    span: float
+    force: np.ndarray
+    d: np.ndarray
+    q_top: int
+
+    @property
+    def scale_cols(self) -> list[np.ndarray]:
+        """The scale's columns force·d^q, q = 1 … ``q_top``."""
+        return [self.force * self.d**q for q in range(1, self.q_top + 1)]
+
+    def design(self, k: int, q: int) -> np.ndarray:
+        """(M, n_groups + k + q): the attitudes' offsets, bias order ``k``, scale order ``q``."""
+        x = design(self.temp_c, self.group, self.n_groups, k, self.t_ref, self.span)
+        return np.column_stack([x, *self.scale_cols[:q]])
+
+
+def _scale_problem(pts: ThermalPoints, j: int, t_ref: float, top: int) -> _ScaleProblem:
+    """Channel ``j``'s window means set up for :func:`fit_scale` (scale orders up to ``top``,
+    at most :data:`MAX_SCALE_ORDER`)."""
+    t = pts.temp_c
+    span = max(float(np.ptp(t)) / 2.0, 1e-6)
+    force = (pts.up[:, j] if pts.up is not None else np.full(t.size, np.nan)) * G_NOMINAL
+    q_top = min(MAX_SCALE_ORDER, max(top, 1))
+    return _ScaleProblem(j, t, pts.values[:, j], pts.group, len(pts.attitudes), t_ref, span,
+                         force, (t - t_ref) / span, q_top)  # fmt: skip
+
+
+def _scale_determinable(sp: _ScaleProblem, k: int, required: bool) -> bool:
+    """Whether gravity along the axis is known at every attitude and the first scale column
+    stands apart from the offsets and the bias order ``k``; not determinable and
+    ``required``: UserError naming the axis and the records needed."""
+    cols = sp.design(k, sp.q_top)[:, : sp.n_groups + k + 1]
+    norm = np.linalg.norm(cols, axis=0)
+    ok = bool(np.all(np.isfinite(sp.force))) and bool(np.all(norm > 0))
+    if ok:
+        sv = np.linalg.svd(cols / norm, compute_uv=False)
+        ok = bool(sv[-1] > 1e-3 * sv[0])
+    if not ok and required:
+        name = CHANNELS[sp.j]
+        raise UserError(
+            f"{name}: the accelerometer's scale against temperature needs attitudes with "
+            f"different gravity along {name[1]} (e.g. {name[1]} up and {name[1]} down), "
+            "each measured across the temperature span; these records have "
+            + ("attitudes of unknown direction" if not np.all(np.isfinite(sp.force)) else
+               f"one gravity along {name[1]} over the span")
+        )  # fmt: skip
+    return ok
+
+
+def _scale_orders(
+    sp: _ScaleProblem, pts: ThermalPoints, orders: Iterable[int], k: int, window_s: float
+) -> tuple[tuple[float, int, int, WanderFit] | None, float, tuple[float, ...]]:
+    """The bias order and the scale order together (a scale change left out makes the bias
+    look like wander): BIC over every pair of a bias order in ``orders`` and a scale order,
+    with the scale as the last columns. -> (the best with a scale: (BIC, bias order, scale
+    order, its fit), the best BIC without a scale, the BICs of every scale order at the bias
+    order ``k``)."""
+    best: tuple[float, int, int, WanderFit] | None = None
+    no_scale = math.inf  # the best BIC without a scale term
+    bics: tuple[float, ...] = ()
+    m = sp.temp_c.size
+    for kk in orders:
+        xk = sp.design(kk, sp.q_top)
+        fits = fit_wander(xk, sp.y[:, None], pts, range(sp.q_top + 1), sp.n_groups + kk,
+                          window_s)[0]  # fmt: skip
+        row = tuple(
+            -2.0 * f.loglik + (sp.n_groups + BIC_PENALTY * (kk + q)) * math.log(m)
+            for q, f in enumerate(fits)
+        )
+        if kk == k:
+            bics = row
+        no_scale = min(no_scale, row[0])
+        for q in range(1, sp.q_top + 1):
+            if best is None or row[q] < best[0]:
+                best = (row[q], kk, q, fits[q])
+    return best, no_scale, bics
+
+
+def _with_scale(
+    ch: ChannelThermal, sp: _ScaleProblem, k: int, q: int, fit: WanderFit,
+    bics: tuple[float, ...],
+) -> ChannelThermal:  # fmt: skip
+    """``ch`` with bias order ``k`` and scale order ``q`` of ``fit``, in °C units (the fit's
+    in units of half the span)."""
+    x = sp.design(k, q)
+    sc_b = np.array([sp.span**-i for i in range(1, k + 1)])
+    sc_s = np.array([sp.span**-i for i in range(1, q + 1)])
+    cols_b = slice(sp.n_groups, sp.n_groups + k)
+    cols_s = slice(sp.n_groups + k, sp.n_groups + k + q)
+    rss = float(np.sum((sp.y - x @ fit.beta) ** 2))
+    return dataclasses.replace(
+        ch,
+        order=k,
+        coef=tuple(float(c) for c in fit.beta[cols_b] * sc_b),
+        cov=tuple(
+            tuple(float(v) for v in r) for r in fit.cov[cols_b, cols_b] * np.outer(sc_b, sc_b)
+        ),
+        rms=float(np.sqrt(rss / sp.temp_c.size)),
+        scale_order=q,
+        scale_coef=tuple(float(c) for c in fit.beta[cols_s] * sc_s),
+        scale_cov=tuple(
+            tuple(float(v) for v in r) for r in fit.cov[cols_s, cols_s] * np.outer(sc_s, sc_s)
+        ),
+        scale_bic=bics,
+    )
+
+
 def fit_scale(
     pts: ThermalPoints,
     j: int,
@@ -383,75 +504,15 @@ def fit_scale(
     and axis down along a ramp, say); the order q (0 … :data:`MAX_SCALE_ORDER`) is chosen by
     the same wander-aware BIC as the bias. Not determinable: ``ch`` unchanged, or UserError
     naming the axis and the records needed when ``required``."""
-    name = CHANNELS[j]
-    t, y, grp = pts.temp_c, pts.values[:, j], pts.group
-    ng, k, m = len(pts.attitudes), ch.order, t.size
-    span = max(float(np.ptp(t)) / 2.0, 1e-6)
-    force = (pts.up[:, j] if pts.up is not None else np.full(m, np.nan)) * G_NOMINAL
-    q_top = min(MAX_SCALE_ORDER, max(top, 1))
-    d = (t - t_ref) / span
-    x = np.column_stack(
-        [design(t, grp, ng, k, t_ref, span)] + [force * d**q for q in range(1, q_top + 1)]
-    )
-    cols = x[:, : ng + k + 1]
-    norm = np.linalg.norm(cols, axis=0)
-    ok = bool(np.all(np.isfinite(force))) and bool(np.all(norm > 0))
-    if ok:
-        sv = np.linalg.svd(cols / norm, compute_uv=False)
-        ok = bool(sv[-1] > 1e-3 * sv[0])
-    if not ok:
-        if required:
-            raise UserError(
-                f"{name}: the accelerometer's scale against temperature needs attitudes with "
-                f"different gravity along {name[1]} (e.g. {name[1]} up and {name[1]} down), "
-                "each measured across the temperature span; these records have "
-                + ("attitudes of unknown direction" if not np.all(np.isfinite(force)) else
-                   f"one gravity along {name[1]} over the span")
-            )  # fmt: skip
+    sp = _scale_problem(pts, j, t_ref, top)
+    if not _scale_determinable(sp, ch.order, required):
         return ch
-    # the bias order and the scale order together (a scale change left out makes the bias
-    # look like wander): BIC over every pair, with the scale as the last columns
-    scale_cols = [force * d**q for q in range(1, q_top + 1)]
-    best: tuple[float, int, int, WanderFit] | None = None
-    no_scale = math.inf  # the best BIC without a scale term
-    bics: tuple[float, ...] = ()
-    for kk in [fixed_order] if fixed_order is not None else range(top + 1):
-        xk = np.column_stack([design(t, grp, ng, kk, t_ref, span), *scale_cols])
-        fits = fit_wander(xk, y[:, None], pts, range(q_top + 1), ng + kk, window_s)[0]
-        row = tuple(
-            -2.0 * f.loglik + (ng + BIC_PENALTY * (kk + q)) * math.log(m)
-            for q, f in enumerate(fits)
-        )
-        if kk == k:
-            bics = row
-        no_scale = min(no_scale, row[0])
-        for q in range(1, q_top + 1):
-            if best is None or row[q] < best[0]:
-                best = (row[q], kk, q, fits[q])
+    orders = [fixed_order] if fixed_order is not None else range(top + 1)
+    best, no_scale, bics = _scale_orders(sp, pts, orders, ch.order, window_s)
     if best is None or best[0] >= no_scale:
         return dataclasses.replace(ch, scale_bic=bics)
     _, k, q, fit = best
-    x = np.column_stack([design(t, grp, ng, k, t_ref, span), *scale_cols[:q]])
-    sc_b = np.array([span**-i for i in range(1, k + 1)])
-    sc_s = np.array([span**-i for i in range(1, q + 1)])
-    cols_b = slice(ng, ng + k)
-    cols_s = slice(ng + k, ng + k + q)
-    rss = float(np.sum((y - x @ fit.beta) ** 2))
-    return dataclasses.replace(
-        ch,
-        order=k,
-        coef=tuple(float(c) for c in fit.beta[cols_b] * sc_b),
-        cov=tuple(
-            tuple(float(v) for v in r) for r in fit.cov[cols_b, cols_b] * np.outer(sc_b, sc_b)
-        ),
-        rms=float(np.sqrt(rss / m)),
-        scale_order=q,
-        scale_coef=tuple(float(c) for c in fit.beta[cols_s] * sc_s),
-        scale_cov=tuple(
-            tuple(float(v) for v in r) for r in fit.cov[cols_s, cols_s] * np.outer(sc_s, sc_s)
-        ),
-        scale_bic=bics,
-    )
+    return _with_scale(ch, sp, k, q, fit, bics)
 
 
 def fit_thermal(

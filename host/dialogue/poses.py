@@ -21,7 +21,7 @@ import numpy as np
 
 from host.board.acquisition import Acquisition
 from host.board.driver import Board
-from host.calib.calibration import calibrate_from_records
+from host.calib.calibration import CalibrationOptions, calibrate_from_records
 from host.dialogue.console import Questions
 from host.dialogue.options import DialogueOptions
 from host.errors import UserError
@@ -205,10 +205,11 @@ def worst_fitted(records: Mapping[str, Record], opts: DialogueOptions, serial: s
 ):  # fmt: skip
     """(the worst σ/tolerance of the values the records determine, its name), from the fit of
     every record so far (``calibrate --from-dir``'s); ∞ while a value is not determined."""
+    c = opts.compute
     res = calibrate_from_records(
-        Session(serial=serial, records=dict(records)), latitude_deg=opts.compute.latitude_deg,
-        height_m=opts.compute.height_m, model=opts.compute.model,
-    )  # fmt: skip
+        Session(serial=serial, records=dict(records)),
+        CalibrationOptions(model=c.model, latitude_deg=c.latitude_deg, height_m=c.height_m),
+    )
     worst, name = 0.0, ""
     for p in res.parameters:
         tol = TOLERANCES.get(p.name)

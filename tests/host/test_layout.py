@@ -193,7 +193,6 @@ LONG_FUNCTIONS = {
     "host/bench/linksim.py:simulate_link",
     "host/bench/options.py:parse_sim_options",
     "host/board/flash.py:parse_ihex",
-    "host/calib/thermal_fit.py:fit_scale",
     "host/workbench/adaptive.py:adaptive_run",
     "host/workbench/planner.py:plan_next",
 }

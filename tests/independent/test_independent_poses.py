@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host.calib.calibration import calibrate_from_records
+from host.calib.calibration import CalibrationOptions, calibrate_from_records
 from host.session.directory import read_session
 from tests.independent.poses import (
     PoseSpec,
@@ -37,7 +37,9 @@ def _pulls(tmp: Path, seed: int) -> dict[str, tuple[float, float, float]]:
     spec = PoseSpec(seed=seed, poses=30)
     sess = simulate_poses(spec)
     write_poses(str(tmp), sess)
-    res = calibrate_from_records(read_session(tmp), latitude_deg=45.0, height_m=0.0)
+    res = calibrate_from_records(
+        read_session(tmp), CalibrationOptions(latitude_deg=45.0, height_m=0.0)
+    )
     assert sess.truth is not None
     truth = truth_in_frame(sess.truth)
     return {p.name: (p.value, p.stderr, truth[p.name]) for p in res.parameters

@@ -504,9 +504,9 @@ def test_calibration_recovers_the_constants_of_a_simulated_session(tmp_path) -> 
     write_session(tmp_path, "S12", recs)
     res = calibration.calibrate_from_records(
         read_session(tmp_path),
-        latitude_deg=bench.latitude_deg,
-        height_m=bench.height_m,
-        earth_rate=True,
+        calibration.CalibrationOptions(
+            latitude_deg=bench.latitude_deg, height_m=bench.height_m, earth_rate=True
+        ),
     )
     got, want = res.constants(), truth.constants()
     for name, value in want.items():

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from host.calib.applying import apply, verify
-from host.calib.calibration import calibrate_from_records
+from host.calib.calibration import CalibrationOptions, calibrate_from_records
 from host.calib.codec import result_from_json, result_to_json
 from host.errors import TermFileMismatch, UserError
 from host.session.directory import read_session
@@ -65,7 +65,9 @@ def test_custom_terms_only_from_the_callers_file_with_the_stored_hash(
 ) -> None:
     marker = tmp_path / "marker"
     f = _term_file(tmp_path, marker)
-    res = calibrate_from_records(read_session(session_dir), model="base,warm:gyro", term_files=[f])
+    res = calibrate_from_records(
+        read_session(session_dir), CalibrationOptions(model="base,warm:gyro", term_files=[f])
+    )
     marker.unlink()
     assert res.model == "base,warm:gyro"
     assert (

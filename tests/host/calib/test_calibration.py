@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from host.calib.applying import apply
-from host.calib.calibration import calibrate_from_records, stage1, stage2
+from host.calib.calibration import CalibrationOptions, calibrate_from_records, stage1, stage2
 from host.calib.codec import FORMAT_VERSION, result_from_json, result_to_json
 from host.calib.result import CalibrationResult
 from host.calib.verdict import passed
@@ -257,7 +257,7 @@ def test_turn_that_did_not_happen() -> None:
         match=r"SIM1_x_ccw.txt: the cube turned [+-]0° about \+X, "
         r"expected \+720°",
     ):
-        calibrate_from_records(_session(recs), turns=2)
+        calibrate_from_records(_session(recs), CalibrationOptions(turns=2))
 
 
 def test_no_statics_is_an_error() -> None:
@@ -298,7 +298,7 @@ def test_incomplete_turn_is_named() -> None:
         match=r"SIM1_z_ccw.txt: the cube turned \+3[56]\d° about \+Z, "
         r"expected \+720° \(2 turns\)",
     ):
-        calibrate_from_records(_session(recs), turns=2)
+        calibrate_from_records(_session(recs), CalibrationOptions(turns=2))
     # the number of turns is inferred when not given: then it is the odd one out
     res = calibrate_from_records(_session(recs))
     assert res.turns is None and any("different numbers of turns" in n for n in res.notes)
@@ -395,7 +395,7 @@ def test_apply_gives_g_and_zero_rate(standard: CalibrationResult) -> None:
 def test_earth_rate_option() -> None:
     recs = make_records(seed=12)
     a = calibrate_from_records(_session(recs))
-    b = calibrate_from_records(_session(recs), earth_rate=True)
+    b = calibrate_from_records(_session(recs), CalibrationOptions(earth_rate=True))
     # the vertical Earth rate (0.0035 °/s at 55.75°) moves the g-sensitivity, not the scale
     assert abs(b.constants()["GAzz"] - a.constants()["GAzz"]) == pytest.approx(
         15.041067 / 3600 * math.sin(math.radians(55.75)), rel=0.05

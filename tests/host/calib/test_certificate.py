@@ -17,7 +17,7 @@ import pytest
 
 from host.__main__ import main
 from host.calib.bench_file import load_bench_file
-from host.calib.calibration import calibrate_from_records
+from host.calib.calibration import CalibrationOptions, calibrate_from_records
 from host.calib.certificate import (
     FROM_BENCH_FILE,
     FROM_DEFAULT,
@@ -48,8 +48,8 @@ CUSTOMER = "ACME Drones Ltd, 5 Rotor Lane"
 
 @pytest.fixture(scope="module")
 def result() -> CalibrationResult:
-    return calibrate_from_records(Session("CERT1", make_records(seed=5)),
-                                  created="2026-11-30T10:00:00+01:00")  # fmt: skip
+    options = CalibrationOptions(created="2026-11-30T10:00:00+01:00")
+    return calibrate_from_records(Session("CERT1", make_records(seed=5)), options)
 
 
 def _pages(text: str) -> list[list[str]]:

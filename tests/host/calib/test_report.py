@@ -12,7 +12,7 @@ import pytest
 
 from host import __version__
 from host.__main__ import main
-from host.calib.calibration import calibrate_from_records
+from host.calib.calibration import CalibrationOptions, calibrate_from_records
 from host.calib.codec import result_from_json, result_to_json
 from host.calib.report import format_report, write_results
 from host.calib.result import CalibrationResult
@@ -33,7 +33,8 @@ REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example
 def result() -> CalibrationResult:
     truth = dict(TRUTH, A0z=-0.95)  # one value outside its tolerance (±0.8)
     return calibrate_from_records(
-        Session("SIM7", make_records(seed=13, truth=truth)), created="2024-05-06T10:11:12+03:00"
+        Session("SIM7", make_records(seed=13, truth=truth)),
+        CalibrationOptions(created="2024-05-06T10:11:12+03:00"),
     )
 
 

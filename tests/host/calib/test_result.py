@@ -14,7 +14,7 @@ import pytest
 from host.__main__ import main
 from host.bench.plan import write_session
 from host.calib.applying import apply
-from host.calib.calibration import calibrate_from_records
+from host.calib.calibration import CalibrationOptions, calibrate_from_records
 from host.calib.codec import FORMAT_VERSION, read_result, result_from_json, result_to_json
 from host.calib.result import CalibrationResult
 from host.errors import UserError
@@ -98,7 +98,7 @@ def test_hidden_temperature_bias_round_trip(
 
 def test_apply_names_the_missing_input(temperature_session: tuple[Path, str, float]) -> None:
     d, term, _ = temperature_session
-    res = calibrate_from_records(read_session(d), model=f"base,{term}")
+    res = calibrate_from_records(read_session(d), CalibrationOptions(model=f"base,{term}"))
     rec = next(iter(read_session(d).records.values()))
     with pytest.raises(UserError, match=rf"term temperature_bias:gyro:{term[-1]} .* temp_c="):
         apply(res, rec.accel, rec.gyro)

@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from host.calib.calibration import calibrate_from_records
+from host.calib.calibration import CalibrationOptions, calibrate_from_records
 from host.calib.codec import result_from_json, result_to_json
 from host.calib.report import format_report
 from host.calib.result import CalibrationResult
@@ -25,7 +25,9 @@ def _result(self_test: str | None) -> CalibrationResult:
     if self_test is not None:
         for rec in records.values():
             rec.meta["self_test"] = self_test
-    return calibrate_from_records(Session("ST1", records), created="2024-05-06T10:11:12+03:00")
+    return calibrate_from_records(
+        Session("ST1", records), CalibrationOptions(created="2024-05-06T10:11:12+03:00")
+    )
 
 
 @pytest.mark.parametrize(

@@ -358,7 +358,7 @@ def test_scale_against_temperature_is_carried_by_the_result(tmp_path) -> None:
     (chip near 31 °C): apply() returns ±g along z over 22–70 °C in both attitudes."""
     from host.bench.plan import Plan, simulate_session, write_session
     from host.calib.applying import apply
-    from host.calib.calibration import calibrate_from_records
+    from host.calib.calibration import CalibrationOptions, calibrate_from_records
     from host.session.directory import read_session
 
     recs = simulate_thermal(SCALE_TRUTH, CHAMBER, FLIP_PLAN, seed=13)
@@ -366,7 +366,9 @@ def test_scale_against_temperature_is_carried_by_the_result(tmp_path) -> None:
     env = Environment(room_c=22.0, rise_c=10.0, tau_s=300.0, room_amp_c=0.0)
     write_session(tmp_path, "T8", simulate_session(SCALE_TRUTH, Plan(environment=env), seed=9))
     session = read_session(tmp_path)
-    fitted = calibrate_from_records(session, thermal=cal, thermal_source="T8_thermal.json")
+    fitted = calibrate_from_records(
+        session, CalibrationOptions(thermal=cal, thermal_source="T8_thermal.json")
+    )
     result = result_from_json(result_to_json(fitted))
     assert "thermal_scale" in result.model
     assert result.parameter("thermal_scale.accel.z.per_C").value == pytest.approx(3e-4, rel=0.02)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from host.calib.applying import verify
-from host.calib.calibration import calibrate_from_records
+from host.calib.calibration import CalibrationOptions, calibrate_from_records
 from host.model.dataset import build_dataset, session_from_records
 from host.model.fit import fit_model, predict, predict_session
 from host.model.spec import parse_model
@@ -59,7 +59,7 @@ def test_verify_a_result_with_shared_terms_on_other_records() -> None:
     axis)."""
     fitted = session_from_records(hidden_effect_case("none", seed=6).records)
     other = session_from_records(hidden_effect_case("none", seed=6, static_s=12.0).records)
-    result = calibrate_from_records(fitted, model="base,plate_tilt:accel")
+    result = calibrate_from_records(fitted, CalibrationOptions(model="base,plate_tilt:accel"))
     v = verify(result, other, source="other")
     assert v.values and v.passed
     assert 0.3 < v.rms_z < 3.0

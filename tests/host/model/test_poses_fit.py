@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from host.calib.calibration import calibrate_from_records
+from host.calib.calibration import CalibrationOptions, calibrate_from_records
 from host.model.poses import (
     FRAME_FIXED,
     MoveInput,
@@ -82,7 +82,9 @@ def _pose_session(rng: np.random.Generator, m: np.ndarray, b: np.ndarray, n: int
 def test_a_pose_session_is_calibrated_in_the_accelerometers_frame() -> None:
     rng = np.random.default_rng(11)
     m, b = _unit_matrix(rng), rng.uniform(-0.3, 0.3, 3)
-    res = calibrate_from_records(_pose_session(rng, m, b, 24), latitude_deg=45.0, height_m=0.0)
+    res = calibrate_from_records(
+        _pose_session(rng, m, b, 24), CalibrationOptions(latitude_deg=45.0, height_m=0.0)
+    )
     by = {p.name: p for p in res.parameters}
     assert res.g == pytest.approx(G, abs=2e-3)
     # the truth is upper triangular: it is in the convention's frame already
