@@ -94,6 +94,15 @@ def read_samplelog(path: str | Path) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------- board
+def _check_fault_and_self_test(fault: str | None, self_test: str) -> None:
+    """UserError unless ``fault`` is None or one of :data:`FAULTS` and ``self_test`` one of
+    :data:`SELF_TEST_PARTS`."""
+    if fault is not None and fault not in FAULTS:
+        raise UserError(f"emulator fault must be one of {', '.join(FAULTS)}, not {fault!r}")
+    if self_test not in SELF_TEST_PARTS:
+        raise UserError(f"emulator self_test must be pass or fail, not {self_test!r}")
+
+
 class EmulatedBoard:
     """Run ``apm_emu`` with a firmware ELF; ``.port`` is the pseudo-terminal to open.
 
@@ -142,15 +151,12 @@ class EmulatedBoard:
         boot: bool = False,
         flash: str | Path | None = None,
     ) -> None:
-        if fault is not None and fault not in FAULTS:
-            raise UserError(f"emulator fault must be one of {', '.join(FAULTS)}, not {fault!r}")
+        _check_fault_and_self_test(fault, self_test)
         self.elf = Path(elf) if elf else None
         self.stimulus = stimulus
         self.seconds = seconds
         self.realtime = realtime
         self.fault = fault
-        if self_test not in SELF_TEST_PARTS:
-            raise UserError(f"emulator self_test must be pass or fail, not {self_test!r}")
         self.self_test = self_test
         self.fault_at = fault_at
         self.noise_accel = noise_accel
@@ -170,6 +176,10 @@ class EmulatedBoard:
         self.reglog_path = self._log_path(reglog, "reglog.csv")
         self.samplelog_path = self._log_path(samplelog, "samplelog.csv")
         self.summary_path = self.workdir / "summary.json"
+        self._not_started()
+
+    def _not_started(self) -> None:
+        """The state before :meth:`start`: no port, process, summary or stimulus pipe yet."""
         self.port: str | None = None
         self.summary: dict[str, Any] | None = None
         self.stimulus_pipe: IO[bytes] | None = None

@@ -67,25 +67,34 @@ class LinkCapture:
         return MAGIC + b"".join(struct.pack("<QI", t, len(b)) + b for t, b in self.chunks)
 
 
-def simulate_link(p: LinkParams) -> LinkCapture:
-    """Simulate ``p.seconds`` of streaming; deterministic from ``p.seed``."""
-    rng = np.random.default_rng(p.seed)
+def _sample_times(
+    p: LinkParams, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(true time of each data-ready s since start, its ISR latency µs, the device time it is
+    stamped with µs): the device clock runs at rate 1 + skew(t), the skew drifting linearly,
+    read at the timer's resolution."""
     period_s = 1.0 / (p.sample_hz * (1.0 + p.sample_clock_error))
     n = int(p.seconds / period_s)
     t = 0.05 + np.arange(n) * period_s  # true time of data-ready, s since start
-    # device clock: rate (1 + skew(t)), skew drifting linearly
     skew = p.skew_ppm * 1e-6
     drift = p.drift_ppm_per_min * 1e-6 / 60.0
     dev_exact = (t + skew * t + 0.5 * drift * t**2) * 1e6
     latency = rng.uniform(*p.isr_latency_us, n)
     res = p.timer_resolution_us
     device_us = p.device_t0_us + np.floor((dev_exact + latency) / res) * res
-    # frames: IMU samples, and a STATUS frame every status_every_s
+    return t, latency, device_us
+
+
+def _frame_events(
+    p: LinkParams, t: np.ndarray, latency: np.ndarray, device_us: np.ndarray
+) -> list[tuple[float, bytes]]:
+    """(time the frame is ready to send s, its bytes) of every IMU sample, and a STATUS frame
+    every ``p.status_every_s``."""
+    n = t.size
     counts = np.tile([120, -340, 16390, -2400, 37, -55, 12], (n, 1))
     t_wire = (device_us.astype(np.int64)) % (1 << 32)
     imu = encode_imu_samples(0, t_wire, counts)
-    byte_s = 10.0 / p.baud
-    events: list[tuple[float, bytes]] = []  # (time the frame is ready to send, bytes)
+    events: list[tuple[float, bytes]] = []
     next_status = p.status_every_s
     seq = p.seq0
     for k in range(n):
@@ -103,7 +112,13 @@ def simulate_link(p: LinkParams) -> LinkCapture:
             seq += 1
             events.append((ready + 1e-4, st))
             next_status += p.status_every_s
-    # UART: bytes leave one after another; time each byte is fully received by the bridge
+    return events
+
+
+def _uart(events: list[tuple[float, bytes]], baud: int) -> tuple[np.ndarray, bytearray]:
+    """The UART: bytes leave one after another; (the time each byte is fully received by the
+    bridge s, all the bytes)."""
+    byte_s = 10.0 / baud
     byte_times: list[np.ndarray] = []
     payload = bytearray()
     line_free = 0.0
@@ -112,13 +127,19 @@ def simulate_link(p: LinkParams) -> LinkCapture:
         byte_times.append(start + byte_s * (1 + np.arange(len(frame_bytes))))
         line_free = start + byte_s * len(frame_bytes)
         payload += frame_bytes
-    bt = np.concatenate(byte_times)
-    # bridge: flush at timer ticks (random phase); each flush goes out at the next USB frame
+    return np.concatenate(byte_times), payload
+
+
+def _host_reads(
+    p: LinkParams, rng: np.random.Generator, bt: np.ndarray, payload: bytearray
+) -> list[tuple[int, bytes]]:
+    """(host ns, bytes) of each read: the bridge flushes at timer ticks (random phase), each
+    flush goes out at the next USB frame; the OS makes each USB delivery readable after
+    jitter, and a read returns everything readable at that moment (spikes delay one read and
+    everything behind it)."""
     phase = rng.uniform(0, p.flush_ms * 1e-3)
     flush_at = np.ceil((bt - phase) / (p.flush_ms * 1e-3)) * (p.flush_ms * 1e-3) + phase
     usb = np.ceil(flush_at / (p.usb_frame_ms * 1e-3)) * (p.usb_frame_ms * 1e-3)
-    # the OS: each USB delivery becomes readable after jitter; a read returns everything
-    # readable at that moment (spikes delay one read and everything behind it)
     deliveries, idx = np.unique(usb, return_index=True)
     ready_at = deliveries + rng.exponential(p.os_jitter_us * 1e-6, deliveries.size)
     spikes = rng.random(deliveries.size) < p.spike_prob
@@ -134,5 +155,14 @@ def simulate_link(p: LinkParams) -> LinkCapture:
         data = bytes(payload[bounds[i] : bounds[j + 1]])
         chunks.append((p.host_t0_ns + int(round(ready_at[j] * 1e9)), data))
         i = j + 1
+    return chunks
+
+
+def simulate_link(p: LinkParams) -> LinkCapture:
+    """Simulate ``p.seconds`` of streaming; deterministic from ``p.seed``."""
+    rng = np.random.default_rng(p.seed)
+    t, latency, device_us = _sample_times(p, rng)
+    bt, payload = _uart(_frame_events(p, t, latency, device_us), p.baud)
+    chunks = _host_reads(p, rng, bt, payload)
     true_host = p.host_t0_ns + t * 1e9
     return LinkCapture(chunks, true_host, device_us, p)

@@ -21,9 +21,9 @@ the *sensor's* faults (``protocol_emu``). Options only one scheme has stay in it
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
@@ -137,88 +137,95 @@ class BenchDraw:
     operator_ss: np.random.SeedSequence
 
 
+_T = TypeVar("_T")
+
+
+def _option(key: str, parse: Callable[[], _T]) -> _T:
+    """``parse()``'s value; its ValueError as an :class:`OptionError` naming option ``key``."""
+    try:
+        return parse()
+    except ValueError as exc:
+        raise OptionError(key, str(exc)) from None
+
+
+def _speed(text: str) -> float | None:
+    """``speed=``: ``realtime`` (1), ``max`` (None) or simulated s per wall s."""
+    speed = text.lower()
+    if speed == "realtime":
+        return 1.0
+    return None if speed == "max" else bounded("speed", speed, *SPEED_RANGE)
+
+
+def _choice(key: str, text: str, allowed: tuple[str, str]) -> str:
+    """``text`` lowercased, one of the two ``allowed``; ValueError otherwise."""
+    value = text.lower()
+    if value not in allowed:
+        raise ValueError(f"{key} must be {allowed[0]} or {allowed[1]}, not {value!r}")
+    return value
+
+
+def _faults(
+    opts: Mapping[str, Sequence[str]], fault_is_operator: bool
+) -> tuple[tuple[tuple[str, float], ...], float | None]:
+    """(the operator's faults (name, K), the cable's pull time s or None) of ``operator_fault=``
+    (and of ``fault=`` where it is the operator's, ``fault_is_operator``)."""
+    from host.bench.operator import OPERATOR_FAULTS
+
+    faults: list[tuple[str, float]] = []
+    cable: float | None = None
+    sources: list[tuple[str, tuple[str, ...]]] = [("operator_fault", OPERATOR_FAULTS)]
+    if fault_is_operator:
+        sources.insert(0, ("fault", (*OPERATOR_FAULTS, CABLE_FAULT)))
+    for key, known in sources:
+        for text in opts.get(key, []):
+            name, _, arg = text.partition("@")
+            if name not in known:
+                raise OptionError(key, f"unknown fault {name!r}; known: {', '.join(known)}")
+            try:
+                k = bounded(f"{key}={name}@", arg, 0.0, 1e6) if arg else None
+            except ValueError as exc:
+                raise OptionError(key, str(exc)) from None
+            if name == CABLE_FAULT:
+                cable = 5.0 if k is None else k
+            else:
+                faults.append((name, 1.0 if k is None else k))
+    return tuple(faults), cable
+
+
 def parse_sim_options(
     opts: Mapping[str, Sequence[str]], speed_default: str, fault_is_operator: bool
 ) -> SimOptions:
     """:data:`KEYS` of parsed query ``opts`` (``urllib.parse.parse_qs``; the last value of a key
-    wins) -> :class:`SimOptions`; :class:`OptionError` naming the bad option.
+    wins) -> :class:`SimOptions`; :class:`OptionError` naming the bad option (the first, in the
+    order read here).
 
     ``speed_default``: ``realtime`` or ``max``. ``fault_is_operator``: ``fault=`` is the old
     spelling of ``operator_fault=`` plus the cable fault (``sim://``).
     """
-    from host.bench.operator import OPERATOR_FAULTS
 
     def one(key: str, default: str) -> str:
         return opts.get(key, [default])[-1]
 
-    key = ""
-    try:
-        key = "seed"
-        seed = _int(one("seed", "0"))
-        key = "speed"
-        speed_text = one("speed", speed_default).lower()
-        speed = (
-            1.0
-            if speed_text == "realtime"
-            else None
-            if speed_text == "max"
-            else bounded("speed", speed_text, *SPEED_RANGE)
-        )
-        key = "truth"
-        truth = one("truth", "random").lower()
-        if truth not in ("random", "ideal"):
-            raise ValueError(f"truth must be random or ideal, not {truth!r}")
-        key = "operator"
-        operator = one("operator", "auto").lower()
-        if operator not in ("auto", "manual"):
-            raise ValueError(f"operator must be auto or manual, not {operator!r}")
-        key = "effects"
-        effects = (
-            tuple(e for e in one("effects", "").split(",") if e) if "effects" in opts else None
-        )
-        key = "latitude"
-        latitude = bounded(key, one("latitude", "55.75"), -90.0, 90.0)
-        key = "tilt"
-        tilt = bounded(key, one("tilt", "0"), -90.0, 90.0)
-        key = "chamber"
-        chamber = tuple(parse_chamber(one(key, "")).items()) if key in opts else ()
-        key = "revision"
-        product_id = parse_revision(one(key, "D8"))
-        key = "self_test"
-        self_test_fail = parse_self_test(one(key, "pass"))
-        faults: list[tuple[str, float]] = []
-        cable: float | None = None
-        sources: list[tuple[str, tuple[str, ...]]] = [("operator_fault", OPERATOR_FAULTS)]
-        if fault_is_operator:
-            sources.insert(0, ("fault", (*OPERATOR_FAULTS, CABLE_FAULT)))
-        for key, known in sources:
-            for text in opts.get(key, []):
-                name, _, arg = text.partition("@")
-                if name not in known:
-                    raise ValueError(f"unknown fault {name!r}; known: {', '.join(known)}")
-                k = bounded(f"{key}={name}@", arg, 0.0, 1e6) if arg else None
-                if name == CABLE_FAULT:
-                    cable = 5.0 if k is None else k
-                else:
-                    faults.append((name, 1.0 if k is None else k))
-    except ValueError as exc:
-        raise OptionError(key, str(exc)) from None
-    earth = one("earth_rate", "1").lower() not in ("0", "false", "no")
-    return SimOptions(
-        seed,
-        speed,
-        truth,
-        effects,
-        operator,
-        latitude,
-        tilt,
-        earth,
-        tuple(faults),
-        chamber,
-        cable,
-        product_id,
-        self_test_fail,
+    seed = _option("seed", lambda: _int(one("seed", "0")))
+    speed = _option("speed", lambda: _speed(one("speed", speed_default)))
+    truth = _option("truth", lambda: _choice("truth", one("truth", "random"), ("random", "ideal")))
+    operator = _option(
+        "operator", lambda: _choice("operator", one("operator", "auto"), ("auto", "manual"))
     )
+    effects = tuple(e for e in one("effects", "").split(",") if e) if "effects" in opts else None
+    latitude = _option("latitude", lambda: bounded("latitude", one("latitude", "55.75"), -90, 90))
+    tilt = _option("tilt", lambda: bounded("tilt", one("tilt", "0"), -90.0, 90.0))
+    chamber = (
+        _option("chamber", lambda: tuple(parse_chamber(one("chamber", "")).items()))
+        if "chamber" in opts
+        else ()
+    )
+    product_id = _option("revision", lambda: parse_revision(one("revision", "D8")))
+    self_test_fail = _option("self_test", lambda: parse_self_test(one("self_test", "pass")))
+    faults, cable = _faults(opts, fault_is_operator)
+    earth = one("earth_rate", "1").lower() not in ("0", "false", "no")
+    return SimOptions(seed, speed, truth, effects, operator, latitude, tilt, earth, faults,
+                      chamber, cable, product_id, self_test_fail)  # fmt: skip
 
 
 def parse_self_test(text: str) -> bool:

@@ -88,21 +88,36 @@ class HexImage:
         return bytes(out)
 
 
-def parse_ihex(path: str | Path, limit: int = APP_SECTION_BYTES) -> HexImage:
-    """Read and check an Intel hex file (record types 00–05) for flashing.
-
-    Raises :class:`UserError` naming the file and line for: a line that is not a record, a
-    byte count that does not match, a bad checksum, an unknown record type, overlapping data,
-    no end-of-file record, no data at all, or data at or beyond ``limit`` bytes (default: the
-    application section, 256 KiB flash − 8 KiB bootloader).
-    """
-    p = Path(path)
+def _hex_text(p: Path) -> str:
+    """The text of hex file ``p``; UserError when it is missing or binary."""
     try:
-        text = p.read_bytes().decode("ascii")
+        return p.read_bytes().decode("ascii")
     except FileNotFoundError:
         raise UserError(f"{p}: no such hex file (build it: make -C firmware)") from None
     except UnicodeDecodeError:
         raise UserError(f"{p}: not an Intel hex file (binary data)") from None
+
+
+def _hex_record(line: str, where: str) -> bytes:
+    """One record's bytes (count, address, type, data, checksum), its form, byte count and
+    checksum checked."""
+    if not line.startswith(":") or len(line) < 11 or len(line) % 2 == 0:
+        raise UserError(f"{where}: not an Intel hex record: corrupt hex")
+    try:
+        rec = bytes.fromhex(line[1:])
+    except ValueError:
+        raise UserError(f"{where}: not hexadecimal: corrupt hex") from None
+    if len(rec) != rec[0] + 5:
+        raise UserError(f"{where}: byte count {rec[0]} does not match the line: corrupt hex")
+    if sum(rec) & 0xFF:
+        want = (-sum(rec[:-1])) & 0xFF
+        raise UserError(f"{where}: checksum 0x{rec[-1]:02X} should be 0x{want:02X}: corrupt hex")
+    return rec
+
+
+def _hex_data(p: Path, text: str) -> list[tuple[int, bytes]]:
+    """(address, bytes) of every data record of hex file ``p`` (its ``text``), at the address
+    its extended segment or linear address records give, up to the end-of-file record."""
     records: list[tuple[int, bytes]] = []
     base = 0
     seen_eof = False
@@ -113,21 +128,8 @@ def parse_ihex(path: str | Path, limit: int = APP_SECTION_BYTES) -> HexImage:
         where = f"{p}: line {lineno}"
         if seen_eof:
             raise UserError(f"{where}: data after the end-of-file record: corrupt hex")
-        if not line.startswith(":") or len(line) < 11 or len(line) % 2 == 0:
-            raise UserError(f"{where}: not an Intel hex record: corrupt hex")
-        try:
-            rec = bytes.fromhex(line[1:])
-        except ValueError:
-            raise UserError(f"{where}: not hexadecimal: corrupt hex") from None
-        count, addr, rtype = rec[0], (rec[1] << 8) | rec[2], rec[3]
-        if len(rec) != count + 5:
-            raise UserError(f"{where}: byte count {count} does not match the line: corrupt hex")
-        if sum(rec) & 0xFF:
-            want = (-sum(rec[:-1])) & 0xFF
-            raise UserError(
-                f"{where}: checksum 0x{rec[-1]:02X} should be 0x{want:02X}: corrupt hex"
-            )
-        data = rec[4:-1]
+        rec = _hex_record(line, where)
+        count, addr, rtype, data = rec[0], (rec[1] << 8) | rec[2], rec[3], rec[4:-1]
         if rtype == 0x00:
             if data:
                 records.append((base + addr, data))
@@ -137,15 +139,18 @@ def parse_ihex(path: str | Path, limit: int = APP_SECTION_BYTES) -> HexImage:
             base = int.from_bytes(data, "big") << 4
         elif rtype == 0x04 and count == 2:  # extended linear address (<< 16)
             base = int.from_bytes(data, "big") << 16
-        elif rtype in (0x03, 0x05) and count == 4:  # start address: not flashed
-            pass
-        else:
+        elif rtype not in (0x03, 0x05) or count != 4:  # 03, 05 start address: not flashed
             raise UserError(f"{where}: bad record type 0x{rtype:02X}: corrupt hex")
     if not seen_eof:
         raise UserError(f"{p}: no end-of-file record (truncated?): corrupt hex")
+    return records
+
+
+def _segments(p: Path, records: list[tuple[int, bytes]]) -> dict[int, bytes]:
+    """Start address -> bytes of each run of contiguous data; UserError where data overlap."""
     if not records:
         raise UserError(f"{p}: no data in this hex file")
-    records.sort()
+    records = sorted(records)
     segments: dict[int, bytes] = {}
     start, buf = records[0][0], bytearray()
     for addr, data in records:
@@ -156,7 +161,19 @@ def parse_ihex(path: str | Path, limit: int = APP_SECTION_BYTES) -> HexImage:
             start, buf = addr, bytearray()
         buf += data
     segments[start] = bytes(buf)
-    image = HexImage(p, segments)
+    return segments
+
+
+def parse_ihex(path: str | Path, limit: int = APP_SECTION_BYTES) -> HexImage:
+    """Read and check an Intel hex file (record types 00–05) for flashing.
+
+    Raises :class:`UserError` naming the file and line for: a line that is not a record, a
+    byte count that does not match, a bad checksum, an unknown record type, overlapping data,
+    no end-of-file record, no data at all, or data at or beyond ``limit`` bytes (default: the
+    application section, 256 KiB flash − 8 KiB bootloader).
+    """
+    p = Path(path)
+    image = HexImage(p, _segments(p, _hex_data(p, _hex_text(p))))
     if image.end > limit:
         raise UserError(
             f"{p}: the image reaches 0x{image.end:05X} ({image.end} bytes), more than the "
