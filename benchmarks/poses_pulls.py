@@ -2,9 +2,12 @@
 independent simulator (``tests/independent/poses.py``: random attitudes, moves about random
 axes, the unit's scale, misalignment, bias, g-sensitivity, noise, quantisation) calibrated with
 ``calibrate_from_records``; prints per session the largest |fitted − truth|/σ, the largest
-scale error, and over all sessions the pulls' mean and SD per parameter family.
+scale error, and over all sessions the pulls' mean and SD per parameter family, and the
+hand-held pose's variance components (``--creep``: the hand turns the unit at that rate, °/s
+per axis, during each rest).
 
     OPENBLAS_NUM_THREADS=1 python3 benchmarks/poses_pulls.py --sessions 50 --poses 30
+    OPENBLAS_NUM_THREADS=1 python3 benchmarks/poses_pulls.py --sessions 50 --poses 30 --creep 0.02
 """
 
 from __future__ import annotations
@@ -24,9 +27,12 @@ from host.session.directory import read_session  # noqa: E402
 from tests.independent.poses import PoseSpec, simulate_poses, truth_in_frame, write_poses  # noqa: E402
 
 
-def session_pulls(seed: int, poses: int) -> dict[str, tuple[float, float, float]]:
-    """name -> (fitted, σ, truth in the accelerometer's frame) of every determined value."""
-    spec = PoseSpec(seed=seed, poses=poses)
+def session_pulls(
+    seed: int, poses: int, creep: float = 0.0, components: dict[str, list[float]] | None = None
+) -> dict[str, tuple[float, float, float]]:
+    """name -> (fitted, σ, truth in the accelerometer's frame) of every determined value; the
+    pose components' values appended to ``components`` (name -> values)."""
+    spec = PoseSpec(seed=seed, poses=poses, creep_dps=creep)
     sess = simulate_poses(spec)
     with tempfile.TemporaryDirectory() as d:
         write_poses(d, sess)
@@ -36,6 +42,11 @@ def session_pulls(seed: int, poses: int) -> dict[str, tuple[float, float, float]
         )
     assert sess.truth is not None
     truth = truth_in_frame(sess.truth)
+    for line in res.notes:
+        for name in ("pose rate", "pose hold"):
+            if components is not None and line.startswith(f"a named variance component: {name}: "):
+                value = line.split(": ")[2].split(" ")[0]
+                components.setdefault(name, []).append(float(value))
     return {
         p.name: (p.value, p.stderr, truth[p.name])
         for p in res.parameters
@@ -48,11 +59,13 @@ def main() -> None:
     ap.add_argument("--sessions", type=int, default=50)
     ap.add_argument("--poses", type=int, default=30)
     ap.add_argument("--seed0", type=int, default=1000)
+    ap.add_argument("--creep", type=float, default=0.0, help="the hand's rate in a pose, °/s")
     args = ap.parse_args()
+    comps: dict[str, list[float]] = {}
     families: dict[str, list[float]] = {}
     worst_scale = 0.0
     for k in range(args.sessions):
-        got = session_pulls(args.seed0 + k, args.poses)
+        got = session_pulls(args.seed0 + k, args.poses, args.creep, comps)
         z = {n: (v - t) / s for n, (v, s, t) in got.items()}
         for n, zz in z.items():
             own = n[0] + ("s" if n[1] == n[2] else "m")
@@ -76,6 +89,12 @@ def main() -> None:
         f"all n={len(everything)} SD {everything.std(ddof=1):.2f}; "
         f"largest scale error {worst_scale:.2g}"
     )
+    for name, values in sorted(comps.items()):
+        v = np.array(values)
+        print(
+            f"{name}: resolved in {np.count_nonzero(v)} of {len(v)} sessions, median "
+            f"{np.median(v):.3g}, mean {v.mean():.3g}, max {v.max():.3g}"
+        )
 
 
 if __name__ == "__main__":

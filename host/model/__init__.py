@@ -25,8 +25,9 @@ figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imp
   samples.
 - ``variance`` — named variance components: the turns' angle error and wobble, each measured
   with its own degrees of freedom.
-- ``components`` — the turn-angle and wobble components estimated jointly with a fit (REML-style,
-  from its residuals, with their own degrees of freedom).
+- ``components`` — the turn-angle and wobble components, and a hand-held pose's rate and hold,
+  estimated jointly with a fit (REML-style, from its residuals, with their own degrees of
+  freedom).
 - ``dataset`` — the dataset of a session: the records' signals, rows, noise and whitening.
 - ``rows`` — one builder per kind of row (block means, turn integrals, still moments, moving
   blocks) and the turn rows' own noise (seating, the hand).

@@ -1,5 +1,6 @@
 """Variance components estimated jointly with the fit (issue 24): the hand's turn-angle error
-and its wobble on the turn integrals, each with its own degrees of freedom.
+and its wobble on the turn integrals, and a hand-held pose's rate and hold (issue 41), each
+with its own degrees of freedom.
 
 Before a fit, :mod:`host.model.variance` measures the turn angle from the closures of the turns
 made both ways (ccw + cw less the static reading). A term of the model that explains those
@@ -15,10 +16,21 @@ residual, w_i the row's variance without the component (white noise integrated, 
 h_i its leverage in the whitened fit: E[r_i²] = (w_i + σ²)·(1 − h_i). Its degrees of freedom are
 Σ(1 − h_i), what the model leaves to it (3 for the turn angle under ``base`` with three axes
 turned both ways; 0 once an asymmetry per axis takes every closure: the component is then not
-measured and the rows carry their white noise only). A component counts only when the
-rows' Σr_i² is beyond what their white variance gives (mean Σw_i·(1 − h_i), variance
-2·Σ(w_i·(1 − h_i))², :func:`host.model.stats.beyond_white`): a clipped 0 ± se would widen the
-yardstick under the null, and one resolved by chance widens it in that session. A turn angle
+measured and the rows carry their white noise only).
+
+A unit held still by hand in a pose is not quite still: it creeps (a pose's gyro means scatter
+beyond their white noise, a gyro bias wandering between records alike: the rows cannot tell the
+two apart), and it settles into the pose and out of it (a move starts at the rest's last
+sample and ends at the next rest's first, away from the rests' mean attitudes, which the
+poses' attitudes are). The first is ``pose rate`` (°/s) over each pose's gyro means — the
+row of a group of block means it adds to is their mean, σ² on the mean's variance, the
+contrasts as they were —, the second ``pose hold`` (°) over the moves' rows; a session without
+poses has neither.
+
+A component counts only when the rows' Σr_i² is beyond what their white variance gives (mean
+Σw_i·(1 − h_i), variance 2·Σ(w_i·(1 − h_i))², :func:`host.model.stats.beyond_white`): a
+clipped 0 ± se would widen the yardstick under the null, and one resolved by chance widens it
+in that session. A turn angle
 given by the user (``NoiseModel.turn_angle_sigma_deg``) is kept as given.
 """
 
@@ -37,6 +49,8 @@ from host.model.fit import Fit, fit_model
 from host.model.spec import ModelTerm
 from host.model.stats import beyond_white
 from host.model.variance import (
+    POSE_HOLD_PLAUSIBLE_DEG,
+    POSE_RATE_PLAUSIBLE_DPS,
     TURN_ANGLE_PLAUSIBLE_DEG,
     TURN_WOBBLE_PLAUSIBLE_DEG,
     Component,
@@ -60,23 +74,60 @@ class JointFit:
 @dataclass(frozen=True)
 class _Spec:
     name: str
-    rows: np.ndarray  # the rows the component covers (single-row groups)
-    groups: tuple[int, ...]  # their groups in ds.groups
-    white: np.ndarray  # each row's variance without the component
+    unit: str
+    groups: tuple[int, ...]  # the groups it covers in ds.groups
+    rows: np.ndarray  # per group the whitened row it adds to: a one-row group's, or its mean's
+    white: np.ndarray  # each such row's variance without the component
     fixed: bool
     absorbs: str
     most: float
     why: str
+    #: the Dataset field that holds its σ ('' : read from ``Dataset.components``)
+    field: str = ""
 
 
-def _specs(ds: Dataset) -> list[_Spec]:
+def _spec(ds: Dataset, name: str, idx: list[int], old: float, fixed: bool = False) -> _Spec:
+    """The component ``name`` (:data:`_WORDS`) over the groups ``idx`` of ``ds``, at ``old``."""
+    unit, absorbs, most, why, field = _WORDS[name]
+    rows = np.array([int(ds.groups[k].rows[0]) for k in idx], dtype=int)
+    white = np.array([max(ds.groups[k].sigma ** 2 - old**2, 0.0) for k in idx])
+    return _Spec(name, unit, tuple(idx), rows, white, fixed, absorbs, most, why, field)
+
+
+#: name -> (unit, what it absorbs, plausible up to, why not beyond, its Dataset field)
+_WORDS: dict[str, tuple[str, str, float, str, str]] = {
+    "turn angle": ("°", (
+        "the scatter of the up-axis turn integrals the model leaves: the hand's angle "
+        "error, and a gyro scale asymmetry alike unless the model has one"),
+        TURN_ANGLE_PLAUSIBLE_DEG, "a turn short or long by a step", "turn_angle_sigma_deg"),
+    "turn wobble": ("°", (
+        "the scatter of the cross-axis turn integrals the model leaves: the hand "
+        "tilting the cube while it turns (or a tilted turn axis)"),
+        TURN_WOBBLE_PLAUSIBLE_DEG, "more than a hand's wobble gives", "turn_wobble_sigma_deg"),
+    "pose rate": ("°/s", (
+        "the scatter of the poses' gyro means the model leaves: the unit turning slowly "
+        "while held still (a hand's creep), and a gyro bias wandering between records alike"),
+        POSE_RATE_PLAUSIBLE_DPS, "more than a hand held still turns", ""),
+    "pose hold": ("°", (
+        "the scatter of the moves' rows the model leaves: the attitude at a rest's end or "
+        "start away from the rest's mean (a hand settling into or out of a pose)"),
+        POSE_HOLD_PLAUSIBLE_DEG, "more than a hand settling in a pose gives", ""),
+}  # fmt: skip
+
+
+def _current(ds: Dataset, name: str) -> float:
+    """The σ the rows of the component ``name`` carry in ``ds`` (0 before any joint fit)."""
+    field = _WORDS[name][4]
+    if field:
+        return float(getattr(ds, field))
+    return next((c.value for c in ds.components if c.name == name and c.dof > 0), 0.0)
+
+
+def _turn_specs(ds: Dataset) -> list[_Spec]:
     """The turn-angle component on the up channels' turn integrals, the wobble on the others."""
     given = not ds.closures and ds.turn_angle_sigma_deg > 0.0
     out = []
-    for up, name, old in (
-        (True, "turn angle", ds.turn_angle_sigma_deg),
-        (False, "turn wobble", ds.turn_wobble_sigma_deg),
-    ):
+    for up, name in ((True, "turn angle"), (False, "turn wobble")):
         idx = [
             k
             for k, gr in enumerate(ds.groups)
@@ -85,25 +136,46 @@ def _specs(ds: Dataset) -> list[_Spec]:
             and len(gr.rows) == 1
             and (abs(float(ds.signals[gr.record].up[gr.axis])) > 0.5) == up
         ]
-        rows = np.array([int(ds.groups[k].rows[0]) for k in idx], dtype=int)
-        white = np.array([max(ds.groups[k].sigma ** 2 - old**2, 0.0) for k in idx])
-        if up:
-            absorbs = (
-                "the scatter of the up-axis turn integrals the model leaves: the hand's angle "
-                "error, and a gyro scale asymmetry alike unless the model has one"
-            )
-            most, why = TURN_ANGLE_PLAUSIBLE_DEG, "a turn short or long by a step"
-        else:
-            absorbs = (
-                "the scatter of the cross-axis turn integrals the model leaves: the hand "
-                "tilting the cube while it turns (or a tilted turn axis)"
-            )
-            most, why = TURN_WOBBLE_PLAUSIBLE_DEG, "more than a hand's wobble gives"
-        out.append(_Spec(name, rows, tuple(idx), white, up and given, absorbs, most, why))
+        out.append(_spec(ds, name, idx, _current(ds, name), up and given))
     return out
 
 
-def _estimate(spec: _Spec, fit: Fit) -> tuple[float, float, float]:
+def _mean_row(ds: Dataset, k: int) -> bool:
+    """Whether group ``k``'s first whitened row is its rows' mean (a static's block means)."""
+    rows = ds.groups[k].rows
+    w = ds.whiten.block(rows)
+    return bool(np.allclose(w[0], w[0, 0]))
+
+
+def _pose_specs(ds: Dataset) -> list[_Spec]:
+    """A hand-held pose (issue 41): the rate on the poses' gyro means, the hold on the moves'
+    rows; none in a session without poses (its results unchanged)."""
+    kinds = [ds.signals[gr.record].kind for gr in ds.groups]
+    rate = [
+        k
+        for k, gr in enumerate(ds.groups)
+        if kinds[k] == "pose" and gr.sensor == "gyro" and _mean_row(ds, k)
+    ]
+    hold = [k for k, gr in enumerate(ds.groups) if kinds[k] == "move" and len(gr.rows) == 1]
+    return [
+        _spec(ds, name, idx, _current(ds, name))
+        for name, idx in (("pose rate", rate), ("pose hold", hold))
+        if idx
+    ]
+
+
+def _specs(ds: Dataset) -> list[_Spec]:
+    """Every component ``ds``'s rows carry: the turns' two, and a pose's two with poses."""
+    return _turn_specs(ds) + _pose_specs(ds)
+
+
+def _residuals(spec: _Spec, ds: Dataset, fit: Fit) -> np.ndarray:
+    """Each covered row's residual as ``spec.white`` measures it: a one-row group's own, a
+    group of block means its mean."""
+    return np.array([float(np.mean(fit.residual[ds.groups[k].rows])) for k in spec.groups])
+
+
+def _estimate(spec: _Spec, ds: Dataset, fit: Fit) -> tuple[float, float, float]:
     """(σ² resolved or 0, its standard error, dof Σ(1 − h)) from ``fit``'s residuals."""
     if not len(spec.rows):
         return 0.0, math.nan, 0.0
@@ -112,7 +184,7 @@ def _estimate(spec: _Spec, fit: Fit) -> tuple[float, float, float]:
     dof = float(np.sum(free))
     if dof < 0.5:
         return 0.0, math.nan, dof
-    r = fit.residual[spec.rows]
+    r = _residuals(spec, ds, fit)
     wf = spec.white * free
     var = float(np.sum(r * r - wf)) / dof
     resolved = var if beyond_white(float(r @ r), float(np.sum(wf)), 2.0 * float(wf @ wf)) else 0.0
@@ -121,32 +193,38 @@ def _estimate(spec: _Spec, fit: Fit) -> tuple[float, float, float]:
 
 
 def _reweigh(ds: Dataset, spec: _Spec, var: float) -> Dataset:
-    """``ds`` with the rows of ``spec`` weighed by their white variance + ``var``."""
+    """``ds`` with the rows of ``spec`` weighed by their white variance + ``var``: a one-row
+    group's weight, a group of block means its mean's (its contrasts as they were)."""
     whiten = ds.whiten
     groups = list(ds.groups)
-    for k, row, w in zip(spec.groups, spec.rows, spec.white, strict=True):
+    for k, w in zip(spec.groups, spec.white, strict=True):
         s2 = float(w) + var
-        whiten = whiten.with_block(np.array([row]), np.array([[1.0 / math.sqrt(s2)]]))
+        rows = groups[k].rows
+        block = whiten.block(rows).copy()
+        block[0] = 1.0 / (len(rows) * math.sqrt(s2)) if len(rows) > 1 else 1.0 / math.sqrt(s2)
+        whiten = whiten.with_block(rows, block)
         groups[k] = dataclasses.replace(groups[k], sigma=math.sqrt(s2))
-    field = "turn_angle_sigma_deg" if spec.name == "turn angle" else "turn_wobble_sigma_deg"
-    return dataclasses.replace(ds, whiten=whiten, groups=tuple(groups), **{field: math.sqrt(var)})  # type: ignore[arg-type]
+    own = {spec.field: math.sqrt(var)} if spec.field else {}
+    return dataclasses.replace(ds, whiten=whiten, groups=tuple(groups), **own)  # type: ignore[arg-type]
 
 
 def _component(spec: _Spec, var: float, se: float, dof: float) -> Component:
     if spec.fixed:
         value = math.sqrt(var)
-        return Component(spec.name, value, 0.0, 0, "°", "the hand's angle error (given)")
+        return Component(spec.name, value, 0.0, 0, spec.unit, "the hand's angle error (given)")
     value = math.sqrt(var)
     if value > 0:
         sigma = se / (2.0 * value)
     else:
         sigma = math.sqrt(se) if math.isfinite(se) else math.nan
-    plausible = f"{value:.2g}° over {spec.most:g}°: {spec.why}" if value > spec.most else ""
-    return Component(spec.name, value, sigma, int(round(dof)), "°", spec.absorbs, plausible)
+    unit = spec.unit
+    over = value > spec.most
+    plausible = f"{value:.2g}{unit} over {spec.most:g}{unit}: {spec.why}" if over else ""
+    return Component(spec.name, value, sigma, int(round(dof)), unit, spec.absorbs, plausible)
 
 
 def without_components(ds: Dataset, names: Sequence[str]) -> Dataset:
-    """``ds`` with the rows of the components ``names`` ("turn angle", "turn wobble") weighed by
+    """``ds`` with the rows of the components ``names`` (:data:`_WORDS`) weighed by
     their white variance alone, the component at 0: the yardstick on which what an implausible
     component took up (a step, a tilt, an unmodelled term) shows as misfit."""
     for s in _specs(ds):
@@ -158,18 +236,15 @@ def without_components(ds: Dataset, names: Sequence[str]) -> Dataset:
 def fit_with_components(
     ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 10, built: BuiltColumns | None = None
 ) -> JointFit:
-    """Fit ``model`` (:func:`host.model.fit.fit_model`) with the turn-angle and wobble
-    components estimated jointly with it (module docstring): fit, estimate each from the
-    residuals, reweigh its rows, fit again until they settle. Reweighing changes the whitening,
-    never the design: every fit reads the terms' columns built once (``built``: those already
-    built on these rows, :class:`~host.model.design.BuiltColumns`)."""
+    """Fit ``model`` (:func:`host.model.fit.fit_model`) with the variance components (the
+    turns' angle and wobble, a pose's rate and hold) estimated jointly with it (module
+    docstring): fit, estimate each from the residuals, reweigh its rows, fit again until they
+    settle. Reweighing changes the whitening, never the design: every fit reads the terms'
+    columns built once (``built``: those already built on these rows,
+    :class:`~host.model.design.BuiltColumns`)."""
     built = built if built is not None else BuiltColumns(ds)
     specs = _specs(ds)
-    var = {
-        s.name: (ds.turn_angle_sigma_deg if s.name == "turn angle" else ds.turn_wobble_sigma_deg)
-        ** 2
-        for s in specs
-    }
+    var = {s.name: _current(ds, s.name) ** 2 for s in specs}
     est: dict[str, tuple[float, float, float]] = {}
     cur = ds
     fit = fit_model(cur, model, built=built)
@@ -180,7 +255,7 @@ def fit_with_components(
             if s.fixed:
                 est[s.name] = (var[s.name], 0.0, 0.0)
                 continue
-            est[s.name] = _estimate(s, fit)
+            est[s.name] = _estimate(s, cur, fit)
             new = est[s.name][0]
             scale = float(np.mean(s.white)) if len(s.white) else 1.0
             if abs(new - var[s.name]) > SETTLE * max(scale, 1e-30):
@@ -192,7 +267,8 @@ def fit_with_components(
         fit = fit_model(cur, model, built=built)
         iterations += 1
     comps = tuple(_component(s, var[s.name], *est[s.name][1:]) for s in specs)
-    notes = tuple(n for n in cur.notes if not n.startswith("a named variance component: turn"))
+    old = tuple(f"a named variance component: {name}:" for name in var)
+    notes = tuple(n for n in cur.notes if not n.startswith(old))
     cur = dataclasses.replace(
         cur,
         components=tuple(c for c in cur.components if c.name not in var) + comps,

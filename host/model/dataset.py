@@ -463,7 +463,7 @@ def build_dataset(
     whiten, groups = whiten_rows(rows.table.channels, signals, np.array(rows.table.y), row_noise)
     whiten = _tilted_turn_sigmas(whiten, groups, signals, placed.tilted)
     whiten, move_rows_of, move_aggs, links = add_moves(
-        rows.table, signals, records, sensor.white_level, whiten, groups
+        rows.table, signals, records, sensor.white_level, whiten, groups, sensor.floors["gyro"]
     )
     rows.sensor_aggs.update(move_aggs)
     notes = [*observed.notes, *placed.notes, *sensor.notes, *turn.notes]

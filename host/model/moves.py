@@ -27,12 +27,14 @@ def add_moves(
     white_level: Mapping[tuple[str, int], float],
     whiten: Whitener,
     groups: list[Group],
+    floor: float = 0.0,
 ) -> tuple[Whitener, dict[tuple[int, str, int], np.ndarray], dict[tuple[int, str, int], np.ndarray],
            RecordLinks]:  # fmt: skip
     """Add every move's rows to ``table`` (after the other rows were whitened: ``whiten``,
     ``groups``, extended here), with the gyro's white noise ``white_level`` ((sensor, axis) ->
-    variance·τ of one sample). Returns (the whitener of all rows, the moves' rows per gyro
-    channel, their weights per gyro channel (2, N) s, the rows that read each pose's attitude)."""
+    variance·τ of one sample) and its noise floor ``floor`` (°/s). Returns (the whitener of all
+    rows, the moves' rows per gyro channel, their weights per gyro channel (2, N) s, the rows
+    that read each pose's attitude)."""
     index = {s.name: i for i, s in enumerate(signals)}
     white = np.array([white_level.get(("gyro", a), 0.0) for a in range(3)])
     blocks = list(whiten.blocks)
@@ -44,7 +46,7 @@ def add_moves(
             continue
         first, last = signals[index[rec.move_from]], signals[index[rec.move_to]]
         t_rel = sig.t_s - sig.t_s[0]
-        mv = move_rows(t_rel, sig.gyro, sig.rate, first.up, last.up, white)
+        mv = move_rows(t_rel, sig.gyro, sig.rate, first.up, last.up, white, floor)
         span = [(0.0, float(t_rel[-1]))]
         rows = []
         for k in range(2):

@@ -321,18 +321,21 @@ def move_rows(
     up_from: np.ndarray,
     up_to: np.ndarray,
     white: np.ndarray,
+    floor: float = 0.0,
 ) -> MoveRows:
     """A move's rows, linearised about the reference rate ``rate_dps`` (N, 3) °/s (the first
     estimates' reading of the gyro ``gyro_dps``, :meth:`FirstEstimates.reference_rate`) and
     the poses' first attitudes ``up_from``, ``up_to``: the calibrated rate must carry gravity
     from the one to the other (:func:`move_geometry`), along two directions across ``up_to``,
     chosen so that the gyro's white noise (``white`` (3,) variance·τ of one sample per channel,
-    (°/s)²) leaves the two rows uncorrelated. Row k: Σ_a w_ka·gyro_a + miss_k (°) against
-    Σ_a w_ka·rate_a, so that the model's gyro terms (their columns w_ka·regressors) and the
-    attitudes' corrections explain their difference."""
+    (°/s)²) and its noise floor (``floor`` °/s: a bias of the record's own on each channel, as
+    a turn integral carries it) leave the two rows uncorrelated. Row k: Σ_a w_ka·gyro_a +
+    miss_k (°) against Σ_a w_ka·rate_a, so that the model's gyro terms (their columns
+    w_ka·regressors) and the attitudes' corrections explain their difference."""
     across = attitude_basis(up_to)
     miss, w, rot = move_geometry(t_s, rate_dps, up_from, across)
-    cov = np.einsum("kna,lna,a->kl", w, w, white)
+    total = w.sum(axis=1)  # (2, 3): what a constant rate on each channel moves the miss by
+    cov = np.einsum("kna,lna,a->kl", w, w, white) + floor**2 * (total @ total.T)
     lam, vec = np.linalg.eigh(cov)
     w2 = np.einsum("kl,kna->lan", vec, w)
     miss2 = vec.T @ np.degrees(miss)

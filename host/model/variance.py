@@ -81,6 +81,11 @@ class Component:
 TURN_ANGLE_PLAUSIBLE_DEG = 3.0
 #: a hand's wobble (a degree or two of tilt) moves a cross-axis integral by far less, °
 TURN_WOBBLE_PLAUSIBLE_DEG = 0.5
+#: a unit held still by hand creeps by a degree in ten seconds at most, °/s (a pose's gyro mean)
+POSE_RATE_PLAUSIBLE_DPS = 0.1
+#: a hand settling into a pose or out of it moves the rest's ends by less than this from the
+#: rest's mean attitude, ° (a move's rows)
+POSE_HOLD_PLAUSIBLE_DEG = 0.5
 
 
 def turn_angle_sigma(closures: Sequence[TurnClosure]) -> Component:

@@ -141,6 +141,14 @@ class Whitener:
         """W⁻¹·a for ``a`` (n,) or (n, k): whitened values back to the rows."""
         return self._per_block(a, "inv_apply")
 
+    def block(self, rows: np.ndarray) -> np.ndarray:
+        """The block (b, b) of W of the rows ``rows`` (one group's, in its order)."""
+        rows = np.asarray(rows, dtype=np.intp)
+        k = self._index.get(int(rows[0]), -1) if len(rows) else -1
+        if k < 0 or not np.array_equal(self.blocks[k][0], rows):
+            raise ValueError(f"rows {rows.tolist()} are not one block of this whitener")
+        return self.blocks[k][1]
+
     def with_block(self, rows: np.ndarray, w_block: np.ndarray) -> Whitener:
         """A copy with the block of the rows ``rows`` (one group's, in its order) replaced by
         ``w_block`` (b, b)."""

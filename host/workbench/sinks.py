@@ -5,7 +5,10 @@ scatter of the turn integrals the model leaves. A hand gives a degree or two of 
 misses a stop by a step: a component beyond its plausible range
 (:data:`host.model.variance.TURN_WOBBLE_PLAUSIBLE_DEG`, ``TURN_ANGLE_PLAUSIBLE_DEG``) has taken
 up something else — a bias step between two turn records reaches only the cross-axis integrals
-of the turns after it, which the wobble then holds as the hand's. Such a diagnosis is never
+of the turns after it, which the wobble then holds as the hand's. A unit held by hand in poses
+creeps and settles (``POSE_RATE_PLAUSIBLE_DPS`` on the poses' gyro means,
+``POSE_HOLD_PLAUSIBLE_DEG`` on the moves' rows): beyond that, a gyro step or an unmodelled
+effect of the moves is more likely than the hand. Such a diagnosis is never
 ``adequate``; the residuals are scanned again on the yardstick without the component (its rows
 at their white noise), and the strongest signals found are each put into the model in turn
 with the components estimated jointly again: the first with which every component is
@@ -36,7 +39,7 @@ from host.workbench.steps import STEP, Placed
 #: how many of the strongest signals (one per channel) are tried as what a component absorbed
 TRIED = 4
 #: the components whose plausibility is checked (estimated jointly with the fit)
-CHECKED = ("turn angle", "turn wobble")
+CHECKED = ("turn angle", "turn wobble", "pose rate", "pose hold")
 
 
 @dataclass(frozen=True)
@@ -53,8 +56,8 @@ class Absorbed:
 
     def describe(self) -> str:
         """One sentence for people."""
-        what = "; ".join(f"{c.name} {c.value:.2g}° ({c.plausible})" for c in self.components)
-        now = ", ".join(f"{c.name} {c.value:.2g}°" for c in self.after if c.name in CHECKED)
+        what = "; ".join(f"{c.name} {c.value:.2g}{c.unit} ({c.plausible})" for c in self.components)
+        now = ", ".join(f"{c.name} {c.value:.2g}{c.unit}" for c in self.after if c.name in CHECKED)
         if self.by_terms:
             return f"{what}: it absorbed what {self.by_terms} explains (with it: {now})"
         if self.hit is None:

@@ -6,7 +6,10 @@ The truth is the unit's §2 error model (:func:`tests.independent.truth.random_b
 misalignment, bias, g-sensitivity) in the unit's own body frame. Each pose is a rest with
 gravity along a random body direction; each move turns the body by two rotations about random
 axes (a smooth speed profile each), integrated exactly: a room-fixed vector seen in the body
-turns by the inverse rotation. The records are ``pose_01`` … and ``move_01_02`` … (the move
+turns by the inverse rotation. With ``creep_dps`` the hand that holds each pose is not quite
+still: the body turns at a constant rate of its own during each rest (each axis normal with
+that sd, °/s), so a pose's gyro reads that rate and its attitude drifts from the rest's start
+to its end, where the move starts. The records are ``pose_01`` … and ``move_01_02`` … (the move
 from the last sample of the rest before to the first sample of the rest after, so each move's
 first and last samples are at rest). Outputs: white noise, quantised to the MPU-6000's counts.
 
@@ -44,7 +47,8 @@ GYRO_DENSITY = 0.005
 @dataclass(frozen=True)
 class PoseSpec:
     """One session: ``poses`` rests of ``pose_s`` s, moves of two rotations of ``move_s`` s
-    each (their angles 40–120°), ``seed``; ``latitude_deg``/``height_m`` set local g."""
+    each (their angles 40–120°), ``seed``; ``latitude_deg``/``height_m`` set local g;
+    ``creep_dps`` the hand's rate during each rest (module docstring; 0: perfectly still)."""
 
     seed: int = 1
     poses: int = 30
@@ -52,6 +56,7 @@ class PoseSpec:
     move_s: float = 1.2
     latitude_deg: float = 45.0
     height_m: float = 0.0
+    creep_dps: float = 0.0
 
 
 @dataclass
@@ -119,6 +124,16 @@ def _text(name: str, meta: dict[str, str], t0_s: float, accel: np.ndarray, gyro:
     return record_text(name, {**meta, "power_on_s": f"{t0_s:.3f}"}, t_ms, accel, gyro, temp)
 
 
+def _rest_path(up: np.ndarray, rate_rad: np.ndarray, n: int) -> np.ndarray:
+    """(n, 3) gravity's direction in the body during a rest that starts at ``up`` while the
+    body turns at ``rate_rad`` (3,) rad/s: by R(axis, −|ω|·t)."""
+    speed = float(np.linalg.norm(rate_rad))
+    if speed == 0.0:
+        return np.tile(up, (n, 1))
+    axis = rate_rad / speed
+    return np.array([rot_about(axis, -speed * k / FS_HZ) @ up for k in range(n)])
+
+
 def simulate_poses(spec: PoseSpec) -> PoseSession:
     """A session of ``spec.poses`` poses and the moves between them, the truth beside it."""
     rng = np.random.default_rng(spec.seed)
@@ -129,24 +144,32 @@ def simulate_poses(spec: PoseSpec) -> PoseSession:
     n_move = int(round(spec.move_s * FS_HZ))
     up = _random_unit(rng)
     t = 10.0
+
+    def creep() -> np.ndarray:  # drawn only with a creep: a still hand's sessions unchanged
+        return np.radians(rng.normal(0.0, spec.creep_dps, 3)) if spec.creep_dps else np.zeros(3)
+
+    omega = creep()
     for i in range(1, spec.poses + 1):
         name = f"pose_{i:02d}"
-        accel, gyro = _outputs(rng, truth, g, np.tile(up, (n_pose, 1)), np.zeros((n_pose, 3)))
+        rest = _rest_path(up, omega, n_pose)
+        accel, gyro = _outputs(rng, truth, g, rest, np.tile(omega, (n_pose, 1)))
         out.records[name] = _text(name, {"source": "independent"}, t, accel, gyro)
         out.ups.append(up)
         t += spec.pose_s
         if i == spec.poses:
             break
+        up = rest[-1]
         path, rate, end = _move_path(rng, up, n_move)
+        nxt = creep()
         # from the last sample of the rest before to the first sample of the rest after
         path = np.vstack([up, path, end])
-        rate = np.vstack([np.zeros(3), rate, np.zeros(3)])
+        rate = np.vstack([omega, rate, nxt])
         accel, gyro = _outputs(rng, truth, g, path, rate)
         mname = f"move_{i:02d}_{i + 1:02d}"
         meta = {"source": "independent", "from": name, "to": f"pose_{i + 1:02d}"}
         out.records[mname] = _text(mname, meta, t, accel, gyro)
         t += 2 * spec.move_s
-        up = end
+        up, omega = end, nxt
     return out
 
 
