@@ -35,6 +35,8 @@ figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imp
 - ``design`` — each term's columns of the design matrix.
 - ``solve`` — the weighted least squares of a model over a dataset's rows; χ² alone.
 - ``fit`` — the fit, its public result types and the residual tables.
+- ``channels`` — the fit's per-channel statistics (the moves' rows a channel of their own) and
+  the factor each parameter's standard error is widened by.
 - ``stats`` — χ² tail probabilities, the uncertainty policy (``stderr_scale``).
 - ``loo`` — leave-one-record-out prediction.
 - ``turning`` — the accelerometer while the cube turns: lever arm, moving blocks, the hand.

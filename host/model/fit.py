@@ -13,26 +13,34 @@ The rows are whitened exactly (record mean + orthonormal within-record contrasts
 :mod:`host.model.noise`); χ² is then honest under the null and needs no inflation. Terms
 nonlinear in their parameters are linearised around the current estimate and the fit iterated
 (Gauss-Newton). The results: :class:`Fit` with its :class:`Parameter` values, per-channel
-statistics (:class:`ChannelFit`) and residual tables (:func:`residual_tables`).
+statistics (:class:`~host.model.channels.ChannelFit`) and residual tables (:func:`residual_tables`).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from host.model.channels import (
+    MOVE_ROWS,
+    ChannelFit,
+    channel_fits,
+    estimable_columns,
+    free_levels,
+    parameter_scales,
+)
 from host.model.dataset import Dataset, build_dataset
 from host.model.design import BuiltColumns, design
 from host.model.noise import NoiseModel
 from host.model.poses import FRAME_FIXED
-from host.model.signals import AXES, SENSORS, UNIT
+from host.model.signals import AXES, UNIT
 from host.model.solve import solve
 from host.model.spec import ModelTerm
-from host.model.stats import ALPHA_FIT, chi2_sf, right_singular, rref, stderr_scale
-from host.model.whitening import Group, group_means
+from host.model.stats import ALPHA_FIT, chi2_sf
+from host.model.whitening import group_means
 from host.session.directory import Session
 from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 
@@ -57,53 +65,6 @@ class Parameter:
     def term_name(self) -> str:
         """The catalogue name of the owning term ('temperature_bias')."""
         return self.term.split(":")[0]
-
-
-@dataclass(frozen=True, eq=False)
-class Combination:
-    """A combination of undetermined parameters that the records DO determine:
-    Σ coefficient·parameter = value ± stderr (unit of the first parameter)."""
-
-    terms: tuple[tuple[float, str], ...]  # (coefficient, parameter name)
-    value: float
-    stderr: float
-    unit: str
-
-    def describe(self) -> str:
-        """'A0x + 9.815·Axx = 0.6021 ± 0.0003 m/s²'."""
-        parts: list[str] = []
-        for i, (c, n) in enumerate(self.terms):
-            sign = "−" if c < 0 else "+"
-            mag = abs(c)
-            coef = "" if abs(mag - 1.0) < 1e-9 else f"{mag:.4g}·"
-            parts.append((("−" if c < 0 else "") if i == 0 else f" {sign} ") + coef + n)
-        return f"{''.join(parts)} = {self.value:.6g} ± {self.stderr:.2g} {self.unit}".strip()
-
-
-@dataclass(frozen=True, eq=False)
-class ChannelFit:
-    """Fit statistics of one output channel (the channels are independent problems).
-
-    ``dof`` = rows − determined parameters; ``dof_records`` = record/channel values −
-    parameters (the between-record test: 0 means the model is not tested at all, verdict
-    ``untestable``); ``se_scale``: :func:`stderr_scale`; ``combinations``: what the records
-    determine of the undetermined parameters."""
-
-    sensor: str
-    axis: str
-    chi2: float
-    dof: int
-    dof_records: int
-    se_scale: float
-    combinations: tuple[Combination, ...] = ()
-
-    @property
-    def channel(self) -> str:
-        return f"{self.sensor} {self.axis}"
-
-    @property
-    def testable(self) -> bool:
-        return self.dof_records > 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,6 +127,9 @@ class Fit:
     #: the parameters' covariance (order of ``parameters``, the standard errors' scaling
     #: applied, so its diagonal is stderr²); NaN rows and columns for undetermined ones
     covariance: np.ndarray | None = None
+    #: parameter name -> the factor its standard error was widened by (:func:`stderr_scale`
+    #: of its channel; a parameter the moves' rows read: at least the moves' factor)
+    se_scales: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def untestable(self) -> tuple[str, ...]:
@@ -233,19 +197,17 @@ def fit_model(
         for ax, name, key in mt.slots(ds.signals):
             ch = (mt.sensor, -1 if ax is None else ax)
             owners.append((name, mt.unit(key), ch, mt.label, key))
-    channels, estimable = _channel_fits(ds, x, xw, wres, th0, cov, owners)
+    channels, estimable = channel_fits(ds, x, xw, wres, th0, cov, owners, basis)
     if any(mt.term.twin_columns is not None for mt in model):
         # a term read by both sensors couples their channels: what all rows determine
-        estimable = _estimable(xw)
-    scale_of = {(c.sensor, AXES.index(c.axis)): c.se_scale for c in channels}
-    for chf in channels:  # a shared parameter: the largest scale of its sensor's channels
-        scale_of[(chf.sensor, -1)] = max(scale_of.get((chf.sensor, -1), 1.0), chf.se_scale)
+        estimable = estimable_columns(xw)
+    scale = parameter_scales(ds, channels, owners, x)
     params: list[Parameter] = []
     undetermined: list[str] = []
     fixed = _by_convention(ds)
     for c, (name, unit, ch, label, key) in enumerate(owners):
         ok = bool(keep[c] and estimable[c]) or name in fixed
-        se = math.sqrt(max(float(cov[c, c]), 0.0)) * scale_of.get(ch, 1.0) if ok else math.nan
+        se = math.sqrt(max(float(cov[c, c]), 0.0)) * float(scale[c]) if ok else math.nan
         value = (0.0 if name in fixed else float(theta[c])) if ok else math.nan
         params.append(
             Parameter(name, label, value, 0.0 if name in fixed else se, unit, ch[0],
@@ -254,7 +216,6 @@ def fit_model(
         if not ok:
             undetermined.append(name)
     groups, spans_out = residual_tables(ds, predicted, resid, basis)
-    scale = np.array([scale_of.get(ch, 1.0) for (_, _, ch, _, _) in owners])
     pcov = cov * np.outer(scale, scale)
     bad = ~(keep & estimable)
     pcov[bad, :] = np.nan
@@ -264,10 +225,11 @@ def fit_model(
     pcov[:, conv] = 0.0
     return Fit(
         model=model, parameters=tuple(params), predicted=predicted, residual=resid,
-        white_residual=wres, basis=basis, chi2=chi2, dof=ds.n_rows - n_par - _free(ds.groups),
+        white_residual=wres, basis=basis, chi2=chi2, dof=ds.n_rows - n_par - free_levels(ds.groups),
         n_params=n_par,
         groups=groups, spans=spans_out, undetermined=tuple(undetermined),
         channels=tuple(channels), covariance=pcov,
+        se_scales={o[0]: float(k) for o, k in zip(owners, scale, strict=True)},
     )  # fmt: skip
 
 
@@ -295,155 +257,6 @@ def residual_sigmas(ds: Dataset, basis: np.ndarray) -> np.ndarray:
     return np.sqrt(np.maximum(var, 0.0))
 
 
-def _channel_fits(
-    ds: Dataset,
-    x: np.ndarray,
-    xw: np.ndarray,
-    wres: np.ndarray,
-    theta: np.ndarray,
-    cov: np.ndarray,
-    owners: Sequence[tuple[str, str, tuple[str, int], str, str]],
-) -> tuple[list[ChannelFit], np.ndarray]:
-    """Per output channel: χ², dof, record-level dof, the standard-error scale, which columns
-    the records determine individually (a parameter is determined when its unit vector lies in
-    the row space of the channel's design) and the combinations they do determine."""
-    estimable = np.zeros(len(owners), dtype=bool)
-    out: list[ChannelFit] = []
-    joint = _pose_record_dof(ds, x, owners)  # with poses: over a sensor's channels together
-    for s_i, sensor in enumerate(SENSORS):
-        for ax in range(3):
-            rows = np.flatnonzero((ds.row_sensor == s_i) & (ds.row_axis == ax))
-            grs = [g for g in ds.groups if g.sensor == sensor and g.axis == ax]
-            if not len(rows):
-                continue
-            cols = np.array(
-                [c for c, o in enumerate(owners) if o[2] in ((sensor, ax), (sensor, -1))],
-                dtype=int,
-            )
-            xc = xw[np.ix_(rows, cols)] if len(cols) else np.zeros((len(rows), 0))
-            norms = np.linalg.norm(xc, axis=0)
-            live = norms > 0
-            rank, null = 0, np.zeros((len(cols), 0))
-            if live.any():
-                xn = xc[:, live] / norms[live]
-                sv, vt = right_singular(xn)
-                rank = int(np.sum(sv > 1e-9 * sv[0])) if len(sv) else 0
-                null = np.zeros((len(cols), vt.shape[0] - rank))
-                null[live] = vt[rank:].T / norms[live, None]  # back to parameter units
-            for j, c in enumerate(cols):
-                estimable[c] = (
-                    estimable[c]
-                    or bool(live[j])
-                    and (null.shape[1] == 0 or float(np.linalg.norm(null[j] * norms[j])) < 1e-6)
-                )
-            # record-level design: one row per record/channel value (mean of its rows; not a
-            # free level's, which is a value of its own)
-            tested = [g for g in grs if not g.free_level]
-            rank_g = _record_rank(x, tested, cols)
-            chi2 = float(wres[rows] @ wres[rows])
-            dof = len(rows) - rank - _free(grs)
-            scale = stderr_scale(chi2, dof)
-            combos = (
-                _combinations(cols, estimable, null, norms, theta, cov * scale**2, owners)
-                if null.shape[1]
-                else ()
-            )
-            dof_g = joint.get(sensor, len(tested) - rank_g)
-            out.append(ChannelFit(sensor, AXES[ax], chi2, dof, dof_g, scale, combos))
-    if any(o[2][1] < 0 for o in owners):
-        # shared parameters couple the channels: what all rows together determine
-        estimable = _estimable(xw)
-    return out, estimable
-
-
-def _pose_record_dof(
-    ds: Dataset, x: np.ndarray, owners: Sequence[tuple[str, str, tuple[str, int], str, str]]
-) -> dict[str, int]:
-    """sensor -> its record-level dof counted over its three channels together, in a session
-    with poses: a pose's attitude (two unknowns shared by the accelerometer's channels) is
-    tested by the three values it explains, which no channel alone shows. {} without poses."""
-    if not any(sig.kind == "pose" for sig in ds.signals):
-        return {}
-    out: dict[str, int] = {}
-    for sensor in SENSORS:
-        tested = [g for g in ds.groups if g.sensor == sensor and not g.free_level]
-        cols = np.array([c for c, o in enumerate(owners) if o[2][0] == sensor], dtype=int)
-        if tested and len(cols):
-            out[sensor] = len(tested) - _record_rank(x, tested, cols)
-    return out
-
-
-def _record_rank(x: np.ndarray, tested: Sequence[Group], cols: np.ndarray) -> int:
-    """The rank of the record-level design: one row per record/channel value of ``tested``
-    (the mean of its rows of the design ``x``), on the columns ``cols``."""
-    if not len(cols) or not tested:
-        return 0
-    xg = np.array([x[np.ix_(g.rows, cols)].mean(axis=0) for g in tested])
-    gn = np.linalg.norm(xg, axis=0)
-    return int(np.linalg.matrix_rank(xg[:, gn > 0] / gn[gn > 0], tol=1e-9))
-
-
-def _free(groups: Sequence[Group]) -> int:
-    """How many of ``groups`` have a level of their own (each takes one degree of freedom as
-    a parameter would: its rows' mean is weighed out,
-    :data:`host.model.whitening.FREE_LEVEL_RAD`)."""
-    return sum(gr.free_level for gr in groups)
-
-
-def _estimable(xw: np.ndarray) -> np.ndarray:
-    """(P,) which columns of the whitened design ``xw`` (n, P) the rows determine: the
-    parameter's unit vector lies in the row space (it has no part in the null space)."""
-    norms = np.linalg.norm(xw, axis=0)
-    live = norms > 0
-    out = np.zeros(xw.shape[1], dtype=bool)
-    if not live.any():
-        return out
-    sv, vt = right_singular(xw[:, live] / norms[live])
-    rank = int(np.sum(sv > 1e-9 * sv[0])) if len(sv) else 0
-    null = vt[rank:].T
-    idx = np.flatnonzero(live)
-    for j, c in enumerate(idx):
-        out[c] = null.shape[1] == 0 or float(np.linalg.norm(null[j])) < 1e-6
-    return out
-
-
-def _combinations(
-    cols: np.ndarray,
-    estimable: np.ndarray,
-    null: np.ndarray,
-    norms: np.ndarray,
-    theta: np.ndarray,
-    cov: np.ndarray,
-    owners: Sequence[tuple[str, str, tuple[str, int], str, str]],
-) -> tuple[Combination, ...]:
-    """Combinations c·θ of the undetermined parameters of one channel that the records
-    determine: c supported on them with cᵀ·N = 0 (N the null space of the design)."""
-    und = [j for j, c in enumerate(cols) if not estimable[c] and norms[j] > 0]
-    if not und:
-        return ()
-    # in normalised coordinates (columns of unit norm) for a well-scaled null space
-    ns = null[und] * norms[und, None]
-    _, sv, vt = np.linalg.svd(ns.T, full_matrices=True)
-    r = int(np.sum(sv > 1e-9 * max(float(sv[0]), 1e-300))) if len(sv) else 0
-    basis = vt[r:]
-    if not len(basis):
-        return ()
-    out: list[Combination] = []
-    for row in rref(basis * norms[und][None, :]):
-        coef = row / row[np.flatnonzero(np.abs(row) > 1e-12)[0]]
-        idx = [cols[und[k]] for k in range(len(und))]
-        terms = tuple((float(coef[k]), owners[idx[k]][0]) for k in range(len(und))
-                      if abs(coef[k]) > 1e-9)  # fmt: skip
-        full = np.zeros(len(theta))
-        for k in range(len(und)):
-            full[idx[k]] = coef[k]
-        value = float(full @ theta)
-        se = math.sqrt(max(float(full @ cov @ full), 0.0))
-        unit = owners[idx[next(k for k in range(len(und)) if abs(coef[k]) > 1e-9)]][1]
-        out.append(Combination(terms, value, se, unit))
-    return tuple(out)
-
-
 def residual_tables(
     ds: Dataset, predicted: np.ndarray, resid: np.ndarray, basis: np.ndarray
 ) -> tuple[tuple[GroupResidual, ...], tuple[SpanResidual, ...]]:
@@ -458,13 +271,15 @@ def residual_tables(
     means = np.column_stack([group_means(v, ds.groups_by_size) for v in (resid, ds.y, predicted)])
     for k, gr in enumerate(ds.groups):
         sig = ds.signals[gr.record]
-        turn = sig.kind == "turn" and gr.sensor == "gyro"  # an integral, °
+        move = sig.kind == "move"  # a miss of the gyro's rotation, °
+        turn = move or sig.kind == "turn" and gr.sensor == "gyro"  # an integral, °
         unit = "°" if turn else UNIT[gr.sensor]
+        axis = MOVE_ROWS[gr.axis] if move else AXES[gr.axis]
         r, measured, model = means[k].tolist()
         sd = sd_res[k]
         out.append(
             GroupResidual(
-                record=sig.name, kind=sig.kind, sensor=gr.sensor, axis=AXES[gr.axis],
+                record=sig.name, kind=sig.kind, sensor=gr.sensor, axis=axis,
                 measured=measured, model=model, residual=r, sigma=gr.sigma,
                 z=r / sd if sd > 1e-3 * gr.sigma else math.nan, unit=unit,
             )

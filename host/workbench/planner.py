@@ -128,7 +128,9 @@ def unscaled_sigmas(fit: Fit, widen: Fit | None = None) -> dict[str, float]:
     out: dict[str, float] = {}
     for p in fit.parameters:
         key = (p.sensor, p.axis)
-        out[p.name] = p.stderr / own.get(key, 1.0) * other.get(key, 1.0)
+        mine = fit.se_scales.get(p.name, own.get(key, 1.0))
+        theirs = widen.se_scales.get(p.name, other.get(key, 1.0)) if widen is not None else 1.0
+        out[p.name] = p.stderr / mine * theirs
     return out
 
 
