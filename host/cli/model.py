@@ -37,6 +37,7 @@ from host.cli.screen import (
     working,
     wrap,
 )
+from host.dialogue.poses import next_pose, without_cube
 from host.errors import UserError
 from host.model.catalogue import CATALOGUE
 from host.model.dataset import Dataset, build_dataset
@@ -45,6 +46,7 @@ from host.model.signals import RecordSignals
 from host.model.spec import ModelTerm, parse_model, short_spec
 from host.model.terms import Term
 from host.session.directory import Session, read_session
+from host.session.method import local_gravity
 from host.session.spacing import timing_report
 from host.workbench.ladder import LadderStep, add_term, ladder, new_terms
 from host.workbench.text import (
@@ -217,6 +219,8 @@ def next_record_lines(
     from host.workbench.planner import plan_next
 
     width = terminal_width(sys.stdout)
+    if without_cube(session.records):
+        return _next_pose_lines(w, session, width)
     out: list[str] = []
     try:
         with working("diagnose: ranking the records to measure next"):
@@ -239,6 +243,16 @@ def next_record_lines(
             cmd = ["python3", "-m", "host", "plan", str(w.dir), "--separate", *members]
             out.append(command_lines(cmd, width, lead="  "))
     return out
+
+
+def _next_pose_lines(w: WorkbenchOptions, session: Session, width: int) -> list[str]:
+    """A session without a cube: the next pose (:func:`host.dialogue.poses.next_pose`), never
+    a face or a turn, and the command that says more."""
+    p = next_pose(session.records, local_gravity(w.site.latitude_deg, w.site.height_m))
+    line = (f"next pose: {p.attitude}, moved there by hand (RMS σ/tolerance of the "
+            f"planner's linearised model {p.rms_now:.3g} → {p.rms_after:.3g})")  # fmt: skip
+    cmd = command_lines(["python3", "-m", "host", "plan", str(w.dir)], width, lead="  more: ")
+    return [wrap(line, width), cmd]
 
 
 def _floor(w: WorkbenchOptions) -> tuple[str | None, str | None]:

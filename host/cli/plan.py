@@ -2,7 +2,9 @@
 
 Every record the operator could add (a face again, a 45° attitude, a pair of turns about an
 axis) is ranked by how much it shrinks the worst standard error relative to its tolerance per
-minute of the operator's time; the math is :mod:`host.workbench.planner`.
+minute of the operator's time; the math is :mod:`host.workbench.planner`. A session without a
+cube (poses and moves only) gets the next pose instead, the one ``calibrate --plan poses``
+would ask for (:func:`host.dialogue.poses.next_pose`): its records need no face or turn.
 """
 
 from __future__ import annotations
@@ -27,12 +29,13 @@ from host.cli.options import (
     add_workbench_arguments,
     workbench_options,
 )
+from host.dialogue.poses import NextPose, next_pose, without_cube
 from host.errors import UserError
 from host.model.geometry import placement_words
 from host.model.spec import ModelTerm, parse_model, short_spec
 from host.model.terms import Term
 from host.session.directory import Session, read_session
-from host.session.method import UNITS
+from host.session.method import UNITS, local_gravity
 from host.session.spacing import timing_report
 from host.workbench.planner import NextPlan, OperatorTime, Ranked, plan_next
 from host.workbench.separate import CLEAR, Explanation, Separation, explanation, separate
@@ -192,6 +195,8 @@ def run_plan(args: PlanOptions) -> int:
     cat = _catalogue(w.model.term_files)
     model = parse_model(w.model.spec, cat)
     time = OperatorTime(place=args.place_s, place_tilted=args.place_tilted_s)
+    if without_cube(session.records):
+        return _plan_poses(session, args)
     if args.separate:
         sep = _separation(session, model, cat, args.separate, time, w.floor)
         if w.json:
@@ -215,6 +220,40 @@ def run_plan(args: PlanOptions) -> int:
         print(json.dumps(finite_json(_json(p)), indent=2, ensure_ascii=False))
     else:
         print(format_plan(p, args.top))
+    return 0
+
+
+def format_next_pose(p: NextPose) -> str:
+    """The next pose of a session without a cube for people, every line within 80 columns."""
+    lines = [
+        f"a session without a cube ({p.poses} poses, {p.moves} moves): the next record is a "
+        "pose, never a face or a turn (they need a cube)",
+        p.coverage,
+        f"next pose: hold it still with {p.attitude}, moved there by hand from the last pose "
+        f"(python3 -m host calibrate --plan poses asks for it the same way)",
+        f"RMS σ/tolerance of the planner's linearised model: {p.rms_now:.3g} now, "
+        f"{p.rms_after:.3g} after it",
+    ]
+    return "\n".join(w for line in lines for w in textwrap.wrap(line, 80, subsequent_indent="  "))
+
+
+def _plan_poses(session: Session, args: PlanOptions) -> int:
+    """``plan`` on a session without a cube: the next pose (:func:`format_next_pose`)."""
+    w = args.bench
+    if args.separate:
+        raise UserError(
+            "--separate: this session has no cube (poses and moves only), and the records "
+            "that tell two explanations apart are faces and turns; plan without --separate "
+            "names the next pose"
+        )
+    p = next_pose(session.records, local_gravity(w.site.latitude_deg, w.site.height_m))
+    if w.json:
+        out = {"session": "poses", "poses": p.poses, "moves": p.moves,
+               "next_pose": {"up": [float(c) for c in p.up], "attitude": p.attitude},
+               "rms_now": p.rms_now, "rms_after": p.rms_after, "coverage": p.coverage}  # fmt: skip
+        print(json.dumps(finite_json(out), indent=2, ensure_ascii=False))
+    else:
+        print(format_next_pose(p))
     return 0
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -198,6 +198,46 @@ def pose_ups(records: Mapping[str, Record]) -> list[np.ndarray]:
             out.append(m / np.linalg.norm(m))
             del name
     return out
+
+
+def without_cube(records: Mapping[str, Record]) -> bool:
+    """Whether ``records`` are a session without a cube: poses (and moves), no face, turn or
+    rate record — whose next record is a pose, never a face or a turn."""
+    kinds = {r.kind for r in records.values()}
+    return "pose" in kinds and not kinds & {"static", "turn", "rate"}
+
+
+@dataclass(frozen=True, eq=False)
+class NextPose:
+    """The pose the planner values most after ``records`` (:func:`next_pose`): gravity's
+    direction ``up`` in the body, how many poses and moves there are, the RMS σ/tolerance of
+    the planner's linearised model now and after it (:func:`worst_after`) and the coverage
+    of gravity's directions so far (:func:`coverage_line`)."""
+
+    up: np.ndarray
+    poses: int
+    moves: int
+    rms_now: float
+    rms_after: float
+    coverage: str
+
+    @property
+    def attitude(self) -> str:
+        """How to hold it: 'X +15°, Y −11°, Z +71°' (:func:`attitude_words`)."""
+        return attitude_words(self.up)
+
+
+def next_pose(records: Mapping[str, Record], g: float) -> NextPose:
+    """The next pose of a session without a cube (:func:`next_up`, the dialogue's planner)
+    after its ``records``, with the noise their own poses show (``g`` m/s²)."""
+    ups = pose_ups(records)
+    if not ups:
+        raise UserError("no pose records: the pose planner needs at least one pose")
+    noise = _noise(records, g)
+    up = next_up(ups, noise, g)
+    moves = sum(r.kind == "move" for r in records.values())
+    now = worst_after(ups[:-1], ups[-1], noise, g)
+    return NextPose(up, len(ups), moves, now, worst_after(ups, up, noise, g), coverage_line(ups))
 
 
 def worst_fitted(records: Mapping[str, Record], opts: DialogueOptions, serial: str) -> (
