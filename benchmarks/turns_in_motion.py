@@ -11,7 +11,8 @@ exactly those of an axis whose turns are all in motion (its scale, and the two c
 values read in its turns: the angle trades with them).
 
     OPENBLAS_NUM_THREADS=1 python3 benchmarks/turns_in_motion.py --sessions 50
-    OPENBLAS_NUM_THREADS=1 python3 benchmarks/turns_in_motion.py --sessions 50 --motion continuous
+    OPENBLAS_NUM_THREADS=1 python3 benchmarks/turns_in_motion.py --sessions 50 --first 9200 \
+        --motion continuous
 """
 
 from __future__ import annotations
