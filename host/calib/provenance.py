@@ -29,7 +29,7 @@ from host.session.directory import (
     sittings_in_order,
     split_file_name,
 )
-from host.session.records import NON_RECORD_NAMES, STOPPED_KEY, Record
+from host.session.records import NON_RECORD_NAMES, STOPPED_KEY, TARGET_KEY, Record
 
 #: header keys of the equipment (record header -> words of the report), in report order
 EQUIPMENT_KEYS = {
@@ -114,6 +114,9 @@ class Provenance:
     set_aside: tuple[SetAside, ...] = ()
     #: record -> SHA-256 (hex) of its file as fitted (absent: records that were not files)
     record_sha256: Mapping[str, str] = field(default_factory=dict)
+    #: the worst σ/tolerance the adaptive plan measured towards (the records'
+    #: ``plan_target``; None: no adaptive plan)
+    target: float | None = None
 
     @property
     def simulated_line(self) -> str:
@@ -148,7 +151,7 @@ class Provenance:
             "stopped": dict(self.stopped),
             "set_aside": [{"folder": s.folder, "records": list(s.records)} for s in self.set_aside],
             "record_sha256": dict(self.record_sha256),
-        }
+        } | ({} if self.target is None else {"target": self.target})
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> Provenance:
@@ -191,6 +194,7 @@ class Provenance:
                 for s in d.get("set_aside", ())
             ),
             record_sha256={str(k): str(v) for k, v in d.get("record_sha256", {}).items()},
+            target=None if d.get("target") is None else float(d["target"]),
         )
 
 
@@ -287,7 +291,21 @@ def provenance_of(session: Session, software: str = "") -> Provenance:
         set_aside=() if session.directory is None else set_aside_records(session.directory,
                                                                           session.serial),
         record_sha256=record_digests(session),
+        target=plan_target(recs),
     )  # fmt: skip
+
+
+def plan_target(records: Mapping[str, Record]) -> float | None:
+    """The target of the adaptive plan the records were measured under (their
+    ``plan_target``, the last record's that has one; None: none has)."""
+    for r in reversed(list(records.values())):
+        try:
+            t = float(r.meta.get(TARGET_KEY, "nan"))
+        except ValueError:
+            continue
+        if math.isfinite(t) and t > 0:
+            return t
+    return None
 
 
 def record_digests(session: Session) -> dict[str, str]:

@@ -42,6 +42,7 @@ from host.calib.report_tables import (
 )
 from host.calib.result import CalibrationResult
 from host.calib.result_text import method_record_lines
+from host.calib.values import target_line
 from host.calib.verdict import marks, missing_records, outside, undecided
 from host.session.atomic import write_texts_atomic
 from host.session.directory import SIMULATED_BOARD
@@ -340,6 +341,8 @@ def _procedure(r: CalibrationResult, nxt: list[str]) -> list[str]:
         out.append("  Stopped when they had enough (--plan adaptive):")
         for name, why in pv.stopped.items():
             out.extend(_wrap(f"{name}: {why}", "    ", "      "))
+    if pv is not None and pv.target is not None:
+        out.extend(_wrap(target_line(r.parameters, pv.target), "  ", "    "))
     out.extend(_wrap(f"Algorithm: {r.method}", "  ", "    "))
     out.extend(_wrap(f"Model: {r.model}", "  ", "    "))
     if r.fit is not None:

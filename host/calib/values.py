@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -265,3 +265,19 @@ class Verification:
             str(d["source"]), tuple(VerifiedValue.from_dict(v) for v in d["values"]),
             as_float(d["rms_z"]), as_float(d["chi2"]), as_float(d["p"]),
         )  # fmt: skip
+
+
+def target_line(parameters: Sequence[ParameterResult], target: float) -> str:
+    """Whether the adaptive plan's ``target`` (the worst σ/tolerance, ``calibrate --plan
+    adaptive --target``) was met by these values (their σ as stated, widened where the model
+    does not fit): one line for the report and the dialogue's last screen."""
+    worst, whose = 0.0, ""
+    for p in parameters:
+        r = p.stderr / p.tolerance if p.tolerance else 0.0
+        if not math.isfinite(r) or r > worst:
+            worst, whose = (r if math.isfinite(r) else math.inf), p.name
+    met = "met" if worst <= target else "NOT met"
+    return (
+        f"Target of the adaptive plan, worst σ/tolerance ≤ {target:g}: {met} ({worst:.3g}, "
+        f"{whose})."
+    )

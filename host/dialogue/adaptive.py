@@ -18,7 +18,9 @@ records, and says the operator's time the records cost (placing, settling, measu
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Callable, Collection, Mapping
+from pathlib import Path
 from typing import Protocol
 
 import numpy as np
@@ -32,13 +34,15 @@ from host.model.spec import ModelTerm, parse_model
 from host.session.records import STATIC_NAMES, Record, turn_window_s
 from host.workbench.adaptive import (
     MAX_EXTRA_REACHED,
+    OUT_OF_REACH,
     AdaptivePlan,
     Ask,
     Stopping,
     cost_after,
+    fixed_plan_s,
     last_up,
 )
-from host.workbench.planner import candidates
+from host.workbench.planner import NextPlan, candidates, worst_ratio
 from host.workbench.stopping import STATIC_MIN_S, StaticRule
 
 #: when a static record has enough (:data:`host.dialogue.recorder.StaticStop`)
@@ -53,6 +57,7 @@ class Measuring(Protocol):
     serial: str
     g: float
     done: dict[str, Record]
+    out_dir: Path
 
     def _ask_static_seconds(self) -> float: ...
 
@@ -97,8 +102,8 @@ def adaptive_plan(
 
 def measure_adaptive(dlg: Measuring, opts: DialogueOptions) -> AdaptivePlan:
     """The records of ``--plan adaptive`` (those in ``dlg.done`` already are kept): the first
-    records, then the planner's; says the operator's time they cost. Returns the engine (the
-    closing check stops as it says)."""
+    records, then the planner's; says why it stopped and the operator's time they cost
+    beside the fixed plan's. Returns the engine (the closing check stops as it says)."""
     static_s = dlg._ask_static_seconds()
     turns, _ = dlg._ask_turns()
     plan = adaptive_plan(opts, dlg.serial, dlg.g, static_s, turns)
@@ -113,39 +118,62 @@ def measure_adaptive(dlg: Measuring, opts: DialogueOptions) -> AdaptivePlan:
         spent += _measure(dlg, plan, ask)
     if all(n in dlg.done for n in STATIC_NAMES):
         dlg._show_stage1()
+    spent += _planner_records(dlg, plan, opts, spent, added)
+    dlg.op.say(screens.operator_time_line(spent, fixed_plan_s(static_s, turns, plan.time)))
+    return plan
+
+
+def _planner_records(
+    dlg: Measuring, plan: AdaptivePlan, opts: DialogueOptions, spent: float, added: int
+) -> float:
+    """The planner's records, each checked against its prediction, until it asks for none
+    (and says why); returns the operator's time they cost, s."""
+    taken, previous, more, missed = (CLOSING_NAME,), None, 0.0, 0
     while True:
-        p, ask, why = plan.planned(dlg.done, spent, taken, added)
-        now = _ratio(p.worst_now)
-        if ask is None and p.worst_now <= plan.target:
-            dlg.op.say(
-                f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}): target "
-                f"{plan.target:g} met."
-            )
-            break
+        p, ask, why = plan.planned(dlg.done, spent + more, taken, added, previous, missed)
+        if previous is not None:
+            check = plan.check(previous, p)
+            dlg.op.say(f"  {check.line()}")
+            missed = 0 if check.helped else missed + 1
         if ask is None:
-            why = (
-                f"--max-extra {opts.planning.max_extra} reached"
-                if why == MAX_EXTRA_REACHED
-                else why
-            )
-            dlg.op.say(
-                f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}), above {plan.target:g}:"
-            )
-            dlg.op.say(f"  stopped, {why}.")
-            break
+            _say_end(dlg, plan, opts, p, why)
+            return more
         assert ask.ranked is not None
         dlg.op.say(
-            f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}), target {plan.target:g}."
+            f"Adaptive plan: worst σ/tolerance {_ratio(p.worst_now)} ({p.worst_name}), target "
+            f"{plan.target:g}."
         )
         cost = cost_after(ask.candidate, last_up(dlg.done), plan.time)  # as the count says
         dlg.op.say(
             f"Next: {ask.candidate.label} (about {cost:.0f} s of your "
             f"time); the worst then {_ratio(ask.ranked.worst_after)}."
         )
-        spent += _measure(dlg, plan, ask)
+        more += _measure(dlg, plan, ask)
         added += len(ask.names)
-    dlg.op.say(screens.operator_time_line(spent))
-    return plan
+        previous = ask
+
+
+def _say_end(
+    dlg: Measuring, plan: AdaptivePlan, opts: DialogueOptions, p: NextPlan, why: str
+) -> None:
+    """Why the planner asks for no more records: the target met, or why not."""
+    now = _ratio(p.worst_now)
+    if p.worst_now <= plan.target:
+        dlg.op.say(
+            f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}): target {plan.target:g} met."
+        )
+        return
+    if why == MAX_EXTRA_REACHED:
+        why = f"--max-extra {opts.planning.max_extra} reached"
+    dlg.op.say(f"Adaptive plan: worst σ/tolerance {now} ({p.worst_name}), above {plan.target:g}:")
+    dlg.op.say(textwrap.fill(f"stopped, {why}.", 80, initial_indent="  ",
+                             subsequent_indent="  ", break_on_hyphens=False))  # fmt: skip
+    if why.startswith(OUT_OF_REACH):
+        noise = {n: math.sqrt(max(s * s - p.misfit.get(n, 0.0) ** 2, 0.0))
+                 for n, s in p.sigma_now.items()}  # fmt: skip
+        worst, whose = worst_ratio(noise, plan.tolerances)
+        dlg.op.say(f"  The noise alone leaves {_ratio(worst)} ({whose}); records lower only that.")
+        dlg.op.say(f"  What the model lacks: python3 -m host model diagnose {dlg.out_dir}")
 
 
 def planner_records(

@@ -58,6 +58,7 @@ from host.board.link import LinkLost, LinkTimeout
 from host.calib.commands import said_with_command
 from host.calib.publish import compute_and_write, show_result
 from host.calib.report import verdict_line
+from host.calib.values import target_line
 from host.dialogue import adaptive, poses, screens
 from host.dialogue.console import (
     Console,
@@ -320,6 +321,8 @@ class CalibrationDialogue(Recorder):
         show_result(pub, self.opts.json)
         if self.after_publish is not None:  # calibrate archives the result
             op.say(self.after_publish(self.out_dir, session))
+        if self.opts.planning.plan == "adaptive":  # whether its target was met, as fitted
+            op.say(target_line(pub.result.parameters, self.opts.planning.target))
         op.say(verdict_line(pub.result, pub.report_path, pub.records_dir))  # the last lines
         return DialogueResult(
             self.out_dir, list(self.accepted), pub.result, (pub.report_path, pub.json_path)

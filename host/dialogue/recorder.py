@@ -51,6 +51,7 @@ from host.session.records import (
     RECORD_NAME_RE,
     STATIC_NAMES,
     STOPPED_KEY,
+    TARGET_KEY,
     Record,
     turn_window_s,
 )
@@ -334,6 +335,8 @@ class Recorder:
             "bench": self.opts.provenance.bench,
         }  # the report's
         extra = {**extra, **{k: " ".join(v.split()) for k, v in who.items() if v and v.strip()}}
+        if self.opts.planning.plan == "adaptive":  # the report says whether it was met
+            extra[TARGET_KEY] = f"{self.opts.planning.target:g}"
         return make_record(self.board, self.serial, name, acq, extra, self._session_start_ns)
 
     def _loss_problems(self, name: str, acq: Acquisition) -> list[str]:

@@ -91,10 +91,14 @@ def stops_when_enough_line(rule: StaticRule) -> str:
     )
 
 
-def operator_time_line(spent_s: float) -> str:
+def operator_time_line(spent_s: float, fixed_s: float) -> str:
     """--plan adaptive: the operator's time its records cost (placing, settling, measuring,
-    turning: :meth:`host.workbench.adaptive.AdaptivePlan.cost`), s."""
-    return f"Adaptive plan: about {spent_s:.0f} s of your time on its records this sitting."
+    turning: :meth:`host.workbench.adaptive.AdaptivePlan.cost`), s, beside the fixed plan's
+    of the same faces and turns (``fixed_s``, :func:`host.workbench.adaptive.fixed_plan_s`)."""
+    return (
+        f"Adaptive plan: about {spent_s:.0f} s of your time on its records this sitting\n"
+        f"  (the fixed plan: about {fixed_s:.0f} s)."
+    )
 
 
 def adaptive_resumed_line(kept: int, added: int) -> str:

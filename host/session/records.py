@@ -62,6 +62,9 @@ HEADING_KEY = "placement_heading_deg"
 #: why a record that stops when it has enough stopped (``calibrate --plan adaptive``,
 #: :mod:`host.workbench.stopping`): a static's σ of its mean, or the turns about an axis
 STOPPED_KEY = "stopped"
+#: the worst σ/tolerance an adaptive plan measured towards (``calibrate --plan adaptive
+#: --target``), in the header of each of its records: the report says whether it was met
+TARGET_KEY = "plan_target"
 
 #: which sensor a record measured, in its header (live records and imported captures):
 #: :func:`host.wire.sensor.identity_meta` writes them

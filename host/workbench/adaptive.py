@@ -37,6 +37,7 @@ from host.workbench.planner import (
     OperatorTime,
     Ranked,
     candidates,
+    excess,
     plan_next,
     unique_name,
 )
@@ -78,6 +79,8 @@ class AdaptiveRun:
     #: the record the planner would take next (its first-ranked, with the σ it predicts),
     #: None when it ranks none
     next: Ranked | None = None
+    #: why the planner asked for no more (:meth:`AdaptivePlan.planned`)
+    why: str = ""
 
 
 def cost_after(
@@ -118,6 +121,23 @@ def minimal_plan(
     return [Candidate(f.label.replace(" again", ""), f.records, f.operator_s) for f in faces] + [
         Candidate(p.label, p.records, p.operator_s) for p in pairs
     ]
+
+
+def fixed_plan_s(
+    static_s: float, turns: int, time: OperatorTime = OPERATOR_TIME, closing: bool = False
+) -> float:
+    """The operator's time of the method's fixed plan, s: the six faces of ``static_s`` s,
+    then a turn pair of ``turns`` turns each way about each axis (method.md §3–§4; and the
+    closing X up again when ``closing``), in that order, counted as an adaptive plan's
+    records are (:func:`cost_after`)."""
+    by_label = {c.label: c for c in candidates(static_s, turns, time, tilted=False)}
+    order = [f"{f} again" for f in STATIC_NAMES] + [f"{ax} turns, {turns} each way" for ax in "xyz"]
+    order += ["x_up again"] if closing else []
+    spent, up = 0.0, None
+    for label in order:
+        spent += cost_after(by_label[label], up, time)
+        up = np.asarray(by_label[label].records[-1][1], dtype=float)
+    return spent
 
 
 @dataclass(frozen=True)
@@ -170,6 +190,47 @@ class Ask:
 
 #: why the planner asks for nothing more: it added as many records as it may
 MAX_EXTRA_REACHED = "the most records the planner may add were added"
+#: the start of why the planner asks for nothing more when the model's misfit alone keeps a
+#: value above the target (:func:`out_of_reach`)
+OUT_OF_REACH = "out of reach with this model"
+
+
+def out_of_reach(misfit: float, whose: str, target: float) -> str:
+    """Why no record is planned when the model's misfit alone sets σ/tolerance ``misfit``
+    on ``whose``, above ``target``: no record lowers that part (a model that explains the
+    records does: the diagnosis names what it lacks)."""
+    return (
+        f"{OUT_OF_REACH}: its misfit alone sets σ/tolerance {misfit:.3g} on {whose}, above "
+        f"the target {target:g}, and no record lowers that part"
+    )
+
+
+#: why the planner asks for nothing more: its last two records did not lower what is above
+#: the target (:meth:`AdaptivePlan.check`; one may not by chance, as the fit's widening moves)
+DID_NOT_HELP = "the last two records did not bring the values closer to the target"
+
+
+@dataclass(frozen=True)
+class Check:
+    """A planner's record against its prediction: the worst σ/tolerance before it, as
+    predicted and as it gave once fitted, and whether it lowered the :func:`excess` over the
+    target (``helped``)."""
+
+    before: float
+    predicted: float
+    gave: float
+    helped: bool
+
+    def line(self) -> str:
+        """One line for the operator."""
+        d = self.gave - self.predicted
+        verdict = "as predicted" if abs(d) <= 0.1 * self.predicted else (
+            "better than predicted" if d < 0 else "worse than predicted"
+        )  # fmt: skip
+        return (
+            f"it gave worst σ/tolerance {self.gave:.3g} (predicted {self.predicted:.3g}, "
+            f"before {self.before:.3g}: {verdict})"
+        )
 
 
 @dataclass(frozen=True)
@@ -298,7 +359,7 @@ class AdaptivePlan:
             return self._decided[key]
         pairs = _pairs_about(records, axis)
         try:
-            ratio = turn_scale_ratio(
+            ratio, misfit = turn_scale_ratio(
                 Session(self.serial, dict(records)), self.model, axis, noise=self.noise,
                 tolerances=self.tolerances, latitude_deg=self.latitude_deg,
                 height_m=self.height_m,
@@ -306,7 +367,7 @@ class AdaptivePlan:
         except UserError as exc:
             out = (False, f"not decided after {pairs} pair(s): the records do not fit yet ({exc})")
         else:
-            why = turns_stop(ratio, self.target, pairs)
+            why = turns_stop(ratio, self.target, pairs, misfit)
             out = (
                 (False, why) if why is not None
                 else (True, f"another pair follows: gyro scale σ/tolerance {ratio:.3g} above "
@@ -316,36 +377,69 @@ class AdaptivePlan:
         return out
 
     # ---- the planner's records --------------------------------------------------------------
+    def check(self, previous: Ask, p: NextPlan) -> Check:
+        """The planner's record ``previous`` (measured) against what it predicted, from the
+        planner's answer ``p`` on the records with it."""
+        assert previous.ranked is not None and previous.plan is not None
+        before = excess(previous.plan.sigma_now, self.target, self.tolerances)
+        now = excess(p.sigma_now, self.target, self.tolerances)
+        return Check(previous.plan.worst_now, previous.ranked.worst_after, p.worst_now,
+                     now < before)  # fmt: skip
+
     def planned(
         self,
         records: Mapping[str, Record],
         spent_s: float,
         taken: Collection[str] = (),
         added: int = 0,
+        previous: Ask | None = None,
+        missed: int = 0,
     ) -> tuple[NextPlan, Ask | None, str]:
         """The planner's answer on ``records`` and the record to measure next, or None and why
-        not: the target is met, the operator's time (``spent_s`` s so far) reached
-        ``max_operator_s``, no record of the menu brings any value closer to the target, or
-        the planner added ``max_extra`` records already (``added``: :data:`MAX_EXTRA_REACHED`).
-        Names avoid ``records`` and ``taken``."""
+        not: the target is met; the model's misfit alone keeps a value above it
+        (:func:`out_of_reach`); the planner's record measured last (``previous``) did not
+        lower the values above it, nor the one before it (``missed``: how many before
+        ``previous`` in a row did not; :data:`DID_NOT_HELP`); the operator's time (``spent_s`` s
+        so far) reached ``max_operator_s``; no record of the menu brings any value closer to
+        the target; or the planner added ``max_extra`` records already (``added``:
+        :data:`MAX_EXTRA_REACHED`). Names avoid ``records`` and ``taken``."""
         p = plan_next(
             Session(self.serial, dict(records)), self.model, noise=self.noise,
             tolerances=self.tolerances, time=self.time, latitude_deg=self.latitude_deg,
             height_m=self.height_m, only=self.menu, target=self.target,
         )  # fmt: skip
+        ask, why = self._next_of(p, records, spent_s, taken, added, previous, missed)
+        return p, ask, why
+
+    def _next_of(
+        self,
+        p: NextPlan,
+        records: Mapping[str, Record],
+        spent_s: float,
+        taken: Collection[str],
+        added: int,
+        previous: Ask | None,
+        missed: int,
+    ) -> tuple[Ask | None, str]:
+        """:meth:`planned`'s record to measure next on the planner's answer ``p``."""
         if p.worst_now <= self.target:
-            return p, None, f"target {self.target:g} met"
+            return None, f"target {self.target:g} met"
+        misfit, whose = p.misfit_worst(self.tolerances)
+        if misfit > self.target:
+            return None, out_of_reach(misfit, whose, self.target)
+        if previous is not None and missed >= 1 and not self.check(previous, p).helped:
+            return None, DID_NOT_HELP
         if spent_s >= self.max_operator_s:
-            return p, None, f"the operator's time reached {self.max_operator_s:g} s"
+            return None, f"the operator's time reached {self.max_operator_s:g} s"
         if not p.ranked or p.ranked[0].gain_per_min <= 0.0:
-            return p, None, "no record brings it closer"
+            return None, "no record brings it closer"
         if added >= self.max_extra:
-            return p, None, MAX_EXTRA_REACHED
+            return None, MAX_EXTRA_REACHED
         best = p.ranked[0]
         names: list[str] = []
         for base, *_ in best.candidate.records:
             names.append(unique_name(base, [*records, *taken, *names]))
-        return p, Ask(best.candidate, tuple(names), False, best, p), ""
+        return Ask(best.candidate, tuple(names), False, best, p), ""
 
     def cost(self, ask: Ask, before: Mapping[str, Record], measured: Mapping[str, Record]) -> float:
         """What ``ask`` cost the operator once measured (``measured``, after ``before``), s:
@@ -392,51 +486,67 @@ def adaptive_run(
     where it had enough, :meth:`AdaptivePlan.cut`; turn pairs until the axis's gyro scale
     meets ``target``), then ``first`` (e.g. :func:`minimal_plan`), after the records
     ``measured`` already (they cost the operator ``measured_s`` s), then, while the worst
-    σ/tolerance of ``model`` is above ``target`` and the operator's time is below
-    ``max_operator_s`` (s) and it added fewer than ``max_extra`` records, the candidate of
-    ``menu`` that :func:`plan_next` ranks first — the
-    questions of one :class:`AdaptivePlan`. ``on_step`` is called after each record is fitted
-    (a progress line). A record on the face the cube already rests on costs one placement
-    less (:func:`cost_after`, ``time``)."""
+    σ/tolerance of ``model`` is above ``target`` and :meth:`AdaptivePlan.planned` asks for
+    a record (within the model's reach, the last one helped, the operator's time below
+    ``max_operator_s`` s, fewer than ``max_extra`` records added), the candidate of ``menu``
+    that :func:`plan_next` ranks first — the questions of one :class:`AdaptivePlan`.
+    ``on_step`` is called after each record is fitted (a progress line). A record on the face
+    the cube already rests on costs one placement less (:func:`cost_after`, ``time``)."""
     plan = AdaptivePlan(model, target, menu, stopping, serial, noise, tolerances, time=time,
                         max_operator_s=max_operator_s, max_extra=max_extra)  # fmt: skip
-    records: dict[str, Record] = dict(measured or {})
-    steps: list[Step] = []
-    spent = float(measured_s)
-
-    def take(ask: Ask) -> None:
-        nonlocal spent
-        new = dict(measure(ask.candidate, ask.names))
-        if ask.first and ask.static:
-            new = {n: plan.cut(n, records, r) for n, r in new.items()}
-        spent += plan.cost(ask, records, new)
-        records.update(new)
-
-    while (ask := plan.next_first(records)) is not None:
-        take(ask)
+    hand = _Hand(plan, measure, dict(measured or {}), float(measured_s))
+    while (ask := plan.next_first(hand.records)) is not None:
+        hand.take(ask)
     for c in first:
         names: list[str] = []
         for base, *_ in c.records:
-            names.append(unique_name(base, list(records) + names))
-        take(Ask(c, tuple(names), False))
-    pending = Step("first records", tuple(records), spent, math.nan, "")
-    added = 0
-    while True:
-        p, ask, _ = plan.planned(records, spent, added=added)
-        done = dataclasses.replace(pending, worst=p.worst_now, worst_name=p.worst_name)
-        steps.append(done)
-        if on_step is not None:
-            on_step(done)
-        if ask is None:
-            break
-        before = set(records)
-        take(ask)
-        new = tuple(n for n in records if n not in before)
-        added += len(new)
-        assert ask.ranked is not None
-        pending = Step(ask.candidate.label, new, spent, math.nan, "", ask.ranked.sigma_after)
-    last = steps[-1]
-    return AdaptiveRun(
-        dict(records), tuple(steps), spent, last.worst, last.worst_name, last.worst <= target,
-        p.ranked[0] if p.ranked else None,
-    )  # fmt: skip
+            names.append(unique_name(base, list(hand.records) + names))
+        hand.take(Ask(c, tuple(names), False))
+    return hand.planner_records(on_step)
+
+
+class _Hand:
+    """:func:`adaptive_run`'s records as they are measured, and the operator's time spent."""
+
+    def __init__(
+        self, plan: AdaptivePlan, measure: Measure, records: dict[str, Record], spent: float
+    ) -> None:
+        self.plan, self.measure, self.records, self.spent = plan, measure, records, spent
+
+    def take(self, ask: Ask) -> tuple[str, ...]:
+        """Measure ``ask``; returns the names of its records."""
+        new = dict(self.measure(ask.candidate, ask.names))
+        if ask.first and ask.static:
+            new = {n: self.plan.cut(n, self.records, r) for n, r in new.items()}
+        self.spent += self.plan.cost(ask, self.records, new)
+        self.records.update(new)
+        return tuple(new)
+
+    def planner_records(self, on_step: Callable[[Step], None] | None) -> AdaptiveRun:
+        """The planner's records after the first, until :meth:`AdaptivePlan.planned` asks for
+        none; the run."""
+        steps: list[Step] = []
+        pending = Step("first records", tuple(self.records), self.spent, math.nan, "")
+        added, previous, missed = 0, None, 0
+        while True:
+            p, ask, why = self.plan.planned(self.records, self.spent, added=added,
+                                            previous=previous, missed=missed)  # fmt: skip
+            if previous is not None:
+                missed = 0 if self.plan.check(previous, p).helped else missed + 1
+            done = dataclasses.replace(pending, worst=p.worst_now, worst_name=p.worst_name)
+            steps.append(done)
+            if on_step is not None:
+                on_step(done)
+            if ask is None:
+                break
+            new = self.take(ask)
+            added += len(new)
+            assert ask.ranked is not None
+            pending = Step(ask.candidate.label, new, self.spent, math.nan, "",
+                           ask.ranked.sigma_after)  # fmt: skip
+            previous = ask
+        last = steps[-1]
+        return AdaptiveRun(
+            dict(self.records), tuple(steps), self.spent, last.worst, last.worst_name,
+            last.worst <= self.plan.target, p.ranked[0] if p.ranked else None, why,
+        )  # fmt: skip

@@ -16,6 +16,7 @@ stderr_scale`) — the ranking keeps the widening the records measured so far sh
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import zlib
 from collections import defaultdict
@@ -110,6 +111,15 @@ class NextPlan:
     sigma_now: Mapping[str, float]
     ranked: tuple[Ranked, ...]
     notes: tuple[str, ...] = ()
+    #: name -> the σ the model's misfit sets (:func:`misfit_sigmas`): the part of
+    #: ``sigma_now`` no record lowers (0 where the channel fits)
+    misfit: Mapping[str, float] = dataclasses.field(default_factory=dict)
+
+    def misfit_worst(
+        self, tolerances: Mapping[str, float | None] = TOLERANCES
+    ) -> tuple[float, str]:
+        """The largest σ/tolerance the model's misfit alone sets, and whose (0, '': none)."""
+        return worst_ratio(self.misfit, tolerances)
 
 
 def _scales(fit: Fit) -> dict[tuple[str, str], float]:
@@ -132,6 +142,50 @@ def unscaled_sigmas(fit: Fit, widen: Fit | None = None) -> dict[str, float]:
         theirs = widen.se_scales.get(p.name, other.get(key, 1.0)) if widen is not None else 1.0
         out[p.name] = p.stderr / mine * theirs
     return out
+
+
+#: the misfit a channel shows beyond doubt: its χ²/dof beyond 1 by more than this many
+#: standard deviations of χ²/dof under the noise model (√(2/dof)) — a chance excess of white
+#: noise (the Birge widening at p < 0.01 of 1 % of channels) sets no floor
+MISFIT_MARGIN_SD = 4.0
+
+
+def _misfit_factors(fit: Fit) -> dict[tuple[str, str], float]:
+    """(sensor, axis letter or '') -> √(χ²/dof − 1 − margin), the misfit's σ in units of the
+    noise model's (0 where the channel fits or its excess may be chance:
+    :data:`MISFIT_MARGIN_SD`)."""
+    out: dict[tuple[str, str], float] = {}
+    for c in fit.channels:
+        excess_var = 0.0
+        if c.se_scale > 1.0 and c.dof > 0 and math.isfinite(c.chi2):
+            excess_var = c.chi2 / c.dof - 1.0 - MISFIT_MARGIN_SD * math.sqrt(2.0 / c.dof)
+        f = math.sqrt(max(excess_var, 0.0))
+        out[(c.sensor, c.axis)] = f
+        out[(c.sensor, "")] = max(out.get((c.sensor, ""), 0.0), f)
+    return out
+
+
+def misfit_sigmas(fit: Fit) -> dict[str, float]:
+    """Parameter name -> the σ the model's misfit sets: the part of its widened σ (the noise
+    model's σ_n times the channel's Birge ratio, :func:`host.model.stats.stderr_scale`) that
+    the misfit shows beyond doubt, σ_n·√(χ²/dof − 1 − margin) (:data:`MISFIT_MARGIN_SD`; 0
+    where the channel fits). A record measured next lowers σ_n; the planner holds this part
+    as it is — an effect the model lacks moves the values the same way in every record of a
+    kind, and no record averages it away (issue 46). 0 where the value is not determined
+    yet."""
+    own, factor = _scales(fit), _misfit_factors(fit)
+    out: dict[str, float] = {}
+    for p in fit.parameters:
+        key = (p.sensor, p.axis)
+        sigma = p.stderr / own.get(key, 1.0) * factor.get(key, 0.0)
+        out[p.name] = sigma if math.isfinite(sigma) else 0.0  # undetermined: none known yet
+    return out
+
+
+def with_misfit(noise: Mapping[str, float], misfit: Mapping[str, float]) -> dict[str, float]:
+    """The σ a value will have: its noise part ``noise`` (lowered by the records to come)
+    and the ``misfit`` part (:func:`misfit_sigmas`, held), added in quadrature."""
+    return {n: math.hypot(s, misfit.get(n, 0.0)) for n, s in noise.items()}
 
 
 def excess(
@@ -417,48 +471,25 @@ def plan_next(
     (:func:`has_temperature_term`) — or ``only``) by
     how much each shrinks the worst σ/tolerance of ``model`` per minute of operator time —
     or, with a ``target`` σ/tolerance, the :func:`excess` over it of all values (several
-    values near the worst are then shrunk together, not one at a time).
+    values near the worst are then shrunk together, not one at a time). With a target the σ
+    a record leaves is its noise part after it with the misfit part held
+    (:func:`with_misfit`): a record is ranked for what it can lower.
 
     ``progress(done, total, label)`` is called before each candidate is tried. UserError
     (from the engine) when the session cannot be fitted at all."""
     nm = noise or NoiseModel()
-    g = local_gravity(latitude_deg, height_m)
     # the measured records are read once for every candidate added to them
     kw = {"noise": nm, "latitude_deg": latitude_deg, "height_m": height_m, "work": RecordWork()}
     fit = fit_model(build_dataset(session, **kw), model)  # type: ignore[arg-type]
-    sigma_now = unscaled_sigmas(fit, fit)
-    worst_now, worst_name = worst_ratio(sigma_now, tolerances)
-    undetermined_now = {n for n, s in sigma_now.items() if not math.isfinite(s)}
-
-    hand = Augmenter(session, _values(fit), g, seed)
-    if temperature is None:
-        temperature = has_temperature_term(model)
-    temps = (OTHER_TEMPERATURE_C,) if temperature else ()
-    todo = (
-        list(only) if only is not None
-        else candidates(hand.static_s, hand.turns, time, temperatures=temps)
-    )  # fmt: skip
+    now = _Now(fit, tolerances, target)
+    hand = Augmenter(session, _values(fit), local_gravity(latitude_deg, height_m), seed)
+    todo = _menu(only, hand, model, time, temperature)
     ranked: list[Ranked] = []
     for i, cand in enumerate(todo):
         if progress is not None:
             progress(i, len(todo), cand.label)
         aug = fit_model(build_dataset(hand.with_candidate(cand), **kw), model)  # type: ignore[arg-type]
-        sigma = unscaled_sigmas(aug, fit)
-        worst, name = worst_ratio(sigma, tolerances)
-        determines = tuple(
-            sorted(n for n in undetermined_now if math.isfinite(sigma.get(n, math.nan)))
-        )
-        minutes = cand.operator_s / 60.0
-        if determines:
-            gain = math.inf
-        elif target is not None:
-            gain = excess(sigma_now, target, tolerances) - excess(sigma, target, tolerances)
-            gain /= minutes
-        elif math.isfinite(worst_now):
-            gain = (worst_now - worst) / minutes
-        else:  # the worst stays undetermined: nothing gained on it
-            gain = 0.0
-        ranked.append(Ranked(cand, worst, name, sigma, determines, gain))
+        ranked.append(now.rank(cand, aug))
     if progress is not None:
         progress(len(todo), len(todo), "")
     ranked.sort(key=lambda r: (-len(r.determines), -r.gain_per_min, r.candidate.operator_s))
@@ -466,4 +497,61 @@ def plan_next(
         "a sitting at another temperature is ranked only for a model with a temperature term "
         "(or plan --separate with one)",
     )  # fmt: skip
-    return NextPlan(worst_now, worst_name, sigma_now, tuple(ranked), notes)
+    return NextPlan(now.worst, now.worst_name, now.sigma, tuple(ranked), notes, misfit_sigmas(fit))
+
+
+def _menu(
+    only: Sequence[Candidate] | None,
+    hand: Augmenter,
+    model: Sequence[ModelTerm],
+    time: OperatorTime,
+    temperature: bool | None,
+) -> list[Candidate]:
+    """The candidates :func:`plan_next` ranks: ``only``, else :func:`candidates` of the
+    session's own record length and turns (a sitting at another temperature when
+    ``temperature``, None: when the model has a temperature term)."""
+    if only is not None:
+        return list(only)
+    if temperature is None:
+        temperature = has_temperature_term(model)
+    temps = (OTHER_TEMPERATURE_C,) if temperature else ()
+    return candidates(hand.static_s, hand.turns, time, temperatures=temps)
+
+
+class _Now:
+    """The fit of the records measured so far, and how a candidate's fit is ranked against
+    it (:func:`plan_next`)."""
+
+    def __init__(
+        self, fit: Fit, tolerances: Mapping[str, float | None], target: float | None
+    ) -> None:
+        self.fit, self.tolerances, self.target = fit, tolerances, target
+        self.sigma = unscaled_sigmas(fit, fit)
+        self.worst, self.worst_name = worst_ratio(self.sigma, tolerances)
+        self.undetermined = {n for n, s in self.sigma.items() if not math.isfinite(s)}
+        self.misfit = misfit_sigmas(fit) if target is not None else {}
+
+    def after(self, aug: Fit) -> dict[str, float]:
+        """The σ of every value once the candidate fitted in ``aug`` is measured."""
+        if self.target is None:
+            return unscaled_sigmas(aug, self.fit)  # widened as the records so far show
+        return with_misfit(unscaled_sigmas(aug), self.misfit)
+
+    def rank(self, cand: Candidate, aug: Fit) -> Ranked:
+        """``cand`` with what it does (its fit: ``aug``)."""
+        sigma = self.after(aug)
+        worst, name = worst_ratio(sigma, self.tolerances)
+        determines = tuple(
+            sorted(n for n in self.undetermined if math.isfinite(sigma.get(n, math.nan)))
+        )
+        minutes = cand.operator_s / 60.0
+        if determines:
+            gain = math.inf
+        elif self.target is not None:
+            gain = excess(self.sigma, self.target, self.tolerances)
+            gain = (gain - excess(sigma, self.target, self.tolerances)) / minutes
+        elif math.isfinite(self.worst):
+            gain = (self.worst - worst) / minutes
+        else:  # the worst stays undetermined: nothing gained on it
+            gain = 0.0
+        return Ranked(cand, worst, name, sigma, determines, gain)

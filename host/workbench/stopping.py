@@ -42,7 +42,7 @@ from host.session.method import (
     GYRO_GSENS_NAMES,
     TOLERANCES,
 )
-from host.workbench.planner import unscaled_sigmas
+from host.workbench.planner import misfit_sigmas, unscaled_sigmas
 
 #: the method's shortest accumulation time of a face, s (method.md §5 step 5: "10 … several
 #: hundred")
@@ -192,10 +192,11 @@ def turn_scale_ratio(
     tolerances: Mapping[str, float | None] = TOLERANCES,
     latitude_deg: float = DEFAULT_LATITUDE_DEG,
     height_m: float = DEFAULT_HEIGHT_M,
-) -> float:
+) -> tuple[float, float]:
     """σ/tolerance of the gyro scale about ``axis`` ('x', 'y', 'z') in the fit of ``session``
     with ``model`` (the planner's σ: from the noise model, widened as the fit's misfit
-    shows); ∞ when the records do not determine it."""
+    shows; ∞ when the records do not determine it), and the part of it the model's misfit
+    sets (:func:`host.workbench.planner.misfit_sigmas`: no further pair lowers it)."""
     name = f"G{axis}{axis}"
     ds = build_dataset(session, noise=noise or NoiseModel(), latitude_deg=latitude_deg,
                        height_m=height_m)  # fmt: skip
@@ -203,15 +204,21 @@ def turn_scale_ratio(
     s = unscaled_sigmas(fit, fit).get(name, math.nan)
     tol = tolerances.get(name)
     if not tol or not math.isfinite(s):
-        return math.inf
-    return s / tol
+        return math.inf, 0.0
+    return s / tol, misfit_sigmas(fit).get(name, 0.0) / tol
 
 
-def turns_stop(ratio: float, target: float, pairs: int) -> str | None:
+def turns_stop(ratio: float, target: float, pairs: int, misfit: float = 0.0) -> str | None:
     """Why the turns about an axis stop after ``pairs`` pairs with the gyro scale's
-    σ/tolerance ``ratio``, or None: one more pair."""
+    σ/tolerance ``ratio`` (``misfit`` of it set by the model's misfit), or None: one more
+    pair."""
     if ratio <= target:
         return f"gyro scale σ/tolerance {ratio:.3g} met the target {target:g} after {pairs} pair(s)"
+    if misfit > target:
+        return (
+            f"the model's misfit sets gyro scale σ/tolerance {misfit:.3g}, above the target "
+            f"{target:g}: another pair does not lower it ({ratio:.3g} after {pairs} pair(s))"
+        )
     if pairs >= TURN_PAIRS_MAX:
         return (
             f"the maximum of {TURN_PAIRS_MAX} pairs; gyro scale σ/tolerance {ratio:.3g} "

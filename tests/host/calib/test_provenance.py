@@ -98,3 +98,30 @@ def test_unit_records_carry_no_mark(tmp_path: Path) -> None:
     assert not res.simulated and res.simulated_line == ""
     assert res.provenance is not None and res.provenance.sensor == "unknown sensor"
     assert "SIMULATED" not in json.dumps(result_to_dict(res))
+
+
+def test_the_adaptive_plans_target_is_read_from_the_headers_and_kept() -> None:
+    """The records' ``plan_target`` is the provenance's target (the last record's), kept
+    through the result file's dict; a session without one has none and its dict no key;
+    :func:`host.calib.values.target_line` says met or NOT met on the values' σ/tolerance."""
+    import numpy as np
+
+    from host.calib.provenance import Provenance, plan_target
+    from host.calib.values import ParameterResult, target_line
+    from host.session.records import TARGET_KEY, Record
+
+    def rec(name: str, meta: dict[str, str]) -> Record:
+        z = np.zeros((2, 3))
+        return Record(name, np.array([0.0, 20.0]), z, z, np.zeros(2), meta)
+
+    assert plan_target({"x_up": rec("x_up", {})}) is None
+    recs = {"x_up": rec("x_up", {TARGET_KEY: "0.05"}), "x_dn": rec("x_dn", {TARGET_KEY: "0.02"})}
+    assert plan_target(recs) == 0.02
+    assert plan_target({"x_up": rec("x_up", {TARGET_KEY: "soon"})}) is None
+    pv = Provenance(target=0.02)
+    assert Provenance.from_dict(pv.to_dict()).target == 0.02
+    assert "target" not in Provenance().to_dict()
+    params = [ParameterResult("base", "gyro", "x", "k", "Gxx", 0.0, 0.003, "", 0.1),
+              ParameterResult("base", "gyro", "y", "k", "Gyy", 0.0, 0.001, "", 0.1)]  # fmt: skip
+    assert "≤ 0.05: met (0.03, Gxx)" in target_line(params, 0.05)
+    assert "≤ 0.02: NOT met (0.03, Gxx)" in target_line(params, 0.02)

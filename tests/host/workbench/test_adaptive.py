@@ -147,8 +147,8 @@ def test_an_axis_turns_are_decided_on_the_records_up_to_its_last_pair() -> None:
         records.update(hand(menu[name], [name] if name != "x_ccw" else ["x_ccw", "x_cw"]))
     records = {n: records[n] for n in ("x_dn", "x_up", "x_ccw", "x_cw", "y_dn", "y_up")}
     up_to_pair = {n: records[n] for n in ("x_dn", "x_up", "x_ccw", "x_cw")}
-    ratio_then = turn_scale_ratio(Session("ADAPT", up_to_pair), BASE, "x")
-    ratio_now = turn_scale_ratio(Session("ADAPT", records), BASE, "x")
+    ratio_then, _ = turn_scale_ratio(Session("ADAPT", up_to_pair), BASE, "x")
+    ratio_now, _ = turn_scale_ratio(Session("ADAPT", records), BASE, "x")
     assert f"{ratio_then:.3g}" != f"{ratio_now:.3g}"  # the y faces move it
     for target in (ratio_then * 1.01, ratio_then * 0.99):  # met, or not met
         rule = StaticRule.for_target(target, 9.81, max_s=10.0)
