@@ -34,6 +34,7 @@ the records are found in it, in the words of method.md §3-§5.
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -334,10 +335,19 @@ def _rest_segment(s: _Stream, r: Rest, v: _Visit | None, label: str, reason: str
 
 
 def _match_statics(s: _Stream, visits: list[_Visit]) -> _Statics:
-    """Visits without turns, longest rest each, matched to the plan's faces in order."""
-    static_v = [i for i, v in enumerate(visits) if not v.turns
-                and max(s.dur(r) for r in v.rests) >= MIN_STATIC_S]  # fmt: skip
-    best = {i: max(visits[i].rests, key=s.dur) for i in static_v}
+    """Visits without turns, longest rest each, matched to the plan's faces in order; and a
+    visit whose turns follow a rest long enough, on a face no visit without turns rests on
+    (the adaptive dialogue's order: the up face, then its turns without placing the cube
+    again), with that rest as its static."""
+    best = {i: max(v.rests, key=s.dur) for i, v in enumerate(visits) if not v.turns}
+    best = {i: r for i, r in best.items() if s.dur(r) >= MIN_STATIC_S}
+    alone = {visits[i].face for i in best}
+    for i, v in enumerate(visits):
+        first = v.rests[v.turns[0][0]] if v.turns else None  # the rest before its first turn
+        if first is not None and v.face not in alone and s.dur(first) >= MIN_STATIC_S:
+            best[i] = first
+    static_v = sorted(best)
+    best = {i: best[i] for i in static_v}
     match = _plan_match([visits[i].face for i in static_v])
     chosen: dict[int, str] = {static_v[k]: name for k, name in match.items()}
     st = _Statics(static_v, best, chosen, used=set(chosen.values()))
@@ -356,13 +366,18 @@ def _name_after_plan(s: _Stream, visits: list[_Visit], st: _Statics) -> None:
     turn_v = [i for i, v in enumerate(visits) if v.turns]
     last_turn = max(turn_v) if turn_v else -1
     planned = set(st.chosen)
+    visits_to = Counter(visits[i].face for i in st.visits)
     for i in st.visits:
         if i in planned:
             continue
         v = visits[i]
         a, b = st.best[i].start, st.best[i].stop
         rise = _rise(s.temp[v.rests[0].start : v.rests[-1].stop]) if s.temp_recorded else 0.0
-        if i < first_static and rise >= WARMUP_RISE_C and WARMUP_NAME not in st.used:
+        if visits_to[v.face] == 1 and v.face not in st.used:  # e.g. the adaptive order
+            st.chosen[i] = v.face
+            st.used.add(v.face)
+            st.why[i] = f"{v.face}: the only visit to {axis_text(v.up)}, out of the plan's order"
+        elif i < first_static and rise >= WARMUP_RISE_C and WARMUP_NAME not in st.used:
             st.chosen[i] = WARMUP_NAME
             st.used.add(WARMUP_NAME)
             st.why[i] = (f"warm-up: before the plan's first static, temperature {rise:+.1f} °C "
@@ -412,9 +427,12 @@ def _visit_segments(s: _Stream, v: _Visit, i: int, st: _Statics, notes: list[str
     for r in v.rests:
         if s.dur(r) < MIN_STATIC_S or any(a <= r.start and r.stop <= e for a, e in turn_spans):
             continue  # a pause inside a turn, or too short to be a static
-        if v.turns:
+        if v.turns and not (i in st.chosen and r is st.best.get(i)):
             segs.append(_rest_segment(s, r, v, "-", f"a rest on {axis_text(v.up)} between turns, "
                                       "belongs to the turns"))  # fmt: skip
+        elif v.turns:  # the rest before its turns, on a face no other visit rests on
+            why = st.why.get(i, "") + " (the rest before its turns: no other visit rests on it)"
+            segs.append(_rest_segment(s, r, v, st.chosen[i], why))
         elif r is st.best[i]:
             segs.append(_rest_segment(s, r, v, st.chosen.get(i, "-"), st.why.get(i, "")))
         else:

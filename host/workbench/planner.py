@@ -398,7 +398,7 @@ class Augmenter:
         self.temp_c = float(np.mean([float(np.mean(r.temp)) for r in recs]))
         self.static_s = float(np.median([s.duration_s for s in statics]))
         ns = [int(r.meta["turns"]) for r in recs if r.meta.get("turns", "").strip().isdigit()]
-        self.turns = ns[0] if ns else 1
+        self.turns = ns[0] if ns else _turns_made(recs)
         self.meta: dict[str, str] = {}
         if all("power_on_s" in r.meta for r in recs):
             end = max(float(r.meta["power_on_s"]) + r.duration_s for r in recs)
@@ -434,21 +434,39 @@ class Augmenter:
         return True
 
     def with_candidate(self, cand: Candidate) -> Session:
-        """The session with ``cand``'s records added (each under a name no record has)."""
+        """The session with ``cand``'s records added (each under a name no record has). A
+        turn made at the operator's own rate profile lasts its window, or the profile's whole
+        length when that is longer (a session whose turns took longer than the window the
+        candidate names: it still ends at rest)."""
         records = dict(self.session.records)
         for i, (base, up, kind, seconds, n_turns, direction) in enumerate(cand.records):
             name = unique_name(base, records)
             heading = cand.headings[i] if i < len(cand.headings) else None
             meta = self.meta if heading is None else {**self.meta, HEADING_KEY: f"{heading:g}"}
+            profile = self._profile(int(np.argmax(np.abs(up))), cand.pace)
+            if kind == "turn" and profile is not None:
+                seconds = max(seconds, (len(profile) + 1) * self.dt_s)
             records[name] = synthetic_record(
                 name, up, kind, seconds, g=self.g, values=self.values, accel_sd=self.accel_sd,
                 gyro_sd=self.gyro_sd, dt_s=self.dt_s, temp_c=self.temp_c + cand.temp_offset_c,
                 turns=n_turns,
                 direction=direction, meta=meta,
                 rng=np.random.default_rng([self.seed, zlib.crc32(name.encode())]),
-                profile=self._profile(int(np.argmax(np.abs(up))), cand.pace),
+                profile=profile,
             )  # fmt: skip
         return Session(self.session.serial, records)
+
+
+def _turns_made(records: Sequence[Record]) -> int:
+    """The whole turns per turn record, read from the turns themselves when their headers do
+    not say (the integral of the gyro about the up axis, in turns; 1 without a turn)."""
+    for r in records:
+        if r.kind == "turn" and len(r) > 10:
+            k = int(np.argmax(np.abs(r.up)))
+            t_s = r.t_ms / 1000.0
+            angle = abs(float(np.trapezoid(r.gyro[:, k] - np.median(r.gyro[:5, k]), t_s)))
+            return max(1, round(angle / 360.0))
+    return 1
 
 
 def plan_next(

@@ -216,6 +216,34 @@ def make_session(seed: int, op: Operator) -> ContinuousSession:
     return cs
 
 
+def make_adaptive_session(seed: int, op: Operator) -> ContinuousSession:
+    """One continuous session by ``op`` in the adaptive dialogue's order (``calibrate --plan
+    adaptive``): axis by axis the down face, the up face, then the turns about that axis
+    without placing the cube again — the up face's rest is the rest before its first turn,
+    and no other visit rests on it."""
+    rng = np.random.default_rng(seed)
+    truth = random_truth(rng)
+    b = _Builder(rng, op)
+    windows: dict[str, tuple[float, float]] = {}
+    motions: dict[str, tuple[float, float]] = {}
+    for ax in "xyz":
+        for face in (f"{ax}_dn", f"{ax}_up"):
+            b.to_face(face)
+            windows[face] = b.rest(op.static_s * rng.uniform(0.9, 1.1))
+        for k, (d, sfx) in enumerate(((1, "ccw"), (-1, "cw"))):
+            if k:
+                b.rest(op.between_turns_s)
+            t0 = b.t_now
+            b.turn(d * (360.0 * op.turns + rng.normal(0, 0.5)))
+            motions[f"{ax}_{sfx}"] = (t0, b.t_now)
+        b.rest(op.between_turns_s)
+    for name, (t0, t1) in motions.items():
+        windows[name] = (t0 - LABEL_PAD_S, t1 + LABEL_PAD_S)
+    cs = _sample(b, rng, op, truth, windows)
+    cs.motions = motions
+    return cs
+
+
 def _sample(
     b: _Builder,
     rng: np.random.Generator,

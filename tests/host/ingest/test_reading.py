@@ -20,7 +20,12 @@ from host.session.directory import Session, read_record, read_session
 from host.session.method import TOLERANCES
 from host.session.records import STATIC_NAMES, TURN_NAMES, Record
 from host.wire.bulk import decode_file
-from tests.host.ingest.continuous_sessions import OPERATORS, Operator, make_session
+from tests.host.ingest.continuous_sessions import (
+    OPERATORS,
+    Operator,
+    make_adaptive_session,
+    make_session,
+)
 
 REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "imucal-example"
 #: imucal's section order (x_p, x_a, y_p, y_a, z_p, z_a, x_rot, y_rot, z_rot) in our names
@@ -225,3 +230,21 @@ def test_sim_capture_is_cut_into_the_records_the_dialogue_wrote(
             within = 0.5 if k.startswith("G") else 2.0
             assert abs(got_c[k] - v) <= within * ref.std_errors[k], (k, got_c[k], v)
     assert np.isfinite(list(got_c.values())).any()
+
+
+def test_the_adaptive_dialogues_order_keeps_each_up_face_before_its_turns() -> None:
+    """A session recorded in the adaptive dialogue's order — each down face, the up face,
+    then its turns without placing the cube again — gives all six faces and six turns: the
+    rest before the first turn on a face no other visit rests on is that face's static (it
+    was 'a rest between turns, belongs to the turns', and 3 of 6 faces were found)."""
+    cs = make_adaptive_session(42, Operator("adaptive order", static_s=12.0, turns=1))
+    stream = Stream(cs.t, cs.accel, cs.gyro, cs.temp, {"source": "adaptive order"})
+    segs, thr, _ = segment_stream(stream)
+    records = build_records(stream, segs, thr, "S")
+    assert set(records) == {*STATIC_NAMES, *TURN_NAMES}, sorted(records)
+    cut = {g.label: g for g in segs}
+    for face in STATIC_NAMES:  # each static is the labelled rest
+        t0, t1 = cs.windows[face]
+        g = cut[face]
+        assert t0 - 0.5 <= g.t0_s and g.t1_s <= t1 + 0.5, (face, g.t0_s, g.t1_s, t0, t1)
+        assert g.t1_s - g.t0_s > 0.8 * (t1 - t0), face
