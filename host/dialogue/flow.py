@@ -180,7 +180,7 @@ class CalibrationDialogue(Recorder):
                 True,
             )
         elif opts.keeps_records:
-            op.say("The six static orientations are already measured (--resume).")
+            op.say(f"The six static orientations are already measured ({self._kept_by()}).")
         if do_static:
             self._stage1(need_static)
         do_turns = bool(need_turn)
@@ -189,13 +189,19 @@ class CalibrationDialogue(Recorder):
             if need_turn and do_static:
                 do_turns = op.yes_no("Integral gyro calibration <Y> or results <N>?", True)
         if not need_turn and opts.keeps_records:
-            op.say("The six turns are already measured (--resume).")
+            op.say(f"The six turns are already measured ({self._kept_by()}).")
         if do_turns and need_turn:
             self._stage2(need_turn)
         base = (*STATIC_NAMES, *TURN_NAMES, CLOSING_NAME)
         self._measure_again([n for n in opts.files.redo if n not in base])  # x_ccw_2, x_up_3 …
         if self._closing_due():
             self._closing_check()
+
+    def _kept_by(self) -> str:
+        """Which option kept the records measured already: ``--redo NAME`` (it measures only
+        those it names again) or ``--resume``."""
+        redo = self.opts.files.redo
+        return f"kept: --redo measures {', '.join(redo)} only" if redo else "--resume"
 
     def _closing_due(self) -> bool:
         """The closing check is to be measured: asked for, not measured yet, and the first
@@ -259,7 +265,10 @@ class CalibrationDialogue(Recorder):
         the chip temperature rising — the thermal calibration's first ramp
         (``python3 -m host thermal``). Any key skips the rest of the wait (nothing recorded)."""
         s = self.opts.schedule.warmup_s
-        if s <= 0 or (self.opts.keeps_records and self.done and screens.no_warm_up(self.op)):
+        warmed = record_path(self.out_dir, self.serial, WARMUP_NAME).exists()
+        if s <= 0 or (
+            self.opts.keeps_records and self.done and screens.no_warm_up(self.op, warmed)
+        ):
             return
         op = self.op
         op.say(screens.warm_up_line(s, self.opts.yes))

@@ -25,6 +25,8 @@ from host.workbench.stopping import StaticRule
 
 AXIS_WORDS = {"x": "X", "y": "Y", "z": "Z"}
 CHANNELS = ("Ax", "Ay", "Az", "Gx", "Gy", "Gz", "temp")
+#: the unit of each of :data:`CHANNELS` as shown
+CHANNEL_UNITS = ("m/s²", "m/s²", "m/s²", "°/s", "°/s", "°/s", "°C")
 
 #: a measurement's progress callback: (elapsed s, sums of the counts so far, samples so far)
 Tick = Callable[[float, np.ndarray, int], None]
@@ -124,12 +126,20 @@ def warm_up_line(seconds: float, yes: bool) -> str:
     )
 
 
-def no_warm_up(op: Questions) -> bool:
-    """--resume/--redo with records kept: the unit warmed up before them (says so; True)."""
-    op.say(
-        "No warm-up: the kept records were measured on a warm unit (if it was off since, "
-        "let it warm up before the next measurement)"
-    )
+def no_warm_up(op: Questions, warmed: bool) -> bool:
+    """--resume/--redo with records kept: no warm-up now (says so; True). ``warmed``: a
+    warm-up ran to its end before the kept records (its record is in the directory); else it
+    was ended by a key or not made, and the line does not claim a warm unit."""
+    if warmed:
+        op.say(
+            "No warm-up: the kept records were measured on a warm unit (if it was off since, "
+            "let it warm up before the next measurement)"
+        )
+    else:
+        op.say(
+            "No warm-up: records are kept, and no whole warm-up was recorded before them (it "
+            "was ended by a key or not made): let the unit warm up before the next measurement"
+        )
     return True
 
 
@@ -168,7 +178,8 @@ def whole_parts(width: int, *parts: str) -> str:
 
 def measurement_progress(op: Questions, name: str, seconds: float, info: BoardInfo) -> Tick:
     """The progress line of measurement ``name`` (``seconds`` of device time): a bar, the time,
-    and the means so far (m/s², °/s) — or, for a turn, the angle turned so far about the up
+    and the means so far with their units (m/s², °/s, two decimals: the line keeps to 80
+    columns) — or, for a turn, the angle turned so far about the up
     axis, from the mean rate between two ticks (rough: the bias is not removed), shown to help
     the operator."""
     a_scale = sensor.G0 / info.accel_lsb_per_g
@@ -192,8 +203,8 @@ def measurement_progress(op: Questions, name: str, seconds: float, info: BoardIn
             last.update(t=elapsed, k=k, sum=s_up)
             op.progress(f"{head}  turned {last['angle']:+5.0f}° about {name[0].upper()}")
         else:
-            accel = "A " + " ".join(f"{v * a_scale:+.3f}" for v in m[0:3])
-            gyro = "G " + " ".join(f"{v * g_scale:+.3f}" for v in m[4:7])
+            accel = "A " + " ".join(f"{v * a_scale:+.2f}" for v in m[0:3]) + " m/s²"
+            gyro = "G " + " ".join(f"{v * g_scale:+.2f}" for v in m[4:7]) + " °/s"
             op.progress(whole_parts(op.columns - 1, head, accel, gyro))
 
     return tick
@@ -203,12 +214,13 @@ def measurement_progress(op: Questions, name: str, seconds: float, info: BoardIn
 
 
 def show_table(op: Questions, rec: Record) -> None:
-    """A static record's mean and standard deviation per channel."""
+    """A static record's mean and standard deviation per channel, under a row of units."""
     st = record_stats(rec)
     mean = np.concatenate([st.accel_mean, st.gyro_mean, [rec.temp.mean()]])
     std = np.concatenate([st.accel_std, st.gyro_std, [rec.temp.std(ddof=1)]])
     op.say(f"{rec.name}: {len(rec)} samples over {rec.duration_s:.2f} s")
     op.say("      " + "".join(f"{c:>10}" for c in CHANNELS))
+    op.say("unit  " + "".join(f"{u:>10}" for u in CHANNEL_UNITS))
     dec = (4, 4, 4, 3, 3, 3, 1)
     op.say("mean  " + "".join(f"{v:>10.{d}f}" for v, d in zip(mean, dec, strict=True)))
     op.say("std   " + "".join(f"{v:>10.{d + 1}f}" for v, d in zip(std, dec, strict=True)))

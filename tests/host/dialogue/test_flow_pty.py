@@ -388,7 +388,8 @@ def test_an_80x24_terminal_redraws_in_place_and_ends_with_the_verdict(
 ) -> None:
     """80×24 (the pty sized as a terminal window sizes it): every progress redraw, running
     means included, fits in one line (a wrapped one leaves a line per redraw and pushes the
-    instructions off the screen), and the last line is the verdict, the report's path above it."""
+    instructions off the screen), the means carry their units, as the table of each static
+    does, and the last line is the verdict, the report's path above it."""
     s = Screen(["--port", board_url("sim", 31, "max"), "--serial", "DEMO01", "--yes",
                 "--warmup", "0", "--static-seconds", "3", "--turns", "1"], tmp_path,
                size=(24, 80))  # fmt: skip
@@ -398,10 +399,13 @@ def test_an_80x24_terminal_redraws_in_place_and_ends_with_the_verdict(
     redraws = [seg.replace("\x1b[K", "") for seg in redraws if seg.strip()]
     assert len(redraws) > 12, "the progress lines are drawn in place"
     assert max(len(seg) for seg in redraws) <= 79, max(redraws, key=len)
-    # the running means are all there, not cut off: 3 accel and 3 gyro values
-    means = [seg for seg in redraws if re.search(r" A( [+-]\d+\.\d{3}){3}  G( [+-]\d+\.\d{3}){3}$",
-                                                  seg)]  # fmt: skip
+    # the running means are all there, not cut off: 3 accel and 3 gyro values, with units
+    running = r" A( [+-]\d+\.\d{2}){3} m/s²  G( [+-]\d+\.\d{2}){3} °/s$"
+    means = [seg for seg in redraws if re.search(running, seg)]
     assert len(means) > 6, redraws[:20]
+    # the mean/std table of each static names its units under the channels
+    units = r"unit +m/s² +m/s² +m/s² +°/s +°/s +°/s +°C"
+    assert len(re.findall(units, s.text)) >= 6, s.text[:3000]
     shown = [ln for ln in s.text.replace("\r", "\n").split("\n") if ln.strip()]
     last = shown[-1]
     assert re.fullmatch(
@@ -416,5 +420,7 @@ def test_an_80x24_terminal_redraws_in_place_and_ends_with_the_verdict(
     assert mark in shown[-4:-1], shown[-4:]
     url = shown[shown.index(mark, len(shown) - 4) + 1].strip()
     assert url.startswith("sim://?seed=") and url.endswith("earth_rate=0"), url
-    assert all(len(ln) <= 80 for ln in shown)
+    # every line keeps to the 80 columns (the erase-to-end code takes none)
+    cols = [ln.replace("\x1b[K", "") for ln in shown]
+    assert all(len(ln) <= 80 for ln in cols), [ln for ln in cols if len(ln) > 80]
     assert len(last) <= 80  # the verdict is one line, not wrapped

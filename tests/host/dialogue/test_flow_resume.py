@@ -221,17 +221,37 @@ def test_a_record_kept_despite_a_warning_is_in_the_report_with_it(tmp_path: Path
 
 @pytest.mark.slow
 def test_redo_asks_neither_the_warm_up_nor_the_accumulation_time_again(tmp_path: Path) -> None:
-    """--redo (and --resume) with records kept: no second warm-up (the kept records were
-    measured on the warm unit), and the accumulation time is that of the kept statics, said,
-    not asked: the operator typed only --redo x_up."""
+    """--redo (and --resume) with records kept: no second warm-up (and, the first sitting
+    having recorded none, no claim of a warm unit), and the accumulation time is that of the
+    kept statics, said, not asked: the operator typed only --redo x_up."""
     url = f"sim://?seed=12&{LINEAR}"
     assert run(opts(tmp_path, url, static_seconds=3.0), ScriptedConsole(), Ports())[0] in (0, 1)
     con = ScriptedConsole()
     o = opts(tmp_path, url, redo=("x_up",), static_seconds=None, warmup_s=600.0)
     rc, _ = run(o, con, Ports())
     assert rc in (0, 1)
-    assert "No warm-up: the kept records were measured on a warm unit" in con.text
+    # the first sitting made no warm-up: the line does not claim a warm unit
+    assert "No warm-up: records are kept, and no whole warm-up was recorded" in con.text
+    assert "measured on a warm unit" not in con.text
     assert "warm-up; recorded" not in con.text and "Accumulation time per" not in con.text
+    # the turns kept: said as --redo keeps them, not as --resume
+    assert "The six turns are already measured (kept: --redo measures x_up only)." in con.text
+    assert "(--resume)" not in con.text
     assert "Accumulation time 3 s per orientation, as the kept records" in con.text
     rec = read_record(tmp_path / "F1" / "F1_x_up.txt")
     assert abs(rec.duration_s - 3.0) < 0.2
+
+
+@pytest.mark.slow
+def test_a_whole_warm_up_recorded_before_the_kept_records_is_said(tmp_path: Path) -> None:
+    """A first sitting whose warm-up ran to its end (its record is in the directory): the
+    sitting that keeps its records says they were measured on a warm unit."""
+    url = f"sim://?seed=12&{LINEAR}"
+    first = opts(tmp_path, url, static_seconds=3.0, warmup_s=2.0)
+    assert run(first, ScriptedConsole(), Ports())[0] in (0, 1)
+    assert (tmp_path / "F1" / "F1_warmup.txt").exists()
+    con = ScriptedConsole()
+    rc, _ = run(opts(tmp_path, url, redo=("x_up",), static_seconds=None, warmup_s=600.0), con,
+                Ports())  # fmt: skip
+    assert rc in (0, 1)
+    assert "No warm-up: the kept records were measured on a warm unit" in con.text
