@@ -146,8 +146,8 @@ def acquire(
                 raise MeasurementAborted()
             if tick is not None:
                 tick((w.el[-1] if w.el else 0) / 1e6, w.sums, len(w.rows))
-    if tick is not None:
-        tick(duration_s, w.sums, len(w.rows))
+    if tick is not None:  # the bar ends where the window ended: at its length, or earlier
+        tick(duration_s if w.ended_s is None else w.ended_s, w.sums, len(w.rows))
     crc = link.decoder.stats.crc_errors - crc0
     return w.acquisition(beep_ns, start_time, crc, board.status_flags)
 
@@ -166,6 +166,8 @@ class _Window:
         enough: Callable[[np.ndarray, float], bool] | None,
     ) -> None:
         self.board, self.nonce, self.enough = board, nonce, enough
+        #: device time at which ``enough`` ended the window, s (None: it did not)
+        self.ended_s: float | None = None
         self.duration_us = int(round(duration_s * 1e6))
         self.period_us = 1e6 / rate_hz
         self.every = max(1, round(rate_hz))  # samples in a second: how often ``enough`` is asked
@@ -280,7 +282,10 @@ class _Window:
         self.rows.append(counts)
         self.sums[:] += counts
         if self.enough is not None and len(self.rows) % self.every == 0:
-            return self.enough(np.asarray(self.rows), (rel + self.period_us) / 1e6)
+            self.ended_s = (rel + self.period_us) / 1e6
+            if self.enough(np.asarray(self.rows), self.ended_s):
+                return True
+            self.ended_s = None
         return False
 
     def acquisition(

@@ -424,3 +424,26 @@ def test_an_80x24_terminal_redraws_in_place_and_ends_with_the_verdict(
     cols = [ln.replace("\x1b[K", "") for ln in shown]
     assert all(len(ln) <= 80 for ln in cols), [ln for ln in cols if len(ln) > 80]
     assert len(last) <= 80  # the verdict is one line, not wrapped
+
+
+@pytest.mark.slow
+def test_a_face_that_stops_early_ends_its_bar_where_it_stopped(
+    tmp_path: Path, screens: list[Screen]
+) -> None:
+    """``--plan adaptive`` at 80×24: a face that has enough before its 30 s ends its progress
+    bar at the second it stopped (the bar read ``[##########] 30.0/30 s`` and then ``stopped
+    … at 11 s``)."""
+    s = Screen(["--port", board_url("sim", 31, "max"), "--serial", "AD1", "--yes", "--warmup",
+                "0", "--static-seconds", "30", "--turns", "1", "--plan", "adaptive",
+                "--max-extra", "0", "--no-closing"], tmp_path, size=(24, 80))  # fmt: skip
+    screens.append(s)
+    assert s.wait() in (0, 1)
+    lines = [ln for ln in s.text.replace("\r", "\n").split("\n") if ln.strip()]
+    stops = [i for i, ln in enumerate(lines) if re.match(r"[xyz]_(up|dn): stopped, .* at \d+ s$",
+                                                           ln.strip())]  # fmt: skip
+    assert len(stops) == 6, lines[:80]
+    for i in stops:
+        bar = next(ln for ln in reversed(lines[:i]) if re.search(r"\] +\d+\.\d/30 s", ln))
+        shown = float(re.search(r"\] +(\d+\.\d)/30 s", bar).group(1))  # type: ignore[union-attr]
+        said = int(re.search(r"at (\d+) s$", lines[i].strip()).group(1))  # type: ignore[union-attr]
+        assert shown < 30.0 and abs(shown - said) <= 1.0, (bar, lines[i])
