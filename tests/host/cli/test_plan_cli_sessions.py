@@ -34,7 +34,7 @@ def _session(d: Path, headers: bool, removed: tuple[str, ...]) -> Path:
 @pytest.mark.parametrize(
     ("headers", "removed", "first"),
     [
-        (False, ("z_ccw", "z_cw"), "z turns, 2 each way"),
+        pytest.param(False, ("z_ccw", "z_cw"), "z turns, 2 each way", marks=pytest.mark.slow),
         pytest.param(True, ("z_ccw", "z_cw"), "z turns, 2 each way", marks=pytest.mark.slow),
         # one turn of a pair gone: y_ccw alone determines y; the pair is ranked as any
         pytest.param(False, ("y_cw",), None, marks=pytest.mark.slow),
