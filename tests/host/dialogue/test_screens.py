@@ -30,8 +30,9 @@ def test_the_progress_line_fits_80_columns_with_whole_numbers(name: str, seconds
     tick(seconds - 0.1, means * 50, 50)
     line = con.progress_lines[-1]
     assert len(line) <= 79, line
-    assert re.search(r" A -10\.124 -0\.999 -0\.999", line), line
-    assert line.endswith(("-9.999", "-0.999")), line  # the gyro means whole, or left out whole
+    assert re.search(r" A -10\.12 -1\.00 -1\.00 m/s²", line), line
+    # the gyro means whole with their unit, or left out whole
+    assert line.endswith(("-10.00 °/s", "-1.00 m/s²")), line
 
 
 def test_whole_parts_leaves_out_what_does_not_fit_whole() -> None:
