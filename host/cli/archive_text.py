@@ -10,7 +10,15 @@ import textwrap
 from collections.abc import Sequence
 
 from host.archive import stats
-from host.archive.checks import BenchRow, Chart, DriftRow, LotReport, RepeatRow, TrendPoint
+from host.archive.checks import (
+    BenchRow,
+    Chart,
+    DriftRow,
+    IdenticalRepeat,
+    LotReport,
+    RepeatRow,
+    TrendPoint,
+)
 from host.archive.entry import Entry, conditional_pass
 from host.archive.store import Summary
 from host.cli.screen import Column, table, terminal_width
@@ -125,9 +133,14 @@ def trend(serial: str, points: dict[str, list[TrendPoint]], width: int | None = 
     return _text(out)
 
 
-def repeat(rows: Sequence[RepeatRow], alpha: float, width: int | None = None) -> str:
+def repeat(
+    rows: Sequence[RepeatRow],
+    alpha: float,
+    width: int | None = None,
+    identical: Sequence[IdenticalRepeat] = (),
+) -> str:
     """``archive repeat``: per unit and bench, the failing parameters (all of them for one
-    unit), and the verdict."""
+    unit), the sessions that are an earlier one over again (``identical``), and the verdict."""
     w = width or terminal_width()
     units = sorted({(r.serial, r.bench) for r in rows})
     failed = sorted({(r.serial, r.bench) for r in rows if r.failed})
@@ -159,15 +172,31 @@ def repeat(rows: Sequence[RepeatRow], alpha: float, width: int | None = None) ->
     few = sorted({(r.serial, r.bench) for r in rows if r.dof < 1})
     if few:
         out.append(f"untestable (one session only): {len(few)} unit/bench pair(s)")
+    out += _identical(identical, w)
     if failed:
         out += prose(
             "NOT REPEATABLE: " + ", ".join(f"{s} on {b}" for s, b in failed)
             + " — the sessions disagree beyond their σ: look at the mounting and the records",
             w,
         )  # fmt: skip
+    elif identical:
+        out.append(f"repeatability not shown: {len(identical)} session(s) repeat an earlier one")
     else:
         out.append(f"repeatable: {len(units) - len(few)} unit/bench pair(s) agree within their σ")
     return _text(out)
+
+
+def _identical(found: Sequence[IdenticalRepeat], w: int) -> list[str]:
+    """One line per session that is an earlier one over again, bit for bit."""
+    out: list[str] = []
+    for r in found:
+        out += prose(
+            f"IDENTICAL: {r.serial} #{r.later} has {r.what} of #{r.earlier} bit for bit — "
+            "not a repeat (a copy, or the same simulated noise: sim:// noise_seed); "
+            "its agreement proves nothing",
+            w,
+        )
+    return out
 
 
 def drift(rows: Sequence[DriftRow], k: float, alpha: float, width: int | None = None) -> str:
