@@ -199,6 +199,11 @@ def _identical(found: Sequence[IdenticalRepeat], w: int) -> list[str]:
     return out
 
 
+def _minute(iso: str) -> str:
+    """An archived UTC time (ISO text) to the minute: ``2026-01-03 08:12 UTC``."""
+    return f"{iso[:10]} {iso[11:16]} UTC" if len(iso) >= 16 else iso
+
+
 def drift(rows: Sequence[DriftRow], k: float, alpha: float, width: int | None = None) -> str:
     """``archive drift``: the units whose parameters moved since their last calibration."""
     w = width or terminal_width()
@@ -209,10 +214,10 @@ def drift(rows: Sequence[DriftRow], k: float, alpha: float, width: int | None = 
         f"runs with nothing moved, over {len(rows)} parameters) or beyond --tol",
         w,
     )
-    for when in sorted({(r.serial, r.before_at[:10], r.after_at[:10]) for r in moved}):
-        rs = [r for r in moved if (r.serial, r.before_at[:10], r.after_at[:10]) == when]
+    for when in sorted({(r.serial, r.before_at, r.after_at) for r in moved}):
+        rs = [r for r in moved if (r.serial, r.before_at, r.after_at) == when]
         serial, before, after = when
-        out.append(f"{serial}: {before} -> {after}")
+        out.append(f"{serial}: {_minute(before)} -> {_minute(after)}")
         cols = [
             Column("parameter", [r.name for r in rs], "<"),
             Column("before", [_g(r.before, 5) for r in rs]),
