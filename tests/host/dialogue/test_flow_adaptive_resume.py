@@ -48,8 +48,7 @@ class CutAfter(ScriptedConsole):
 
 def _opts(out: Path, **kw: object) -> options.DialogueOptions:
     return flat_options(
-        port="sim://?seed=9&noise_seed=9&speed=max", serial=SERIAL, out=out,
-        static_seconds=STATIC_S,
+        port="sim://?seed=9&speed=max", serial=SERIAL, out=out, static_seconds=STATIC_S,
         turns=1, warmup_s=0.0, yes=True, ready_s=0.0, plan="adaptive", target=1e-6,
         **{"max_extra": MAX_EXTRA, **kw},  # type: ignore[arg-type]
     )  # fmt: skip
