@@ -227,9 +227,10 @@ class Check:
         verdict = "as predicted" if abs(d) <= 0.1 * self.predicted else (
             "better than predicted" if d < 0 else "worse than predicted"
         )  # fmt: skip
+        # within 80 columns with the dialogue's indent: "worse than predicted" is the longest
         return (
-            f"it gave worst σ/tolerance {self.gave:.3g} (predicted {self.predicted:.3g}, "
-            f"before {self.before:.3g}: {verdict})"
+            f"it gave worst {self.gave:.3g} (predicted {self.predicted:.3g}, before "
+            f"{self.before:.3g}): {verdict}"
         )
 
 

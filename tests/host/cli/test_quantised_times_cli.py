@@ -32,7 +32,10 @@ def quantised(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathF
 def test_calibrate_and_diagnose_quantised_time_stamps(
     quantised: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert main(["calibrate", "--from-dir", str(quantised), "--no-archive"]) == 0
+    # a verdict, not an error: the hidden temperature bias widens U, so the guarded decision
+    # rule may end on FAIL (exit 1); an error would be exit 2 and no result file
+    assert main(["calibrate", "--from-dir", str(quantised), "--no-archive"]) in (0, 1)
+    assert "Verdict: " in capsys.readouterr().out
     assert (quantised / "Q1_result.json").exists()
     assert main(["model", "diagnose", str(quantised)]) == 0
     out = capsys.readouterr().out
