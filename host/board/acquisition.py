@@ -1,4 +1,5 @@
-"""One measurement on device time: the window a board's samples are cut to at the start beep.
+"""One measurement on device time: the window a board's samples are cut to at the start beep
+(on one board, or on several at once: :func:`acquire_all`).
 
 At the beep the host sends PING and the board answers PONG with its ``t_us`` at that moment;
 the measurement holds exactly the samples whose device time lies in the window that starts
@@ -11,7 +12,7 @@ operator's Esc (:class:`MeasurementAborted`) are told apart. The board it reads 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Protocol
@@ -108,7 +109,8 @@ def acquire(
     enough: Callable[[np.ndarray, float], bool] | None = None,
 ) -> Acquisition:
     """Record ``duration_s`` seconds of device time from now (the start beep) from ``board``
-    (nominal ``rate_hz``, Hz), its PING carrying ``nonce``.
+    (nominal ``rate_hz``, Hz), its PING carrying ``nonce``: :func:`acquire_all` of this one
+    board (its exceptions raised as they are).
 
     The window is cut on device time, not on what a read happens to return: at the beep
     the host sends PING and the board answers PONG with its ``t_us`` at that moment; the
@@ -124,32 +126,104 @@ def acquire(
     the measurement always ends. ``enough(counts (N, 7), elapsed_s)`` True ends the window
     early, after its latest sample; it is asked once a second of device time.
     """
-    link = board.link
-    assert link is not None
+    try:
+        return acquire_all([(board, rate_hz, nonce)], duration_s, tick, check_escape,
+                           tick_every_s, enough)[0]  # fmt: skip
+    except BoardFailed as failed:
+        raise failed.error from None
+
+
+class BoardFailed(Exception):
+    """Board ``index`` of :func:`acquire_all` failed with ``error`` (LinkLost, LinkTimeout,
+    BoardReset, SensorFault): the measurement of every board is discarded."""
+
+    def __init__(self, index: int, error: Exception) -> None:
+        super().__init__(str(error))
+        self.index = index
+        self.error = error
+
+
+def acquire_all(
+    boards: Sequence[tuple[FrameSource, float, int]],
+    duration_s: float,
+    tick: Callable[[float, np.ndarray, int], None] | None = None,
+    check_escape: Callable[[], bool] | None = None,
+    tick_every_s: float = 0.1,
+    enough: Callable[[np.ndarray, float], bool] | None = None,
+) -> list[Acquisition]:
+    """One measurement on several boards at once: each ``(board, rate_hz, nonce)`` gets its
+    PING at the one start beep (sent one after the other, within microseconds of host time)
+    and its window of ``duration_s`` of its own device time from its PONG, as
+    :func:`acquire` says; the boards are read in turn (each read takes what its port holds)
+    until every window is over. So the windows start at the same host moment, to within the
+    link's latency, and each board's record holds that window's samples. ``tick`` shows the
+    first board's window; ``enough`` (one board only) ends it early. A board that fails
+    raises :class:`BoardFailed` naming it."""
     beep_ns = time.monotonic_ns()
     start_time = datetime.now().astimezone().isoformat(timespec="milliseconds")
-    link.send("PING", nonce=nonce)
-    crc0 = link.decoder.stats.crc_errors
-    w = _Window(board, rate_hz, nonce, duration_s, enough)
-    next_tick = w.last_sample = time.monotonic()
-    ping_deadline = next_tick + PONG_TIMEOUT_S
-    done = False
-    while not done:
-        done = w.read()
+    windows = [_start(k, b, rate, nonce, duration_s, enough) for k, (b, rate, nonce)
+               in enumerate(boards)]  # fmt: skip
+    crc0 = [_crc(b) for b, _, _ in boards]
+    next_tick = time.monotonic()
+    done = [False] * len(windows)
+    while not all(done):
+        for k, w in enumerate(windows):
+            if not done[k]:
+                done[k] = _step(k, w)
         now = time.monotonic()
-        if w.t0 is None and now >= ping_deadline and w.newest_t is not None:
-            done = w.start_after_newest()
-        w.check_stall(now, done)
         if now >= next_tick:
             next_tick = now + tick_every_s
             if check_escape is not None and check_escape():
                 raise MeasurementAborted()
             if tick is not None:
+                w = windows[0]
                 tick((w.el[-1] if w.el else 0) / 1e6, w.sums, len(w.rows))
     if tick is not None:  # the bar ends where the window ended: at its length, or earlier
+        w = windows[0]
         tick(duration_s if w.ended_s is None else w.ended_s, w.sums, len(w.rows))
-    crc = link.decoder.stats.crc_errors - crc0
-    return w.acquisition(beep_ns, start_time, crc, board.status_flags)
+    return [
+        w.acquisition(beep_ns, start_time, _crc(b) - c0, b.status_flags)
+        for w, (b, _, _), c0 in zip(windows, boards, crc0, strict=True)
+    ]
+
+
+def _crc(board: FrameSource) -> int:
+    assert board.link is not None
+    return board.link.decoder.stats.crc_errors
+
+
+def _start(
+    index: int,
+    board: FrameSource,
+    rate_hz: float,
+    nonce: int,
+    duration_s: float,
+    enough: Callable[[np.ndarray, float], bool] | None,
+) -> _Window:
+    """Board ``index``'s window, its PING sent now (the start beep)."""
+    link = board.link
+    assert link is not None
+    try:
+        link.send("PING", nonce=nonce)
+    except UserError as exc:  # LinkLost: named with its board
+        raise BoardFailed(index, exc) from None
+    w = _Window(board, rate_hz, nonce, duration_s, enough)
+    w.last_sample = time.monotonic()
+    w.ping_deadline = w.last_sample + PONG_TIMEOUT_S
+    return w
+
+
+def _step(index: int, w: _Window) -> bool:
+    """One read of board ``index``'s window; True once it is over."""
+    try:
+        done = w.read()
+        now = time.monotonic()
+        if w.t0 is None and now >= w.ping_deadline and w.newest_t is not None:
+            done = w.start_after_newest()
+        w.check_stall(now, done)
+    except (UserError, BoardReset) as exc:  # LinkLost, LinkTimeout, SensorFault, a reset
+        raise BoardFailed(index, exc) from None
+    return done
 
 
 class _Window:
@@ -184,6 +258,7 @@ class _Window:
         self.lost = 0
         self.missed = 0
         self.last_sample = 0.0  # host monotonic s of the latest read that brought a sample
+        self.ping_deadline = 0.0  # host monotonic s: no PONG by then, start after the newest
         self.last_error: Frame | None = None
 
     def read(self) -> bool:

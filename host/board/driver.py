@@ -19,7 +19,7 @@ talks to the operator.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -28,7 +28,7 @@ import numpy as np
 import serial
 from serial.serialutil import Timeout
 
-from host.board.acquisition import SAMPLE_STALL_S, Acquisition, acquire
+from host.board.acquisition import SAMPLE_STALL_S, Acquisition, acquire, acquire_all
 from host.board.hello import check_spec, wait_for_hello
 from host.board.link import DEFAULT_BAUD, Link, LinkTimeout, open_port
 from host.errors import UserError
@@ -428,11 +428,15 @@ class Board:
         cut on device time by :func:`host.board.acquisition.acquire` (its PONG, losses, resets
         and stalls), ``tick``, ``check_escape`` and ``enough`` (an early end) as there."""
         assert self.link is not None and self.info is not None
-        self._ping_nonce = (self._ping_nonce + 1) & 0xFFFFFFFF
         return acquire(
-            self, self.info.rate_hz, self._ping_nonce, duration_s, tick, check_escape,
+            self, self.info.rate_hz, self.next_nonce(), duration_s, tick, check_escape,
             tick_every_s, enough,
         )  # fmt: skip
+
+    def next_nonce(self) -> int:
+        """The nonce of the next measurement's PING (its PONG names it)."""
+        self._ping_nonce = (self._ping_nonce + 1) & 0xFFFFFFFF
+        return self._ping_nonce
 
     def self_test(self, timeout_s: float = SELF_TEST_TIMEOUT_S) -> SelfTest:
         """Run the MPU-6000 self-test: SELF_TEST, its ACK, then SELF_TEST_RESULT judged by
@@ -473,3 +477,19 @@ class Board:
         g = sensor.gyro_dps(c[:, 4:7], self.info.gyro_fs_sel)
         t = sensor.temp_c(c[:, 3])
         return a, g, t
+
+
+def acquire_boards(
+    boards: Sequence[Board],
+    duration_s: float,
+    tick: Callable[[float, np.ndarray, int], None] | None = None,
+    check_escape: Callable[[], bool] | None = None,
+) -> list[Acquisition]:
+    """One measurement of ``duration_s`` s on every board of ``boards`` at once, from one
+    start beep (:func:`host.board.acquisition.acquire_all`: each board's window on its own
+    device time from its PONG; a failure is :class:`host.board.acquisition.BoardFailed`
+    naming the board)."""
+    for b in boards:
+        assert b.link is not None and b.info is not None
+    each = [(b, b.info.rate_hz, b.next_nonce()) for b in boards if b.info is not None]
+    return acquire_all(each, duration_s, tick, check_escape)

@@ -4,6 +4,7 @@ however late and in whatever pieces the port delivers them."""
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import numpy as np
@@ -76,3 +77,63 @@ def test_measurement_is_cut_on_device_time_not_on_reads(chunk: int) -> None:
             assert acq.lost == 0 and np.all(np.diff(acq.t_us) > 0)
     finally:
         board.close()
+
+
+def _boards(*urls: str, settle: bool = True) -> list[driver.Board]:
+    boards = [driver.Board(u) for u in urls]
+    for b in boards:
+        b.connect()
+    deadline = time.monotonic() + (20.0 if settle else 0.0)
+    while any(b.clock.map is None for b in boards) and time.monotonic() < deadline:
+        for b in boards:  # read until each live clock has a first estimate
+            b.pump()
+    return boards
+
+
+@pytest.mark.slow
+def test_several_boards_are_measured_on_one_window_of_host_time() -> None:
+    """Two boards read at once from one start beep: each record is its own board's samples
+    (the two units differ), of its own device time from its PONG, and the two windows begin
+    at the same host moment to within the link's latency (the live clock maps each first
+    sample to host time)."""
+    boards = _boards(f"sim://?seed=1&{LINEAR[10:]}", f"sim://?seed=2&{LINEAR[10:]}")
+    try:
+        for b in boards:
+            b.hint("place", name="y_up")
+        acqs = driver.acquire_boards(boards, 0.6)
+        assert len(acqs) == 2 and acqs[0].beep_ns == acqs[1].beep_ns
+        starts = []
+        for b, acq in zip(boards, acqs, strict=True):
+            period_us = 1e6 / b.info.rate_hz  # type: ignore[union-attr]
+            assert 0.6e6 - 2 * period_us <= acq.t_us[-1] < 0.6e6
+            assert acq.lost == 0 and np.all(np.diff(acq.t_us) > 0)
+            assert 0 <= (acq.start_t_us - acq.beep_t_us) & 0xFFFFFFFF < period_us
+            assert np.all(acq.counts[:, 1] / 16384.0 > 0.9)  # y up on both
+            starts.append(int(b.clock_meta(acq.start_t_us)["clock_host_ns_at_start"]))
+        assert abs(starts[0] - starts[1]) < 50e6, starts  # ns: within 50 ms
+        assert not np.array_equal(acqs[0].counts[:20], acqs[1].counts[:20])
+    finally:
+        for b in boards:
+            b.close()
+
+
+def test_a_board_that_vanishes_is_named_by_its_place() -> None:
+    """The second of two boards loses its cable during the measurement: BoardFailed names
+    board 1 and carries the link's own error; the single-board acquire raises that error
+    itself, as it always did."""
+    from host.board.acquisition import BoardFailed
+    from host.board.link import LinkLost
+
+    plain = LINEAR[10:]  # in real time: the cable goes 1.5 s after the port opened
+    boards = _boards(
+        f"sim://?seed=1&{plain}", f"sim://?seed=2&{plain}&fault=pull_cable@1.5", settle=False
+    )
+    try:
+        with pytest.raises(BoardFailed) as info:
+            driver.acquire_boards(boards, 5.0)
+        assert info.value.index == 1 and isinstance(info.value.error, LinkLost)
+        with pytest.raises(LinkLost):
+            boards[1].acquire(1.0)
+    finally:
+        for b in boards:
+            b.close()
