@@ -16,6 +16,11 @@ Keys are strings: one character, ``ESC`` for a lone Esc, ``"\\r"`` for Enter; es
 terminal's SIGINT (cbreak keeps ISIG), i.e. ``KeyboardInterrupt``; a 0x03 byte read in raw mode
 raises it too. SIGTERM (a service manager, ``kill``) and SIGHUP (the terminal closed) end a
 session the same way, as :class:`EndedBySignal` (:func:`signals_end_like_ctrl_c`).
+
+An Enter typed with a one-key answer ("y⏎" at a Y/N question) is not the next question's
+answer: an Enter already typed when the next question is shown, or typed within
+:data:`STRAY_ENTER_S` of the one-key answer, is dropped (a measurement after the question
+drops every key but Esc anyway).
 """
 
 from __future__ import annotations
@@ -37,6 +42,10 @@ CTRL_C = "\x03"
 ENTER = "\r"
 BACKSPACES = ("\x7f", "\x08")
 BEEP_MARK = "*** BEEP ***"
+ENTERS = ("\r", "\n")
+#: an Enter this soon (s) after a one-key answer was typed with it: nobody reads the next
+#: question and answers it with Enter that fast
+STRAY_ENTER_S = 0.3
 
 T = TypeVar("T")
 
@@ -289,8 +298,12 @@ class ScriptedConsole:
 
     interactive = True
 
-    def __init__(self, keys: Iterable[str] = (), columns: int = 80) -> None:
+    def __init__(
+        self, keys: Iterable[str] = (), columns: int = 80, stray_enter_s: float = 0.0
+    ) -> None:
         self.keys: list[str] = [c for k in keys for c in k]
+        #: a script's keys come at once: 0 keeps every scripted Enter (Questions' grace)
+        self.stray_enter_s = stray_enter_s
         self.text = ""
         self.beeps = 0
         self.columns = columns
@@ -348,6 +361,10 @@ class Questions:
         self.yes = yes
         self.idle: Callable[[], None] = idle or (lambda: None)
         self.poll_s = poll_s
+        #: how soon after a one-key answer an Enter counts as typed with it (s)
+        self.stray_enter_s = float(getattr(console, "stray_enter_s", STRAY_ENTER_S))
+        self._held: list[str] = []  # keys typed before a question was shown, for it
+        self._one_key_at: float | None = None  # when the last one-key answer was typed
 
     # ---- output ----------------------------------------------------------------------------
     def say(self, text: str = "") -> None:
@@ -370,17 +387,44 @@ class Questions:
     # ---- keys ------------------------------------------------------------------------------
     def _wait_key(self) -> str:
         while True:
+            if self._held:
+                return self._held.pop(0)
             self.idle()
             k = self.console.key(self.poll_s)
             if k is not None:
                 return k
+
+    def _key_now(self) -> str | None:
+        """A key typed already (held or pending), without waiting; None if none."""
+        return self._held.pop(0) if self._held else self.console.key(0.0)
+
+    def _answered_by_one_key(self) -> None:
+        """A one-key answer was just typed: an Enter typed with it is not the next answer."""
+        self._one_key_at = time.monotonic()
+
+    def _first_key(self) -> str:
+        """The first key of a question just shown, past an Enter typed with the one-key
+        answer before it: one already typed when the question was shown, or one typed within
+        ``stray_enter_s`` of that answer."""
+        since, self._one_key_at = self._one_key_at, None
+        if since is None:
+            return self._wait_key()
+        while (k := self.console.key(0.0)) is not None:  # typed before this question
+            self._held.append(k)
+        if self._held and self._held[0] in ENTERS:
+            self._held.pop(0)
+            return self._wait_key()
+        k = self._wait_key()
+        if k in ENTERS and time.monotonic() - since < self.stray_enter_s:
+            return self._wait_key()
+        return k
 
     def escape_pressed(self) -> bool:
         """True if Esc was pressed (looked at without waiting; other keys are dropped)."""
         if self.yes or not self.console.interactive:
             return False
         while True:
-            k = self.console.key(0.0)
+            k = self._key_now()
             if k is None:
                 return False
             if k == ESC:
@@ -391,7 +435,7 @@ class Questions:
         "Press any key when ready" (method.md §5 step 3) listens for."""
         if self.yes or not self.console.interactive:
             return False
-        return self.console.key(0.0) is not None
+        return self._key_now() is not None
 
     def any_key(self, prompt: str) -> str:
         """Show ``prompt`` and wait for any key (returned; "" in --yes mode). Esc does not
@@ -400,14 +444,15 @@ class Questions:
             self.say(f"{prompt} [--yes]")
             return ""
         self.console.write(prompt + " ")
+        k = self._first_key()
         while True:
-            k = self._wait_key()
             if k != ESC:
                 break
             self.console.write(
                 "\n  (Esc aborts a measurement; none is running. Press another key to start, "
                 "Ctrl+C to end the session) "
             )
+            k = self._wait_key()
         self.console.write("\n")
         return k
 
@@ -419,9 +464,9 @@ class Questions:
             self.say(f"{shown} {'Y' if default else 'N'} (--yes)")
             return default
         self.console.write(shown + " ")
+        k = self._first_key()
         while True:
-            k = self._wait_key()
-            if k in ("\r", "\n"):
+            if k in ENTERS:
                 answer = default
             elif k.lower() in ("y", "n"):
                 answer = k.lower() == "y"
@@ -430,28 +475,29 @@ class Questions:
                 self.console.write(
                     f"\n  {shown_key}: press Y or N (Enter: {'Y' if default else 'N'}) "
                 )
+                k = self._wait_key()
                 continue
             self.console.write(("Y" if answer else "N") + "\n")
+            if k not in ENTERS:
+                self._answered_by_one_key()
             return answer
 
     def read_line(self, prompt: str) -> str:
         """A line of text typed by the operator (echoed; Backspace edits; Enter ends)."""
         self.console.write(prompt)
         chars: list[str] = []
-        while True:
-            k = self._wait_key()
-            if k in ("\r", "\n"):
-                self.console.write("\n")
-                return "".join(chars).strip()
+        k = self._first_key()
+        while k not in ENTERS:
             if k in BACKSPACES:
                 if chars:
                     chars.pop()
                     self.console.write("\b \b")
-                continue
-            if len(k) != 1 or not k.isprintable():
-                continue
-            chars.append(k)
-            self.console.write(k)
+            elif len(k) == 1 and k.isprintable():
+                chars.append(k)
+                self.console.write(k)
+            k = self._wait_key()
+        self.console.write("\n")
+        return "".join(chars).strip()
 
     def ask(
         self,

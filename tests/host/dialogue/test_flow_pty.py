@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from host.dialogue.console import STRAY_ENTER_S
 from host.session.directory import read_record
 from host.session.records import STATIC_NAMES, TURN_NAMES
 
@@ -298,6 +299,7 @@ def test_range_alarm_offers_to_repeat(tmp_path: Path, screens: list[Screen], boa
     s.expect(r"Measure the 6 static orientations <Y> or go to the integral gyro calibration <N>")
     s.send("n")  # straight to the turns
     s.expect(r"Number of turns.*: ")
+    time.sleep(STRAY_ENTER_S + 0.1)  # sooner, an Enter is taken as typed with the "n"
     s.send("\r")  # the default, 2
     s.expect(rf"Put the cube X up{PLACED}")
     s.send(" ")
@@ -447,3 +449,40 @@ def test_a_face_that_stops_early_ends_its_bar_where_it_stopped(
         shown = float(re.search(r"\] +(\d+\.\d)/30 s", bar).group(1))  # type: ignore[union-attr]
         said = int(re.search(r"at (\d+) s$", lines[i].strip()).group(1))  # type: ignore[union-attr]
         assert shown < 30.0 and abs(shown - said) <= 1.0, (bar, lines[i])
+
+
+@pytest.mark.slow
+def test_an_enter_typed_with_a_one_key_answer_is_not_the_next_answer(
+    tmp_path: Path, screens: list[Screen]
+) -> None:
+    """80×24, keys typed as a hand types them: "y⏎" at the first Y/N question left the
+    accumulation time an empty answer ("give the accumulation time in seconds"); "y⏎" at
+    "Save" started the next face before the cube was placed. The Enter typed with the key
+    (in one write, or 50 ms after it) is dropped; the next question waits for its answer."""
+    s = Screen(["--port", board_url("sim", 25, "max"), "--serial", "K1", "--warmup", "0"],
+               tmp_path, size=(24, 80))  # fmt: skip
+    screens.append(s)
+    s.expect(r"Measure the 6 static orientations <Y> or go to the integral gyro\s+"
+             r"calibration\s+<N>\? \[Y\]", timeout=60)  # fmt: skip
+    s.send("y\r")
+    s.expect(r"Accumulation time per orientation, seconds[^\n]*: ")
+    s.send("2\r")
+    s.expect(r"with X up[^\n]*\n?[^\n]*Press\s+any\s+key\.")
+    for name, typed in (("x_up", ["y\r"]), ("x_dn", ["y", "\r"])):
+        s.send(" ")
+        s.expect(rf"Measuring {name}")
+        s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
+        for i, keys in enumerate(typed):
+            time.sleep(0.05 if i else 0.0)
+            s.send(keys)
+        s.expect(rf"Saved .*K1_{name}\.txt")
+        s.expect(r"with (X down|Y up)[^\n]*\n?[^\n]*Press\s+any\s+key\.")
+        time.sleep(1.0)  # the Enter typed with "y" would have started the face by now
+        s._read(0.2)
+        assert "Measuring" not in s.text[s.pos :], s.text[-600:]
+    s.send("\x03")
+    assert s.wait() == 130
+    assert "give the accumulation time" not in s.text
+    assert re.search(r"seconds[^\n]*: 2\r?\n", s.text), s.text[-2000:]
+    out = tmp_path / "K1"
+    assert sorted(p.name for p in out.glob("*.txt")) == ["K1_x_dn.txt", "K1_x_up.txt"]
