@@ -263,40 +263,52 @@ def worst_fitted(records: Mapping[str, Record], opts: DialogueOptions, serial: s
 
 def measure_poses(dlg: Measuring, opts: DialogueOptions) -> None:
     """The records of ``--plan poses`` / ``poses16``: pose after pose (kept ones count, the
-    first after a resume without a move), until the target is met or the scheme ends."""
+    first after a resume without a move), until the target is met or the scheme ends. A pose
+    measured where a repeat left the unit (:func:`measure_pose`) is a pose of the session but
+    none of the scheme's attitudes."""
     seconds = dlg._ask_static_seconds()
     scheme = opts.planning.plan == "poses16"
     op = dlg.op
     numbers = [int(m.group("n")) for n in dlg.done if (m := POSE_NAME_RE.match(n))]
-    k = max(numbers, default=0)
+    k = asked = max(numbers, default=0)
     previous: str | None = None  # a resumed sitting starts without a move
+    misses = 0  # moves in a row not kept (a pose measured where the unit was instead)
     limit = len(SIXTEEN) if scheme else FIRST_FIT_POSES + opts.planning.max_extra
-    while k < limit:
+    while (asked if scheme else k) < limit:
         ups = pose_ups(dlg.done)
         op.say(coverage_line(ups))
         if scheme:
-            up = np.array(SIXTEEN[k])
+            up = np.array(SIXTEEN[asked])
         elif not ups:
             up = np.array([0.0, 0.0, 1.0])
         else:
             up = next_up(ups, _noise(dlg.done, dlg.g), dlg.g)
         k += 1
-        measure_pose(dlg, pose_name(k), up, seconds, previous)
+        kept = measure_pose(dlg, pose_name(k), up, seconds, previous, misses)
         previous = pose_name(k)
+        asked, misses = (asked + 1, 0) if kept else (asked, misses + 1)
         if scheme or k < FIRST_FIT_POSES:
             continue
-        worst, name = worst_fitted(dlg.done, opts, dlg.serial)
-        shown = f"{worst:.3g}" if math.isfinite(worst) else "∞ (a value not determined)"
-        if worst <= opts.planning.target:
-            op.say(
-                f"Poses: worst σ/tolerance {shown} ({name}): target {opts.planning.target:g} met."
-            )
+        if _target_met(dlg, opts):
             return
-        op.say(f"Poses: worst σ/tolerance {shown} ({name}), target {opts.planning.target:g}.")
     op.say(
         f"Poses: {k} poses measured"
         + ("" if scheme else f" (--max-extra {opts.planning.max_extra})")
     )
+
+
+def _target_met(dlg: Measuring, opts: DialogueOptions) -> bool:
+    """Whether every value the records so far determine meets the target (said either way)."""
+    worst, name = worst_fitted(dlg.done, opts, dlg.serial)
+    shown = f"{worst:.3g}" if math.isfinite(worst) else "∞ (a value not determined)"
+    target = opts.planning.target
+    met = worst <= target
+    dlg.op.say(
+        f"Poses: worst σ/tolerance {shown} ({name}): target {target:g} met."
+        if met
+        else f"Poses: worst σ/tolerance {shown} ({name}), target {target:g}."
+    )
+    return met
 
 
 def _noise(records: Mapping[str, Record], g: float) -> tuple[float, float]:
@@ -318,33 +330,66 @@ def move_name_of(previous: str, name: str) -> str:
 
 
 def measure_pose(
-    dlg: Measuring, name: str, up: np.ndarray, seconds: float, previous: str | None
-) -> None:
+    dlg: Measuring, name: str, up: np.ndarray, seconds: float, previous: str | None,
+    attempts: int = 0,
+) -> bool:  # fmt: skip
     """One pose: the operator moves the unit from pose ``previous`` (None: places it) to gravity
-    along ``up`` and holds it ``seconds`` s; saved as the move record and the pose record."""
-    op = dlg.op
-    attempts = 0
+    along ``up`` and holds it ``seconds`` s; saved as the move record and the pose record (True).
+    A move not kept (repeated, aborted) leaves the unit where it went, not in ``previous``: a
+    move from ``previous`` measured now would start elsewhere than its record says. So
+    ``name`` is then measured where the unit is, with no move into it (:func:`rest_where_it_is`;
+    False), and the next attitude is asked from there. ``attempts``: made before, for
+    ``--yes``'s limit on attempts."""
     while True:
         attempts += 1
         dlg.board.hint("pose", up=[float(c) for c in up], first=previous is None)
         if previous is None:
-            op.any_key(f"Hold it still with {attitude_words(up)} (no cube needed). Press any key.")
+            prompt = f"Hold it still with {attitude_words(up)} (no cube needed). Press any key."
         else:
-            op.any_key(
+            prompt = (
                 f"Keep it still in {previous}; at the beep move it to {attitude_words(up)} and "
                 "hold it still until the second beep. Press any key."
             )
-        length = seconds if previous is None else seconds + MOVE_MAX_S + 1.0
-        acq = dlg._acquire(name, length, "Hold still" if previous is None else "Move, then hold")
-        if acq is None:
-            continue
-        whole = dlg._record(name, acq, {"kind": "pose"})
-        records, problems = _cut(dlg, whole, name, previous, seconds)
-        problems = dlg._loss_problems(name, acq) + problems
-        if dlg._decide(name, problems, attempts):
-            for rec in records:
-                dlg._save(rec, problems)
-            return
+        if _attempt(dlg, name, prompt, seconds, previous, attempts):
+            return True
+        if previous is not None:
+            rest_where_it_is(dlg, name, seconds, previous, attempts)
+            return False
+
+
+def rest_where_it_is(
+    dlg: Measuring, name: str, seconds: float, previous: str, attempts: int
+) -> None:  # fmt: skip
+    """After a move from ``previous`` not kept: pose ``name`` measured wherever the unit is now
+    (no hint, no move into it), until it is saved."""
+    dlg.op.say(
+        f"{name} not kept: the unit is no longer in {previous}, so the next move cannot start "
+        f"from it. {name} is measured where the unit is now; the next attitude is asked from "
+        "there."
+    )
+    prompt = f"Hold it still where it is now ({name}). Press any key."
+    while not _attempt(dlg, name, prompt, seconds, None, attempts + 1):
+        attempts += 1
+
+
+def _attempt(
+    dlg: Measuring, name: str, prompt: str, seconds: float, previous: str | None, attempts: int
+) -> bool:  # fmt: skip
+    """Ask with ``prompt``, measure the move from ``previous`` (None: none) and the pose
+    ``name``; save them when the operator keeps them (True)."""
+    dlg.op.any_key(prompt)
+    length = seconds if previous is None else seconds + MOVE_MAX_S + 1.0
+    acq = dlg._acquire(name, length, "Hold still" if previous is None else "Move, then hold")
+    if acq is None:
+        return False
+    whole = dlg._record(name, acq, {"kind": "pose"})
+    records, problems = _cut(dlg, whole, name, previous, seconds)
+    problems = dlg._loss_problems(name, acq) + problems
+    if not dlg._decide(name, problems, attempts):
+        return False
+    for rec in records:
+        dlg._save(rec, problems)
+    return True
 
 
 def _slice(rec: Record, name: str, a: int, b: int, meta: Mapping[str, str]) -> Record:

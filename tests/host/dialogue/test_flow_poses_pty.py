@@ -1,13 +1,12 @@
 """``calibrate --plan poses`` answered by hand in an 80×24 pseudo-terminal (issue 41 item 4):
-the serial typed, a key at every prompt, each pose saved (``y`` once, the default after); the
-virtual operator of ``sim://`` holds the unit where each prompt says. Before, the poses
-dialogue was tested only with ``--yes``.
+the serial typed, a key at every prompt, each pose saved (``y`` once, the default after) but
+one repeated; the virtual operator of ``sim://`` holds the unit where each prompt says. Before,
+the poses dialogue was tested only with ``--yes``.
 
-Not here: answering ``N`` (repeat) to a pose after the first. The unit is then at the rejected
-attitude, not in the pose before, yet the prompt says "Keep it still in pose_NN" and the move
-saved is filed as from that pose: the fit's pose hold reads 7.5° (implausible) on such a
-session. The dialogue must first ask for the pose before again; until it does, that answer is
-a known fault, not a tested path."""
+``N`` (repeat) to a pose after the first leaves the unit at the rejected attitude, not in the
+pose before: asked again "from" that pose, the move saved started elsewhere than its record
+said and the fit's pose hold read 7.5° (implausible). The pose is now measured where the unit
+is, with no move into it, and the next attitude is asked from there."""
 
 from __future__ import annotations
 
@@ -59,6 +58,12 @@ def test_an_operator_answers_the_poses_dialogue_in_80x24(tmp_path: Path) -> None
             # after the "y" a script's Enter this fast would be taken as typed with it
             s.send(" " if k == 2 else "\r")
             s.expect(r"Save <Y> or repeat <N>\? \[Y\]", timeout=60)
+            if k == 3:  # repeated: measured again where the move left the unit
+                s.send("n")
+                s.expect(r"pose_03 not kept: the unit is no longer in pose_02")
+                s.expect(r"Hold it still where it is now \(pose_03\)\. Press any key\.")
+                s.send(" ")
+                s.expect(r"Save <Y> or repeat <N>\? \[Y\]", timeout=60)
             s.send("\r")  # the default: save
         assert s.wait(timeout=300) in (0, 1)
         assert "IMPLAUSIBLE" not in s.text
@@ -71,7 +76,10 @@ def test_an_operator_answers_the_poses_dialogue_in_80x24(tmp_path: Path) -> None
     assert re.fullmatch(r"(PASS|FAIL)\b.*", verdict) and "does not fit" not in verdict, verdict
     recs = read_session(tmp_path / "P7").records
     poses = sorted(n for n in recs if POSE_NAME_RE.match(n))
-    assert poses == sorted(asked) and len([n for n in recs if MOVE_NAME_RE.match(n)]) == 9
+    moves = sorted(n for n in recs if MOVE_NAME_RE.match(n))
+    assert poses == sorted(asked) and len(moves) == 8 and "move_02_03" not in moves
+    hold = re.search(r"pose\s+hold:\s+([0-9.]+)\s+(±|°)", s.text)  # the report's note
+    assert hold is not None and float(hold.group(1)) < 0.5, s.text[-3000:]
     # every pose where its prompt asked for it (the virtual operator's hand: a few degrees)
     for name, up in asked.items():
         mean = recs[name].accel.mean(axis=0)
