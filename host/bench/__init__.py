@@ -6,6 +6,8 @@ Beside the stages, not in the data's path: it produces what a real board and ope
 - ``physics`` — the cube, hand turns, gravity, Earth rate, room, clocks.
 - ``sim`` — the simulator: a running sensor, hand turns, motion schedules, frame streams.
 - ``operator`` — the virtual operator: carries out the program's hints (place, turn), faults.
+- ``cube`` — a cube that carries several boards: one operator's hand for all of them, each
+  board's place (its lever arm and mounting) from the cube and its slot.
 - ``plan`` — simulated sessions: a plan of records, simulated as the program records them.
 - ``firmware`` — the virtual firmware: host command bytes in, device frame bytes out (what
   ``sim://`` runs behind its port).

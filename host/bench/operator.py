@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from host.bench.cube import hint_seed
 from host.bench.physics import (
     Bench,
     Motion,
@@ -45,6 +46,10 @@ class CubeOperator:
     ``faults`` maps :data:`OPERATOR_FAULTS` names to K: the K-th ``place`` puts the next axis
     up (``wrong_face``), the K-th ``turn`` stops at 0.8 of the turns (``incomplete_turn``) or
     peaks at 320 °/s (``too_fast``). ``rng`` draws the hand motions.
+    ``cube`` (a board in a cube of several, :func:`host.bench.cube.hand_seed`): the hand of the
+    cube's one operator; the n-th hint's motion is then drawn from it and n alone
+    (:func:`host.bench.cube.hint_seed`, not from ``rng``), so every board of the cube given the
+    same hints makes the same motion, each from its own ``now``.
     """
 
     def __init__(
@@ -52,16 +57,23 @@ class CubeOperator:
         rng: np.random.Generator,
         bench: Bench | None = None,
         faults: dict[str, float] | None = None,
+        cube: np.random.SeedSequence | None = None,
     ) -> None:
         self.rng = rng
         self.bench = bench or Bench()
         self.faults = {k: v for k, v in (faults or {}).items() if k in OPERATOR_FAULTS}
         self.places = 0
         self.turns = 0
+        self.cube = cube
+        #: the hints received (every action, the ignored ones too)
+        self.hints = 0
 
     def hint(self, sim: Simulator, now: float, action: str, **kw: Any) -> dict[str, Any]:
         """Act on one hint at simulated time ``now`` (s); -> what the operator did (dict:
         ``action``, ``done``, ``up``, ``fault``, ``start_s``...)."""
+        self.hints += 1
+        if self.cube is not None:
+            self.rng = np.random.default_rng(hint_seed(self.cube, self.hints))
         if action == "place":
             return self.place(sim, now, **kw)
         if action == "turn":

@@ -11,7 +11,9 @@ schemes), ``speed`` (``realtime`` | ``N`` | ``max``; the default differs: ``real
 ``revision`` (the MPU-6000's PRODUCT_ID: ``D8`` by default, ``C4``/``C5`` count half the
 accelerometer LSB/g; a name or a number such as ``0x55``; :func:`parse_revision`) and
 ``self_test`` (``pass`` by default: the part's self-test response is within a few % of its
-factory trim; ``fail``: accelerometer Y 35 % above, gyroscope Z 45 % below it).
+factory trim; ``fail``: accelerometer Y 35 % above, gyroscope Z 45 % below it), ``cube=C`` and
+``slot=K`` (the board is at place K, 0–7, of cube C, held by one operator with the other boards
+of that cube: :mod:`host.bench.cube`; without ``cube`` the bench is the board's alone).
 
 ``fault=`` keeps the meaning it always had on each scheme: on ``sim://`` the operator's (and
 ``pull_cable@S``, the cable's) faults — the old spelling of ``operator_fault`` —, on ``emu://``
@@ -40,10 +42,12 @@ SPEED_RANGE = (0.1, 1000.0)
 CLOCK_PPM_MAX = 10_000.0
 #: ``sample_clock`` bound (relative): the MPU-6000's own oscillator is within ±5 %
 SAMPLE_CLOCK_MAX = 0.05
+#: ``cube=`` bound (a seed's word)
+CUBE_MAX = 2**32 - 1
 #: the options read here (a scheme adds its own)
 KEYS = (
     "seed", "speed", "truth", "effects", "operator", "latitude", "tilt", "earth_rate",
-    "operator_fault", "chamber", "revision", "self_test",
+    "operator_fault", "chamber", "revision", "self_test", "cube", "slot",
 )  # fmt: skip
 #: ``sim://``'s cable fault (``fault=pull_cable@S``: S simulated s after opening, default 5)
 CABLE_FAULT = "pull_cable"
@@ -90,6 +94,8 @@ class SimOptions:
     cable_pull_s: float | None = None  # sim:// only: fault=pull_cable@S
     product_id: int = DEFAULT_PRODUCT_ID  # the chip's PRODUCT_ID (revision=)
     self_test_fail: bool = False  # the part fails its self-test (self_test=fail)
+    cube: int | None = None  # the cube the board is in (cube=); None: a bench of its own
+    slot: int = 0  # its place in the cube (slot=)
 
     def draw(self) -> BenchDraw:
         """The sensor, room and bench of these options, and the seeds of the noise and the
@@ -105,6 +111,11 @@ class SimOptions:
         )
         if self.effects is not None:
             truth = truth.only(*self.effects)
+        cube_ss = None
+        if self.cube is not None:  # the cube's geometry is there whatever the unit's effects
+            from host.bench.cube import hand_seed, in_cube
+
+            truth, cube_ss = in_cube(truth, self.cube, self.slot), hand_seed(self.cube)
         env = Environment.random(np.random.default_rng(env_ss))
         if self.chamber:
             c = dict(self.chamber)
@@ -123,6 +134,7 @@ class SimOptions:
             ),
             noise_ss,
             op_ss,
+            cube_ss,
         )
 
 
@@ -135,6 +147,8 @@ class BenchDraw:
     bench: Bench
     noise_ss: np.random.SeedSequence
     operator_ss: np.random.SeedSequence
+    #: the hand of the cube's operator (``cube=``; :func:`host.bench.cube.hand_seed`), else None
+    cube_ss: np.random.SeedSequence | None = None
 
 
 _T = TypeVar("_T")
@@ -224,8 +238,34 @@ def parse_sim_options(
     self_test_fail = _option("self_test", lambda: parse_self_test(one("self_test", "pass")))
     faults, cable = _faults(opts, fault_is_operator)
     earth = one("earth_rate", "1").lower() not in ("0", "false", "no")
+    cube, slot = _cube(opts)
     return SimOptions(seed, speed, truth, effects, operator, latitude, tilt, earth, faults,
-                      chamber, cable, product_id, self_test_fail)  # fmt: skip
+                      chamber, cable, product_id, self_test_fail, cube, slot)  # fmt: skip
+
+
+def _whole(key: str, text: str, lo: int, hi: int) -> int:
+    """``text`` as a whole number in [lo, hi]; :class:`OptionError` naming ``key`` otherwise."""
+    try:
+        value = _int(text)
+    except ValueError:
+        raise OptionError(key, f"{key}={text!r} is not a whole number") from None
+    if not lo <= value <= hi:
+        raise OptionError(key, f"{key}={text!r} is outside {lo} … {hi}")
+    return value
+
+
+def _cube(opts: Mapping[str, Sequence[str]]) -> tuple[int | None, int]:
+    """(``cube=``: the cube's number, None without one; ``slot=``: the board's place in it, 0
+    by default) -> :class:`OptionError` for a bad one, or a slot without a cube."""
+    from host.bench.cube import SLOTS
+
+    cube = _whole("cube", opts["cube"][-1], 0, CUBE_MAX) if "cube" in opts else None
+    if "slot" not in opts:
+        return cube, 0
+    slot = _whole("slot", opts["slot"][-1], 0, SLOTS - 1)
+    if cube is None:
+        raise OptionError("slot", f"slot={slot} needs a cube: add cube=C, the cube it is in")
+    return cube, slot
 
 
 def parse_self_test(text: str) -> bool:

@@ -117,16 +117,21 @@ def format_up(up: np.ndarray | Sequence[float]) -> str:
 
 
 def simulate_session(
-    truth: SensorTruth, plan: Plan | None = None, seed: int = 0
+    truth: SensorTruth,
+    plan: Plan | None = None,
+    seed: int = 0,
+    hand: np.random.SeedSequence | None = None,
 ) -> dict[str, Record]:
     """Simulate every record of ``plan`` (default: 6 × 30 s statics + 6 turns of 2) as the
     calibration program would record them: ``t_ms`` ms since the start beep (device clock),
-    accel m/s², gyro °/s, temp °C from the counts; meta ``kind``/``up``/``turns``/… ."""
+    accel m/s², gyro °/s, temp °C from the counts; meta ``kind``/``up``/``turns``/… .
+    ``hand``: the seed of the hand's motions (default: drawn from ``seed``); the boards of one
+    cube share it (:func:`host.bench.cube.simulate_sitting`)."""
     plan = plan or Plan()
     env_ss, motion_ss, sensor_ss = np.random.SeedSequence(seed).spawn(3)
     env = plan.environment or Environment.random(np.random.default_rng(env_ss))
     sim = Simulator(truth, plan.bench, env, sensor_ss, plan.rate_hz)
-    motion_rng = np.random.default_rng(motion_ss)
+    motion_rng = np.random.default_rng(motion_ss if hand is None else hand)
     records: dict[str, Record] = {}
     t = plan.warmup_s
     for spec in plan.specs():
@@ -140,26 +145,8 @@ def simulate_session(
             "power_on_s": f"{t:.3f}",
             "session_s": f"{t - plan.warmup_s:.3f}",
         }
-        if spec.kind == "turn":
-            motion: Motion = turn_motion(
-                motion_rng,
-                up,
-                t,
-                spec.duration_s,
-                spec.turns,
-                spec.direction,
-                plan.bench.wobble_deg,
-            )
-            meta.update(
-                turns=str(spec.turns),
-                direction="ccw" if spec.direction > 0 else "cw",
-                window_s=f"{spec.duration_s:g}",
-            )
-        elif spec.kind == "rate":
-            motion = rate_table_motion(up, spec.rate_dps, t)
-            meta.update(rate_dps=f"{spec.rate_dps:g}", rate_axis=format_up(up))
-        else:
-            motion = static_motion(up)
+        motion, more = _record_motion(spec, up, t, motion_rng, plan.bench)
+        meta.update(more)
         sim.skip_until(t)
         sim.set_motion(motion, t)
         block = sim.run_until(t + spec.duration_s)
@@ -174,6 +161,26 @@ def simulate_session(
         )
         t += spec.duration_s + plan.gap_s
     return records
+
+
+def _record_motion(
+    spec: RecordSpec, up: np.ndarray, t: float, rng: np.random.Generator, bench: Bench
+) -> tuple[Motion, dict[str, str]]:
+    """The cube's motion for record ``spec`` from its start beep at ``t`` s (a turn's drawn by
+    the hand ``rng``), and the meta it adds to the record's."""
+    if spec.kind == "turn":
+        turn = turn_motion(
+            rng, up, t, spec.duration_s, spec.turns, spec.direction, bench.wobble_deg
+        )
+        return turn, {
+            "turns": str(spec.turns),
+            "direction": "ccw" if spec.direction > 0 else "cw",
+            "window_s": f"{spec.duration_s:g}",
+        }
+    if spec.kind == "rate":
+        meta = {"rate_dps": f"{spec.rate_dps:g}", "rate_axis": format_up(up)}
+        return rate_table_motion(up, spec.rate_dps, t), meta
+    return static_motion(up), {}
 
 
 def write_session(

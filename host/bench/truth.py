@@ -13,7 +13,9 @@ Per channel i (accelerometer shown; the gyro is the same in °/s, plus ``GA @ f/
         + w_i(t) + n_i                                  bias instability, white noise
 
 with ΔT = T − ``temp_ref_c`` and t_h hours since power-on. The asymmetry keeps the mean scale:
-a positive input sees scale ``1 + Axx + asym/2``, a negative one ``1 + Axx − asym/2``.
+a positive input sees scale ``1 + Axx + asym/2``, a negative one ``1 + Axx − asym/2``. f and
+the rate are along the sensor's axes: on a board mounted in a cube of several
+(:mod:`host.bench.cube`), Rot(θ)ᵀ times the cube's (``mounting_rad``).
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ EFFECTS: dict[str, tuple[str, ...]] = {
     "scale_asymmetry": ("accel_scale_asym", "gyro_scale_asym"),
     "nonlinearity": ("accel_nonlin", "gyro_nonlin"),
     "lever_arm": ("lever_arm_m",),
+    "mounting": ("mounting_rad",),
     "noise": ("accel_noise", "gyro_noise"),
     "bias_instability": ("accel_bias_instability", "gyro_bias_instability"),
 }
@@ -129,6 +132,10 @@ class SensorTruth:
     accel_nonlin: Vec3 = _ZERO3  #: 1/(m/s²): adds k·f² (m/s²)
     gyro_nonlin: Vec3 = _ZERO3  #: 1/(°/s): adds k·ω² (°/s)
     lever_arm_m: Vec3 = _ZERO3  #: sensor position from the turn axis, body frame, m
+    #: the board's mounting in a cube of several (:mod:`host.bench.cube`): the rotation vector
+    #: (rad) turning the cube's axes into the sensor's (v_cube = Rot(θ)·v_sensor); zero on a
+    #: bench of one board (not drawn by :meth:`random`)
+    mounting_rad: Vec3 = _ZERO3
     accel_noise: Vec3 = _ZERO3  #: white noise, std per sample, m/s²
     gyro_noise: Vec3 = _ZERO3  #: white noise, std per sample, °/s
     accel_bias_instability: Vec3 = _ZERO3  #: Gauss-Markov bias, steady-state std, m/s²
@@ -189,6 +196,7 @@ class SensorTruth:
             accel_nonlin=s3(1e-4),
             gyro_nonlin=s3(4e-6),
             lever_arm_m=s3(0.03),
+            mounting_rad=_ZERO3,
             accel_noise=v3(0.008, 0.011),
             gyro_noise=v3(0.021, 0.026),
             accel_bias_instability=v3(2e-4, 8e-4),
@@ -211,8 +219,18 @@ class SensorTruth:
 
     # ---- views -------------------------------------------------------------------------
     def constants(self) -> dict[str, float]:
-        """The report's constants (method.md §7 names) -> value."""
-        return {name: float(getattr(self, name)) for name in CONSTANT_NAMES}
+        """The report's constants (method.md §7 names) -> value, referred to the cube's axes
+        as a calibration finds them: with a mounting (:attr:`mounting_rad`) the matrices are
+        the sensor's times Rot(θ)ᵀ (M_A·Rᵀ, M_G·Rᵀ, GA·Rᵀ), read back into the names."""
+        out = {name: float(getattr(self, name)) for name in CONSTANT_NAMES}
+        if any(self.mounting_rad):
+            r_t = self.mounting.T
+            out.update(_matrix_constants("A", self.accel_matrix @ r_t))
+            out.update(_matrix_constants("G", self.gyro_matrix @ r_t))
+            ga = self.g_sensitivity @ r_t
+            out.update({f"GA{a}{b}": float(ga[i, j]) for i, a in enumerate("xyz")
+                        for j, b in enumerate("xyz")})  # fmt: skip
+        return out
 
     def constants_at(self, temp_c: float, hours_since_power_on: float = 0.0) -> dict[str, float]:
         """The report's constants as a linear calibration at chip temperature ``temp_c`` °C and
@@ -262,6 +280,17 @@ class SensorTruth:
         )
 
     @property
+    def mounting(self) -> np.ndarray:
+        """Rot(θ) (3, 3) of :attr:`mounting_rad`: v_cube = Rot(θ) @ v_sensor (I without one)."""
+        theta = np.asarray(self.mounting_rad, dtype=np.float64)
+        angle = float(np.linalg.norm(theta))
+        if angle == 0.0:
+            return np.eye(3)
+        k = theta / angle
+        kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+        return np.eye(3) + np.sin(angle) * kx + (1.0 - np.cos(angle)) * (kx @ kx)
+
+    @property
     def g_sensitivity(self) -> np.ndarray:
         """GA (3, 3), (°/s)/g: row = gyro channel, column = specific-force axis."""
         return np.array([[getattr(self, f"GA{a}{b}") for b in "xyz"] for a in "xyz"])
@@ -294,6 +323,18 @@ def _fields_of(effects: tuple[str, ...]) -> list[str]:
 
 def _zero_like(v: object) -> Any:
     return _ZERO3 if isinstance(v, tuple) else 0.0
+
+
+def _matrix_constants(prefix: str, m: np.ndarray) -> dict[str, float]:
+    """The scale and misalignment names of matrix ``m`` (``accel_matrix``'s layout), ``prefix``
+    A or G."""
+    p = prefix
+    return {
+        f"{p}xx": float(m[0, 0] - 1.0), f"{p}yy": float(m[1, 1] - 1.0),
+        f"{p}zz": float(m[2, 2] - 1.0), f"{p}xz": float(m[0, 1]), f"{p}xy": float(-m[0, 2]),
+        f"{p}yz": float(-m[1, 0]), f"{p}yx": float(m[1, 2]), f"{p}zy": float(m[2, 0]),
+        f"{p}zx": float(-m[2, 1]),
+    }  # fmt: skip
 
 
 # --------------------------------------------------------------------------- the model
@@ -334,10 +375,14 @@ def sensor_output(
 
     ``specific_force`` (N, 3) m/s², ``rate_dps`` (N, 3) °/s, ``temp_c`` (N,) chip °C,
     ``t_since_power_on_s`` (N,), ``g`` local gravity m/s² (g-sensitivity is per g of specific
-    force). ``*_disturbance`` (N, 3): noise + bias instability to add (already scaled).
+    force). ``*_disturbance`` (N, 3): noise + bias instability to add (already scaled). The
+    inputs are along the cube's axes; a mounting (:attr:`SensorTruth.mounting_rad`) turns them
+    into the sensor's first.
     """
     f = np.asarray(specific_force, dtype=np.float64)
     w = np.asarray(rate_dps, dtype=np.float64)
+    if any(truth.mounting_rad):  # cube axes -> the sensor's: v_sensor = Rot(θ)ᵀ v_cube
+        f, w = f @ truth.mounting, w @ truth.mounting
     d_temp = np.asarray(temp_c, dtype=np.float64) - truth.temp_ref_c
     t_h = np.asarray(t_since_power_on_s, dtype=np.float64) / 3600.0
     accel = f @ truth.accel_matrix.T + truth.accel_bias

@@ -9,7 +9,7 @@ URL grammar (all options optional, ``&``-separated)::
           [&operator=auto|manual][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
           [&operator_fault=wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
           [&chamber=FROM:TO:MINUTES[@START_S]][&revision=D8|C4|C5|...|0xNN]
-          [&self_test=pass|fail]
+          [&self_test=pass|fail][&cube=C[&slot=K]]
 
 - ``elf``: firmware to run, an ``.elf`` or ``.hex`` (default: ``make -C firmware`` into
   ``firmware/build/`` first; with ``boot``/``flash``: whatever the flash holds).
@@ -33,6 +33,8 @@ URL grammar (all options optional, ``&``-separated)::
 - ``truth``, ``effects``, ``latitude``, ``tilt``, ``earth_rate``, ``operator``, ``chamber``: as in
   ``sim://`` (``host/transports/protocol_sim.py``); ``operator=manual``: hints are only
   recorded (``port.hints``), move the cube with ``port.set_motion(motion)``.
+- ``cube``, ``slot``: the board sits at place K of virtual cube C, its operator's hand shared
+  with the cube's other boards, as in ``sim://`` (:mod:`host.bench.cube`).
 - ``operator_fault`` (may repeat): the virtual operator misbehaves on purpose, as ``sim://``'s
   operator faults: the K-th ``place`` puts the wrong face up, the K-th ``turn`` stops at 0.8 of
   the turns or peaks at 320 °/s (beyond the ±250 °/s range). (``fault`` here is a *sensor*
@@ -253,7 +255,7 @@ class _Bench:
         )
         self.bench: Bench = drawn.bench
         self.operator: CubeOperator = CubeOperator(
-            np.random.default_rng(op_ss), self.bench, dict(o.operator_faults)
+            np.random.default_rng(op_ss), self.bench, dict(o.operator_faults), drawn.cube_ss
         )
         self.pose: Motion = static_motion("z_up")
         self.power_s = 0.0

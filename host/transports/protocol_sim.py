@@ -8,7 +8,7 @@ the options shared with ``emu://`` are read by :mod:`host.bench.options`)::
           [&fault=pull_cable[@SECONDS]|wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
           [&clock_ppm=PPM][&sample_clock=REL][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
           [&effects=NAME,NAME...][&chamber=FROM:TO:MINUTES[@START_S]][&revision=D8|C4|C5|...]
-          [&self_test=pass|fail]
+          [&self_test=pass|fail][&cube=C[&slot=K]]
 
 - ``seed`` (default 0): draws the truth, the room/clock and the noise; same seed, same board.
 - ``speed``: ``realtime`` (default) — simulated time follows the wall clock; ``N`` — it runs N×
@@ -26,6 +26,14 @@ the options shared with ``emu://`` are read by :mod:`host.bench.options`)::
 - ``self_test``: how the chip answers the MPU-6000 self-test (SELF_TEST): ``pass`` (default,
   each axis within a few % of its factory trim) or ``fail`` (accelerometer Y 35 % above,
   gyroscope Z 45 % below it: the part fails, ±14 % is allowed).
+- ``cube=C`` (a whole number, 0 … 2³²−1) and ``slot=K`` (0 … 7, default 0): the board sits at
+  place K of virtual cube C, with the other boards given the same C (:mod:`host.bench.cube`):
+  one operator holds them, C alone draws the hand (the n-th hint's motion from C and n), so
+  boards given the same hints make the same motion, each from its own ``now`` at the hint; the
+  slot gives the board's own lever arm (the slot's offset from the cube's centre, replacing the
+  unit's) and its mounting (a rotation of a few mrad), both in ``port.truth``. The unit (its
+  sensor's errors) and its noise still come from ``seed``. Without ``cube`` the bench is the
+  board's own, as it always was.
 - ``operator_fault`` (as on ``emu://``; ``fault=`` is its older spelling here) and ``fault``:
   the operator or the cable misbehaves on purpose. ``wrong_face@K``: the K-th
   ``place`` hint (default 1st) puts the next axis up (x→y→z→x, same side);
@@ -55,7 +63,16 @@ recorded (``port.hints``); drive the cube yourself with ``port.set_motion(...)``
 ``operator_hint`` returns what the operator did (dict: ``up``, ``fault``, ``start_s``...).
 
 For tests: ``port.truth`` (:class:`host.bench.truth.SensorTruth`), ``port.sim`` (the running
-:class:`host.bench.sim.Simulator`), ``port.sim_time`` (simulated s since the last reset).
+:class:`host.bench.sim.Simulator`), ``port.sim_time`` (simulated s since the last reset),
+``port.host_time_of(t_s)`` (the host's monotonic time of simulated time ``t_s``).
+
+Boards of one cube (``cube=C``) in host time: each board takes a hint at its own ``now``, the
+simulated time its wall clock has reached at the call, and schedules the hint's motion from
+there; the same hint number draws the same motion on every board. The boards' motions then
+agree in host time to within the time between the calls that gave them the hint (the sitting's
+dialogue calls them one after another: well under a millisecond each on an idle machine), on
+no common clock beyond the host's. At ``speed=max`` a board's time runs as it is read, on no
+host clock: the motions agree from each board's ``now`` at the hint, in its device time.
 """
 
 from __future__ import annotations
@@ -167,6 +184,7 @@ class Serial(SerialBase):
             drawn = o.draw()
             truth, env = drawn.truth, drawn.environment
             self._noise_ss, self._op_ss = drawn.noise_ss, drawn.operator_ss
+            self._cube_ss = drawn.cube_ss
             if "clock_ppm" in opts:
                 ppm = bounded("clock_ppm", one("clock_ppm", "0"), -CLOCK_PPM_MAX, CLOCK_PPM_MAX)
                 env = _replace(env, timer_ppm=ppm)
@@ -179,7 +197,9 @@ class Serial(SerialBase):
         except ValueError as exc:
             raise _usage(str(exc)) from exc
         self.truth = truth
-        self._operator = CubeOperator(np.random.default_rng(self._op_ss), self.bench, self.faults)
+        self._operator = CubeOperator(
+            np.random.default_rng(self._op_ss), self.bench, self.faults, self._cube_ss
+        )
 
     # ---- open / close ------------------------------------------------------------------
     def open(self) -> None:
@@ -241,6 +261,12 @@ class Serial(SerialBase):
     def sim_time(self) -> float:
         """Simulated seconds since the last reset up to which output has been produced."""
         return self._t_gen
+
+    def host_time_of(self, t_s: float) -> float | None:
+        """The host's ``time.monotonic()`` (s) at which this board reaches simulated time
+        ``t_s`` (s since the last reset) at ``speed=realtime`` or ``N``; None at ``speed=max``
+        (its time runs as the host reads, on no host clock)."""
+        return None if self.speed is None else self._wall0 + t_s / self.speed
 
     def _now_target(self) -> float:
         """Simulated time the wall clock has reached (realtime / N× speed)."""
