@@ -173,6 +173,53 @@ def repeat(
     return rows
 
 
+@dataclass(frozen=True)
+class IdenticalRepeat:
+    """A session of a unit that is an earlier one of the same unit over again, bit for bit:
+    calibration ids ``earlier`` and ``later``, and ``what`` is the same (every value and σ,
+    or the named record file): a copy, or the same simulated noise, never a repeat."""
+
+    serial: str
+    bench: str
+    earlier: int
+    later: int
+    what: str
+
+
+def identical_repeats(
+    archive: Archive,
+    serial: str | None = None,
+    *,
+    across_benches: bool = False,
+    lot: str | None = None,
+) -> list[IdenticalRepeat]:
+    """The sessions :func:`repeat` compares that are no repeat: every parameter's value and σ
+    equal to an earlier session's of the unit (on its bench unless ``across_benches``), or a
+    record file (its SHA-256) archived in an earlier session of other records."""
+    g = grid(archive.values(serial=serial, lot=lot), ("serial",) if across_benches else
+             ("serial", "bench"))  # fmt: skip
+    out: list[IdenticalRepeat] = []
+    for gi, key in enumerate(g.groups):
+        seen: dict[bytes, int] = {}
+        for si in range(g.ids.shape[1]):
+            cid = int(g.ids[gi, si])
+            if cid < 0:
+                continue
+            k = np.concatenate([g.values[gi, :, si], g.sigmas[gi, :, si]]).tobytes()
+            if k in seen:
+                bench = "(all)" if across_benches else key[1]
+                out.append(IdenticalRepeat(key[0], bench, seen[k], cid, "every value and σ"))
+            seen.setdefault(k, cid)
+    kept = {int(i) for i in g.ids.ravel() if i >= 0}
+    named = {(r.earlier, r.later) for r in out}
+    for unit, bench, earlier, later, name in archive.shared_records(serial=serial, lot=lot):
+        if earlier in kept and later in kept and (earlier, later) not in named:
+            named.add((earlier, later))
+            where = "(all)" if across_benches else bench
+            out.append(IdenticalRepeat(unit, where, earlier, later, f"the record {name}"))
+    return sorted(out, key=lambda r: (r.serial, r.later))
+
+
 # ---- drift -----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class DriftRow:

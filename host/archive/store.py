@@ -456,6 +456,29 @@ class Archive:
             rows = conn.execute(final).all()
         return _value_table(rows)
 
+    def shared_records(
+        self, *, serial: str | None = None, lot: str | None = None
+    ) -> list[tuple[str, str, int, int, str]]:
+        """Record files (by SHA-256) archived with two sessions of one unit that are not the
+        same set of records: (serial, the later's bench, earlier id, later id, file name)."""
+        fa, fb = record_files.alias("fa"), record_files.alias("fb")
+        ca, cb = calibrations.alias("ca"), calibrations.alias("cb")
+        q = (
+            select(ca.c.serial, cb.c.bench, ca.c.id, cb.c.id, fb.c.name)
+            .select_from(fa.join(ca, fa.c.calibration_id == ca.c.id))
+            .join(fb, fb.c.sha256 == fa.c.sha256)
+            .join(cb, cb.c.id == fb.c.calibration_id)
+            .where(ca.c.serial == cb.c.serial, ca.c.id < cb.c.id)
+            .where(ca.c.records_hash != cb.c.records_hash)
+            .order_by(ca.c.serial, cb.c.id, ca.c.id, fb.c.name)
+        )
+        for col, v in ((ca.c.serial, serial), (ca.c.lot, lot)):
+            if v is not None:
+                q = q.where(col == v)
+        with self.engine.connect() as conn:
+            rows = conn.execute(q).all()
+        return [(str(r[0]), str(r[1]), int(r[2]), int(r[3]), str(r[4])) for r in rows]
+
 
 #: what calibrate prints for a simulated session given no --archive
 SIMULATED_NOT_ARCHIVED = (

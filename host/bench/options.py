@@ -3,9 +3,12 @@
 Both schemes drive the same physics simulator (:mod:`host.bench.sim`), so the options that set it
 up are read here, once, with the same meaning and checks:
 
-``seed`` (draws the truth, the room, the noise and the operator: same seed, same sensor on both
-schemes), ``speed`` (``realtime`` | ``N`` | ``max``; the default differs: ``realtime`` on
-``sim://``, ``max`` on ``emu://``), ``truth`` (``random`` | ``ideal``), ``effects``,
+``seed`` (draws the unit: its truth and its room; same seed, same sensor on both schemes; not
+given, a ``serial=`` draws it: :func:`unit_seed`, else 0), ``noise_seed`` (draws the noise and the
+operator's hand; not given, every session draws them afresh, as a real unit's repeat would),
+``serial`` (the unit's serial number, which the dialogue adds from ``--serial``), ``speed``
+(``realtime`` | ``N`` | ``max``; the default differs: ``realtime`` on ``sim://``, ``max`` on
+``emu://``), ``truth`` (``random`` | ``ideal``), ``effects``,
 ``operator`` (``auto`` | ``manual``), ``latitude``, ``tilt``, ``earth_rate``,
 ``operator_fault=NAME[@K]`` (may repeat: the K-th ``place`` or ``turn`` goes wrong on purpose)
 ``revision`` (the MPU-6000's PRODUCT_ID: ``D8`` by default, ``C4``/``C5`` count half the
@@ -23,6 +26,7 @@ the *sensor's* faults (``protocol_emu``). Options only one scheme has stay in it
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, TypeVar
@@ -46,8 +50,8 @@ SAMPLE_CLOCK_MAX = 0.05
 CUBE_MAX = 2**32 - 1
 #: the options read here (a scheme adds its own)
 KEYS = (
-    "seed", "speed", "truth", "effects", "operator", "latitude", "tilt", "earth_rate",
-    "operator_fault", "chamber", "revision", "self_test", "cube", "slot",
+    "seed", "noise_seed", "serial", "speed", "truth", "effects", "operator", "latitude", "tilt",
+    "earth_rate", "operator_fault", "chamber", "revision", "self_test", "cube", "slot",
 )  # fmt: skip
 #: ``sim://``'s cable fault (``fault=pull_cable@S``: S simulated s after opening, default 5)
 CABLE_FAULT = "pull_cable"
@@ -72,6 +76,27 @@ def bounded(name: str, text: str, lo: float, hi: float) -> float:
     return v
 
 
+def unit_seed(serial: str) -> int:
+    """The unit seed of a serial number: the first 8 bytes of its UTF-8 SHA-256 (the same on
+    every run and machine, unlike Python's ``hash``), so that each serial is its own unit."""
+    return int.from_bytes(hashlib.sha256(serial.encode()).digest()[:8], "big")
+
+
+def with_serial(url: str, serial: str | None) -> str:
+    """A ``sim://`` or ``emu://`` URL naming the unit ``serial`` (``serial=``), unless it names
+    a ``seed`` or a serial already or is another port; other URLs are returned as they are."""
+    import urllib.parse as urlparse
+
+    parts = urlparse.urlsplit(url)
+    if serial is None or parts.scheme.lower() not in ("sim", "emu"):
+        return url
+    opts = urlparse.parse_qs(parts.query, keep_blank_values=True)
+    if "seed" in opts or "serial" in opts:
+        return url
+    query = urlparse.urlencode({"serial": serial})
+    return f"{url}&{query}" if parts.query else f"{url.rstrip('?')}?{query}"
+
+
 def _int(text: str) -> int:
     """Decimal (``007`` too), or with a base prefix (``0x10``)."""
     return int(text, 0) if text[1:2].lower() in ("x", "o", "b") else int(text)
@@ -81,7 +106,7 @@ def _int(text: str) -> int:
 class SimOptions:
     """The simulator's options of a ``sim://`` or ``emu://`` URL."""
 
-    seed: int = 0
+    seed: int = 0  # the unit: its truth and room
     speed: float | None = None  # None: max; else simulated s per wall s
     truth: str = "random"  # random | ideal
     effects: tuple[str, ...] | None = None
@@ -96,6 +121,7 @@ class SimOptions:
     self_test_fail: bool = False  # the part fails its self-test (self_test=fail)
     cube: int | None = None  # the cube the board is in (cube=); None: a bench of its own
     slot: int = 0  # its place in the cube (slot=)
+    noise_seed: int | None = None  # the noise and the operator; None: fresh in every session
 
     def draw(self) -> BenchDraw:
         """The sensor, room and bench of these options, and the seeds of the noise and the
@@ -103,7 +129,9 @@ class SimOptions:
         from host.bench.physics import Bench, Environment
         from host.bench.truth import SensorTruth
 
-        truth_ss, env_ss, noise_ss, op_ss = np.random.SeedSequence(self.seed).spawn(4)
+        truth_ss, env_ss, _, _ = np.random.SeedSequence(self.seed).spawn(4)
+        # noise_seed == seed draws what one seed drew before the two were told apart
+        _, _, noise_ss, op_ss = np.random.SeedSequence(self.noise_seed).spawn(4)
         truth = (
             SensorTruth.random(np.random.default_rng(truth_ss))
             if self.truth == "random"
@@ -206,6 +234,22 @@ def _faults(
     return tuple(faults), cable
 
 
+def _seeds(opts: Mapping[str, Sequence[str]]) -> tuple[int, int | None]:
+    """(the unit seed: ``seed``, else :func:`unit_seed` of ``serial``, else 0; the noise seed:
+    ``noise_seed``, else None, fresh noise); :class:`OptionError` naming a bad one."""
+    serial = opts.get("serial", [""])[-1]
+    seeds: list[int | None] = []
+    for key in ("seed", "noise_seed"):
+        try:
+            seeds.append(_int(opts[key][-1]) if key in opts else None)
+        except ValueError as exc:
+            raise OptionError(key, str(exc)) from None
+    unit, noise = seeds
+    if unit is None:
+        unit = unit_seed(serial) if serial else 0
+    return unit, noise
+
+
 def parse_sim_options(
     opts: Mapping[str, Sequence[str]], speed_default: str, fault_is_operator: bool
 ) -> SimOptions:
@@ -220,7 +264,7 @@ def parse_sim_options(
     def one(key: str, default: str) -> str:
         return opts.get(key, [default])[-1]
 
-    seed = _option("seed", lambda: _int(one("seed", "0")))
+    seed, noise_seed = _seeds(opts)
     speed = _option("speed", lambda: _speed(one("speed", speed_default)))
     truth = _option("truth", lambda: _choice("truth", one("truth", "random"), ("random", "ideal")))
     operator = _option(
@@ -239,8 +283,8 @@ def parse_sim_options(
     faults, cable = _faults(opts, fault_is_operator)
     earth = one("earth_rate", "1").lower() not in ("0", "false", "no")
     cube, slot = _cube(opts)
-    return SimOptions(seed, speed, truth, effects, operator, latitude, tilt, earth, faults,
-                      chamber, cable, product_id, self_test_fail, cube, slot)  # fmt: skip
+    return SimOptions(seed, speed, truth, effects, operator, latitude, tilt, earth, faults, chamber,
+                      cable, product_id, self_test_fail, cube, slot, noise_seed)  # fmt: skip
 
 
 def _whole(key: str, text: str, lo: int, hi: int) -> int:

@@ -171,11 +171,11 @@ def _selected(
 def _repeat(args: ArchiveOptions) -> int:
     with _open(args) as a:
         _selected(a, args.serial, args.lot)
-        rows = checks.repeat(
-            a, args.serial, alpha=args.alpha, across_benches=args.across_benches, lot=args.lot
-        )
-    sys.stdout.write(text.repeat(rows, args.alpha))
-    return 1 if any(r.failed for r in rows) else 0
+        pooled, lot = args.across_benches, args.lot
+        rows = checks.repeat(a, args.serial, alpha=args.alpha, across_benches=pooled, lot=lot)
+        same = checks.identical_repeats(a, args.serial, across_benches=pooled, lot=lot)
+    sys.stdout.write(text.repeat(rows, args.alpha, identical=same))
+    return 1 if same or any(r.failed for r in rows) else 0
 
 
 def _left_out(n: int) -> str:
@@ -367,7 +367,7 @@ def _keeping_actions(action: Action) -> None:
 
 def _question_actions(action: Action, alpha: Parser) -> None:
     """repeat, drift, lot, control: a lab's and a line's questions."""
-    q = action("repeat", "between-session scatter against the predicted σ", alpha)
+    q = action("repeat", "between-session scatter against the predicted σ; copies named", alpha)
     q.add_argument("serial", nargs="?", help="one unit (default: every unit)")
     q.add_argument("--lot", help=LOT_HELP)
     q.add_argument("--across-benches", action="store_true",

@@ -10,7 +10,15 @@ import textwrap
 from collections.abc import Sequence
 
 from host.archive import stats
-from host.archive.checks import BenchRow, Chart, DriftRow, LotReport, RepeatRow, TrendPoint
+from host.archive.checks import (
+    BenchRow,
+    Chart,
+    DriftRow,
+    IdenticalRepeat,
+    LotReport,
+    RepeatRow,
+    TrendPoint,
+)
 from host.archive.entry import Entry, conditional_pass
 from host.archive.store import Summary
 from host.cli.screen import Column, table, terminal_width
@@ -125,9 +133,14 @@ def trend(serial: str, points: dict[str, list[TrendPoint]], width: int | None = 
     return _text(out)
 
 
-def repeat(rows: Sequence[RepeatRow], alpha: float, width: int | None = None) -> str:
+def repeat(
+    rows: Sequence[RepeatRow],
+    alpha: float,
+    width: int | None = None,
+    identical: Sequence[IdenticalRepeat] = (),
+) -> str:
     """``archive repeat``: per unit and bench, the failing parameters (all of them for one
-    unit), and the verdict."""
+    unit), the sessions that are an earlier one over again (``identical``), and the verdict."""
     w = width or terminal_width()
     units = sorted({(r.serial, r.bench) for r in rows})
     failed = sorted({(r.serial, r.bench) for r in rows if r.failed})
@@ -159,15 +172,36 @@ def repeat(rows: Sequence[RepeatRow], alpha: float, width: int | None = None) ->
     few = sorted({(r.serial, r.bench) for r in rows if r.dof < 1})
     if few:
         out.append(f"untestable (one session only): {len(few)} unit/bench pair(s)")
+    out += _identical(identical, w)
     if failed:
         out += prose(
             "NOT REPEATABLE: " + ", ".join(f"{s} on {b}" for s, b in failed)
             + " — the sessions disagree beyond their σ: look at the mounting and the records",
             w,
         )  # fmt: skip
+    elif identical:
+        out.append(f"repeatability not shown: {len(identical)} session(s) repeat an earlier one")
     else:
         out.append(f"repeatable: {len(units) - len(few)} unit/bench pair(s) agree within their σ")
     return _text(out)
+
+
+def _identical(found: Sequence[IdenticalRepeat], w: int) -> list[str]:
+    """One line per session that is an earlier one over again, bit for bit."""
+    out: list[str] = []
+    for r in found:
+        out += prose(
+            f"IDENTICAL: {r.serial} #{r.later} has {r.what} of #{r.earlier} bit for bit — "
+            "not a repeat (a copy, or the same simulated noise: sim:// noise_seed); "
+            "its agreement proves nothing",
+            w,
+        )
+    return out
+
+
+def _minute(iso: str) -> str:
+    """An archived UTC time (ISO text) to the minute: ``2026-01-03 08:12 UTC``."""
+    return f"{iso[:10]} {iso[11:16]} UTC" if len(iso) >= 16 else iso
 
 
 def drift(rows: Sequence[DriftRow], k: float, alpha: float, width: int | None = None) -> str:
@@ -180,10 +214,10 @@ def drift(rows: Sequence[DriftRow], k: float, alpha: float, width: int | None = 
         f"runs with nothing moved, over {len(rows)} parameters) or beyond --tol",
         w,
     )
-    for when in sorted({(r.serial, r.before_at[:10], r.after_at[:10]) for r in moved}):
-        rs = [r for r in moved if (r.serial, r.before_at[:10], r.after_at[:10]) == when]
+    for when in sorted({(r.serial, r.before_at, r.after_at) for r in moved}):
+        rs = [r for r in moved if (r.serial, r.before_at, r.after_at) == when]
         serial, before, after = when
-        out.append(f"{serial}: {before} -> {after}")
+        out.append(f"{serial}: {_minute(before)} -> {_minute(after)}")
         cols = [
             Column("parameter", [r.name for r in rs], "<"),
             Column("before", [_g(r.before, 5) for r in rs]),

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import serial
 
+from host.bench.options import with_serial
 from host.board.acquisition import Acquisition
 from host.board.driver import Board
 from host.board.link import LinkLost, LinkTimeout
@@ -77,7 +78,8 @@ class Recorder:
     ) -> None:
         self.opts = opts
         self.op = Questions(console, yes=opts.yes, idle=self._idle)
-        self.board = Board(opts.port or "sim://", port_factory, opts.link.stall_s, self._warn,
+        url = with_serial(opts.port or "sim://", opts.files.serial)  # a virtual board: that unit
+        self.board = Board(url, port_factory, opts.link.stall_s, self._warn,
                            opts.link.hello_timeout_s, opts.link.sample_stall_s)  # fmt: skip
         self.g = local_gravity(opts.compute.latitude_deg, opts.compute.height_m)
         self.serial = ""

@@ -23,8 +23,9 @@ URL grammar (all options optional, ``&``-separated)::
   as it does with ``sim://``); ``rest``: at rest, Z up, 25 °C, exactly (no noise, no sensor
   errors; the emulator's own ``noise_*`` options add white noise); a path: a stimulus file
   (``host.bench.stimulus.write_stimulus``).
-- ``seed`` (default 0): with ``stimulus=sim`` draws the truth, the room and the noise as in
-  ``sim://`` (same seed, same sensor); it also seeds the emulator's ``noise_*``.
+- ``seed`` (default: from ``serial``, else 0): with ``stimulus=sim`` draws the unit — its truth
+  and room — as in ``sim://`` (same seed, same sensor); ``noise_seed`` the noise and the
+  operator (not given: fresh in every session); ``seed`` also seeds the emulator's ``noise_*``.
 - ``speed`` (``stimulus=sim``): ``max`` (default) — the simulator keeps ahead of the emulator,
   which runs as fast as it can and the host reads; ``N`` — the simulator's horizon advances at
   N× the wall clock, so emulated time does too (paced in 2 ms steps: a device clock right to

@@ -3,14 +3,17 @@
 URL grammar (all options optional, ``&``-separated; ``operator_fault`` and ``fault`` may repeat;
 the options shared with ``emu://`` are read by :mod:`host.bench.options`)::
 
-    sim://[?seed=N][&speed=realtime|N|max][&operator=auto|manual][&truth=random|ideal]
+    sim://[?seed=N][&noise_seed=N][&serial=S][&speed=realtime|N|max][&operator=auto|manual][&truth=random|ideal]
           [&operator_fault=wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
           [&fault=pull_cable[@SECONDS]|wrong_face[@K]|incomplete_turn[@K]|too_fast[@K]]...
           [&clock_ppm=PPM][&sample_clock=REL][&latitude=DEG][&tilt=DEG][&earth_rate=0|1]
           [&effects=NAME,NAME...][&chamber=FROM:TO:MINUTES[@START_S]][&revision=D8|C4|C5|...]
           [&self_test=pass|fail][&cube=C[&slot=K]]
 
-- ``seed`` (default 0): draws the truth, the room/clock and the noise; same seed, same board.
+- ``seed`` (default: from ``serial``, :func:`host.bench.options.unit_seed`, else 0): draws the
+  unit — its truth and its room/clock; same seed, same board. ``serial``: the unit's serial
+  number (the dialogue adds ``--serial``'s). ``noise_seed``: draws the noise and the operator's
+  hand; not given, they are fresh in every session (a repeat of the unit, as on a real bench).
 - ``speed``: ``realtime`` (default) — simulated time follows the wall clock; ``N`` — it runs N×
   faster; ``max`` — time advances only as bytes are read: ``read(n)`` returns n bytes at once.
 - ``truth``: ``random`` (default, :meth:`SensorTruth.random`) or ``ideal`` (no errors at all);

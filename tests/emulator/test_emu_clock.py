@@ -26,7 +26,7 @@ def test_sixty_second_capture_has_an_exact_device_clock(
     frames, no missed samples, and a device clock that runs at the host's rate (the emulated
     AVR crystal is exact; emulated time is paced to the wall clock by the stimulus)."""
     cap = tmp_path / "emu60.cap"
-    url = f"emu://?elf={fw_elf}&speed=realtime&seed=8&seconds=60"
+    url = f"emu://?elf={fw_elf}&speed=realtime&seed=8&noise_seed=8&seconds=60"
     with Link.open(url, capture=cap) as link:
         # read until the board stops answering after 60 emulated s (it hands over every byte
         # it sent before it hangs up): the capture holds every sample however late this host

@@ -39,7 +39,9 @@ def test_stimulus_rejects_decreasing_time(tmp_path):
 
 
 def test_url_grammar():
-    kw = parse_url("emu://?seconds=2.5&realtime=1&fault=no-drdy&fault_at=3&seed=7&stimulus=/x")
+    kw = parse_url(
+        "emu://?seconds=2.5&realtime=1&fault=no-drdy&fault_at=3&seed=7&noise_seed=7&stimulus=/x"
+    )
     assert kw == {
         "seconds": 2.5,
         "realtime": True,

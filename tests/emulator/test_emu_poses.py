@@ -29,7 +29,7 @@ LINEAR = "effects=linear,noise&earth_rate=0"
 @pytest.mark.slow
 @pytest.mark.timeout(900)  # the emulated AVR and a fit after each pose from the tenth on
 def test_plan_poses_end_to_end_on_the_emulated_board(tmp_path: Path, fw_elf: Path) -> None:
-    url = f"emu://?elf={fw_elf}&seed=4&{LINEAR}"
+    url = f"emu://?elf={fw_elf}&seed=4&noise_seed=4&{LINEAR}"
     proc = subprocess.run(
         [sys.executable, "-m", "host", "calibrate", "--port", url, "--serial", "EP1", "--yes",
          "--warmup", "0", "--static-seconds", "3", "--plan", "poses", "--target", "0.05",

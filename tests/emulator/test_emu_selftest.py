@@ -142,7 +142,7 @@ def test_a_unit_moved_during_the_self_test_gets_no_verdict(fw_elf: Path) -> None
     """The cube tilts by 10° in the middle of the self-test (the simulator's operator is
     manual): the two self-test-off windows differ, so the host gives no verdict (a tilt moves
     the accelerometers as much as the self-test does) and asks for a still repeat."""
-    board = Board(f"emu://?operator=manual&seed=3&elf={fw_elf}")
+    board = Board(f"emu://?operator=manual&seed=3&noise_seed=3&elf={fw_elf}")
     board.connect()
     try:
         port = board.port

@@ -66,16 +66,18 @@ def test_simulator_options_of_the_url() -> None:
     from host.transports.protocol_emu import parse_sim_options, parse_url
 
     assert parse_sim_options("emu://") == SimOptions()
-    o = parse_sim_options("emu://?seed=7&speed=4&truth=ideal&effects=linear,noise&earth_rate=0")
-    assert o == SimOptions(7, 4.0, "ideal", ("linear", "noise"), earth_rate=False)
+    o = parse_sim_options(
+        "emu://?seed=7&noise_seed=7&speed=4&truth=ideal&effects=linear,noise&earth_rate=0"
+    )
+    assert o == SimOptions(7, 4.0, "ideal", ("linear", "noise"), earth_rate=False, noise_seed=7)
     assert parse_sim_options("emu://?speed=realtime") == SimOptions(speed=1.0)
     assert parse_sim_options("emu://?stimulus=rest") is None
     assert parse_sim_options("emu://?stimulus=/x.stim") is None
-    assert parse_url("emu://?speed=max&seed=3&operator=manual") == {"seed": 3}
+    assert parse_url("emu://?speed=max&seed=3&noise_seed=3&operator=manual") == {"seed": 3}
     for bad in ("speed=0", "speed=fast", "truth=perfect", "operator=robot", "tilt=x"):
         with pytest.raises(ValueError, match="emu:// option"):
             parse_sim_options(f"emu://?{bad}")
-    a, b = truth_for_url("emu://?seed=5"), truth_for_url("emu://?seed=5")
+    a, b = truth_for_url("emu://?seed=5&noise_seed=5"), truth_for_url("emu://?seed=5&noise_seed=5")
     assert a is not None and b is not None and a.constants() == b.constants()
     assert truth_for_url("emu://?stimulus=rest") is None
 
@@ -89,7 +91,7 @@ def test_full_calibration_recovers_the_simulator_truth(tmp_path: Path, fw_elf: P
     simulated cube through the whole dialogue, and the constants are the simulator's."""
     # seed 4: with 1 turn the gyro misalignments come out within ≈ 0.5e-3; some seeds reach
     # ≈ 1e-3 with 1 turn on sim:// just the same (the method, not the emulator: same numbers)
-    url = f"emu://?elf={fw_elf}&seed=4&{LINEAR}"
+    url = f"emu://?elf={fw_elf}&seed=4&noise_seed=4&{LINEAR}"
     t0 = time.monotonic()
     proc = subprocess.run(
         [sys.executable, "-m", "host", "calibrate", "--port", url, "--serial", "E1", "--yes",
@@ -136,7 +138,7 @@ def test_the_start_beep_lands_at_the_same_emulated_instant_however_slow_the_host
     by 4.6–5.5 s of emulated time, and under load a turn, which starts 0.8–1.3 s after the
     hint, could be cut by the window's start: the calibration then failed.)
     """
-    url = f"emu://?elf={fw_elf}&seed=4&{LINEAR}"
+    url = f"emu://?elf={fw_elf}&seed=4&noise_seed=4&{LINEAR}"
     board = Board(url)
     info = board.connect()
     delays: dict[float, list[float]] = {0.0: [], 0.3: []}
@@ -177,7 +179,7 @@ def test_emulator_killed_and_paused_mid_measurement(tmp_path: Path, fw_elf: Path
     with SIGSTOP during z_up (a stalled device: LinkTimeout). Each time the session says so,
     keeps the accepted records, re-opens the port — which starts the emulator again with the
     same simulated sensor — and measures the interrupted orientation again."""
-    url = f"emu://?elf={fw_elf}&seed=4&{LINEAR}"
+    url = f"emu://?elf={fw_elf}&seed=4&noise_seed=4&{LINEAR}"
     ports = Ports()
     events: dict[str, Any] = {"kept": {}}
 

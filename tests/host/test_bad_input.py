@@ -307,7 +307,8 @@ def test_capture_of_a_working_board_exits_0(
 ) -> None:
     out = tmp_path / "ok.cap"
     rc, stdout, err = cli(
-        ["capture", "--port", "sim://?speed=max&seed=3", "--seconds", "0.2", str(out)], capsys
+        ["capture", "--port", "sim://?speed=max&seed=3&noise_seed=3", "--seconds", "0.2", str(out)],
+        capsys,
     )
     assert rc == 0, err
     assert json.loads(stdout)["samples"] > 0

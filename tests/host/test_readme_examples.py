@@ -69,7 +69,7 @@ def test_the_readmes_decode_example_reads_every_sample_of_a_capture(
 
     monkeypatch.chdir(tmp_path)
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-        assert main(["capture", "--port", "sim://?seed=5&speed=max", "--seconds", "4",
+        assert main(["capture", "--port", "sim://?seed=5&noise_seed=5&speed=max", "--seconds", "4",
                      "session.cap"]) == 0  # fmt: skip
     # the samples in the file: the recorded bytes (capture headers taken off) decoded
     frames = StreamDecoder().feed(capture.read("session.cap").data)

@@ -18,7 +18,7 @@ from host.bench.options import parse_sim_options
 from host.bench.truth import ACCEL_MISALIGNMENT, GYRO_MISALIGNMENT, SensorTruth
 
 #: the unit: the linear model and noise only, so that the base model and the lever arm fit
-UNIT = "seed=5&speed=max&effects=linear,noise&earth_rate=0"
+UNIT = "seed=5&noise_seed=5&speed=max&effects=linear,noise&earth_rate=0"
 SLOTS = (2, 5)
 
 

@@ -36,12 +36,12 @@ def test_seeds_in_decimal_or_with_a_base_prefix() -> None:
 
 
 def test_same_seed_same_sensor_on_both_schemes() -> None:
-    port = serial.serial_for_url("sim://?seed=11&speed=max", timeout=0.1)
+    port = serial.serial_for_url("sim://?seed=11&noise_seed=11&speed=max", timeout=0.1)
     try:
         sim_truth = port.truth
     finally:
         port.close()
-    emu_truth = protocol_emu.truth_for_url("emu://?seed=11")
+    emu_truth = protocol_emu.truth_for_url("emu://?seed=11&noise_seed=11")
     assert sim_truth is not None and emu_truth is not None
     assert sim_truth.constants() == emu_truth.constants()
 
@@ -60,7 +60,8 @@ def test_fault_keeps_its_meaning_and_operator_fault_is_one_spelling_for_both() -
 
 def test_a_bad_option_is_named() -> None:
     bad = [("speed=0", "speed"), ("truth=perfect", "truth"), ("tilt=x", "tilt"),
-           ("operator_fault=dance", "operator_fault"), ("seed=one", "seed")]  # fmt: skip
+           ("operator_fault=dance", "operator_fault"), ("seed=one", "seed"),
+           ("noise_seed=0x", "noise_seed")]  # fmt: skip
     for query, key in bad:
         with pytest.raises(OptionError) as err:
             parse_sim_options(opts(query), "max", True)

@@ -58,7 +58,7 @@ def test_measurement_is_cut_on_device_time_not_on_reads(chunk: int) -> None:
     it holds exactly the samples whose device time is inside its window."""
     period_us = 20_000
     board = driver.Board(
-        f"sim://?seed=5&{LINEAR}",
+        f"sim://?seed=5&noise_seed=5&{LINEAR}",
         port_factory=lambda u: LaggingPort(open_port(u), lag=27 * 20, chunk=chunk),
     )
     try:

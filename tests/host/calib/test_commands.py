@@ -18,7 +18,8 @@ PATH_TEXT = st.text(st.characters(blacklist_categories=("Cc", "Cs")), min_size=1
 
 
 def resume_words(out: str) -> list[str]:
-    return ["python3", "-m", "host", "calibrate", "--port", "sim://?seed=6&a=1,2", "--serial",
+    return ["python3", "-m", "host", "calibrate", "--port", "sim://?seed=6&noise_seed=6&a=1,2",
+            "--serial",
             "F1", "--out", out, "--static-seconds", "2", "--warmup", "0", "--resume"]  # fmt: skip
 
 

@@ -18,6 +18,8 @@ from host.errors import ResultFileError
 from host.workbench.scenarios import hidden_effect_case
 
 URL = "sim://?speed=max"
+#: the board the records name: the dialogue adds the unit's serial to a virtual board's URL
+BOARD = f"{URL}&serial=PV1"
 
 
 @pytest.fixture(scope="module")
@@ -36,10 +38,10 @@ def test_live_sim_result_says_simulated_everywhere(
 ) -> None:
     doc = json.loads((live / "PV1_result.json").read_text(encoding="utf-8"))
     assert doc["format_version"] == 3
-    assert doc["simulated"] is True and doc["simulated_by"] == [URL]
-    assert doc["provenance"]["simulated"] is True and doc["provenance"]["ports"] == [URL]
+    assert doc["simulated"] is True and doc["simulated_by"] == [BOARD]
+    assert doc["provenance"]["simulated"] is True and doc["provenance"]["ports"] == [BOARD]
     report = (live / "PV1_result.txt").read_text(encoding="utf-8").splitlines()
-    assert report[1] == f"*** SIMULATED BOARD {URL}: not a measurement of a unit ***"
+    assert report[1] == f"*** SIMULATED BOARD {BOARD}: not a measurement of a unit ***"
     capsys.readouterr()
     for fmt, (_, ext) in FORMATS.items():
         out = tmp_path / f"PV1{ext}"
@@ -47,7 +49,7 @@ def test_live_sim_result_says_simulated_everywhere(
         assert rc == 0, capsys.readouterr().err
         text = out.read_text(encoding="utf-8")
         head = "\n".join(text.splitlines()[:4])  # said at the top, not buried
-        assert f"*** SIMULATED BOARD {URL}: not a measurement of a unit ***" in head, (fmt, head)
+        assert f"*** SIMULATED BOARD {BOARD}: not a measurement of a unit ***" in head, (fmt, head)
         if fmt == "imucal":
             assert json.loads(text)["comment"].startswith("*** SIMULATED BOARD sim://")
 

@@ -190,16 +190,18 @@ def test_only_records_from_a_real_port_make_an_unmarked_report(tmp_path: Path) -
     from host.bench.truth import SensorTruth
 
     recs = simulate_session(SensorTruth.random(np.random.default_rng(3)), Plan(turns=1), seed=3)
-    for port, marked in (("/dev/ttyACM0", False), ("emu://?seed=3", True)):
+    for port, marked in (("/dev/ttyACM0", False), ("emu://?seed=3&noise_seed=3", True)):
         records = {
             n: Record(r.name, r.t_ms, r.accel, r.gyro, r.temp, {**r.meta, "port": port})
             for n, r in recs.items()
         }
         result = calibrate_from_records(Session("M1", records))
         report = format_report(result).splitlines()
-        assert report[1].startswith("*** SIMULATED BOARD emu://?seed=3") is marked
+        assert report[1].startswith("*** SIMULATED BOARD emu://?seed=3&noise_seed=3") is marked
         notes = json.loads(result_to_json(result))["notes"]
-        assert any(n.startswith("SIMULATED BOARD emu://?seed=3") for n in notes) is marked
+        assert (
+            any(n.startswith("SIMULATED BOARD emu://?seed=3&noise_seed=3") for n in notes) is marked
+        )
 
 
 def test_a_long_board_url_is_shown_whole_within_80_columns(result: CalibrationResult) -> None:
@@ -212,7 +214,7 @@ def test_a_long_board_url_is_shown_whole_within_80_columns(result: CalibrationRe
     from host.calib.report import verdict_line
 
     short = "sim://?speed=max"
-    long_ = "emu://?seed=3&speed=max&operator=auto&operator_fault=drop_turn&stimulus=warm.csv"
+    long_ = "emu://?seed=3&noise_seed=3&speed=max&operator=auto&operator_fault=drop_turn&stimulus=warm.csv"
     longer = "sim://?" + "&".join(f"option{i}=value{i}" for i in range(9))
     for by in ((short,), (long_,), (longer,), (short, long_)):
         sim = dataclasses.replace(result, provenance=Provenance(simulated=True, simulated_by=by))

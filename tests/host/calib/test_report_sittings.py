@@ -15,7 +15,7 @@ from tests.host.dialogue.test_flow import opts as live_opts
 
 
 def test_a_resumed_session_shows_each_records_sitting(tmp_path: Path) -> None:
-    url = f"sim://?seed=5&{LINEAR}"
+    url = f"sim://?seed=5&noise_seed=5&{LINEAR}"
     # sitting 1: the statics asked for, 2 s, x_up and x_dn saved, Ctrl+C during y_up
     keys = ["y", "2\r", " ", "y", " ", "y", " ", CTRL_C]
     first = live_opts(tmp_path, url, serial="R1", out=tmp_path / "R1", yes=False,

@@ -157,7 +157,7 @@ def test_sim_and_emu_urls_take_a_chamber_ramp() -> None:
     from host.board.link import open_port
     from host.transports.protocol_emu import parse_sim_options
 
-    port = open_port("sim://?seed=2&speed=max&chamber=-10:50:60@30")
+    port = open_port("sim://?seed=2&noise_seed=2&speed=max&chamber=-10:50:60@30")
     port.close()
     env = port.environment
     t = np.array([0.0, 30.0, 3630.0, 9000.0])

@@ -130,7 +130,8 @@ def test_a_resume_command_on_a_terminal_still_pastes(out: str, width: int) -> No
     command ended there). The terminal folds such a line; the writer leaves it whole."""
     from host.calib.commands import said_with_command
 
-    cmd = ["python3", "-m", "host", "calibrate", "--port", "sim://?seed=1&a=1,2", "--serial",
+    cmd = ["python3", "-m", "host", "calibrate", "--port", "sim://?seed=1&noise_seed=1&a=1,2",
+           "--serial",
            "F1", "--out", out, "--warmup", "0", "--resume"]  # fmt: skip
     t = FakeTerminal()
     ScreenWriter(t, lambda: width).write("error: " + said_with_command("kept; continue with:", cmd))

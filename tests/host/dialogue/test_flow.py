@@ -80,7 +80,7 @@ def yes_session(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     tmp = tmp_path_factory.mktemp("yes")
     ports = Ports()
     con = ScriptedConsole()  # no keys at all: --yes must not ask for one
-    rc, stdout = run(opts(tmp, f"sim://?seed=3&{LINEAR}", json=True), con, ports)
+    rc, stdout = run(opts(tmp, f"sim://?seed=3&noise_seed=3&{LINEAR}", json=True), con, ports)
     return dict(rc=rc, stdout=stdout, con=con, ports=ports, out=tmp / "S1")
 
 
@@ -103,7 +103,7 @@ def test_yes_session_writes_every_file(yes_session: dict[str, Any]) -> None:
     assert d["notes"][0].startswith("SIMULATED BOARD sim://")
     # the session ends on the report's path and its verdict, whatever passed or failed
     # (this board's URL is too long for the mark's line: it follows whole on its own)
-    url = f"sim://?seed=3&{LINEAR}"
+    url = f"sim://?seed=3&noise_seed=3&{LINEAR}"
     shown = yes_session["con"].text.rstrip("\n").splitlines()
     mark, board, last = shown[-3:]
     assert last == d["verdict"] and last.startswith("PASS" if yes_session["rc"] == 0 else "FAIL")
@@ -242,7 +242,8 @@ def test_scripted_dialogue_validates_and_repeats(
     keys += [" ", "y"]  # the closing check (x_up again), saved; then the results
     con = ScriptedConsole(keys)
     ports = Ports()
-    o = opts(tmp_path, f"sim://?seed=5&{LINEAR}", serial=None, out=None, static_seconds=None,
+    o = opts(tmp_path, f"sim://?seed=5&noise_seed=5&{LINEAR}", serial=None, out=None,
+             static_seconds=None,
              turns=None, yes=False)  # fmt: skip
     rc, stdout = run(o, con, ports)
     assert con.keys == []
@@ -275,7 +276,7 @@ def test_esc_aborts_one_measurement_and_ctrl_c_keeps_accepted(tmp_path: Path) ->
     keys += [" ", ESC]  # x_dn aborted with Esc during the measurement
     keys += [" ", CTRL_C]  # x_dn again, Ctrl+C during the measurement
     con = ScriptedConsole(keys)
-    o = opts(tmp_path, f"sim://?seed=6&{LINEAR}", yes=False, static_seconds=3.0)
+    o = opts(tmp_path, f"sim://?seed=6&noise_seed=6&{LINEAR}", yes=False, static_seconds=3.0)
     rc, _ = run(o, con, Ports())
     assert rc == 130
     assert con.text.count("Measuring x_dn") == 2
@@ -289,7 +290,7 @@ def test_esc_aborts_one_measurement_and_ctrl_c_keeps_accepted(tmp_path: Path) ->
 
 @pytest.mark.slow
 def test_resume_measures_only_the_missing_records(tmp_path: Path) -> None:
-    url = f"sim://?seed=8&{LINEAR}"
+    url = f"sim://?seed=8&noise_seed=8&{LINEAR}"
     con = ScriptedConsole(["y", " ", "y", " ", "y", " ", CTRL_C])
     assert run(opts(tmp_path, url, yes=False, static_seconds=3.0), con, Ports())[0] == 130
     out = tmp_path / "S1"
@@ -312,7 +313,7 @@ def test_resume_measures_only_the_missing_records(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_resume_refuses_other_turns(tmp_path: Path) -> None:
-    url = f"sim://?seed=9&{LINEAR}"
+    url = f"sim://?seed=9&noise_seed=9&{LINEAR}"
     o = opts(tmp_path, url, static_seconds=2.0, turns=1)
     assert run(o, ScriptedConsole(), Ports())[0] in (0, 1)
     with pytest.raises(UserError, match="--turns 2 but the kept turn records have 1"):
@@ -327,7 +328,7 @@ def test_resume_refuses_other_turns(tmp_path: Path) -> None:
 def test_board_vanishing_mid_measurement(tmp_path: Path) -> None:
     ports = Ports()
     con = ScriptedConsole()
-    url = f"sim://?seed=4&{LINEAR}&fault=pull_cable@25"
+    url = f"sim://?seed=4&noise_seed=4&{LINEAR}&fault=pull_cable@25"
     rc, _ = run(opts(tmp_path, url, turns=1), con, ports)
     assert rc in (0, 1)
     text = con.text
@@ -371,7 +372,7 @@ class DroppingPort:
 
 def test_lost_samples_are_counted_and_offered_for_repeat(tmp_path: Path) -> None:
     con = ScriptedConsole(["y", " ", "n", CTRL_C])  # save anyway, then stop
-    o = opts(tmp_path, f"sim://?seed=10&{LINEAR}", yes=False, static_seconds=5.0)
+    o = opts(tmp_path, f"sim://?seed=10&noise_seed=10&{LINEAR}", yes=False, static_seconds=5.0)
     rc, _ = run(o, con, Ports(wrap=DroppingPort))
     assert rc == 130
     assert "samples lost in x_up" in con.text
@@ -384,7 +385,7 @@ def test_lost_samples_are_counted_and_offered_for_repeat(tmp_path: Path) -> None
 
 
 def test_yes_gives_up_after_repeated_losses(tmp_path: Path) -> None:
-    o = opts(tmp_path, f"sim://?seed=10&{LINEAR}", static_seconds=2.0)
+    o = opts(tmp_path, f"sim://?seed=10&noise_seed=10&{LINEAR}", static_seconds=2.0)
     with pytest.raises(UserError, match="still wrong after 3 attempts"):
         run(o, ScriptedConsole(), Ports(wrap=DroppingPort))
     assert not list((tmp_path / "S1").glob("*.txt"))
@@ -398,7 +399,7 @@ def test_wrong_firmware_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPat
     with pytest.raises(
         UserError, match=rf"firmware speaks protocol {v} .*this host protocol {v} .*host flash"
     ):
-        run(opts(tmp_path, f"sim://?seed=1&{LINEAR}"), ScriptedConsole(), Ports())
+        run(opts(tmp_path, f"sim://?seed=1&noise_seed=1&{LINEAR}"), ScriptedConsole(), Ports())
 
 
 def test_silent_port_at_connect(tmp_path: Path) -> None:
@@ -472,7 +473,8 @@ def test_silent_board_mid_session_is_reported_and_recovered(tmp_path: Path) -> N
         return wrapped[0]
 
     con = Spy()
-    rc, _ = run(opts(tmp_path, f"sim://?seed=12&{LINEAR}", static_seconds=3.0, turns=1), con,
+    rc, _ = run(opts(tmp_path, f"sim://?seed=12&noise_seed=12&{LINEAR}", static_seconds=3.0,
+                turns=1), con,
                 Ports(wrap=wrap))  # fmt: skip
     assert rc in (0, 1)
     assert len(seen) == 1 and 1.9 < seen[0] < 3.0  # the message within ~2 s of the silence
@@ -538,7 +540,7 @@ def test_emulated_board(tmp_path: Path) -> None:
 def test_the_warm_up_is_recorded_as_a_record_of_its_own(tmp_path: Path) -> None:
     ports = Ports()
     rc, stdout = run(
-        opts(tmp_path, f"sim://?seed=5&{LINEAR}", warmup_s=3.0, static_seconds=3.0),
+        opts(tmp_path, f"sim://?seed=5&noise_seed=5&{LINEAR}", warmup_s=3.0, static_seconds=3.0),
         ScriptedConsole(),
         ports,
     )
@@ -554,7 +556,7 @@ def test_the_warm_up_is_recorded_as_a_record_of_its_own(tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_no_closing_leaves_the_closing_check_out(tmp_path: Path) -> None:
     """--no-closing: no x_up_2, no closing prompt; the printed resume command keeps it."""
-    url = f"sim://?seed=13&{LINEAR}"
+    url = f"sim://?seed=13&noise_seed=13&{LINEAR}"
     con = ScriptedConsole()
     rc, _ = run(opts(tmp_path, url, static_seconds=2.0, turns=1, closing=False), con, Ports())
     assert rc in (0, 1)

@@ -27,7 +27,8 @@ from tests.host.dialogue.flat_options import flat_options
 
 def _run(tmp: Path, **kw: object) -> tuple[str, Path, int]:
     o = flat_options(
-        port="sim://?seed=9&speed=max&effects=linear,noise", serial="AD1", out=tmp / "AD1",
+        port="sim://?seed=9&noise_seed=9&speed=max&effects=linear,noise", serial="AD1",
+        out=tmp / "AD1",
         static_seconds=2.0,
         turns=1, warmup_s=0.0, yes=True, ready_s=0.0, plan="adaptive", **kw,  # type: ignore[arg-type]
     )  # fmt: skip
@@ -83,7 +84,8 @@ def test_the_dialogue_measures_what_the_benchmarks_adaptive_run_plans(tmp_path: 
     same records in the same order and counts the same operator time."""
     target, static_s = 0.005, 60.0
     o = flat_options(
-        port="sim://?seed=9&speed=max&effects=linear,noise", serial="PR1", out=tmp_path / "PR1",
+        port="sim://?seed=9&noise_seed=9&speed=max&effects=linear,noise", serial="PR1",
+        out=tmp_path / "PR1",
         static_seconds=static_s, turns=1, warmup_s=0.0, yes=True, ready_s=0.0, plan="adaptive",
         target=target, max_extra=2, closing=False,
     )  # fmt: skip
@@ -145,7 +147,8 @@ def test_out_of_reach_it_says_so_and_takes_no_longer_than_the_fixed_plan(tmp_pat
     (counted here from the saved records, in the order saved); the report and the last screen
     say the target was not met."""
     o = flat_options(
-        port="sim://?seed=9&speed=max", serial="MF1", out=tmp_path / "MF1", static_seconds=30.0,
+        port="sim://?seed=9&noise_seed=9&speed=max", serial="MF1", out=tmp_path / "MF1",
+        static_seconds=30.0,
         turns=1, warmup_s=0.0, yes=True, ready_s=0.0, plan="adaptive", target=0.05,
         closing=False,
     )  # fmt: skip

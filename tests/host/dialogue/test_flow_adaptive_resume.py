@@ -22,7 +22,7 @@ from host.session.directory import EARLIER_DIR, read_record, read_session
 from host.session.method import local_gravity
 from tests.host.dialogue.flat_options import flat_options
 
-UNIT_URL = "sim://?seed=9&speed=max&effects=linear,noise&earth_rate=0"
+UNIT_URL = "sim://?seed=9&noise_seed=9&speed=max&effects=linear,noise&earth_rate=0"
 SERIAL = "AR1"
 STATIC_S = 2.0
 #: the planner's records a session may add: two show that --max-extra counts both sittings'

@@ -75,7 +75,9 @@ def dies(after_s: float, code: int | None = None) -> Ports:
 @pytest.mark.timeout(60)
 def test_yes_stalled_board_ends_with_resume_hint(tmp_path: Path) -> None:
     """STATUS keeps arriving, samples do not (the no-drdy hang): exit within the stall time."""
-    o = opts(tmp_path, f"sim://?seed=21&{LINEAR}", static_seconds=3.0, sample_stall_s=1.5)
+    o = opts(
+        tmp_path, f"sim://?seed=21&noise_seed=21&{LINEAR}", static_seconds=3.0, sample_stall_s=1.5
+    )
     ports = dies(after_s=5.0)
     t0 = time.monotonic()
     with pytest.raises(UserError) as err:
@@ -92,7 +94,9 @@ def test_yes_stalled_board_ends_with_resume_hint(tmp_path: Path) -> None:
 
 @pytest.mark.timeout(60)
 def test_sensor_error_frame_stops_the_measurement_with_its_reason(tmp_path: Path) -> None:
-    o = opts(tmp_path, f"sim://?seed=22&{LINEAR}", static_seconds=3.0, sample_stall_s=30.0)
+    o = opts(
+        tmp_path, f"sim://?seed=22&noise_seed=22&{LINEAR}", static_seconds=3.0, sample_stall_s=30.0
+    )
     con = ScriptedConsole()
     t0 = time.monotonic()
     with pytest.raises(UserError, match=r"x_dn: the board reports ERROR SPI_FAULT \(detail 0x2a"):
@@ -117,7 +121,7 @@ def test_bad_command_error_is_not_a_sensor_fault(tmp_path: Path) -> None:
                 self.inner.write(_envelope(0x90, 0, b""))
             return bytes(self.inner.read(n))
 
-    o = opts(tmp_path, f"sim://?seed=23&{LINEAR}", static_seconds=2.0, turns=1)
+    o = opts(tmp_path, f"sim://?seed=23&noise_seed=23&{LINEAR}", static_seconds=2.0, turns=1)
     con = ScriptedConsole()
     rc, _ = run(o, con, Ports(wrap=lambda p: Noisy(p, 0.0)))
     assert rc in (0, 1)
@@ -127,7 +131,7 @@ def test_bad_command_error_is_not_a_sensor_fault(tmp_path: Path) -> None:
 @pytest.mark.timeout(60)
 def test_interactive_sensor_fault_offers_again_or_stop(tmp_path: Path) -> None:
     """Without --yes the operator decides: N stops with the resume hint."""
-    o = opts(tmp_path, f"sim://?seed=24&{LINEAR}", static_seconds=3.0, yes=False,
+    o = opts(tmp_path, f"sim://?seed=24&noise_seed=24&{LINEAR}", static_seconds=3.0, yes=False,
              sample_stall_s=1.0)  # fmt: skip
     # serial given; keys: stage 1 Y, place x_up, save Y, place x_dn (the sensor dies), stop N
     con = ScriptedConsole(["y", " ", "y", " ", "n", CTRL_C])
@@ -155,7 +159,7 @@ def test_disk_full_in_a_live_session_names_the_record_and_prints_the_resume_hint
         real(fd)
 
     monkeypatch.setattr(os, "fsync", fsync)
-    o = opts(tmp_path, f"sim://?seed=25&{LINEAR}", static_seconds=2.0)
+    o = opts(tmp_path, f"sim://?seed=25&noise_seed=25&{LINEAR}", static_seconds=2.0)
     with pytest.raises(UserError) as err:
         run(o, ScriptedConsole(), Ports())
     msg = " ".join(str(err.value).split())  # the sentence, wrapped at words
@@ -219,7 +223,7 @@ def test_disk_full_on_the_session_capture_keeps_what_was_recorded(
         self._f = FillingFile(self._f, 60_000)  # ≈ 40 s of the board's stream
 
     monkeypatch.setattr(driver.DeferredCapture, "start", start)
-    o = opts(tmp_path, f"sim://?seed=26&{LINEAR}", static_seconds=2.0, turns=1)
+    o = opts(tmp_path, f"sim://?seed=26&noise_seed=26&{LINEAR}", static_seconds=2.0, turns=1)
     with pytest.raises(UserError) as err:
         run(o, ScriptedConsole(), Ports())
     said = str(err.value)
@@ -259,7 +263,8 @@ def test_a_really_full_disk_in_a_live_session_then_resume(tmp_path: Path) -> Non
         pytest.skip(f"cannot mount a tmpfs here: {r.stderr.decode(errors='replace').strip()}")
     try:
         out = disk / "S1"
-        argv = ["calibrate", "--port", f"sim://?seed=27&{LINEAR}", "--serial", "S1", "--yes",
+        argv = ["calibrate", "--port", f"sim://?seed=27&noise_seed=27&{LINEAR}", "--serial", "S1",
+                "--yes",
                 "--warmup", "0", "--static-seconds", "4", "--turns", "1",
                 "--out", str(out)]  # fmt: skip
         err = io.StringIO()

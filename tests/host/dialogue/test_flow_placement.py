@@ -89,7 +89,7 @@ def _assert_prompts_match_records_model_and_bench(text: str, out: Path, serial: 
 def test_every_prompt_names_the_placement_the_record_and_the_model_carry(
     tmp_path: Path,
 ) -> None:
-    text = _dialogue("sim://?seed=5&speed=max", tmp_path / "P1", "P1")
+    text = _dialogue("sim://?seed=5&noise_seed=5&speed=max", tmp_path / "P1", "P1")
     _assert_prompts_match_records_model_and_bench(text, tmp_path / "P1", "P1")
 
 

@@ -52,7 +52,7 @@ def test_cut_move_finds_the_motion_and_its_edges() -> None:
 def _poses_session(tmp_path: Path, plan: str, **kw: object) -> tuple[int, str, Path, Ports]:
     ports = Ports()
     con = ScriptedConsole()
-    o = opts(tmp_path, f"sim://?seed=3&{LINEAR}", plan=plan, static_seconds=3.0, **kw)
+    o = opts(tmp_path, f"sim://?seed=3&noise_seed=3&{LINEAR}", plan=plan, static_seconds=3.0, **kw)
     rc, _ = run(o, con, ports)
     return rc, con.text, tmp_path / "S1", ports
 

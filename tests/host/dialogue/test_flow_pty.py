@@ -61,7 +61,7 @@ BOARDS = [
 
 def board_url(board: str, seed: int, speed: str, operator_fault: str = "") -> str:
     """A virtual-bench URL on ``board``; ``operator_fault`` e.g. ``too_fast@1``."""
-    url = f"{board}://?seed={seed}&speed={speed}&{LINEAR}"
+    url = f"{board}://?seed={seed}&noise_seed={seed}&speed={speed}&{LINEAR}"  # deterministic
     if operator_fault:  # emu://'s own ``fault`` names sensor faults
         url += f"&{'fault' if board == 'sim' else 'operator_fault'}={operator_fault}"
     return url

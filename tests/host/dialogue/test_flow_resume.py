@@ -79,7 +79,7 @@ def test_ctrl_c_prints_a_command_with_every_option_and_the_answers(tmp_path: Pat
     with spaces pastes back as it was: resuming asks nothing again."""
     keys = ["y", "3\r", " ", "y", " ", CTRL_C]  # statics, 3 s, x_up saved, Ctrl+C in x_dn
     con = ScriptedConsole(keys)
-    url = f"sim://?seed=6&{LINEAR}"
+    url = f"sim://?seed=6&noise_seed=6&{LINEAR}"
     out = tmp_path / "my unit's data" / "F1"
     o = opts(tmp_path, url, out=out, yes=False, static_seconds=None, turns=1, warmup_s=12.5,
              ready_s=0.25, latitude_deg=48.137, height_m=300.0,
@@ -99,7 +99,7 @@ def test_ctrl_c_prints_a_command_with_every_option_and_the_answers(tmp_path: Pat
 
 @pytest.mark.slow
 def test_redo_measures_one_record_again_and_keeps_the_others(tmp_path: Path) -> None:
-    url = f"sim://?seed=11&{LINEAR}"
+    url = f"sim://?seed=11&noise_seed=11&{LINEAR}"
     assert run(opts(tmp_path, url), ScriptedConsole(), Ports())[0] in (0, 1)
     out = tmp_path / "F1"
     before = {p.name: p.read_bytes() for p in out.glob("F1_*_*.txt")}
@@ -127,7 +127,7 @@ def test_a_resume_hint_keeps_to_80_columns_and_pastes_back_whatever_the_path(
     command is on lines of its own, only the path passes 80 columns, and a shell reads back
     every option, the path with its spaces and commas too."""
     out = tmp_path / ("a long directory, with spaces and a comma, " * 2) / "F1"
-    url = f"sim://?seed=6&{LINEAR}"
+    url = f"sim://?seed=6&noise_seed=6&{LINEAR}"
     o = opts(tmp_path, url, out=out, yes=False, plan="adaptive", target=0.08, max_extra=3,
              operator="Ann Lee", bench="B2", lot="L7", archive=str(tmp_path / "a.sqlite"),
              pdf=True)  # fmt: skip
@@ -153,7 +153,7 @@ def test_a_turn_kept_despite_its_warning_ends_with_the_record_to_redo(tmp_path: 
     keys += [" ", "n"]  # x_ccw incomplete: save anyway
     keys += [" ", "y"] * 5
     keys += [" ", "y"]  # the closing check (x_up again)
-    url = f"sim://?seed=12&{LINEAR}&operator_fault=incomplete_turn@1"
+    url = f"sim://?seed=12&noise_seed=12&{LINEAR}&operator_fault=incomplete_turn@1"
     con = ScriptedConsole(keys)
     with pytest.raises(UserError) as e:
         run(opts(tmp_path, url, yes=False, out=tmp_path / "a b" / "F1"), con, Ports())
@@ -175,7 +175,7 @@ def test_a_turn_kept_despite_its_warning_ends_with_the_record_to_redo(tmp_path: 
     assert command_after(str(e2.value), "with:")[-2:] == ["--redo", "x_ccw"]
     assert read.out == tmp_path / "a b" / "F1"
     # the same bench, without the operator's fault
-    again = with_options(again, yes=True, port=f"sim://?seed=12&{LINEAR}")
+    again = with_options(again, yes=True, port=f"sim://?seed=12&noise_seed=12&{LINEAR}")
     rc, stdout = run(again, ScriptedConsole(), Ports())
     assert rc in (0, 1) and "TEST REPORT" in stdout
     assert "warning" not in read_record(tmp_path / "a b" / "F1" / "F1_x_ccw.txt").meta
@@ -224,7 +224,7 @@ def test_redo_asks_neither_the_warm_up_nor_the_accumulation_time_again(tmp_path:
     """--redo (and --resume) with records kept: no second warm-up (and, the first sitting
     having recorded none, no claim of a warm unit), and the accumulation time is that of the
     kept statics, said, not asked: the operator typed only --redo x_up."""
-    url = f"sim://?seed=12&{LINEAR}"
+    url = f"sim://?seed=12&noise_seed=12&{LINEAR}"
     assert run(opts(tmp_path, url, static_seconds=3.0), ScriptedConsole(), Ports())[0] in (0, 1)
     con = ScriptedConsole()
     o = opts(tmp_path, url, redo=("x_up",), static_seconds=None, warmup_s=600.0)
@@ -246,7 +246,7 @@ def test_redo_asks_neither_the_warm_up_nor_the_accumulation_time_again(tmp_path:
 def test_a_whole_warm_up_recorded_before_the_kept_records_is_said(tmp_path: Path) -> None:
     """A first sitting whose warm-up ran to its end (its record is in the directory): the
     sitting that keeps its records says they were measured on a warm unit."""
-    url = f"sim://?seed=12&{LINEAR}"
+    url = f"sim://?seed=12&noise_seed=12&{LINEAR}"
     first = opts(tmp_path, url, static_seconds=3.0, warmup_s=2.0)
     assert run(first, ScriptedConsole(), Ports())[0] in (0, 1)
     assert (tmp_path / "F1" / "F1_warmup.txt").exists()

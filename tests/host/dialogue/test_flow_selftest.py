@@ -22,7 +22,7 @@ def test_a_part_failing_its_self_test_fails_its_calibration_and_its_archive_entr
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out, db = tmp_path / "F1", str(tmp_path / "a.sqlite")
-    url = "sim://?speed=max&effects=linear,noise&earth_rate=0&self_test=fail"
+    url = "sim://?speed=max&noise_seed=2&effects=linear,noise&earth_rate=0&self_test=fail"
     args = ["--yes", "--serial", "F1", "--out", str(out), "--static-seconds", "10", "--turns", "1"]
     code = main(["calibrate", "--port", url, *args, "--warmup", "0", "--archive", db])
     screen = capsys.readouterr()
@@ -57,7 +57,7 @@ def test_a_calibration_without_the_self_test_says_not_run_everywhere(
     calibration), and the records, the result, the report, its verdict and the archive say
     'not run'."""
     out, db = tmp_path / "N1", str(tmp_path / "a.sqlite")
-    url = "sim://?speed=max&effects=linear,noise&earth_rate=0&self_test=fail"
+    url = "sim://?speed=max&noise_seed=2&effects=linear,noise&earth_rate=0&self_test=fail"
     args = ["--yes", "--serial", "N1", "--out", str(out), "--static-seconds", "10", "--turns", "1"]
     main(["calibrate", "--port", url, *args, "--warmup", "0", "--archive", db, "--no-self-test"])
     screen = capsys.readouterr()

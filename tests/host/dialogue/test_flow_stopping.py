@@ -24,7 +24,8 @@ from tests.host.dialogue.test_flow_pty import emu_missing
 
 def _run(tmp: Path, **kw: object) -> tuple[str, Path]:
     o = flat_options(
-        port="sim://?seed=4&speed=max", serial="ST1", out=tmp / "ST1", turns=1, warmup_s=0.0,
+        port="sim://?seed=4&noise_seed=4&speed=max", serial="ST1", out=tmp / "ST1", turns=1,
+        warmup_s=0.0,
         yes=True, ready_s=0.0, plan="adaptive", max_extra=0, closing=False, **kw,  # type: ignore[arg-type]
     )  # fmt: skip
     con = ScriptedConsole()

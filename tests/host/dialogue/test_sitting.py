@@ -37,7 +37,7 @@ SHORT = ["--yes", "--warmup", "0", "--static-seconds", "2", "--turns", "1", "--n
 #: follows the record the test sees within one poll (50 ms). (At 0.5×, 8 s of waiting for each
 #: first record made up most of this file's 35 s.) A test that needs the session to outlast
 #: something slower holds it still with SIGSTOP (:func:`frozen`).
-SLOW_PORT = "sim://?speed=4&seed=3"
+SLOW_PORT = "sim://?speed=4&seed=3&noise_seed=3"
 
 
 def env() -> dict[str, str]:

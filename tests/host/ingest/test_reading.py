@@ -191,7 +191,7 @@ def test_sim_capture_is_cut_into_the_records_the_dialogue_wrote(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], warmup: str
 ) -> None:
     cap, rec, out = tmp_path / "s.cap", tmp_path / "rec", tmp_path / "imp"
-    argv = ["calibrate", "--port", "sim://?speed=max", "--yes", "--serial", "S1",
+    argv = ["calibrate", "--port", "sim://?speed=max&noise_seed=4", "--yes", "--serial", "S1",
             "--static-seconds", "6", "--warmup", warmup, "--capture", str(cap),
             "--out", str(rec)]  # fmt: skip
     assert main(argv) in (0, 1)

@@ -65,7 +65,7 @@ def gyro_integral_deg(frames: list[Frame]) -> np.ndarray:
 
 
 def test_hello_first_then_samples_with_consecutive_seq_at_50_hz() -> None:
-    b = Board("sim://?seed=1&speed=max&sample_clock=0.004&clock_ppm=0")
+    b = Board("sim://?seed=1&noise_seed=1&speed=max&sample_clock=0.004&clock_ppm=0")
     fr = b.seconds(3.0)
     assert fr[0].name == "HELLO"
     hello = fr[0].fields
@@ -85,11 +85,12 @@ def test_hello_first_then_samples_with_consecutive_seq_at_50_hz() -> None:
     assert b.decoder.stats.crc_errors == 0 and b.decoder.stats.lost_frames == 0
 
 
-def test_same_seed_same_bytes() -> None:
-    a = serial.serial_for_url("sim://?seed=9&speed=max", timeout=1).read(5000)
-    b = serial.serial_for_url("sim://?seed=9&speed=max", timeout=1).read(5000)
-    c = serial.serial_for_url("sim://?seed=10&speed=max", timeout=1).read(5000)
-    assert a == b and a != c
+def test_same_seeds_same_bytes() -> None:
+    a = serial.serial_for_url("sim://?seed=9&noise_seed=9&speed=max", timeout=1).read(5000)
+    b = serial.serial_for_url("sim://?seed=9&noise_seed=9&speed=max", timeout=1).read(5000)
+    c = serial.serial_for_url("sim://?seed=10&noise_seed=9&speed=max", timeout=1).read(5000)
+    d = serial.serial_for_url("sim://?seed=9&speed=max", timeout=1).read(5000)  # fresh noise
+    assert a == b and a != c and a != d
 
 
 def _paced_span_s(url: str, read_s: float) -> tuple[float, float]:
@@ -115,14 +116,16 @@ def test_realtime_speed_paces_samples_by_the_wall_clock(speed: int) -> None:
     # Pacing means the board is never ahead of the wall clock (times the speed factor), and
     # does not stall either. Both bounds hold on a loaded machine: the upper one because the
     # wall time covers the whole read, the lower one because a late reader catches up.
-    url = "sim://?seed=2" if speed == 1 else f"sim://?seed=2&speed={speed}"
+    url = (
+        "sim://?seed=2&noise_seed=2" if speed == 1 else f"sim://?seed=2&noise_seed=2&speed={speed}"
+    )
     span, wall = _paced_span_s(url, 0.3)
     assert span <= speed * (wall + 0.02) + 0.04  # + one sample period of slack either way
     assert span >= speed * 0.3 * 0.5
 
 
 def test_commands_are_answered() -> None:
-    b = Board("sim://?seed=3&speed=max")
+    b = Board("sim://?seed=3&noise_seed=3&speed=max")
     b.seconds(0.5)
     b.send("PING", 7, nonce=0xDEADBEEF)
     fr = b.frames(200)
@@ -165,7 +168,7 @@ def test_commands_are_answered() -> None:
 
 
 def test_operator_hints_put_gravity_on_the_asked_axis() -> None:
-    b = Board("sim://?seed=4&speed=max&truth=ideal&earth_rate=0")
+    b = Board("sim://?seed=4&noise_seed=4&speed=max&truth=ideal&earth_rate=0")
     b.seconds(0.5)
     g_counts = 16384 * 9.8155 / sensor.G0
     for name, axis, sign in (("x_up", 0, 1), ("y_dn", 1, -1), ("z_dn", 2, -1)):
@@ -179,7 +182,7 @@ def test_operator_hints_put_gravity_on_the_asked_axis() -> None:
 
 
 def test_operator_turns_when_asked_within_the_window() -> None:
-    b = Board("sim://?seed=5&speed=max&truth=ideal&earth_rate=0&clock_ppm=0")
+    b = Board("sim://?seed=5&noise_seed=5&speed=max&truth=ideal&earth_rate=0&clock_ppm=0")
     b.seconds(0.3)
     did = b.port.operator_hint("turn", axis="y", direction="cw", turns=2, window_s=12)
     t_hint = did["start_s"] - 1.3
@@ -194,7 +197,7 @@ def test_operator_turns_when_asked_within_the_window() -> None:
 
 
 def test_manual_operator_only_records_hints() -> None:
-    b = Board("sim://?seed=5&speed=max&truth=ideal&operator=manual")
+    b = Board("sim://?seed=5&noise_seed=5&speed=max&truth=ideal&operator=manual")
     b.seconds(0.2)
     did = b.port.operator_hint("place", name="x_up")
     assert did["done"] is False and b.port.hints[-1][1:] == ("place", {"name": "x_up"})
@@ -203,7 +206,7 @@ def test_manual_operator_only_records_hints() -> None:
 
 
 def test_fault_wrong_face_puts_the_next_axis_up_once() -> None:
-    b = Board("sim://?seed=6&speed=max&truth=ideal&fault=wrong_face")
+    b = Board("sim://?seed=6&noise_seed=6&speed=max&truth=ideal&fault=wrong_face")
     b.seconds(0.2)
     did = b.port.operator_hint("place", name="x_up")
     assert did["fault"] == "wrong_face" and did["up"] == [0.0, 1.0, 0.0]
@@ -216,7 +219,9 @@ def test_fault_wrong_face_puts_the_next_axis_up_once() -> None:
 
 
 def test_fault_too_fast_saturates_and_incomplete_turn_falls_short() -> None:
-    b = Board("sim://?seed=7&speed=max&truth=ideal&fault=too_fast@1&fault=incomplete_turn@2")
+    b = Board(
+        "sim://?seed=7&noise_seed=7&speed=max&truth=ideal&fault=too_fast@1&fault=incomplete_turn@2"
+    )
     b.seconds(0.2)
     assert b.port.operator_hint("turn", axis="z", direction="ccw", turns=2)["fault"] == "too_fast"
     s = samples(b.seconds(12.0))
@@ -229,7 +234,7 @@ def test_fault_too_fast_saturates_and_incomplete_turn_falls_short() -> None:
 
 
 def test_pull_cable_raises_and_reopening_resets_the_board() -> None:
-    b = Board("sim://?seed=8&speed=max&fault=pull_cable@2")
+    b = Board("sim://?seed=8&noise_seed=8&speed=max&fault=pull_cable@2")
     fr = b.seconds(1.5)
     assert fr[0].name == "HELLO" and fr[0].fields["reset_cause"] == 1
     with pytest.raises(serial.SerialException, match="device disconnected"):
@@ -249,7 +254,7 @@ def test_pull_cable_raises_and_reopening_resets_the_board() -> None:
 
 
 def test_reopen_resets_seq_and_sends_hello_again_keeping_the_cube_where_it_is() -> None:
-    b = Board("sim://?seed=9&speed=max&truth=ideal")
+    b = Board("sim://?seed=9&noise_seed=9&speed=max&truth=ideal")
     b.seconds(1.0)
     b.port.operator_hint("place", name="y_up")
     last = b.seconds(1.0)[-1].seq
@@ -264,9 +269,9 @@ def test_reopen_resets_seq_and_sends_hello_again_keeping_the_cube_where_it_is() 
 
 
 def test_truth_is_exposed_and_url_errors_are_clear() -> None:
-    p = serial.serial_for_url("sim://?seed=3&truth=ideal&speed=max")
+    p = serial.serial_for_url("sim://?seed=3&noise_seed=3&truth=ideal&speed=max")
     assert p.truth == SensorTruth.ideal()  # type: ignore[attr-defined]
-    q = serial.serial_for_url("sim://?seed=3&speed=max&effects=bias")
+    q = serial.serial_for_url("sim://?seed=3&noise_seed=3&speed=max&effects=bias")
     c = q.truth.constants()  # type: ignore[attr-defined]
     assert c["G0x"] != 0 and c["Gxx"] == 0
     with pytest.raises(serial.SerialException, match="unknown option"):

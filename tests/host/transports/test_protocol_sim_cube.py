@@ -84,8 +84,9 @@ def test_two_boards_of_one_cube_sense_one_motion_apart_by_their_mounting_and_lev
     its angle, wobble and timing from each board's ``now``) while the raw ones differ by the
     turn's angle times the mountings' difference; the accelerometers' mean over the turn differs
     by the centripetal force of the slots' lever arms, −⟨ω²⟩·(r₁ − r₆) across the turn axis."""
-    boards, nows = _sitting((f"sim://?cube=4&slot=1&seed=1&speed=max&{IDEAL}",
-                             f"sim://?cube=4&slot=6&seed=2&speed=max&{IDEAL}"))  # fmt: skip
+    boards, nows = _sitting((f"sim://?cube=4&slot=1&seed=1&noise_seed=1&speed=max&{IDEAL}",
+                             f"sim://?cube=4&slot=6&seed=2&noise_seed=2&speed=max&{IDEAL}"),
+                            )  # fmt: skip
     assert abs(nows[1][0] - nows[0][0]) > 0.5  # the clocks really are apart
     rot = [b.rotation() for b in boards]
     for h, up in ((0, np.array([1.0, 0, 0])), (2, np.array([0, -1.0, 0]))):

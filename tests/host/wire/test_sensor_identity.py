@@ -72,7 +72,7 @@ def _sim_z_counts(url: str) -> tuple[int, float]:
 
 
 def test_sim_board_is_the_revision_asked_and_counts_accordingly() -> None:
-    base = "sim://?seed=3&speed=max&truth=ideal&earth_rate=0"
+    base = "sim://?seed=3&noise_seed=3&speed=max&truth=ideal&earth_rate=0"
     pid, az_d8 = _sim_z_counts(base)  # 1 g of the local gravity, ≈ 16384 counts
     assert pid == sensor.DEFAULT_PRODUCT_ID and abs(az_d8 - 16384) < 40
     pid, az = _sim_z_counts(base + "&revision=C5")
@@ -123,7 +123,7 @@ def test_the_record_header_names_the_spi_clock_the_status_tells() -> None:
 def test_board_warns_once_of_an_unknown_product_id(revision: str, warned: bool) -> None:
     """An unknown revision is said once (not at every restart); the records still name it."""
     warnings: list[str] = []
-    board = Board(f"sim://?seed=3&speed=max&revision={revision}", warn=warnings.append)
+    board = Board(f"sim://?seed=3&noise_seed=3&speed=max&revision={revision}", warn=warnings.append)
     info = board.connect()
     try:
         acq = board.acquire(1.5)  # STATUS comes every second
