@@ -6,6 +6,7 @@ Data in: record files (``SERIAL_name.txt``). Out: :class:`~host.session.records.
 (and nothing above it): the model, the calibration and the workbench read records from here.
 
 - ``records`` — the record and its text format (parse, format), record names and header keys.
+- ``rowtext`` — a record's data rows as text, all at once: printed, read, their time spacing.
 - ``directory`` — the session directory: file names, reading and writing record files.
 - ``atomic`` — publishing several files together or not at all.
 - ``inputs`` — what comes in from outside: the serial rule, JSON read within bounds.

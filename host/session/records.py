@@ -29,6 +29,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from host.errors import InputError
+from host.session.rowtext import (
+    UNDERSCORES_RE,
+    format_rows,
+    read_rows,
+    spacing_problem,
+    underscores_at_end,
+)
 
 RECORD_FORMAT_VERSION = 1
 #: fewer data rows than this cannot be calibrated with (no std): such a record is refused
@@ -90,8 +97,6 @@ MOVE_FROM_KEY, MOVE_TO_KEY = "from", "to"
 RECORD_KINDS = ("static", "turn", "rate", "pose", "move")
 _HEADER_RE = re.compile(r"^imu-bench record v(?P<v>\d+)\s*$")
 _META_RE = re.compile(r"^(?P<key>[^:]+?)\s*:\s?(?P<value>.*)$")
-_UNDERSCORES_RE = re.compile(r"^_{3,}\s*$")
-_NEG_ZERO_RE = re.compile(r"(^|\t)-(0(?:\.0*)?)(?=\t|$)")
 _KEY_OK_RE = re.compile(r"^[A-Za-z0-9_.\- ]+$")
 
 #: printed decimals of the 8 columns (time, Ax, Ay, Az, Gx, Gy, Gz, temp)
@@ -348,15 +353,14 @@ def format_record(record: Record) -> str:
     for k, v in meta.items():
         lines.append(f"# {k}: {v}".rstrip())
     data = np.column_stack([record.t_ms, record.accel, record.gyro, record.temp])
-    fmts = [f"{{:.{d}f}}" for d in DECIMALS]
-    rows = ["\t".join(f.format(v) for f, v in zip(fmts, row, strict=True)) for row in data.tolist()]
-    rows = [_NEG_ZERO_RE.sub(r"\1\2", r) for r in rows]
-    lines.extend(rows)
+    rows = format_rows(data, DECIMALS)
+    if rows:
+        lines.append(rows)
     lines.append("_" * 72)
     if rows:
-        printed = np.array([r.split("\t") for r in rows], dtype=np.float64)
+        printed = np.loadtxt(rows.split("\n"), dtype=np.float64, comments=None, ndmin=2)
         mean = printed[:, 1:].mean(axis=0)
-        std = printed[:, 1:].std(axis=0, ddof=1) if len(rows) > 1 else np.zeros(7)
+        std = printed[:, 1:].std(axis=0, ddof=1) if len(data) > 1 else np.zeros(7)
     else:
         mean = std = np.zeros(7)
     lines.append("mean\t" + "\t".join(_fmt(float(v), SUMMARY_DECIMALS) for v in mean))
@@ -384,15 +388,9 @@ def _header_line(meta: dict[str, str], key: str, value: str, where: str) -> None
     meta[key] = value
 
 
-#: the sample spacing a record's times may have on average, ms: the MPU-6000 samples at most
-#: at 8 kHz; one sample a minute is no recording of a sensor either
-SPACING_RANGE_MS = (0.1, 60_000.0)
-
-
 def _check_times(t_ms: np.ndarray, meta: dict[str, str], source: str) -> None:
-    """RecordError for time stamps no record has: all equal, or spaced on average outside
-    :data:`SPACING_RANGE_MS` (times in seconds, or in µs, where the format has ms), and for a
-    session-time header (:data:`TIME_KEYS`) that is not a finite number of seconds."""
+    """RecordError for time stamps no record has (:func:`host.session.rowtext.spacing_problem`)
+    and for a session-time header (:data:`TIME_KEYS`) that is not a finite number of seconds."""
     for key in TIME_KEYS:
         try:
             v = float(meta.get(key, "0"))
@@ -401,20 +399,9 @@ def _check_times(t_ms: np.ndarray, meta: dict[str, str], source: str) -> None:
         if not math.isfinite(v):
             raise RecordError(f"{source}: header '{key}: {meta[key]}' is not a finite number "
                               "of seconds; correct the line or remove it")  # fmt: skip
-    if t_ms.size < 2:
-        return
-    mean = (t_ms[-1] - t_ms[0]) / (t_ms.size - 1)
-    if mean == 0:
-        raise RecordError(f"{source}: every time stamp is {t_ms[0]:g} ms: the times do not "
-                          "run; the first column is the time since the start in ms")  # fmt: skip
-    lo, hi = SPACING_RANGE_MS
-    if not lo <= mean <= hi:
-        unit = "seconds" if mean < lo else "µs or another unit"
-        raise RecordError(
-            f"{source}: the time stamps are {mean:.3g} ms apart on average (a sensor samples "
-            f"every {lo:g} to {hi:g} ms): they look like {unit}; the first column is the time "
-            "since the start in ms (import --units t=s converts)"
-        )
+    problem = spacing_problem(t_ms)
+    if problem:
+        raise RecordError(f"{source}: {problem}")
 
 
 @dataclass
@@ -481,10 +468,11 @@ def _summary_row(summary: list[list[float]], line: str, where: str) -> None:
     summary.append(vals[-7:])
 
 
-def _read_lines(text: str, source: str) -> _RecordText:
-    """Every line of a record file's ``text`` read into a :class:`_RecordText`."""
+def _read_lines(lines: list[str], source: str) -> _RecordText:
+    """Every line of a record file read into a :class:`_RecordText`, one at a time: the reader
+    that names the first line that is wrong."""
     parsed = _RecordText()
-    for lineno, raw in enumerate(text.splitlines(), start=1):
+    for lineno, raw in enumerate(lines, start=1):
         line = raw.strip()
         if not line:
             continue
@@ -492,7 +480,7 @@ def _read_lines(text: str, source: str) -> _RecordText:
         where = f"{source}:{lineno}"
         if line.startswith("#"):
             _comment_line(parsed, line[1:].strip(), where)
-        elif _UNDERSCORES_RE.match(line):
+        elif UNDERSCORES_RE.match(line):
             if parsed.in_summary:
                 raise RecordError(f"{where}: a second line of underscores; the file is damaged")
             parsed.in_summary = True
@@ -501,6 +489,43 @@ def _read_lines(text: str, source: str) -> _RecordText:
         else:
             _data_row(parsed.rows, line, where)
     return parsed
+
+
+def _read_whole(lines: list[str], source: str) -> tuple[_RecordText, np.ndarray] | None:
+    """A well-formed record's lines read in one pass: its header line by line, its data rows
+    at once (``np.loadtxt``), its mean and std rows; None when anything is out of the ordinary
+    (then :func:`_read_lines` reads it line by line and names what is wrong)."""
+    parsed = _RecordText()
+    head = 0
+    try:
+        while head < len(lines) and (not lines[head].strip() or lines[head].lstrip()[0] == "#"):
+            line = lines[head].strip()
+            if line:
+                _comment_line(parsed, line[1:].strip(), f"{source}:{head + 1}")
+            head += 1
+        bar = underscores_at_end(lines, head)
+        if bar is None or not _summary_rows(parsed, lines, bar, source):
+            return None
+    except RecordError:
+        return None
+    data = read_rows(lines[head:bar], 8)
+    if data is None:
+        return None
+    parsed.in_summary = True
+    return parsed, data
+
+
+def _summary_rows(parsed: _RecordText, lines: list[str], bar: int, source: str) -> bool:
+    """The mean and std rows after the underscores at ``bar`` into ``parsed``: False when they
+    are not just those two rows (and empty lines)."""
+    for i in range(bar + 1, len(lines)):
+        line = lines[i].strip()
+        if line:
+            if line[0] == "#" or UNDERSCORES_RE.match(line):
+                return False
+            _summary_row(parsed.summary, line, f"{source}:{i + 1}")
+            parsed.last_line = i + 1
+    return len(parsed.summary) == 2
 
 
 def _check_complete(parsed: _RecordText, source: str) -> None:
@@ -551,9 +576,14 @@ def parse_record_text(text: str, source: str, name: str | None = None) -> Record
 
     Raises RecordError naming ``source:line`` for anything that is not a complete record.
     """
-    parsed = _read_lines(text, source)
-    _check_complete(parsed, source)
-    data = np.array(parsed.rows, dtype=np.float64)
+    lines = text.splitlines()
+    fast = _read_whole(lines, source)
+    if fast is not None:
+        parsed, data = fast
+    else:
+        parsed = _read_lines(lines, source)
+        _check_complete(parsed, source)
+        data = np.array(parsed.rows, dtype=np.float64)
     _check_times(data[:, 0], parsed.meta, source)
     _check_stored_mean(data, parsed.summary[0], source)
     return Record(
