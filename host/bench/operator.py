@@ -49,7 +49,9 @@ class CubeOperator:
     ``cube`` (a board in a cube of several, :func:`host.bench.cube.hand_seed`): the hand of the
     cube's one operator; the n-th hint's motion is then drawn from it and n alone
     (:func:`host.bench.cube.hint_seed`, not from ``rng``), so every board of the cube given the
-    same hints makes the same motion, each from its own ``now``.
+    same hints makes the same motion, each from its own ``now``. A hint's ``seq=N`` (any
+    action) names n itself: a sitting that numbers its hints keeps a board that missed some
+    (it dropped out and came back) in step with the others.
     """
 
     def __init__(
@@ -72,8 +74,11 @@ class CubeOperator:
         """Act on one hint at simulated time ``now`` (s); -> what the operator did (dict:
         ``action``, ``done``, ``up``, ``fault``, ``start_s``...)."""
         self.hints += 1
+        number = kw.pop("seq", self.hints)
+        if not isinstance(number, int) or isinstance(number, bool) or number < 0:
+            raise ValueError(f"seq={number!r}: a hint's number is a whole number, 0 or more")
         if self.cube is not None:
-            self.rng = np.random.default_rng(hint_seed(self.cube, self.hints))
+            self.rng = np.random.default_rng(hint_seed(self.cube, number))
         if action == "place":
             return self.place(sim, now, **kw)
         if action == "turn":

@@ -31,7 +31,8 @@ the options shared with ``emu://`` are read by :mod:`host.bench.options`)::
   gyroscope Z 45 % below it: the part fails, ±14 % is allowed).
 - ``cube=C`` (a whole number, 0 … 2³²−1) and ``slot=K`` (0 … 7, default 0): the board sits at
   place K of virtual cube C, with the other boards given the same C (:mod:`host.bench.cube`):
-  one operator holds them, C alone draws the hand (the n-th hint's motion from C and n), so
+  one operator holds them, C alone draws the hand (the n-th hint's motion from C and n, or
+  from C and N for a hint given ``seq=N``: a sitting's own hint number), so
   boards given the same hints make the same motion, each from its own ``now`` at the hint; the
   slot gives the board's own lever arm (the slot's offset from the cube's centre, replacing the
   unit's) and its mounting (a rotation of a few mrad), both in ``port.truth``. The unit (its

@@ -191,3 +191,22 @@ def test_a_sitting_measures_every_record_on_every_board_with_one_hand() -> None:
 def _integral(t_ms: np.ndarray, rate: np.ndarray) -> np.ndarray:
     t = t_ms / 1000.0
     return np.sum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t)[:, None], axis=0)
+
+
+def test_a_hint_numbered_by_the_sitting_keeps_a_board_that_missed_some_in_step() -> None:
+    """A board that missed two hints (it was out) makes the same motion as the others once the
+    sitting numbers its hints (``seq=``); counted by itself it would turn otherwise."""
+    hand = parse_sim_options({"cube": ["3"]}, "max", True).draw().cube_ss
+    ops = [CubeOperator(np.random.default_rng(0), Bench(), cube=hand) for _ in range(3)]
+    sims = [Simulator(SensorTruth.ideal(), Bench(), seed=k) for k in range(3)]
+    for n in (1, 2):  # boards 0 and 1 only; board 2 is out
+        for op, sim in zip(ops[:2], sims[:2], strict=True):
+            op.hint(sim, 5.0 * n, "place", seq=n, name="x_up")
+    turn = {"axis": "y", "direction": "cw", "turns": 1, "window_s": 7.0}
+    starts = [ops[k].hint(sims[k], 20.0, "turn", seq=3, **turn)["start_s"] for k in (0, 2)]
+    assert starts[0] == starts[1]
+    counted = CubeOperator(np.random.default_rng(0), Bench(), cube=hand)
+    alone = counted.hint(Simulator(SensorTruth.ideal(), Bench()), 20.0, "turn", **turn)
+    assert alone["start_s"] != starts[0]  # its own first hint: another draw
+    with pytest.raises(ValueError, match="seq="):
+        ops[0].hint(sims[0], 30.0, "place", seq=-1, name="z_up")
