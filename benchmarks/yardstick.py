@@ -158,7 +158,7 @@ CASES: dict[str, Case] = {
         # the same without the closing x_up_2 (a plan that ends on its turns)
         *(Case(f"step_{s}_at_{w}_open", {"effect": f"bias_step_{s}_at_{w}", "closing": False},
                "off", signal=_STEP, names=("time_drift",))
-          for w in STEP_PLACES if w != "closing" for s in ("accel", "gyro")),
+          for w in STEP_PLACES if w not in ("closing", "in_last") for s in ("accel", "gyro")),
         *(Case(f"two_steps_{s}", {"effect": f"bias_two_steps_{s}"}, "off", signal=_STEP,
                names=("time_drift",)) for s in ("accel", "gyro")),
         Case("dtdt_gyro", {"effect": "dtdt_bias", "warmup_s": 120.0}, "off", signal=_DTDT),

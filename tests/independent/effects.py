@@ -255,6 +255,9 @@ STEP_PLACES: dict[str, tuple[str, ...]] = {
     "closing": ("x_up_2",),  # before the closing x_up again
     "in_static": tuple(f"in:{a}_{d}" for a in "xyz" for d in ("up", "dn")),
     "in_turn": tuple(f"in:{a}_{d}" for a in "xyz" for d in ("ccw", "cw")),
+    "in_first": ("in:x_up",),  # inside the first record: nothing before it
+    "in_last": ("in:x_up_2",),  # inside the closing record: nothing after it
+    "in_last_turn": ("in:z_cw",),  # inside the last turn (the last record without x_up_2)
 }
 #: the sizes a placed step is drawn from (uniform, either sign): m/s², °/s
 STEP_SIZES = {"accel": (0.02, 0.1), "gyro": (0.05, 0.5)}
