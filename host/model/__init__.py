@@ -22,7 +22,7 @@ figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imp
 - ``loader`` — users' term files joining the catalogue.
 - ``spec`` — the model spec grammar (``base,temperature_bias:gyro:x``) and model terms.
 - ``noise`` — the noise model: block noise, the bias-instability floor from the records' own
-  samples.
+  samples, a step inside a static record that its samples show (an effect, not noise).
 - ``variance`` — named variance components: the turns' angle error and wobble, each measured
   with its own degrees of freedom.
 - ``components`` — the turn-angle and wobble components, and a hand-held pose's rate and hold,

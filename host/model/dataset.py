@@ -166,6 +166,8 @@ def _static_blocks(
         sig = signals[ch.record]
         if sig.kind == "turn" or len(ch.rows) < 2:
             continue
+        if (ch.record, ch.sensor, ch.axis) in table.inner_steps:
+            continue  # a step inside the record: an effect, not the bias's wander
         counts = np.count_nonzero(ch.aggregator, axis=1).astype(float)
         w = ch.aggregator / ch.aggregator.sum(axis=1, keepdims=True)
         shapes = np.column_stack([w @ sig.temp_c, w @ sig.t_s])

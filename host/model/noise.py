@@ -10,7 +10,10 @@ misfit, so that a drift or a step between records shows as misfit. Turn integral
 integrated + (floor·T)² + the hand's angle error (``turn_angle_sigma_deg``: given by the user,
 else measured from the closure of the turns made both ways, :mod:`host.model.variance`).
 The still moments of a turn add the cube's seating, its moving blocks the hand
-(:mod:`host.model.rows`, :mod:`host.model.turning`).
+(:mod:`host.model.rows`, :mod:`host.model.turning`). A step inside a static record is neither
+noise nor wander: where its samples show one (:func:`inner_step`), the record's blocks are cut
+there and its white noise read about the two levels (:func:`host.model.rows.block_means`), and
+the floor leaves that record's channel out.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from host.model.signals import SENSORS, UNIT, true_runs
-from host.model.stats import beyond_white, least_beyond_white
+from host.model.stats import beyond_white, chi2_sf, least_beyond_white
 
 
 # ---- noise model ----------------------------------------------------------------------------
@@ -110,6 +113,41 @@ def integrated_autocorrelation(dev: np.ndarray | Sequence[np.ndarray], max_lag: 
             break
         tau += 2.0 * rho
     return float(min(max(tau, 1.0), 50.0))
+
+
+#: a step inside a static record is looked for with at least this many samples a side
+INNER_STEP_MIN = 8
+#: the level a step inside one static record's channel is taken at, over every cut of it: a
+#: session has some 40 static channels, so white noise shows one in about one session of
+#: 25 000; a step of the plan's least size (0.02 m/s², 0.05 °/s: twice a sample's noise) at
+#: 15 % of a 10 s record is p ≈ 1e-25 there
+INNER_STEP_ALPHA = 1e-6
+
+
+def inner_step(x: np.ndarray, max_lag: int) -> int | None:
+    """The sample a bias step inside one static record's channel ``x`` (N,) starts at, when
+    the records' own samples show one: the best cut of ``x`` into two levels, its between-level
+    sum of squares over the variance of a mean of the pieces' deviations (their own serial
+    correlation taken in), beyond chance over every cut (Bonferroni at
+    :data:`INNER_STEP_ALPHA`); else None. A step there is an effect for the
+    model to show, not noise: read as noise it widens the record's σ, the channel's τ and the
+    session's floor until the step's own misfit is within them (a step inside the first record,
+    whose level the pair's scale and the misalignments take, then shows nowhere else)."""
+    n = len(x)
+    if n < 4 * INNER_STEP_MIN:
+        return None
+    k = np.arange(INNER_STEP_MIN, n - INNER_STEP_MIN + 1, dtype=float)
+    csum = np.cumsum(x - x.mean())
+    between = csum[INNER_STEP_MIN - 1 : n - INNER_STEP_MIN] ** 2 * n / (k * (n - k))
+    cut = int(np.argmax(between)) + INNER_STEP_MIN
+    pieces = [x[:cut] - x[:cut].mean(), x[cut:] - x[cut:].mean()]
+    dev = np.concatenate(pieces)
+    var = float(dev @ dev) / (n - 2)
+    if var <= 0.0:
+        return None
+    tau = integrated_autocorrelation(pieces, max_lag)
+    p = chi2_sf(float(between[cut - INNER_STEP_MIN]) / (var * tau), 1) * len(k)
+    return cut if p < INNER_STEP_ALPHA else None
 
 
 #: what the static records' block means may follow inside a record that is an effect, not

@@ -23,7 +23,13 @@ import numpy as np
 
 from host.model import turning
 from host.model.catalogue import plate_tilt
-from host.model.noise import NoiseModel, integrated_autocorrelation, resolution, still_runs
+from host.model.noise import (
+    NoiseModel,
+    inner_step,
+    integrated_autocorrelation,
+    resolution,
+    still_runs,
+)
 from host.model.signals import SENSORS, RecordSignals
 from host.session.method import RecordStats, record_stats
 from host.session.records import Record
@@ -55,7 +61,8 @@ class RowTable:
     (variance, τ) in record order; ``record_noise``: (record, sensor, axis) -> (variance, τ)).
     ``deviations``: (sensor, axis) -> each measured run's samples about its mean, static records
     first (what the serial correlation is read from, :func:`apply_serial_correlation`); until
-    then every τ is 1."""
+    then every τ is 1. ``inner_steps``: (record, sensor, axis) -> the time a step inside that
+    static record starts at, s since its first sample (:class:`BlockMeans`)."""
 
     record: list[int] = field(default_factory=list)
     sensor: list[int] = field(default_factory=list)
@@ -70,6 +77,7 @@ class RowTable:
     record_noise: dict[tuple[int, str, int], tuple[float, float]] = field(default_factory=dict)
     deviations: dict[tuple[str, int], list[np.ndarray]] = field(default_factory=dict)
     static_deviations: dict[tuple[str, int], list[np.ndarray]] = field(default_factory=dict)
+    inner_steps: dict[tuple[int, str, int], float] = field(default_factory=dict)
 
     def add(
         self,
@@ -178,19 +186,36 @@ class BlockMeans:
     ``aggregator`` (B, N) the weights of the block means, ``spans`` their time spans (s), and
     per channel (sensor, axis, the block means and the ideal sensor's (B,) in the channel's
     unit, the white variance of one sample and the deviations it is read from,
-    :func:`white_variance`). Its arrays are not changed once made (several datasets may hold
-    them)."""
+    :func:`white_variance`). ``inner``: (sensor, axis) -> the time (s since the record's first
+    sample) a step inside the record starts at where its samples show one
+    (:func:`host.model.noise.inner_step`; the deviations are then read about its two levels).
+    Its arrays are not changed once made (several datasets may hold them)."""
 
     aggregator: np.ndarray
     spans: tuple[tuple[float, float], ...]
     channels: tuple[tuple[str, int, list[float], list[float], float, list[np.ndarray]], ...]
+    inner: Mapping[tuple[str, int], float] = field(default_factory=dict)
 
 
 def block_means(sig: RecordSignals, t_rel: np.ndarray, noise: NoiseModel) -> BlockMeans:
     """Every channel's block means of a static or rate-table record and their white noise from
-    the record's own samples (``t_rel`` (N,) s since its first sample)."""
+    the record's own samples (``t_rel`` (N,) s since its first sample). Where a channel's
+    samples show a step inside a static record (:func:`host.model.noise.inner_step`; not a
+    hand-held pose, which creeps while it settles: :mod:`host.model.components`) the blocks are
+    cut there, at least two either side (:func:`stepped_edges`): the rows then show the step's
+    size from the record alone, also where the fit takes the record's level (the first record,
+    whose level the pair's scale and the misalignments absorb)."""
     n = len(t_rel)
+    inner: dict[tuple[str, int], float] = {}
+    cuts: set[int] = set()
+    for s in SENSORS if sig.kind == "static" else ():  # a hand's pose creeps as it settles
+        for ax in range(3):
+            cut = inner_step(sig.measured(s)[:, ax], noise.max_lag)
+            if cut is not None:
+                inner[(s, ax)] = float(t_rel[cut])
+                cuts.add(cut)
     edges = block_edges(n, float(t_rel[-1]) if n else 0.0, noise)
+    edges = stepped_edges(t_rel, sorted(cuts), noise) if cuts else edges
     agg = means_of(edges, n)
     agg.flags.writeable = False
     spans = tuple((float(t_rel[a]), float(t_rel[e - 1])) for a, e in edges)
@@ -203,7 +228,31 @@ def block_means(sig: RecordSignals, t_rel: np.ndarray, noise: NoiseModel) -> Blo
             var, devs = white_variance(meas[:, ax], edges)
             y, nominal = (agg @ meas[:, ax]).tolist(), (agg @ ref[:, ax]).tolist()
             channels.append((s, ax, y, nominal, var, devs))
-    return BlockMeans(agg, spans, tuple(channels))
+    return BlockMeans(agg, spans, tuple(channels), inner)
+
+
+def stepped_edges(
+    t_rel: np.ndarray, cuts: Sequence[int], noise: NoiseModel
+) -> list[tuple[int, int]]:
+    """[start, stop) sample ranges of the blocks of a static record (times ``t_rel`` (N,) s)
+    cut at the samples ``cuts`` where a step starts: each piece between two cuts is cut into
+    blocks of about ``noise.block_s`` and at least two (one block a side would leave the step's
+    size and its place inside the block one unknown), each of at least 8 samples."""
+    n = len(t_rel)
+    bounds = [0, *cuts, n]
+    out: list[tuple[int, int]] = []
+    for a, e in zip(bounds[:-1], bounds[1:], strict=True):
+        if e - a < 8:
+            if out and e > a:
+                out[-1] = (out[-1][0], e)  # too short for a block: joins the one before
+            elif e > a:
+                out.append((a, e))
+            continue
+        dur = float(t_rel[e - 1] - t_rel[a])
+        b = int(min(noise.max_blocks, max(2, round(dur / noise.block_s)), (e - a) // 8 or 1))
+        edges = np.linspace(a, e, b + 1).round().astype(int)
+        out.extend((int(edges[i]), int(edges[i + 1])) for i in range(b))
+    return out
 
 
 def add_block_means(table: RowTable, record: int, means: BlockMeans) -> np.ndarray:
@@ -217,6 +266,8 @@ def add_block_means(table: RowTable, record: int, means: BlockMeans) -> np.ndarr
         table.static_noise.setdefault((s, ax), []).append((var, 1.0))
         table.record_noise[(record, s, ax)] = (var, 1.0)
         table.channels.append(ChannelRows(record, s, ax, idx, agg, var))
+    for (s, ax), at in means.inner.items():
+        table.inner_steps[(record, s, ax)] = at
     return agg
 
 
