@@ -15,7 +15,8 @@ figures, for the calibration (:mod:`host.calib`) and the workbench above it. Imp
 - ``turn_angle`` — a turn's angle and reference rate: ±360°·n between two rests, an unknown of
   the fit when it starts or ends in motion.
 - ``remeasured`` — a face measured twice: the accelerometer's bias change between the two, and
-  whether the turns' leans are that change rather than tilted turn axes.
+  whether the turns' leans are that change rather than tilted turn axes; without a static
+  record after the turns, whether their leans are one step no static record sees.
 - ``signals`` — a record's reference signals (force, rate, temperature, time, heading); units.
 - ``terms`` — the :class:`Term` type and the ``@term`` / ``@nonlinear_term`` decorators.
 - ``catalogue`` — the built-in terms (``base`` = method.md §2, and the §8 effects), plausibility.

@@ -23,7 +23,7 @@ from host.model.plate import (
     with_headings,
 )
 from host.model.poses import FirstEstimates, RecordLinks, first_estimates
-from host.model.remeasured import leans_are_a_bias_change
+from host.model.remeasured import leans_are_a_bias_change, leans_are_an_unseen_step
 from host.model.rows import (
     RecordWork,
     RowTable,
@@ -341,7 +341,7 @@ def _place_on_the_plate(signals: list[RecordSignals], g: float) -> _Placed:
     plate = plate_from_rests(with_headings(circles, signals))
     signals = tilt_matrices(signals, plate)
     axes = turn_axes(signals, plate)
-    changed = leans_are_a_bias_change(signals, axes)
+    changed = leans_are_a_bias_change(signals, axes) or leans_are_an_unseen_step(signals, axes)
     signals, tilted = resolve_turn_axes(signals, [] if changed else axes)
     notes = [*notes, *(a.line() for a in tilted)]
     if changed:

@@ -12,9 +12,9 @@ from host.model.remeasured import bias_change
 from tests.independent.simulate import SessionSpec, write_session
 
 
-def _notes(root: Path, effect: str, seed: int) -> tuple[str, ...]:
+def _notes(root: Path, effect: str, seed: int, closing: bool = True) -> tuple[str, ...]:
     d = root / f"{effect}_{seed}"
-    write_session(d, SessionSpec(seed=seed, effect=effect))
+    write_session(d, SessionSpec(seed=seed, effect=effect, closing=closing))
     return load_dataset(d).notes
 
 
@@ -35,6 +35,26 @@ def test_a_tilted_turn_is_still_named_beside_a_re_measured_face(tmp_path: Path) 
     notes = _notes(tmp_path, "turn_axis_tilt", 2300)
     assert len([n for n in notes if "turned about an axis" in n]) == 2, notes
     assert not [n for n in notes if "not tilted turn axes" in n]
+
+
+def test_without_a_static_after_the_turns_their_leans_are_an_unseen_step(tmp_path: Path) -> None:
+    """No closing x_up_2: an accel x step of −0.069 m/s² before y_ccw leans the four turns
+    after it by 7 mrad on x, which took them for tilted (their reference turned by it) and
+    the verdict was `adequate`. One change explains every one of them: the turns keep their
+    nominal axes and the note says a step there could not be told from a tilted seat."""
+    notes = _notes(tmp_path, "bias_step_accel_at_turns", 1004, closing=False)
+    assert not [n for n in notes if "turned about an axis" in n], notes
+    said = [n for n in notes if "could not be told from the turns made on a tilted seat" in n]
+    assert len(said) == 1 and "y_ccw, y_cw, z_ccw, z_cw" in said[0], said
+    assert "x -0.06" in said[0] and "before y_ccw" in said[0], said
+
+
+def test_a_seat_degrees_off_is_no_unseen_step(tmp_path: Path) -> None:
+    """Both turns about one axis seated 2–5° off their face and no closing record: a lean that
+    size is a seat (beyond any bias step tried), so the tilt stands."""
+    notes = _notes(tmp_path, "turn_axis_tilt", 2300, closing=False)
+    assert len([n for n in notes if "turned about an axis" in n]) == 2, notes
+    assert not [n for n in notes if "could not be told" in n]
 
 
 def test_bias_change_reads_the_first_and_last_static_of_a_face() -> None:
