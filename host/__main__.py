@@ -95,6 +95,8 @@ EXAMPLES: dict[str, str] = {
       measure one record again, keep the others
   python3 -m host calibrate --port /dev/ttyACM0 --serial U17 --no-self-test
       skip the sensor's self-test (recorded as not run; the verdict says so)
+  python3 -m host calibrate --port /dev/ttyACM0 --serial U17 --port /dev/ttyACM1 --serial U18
+      two boards in one cube, one dialogue: U17/ and U18/ (with --out DIR: DIR/U17/ …)
   python3 -m host calibrate --from-dir U17/
       recompute the report from saved records
   python3 -m host calibrate --from-dir U17/ --decision-rule simple

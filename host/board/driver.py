@@ -484,12 +484,13 @@ def acquire_boards(
     duration_s: float,
     tick: Callable[[float, np.ndarray, int], None] | None = None,
     check_escape: Callable[[], bool] | None = None,
+    enough: Callable[[np.ndarray, float], bool] | None = None,
 ) -> list[Acquisition]:
     """One measurement of ``duration_s`` s on every board of ``boards`` at once, from one
     start beep (:func:`host.board.acquisition.acquire_all`: each board's window on its own
     device time from its PONG; a failure is :class:`host.board.acquisition.BoardFailed`
-    naming the board)."""
+    naming the board; ``enough`` as :meth:`Board.acquire` says, for one board)."""
     for b in boards:
         assert b.link is not None and b.info is not None
     each = [(b, b.info.rate_hz, b.next_nonce()) for b in boards if b.info is not None]
-    return acquire_all(each, duration_s, tick, check_escape)
+    return acquire_all(each, duration_s, tick, check_escape, enough=enough)

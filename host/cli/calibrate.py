@@ -86,14 +86,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     src.add_argument("--from-dir", metavar="DIR", help="recompute from the record files in DIR")
     src.add_argument(
         "--port",
+        action="append",
         help="live calibration on a serial port or URL (default: the first APM found, "
-        "else the virtual board sim://)",
+        "else the virtual board sim://); repeat it for a sitting of several boards, one "
+        "--serial each in the same order",
     )
-    p.add_argument("--serial", help="serial number (default: from the file names in DIR)")
+    p.add_argument(
+        "--serial",
+        action="append",
+        help="serial number (default: from the file names in DIR); one per --port",
+    )
     p.add_argument(
         "--out",
         metavar="DIR",
-        help="where to write the result files (default: DIR; made if missing)",
+        help="where to write the result files (default: DIR; made if missing); several "
+        "boards: each into DIR/SERIAL/",
     )
     p.add_argument(
         "--turns", type=int, help="turns per turn record (default: the records' header or inferred)"
@@ -199,10 +206,11 @@ def dialogue_options(ns: argparse.Namespace) -> DialogueOptions:
     site, issue, bench = certificate_issue(ns)
     plan = Planning(plan=ns.plan, target=0.05 if ns.target is None else ns.target,
                     max_extra=12 if ns.max_extra is None else ns.max_extra)  # fmt: skip
+    port, serial, more = boards_of(ns.port, ns.serial)
     return DialogueOptions(
-        port=ns.port, yes=ns.yes, json=ns.json,
+        port=port, yes=ns.yes, json=ns.json, more_boards=more,
         files=SessionFiles(
-            serial=ns.serial, out=Path(ns.out) if ns.out else None,
+            serial=serial, out=Path(ns.out) if ns.out else None,
             capture=Path(ns.capture) if ns.capture else None, resume=ns.resume,
             redo=tuple(n.strip() for r in ns.redo or () for n in r.split(",") if n.strip()),
         ),
@@ -220,6 +228,27 @@ def dialogue_options(ns: argparse.Namespace) -> DialogueOptions:
         provenance=Provenance(operator=ns.operator, bench=bench, lot=ns.lot,
                               archive=ns.archive, no_archive=ns.no_archive),
     )  # fmt: skip
+
+
+def boards_of(
+    ports: list[str] | None, serials: list[str] | None
+) -> tuple[str | None, str | None, tuple[tuple[str, str], ...]]:
+    """The first board's port and serial and the (port, serial) of the others, from the
+    ``--port`` and ``--serial`` given (one serial per port, in order, when there are several
+    ports); UserError when the counts do not match."""
+    ports, serials = ports or [], serials or []
+    if len(ports) > 1 and len(serials) != len(ports):
+        raise UserError(
+            f"{len(ports)} --port but {len(serials)} --serial: give one --serial per --port, "
+            "in the same order"
+        )
+    if len(ports) <= 1 and len(serials) > 1:
+        raise UserError(
+            f"{len(serials)} --serial but {len(ports)} --port: one --serial per board "
+            "(a sitting of several boards gives a --port for each)"
+        )
+    more = tuple(zip(ports[1:], serials[1:], strict=True))
+    return (ports[0] if ports else None), (serials[0] if serials else None), more
 
 
 def _live_only(ns: argparse.Namespace) -> None:

@@ -9,6 +9,8 @@ the results through :mod:`host.calib.publish`.
   checks and Save/repeat, and waiting for a board that vanished.
 - ``options`` — the dialogue's options and the operator's answers: parsed, checked before any
   I/O, and written back as the command line that continues a session.
+- ``boards`` — the boards of a sitting, one unit each (its board, serial, directory and
+  records), and what a sitting of several shows and decides about them.
 - ``sitting`` — the sitting's output directory: one process writes it at a time, and the files
   of an earlier sitting are moved aside, never replaced.
 - ``measurement`` — one measurement: its acquisition through the board driver, the record and

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import contextlib
 import textwrap
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -52,14 +52,21 @@ from typing import Any
 import numpy as np
 import serial
 
-from host.board.acquisition import BoardReset, MeasurementAborted, SensorFault
-from host.board.driver import BoardInfo, default_port
+from host.board.acquisition import (
+    Acquisition,
+    BoardFailed,
+    BoardReset,
+    MeasurementAborted,
+    SensorFault,
+)
+from host.board.driver import BoardInfo, acquire_boards, default_port
 from host.board.link import LinkLost, LinkTimeout
 from host.calib.commands import said_with_command
 from host.calib.publish import compute_and_write, show_result
 from host.calib.report import verdict_line
 from host.calib.values import target_line
 from host.dialogue import adaptive, poses, screens
+from host.dialogue.boards import Unit
 from host.dialogue.console import (
     Console,
     EndedBySignal,
@@ -105,6 +112,17 @@ class DialogueResult:
     records: list[str] = field(default_factory=list)  # accepted in this session
     result: Any = None  # host.calib.result.CalibrationResult
     files: tuple[Path, ...] = ()
+    #: a sitting of several boards: the other boards' results, and the serials of those
+    #: that left the sitting (their sessions incomplete)
+    others: list[DialogueResult] = field(default_factory=list)
+    lost: list[str] = field(default_factory=list)
+
+    @property
+    def all_passed(self) -> bool:
+        """Every board of the sitting in it to the end, and every value of each within
+        tolerance."""
+        mine = self.result is not None and self.result.all_passed
+        return mine and not self.lost and all(o.all_passed for o in self.others)
 
 
 class CalibrationDialogue(Recorder):
@@ -124,9 +142,15 @@ class CalibrationDialogue(Recorder):
 
     # ---- the program ---------------------------------------------------------------------
     def run(self) -> DialogueResult:
-        self._open_sitting()
-        self._start_capture()
-        self._self_test()
+        for u in self.units:  # each board's identity, serial, directory and capture
+            with self._on(u):
+                self._open_sitting()
+                self._start_capture()
+        for u in self.live:
+            with self._on(u):
+                if self.several:
+                    self.op.say(f"{u.serial}:")
+                self._self_test()
         self._warm_up()
         if self.opts.planning.plan in ("poses", "poses16"):  # no cube: poses and moves
             poses.measure_poses(self, self.opts)
@@ -134,26 +158,55 @@ class CalibrationDialogue(Recorder):
             self._adaptive_records()
         else:
             self._fixed_records()
-        return self._results()
+        return self._each_result()
+
+    def _each_result(self) -> DialogueResult:
+        """The results of each board still in the sitting (:meth:`_results`; several: each
+        under its serial, one that cannot be computed named and the others computed)."""
+        if not self.several:
+            return self._results()
+        outcomes: list[DialogueResult] = []
+        for u in self.live:
+            with self._on(u):
+                self.op.say(f"Results of {u.serial}:")
+                try:
+                    outcomes.append(self._results())
+                except UserError as exc:
+                    self._warn(f"{u.serial}: {exc}")
+                    outcomes.append(DialogueResult(u.out_dir))
+        lost = [u.serial for u in self.units if u.lost is not None]
+        if lost:
+            self._warn(f"left the sitting, their sessions incomplete: {', '.join(lost)}")
+        head = outcomes[0] if outcomes else DialogueResult(self.units[0].out_dir)
+        return replace(head, others=outcomes[1:], lost=lost)
 
     def _open_sitting(self) -> None:
         """The board's identity, the serial number, the output directory locked and what of
         it is kept."""
         op, opts = self.op, self.opts
-        screens.show_opening(op, self.board.url)
+        if self.several:  # known before the board speaks: its warnings name it
+            self.serial = self._given_serial() or ""
+        if self.unit is self.units[0]:
+            screens.show_opening(op, self.board.url)
         info = self._connect()
-        op.say(f"Board: {info.describe()}")
+        on = f"{self.serial}: " if self.several else ""
+        op.say(f"{on}Board: {info.describe()}")
         if info.who_am_i != sensor.WHO_AM_I_MPU6000:
             self._warn(f"WHO_AM_I {info.who_am_i:#04x} is not an MPU-6000's 0x68")
         if opts.yes and not self.board.has_operator:
             self._warn("--yes on a real board: nobody is asked to place or turn the cube")
-        self.serial = opts.files.serial or op.ask(
+        self.serial = self._given_serial() or op.ask(
             "Serial number (1-12 characters: letters, digits, _ or -)", parse_serial
         )
         self.out_dir = opts.out_dir_for(self.serial)
         check_out_dir(self.out_dir)
         self.sitting = SittingDirectory(self.out_dir, self.serial, self.command(then=()))
         self._take_stock()
+
+    def _given_serial(self) -> str | None:
+        """The serial given for the board in hand (``--serial``, one per ``--port``)."""
+        k = self.units.index(self.unit)
+        return self.opts.files.serial if k == 0 else self.opts.more_boards[k - 1][1]
 
     def _adaptive_records(self) -> None:
         """--plan adaptive: the engine's records, then the closing check as it says."""
@@ -171,8 +224,8 @@ class CalibrationDialogue(Recorder):
         """The method's records: the six faces, the turns, the repeats --redo names, the
         closing check; each stage asked for (a stage measured already is said so)."""
         op, opts = self.op, self.opts
-        need_static = [n for n in STATIC_NAMES if n not in self.done]
-        need_turn = [n for n in TURN_NAMES if n not in self.done]
+        need_static = self._lacking(STATIC_NAMES)
+        need_turn = self._lacking(TURN_NAMES)
         do_static = bool(need_static)
         if need_static:
             do_static = op.yes_no(
@@ -184,8 +237,8 @@ class CalibrationDialogue(Recorder):
         if do_static:
             self._stage1(need_static)
         do_turns = bool(need_turn)
-        if all(n in self.done for n in STATIC_NAMES):
-            self._show_stage1()
+        if not self._lacking(STATIC_NAMES):
+            self._each_stage1()
             if need_turn and do_static:
                 do_turns = op.yes_no("Integral gyro calibration <Y> or results <N>?", True)
         if not need_turn and opts.keeps_records:
@@ -197,6 +250,19 @@ class CalibrationDialogue(Recorder):
         if self._closing_due():
             self._closing_check()
 
+    def _lacking(self, names: Sequence[str]) -> list[str]:
+        """Those of ``names`` that a board still in the sitting lacks (each is measured on
+        every board at once, and saved by those that lack it)."""
+        return [n for n in names if any(n not in u.done for u in self.live)]
+
+    def _each_stage1(self) -> None:
+        """Stage 1's summary of each board (several: under its serial)."""
+        for u in self.live:
+            with self._on(u):
+                if self.several:
+                    self.op.say(f"{u.serial}:")
+                self._show_stage1()
+
     def _kept_by(self) -> str:
         """Which option kept the records measured already: ``--redo NAME`` (it measures only
         those it names again) or ``--resume``."""
@@ -206,10 +272,8 @@ class CalibrationDialogue(Recorder):
     def _closing_due(self) -> bool:
         """The closing check is to be measured: asked for, not measured yet, and the first
         attitude it repeats measured."""
-        return (
-            self.opts.schedule.closing
-            and CLOSING_NAME not in self.done
-            and STATIC_NAMES[0] in self.done
+        return self.opts.schedule.closing and any(
+            CLOSING_NAME not in u.done and STATIC_NAMES[0] in u.done for u in self.live
         )
 
     def _connect(self) -> BoardInfo:
@@ -233,10 +297,11 @@ class CalibrationDialogue(Recorder):
                 self._warn(moved)
             return
         self.done.update(self.sitting.read_kept(self.opts.files.redo, self._warn))
-        if self.opts.files.redo:
+        if self.opts.files.redo and self.unit is self.units[0]:
             self.op.say(f"Measuring again: {', '.join(self.opts.files.redo)} (--redo)")
         if self.opts.keeps_records:
-            kept = f"Resuming: kept {', '.join(self.done) or 'nothing'}"
+            on = f"{self.serial}: " if self.several else ""
+            kept = f"{on}Resuming: kept {', '.join(self.done) or 'nothing'}"
             self.op.say(textwrap.fill(kept, 80, subsequent_indent="  ", break_on_hyphens=False))
             kept_turns = sorted(
                 r.meta["turns"]
@@ -274,29 +339,44 @@ class CalibrationDialogue(Recorder):
         op.say(screens.warm_up_line(s, self.opts.yes))
         tick = screens.warm_up_progress(op, s)
         self.in_warm_up = True  # stays set if Ctrl+C ends the session here
+        units = self.live
         try:
-            acq = self.board.acquire(s, tick=tick, check_escape=op.key_pressed)
+            acqs = acquire_boards([u.board for u in units], s, tick, op.key_pressed)
         except MeasurementAborted:
             self.in_warm_up = False
             op.end_progress()
             op.say("Warm-up ended by a key (not recorded).")
             return
-        except (LinkLost, LinkTimeout, BoardReset, SensorFault) as exc:
+        except BoardFailed as failed:
             self.in_warm_up = False
-            op.end_progress()
-            self._warn(f"the warm-up is not recorded: {exc}")
-            if isinstance(exc, (LinkLost, LinkTimeout)):
-                self._recover(exc, measuring=False)
+            self._warm_up_failed(units[failed.index], failed.error)
             return
         self.in_warm_up = False
         op.end_progress()
+        for u, acq in zip(units, acqs, strict=True):
+            with self._on(u):
+                self._keep_warm_up(acq)
+
+    def _warm_up_failed(self, unit: Unit, exc: Exception) -> None:
+        """The warm-up of ``unit``'s board failed (and so of every board): not recorded; a
+        board that vanished is waited for."""
+        if not isinstance(exc, (LinkLost, LinkTimeout, BoardReset, SensorFault)):
+            raise exc
+        self.op.end_progress()
+        on = f"{unit.serial}: " if self.several else ""
+        self._warn(f"the warm-up is not recorded: {on}{exc}")
+        if isinstance(exc, (LinkLost, LinkTimeout)):
+            self._recover_unit(unit, exc, measuring=False)
+
+    def _keep_warm_up(self, acq: Acquisition) -> None:
+        """The warm-up of the board in hand written as its ``SERIAL_warmup.txt``."""
         if len(acq.t_us) >= 2:
             rec = self._record(WARMUP_NAME, acq, {"kind": "warmup"})
             path = self._keep_earlier(WARMUP_NAME)
             write_record(path, rec)  # not a calibration record: not in self.done
-            op.say(f"Warm-up done; recorded {path}")
+            self.op.say(f"Warm-up done; recorded {path}")
         else:
-            op.say("Warm-up done.")
+            self.op.say("Warm-up done.")
 
     # ---- results -------------------------------------------------------------------------
     def _results(self) -> DialogueResult:
@@ -371,16 +451,17 @@ def run_dialogue(
                 con.say(note)
             session = CalibrationDialogue(opts, con, port_factory, after_publish)
             outcome = session.run()
-            return 0 if outcome.result is not None and outcome.result.all_passed else 1
+            return 0 if outcome.all_passed else 1
     except KeyboardInterrupt as exc:
         return _aborted(exc, con, session)
     except (UserError, OSError) as exc:
         raise _ended_on_error(exc, session) from None
     finally:
         if session is not None:
-            session.board.close()
-            if session.sitting is not None:
-                session.sitting.release()
+            for u in session.units:
+                u.board.close()
+                if u.sitting is not None:
+                    u.sitting.release()
         if term is not None:
             term.close()
 

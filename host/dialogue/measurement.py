@@ -32,14 +32,20 @@ its outcome goes into the header of every record of the sitting (``self_test``,
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 import serial
 
-from host.board.acquisition import Acquisition, BoardReset, MeasurementAborted, SensorFault
-from host.board.driver import Board
+from host.board.acquisition import (
+    Acquisition,
+    BoardFailed,
+    BoardReset,
+    MeasurementAborted,
+    SensorFault,
+)
+from host.board.driver import Board, acquire_boards
 from host.board.link import LinkLost, LinkTimeout
 from host.dialogue.console import Questions
 from host.dialogue.screens import measurement_progress
@@ -61,56 +67,88 @@ PLACED = {HEADING_KEY: f"{DIALOGUE_HEADING_DEG:g}"}
 
 
 def acquire(
-    board: Board,
+    boards: Sequence[Board],
     op: Questions,
     name: str,
     seconds: float,
     title: str,
     *,
     yes: bool,
-    recover: Callable[[Exception], None],
+    recover: Callable[[int, Exception], None],
     resume_hint: Callable[[str], str],
     enough: Callable[[np.ndarray, float], bool] | None = None,
-) -> Acquisition | None:
-    """Beep, record ``seconds`` of device time with a progress line (or less, when
-    ``enough(counts, elapsed_s)`` says so: :meth:`host.board.driver.Board.acquire`), beep. None
-    when the measurement was aborted (Esc) or the board vanished/restarted (``recover(exc)``
-    waits for it to come back): nothing of it is kept, the caller proposes it again. A sensor
-    fault asks whether to measure again (``--yes``: no): ResumableError with ``resume_hint()``
-    if not."""
-    assert board.info is not None
+    who: Sequence[str] = (),
+    drop: Callable[[int, str], None] | None = None,
+) -> list[Acquisition] | None:
+    """Beep, record ``seconds`` of device time on every board of ``boards`` at once with a
+    progress line (or less, when ``enough(counts, elapsed_s)`` says so, one board only:
+    :meth:`host.board.driver.Board.acquire`), beep. None when the measurement was aborted
+    (Esc) or a board vanished/restarted (``recover(k, exc)`` waits for board ``k`` to come
+    back): nothing of it is kept, the caller proposes it again. A sensor fault asks whether
+    to measure again (``--yes``: no): then ResumableError with ``resume_hint()`` — or, in a
+    sitting of several boards (``who``: their serials), ``drop(k, why)`` takes that board out
+    of the sitting and the others measure again."""
+    assert boards[0].info is not None
     op.beep()
     op.say(f"{title} {name}: {seconds:g} s" + ("" if yes else " (Esc aborts)"))
-    tick = measurement_progress(op, name, seconds, board.info)
+    tick = measurement_progress(op, name, seconds, boards[0].info)
     try:
-        acq = board.acquire(seconds, tick=tick, check_escape=op.escape_pressed, enough=enough)
+        acqs = acquire_boards(boards, seconds, tick, op.escape_pressed, enough)
     except MeasurementAborted:
         op.end_progress()
         op.beep()
         op.say(f"Measurement of {name} aborted (Esc): nothing kept. Again:")
         return None
-    except (LinkLost, LinkTimeout) as exc:
-        recover(exc)
-        op.say(f"Measuring {name} again.")
-        return None
-    except BoardReset as exc:
-        op.end_progress()
-        op.say(f"!!! {exc}: the measurement of {name} is discarded; measuring it again")
-        return None
-    except SensorFault as exc:
-        op.end_progress()
-        op.beep()
-        op.say(f"!!! {exc}")
-        op.say(f"!!! the measurement of {name} is discarded")
-        if yes or not op.yes_no("Measure again <Y> or stop <N>?", True):
-            raise ResumableError(resume_hint(f"{name}: {exc}")) from None
+    except BoardFailed as failed:
+        on = f"{who[failed.index]}: " if who else ""
+        _board_failed(failed.index, failed.error, op, name, on, yes=yes, recover=recover,
+                      resume_hint=resume_hint, drop=drop)  # fmt: skip
         return None
     op.end_progress()
     op.beep()
-    if len(acq.t_us) < 2:
-        op.say(f"!!! no samples received for {name}; measuring it again")
+    empty = [k for k, a in enumerate(acqs) if len(a.t_us) < 2]
+    if empty:
+        on = f" from {', '.join(who[k] for k in empty)}" if who else ""
+        op.say(f"!!! no samples received for {name}{on}; measuring it again")
         return None
-    return acq
+    return acqs
+
+
+def _board_failed(
+    k: int,
+    exc: Exception,
+    op: Questions,
+    name: str,
+    on: str,
+    *,
+    yes: bool,
+    recover: Callable[[int, Exception], None],
+    resume_hint: Callable[[str], str],
+    drop: Callable[[int, str], None] | None,
+) -> None:
+    """Board ``k`` (``on``: its serial and a colon, in a sitting of several) failed during
+    the measurement of ``name`` with ``exc``: waited for, measured again, or (a sensor
+    fault) stopped or dropped."""
+    if isinstance(exc, (LinkLost, LinkTimeout)):
+        recover(k, exc)
+        op.say(f"Measuring {name} again.")
+        return
+    if not isinstance(exc, (BoardReset, SensorFault)):
+        raise exc  # another board's error the dialogue cannot help (a wrong firmware)
+    op.end_progress()
+    if isinstance(exc, BoardReset):
+        op.say(f"!!! {on}{exc}: the measurement of {name} is discarded; measuring it again")
+        return
+    op.beep()
+    op.say(f"!!! {on}{exc}")
+    op.say(f"!!! the measurement of {name} is discarded")
+    if drop is not None:  # a sitting of several: the others go on without it
+        if yes or not op.yes_no(f"Measure again <Y> or drop {on[:-2]} from the sitting <N>?",
+                                True):  # fmt: skip
+            drop(k, f"{exc}")
+        return
+    if yes or not op.yes_no("Measure again <Y> or stop <N>?", True):
+        raise ResumableError(resume_hint(f"{name}: {exc}")) from None
 
 
 def reconnect(

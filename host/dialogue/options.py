@@ -159,6 +159,9 @@ class DialogueOptions:
     port: str | None = None
     yes: bool = False
     json: bool = False
+    #: the other boards of a sitting of several, (port, serial) each after ``port`` and
+    #: ``files.serial`` (empty: a sitting of one board)
+    more_boards: tuple[tuple[str, str], ...] = ()
     files: SessionFiles = field(default_factory=SessionFiles)
     schedule: Schedule = field(default_factory=Schedule)
     planning: Planning = field(default_factory=Planning)
@@ -175,7 +178,8 @@ class DialogueOptions:
         _check_names(self.provenance)
         files, schedule = _checked_serial(self.files), _checked_schedule(self.schedule)
         _check_redo(files, self.yes)
-        checked = replace(self, files=files, schedule=schedule)
+        checked = replace(self, files=files, schedule=schedule,
+                          more_boards=_checked_boards(self, files))  # fmt: skip
         local_gravity(self.compute.latitude_deg, self.compute.height_m)  # validates both
         checked._check_files()
         return checked
@@ -184,8 +188,9 @@ class DialogueOptions:
         """The output directory writable, the capture new, and --yes not waiting on an answer
         for the accumulation time."""
         f = self.files
-        if f.serial is not None:
-            check_out_dir(self.out_dir_for(f.serial))
+        for serial in (f.serial, *(s for _, s in self.more_boards)):
+            if serial is not None:
+                check_out_dir(self.out_dir_for(serial))
         if f.capture is not None and (f.capture.exists() or f.capture.is_symlink()):
             raise UserError(
                 f"--capture {f.capture}: exists; a capture is never overwritten: give a new "
@@ -205,8 +210,22 @@ class DialogueOptions:
         return self.files.resume or bool(self.files.redo)
 
     def out_dir_for(self, serial: str) -> Path:
-        """The output directory: ``--out``, else a directory named after the serial number."""
+        """The output directory: ``--out``, else a directory named after the serial number;
+        in a sitting of several boards each board's is ``SERIAL/`` inside ``--out``."""
+        if self.more_boards and self.files.out is not None:
+            return self.files.out / serial
         return self.files.out if self.files.out is not None else Path(serial)
+
+    def alone(self, serial: str, port: str, out_dir: Path) -> DialogueOptions:
+        """These options for one board of a sitting on its own (the command that resumes a
+        board that left the sitting)."""
+        files = replace(self.files, serial=serial, out=out_dir)
+        return replace(self, port=port, more_boards=(), files=files)
+
+    @property
+    def ports(self) -> tuple[str, ...]:
+        """Every port of the sitting, the first board's first."""
+        return (self.port or "sim://", *(p for p, _ in self.more_boards))
 
     def _statics_to_measure(self) -> list[str]:
         """The static records this session will measure (all without --resume/--redo)."""
@@ -244,9 +263,13 @@ class DialogueOptions:
         port: str,
         then: Sequence[str] = ("--resume",),
     ) -> list[str]:
-        """The words of :meth:`command` (unquoted: what the shell passes the program)."""
-        args = ["python3", "-m", "host", "calibrate", "--port", port, "--serial", serial,
-                "--out", str(self.out_dir_for(serial))]  # fmt: skip
+        """The words of :meth:`command` (unquoted: what the shell passes the program); a
+        sitting of several boards names each board's port and serial, and ``--out`` as given."""
+        args = ["python3", "-m", "host", "calibrate", "--port", port, "--serial", serial]
+        for other_port, other_serial in self.more_boards:
+            args += ["--port", other_port, "--serial", other_serial]
+        if not self.more_boards or self.files.out is not None:
+            args += ["--out", str(self.files.out if self.more_boards else self.out_dir_for(serial))]
         if static_seconds is not None:
             args += ["--static-seconds", _number(static_seconds)]
         if turns is not None:
@@ -321,6 +344,33 @@ def _check_redo(f: SessionFiles, yes: bool) -> None:
         )  # fmt: skip
     if yes and f.serial is None:
         raise UserError("--yes needs --serial (the serial number is mandatory)")
+
+
+def _checked_boards(o: DialogueOptions, f: SessionFiles) -> tuple[tuple[str, str], ...]:
+    """The other boards of a sitting of several: serials parsed, none twice, and what a
+    sitting of several does not do yet refused."""
+    if not o.more_boards:
+        return ()
+    if f.serial is None:
+        raise UserError("several --port need one --serial each, in the same order")
+    boards = []
+    for port, serial in o.more_boards:
+        try:
+            boards.append((port, parse_serial(serial)))
+        except ValueError as exc:
+            raise UserError(f"--serial {serial}: {exc}") from None
+    serials = [f.serial, *(s for _, s in boards)]
+    twice = next((s for s in serials if serials.count(s) > 1), None)
+    if twice is not None:
+        raise UserError(f"--serial {twice} is given twice: each board has its own serial number")
+    if o.planning.plan != "fixed":
+        raise UserError(
+            f"--plan {o.planning.plan} takes one --port: a sitting of several boards follows "
+            "the method's plan (leave --plan out)"
+        )
+    if f.capture is not None:
+        raise UserError("--capture names one board's capture: leave it out with several --port")
+    return tuple(boards)
 
 
 def _checked_schedule(s: Schedule) -> Schedule:

@@ -24,6 +24,7 @@ from host.board.link import LinkLost, LinkTimeout
 from host.calib.calibration import stage1
 from host.calib.commands import ERROR_LEAD, said_with_command
 from host.dialogue import screens
+from host.dialogue.boards import Unit, UnitsInHand, lost_line, show_means
 from host.dialogue.console import Console, Questions
 from host.dialogue.measurement import (
     PLACED,
@@ -44,7 +45,6 @@ from host.dialogue.options import (
     parse_seconds,
     parse_turns,
 )
-from host.dialogue.sitting import SittingDirectory
 from host.errors import ResumableError
 from host.session.directory import record_names, write_record
 from host.session.method import local_gravity, record_stats
@@ -61,14 +61,20 @@ from host.session.records import (
 #: it stops now (its header's ``stopped``), or None: go on
 StaticStop = Callable[[np.ndarray, np.ndarray, float], str | None]
 
+#: one measurement of every board in the sitting: (unit, its acquisition) each
+Measured = list[tuple[Unit, Acquisition]]
+
 #: --yes: a measurement whose default answer is "repeat" is tried at most this many times
 YES_MAX_ATTEMPTS = 3
 #: --yes: give up waiting for a vanished board after this many seconds
 YES_RECONNECT_S = 60.0
 
 
-class Recorder:
-    """The records of a dialogue: ``op`` asks, ``board`` measures; files go to its directory."""
+class Recorder(UnitsInHand):
+    """The records of a dialogue: ``op`` asks, the boards of its units measure (one
+    :class:`host.dialogue.boards.Unit` per ``--port``); each unit's files go to its directory.
+    ``board``, ``serial``, ``out_dir``, ``done``, ``accepted`` and ``sitting`` are those of the
+    unit in hand (:meth:`_on`; the first unless a step of every unit is taken)."""
 
     def __init__(
         self,
@@ -78,49 +84,92 @@ class Recorder:
     ) -> None:
         self.opts = opts
         self.op = Questions(console, yes=opts.yes, idle=self._idle)
-        url = with_serial(opts.port or "sim://", opts.files.serial)  # a virtual board: that unit
-        self.board = Board(url, port_factory, opts.link.stall_s, self._warn,
-                           opts.link.hello_timeout_s, opts.link.sample_stall_s)  # fmt: skip
+        serials = (opts.files.serial, *(s for _, s in opts.more_boards))
+        self.units = [Unit(Board(with_serial(port, serials[k]), port_factory,  # a virtual board:
+                                 opts.link.stall_s, self._warner(k),  # that unit
+                                 opts.link.hello_timeout_s, opts.link.sample_stall_s))
+                      for k, port in enumerate(opts.ports)]  # fmt: skip
+        #: the unit whose board, serial and records the per-unit steps use
+        self.unit = self.units[0]
         self.g = local_gravity(opts.compute.latitude_deg, opts.compute.height_m)
-        self.serial = ""
-        self.out_dir = Path()
-        self.done: dict[str, Record] = {}
-        self.accepted: list[str] = []
         self.turns: int | None = opts.schedule.turns
         self.static_seconds: float | None = opts.schedule.static_seconds
         self._in_idle = False
         self._session_start_ns = time.monotonic_ns()
         #: True while the warm-up runs (Ctrl+C there discards no measurement)
         self.in_warm_up = False
-        self.sitting: SittingDirectory | None = None  # the output directory, locked
+        #: the record being measured (what a board that leaves the sitting is named at)
+        self._measuring = ""
+
+    def _warner(self, k: int) -> Callable[[str], None]:
+        """The board warnings of unit ``k``: named by its serial in a sitting of several."""
+
+        def warn(text: str) -> None:
+            who = self.units[k].serial if self.several else ""
+            self._warn(f"{who}: {text}" if who else text)
+
+        return warn
 
     # ---- plumbing ------------------------------------------------------------------------
     def _warn(self, text: str) -> None:
         self.op.say(f"!!! {text}")
 
     def _idle(self) -> None:
-        """While waiting for the operator: keep reading the board; recover if it vanished."""
-        if self._in_idle or self.board.link is None:
+        """While waiting for the operator: keep reading the boards; recover one that vanished."""
+        if self._in_idle:
             return
         self._in_idle = True
         try:
-            self.board.pump()
-        except (LinkLost, LinkTimeout) as exc:
-            self._recover(exc, measuring=False)
+            for u in self.live:
+                if u.board.link is None:
+                    continue
+                try:
+                    u.board.pump()
+                except (LinkLost, LinkTimeout) as exc:
+                    self._recover_unit(u, exc, measuring=False)
         finally:
             self._in_idle = False
 
     def _recover(self, exc: Exception, measuring: bool) -> None:
-        """The board vanished or went silent: wait for it (no pumping of the dead link)."""
+        """The board in hand vanished or went silent: wait for it (no pumping of the dead
+        link)."""
         limit = self.opts.link.reconnect_timeout_s
         if limit is None and self.opts.yes:
             limit = YES_RECONNECT_S
-        self._in_idle = True
+        was, self._in_idle = self._in_idle, True
         try:
             reconnect(self.board, self.op, exc, measuring=measuring, yes=self.opts.yes,
                       limit_s=limit, resume_hint=self._resume_hint)  # fmt: skip
         finally:
-            self._in_idle = False
+            self._in_idle = was
+
+    def _recover_unit(self, unit: Unit, exc: Exception, measuring: bool = True) -> None:
+        """``unit``'s board vanished: wait for it; in a sitting of several, one that does not
+        come back (or that the operator gives up on) leaves the sitting."""
+        with self._on(unit):
+            if not self.several:
+                self._recover(exc, measuring)
+                return
+            self._warn(f"{unit.serial}: the board on {unit.board.url} is gone")
+            try:
+                self._recover(exc, measuring)
+            except ResumableError as gone:
+                self._drop(unit, str(gone).split(";")[0])
+
+    def _drop(self, unit: Unit, why: str) -> None:
+        """``unit`` leaves the sitting: named, with the command that resumes it alone; its
+        records stay, its directory is released. The last unit to leave ends the sitting."""
+        unit.lost = why
+        name = self._measuring or "the start"
+        words = self.opts.alone(unit.serial, unit.board.url, unit.out_dir).command_words(
+            unit.serial, static_seconds=self.static_seconds, turns=self.turns,
+            port=unit.board.url)  # fmt: skip
+        self.op.say(said_with_command("!!! " + lost_line(unit.serial, name, why), words, first=0))
+        unit.board.close()
+        if unit.sitting is not None:
+            unit.sitting.release()
+        if not self.live:
+            raise ResumableError(f"every board left the sitting at {name}")
 
     def command(self, then: Sequence[str] = ("--resume",)) -> str:
         """This session's command line (every option given or answered) plus ``then``."""
@@ -128,9 +177,9 @@ class Recorder:
 
     def command_words(self, then: Sequence[str] = ("--resume",)) -> list[str]:
         """The words of :meth:`command` (unquoted)."""
-        o = self.opts
-        return o.command_words(self.serial, static_seconds=self.static_seconds,
-                               turns=self.turns, port=self.board.url, then=then)  # fmt: skip
+        o, first = self.opts, self.units[0]
+        return o.command_words(first.serial, static_seconds=self.static_seconds,
+                               turns=self.turns, port=first.board.url, then=then)  # fmt: skip
 
     def _resume_hint(self, before: str = "", first: int = ERROR_LEAD) -> str:
         """``before`` (what stopped the session), what is kept and the command that continues
@@ -142,6 +191,10 @@ class Recorder:
             cmd = ["python3", "-m", "host", "calibrate", "--port", self.board.url]
             return said_with_command(f"{lead}nothing was saved; start again with:", cmd,
                                      first=first)  # fmt: skip
+        if self.several:
+            where = ", ".join(str(u.out_dir) for u in self.units)
+            text = f"{lead}the accepted records are kept in {where}; continue the sitting with:"
+            return said_with_command(text, self.command_words(), first=first)
         n = len(self._existing_names())
         text = f"{lead}{n} accepted records are kept in {self.out_dir}; continue with:"
         return said_with_command(text, self.command_words(), first=first)
@@ -179,22 +232,26 @@ class Recorder:
         if self.static_seconds is None:
             self.static_seconds = float(self.done[first].duration_s)
         self._measure_static(CLOSING_NAME, stop=stop)
-        op.say(screens.closing_difference(self.done[first], self.done[CLOSING_NAME]))
+        for u in self.live:
+            if first in u.done and CLOSING_NAME in u.done:
+                on = f"{u.serial}: " if self.several else ""
+                op.say(on + screens.closing_difference(u.done[first], u.done[CLOSING_NAME]))
 
     def _measure_static(
         self, name: str, seconds: float | None = None, stop: StaticStop | None = None
     ) -> None:
-        """Measure static record ``name`` for ``seconds`` s (None: the accumulation time),
-        or with ``stop`` until it says the record has enough (at most ``seconds``), then
-        Save/repeat; its header then says why it stopped."""
+        """Measure static record ``name`` on every board for ``seconds`` s (None: the
+        accumulation time), or with ``stop`` (one board) until it says the record has enough
+        (at most ``seconds``), then Save/repeat; its header then says why it stopped."""
         op = self.op
         axis, side = name.split("_")[:2]  # x_up_2: the attitude x_up again
         assert self.static_seconds is not None
         length = self.static_seconds if seconds is None else seconds
         attempts = 0
+        self._measuring = name
         while True:
             attempts += 1
-            self.board.hint("place", name=f"{axis}_{side}")
+            self._hint("place", name=f"{axis}_{side}")
             op.any_key(screens.place_prompt(axis, side))
             why: list[str] = []
 
@@ -204,20 +261,41 @@ class Recorder:
                 why.extend(w for w in [stop(accel, gyro, elapsed_s)] if w)
                 return bool(why)
 
-            acq = self._acquire(name, length, "Measuring", None if stop is None else enough)
-            if acq is None:
+            got = self._acquire_all(name, length, "Measuring", None if stop is None else enough)
+            if got is None:
                 continue
-            rec = self._record(name, acq, {"kind": "static", **PLACED})
-            if stop is not None:
+            recs = self._records(name, got, {"kind": "static", **PLACED})
+            if stop is not None:  # one board (--plan adaptive)
+                rec = recs[0][1]
                 why = why or [stop(rec.accel, rec.gyro, length) or ""]
                 rec.meta[STOPPED_KEY] = why[0]
                 op.say(f"{name}: stopped, {why[0].split(':')[0]}")
-            screens.show_table(op, rec)
-            problems = self._loss_problems(name, acq)
-            problems += static_problems(rec, self.g, self.serial)
-            if self._decide(name, problems, attempts):
-                self._save(rec, problems)
+            problems = self._static_checks(name, got, recs)
+            if self._decide_all(name, problems, attempts):
+                self._save_all(recs, problems)
                 return
+
+    def _static_checks(
+        self, name: str, got: Measured, recs: list[tuple[Unit, Record]]
+    ) -> dict[Unit, list[str]]:
+        """Each board's static record shown (one board: its table; several: a mean/std line
+        each) and checked; the problems of each."""
+        if self.several:
+            show_means(self.op, [(u.serial, r) for u, r in recs])
+        problems: dict[Unit, list[str]] = {}
+        for (u, acq), (_, rec) in zip(got, recs, strict=True):
+            with self._on(u):
+                if not self.several:
+                    screens.show_table(self.op, rec)
+                problems[u] = self._loss_problems(name, acq)
+                problems[u] += static_problems(rec, self.g, u.serial)
+        return problems
+
+    def _hint(self, action: str, **kw: object) -> None:
+        """Tell every board's virtual operator what the operator is asked (one motion for
+        all: the boards share the cube)."""
+        for u in self.live:
+            u.board.hint(action, **kw)
 
     def _show_stage1(self) -> None:
         stats = {n: record_stats(self.done[n]) for n in STATIC_NAMES}
@@ -269,6 +347,7 @@ class Recorder:
         op = self.op
         axis, direction = name.split("_")[:2]  # x_ccw_2: the turn x_ccw again
         attempts = 0
+        self._measuring = name
         while True:
             attempts += 1
             op.any_key(screens.turn_place_prompt(axis))
@@ -279,22 +358,36 @@ class Recorder:
             if ready > 0 and op.countdown(ready, "  start in", False):
                 op.say("Aborted (Esc): nothing recorded.")
                 continue
-            self.board.hint("turn", axis=axis, direction=direction, turns=n, window_s=window)
-            acq = self._acquire(name, window, "Turn now!")
-            if acq is None:
+            self._hint("turn", axis=axis, direction=direction, turns=n, window_s=window)
+            got = self._acquire_all(name, window, "Turn now!")
+            if got is None:
                 continue
-            rec = self._record(
-                name, acq, {"kind": "turn", "turns": str(n), "direction": direction,
+            recs = self._records(
+                name, got, {"kind": "turn", "turns": str(n), "direction": direction,
                             "window_s": f"{window:g}", **PLACED},
             )  # fmt: skip
-            problems = self._loss_problems(name, acq)
-            problems += self._check_turn(rec, acq, n)
-            if decide is not None and not problems:
+            problems = self._turn_checks(name, got, recs, n)
+            lead, rec = recs[0]
+            if decide is not None and not problems[lead]:  # one board (--plan adaptive)
                 rec.meta[STOPPED_KEY] = decide(rec)
                 op.say(f"{axis} turns: {rec.meta[STOPPED_KEY].split(':')[0]}")
-            if self._decide(name, problems, attempts):
-                self._save(rec, problems)
+            if self._decide_all(name, problems, attempts):
+                self._save_all(recs, problems)
                 return
+
+    def _turn_checks(
+        self, name: str, got: Measured, recs: list[tuple[Unit, Record]], n: int
+    ) -> dict[Unit, list[str]]:
+        """Each board's turn record shown (several: under its serial) and checked; the
+        problems of each."""
+        problems: dict[Unit, list[str]] = {}
+        for (u, acq), (_, rec) in zip(got, recs, strict=True):
+            with self._on(u):
+                if self.several:
+                    self.op.say(f"{u.serial}:")
+                problems[u] = self._loss_problems(name, acq)
+                problems[u] += self._check_turn(rec, acq, n)
+        return problems
 
     def _check_turn(self, rec: Record, acq: Acquisition, n: int) -> list[str]:
         """Show the six integrals and the range check; return the problems found."""
@@ -326,10 +419,41 @@ class Recorder:
         title: str,
         enough: Callable[[np.ndarray, float], bool] | None = None,
     ) -> Acquisition | None:
-        """One acquisition (:func:`host.dialogue.measurement.acquire`); None: propose again."""
-        return acquire(self.board, self.op, name, seconds, title, yes=self.opts.yes,
-                       recover=lambda exc: self._recover(exc, measuring=True),
-                       resume_hint=self._resume_hint, enough=enough)  # fmt: skip
+        """One acquisition of the board in hand (:meth:`_acquire_all` of a sitting of one);
+        None: propose again."""
+        got = self._acquire_all(name, seconds, title, enough)
+        return None if got is None else got[0][1]
+
+    def _acquire_all(
+        self,
+        name: str,
+        seconds: float,
+        title: str,
+        enough: Callable[[np.ndarray, float], bool] | None = None,
+    ) -> Measured | None:
+        """One measurement on every board still in the sitting, from one start beep
+        (:func:`host.dialogue.measurement.acquire`); None: propose it again."""
+        units = self.live
+        who = [u.serial for u in units] if self.several else []
+        acqs = acquire([u.board for u in units], self.op, name, seconds, title,
+                       yes=self.opts.yes, recover=lambda k, e: self._recover_unit(units[k], e),
+                       resume_hint=self._resume_hint, enough=enough, who=who,
+                       drop=self._dropper(units))  # fmt: skip
+        return None if acqs is None else list(zip(units, acqs, strict=True))
+
+    def _dropper(self, units: list[Unit]) -> Callable[[int, str], None] | None:
+        """How board ``k`` of ``units`` leaves the sitting (one board: it cannot; None)."""
+        return (lambda k, why: self._drop(units[k], why)) if self.several else None
+
+    def _records(
+        self, name: str, got: Measured, extra: dict[str, str]
+    ) -> list[tuple[Unit, Record]]:
+        """Each board's record of the measurement ``got`` (:meth:`_record`)."""
+        out = []
+        for u, acq in got:
+            with self._on(u):
+                out.append((u, self._record(name, acq, extra)))
+        return out
 
     def _record(self, name: str, acq: Acquisition, extra: dict[str, str]) -> Record:
         who = {
@@ -343,7 +467,8 @@ class Recorder:
 
     def _loss_problems(self, name: str, acq: Acquisition) -> list[str]:
         if acq.lost:
-            self.op.say(screens.loss_line(name, acq))
+            on = f"{self.serial}: " if self.several else ""
+            self.op.say(on + screens.loss_line(name, acq))
         return loss_problems(name, acq, self.opts.link.loss_limit)
 
     def _decide(self, name: str, problems: list[str], attempts: int) -> bool:
@@ -358,6 +483,38 @@ class Recorder:
                 self._resume_hint(f"{name}: still wrong after {attempts} attempts ({problems[0]})")
             )
         return not op.yes_no("Repeat <Y> or save anyway <N>?", True)
+
+    def _decide_all(self, name: str, problems: dict[Unit, list[str]], attempts: int) -> bool:
+        """Save (True) or repeat (False) the measurement of every board, asked once; in a
+        sitting of several each problem is named by its board, and a board whose record is
+        still bad may leave the sitting (``--yes``: after its last attempt) so that the
+        others save theirs."""
+        if not self.several:
+            return self._decide(name, problems[self.units[0]], attempts)
+        op = self.op
+        bad = {u: p for u, p in problems.items() if p and u.lost is None}
+        for u, ps in bad.items():
+            for p in ps:
+                op.say(f"!!! {u.serial}: {p}")
+        for u, ps in bad.items():
+            if self.opts.yes and attempts >= YES_MAX_ATTEMPTS:
+                self._drop(u, f"{name} still wrong after {attempts} attempts: {ps[0]}")
+            elif not self.opts.yes and attempts >= 2 and op.yes_no(
+                f"Drop {u.serial} from the sitting (its session stays incomplete) <Y> or "
+                "keep it <N>?", False,
+            ):  # fmt: skip
+                self._drop(u, f"dropped at the operator's word: {ps[0]}")
+        if not any(u.lost is None for u in bad):
+            return op.yes_no("Save <Y> or repeat <N>?", True)
+        return not op.yes_no("Repeat <Y> or save anyway <N>?", True)
+
+    def _save_all(self, recs: list[tuple[Unit, Record]], problems: dict[Unit, list[str]]) -> None:
+        """Each board's accepted record saved in its directory (:meth:`_save`), but a
+        board's that left the sitting or that has the record already (``--resume``)."""
+        for u, rec in recs:
+            if u.lost is None and rec.name not in u.done:
+                with self._on(u):
+                    self._save(rec, problems[u])
 
     def _save(self, rec: Record, problems: Sequence[str] = ()) -> None:
         """Write the accepted record; one kept despite ``problems`` carries them in its

@@ -364,9 +364,10 @@ def test_ctrl_c_during_a_measurement_then_resume(
     # resume with the printed command, non-interactive: no terminal at all (stdin closed, no
     # controlling tty); full speed, one turn, no pause before the turns, nobody to answer
     assert printed[:4] == ["python3", "-m", "host", "calibrate"]
+    words = printed[4:]  # the same board at full speed (a second --port is a second board)
+    words[words.index("--port") + 1] = board_url(board, 24, "max")
     proc = subprocess.run(
-        CMD + printed[4:] + ["--port", board_url(board, 24, "max"), "--turns", "1",
-                             "--ready-seconds", "0", "--yes", "--json"],
+        CMD + words + ["--turns", "1", "--ready-seconds", "0", "--yes", "--json"],
         cwd=tmp_path, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60,
         env=dict(os.environ, PYTHONPATH=str(ROOT)), start_new_session=True,
     )  # fmt: skip

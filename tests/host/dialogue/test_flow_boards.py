@@ -1,0 +1,273 @@
+"""A sitting of several boards (host/dialogue/flow.py, recorder.py, boards.py): one dialogue,
+every record measured on every board at once, each board's session of its own; a board that
+leaves the sitting; --resume of a sitting. In-process against ``sim://`` at ``speed=max``
+(see test_flow.py), each port its own virtual operator given the same hints."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shlex
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import serial
+
+from host.board.link import open_port
+from host.dialogue import options
+from host.dialogue.console import ScriptedConsole
+from host.session.directory import read_record
+from host.session.records import STATIC_NAMES, TURN_NAMES
+from tests.host.cli.cli_run import command_after
+from tests.host.dialogue.flat_options import options_of
+from tests.host.dialogue.test_flow import LINEAR, run
+from tests.host.dialogue.test_flow import opts as live_opts
+
+ALL = (*STATIC_NAMES, *TURN_NAMES, options.CLOSING_NAME)
+
+
+class Ports:
+    """port_factory that remembers each port it opened by URL; ``vanish`` (URL → simulated
+    s): that board's port fails for good once its simulated time passes (a cable pulled, a
+    hub gone): reads raise and it cannot be opened again."""
+
+    def __init__(self, vanish: dict[str, float] | None = None) -> None:
+        self.opened: dict[str, Any] = {}
+        self.vanish = vanish or {}
+        self.gone: set[str] = set()
+
+    def __call__(self, url: str) -> Any:
+        if url in self.gone:
+            raise serial.SerialException(f"could not open port {url}: no such device")
+        p = open_port(url)
+        self.opened[url] = p
+        return _Vanishing(p, self, url) if url in self.vanish else p
+
+
+class _Vanishing:
+    def __init__(self, port: Any, ports: Ports, url: str) -> None:
+        self._port, self._ports, self._url = port, ports, url
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._port, name)
+
+    def _check(self) -> None:
+        if self._url in self._ports.gone or self._port.sim_time > self._ports.vanish[self._url]:
+            self._ports.gone.add(self._url)
+            raise serial.SerialException("device disconnected")
+
+    @property
+    def in_waiting(self) -> int:
+        self._check()
+        return int(self._port.in_waiting)
+
+    def read(self, size: int = 1) -> bytes:
+        self._check()
+        return bytes(self._port.read(size))
+
+    def write(self, data: bytes) -> int:
+        self._check()
+        return int(self._port.write(data))
+
+    def open(self) -> None:  # the device is gone: it cannot be opened again
+        self._check()
+        self._port.open()
+
+
+def urls(seeds: list[int], noise: int = 0) -> list[str]:
+    """One unit per seed, its noise drawn from ``noise_seed`` = seed + ``noise``."""
+    return [f"sim://?seed={s}&noise_seed={s + noise}&{LINEAR}" for s in seeds]
+
+
+def sitting(tmp: Path, seeds: list[int], noise: int = 0, **kw: Any) -> options.DialogueOptions:
+    """Options of a sitting of one board per seed, serials U<seed>, all under ``tmp``."""
+    u = urls(seeds, noise)
+    more = tuple((url, f"U{s}") for url, s in zip(u[1:], seeds[1:], strict=True))
+    base: dict[str, Any] = dict(serial=f"U{seeds[0]}", out=tmp, static_seconds=3.0, turns=1)
+    return dataclasses.replace(live_opts(tmp, u[0], **{**base, **kw}), more_boards=more)
+
+
+def result(d: Path, serial: str) -> dict[str, Any]:
+    return dict(json.loads((d / serial / f"{serial}_result.json").read_text()))
+
+
+def pulls(got: dict[str, Any], truth: dict[str, float]) -> list[tuple[str, float]]:
+    """(name, (fitted − truth)/σ) of every determined parameter the truth names."""
+    out = []
+    for p in got["parameters"]:
+        if p["name"] in truth and p["stderr"] and p["stderr"] > 0:
+            out.append((p["name"], (p["value"] - truth[p["name"]]) / p["stderr"]))
+    return out
+
+
+# --------------------------------------------------------------------------- four boards
+
+
+@pytest.fixture(scope="module")
+def four(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    tmp = tmp_path_factory.mktemp("four")
+    ports = Ports()
+    con = ScriptedConsole()  # --yes: no key at all
+    rc, _ = run(sitting(tmp, [21, 22, 23, 24]), con, ports)
+    return dict(rc=rc, con=con, ports=ports, out=tmp, seeds=[21, 22, 23, 24])
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_four_boards_write_four_complete_sessions(four: dict[str, Any]) -> None:
+    """Each board: every record of the method and the closing check, its report, result
+    and capture in its own directory; every record carries its own serial and port; the
+    dialogue asked each placement once (one prompt, four boards)."""
+    for s, url in zip(four["seeds"], urls(four["seeds"]), strict=True):
+        d: Path = four["out"] / f"U{s}"
+        names = sorted(p.name for p in d.iterdir())
+        assert names == sorted(
+            [f"U{s}_{n}.txt" for n in ALL] + [f"U{s}_result.txt", f"U{s}_result.json",
+                                               f"U{s}_session.cap"]
+        )  # fmt: skip
+        for n in ALL:
+            m = read_record(d / f"U{s}_{n}.txt").meta
+            assert (m["serial"], m["port"]) == (f"U{s}", url)
+    text = four["con"].text
+    assert text.count("Put the cube") == len(ALL)  # each face, turn and the closing: once
+    for s in four["seeds"]:
+        assert f"Results of U{s}:" in text
+
+
+@pytest.mark.slow
+def test_four_boards_each_recover_their_own_unit(four: dict[str, Any]) -> None:
+    """Each board's constants against its own simulated unit, in units of their σ: a record
+    of one board filed under another's serial would be many σ off (the units differ by
+    far more than their σ)."""
+    all_pulls = []
+    for s in four["seeds"]:
+        url = urls(four["seeds"])[four["seeds"].index(s)]
+        truth = four["ports"].opened[url].truth.constants()
+        got = pulls(result(four["out"], f"U{s}"), truth)
+        assert len(got) >= 20
+        worst = max(got, key=lambda p: abs(p[1]))
+        assert abs(worst[1]) < 5.0, (s, worst)
+        all_pulls += [z for _, z in got]
+    assert 0.4 < float(np.std(all_pulls)) < 1.8, np.std(all_pulls)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_a_board_of_the_sitting_agrees_with_a_sitting_of_its_own(
+    four: dict[str, Any], tmp_path: Path
+) -> None:
+    """The third unit calibrated alone (its own noise): its constants and those of the
+    sitting of four agree within their σ (√(σ₁² + σ₂²), 4.5 of it at most over every parameter)."""
+    s = four["seeds"][2]
+    o = sitting(tmp_path, [s], noise=100, out=tmp_path / f"U{s}")  # the unit, other noise
+    rc, _ = run(o, ScriptedConsole(), Ports())
+    alone = {p["name"]: p for p in result(tmp_path, f"U{s}")["parameters"]}
+    sat = {p["name"]: p for p in result(four["out"], f"U{s}")["parameters"]}
+    z = [
+        (n, (sat[n]["value"] - a["value"]) / np.hypot(sat[n]["stderr"], a["stderr"]))
+        for n, a in alone.items()
+        if a["stderr"] and sat[n]["stderr"]
+    ]
+    assert len(z) >= 20
+    assert max(abs(v) for _, v in z) < 4.5, max(z, key=lambda p: abs(p[1]))
+
+
+# --------------------------------------------------------------------------- options
+
+
+def test_several_ports_need_a_serial_each(tmp_path: Path) -> None:
+    from host.__main__ import build_parser
+    from host.cli.calibrate import dialogue_options
+    from host.errors import UserError
+
+    parser, _ = build_parser()
+    for argv, words in (
+        (["--port", "sim://", "--port", "sim://?seed=2", "--serial", "A"], "2 --port but 1"),
+        (["--serial", "A", "--serial", "B"], "2 --serial but 0 --port"),
+    ):
+        ns = parser.parse_args(["calibrate", *argv])
+        with pytest.raises(UserError, match=words):
+            dialogue_options(ns)
+    o = options_of("python3 -m host calibrate --port sim:// --serial A --port sim:// --serial A")
+    with pytest.raises(UserError, match="--serial A is given twice"):
+        o.check()
+    o = options_of(
+        "python3 -m host calibrate --port P1 --serial A --port P2 --serial B --plan adaptive"
+    )
+    with pytest.raises(UserError, match="--plan adaptive takes one --port"):
+        o.check()
+
+
+# --------------------------------------------------------------------------- dropping out
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_a_board_that_vanishes_leaves_the_others_complete(tmp_path: Path) -> None:
+    """The second of three boards is unplugged for good during the turns: it is named with
+    the record it was lost at and its own resume command; its accepted records stay; the
+    other two sessions are complete; the exit status is 1 (a session is incomplete)."""
+    u = urls([31, 32, 33])
+    ports = Ports(vanish={u[1]: 40.0})  # simulated s: past the statics (6 × 3 s + waits)
+    con = ScriptedConsole()
+    o = sitting(tmp_path, [31, 32, 33], reconnect_timeout_s=1.0)
+    rc, _ = run(o, con, ports)
+    assert rc == 1
+    text = con.text
+    lost = [ln for ln in text.splitlines() if "board U32 lost at record" in ln]
+    assert len(lost) == 1, text[-2000:]
+    at = lost[0].split("lost at record ")[1].split()[0]
+    assert at in ALL
+    said = " ".join(text.replace("\\\n", " ").split())  # the command, over its \\ lines
+    alone = said.split("resume it with: ")[1]
+    assert alone.startswith("python3 -m host calibrate --port") and "--resume" in alone
+    assert "--serial U32" in alone and f"--out {tmp_path / 'U32'}" in alone
+    kept = sorted(p.name for p in (tmp_path / "U32").glob("U32_*.txt"))
+    assert f"U32_{at}.txt" not in kept and "U32_x_up.txt" in kept
+    assert not (tmp_path / "U32" / "U32_result.json").exists()
+    for s in (31, 33):
+        got = result(tmp_path, f"U{s}")
+        assert len(got["records"]) == len(ALL)
+
+
+# --------------------------------------------------------------------------- resume
+
+
+class CtrlCAfter(ScriptedConsole):
+    """--yes, and Ctrl+C once ``line`` has been said (between two boards' saves)."""
+
+    def __init__(self, line: str) -> None:
+        super().__init__()
+        self.line = line
+
+    def say(self, text: str = "") -> None:
+        super().say(text)
+        if text == self.line:
+            raise KeyboardInterrupt
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_resume_of_an_interrupted_sitting_completes_every_board(tmp_path: Path) -> None:
+    """Ctrl+C after the first board saved y_dn and before the second did: the printed
+    command (read back as a shell would) resumes the sitting, which measures y_dn on both
+    boards but saves it only on the board that lacked it, then the rest: both complete."""
+    o = sitting(tmp_path, [41, 42])
+    con = CtrlCAfter(f"Saved {tmp_path / 'U41' / 'U41_y_dn.txt'}")
+    rc, _ = run(o, con, Ports())
+    assert rc == 130
+    assert (tmp_path / "U41" / "U41_y_dn.txt").exists()
+    assert not (tmp_path / "U42" / "U42_y_dn.txt").exists()
+    first_y_dn = (tmp_path / "U41" / "U41_y_dn.txt").read_bytes()
+    assert "continue the sitting" in " ".join(con.text.split())
+    resumed = options_of(shlex.join(command_after(con.text)))
+    assert resumed.files.resume and [p for p, _ in resumed.more_boards] == urls([42])
+    con2 = ScriptedConsole()
+    rc, _ = run(resumed, con2, Ports())
+    assert rc in (0, 1)
+    assert (tmp_path / "U41" / "U41_y_dn.txt").read_bytes() == first_y_dn  # kept, not redone
+    for s in (41, 42):
+        got = result(tmp_path, f"U{s}")
+        assert sorted(got["records"]) == sorted(ALL), (s, got["records"])
