@@ -11,6 +11,8 @@
 - ``checks`` — the questions of ``python3 -m host archive`` answered from the store with
   ``stats`` (trend, repeat, drift, lot, control charts, check-bench); their text on the
   command line is the command's (:mod:`host.cli.archive_text`).
-- ``page`` — the self-contained HTML page (``archive report --html``), charts as inline SVG.
+- ``charts`` — the page's charts as inline SVG, a pure function of the points: time on x,
+  the parameter in its unit on y, both axes titled, a trend's ± U band, control limits.
+- ``page`` — the self-contained HTML page (``archive report --html``) with those charts.
 - ``export`` — CSV (and Parquet when pyarrow is installed) for the user's own analysis.
 """

@@ -288,6 +288,24 @@ class LotRow:
     outliers: tuple[tuple[str, float], ...]
 
 
+#: the lot table's mark of a parameter (its ``within``) and what it means, in words
+LOT_MARKS: dict[bool | None, tuple[str, str]] = {
+    True: ("within", "mean ± 3·spread inside the datasheet limit"),
+    False: ("OUTSIDE", "mean ± 3·spread of this lot past the datasheet limit: a wide lot to "
+            "watch, no unit's FAIL"),
+    None: ("-", "no datasheet limit"),
+}  # fmt: skip
+
+
+def lot_mark(row: LotRow) -> tuple[str, str]:
+    """(the mark, what it means) of one parameter of the lot table; an outlier is named."""
+    mark, means = LOT_MARKS[row.summary.within]
+    if row.outliers:
+        names = ", ".join(u for u, _ in row.outliers)
+        means += f"; outlier {names}: unusual for this lot, not a failure"
+    return mark, means
+
+
 @dataclass(frozen=True)
 class LotReport:
     rows: list[LotRow]

@@ -211,6 +211,11 @@ def now_utc() -> str:
     return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
 
 
+def minute_utc(iso: str) -> str:
+    """An archived UTC time (ISO text) to the minute: ``2026-01-03 08:12 UTC``."""
+    return f"{iso[:10]} {iso[11:16]} UTC" if len(iso) >= 16 else iso
+
+
 def lock(conn: Connection) -> None:
     """Take the archive's write lock for the rest of the transaction (PostgreSQL: a
     transaction-scoped advisory lock; SQLite's ``BEGIN IMMEDIATE`` already holds it)."""

@@ -14,7 +14,7 @@ from typing import Any
 
 from host.archive import checks, stats
 from host.archive.entry import entry_from_directory
-from host.archive.export import COLUMNS, write_values
+from host.archive.export import COLUMNS, EARLIER_COLUMNS, write_values
 from host.archive.store import Archive
 from host.cli import archive_text as text
 from host.cli.options import Command, add_archive_option, positive
@@ -238,8 +238,10 @@ def _only_an_earlier_export(path: Path) -> None:
         return
     with path.open("rb") as f:
         head = f.read(64)
-    ours = b"PAR1" if path.suffix.lower() in (".parquet", ".pq") else ",".join(COLUMNS).encode()
-    if not head.startswith(ours[:64]):
+    ours = [b"PAR1"] if path.suffix.lower() in (".parquet", ".pq") else [
+        ",".join(cols).encode()[:64] for cols in (COLUMNS, EARLIER_COLUMNS)
+    ]  # fmt: skip
+    if not any(head.startswith(o) for o in ours):
         raise UserError(
             f"{path}: exists and is no export of the archive; it is kept: give another file "
             "name, or move it away first"
@@ -256,7 +258,8 @@ def _export(args: ArchiveOptions) -> int:
     _only_an_earlier_export(Path(args.file))
     with _open(args) as a:
         _selected(a, args.serial, args.lot, args.param)  # never an empty file, exit 0
-        n = write_values(a.values(args.param, serial=args.serial, lot=args.lot), args.file)
+        lots = {s.id: s.lot for s in a.summaries(args.serial, None, args.lot)}
+        n = write_values(a.values(args.param, serial=args.serial, lot=args.lot), args.file, lots)
     print(f"written: {args.file} ({n} rows)", file=sys.stderr)
     return 0
 

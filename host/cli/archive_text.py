@@ -10,7 +10,9 @@ import textwrap
 from collections.abc import Sequence
 
 from host.archive import stats
+from host.archive.charts import param_unit
 from host.archive.checks import (
+    LOT_MARKS,
     BenchRow,
     Chart,
     DriftRow,
@@ -18,8 +20,10 @@ from host.archive.checks import (
     LotReport,
     RepeatRow,
     TrendPoint,
+    lot_mark,
 )
 from host.archive.entry import Entry, conditional_pass
+from host.archive.schema import minute_utc
 from host.archive.store import Summary
 from host.cli.screen import Column, table, terminal_width
 
@@ -199,11 +203,6 @@ def _identical(found: Sequence[IdenticalRepeat], w: int) -> list[str]:
     return out
 
 
-def _minute(iso: str) -> str:
-    """An archived UTC time (ISO text) to the minute: ``2026-01-03 08:12 UTC``."""
-    return f"{iso[:10]} {iso[11:16]} UTC" if len(iso) >= 16 else iso
-
-
 def drift(rows: Sequence[DriftRow], k: float, alpha: float, width: int | None = None) -> str:
     """``archive drift``: the units whose parameters moved since their last calibration."""
     w = width or terminal_width()
@@ -217,7 +216,7 @@ def drift(rows: Sequence[DriftRow], k: float, alpha: float, width: int | None = 
     for when in sorted({(r.serial, r.before_at, r.after_at) for r in moved}):
         rs = [r for r in moved if (r.serial, r.before_at, r.after_at) == when]
         serial, before, after = when
-        out.append(f"{serial}: {_minute(before)} -> {_minute(after)}")
+        out.append(f"{serial}: {minute_utc(before)} -> {minute_utc(after)}")
         cols = [
             Column("parameter", [r.name for r in rs], "<"),
             Column("before", [_g(r.before, 5) for r in rs]),
@@ -233,6 +232,17 @@ def drift(rows: Sequence[DriftRow], k: float, alpha: float, width: int | None = 
     return _text(out)
 
 
+def _mark_meanings(rep: LotReport, w: int) -> list[str]:
+    """What each mark of the lot table's datasheet column means, once per mark shown."""
+    shown = {r.summary.within for r in rep.rows}
+    return [
+        ln
+        for within in (False, True, None)
+        if within in shown
+        for ln in prose(f"{LOT_MARKS[within][0]}: {LOT_MARKS[within][1]}", w)
+    ]
+
+
 def lot(rep: LotReport, alpha: float, width: int | None = None) -> str:
     """``archive lot``: per parameter mean, spread, 3σ band against the datasheet, outliers."""
     w = width or terminal_width()
@@ -242,26 +252,26 @@ def lot(rep: LotReport, alpha: float, width: int | None = None) -> str:
         w,
     )
     ss = [r.summary for r in rep.rows]
+    marks = [lot_mark(r) for r in rep.rows]
     out += table(
         [
             Column("parameter", [r.name for r in rep.rows], "<"),
+            Column("unit", [param_unit(r.name) for r in rep.rows], "<"),
             Column("n", [str(s.n) for s in ss]),
             Column("mean", [_g(s.mean, 4) for s in ss]),
             Column("spread", [_g(s.spread, 3) for s in ss]),
             Column("mean−3σ", [_g(s.low, 4) for s in ss], rank=1),
             Column("mean+3σ", [_g(s.high, 4) for s in ss], rank=1),
             Column("limit", [_g(s.limit or math.nan, 3) for s in ss]),
-            Column(
-                "datasheet",
-                [{None: "-", True: "within", False: "OUTSIDE"}[s.within] for s in ss],
-                "<",
-            ),  # fmt: skip
+            Column("datasheet", [m for m, _ in marks], "<"),
         ],
         w,
     )
+    out += _mark_meanings(rep, w)
     outliers = [(r.name, u, v) for r in rep.rows for u, v in r.outliers]
     for name, u, v in outliers:
-        out.append(f"outlier: {u} {name} = {_g(v, 5)}")
+        out += prose(f"outlier: {u} {name} = {_g(v, 5)} {param_unit(name)}: unusual for this "
+                     "lot, not a failure (its own verdict is below)", w)  # fmt: skip
     for serial, why in rep.failing:
         out += prose(f"failing: {serial} ({why})", w)
     for serial, rms_z in rep.conditional:

@@ -35,10 +35,15 @@ def _table() -> ValueTable:
 
 def test_csv_reads_back_exactly(tmp_path: Path) -> None:
     p = tmp_path / "v.csv"
-    assert write_values(_table(), p) == 2
+    assert write_values(_table(), p, {1: "L,7"}) == 2
     rows = list(csv.DictReader(p.open(encoding="utf-8")))
     assert tuple(rows[0]) == COLUMNS
     assert rows[0]["serial"] == "U,1"  # quoted, not split
+    # every row names its unit, its lot and the unit of its value (method.md §7)
+    assert [(r["serial"], r["lot"], r["unit"]) for r in rows] == [
+        ("U,1", "L,7", "m/s²"),
+        ("U,1", "L,7", "1"),
+    ]
     # a conditional PASS stays one: the fit's verdict beside the archived verdict
     assert (rows[0]["verdict"], rows[0]["fit_verdict"]) == ("pass", "inadequate")
     assert float(rows[0]["value"]) == 0.1 + 0.2 and float(rows[0]["stderr"]) == 1e-17

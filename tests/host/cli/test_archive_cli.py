@@ -80,6 +80,13 @@ def test_checks_exit_one_when_something_needs_attention(
         p.value for e in lot.entries if e.serial == "U0001" for p in e.parameters if p.name == "A0x"
     )
     assert got == pytest.approx(want, rel=1e-15)
+    lots = {e.lot for e in lot.entries if e.serial == "U0001"}
+    assert {r["lot"] for r in rows} == lots and {r["unit"] for r in rows} >= {"m/s²", "°/s", "1"}
+    # an export written before the lot and unit columns is replaced like any earlier export
+    out_csv.write_text("calibration_id,serial,bench,measured_at,self_test,verdict,fit_verdict,"
+                       "parameter,value,stderr\n1,U0001,B1,x,,pass,,A0x,0.1,0.01\n")  # fmt: skip
+    assert main(["archive", "export", str(out_csv), "--serial", "U0001", "--archive", db]) == 0
+    assert len(list(csv.DictReader(out_csv.open()))) == 3 * 12
 
 
 @pytest.mark.parametrize(
@@ -232,8 +239,9 @@ def test_the_lot_table_carries_every_value_of_the_lot_report(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:  # fmt: skip
     """The narrowed lot table still says, in its columns, what the lot report computed: each
-    parameter's n, mean, spread, band, limit and datasheet verdict, in its own row."""
+    parameter's unit, n, mean, spread, band, limit and datasheet verdict, in its own row."""
     from host.archive import checks
+    from host.archive.charts import param_unit
 
     monkeypatch.delenv("COLUMNS", raising=False)
     db, _ = line_archive
@@ -241,18 +249,18 @@ def test_the_lot_table_carries_every_value_of_the_lot_report(
     lines = capsys.readouterr().out.splitlines()
     head = next(i for i, ln in enumerate(lines) if ln.split()[:1] == ["parameter"])
     headers = lines[head].split()
-    assert headers == ["parameter", "n", "mean", "spread", "mean−3σ", "mean+3σ", "limit",
-                       "datasheet"]  # fmt: skip
+    assert headers == ["parameter", "unit", "n", "mean", "spread", "mean−3σ", "mean+3σ",
+                       "limit", "datasheet"]  # fmt: skip
     with Archive(db) as a:
         rep = checks.lot_report(a)
     rows = {ln.split()[0]: ln.split() for ln in lines[head + 1 : head + 1 + len(rep.rows)]}
     assert set(rows) == {r.name for r in rep.rows}
     for r in rep.rows:
         s, cells = r.summary, rows[r.name]
-        assert int(cells[1]) == s.n
-        got = [float(c) for c in cells[2:7]]
+        assert cells[1] == param_unit(r.name) and int(cells[2]) == s.n
+        got = [float(c) for c in cells[3:8]]
         assert got == pytest.approx([s.mean, s.spread, s.low, s.high, s.limit], rel=2e-3)
-        assert cells[7] == {True: "within", False: "OUTSIDE"}[bool(s.within)]
+        assert cells[8] == {True: "within", False: "OUTSIDE"}[bool(s.within)]
 
 
 # ---- a conditional PASS is not a clean pass ---------------------------------------------------
