@@ -12,12 +12,13 @@ each worker and each ``python3 -m host`` a test starts does not compile every mo
 
 from __future__ import annotations
 
+import functools
 import inspect
 import os
 import re
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -49,18 +50,38 @@ def _cache_bytecode() -> None:
     sys.dont_write_bytecode = False
 
 
+@functools.cache
+def _file_reads_shared(path: str) -> bool:
+    """Whether the file at ``path`` names the shared real data anywhere (a function's source is
+    a run of whole lines of its file, so a function of a file that does not cannot)."""
+    try:
+        return _READS_SHARED.search(Path(path).read_text(encoding="utf-8")) is not None
+    except (OSError, UnicodeDecodeError):
+        return True  # unknown: the function's own source decides
+
+
+@functools.cache
+def _source_reads_shared(func: Callable[..., object]) -> bool:
+    """Whether the source of ``func`` (a test or a fixture) names the shared real data: once per
+    function (a parametrized test's items and the fixtures many tests use are the same
+    functions), and only in files that name it at all. Read for every item and fixture it was
+    7783 sources for the 1708 tests, 3.6-3.8 s of each worker's collection where the data is
+    absent."""
+    code = getattr(inspect.unwrap(func), "__code__", None)
+    if code is not None and not _file_reads_shared(code.co_filename):
+        return False
+    try:
+        return _READS_SHARED.search(inspect.getsource(func)) is not None
+    except (OSError, TypeError):
+        return False
+
+
 def _reads_shared(item: pytest.Item) -> bool:
     funcs = [getattr(item, "function", None)]
     info = getattr(item, "_fixtureinfo", None)
     for defs in info.name2fixturedefs.values() if info is not None else ():
         funcs += [d.func for d in defs]
-    for f in funcs:
-        try:
-            if f is not None and _READS_SHARED.search(inspect.getsource(f)):
-                return True
-        except (OSError, TypeError):
-            continue
-    return False
+    return any(f is not None and _source_reads_shared(f) for f in funcs)
 
 
 def pytest_configure(config: pytest.Config) -> None:
