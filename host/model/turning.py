@@ -96,20 +96,26 @@ def derivative(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     if n < 5:
         return out
     i = np.arange(2, n - 2)
-    d = np.stack([t[i + k] - t[i] for k in range(-2, 3)])  # (5, n-4) offsets, 0 at k=2
-    # L_k'(0) of the Lagrange basis on the offsets d, for all five k at once: over m ≠ k,
-    # den_k = Π (d_k − d_m) and num_k = Σ Π_{q ≠ k, m} (−d_q), the left-out factors and
-    # terms set to 1 and 0 (which leave every product and sum as it is)
+    w = _centre_weights(np.stack([t[i + k] - t[i] for k in range(-2, 3)]))
+    out[2 : n - 2] = sum(w[k][:, None] * y[i + k - 2] for k in range(5))
+    return out
+
+
+def _centre_weights(d: np.ndarray) -> np.ndarray:
+    """(5, n) L_k'(0) of the Lagrange basis on the offsets ``d`` (5, n), d[2] = 0: over m ≠ k,
+    den_k = Π (d_k − d_m) and num_k = Σ Π_{q ≠ k, m} (−d_q), the left-out factors set to 1.
+    Every term of num_k (k ≠ 2) but m = 2 holds the factor −d_2 = 0, so that num_k =
+    Π_{q ≠ k, 2} (−d_q), and num_2 is the sum of those over k ≠ 2: (5, 5, n) products, not
+    (5, 5, 5, n), with every product and sum in the same order (the same numbers)."""
     same = np.eye(5, dtype=bool)
     diff = d[:, None, :] - d[None, :, :]
     diff[same] = 1.0
-    neg = np.broadcast_to(-d, (5, 5, 5, len(i))).copy()  # [k, m, q]
-    neg[same[:, None, :] | same[None, :, :]] = 1.0
-    terms = np.prod(neg, axis=2)
-    terms[same] = 0.0
-    w = np.sum(terms, axis=1) / np.prod(diff, axis=1)
-    out[2 : n - 2] = sum(w[k][:, None] * y[i + k - 2] for k in range(5))
-    return out
+    neg = np.broadcast_to(-d, (5, 5, d.shape[1])).copy()  # [k, q]
+    neg[same] = 1.0
+    neg[:, 2] = 1.0
+    num = np.prod(neg, axis=1)
+    num[2] = ((num[0] + num[1]) + num[3]) + num[4]
+    return np.asarray(num / np.prod(diff, axis=1))
 
 
 def lever_arm_matrix(t_s: np.ndarray, rate_dps: np.ndarray) -> np.ndarray:
