@@ -99,7 +99,7 @@ def _turn_rows(rows: _Rows, sig: RecordSignals, gyro_sd: float, white: np.ndarra
     rate_up = sig.rate @ sig.up
     runs = still_runs(rate_up, t_rel, gyro_sd)
     blocks = turning.moving_blocks(rate_up, t_rel, gyro_sd)
-    ranges = [*runs, *blocks]
+    ranges = np.array([*runs, *blocks], dtype=np.intp).reshape(-1, 2)
     if len(ranges) < MIN_ROWS:
         return -1
     up_k = int(np.argmax(np.abs(sig.up)))
@@ -107,21 +107,48 @@ def _turn_rows(rows: _Rows, sig: RecordSignals, gyro_sd: float, white: np.ndarra
     # the scales alone: before the plate is known the statics' misalignments hold its tilt
     scale = np.ones(3) if sig.accel_matrix is None else np.diag(np.asarray(sig.accel_matrix))
     lever = turning.sensed_lever_matrix(sig.t_s, sig.rate, np.diag(scale))
+    rest = [b < len(runs) for b in range(len(ranges))]
     for k in (i for i in range(3) if i != up_k):
         tilt = sig.g * scale[k] * np.column_stack([east[:, k], north[:, k]])
-        for b, (a, e) in enumerate(ranges):
-            row = len(rows.y)
-            rows.y.append(float(sig.accel[a:e, k].mean()))
-            rows.white.append(float(white[k]) / (e - a))
-            rows.rest.append(b < len(runs))
-            rows.cols.setdefault(("c", sig.name, str(k)), {})[row] = 1.0
-            te, tn = tilt[a:e].mean(axis=0)
-            rows.cols.setdefault(("t", sig.name, "e"), {})[row] = float(te)
-            rows.cols.setdefault(("t", sig.name, "n"), {})[row] = float(tn)
-            for j, v in enumerate(lever[a:e, k, :].mean(axis=0)):
-                if v != 0.0:
-                    rows.cols.setdefault(("r", "xyz"[j]), {})[row] = float(v)
+        means = range_means(np.column_stack([sig.accel[:, k], tilt]), ranges)
+        first = len(rows.y)
+        rows.y.extend(means[:, 0].tolist())
+        rows.white.extend((float(white[k]) / (ranges[:, 1] - ranges[:, 0])).tolist())
+        rows.rest.extend(rest)
+        at = range(first, first + len(ranges))
+        rows.cols.setdefault(("c", sig.name, str(k)), {}).update(dict.fromkeys(at, 1.0))
+        for j, side in ((1, "e"), (2, "n")):
+            col = rows.cols.setdefault(("t", sig.name, side), {})
+            col.update(zip(at, means[:, j].tolist(), strict=True))
+        _lever_columns(rows, range_means(lever[:, k, :], ranges, centred=False), first)
     return len(runs)
+
+
+def range_means(columns: np.ndarray, ranges: np.ndarray, centred: bool = True) -> np.ndarray:
+    """(R, m) the mean of each of ``columns`` (N, m) over each [start, stop) of ``ranges``
+    (R, 2), in one pass: a running sum, not a mean per range. ``centred``: summed from each
+    column's first value, so that the sums stay small; else from zero, so that a range of
+    zeros has a mean of exactly zero."""
+    x = np.asarray(columns, dtype=np.float64)
+    x0 = x[0] if centred else np.zeros(x.shape[1])
+    run = np.zeros((len(x) + 1, x.shape[1]))
+    np.cumsum(x - x0, axis=0, out=run[1:])
+    n = (ranges[:, 1] - ranges[:, 0])[:, None]
+    return (run[ranges[:, 1]] - run[ranges[:, 0]]) / n + x0
+
+
+def _lever_columns(rows: _Rows, means: np.ndarray, first: int) -> None:
+    """The lever arm's three columns of the rows from ``first`` (``means`` (R, 3)), each
+    value that is not zero; a column new to ``rows`` is added where its first value falls
+    (in the order of the rows, then x, y, z)."""
+    nonzero = means != 0.0
+    order = sorted(
+        (int(np.argmax(nonzero[:, j])), j) for j in range(3) if bool(nonzero[:, j].any())
+    )
+    for _, j in order:
+        at = np.flatnonzero(nonzero[:, j])
+        col = rows.cols.setdefault(("r", "xyz"[j]), {})
+        col.update(zip((at + first).tolist(), means[at, j].tolist(), strict=True))
 
 
 def _weighted_fit(
@@ -134,7 +161,7 @@ def _weighted_fit(
     cov = np.linalg.pinv(xw.T @ xw)
     beta = cov @ (xw.T @ (y * sw))
     resid = y - x @ beta
-    lev = np.einsum("ij,jk,ik->i", xw, cov, xw)
+    lev = np.sum((xw @ cov) * xw, axis=1)
     return beta, cov, resid, np.clip(lev, 0.0, 1.0)
 
 
