@@ -64,8 +64,9 @@ class Measuring(Protocol):
     def _ask_turns(self) -> tuple[int, float]: ...
 
     def _measure_static(
-        self, name: str, seconds: float | None = None, stop: Stop | None = None
-    ) -> None: ...
+        self, name: str, seconds: float | None = None, stop: Stop | None = None,
+        planned: str = "",
+    ) -> None: ...  # fmt: skip
 
     def _measure_turn(
         self, name: str, n: int, window: float, decide: Callable[[Record], str] | None = None
@@ -201,16 +202,29 @@ def _measure(dlg: Measuring, plan: AdaptivePlan, ask: Ask) -> float:
 
             dlg._measure_static(name, seconds, stop)
         elif kind == "static":  # as long as the planner said: its gain assumed that
-            dlg._measure_static(name, seconds)
+            dlg._measure_static(name, seconds, planned=planned_why(ask, seconds))
         elif ask.first and name == ask.names[-1]:  # the turn that ends a pair
 
             def decide(rec: Record, axis: str = name[0]) -> str:
                 return plan.turns_decision({**dlg.done, rec.name: rec}, axis)[1]
 
             dlg._measure_turn(name, n, turn_window_s(n), decide)
-        else:
+        elif ask.first:
             dlg._measure_turn(name, n, turn_window_s(n))
+        else:
+
+            def planned(_rec: Record, why: str = planned_why(ask, turn_window_s(n))) -> str:
+                return why
+
+            dlg._measure_turn(name, n, turn_window_s(n), planned)
     return plan.cost(ask, before, dlg.done)
+
+
+def planned_why(ask: Ask, seconds: float) -> str:
+    """Why a planner's record (not one of the first) stopped, for its header's ``stopped``:
+    it is as long as the planner said, and what the planner asked it for."""
+    worst = "" if ask.ranked is None else f", the worst then {_ratio(ask.ranked.worst_after)}"
+    return f"as long as the planner asked ({seconds:g} s): {ask.candidate.label}{worst} predicted"
 
 
 def _ratio(r: float) -> str:

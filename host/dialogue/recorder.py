@@ -238,11 +238,13 @@ class Recorder(UnitsInHand):
                 op.say(on + screens.closing_difference(u.done[first], u.done[CLOSING_NAME]))
 
     def _measure_static(
-        self, name: str, seconds: float | None = None, stop: StaticStop | None = None
-    ) -> None:
+        self, name: str, seconds: float | None = None, stop: StaticStop | None = None,
+        planned: str = "",
+    ) -> None:  # fmt: skip
         """Measure static record ``name`` on every board for ``seconds`` s (None: the
         accumulation time), or with ``stop`` (one board) until it says the record has enough
-        (at most ``seconds``), then Save/repeat; its header then says why it stopped."""
+        (at most ``seconds``), then Save/repeat; its header then says why it stopped
+        (``planned``: why, without ``stop``: a record the adaptive plan's planner asked for)."""
         op = self.op
         axis, side = name.split("_")[:2]  # x_up_2: the attitude x_up again
         assert self.static_seconds is not None
@@ -270,6 +272,9 @@ class Recorder(UnitsInHand):
                 why = why or [stop(rec.accel, rec.gyro, length) or ""]
                 rec.meta[STOPPED_KEY] = why[0]
                 op.say(f"{name}: stopped, {why[0].split(':')[0]}")
+            elif planned:  # one board (--plan adaptive)
+                recs[0][1].meta[STOPPED_KEY] = planned
+                op.say(f"{name}: stopped, {planned.split(':')[0]}")
             problems = self._static_checks(name, got, recs)
             if self._decide_all(name, problems, attempts):
                 self._save_all(recs, problems)

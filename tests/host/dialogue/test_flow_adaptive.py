@@ -56,6 +56,21 @@ def test_it_measures_what_the_planner_names_until_the_limit(tmp_path: Path) -> N
     nexts = re.findall(r"Next: (.+?) \(about (\d+) s of your", text)
     assert 1 <= len(nexts) <= 2
     assert "--max-extra 2 reached" in text
+    # each planner record says in its header why it stopped: as long as the planner asked
+    # for what (the label the screen named) and the worst σ/tolerance it predicted
+    recs = read_session(out).records
+    labels = {label for label, _ in nexts}
+    for n in extra:
+        why = recs[n].meta.get(STOPPED_KEY, "")
+        m = re.fullmatch(r"as long as the planner asked \(([0-9.]+) s\): (.+), the worst then "
+                         r"\S+ predicted", why)  # fmt: skip
+        assert m is not None and m.group(2) in labels, (n, why, labels)
+        assert abs(float(m.group(1)) - recs[n].duration_s) < 1.0, (why, recs[n].duration_s)
+        assert re.search(rf"{n}: stopped, as long as the planner asked|[xyz] turns: as long",
+                         text), n  # fmt: skip
+    assert "Target of the adaptive plan, worst σ/tolerance ≤ 1e-06: NOT met" in (
+        out / "AD1_result.txt"
+    ).read_text(encoding="utf-8")
     assert all(len(line) <= 80 for line in text.splitlines() if "Adaptive" in line)
 
 
