@@ -91,6 +91,7 @@ def _after_a_planner_record(text: str) -> bool:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(300)  # two sittings, a fit per planner step: 80 s alone at load 20
 @pytest.mark.parametrize("cut", [_within_an_extra_pair, _after_extra_pair, _after_a_planner_record])
 def test_a_resumed_adaptive_session_keeps_every_record_and_asks_the_engine(
     tmp_path: Path, cut: Callable[[str], bool]
