@@ -120,7 +120,7 @@ def test_a_repeated_pose_is_measured_where_the_unit_is_and_the_fit_holds(
     keys = [" ", "y", " ", "y", " ", "n"] + [" ", "y"] * 9  # pose_03's first attempt repeated
     con = ScriptedConsole(keys)
     ports = Ports()
-    o = opts(tmp_path, f"sim://?seed=3&{LINEAR}", plan="poses", static_seconds=3.0,
+    o = opts(tmp_path, f"sim://?seed=3&noise_seed=3&{LINEAR}", plan="poses", static_seconds=3.0,
              max_extra=0, yes=False)  # fmt: skip
     rc, _ = run(o, con, ports)
     assert rc in (0, 1), con.text[-2000:]
