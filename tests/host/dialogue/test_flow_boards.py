@@ -271,3 +271,34 @@ def test_resume_of_an_interrupted_sitting_completes_every_board(tmp_path: Path) 
     for s in (41, 42):
         got = result(tmp_path, f"U{s}")
         assert sorted(got["records"]) == sorted(ALL), (s, got["records"])
+
+
+# --------------------------------------------------------------------------- one cube
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_boards_in_one_cube_each_calibrate_their_own_mounting(tmp_path: Path) -> None:
+    """Two boards at two places of one virtual cube (one operator's motion, each its own
+    mounting misalignment): each board's constants recover its own unit and mounting within
+    5σ, and their accelerometer misalignments differ by far more than their σ — nothing of
+    one board's fit is shared with the other's."""
+    u = [f"sim://?seed={s}&noise_seed={s}&cube=3&slot={k}&{LINEAR}" for k, s in enumerate((61, 62))]
+    o = dataclasses.replace(
+        live_opts(tmp_path, u[0], serial="C61", out=tmp_path, static_seconds=3.0, turns=1),
+        more_boards=((u[1], "C62"),),
+    )
+    ports = Ports()
+    rc, _ = run(o, ScriptedConsole(), ports)
+    assert rc in (0, 1)
+    fitted = []
+    for url, s in zip(u, ("C61", "C62"), strict=True):
+        got = result(tmp_path, s)
+        z = pulls(got, ports.opened[url].truth.constants())
+        assert len(z) >= 20 and max(abs(v) for _, v in z) < 5.0, (
+            s,
+            max(z, key=lambda p: abs(p[1])),
+        )
+        fitted.append({p["name"]: p for p in got["parameters"]})
+    a, b = (f["Axy"] for f in fitted)
+    assert abs(a["value"] - b["value"]) > 5 * np.hypot(a["stderr"], b["stderr"])
