@@ -487,3 +487,69 @@ def test_an_enter_typed_with_a_one_key_answer_is_not_the_next_answer(
     assert re.search(r"seconds[^\n]*: 2\r?\n", s.text), s.text[-2000:]
     out = tmp_path / "K1"
     assert sorted(p.name for p in out.glob("*.txt")) == ["K1_x_dn.txt", "K1_x_up.txt"]
+
+
+def one_line(text: str) -> str:
+    """The screen's words with every run of whitespace (line breaks of an 80-column wrap,
+    redraws) as one space."""
+    return re.sub(r"\s+", " ", text.replace("\x1b[K", ""))
+
+
+@pytest.mark.slow
+def test_a_warm_up_ended_by_a_key_is_not_called_a_warm_unit_on_resume(
+    tmp_path: Path, screens: list[Screen]
+) -> None:
+    """80×24: the warm-up ended by a key after x_up is kept; --resume then said "the kept
+    records were measured on a warm unit". It says no whole warm-up was recorded."""
+    url = board_url("sim", 26, "max")
+    s = Screen(["--port", url, "--serial", "W1", "--warmup", "3600", "--static-seconds", "2"],
+               tmp_path, size=(24, 80))  # fmt: skip
+    screens.append(s)
+    s.expect(r"warm-up", timeout=60)
+    s.send(" ")  # ends the warm-up an hour early
+    s.expect(r"Measure the 6 static orientations <Y>", timeout=60)
+    s.send("y")
+    s.expect(r"with X up[^\n]*\n?[^\n]*Press\s+any\s+key\.")
+    s.send(" ")
+    s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
+    s.send("y")
+    s.expect(r"Saved .*W1_x_up\.txt")
+    s.send("\x03")
+    assert s.wait() == 130
+    assert not (tmp_path / "W1" / "W1_warmup.txt").exists()  # no whole warm-up was recorded
+    r = Screen(["--port", url, "--serial", "W1", "--resume"], tmp_path, size=(24, 80))
+    screens.append(r)
+    r.expect(r"Measure the 6 static orientations <Y>", timeout=60)
+    r.send("\x03")
+    assert r.wait() == 130
+    said = one_line(r.text)
+    assert "no whole warm-up was recorded before them (it was ended by a key or not made)" in said
+    assert "measured on a warm unit" not in said
+
+
+@pytest.mark.slow
+def test_redo_says_what_it_keeps_in_redo_words(tmp_path: Path, screens: list[Screen]) -> None:
+    """80×24: --redo x_up on a whole session said the turns were "already measured
+    (--resume)"; it names --redo and the one record it measures again."""
+    url = board_url("sim", 27, "max")
+    first = subprocess.run(
+        CMD + ["--port", url, "--serial", "R1", "--yes", "--warmup", "0", "--static-seconds",
+               "2", "--turns", "1", "--ready-seconds", "0"],
+        cwd=tmp_path, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120,
+        env=dict(os.environ, PYTHONPATH=str(ROOT)), start_new_session=True,
+    )  # fmt: skip
+    assert first.returncode in (0, 1), first.stderr[-2000:]
+    s = Screen(["--port", url, "--serial", "R1", "--redo", "x_up"], tmp_path, size=(24, 80))
+    screens.append(s)
+    s.expect(r"Measure the 6 static orientations <Y>", timeout=60)
+    s.send("y")
+    s.expect(r"with X up[^\n]*\n?[^\n]*Press\s+any\s+key\.")
+    s.send(" ")
+    s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
+    s.send("y")
+    s.expect(r"already\s+measured", timeout=60)
+    s.send("\x03")
+    assert s.wait() in (0, 1, 130)
+    said = one_line(s.text)
+    assert "already measured (kept: --redo measures x_up only)" in said, said[-1500:]
+    assert "(--resume)" not in said
