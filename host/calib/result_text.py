@@ -35,23 +35,41 @@ class Summarized(Judged, Protocol):
     def simulated(self) -> bool: ...
 
 
+#: the verdict is the screen's last line: at most this many characters (an 80-column terminal)
+VERDICT_WIDTH = 80
+
+
 def verdict_line(r: Judged) -> str:
     """PASS, FAIL or INCOMPLETE and why, in one line. INCOMPLETE (not a pass) names the
     method's records not measured, then any other reason. ``PASS (conditional: the model
     does not fit, RMS z 8.35)`` when the PASS is conditional; a FAIL on a model that does
     not fit says so as its last reason; values whose ± U reaches across a limit (``?``
     under guarded acceptance, :mod:`host.calib.decision`) are named as undecided; ``—
-    self-test not run`` ends the line when the self-test was skipped."""
+    self-test not run`` ends the line when the self-test was skipped. The undecided values
+    are named up to three, fewer (then only counted) where the line would pass
+    :data:`VERDICT_WIDTH` characters."""
     fit = r.fit
     skipped = " — self-test not run" if r.self_test == "not run" else ""
     if all_passed(r) and fit is not None and misfit(r):
         return f"PASS (conditional: the model does not fit, RMS z {fit.rms_z:.2f}){skipped}"
     if all_passed(r):
         return "PASS: every value within tolerance" + skipped
+    line = ""
+    for most in (3, 2, 1, 0):
+        line = _failed_line(r, most) + skipped
+        if len(line) <= VERDICT_WIDTH:
+            break
+    return line
+
+
+def _failed_line(r: Judged, most: int) -> str:
+    """FAIL or INCOMPLETE and its reasons, naming up to ``most`` undecided values (0: only
+    their count)."""
     bad, unsure = outside(r), undecided(r)
     why = [f"{len(bad)} value(s) outside tolerance or not determined"] if bad else []
     if unsure:
-        why.append(f"{_names(unsure)} undecided (± U across a limit)")
+        names = _names(unsure, most) if most else f"{len(unsure)} values"
+        why.append(f"{names} undecided (± U across a limit)")
     if r.verification is not None and not r.verification.passed:
         why.append("held-out records not predicted within the limits")
     if r.self_test == "fail":
@@ -60,8 +78,8 @@ def verdict_line(r: Judged) -> str:
         why.append("the model does not fit")
     if gone := missing_records(r):
         head = f"INCOMPLETE: {_names(gone, 6)} not measured"
-        return "; ".join([head, *why]) + skipped
-    return f"FAIL: {'; '.join(why)}{skipped}"
+        return "; ".join([head, *why])
+    return f"FAIL: {'; '.join(why)}"
 
 
 def _names(names: list[str], most: int = 3) -> str:

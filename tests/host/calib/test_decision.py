@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 
 import pytest
 from hypothesis import given
@@ -16,6 +17,7 @@ from host.calib.codec import result_from_json, result_to_json
 from host.calib.decision import FAIL, PASS, RULES, UNDECIDED, check_rule, mark, statement
 from host.calib.report import format_report
 from host.calib.result import CalibrationResult, base_parameters
+from host.calib.verdict import undecided
 from host.session.method import CONSTANT_NAMES, NOISE_NAMES
 
 # exact binary fractions, so that "touching" is exact and not a rounding question
@@ -143,3 +145,25 @@ def test_the_resume_command_keeps_the_rule() -> None:
     assert "--decision-rule" not in default.command_words(
         "R2", static_seconds=5.0, turns=1, port="sim://"
     )
+
+
+def test_a_verdict_with_many_undecided_values_keeps_to_80_columns() -> None:
+    """Up to nine values with ± U across their limit (and a failed self-test on top): the
+    verdict, the screen's last line, stays within 80 characters (the README's session ended
+    on an 85-character verdict that an 80-column terminal wrapped), still says FAIL, and
+    names or counts every undecided value."""
+    names = ["Gxx", "Gyy", "Gzz", "Gxy", "Gxz", "Gyx", "Gyz", "Gzx", "Gzy"]
+    se = {n: 1e-4 for n in CONSTANT_NAMES} | {n: 0.0095 for n in names}
+    for k in (1, 2, 4, 6, 9):
+        r = _result({n: 0.0168 for n in names[:k]}, se, "guarded")
+        r = dataclasses.replace(r, self_test="fail") if k == 9 else r
+        line, unsure = r.verdict(), undecided(r)
+        assert len(unsure) >= k // 2, unsure  # the case is what it says
+        assert len(line) <= 80 and line.startswith("FAIL: "), line
+        counted = re.search(r"(\d+) values undecided|and (\d+) more undecided", line)
+        named = [n for n in unsure if re.search(rf"\b{n}\b", line)]
+        if counted and counted.group(1):
+            assert int(counted.group(1)) == len(unsure), line
+        else:
+            extra = int(counted.group(2)) if counted else 0
+            assert len(named) + extra == len(unsure), line
