@@ -62,6 +62,54 @@ SEPARATES: tuple[tuple[str, str], ...] = (
 )  # fmt: skip
 
 
+#: the record kinds of a session without a cube (hand-held poses and the moves between them)
+POSE_KINDS = frozenset({"pose", "move"})
+
+#: the advice's cube phrases and their form for a session of poses and moves, which has no
+#: faces, turns or tilt_45_* (:func:`advice`; the longer phrases first)
+POSE_FORMS: tuple[tuple[str, str], ...] = (
+    ("45° attitudes (tilt_45_*: (f/g)², |f|/g and a face lean differ there), or the board "
+     "turned 90° in the fixture (a sensor effect turns with the board)",
+     "poses with gravity between two axes, about 45° from each ((f/g)² and |f|/g differ "
+     "there; python3 -m host plan DIR names the next pose the planner values most)"),
+    ("attitudes that are not the six faces (the 45° attitudes tilt_45_*), or the same faces "
+     "measured again after turning the board 90° in the fixture (a fixture error moves with "
+     "the fixture, a sensor effect with the sensor)",
+     "poses with gravity between two axes, about 45° from each"),
+    ("the accelerometer at several headings on the plate (the still moments inside the turn "
+     "records, a quarter turn or more apart), or static attitudes beyond the six faces "
+     "(tilt_45_*)", "poses with gravity between two axes, about 45° from each"),
+    ("the 45° attitudes tilt_45_*", "poses with gravity between two axes, about 45° from each"),
+    ("±1 g faces; CW and CCW turns about the axis",
+     "poses with the axis up and with it down; moves both ways about the axis"),
+    ("turns at another rate (a rate table, or turns made faster and slower)",
+     "moves at another rate (moves about the axis made faster and slower)"),
+    ("turns at several rates", "moves about the axis at several rates"),
+    ("turns about at least two axes", "moves about at least two axes"),
+    ("turns about them", "moves about them"),
+    ("each turn sees", "each move sees"),
+    ("(±1 g, turns)", "(the axis up and down, moves)"),
+    ("static records", "poses"),
+)  # fmt: skip
+
+
+def pose_session(ds: Dataset) -> bool:
+    """Is ``ds`` a session without a cube: every record a pose or a move?"""
+    kinds = {s.kind for s in ds.signals}
+    return bool(kinds) and kinds <= POSE_KINDS
+
+
+def advice(text: str, ds: Dataset) -> str:
+    """The records that would tell explanations apart (``text``, in a cube's words) as the
+    session's user can make them: unchanged on a cube session, in poses and moves
+    (:data:`POSE_FORMS`) on a session without a cube."""
+    if not pose_session(ds):
+        return text
+    for cube, poses in POSE_FORMS:
+        text = text.replace(cube, poses)
+    return text
+
+
 @dataclass(frozen=True)
 class Equals:
     """A group of explanations the records cannot tell apart, strongest first.
@@ -165,7 +213,7 @@ class EqualsFinder:
                 needs = catalogue[c.term].needs if c.term in catalogue else c.needs
                 self._pool.append(
                     _Explanation(c.label, c.sensor, c.axes, c.delta_chi2, t,
-                                 needs or "records in which its input varies apart")
+                                 advice(needs or "records in which its input varies apart", ds))
                 )  # fmt: skip
 
     def _channel_signals(self, sensor: str, axis: str) -> list[_Explanation]:
@@ -184,7 +232,8 @@ class EqualsFinder:
                 if not t.reason:
                     out.append(
                         _Explanation(signal_label(h), h.sensor, h.axis, t.delta, t,
-                                     _separates(h.signal), (h.sensor, h.axis, h.signal))
+                                     advice(_separates(h.signal), self._ds),
+                                     (h.sensor, h.axis, h.signal))
                     )  # fmt: skip
             self._signals[key] = out
         return self._signals[key]

@@ -26,7 +26,7 @@ from host.model.signals import AXES
 from host.model.spec import ModelTerm
 from host.model.stats import chi2_sf
 from host.workbench.candidates import Candidate, Tried, conditional_delta, try_term
-from host.workbench.equals import Equals, signal_label, signal_term
+from host.workbench.equals import Equals, advice, signal_label, signal_term
 from host.workbench.scan import ScanHit
 from host.workbench.steps import STEP
 
@@ -128,6 +128,7 @@ def _group(ds: Dataset, c: Candidate, h: ScanHit, th: Tried) -> Equals:
     """The group of equals of a term and a step."""
     return Equals(
         (c.label, signal_label(h)), (c.label,), (c.delta_chi2, th.delta),
-        (c.needs or "records in which its input varies apart", separating_record(ds, h)),
+        (advice(c.needs or "records in which its input varies apart", ds),
+         separating_record(ds, h)),
         ((h.sensor, h.axis, h.signal),),
     )  # fmt: skip
