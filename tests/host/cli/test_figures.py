@@ -215,6 +215,7 @@ def _diagnosis_sessions(root: Path) -> list[tuple[Path, str]]:
     return out
 
 
+@pytest.mark.timeout(300)  # ~50 s of CPU idle; timed out at 120 s on a loaded machine
 @pytest.mark.slow
 def test_diagnose_plot_draws_on_every_session_of_the_diagnosis_tests(tmp_path: Path) -> None:
     from tests.host.cli.cli_run import run
