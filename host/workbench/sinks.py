@@ -28,7 +28,7 @@ from host.model.dataset import Dataset
 from host.model.design import BuiltColumns
 from host.model.fit import fit_model
 from host.model.noise import still_runs
-from host.model.signals import AXES, RecordSignals
+from host.model.signals import AXES, RecordSignals, true_runs
 from host.model.spec import ModelTerm
 from host.model.stats import chi2_sf
 from host.model.variance import Component
@@ -117,6 +117,10 @@ def what_absorbed(
 # ---- the gyro at a turn's rests ---------------------------------------------------------------
 #: a turn record's rests are read where the cube is still at least this long, s
 REST_MIN_S = 0.3
+#: a change between a turn's first and last rest is a step only beyond this many σ: a hand's
+#: settling leaves the last rest's samples less white than the face's (|z| 3.7 with no gyro
+#: step, on an independent session; steps of 0.05–0.5 °/s read 12–60)
+INNER_Z_MIN = 5.0
 
 
 @dataclass(frozen=True)
@@ -139,10 +143,14 @@ class RestChange:
 
 
 def _rests(sig: RecordSignals, sd: float) -> list[tuple[int, int]]:
+    """The turn's rests, each slow stretch (under 2 °/s about up) read about its own level: a
+    bias step between two rests moves the later one's, and it is still a rest."""
     t = sig.t_s - sig.t_s[0]
     rate = sig.rate @ sig.up
-    slow = np.abs(rate) < 2.0  # the rests, read about their own level (a bias step moves it)
-    runs = still_runs(rate - (float(np.median(rate[slow])) if np.any(slow) else 0.0), t, sd)
+    level = np.zeros_like(rate)
+    for i, j in true_runs(np.abs(rate) < 2.0):
+        level[i:j] = float(np.median(rate[i:j]))
+    runs = still_runs(rate - level, t, sd)
     return [(a, b) for a, b in runs if t[b - 1] - t[a] >= REST_MIN_S]
 
 
@@ -156,9 +164,11 @@ def _face_static(ds: Dataset, turn: RecordSignals) -> RecordSignals | None:
 
 def rest_changes(ds: Dataset) -> list[RestChange]:
     """Every turn record's gyro at its first rest against the static of its face (a bias change
-    between them), per channel: the mean's σ from the static's own per-sample scatter (white)
-    and the floor. (Its last rest against its first is not compared: the hand's settling at the
-    end of a turn moved that mean by 4σ of the white noise on a drift session.)"""
+    between them), and at its last rest against its first (a change inside the turn), per
+    channel: the means' σ from the static's own per-sample scatter (white) and the floor (the
+    unit's wander, which moves two rests of one turn apart as it moves two records). The last
+    rest is read on its second half: the hand's settling at the end of a turn moved its whole
+    mean by 4σ of the white noise on a drift session."""
     out: list[RestChange] = []
     floor = float(ds.floor.get("gyro", 0.0)) if ds.floor else 0.0
     for sig in ds.signals:
@@ -170,14 +180,35 @@ def rest_changes(ds: Dataset) -> list[RestChange]:
         if not runs:
             continue
         first = runs[0]
-        for a in range(3):
-            m0 = float(np.mean(sig.gyro[first[0] : first[1], a]))
-            ms = float(np.mean(face.gyro[:, a]))
-            v = float(sd[a]) ** 2
-            s0 = math.sqrt(v / (first[1] - first[0]) + v / len(face.t_s) + 2 * floor**2)
-            t0 = float(sig.t_s[first[0]])
-            out.append(RestChange(sig.name, face.name, AXES[a], m0 - ms, s0,
-                                  float(face.t_s[-1]), t0))  # fmt: skip
+        out += _changes(sig, first, face.gyro, sd, face.name, float(face.t_s[-1]), floor)
+        if len(runs) > 1:
+            a, b = runs[-1]
+            last = ((a + b) // 2, b)
+            t0 = float(sig.t_s[first[1] - 1])
+            out += _changes(sig, last, sig.gyro[first[0] : first[1]], sd,
+                            f"the first rest of {sig.name}", t0, floor)  # fmt: skip
+    return out
+
+
+def _changes(
+    sig: RecordSignals,
+    rest: tuple[int, int],
+    earlier: np.ndarray,
+    sd: np.ndarray,
+    since: str,
+    since_s: float,
+    floor: float,
+) -> list[RestChange]:
+    """The gyro's mean over ``rest`` of turn ``sig`` less the mean of ``earlier`` (M, 3) °/s,
+    per channel, σ from the per-sample scatter ``sd`` (3,) °/s and the ``floor`` °/s."""
+    n = rest[1] - rest[0]
+    t = float(sig.t_s[rest[0]])
+    out = []
+    for a in range(3):
+        m = float(np.mean(sig.gyro[rest[0] : rest[1], a])) - float(np.mean(earlier[:, a]))
+        v = float(sd[a]) ** 2
+        s = math.sqrt(v / n + v / len(earlier) + 2 * floor**2)
+        out.append(RestChange(sig.name, since, AXES[a], m, s, since_s, t))
     return out
 
 
@@ -188,14 +219,19 @@ def rest_hits(ds: Dataset, alpha: float) -> list[ScanHit]:
     m = max(len(changes), 1)
     best: dict[str, RestChange] = {}  # per channel the earliest significant change
     for c in sorted(changes, key=lambda c: c.lo_s):
+        inner = c.since.startswith("the first rest")
+        if inner and abs(c.z) < INNER_Z_MIN:
+            continue
         if c.axis not in best and chi2_sf(c.z**2, 1) * m <= alpha:
             best[c.axis] = c
     out = []
     for c in best.values():
-        name = (
-            f"{STEP} between {c.since} and the rest of {c.record} (the gyro at rest, "
-            f"{c.change:+.3g} ± {c.sigma:.1g} °/s)"
+        where = (
+            f"inside {c.record}, between its first rest and its last"
+            if c.since.startswith("the first rest")
+            else f"between {c.since} and the rest of {c.record}"
         )
+        name = f"{STEP} {where} (the gyro at rest, {c.change:+.3g} ± {c.sigma:.1g} °/s)"
         d2 = c.z**2
         placed = Placed(0.5 * (c.lo_s + c.hi_s), c.lo_s, c.hi_s, c.change, c.sigma, d2, d2)
         out.append(ScanHit("gyro", c.axis, name, math.copysign(1.0, c.change), d2,

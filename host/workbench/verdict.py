@@ -174,7 +174,9 @@ def _at_rest(
         if any(not _only_turns(t, ds, cat, built) for e in here for t in e.terms):
             continue
         groups = [e for e in groups if e not in here]
-        dominant.append(h)
+        # before the weaker signals named: a gyro step inside a turn leaves the accel a shadow
+        k = next((i for i, o in enumerate(dominant) if o.delta_chi2 < h.delta_chi2), None)
+        dominant.insert(len(dominant) if k is None else k, h)
         notes.append(
             f"the gyro at the turns' rests: {h.signal[len(STEP) + 1 :]}"
             + (f"; not {', '.join(t for e in here for t in e.terms)}, which give nothing at "

@@ -65,3 +65,14 @@ def test_an_accel_step_among_the_turns_with_no_rest_after_them_is_named(tmp_path
     results = [_named(tmp_path, effect, 7300 + k, closing=False) for k in range(SESSIONS)]
     missed = [said for ok, said in results if not ok]
     assert len(missed) <= 1, missed
+
+
+@pytest.mark.slow
+def test_a_gyro_step_inside_the_last_turn_with_no_rest_after_it_is_named(tmp_path: Path) -> None:
+    """No closing x_up_2: a gyro step inside z_cw, the last record, reaches only that turn's
+    integrals, which took it as the hand's turn angle or wobble or a scale asymmetry (named in
+    5 of 10, `adequate` in 1): the turn's last rest against its first reads it, on its channel."""
+    effect = "bias_step_gyro_at_in_last_turn"
+    results = [_named(tmp_path, effect, 7400 + k, closing=False) for k in range(SESSIONS)]
+    missed = [said for ok, said in results if not ok]
+    assert len(missed) <= 1, missed
