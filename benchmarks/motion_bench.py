@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.records_bench import best_of
 from host.bench.plan import Plan, simulate_session
 from host.bench.truth import SensorTruth
 from host.model import plate, turn_motion, turning
@@ -89,16 +89,6 @@ def reference_weighted_fit(x, y, var):  # type: ignore[no-untyped-def]
     beta = cov @ (xw.T @ (y * sw))
     lev = np.einsum("ij,jk,ik->i", xw, cov, xw)
     return beta, cov, y - x @ beta, np.clip(lev, 0.0, 1.0)
-
-
-def best_of(repeats: int, work: Callable[[], object]) -> float:
-    """The least CPU time of ``repeats`` runs of ``work``, s."""
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.process_time()
-        work()
-        best = min(best, time.process_time() - t0)
-    return best
 
 
 def motion_inputs(static_s: float, turns: int) -> tuple:

@@ -122,6 +122,7 @@ def channel_fits(
     rows a channel of their own (:data:`MOVES`)."""
     estimable = np.zeros(len(owners), dtype=bool)
     out: list[ChannelFit] = []
+    solved = _Solved(x, xw, wres, theta, cov, owners)
     joint = _pose_record_dof(ds, x, owners)  # with poses: over a sensor's channels together
     moving = move_rows(ds)
     # with poses a column reads several channels: each channel's dof is its rows' Σ(1 − h)
@@ -133,8 +134,7 @@ def channel_fits(
                 continue
             grs = [g for g in ds.groups if g.sensor == sensor and g.axis == ax
                    and ds.signals[g.record].kind != "move"]  # fmt: skip
-            chf = _channel(ds, x, xw, wres, theta, cov, owners, (sensor, ax), rows, grs,
-                           estimable, joint, free)  # fmt: skip
+            chf = _channel(solved, (sensor, ax), rows, grs, estimable, joint, free)
             out.append(chf)
     if moving.any():
         out.append(_moves_channel(wres, moving, free, joint))
@@ -154,14 +154,22 @@ def _moves_channel(
     return ChannelFit("gyro", MOVES, chi2, dof, joint.get("gyro", dof), stderr_scale(chi2, dof))
 
 
+@dataclass(frozen=True)
+class _Solved:
+    """What a channel's statistics read of the solved fit: the design ``x`` and the whitened
+    design ``xw``, the whitened residuals, the parameters ``theta`` with their covariance
+    ``cov``, and each column's owner."""
+
+    x: np.ndarray
+    xw: np.ndarray
+    wres: np.ndarray
+    theta: np.ndarray
+    cov: np.ndarray
+    owners: Owners
+
+
 def _channel(
-    ds: Dataset,
-    x: np.ndarray,
-    xw: np.ndarray,
-    wres: np.ndarray,
-    theta: np.ndarray,
-    cov: np.ndarray,
-    owners: Owners,
+    solved: _Solved,
     channel: tuple[str, int],
     rows: np.ndarray,
     grs: Sequence[Group],
@@ -171,6 +179,7 @@ def _channel(
 ) -> ChannelFit:
     """One channel's :class:`ChannelFit` from its ``rows`` and groups ``grs`` (``estimable``
     marked for the columns its rows determine; ``free`` each row's 1 − h, None: rows − rank)."""
+    x, xw, wres, owners = solved.x, solved.xw, solved.wres, solved.owners
     sensor, ax = channel
     cols = np.array(
         [c for c, o in enumerate(owners) if o[2] in ((sensor, ax), (sensor, -1))], dtype=int
@@ -202,7 +211,7 @@ def _channel(
         dof = int(round(float(np.sum(free[rows])))) - free_levels(grs)
     scale = stderr_scale(chi2, dof)
     combos = (
-        _combinations(cols, estimable, null, norms, theta, cov * scale**2, owners)
+        _combinations(cols, estimable, null, norms, solved.theta, solved.cov * scale**2, owners)
         if null.shape[1]
         else ()
     )

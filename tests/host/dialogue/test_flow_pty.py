@@ -489,6 +489,16 @@ def test_an_enter_typed_with_a_one_key_answer_is_not_the_next_answer(
     assert sorted(p.name for p in out.glob("*.txt")) == ["K1_x_dn.txt", "K1_x_up.txt"]
 
 
+def measure_x_up(s: Screen) -> None:
+    """Answer Y to measuring the statics, place x_up, and save it."""
+    s.expect(r"Measure the 6 static orientations <Y>", timeout=60)
+    s.send("y")
+    s.expect(r"with X up[^\n]*\n?[^\n]*Press\s+any\s+key\.")
+    s.send(" ")
+    s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
+    s.send("y")
+
+
 def one_line(text: str) -> str:
     """The screen's words with every run of whitespace (line breaks of an 80-column wrap,
     redraws) as one space."""
@@ -507,12 +517,7 @@ def test_a_warm_up_ended_by_a_key_is_not_called_a_warm_unit_on_resume(
     screens.append(s)
     s.expect(r"warm-up", timeout=60)
     s.send(" ")  # ends the warm-up an hour early
-    s.expect(r"Measure the 6 static orientations <Y>", timeout=60)
-    s.send("y")
-    s.expect(r"with X up[^\n]*\n?[^\n]*Press\s+any\s+key\.")
-    s.send(" ")
-    s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
-    s.send("y")
+    measure_x_up(s)
     s.expect(r"Saved .*W1_x_up\.txt")
     s.send("\x03")
     assert s.wait() == 130
@@ -541,12 +546,7 @@ def test_redo_says_what_it_keeps_in_redo_words(tmp_path: Path, screens: list[Scr
     assert first.returncode in (0, 1), first.stderr[-2000:]
     s = Screen(["--port", url, "--serial", "R1", "--redo", "x_up"], tmp_path, size=(24, 80))
     screens.append(s)
-    s.expect(r"Measure the 6 static orientations <Y>", timeout=60)
-    s.send("y")
-    s.expect(r"with X up[^\n]*\n?[^\n]*Press\s+any\s+key\.")
-    s.send(" ")
-    s.expect(r"Save <Y> or repeat <N>\? \[Y\]")
-    s.send("y")
+    measure_x_up(s)
     s.expect(r"already\s+measured", timeout=60)
     s.send("\x03")
     assert s.wait() in (0, 1, 130)
