@@ -147,6 +147,5 @@ def show_means(op: Questions, records: Sequence[tuple[str, Record]]) -> None:
 def lost_line(serial: str, name: str, why: str) -> str:
     """What is said of a board that left the sitting at record ``name`` (before the
     command that resumes it alone)."""
-    return (
-        f"board {serial} lost at record {name} ({why}): its session is incomplete; resume it with:"
-    )
+    at = "at the start" if name == "the start" else f"at record {name}"
+    return f"board {serial} lost {at} ({why}): its session is incomplete; resume it with:"

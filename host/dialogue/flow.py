@@ -144,8 +144,7 @@ class CalibrationDialogue(Recorder):
     def run(self) -> DialogueResult:
         for u in self.units:  # each board's identity, serial, directory and capture
             with self._on(u):
-                self._open_sitting()
-                self._start_capture()
+                self._join()
         for u in self.live:
             with self._on(u):
                 if self.several:
@@ -179,6 +178,20 @@ class CalibrationDialogue(Recorder):
             self._warn(f"left the sitting, their sessions incomplete: {', '.join(lost)}")
         head = outcomes[0] if outcomes else DialogueResult(self.units[0].out_dir)
         return replace(head, others=outcomes[1:], lost=lost)
+
+    def _join(self) -> None:
+        """The board in hand joins the sitting (:meth:`_open_sitting`, its capture started);
+        in a sitting of several, one that cannot be opened or does not answer leaves it,
+        named, and the others go on."""
+        try:
+            self._open_sitting()
+            self._start_capture()
+        except UserError as exc:
+            if not self.several:
+                raise
+            if self.out_dir == Path():  # not known yet: where its own command would write
+                self.out_dir = self.opts.out_dir_for(self.serial)
+            self._drop(self.unit, str(exc).split(";")[0])
 
     def _open_sitting(self) -> None:
         """The board's identity, the serial number, the output directory locked and what of

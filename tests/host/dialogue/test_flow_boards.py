@@ -18,6 +18,7 @@ import serial
 from host.board.link import open_port
 from host.dialogue import options
 from host.dialogue.console import ScriptedConsole
+from host.errors import ResumableError
 from host.session.directory import read_record
 from host.session.records import STATIC_NAMES, TURN_NAMES
 from tests.host.cli.cli_run import command_after
@@ -230,6 +231,39 @@ def test_a_board_that_vanishes_leaves_the_others_complete(tmp_path: Path) -> Non
     for s in (31, 33):
         got = result(tmp_path, f"U{s}")
         assert len(got["records"]) == len(ALL)
+
+
+def test_a_board_that_cannot_be_opened_leaves_the_sitting_at_the_start(tmp_path: Path) -> None:
+    """The second board's port does not exist: it is named at the start with the reason and
+    its own command, it leaves no directory of records, the first board's session is
+    complete and the exit status is 1 (a session is incomplete)."""
+    o = sitting(tmp_path, [41, 42])
+    missing = str(tmp_path / "no-such-port")
+    o = dataclasses.replace(o, more_boards=((missing, "U42"),))
+    con = ScriptedConsole()
+    rc, _ = run(o, con, Ports())
+    assert rc == 1
+    said = " ".join(con.text.replace("\\\n", " ").split())
+    assert "board U42 lost at the start (cannot open" in said and missing in said
+    alone = said.split("resume it with: ")[1]
+    assert alone.startswith("python3 -m host calibrate --port") and "--serial U42" in alone
+    assert not list(tmp_path.glob("U42/U42_*"))
+    assert len(result(tmp_path, "U41")["records"]) == len(ALL)
+    assert "left the sitting, their sessions incomplete: U42" in said
+
+
+def test_a_sitting_whose_every_board_cannot_be_opened_ends_naming_each(tmp_path: Path) -> None:
+    """No port of the sitting opens: each board is named, then the sitting ends with an
+    error that says so, no result written."""
+    o = sitting(tmp_path, [43, 44])
+    gone = [str(tmp_path / f"no-port-{k}") for k in (1, 2)]
+    o = dataclasses.replace(o, port=gone[0], more_boards=((gone[1], "U44"),))
+    con = ScriptedConsole()
+    with pytest.raises(ResumableError, match="every board left the sitting at the start"):
+        run(o, con, Ports())
+    said = " ".join(con.text.split())
+    assert "board U43 lost at the start" in said and "board U44 lost at the start" in said
+    assert not list(tmp_path.rglob("*_result.json"))
 
 
 # --------------------------------------------------------------------------- resume
