@@ -144,8 +144,8 @@ def show_means(op: Questions, records: Sequence[tuple[str, Record]]) -> None:
         )
 
 
-def lost_line(serial: str, name: str, why: str) -> str:
-    """What is said of a board that left the sitting at record ``name`` (before the
-    command that resumes it alone)."""
-    at = "at the start" if name == "the start" else f"at record {name}"
+def lost_line(serial: str, record: str, why: str) -> str:
+    """What is said of a board that left the sitting at ``record`` (empty: at the start,
+    before any record) before the command that resumes it alone."""
+    at = f"at record {record}" if record else "at the start"
     return f"board {serial} lost {at} ({why}): its session is incomplete; resume it with:"

@@ -189,16 +189,15 @@ class CalibrationDialogue(Recorder):
         except UserError as exc:
             if not self.several:
                 raise
-            if self.out_dir == Path():  # not known yet: where its own command would write
-                self.out_dir = self.opts.out_dir_for(self.serial)
             self._drop(self.unit, str(exc).split(";")[0])
 
     def _open_sitting(self) -> None:
         """The board's identity, the serial number, the output directory locked and what of
         it is kept."""
         op, opts = self.op, self.opts
-        if self.several:  # known before the board speaks: its warnings name it
+        if self.several:  # known before the board speaks: its warnings and leaving name it
             self.serial = self._given_serial() or ""
+            self.out_dir = opts.out_dir_for(self.serial)
         if self.unit is self.units[0]:
             screens.show_opening(op, self.board.url)
         info = self._connect()

@@ -164,7 +164,8 @@ class Recorder(UnitsInHand):
         words = self.opts.alone(unit.serial, unit.board.url, unit.out_dir).command_words(
             unit.serial, static_seconds=self.static_seconds, turns=self.turns,
             port=unit.board.url)  # fmt: skip
-        self.op.say(said_with_command("!!! " + lost_line(unit.serial, name, why), words, first=0))
+        lost = lost_line(unit.serial, self._measuring, why)
+        self.op.say(said_with_command("!!! " + lost, words, first=0))
         unit.board.close()
         if unit.sitting is not None:
             unit.sitting.release()
