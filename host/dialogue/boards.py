@@ -11,7 +11,8 @@ single board's screens are unchanged (:mod:`host.dialogue.screens`).
 
 A board that leaves the sitting (its port vanished and did not come back, a failed sensor, or
 the operator dropped it) is :attr:`Unit.lost`: its accepted records stay in its directory, its
-own command that resumes it alone is said (:func:`lost_line`), and the others go on.
+own command that resumes it alone is said with where it was lost — the record, the self-test
+or the start (:func:`lost_line`) — and the others go on.
 """
 
 from __future__ import annotations
@@ -144,8 +145,15 @@ def show_means(op: Questions, records: Sequence[tuple[str, Record]]) -> None:
         )
 
 
-def lost_line(serial: str, record: str, why: str) -> str:
-    """What is said of a board that left the sitting at ``record`` (empty: at the start,
-    before any record) before the command that resumes it alone."""
-    at = f"at record {record}" if record else "at the start"
+def lost_at(record: str, self_test: bool = False) -> str:
+    """Where in the sitting a board left it: during the self-test (``self_test``), else at
+    ``record``, the record being measured (empty: at the start, before any record)."""
+    if self_test:
+        return "during the self-test"
+    return f"at record {record}" if record else "at the start"
+
+
+def lost_line(serial: str, at: str, why: str) -> str:
+    """What is said of a board that left the sitting ``at`` (:func:`lost_at`) before the
+    command that resumes it alone."""
     return f"board {serial} lost {at} ({why}): its session is incomplete; resume it with:"

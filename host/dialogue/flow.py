@@ -25,7 +25,10 @@ Interruptions (decided here, the method says Ctrl+C "discards everything"):
 * **The board vanishes** (cable pulled: LinkLost) or **goes silent** for 2 s (LinkTimeout):
   the message appears at once, the measurement in progress is discarded, accepted records are
   kept; the port is re-opened every second (Esc/Ctrl+C give up; ``--yes`` gives up after
-  :data:`host.dialogue.recorder.YES_RECONNECT_S`) and the same measurement is proposed again.
+  :data:`host.dialogue.recorder.YES_RECONNECT_S`) and the same measurement (or the self-test)
+  is proposed again. In a sitting of several boards, in every step from the self-test on, only
+  the board that vanished is waited for; one that does not come back leaves the sitting, named
+  with where it was lost (:func:`host.dialogue.boards.lost_line`), and the others go on.
 
 ``--resume``: records already in the output directory (and readable, same serial) are not
 measured again — every one, the repeats (``x_ccw_2``, the adaptive planner's) too, kept in the
@@ -145,11 +148,7 @@ class CalibrationDialogue(Recorder):
         for u in self.units:  # each board's identity, serial, directory and capture
             with self._on(u):
                 self._join()
-        for u in self.live:
-            with self._on(u):
-                if self.several:
-                    self.op.say(f"{u.serial}:")
-                self._self_test()
+        self._self_tests()
         self._warm_up()
         if self.opts.planning.plan in ("poses", "poses16"):  # no cube: poses and moves
             poses.measure_poses(self, self.opts)
@@ -332,10 +331,34 @@ class CalibrationDialogue(Recorder):
             if self.static_seconds is None and static:  # asked once, when they were measured
                 self.static_seconds = screens.kept_accumulation(self.op, static)
 
-    def _self_test(self) -> None:
-        """The MPU-6000's self-test, into every record's header (measurement.self_test)."""
+    def _self_tests(self) -> None:
+        """The MPU-6000's self-test of each board still in the sitting, one after the other
+        (several: each under its serial), into every record's header (measurement.self_test).
+        A board that vanishes or goes silent is waited for as in every other step
+        (:meth:`_recover_unit`); in a sitting of several, one that does not come back leaves
+        the sitting, named as lost during the self-test, and the others go on."""
         run = self.opts.schedule.self_test
-        self_test(self.board, self.op, YES_MAX_ATTEMPTS, lambda e: self._recover(e, False), run)
+        self.in_self_test = True
+        try:
+            for u in self.live:
+                if u.lost is not None:  # left while an earlier board's self-test asked
+                    continue
+                with self._on(u):
+                    if self.several:
+                        self.op.say(f"{u.serial}:")
+                    self_test(u.board, self.op, YES_MAX_ATTEMPTS, self._self_test_back(u), run)
+        finally:
+            self.in_self_test = False
+
+    def _self_test_back(self, unit: Unit) -> Callable[[Exception], bool]:
+        """How the self-test of ``unit`` waits for its board (:meth:`_recover_unit`): True
+        when it is back (the self-test is tried again), False when it left the sitting."""
+
+        def recover(exc: Exception) -> bool:
+            self._recover_unit(unit, exc, measuring=False)
+            return unit.lost is None
+
+        return recover
 
     def _warm_up(self) -> None:
         """The warm-up (method.md §5 step 3), recorded as ``SERIAL_warmup.txt``: one attitude,

@@ -195,13 +195,14 @@ def self_test(
     board: Board,
     op: Questions,
     attempts: int,
-    recover: Callable[[Exception], None],
+    recover: Callable[[Exception], bool],
     run: bool = True,
 ) -> None:
     """The MPU-6000's self-test (:meth:`host.board.driver.Board.self_test`) with the cube
     still, shown line by line; a failure is announced (it fails the calibration). Without a
     verdict because the cube moved, the operator may repeat it, up to ``attempts`` times.
-    ``recover(exc)`` waits for a board that vanished (then the self-test is tried again).
+    ``recover(exc)`` waits for a board that vanished: True, it is back (the self-test is tried
+    again); False, it left the sitting (nothing more is asked of it).
     ``run`` False (``--no-self-test``): not run, and every record's header says so."""
     if not run:
         board.self_test_result = SelfTest(NOT_RUN, "skipped with --no-self-test", (), 0)
@@ -213,7 +214,8 @@ def self_test(
             st = board.self_test()
         except (LinkLost, LinkTimeout) as exc:
             op.say(f"!!! the self-test is not recorded: {exc}")
-            recover(exc)
+            if not recover(exc):
+                return
             continue
         for line in st.lines():
             op.say(line)

@@ -24,7 +24,7 @@ from host.board.link import LinkLost, LinkTimeout
 from host.calib.calibration import stage1
 from host.calib.commands import ERROR_LEAD, said_with_command
 from host.dialogue import screens
-from host.dialogue.boards import Unit, UnitsInHand, lost_line, show_means
+from host.dialogue.boards import Unit, UnitsInHand, lost_at, lost_line, show_means
 from host.dialogue.console import Console, Questions
 from host.dialogue.measurement import (
     PLACED,
@@ -98,6 +98,8 @@ class Recorder(UnitsInHand):
         self._session_start_ns = time.monotonic_ns()
         #: True while the warm-up runs (Ctrl+C there discards no measurement)
         self.in_warm_up = False
+        #: True while the boards' self-tests run (a board lost then is named so)
+        self.in_self_test = False
         #: the record being measured (what a board that leaves the sitting is named at)
         self._measuring = ""
 
@@ -160,17 +162,17 @@ class Recorder(UnitsInHand):
         """``unit`` leaves the sitting: named, with the command that resumes it alone; its
         records stay, its directory is released. The last unit to leave ends the sitting."""
         unit.lost = why
-        name = self._measuring or "the start"
+        at = lost_at(self._measuring, self.in_self_test)
         words = self.opts.alone(unit.serial, unit.board.url, unit.out_dir).command_words(
             unit.serial, static_seconds=self.static_seconds, turns=self.turns,
             port=unit.board.url)  # fmt: skip
-        lost = lost_line(unit.serial, self._measuring, why)
+        lost = lost_line(unit.serial, at, why)
         self.op.say(said_with_command("!!! " + lost, words, first=0))
         unit.board.close()
         if unit.sitting is not None:
             unit.sitting.release()
         if not self.live:
-            raise ResumableError(f"every board left the sitting at {name}")
+            raise ResumableError(f"every board left the sitting {at}")
 
     def command(self, then: Sequence[str] = ("--resume",)) -> str:
         """This session's command line (every option given or answered) plus ``then``."""

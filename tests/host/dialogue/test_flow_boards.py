@@ -233,6 +233,71 @@ def test_a_board_that_vanishes_leaves_the_others_complete(tmp_path: Path) -> Non
         assert len(got["records"]) == len(ALL)
 
 
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_a_board_lost_during_the_self_test_leaves_the_others_complete(tmp_path: Path) -> None:
+    """The second of three boards is unplugged for good during its self-test: it is waited
+    for (1 s), then named as lost during the self-test with its own resume command; the third
+    board's self-test still runs, and the first and third sessions are complete, every record
+    saying the self-test passed; the exit status is 1 (a session is incomplete)."""
+    u = urls([35, 36, 37])
+    ports = Ports(vanish={u[1]: 0.8})  # simulated s: its HELLO by 0.2 s, its self-test to 1.6 s
+    con = ScriptedConsole()
+    rc, _ = run(sitting(tmp_path, [35, 36, 37], reconnect_timeout_s=1.0), con, ports)
+    assert rc == 1
+    said = " ".join(con.text.replace("\\\n", " ").split())
+    assert "U36: the board on " in said and "is gone" in said  # waited for, as in a record
+    why = "the board did not come back within 1 s"
+    assert f"board U36 lost during the self-test ({why})" in said, con.text[:3000]
+    assert said.count("board U36 lost") == 1 and "lost at record" not in said
+    alone = said.split("resume it with: ")[1]
+    assert alone.startswith("python3 -m host calibrate --port") and "--serial U36" in alone
+    assert said.index("U37: MPU-6000 self-test") > said.index("board U36 lost")
+    assert not list((tmp_path / "U36").glob("U36_*.txt"))
+    assert not (tmp_path / "U36" / "U36_result.json").exists()
+    for s in (35, 37):
+        assert len(result(tmp_path, f"U{s}")["records"]) == len(ALL)
+        for n in ALL:
+            assert read_record(tmp_path / f"U{s}" / f"U{s}_{n}.txt").meta["self_test"] == "pass"
+    assert "left the sitting, their sessions incomplete: U36" in said
+
+
+@pytest.mark.slow
+def test_a_board_back_during_its_self_test_runs_it_again_and_stays(tmp_path: Path) -> None:
+    """The second board's cable is pulled during its self-test and the board comes back
+    (``fault=pull_cable``): it alone is waited for, its self-test is run again and passes,
+    and both sessions are complete."""
+    o = sitting(tmp_path, [38, 39], reconnect_timeout_s=10.0)
+    o = dataclasses.replace(o, more_boards=((urls([39])[0] + "&fault=pull_cable@0.8", "U39"),))
+    con = ScriptedConsole()
+    rc, _ = run(o, con, Ports())
+    assert rc in (0, 1)
+    mine = con.text.split("U39:\n", 1)[1].split("Measure the 6 static")[0]
+    assert "!!! the self-test is not recorded" in mine and "The board is back" in mine
+    assert mine.count("MPU-6000 self-test: PASS") == 1 and "lost" not in con.text
+    for s in (38, 39):
+        got = result(tmp_path, f"U{s}")
+        assert len(got["records"]) == len(ALL) and got["self_test"] == "pass"
+
+
+@pytest.mark.slow
+def test_a_sitting_whose_every_board_is_lost_in_the_self_test_ends_naming_each(
+    tmp_path: Path,
+) -> None:
+    """Both boards unplugged for good during their self-tests: each is named as lost during
+    the self-test, then the sitting ends with an error that says so, no result written."""
+    u = urls([45, 46])
+    ports = Ports(vanish={u[0]: 0.8, u[1]: 0.8})
+    con = ScriptedConsole()
+    o = sitting(tmp_path, [45, 46], reconnect_timeout_s=1.0)
+    with pytest.raises(ResumableError, match="every board left the sitting during the self-test"):
+        run(o, con, ports)
+    said = " ".join(con.text.split())
+    for s in (45, 46):
+        assert f"board U{s} lost during the self-test" in said
+    assert not list(tmp_path.rglob("*_result.json"))
+
+
 def test_a_board_that_cannot_be_opened_leaves_the_sitting_at_the_start(tmp_path: Path) -> None:
     """The second board's port does not exist: it is named at the start with the reason and
     its own command, it leaves no directory of records, the first board's session is

@@ -11,7 +11,11 @@ import pytest
 
 from host.__main__ import main
 from host.archive.store import Archive
+from host.board.link import LinkLost
 from host.calib.codec import read_result
+from host.dialogue.boards import lost_at, lost_line
+from host.dialogue.console import Questions, ScriptedConsole
+from host.dialogue.measurement import self_test
 from host.session.directory import read_record
 from host.session.records import STATIC_NAMES
 from tests.host.dialogue.flat_options import flat_options
@@ -88,3 +92,35 @@ def test_no_self_test_is_kept_by_the_resume_command_and_refused_with_from_dir(
     assert main(["calibrate", "--from-dir", str(tmp_path), "--no-self-test"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--no-self-test is for a live calibration" in err[0]
+
+
+class _Unplugged:
+    """A board whose link is gone at each self-test."""
+
+    def __init__(self) -> None:
+        self.tries = 0
+
+    def self_test(self) -> None:
+        self.tries += 1
+        raise LinkLost("the board disconnected")
+
+
+def test_a_board_lost_in_its_self_test_is_tried_again_only_while_it_is_back() -> None:
+    """measurement.self_test: each lost link is said and handed to ``recover``; the
+    self-test is tried again while ``recover`` says the board is back (one board, or a board
+    of a sitting that came back), up to the attempts, and never again once it says the board
+    left the sitting. Where such a board is named as lost: during the self-test."""
+    for back, tries in ((True, 3), (False, 1)):
+        board, con, seen = _Unplugged(), ScriptedConsole(), list[Exception]()
+
+        def recover(exc: Exception, back: bool = back, seen: list[Exception] = seen) -> bool:
+            seen.append(exc)
+            return back
+
+        self_test(board, Questions(con, yes=True), 3, recover)  # type: ignore[arg-type]
+        assert board.tries == len(seen) == tries
+        assert con.text.count("!!! the self-test is not recorded: the board disconnected") == tries
+    assert lost_at("", self_test=True) == "during the self-test"
+    assert (lost_at(""), lost_at("y_dn")) == ("at the start", "at record y_dn")
+    line = lost_line("U36", lost_at("", self_test=True), "the board did not come back")
+    assert line.startswith("board U36 lost during the self-test (the board did not come back)")
