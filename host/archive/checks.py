@@ -23,12 +23,13 @@ class Grid:
     """Values arranged as (group, parameter, session): ``groups`` the group keys, ``names``
     the parameters (in the order they first appear), sessions in time order (NaN: none);
     ``times``/``benches``/``ids`` of each session (group, session) from the first parameter
-    seen."""
+    seen; ``dofs`` the degrees of freedom of each σ (inf: exact)."""
 
     groups: list[tuple[str, ...]]
     names: list[str]
     values: np.ndarray
     sigmas: np.ndarray
+    dofs: np.ndarray
     times: np.ndarray
     benches: np.ndarray
     ids: np.ndarray
@@ -38,7 +39,7 @@ def grid(t: ValueTable, by: Sequence[str]) -> Grid:
     """Arrange ``t`` by the columns ``by`` (e.g. ('serial', 'bench'))."""
     if len(t) == 0:
         e = np.zeros((0, 0, 0))
-        return Grid([], [], e, e, e.astype(object), e.astype(object), e.astype(np.int64))
+        return Grid([], [], e, e, e, e.astype(object), e.astype(object), e.astype(np.int64))
     cols = [getattr(t, c).astype(str) for c in by]
     key = cols[0].astype(object)
     for c in cols[1:]:
@@ -66,6 +67,8 @@ def grid(t: ValueTable, by: Sequence[str]) -> Grid:
     sigmas = np.full((g, p, s), np.nan)
     values[gi, ni, si] = t.value
     sigmas[gi, ni, si] = t.stderr
+    dofs = np.full((g, p, s), np.inf)
+    dofs[gi, ni, si] = t.dof
     times = np.full((g, s), "", dtype=object)
     benches = np.full((g, s), "", dtype=object)
     ids = np.full((g, s), -1, dtype=np.int64)
@@ -73,7 +76,7 @@ def grid(t: ValueTable, by: Sequence[str]) -> Grid:
     benches[gi, si] = t.bench
     ids[gi, si] = t.id
     groups = [tuple(k.split("\x1f")) for k in gkeys]
-    return Grid(groups, names, values, sigmas, times, benches, ids)
+    return Grid(groups, names, values, sigmas, dofs, times, benches, ids)
 
 
 # ---- trend -----------------------------------------------------------------------------------
@@ -122,7 +125,8 @@ def trend(
 @dataclass(frozen=True)
 class RepeatRow:
     """One parameter of one unit (on one bench unless pooled): the statistics of
-    :func:`host.archive.stats.repeatability` and whether it ``failed`` the family-wise test."""
+    :func:`host.archive.stats.repeatability` (``nu``: Welch's second dof, inf when every σ is
+    exact) and whether it ``failed`` the family-wise test."""
 
     serial: str
     bench: str
@@ -136,6 +140,7 @@ class RepeatRow:
     p: float
     cv: float
     failed: bool
+    nu: float = math.inf
 
 
 def repeat(
@@ -148,12 +153,13 @@ def repeat(
 ) -> list[RepeatRow]:
     """Repeatability of ``serial`` (every unit when None) from its sessions on each bench
     (``across_benches``: all its sessions pooled — reproducibility). A parameter fails when
-    its χ² p-value is below alpha / (number of parameters tested in this run)."""
+    its p-value (χ², or Welch's F where a σ is estimated: :func:`host.archive.stats.welch_p`)
+    is below alpha / (number of parameters tested in this run)."""
     t = archive.values(serial=serial, lot=lot)
     if serial is not None and len(t) == 0:
         raise UserError(f"{serial}: no calibration of this serial in the archive")
     g = grid(t, ("serial",) if across_benches else ("serial", "bench"))
-    r = stats.repeatability(g.values, g.sigmas)
+    r = stats.repeatability(g.values, g.sigmas, g.dofs)
     m = int(np.count_nonzero(r.dof >= 1))
     limit = alpha / max(m, 1)
     rows = []
@@ -167,7 +173,7 @@ def repeat(
                     key[0], "(all)" if across_benches else key[1], name, int(r.n[gi, pi]),
                     float(r.mean[gi, pi]), float(r.scatter[gi, pi]), float(r.predicted[gi, pi]),
                     float(r.chi2[gi, pi]), int(r.dof[gi, pi]), p, float(r.cv[gi, pi]),
-                    bool(p < limit),
+                    bool(p < limit), float(r.nu[gi, pi]),
                 )
             )  # fmt: skip
     return rows

@@ -39,7 +39,8 @@ OPERATOR_ENV = "IMU_BENCH_OPERATOR"
 class Parameter:
     """One fitted parameter as archived: report ``name`` ('A0x', 'temperature_bias.gyro.y'),
     the term/sensor/axis it belongs to, ``value`` and 1-σ ``stderr`` in ``unit`` (NaN: not
-    determined), the §7 ``tolerance`` and ``passed`` flag where the method has one."""
+    determined), the §7 ``tolerance`` and ``passed`` flag where the method has one, ``dof``
+    the degrees of freedom of ``stderr`` (inf: from the noise model alone)."""
 
     name: str
     term: str
@@ -50,6 +51,7 @@ class Parameter:
     stderr: float
     tolerance: float | None = None
     passed: bool | None = None
+    dof: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -307,11 +309,10 @@ def entry_from_directory(
     measured_at = _measured_at(metas, result.created)
     self_test = self_test_outcome(metas, path)
     params = tuple(
-        Parameter(
-            p.name, p.term, p.sensor, p.axis, p.unit, p.value, p.stderr, p.tolerance, p.passed
-        )
+        Parameter(p.name, p.term, p.sensor, p.axis, p.unit, p.value, p.stderr, p.tolerance,
+                  p.passed, p.dof)
         for p in result.parameters
-    )
+    )  # fmt: skip
     full = result_covariance(doc, [p.name for p in params])
     fit = result.fit
     return Entry(

@@ -98,6 +98,7 @@ parameters = Table(
     Column("stderr", Float),
     Column("tolerance", Float),
     Column("passed", Boolean),
+    Column("dof", Float),
 )
 
 record_files = Table(
@@ -193,12 +194,29 @@ def _v4(conn: Connection) -> None:
         conn.execute(text(ddl))
 
 
+def _v5(conn: Connection) -> None:
+    """A parameter's ``dof`` (the degrees of freedom of its σ; null: from the noise model
+    alone, and for every row archived before it, whose result files carried none): a column
+    (an archive created by this program has it from v1's table), and the values' covering
+    index with it, so that the repeat test reads it from the index alone."""
+    columns = {col["name"] for col in inspect(conn).get_columns("parameters")}
+    if "dof" not in columns:
+        conn.execute(text("ALTER TABLE parameters ADD COLUMN dof FLOAT"))
+    for ddl in (
+        "CREATE INDEX ix_parameters_values_dof ON parameters "
+        "(name, calibration_id, position, value, stderr, dof)",
+        "DROP INDEX ix_parameters_values",
+    ):
+        conn.execute(text(ddl))
+
+
 #: (version, what it does, the change) in order; a new version appends, none is ever edited
 MIGRATIONS: tuple[tuple[int, str, Callable[[Connection], None]], ...] = (
     (1, "calibrations, parameters, record_files", _v1),
     (2, "covering indexes for the lot and trend queries; lz4 for the large columns", _v2),
     (3, "the fit's verdict and RMS z in the sessions' covering index", _v3),
     (4, "the simulated flag, set for simulated results, in the sessions' index", _v4),
+    (5, "a parameter's dof, in the values' covering index", _v5),
 )
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 

@@ -60,7 +60,9 @@ class Repeatability:
     """Per group (e.g. unit × parameter; arrays of the leading shape): ``n`` sessions,
     weighted ``mean``, ``scatter`` (sample standard deviation between sessions), ``predicted``
     σ (RMS of the sessions' σ), ``chi2`` on ``dof`` = n − 1, its ``p`` (NaN for n < 2), and
-    ``cv`` = scatter/|mean| where the mean is far from zero (else NaN)."""
+    ``cv`` = scatter/|mean| where the mean is far from zero (else NaN). ``nu``: the second
+    degrees of freedom of Welch's test where a session's σ is itself estimated (inf: every σ
+    from the noise model alone, ``p`` the χ² tail), :func:`welch_p`."""
 
     n: np.ndarray
     mean: np.ndarray
@@ -70,12 +72,39 @@ class Repeatability:
     dof: np.ndarray
     p: np.ndarray
     cv: np.ndarray
+    nu: np.ndarray
 
 
-def repeatability(values: np.ndarray, sigmas: np.ndarray) -> Repeatability:
-    """The sessions along the last axis of ``values``/``sigmas`` (NaN: no session there)."""
+def welch_p(
+    chi2: np.ndarray, w: np.ndarray, dofs: np.ndarray, n: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(p, ν₂) of Welch's heteroscedastic test that ``n`` sessions share one value, from the
+    weighted ``chi2`` = Σ w_i (x_i − x̄)² with weights ``w`` = 1/σ_i² (0: no session) whose σ_i
+    are read on ``dofs`` degrees of freedom (along the last axis): with λ = Σ (1 − w_i/W)²/ν_i,
+    F = χ²/(n − 1) / (1 + 2(n − 2)λ/(n² − 1)) on (n − 1, (n² − 1)/(3λ)) degrees of freedom.
+    Where every σ is exact (λ = 0) this is the χ² test on n − 1 (ν₂ inf): a σ read on few
+    dof scatters, and the χ² tail would reject a true repeat far more often than it says."""
+    from scipy import stats as sps
+
+    dof = np.maximum(n - 1, 1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = w / w.sum(axis=-1, keepdims=True)
+        lam = np.where(w > 0, (1.0 - share) ** 2 / dofs, 0.0).sum(axis=-1)
+        nu = np.where(lam > 0, (n * n - 1.0) / (3.0 * lam), np.inf)
+        f = chi2 / dof / (1.0 + 2.0 * (n - 2.0) * lam / (n * n - 1.0))
+        p = np.where(lam > 0, sps.f.sf(f, dof, np.where(lam > 0, nu, 1.0)),
+                     sps.chi2.sf(chi2, dof))  # fmt: skip
+    return np.where(n >= 2, p, np.nan), nu
+
+
+def repeatability(
+    values: np.ndarray, sigmas: np.ndarray, dofs: np.ndarray | None = None
+) -> Repeatability:
+    """The sessions along the last axis of ``values``/``sigmas`` (NaN: no session there),
+    each σ read on ``dofs`` degrees of freedom (inf, and None for all: exact)."""
     x = np.asarray(values, dtype=np.float64)
     s = np.asarray(sigmas, dtype=np.float64)
+    d = np.full(x.shape, np.inf) if dofs is None else np.asarray(dofs, dtype=np.float64)
     ok = np.isfinite(x) & np.isfinite(s) & (s > 0)
     w = np.where(ok, 1.0 / np.where(ok, s, 1.0) ** 2, 0.0)
     xz = np.where(ok, x, 0.0)
@@ -87,13 +116,11 @@ def repeatability(values: np.ndarray, sigmas: np.ndarray) -> Repeatability:
         scatter = np.sqrt(((xz - plain[..., None]) ** 2 * ok).sum(axis=-1) / (n - 1))
         predicted = np.sqrt((np.where(ok, s, 0.0) ** 2).sum(axis=-1) / n)
         cv = np.where(np.abs(mean) >= CV_FAR_FROM_ZERO * predicted, scatter / np.abs(mean), np.nan)
-    dof = n - 1
-    from scipy import stats as sps
-
-    p = np.where(dof >= 1, sps.chi2.sf(chi2, np.maximum(dof, 1)), np.nan)
+    p, nu = welch_p(chi2, w, np.where(ok & (d > 0), d, np.inf), n)
     bad = n < 2
     scatter = np.where(bad, np.nan, scatter)
-    return Repeatability(n, mean, scatter, predicted, np.where(bad, np.nan, chi2), dof, p, cv)
+    return Repeatability(n, mean, scatter, predicted, np.where(bad, np.nan, chi2), n - 1, p, cv,
+                         np.where(bad, np.nan, nu))  # fmt: skip
 
 
 # ---- drift -----------------------------------------------------------------------------------

@@ -119,6 +119,11 @@ def _nan(v: Any) -> float:
     return math.nan if v is None else float(v)
 
 
+def _inf(v: Any) -> float:
+    """A stored dof: null (from the noise model alone, or archived before dof) is inf."""
+    return math.inf if v is None else float(v)
+
+
 def _null(v: float) -> float | None:
     return None if v is None or not math.isfinite(v) else float(v)
 
@@ -168,7 +173,8 @@ class ValueTable:
     by serial, time, calibration and parameter: ``id`` (calibration), ``serial``, ``bench``,
     ``measured_at`` (UTC ISO text), ``self_test``, ``verdict``, ``fit_verdict`` (the fit's:
     'inadequate' beside a 'pass' is a conditional PASS), ``rms_z`` (the fit's), ``name``,
-    ``value``, ``stderr`` (NaN: not determined), all numpy arrays of one length."""
+    ``value``, ``stderr`` (NaN: not determined), ``dof`` (the degrees of freedom of
+    ``stderr``; inf: from the noise model alone), all numpy arrays of one length."""
 
     id: np.ndarray
     serial: np.ndarray
@@ -181,6 +187,7 @@ class ValueTable:
     name: np.ndarray
     value: np.ndarray
     stderr: np.ndarray
+    dof: np.ndarray
 
     def __len__(self) -> int:
         return int(self.id.shape[0])
@@ -383,7 +390,7 @@ class Archive:
         params = tuple(
             Parameter(
                 p.name, p.term, p.sensor, p.axis, p.unit, _nan(p.value), _nan(p.stderr),
-                p.tolerance, p.passed,
+                p.tolerance, p.passed, _inf(p.dof),
             )
             for p in ps
         )  # fmt: skip
@@ -444,7 +451,7 @@ class Archive:
             select(
                 chosen.c.id, chosen.c.serial, chosen.c.bench, chosen.c.measured_at,
                 chosen.c.self_test, chosen.c.verdict, chosen.c.fit_verdict, chosen.c.rms_z,
-                p.name, p.value, p.stderr,
+                p.name, p.value, p.stderr, p.dof,
             )
             .join(parameters, p.calibration_id == chosen.c.id)
             .where(chosen.c.ru == 1 if latest_per_unit else true())
@@ -514,7 +521,7 @@ def archive_directory(
 
 
 def _value_table(rows: Sequence[Any]) -> ValueTable:
-    cols = list(zip(*rows, strict=True)) if rows else [()] * 11
+    cols = list(zip(*rows, strict=True)) if rows else [()] * 12
 
     def obj(i: int) -> np.ndarray:
         a = np.empty(len(cols[i]), dtype=object)
@@ -527,7 +534,7 @@ def _value_table(rows: Sequence[Any]) -> ValueTable:
     return ValueTable(
         id=np.array(cols[0], dtype=np.int64), serial=obj(1), bench=obj(2), measured_at=obj(3),
         self_test=obj(4), verdict=obj(5), fit_verdict=obj(6), rms_z=num(7), name=obj(8),
-        value=num(9), stderr=num(10),
+        value=num(9), stderr=num(10), dof=np.array([_inf(v) for v in cols[11]], dtype=np.float64),
     )  # fmt: skip
 
 
@@ -586,4 +593,5 @@ def _parameter_row(cid: int, position: int, p: Parameter) -> dict[str, Any]:
         "calibration_id": cid, "position": position, "name": p.name, "term": p.term,
         "sensor": p.sensor, "axis": p.axis, "unit": p.unit, "value": _null(p.value),
         "stderr": _null(p.stderr), "tolerance": p.tolerance, "passed": p.passed,
+        "dof": _null(p.dof),
     }  # fmt: skip

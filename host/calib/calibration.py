@@ -417,6 +417,7 @@ def _parameters(f: _Fitted) -> tuple[ParameterResult, ...]:
             TOLERANCES.get(p.name),
             within(p.name, p.value),
             needs.get(p.name, ""),
+            p.dof,
         )  # fmt: skip
         for p in f.fit.parameters
     )

@@ -40,6 +40,15 @@ def jsonable(v: Any) -> Any:
 
 
 # ---- the parts of a result ----------------------------------------------------------------
+def _dof(v: Any) -> float:
+    """A parameter's ``dof`` from a file: null is inf; ValueError unless a positive number."""
+    if v is None:
+        return math.inf
+    if isinstance(v, bool) or not isinstance(v, int | float) or not (v > 0):
+        raise ValueError(f"a parameter's dof is {v!r}: expected a positive number or null")
+    return float(v)
+
+
 @dataclass(frozen=True)
 class ParameterResult:
     """One parameter of one term on one output channel.
@@ -48,7 +57,9 @@ class ParameterResult:
     output channel), ``key`` the term's parameter ('per_C'), ``name`` its report name ('A0x';
     'temperature_bias.gyro.y' for further terms). ``value``/``stderr`` in ``unit``; NaN value:
     not determined by the records, ``needs`` says what would determine it. ``tolerance`` and
-    ``passed`` where method.md §7 defines a tolerance (None otherwise).
+    ``passed`` where method.md §7 defines a tolerance (None otherwise). ``dof``: the degrees
+    of freedom ``stderr`` is read on (inf, null in the file: from the noise model alone; finite
+    where an estimated variance component carries part of it — its U takes Student's t).
     """
 
     term: str
@@ -62,6 +73,7 @@ class ParameterResult:
     tolerance: float | None = None
     passed: bool | None = None
     needs: str = ""
+    dof: float = math.inf
 
     @property
     def determined(self) -> bool:
@@ -83,7 +95,7 @@ class ParameterResult:
             name=str(d["name"]), value=as_float(d["value"]), stderr=as_float(d["stderr"]),
             unit=str(d["unit"]), tolerance=None if tol is None else float(tol),
             passed=None if d.get("passed") is None else bool(d["passed"]),
-            needs=str(d.get("needs", "")),
+            needs=str(d.get("needs", "")), dof=_dof(d.get("dof")),
         )  # fmt: skip
 
 

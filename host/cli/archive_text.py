@@ -150,7 +150,8 @@ def repeat(
     failed = sorted({(r.serial, r.bench) for r in rows if r.failed})
     tested = sum(1 for r in rows if r.dof >= 1)
     out = prose(
-        f"repeatability: between-session scatter against the σ of each fit, χ² per parameter; "
+        f"repeatability: between-session scatter against the σ of each fit, χ² per parameter "
+        f"(its p from Welch's F on ν where a σ is read on few dof); "
         f"false alarms: {_rate(alpha)} of runs over a lot with nothing wrong "
         f"({tested} parameters tested, p < {alpha / max(tested, 1):.2g} fails)",
         w,
@@ -166,6 +167,7 @@ def repeat(
             Column("scatter", [_g(r.scatter, 3) for r in rs]),
             Column("σ pred", [_g(r.predicted, 3) for r in rs]),
             Column("χ²", [_g(r.chi2, 3) for r in rs], rank=1),
+            Column("ν", ["—" if not math.isfinite(r.nu) else f"{r.nu:.0f}" for r in rs], rank=3),
             Column("p", [_g(r.p, 2) for r in rs]),
             Column(
                 "CV", ["—" if not math.isfinite(r.cv) else f"{100 * r.cv:.2f}%" for r in rs], rank=3

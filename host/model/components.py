@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,7 +47,7 @@ from host.model.dataset import Dataset
 from host.model.design import BuiltColumns
 from host.model.fit import Fit, fit_model
 from host.model.spec import ModelTerm
-from host.model.stats import beyond_white
+from host.model.stats import NORMAL_DOF, beyond_white, satterthwaite_dof
 from host.model.variance import (
     POSE_HOLD_PLAUSIBLE_DEG,
     POSE_RATE_PLAUSIBLE_DPS,
@@ -176,11 +176,15 @@ def _residuals(spec: _Spec, ds: Dataset, fit: Fit) -> np.ndarray:
 
 
 def _estimate(spec: _Spec, ds: Dataset, fit: Fit) -> tuple[float, float, float]:
-    """(σ² resolved or 0, its standard error, dof Σ(1 − h)) from ``fit``'s residuals."""
+    """(σ² resolved or 0, its standard error, dof Σ(1 − h)) from ``fit``'s residuals. The
+    standard error is exact for normal rows: the covered residuals r = S·e, S = diag(s_i) their
+    σ, e ~ N(0, M) with M = I − QQᵀ on those rows, so var(Σr²) = 2·tr((S²M)²) — the
+    residuals' correlation counted, not only their leverage."""
     if not len(spec.rows):
         return 0.0, math.nan, 0.0
-    h = np.sum(fit.basis[spec.rows] ** 2, axis=1) if fit.basis.shape[1] else 0.0
-    free = np.clip(1.0 - h, 0.0, 1.0)
+    q = fit.basis[spec.rows] if fit.basis.shape[1] else np.zeros((len(spec.rows), 0))
+    m = np.eye(len(spec.rows)) - q @ q.T
+    free = np.clip(np.diag(m), 0.0, 1.0)
     dof = float(np.sum(free))
     if dof < 0.5:
         return 0.0, math.nan, dof
@@ -188,7 +192,8 @@ def _estimate(spec: _Spec, ds: Dataset, fit: Fit) -> tuple[float, float, float]:
     wf = spec.white * free
     var = float(np.sum(r * r - wf)) / dof
     resolved = var if beyond_white(float(r @ r), float(np.sum(wf)), 2.0 * float(wf @ wf)) else 0.0
-    se = math.sqrt(2.0 * float(np.sum((wf + max(var, 0.0) * free) ** 2))) / dof
+    sm = (spec.white + max(var, 0.0))[:, None] * m
+    se = math.sqrt(2.0 * max(float(np.sum(sm * sm.T)), 0.0)) / dof
     return resolved, se, dof
 
 
@@ -223,6 +228,39 @@ def _component(spec: _Spec, var: float, se: float, dof: float) -> Component:
     return Component(spec.name, value, sigma, int(round(dof)), unit, spec.absorbs, plausible)
 
 
+def _with_dof(
+    fit: Fit,
+    specs: Sequence[_Spec],
+    var: Mapping[str, float],
+    est: Mapping[str, tuple[float, float, float]],
+) -> Fit:
+    """``fit`` with each parameter's ``dof``: its variance's share read through an estimated
+    component's rows (Σ over them of the influence² · σ²/s², the standard errors' scale
+    applied) on that component's ν = 2σ⁴/se(σ²)², the rest exact (Welch–Satterthwaite,
+    :func:`host.model.stats.satterthwaite_dof`); inf at :data:`NORMAL_DOF` or more."""
+    if fit.influence is None:
+        return fit
+    shares: list[np.ndarray] = []
+    dofs: list[float] = []
+    at = 0
+    for s in specs:
+        infl = fit.influence[at : at + len(s.rows)]
+        at += len(s.rows)
+        v, se = var[s.name], est[s.name][1]
+        if s.fixed or not (v > 0.0 and math.isfinite(se) and se > 0.0):
+            continue
+        shares.append(v * np.sum(infl**2 / (s.white + v)[:, None], axis=0))
+        dofs.append(2.0 * v * v / (se * se))
+    if not shares:
+        return fit
+    params = []
+    for c, p in enumerate(fit.parameters):
+        k2 = fit.se_scales.get(p.name, 1.0) ** 2
+        nu = satterthwaite_dof(p.stderr**2, [k2 * float(sh[c]) for sh in shares], dofs)
+        params.append(dataclasses.replace(p, dof=nu if nu < NORMAL_DOF else math.inf))
+    return dataclasses.replace(fit, parameters=tuple(params))
+
+
 def without_components(ds: Dataset, names: Sequence[str]) -> Dataset:
     """``ds`` with the rows of the components ``names`` (:data:`_WORDS`) weighed by
     their white variance alone, the component at 0: the yardstick on which what an implausible
@@ -247,7 +285,8 @@ def fit_with_components(
     var = {s.name: _current(ds, s.name) ** 2 for s in specs}
     est: dict[str, tuple[float, float, float]] = {}
     cur = ds
-    fit = fit_model(cur, model, built=built)
+    rows = np.concatenate([s.rows for s in specs]) if specs else np.zeros(0, dtype=int)
+    fit = fit_model(cur, model, built=built, influence_rows=rows)
     iterations = 1
     for _ in range(max_iter):
         moved = False
@@ -264,7 +303,7 @@ def fit_with_components(
             cur = _reweigh(cur, s, new)
         if not moved:
             break
-        fit = fit_model(cur, model, built=built)
+        fit = fit_model(cur, model, built=built, influence_rows=rows)
         iterations += 1
     comps = tuple(_component(s, var[s.name], *est[s.name][1:]) for s in specs)
     old = tuple(f"a named variance component: {name}:" for name in var)
@@ -274,4 +313,4 @@ def fit_with_components(
         components=tuple(c for c in cur.components if c.name not in var) + comps,
         notes=(*notes, *("a named variance component: " + c.describe() for c in comps)),
     )
-    return JointFit(fit, cur, comps, iterations)
+    return JointFit(_with_dof(fit, specs, var, est), cur, comps, iterations)

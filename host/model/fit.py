@@ -50,7 +50,10 @@ from host.session.method import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
 class Parameter:
     """One fitted parameter: §2-style ``name``, owning model-term label, value, 1-σ std error
     (NaN value: the records do not determine it), unit; ``sensor``, ``axis`` (x/y/z, the output
-    channel) and ``key`` (the term's own parameter name, e.g. ``per_C``)."""
+    channel) and ``key`` (the term's own parameter name, e.g. ``per_C``). ``dof``: the degrees
+    of freedom the standard error is read on (inf: from the noise model alone; finite where
+    an estimated variance component carries part of it,
+    :func:`host.model.components.fit_with_components`)."""
 
     name: str
     term: str
@@ -60,6 +63,7 @@ class Parameter:
     sensor: str = ""
     axis: str = ""
     key: str = ""
+    dof: float = math.inf
 
     @property
     def term_name(self) -> str:
@@ -130,6 +134,10 @@ class Fit:
     #: parameter name -> the factor its standard error was widened by (:func:`stderr_scale`
     #: of its channel; a parameter the moves' rows read: at least the moves' factor)
     se_scales: Mapping[str, float] = field(default_factory=dict)
+    #: (len(influence_rows), n_params) ∂θ/∂(whitened row) of the rows asked for
+    #: (:func:`fit_model`'s ``influence_rows``; the order of ``parameters``, unscaled): a
+    #: parameter's variance is the sum of its column's squares over every row
+    influence: np.ndarray | None = None
 
     @property
     def untestable(self) -> tuple[str, ...]:
@@ -176,14 +184,18 @@ class Fit:
 
 
 def fit_model(
-    ds: Dataset, model: Sequence[ModelTerm], max_iter: int = 20, built: BuiltColumns | None = None
+    ds: Dataset,
+    model: Sequence[ModelTerm],
+    max_iter: int = 20,
+    built: BuiltColumns | None = None,
+    influence_rows: np.ndarray | None = None,
 ) -> Fit:
     """Weighted least squares of ``model`` over all rows of ``ds`` (one problem, all channels).
 
     Parameters the records cannot determine are reported NaN (and listed in ``undetermined``).
     Nonlinear terms: Gauss-Newton iterations until the parameters settle. ``built``: the
-    columns already built on these rows (:class:`~host.model.design.BuiltColumns`).
-    """
+    columns already built on these rows (:class:`~host.model.design.BuiltColumns`);
+    ``influence_rows``: the whitened rows whose influence :attr:`Fit.influence` keeps."""
     model = tuple(model)
     sol = solve(ds, model, max_iter, built, covariance=True)
     x, xw, keep, basis, theta, cov = sol.x, sol.xw, sol.keep, sol.basis, sol.theta, sol.cov
@@ -216,13 +228,8 @@ def fit_model(
         if not ok:
             undetermined.append(name)
     groups, spans_out = residual_tables(ds, predicted, resid, basis)
-    pcov = cov * np.outer(scale, scale)
-    bad = ~(keep & estimable)
-    pcov[bad, :] = np.nan
-    pcov[:, bad] = np.nan
     conv = np.array([o[0] in fixed for o in owners], dtype=bool)
-    pcov[conv, :] = 0.0
-    pcov[:, conv] = 0.0
+    pcov = _scaled_covariance(cov, scale, ~(keep & estimable), conv)
     return Fit(
         model=model, parameters=tuple(params), predicted=predicted, residual=resid,
         white_residual=wres, basis=basis, chi2=chi2, dof=ds.n_rows - n_par - free_levels(ds.groups),
@@ -230,7 +237,21 @@ def fit_model(
         groups=groups, spans=spans_out, undetermined=tuple(undetermined),
         channels=tuple(channels), covariance=pcov,
         se_scales={o[0]: float(k) for o, k in zip(owners, scale, strict=True)},
+        influence=None if influence_rows is None else xw[influence_rows] @ cov,
     )  # fmt: skip
+
+
+def _scaled_covariance(
+    cov: np.ndarray, scale: np.ndarray, bad: np.ndarray, conv: np.ndarray
+) -> np.ndarray:
+    """The parameters' covariance with their standard errors' ``scale``: NaN rows and
+    columns where ``bad`` (undetermined), 0 where ``conv`` (fixed by convention)."""
+    pcov = cov * np.outer(scale, scale)
+    pcov[bad, :] = np.nan
+    pcov[:, bad] = np.nan
+    pcov[conv, :] = 0.0
+    pcov[:, conv] = 0.0
+    return pcov
 
 
 def _by_convention(ds: Dataset) -> set[str]:

@@ -1,10 +1,12 @@
 """Statistics in pure numpy: the χ² tail and its inverse, the project's one uncertainty policy
-(:func:`stderr_scale`), the row echelon form the fit reads combinations from and the right
+(:func:`stderr_scale`), the degrees of freedom of a σ that is itself estimated
+(:func:`satterthwaite_dof`), the row echelon form the fit reads combinations from and the right
 singular vectors it reads null spaces from (:func:`right_singular`)."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -110,6 +112,28 @@ def least_beyond_white(null_mean: float, null_var: float) -> float:
         return math.inf
     c = null_var / (2.0 * null_mean)
     return c * chi2_isf(ALPHA_COMPONENT, 2.0 * null_mean**2 / null_var)
+
+
+#: a σ on this many degrees of freedom or more is read as exact (its coverage factor that of the
+#: normal distribution; a result file writes no dof for it)
+NORMAL_DOF = 1000.0
+
+
+def satterthwaite_dof(
+    variance: float, shares: Sequence[float], share_dofs: Sequence[float]
+) -> float:
+    """Welch–Satterthwaite: the effective degrees of freedom of a ``variance`` (unit²) that is
+    a sum of parts, the estimated ones ``shares`` (unit², each read on ``share_dofs`` degrees
+    of freedom) and the rest known exactly: ν = V² / Σ s²/ν_s. inf when no part is estimated
+    (a share of 0, or one on infinite dof, adds nothing)."""
+    denom = sum(
+        s * s / d
+        for s, d in zip(shares, share_dofs, strict=True)
+        if s > 0.0 and d > 0.0 and math.isfinite(d)
+    )
+    if not (denom > 0.0) or not (variance > 0.0):
+        return math.inf
+    return variance * variance / denom
 
 
 def rref(m: np.ndarray, tol: float = 1e-9) -> np.ndarray:

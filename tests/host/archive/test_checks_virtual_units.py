@@ -52,9 +52,6 @@ def _calibrate(tmp: Path, db: str, serial: str, url: str = URL) -> Any:
 
 @pytest.mark.slow
 @pytest.mark.timeout(900)
-@pytest.mark.xfail(strict=True, reason="issue 45 item 3's Done-when not met yet: with noise seeds "
-                   "1000-1059, Gzy's p lies in (0.01, 0.99) in 16 of 20 triples (22 of 660 "
-                   "p outside, 13 expected)")  # fmt: skip
 def test_three_sessions_of_a_virtual_unit_scatter_as_the_noise_says(tmp_path: Path) -> None:
     db = str(tmp_path / "a.sqlite")
     p: dict[str, list[float]] = {}

@@ -30,6 +30,7 @@ def _table() -> ValueTable:
         fit_verdict=obj("inadequate", "inadequate"), rms_z=np.array([8.35, 8.35]),
         name=obj("A0x", "Gzz"),
         value=np.array([0.1 + 0.2, math.nan]), stderr=np.array([1e-17, math.nan]),
+        dof=np.array([6.0, math.inf]),
     )  # fmt: skip
 
 

@@ -56,6 +56,41 @@ def test_repeat_statistics_on_a_small_case() -> None:
     assert one.n == 1 and np.isnan(one.p)
 
 
+@pytest.mark.parametrize("nu", [3, 6, 20])
+def test_repeat_p_is_uniform_when_each_sigma_is_read_on_few_dof(nu: int) -> None:
+    """Each session's σ estimated on ν dof (s² = σ²·χ²_ν/ν, as a variance component makes
+    it): the χ² tail then rejects a true repeat several times too often (at ν = 3 about 8 %
+    of triples at p < 1 %); Welch's F keeps the rate at 1 % and the p uniform."""
+    rng = np.random.default_rng(nu)
+    n = 20000
+    sigma = rng.uniform(0.5, 2.0, (n, 3))
+    x = 3.0 + rng.normal(0.0, sigma)
+    s = sigma * np.sqrt(rng.chisquare(nu, (n, 3)) / nu)
+    plain = stats.repeatability(x, s)
+    welch = stats.repeatability(x, s, np.full((n, 3), float(nu)))
+    assert np.all(np.isfinite(welch.nu)) and np.all(welch.nu > 0)
+    assert np.mean(welch.p < 0.01) == pytest.approx(0.01, abs=0.0035)
+    assert np.mean(plain.p < 0.01) > 0.015  # the χ² tail over-rejects: the test would see it
+    assert sps.kstest(welch.p, "uniform").pvalue > 1e-3
+
+
+def test_repeat_with_exact_sigmas_is_the_chi2_test_and_a_step_still_fails() -> None:
+    x = np.array([1.0, 2.0, 4.0])
+    s = np.array([1.0, 1.0, 2.0])
+    exact = stats.repeatability(x, s, np.full(3, np.inf))
+    assert exact.p == pytest.approx(sps.chi2.sf(exact.chi2, 2)) and np.isinf(exact.nu)
+    few = stats.repeatability(x, s, np.array([4.0, 4.0, np.inf]))
+    assert few.p > exact.p  # σ known less well: the same scatter is less surprising
+    # Welch's statistic by hand: λ = Σ (1 − w/W)²/ν over the sessions with a finite ν
+    w = 1 / s**2
+    lam = ((1 - w[:2] / w.sum()) ** 2 / 4.0).sum()
+    f = exact.chi2 / 2 / (1 + 2 * lam / 8)
+    assert few.nu == pytest.approx(8 / (3 * lam))
+    assert few.p == pytest.approx(sps.f.sf(f, 2, 8 / (3 * lam)))
+    step = stats.repeatability(np.array([0.0, 0.0, 30.0]), np.ones(3), np.full(3, 6.0))
+    assert step.p < 1e-3
+
+
 def test_drift_flags_the_stated_fraction_and_finds_a_move() -> None:
     rng = np.random.default_rng(2)
     units, params = 200, 6

@@ -57,6 +57,24 @@ def test_an_entry_comes_back_whole_and_adding_it_twice_is_a_no_op(archive_url: s
         assert math.isnan(back.parameters[0].value) and back.temp_mean_c == 31.5
 
 
+def test_a_sigmas_dof_comes_back_and_null_is_from_the_noise_model(archive_url: str) -> None:
+    """A σ read on few dof (a variance component's share) is archived with its dof and the
+    values the repeat test reads carry it; one from the noise model alone (inf) as null."""
+    e = _entry("U7")
+    ps = tuple(dataclasses.replace(p, dof=3.0 + i) if i % 2 else p
+               for i, p in enumerate(e.parameters))  # fmt: skip
+    e = dataclasses.replace(e, parameters=ps)
+    with Archive(archive_url) as a:
+        cid, _ = a.add(e)
+        assert [p.dof for p in a.entry(cid).parameters] == [p.dof for p in ps]
+        v = a.values(serial="U7")
+        assert list(v.dof) == [p.dof for p in ps]
+        with a.engine.connect() as conn:
+            stored = conn.execute(text(f"SELECT dof FROM parameters WHERE calibration_id = {cid} "
+                                       "ORDER BY position")).scalars().all()  # fmt: skip
+        assert stored[0] is None and stored[1] == 4.0
+
+
 def test_a_batch_is_added_at_once_and_knows_what_was_there(archive_url: str) -> None:
     a1, a2, a3 = _entry("U1"), _entry("U2"), _entry("U3")
     with Archive(archive_url) as a:
@@ -181,7 +199,8 @@ def test_an_archive_of_version_1_is_migrated_and_keeps_its_rows(
         m.setattr(schema, "MIGRATIONS", schema.MIGRATIONS[:1])
         m.setattr(schema, "SCHEMA_VERSION", 1)
         assert schema.migrate(engine.connect) == 1
-    with engine.begin() as conn:  # rows written by the version-1 program
+    with engine.begin() as conn:  # rows written by the version-1 program (no dof column)
+        conn.execute(text("ALTER TABLE parameters DROP COLUMN dof"))
         for e in entries:
             cid = conn.execute(
                 schema.calibrations.insert().returning(schema.calibrations.c.id),
@@ -189,7 +208,10 @@ def test_an_archive_of_version_1_is_migrated_and_keeps_its_rows(
             ).scalar_one()
             conn.execute(
                 schema.parameters.insert(),
-                [store._parameter_row(cid, i, p) for i, p in enumerate(e.parameters)],
+                [
+                    {k: v for k, v in store._parameter_row(cid, i, p).items() if k != "dof"}
+                    for i, p in enumerate(e.parameters)
+                ],  # fmt: skip
             )
     engine.dispose()
     with Archive(archive_url) as a:
@@ -202,6 +224,8 @@ def test_an_archive_of_version_1_is_migrated_and_keeps_its_rows(
         with a.engine.connect() as conn:
             names = {ix["name"] for ix in inspect(conn).get_indexes("calibrations")}
             assert "ix_calibrations_unit_sims" in names  # v4: with the simulated flag
+            pix = {ix["name"] for ix in inspect(conn).get_indexes("parameters")}
+            assert "ix_parameters_values_dof" in pix and "ix_parameters_values" not in pix
             assert not names & {"ix_calibrations_serial_time", "ix_calibrations_unit_sessions",
                                 "ix_calibrations_unit_verdicts"}  # fmt: skip
             if a.backend == "postgresql":  # the large columns compressed with lz4

@@ -275,6 +275,32 @@ def test_a_version_that_is_not_an_integer_is_refused(version: object) -> None:
         result_from_json(json.dumps(d))
 
 
+def test_a_parameters_dof_is_kept_and_checked_on_load() -> None:
+    """A σ read on few dof comes back with them; inf is written as null (and a file without
+    dof, written before it, reads inf); anything but a positive number is refused."""
+    import dataclasses
+
+    from host.calib.calibration import calibrate_from_records
+    from host.session.directory import Session
+    from tests.host.calib_truth import make_records
+
+    res = calibrate_from_records(Session("DF1", make_records(seed=6)))
+    ps = tuple(dataclasses.replace(p, dof=2.5 + i) if i % 3 == 0 else p
+               for i, p in enumerate(res.parameters))  # fmt: skip
+    back = result_from_json(result_to_json(dataclasses.replace(res, parameters=ps)))
+    assert [p.dof for p in back.parameters] == [p.dof for p in ps]
+    d = json.loads(result_to_json(dataclasses.replace(res, parameters=ps)))
+    assert d["parameters"][1]["dof"] is None and d["parameters"][0]["dof"] == 2.5
+    for p in d["parameters"]:
+        p.pop("dof")
+    assert all(math.isinf(p.dof) for p in result_from_json(json.dumps(d)).parameters)
+    for bad in (0, -3.0, "6", True, [6]):
+        d["parameters"][0]["dof"] = bad
+        with pytest.raises(UserError, match="dof") as info:
+            result_from_json(json.dumps(d))
+        assert "\n" not in str(info.value)
+
+
 def test_the_floor_source_is_kept_and_checked_on_load() -> None:
     """``floor_source`` (the --noise/--floor a result's floor came from) comes back as written;
     a file written before it loads as measured from the records; anything but text under the
