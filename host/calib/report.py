@@ -29,7 +29,7 @@ from host.calib.certificate import (
 )
 from host.calib.codec import FLOOR_SOURCES, result_to_json
 from host.calib.commands import command_lines
-from host.calib.decision import K, statement
+from host.calib.decision import K, coverage_factor, statement
 from host.calib.provenance import UNKNOWN_SENSOR, Provenance
 from host.calib.report_lines import WIDTH, paginate
 from host.calib.report_lines import wrap as _wrap
@@ -130,7 +130,7 @@ def _closed_form_check(r: CalibrationResult) -> list[str]:
     return _wrap(f"Closed form (§3, §4) differs from {what} by at most {max(cf):.2e}", "", "  ")
 
 
-#: a row of the results table: name, value, unit, tolerance, mark, U (k = 2), note
+#: a row of the results table: name, value, unit, tolerance, mark, U (95 %), note
 ResultRow = tuple[str, str, str, str, str, str, str]
 
 
@@ -139,6 +139,7 @@ def result_rows(r: CalibrationResult) -> list[tuple[str, list[ResultRow]]]:
     with its unit, tolerance, mark and expanded uncertainty, as the report writes them."""
     decided, consts = marks(r), r.constants()
     std_errors = r.std_errors
+    dofs = {p.name: p.dof for p in r.parameters}
     in_model = {p.name for p in r.parameters} | set(r.noise_std)
     groups: list[tuple[str, list[ResultRow]]] = []
     for title, names, unit, tol in GROUPS:
@@ -147,22 +148,27 @@ def result_rows(r: CalibrationResult) -> list[tuple[str, list[ResultRow]]]:
         if not groups or groups[-1][0] != head:
             groups.append((head, []))
         for n in names:
-            se = std_errors.get(n, math.nan)
-            note = ""
+            se, k = std_errors.get(n, math.nan), coverage_factor(dofs.get(n, math.inf))
+            note = t_note(k, dofs.get(n, math.inf)) if math.isfinite(se) else ""
             if not math.isfinite(consts[n]):
                 note = "not determined" if n in in_model else "not in the model"
             groups[-1][1].append((n, value_text(consts[n]), UNITS[n], tol_s, decided[n] or " ",
-                                  f"±{K * se:.5f}" if math.isfinite(se) else "", note))  # fmt: skip
+                                  f"±{k * se:.5f}" if math.isfinite(se) else "", note))  # fmt: skip
     return groups
+
+
+def t_note(k: float, dof: float) -> str:
+    """A U's note where its k is Student's t ('k = 3.31, 3 dof'); '' for k = 2."""
+    return "" if k == K else f"k = {k:.2f}, {dof:.0f} dof"
 
 
 def _results_table(r: CalibrationResult) -> list[str]:
     """The §7 table: every value with its unit, tolerance, mark and expanded uncertainty."""
     out = [
         "RESULTS: value, tolerance, mark (decision rule below), and U: the expanded",
-        "uncertainty, k = 2 (twice the standard error; about 95 % coverage)",
+        "uncertainty at 95 % coverage, k = 2 (Student's t where the note gives a dof)",
         *_wrap(statement(r.decision_rule), "", "  "),
-        f"  {'value':<7}{'measured':>12}  {'unit':<8}{'tolerance':>11}  mark  U (k = 2)",
+        f"  {'value':<7}{'measured':>12}  {'unit':<8}{'tolerance':>11}  mark   U (95 %)",
         "-" * WIDTH,
     ]
     for title, rows in result_rows(r):
@@ -175,10 +181,13 @@ def _results_table(r: CalibrationResult) -> list[str]:
 
 def _further_terms(r: CalibrationResult) -> list[str]:
     """The parameters of the terms beyond the §2 model, value ± U."""
-    out = ["Further terms of the model (value ± U, k = 2)"]
+    out = ["Further terms of the model (value ± U, 95 %)"]
     for p in r.further:
         if p.determined:
-            out.append(f"  {p.name:<34}{value_text(p.value, 6):>14} ± {K * p.stderr:.2g} {p.unit}")
+            k = coverage_factor(p.dof)
+            note = f" ({t_note(k, p.dof)})" if k != K else ""
+            out.append(f"  {p.name:<34}{value_text(p.value, 6):>14} ± {k * p.stderr:.2g} {p.unit}"
+                       f"{note}")  # fmt: skip
         else:
             out.append(f"  {p.name:<34}{'not determined':>14}")
     return out

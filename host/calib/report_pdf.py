@@ -3,12 +3,13 @@
 Set with reportlab on A4: a title block (the report number, laboratory, bench, customer, item,
 method, the dates of calibration and of issue) as a table; the conditions and the traceability
 of every reference as a table; the §7 results as a ruled table with units, tolerances, marks
-and U (k = 2); the residuals per record as a table and as plots (matplotlib figures embedded as
-images, the ``plot`` extra); the other sections of :func:`host.calib.report.report_sections`
-as paragraphs; the signatures with name and date lines. Every page has a header (laboratory,
-report number) and a footer ("page i of n", the report number, and on a simulated board's
-result the SIMULATED mark). The words are the text report's: both come from the same
-sections. ``calibrate --pdf`` writes it (a few seconds of drawing, so not unasked).
+and U (95 % coverage: k = 2, or Student's t on a σ's dof); the residuals per record as a table
+and as plots (matplotlib figures embedded as images, the ``plot`` extra); the other sections
+of :func:`host.calib.report.report_sections` as paragraphs; the signatures with name and date
+lines. Every page has a header (laboratory, report number) and a footer ("page i of n", the
+report number, and on a simulated board's result the SIMULATED mark). The words are the text
+report's: both come from the same sections. ``calibrate --pdf`` writes it (a few seconds of
+drawing, so not unasked).
 """
 
 from __future__ import annotations
@@ -216,7 +217,7 @@ def _results(result: CalibrationResult, st: dict[str, Any]) -> list[Any]:
     """The §7 table: a row per value, a spanning row per group."""
     from reportlab.lib.units import mm
 
-    rows: list[list[Any]] = [["value", "measured", "unit", "tolerance", "mark", "U (k = 2)",
+    rows: list[list[Any]] = [["value", "measured", "unit", "tolerance", "mark", "U (95 %)",
                               "note"]]  # fmt: skip
     extra: list[tuple[Any, ...]] = [("ALIGN", (1, 1), (1, -1), "RIGHT"),
                                     ("ALIGN", (3, 1), (5, -1), "RIGHT")]  # fmt: skip
@@ -228,7 +229,8 @@ def _results(result: CalibrationResult, st: dict[str, Any]) -> list[Any]:
     widths = [w * mm for w in (20, 24, 18, 20, 12, 24, 30)]
     return [
         _p("Results: value, tolerance, mark (decision rule below) and U, the expanded "
-           "uncertainty, k = 2 (twice the standard error; about 95 % coverage)", st["h"]),
+           "uncertainty at 95 % coverage, k = 2 (Student's t where the note gives a dof)",
+           st["h"]),
         _p(statement(result.decision_rule), st["body"]),
         _table(rows, widths, extra=extra),
     ]  # fmt: skip

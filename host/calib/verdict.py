@@ -17,7 +17,7 @@ import math
 from collections.abc import Mapping
 from typing import Protocol
 
-from host.calib.decision import FAIL, PASS, UNDECIDED, K, mark
+from host.calib.decision import FAIL, PASS, UNDECIDED, coverage_factor, mark
 from host.calib.values import (
     FitQuality,
     ParameterResult,
@@ -90,13 +90,17 @@ def missing_records(r: Judged) -> list[str]:
     return [n for n in method_records(r) if n not in measured]
 
 
-def value_mark(name: str, value: float, stderr: float, rule: str) -> str | None:
-    """The mark of the §7 value ``name`` (``value``, its 1-σ ``stderr``; NaN: none) under
-    ``rule`` (:func:`host.calib.decision.mark`, U = K · stderr); None: no tolerance."""
+def value_mark(
+    name: str, value: float, stderr: float, rule: str, dof: float = math.inf
+) -> str | None:
+    """The mark of the §7 value ``name`` (``value``, its 1-σ ``stderr`` read on ``dof``
+    degrees of freedom; NaN: none) under ``rule`` (:func:`host.calib.decision.mark`, U = k ·
+    stderr, :func:`host.calib.decision.coverage_factor`); None: no tolerance."""
     tol = tolerance_of(name)
     if tol is None:
         return None
-    return mark(value, tol, K * stderr, rule, one_sided=name in NOISE_NAMES)
+    u = coverage_factor(dof) * stderr
+    return mark(value, tol, u, rule, one_sided=name in NOISE_NAMES)
 
 
 def marks(r: Judged) -> dict[str, str | None]:
@@ -104,10 +108,13 @@ def marks(r: Judged) -> dict[str, str | None]:
     determined), ``?`` (U reaches across a limit: not a pass), None no tolerance (or not in
     the model)."""
     stderr = {p.name: p.stderr for p in r.parameters}
+    dof = {p.name: p.dof for p in r.parameters}
     in_model = set(stderr) | set(r.noise_std)
     consts = constants_of(r.parameters, r.noise_std)
     return {
-        n: value_mark(n, v, stderr.get(n, math.nan), r.decision_rule) if n in in_model else None
+        n: value_mark(n, v, stderr.get(n, math.nan), r.decision_rule, dof.get(n, math.inf))
+        if n in in_model
+        else None
         for n, v in consts.items()
     }
 

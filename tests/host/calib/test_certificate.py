@@ -27,6 +27,7 @@ from host.calib.certificate import (
     report_number,
 )
 from host.calib.codec import read_result
+from host.calib.decision import coverage_factor
 from host.calib.report import format_report
 from host.calib.report_lines import FORM_FEED, PAGE_LINES
 from host.calib.result import CalibrationResult
@@ -135,7 +136,8 @@ def _items(res: CalibrationResult, records: Path, sep: str) -> list[str]:
         "The calibration method this project implements", "method.md",  # the method
         f"Date of calibration{sep}{starts[0][:10]}",
         "Date of issue",
-        f"{gxx.value:+.5f}", f"±{2 * gxx.stderr:.5f}", "U (k = 2)", "±0.03",  # results, U
+        f"{gxx.value:+.5f}", f"±{coverage_factor(gxx.dof) * gxx.stderr:.5f}", "U (95 %)",
+        "±0.03",  # results, U
         f"chip {temps.min():.1f} to {temps.max():.1f} °C",  # conditions
         f"{res.g:.5f} m/s²", "from the bench file", bench.site.source,  # g and its source
         "n·360° (n = 1) by the operator's count of whole turns",  # the turn angle

@@ -14,7 +14,17 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from host.calib.codec import result_from_json, result_to_json
-from host.calib.decision import FAIL, PASS, RULES, UNDECIDED, check_rule, mark, statement
+from host.calib.decision import (
+    COVERAGE,
+    FAIL,
+    PASS,
+    RULES,
+    UNDECIDED,
+    check_rule,
+    coverage_factor,
+    mark,
+    statement,
+)
 from host.calib.report import format_report
 from host.calib.result import CalibrationResult, base_parameters
 from host.calib.verdict import undecided
@@ -122,6 +132,47 @@ def test_the_verdict_report_and_file_follow_the_rule() -> None:
     doc["decision_rule"] = "lenient"
     with pytest.raises(Exception, match="lenient"):
         result_from_json(json.dumps(doc))
+
+
+@pytest.mark.parametrize("nu", [3, 6, 20])
+def test_u_on_a_sigma_read_on_few_dof_covers_as_it_says(nu: int) -> None:
+    """A value x ~ N(μ, σ²) whose σ is itself read on ν dof (s² = σ²·χ²_ν/ν): U = k·s with k
+    from :func:`coverage_factor` covers μ in 95.45 % of draws (binomial 4 σ); the normal k = 2
+    would cover visibly less."""
+    import numpy as np
+
+    rng = np.random.default_rng(nu)
+    n = 40000
+    x = rng.normal(0.0, 1.0, n)
+    s = np.sqrt(rng.chisquare(nu, n) / nu)
+    k = coverage_factor(nu)
+    covered = float(np.mean(np.abs(x) <= k * s))
+    assert abs(covered - COVERAGE) < 4 * math.sqrt(COVERAGE * (1 - COVERAGE) / n)
+    assert float(np.mean(np.abs(x) <= 2.0 * s)) < COVERAGE - 0.005
+    assert coverage_factor(math.inf) == coverage_factor(1e6) == 2.0
+    assert coverage_factor(nu) > coverage_factor(nu + 1) > 2.0
+    with pytest.raises(ValueError, match="dof"):
+        coverage_factor(0.0)
+
+
+def test_a_sigma_on_few_dof_widens_u_and_the_report_says_its_k() -> None:
+    """Gyy at 0.020 with σ 0.0045: k = 2 puts value ± U inside ±0.03 ('+'), but a σ read on 6
+    dof takes Student's k ≈ 2.52 and U reaches past the limit: '?', the row's U is k·σ and its
+    note names k and the dof."""
+    se = {n: 1e-4 for n in CONSTANT_NAMES} | {"Gyy": 0.0045}
+    exact = _result({"Gyy": 0.020}, se, "guarded")
+    assert exact.all_passed
+    params = tuple(dataclasses.replace(p, dof=6.0) if p.name == "Gyy" else p
+                   for p in exact.parameters)  # fmt: skip
+    few = dataclasses.replace(exact, parameters=params)
+    assert few.verdict().startswith("FAIL: Gyy undecided")
+    line = next(ln for ln in format_report(few).splitlines() if ln.strip().startswith("Gyy"))
+    k = coverage_factor(6.0)
+    assert f"±{k * 0.0045:.5f}" in line and f"k = {k:.2f}, 6 dof" in line
+    assert line.split()[3] == "?"
+    exact_line = next(ln for ln in format_report(exact).splitlines()
+                      if ln.strip().startswith("Gyy"))  # fmt: skip
+    assert f"±{2 * 0.0045:.5f}" in exact_line and "dof" not in exact_line
 
 
 @pytest.mark.parametrize("given", ["lenient", "", "GUARDED", "guarded "])

@@ -6,6 +6,7 @@ recomputation, which keeps the measured-at time."""
 from __future__ import annotations
 
 import json
+import math
 import re
 from pathlib import Path
 
@@ -112,11 +113,16 @@ def test_every_item_of_the_certificate_from_a_live_session(live: Path) -> None:
     computed = _line(text, "Computed:")
     assert computed == f"Computed: {res.created.replace('T', ' ')} by imu-bench {__version__}"
 
-    # results: expanded uncertainty k = 2 and the verdict
+    # results: expanded uncertainty at 95.45 % (k = 2, Student's t on a σ's dof) and the verdict
     assert "U: the expanded" in text and "k = 2" in text
+    from scipy import stats
+
     for name in ("Gxx", "A0z", "GAyz"):
         row = next(ln for ln in lines if ln.split()[:1] == [name])
-        assert row.split()[-1] == f"±{2 * res.parameter(name).stderr:.5f}", row
+        p = res.parameter(name)
+        k = 2.0 if math.isinf(p.dof) else stats.t.isf((1 - math.erf(2**0.5)) / 2, p.dof)
+        assert f"±{k * p.stderr:.5f}" in row.split(), row
+        assert (f"k = {k:.2f}, {p.dof:.0f} dof" in row) == math.isfinite(p.dof), row
     assert _line(text, "Verdict:").startswith(f"Verdict: {'PASS' if res.all_passed else 'FAIL'}")
     i = lines.index("CONCLUSION")
     assert lines[i + 1].strip().startswith("PASS" if res.all_passed else "FAIL")
