@@ -1,6 +1,6 @@
 """The QC page's charts as inline SVG (:func:`svg_chart`), a pure function of the points: the
 time of each calibration on x (dates, or dates and times when they fall within two days), the
-parameter in its unit on y, both axes titled; a trend's ± U band (k = 2) and a control chart's
+parameter in its unit on y, both axes titled; a trend's ± U band (95 %) and a control chart's
 centre line and ±1/2/3 σ limits, the y range holding every point, band and limit drawn."""
 
 from __future__ import annotations
@@ -19,8 +19,6 @@ from host.session.method import UNITS
 W, H = 520, 230
 #: the frame's margins: left (y ticks and title), right (limit names), top (title), bottom
 LEFT, RIGHT, TOP, BOTTOM = 78, 40, 26, 50
-#: the coverage factor of the trend's band: U = K_U · σ
-K_U = 2.0
 X_TITLE = "calibrated (UTC)"
 
 
@@ -192,32 +190,31 @@ def svg_chart(
     y: Sequence[float],
     times: Sequence[str],
     *,
-    err: Sequence[float] | None = None,
+    u: Sequence[float] | None = None,
     centre: float = math.nan,
     sigma: float = math.nan,
     marked: Sequence[bool] | None = None,
     labels: Sequence[str] | None = None,
 ) -> str:
     """An inline SVG of parameter ``name``'s values ``y`` (its unit: :func:`param_unit`) at
-    ``times`` (UTC ISO 8601, in order), titled ``title``. ``err``: each value's 1-σ standard
-    error, drawn as the ± U band (U = :data:`K_U` · σ); ``centre``/``sigma`` finite: the centre
+    ``times`` (UTC ISO 8601, in order), titled ``title``. ``u``: each value's expanded
+    uncertainty U (95 %, its unit), drawn as the ± U band; ``centre``/``sigma`` finite: the centre
     line and the ±1/2/3 σ limits; ``marked`` points (a rule fired) red; ``labels`` tooltips."""
     v = np.asarray(y, dtype=np.float64)
-    u = np.zeros_like(v) if err is None else K_U * np.nan_to_num(np.asarray(err, np.float64))
+    half = np.zeros_like(v) if u is None else np.nan_to_num(np.asarray(u, np.float64))
     limits = [centre + k * sigma for k in (-3, 3)] if math.isfinite(centre + sigma) else []
     t, t0, t1, times_ok = _x_range(_seconds(times))
-    f = _Frame(t0, t1, *_y_range(v, u, [centre, *limits] if limits else []))
+    f = _Frame(t0, t1, *_y_range(v, half, [centre, *limits] if limits else []))
     parts = [
         f'<svg class="chart" xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" '
         f'viewBox="0 0 {W} {H}" role="img" aria-label="{_e(title)}">',
         f'<text x="{LEFT}" y="17" class="t">{_e(title)}</text>',
         *_axes(f, times_ok, t, name),
         *(_limits(f, centre, sigma) if limits else []),
-        *_band(f, t, v, u),
+        *_band(f, t, v, half),
         *_points(f, t, v, marked, labels),
     ]
-    if err is not None:
-        parts.append(f'<text x="{W - RIGHT}" y="17" class="a legend">band: ± U (k = {K_U:g})'
-                     "</text>")  # fmt: skip
+    if u is not None:
+        parts.append(f'<text x="{W - RIGHT}" y="17" class="a legend">band: ± U (95 %)</text>')
     parts.append("</svg>")
     return "".join(parts)

@@ -14,6 +14,7 @@ import numpy as np
 from host.archive import stats
 from host.archive.entry import conditional_pass
 from host.archive.store import Archive, ValueTable
+from host.calib.decision import coverage_factor
 from host.errors import UserError
 from host.session.method import TOLERANCES
 
@@ -82,10 +83,20 @@ def grid(t: ValueTable, by: Sequence[str]) -> Grid:
 # ---- trend -----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class TrendPoint:
+    """One session of a trend: UTC time, bench, value and 1-σ ``stderr`` in the parameter's
+    unit, read on ``dof`` degrees of freedom (inf: from the noise model alone)."""
+
     measured_at: str
     bench: str
     value: float
     stderr: float
+    dof: float = math.inf
+
+    @property
+    def expanded(self) -> float:
+        """U at 95 % coverage, as the certificate gives it
+        (:func:`host.calib.decision.coverage_factor`)."""
+        return coverage_factor(self.dof) * self.stderr
 
 
 def nothing_selected(archive: Archive, selection: str, names: Sequence[str] | None) -> UserError:
@@ -116,7 +127,7 @@ def trend(
     for i in range(len(t)):
         out.setdefault(str(t.name[i]), []).append(
             TrendPoint(str(t.measured_at[i]), str(t.bench[i]), float(t.value[i]),
-                       float(t.stderr[i]))
+                       float(t.stderr[i]), float(t.dof[i]))
         )  # fmt: skip
     return out
 

@@ -185,9 +185,9 @@ def _trend_svgs(d: PageData) -> list[str]:
     return [
         svg_chart(
             f"{written_serial(serial)} · {name}", name, [p.value for p in pts],
-            [p.measured_at for p in pts], err=[p.stderr for p in pts],
-            labels=[f"{p.measured_at[:19]} {p.bench} {_g(p.value, 6)} ± {_g(p.stderr, 2)} "
-                    f"(1 σ) {param_unit(name)}" for p in pts],
+            [p.measured_at for p in pts], u=[p.expanded for p in pts],
+            labels=[f"{p.measured_at[:19]} {p.bench} {_g(p.value, 6)} ± {_g(p.expanded, 2)} "
+                    f"(U, 95 %) {param_unit(name)}" for p in pts],
         )
         for serial, by in d.trends.items()
         for name, pts in by.items()
@@ -222,8 +222,8 @@ the lot, not a unit: a unit fails by its own report (listed above).</p>
 {stats.ARL_WESTERN_ELECTRIC:.0f} points on average.</p>
 <div class="charts" id="control">{"".join(_control_svgs(d))}</div>
 <h2>Trends of the units flagged</h2>
-<p>Each calibration's value in time; the band and bars: ± U, the expanded uncertainty (k = 2,
-twice the fit's σ).</p>
+<p>Each calibration's value in time; the band and bars: ± U, the expanded uncertainty at 95 %
+coverage as the certificate gives it (twice the fit's σ, or Student's t on its dof).</p>
 <div class="charts" id="trends">{trends}</div>
 <script>
 document.body.dataset.charts = String(document.querySelectorAll("svg.chart").length);

@@ -6,6 +6,7 @@ fell below the points)."""
 
 from __future__ import annotations
 
+import math
 import re
 
 import pytest
@@ -76,15 +77,29 @@ def _value_to_y(svg: str) -> tuple[float, float]:
     return y0 - b * v0, b
 
 
-def test_a_trend_draws_plus_minus_u_at_twice_the_sigma() -> None:
-    values, sigmas = [0.10, 0.14, 0.12], [0.004, 0.010, 0.002]
-    svg = svg_chart("U17 · A0x", "A0x", values, DAYS, err=sigmas)
+def test_a_trend_draws_plus_minus_u_as_given() -> None:
+    values, us = [0.10, 0.14, 0.12], [0.008, 0.020, 0.004]
+    svg = svg_chart("U17 · A0x", "A0x", values, DAYS, u=us)
     a, b = _value_to_y(svg)
     bars = re.findall(r'y1="([-\d.]+)" y2="([-\d.]+)" class="err"', svg)
-    assert len(bars) == 3 and "<polygon" in svg and "band: ± U (k = 2)" in svg
-    for (lo, hi), v, s in zip(bars, values, sigmas, strict=True):
-        assert float(lo) == pytest.approx(a + b * (v - 2 * s), abs=0.15)
-        assert float(hi) == pytest.approx(a + b * (v + 2 * s), abs=0.15)
+    assert len(bars) == 3 and "<polygon" in svg and "band: ± U (95 %)" in svg
+    for (lo, hi), v, u in zip(bars, values, us, strict=True):
+        assert float(lo) == pytest.approx(a + b * (v - u), abs=0.15)
+        assert float(hi) == pytest.approx(a + b * (v + u), abs=0.15)
+
+
+def test_a_trend_points_u_is_the_certificates() -> None:
+    """A trend's U is the certificate's: 2σ for a σ from the noise model alone, Student's t
+    at 95.45 % on the σ's dof where it is estimated (3.31σ on 3 dof)."""
+    from scipy import stats
+
+    from host.archive.checks import TrendPoint
+
+    exact = TrendPoint("2026-01-01T00:00:00Z", "B1", 0.1, 0.01)
+    few = TrendPoint("2026-01-01T00:00:00Z", "B1", 0.1, 0.01, 3.0)
+    assert exact.expanded == pytest.approx(0.02)
+    k3 = stats.t.isf((1 - math.erf(2**0.5)) / 2, 3)
+    assert few.expanded == pytest.approx(0.01 * k3) and 3.3 < k3 < 3.32
 
 
 @pytest.mark.parametrize(
