@@ -1,7 +1,7 @@
 """The archive's values for the user's own analysis: one row per (calibration, parameter) as
 CSV, or as Parquet when pyarrow is installed (it is not a dependency: ~40 MB for one format):
 the unit (``serial``) and its production ``lot`` on every row, the value and σ with their
-``unit`` (method.md §7)."""
+``unit`` (method.md §7), and the σ's ``dof`` where it is itself estimated (empty: exact)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from host.session.atomic import write_text_atomic
 
 COLUMNS = (
     "calibration_id", "serial", "lot", "bench", "measured_at", "self_test", "verdict",
-    "fit_verdict", "parameter", "value", "stderr", "unit",
+    "fit_verdict", "parameter", "value", "stderr", "unit", "dof",
 )  # fmt: skip
 #: the header of an export written before the lot and unit columns (replaced like any export)
 EARLIER_COLUMNS = (
@@ -37,6 +37,7 @@ def _columns(t: ValueTable, lots: Mapping[int, str]) -> dict[str, list[object]]:
         "fit_verdict": list(t.fit_verdict), "parameter": list(t.name),
         "value": [float(x) for x in t.value], "stderr": [float(x) for x in t.stderr],
         "unit": [param_unit(str(n)) for n in t.name],
+        "dof": [float(x) if math.isfinite(x) else math.nan for x in t.dof],
     }  # fmt: skip
 
 
@@ -49,7 +50,8 @@ def _cell(v: object) -> object:
 def write_csv(
     t: ValueTable, path: str | os.PathLike[str], lots: Mapping[int, str] | None = None
 ) -> int:
-    """Write ``t`` as CSV (header :data:`COLUMNS`; a value not determined is an empty field;
+    """Write ``t`` as CSV (header :data:`COLUMNS`; a value not determined, and the dof of an
+    exact σ, is an empty field;
     ``lots``: each calibration id's lot, '' when not given); returns the number of rows."""
     cols = _columns(t, lots or {})
     f = io.StringIO(newline="")

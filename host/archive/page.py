@@ -112,7 +112,7 @@ def _unit_findings(d: PageData) -> dict[str, list[tuple[int, float, str]]]:
                 f"{minute_utc(dr.after_at)}: recalibrate")  # fmt: skip
     for r in d.repeat:
         if r.failed:
-            add(r.serial, 4, -r.p, f"{r.name} not repeatable on {r.bench} (χ² p {r.p:.2g})")
+            add(r.serial, 4, -r.p, f"{r.name} not repeatable on {r.bench} (p {r.p:.2g})")
     for row in d.lot.rows:
         for serial, v in row.outliers:
             add(serial, 5, 0.0, f"{row.name} = {_g(v, 5)} {param_unit(row.name)} is an outlier"

@@ -49,6 +49,8 @@ def test_csv_reads_back_exactly(tmp_path: Path) -> None:
     assert (rows[0]["verdict"], rows[0]["fit_verdict"]) == ("pass", "inadequate")
     assert float(rows[0]["value"]) == 0.1 + 0.2 and float(rows[0]["stderr"]) == 1e-17
     assert rows[1]["value"] == "" and rows[1]["stderr"] == ""
+    # the σ's dof where it is itself estimated; an exact σ's is empty
+    assert float(rows[0]["dof"]) == 6.0 and rows[1]["dof"] == ""
 
 
 def test_other_formats(tmp_path: Path) -> None:
