@@ -14,7 +14,7 @@ import numpy as np
 from host.archive import stats
 from host.archive.entry import conditional_pass
 from host.archive.store import Archive, ValueTable
-from host.calib.decision import coverage_factor
+from host.calib.decision import expanded_uncertainty
 from host.errors import UserError
 from host.session.method import TOLERANCES
 
@@ -95,8 +95,8 @@ class TrendPoint:
     @property
     def expanded(self) -> float:
         """U at 95 % coverage, as the certificate gives it
-        (:func:`host.calib.decision.coverage_factor`)."""
-        return coverage_factor(self.dof) * self.stderr
+        (:func:`host.calib.decision.expanded_uncertainty`)."""
+        return expanded_uncertainty(self.stderr, self.dof)
 
 
 def nothing_selected(archive: Archive, selection: str, names: Sequence[str] | None) -> UserError:

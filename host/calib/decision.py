@@ -54,6 +54,18 @@ def coverage_factor(dof: float = math.inf) -> float:
     return float(stats.t.isf(0.5 * (1.0 - COVERAGE), dof))
 
 
+def expanded_uncertainty(stderr: float, dof: float = math.inf) -> float:
+    """U = k·``stderr`` (same unit) at :data:`COVERAGE`, k by :func:`coverage_factor`."""
+    return coverage_factor(dof) * stderr
+
+
+def coverage_note(dof: float = math.inf) -> str:
+    """What a U's row says of its k where it is Student's t ('k = 3.31, 3 dof'); '' for
+    :data:`K`."""
+    k = coverage_factor(dof)
+    return "" if k == K else f"k = {k:.2f}, {dof:.0f} dof"
+
+
 def check_rule(rule: str) -> str:
     """``rule`` when it is one of :data:`RULES`; ValueError naming them otherwise."""
     if rule not in RULES:

@@ -29,7 +29,7 @@ from host.calib.certificate import (
 )
 from host.calib.codec import FLOOR_SOURCES, result_to_json
 from host.calib.commands import command_lines
-from host.calib.decision import K, coverage_factor, statement
+from host.calib.decision import coverage_note, expanded_uncertainty, statement
 from host.calib.provenance import UNKNOWN_SENSOR, Provenance
 from host.calib.report_lines import WIDTH, paginate
 from host.calib.report_lines import wrap as _wrap
@@ -148,18 +148,14 @@ def result_rows(r: CalibrationResult) -> list[tuple[str, list[ResultRow]]]:
         if not groups or groups[-1][0] != head:
             groups.append((head, []))
         for n in names:
-            se, k = std_errors.get(n, math.nan), coverage_factor(dofs.get(n, math.inf))
-            note = t_note(k, dofs.get(n, math.inf)) if math.isfinite(se) else ""
+            se, dof = std_errors.get(n, math.nan), dofs.get(n, math.inf)
+            note = coverage_note(dof) if math.isfinite(se) else ""
             if not math.isfinite(consts[n]):
                 note = "not determined" if n in in_model else "not in the model"
             groups[-1][1].append((n, value_text(consts[n]), UNITS[n], tol_s, decided[n] or " ",
-                                  f"±{k * se:.5f}" if math.isfinite(se) else "", note))  # fmt: skip
+                                  f"±{expanded_uncertainty(se, dof):.5f}" if math.isfinite(se)
+                                  else "", note))  # fmt: skip
     return groups
-
-
-def t_note(k: float, dof: float) -> str:
-    """A U's note where its k is Student's t ('k = 3.31, 3 dof'); '' for k = 2."""
-    return "" if k == K else f"k = {k:.2f}, {dof:.0f} dof"
 
 
 def _results_table(r: CalibrationResult) -> list[str]:
@@ -184,10 +180,9 @@ def _further_terms(r: CalibrationResult) -> list[str]:
     out = ["Further terms of the model (value ± U, 95 %)"]
     for p in r.further:
         if p.determined:
-            k = coverage_factor(p.dof)
-            note = f" ({t_note(k, p.dof)})" if k != K else ""
-            out.append(f"  {p.name:<34}{value_text(p.value, 6):>14} ± {k * p.stderr:.2g} {p.unit}"
-                       f"{note}")  # fmt: skip
+            u, note = expanded_uncertainty(p.stderr, p.dof), coverage_note(p.dof)
+            out.append(f"  {p.name:<34}{value_text(p.value, 6):>14} ± {u:.2g} {p.unit}"
+                       + (f" ({note})" if note else ""))  # fmt: skip
         else:
             out.append(f"  {p.name:<34}{'not determined':>14}")
     return out

@@ -17,7 +17,7 @@ import math
 from collections.abc import Mapping
 from typing import Protocol
 
-from host.calib.decision import FAIL, PASS, UNDECIDED, coverage_factor, mark
+from host.calib.decision import FAIL, PASS, UNDECIDED, expanded_uncertainty, mark
 from host.calib.values import (
     FitQuality,
     ParameterResult,
@@ -95,11 +95,11 @@ def value_mark(
 ) -> str | None:
     """The mark of the §7 value ``name`` (``value``, its 1-σ ``stderr`` read on ``dof``
     degrees of freedom; NaN: none) under ``rule`` (:func:`host.calib.decision.mark`, U = k ·
-    stderr, :func:`host.calib.decision.coverage_factor`); None: no tolerance."""
+    stderr, :func:`host.calib.decision.expanded_uncertainty`); None: no tolerance."""
     tol = tolerance_of(name)
     if tol is None:
         return None
-    u = coverage_factor(dof) * stderr
+    u = expanded_uncertainty(stderr, dof)
     return mark(value, tol, u, rule, one_sided=name in NOISE_NAMES)
 
 
